@@ -1,0 +1,54 @@
+// bake.h: per-pixel fog passes for one camera view, multithreaded over rows.
+#pragma once
+
+#include <atomic>
+#include <functional>
+#include <vector>
+
+#include "models.h"
+#include "scene.h"
+
+namespace airlight {
+
+struct BakeSettings {
+    ModelId model = ModelId::Sun05Table;
+    int threads = 0;            // 0: all hardware threads
+    // Antialiasing: pixels whose first-hit distances disagree with a neighbour's are
+    // supersampled with _aa_samples_ x _aa_samples_ stratified samples weighted by a
+    // Blackman-Harris filter of width _filter_width_ pixels (Cycles' default film
+    // filter: 1.5 px), so fog edges line up with the render's antialiased edges.
+    int aa_samples = 4;
+    double filter_width = 1.5;
+    int table_nu = 256, table_nT = 256;
+};
+
+struct BakeStats {
+    double seconds_raycast = 0.0;
+    double seconds_airlight = 0.0;
+    long long supersampled_pixels = 0;
+    long long samples = 0;
+};
+
+// Output images are row-major, top row first, 3 floats (RGB) per pixel.
+struct BakeResult {
+    int width = 0, height = 0;
+    std::vector<float> airlight;       // in-scattered radiance, Cycles Combined units
+    std::vector<float> transmittance;  // exp(-T) to the first surface (0 at infinity if sigma_t > 0)
+    std::vector<float> depth;          // 1 float per pixel: distance to first hit at pixel centre (inf: none)
+    BakeStats stats;
+};
+
+// Progress callback: called from the calling thread with a fraction in [0, 1];
+// return false to cancel (bake then throws airlight::Cancelled).
+using ProgressFn = std::function<bool(double)>;
+
+struct Cancelled : std::exception {
+    const char* what() const noexcept override { return "bake cancelled"; }
+};
+
+// Validates the scene (throws std::invalid_argument with a clear message on NaN,
+// negative density, zero resolution, ...) and bakes.
+BakeResult bake(const SceneDescription& scene, const BakeSettings& settings,
+                const ProgressFn& progress = nullptr);
+
+}  // namespace airlight

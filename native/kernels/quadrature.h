@@ -1,0 +1,19 @@
+// quadrature.h: exact references by adaptive quadrature.
+#pragma once
+
+#include <functional>
+
+namespace airlight {
+
+// Adaptive Gauss-Kronrod (7-15) integration of f over [a, b] (b may be +inf, handled
+// by a change of variables) to relative tolerance _rel_tol_.
+double integrate_adaptive(const std::function<double(double)>& f, double a, double b,
+                          double rel_tol = 1e-10, double abs_tol = 0.0, int max_depth = 60);
+
+// Reference airlight: adaptive quadrature of Sun 2005 eq. 5 with I0 = 1, omega = 1,
+//   La = sigma_t/(4 pi) int_0^Dvp exp(-sigma_t d(x)) / d(x)^2 * exp(-sigma_t x) dx,
+//   d(x)^2 = Dsv^2 + x^2 - 2 x Dsv cos_gamma.
+double sun05_airlight_quadrature(double sigma_t, double Dsv, double cos_gamma, double Dvp,
+                                 double rel_tol = 1e-10);
+
+}  // namespace airlight

@@ -1,0 +1,57 @@
+// scene.h: the plain scene description that the native side consumes.
+//
+// Data flows one way: Blender data -> (addon/airlight/scene_export.py) -> this
+// description -> kernels -> passes. Nothing in here knows about Blender or Python.
+// Units: scene units (metres), radiance in the units of Cycles' Combined pass.
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include <glm/glm.hpp>
+
+namespace airlight {
+
+using Vec3 = glm::dvec3;
+using RGB = glm::dvec3;
+
+// Homogeneous medium: extinction coefficient _sigma_t_ (Sun 2005's beta) in 1/m,
+// and single-scattering albedo (the fog colour), so sigma_s = albedo * sigma_t.
+struct HomogeneousMedium {
+    double sigma_t = 0.0;
+    RGB albedo{1.0, 1.0, 1.0};
+};
+
+// Isotropic point light. _I0_ is the radiant intensity in W/sr per RGB channel:
+// a Blender point light of power P and colour C has I0 = C * P / (4 pi) (Cycles).
+struct PointLight {
+    Vec3 position{0.0};
+    RGB I0{0.0};
+};
+
+// Pinhole or orthographic camera, given the way Blender gives it:
+// _cam_to_world_ is the camera object's matrix_world (the camera looks down -Z),
+// _projection_ is camera.calc_matrix_camera(depsgraph, x=width, y=height,
+// scale_x, scale_y) (OpenGL clip space, including shift and sensor fit).
+struct Camera {
+    glm::dmat4 cam_to_world{1.0};
+    glm::dmat4 projection{1.0};
+    int width = 0;   // render resolution in pixels (after percentage)
+    int height = 0;
+};
+
+// Triangle soup in world space (all render-visible geometry).
+struct TriangleMesh {
+    std::vector<float> vertices;      // 3 floats per vertex
+    std::vector<uint32_t> triangles;  // 3 indices per triangle
+};
+
+struct SceneDescription {
+    Camera camera;
+    HomogeneousMedium medium;
+    std::vector<PointLight> point_lights;
+    TriangleMesh geometry;
+};
+
+}  // namespace airlight
