@@ -1,0 +1,46 @@
+# Airlight: the two entry points are `make demo` and `make test` (see README.md).
+# Both install the Debian packages they need first (tools/install_deps.sh, as root).
+
+PYTHON   := /usr/bin/python3
+BUILD    := build
+JOBS     ?= 2
+XVFB     := xvfb-run -a -s "-screen 0 1280x1024x24"
+BLENDER  := tools/blender.sh
+
+.PHONY: all deps build demo test test-native test-python test-blender test-gpu bench clean
+
+all: build
+
+deps:
+	bash tools/install_deps.sh
+
+build: deps
+	cmake -S . -B $(BUILD) -DCMAKE_BUILD_TYPE=Release -DPython_EXECUTABLE=$(PYTHON)
+	cmake --build $(BUILD) -j$(JOBS)
+
+# Builds everything, installs the add-on into an isolated Blender user directory and
+# renders the example street headless with fog baked into compositing passes -> out/.
+demo: build
+	mkdir -p out
+	$(BLENDER) -b blend_examples/street.blend --python tools/demo.py -- out
+
+test: build
+	$(MAKE) --no-print-directory test-native test-python test-blender test-gpu
+
+test-native:
+	cd $(BUILD) && ctest --output-on-failure -j$(JOBS)
+
+test-python:
+	$(PYTHON) -m pytest tests/native -q
+
+test-blender:
+	$(BLENDER) -b --python tests/blender/run_tests.py -- -q
+
+test-gpu:
+	$(XVFB) $(BLENDER) --python tests/gpu/run_gpu_tests.py -- -q
+
+bench: build
+	$(PYTHON) benchmarks/bench_sun05.py
+
+clean:
+	rm -rf $(BUILD) out addon/airlight/_native*.so
