@@ -1,0 +1,68 @@
+"""Airlight: analytic single-scattering fog (Sun et al. 2005) baked into compositing passes."""
+
+bl_info = {
+    "name": "Airlight Fog",
+    "author": "Airlight developers",
+    "version": (0, 1, 0),
+    "blender": (3, 4, 0),
+    "location": "Properties > Scene > Airlight Fog",
+    "description": "Analytic single-scattering fog around point lights, baked per frame "
+                   "and composited over Cycles/EEVEE renders",
+    "category": "Render",
+}
+
+if "bpy" in locals():
+    import importlib
+    for _name in ("native", "properties", "cache", "scene_export", "compositor", "bake", "render", "ui", "preview"):
+        if _name in locals():
+            importlib.reload(locals()[_name])
+
+import bpy  # noqa: E402
+
+from . import native, properties, cache, scene_export, compositor, bake, render, ui  # noqa: E402
+
+# Registration order: data first, then what uses it.
+_modules = [properties, compositor, bake, render, ui]
+
+# The viewport preview (preview.py, GPU) registers itself when it is part of the package.
+try:
+    from . import preview  # noqa: E402
+except ImportError as _ex:
+    if getattr(_ex, "name", None) != __name__ + ".preview":
+        raise
+else:
+    if hasattr(preview, "register"):
+        _modules.append(preview)
+
+
+class AirlightPreferences(bpy.types.AddonPreferences):
+    bl_idname = __package__
+
+    def draw(self, context):
+        layout = self.layout
+        if native.available():
+            layout.label(text=f"Native module {native.version()} loaded.", icon='CHECKMARK')
+        else:
+            col = layout.column()
+            col.alert = True
+            col.label(text="Native module not available:", icon='ERROR')
+            for line in _wrap(native.error(), 90):
+                col.label(text=line)
+
+
+def _wrap(text, width):
+    import textwrap
+    return textwrap.wrap(text or "", width) or [""]
+
+
+def register():
+    native.load()  # import once; an error is kept and shown, never raised
+    bpy.utils.register_class(AirlightPreferences)
+    for module in _modules:
+        module.register()
+
+
+def unregister():
+    for module in reversed(_modules):
+        module.unregister()
+    bpy.utils.unregister_class(AirlightPreferences)

@@ -1,0 +1,277 @@
+"""Bake operators: scene description -> `_native.bake` -> one multilayer EXR per frame.
+
+`airlight.bake` bakes synchronously for EXEC_DEFAULT and in background mode (printing
+progress lines), and as a cancellable modal operator with a worker thread when invoked
+from the UI (the native bake releases the GIL, a timer polls its progress).
+"""
+
+import os
+import threading
+import time
+
+import bpy
+from bpy.props import IntProperty, StringProperty
+
+from . import cache, compositor, native, scene_export
+from .properties import MODEL_NAMES
+
+class BakeError(RuntimeError):
+    """A bake failed for a reason the user can fix; the message says which."""
+
+
+cache_path = cache.cache_path
+
+
+def bake_settings(scene):
+    """Keyword arguments of `_native.bake` that are not part of the scene description."""
+    settings = scene.airlight
+    return dict(model=MODEL_NAMES[settings.model], threads=settings.threads,
+                aa_samples=settings.aa_samples)
+
+
+def prepare(scene, depsgraph):
+    """Everything the bake needs, gathered in the main thread (touches bpy)."""
+    try:
+        description = scene_export.export_scene(scene, depsgraph)
+    except scene_export.ExportError as ex:
+        raise BakeError(str(ex)) from None
+    return description, bake_settings(scene)
+
+
+def run(description, settings, filepath, progress=None):
+    """Bakes and writes the EXR; safe to call from a worker thread (no bpy access).
+
+    Returns (stats dict, seconds). Raises `_native.BakeCancelled` when `progress`
+    returns False, BakeError for invalid input or I/O failure.
+    """
+    module = native.get()
+    try:
+        cache.ensure_parent_dir(filepath)
+    except cache.CacheError as ex:
+        raise BakeError(str(ex)) from None
+    start = time.perf_counter()
+    try:
+        result = module.bake(**description, **settings, progress=progress)
+    except ValueError as ex:
+        raise BakeError(f"Invalid fog scene: {ex}") from None
+    try:
+        cache.write_passes(filepath, result["airlight"], result["transmittance"])
+    except cache.CacheError as ex:
+        raise BakeError(str(ex)) from None
+    return dict(result["stats"]), time.perf_counter() - start
+
+
+def bake_frame(scene, depsgraph, filepath=None, progress=None):
+    """Synchronous bake of the depsgraph's current frame; returns (filepath, stats, seconds)."""
+    if filepath is None:
+        filepath = cache_path(scene, scene.frame_current)
+    description, settings = prepare(scene, depsgraph)
+    stats, seconds = run(description, settings, filepath, progress)
+    return filepath, stats, seconds
+
+
+def _printing_progress(label):
+    """A progress callback for background mode: one line per 10 %."""
+    last = [-1]
+
+    def progress(fraction):
+        step = int(fraction * 10)
+        if step > last[0]:
+            last[0] = step
+            print(f"Airlight: {label} {int(fraction * 100):3d}%", flush=True)
+        return True
+    return progress
+
+
+class AIRLIGHT_OT_bake(bpy.types.Operator):
+    """Bake the fog passes (airlight and transmittance) of one frame to a multilayer EXR"""
+    bl_idname = "airlight.bake"
+    bl_label = "Bake Fog"
+    bl_options = {'REGISTER'}
+
+    filepath: StringProperty(
+        name="File Path",
+        description="Multilayer EXR to write (default: the cache folder's fog_####.exr for the frame)",
+        subtype='FILE_PATH', options={'SKIP_SAVE'},
+    )
+    frame: IntProperty(
+        name="Frame",
+        description="Frame to bake (default: the current frame)",
+        options={'SKIP_SAVE'},
+    )
+
+    _running = set()  # modal instances, so unregister() can cancel them
+
+    @classmethod
+    def poll(cls, context):
+        if context.scene is None:
+            cls.poll_message_set("No scene to bake.")
+            return False
+        if not native.available():
+            cls.poll_message_set(native.error())
+            return False
+        if cls._running:
+            cls.poll_message_set("A fog bake is already running.")
+            return False
+        return True
+
+    # Frame handling: bake another frame by evaluating the scene there, then go back.
+    def _target(self, context):
+        scene = context.scene
+        frame = self.frame if self.properties.is_property_set("frame") else scene.frame_current
+        filepath = bpy.path.abspath(self.filepath) if self.filepath else cache_path(scene, frame)
+        return scene, frame, filepath
+
+    def _prepare_at(self, context, scene, frame):
+        original = scene.frame_current
+        if frame != original:
+            scene.frame_set(frame)
+        try:
+            return prepare(scene, context.evaluated_depsgraph_get())
+        finally:
+            if frame != original:
+                scene.frame_set(original)
+
+    def _finish(self, context, scene, filepath, stats, seconds):
+        if scene.airlight.auto_composite:
+            compositor.sync(scene, filepath)
+        self.report({'INFO'}, f"Fog baked in {seconds * 1000.0:.0f} ms ({os.path.basename(filepath)})")
+        return {'FINISHED'}
+
+    def execute(self, context):
+        scene, frame, filepath = self._target(context)
+        try:
+            description, settings = self._prepare_at(context, scene, frame)
+            progress = _printing_progress(f"baking frame {frame}") if bpy.app.background else None
+            stats, seconds = run(description, settings, filepath, progress)
+        except BakeError as ex:
+            self.report({'ERROR'}, str(ex))
+            return {'CANCELLED'}
+        except native.get().BakeCancelled:
+            self.report({'INFO'}, "Fog bake cancelled")
+            return {'CANCELLED'}
+        return self._finish(context, scene, filepath, stats, seconds)
+
+    # Modal bake: worker thread + timer.
+    def invoke(self, context, event):
+        if bpy.app.background:
+            return self.execute(context)
+        scene, frame, filepath = self._target(context)
+        try:
+            description, settings = self._prepare_at(context, scene, frame)
+        except BakeError as ex:
+            self.report({'ERROR'}, str(ex))
+            return {'CANCELLED'}
+        self._scene_name = scene.name
+        self._filepath = filepath
+        self._fraction = 0.0
+        self._cancel = False
+        self._outcome = None  # ('ok', stats, seconds) | ('cancelled',) | ('error', message)
+
+        def progress(fraction):
+            self._fraction = float(fraction)
+            return not self._cancel
+
+        def work():
+            try:
+                stats, seconds = run(description, settings, filepath, progress)
+                self._outcome = ('ok', stats, seconds)
+            except BakeError as ex:
+                self._outcome = ('error', str(ex))
+            except Exception as ex:
+                if type(ex).__name__ == "BakeCancelled":
+                    self._outcome = ('cancelled',)
+                else:
+                    self._outcome = ('error', f"Fog bake failed: {type(ex).__name__}: {ex}")
+
+        wm = context.window_manager
+        self._timer = wm.event_timer_add(0.1, window=context.window)
+        wm.progress_begin(0, 100)
+        self._thread = threading.Thread(target=work, name="airlight-bake", daemon=True)
+        AIRLIGHT_OT_bake._running.add(self)
+        self._thread.start()
+        wm.modal_handler_add(self)
+        return {'RUNNING_MODAL'}
+
+    def _cleanup(self, context):
+        wm = context.window_manager
+        if self._timer is not None:
+            wm.event_timer_remove(self._timer)
+            self._timer = None
+        wm.progress_end()
+        if context.workspace is not None:
+            context.workspace.status_text_set(None)
+        AIRLIGHT_OT_bake._running.discard(self)
+
+    def modal(self, context, event):
+        if event.type in {'ESC', 'RIGHTMOUSE'} and event.value == 'PRESS':
+            self._cancel = True
+        if event.type != 'TIMER':
+            return {'PASS_THROUGH'}
+        if self._thread.is_alive():
+            percent = int(self._fraction * 100)
+            context.window_manager.progress_update(percent)
+            if context.workspace is not None:
+                state = "cancelling" if self._cancel else f"{percent}%"
+                context.workspace.status_text_set(f"Baking fog: {state} (Esc to cancel)")
+            return {'RUNNING_MODAL'}
+        self._thread.join()
+        self._cleanup(context)
+        outcome = self._outcome or ('error', "Fog bake ended without a result.")
+        if outcome[0] == 'ok':
+            scene = bpy.data.scenes.get(self._scene_name) or context.scene
+            return self._finish(context, scene, self._filepath, outcome[1], outcome[2])
+        if outcome[0] == 'cancelled':
+            self.report({'INFO'}, "Fog bake cancelled")
+        else:
+            self.report({'ERROR'}, outcome[1])
+        return {'CANCELLED'}
+
+    def cancel(self, context):
+        # Blender ends the modal handler (file load, window closed): stop the worker.
+        self._cancel = True
+        self._thread.join()
+        self._cleanup(context)
+
+
+class AIRLIGHT_OT_setup_compositor(bpy.types.Operator):
+    """Add the Airlight fog nodes to the compositor (keeps existing nodes)"""
+    bl_idname = "airlight.setup_compositor"
+    bl_label = "Set Up Compositor"
+    bl_options = {'REGISTER', 'UNDO'}
+
+    @classmethod
+    def poll(cls, context):
+        if context.scene is None:
+            cls.poll_message_set("No scene.")
+            return False
+        return True
+
+    def execute(self, context):
+        scene = context.scene
+        path = cache_path(scene, scene.frame_current)
+        compositor.setup(scene, path if os.path.exists(path) else None)
+        self.report({'INFO'}, "Compositor fog nodes set up")
+        return {'FINISHED'}
+
+
+classes = (AIRLIGHT_OT_bake, AIRLIGHT_OT_setup_compositor)
+
+
+def cancel_running():
+    """Asks running modal bakes to stop and waits for their threads (for unregister)."""
+    for op in list(AIRLIGHT_OT_bake._running):
+        op._cancel = True
+        op._thread.join()
+    AIRLIGHT_OT_bake._running.clear()
+
+
+def register():
+    for cls in classes:
+        bpy.utils.register_class(cls)
+
+
+def unregister():
+    cancel_running()
+    for cls in reversed(classes):
+        bpy.utils.unregister_class(cls)

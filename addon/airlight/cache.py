@@ -1,0 +1,69 @@
+"""Where baked fog passes live on disk, and the EXR layout the compositor reads."""
+
+import os
+
+import bpy
+import numpy as np
+
+from . import native
+
+# EXR layout: channels "Fog.Airlight.R" ... Blender 3.4 reads "<layer>.<pass>.<chan>" as
+# layer "Fog" with passes "Airlight" and "Transmittance", which the compositor Image
+# node exposes as outputs of those names. (Without a layer prefix the passes also show,
+# but in a nameless layer that RNA cannot represent.)
+LAYER_PREFIX = "Fog."
+PASS_AIRLIGHT = "Airlight"
+PASS_TRANSMITTANCE = "Transmittance"
+
+
+class CacheError(RuntimeError):
+    """The cache folder cannot be used; the message says why."""
+
+
+def cache_dir(scene):
+    """Absolute cache folder. '//' with an unsaved .blend falls back to Blender's temp dir."""
+    path = scene.airlight.cache_dir or "//airlight_cache/"
+    if path.startswith("//") and not bpy.data.filepath:
+        path = os.path.join(bpy.app.tempdir or "/tmp", path[2:] or "airlight_cache")
+    return os.path.normpath(bpy.path.abspath(path))
+
+
+def cache_path(scene, frame):
+    """Where frame `frame`'s fog passes go: <cache_dir>/fog_####.exr."""
+    return os.path.join(cache_dir(scene), f"fog_{frame:04d}.exr")
+
+
+def ensure_parent_dir(filepath):
+    folder = os.path.dirname(filepath) or "."
+    try:
+        os.makedirs(folder, exist_ok=True)
+    except OSError as ex:
+        raise CacheError(f"Cannot create the fog cache folder '{folder}': {ex.strerror or ex}. "
+                         "Choose another Cache Folder in the Airlight Fog panel.") from None
+    if not os.access(folder, os.W_OK):
+        raise CacheError(f"The fog cache folder '{folder}' is not writable. "
+                         "Choose another Cache Folder in the Airlight Fog panel.")
+
+
+def write_passes(filepath, airlight, transmittance):
+    """Writes the two passes as one multilayer EXR (through `_native.write_exr`)."""
+    ensure_parent_dir(filepath)
+    try:
+        native.get().write_exr(filepath, {PASS_AIRLIGHT: airlight, PASS_TRANSMITTANCE: transmittance},
+                               layer_prefix=LAYER_PREFIX)
+    except RuntimeError as ex:
+        raise CacheError(f"Cannot write the fog passes to '{filepath}': {ex}") from None
+
+
+def neutral_path(scene, width, height):
+    """Passes that leave an image unchanged (Airlight 0, Transmittance 1), written on demand.
+
+    The compositor links the Image node's pass outputs only when the file exposes them,
+    and a render reads the links as they were before render_pre ran, so the node tree is
+    set up on this file until a real bake replaces it.
+    """
+    filepath = os.path.join(cache_dir(scene), f"fog_neutral_{width}x{height}.exr")
+    if not os.path.exists(filepath):
+        write_passes(filepath, np.zeros((height, width, 3), np.float32),
+                     np.ones((height, width, 3), np.float32))
+    return filepath

@@ -1,0 +1,114 @@
+"""Fog settings stored in the .blend: `scene.airlight` and `light.airlight`."""
+
+import bpy
+from bpy.props import (BoolProperty, EnumProperty, FloatProperty, FloatVectorProperty,
+                       IntProperty, PointerProperty, StringProperty)
+
+# Scene model enum -> name in _native.models(). AUTO picks sun05 (table F) for now.
+MODEL_NAMES = {
+    'AUTO': "sun05",
+    'SUN05': "sun05",
+    'SUN05_EXACT': "sun05_exact",
+    'QUADRATURE': "quadrature",
+}
+
+# Light types the bake scatters; the others are listed in the UI as "not yet in fog".
+SUPPORTED_LIGHT_TYPES = {'POINT'}
+
+
+def _on_fog_changed(self, context):
+    """Keeps the compositor fog nodes muted or live when the fog is switched."""
+    from . import compositor
+    scene = context.scene if context else None
+    if scene is not None and getattr(scene, "airlight", None) is not None:
+        compositor.sync(scene)
+
+
+class AirlightSceneSettings(bpy.types.PropertyGroup):
+    enabled: BoolProperty(
+        name="Fog",
+        description="Add analytic single-scattering fog to renders of this scene "
+                    "(bakes the fog passes before each frame and composites them)",
+        default=False,
+        update=_on_fog_changed,
+    )
+    density: FloatProperty(
+        name="Density",
+        description="Extinction coefficient sigma_t of the fog, per scene unit "
+                    "(the bake works in Blender units, scale_length is not applied)",
+        default=0.05, min=0.0, soft_max=1.0, max=1.0e4,
+        step=1, precision=4,
+    )
+    color: FloatVectorProperty(
+        name="Color",
+        description="Single-scattering albedo of the fog: the fraction of extinguished "
+                    "light that is scattered, per colour channel",
+        subtype='COLOR', size=3, default=(1.0, 1.0, 1.0), min=0.0, max=1.0,
+    )
+    model: EnumProperty(
+        name="Model",
+        description="Which airlight model computes the fog",
+        items=(
+            ('AUTO', "Automatic", "Choose the model automatically (currently the tabulated Sun 2005 model)"),
+            ('SUN05', "Sun 2005 (table)", "Sun et al. 2005 analytic airlight with a tabulated special function F"),
+            ('SUN05_EXACT', "Sun 2005 (exact)", "Sun et al. 2005 analytic airlight with F evaluated exactly"),
+            ('QUADRATURE', "Quadrature", "Numerical integration along each view ray: slow, the reference"),
+        ),
+        default='AUTO',
+    )
+    accuracy: FloatProperty(
+        name="Accuracy",
+        description="Target relative error of the fog in percent, used by the automatic "
+                    "model choice",
+        default=1.0, min=0.01, max=100.0, soft_min=0.1, soft_max=10.0,
+        subtype='PERCENTAGE',
+    )
+    aa_samples: IntProperty(
+        name="Edge Samples",
+        description="Antialiasing at depth edges: pixels there are supersampled with "
+                    "N x N samples so fog edges match the render's antialiased edges",
+        default=4, min=1, max=8,
+    )
+    threads: IntProperty(
+        name="Threads",
+        description="Number of threads for the bake (0 uses all processor cores)",
+        default=0, min=0, max=1024, soft_max=64,
+    )
+    cache_dir: StringProperty(
+        name="Cache Folder",
+        description="Folder where the baked fog passes are written as multilayer EXR "
+                    "files, one per frame (fog_####.exr); // is relative to the .blend file",
+        default="//airlight_cache/",
+        subtype='DIR_PATH',
+    )
+    auto_composite: BoolProperty(
+        name="Auto Composite",
+        description="Keep the compositor fog nodes in sync: create them when needed and "
+                    "point them at the baked passes of the frame being rendered",
+        default=True,
+    )
+
+
+class AirlightLightSettings(bpy.types.PropertyGroup):
+    participate: BoolProperty(
+        name="Scatter in Fog",
+        description="Scatter this light in the fog",
+        default=True,
+    )
+
+
+classes = (AirlightSceneSettings, AirlightLightSettings)
+
+
+def register():
+    for cls in classes:
+        bpy.utils.register_class(cls)
+    bpy.types.Scene.airlight = PointerProperty(type=AirlightSceneSettings)
+    bpy.types.Light.airlight = PointerProperty(type=AirlightLightSettings)
+
+
+def unregister():
+    del bpy.types.Light.airlight
+    del bpy.types.Scene.airlight
+    for cls in reversed(classes):
+        bpy.utils.unregister_class(cls)

@@ -1,0 +1,198 @@
+"""Blender data -> the plain scene description that `_native.bake` takes.
+
+`export_scene(scene, depsgraph)` returns a dict whose keys are exactly `_native.bake`'s
+scene keyword arguments (width, height, cam_to_world, projection, vertices, triangles,
+light_positions, light_intensities, sigma_t, albedo), all numpy arrays or numbers, for
+the frame the depsgraph is evaluated at. Nothing here calls the native module.
+
+Units: everything is in Blender units. `unit_settings.scale_length` is not applied, so
+the density is per Blender unit (per metre with the default scale of 1).
+"""
+
+import math
+
+import numpy as np
+
+from .properties import SUPPORTED_LIGHT_TYPES
+
+# Object types that can be turned into a mesh for ray casting.
+_GEOMETRY_TYPES = {'MESH', 'CURVE', 'SURFACE', 'FONT', 'META'}
+
+
+class ExportError(ValueError):
+    """The scene cannot be baked; the message says why and what to change."""
+
+
+def render_size(scene):
+    """Render resolution in pixels after the percentage scale, as Blender computes it."""
+    render = scene.render
+    width = render.resolution_x * render.resolution_percentage // 100
+    height = render.resolution_y * render.resolution_percentage // 100
+    return width, height
+
+
+def export_camera(scene, depsgraph):
+    """Returns (width, height, cam_to_world (4,4), projection (4,4)) of the scene camera."""
+    camera = scene.camera
+    if camera is None:
+        raise ExportError(f"Scene '{scene.name}' has no active camera: set one in the Scene properties.")
+    if camera.type != 'CAMERA':
+        raise ExportError(f"The active object '{camera.name}' of scene '{scene.name}' is not a camera.")
+    if camera.data.type == 'PANO':
+        raise ExportError(f"Camera '{camera.name}' is panoramic; the fog bake supports "
+                          "perspective and orthographic cameras only.")
+    width, height = render_size(scene)
+    if width < 1 or height < 1:
+        raise ExportError(f"The render resolution {width}x{height} is empty.")
+    camera_eval = camera.evaluated_get(depsgraph)
+    render = scene.render
+    projection = camera_eval.calc_matrix_camera(
+        depsgraph, x=width, y=height,
+        scale_x=render.pixel_aspect_x, scale_y=render.pixel_aspect_y)
+    cam_to_world = np.array(camera_eval.matrix_world, dtype=np.float64)
+    return width, height, cam_to_world, np.array(projection, dtype=np.float64)
+
+
+def _render_hidden_collections(scene, view_layer):
+    """Names of collections whose objects do not render in `view_layer`."""
+    hidden = set()
+
+    def walk(layer_collection, parent_hidden):
+        collection = layer_collection.collection
+        is_hidden = parent_hidden or layer_collection.exclude or collection.hide_render
+        if is_hidden:
+            hidden.add(collection.name)
+        for child in layer_collection.children:
+            walk(child, is_hidden)
+
+    if view_layer is not None:
+        for child in view_layer.layer_collection.children:
+            walk(child, False)
+    return hidden
+
+
+def _is_render_visible(obj, hidden_collections):
+    """Whether an original (not instanced) object shows up in the render."""
+    original = obj.original
+    if original.hide_render:
+        return False
+    collections = original.users_collection
+    if not collections:
+        return True
+    # Visible when at least one collection holding it renders (the scene master
+    # collection never appears in hidden_collections).
+    return any(c.name not in hidden_collections for c in collections)
+
+
+def _mesh_arrays(obj_eval):
+    """Local-space vertices (N,3) float32 and triangles (M,3) uint32 of an evaluated object."""
+    try:
+        mesh = obj_eval.to_mesh()
+    except RuntimeError:
+        return None
+    if mesh is None:
+        return None
+    try:
+        mesh.calc_loop_triangles()
+        n_verts = len(mesh.vertices)
+        n_tris = len(mesh.loop_triangles)
+        if n_verts == 0 or n_tris == 0:
+            return None
+        verts = np.empty(n_verts * 3, dtype=np.float32)
+        mesh.vertices.foreach_get("co", verts)
+        tris = np.empty(n_tris * 3, dtype=np.int32)
+        mesh.loop_triangles.foreach_get("vertices", tris)
+        return verts.reshape(-1, 3), tris.reshape(-1, 3)
+    finally:
+        obj_eval.to_mesh_clear()
+
+
+def export_geometry_and_lights(scene, depsgraph):
+    """World-space triangle soup and point lights of all render-visible objects.
+
+    Returns (vertices (N,3) float32, triangles (M,3) uint32, light_positions (L,3),
+    light_intensities (L,3), skipped_lights [(name, type)]).
+    """
+    hidden = _render_hidden_collections(scene, depsgraph.view_layer)
+    vertex_blocks, triangle_blocks = [], []
+    n_vertices = 0
+    positions, intensities, skipped = [], [], []
+    for instance in depsgraph.object_instances:
+        obj = instance.object
+        # An instance is visible when whatever instances it renders (the instanced
+        # object itself is often hidden, e.g. in a particle collection).
+        source = instance.parent if instance.is_instance else obj
+        if source is None or not _is_render_visible(source, hidden):
+            continue
+        matrix = np.array(instance.matrix_world, dtype=np.float64)
+        if obj.type == 'LIGHT':
+            light = obj.data
+            if light.type not in SUPPORTED_LIGHT_TYPES:
+                skipped.append((obj.name, light.type))
+                continue
+            if not light.airlight.participate:
+                continue
+            # Cycles point light: radiant intensity I0 = C * P / (4 pi) W/sr (NOTES.md).
+            positions.append(matrix[:3, 3])
+            intensities.append(np.array(light.color, dtype=np.float64) * light.energy / (4.0 * math.pi))
+            continue
+        # Geometry the camera cannot see does not stop view rays.
+        if obj.type not in _GEOMETRY_TYPES or not getattr(obj, "visible_camera", True):
+            continue
+        arrays = _mesh_arrays(obj)
+        if arrays is None:
+            continue
+        local, tris = arrays
+        world = local.astype(np.float64) @ matrix[:3, :3].T + matrix[:3, 3]
+        vertex_blocks.append(world.astype(np.float32))
+        triangle_blocks.append(tris.astype(np.uint32) + np.uint32(n_vertices))
+        n_vertices += len(local)
+
+    vertices = np.concatenate(vertex_blocks) if vertex_blocks else np.zeros((0, 3), np.float32)
+    triangles = np.concatenate(triangle_blocks) if triangle_blocks else np.zeros((0, 3), np.uint32)
+    light_positions = np.array(positions, dtype=np.float64).reshape(-1, 3)
+    light_intensities = np.array(intensities, dtype=np.float64).reshape(-1, 3)
+    return vertices, triangles, light_positions, light_intensities, skipped
+
+
+def export_medium(scene):
+    """(sigma_t, albedo) of the scene fog, validated."""
+    settings = scene.airlight
+    sigma_t = float(settings.density)
+    if not math.isfinite(sigma_t) or sigma_t < 0.0:
+        raise ExportError(f"Fog density must be a finite number >= 0 (got {sigma_t}).")
+    albedo = tuple(float(c) for c in settings.color)
+    if not all(math.isfinite(c) and 0.0 <= c for c in albedo):
+        raise ExportError(f"Fog colour must be finite and non-negative (got {albedo}).")
+    return sigma_t, albedo
+
+
+def export_scene(scene, depsgraph):
+    """The scene description for `_native.bake(**description, ...)` at the depsgraph's frame."""
+    sigma_t, albedo = export_medium(scene)
+    width, height, cam_to_world, projection = export_camera(scene, depsgraph)
+    vertices, triangles, light_positions, light_intensities, _ = export_geometry_and_lights(scene, depsgraph)
+    for name, array in (("camera matrix", cam_to_world), ("projection", projection),
+                        ("vertices", vertices), ("light positions", light_positions),
+                        ("light intensities", light_intensities)):
+        if not np.all(np.isfinite(array)):
+            raise ExportError(f"The scene's {name} contain NaN or infinite values.")
+    return dict(
+        width=width, height=height,
+        cam_to_world=cam_to_world, projection=projection,
+        vertices=vertices, triangles=triangles,
+        light_positions=light_positions, light_intensities=light_intensities,
+        sigma_t=sigma_t, albedo=albedo,
+    )
+
+
+def fog_lights(scene):
+    """For the UI: [(object name, light type, supported, participates)] of the scene's lights."""
+    rows = []
+    for obj in scene.objects:
+        if obj.type != 'LIGHT' or obj.hide_render:
+            continue
+        light = obj.data
+        rows.append((obj.name, light.type, light.type in SUPPORTED_LIGHT_TYPES,
+                     light.airlight.participate))
+    return rows
