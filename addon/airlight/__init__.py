@@ -17,6 +17,8 @@ if "bpy" in locals():
         if _name in locals():
             importlib.reload(locals()[_name])
 
+import os as _os  # noqa: E402
+
 import bpy  # noqa: E402
 
 from . import native, properties, cache, scene_export, compositor, bake, render, ui  # noqa: E402
@@ -25,12 +27,8 @@ from . import native, properties, cache, scene_export, compositor, bake, render,
 _modules = [properties, compositor, bake, render, ui]
 
 # The viewport preview (preview.py, GPU) registers itself when it is part of the package.
-try:
+if _os.path.exists(_os.path.join(__path__[0], "preview.py")):
     from . import preview  # noqa: E402
-except ImportError as _ex:
-    if getattr(_ex, "name", None) != __name__ + ".preview":
-        raise
-else:
     if hasattr(preview, "register"):
         _modules.append(preview)
 
