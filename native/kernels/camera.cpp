@@ -1,1 +1,58 @@
-// placeholder
+// camera.cpp: primary rays through Blender's pixel grid by unprojecting clip space.
+#include "camera.h"
+
+#include <cmath>
+#include <stdexcept>
+
+namespace airlight {
+
+namespace {
+
+bool all_finite(const glm::dmat4& m) {
+    for (int c = 0; c < 4; ++c)
+        for (int r = 0; r < 4; ++r)
+            if (!std::isfinite(m[c][r])) return false;
+    return true;
+}
+
+// Homogeneous divide of a clip- or world-space point.
+Vec3 dehomogenize(const glm::dvec4& p) { return Vec3(p) / p.w; }
+
+}  // namespace
+
+CameraRays::CameraRays(const Camera& cam) {
+    // Validate _cam_'s matrices; Blender's are always finite and invertible.
+    if (!all_finite(cam.cam_to_world) || !all_finite(cam.projection))
+        throw std::invalid_argument("camera matrices must be finite");
+    double det_p = glm::determinant(cam.projection);
+    double det_c = glm::determinant(cam.cam_to_world);
+    if (!std::isfinite(det_p) || std::abs(det_p) < 1e-300 || !std::isfinite(det_c) ||
+        std::abs(det_c) < 1e-300)
+        throw std::invalid_argument("camera matrices must be invertible");
+    if (cam.width <= 0 || cam.height <= 0)
+        throw std::invalid_argument("camera resolution must be positive");
+
+    // Orthographic projections keep w = 1: bottom row (0, 0, 0, 1). glm is column-major,
+    // so element (row 3, column 3) is projection[3][3].
+    ortho_ = cam.projection[3][3] == 1.0 && cam.projection[2][3] == 0.0;
+    raster_to_world_ = cam.cam_to_world * glm::inverse(cam.projection);
+    position_ = Vec3(cam.cam_to_world[3]);
+    inv_w_ = 1.0 / cam.width;
+    inv_h_ = 1.0 / cam.height;
+}
+
+Ray CameraRays::operator()(double px, double py) const {
+    // Map film position to NDC (row 0 at the top, NDC y up), unproject near and far.
+    double x = 2.0 * px * inv_w_ - 1.0;
+    double y = 1.0 - 2.0 * py * inv_h_;
+    Vec3 p_near = dehomogenize(raster_to_world_ * glm::dvec4(x, y, -1.0, 1.0));
+    Vec3 p_far = dehomogenize(raster_to_world_ * glm::dvec4(x, y, 1.0, 1.0));
+    Ray ray;
+    ray.o = ortho_ ? p_near : position_;
+    ray.d = glm::normalize(p_far - p_near);
+    return ray;
+}
+
+Ray camera_ray(const Camera& cam, double px, double py) { return CameraRays(cam)(px, py); }
+
+}  // namespace airlight

@@ -1,1 +1,159 @@
-// placeholder
+// raycast.cpp: first-hit distances with Embree 3 (one triangle geometry, robust build).
+#include "raycast.h"
+
+#include <embree3/rtcore.h>
+
+#include <cmath>
+#include <limits>
+#include <mutex>
+#include <stdexcept>
+#include <string>
+
+namespace airlight {
+
+namespace {
+
+// The first error Embree reported through its callback.
+struct EmbreeErrors {
+    std::mutex mutex;
+    std::string message;
+};
+
+void embree_error(void* user, RTCError code, const char* str) {
+    auto* errors = static_cast<EmbreeErrors*>(user);
+    std::lock_guard<std::mutex> lock(errors->mutex);
+    if (errors->message.empty())
+        errors->message = std::string(str ? str : "unknown error") + " (code " +
+                          std::to_string(static_cast<int>(code)) + ")";
+}
+
+constexpr float kInf = std::numeric_limits<float>::infinity();
+
+}  // namespace
+
+struct RayCaster::Impl {
+    RTCDevice device = nullptr;
+    RTCScene scene = nullptr;  // null for an empty mesh: every ray misses
+    EmbreeErrors errors;
+
+    ~Impl() {
+        if (scene) rtcReleaseScene(scene);
+        if (device) rtcReleaseDevice(device);
+    }
+
+    // Throw the recorded Embree error, if any, prefixed by _what_.
+    void check(const char* what) {
+        std::lock_guard<std::mutex> lock(errors.mutex);
+        if (!errors.message.empty())
+            throw std::runtime_error(std::string("Embree: ") + what + ": " + errors.message);
+    }
+};
+
+RayCaster::RayCaster(const TriangleMesh& mesh) : impl_(new Impl) {
+    // Check the mesh before handing it to Embree.
+    if (mesh.vertices.size() % 3 != 0 || mesh.triangles.size() % 3 != 0)
+        throw std::invalid_argument("mesh arrays must hold 3 values per vertex / triangle");
+    size_t n_vertices = mesh.vertices.size() / 3, n_triangles = mesh.triangles.size() / 3;
+    for (uint32_t index : mesh.triangles)
+        if (index >= n_vertices)
+            throw std::invalid_argument("triangle index " + std::to_string(index) +
+                                        " out of range (vertex count " +
+                                        std::to_string(n_vertices) + ")");
+
+    // Create the device with an error callback that records the message.
+    impl_->device = rtcNewDevice(nullptr);
+    if (!impl_->device)
+        throw std::runtime_error("Embree: rtcNewDevice failed (error " +
+                                 std::to_string(static_cast<int>(rtcGetDeviceError(nullptr))) + ")");
+    rtcSetDeviceErrorFunction(impl_->device, embree_error, &impl_->errors);
+    if (n_triangles == 0) return;
+
+    // Build one triangle geometry with copies of the buffers (Embree pads them).
+    RTCGeometry geom = rtcNewGeometry(impl_->device, RTC_GEOMETRY_TYPE_TRIANGLE);
+    impl_->check("rtcNewGeometry");
+    auto* vb = static_cast<float*>(rtcSetNewGeometryBuffer(
+        geom, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, 3 * sizeof(float), n_vertices));
+    auto* ib = static_cast<uint32_t*>(rtcSetNewGeometryBuffer(
+        geom, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, 3 * sizeof(uint32_t), n_triangles));
+    if (!vb || !ib) {
+        rtcReleaseGeometry(geom);
+        impl_->check("rtcSetNewGeometryBuffer");
+        throw std::runtime_error("Embree: could not allocate geometry buffers");
+    }
+    std::copy(mesh.vertices.begin(), mesh.vertices.end(), vb);
+    std::copy(mesh.triangles.begin(), mesh.triangles.end(), ib);
+    rtcCommitGeometry(geom);
+    impl_->scene = rtcNewScene(impl_->device);
+    rtcSetSceneFlags(impl_->scene, RTC_SCENE_FLAG_ROBUST);
+    rtcSetSceneBuildQuality(impl_->scene, RTC_BUILD_QUALITY_HIGH);
+    rtcAttachGeometry(impl_->scene, geom);
+    rtcReleaseGeometry(geom);
+    rtcCommitScene(impl_->scene);
+    impl_->check("building the scene");
+}
+
+RayCaster::~RayCaster() = default;
+
+double RayCaster::first_hit(const Ray& ray) const {
+    if (!impl_->scene) return std::numeric_limits<double>::infinity();
+    // Trace one ray with tnear = 0 and an unbounded tfar.
+    RTCIntersectContext context;
+    rtcInitIntersectContext(&context);
+    RTCRayHit rh;
+    rh.ray.org_x = float(ray.o.x);
+    rh.ray.org_y = float(ray.o.y);
+    rh.ray.org_z = float(ray.o.z);
+    rh.ray.dir_x = float(ray.d.x);
+    rh.ray.dir_y = float(ray.d.y);
+    rh.ray.dir_z = float(ray.d.z);
+    rh.ray.tnear = 0.0f;
+    rh.ray.tfar = kInf;
+    rh.ray.time = 0.0f;
+    rh.ray.mask = 0xFFFFFFFFu;
+    rh.ray.id = 0;
+    rh.ray.flags = 0;
+    rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+    rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
+    rtcIntersect1(impl_->scene, &context, &rh);
+    if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return std::numeric_limits<double>::infinity();
+    return double(rh.ray.tfar);
+}
+
+void RayCaster::first_hits(const Ray* rays, int n, float* t) const {
+    if (!impl_->scene) {
+        for (int i = 0; i < n; ++i) t[i] = kInf;
+        return;
+    }
+    // Trace packets of 8 coherent rays; the tail packet masks off unused lanes.
+    RTCIntersectContext context;
+    rtcInitIntersectContext(&context);
+    context.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
+    for (int base = 0; base < n; base += 8) {
+        alignas(32) int valid[8];
+        RTCRayHit8 rh;
+        for (int k = 0; k < 8; ++k) {
+            int i = base + k < n ? base + k : n - 1;
+            valid[k] = base + k < n ? -1 : 0;
+            const Ray& ray = rays[i];
+            rh.ray.org_x[k] = float(ray.o.x);
+            rh.ray.org_y[k] = float(ray.o.y);
+            rh.ray.org_z[k] = float(ray.o.z);
+            rh.ray.dir_x[k] = float(ray.d.x);
+            rh.ray.dir_y[k] = float(ray.d.y);
+            rh.ray.dir_z[k] = float(ray.d.z);
+            rh.ray.tnear[k] = 0.0f;
+            rh.ray.tfar[k] = kInf;
+            rh.ray.time[k] = 0.0f;
+            rh.ray.mask[k] = 0xFFFFFFFFu;
+            rh.ray.id[k] = unsigned(k);
+            rh.ray.flags[k] = 0;
+            rh.hit.geomID[k] = RTC_INVALID_GEOMETRY_ID;
+            rh.hit.instID[0][k] = RTC_INVALID_GEOMETRY_ID;
+        }
+        rtcIntersect8(valid, impl_->scene, &context, &rh);
+        for (int k = 0; k < 8 && base + k < n; ++k)
+            t[base + k] = rh.hit.geomID[k] == RTC_INVALID_GEOMETRY_ID ? kInf : rh.ray.tfar[k];
+    }
+}
+
+}  // namespace airlight
