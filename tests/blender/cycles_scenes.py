@@ -290,6 +290,8 @@ def camera_rays(cam_to_world, projection, width, height, px=None, py=None):
         return p[..., :3] / p[..., 3:4]
     near, far = unproject(-1.0), unproject(1.0)
     d_cam = far - near
+    if projection[3, 3] == 0.0:  # perspective: rays leave the eye, not the near plane
+        near = np.zeros_like(near)
     o_w = near @ cam_to_world[:3, :3].T + cam_to_world[:3, 3]
     d_w = d_cam @ cam_to_world[:3, :3].T
     d_w /= np.linalg.norm(d_w, axis=-1, keepdims=True)

@@ -1,8 +1,10 @@
 """Airlight bake vs Cycles single scattering: the external ground truth.
 
-Runs inside Blender (`blender -b`, via tests/blender/run_tests.py or directly:
-`blender -b --factory-startup --python-expr "import pytest,sys; sys.exit(pytest.main(
-['tests/blender/test_cycles_reference.py','-s']))"`).
+Runs inside Blender through the add-on's bootstrap:
+    tools/blender.sh -b --python tests/blender/run_tests.py -- tests/blender/test_cycles_reference.py -s
+With the add-on enabled the bake goes through scene.airlight + bpy.ops.airlight.bake
+(what users run); with AIRLIGHT_NATIVE_DIR=<dir of another _native build> it calls that
+module's bake() directly on this file's own export of the camera and geometry.
 
 Scene (tests/blender/cycles_scenes.py): fog only, homogeneous world volume
 (sigma_t = 0.15 /m, albedo 1, isotropic), one 1000 W point light of radius 0 in view,
@@ -51,8 +53,13 @@ SUMMARY = {}
 
 
 def _native_module():
-    """The add-on's compiled module: `airlight._native` when the add-on is installed
-    (tools/blender.sh), else addon/airlight/_native from the source tree."""
+    """The add-on's compiled module: from $AIRLIGHT_NATIVE_DIR if set (another build
+    of it), `airlight._native` when the add-on is installed (tools/blender.sh), else
+    addon/airlight/_native from the source tree."""
+    if os.environ.get("AIRLIGHT_NATIVE_DIR"):
+        sys.path.insert(0, os.environ["AIRLIGHT_NATIVE_DIR"])
+        import _native  # type: ignore
+        return _native
     try:
         from airlight import _native  # type: ignore
         return _native
@@ -161,23 +168,78 @@ def test01_cycles_matches_quadrature(ref):
     assert lmean < 0.02, lmean
 
 
-@pytest.fixture(scope="module")
-def baked(ref):
+def _addon_available():
+    import bpy
+    return (os.environ.get("AIRLIGHT_NATIVE_DIR") is None
+            and hasattr(bpy.types.Scene, "airlight") and hasattr(bpy.ops, "airlight")
+            and hasattr(bpy.ops.airlight, "bake"))
+
+
+def _bake_with_addon(ref):
+    """What users run: scene.airlight + bpy.ops.airlight.bake(filepath=...), passes read
+    back from the add-on's multilayer EXR (layers Fog.Airlight / Fog.Transmittance)."""
+    import bpy
+    from airlight import native
+    if not native.available():
+        pytest.skip(f"_native unavailable: {native.error()}")
+    if native.get().__name__.endswith("fake_native"):
+        pytest.skip("needs the compiled _native module, not the numpy fake")
+    scene, desc = ref["scene"], ref["desc"]
+    st = scene.airlight
+    st.auto_composite = False  # the Cycles renders are done; leave the compositor alone
+    st.density = desc.sigma_t
+    st.color = (1.0, 1.0, 1.0)
+    st.model = 'SUN05'
+    st.threads = 2
+    st.enabled = True
+    path = os.path.join(ARTIFACTS, "airlight_addon.exr")
+    if os.path.exists(path):
+        os.remove(path)
+    t0 = time.perf_counter()
+    result = bpy.ops.airlight.bake('EXEC_DEFAULT', filepath=path)
+    seconds = time.perf_counter() - t0
+    st.enabled = False
+    assert result == {'FINISHED'}, result
+    import OpenImageIO as oiio
+    inp = oiio.ImageInput.open(path)
+    assert inp is not None, oiio.geterror()
+    spec = inp.spec()
+    px = np.asarray(inp.read_image(0, spec.nchannels, oiio.FLOAT)).reshape(
+        spec.height, spec.width, spec.nchannels)
+    names = list(spec.channelnames)
+    inp.close()
+    def layer(name):
+        return px[..., [names.index(f"Fog.{name}.{c}") for c in "RGB"]]
+    return dict(path="addon", seconds=seconds, airlight=layer("Airlight"),
+                transmittance=layer("Transmittance"), depth=None, stats={})
+
+
+def _bake_direct(ref):
+    """_native.bake called with this file's own export of the Blender scene."""
     _native = _native_module()
     if not hasattr(_native, "bake"):
         pytest.skip("_native has no bake() yet")
     desc = ref["desc"]
-    kw = dict(ref["inputs"])
     t0 = time.perf_counter()
-    res = _native.bake(**kw, sigma_t=desc.sigma_t, albedo=(1.0, 1.0, 1.0), model="sun05",
-                       threads=2)
-    seconds = time.perf_counter() - t0
+    res = _native.bake(**ref["inputs"], sigma_t=desc.sigma_t, albedo=(1.0, 1.0, 1.0),
+                       model="sun05", threads=2)
+    return dict(path="direct", seconds=time.perf_counter() - t0, airlight=res["airlight"],
+                transmittance=res["transmittance"], depth=res["depth"],
+                stats=dict(res["stats"]))
+
+
+@pytest.fixture(scope="module")
+def baked(ref):
+    """The Airlight passes for the reference camera: through the add-on when it is
+    enabled (tools/blender.sh), else through _native.bake directly."""
+    desc = ref["desc"]
+    res = _bake_with_addon(ref) if _addon_available() else _bake_direct(ref)
     A = np.asarray(res["airlight"], dtype=np.float64)
     assert A.shape == (desc.height, desc.width, 3)
     _write_exr(os.path.join(ARTIFACTS, "airlight.exr"), A)
     diff = np.abs(A - ref["cycles"]) / np.maximum(ref["cycles"], 1e-12)
     _write_exr(os.path.join(ARTIFACTS, "reldiff_airlight_vs_cycles.exr"), diff)
-    _report("bake", seconds=seconds, **{k: v for k, v in res["stats"].items()})
+    _report("bake", path=res["path"], seconds=res["seconds"], **res["stats"])
     return res
 
 
@@ -218,9 +280,12 @@ def test03_silhouette_halo(ref, baked):
     _report("silhouette", pixels=int(sil.sum()), mean=mean, p99=p99, bias=bias,
             noise_mean=nmean, noise_p99=np99, centre_sample_mean=cmean,
             centre_sample_p99=cp99)
-    # Edge contrast here is up to ~3x, so 1/16-coverage quantisation is <= ~6 % on the
-    # worst pixels and ~1-2 % on average; a missing or misplaced edge filter scores like
-    # the centre-sample figures (> 10 % mean).
+    # Edge contrast here is ~3:1. Supersampling with N distinct sub-pixel positions per
+    # axis quantises an edge's coverage to 1/N, so with 16 distinct offsets per axis the
+    # error stays ~1-2 % mean; a missing, misplaced or too coarse edge filter scores like
+    # the centre-sample figures (~6 % mean, 23 % p99 here). Note: this floor edge is
+    # horizontal, so a regular 4x4 grid has only 4 distinct rows (measured: the edge rows
+    # come out ~12 % darker than Cycles, a dark line; aa_samples=8 matches to ~1 %).
     assert mean < nmean + 0.03, (mean, nmean)
     assert abs(bias) < 0.015, bias
     assert p99 < np99 + 0.08, (p99, np99)
@@ -230,12 +295,13 @@ def test04_depth_and_transmittance(ref, baked):
     """Depth is finite exactly where the floor is seen, and T = exp(-sigma_t Dvp)."""
     desc = ref["desc"]
     depth_ref = ref["depth"]
-    depth = np.asarray(baked["depth"], dtype=np.float64)
     T = np.asarray(baked["transmittance"], dtype=np.float64)
     away = ~ref["silhouette"]
-    assert np.array_equal(np.isfinite(depth[away]), np.isfinite(depth_ref[away]))
-    fin = away & np.isfinite(depth_ref)
-    assert np.allclose(depth[fin], depth_ref[fin], rtol=1e-4)
+    if baked["depth"] is not None:  # the add-on's EXR has no depth layer
+        depth = np.asarray(baked["depth"], dtype=np.float64)
+        assert np.array_equal(np.isfinite(depth[away]), np.isfinite(depth_ref[away]))
+        fin = away & np.isfinite(depth_ref)
+        assert np.allclose(depth[fin], depth_ref[fin], rtol=1e-4)
     T_ref = np.exp(-desc.sigma_t * depth_ref)
     for ch in range(3):
         assert np.allclose(T[..., ch][away], T_ref[away], rtol=1e-4, atol=1e-6)
