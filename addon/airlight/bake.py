@@ -123,14 +123,15 @@ class AIRLIGHT_OT_bake(bpy.types.Operator):
         return scene, frame, filepath
 
     def _prepare_at(self, context, scene, frame):
-        original = scene.frame_current
-        if frame != original:
-            scene.frame_set(frame)
+        # frame_set even for the current frame: it re-applies the animation, so the
+        # bake sees exactly what a render of that frame sees.
+        original = scene.frame_current, scene.frame_subframe
+        scene.frame_set(frame)
         try:
             return prepare(scene, context.evaluated_depsgraph_get())
         finally:
-            if frame != original:
-                scene.frame_set(original)
+            if frame != original[0]:
+                scene.frame_set(original[0], subframe=original[1])
 
     def _finish(self, context, scene, filepath, stats, seconds):
         if scene.airlight.auto_composite:

@@ -1,0 +1,89 @@
+"""Shared fixtures for the headless Blender tests (run through run_tests.py).
+
+AIRLIGHT_FAKE_NATIVE=1 substitutes a slow pure-numpy `_native` (support/fake_native.py)
+when the compiled module is missing, to develop the add-on before the C++ side exists;
+tests that hold the add-on to the real module are skipped then.
+"""
+import os
+import subprocess
+import sys
+
+import bpy
+import numpy as np
+import pytest
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+REPO = os.path.dirname(os.path.dirname(HERE))
+BLENDER_SH = os.path.join(REPO, "tools", "blender.sh")
+sys.path.insert(0, os.path.join(HERE, "support"))
+
+import airlight  # noqa: E402
+from airlight import native  # noqa: E402
+
+USING_FAKE = False
+if os.environ.get("AIRLIGHT_FAKE_NATIVE") == "1":
+    import use_fake_native  # noqa: E402
+    USING_FAKE = native.available() and native.get().__name__ == "fake_native" or use_fake_native.install()
+
+needs_native = pytest.mark.skipif(not native.available(), reason=f"_native unavailable: {native.error()}")
+needs_real_native = pytest.mark.skipif(
+    not native.available() or native.get().__name__ == "fake_native",
+    reason="needs the compiled _native module")
+
+
+def read_exr(path):
+    """(H, W, C) float32 pixels and channel names, via OpenImageIO (independent of Blender)."""
+    import OpenImageIO as oiio
+    inp = oiio.ImageInput.open(path)
+    assert inp is not None, oiio.geterror()
+    spec = inp.spec()
+    pixels = np.asarray(inp.read_image(oiio.FLOAT)).reshape(spec.height, spec.width, spec.nchannels)
+    names = list(spec.channelnames)
+    inp.close()
+    return pixels, names
+
+
+def exr_pass(path, name):
+    pixels, names = read_exr(path)
+    index = [names.index(f"Fog.{name}.{c}") for c in "RGB"]
+    return pixels[..., index]
+
+
+def run_blender(*args, timeout=120):
+    """Runs tools/blender.sh in a subprocess; returns CompletedProcess (text output)."""
+    pre = ["--python", os.path.join(HERE, "support", "use_fake_native.py")] if USING_FAKE else []
+    cmd = [BLENDER_SH, "-b", *pre, *args]
+    return subprocess.run(cmd, capture_output=True, text=True, timeout=timeout)
+
+
+def build_plane_scene(tmp_path, fog=True, light=True, camera=True, size=(64, 48)):
+    """A fresh scene: ground plane z=0, point light, camera at z=2 looking down -Z."""
+    bpy.ops.wm.read_homefile(use_empty=True)
+    scene = bpy.context.scene
+    mesh = bpy.data.meshes.new("Ground")
+    half = 50.0
+    mesh.from_pydata([(-half, -half, 0), (half, -half, 0), (half, half, 0), (-half, half, 0)],
+                     [], [(0, 1, 2, 3)])
+    ground = bpy.data.objects.new("Ground", mesh)
+    scene.collection.objects.link(ground)
+    if light:
+        light_data = bpy.data.lights.new("Lamp", 'POINT')
+        light_data.energy = 300.0
+        light_data.color = (1.0, 0.5, 0.25)
+        light_data.shadow_soft_size = 0.0
+        lamp = bpy.data.objects.new("Lamp", light_data)
+        lamp.location = (0.5, 0.3, 1.0)
+        scene.collection.objects.link(lamp)
+    if camera:
+        cam_data = bpy.data.cameras.new("Cam")
+        cam_data.lens = 35.0
+        cam = bpy.data.objects.new("Cam", cam_data)
+        cam.location = (0.0, 0.0, 2.0)
+        scene.collection.objects.link(cam)
+        scene.camera = cam
+    scene.render.resolution_x, scene.render.resolution_y = size
+    scene.render.resolution_percentage = 100
+    scene.airlight.density = 0.2
+    scene.airlight.cache_dir = str(tmp_path / "cache") + os.sep
+    scene.airlight.enabled = fog
+    return scene

@@ -1,0 +1,94 @@
+"""The airlight.bake operator: EXR contents and errors."""
+import math
+import os
+
+import bpy
+import numpy as np
+import pytest
+
+from airlight import bake, native, scene_export
+from conftest import build_plane_scene, exr_pass, needs_native, needs_real_native, read_exr
+
+
+def _bake(filepath, **kwargs):
+    result = bpy.ops.airlight.bake(filepath=str(filepath), **kwargs)
+    assert result == {'FINISHED'}
+    return str(filepath)
+
+
+@needs_real_native
+def test01_exr_passes_equal_native_bake_of_exported_scene(tmp_path):
+    scene = build_plane_scene(tmp_path)
+    path = _bake(tmp_path / "fog.exr")
+    _, names = read_exr(path)
+    assert sorted(names) == sorted(f"Fog.{p}.{c}" for p in ("Airlight", "Transmittance") for c in "RGB")
+    description = scene_export.export_scene(scene, bpy.context.evaluated_depsgraph_get())
+    reference = native.get().bake(**description, **bake.bake_settings(scene))
+    np.testing.assert_array_equal(exr_pass(path, "Airlight"), reference["airlight"])
+    np.testing.assert_array_equal(exr_pass(path, "Transmittance"), reference["transmittance"])
+    assert reference["airlight"].max() > 0.0
+
+
+@needs_native
+def test02_transmittance_of_plane_is_exp_minus_sigma_distance(tmp_path):
+    """Camera 2 m above the plane z=0 looking straight down: d = 2 sqrt(1 + x^2 + y^2)."""
+    width, height = 64, 48
+    scene = build_plane_scene(tmp_path, size=(width, height))
+    path = _bake(tmp_path / "fog.exr")
+    T = exr_pass(path, "Transmittance")
+    cam = scene.camera.data
+    scale = cam.sensor_width / cam.lens / width  # sensor fit AUTO, landscape: width fits
+    i = np.arange(width) + 0.5 - width / 2
+    j = height / 2 - (np.arange(height) + 0.5)
+    x, y = np.meshgrid(i * scale, j * scale)
+    expected = np.exp(-0.2 * 2.0 * np.sqrt(1.0 + x * x + y * y))
+    for c in range(3):
+        np.testing.assert_allclose(T[..., c], expected, rtol=2e-5)
+
+
+@needs_native
+def test03_default_path_is_cache_dir_frame(tmp_path):
+    scene = build_plane_scene(tmp_path)
+    scene.frame_set(3)
+    assert bpy.ops.airlight.bake() == {'FINISHED'}
+    assert os.path.exists(tmp_path / "cache" / "fog_0003.exr")
+    assert bpy.ops.airlight.bake(frame=5) == {'FINISHED'}
+    assert os.path.exists(tmp_path / "cache" / "fog_0005.exr")
+    assert scene.frame_current == 3
+
+
+@needs_native
+def test04_no_camera_is_a_clear_error(tmp_path):
+    build_plane_scene(tmp_path, camera=False)
+    with pytest.raises(RuntimeError, match="no active camera"):
+        bpy.ops.airlight.bake(filepath=str(tmp_path / "x.exr"))
+    assert not os.path.exists(tmp_path / "x.exr")
+
+
+@needs_native
+def test05_nan_density_is_a_clear_error(tmp_path):
+    scene = build_plane_scene(tmp_path)
+    scene.airlight.density = float("nan")
+    if not math.isnan(scene.airlight.density):
+        pytest.skip("RNA rejected NaN itself")
+    with pytest.raises(RuntimeError, match="density must be a finite number"):
+        bpy.ops.airlight.bake(filepath=str(tmp_path / "x.exr"))
+
+
+@needs_native
+def test06_broken_cache_dir_is_a_clear_error(tmp_path):
+    scene = build_plane_scene(tmp_path)
+    blocker = tmp_path / "not_a_folder"
+    blocker.write_text("a file where the cache folder should be")
+    scene.airlight.cache_dir = str(blocker / "cache") + os.sep
+    with pytest.raises(RuntimeError, match="Cannot create the fog cache folder"):
+        bpy.ops.airlight.bake()
+
+
+def test07_poll_explains_missing_native(monkeypatch):
+    monkeypatch.setattr(native, "_module", None)
+    monkeypatch.setattr(native, "_error", "The Airlight native module could not be loaded (test).")
+    monkeypatch.setattr(native, "_tried", True)
+    assert not bpy.ops.airlight.bake.poll()
+    with pytest.raises(RuntimeError, match="native module could not be loaded"):
+        bpy.ops.airlight.bake()

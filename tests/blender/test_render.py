@@ -1,0 +1,109 @@
+"""Renders through `blender -b file -f/-a` with the add-on: fog is baked and composited."""
+import os
+
+import bpy
+import numpy as np
+import pytest
+
+from airlight import render
+from conftest import build_plane_scene, exr_pass, needs_native, read_exr, run_blender
+
+
+def _render_scene(tmp_path):
+    """Tiny Cycles scene: plane, lamp, camera tilted and animated over frames 1-2."""
+    scene = build_plane_scene(tmp_path, size=(64, 48))
+    cam = scene.camera
+    cam.location = (0.0, -6.0, 1.5)
+    cam.rotation_euler = (1.35, 0.0, 0.0)
+    cam.keyframe_insert("location", frame=1)
+    cam.location = (1.5, -5.0, 1.5)
+    cam.keyframe_insert("location", frame=2)
+    scene.frame_start, scene.frame_end = 1, 2
+    scene.render.engine = 'CYCLES'
+    scene.cycles.samples = 2
+    scene.cycles.use_denoising = False
+    scene.cycles.device = 'CPU'
+    world = bpy.data.worlds.new("Dark")
+    world.color = (0.0, 0.0, 0.0)
+    scene.world = world
+    scene.view_settings.view_transform = 'Standard'
+    settings = scene.render.image_settings
+    settings.file_format = 'OPEN_EXR'
+    settings.color_depth = '32'
+    scene.render.use_compositing = True
+    scene.airlight.density = 0.1
+    bpy.ops.airlight.setup_compositor()
+    path = str(tmp_path / "scene.blend")
+    bpy.ops.wm.save_as_mainfile(filepath=path)
+    return scene, path
+
+
+def _run(*args):
+    proc = run_blender(*args)
+    assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
+    return proc.stdout
+
+
+@needs_native
+def test01_render_is_plain_render_times_T_plus_A_and_animated_frames_differ(tmp_path):
+    scene, blend = _render_scene(tmp_path)
+    off_script = tmp_path / "fog_off.py"
+    off_script.write_text("import bpy\nbpy.context.scene.airlight.enabled = False\n")
+    out_on = _run(blend, "-o", str(tmp_path / "on_####"), "-a")
+    assert "Airlight: fog of frame 1 baked" in out_on and "Airlight: fog of frame 2 baked" in out_on
+    _run(blend, "--python", str(off_script), "-o", str(tmp_path / "off_####"), "-f", "1")
+
+    fog1 = tmp_path / "cache" / "fog_0001.exr"
+    fog2 = tmp_path / "cache" / "fog_0002.exr"
+    on, _ = read_exr(str(tmp_path / "on_0001.exr"))
+    off, _ = read_exr(str(tmp_path / "off_0001.exr"))
+    A, T = exr_pass(str(fog1), "Airlight"), exr_pass(str(fog1), "Transmittance")
+    assert A.max() > 0.01 and T.min() < 0.99
+    np.testing.assert_allclose(on[..., :3], off[..., :3] * T + A, rtol=1e-4, atol=1e-5)
+    assert np.abs(on[..., :3] - off[..., :3]).max() > 0.01
+
+    # The frames baked during -a follow the animated camera: each equals a bake of that
+    # frame made here, and they differ from each other.
+    for frame, baked in ((1, fog1), (2, fog2)):
+        reference = str(tmp_path / f"ref_{frame}.exr")
+        assert bpy.ops.airlight.bake(frame=frame, filepath=reference) == {'FINISHED'}
+        for name in ("Airlight", "Transmittance"):
+            np.testing.assert_allclose(exr_pass(str(baked), name), exr_pass(reference, name),
+                                       rtol=1e-6, atol=1e-7)
+    assert np.abs(exr_pass(str(fog1), "Airlight") - exr_pass(str(fog2), "Airlight")).max() > 1e-3
+
+
+@needs_native
+def test02_single_frame_render_uses_that_frames_camera(tmp_path):
+    scene, blend = _render_scene(tmp_path)
+    _run(blend, "-o", str(tmp_path / "on_####"), "-f", "2")
+    reference = str(tmp_path / "ref_2.exr")
+    assert bpy.ops.airlight.bake(frame=2, filepath=reference) == {'FINISHED'}
+    np.testing.assert_allclose(exr_pass(str(tmp_path / "cache" / "fog_0002.exr"), "Airlight"),
+                               exr_pass(reference, "Airlight"), rtol=1e-6, atol=1e-7)
+
+
+def test03_handler_without_camera_prints_instead_of_raising(tmp_path, capsys):
+    scene = build_plane_scene(tmp_path, camera=False)
+    render.on_render_pre(scene)
+    out = capsys.readouterr().out
+    assert "rendered without fog" in out
+
+
+def test04_settings_persist_through_save_and_reload(tmp_path):
+    scene = build_plane_scene(tmp_path)
+    scene.airlight.density = 0.125
+    scene.airlight.color = (0.5, 0.6, 0.7)
+    scene.airlight.model = 'QUADRATURE'
+    scene.airlight.aa_samples = 3
+    bpy.data.lights["Lamp"].airlight.participate = False
+    path = str(tmp_path / "persist.blend")
+    bpy.ops.wm.save_as_mainfile(filepath=path)
+    bpy.ops.wm.read_homefile(use_empty=True)
+    assert bpy.context.scene.airlight.density == pytest.approx(0.05)
+    bpy.ops.wm.open_mainfile(filepath=path)
+    s = bpy.context.scene.airlight
+    assert s.enabled and s.density == pytest.approx(0.125)
+    assert tuple(s.color) == pytest.approx((0.5, 0.6, 0.7))
+    assert s.model == 'QUADRATURE' and s.aa_samples == 3
+    assert bpy.data.lights["Lamp"].airlight.participate is False

@@ -1,0 +1,108 @@
+"""Blender scene -> plain description for _native.bake."""
+import math
+
+import bpy
+import numpy as np
+import pytest
+from mathutils import Matrix
+
+from airlight import scene_export
+from conftest import build_plane_scene
+
+
+def _cube(name, location, collection):
+    mesh = bpy.data.meshes.get("UnitCube")
+    if mesh is None:
+        mesh = bpy.data.meshes.new("UnitCube")
+        v = [(x, y, z) for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)]
+        f = [(0, 1, 3, 2), (4, 6, 7, 5), (0, 4, 5, 1), (2, 3, 7, 6), (0, 2, 6, 4), (1, 5, 7, 3)]
+        mesh.from_pydata(v, [], f)
+    obj = bpy.data.objects.new(name, mesh)
+    obj.location = location
+    collection.objects.link(obj)
+    return obj
+
+
+def test01_camera_matches_blender(tmp_path):
+    scene = build_plane_scene(tmp_path, size=(80, 40))
+    scene.render.resolution_percentage = 50
+    scene.render.pixel_aspect_x = 2.0
+    cam = scene.camera
+    cam.data.shift_x = 0.1
+    cam.rotation_euler = (0.3, 0.0, 0.7)
+    depsgraph = bpy.context.evaluated_depsgraph_get()
+    width, height, cam_to_world, projection = scene_export.export_camera(scene, depsgraph)
+    assert (width, height) == (40, 20)
+    np.testing.assert_allclose(cam_to_world, np.array(cam.matrix_world), atol=1e-12)
+    expected = cam.calc_matrix_camera(depsgraph, x=40, y=20, scale_x=2.0, scale_y=1.0)
+    np.testing.assert_allclose(projection, np.array(expected), atol=1e-12)
+    assert cam_to_world.dtype == np.float64 and projection.shape == (4, 4)
+
+
+def test02_geometry_counts_instances_and_skips_hidden(tmp_path):
+    scene = build_plane_scene(tmp_path)
+    _cube("Visible", (3, -5, 1), scene.collection)
+    hidden = _cube("Hidden", (-3, 0, 1), scene.collection)
+    hidden.hide_render = True
+    # A collection instance: the source collection is excluded from the view layer,
+    # its two instances render.
+    source = bpy.data.collections.new("Props")
+    scene.collection.children.link(source)
+    _cube("Prop", (0, 0, 0), source)
+    bpy.context.view_layer.layer_collection.children["Props"].exclude = True
+    for i, x in enumerate((5.0, 7.0)):
+        empty = bpy.data.objects.new(f"Instance{i}", None)
+        empty.instance_type = 'COLLECTION'
+        empty.instance_collection = source
+        empty.location = (x, 1.0, 0.5)
+        scene.collection.objects.link(empty)
+    depsgraph = bpy.context.evaluated_depsgraph_get()
+    vertices, triangles, *_ = scene_export.export_geometry_and_lights(scene, depsgraph)
+    # plane 2 + visible cube 12 + 2 instanced cubes 24 (hidden cube and excluded source: 0)
+    assert len(triangles) == 2 + 12 + 24
+    assert vertices.dtype == np.float32 and triangles.dtype == np.uint32
+    assert triangles.max() < len(vertices)
+    # World-space placement of the instances: a cube spans x in [4, 6] and [6, 8].
+    assert vertices[:, 0].max() == pytest.approx(50.0)
+    tri_centres = vertices[triangles].mean(axis=1)
+    inst = tri_centres[(tri_centres[:, 1] > 0.0) & (tri_centres[:, 1] < 2.1) & (tri_centres[:, 2] > 0.0)]
+    assert inst[:, 0].min() >= 4.0 - 1e-5 and inst[:, 0].max() <= 8.0 + 1e-5
+
+
+def test03_light_intensity_is_colour_times_power_over_4pi(tmp_path):
+    scene = build_plane_scene(tmp_path)
+    off = bpy.data.lights.new("Off", 'POINT')
+    off.airlight.participate = False
+    obj_off = bpy.data.objects.new("Off", off)
+    scene.collection.objects.link(obj_off)
+    spot = bpy.data.objects.new("Spot", bpy.data.lights.new("Spot", 'SPOT'))
+    scene.collection.objects.link(spot)
+    depsgraph = bpy.context.evaluated_depsgraph_get()
+    *_, positions, intensities, skipped = scene_export.export_geometry_and_lights(scene, depsgraph)
+    assert positions.shape == (1, 3) and intensities.shape == (1, 3)
+    np.testing.assert_allclose(positions[0], (0.5, 0.3, 1.0), atol=1e-6)
+    np.testing.assert_allclose(intensities[0], np.array([1.0, 0.5, 0.25]) * 300.0 / (4 * math.pi), rtol=1e-6)
+    assert skipped == [("Spot", 'SPOT')]
+    rows = {name: (supported, participates) for name, _, supported, participates in scene_export.fog_lights(scene)}
+    assert rows == {"Lamp": (True, True), "Off": (True, False), "Spot": (False, True)}
+
+
+def test04_description_keys_match_bake_arguments(tmp_path):
+    scene = build_plane_scene(tmp_path)
+    scene.airlight.color = (0.9, 0.8, 0.7)
+    description = scene_export.export_scene(scene, bpy.context.evaluated_depsgraph_get())
+    assert set(description) == {"width", "height", "cam_to_world", "projection", "vertices", "triangles",
+                                "light_positions", "light_intensities", "sigma_t", "albedo"}
+    assert description["sigma_t"] == pytest.approx(0.2)
+    assert description["albedo"] == pytest.approx((0.9, 0.8, 0.7))
+
+
+def test05_errors_are_clear(tmp_path):
+    scene = build_plane_scene(tmp_path, camera=False)
+    depsgraph = bpy.context.evaluated_depsgraph_get()
+    with pytest.raises(scene_export.ExportError, match="no active camera"):
+        scene_export.export_scene(scene, depsgraph)
+    scene = build_plane_scene(tmp_path)
+    scene.camera.data.type = 'PANO'
+    with pytest.raises(scene_export.ExportError, match="panoramic"):
+        scene_export.export_scene(scene, bpy.context.evaluated_depsgraph_get())
