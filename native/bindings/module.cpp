@@ -1,1 +1,30 @@
-// placeholder
+// module.cpp: the private `_native` module. Kernels stay plain C++; the bindings
+// convert whole numpy arrays and release the GIL around work.
+#include "kernels/bake.h"
+#include "kernels/models.h"
+#include "numpy_util.h"
+
+#include <pybind11/stl.h>
+
+namespace py = pybind11;
+using namespace pybind11::literals;
+
+PYBIND11_MODULE(_native, m) {
+    m.doc() = "Airlight native kernels: analytic single-scattering fog (Sun et al. 2005) and the bake.";
+    m.attr("__version__") = "0.1.0";
+
+    py::register_exception<airlight::Cancelled>(m, "BakeCancelled");
+
+    m.def(
+        "models",
+        []() {
+            py::list out;
+            for (const airlight::ModelInfo& info : airlight::model_registry())
+                out.append(py::make_tuple(info.name, info.description));
+            return out;
+        },
+        "The registered fog models as a list of (name, description); the first is the default.");
+
+    airlight::bindings::bind_physics(m);
+    airlight::bindings::bind_bake(m);
+}

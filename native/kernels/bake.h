@@ -3,10 +3,12 @@
 
 #include <atomic>
 #include <functional>
+#include <memory>
 #include <vector>
 
 #include "models.h"
 #include "scene.h"
+#include "special_f.h"
 
 namespace airlight {
 
@@ -50,5 +52,9 @@ struct Cancelled : std::exception {
 // negative density, zero resolution, ...) and bakes.
 BakeResult bake(const SceneDescription& scene, const BakeSettings& settings,
                 const ProgressFn& progress = nullptr);
+
+// The F table the bake uses for ModelId::Sun05Table, built once per (nu, nT) and
+// shared for the life of the process (thread safe).
+std::shared_ptr<const SpecialFTable> shared_special_F_table(int nu, int nT);
 
 }  // namespace airlight

@@ -1,0 +1,178 @@
+// bind_bake.cpp: the whole-image bake and the multilayer EXR writer.
+#include <cmath>
+#include <limits>
+#include <string>
+
+#include "kernels/bake.h"
+#include "kernels/exr_io.h"
+#include "kernels/models.h"
+#include "numpy_util.h"
+
+namespace airlight::bindings {
+
+using namespace pybind11::literals;
+
+namespace {
+
+// A (4, 4) float64 array (numpy row-major) as a glm (column-major) matrix.
+glm::dmat4 to_mat4(const py::object& obj, const char* name) {
+    auto a = as_array<double>(obj, name);
+    if (a.ndim() != 2 || a.shape(0) != 4 || a.shape(1) != 4)
+        throw py::value_error(std::string(name) + ": expected shape (4, 4), got " + shape_str(a));
+    glm::dmat4 m;
+    for (int r = 0; r < 4; ++r)
+        for (int c = 0; c < 4; ++c) m[c][r] = a.at(r, c);
+    return m;
+}
+
+// Triangle indices: any integer array of shape (M, 3) with values in [0, 2^32).
+std::vector<uint32_t> to_triangles(const py::object& obj) {
+    py::array raw = py::array::ensure(obj);
+    if (!raw) throw py::value_error("triangles: cannot convert to an array");
+    if (raw.size() > 0 && raw.dtype().kind() != 'i' && raw.dtype().kind() != 'u')
+        throw py::value_error("triangles: expected an integer array, got dtype " +
+                              std::string(py::str(raw.dtype())));
+    auto a = as_array<long long>(raw, "triangles");
+    py::ssize_t m = require_rows_of(a, 3, "triangles");
+    std::vector<uint32_t> out(size_t(3 * m));
+    const long long* p = a.data();
+    for (size_t i = 0; i < out.size(); ++i) {
+        if (p[i] < 0 || p[i] > 0xFFFFFFFFll)
+            throw py::value_error("triangles: index " + std::to_string(p[i]) + " out of range");
+        out[i] = uint32_t(p[i]);
+    }
+    return out;
+}
+
+glm::dvec3 to_rgb(const py::object& obj, const char* name) {
+    auto a = as_array<double>(obj, name);
+    if (a.size() != 3) throw py::value_error(std::string(name) + ": expected 3 values, got " + shape_str(a));
+    return {a.data()[0], a.data()[1], a.data()[2]};
+}
+
+py::dict bake_py(int width, int height, const py::object& cam_to_world, const py::object& projection,
+                 const py::object& vertices, const py::object& triangles,
+                 const py::object& light_positions, const py::object& light_intensities, double sigma_t,
+                 const py::object& albedo, const std::string& model, int threads, int aa_samples,
+                 double filter_width, const py::object& progress) {
+    // Gather the scene description from the arrays (shapes checked here, values in bake()).
+    SceneDescription scene;
+    scene.camera.width = width;
+    scene.camera.height = height;
+    scene.camera.cam_to_world = to_mat4(cam_to_world, "cam_to_world");
+    scene.camera.projection = to_mat4(projection, "projection");
+    scene.medium.sigma_t = sigma_t;
+    scene.medium.albedo = to_rgb(albedo, "albedo");
+
+    auto v = as_array<float>(vertices, "vertices");
+    py::ssize_t n_vertices = require_rows_of(v, 3, "vertices");
+    scene.geometry.vertices.assign(v.data(), v.data() + 3 * n_vertices);
+    scene.geometry.triangles = to_triangles(triangles);
+
+    auto lp = as_array<double>(light_positions, "light_positions");
+    py::ssize_t n_lights = require_rows_of(lp, 3, "light_positions");
+    auto li = as_array<double>(light_intensities, "light_intensities");
+    require_rows_of(li, 3, "light_intensities", n_lights);
+    for (py::ssize_t l = 0; l < n_lights; ++l) {
+        PointLight light;
+        light.position = {lp.at(l, 0), lp.at(l, 1), lp.at(l, 2)};
+        light.I0 = {li.at(l, 0), li.at(l, 1), li.at(l, 2)};
+        scene.point_lights.push_back(light);
+    }
+
+    BakeSettings settings;
+    settings.model = model_from_name(model);
+    settings.threads = threads;
+    settings.aa_samples = aa_samples;
+    settings.filter_width = filter_width;
+
+    // The callback runs on this (the calling) thread between bands: take the GIL for it.
+    ProgressFn progress_fn;
+    if (!progress.is_none()) {
+        if (!PyCallable_Check(progress.ptr())) throw py::value_error("progress must be callable or None");
+        progress_fn = [&progress](double fraction) {
+            py::gil_scoped_acquire acquire;
+            py::object r = progress(fraction);
+            return r.is_none() || r.cast<bool>();
+        };
+    }
+
+    BakeResult result;
+    {
+        py::gil_scoped_release release;
+        result = bake(scene, settings, progress_fn);
+    }
+
+    const py::ssize_t H = height, W = width;
+    py::dict stats("seconds_raycast"_a = result.stats.seconds_raycast,
+                   "seconds_airlight"_a = result.stats.seconds_airlight,
+                   "supersampled_pixels"_a = result.stats.supersampled_pixels,
+                   "samples"_a = result.stats.samples);
+    return py::dict("airlight"_a = to_numpy(std::move(result.airlight), {H, W, 3}),
+                    "transmittance"_a = to_numpy(std::move(result.transmittance), {H, W, 3}),
+                    "depth"_a = to_numpy(std::move(result.depth), {H, W}), "stats"_a = stats);
+}
+
+void write_exr_py(const std::string& path, const py::dict& passes, const std::string& layer_prefix) {
+    // Convert every pass to contiguous float32 (H, W, 3), all of one size.
+    if (passes.size() == 0) throw py::value_error("write_exr: passes is empty");
+    std::vector<std::string> names;
+    std::vector<CArray<float>> arrays;
+    py::ssize_t H = -1, W = -1;
+    for (const auto& item : passes) {
+        std::string name = py::str(item.first);
+        auto a = as_array<float>(item.second, ("pass '" + name + "'").c_str());
+        if (a.ndim() != 3 || a.shape(2) != 3)
+            throw py::value_error("write_exr: pass '" + name + "' must have shape (H, W, 3), got " + shape_str(a));
+        if (H < 0) {
+            H = a.shape(0);
+            W = a.shape(1);
+        } else if (a.shape(0) != H || a.shape(1) != W) {
+            throw py::value_error("write_exr: pass '" + name + "' has shape " + shape_str(a) +
+                                  ", other passes are (" + std::to_string(H) + ", " + std::to_string(W) + ", 3)");
+        }
+        names.push_back(name);
+        arrays.push_back(a);
+    }
+    if (H == 0 || W == 0) throw py::value_error("write_exr: image size must be positive");
+    std::vector<ExrPass> exr_passes;
+    for (size_t i = 0; i < names.size(); ++i) exr_passes.push_back({names[i], arrays[i].data()});
+    py::gil_scoped_release release;
+    write_multilayer_exr(path, int(W), int(H), exr_passes, layer_prefix);
+}
+
+}  // namespace
+
+void bind_bake(py::module_& m) {
+    m.def("bake", &bake_py, py::kw_only(), "width"_a, "height"_a, "cam_to_world"_a, "projection"_a,
+          "vertices"_a, "triangles"_a, "light_positions"_a, "light_intensities"_a, "sigma_t"_a,
+          "albedo"_a = py::make_tuple(1.0, 1.0, 1.0), "model"_a = "sun05", "threads"_a = 0,
+          "aa_samples"_a = 4, "filter_width"_a = 1.5, "progress"_a = py::none(),
+          R"doc(Bake fog passes for one camera view (all arguments keyword-only).
+
+width, height: render resolution in pixels.
+cam_to_world: (4, 4) camera matrix_world; projection: (4, 4)
+  camera.calc_matrix_camera(depsgraph, x=width, y=height, scale_x, scale_y).
+vertices: (N, 3) float32 world-space positions; triangles: (M, 3) integer indices.
+light_positions: (L, 3); light_intensities: (L, 3) radiant intensity in W/sr
+  (= colour * power / (4 pi) for a Blender point light).
+sigma_t: extinction 1/m (>= 0); albedo: 3 floats (scattering = albedo * sigma_t).
+model: "sun05", "sun05_exact" or "quadrature" (see models()).
+threads: worker threads (0: all). aa_samples: per-axis samples on edge pixels;
+filter_width: Blackman-Harris film filter width in pixels (Cycles' default 1.5).
+progress: optional callable(fraction) -> bool|None, called from this thread
+  between row bands; returning False cancels and raises BakeCancelled.
+
+Returns dict(airlight=(H, W, 3) float32, transmittance=(H, W, 3) float32,
+depth=(H, W) float32 (inf where no hit), stats=dict(seconds_raycast,
+seconds_airlight, supersampled_pixels, samples)); rows top first. Raises
+ValueError on invalid input. The GIL is released while baking.)doc");
+
+    m.def("write_exr", &write_exr_py, "path"_a, "passes"_a, "layer_prefix"_a = "",
+          R"doc(Write one multilayer float EXR.
+
+passes: dict name -> (H, W, 3) float32 array (top row first); channels are named
+"<layer_prefix><name>.R/G/B" in dict order. Raises RuntimeError on I/O failure.)doc");
+}
+
+}  // namespace airlight::bindings

@@ -1,0 +1,75 @@
+// numpy_util.h: argument checking and array conversion shared by the binding files.
+#pragma once
+
+#include <pybind11/numpy.h>
+#include <pybind11/pybind11.h>
+
+#include <string>
+#include <utility>
+#include <vector>
+
+namespace airlight::bindings {
+
+namespace py = pybind11;
+
+template <typename T>
+using CArray = py::array_t<T, py::array::c_style | py::array::forcecast>;
+
+// Converts _obj_ to a C-contiguous array of T; ValueError naming _name_ on failure.
+template <typename T>
+CArray<T> as_array(const py::handle& obj, const char* name) {
+    auto a = CArray<T>::ensure(obj);
+    if (!a) throw py::value_error(std::string(name) + ": cannot convert to a numeric array");
+    return a;
+}
+
+// "(3, 4)" for error messages.
+inline std::string shape_str(const py::array& a) {
+    std::string s = "(";
+    for (py::ssize_t i = 0; i < a.ndim(); ++i) s += (i ? ", " : "") + std::to_string(a.shape(i));
+    return s + (a.ndim() == 1 ? ",)" : ")");
+}
+
+// Requires shape (rows, cols) with _cols_ fixed, or (rows,) == (0,) for an empty list,
+// and (if _rows_ >= 0) the given row count. Returns the row count.
+inline py::ssize_t require_rows_of(const py::array& a, py::ssize_t cols, const char* name,
+                                   py::ssize_t rows = -1) {
+    bool empty_list = a.ndim() == 1 && a.shape(0) == 0;
+    if (!empty_list && (a.ndim() != 2 || a.shape(1) != cols))
+        throw py::value_error(std::string(name) + ": expected shape (N, " + std::to_string(cols) +
+                              "), got " + shape_str(a));
+    py::ssize_t n = empty_list ? 0 : a.shape(0);
+    if (rows >= 0 && n != rows)
+        throw py::value_error(std::string(name) + ": expected " + std::to_string(rows) +
+                              " rows, got " + std::to_string(n));
+    return n;
+}
+
+// A numpy array that owns _data_ (moved, no copy) with the given shape.
+template <typename T>
+py::array_t<T> to_numpy(std::vector<T>&& data, std::vector<py::ssize_t> shape) {
+    auto* owner = new std::vector<T>(std::move(data));
+    py::capsule free_owner(owner, [](void* p) { delete static_cast<std::vector<T>*>(p); });
+    return py::array_t<T>(shape, owner->data(), free_owner);
+}
+
+// Broadcasts the given arrays against each other (numpy rules) as contiguous float64.
+inline std::vector<CArray<double>> broadcast_doubles(const std::vector<std::pair<py::object, const char*>>& args) {
+    py::module_ np = py::module_::import("numpy");
+    py::list converted;
+    for (const auto& [obj, name] : args) converted.append(as_array<double>(obj, name));
+    py::object shaped;
+    try {
+        shaped = np.attr("broadcast_arrays")(*converted);
+    } catch (const py::error_already_set& e) {
+        throw py::value_error(std::string("arguments cannot be broadcast together: ") + e.what());
+    }
+    std::vector<CArray<double>> out;
+    for (const py::handle& a : shaped) out.push_back(py::cast<CArray<double>>(np.attr("ascontiguousarray")(a)));
+    return out;
+}
+
+void bind_physics(py::module_& m);
+void bind_bake(py::module_& m);
+
+}  // namespace airlight::bindings

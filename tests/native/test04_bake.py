@@ -1,0 +1,169 @@
+"""Whole-image bakes of tiny scenes against analytic depths and per-ray model values."""
+import math
+
+import numpy as np
+import pytest
+
+import _native
+from scene_util import (camera_matrix, orthographic, perspective, pixel_dirs_camera, quad,
+                        rotation_x)
+
+W, H = 48, 32
+FOV = math.radians(60.0)
+SIGMA_T = 0.08
+TILT = math.radians(-10.0)          # camera pitched down by 10 degrees
+CAM_POS = np.array([0.5, 1.0, 2.0])
+PLANE_Z = -8.0                       # the floor z = -8 fills the whole view (camera looks down -Z)
+
+
+def floor():
+    s = 1000.0
+    return quad([[-s, -s, PLANE_Z], [s, -s, PLANE_Z], [s, s, PLANE_Z], [-s, s, PLANE_Z]])
+
+
+def bake(lights=((1.0, 3.0, -5.0),), intensities=((2.0, 2.0, 2.0),), geometry=None, **kw):
+    vertices, triangles = floor() if geometry is None else geometry
+    args = dict(width=W, height=H, cam_to_world=camera_matrix(rotation_x(TILT), CAM_POS),
+                projection=perspective(FOV, W, H), vertices=vertices, triangles=triangles,
+                light_positions=np.array(lights, dtype=float).reshape(-1, 3),
+                light_intensities=np.array(intensities, dtype=float).reshape(-1, 3),
+                sigma_t=SIGMA_T, threads=2)
+    args.update(kw)
+    return _native.bake(**args)
+
+
+def world_dirs():
+    return pixel_dirs_camera(FOV, W, H) @ rotation_x(TILT).T
+
+
+def analytic_depth():
+    d = world_dirs()
+    return (CAM_POS[2] - PLANE_Z) / -d[..., 2]
+
+
+def test01_shapes_and_types():
+    out = bake()
+    assert out["airlight"].shape == (H, W, 3) and out["airlight"].dtype == np.float32
+    assert out["transmittance"].shape == (H, W, 3) and out["transmittance"].dtype == np.float32
+    assert out["depth"].shape == (H, W) and out["depth"].dtype == np.float32
+    stats = out["stats"]
+    assert stats["samples"] >= W * H
+    assert stats["seconds_raycast"] >= 0 and stats["seconds_airlight"] >= 0
+
+
+def test02_depth_is_ray_plane_distance():
+    out = bake()
+    np.testing.assert_allclose(out["depth"], analytic_depth(), rtol=1e-5)
+
+
+def test03_transmittance_is_exp_optical_depth():
+    out = bake(aa_samples=1)
+    want = np.exp(-SIGMA_T * analytic_depth())
+    for c in range(3):
+        np.testing.assert_allclose(out["transmittance"][..., c], want, rtol=1e-5)
+
+
+@pytest.mark.parametrize("model", ["sun05", "sun05_exact"])
+def test04_airlight_matches_per_ray_model(model):
+    light, I0 = np.array([1.0, 3.0, -5.0]), 2.0
+    out = bake(lights=[light], intensities=[[I0] * 3], model=model, aa_samples=1)
+    d = world_dirs()
+    to_light = light - CAM_POS
+    Dsv = np.linalg.norm(to_light)
+    cos_gamma = d @ to_light / Dsv
+    want = I0 * _native.sun05_airlight(SIGMA_T, Dsv, cos_gamma, analytic_depth(), model=model)
+    for c in range(3):
+        np.testing.assert_allclose(out["airlight"][..., c], want, rtol=1e-4)
+
+
+def test05_interior_pixels_filtered_equal_centre():
+    # Smooth image: the antialiased bake agrees with the centre-sample bake.
+    np.testing.assert_allclose(bake()["airlight"], bake(aa_samples=1)["airlight"], rtol=1e-2)
+
+
+def test06_linear_in_intensity_and_albedo():
+    one = bake(intensities=[[1.0, 1.0, 1.0]], aa_samples=1)["airlight"]
+    three = bake(intensities=[[3.0, 3.0, 3.0]], aa_samples=1)["airlight"]
+    np.testing.assert_allclose(three, 3.0 * one, rtol=1e-5)
+    tinted = bake(intensities=[[1.0, 1.0, 1.0]], albedo=(1.0, 0.5, 0.25), aa_samples=1)["airlight"]
+    np.testing.assert_allclose(tinted, one * np.array([1.0, 0.5, 0.25], dtype=np.float32), rtol=1e-5)
+
+
+def test07_additive_over_lights():
+    a = ([1.0, 3.0, -5.0], [2.0, 1.0, 0.5])
+    b = ([-3.0, 0.0, -2.0], [0.3, 0.6, 0.9])
+    both = bake(lights=[a[0], b[0]], intensities=[a[1], b[1]])["airlight"]
+    sep = bake(lights=[a[0]], intensities=[a[1]])["airlight"] + bake(lights=[b[0]], intensities=[b[1]])["airlight"]
+    np.testing.assert_allclose(both, sep, rtol=1e-5, atol=1e-9)
+
+
+def test08_zero_density_is_clear():
+    out = bake(sigma_t=0.0)
+    assert np.all(out["airlight"] == 0.0)
+    assert np.all(out["transmittance"] == 1.0)
+
+
+def test09_no_lights_no_airlight():
+    out = bake(lights=np.zeros((0, 3)), intensities=np.zeros((0, 3)))
+    assert np.all(out["airlight"] == 0.0)
+
+
+def test10_rows_top_first():
+    # Empty scene, camera level; a light above the horizon brightens the upper rows.
+    empty = (np.zeros((0, 3), np.float32), np.zeros((0, 3), np.uint32))
+    out = bake(geometry=empty, lights=[[0.0, 4.0, -10.0]], intensities=[[5.0] * 3],
+               cam_to_world=camera_matrix(np.eye(3), [0, 0, 0]))
+    assert np.all(np.isinf(out["depth"]))
+    assert np.all(out["transmittance"] == 0.0)
+    La = out["airlight"][..., 0]
+    assert La[: H // 2].mean() > 2.0 * La[H // 2:].mean()
+
+
+def test11_misses_are_infinite():
+    # A floor under the left half of the view only (world x < 0, camera level at origin).
+    s = 1000.0
+    half = quad([[-s, -s, PLANE_Z], [0, -s, PLANE_Z], [0, s, PLANE_Z], [-s, s, PLANE_Z]])
+    out = bake(geometry=half, cam_to_world=camera_matrix(np.eye(3), [0, 0, 0]))
+    assert np.all(np.isfinite(out["depth"][:, : W // 2]))
+    assert np.all(np.isinf(out["depth"][:, W // 2:]))
+    assert 0 < out["stats"]["supersampled_pixels"] <= 4 * H
+
+
+def blackman_harris_cdf(x, w=1.5):
+    """Cycles' Blackman-Harris film filter (support [-w, w]), integrated from -w to x."""
+    t = np.linspace(-w, x, 20001)
+    a = 2 * np.pi * (t / (2 * w) + 0.5)
+    f = 0.35875 - 0.48829 * np.cos(a) + 0.14128 * np.cos(2 * a) - 0.01168 * np.cos(3 * a)
+    tt = np.linspace(-w, w, 20001)
+    aa = 2 * np.pi * (tt / (2 * w) + 0.5)
+    ff = 0.35875 - 0.48829 * np.cos(aa) + 0.14128 * np.cos(2 * aa) - 0.01168 * np.cos(3 * aa)
+    return np.trapz(f, t) / np.trapz(ff, tt)
+
+
+def test12_edge_pixels_follow_film_filter():
+    # A vertical silhouette edge between columns W/2-1 and W/2: the transmittance of the
+    # two edge columns is the filter-weighted share of floor hits (misses have Tr = 0).
+    s = 1000.0
+    half = quad([[0, -s, PLANE_Z], [s, -s, PLANE_Z], [s, s, PLANE_Z], [0, s, PLANE_Z]])
+    out = bake(geometry=half, cam_to_world=camera_matrix(np.eye(3), [0, 0, 0]), aa_samples=16)
+    Tr = out["transmittance"][H // 2, :, 0]
+    Tr_hit = math.exp(-SIGMA_T * -PLANE_Z / math.cos(0.5 * FOV / W))  # ~ near the axis
+    assert Tr[W // 2] / Tr_hit == pytest.approx(1 - blackman_harris_cdf(-0.5), abs=0.07)
+    assert Tr[W // 2 - 1] / Tr_hit == pytest.approx(1 - blackman_harris_cdf(0.5), abs=0.07)
+    assert Tr[W // 2 + 2] == pytest.approx(math.exp(-SIGMA_T * out["depth"][H // 2, W // 2 + 2]), rel=1e-5)
+    assert Tr[W // 2 - 3] == 0.0
+
+
+def test13_orthographic_rays_are_parallel():
+    near = 0.1
+    out = bake(cam_to_world=camera_matrix(np.eye(3), [0, 0, 2.0]),
+               projection=orthographic(6.0, W, H, near=near))
+    # Rays start on the near plane and all meet the floor at the same distance.
+    np.testing.assert_allclose(out["depth"], 2.0 - PLANE_Z - near, rtol=1e-5)
+
+
+def test14_models_agree_in_a_bake():
+    ref = bake(model="quadrature", aa_samples=1)["airlight"]
+    for model in ["sun05", "sun05_exact"]:
+        got = bake(model=model, aa_samples=1)["airlight"]
+        np.testing.assert_allclose(got, ref, rtol=2e-3 if model == "sun05" else 1e-5)

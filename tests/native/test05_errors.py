@@ -1,0 +1,67 @@
+"""Invalid input raises ValueError with a message that names the problem."""
+import os
+
+import numpy as np
+import pytest
+
+import _native
+from scene_util import perspective, quad
+
+
+def args(**kw):
+    v, t = quad([[-5, -5, -3], [5, -5, -3], [5, 5, -3], [-5, 5, -3]])
+    a = dict(width=8, height=6, cam_to_world=np.eye(4), projection=perspective(1.0, 8, 6),
+             vertices=v, triangles=t, light_positions=[[0.0, 1.0, -1.0]],
+             light_intensities=[[1.0, 1.0, 1.0]], sigma_t=0.1)
+    a.update(kw)
+    return a
+
+
+def test00_valid_args_bake():
+    _native.bake(**args())
+
+
+@pytest.mark.parametrize("kw, match", [
+    (dict(width=0), "resolution"),
+    (dict(height=-3), "resolution"),
+    (dict(width=100000), "resolution"),
+    (dict(sigma_t=-0.1), "sigma_t"),
+    (dict(sigma_t=float("nan")), "sigma_t"),
+    (dict(albedo=(1.0, -1.0, 1.0)), "albedo"),
+    (dict(albedo=(1.0, 1.0)), "albedo"),
+    (dict(cam_to_world=np.eye(3)), "cam_to_world"),
+    (dict(cam_to_world=np.full((4, 4), np.nan)), "finite"),
+    (dict(projection=np.zeros((4, 4))), "invertible"),
+    (dict(vertices=np.zeros((4, 2), np.float32)), "vertices"),
+    (dict(vertices=np.array([[0, 0, np.nan]] * 4, np.float32)), "vertices"),
+    (dict(triangles=np.array([[0, 1, 7]], np.uint32)), "triangle index"),
+    (dict(triangles=np.array([[0, 1, -1]])), "triangles"),
+    (dict(triangles=np.array([[0.0, 1.0, 2.0]])), "integer"),
+    (dict(light_positions=[[0.0, 1.0]]), "light_positions"),
+    (dict(light_intensities=[[1.0, 1.0, 1.0]] * 2), "light_intensities"),
+    (dict(light_intensities=[[1.0, -1.0, 1.0]]), "intensity"),
+    (dict(light_positions=[[0.0, np.inf, 0.0]]), "position"),
+    (dict(model="nope"), "sun05"),
+    (dict(aa_samples=0), "aa_samples"),
+    (dict(threads=-1), "threads"),
+    (dict(progress=42), "progress"),
+])
+def test01_bake_rejects(kw, match):
+    with pytest.raises(ValueError, match=match):
+        _native.bake(**args(**kw))
+
+
+def test02_write_exr_missing_directory(tmp_path):
+    path = os.path.join(str(tmp_path), "no", "such", "dir", "fog.exr")
+    with pytest.raises(RuntimeError):
+        _native.write_exr(path, {"Airlight": np.zeros((4, 4, 3), np.float32)})
+
+
+def test03_write_exr_bad_passes(tmp_path):
+    path = str(tmp_path / "fog.exr")
+    with pytest.raises(ValueError, match="shape"):
+        _native.write_exr(path, {"Airlight": np.zeros((4, 4), np.float32)})
+    with pytest.raises(ValueError, match="other passes"):
+        _native.write_exr(path, {"A": np.zeros((4, 4, 3), np.float32), "B": np.zeros((4, 5, 3), np.float32)})
+    with pytest.raises(ValueError):
+        _native.write_exr(path, {})
