@@ -1,1 +1,197 @@
-// placeholder
+// bake_test.cpp: camera rays, Embree first hits and the bake against analytic geometry.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <limits>
+#include <random>
+
+#include <glm/gtc/matrix_transform.hpp>
+
+#include "bake.h"
+#include "camera.h"
+#include "raycast.h"
+#include "sun05.h"
+
+namespace airlight {
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+
+// OpenGL projection like Blender's calc_matrix_camera with horizontal sensor fit.
+glm::dmat4 blender_perspective(double fov_x, int W, int H, double n = 0.1, double f = 100.0) {
+    double r = n * std::tan(fov_x / 2), t = r * H / W;
+    return glm::frustum(-r, r, -t, t, n, f);
+}
+
+Camera test_camera(const glm::dmat4& cam_to_world, const glm::dmat4& projection, int W = 64, int H = 48) {
+    Camera cam;
+    cam.cam_to_world = cam_to_world;
+    cam.projection = projection;
+    cam.width = W;
+    cam.height = H;
+    return cam;
+}
+
+glm::dmat4 rotated_camera() {
+    glm::dmat4 m = glm::translate(glm::dmat4(1.0), Vec3(1.0, -2.0, 3.0));
+    return glm::rotate(m, 0.7, glm::normalize(Vec3(0.3, 1.0, -0.2)));
+}
+
+TEST(Camera, CentreRayLooksDownMinusZ) {
+    const glm::dmat4 c2w = rotated_camera();
+    Camera cam = test_camera(c2w, blender_perspective(kPi / 3, 64, 48));
+    Ray ray = camera_ray(cam, 32.0, 24.0);
+    Vec3 forward = -glm::normalize(Vec3(c2w[2]));
+    EXPECT_NEAR(glm::length(ray.o - Vec3(c2w[3])), 0.0, 1e-12);
+    EXPECT_NEAR(glm::dot(ray.d, forward), 1.0, 1e-12);
+}
+
+TEST(Camera, CornerRaysHitTheFieldOfView) {
+    const double fov_x = kPi / 3;
+    const int W = 64, H = 48;
+    Camera cam = test_camera(glm::dmat4(1.0), blender_perspective(fov_x, W, H), W, H);
+    // Film corner (0, 0) is the top-left: x = -tan(fov/2), y = +tan(fov/2) H / W at z = -1.
+    Ray ray = camera_ray(cam, 0.0, 0.0);
+    Vec3 want = glm::normalize(Vec3(-std::tan(fov_x / 2), std::tan(fov_x / 2) * H / W, -1.0));
+    EXPECT_NEAR(glm::length(ray.d - want), 0.0, 1e-12);
+    // Right edge centre: exactly half the horizontal field of view.
+    ray = camera_ray(cam, W, H / 2.0);
+    EXPECT_NEAR(std::acos(-ray.d.z), fov_x / 2, 1e-12);
+    EXPECT_GT(ray.d.x, 0.0);
+}
+
+TEST(Camera, OrthographicRaysAreParallel) {
+    const glm::dmat4 c2w = rotated_camera();
+    Camera cam = test_camera(c2w, glm::ortho(-2.0, 2.0, -1.5, 1.5, 0.1, 100.0));
+    Vec3 forward = -glm::normalize(Vec3(c2w[2]));
+    Ray a = camera_ray(cam, 0.5, 0.5), b = camera_ray(cam, 63.5, 47.5);
+    EXPECT_NEAR(glm::dot(a.d, forward), 1.0, 1e-12);
+    EXPECT_NEAR(glm::dot(b.d, forward), 1.0, 1e-12);
+    // Origins on the near plane, 4 x 3 apart at the corners (minus one pixel).
+    EXPECT_NEAR(glm::dot(a.o - Vec3(c2w[3]), forward), 0.1, 1e-12);
+    EXPECT_NEAR(glm::length(a.o - b.o), std::hypot(4.0 * 63 / 64, 3.0 * 47 / 48), 1e-12);
+    EXPECT_TRUE(CameraRays(cam).orthographic());
+}
+
+TEST(Camera, RejectsSingularMatrices) {
+    Camera cam = test_camera(glm::dmat4(1.0), glm::dmat4(0.0));
+    EXPECT_THROW(CameraRays{cam}, std::invalid_argument);
+}
+
+TriangleMesh square(double z, double s = 10.0) {
+    TriangleMesh m;
+    m.vertices = {float(-s), float(-s), float(z), float(s), float(-s), float(z),
+                  float(s),  float(s),  float(z), float(-s), float(s), float(z)};
+    m.triangles = {0, 1, 2, 0, 2, 3};
+    return m;
+}
+
+TEST(RayCaster, HitsPlaneAtAnalyticDistance) {
+    RayCaster caster(square(-5.0));
+    std::mt19937 rng(1);
+    std::uniform_real_distribution<double> u(-0.5, 0.5);
+    for (int k = 0; k < 100; ++k) {
+        Ray ray{Vec3(u(rng), u(rng), 0.0), glm::normalize(Vec3(u(rng), u(rng), -1.0))};
+        EXPECT_NEAR(caster.first_hit(ray), 5.0 / -ray.d.z, 1e-5);
+    }
+    EXPECT_TRUE(std::isinf(caster.first_hit({Vec3(0.0), Vec3(0, 0, 1)})));
+    EXPECT_TRUE(std::isinf(caster.first_hit({Vec3(50, 0, 0), Vec3(0, 0, -1)})));
+}
+
+TEST(RayCaster, PacketsAgreeWithSingleRays) {
+    RayCaster caster(square(-5.0, 1.0));
+    std::mt19937 rng(2);
+    std::uniform_real_distribution<double> u(-0.4, 0.4);
+    std::vector<Ray> rays(37);  // not a multiple of 8
+    for (Ray& r : rays) r = {Vec3(0.0), glm::normalize(Vec3(u(rng), u(rng), -1.0))};
+    std::vector<float> t(rays.size());
+    caster.first_hits(rays.data(), int(rays.size()), t.data());
+    for (size_t i = 0; i < rays.size(); ++i) {
+        double want = caster.first_hit(rays[i]);
+        if (std::isinf(want)) EXPECT_TRUE(std::isinf(t[i]));
+        else EXPECT_NEAR(t[i], want, 1e-5);
+    }
+}
+
+TEST(RayCaster, EmptyMeshAndBadIndices) {
+    RayCaster empty(TriangleMesh{});
+    EXPECT_TRUE(std::isinf(empty.first_hit({Vec3(0.0), Vec3(0, 0, -1)})));
+    TriangleMesh bad = square(-1.0);
+    bad.triangles[5] = 4;
+    EXPECT_THROW(RayCaster{bad}, std::invalid_argument);
+}
+
+SceneDescription test_scene(int W = 40, int H = 30) {
+    SceneDescription scene;
+    scene.camera = test_camera(glm::dmat4(1.0), blender_perspective(kPi / 3, W, H), W, H);
+    scene.medium.sigma_t = 0.1;
+    scene.point_lights.push_back({Vec3(1.0, 2.0, -3.0), RGB(1.0, 2.0, 3.0)});
+    scene.geometry = square(-6.0, 100.0);
+    return scene;
+}
+
+TEST(Bake, PixelsMatchPerRayModel) {
+    SceneDescription scene = test_scene();
+    BakeSettings settings;
+    settings.aa_samples = 1;
+    settings.model = ModelId::Sun05Exact;
+    BakeResult r = bake(scene, settings);
+    const CameraRays rays(scene.camera);
+    for (int j = 0; j < 30; j += 7)
+        for (int i = 0; i < 40; i += 5) {
+            Ray ray = rays(i + 0.5, j + 0.5);
+            double Dvp = 6.0 / -ray.d.z;
+            size_t p = size_t(j) * 40 + i;
+            EXPECT_NEAR(r.depth[p], Dvp, 1e-5 * Dvp);
+            EXPECT_NEAR(r.transmittance[3 * p], std::exp(-0.1 * Dvp), 1e-6);
+            Vec3 sv = scene.point_lights[0].position;
+            double La = sun05_airlight(0.1, glm::length(sv), glm::dot(ray.d, sv) / glm::length(sv), Dvp,
+                                       nullptr, FEval::Exact);
+            for (int c = 0; c < 3; ++c) EXPECT_NEAR(r.airlight[3 * p + c], (c + 1) * La, 1e-5 * (c + 1) * La);
+        }
+    EXPECT_EQ(r.stats.supersampled_pixels, 0);  // a plane has no depth discontinuity
+}
+
+TEST(Bake, ThreadCountDoesNotChangeTheResult) {
+    SceneDescription scene = test_scene();
+    scene.geometry = square(-6.0, 3.0);  // silhouette edges: supersampling runs too
+    BakeSettings one, many;
+    one.threads = 1;
+    many.threads = 3;
+    BakeResult a = bake(scene, one), b = bake(scene, many);
+    EXPECT_GT(a.stats.supersampled_pixels, 0);
+    EXPECT_EQ(a.airlight, b.airlight);
+    EXPECT_EQ(a.transmittance, b.transmittance);
+}
+
+TEST(Bake, ValidatesInput) {
+    BakeSettings settings;
+    SceneDescription scene = test_scene();
+    scene.camera.width = 0;
+    EXPECT_THROW(bake(scene, settings), std::invalid_argument);
+    scene = test_scene();
+    scene.medium.sigma_t = std::nan("");
+    EXPECT_THROW(bake(scene, settings), std::invalid_argument);
+    scene = test_scene();
+    scene.point_lights[0].I0.y = -1.0;
+    EXPECT_THROW(bake(scene, settings), std::invalid_argument);
+    scene = test_scene();
+    scene.geometry.vertices[4] = std::numeric_limits<float>::infinity();
+    EXPECT_THROW(bake(scene, settings), std::invalid_argument);
+}
+
+TEST(Bake, ProgressIsMonotoneAndCancels) {
+    SceneDescription scene = test_scene(64, 100);
+    std::vector<double> seen;
+    bake(scene, BakeSettings{}, [&](double f) {
+        seen.push_back(f);
+        return true;
+    });
+    ASSERT_GE(seen.size(), 3u);
+    for (size_t i = 1; i < seen.size(); ++i) EXPECT_GE(seen[i], seen[i - 1]);
+    EXPECT_EQ(seen.back(), 1.0);
+    EXPECT_THROW(bake(scene, BakeSettings{}, [](double f) { return f < 0.5; }), Cancelled);
+}
+
+}  // namespace
+}  // namespace airlight
