@@ -276,9 +276,12 @@ def read_exr_rgb(path):
     return px[:, :, idx]
 
 
-def camera_rays(cam_to_world, projection, width, height, px=None, py=None):
+def camera_rays(cam_to_world, projection, width, height, px=None, py=None, from_eye=False):
     """World-space origins and unit directions through film positions (pixels, from the
-    top-left corner); pixel centres by default. Independent of the native camera code."""
+    top-left corner); pixel centres by default. Independent of the native camera code.
+    Origins lie on the near clip plane, where Cycles starts camera rays (so its fog
+    begins at clip_start: a factor exp(-sigma_t clip_start) on everything behind), or
+    at the eye with _from_eye_ (perspective only), where depth is measured from."""
     if px is None:
         jj, ii = np.meshgrid(np.arange(height) + 0.5, np.arange(width) + 0.5, indexing="ij")
         px, py = ii, jj
@@ -290,7 +293,7 @@ def camera_rays(cam_to_world, projection, width, height, px=None, py=None):
         return p[..., :3] / p[..., 3:4]
     near, far = unproject(-1.0), unproject(1.0)
     d_cam = far - near
-    if projection[3, 3] == 0.0:  # perspective: rays leave the eye, not the near plane
+    if from_eye and projection[3, 3] == 0.0:
         near = np.zeros_like(near)
     o_w = near @ cam_to_world[:3, :3].T + cam_to_world[:3, 3]
     d_w = d_cam @ cam_to_world[:3, :3].T
@@ -337,11 +340,13 @@ def quadrature_airlight(o, d, Dvp, light_pos, I0, sigma_t, n=256):
 
 
 def reference_image(desc: FogScene, cam_to_world, projection, n=256):
-    """(H, W) airlight at pixel centres and (H, W) depth for _desc_, by quadrature."""
+    """(H, W) airlight at pixel centres (from the near plane, as Cycles) and (H, W) depth
+    (from the eye) for _desc_, by quadrature."""
     o, d = camera_rays(cam_to_world, projection, desc.width, desc.height)
     Dvp = floor_depth(o, d, desc)
     La = quadrature_airlight(o, d, Dvp, desc.light_location, desc.I0, desc.sigma_t, n=n)
-    return La, Dvp
+    eye, _ = camera_rays(cam_to_world, projection, desc.width, desc.height, from_eye=True)
+    return La, floor_depth(eye, d, desc)
 
 
 def project_point(cam_to_world, projection, width, height, p):
