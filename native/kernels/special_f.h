@@ -14,6 +14,19 @@ namespace airlight {
 double special_F_exact(double u, double v);
 // Same, in T = tan v (T may be +inf).
 double special_F_exact_tan(double u, double T);
+// Exact scaled difference e^{u t0} [F(u, t0 + dt) - F(u, t0)]
+//   = e^{u t0} int_{t0}^{t0+dt} e^{-u t} / (1 + t^2) dt   (dt may be +inf),
+// evaluated directly (no subtraction), ~1e-12 relative.
+double special_F_diff_exact(double u, double t0, double dt);
+
+// Table layout (see special_f.cpp and sun05_inline.h, mirrored by the GLSL preview):
+//   s = sqrt(u / (u + kSpecialFTableK))    in [0, 1]  (row index i = s (nu - 1))
+//   w = tau / (1 + tau), tau = T (1 + u)   in [0, 1]  (column index j = w (nT - 1))
+//   stored Q(s, w) = F(u, T) (1 + u) / w   (Q = 1 at w = 0), so F = Q w / (1 + u).
+#ifndef AIRLIGHT_F_TABLE_K
+#define AIRLIGHT_F_TABLE_K 1.0
+#endif
+inline constexpr double kSpecialFTableK = AIRLIGHT_F_TABLE_K;
 
 // Interpolation used for table lookups.
 enum class Interp { Nearest, Bilinear };

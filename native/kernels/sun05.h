@@ -21,7 +21,9 @@ enum class FEval { Table, Exact };
 // Finite for every valid input; handles sigma_t -> 0, gamma -> 0 / pi, Dvp -> 0,
 // Dvp = inf and large optical depths as documented in sun05.cpp.
 // A view ray passing exactly through the light (gamma = 0 with the light in front
-// of the surface) diverges physically; the kernel returns +inf there... see sun05.cpp.
+// of the surface) diverges physically; the kernel regularises it to a large finite
+// value (sin gamma >= 1e-8, Dsv >= 1e-6), see sun05.cpp. The table path itself is
+// header-only in sun05_inline.h (sun05_airlight_table) for callers that want it inlined.
 double sun05_airlight(double sigma_t, double Dsv, double cos_gamma, double Dvp,
                       const SpecialFTable* table, FEval how);
 
