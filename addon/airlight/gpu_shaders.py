@@ -20,10 +20,12 @@ _QUAD_TRIS = ((0, 1, 2), (0, 2, 3))
 
 
 def shader_dirs():
-    """Folders searched for .glsl files: the packaged copy first, then the repository's."""
+    """Folders searched for .glsl files: $AIRLIGHT_SHADER_PATH (os.pathsep-separated,
+    for shader development), the packaged copy, then the repository's shaders/."""
     here = os.path.dirname(os.path.realpath(__file__))  # through the dev symlink
-    return [os.path.join(here, "shaders"),
-            os.path.normpath(os.path.join(here, "..", "..", "shaders"))]
+    extra = [d for d in os.environ.get("AIRLIGHT_SHADER_PATH", "").split(os.pathsep) if d]
+    return extra + [os.path.join(here, "shaders"),
+                    os.path.normpath(os.path.join(here, "..", "..", "shaders"))]
 
 
 def shader_path(name):
@@ -134,3 +136,53 @@ def buffer_to_numpy(buf, shape):
     except (TypeError, ValueError, BufferError):
         a = np.array(buf.to_list(), dtype=np.float32)
     return a.reshape(shape).copy()
+
+
+def create_depth_shader():
+    """Shader drawing world-space triangles (attribute "pos") through push constant
+    `persp` (MAT4, projection * view); used to render scene depth."""
+    info = gpu.types.GPUShaderCreateInfo()
+    info.vertex_in(0, 'VEC3', "pos")
+    info.push_constant('MAT4', "persp")
+    info.fragment_out(0, 'VEC4', "frag_color")
+    info.vertex_source(load_source("depth_only_vert.glsl"))
+    info.fragment_source(load_source("depth_only_frag.glsl"))
+    return gpu.shader.create_from_info(info)
+
+
+def render_depth(vertices, triangles, persp, width, height):
+    """Window-space depth (0..1, 1 = nothing) of a triangle soup seen through the 4x4
+    matrix _persp_ (projection @ view, a mathutils.Matrix or nested sequence), as an
+    R32F GPUTexture of width x height plus the gpu.types.Buffer it was read into
+    (row 0 at the bottom)."""
+    import numpy as np
+    from gpu_extras.batch import batch_for_shader
+    depth = gpu.types.GPUTexture((width, height), format='DEPTH_COMPONENT32F')
+    colour = gpu.types.GPUTexture((width, height), format='RGBA8')
+    fb = gpu.types.GPUFrameBuffer(depth_slot=depth, color_slots=(colour,))
+    shader = create_depth_shader()
+    batch = batch_for_shader(shader, 'TRIS',
+                             {"pos": np.ascontiguousarray(vertices, np.float32)},
+                             indices=np.ascontiguousarray(triangles, np.int32))
+    with fb.bind():
+        prev_viewport = gpu.state.viewport_get()
+        gpu.state.viewport_set(0, 0, width, height)
+        fb.clear(color=(0.0, 0.0, 0.0, 0.0), depth=1.0)
+        prev_test, prev_mask = gpu.state.depth_test_get(), gpu.state.depth_mask_get()
+        gpu.state.depth_test_set('LESS_EQUAL')
+        gpu.state.depth_mask_set(True)
+        try:
+            shader.bind()
+            shader.uniform_float("persp", persp)
+            batch.draw(shader)
+        finally:
+            gpu.state.depth_test_set(prev_test)
+            gpu.state.depth_mask_set(prev_mask)
+        buf = fb.read_depth(0, 0, width, height)
+        gpu.state.viewport_set(*prev_viewport)
+    return depth_texture(buf, width, height), buf
+
+
+def depth_texture(buf, width, height):
+    """R32F texture from a read_depth() Buffer (no copy through Python lists)."""
+    return gpu.types.GPUTexture((width, height), format='R32F', data=buf)

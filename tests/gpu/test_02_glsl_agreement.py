@@ -53,6 +53,7 @@ def _f_inputs(rng):
     v = rng.uniform(0.0, math.pi / 2, n)
     v[:16] = 0.0
     v[16:32] = math.pi / 2
+    u[-16:] = 0.0  # F(0, v) = v
     T = np.tan(v)
     T[16:32] = np.inf
     f = np.zeros((n, 4), np.float32)
@@ -147,7 +148,7 @@ def test04_limits_without_cpp(evaluated):
     got = evaluated["out"][..., 1]
     at_v0 = f[..., 1] == 0.0
     assert at_v0.any() and np.all(np.abs(got[at_v0]) < 1e-6)
-    small_u = f[..., 0] < 1e-4
+    u0 = f[..., 0] == 0.0
     v = np.arctan(f[..., 1])
-    assert small_u.any()
-    np.testing.assert_allclose(got[small_u], v[small_u], rtol=2e-4, atol=1e-6)
+    assert u0.any()
+    np.testing.assert_allclose(got[u0], v[u0], rtol=1e-3, atol=1e-6)

@@ -1,0 +1,288 @@
+"""Viewport fog preview (addon/airlight/preview.py).
+
+- test01: the fog pass (`preview.draw_fog`, the very code the draw handler runs), fed
+  scene depth rendered on the GPU for the scene camera, against `_native.bake` of the
+  same view: mean relative difference of the airlight <= 2 %. Images are saved under
+  out/test_artifacts/.
+- test02..: the draw handler in a real 3D viewport (redrawn with wm.redraw_timer): it
+  draws, the depth it reads in POST_VIEW gives the right distances (checked against the
+  analytic distance to the floor plane), it returns early when off / rendering / without
+  the native module, and register/unregister cycles and file loads leave no handlers.
+"""
+
+import math
+import os
+import tempfile
+
+import bpy
+import gpu
+import numpy as np
+import pytest
+from mathutils import Matrix, Vector
+
+W, H = 160, 120
+SIGMA_T = 0.08
+ALBEDO = (1.0, 0.8, 0.6)
+
+
+@pytest.fixture(scope="module")
+def addon():
+    """The add-on package, registered (tools/blender.sh enables it; else register here)."""
+    import airlight
+    if not hasattr(bpy.types.Scene, "airlight"):
+        airlight.register()
+    from airlight import preview
+    return preview
+
+
+@pytest.fixture(scope="module")
+def fog_scene(addon, native):
+    """Floor, cube, two point lights, a camera; fog on. Built from scratch (no .blend)."""
+    scene = bpy.context.scene
+    for obj in list(scene.objects):
+        bpy.data.objects.remove(obj)
+    bpy.ops.mesh.primitive_plane_add(size=40.0, location=(0.0, 0.0, 0.0))
+    bpy.ops.mesh.primitive_cube_add(size=2.0, location=(0.0, 0.0, 1.0))
+    for name, loc, energy, colour in (("LampA", (2.0, -1.0, 3.0), 2000.0, (1.0, 1.0, 1.0)),
+                                      ("LampB", (-4.0, 3.0, 2.0), 800.0, (1.0, 0.5, 0.2))):
+        data = bpy.data.lights.new(name, 'POINT')
+        data.energy = energy
+        data.color = colour
+        data.shadow_soft_size = 0.0
+        obj = bpy.data.objects.new(name, data)
+        obj.location = loc
+        scene.collection.objects.link(obj)
+    cam = bpy.data.objects.new("Cam", bpy.data.cameras.new("Cam"))
+    cam.location = (1.0, -12.0, 5.0)
+    direction = Vector((0.0, 0.0, 1.0)) - cam.location
+    cam.rotation_euler = direction.to_track_quat('-Z', 'Y').to_euler()
+    scene.collection.objects.link(cam)
+    scene.camera = cam
+    scene.render.resolution_x, scene.render.resolution_y = W, H
+    scene.render.resolution_percentage = 100
+    scene.airlight.enabled = True
+    scene.airlight.density = SIGMA_T
+    scene.airlight.color = ALBEDO
+    bpy.context.view_layer.update()
+    return scene
+
+
+def _save_png(path, rgb):
+    """Saves (H, W, 3) linear float (row 0 = top) as an 8-bit sRGB-ish PNG via bpy."""
+    h, w, _ = rgb.shape
+    img = bpy.data.images.new(os.path.basename(path), w, h, alpha=True, float_buffer=True)
+    rgba = np.ones((h, w, 4), np.float32)
+    rgba[..., :3] = rgb
+    img.pixels.foreach_set(np.ascontiguousarray(rgba[::-1]).ravel())
+    img.filepath_raw = path
+    img.file_format = 'PNG'
+    img.save()
+    bpy.data.images.remove(img)
+
+
+def test01_preview_matches_bake(addon, native, fog_scene, gs, artifacts):
+    from airlight import scene_export
+    scene = fog_scene
+    depsgraph = bpy.context.evaluated_depsgraph_get()
+    desc = scene_export.export_scene(scene, depsgraph)
+    baked = native.bake(**desc, model="sun05", aa_samples=1, threads=0)
+    ref = baked["airlight"].astype(np.float64)          # (H, W, 3), top row first
+    ref_T = baked["transmittance"].astype(np.float64)
+
+    cam = scene.camera
+    proj = Matrix(desc["projection"].tolist())
+    persp = proj @ cam.matrix_world.inverted()
+    depth_tex, _ = gs.render_depth(desc["vertices"], desc["triangles"], persp, W, H)
+    positions, intensities = addon.scene_lights(scene, bpy.context.view_layer)
+    assert len(positions) == 2
+
+    off = gpu.types.GPUOffScreen(W, H, format='RGBA32F')
+    try:
+        with off.bind():
+            fb = gpu.state.active_framebuffer_get()
+            fb.clear(color=(0.0, 0.0, 0.0, 0.0))
+            addon.draw_fog(depth_tex=depth_tex, perspective_matrix=persp,
+                           view_origin=tuple(cam.matrix_world.translation),
+                           is_perspective=True, viewport=(0, 0, W, H), sigma_t=SIGMA_T,
+                           light_positions=positions, light_intensities=intensities)
+        out = gs.read_offscreen(off)[::-1].astype(np.float64)  # to top row first
+    finally:
+        off.free()
+    got, got_T = out[..., :3], 1.0 - out[..., 3]
+
+    floor = 1e-6 * ref.max()
+    use = ref > floor
+    rel = np.abs(got - ref)[use] / ref[use]
+    rel_T = np.abs(got_T - ref_T[..., 0])
+    print(f"\npreview vs bake ({W}x{H}, sun05): airlight mean rel {rel.mean():.4g}, "
+          f"p99 {np.percentile(rel, 99):.4g}, max {rel.max():.4g}; "
+          f"transmittance mean abs {rel_T.mean():.3g}, max {rel_T.max():.3g}")
+    scale = 1.0 / np.percentile(ref, 99)
+    _save_png(os.path.join(artifacts, "preview_gpu.png"), np.clip(got * scale, 0, 1))
+    _save_png(os.path.join(artifacts, "preview_bake.png"), np.clip(ref * scale, 0, 1))
+    diff = np.zeros_like(ref)
+    diff[use] = np.abs(got - ref)[use] / ref[use]
+    _save_png(os.path.join(artifacts, "preview_reldiff_x10.png"), np.clip(diff * 10.0, 0, 1))
+    native.write_exr(os.path.join(artifacts, "preview_vs_bake.exr"),
+                     {"preview": got.astype(np.float32), "bake": ref.astype(np.float32)})
+    assert np.isfinite(got).all()
+    assert rel.mean() <= 0.02
+    assert rel_T.mean() <= 0.02
+
+
+# ---- the real draw handler in the window's 3D viewport ---------------------------------
+
+def _view3d():
+    for area in bpy.context.window_manager.windows[0].screen.areas:
+        if area.type == 'VIEW_3D':
+            return area
+    pytest.fail("no 3D viewport in the test window")
+
+
+def _redraw():
+    """Draws the whole window now (also after a file load, when the script's context
+    has no window any more)."""
+    window = bpy.context.window_manager.windows[0]
+    with bpy.context.temp_override(window=window, screen=window.screen):
+        bpy.ops.wm.redraw_timer(type='DRAW_WIN_SWAP', iterations=1)
+
+
+@pytest.fixture
+def preview_on(addon, fog_scene):
+    addon._state["error"] = None
+    bpy.context.window_manager.airlight_preview = True
+    yield addon
+    bpy.context.window_manager.airlight_preview = False  # wm may be new after a load
+    addon._state["capture"] = None
+
+
+def test02_handler_draws_with_scene_depth(preview_on):
+    """Looking through the camera at the floor: the depth read in POST_VIEW gives the
+    analytic distance to the plane z = 0 (checked where the floor is visible)."""
+    addon = preview_on
+    area = _view3d()
+    area.spaces.active.region_3d.view_perspective = 'CAMERA'
+    addon._state["capture"] = cap = {}
+    before = addon._state["draws"]
+    _redraw()
+    assert addon._state["error"] is None, addon._state["error"]
+    assert addon._state["draws"] > before
+    print(f"\nviewport fog pass: {addon._state['last_ms']:.1f} ms at "
+          f"{cap['viewport'][2]}x{cap['viewport'][3]}")
+    depth = cap["depth"].astype(np.float64)
+    x0, y0, w, h = cap["viewport"]
+    inv = np.array(cap["perspective_matrix"].inverted())
+    eye = np.array(cap["view_origin"])
+    ys, xs = np.mgrid[0:h, 0:w]
+    ndc = np.stack([(xs + 0.5) / w * 2 - 1, (ys + 0.5) / h * 2 - 1, depth * 2 - 1,
+                    np.ones_like(depth)], axis=-1)
+    p = ndc @ inv.T
+    p = p[..., :3] / p[..., 3:]
+    far = np.stack([ndc[..., 0], ndc[..., 1], np.ones_like(depth), np.ones_like(depth)], -1) @ inv.T
+    d = far[..., :3] / far[..., 3:] - eye
+    d /= np.linalg.norm(d, axis=-1, keepdims=True)
+    Dvp = np.linalg.norm(p - eye, axis=-1)
+    t_plane = -eye[2] / d[..., 2]  # analytic distance to z = 0
+    # floor pixels: depth hit, the hit point lies on z = 0 outside the cube's footprint
+    floor = (depth < 1.0) & (np.abs(p[..., 2]) < 0.05) & (np.max(np.abs(p[..., :2]), -1) > 1.2)
+    assert floor.mean() > 0.05
+    rel = np.abs(Dvp[floor] - t_plane[floor]) / t_plane[floor]
+    print(f"viewport depth -> Dvp vs analytic floor distance: mean rel {rel.mean():.3g}, "
+          f"max {rel.max():.3g} over {floor.sum()} pixels")
+    assert rel.mean() < 1e-3
+
+
+def test03_no_draw_when_off_rendering_or_without_native(preview_on, monkeypatch):
+    addon = preview_on
+    wm = bpy.context.window_manager
+    n = addon._state["draws"]
+    wm.airlight_preview = False
+    _redraw()
+    assert addon._state["draws"] == n
+    wm.airlight_preview = True
+    monkeypatch.setattr(addon, "_is_rendering", lambda: True)
+    _redraw()
+    assert addon._state["draws"] == n
+    monkeypatch.undo()
+    monkeypatch.setattr(addon, "_native_for_preview", lambda: None)
+    _redraw()
+    assert addon._state["draws"] == n and addon._state["error"] is None
+    monkeypatch.undo()
+    bpy.context.scene.airlight.enabled = False
+    _redraw()
+    assert addon._state["draws"] == n
+    bpy.context.scene.airlight.enabled = True
+    _redraw()
+    assert addon._state["draws"] > n
+
+
+def test04_gpu_state_restored(preview_on, gs):
+    addon = preview_on
+    gpu.state.blend_set('NONE')
+    before = (gpu.state.blend_get(), gpu.state.depth_test_get(), gpu.state.depth_mask_get())
+    off = gpu.types.GPUOffScreen(8, 8, format='RGBA32F')
+    try:
+        depth_tex = gs.float_texture(np.ones((8, 8), np.float32))
+        with off.bind():
+            addon.draw_fog(depth_tex=depth_tex, perspective_matrix=Matrix.Identity(4),
+                           view_origin=(0, 0, 0), is_perspective=True, viewport=(0, 0, 8, 8),
+                           sigma_t=0.1, light_positions=[(0, 0, -1)],
+                           light_intensities=[(1, 1, 1)])
+    finally:
+        off.free()
+    after = (gpu.state.blend_get(), gpu.state.depth_test_get(), gpu.state.depth_mask_get())
+    assert before == after
+
+
+def _load_handlers(addon):
+    return (sum(1 for f in bpy.app.handlers.load_pre if f is addon._on_load_pre),
+            sum(1 for f in bpy.app.handlers.load_post if f is addon._on_load_post))
+
+
+def test05_register_cycles_leave_no_handlers(addon):
+    for _ in range(3):
+        addon.unregister()
+        assert addon.handler_count() == 0 and _load_handlers(addon) == (0, 0)
+        assert not hasattr(bpy.types.WindowManager, "airlight_preview")
+        addon.register()
+        assert addon.handler_count() == 1 and _load_handlers(addon) == (1, 1)
+    assert addon._state["error"] is None
+
+
+def test06_file_load_keeps_one_handler_and_redraws(preview_on):
+    addon = preview_on
+    path = os.path.join(tempfile.mkdtemp(prefix="airlight_gpu_"), "fog.blend")
+    bpy.ops.wm.save_as_mainfile(filepath=path)
+    bpy.ops.wm.open_mainfile(filepath=path)
+    assert addon.handler_count() == 1 and _load_handlers(addon) == (1, 1)
+    assert addon._state["gpu"] is None  # dropped on load_pre, rebuilt on the next draw
+    bpy.context.window_manager.airlight_preview = True  # a session setting
+    assert bpy.context.scene.airlight.enabled
+    n = addon._state["draws"]
+    _redraw()
+    assert addon._state["error"] is None, addon._state["error"]
+    assert addon._state["draws"] > n
+
+
+def test07_disable_addon_while_drawing(preview_on):
+    """Disabling the add-on between draws (and from inside a draw) leaves no handler and
+    no error; re-enabling works."""
+    import addon_utils
+    addon = preview_on
+    installed = "airlight" in {m.__name__ for m in addon_utils.modules()}
+    disable = (lambda: addon_utils.disable("airlight")) if installed else addon.unregister
+
+    def disable_from_draw():
+        bpy.types.SpaceView3D.draw_handler_remove(handle[0], 'WINDOW')
+        disable()
+    handle = [bpy.types.SpaceView3D.draw_handler_add(disable_from_draw, (), 'WINDOW', 'POST_VIEW')]
+    _redraw()
+    assert addon.handler_count() == 0
+    _redraw()  # nothing left to draw, nothing raises
+    if installed:
+        addon_utils.enable("airlight")
+        from airlight import preview as fresh
+        assert fresh.handler_count() == 1
+    else:
+        addon.register()
+        assert addon.handler_count() == 1
