@@ -48,7 +48,11 @@ void main()
     if (Dsv <= 0.0) {
       continue;
     }
-    float cos_gamma = clamp(dot(to_light, dir) / Dsv, -1.0, 1.0);
+    // float32 cannot hold a cosine between 1 - 2^-24 and 1 (angles below 3.5e-4 rad):
+    // a ray that close to the light is read as gamma = 3.5e-4 rather than as a ray
+    // exactly through the light (which sun05_airlight regularises to sin(gamma) = 1e-8,
+    // 1e4 times brighter than any nearby pixel). 0.99999994 = 1 - 2^-24.
+    float cos_gamma = clamp(dot(to_light, dir) / Dsv, -1.0, 0.99999994);
     La += I0 * sun05_airlight(Ftab, sigma_t, Dsv, cos_gamma, Dvp);
   }
 
