@@ -92,3 +92,19 @@ def test07_poll_explains_missing_native(monkeypatch):
     assert not bpy.ops.airlight.bake.poll()
     with pytest.raises(RuntimeError, match="native module could not be loaded"):
         bpy.ops.airlight.bake()
+
+
+@needs_native
+def test08_progress_returning_false_cancels_without_writing(tmp_path):
+    scene = build_plane_scene(tmp_path)
+    description, settings = bake.prepare(scene, bpy.context.evaluated_depsgraph_get())
+    calls = []
+
+    def progress(fraction):
+        calls.append(fraction)
+        return False
+
+    path = tmp_path / "cancelled.exr"
+    with pytest.raises(native.get().BakeCancelled):
+        bake.run(description, settings, str(path), progress)
+    assert calls and not path.exists()
