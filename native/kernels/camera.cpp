@@ -39,9 +39,26 @@ CameraRays::CameraRays(const Camera& cam) {
     position_ = Vec3(cam.cam_to_world[3]);
     inv_w_ = 1.0 / cam.width;
     inv_h_ = 1.0 / cam.height;
+
+    // Precompute the affine form of the rays when w is independent of NDC x and y.
+    const glm::dmat4& M = raster_to_world_;
+    affine_ = std::abs(M[0][3]) + std::abs(M[1][3]) <= 1e-14 * (std::abs(M[2][3]) + std::abs(M[3][3]));
+    if (affine_) {
+        const double w_near = M[3][3] - M[2][3], w_far = M[3][3] + M[2][3];
+        // NDC x = 2 px / W - 1 and y = 1 - 2 py / H, so d/dpx = 2/W M[0], d/dpy = -2/H M[1].
+        const Vec3 cx = Vec3(M[0]) * (2.0 * inv_w_), cy = Vec3(M[1]) * (-2.0 * inv_h_);
+        const Vec3 base_near = (Vec3(M[3]) - Vec3(M[2]) - Vec3(M[0]) + Vec3(M[1])) / w_near;
+        const Vec3 base_far = (Vec3(M[3]) + Vec3(M[2]) - Vec3(M[0]) + Vec3(M[1])) / w_far;
+        n0_ = base_near;
+        ndx_ = cx / w_near;
+        ndy_ = cy / w_near;
+        D0_ = base_far - base_near;
+        Dx_ = cx / w_far - ndx_;
+        Dy_ = cy / w_far - ndy_;
+    }
 }
 
-Ray CameraRays::operator()(double px, double py) const {
+Ray CameraRays::unproject(double px, double py) const {
     // Map film position to NDC (row 0 at the top, NDC y up), unproject near and far.
     double x = 2.0 * px * inv_w_ - 1.0;
     double y = 1.0 - 2.0 * py * inv_h_;

@@ -20,13 +20,26 @@ class CameraRays {
   public:
     // Throws std::invalid_argument if the matrices are not finite or not invertible.
     explicit CameraRays(const Camera& cam);
-    Ray operator()(double px, double py) const;
+    Ray operator()(double px, double py) const {
+        if (!affine_) return unproject(px, py);
+        Ray ray;
+        ray.o = ortho_ ? n0_ + px * ndx_ + py * ndy_ : position_;
+        ray.d = glm::normalize(D0_ + px * Dx_ + py * Dy_);
+        return ray;
+    }
     bool orthographic() const { return ortho_; }
     // Camera position in world space (the ray origin of every perspective ray).
     Vec3 position() const { return position_; }
 
   private:
+    Ray unproject(double px, double py) const;  // the general (projective) case
+
     glm::dmat4 raster_to_world_;  // clip space -> world, homogeneous
+    // When w of the unprojected near/far points does not depend on the film position
+    // (always so for Blender's matrices), rays are affine in (px, py): near point
+    // n0 + px ndx + py ndy, unnormalised direction D0 + px Dx + py Dy.
+    bool affine_ = false;
+    Vec3 n0_, ndx_, ndy_, D0_, Dx_, Dy_;
     Vec3 position_;
     double inv_w_ = 0.0, inv_h_ = 0.0;
     bool ortho_ = false;
