@@ -3,7 +3,7 @@
     xvfb-run -a -s "-screen 0 1280x1024x24" tools/blender.sh --python benchmarks/bench_preview.py [-- --repeats 10]
 
 Builds a small scene (floor, cube, N point lights), puts the 3D viewport in camera view
-and redraws its region with wm.redraw_timer (which waits for the drawing to finish),
+and redraws its region with wm.redraw_timer('DRAW_SWAP': the swap waits for the GPU, so queued fog work is not billed to the next draw),
 with the preview off and on. Prints ms per viewport draw, the fog's extra cost and the
 ratio, plus the handler's own timing split (depth read-back + upload vs fog pass).
 """
@@ -45,6 +45,10 @@ def _scene(n_lights):
     scene.camera = cam
     scene.airlight.enabled = True
     scene.airlight.density = 0.08
+    # Workbench's progressive anti-aliasing makes each redraw cost depend on how many
+    # samples are accumulated already; switch it off so every draw is a full draw.
+    scene.display.viewport_aa = 'OFF'
+    bpy.context.preferences.view.show_splash = False
     bpy.context.view_layer.update()
 
 
@@ -58,15 +62,25 @@ def _view3d_region():
     raise RuntimeError("no 3D viewport")
 
 
-def _time_draws(window, area, region, repeats):
-    times = []
+def _time_draws(window, area, region, repeats, wm):
+    """Median ms per region draw with the preview off and on, interleaved so that load
+    from other processes hits both alike."""
+    from airlight import preview
+    off, on, depth, cpu_off, cpu_on = [], [], [], [], []
     with bpy.context.temp_override(window=window, screen=window.screen, area=area, region=region):
-        bpy.ops.wm.redraw_timer(type='DRAW', iterations=1)  # warm-up (shader compile, table)
+        wm.airlight_preview = True
+        bpy.ops.wm.redraw_timer(type='DRAW_SWAP', iterations=1)  # warm-up (shader compile, table)
         for _ in range(repeats):
-            t0 = time.perf_counter()
-            bpy.ops.wm.redraw_timer(type='DRAW', iterations=1)
-            times.append((time.perf_counter() - t0) * 1e3)
-    return statistics.median(times)
+            for flag, times, cpu in ((False, off, cpu_off), (True, on, cpu_on)):
+                wm.airlight_preview = flag
+                t0, c0 = time.perf_counter(), time.process_time()
+                bpy.ops.wm.redraw_timer(type='DRAW_SWAP', iterations=1)
+                times.append((time.perf_counter() - t0) * 1e3)
+                cpu.append((time.process_time() - c0) * 1e3)
+            depth.append(preview._state["last_depth_ms"])
+    wm.airlight_preview = False
+    med = statistics.median
+    return med(off), med(on), med(depth), med(cpu_off), med(cpu_on)
 
 
 def main():
@@ -76,21 +90,20 @@ def main():
     print(f"GPU: {gpu.platform.renderer_get()} / {gpu.platform.version_get()}")
     window, area, region = _view3d_region()
     print(f"viewport region: {region.width} x {region.height} px, {args.repeats} draws each (median)")
-    print(f"{'lights':>6} {'no fog ms':>10} {'fog ms':>8} {'extra ms':>9} {'ratio':>6} {'handler ms':>11}")
+    print(f"{'lights':>6} {'no fog ms':>10} {'fog ms':>8} {'extra ms':>9} {'ratio':>6} "
+          f"{'depth ms':>9} {'CPU no fog':>11} {'CPU fog':>8} {'CPU ratio':>9}")
+    print("(wall ms per region draw; CPU = process CPU time incl. llvmpipe threads, "
+          "robust to other load; depth = read-back + upload in the handler)")
     wm = bpy.context.window_manager
     for n in args.lights:
         _scene(n)
-        wm.airlight_preview = False
-        base = _time_draws(window, area, region, args.repeats)
-        wm.airlight_preview = True
         preview._state["error"] = None
-        fog = _time_draws(window, area, region, args.repeats)
+        base, fog, depth, cbase, cfog = _time_draws(window, area, region, args.repeats, wm)
         if preview._state["error"]:
             print("preview error:", preview._state["error"])
             return 1
         print(f"{n:>6} {base:>10.1f} {fog:>8.1f} {fog - base:>9.1f} {fog / base:>6.2f} "
-              f"{preview._state['last_ms']:>11.1f}")
-        wm.airlight_preview = False
+              f"{depth:>9.1f} {cbase:>11.1f} {cfog:>8.1f} {cfog / cbase:>9.2f}")
     return 0
 
 

@@ -31,7 +31,8 @@ _state = {
     "handle": None,
     "gpu": None,        # dict(shader, batch, ftab) once built
     "error": None,      # last draw error (str); drawing pauses while set
-    "last_ms": None,    # duration of the last fog draw in milliseconds
+    "last_ms": None,    # duration of the last fog draw in milliseconds (CPU side)
+    "last_depth_ms": None,  # of which reading back and uploading the depth
     "draws": 0,         # number of fog passes drawn (tests read it)
     "capture": None,    # tests: set to {} and the next draw stores its inputs there
 }
@@ -179,6 +180,7 @@ def _draw_callback():
         fb = gpu.state.active_framebuffer_get()
         depth_buf = fb.read_depth(x, y, w, h)
         depth_tex = gs.depth_texture(depth_buf, w, h)
+        _state["last_depth_ms"] = (time.perf_counter() - t0) * 1e3
         scene = context.scene
         positions, intensities = scene_lights(scene, context.view_layer)
         draw_fog(depth_tex=depth_tex, perspective_matrix=rv3d.perspective_matrix,
