@@ -22,6 +22,16 @@
 //   Dsv is clamped to 1e-6 scene units, giving a large finite value.
 // - Large optical depth (sigma_t D ~ 100): the exponentials are combined as
 //   e^{-sigma_t Dsv} e^{-sigma_t (n - n0)} so nothing overflows.
+//
+// Measured (2-core shared VM, g++ -O3, Nov 2026):
+// - table path vs exact: 200000 random points in the bake's range (sigma_t 1e-3..1,
+//   Dsv 0.5..50, any gamma, Dvp 0.01..1e3 or inf): max 1.9e-3, p99 5.0e-4 relative;
+//   300000 points over sigma_t 1e-9..10, Dsv 1e-4..1e3, cos_gamma to within 1e-16 of
+//   +-1, Dvp 1e-6..1e4 or inf: max 1.9e-3, p99 3.6e-4, no non-finite value.
+// - exact path vs quadrature: ~1e-15 typical (test bound 1e-9).
+// - cost: table path ~25 ns per evaluation (thread CPU time, street-like 1920x1080
+//   image with 4 lights; bound by the ~8 divide/sqrt plus two dependent table
+//   fetches), exact path ~2.5 us, quadrature ~1.7 us.
 #include "sun05.h"
 
 #include <cmath>
