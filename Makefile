@@ -7,7 +7,7 @@ JOBS     ?= 2
 XVFB     := xvfb-run -a -s "-screen 0 1280x1024x24"
 BLENDER  := tools/blender.sh
 
-.PHONY: all deps build demo test test-native test-python test-blender test-gpu bench clean
+.PHONY: all deps build package demo test test-native test-python test-blender test-gpu bench clean
 
 all: build
 
@@ -17,6 +17,16 @@ deps:
 build: deps
 	cmake -S . -B $(BUILD) -DCMAKE_BUILD_TYPE=Release -DPython_EXECUTABLE=$(PYTHON)
 	cmake --build $(BUILD) -j$(JOBS)
+
+# An installable add-on zip (Preferences > Add-ons > Install): the package, its compiled
+# module and the GLSL sources (searched in airlight/shaders/ when installed).
+package: build
+	rm -rf $(BUILD)/package && mkdir -p $(BUILD)/package
+	cp -rL addon/airlight $(BUILD)/package/airlight
+	rm -rf $(BUILD)/package/airlight/__pycache__
+	mkdir -p $(BUILD)/package/airlight/shaders && cp shaders/*.glsl $(BUILD)/package/airlight/shaders/
+	cd $(BUILD)/package && rm -f ../airlight.zip && $(PYTHON) -m zipfile -c ../airlight.zip airlight
+	@echo "add-on package: $(BUILD)/airlight.zip"
 
 # Builds everything, installs the add-on into an isolated Blender user directory and
 # renders the example street headless with fog baked into compositing passes -> out/.
