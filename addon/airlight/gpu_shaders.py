@@ -150,6 +150,26 @@ def create_depth_shader():
     return gpu.shader.create_from_info(info)
 
 
+def create_distance_shader():
+    """Shader drawing object-space triangles (attribute "pos", VEC3) through push
+    constants `model` (object to world) and `persp` (projection * view), writing the
+    linear surface distance (preview_distance_*.glsl) into colour channel 0; `eye` and
+    `axis` (VEC4) say how distance is measured (see the fragment file)."""
+    iface = gpu.types.GPUStageInterfaceInfo("airlight_distance_iface")
+    iface.smooth('VEC3', "wpos")
+    info = gpu.types.GPUShaderCreateInfo()
+    info.vertex_in(0, 'VEC3', "pos")
+    info.vertex_out(iface)
+    for name in ("model", "persp"):
+        info.push_constant('MAT4', name)
+    for name in ("eye", "axis"):
+        info.push_constant('VEC4', name)
+    info.fragment_out(0, 'VEC4', "frag_color")
+    info.vertex_source(load_source("preview_distance_vert.glsl"))
+    info.fragment_source(load_source("preview_distance_frag.glsl"))
+    return gpu.shader.create_from_info(info)
+
+
 def render_depth(vertices, triangles, persp, width, height):
     """Window-space depth (0..1, 1 = nothing) of a triangle soup seen through the 4x4
     matrix _persp_ (projection @ view, a mathutils.Matrix or nested sequence), as an

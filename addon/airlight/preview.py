@@ -2,19 +2,32 @@
 the analytic airlight (the GLSL twin of the C++ kernel, shaders/sun05_airlight.glsl)
 over the 3D viewport.
 
-Per draw: the region's scene depth is read back from the active framebuffer (POST_VIEW,
-where the scene depth is still bound) into an R32F texture; one full-screen pass
-(shaders/fog_preview_frag.glsl) reconstructs each pixel's view ray from the region's
-matrices, sums sun05_airlight over the point lights and writes rgb = airlight,
-alpha = 1 - transmittance with ALPHA_PREMULT blending: L = La + Tr L_scene.
+Per draw (POST_VIEW):
+1. Scene depth at full resolution, as the linear distance Dvp along each view ray.
+   'DRAWN' (default): the evaluated mesh triangles of the visible objects are drawn into
+   the preview's own R32F target (shaders/preview_distance_*.glsl) with the region's
+   matrices; one batch per object, cached and dropped on depsgraph updates that touch
+   geometry and on frame changes. 'READBACK' (fallback for what the own pass does not
+   draw, e.g. curves' bevel-free wires, point clouds, volumes): the region's depth is read
+   back from the bound framebuffer and uploaded as window depth.
+2. The fog (shaders/fog_preview_frag.glsl): per pixel the view ray from the region's
+   matrices, the airlight of all point lights by sun05_airlight and Tr =
+   exp(-sigma_t Dvp), premultiplied (rgb = airlight, alpha = 1 - Tr). At FULL scale
+   it is drawn straight into the viewport; at HALF / QUARTER into a float offscreen of
+   1/2 or 1/4 the size, then
+3. composited by a depth-aware upsampling pass (shaders/preview_upsample_frag.glsl:
+   joint bilateral weights from the full-resolution depth, exact re-evaluation where no
+   low-resolution sample lies on the pixel's surface), with ALPHA_PREMULT blending:
+   L = La + Tr L_scene.
 
-Lifetime: GPU resources (shader, batch, F table texture) are built on the first draw,
-kept in `_state`, and dropped on unregister and on file load (load_pre). The draw
-handler is added in register(), removed in unregister() and on load_pre, and added back
-on load_post, so no handler ever leaks. Any error while drawing is kept, shown in the
+Lifetime: GPU resources (shaders, batches, targets, F table texture) are built on the
+first draw, kept in `_state`, and dropped on unregister and on file load (load_pre).
+The draw handler is added in register(), removed in unregister() and on load_pre, and
+added back on load_post; the depsgraph and frame handlers live exactly as long as the
+add-on, so no handler ever leaks. Any error while drawing is kept, shown in the
 sidebar panel, and stops further drawing until a setting changes; it never raises into
-Blender's draw loop. The view-independent part (`draw_fog`) is used by the GPU tests
-and the benchmark with depth they render themselves.
+Blender's draw loop. `draw_fog` (the view-independent part) is used by the GPU tests and
+the benchmark with depth they render themselves.
 """
 
 import math
@@ -22,22 +35,34 @@ import time
 
 import bpy
 from bpy.app.handlers import persistent
-from bpy.props import BoolProperty
+from bpy.props import BoolProperty, EnumProperty
+
+from mathutils import Vector
 
 from . import native
 
 # Module state: the draw handler, GPU resources built lazily, and diagnostics.
 _state = {
     "handle": None,
-    "gpu": None,        # dict(shader, batch, ftab) once built
+    "gpu": None,        # dict(shaders, batch, ftab, targets) once built
+    "meshes": {},       # (object name, data name) -> GPUBatch of its evaluated triangles
+    "instances": None,  # [(mesh key, model matrix)] of the visible geometry, or None
+    "generation": 0,    # bumped on every depsgraph update and frame change
     "error": None,      # last draw error (str); drawing pauses while set
     "last_ms": None,    # duration of the last fog draw in milliseconds (CPU side)
-    "last_depth_ms": None,  # of which reading back and uploading the depth
+    "last_depth_ms": None,  # of which the scene depth (own pass or read-back + upload)
     "draws": 0,         # number of fog passes drawn (tests read it)
     "capture": None,    # tests: set to {} and the next draw stores its inputs there
 }
 
 MAX_LIGHTS = 256
+
+# Resolution scales of the fog pass: enum identifier -> full-resolution pixels per texel.
+SCALES = {'FULL': 1, 'HALF': 2, 'QUARTER': 4}
+# Upsampling modes of preview_upsample_frag.glsl.
+UPSAMPLE_BILINEAR, UPSAMPLE_BILATERAL, UPSAMPLE_BILATERAL_EXACT = 0, 1, 2
+# Format of the reduced fog target (premultiplied airlight can exceed 1, so float).
+LOWRES_FORMAT = 'RGBA16F'
 
 
 def _native_for_preview():
@@ -54,26 +79,191 @@ def _missing_reason():
     return "The native module lacks special_F_table(); rebuild it."
 
 
+_FOG_INPUTS = dict(
+    push_constants=(('MAT4', "inv_persp"), ('VEC4', "eye"), ('VEC4', "viewport"),
+                    ('FLOAT', "sigma_t"), ('INT', "light_count"), ('INT', "scale"),
+                    ('INT', "mode")),
+    samplers=("Ftab", "depth_tex", "lights", "fog_lo"))
+
+
 def _gpu_resources():
-    """Builds (once) the fog shader, the quad and the F table texture."""
+    """Builds (once) the quad and the F table texture; shaders are built on first use."""
     res = _state["gpu"]
     if res is None:
         from . import gpu_shaders as gs
         module = _native_for_preview()
         if module is None:
             raise RuntimeError(_missing_reason())
-        shader = gs.create_fullscreen_shader(
-            "fog_preview", "fog_preview_frag.glsl", libs=("sun05_airlight.glsl",),
-            push_constants=(('MAT4', "inv_persp"), ('VEC4', "eye"), ('VEC4', "viewport"),
-                            ('FLOAT', "sigma_t"), ('INT', "light_count")),
-            samplers=("Ftab", "depth_tex", "lights"))
         ftab, _table = gs.f_table_texture(module)
-        res = _state["gpu"] = dict(shader=shader, batch=gs.fullscreen_batch(shader), ftab=ftab)
+        res = _state["gpu"] = dict(shaders={}, batch=None, ftab=ftab, targets={})
     return res
+
+
+def _shader(kind, window_depth):
+    """Fog ('fog') or upsampling ('upsample') shader reading window depth or distance."""
+    from . import gpu_shaders as gs
+    res = _gpu_resources()
+    key = (kind, bool(window_depth))
+    shader = res["shaders"].get(key)
+    if shader is None:
+        frag = "fog_preview_frag.glsl" if kind == 'fog' else "preview_upsample_frag.glsl"
+        shader = gs.create_fullscreen_shader(
+            f"preview_{kind}", frag, libs=("sun05_airlight.glsl", "preview_common.glsl"),
+            defines=(("PREVIEW_WINDOW_DEPTH", int(bool(window_depth))),), **_FOG_INPUTS)
+        res["shaders"][key] = shader
+        if res["batch"] is None:
+            res["batch"] = gs.fullscreen_batch(shader)
+    return shader
+
+
+def _target(name, width, height, fmt, depth=False):
+    """A cached framebuffer with one colour texture (and a depth texture) of this size."""
+    res = _gpu_resources()
+    entry = res["targets"].get(name)
+    if entry is None or entry["size"] != (width, height):
+        import gpu
+        colour = gpu.types.GPUTexture((width, height), format=fmt)
+        depth_tex = gpu.types.GPUTexture((width, height), format='DEPTH_COMPONENT32F') if depth else None
+        fb = gpu.types.GPUFrameBuffer(depth_slot=depth_tex, color_slots=(colour,))
+        entry = res["targets"][name] = dict(size=(width, height), fb=fb, colour=colour,
+                                            depth=depth_tex)
+    return entry
 
 
 def free_gpu_resources():
     _state["gpu"] = None
+    _state["meshes"] = {}
+    _state["instances"] = None
+
+
+# ---- the preview's own scene depth ---------------------------------------------------
+
+def _mesh_key(obj_eval):
+    data = getattr(obj_eval, "data", None)
+    return (obj_eval.name, data.name if data is not None else "")
+
+
+def _visible_instances(depsgraph, view_layer):
+    """[(key, object, matrix)] of the geometry the viewport shows (solid objects whose
+    source is visible in the view layer), from the evaluated depsgraph's instances."""
+    from . import scene_export
+    out = []
+    for instance in depsgraph.object_instances:
+        obj = instance.object
+        if obj.type not in scene_export._GEOMETRY_TYPES:
+            continue
+        source = instance.parent if instance.is_instance else obj
+        if source is None:
+            continue
+        try:
+            if not source.original.visible_get(view_layer=view_layer):
+                continue
+        except (RuntimeError, TypeError):
+            continue
+        if obj.display_type in {'BOUNDS', 'WIRE'} or not getattr(instance, "show_self", True):
+            continue
+        out.append((_mesh_key(obj), obj, instance.matrix_world.copy()))
+    return out
+
+
+def _scene_instances(context):
+    """[(batch, model matrix)] of the visible geometry; batches built on demand and kept
+    until a depsgraph update touches the object's geometry (or the frame changes)."""
+    from . import gpu_shaders as gs
+    from . import scene_export
+    instances = _state["instances"]
+    if instances is None:
+        res = _gpu_resources()
+        if res.get("distance_shader") is None:
+            res["distance_shader"] = gs.create_distance_shader()
+        shader = res["distance_shader"]
+        from gpu_extras.batch import batch_for_shader
+        depsgraph = context.evaluated_depsgraph_get()
+        instances = []
+        for key, obj, matrix in _visible_instances(depsgraph, context.view_layer):
+            batch = _state["meshes"].get(key)
+            if batch is None:
+                arrays = scene_export._mesh_arrays(obj)
+                if arrays is None:
+                    continue
+                verts, tris = arrays
+                batch = batch_for_shader(shader, 'TRIS', {"pos": verts},
+                                         indices=tris.astype("int32"))
+                _state["meshes"][key] = batch
+            instances.append((batch, matrix))
+        _state["instances"] = instances
+    return instances
+
+
+def _view_axis(perspective_matrix):
+    """(dir, offset) with distance-from-near-plane = dot(p, dir) + offset (orthographic)."""
+    inv = perspective_matrix.inverted()
+
+    def unproject(z):
+        p = inv @ Vector((0.0, 0.0, z, 1.0))
+        return p.xyz / p.w
+    near, far = unproject(-1.0), unproject(1.0)
+    axis = (far - near).normalized()
+    return axis, -axis.dot(near)
+
+
+def draw_distance(context, *, perspective_matrix, view_origin, is_perspective, size):
+    """Draws the visible geometry's linear distance (inf = nothing) into the preview's
+    R32F distance target of _size_ and returns that texture. Restores the viewport and
+    depth state; the caller's framebuffer is bound again afterwards."""
+    import gpu
+    w, h = size
+    target = _target("distance", w, h, 'R32F', depth=True)
+    instances = _scene_instances(context)
+    shader = _gpu_resources()["distance_shader"]
+    axis, offset = _view_axis(perspective_matrix)
+    prev_viewport = gpu.state.viewport_get()
+    prev_test, prev_mask = gpu.state.depth_test_get(), gpu.state.depth_mask_get()
+    prev_blend = gpu.state.blend_get()
+    try:
+        with target["fb"].bind():
+            gpu.state.viewport_set(0, 0, w, h)
+            target["fb"].clear(color=(math.inf, 0.0, 0.0, 0.0), depth=1.0)
+            gpu.state.blend_set('NONE')
+            gpu.state.depth_test_set('LESS_EQUAL')
+            gpu.state.depth_mask_set(True)
+            shader.bind()
+            shader.uniform_float("persp", perspective_matrix)
+            shader.uniform_float("eye", (*view_origin, 1.0 if is_perspective else 0.0))
+            shader.uniform_float("axis", (*axis, offset))
+            for batch, matrix in instances:
+                shader.uniform_float("model", matrix)
+                batch.draw(shader)
+    finally:
+        gpu.state.depth_test_set(prev_test)
+        gpu.state.depth_mask_set(prev_mask)
+        gpu.state.blend_set(prev_blend)
+        gpu.state.viewport_set(*prev_viewport)
+    return target["colour"]
+
+
+@persistent
+def _on_depsgraph_update(scene, depsgraph):
+    """Drops the instance list on any update and the batches whose geometry changed."""
+    _state["generation"] += 1
+    _state["instances"] = None
+    meshes = _state["meshes"]
+    if not meshes:
+        return
+    for update in depsgraph.updates:
+        if not update.is_updated_geometry:
+            continue
+        name = getattr(update.id, "name", None)
+        for key in [k for k in meshes if k[0] == name or k[1] == name]:
+            del meshes[key]
+
+
+@persistent
+def _on_frame_change(*_args):
+    """Animated geometry (modifiers, shape keys) may differ on the new frame."""
+    _state["generation"] += 1
+    _state["instances"] = None
+    _state["meshes"] = {}
 
 
 def scene_lights(scene, view_layer=None):
@@ -110,39 +300,68 @@ def _lights_texture(positions, intensities):
 
 
 def draw_fog(*, depth_tex, perspective_matrix, view_origin, is_perspective, viewport,
-             sigma_t, light_positions, light_intensities):
-    """Draws the fog pass over the bound framebuffer with premultiplied blending.
+             sigma_t, light_positions, light_intensities, window_depth=True, scale=1,
+             mode=UPSAMPLE_BILATERAL_EXACT):
+    """Draws the fog over the bound framebuffer with premultiplied blending.
 
-    depth_tex: R32F texture of the window depth (viewport[2] x viewport[3]);
-    perspective_matrix: mathutils.Matrix, projection @ view; view_origin: 3 floats;
-    viewport: (x, y, width, height) of the target region in the framebuffer.
+    depth_tex: full-resolution R32F texture of the region (viewport[2] x viewport[3]):
+    window depth in [0, 1] (window_depth=True) or linear distance Dvp, inf = nothing
+    (window_depth=False); perspective_matrix: mathutils.Matrix, projection @ view;
+    view_origin: 3 floats; viewport: (x, y, width, height) of the region in the
+    framebuffer; scale: 1 draws the fog directly, 2 or 4 evaluate it in a float
+    offscreen of 1/scale the size and upsample it (mode: UPSAMPLE_*).
     Restores every gpu.state it changes.
     """
     import gpu
     res = _gpu_resources()
-    shader = res["shader"]
+    x, y, w, h = (int(v) for v in viewport)
     lights = _lights_texture(light_positions, light_intensities)
-    prev_blend = gpu.state.blend_get()
-    prev_depth = gpu.state.depth_test_get()
-    prev_mask = gpu.state.depth_mask_get()
-    try:
-        gpu.state.blend_set('ALPHA_PREMULT')
-        gpu.state.depth_test_set('NONE')
-        gpu.state.depth_mask_set(False)
+    fog = _shader('fog', window_depth)
+
+    def bind(shader, target_viewport, fog_lo):
         shader.bind()
         shader.uniform_float("inv_persp", perspective_matrix.inverted())
         shader.uniform_float("eye", (*view_origin, 1.0 if is_perspective else 0.0))
-        shader.uniform_float("viewport", tuple(float(v) for v in viewport))
+        shader.uniform_float("viewport", tuple(float(v) for v in target_viewport))
         shader.uniform_float("sigma_t", float(sigma_t))
         shader.uniform_int("light_count", len(light_positions))
+        shader.uniform_int("scale", int(scale))
         shader.uniform_sampler("Ftab", res["ftab"])
         shader.uniform_sampler("depth_tex", depth_tex)
         shader.uniform_sampler("lights", lights)
-        res["batch"].draw(shader)
+        if fog_lo is not None:  # the upsampling pass (the fog pass has neither)
+            shader.uniform_int("mode", int(mode))
+            shader.uniform_sampler("fog_lo", fog_lo)
+
+    prev_blend = gpu.state.blend_get()
+    prev_depth = gpu.state.depth_test_get()
+    prev_mask = gpu.state.depth_mask_get()
+    prev_viewport = gpu.state.viewport_get()
+    try:
+        gpu.state.depth_test_set('NONE')
+        gpu.state.depth_mask_set(False)
+        if scale == 1:
+            gpu.state.blend_set('ALPHA_PREMULT')
+            bind(fog, (x, y, w, h), None)
+            res["batch"].draw(fog)
+        else:
+            lw, lh = -(-w // scale), -(-h // scale)
+            target = _target("fog_lo", lw, lh, LOWRES_FORMAT)
+            gpu.state.blend_set('NONE')
+            with target["fb"].bind():
+                gpu.state.viewport_set(0, 0, lw, lh)
+                bind(fog, (0, 0, w, h), None)
+                res["batch"].draw(fog)
+            gpu.state.viewport_set(*prev_viewport)
+            up = _shader('upsample', window_depth)
+            gpu.state.blend_set('ALPHA_PREMULT')
+            bind(up, (x, y, w, h), target["colour"])
+            res["batch"].draw(up)
     finally:
         gpu.state.blend_set(prev_blend)
         gpu.state.depth_test_set(prev_depth)
         gpu.state.depth_mask_set(prev_mask)
+        gpu.state.viewport_set(*prev_viewport)
     _state["draws"] += 1
 
 
@@ -175,25 +394,42 @@ def _draw_callback():
         rv3d = context.region_data
         if rv3d is None:
             return
+        wm = context.window_manager
+        scale = SCALES.get(getattr(wm, "airlight_preview_scale", 'HALF'), 2)
+        readback = getattr(wm, "airlight_preview_depth", 'DRAWN') == 'READBACK'
         t0 = time.perf_counter()
         x, y, w, h = gpu.state.viewport_get()
-        fb = gpu.state.active_framebuffer_get()
-        depth_buf = fb.read_depth(x, y, w, h)
-        depth_tex = gs.depth_texture(depth_buf, w, h)
+        persp = rv3d.perspective_matrix.copy()
+        view_origin = tuple(rv3d.view_matrix.inverted().translation)
+        if readback:
+            fb = gpu.state.active_framebuffer_get()
+            depth_buf = fb.read_depth(x, y, w, h)
+            depth_tex = gs.depth_texture(depth_buf, w, h)
+        else:
+            depth_tex = draw_distance(context, perspective_matrix=persp,
+                                      view_origin=view_origin,
+                                      is_perspective=rv3d.is_perspective, size=(w, h))
         _state["last_depth_ms"] = (time.perf_counter() - t0) * 1e3
         scene = context.scene
         positions, intensities = scene_lights(scene, context.view_layer)
-        draw_fog(depth_tex=depth_tex, perspective_matrix=rv3d.perspective_matrix,
-                 view_origin=tuple(rv3d.view_matrix.inverted().translation),
+        draw_fog(depth_tex=depth_tex, perspective_matrix=persp, view_origin=view_origin,
                  is_perspective=rv3d.is_perspective, viewport=(x, y, w, h),
                  sigma_t=scene.airlight.density, light_positions=positions,
-                 light_intensities=intensities)
+                 light_intensities=intensities, window_depth=readback, scale=scale)
         _state["last_ms"] = (time.perf_counter() - t0) * 1e3
         if _state["capture"] is not None:
+            if readback:
+                depth = gs.buffer_to_numpy(depth_buf, (h, w))
+            else:
+                with _state["gpu"]["targets"]["distance"]["fb"].bind():
+                    buf = gpu.state.active_framebuffer_get().read_color(
+                        0, 0, w, h, 1, 0, 'FLOAT')
+                depth = gs.buffer_to_numpy(buf, (h, w))
+                gpu.state.viewport_set(x, y, w, h)
             _state["capture"].update(
-                depth=gs.buffer_to_numpy(depth_buf, (h, w)), viewport=(x, y, w, h),
-                perspective_matrix=rv3d.perspective_matrix.copy(),
-                view_origin=tuple(rv3d.view_matrix.inverted().translation))
+                depth=depth, window_depth=readback, viewport=(x, y, w, h), scale=scale,
+                perspective_matrix=persp, view_origin=view_origin,
+                sigma_t=scene.airlight.density, lights=(positions, intensities))
     except Exception as ex:  # never break Blender's draw loop
         _state["error"] = f"{type(ex).__name__}: {ex}"
         print(f"Airlight preview disabled: {_state['error']}")
@@ -270,6 +506,10 @@ class AIRLIGHT_PT_viewport_preview(bpy.types.Panel):
             col.label(text=_state["error"][:120])
         elif _state["last_ms"] is not None and context.window_manager.airlight_preview:
             layout.label(text=f"Last fog pass: {_state['last_ms']:.1f} ms")
+        col = layout.column()
+        col.enabled = context.window_manager.airlight_preview
+        col.prop(context.window_manager, "airlight_preview_scale")
+        col.prop(context.window_manager, "airlight_preview_depth")
         layout.prop(settings, "density")
         layout.prop(settings, "color")
 
@@ -282,8 +522,33 @@ def register():
             description="Show the fog in the 3D viewport (analytic airlight of the point "
                         "lights composited over the viewport; not saved in the file)",
             default=False, update=_on_setting_changed)
+        bpy.types.WindowManager.airlight_preview_scale = EnumProperty(
+            name="Resolution",
+            description="Resolution at which the fog is evaluated before a depth-aware "
+                        "upsampling to the viewport; lower is faster, and silhouettes "
+                        "stay sharp because pixels at depth edges are re-evaluated",
+            items=(('FULL', "Full", "Evaluate the fog for every viewport pixel"),
+                   ('HALF', "Half", "Evaluate the fog at half the viewport resolution"),
+                   ('QUARTER', "Quarter",
+                    "Evaluate the fog at a quarter of the viewport resolution")),
+            default='HALF', update=_on_setting_changed)
+        bpy.types.WindowManager.airlight_preview_depth = EnumProperty(
+            name="Depth",
+            description="Where the fog gets each pixel's surface distance from: the "
+                        "preview draws the scene's evaluated meshes itself (fast), or "
+                        "reads the viewport's depth back (slower; also sees what only "
+                        "the viewport draws, such as point clouds and volumes)",
+            items=(('DRAWN', "Scene Meshes", "Draw the evaluated mesh triangles of the "
+                    "visible objects into the preview's own distance buffer"),
+                   ('READBACK', "Viewport Depth", "Read the viewport's depth buffer back "
+                    "to the CPU and upload it every draw")),
+            default='DRAWN', update=_on_setting_changed)
         bpy.utils.register_class(AIRLIGHT_PT_viewport_preview)
         add_draw_handler()
+        if _on_depsgraph_update not in bpy.app.handlers.depsgraph_update_post:
+            bpy.app.handlers.depsgraph_update_post.append(_on_depsgraph_update)
+        if _on_frame_change not in bpy.app.handlers.frame_change_post:
+            bpy.app.handlers.frame_change_post.append(_on_frame_change)
         if _on_load_pre not in bpy.app.handlers.load_pre:
             bpy.app.handlers.load_pre.append(_on_load_pre)
         if _on_load_post not in bpy.app.handlers.load_post:
@@ -297,14 +562,17 @@ def unregister():
     remove_draw_handler()
     free_gpu_resources()
     for handlers, fn in ((bpy.app.handlers.load_pre, _on_load_pre),
-                         (bpy.app.handlers.load_post, _on_load_post)):
+                         (bpy.app.handlers.load_post, _on_load_post),
+                         (bpy.app.handlers.depsgraph_update_post, _on_depsgraph_update),
+                         (bpy.app.handlers.frame_change_post, _on_frame_change)):
         while fn in handlers:
             handlers.remove(fn)
     try:
         bpy.utils.unregister_class(AIRLIGHT_PT_viewport_preview)
     except RuntimeError:
         pass  # never registered (register() failed early)
-    if hasattr(bpy.types.WindowManager, "airlight_preview"):
-        del bpy.types.WindowManager.airlight_preview
+    for prop in ("airlight_preview", "airlight_preview_scale", "airlight_preview_depth"):
+        if hasattr(bpy.types.WindowManager, prop):
+            delattr(bpy.types.WindowManager, prop)
     _state["error"] = None
     _state["last_ms"] = None

@@ -156,38 +156,53 @@ def preview_on(addon, fog_scene):
     addon._state["capture"] = None
 
 
-def test02_handler_draws_with_scene_depth(preview_on):
-    """Looking through the camera at the floor: the depth read in POST_VIEW gives the
-    analytic distance to the plane z = 0 (checked where the floor is visible)."""
+@pytest.mark.parametrize("depth_mode", ["DRAWN", "READBACK"])
+def test02_handler_draws_with_scene_depth(preview_on, depth_mode):
+    """Looking through the camera at the floor: the depth the handler uses (its own
+    distance pass, or the viewport depth read in POST_VIEW) gives the analytic distance
+    to the plane z = 0 (checked where the floor is visible)."""
     addon = preview_on
+    wm = bpy.context.window_manager
+    wm.airlight_preview_depth = depth_mode
     area = _view3d()
     area.spaces.active.region_3d.view_perspective = 'CAMERA'
     addon._state["capture"] = cap = {}
     before = addon._state["draws"]
-    _redraw()
+    try:
+        _redraw()
+    finally:
+        wm.airlight_preview_depth = 'DRAWN'
     assert addon._state["error"] is None, addon._state["error"]
     assert addon._state["draws"] > before
-    print(f"\nviewport fog pass: {addon._state['last_ms']:.1f} ms at "
-          f"{cap['viewport'][2]}x{cap['viewport'][3]}")
+    assert cap["window_depth"] == (depth_mode == 'READBACK')
+    print(f"\nviewport fog pass ({depth_mode}): {addon._state['last_ms']:.1f} ms at "
+          f"{cap['viewport'][2]}x{cap['viewport'][3]}, depth {addon._state['last_depth_ms']:.1f} ms")
     depth = cap["depth"].astype(np.float64)
     x0, y0, w, h = cap["viewport"]
     inv = np.array(cap["perspective_matrix"].inverted())
     eye = np.array(cap["view_origin"])
     ys, xs = np.mgrid[0:h, 0:w]
-    ndc = np.stack([(xs + 0.5) / w * 2 - 1, (ys + 0.5) / h * 2 - 1, depth * 2 - 1,
-                    np.ones_like(depth)], axis=-1)
-    p = ndc @ inv.T
-    p = p[..., :3] / p[..., 3:]
-    far = np.stack([ndc[..., 0], ndc[..., 1], np.ones_like(depth), np.ones_like(depth)], -1) @ inv.T
+    ones = np.ones_like(depth)
+    ndc_xy = [(xs + 0.5) / w * 2 - 1, (ys + 0.5) / h * 2 - 1]
+    far = np.stack(ndc_xy + [ones, ones], -1) @ inv.T
     d = far[..., :3] / far[..., 3:] - eye
     d /= np.linalg.norm(d, axis=-1, keepdims=True)
-    Dvp = np.linalg.norm(p - eye, axis=-1)
+    if cap["window_depth"]:
+        hit = depth < 1.0
+        p = np.stack(ndc_xy + [depth * 2 - 1, ones], axis=-1) @ inv.T
+        p = p[..., :3] / p[..., 3:]
+        Dvp = np.linalg.norm(p - eye, axis=-1)
+    else:
+        hit = np.isfinite(depth)
+        assert (depth[~hit] == np.inf).all()  # background is +inf, never NaN
+        Dvp = np.where(hit, depth, 0.0)
+        p = eye + d * Dvp[..., None]
     t_plane = -eye[2] / d[..., 2]  # analytic distance to z = 0
     # floor pixels: depth hit, the hit point lies on z = 0 outside the cube's footprint
-    floor = (depth < 1.0) & (np.abs(p[..., 2]) < 0.05) & (np.max(np.abs(p[..., :2]), -1) > 1.2)
+    floor = hit & (np.abs(p[..., 2]) < 0.05) & (np.max(np.abs(p[..., :2]), -1) > 1.2)
     assert floor.mean() > 0.05
     rel = np.abs(Dvp[floor] - t_plane[floor]) / t_plane[floor]
-    print(f"viewport depth -> Dvp vs analytic floor distance: mean rel {rel.mean():.3g}, "
+    print(f"{depth_mode} depth -> Dvp vs analytic floor distance: mean rel {rel.mean():.3g}, "
           f"max {rel.max():.3g} over {floor.sum()} pixels")
     assert rel.mean() < 1e-3
 
@@ -239,13 +254,21 @@ def _load_handlers(addon):
             sum(1 for f in bpy.app.handlers.load_post if f is addon._on_load_post))
 
 
+def _update_handlers(addon):
+    return (sum(1 for f in bpy.app.handlers.depsgraph_update_post if f is addon._on_depsgraph_update),
+            sum(1 for f in bpy.app.handlers.frame_change_post if f is addon._on_frame_change))
+
+
 def test05_register_cycles_leave_no_handlers(addon):
     for _ in range(3):
         addon.unregister()
         assert addon.handler_count() == 0 and _load_handlers(addon) == (0, 0)
         assert not hasattr(bpy.types.WindowManager, "airlight_preview")
+        assert not hasattr(bpy.types.WindowManager, "airlight_preview_scale")
+        assert _update_handlers(addon) == (0, 0)
         addon.register()
         assert addon.handler_count() == 1 and _load_handlers(addon) == (1, 1)
+        assert _update_handlers(addon) == (1, 1)
     assert addon._state["error"] is None
 
 
@@ -255,7 +278,9 @@ def test06_file_load_keeps_one_handler_and_redraws(preview_on):
     bpy.ops.wm.save_as_mainfile(filepath=path)
     bpy.ops.wm.open_mainfile(filepath=path)
     assert addon.handler_count() == 1 and _load_handlers(addon) == (1, 1)
+    assert _update_handlers(addon) == (1, 1)
     assert addon._state["gpu"] is None  # dropped on load_pre, rebuilt on the next draw
+    assert addon._state["meshes"] == {} and addon._state["instances"] is None
     bpy.context.window_manager.airlight_preview = True  # a session setting
     assert bpy.context.scene.airlight.enabled
     n = addon._state["draws"]
@@ -278,6 +303,7 @@ def test07_disable_addon_while_drawing(preview_on):
     handle = [bpy.types.SpaceView3D.draw_handler_add(disable_from_draw, (), 'WINDOW', 'POST_VIEW')]
     _redraw()
     assert addon.handler_count() == 0
+    assert _update_handlers(addon) == (0, 0)
     _redraw()  # nothing left to draw, nothing raises
     if installed:
         addon_utils.enable("airlight")
