@@ -426,8 +426,17 @@ def _draw_callback():
                         0, 0, w, h, 1, 0, 'FLOAT')
                 depth = gs.buffer_to_numpy(buf, (h, w))
                 gpu.state.viewport_set(x, y, w, h)
+            fog_lo = None
+            if scale > 1:
+                target = _state["gpu"]["targets"]["fog_lo"]
+                lw, lh = target["size"]
+                with target["fb"].bind():
+                    buf = gpu.state.active_framebuffer_get().read_color(
+                        0, 0, lw, lh, 4, 0, 'FLOAT')
+                fog_lo = gs.buffer_to_numpy(buf, (lh, lw, 4))
+                gpu.state.viewport_set(x, y, w, h)
             _state["capture"].update(
-                depth=depth, window_depth=readback, viewport=(x, y, w, h), scale=scale,
+                depth=depth, fog_lo=fog_lo, window_depth=readback, viewport=(x, y, w, h), scale=scale,
                 perspective_matrix=persp, view_origin=view_origin,
                 sigma_t=scene.airlight.density, lights=(positions, intensities))
     except Exception as ex:  # never break Blender's draw loop
