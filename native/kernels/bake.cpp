@@ -28,6 +28,7 @@
 #include "quadrature.h"
 #include "raycast.h"
 #include "sun05.h"
+#include "sun05_batch.h"
 #include "sun05_inline.h"
 
 namespace airlight {
@@ -159,26 +160,37 @@ class FogModel {
     // The same for _n_ rays at once, light by light: the iterations of the inner loop
     // are independent, so the CPU overlaps the long dependency chains of the model.
     void eval_many(const Ray* rays, const float* Dvp, int n, double* Tr, RGB* La) const {
+        if (shared_origin_ && model_ == ModelId::Sun05Table && sigma_t_ > 0.0) {
+            // Hot path: perspective camera, table model, in SIMD chunks (sun05_batch.h).
+            constexpr int kChunk = 256;
+            double cos_gamma[kChunk];
+            float Tr_f[kChunk], value[kChunk];
+            const float* data = table_->data().data();
+            const int nu = table_->nu(), nT = table_->nT();
+            for (int k0 = 0; k0 < n; k0 += kChunk) {
+                const int m = std::min(kChunk, n - k0);
+                transmittance_batch(float(sigma_t_), Dvp + k0, m, Tr_f);
+                for (int k = 0; k < m; ++k) {
+                    Tr[k0 + k] = Tr_f[k];
+                    La[k0 + k] = RGB(0.0);
+                }
+                for (const LightData& light : lights_) {
+                    const Vec3 sv = light.s - rays[0].o;
+                    const double inv_Dsv = light.Dsv > 0.0 ? 1.0 / light.Dsv : 0.0;
+                    for (int k = 0; k < m; ++k)
+                        cos_gamma[k] = inv_Dsv > 0.0 ? glm::dot(rays[k0 + k].d, sv) * inv_Dsv : 1.0;
+                    sun05_airlight_table_batch(data, nu, nT, sigma_t_, light.Dsv, cos_gamma, Dvp + k0, m, value);
+                    for (int k = 0; k < m; ++k) La[k0 + k] += light.weight * double(value[k]);
+                }
+            }
+            return;
+        }
         for (int k = 0; k < n; ++k) {
             La[k] = RGB(0.0);
             Tr[k] = sigma_t_ == 0.0 ? 1.0 : std::isinf(Dvp[k]) ? 0.0 : std::exp(-sigma_t_ * double(Dvp[k]));
         }
         if (sigma_t_ == 0.0) return;
         for (const LightData& light : lights_) {
-            if (shared_origin_ && model_ == ModelId::Sun05Table) {
-                // Hot loop: perspective camera, table model.
-                const Vec3 sv = light.s - rays[0].o;
-                const double inv_Dsv = light.Dsv > 0.0 ? 1.0 / light.Dsv : 0.0;
-                const float* data = table_->data().data();
-                const int nu = table_->nu(), nT = table_->nT();
-                for (int k = 0; k < n; ++k) {
-                    const double cos_gamma =
-                        inv_Dsv > 0.0 ? std::clamp(glm::dot(rays[k].d, sv) * inv_Dsv, -1.0, 1.0) : 1.0;
-                    La[k] += light.weight *
-                             sun05_airlight_table(data, nu, nT, sigma_t_, light.Dsv, cos_gamma, double(Dvp[k]));
-                }
-                continue;
-            }
             for (int k = 0; k < n; ++k) {
                 const Vec3 sv = light.s - rays[k].o;
                 const double Dsv = shared_origin_ ? light.Dsv : glm::length(sv);
