@@ -1,8 +1,8 @@
 """Blender data -> the plain scene description that `_native.bake` takes.
 
 `export_scene(scene, depsgraph)` returns a dict whose keys are exactly `_native.bake`'s
-scene keyword arguments (width, height, cam_to_world, projection, vertices, triangles,
-light_positions, light_intensities, sigma_t, albedo), all numpy arrays or numbers, for
+scene keyword arguments (width, height, cam_to_world, projection, clip_start, clip_end,
+vertices, triangles, light_positions, light_intensities, sigma_t, albedo), all numpy arrays or numbers, for
 the frame the depsgraph is evaluated at. Nothing here calls the native module.
 
 Units: everything is in Blender units. `unit_settings.scale_length` is not applied, so
@@ -32,7 +32,8 @@ def render_size(scene):
 
 
 def export_camera(scene, depsgraph):
-    """Returns (width, height, cam_to_world (4,4), projection (4,4)) of the scene camera."""
+    """Returns (width, height, cam_to_world (4,4), projection (4,4)) of the scene camera.
+    Its clip range is `export_clip_range`."""
     camera = scene.camera
     if camera is None:
         raise ExportError(f"Scene '{scene.name}' has no active camera: set one in the Scene properties.")
@@ -51,6 +52,13 @@ def export_camera(scene, depsgraph):
         scale_x=render.pixel_aspect_x, scale_y=render.pixel_aspect_y)
     cam_to_world = np.array(camera_eval.matrix_world, dtype=np.float64)
     return width, height, cam_to_world, np.array(projection, dtype=np.float64)
+
+
+def export_clip_range(scene, depsgraph):
+    """(clip_start, clip_end) of the scene camera: Cycles starts camera rays on the near
+    plane (the fog begins there) and does not see surfaces beyond the far plane."""
+    data = scene.camera.evaluated_get(depsgraph).data
+    return float(data.clip_start), float(data.clip_end)
 
 
 def _render_hidden_collections(scene, view_layer):
@@ -171,6 +179,7 @@ def export_scene(scene, depsgraph):
     """The scene description for `_native.bake(**description, ...)` at the depsgraph's frame."""
     sigma_t, albedo = export_medium(scene)
     width, height, cam_to_world, projection = export_camera(scene, depsgraph)
+    clip_start, clip_end = export_clip_range(scene, depsgraph)
     vertices, triangles, light_positions, light_intensities, _ = export_geometry_and_lights(scene, depsgraph)
     for name, array in (("camera matrix", cam_to_world), ("projection", projection),
                         ("vertices", vertices), ("light positions", light_positions),
@@ -180,6 +189,7 @@ def export_scene(scene, depsgraph):
     return dict(
         width=width, height=height,
         cam_to_world=cam_to_world, projection=projection,
+        clip_start=clip_start, clip_end=clip_end,
         vertices=vertices, triangles=triangles,
         light_positions=light_positions, light_intensities=light_intensities,
         sigma_t=sigma_t, albedo=albedo,

@@ -54,13 +54,15 @@ py::dict bake_py(int width, int height, const py::object& cam_to_world, const py
                  const py::object& vertices, const py::object& triangles,
                  const py::object& light_positions, const py::object& light_intensities, double sigma_t,
                  const py::object& albedo, const std::string& model, int threads, int aa_samples,
-                 double filter_width, const py::object& progress) {
+                 double filter_width, double clip_start, double clip_end, const py::object& progress) {
     // Gather the scene description from the arrays (shapes checked here, values in bake()).
     SceneDescription scene;
     scene.camera.width = width;
     scene.camera.height = height;
     scene.camera.cam_to_world = to_mat4(cam_to_world, "cam_to_world");
     scene.camera.projection = to_mat4(projection, "projection");
+    scene.camera.clip_start = clip_start;
+    scene.camera.clip_end = clip_end;
     scene.medium.sigma_t = sigma_t;
     scene.medium.albedo = to_rgb(albedo, "albedo");
 
@@ -147,7 +149,8 @@ void bind_bake(py::module_& m) {
     m.def("bake", &bake_py, py::kw_only(), "width"_a, "height"_a, "cam_to_world"_a, "projection"_a,
           "vertices"_a, "triangles"_a, "light_positions"_a, "light_intensities"_a, "sigma_t"_a,
           "albedo"_a = py::make_tuple(1.0, 1.0, 1.0), "model"_a = "sun05", "threads"_a = 0,
-          "aa_samples"_a = 4, "filter_width"_a = 1.5, "progress"_a = py::none(),
+          "aa_samples"_a = 4, "filter_width"_a = 1.5, "clip_start"_a = 0.0,
+          "clip_end"_a = std::numeric_limits<double>::infinity(), "progress"_a = py::none(),
           R"doc(Bake fog passes for one camera view (all arguments keyword-only).
 
 width, height: render resolution in pixels.
@@ -160,11 +163,16 @@ sigma_t: extinction 1/m (>= 0); albedo: 3 floats (scattering = albedo * sigma_t)
 model: "sun05", "sun05_exact" or "quadrature" (see models()).
 threads: worker threads (0: all). aa_samples: per-axis samples on edge pixels;
 filter_width: Blackman-Harris film filter width in pixels (Cycles' default 1.5).
+clip_start, clip_end: the camera's clip range (view-axis depths, camera.data.clip_start
+  / clip_end) as Cycles applies it: fog from the near plane on, surfaces beyond
+  clip_end not seen (rays that miss get fog out to infinity). Default: from the eye,
+  no far clip.
 progress: optional callable(fraction) -> bool|None, called from this thread
   between row bands; returning False cancels and raises BakeCancelled.
 
 Returns dict(airlight=(H, W, 3) float32, transmittance=(H, W, 3) float32,
-depth=(H, W) float32 (inf where no hit), stats=dict(seconds_raycast,
+depth=(H, W) float32 (distance from the eye, or from the near plane for
+orthographic cameras, to the first hit inside the clip range; inf where none), stats=dict(seconds_raycast,
 seconds_airlight, supersampled_pixels, samples)); rows top first. Raises
 ValueError on invalid input. The GIL is released while baking.)doc");
 

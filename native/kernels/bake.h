@@ -16,9 +16,12 @@ struct BakeSettings {
     ModelId model = ModelId::Sun05Table;
     int threads = 0;            // 0: all hardware threads
     // Antialiasing: pixels whose first-hit distances disagree with a neighbour's are
-    // supersampled with _aa_samples_ x _aa_samples_ stratified samples weighted by a
-    // Blackman-Harris filter of width _filter_width_ pixels (Cycles' default film
-    // filter: 1.5 px), so fog edges line up with the render's antialiased edges.
+    // supersampled with N = _aa_samples_^2 samples (a rank-1 lattice: N distinct offsets
+    // per axis) importance-sampled from a Blackman-Harris filter of width _filter_width_
+    // pixels (Cycles' default film filter: 1.5 px, support +-1.5 px), so fog edges line up
+    // with the render's antialiased edges. There the airlight is the mean over all
+    // samples and the transmittance the mean over the samples that hit a surface (see
+    // bake.cpp: exact for the composite render * T + A over a black world).
     int aa_samples = 4;
     double filter_width = 1.5;
     int table_nu = 256, table_nT = 256;
@@ -35,8 +38,13 @@ struct BakeStats {
 struct BakeResult {
     int width = 0, height = 0;
     std::vector<float> airlight;       // in-scattered radiance, Cycles Combined units
-    std::vector<float> transmittance;  // exp(-T) to the first surface (0 at infinity if sigma_t > 0)
-    std::vector<float> depth;          // 1 float per pixel: distance to first hit at pixel centre (inf: none)
+    // exp(-sigma_t (depth - t_near)) from the near clip plane to the first surface (0 where
+    // none and sigma_t > 0: the fog goes on to infinity, as in Cycles' world volume).
+    std::vector<float> transmittance;
+    // 1 float per pixel: distance from the ray origin (the eye for perspective cameras, the
+    // near plane for orthographic ones) to the first hit at the pixel centre inside the
+    // clip range (inf: none, or beyond clip_end).
+    std::vector<float> depth;
     BakeStats stats;
 };
 

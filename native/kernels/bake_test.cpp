@@ -10,6 +10,7 @@
 #include "bake.h"
 #include "camera.h"
 #include "raycast.h"
+#include "quadrature.h"
 #include "sun05.h"
 
 namespace airlight {
@@ -150,6 +151,50 @@ TEST(Bake, PixelsMatchPerRayModel) {
             for (int c = 0; c < 3; ++c) EXPECT_NEAR(r.airlight[3 * p + c], (c + 1) * La, 1e-5 * (c + 1) * La);
         }
     EXPECT_EQ(r.stats.supersampled_pixels, 0);  // a plane has no depth discontinuity
+}
+
+// Cycles' clip range: fog from the near plane (attenuated from there, not from the eye),
+// surfaces beyond the far plane unseen. Reference: GK quadrature of eq. 5 from the moved
+// origin o' = o + (clip_start / cos) d.
+TEST(Bake, ClipRangeMatchesQuadratureFromNearPlane) {
+    SceneDescription scene = test_scene();
+    scene.camera.clip_start = 2.5;
+    scene.camera.clip_end = 7.0;  // the plane at view depth 6 stays visible
+    BakeSettings settings;
+    settings.aa_samples = 1;
+    settings.model = ModelId::Sun05Exact;
+    BakeResult r = bake(scene, settings);
+    const CameraRays rays(scene.camera);
+    const Vec3 s = scene.point_lights[0].position;
+    for (int j = 0; j < 30; j += 7)
+        for (int i = 0; i < 40; i += 5) {
+            Ray ray = rays(i + 0.5, j + 0.5);
+            const double cos_view = -ray.d.z, t_near = 2.5 / cos_view, Dvp = 6.0 / cos_view;
+            const size_t p = size_t(j) * 40 + i;
+            EXPECT_NEAR(r.depth[p], Dvp, 1e-5 * Dvp);  // still from the eye
+            EXPECT_NEAR(r.transmittance[3 * p], std::exp(-0.1 * (Dvp - t_near)), 1e-6);
+            const Vec3 o = ray.o + t_near * ray.d, sv = s - o;
+            const double La = sun05_airlight_quadrature(0.1, glm::length(sv), glm::dot(ray.d, sv) / glm::length(sv),
+                                                        Dvp - t_near, 1e-10);
+            EXPECT_NEAR(r.airlight[3 * p], La, 1e-5 * La);
+        }
+    // A far plane nearer than the surface hides it: misses, fog out to infinity, T = 0.
+    scene.camera.clip_end = 5.0;
+    BakeResult far = bake(scene, settings);
+    for (int j = 0; j < 30; j += 7)
+        for (int i = 0; i < 40; i += 5) {
+            Ray ray = rays(i + 0.5, j + 0.5);
+            const double t_near = 2.5 / -ray.d.z;
+            const size_t p = size_t(j) * 40 + i;
+            EXPECT_TRUE(std::isinf(far.depth[p]));
+            EXPECT_EQ(far.transmittance[3 * p], 0.0f);
+            const Vec3 sv = s - (ray.o + t_near * ray.d);
+            const double La = sun05_airlight_quadrature(0.1, glm::length(sv), glm::dot(ray.d, sv) / glm::length(sv),
+                                                        std::numeric_limits<double>::infinity(), 1e-10);
+            EXPECT_NEAR(far.airlight[3 * p], La, 1e-5 * La);
+        }
+    scene.camera.clip_end = 2.0;  // <= clip_start
+    EXPECT_THROW(bake(scene, settings), std::invalid_argument);
 }
 
 TEST(Bake, ThreadCountDoesNotChangeTheResult) {

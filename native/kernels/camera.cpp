@@ -3,6 +3,7 @@
 
 #include <cmath>
 #include <stdexcept>
+#include <string>
 
 namespace airlight {
 
@@ -37,6 +38,12 @@ CameraRays::CameraRays(const Camera& cam) {
     ortho_ = cam.projection[3][3] == 1.0 && cam.projection[2][3] == 0.0;
     raster_to_world_ = cam.cam_to_world * glm::inverse(cam.projection);
     position_ = Vec3(cam.cam_to_world[3]);
+    forward_ = -glm::normalize(Vec3(cam.cam_to_world[2]));
+    if (!(cam.clip_start >= 0.0) || std::isinf(cam.clip_start) || !(cam.clip_end > cam.clip_start))
+        throw std::invalid_argument("camera clip range must satisfy 0 <= clip_start < clip_end (clip_end may be inf), got " +
+                                    std::to_string(cam.clip_start) + ", " + std::to_string(cam.clip_end));
+    clip_start_ = cam.clip_start;
+    clip_end_ = cam.clip_end;
     inv_w_ = 1.0 / cam.width;
     inv_h_ = 1.0 / cam.height;
 

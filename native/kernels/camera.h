@@ -1,6 +1,8 @@
 // camera.h: primary rays through the render's pixel grid, matching Blender's.
 #pragma once
 
+#include <limits>
+
 #include "scene.h"
 
 namespace airlight {
@@ -28,6 +30,17 @@ class CameraRays {
         return ray;
     }
     bool orthographic() const { return ortho_; }
+    // The part of _ray_ (from this class) that Cycles renders: [t_near, t_far] along it,
+    // from the view-axis depths clip_start and clip_end (t = depth / cos of the angle to
+    // the view axis for perspective rays, measured from the ray origin; orthographic rays
+    // already start on the projection's near plane). t_near >= 0; t_far may be inf.
+    void clip_range(const Ray& ray, double& t_near, double& t_far) const {
+        const double cos_view = glm::dot(ray.d, forward_);
+        const double z0 = ortho_ ? glm::dot(ray.o - position_, forward_) : 0.0;
+        t_near = clip_start_ > z0 ? (clip_start_ - z0) / cos_view : 0.0;
+        t_far = (clip_end_ - z0) / cos_view;
+    }
+    bool clipped() const { return clip_start_ > 0.0 || clip_end_ < std::numeric_limits<double>::infinity(); }
     // Camera position in world space (the ray origin of every perspective ray).
     Vec3 position() const { return position_; }
 
@@ -41,6 +54,8 @@ class CameraRays {
     bool affine_ = false;
     Vec3 n0_, ndx_, ndy_, D0_, Dx_, Dy_;
     Vec3 position_;
+    Vec3 forward_;  // unit view axis (camera -Z)
+    double clip_start_ = 0.0, clip_end_ = std::numeric_limits<double>::infinity();
     double inv_w_ = 0.0, inv_h_ = 0.0;
     bool ortho_ = false;
 };

@@ -6,6 +6,7 @@
 #pragma once
 
 #include <cstdint>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -39,6 +40,12 @@ struct Camera {
     glm::dmat4 projection{1.0};
     int width = 0;   // render resolution in pixels (after percentage)
     int height = 0;
+    // Clip range as view-axis depths (Blender's camera.data.clip_start / clip_end).
+    // Cycles starts camera rays on the near plane, so the fog begins there, and does not
+    // see surfaces beyond the far plane (rays that miss still get fog out to infinity).
+    // The defaults (0, inf) integrate from the eye and see everything.
+    double clip_start = 0.0;
+    double clip_end = std::numeric_limits<double>::infinity();
 };
 
 // Triangle soup in world space (all render-visible geometry).

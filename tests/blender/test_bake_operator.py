@@ -31,7 +31,8 @@ def test01_exr_passes_equal_native_bake_of_exported_scene(tmp_path):
 
 @needs_native
 def test02_transmittance_of_plane_is_exp_minus_sigma_distance(tmp_path):
-    """Camera 2 m above the plane z=0 looking straight down: d = 2 sqrt(1 + x^2 + y^2)."""
+    """Camera 2 m above the plane z=0 looking straight down: d = 2 sqrt(1 + x^2 + y^2),
+    of which the first clip_start sqrt(1 + x^2 + y^2) lie before the near plane."""
     width, height = 64, 48
     scene = build_plane_scene(tmp_path, size=(width, height))
     path = _bake(tmp_path / "fog.exr")
@@ -41,7 +42,8 @@ def test02_transmittance_of_plane_is_exp_minus_sigma_distance(tmp_path):
     i = np.arange(width) + 0.5 - width / 2
     j = height / 2 - (np.arange(height) + 0.5)
     x, y = np.meshgrid(i * scale, j * scale)
-    expected = np.exp(-0.2 * 2.0 * np.sqrt(1.0 + x * x + y * y))
+    # As in Cycles the fog begins on the near plane (view depth clip_start, 0.1 m here).
+    expected = np.exp(-0.2 * (2.0 - cam.clip_start) * np.sqrt(1.0 + x * x + y * y))
     for c in range(3):
         np.testing.assert_allclose(T[..., c], expected, rtol=2e-5)
 

@@ -91,8 +91,11 @@ def test04_description_keys_match_bake_arguments(tmp_path):
     scene = build_plane_scene(tmp_path)
     scene.airlight.color = (0.9, 0.8, 0.7)
     description = scene_export.export_scene(scene, bpy.context.evaluated_depsgraph_get())
-    assert set(description) == {"width", "height", "cam_to_world", "projection", "vertices", "triangles",
-                                "light_positions", "light_intensities", "sigma_t", "albedo"}
+    assert set(description) == {"width", "height", "cam_to_world", "projection", "clip_start", "clip_end",
+                                "vertices", "triangles", "light_positions", "light_intensities",
+                                "sigma_t", "albedo"}
+    cam = scene.camera.data
+    assert (description["clip_start"], description["clip_end"]) == pytest.approx((cam.clip_start, cam.clip_end))
     assert description["sigma_t"] == pytest.approx(0.2)
     assert description["albedo"] == pytest.approx((0.9, 0.8, 0.7))
 

@@ -140,18 +140,87 @@ def blackman_harris_cdf(x, w=1.5):
     return np.trapz(f, t) / np.trapz(ff, tt)
 
 
+EDGE_LIGHT = (0.0, 0.0, 20.0)  # behind the camera at the origin: A is flat near the axis
+
+
+def _coverage_from_airlight(out, row, col, Dvp_hit):
+    """Filter-weighted share of hits of pixel (row, col), from its airlight: the bake
+    averages A over the samples, A = c A_hit + (1 - c) A_miss (centre-ray values; with
+    the light right behind the camera A barely varies across the filter's +-1.5 px)."""
+    d = (pixel_dirs_camera(FOV, W, H))[row, col]
+    light = np.array(EDGE_LIGHT)
+    Dsv = np.linalg.norm(light)
+    cos_g = d @ light / Dsv
+    A_hit, A_miss = (2.0 * _native.sun05_airlight(SIGMA_T, Dsv, cos_g, D, model="sun05_exact")
+                     for D in (Dvp_hit, math.inf))
+    return (out["airlight"][row, col, 0] - A_miss) / (A_hit - A_miss)
+
+
 def test12_edge_pixels_follow_film_filter():
-    # A vertical silhouette edge between columns W/2-1 and W/2: the transmittance of the
-    # two edge columns is the filter-weighted share of floor hits (misses have Tr = 0).
+    # A vertical silhouette edge between columns W/2-1 and W/2. The airlight mixes hits and
+    # misses by the filter-weighted coverage; the transmittance is the surface's own (the
+    # mean over the samples that hit: exact for render * T + A over a black world).
     s = 1000.0
     half = quad([[0, -s, PLANE_Z], [s, -s, PLANE_Z], [s, s, PLANE_Z], [0, s, PLANE_Z]])
-    out = bake(geometry=half, cam_to_world=camera_matrix(np.eye(3), [0, 0, 0]), aa_samples=16)
+    out = bake(geometry=half, cam_to_world=camera_matrix(np.eye(3), [0, 0, 0]), aa_samples=16,
+               lights=(EDGE_LIGHT,))
     Tr = out["transmittance"][H // 2, :, 0]
-    Tr_hit = math.exp(-SIGMA_T * -PLANE_Z / math.cos(0.5 * FOV / W))  # ~ near the axis
-    assert Tr[W // 2] / Tr_hit == pytest.approx(1 - blackman_harris_cdf(-0.5), abs=0.07)
-    assert Tr[W // 2 - 1] / Tr_hit == pytest.approx(1 - blackman_harris_cdf(0.5), abs=0.07)
+    Dvp = -PLANE_Z / math.cos(0.5 * FOV / W)  # ~ near the axis
+    Tr_hit = math.exp(-SIGMA_T * Dvp)
+    assert Tr[W // 2] == pytest.approx(Tr_hit, rel=1e-3)
+    assert Tr[W // 2 - 1] == pytest.approx(Tr_hit, rel=1e-3)
+    for col, x in ((W // 2, -0.5), (W // 2 - 1, 0.5)):
+        assert _coverage_from_airlight(out, H // 2, col, Dvp) == pytest.approx(
+            1 - blackman_harris_cdf(x), abs=0.01)
     assert Tr[W // 2 + 2] == pytest.approx(math.exp(-SIGMA_T * out["depth"][H // 2, W // 2 + 2]), rel=1e-5)
     assert Tr[W // 2 - 3] == 0.0
+
+
+@pytest.mark.parametrize("shift", [0.0, 0.13, 0.29, 0.41])
+def test12b_horizontal_edge_coverage_is_resolved_to_1_over_N(shift):
+    # A horizontal edge at a sub-pixel offset _shift_: with aa_samples = 4 the 16 samples
+    # have 16 distinct rows, so the coverage is within ~1/32 of the filter's (a 4 x 4 grid
+    # has 4 rows: errors up to ~1/8, measured as dark edge rows against Cycles).
+    s = 1000.0
+    pix = 2.0 * -PLANE_Z * math.tan(0.5 * FOV) / W  # pixel size on the plane
+    half = quad([[-s, 0, PLANE_Z], [s, 0, PLANE_Z], [s, s, PLANE_Z], [-s, s, PLANE_Z]])
+    cam = camera_matrix(np.eye(3), [0, shift * pix, 0])  # the edge moves down by _shift_ px
+    out = bake(geometry=half, cam_to_world=cam, aa_samples=4, lights=(EDGE_LIGHT,))
+    Dvp = -PLANE_Z / math.cos(0.5 * FOV / W)
+    for row in (H // 2 - 1, H // 2):
+        x = (H // 2 + shift) - (row + 0.5)  # edge position relative to the row's centre, down
+        want = blackman_harris_cdf(x)  # the hits lie above the edge: offsets < x
+        got = _coverage_from_airlight(out, row, W // 2, Dvp)
+        assert got == pytest.approx(want, abs=1 / 32 + 0.01), (row, x)
+
+
+def test12c_clip_range_like_cycles():
+    # Fog from the near plane (attenuated from there), surfaces beyond clip_end unseen,
+    # depth still from the eye. Reference: the quadrature model from the moved origin.
+    light = np.array([1.0, 3.0, -5.0])
+    cam = camera_matrix(np.eye(3), [0, 0, 0])
+    d = pixel_dirs_camera(FOV, W, H)
+    cos_view = -d[..., 2]
+    for clip_start, clip_end in ((1.5, 100.0), (1.5, 6.0)):
+        out = bake(cam_to_world=cam, clip_start=clip_start, clip_end=clip_end, aa_samples=1,
+                   model="quadrature")
+        t_near = clip_start / cos_view
+        depth = -PLANE_Z / cos_view
+        seen = depth <= clip_end / cos_view
+        np.testing.assert_allclose(out["depth"], np.where(seen, depth, np.inf), rtol=1e-5)
+        o = t_near[..., None] * d
+        sv = light - o
+        Dsv = np.linalg.norm(sv, axis=-1)
+        Dvp = np.where(seen, depth - t_near, np.inf)
+        La = 2.0 * _native.sun05_airlight(SIGMA_T, Dsv, np.sum(d * sv, -1) / Dsv, Dvp, model="quadrature")
+        np.testing.assert_allclose(out["airlight"][..., 0], La, rtol=1e-6)
+        np.testing.assert_allclose(out["transmittance"][..., 0], np.exp(-SIGMA_T * Dvp), rtol=1e-5, atol=1e-7)
+    # Defaults integrate from the eye: identical to clip_start = 0, clip_end = inf.
+    a, b = bake(cam_to_world=cam), bake(cam_to_world=cam, clip_start=0.0, clip_end=math.inf)
+    np.testing.assert_array_equal(a["airlight"], b["airlight"])
+    for bad in ((-1.0, 10.0), (2.0, 2.0), (math.nan, 10.0), (1.0, math.nan)):
+        with pytest.raises(ValueError, match="clip"):
+            bake(cam_to_world=cam, clip_start=bad[0], clip_end=bad[1])
 
 
 def test13_orthographic_rays_are_parallel():
