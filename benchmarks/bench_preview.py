@@ -4,8 +4,10 @@
 
 Builds a small scene (floor, cube, N point lights), puts the 3D viewport in camera view
 and redraws its region with wm.redraw_timer('DRAW_SWAP': the swap waits for the GPU, so queued fog work is not billed to the next draw),
-with the preview off and on. Prints ms per viewport draw, the fog's extra cost and the
-ratio, plus the handler's own timing split (depth read-back + upload vs fog pass).
+with the preview off and on, for each depth source (DRAWN: the preview's own distance
+pass; READBACK: viewport depth read back and uploaded) and fog resolution scale
+(FULL / HALF / QUARTER). Prints ms per viewport draw, the fog's extra cost and the
+ratio, plus the handler's own depth time (own pass, or read-back + upload).
 """
 
 import argparse
@@ -23,6 +25,8 @@ def _args():
     p = argparse.ArgumentParser(prog="bench_preview")
     p.add_argument("--repeats", type=int, default=8)
     p.add_argument("--lights", type=int, nargs="+", default=[1, 4, 16])
+    p.add_argument("--scales", nargs="+", default=["FULL", "HALF", "QUARTER"])
+    p.add_argument("--depth", nargs="+", default=["DRAWN", "READBACK"])
     return p.parse_args(argv)
 
 
@@ -62,12 +66,14 @@ def _view3d_region():
     raise RuntimeError("no 3D viewport")
 
 
-def _time_draws(window, area, region, repeats, wm):
+def _time_draws(window, area, region, repeats, wm, scale, depth_mode):
     """Median ms per region draw with the preview off and on, interleaved so that load
     from other processes hits both alike."""
     from airlight import preview
     off, on, depth, cpu_off, cpu_on = [], [], [], [], []
     with bpy.context.temp_override(window=window, screen=window.screen, area=area, region=region):
+        wm.airlight_preview_scale = scale
+        wm.airlight_preview_depth = depth_mode
         wm.airlight_preview = True
         bpy.ops.wm.redraw_timer(type='DRAW_SWAP', iterations=1)  # warm-up (shader compile, table)
         for _ in range(repeats):
@@ -83,6 +89,64 @@ def _time_draws(window, area, region, repeats, wm):
     return med(off), med(on), med(depth), med(cpu_off), med(cpu_on)
 
 
+def _sync():
+    """Waits for queued GPU work: reading one pixel back finishes everything before it."""
+    import gpu
+    gpu.state.active_framebuffer_get().read_color(0, 0, 1, 1, 4, 0, 'FLOAT')
+
+
+def _time_passes(region, repeats):
+    """Median wall / CPU ms of each preview pass alone at the region's size, offscreen,
+    each finished by a 1-pixel read-back: the depth sources and the fog at each scale."""
+    import gpu
+    from airlight import preview
+    from airlight import gpu_shaders as gs
+    ctx = bpy.context
+    w, h = region.width, region.height
+    rv3d = next(a for a in ctx.window_manager.windows[0].screen.areas
+                if a.type == 'VIEW_3D').spaces.active.region_3d
+    persp = rv3d.perspective_matrix.copy()
+    eye = tuple(rv3d.view_matrix.inverted().translation)
+    scene = ctx.scene
+    positions, intensities = preview.scene_lights(scene, ctx.view_layer)
+    off = gpu.types.GPUOffScreen(w, h, format='RGBA8')
+    rows = []
+    try:
+        with off.bind():
+            def run(name, fn):
+                fn()
+                _sync()  # warm-up (compile, batches, targets)
+                wall, cpu = [], []
+                for _ in range(repeats):
+                    t0, c0 = time.perf_counter(), time.process_time()
+                    fn()
+                    _sync()
+                    wall.append((time.perf_counter() - t0) * 1e3)
+                    cpu.append((time.process_time() - c0) * 1e3)
+                rows.append((name, statistics.median(wall), statistics.median(cpu)))
+
+            def readback():
+                buf = gpu.state.active_framebuffer_get().read_depth(0, 0, w, h)
+                return gs.depth_texture(buf, w, h)
+
+            def drawn():
+                return preview.draw_distance(ctx, perspective_matrix=persp, view_origin=eye,
+                                             is_perspective=True, size=(w, h))
+            run("depth: read-back + upload", readback)
+            run("depth: own distance pass", drawn)
+            dist = drawn()
+            for scale in (1, 2, 4):
+                run(f"fog at 1/{scale} (+ upsampling)" if scale > 1 else "fog at full res",
+                    lambda scale=scale: preview.draw_fog(
+                        depth_tex=dist, perspective_matrix=persp, view_origin=eye,
+                        is_perspective=True, viewport=(0, 0, w, h),
+                        sigma_t=scene.airlight.density, light_positions=positions,
+                        light_intensities=intensities, window_depth=False, scale=scale))
+    finally:
+        off.free()
+    return rows
+
+
 def main():
     args = _args()
     import gpu
@@ -90,20 +154,28 @@ def main():
     print(f"GPU: {gpu.platform.renderer_get()} / {gpu.platform.version_get()}")
     window, area, region = _view3d_region()
     print(f"viewport region: {region.width} x {region.height} px, {args.repeats} draws each (median)")
-    print(f"{'lights':>6} {'no fog ms':>10} {'fog ms':>8} {'extra ms':>9} {'ratio':>6} "
+    print(f"{'lights':>6} {'depth':>8} {'scale':>7} {'no fog ms':>10} {'fog ms':>8} {'extra ms':>9} {'ratio':>6} "
           f"{'depth ms':>9} {'CPU no fog':>11} {'CPU fog':>8} {'CPU ratio':>9}")
     print("(wall ms per region draw; CPU = process CPU time incl. llvmpipe threads, "
           "robust to other load; depth = read-back + upload in the handler)")
     wm = bpy.context.window_manager
     for n in args.lights:
         _scene(n)
-        preview._state["error"] = None
-        base, fog, depth, cbase, cfog = _time_draws(window, area, region, args.repeats, wm)
-        if preview._state["error"]:
-            print("preview error:", preview._state["error"])
-            return 1
-        print(f"{n:>6} {base:>10.1f} {fog:>8.1f} {fog - base:>9.1f} {fog / base:>6.2f} "
-              f"{depth:>9.1f} {cbase:>11.1f} {cfog:>8.1f} {cfog / cbase:>9.2f}")
+        for depth_mode in args.depth:
+            for scale in args.scales:
+                preview._state["error"] = None
+                base, fog, depth, cbase, cfog = _time_draws(window, area, region, args.repeats,
+                                                            wm, scale, depth_mode)
+                if preview._state["error"]:
+                    print("preview error:", preview._state["error"])
+                    return 1
+                print(f"{n:>6} {depth_mode:>8} {scale:>7} {base:>10.1f} {fog:>8.1f} {fog - base:>9.1f} "
+                      f"{fog / base:>6.2f} {depth:>9.1f} {cbase:>11.1f} {cfog:>8.1f} "
+                      f"{cfog / cbase:>9.2f}", flush=True)
+        print(f"  passes alone at {region.width}x{region.height}, {n} lights "
+              f"(median of {args.repeats}, wall / CPU ms):")
+        for name, wall, cpu in _time_passes(region, args.repeats):
+            print(f"    {name:<32} {wall:>8.1f} {cpu:>8.1f}", flush=True)
     return 0
 
 

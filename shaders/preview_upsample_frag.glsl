@@ -63,10 +63,7 @@ void main()
   ivec2 i0 = ivec2(floor(f));
   vec2 t = f - vec2(i0);
 
-  vec2 ndc;
-  vec3 origin, dir;
-  preview_ray(px, ndc, origin, dir);
-  float D = preview_distance(px, ndc, origin, dir);
+  float D = preview_distance_at(px);
   vec2 slope = vec2(0.0);
   if (mode != 0 && !isinf(D)) {
     slope = vec2(preview_slope(px, ivec2(1, 0), D), preview_slope(px, ivec2(0, 1), D));
@@ -106,6 +103,9 @@ void main()
     frag_color = nearest;
   }
   else {
+    vec2 ndc;
+    vec3 origin, dir;
+    preview_ray(px, ndc, origin, dir);
     frag_color = preview_fog(origin, dir, D);
   }
 }

@@ -117,17 +117,25 @@ def _shader(kind, window_depth):
 
 
 def _target(name, width, height, fmt, depth=False):
-    """A cached framebuffer with one colour texture (and a depth texture) of this size."""
+    """Cached textures (one colour, optionally a depth one) of this size.
+
+    Textures are shared between Blender's GPU contexts (one per window), framebuffers
+    are not: a framebuffer made while drawing one window cannot be bound in another, so
+    `_framebuffer` wraps the textures anew for each use (cheap)."""
     res = _gpu_resources()
     entry = res["targets"].get(name)
     if entry is None or entry["size"] != (width, height):
         import gpu
         colour = gpu.types.GPUTexture((width, height), format=fmt)
         depth_tex = gpu.types.GPUTexture((width, height), format='DEPTH_COMPONENT32F') if depth else None
-        fb = gpu.types.GPUFrameBuffer(depth_slot=depth_tex, color_slots=(colour,))
-        entry = res["targets"][name] = dict(size=(width, height), fb=fb, colour=colour,
+        entry = res["targets"][name] = dict(size=(width, height), colour=colour,
                                             depth=depth_tex)
     return entry
+
+
+def _framebuffer(target):
+    import gpu
+    return gpu.types.GPUFrameBuffer(depth_slot=target["depth"], color_slots=(target["colour"],))
 
 
 def free_gpu_resources():
@@ -221,9 +229,10 @@ def draw_distance(context, *, perspective_matrix, view_origin, is_perspective, s
     prev_test, prev_mask = gpu.state.depth_test_get(), gpu.state.depth_mask_get()
     prev_blend = gpu.state.blend_get()
     try:
-        with target["fb"].bind():
+        fb = _framebuffer(target)
+        with fb.bind():
             gpu.state.viewport_set(0, 0, w, h)
-            target["fb"].clear(color=(math.inf, 0.0, 0.0, 0.0), depth=1.0)
+            fb.clear(color=(math.inf, 0.0, 0.0, 0.0), depth=1.0)
             gpu.state.blend_set('NONE')
             gpu.state.depth_test_set('LESS_EQUAL')
             gpu.state.depth_mask_set(True)
@@ -348,7 +357,7 @@ def draw_fog(*, depth_tex, perspective_matrix, view_origin, is_perspective, view
             lw, lh = -(-w // scale), -(-h // scale)
             target = _target("fog_lo", lw, lh, LOWRES_FORMAT)
             gpu.state.blend_set('NONE')
-            with target["fb"].bind():
+            with _framebuffer(target).bind():
                 gpu.state.viewport_set(0, 0, lw, lh)
                 bind(fog, (0, 0, w, h), None)
                 res["batch"].draw(fog)
@@ -421,7 +430,7 @@ def _draw_callback():
             if readback:
                 depth = gs.buffer_to_numpy(depth_buf, (h, w))
             else:
-                with _state["gpu"]["targets"]["distance"]["fb"].bind():
+                with _framebuffer(_state["gpu"]["targets"]["distance"]).bind():
                     buf = gpu.state.active_framebuffer_get().read_color(
                         0, 0, w, h, 1, 0, 'FLOAT')
                 depth = gs.buffer_to_numpy(buf, (h, w))
@@ -430,7 +439,7 @@ def _draw_callback():
             if scale > 1:
                 target = _state["gpu"]["targets"]["fog_lo"]
                 lw, lh = target["size"]
-                with target["fb"].bind():
+                with _framebuffer(target).bind():
                     buf = gpu.state.active_framebuffer_get().read_color(
                         0, 0, lw, lh, 4, 0, 'FLOAT')
                 fog_lo = gs.buffer_to_numpy(buf, (lh, lw, 4))

