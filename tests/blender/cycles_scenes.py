@@ -42,6 +42,22 @@ class FogScene:
     samples: int = 256
     seed: int = 0
     threads: int = 2
+    # Camera clip range. Cycles starts camera rays on the near plane (its fog begins at
+    # view depth clip_start) and does not see surfaces beyond clip_end (measured here:
+    # sky rays still get fog out to infinity). 1 m makes a bake that integrates from the
+    # eye 16 % too dark (exp(0.15)), so the tests see it.
+    clip_start: float = 1.0
+    clip_end: float = 1000.0
+    floor: bool = True               # the black floor (off for the halo scene)
+    fog: bool = True                 # the world volume (off: the "render without fog")
+    # Emissive rectangle facing the camera (halo scene): centre, half sizes (x, z),
+    # strength. Emission seen through the fog is exactly render * T: it neither scatters
+    # light into the fog (invisible to volume scatter, not sampled as a light) nor is
+    # lit by the point light.
+    emitter: tuple = None            # ((cx, cy, cz), (hx, hz), strength)
+    # A wall at y = backdrop_y beyond clip_end (view depth > clip_end): Cycles never sees
+    # it, and it casts no shadows, so the fog behind it is as if it were not there.
+    backdrop_y: float = None
 
     @property
     def I0(self):
@@ -65,6 +81,13 @@ def build(desc: FogScene):
     scene = bpy.context.scene
     for ob in list(scene.objects):
         bpy.data.objects.remove(ob, do_unlink=True)
+    # Whatever the scene held before must not touch the renders: no compositing (the
+    # add-on's fog nodes), no sequencer, no fog bake in render_pre.
+    scene.use_nodes = False
+    scene.render.use_compositing = False
+    scene.render.use_sequencer = False
+    if getattr(scene, "airlight", None) is not None:
+        scene.airlight.enabled = False
 
     # Render settings: single scattering only, no denoising, float EXR.
     scene.render.engine = 'CYCLES'
@@ -106,7 +129,8 @@ def build(desc: FogScene):
     s.exr_codec = 'ZIP'
 
     # Black world.
-    world = scene.world or bpy.data.worlds.new("World")
+    # A new world each time: a reused one keeps the volume of an earlier build.
+    world = bpy.data.worlds.new("RefWorld")
     scene.world = world
     world.use_nodes = True
     bg = world.node_tree.nodes.get("Background")
@@ -119,8 +143,8 @@ def build(desc: FogScene):
     cam_data = bpy.data.cameras.new("RefCamera")
     cam_data.lens = desc.lens_mm
     cam_data.sensor_fit = 'AUTO'
-    cam_data.clip_start = 0.01
-    cam_data.clip_end = 1000.0
+    cam_data.clip_start = desc.clip_start
+    cam_data.clip_end = desc.clip_end
     cam = bpy.data.objects.new("RefCamera", cam_data)
     cam.location = desc.camera_location
     # Blender cameras look down -Z; rotate X by 90 deg to look along +Y, then pitch.
@@ -129,28 +153,51 @@ def build(desc: FogScene):
     scene.camera = cam
 
     # Black diffuse floor.
-    x0, x1 = desc.floor_x
-    y0, y1 = desc.floor_y
-    floor_mesh = bpy.data.meshes.new("RefFloor")
-    floor_mesh.from_pydata([(x0, y0, 0), (x1, y0, 0), (x1, y1, 0), (x0, y1, 0)], [],
-                           [(0, 1, 2, 3)])
-    floor = bpy.data.objects.new("RefFloor", floor_mesh)
-    mat = bpy.data.materials.new("RefBlack")
-    mat.use_nodes = True
-    bsdf = mat.node_tree.nodes.get("Principled BSDF")
-    nodes, links = mat.node_tree.nodes, mat.node_tree.links
-    for n in list(nodes):
-        nodes.remove(n)
-    out = nodes.new("ShaderNodeOutputMaterial")
-    diff = nodes.new("ShaderNodeBsdfDiffuse")
-    diff.inputs["Color"].default_value = (0.0, 0.0, 0.0, 1.0)
-    links.new(diff.outputs["BSDF"], out.inputs["Surface"])
-    floor_mesh.materials.append(mat)
-    scene.collection.objects.link(floor)
+    if desc.floor:
+        x0, x1 = desc.floor_x
+        y0, y1 = desc.floor_y
+        floor = _quad("RefFloor", [(x0, y0, 0), (x1, y0, 0), (x1, y1, 0), (x0, y1, 0)],
+                      _black_material())
+        scene.collection.objects.link(floor)
+    if desc.emitter is not None:
+        (cx, cy, cz), (hx, hz), strength = desc.emitter
+        mat = bpy.data.materials.new("RefEmission")
+        mat.use_nodes = True
+        nodes, links = mat.node_tree.nodes, mat.node_tree.links
+        for n in list(nodes):
+            nodes.remove(n)
+        out = nodes.new("ShaderNodeOutputMaterial")
+        em = nodes.new("ShaderNodeEmission")
+        em.inputs["Color"].default_value = (1.0, 1.0, 1.0, 1.0)
+        # Emission for camera rays only: Cycles 3.4 still lit the fog with the emitter
+        # (measured: up to 2x the point light's airlight beside it) with sample_as_light
+        # off and visible_volume_scatter off; Is Camera Ray is 0 for every other ray.
+        path = nodes.new("ShaderNodeLightPath")
+        mul = nodes.new("ShaderNodeMath")
+        mul.operation = 'MULTIPLY'
+        mul.inputs[1].default_value = strength
+        links.new(path.outputs["Is Camera Ray"], mul.inputs[0])
+        links.new(mul.outputs["Value"], em.inputs["Strength"])
+        links.new(em.outputs["Emission"], out.inputs["Surface"])
+        mat.cycles.sample_as_light = False
+        emitter = _quad("RefEmitter", [(cx - hx, cy, cz - hz), (cx + hx, cy, cz - hz),
+                                       (cx + hx, cy, cz + hz), (cx - hx, cy, cz + hz)], mat)
+        emitter.visible_volume_scatter = False
+        emitter.visible_shadow = False
+        scene.collection.objects.link(emitter)
+    if desc.backdrop_y is not None:
+        y = desc.backdrop_y
+        wall = _quad("RefBackdrop", [(-200, y, -200), (200, y, -200), (200, y, 200),
+                                     (-200, y, 200)], _black_material())
+        wall.visible_shadow = False
+        wall.visible_volume_scatter = False
+        scene.collection.objects.link(wall)
 
     # Homogeneous Volume Scatter medium: a world volume (default; no geometry, so any
     # exporter sees only the floor) or a box around the origin enclosing camera and light.
-    if desc.world_volume:
+    if not desc.fog:
+        pass
+    elif desc.world_volume:
         nodes, links = world.node_tree.nodes, world.node_tree.links
         wout = next(n for n in nodes if n.bl_idname == "ShaderNodeOutputWorld")
         vs = nodes.new("ShaderNodeVolumeScatter")
@@ -191,6 +238,28 @@ def build(desc: FogScene):
 
     bpy.context.view_layer.update()
     return scene
+
+
+def _black_material():
+    import bpy
+    mat = bpy.data.materials.new("RefBlack")
+    mat.use_nodes = True
+    nodes, links = mat.node_tree.nodes, mat.node_tree.links
+    for n in list(nodes):
+        nodes.remove(n)
+    out = nodes.new("ShaderNodeOutputMaterial")
+    diff = nodes.new("ShaderNodeBsdfDiffuse")
+    diff.inputs["Color"].default_value = (0.0, 0.0, 0.0, 1.0)
+    links.new(diff.outputs["BSDF"], out.inputs["Surface"])
+    return mat
+
+
+def _quad(name, corners, material):
+    import bpy
+    mesh = bpy.data.meshes.new(name)
+    mesh.from_pydata(corners, [], [(0, 1, 2, 3)])
+    mesh.materials.append(material)
+    return bpy.data.objects.new(name, mesh)
 
 
 def render(scene, path, seed=None):
@@ -246,6 +315,7 @@ def bake_inputs(scene, exclude=("RefFogBox",)):
         width=W, height=H,
         cam_to_world=np.array(cam.matrix_world, dtype=np.float64),
         projection=np.array(proj, dtype=np.float64),
+        clip_start=float(cam.data.clip_start), clip_end=float(cam.data.clip_end),
         vertices=np.concatenate(verts) if verts else np.zeros((0, 3), np.float32),
         triangles=np.concatenate(tris) if tris else np.zeros((0, 3), np.uint32),
         light_positions=np.array(pos, dtype=np.float64).reshape(-1, 3),
