@@ -185,8 +185,11 @@ class FogModel {
     void eval_many(const Ray* rays, const float* Dvp, int n, double* Tr, RGB* La) const {
         if (shared_origin_ && model_ == ModelId::Sun05Table && sigma_t_ > 0.0) {
             // Hot path: perspective camera, table model, in SIMD chunks (sun05_batch.h).
+            // Directions and the RGB sums are kept as separate arrays (structure of
+            // arrays) so the per-light dot products and accumulations vectorise too.
             constexpr int kChunk = 256;
-            double cos_gamma[kChunk];
+            double dx[kChunk], dy[kChunk], dz[kChunk], cos_gamma[kChunk];
+            double sum_r[kChunk], sum_g[kChunk], sum_b[kChunk];
             float Tr_f[kChunk], value[kChunk];
             const float* data = table_->data().data();
             const int nu = table_->nu(), nT = table_->nT();
@@ -195,16 +198,25 @@ class FogModel {
                 transmittance_batch(float(sigma_t_), Dvp + k0, m, Tr_f);
                 for (int k = 0; k < m; ++k) {
                     Tr[k0 + k] = Tr_f[k];
-                    La[k0 + k] = RGB(0.0);
+                    dx[k] = rays[k0 + k].d.x;
+                    dy[k] = rays[k0 + k].d.y;
+                    dz[k] = rays[k0 + k].d.z;
+                    sum_r[k] = sum_g[k] = sum_b[k] = 0.0;
                 }
                 for (const LightData& light : lights_) {
-                    const Vec3 sv = light.s - rays[0].o;
-                    const double inv_Dsv = light.Dsv > 0.0 ? 1.0 / light.Dsv : 0.0;
+                    const Vec3 sv = (light.s - rays[0].o) * (light.Dsv > 0.0 ? 1.0 / light.Dsv : 0.0);
+                    const bool at_light = !(light.Dsv > 0.0);
                     for (int k = 0; k < m; ++k)
-                        cos_gamma[k] = inv_Dsv > 0.0 ? glm::dot(rays[k0 + k].d, sv) * inv_Dsv : 1.0;
+                        cos_gamma[k] = at_light ? 1.0 : dx[k] * sv.x + dy[k] * sv.y + dz[k] * sv.z;
                     sun05_airlight_table_batch(data, nu, nT, sigma_t_, light.Dsv, cos_gamma, Dvp + k0, m, value);
-                    for (int k = 0; k < m; ++k) La[k0 + k] += light.weight * double(value[k]);
+                    const RGB w = light.weight;
+                    for (int k = 0; k < m; ++k) {
+                        sum_r[k] += w.x * value[k];
+                        sum_g[k] += w.y * value[k];
+                        sum_b[k] += w.z * value[k];
+                    }
                 }
+                for (int k = 0; k < m; ++k) La[k0 + k] = RGB(sum_r[k], sum_g[k], sum_b[k]);
             }
             return;
         }
