@@ -12,8 +12,7 @@ import time
 import bpy
 from bpy.props import IntProperty, StringProperty
 
-from . import cache, compositor, native, scene_export
-from .properties import MODEL_NAMES
+from . import cache, compositor, model_choice, native, scene_export
 
 class BakeError(RuntimeError):
     """A bake failed for a reason the user can fix; the message says which."""
@@ -25,7 +24,7 @@ cache_path = cache.cache_path
 def bake_settings(scene):
     """Keyword arguments of `_native.bake` that are not part of the scene description."""
     settings = scene.airlight
-    return dict(model=MODEL_NAMES[settings.model], threads=settings.threads,
+    return dict(model=model_choice.choose(settings)[0], threads=settings.threads,
                 aa_samples=settings.aa_samples)
 
 

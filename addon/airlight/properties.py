@@ -4,7 +4,7 @@ import bpy
 from bpy.props import (BoolProperty, EnumProperty, FloatProperty, FloatVectorProperty,
                        IntProperty, PointerProperty, StringProperty)
 
-# Scene model enum -> name in _native.models(). AUTO picks sun05 (table F) for now.
+# Scene model enum -> name in _native.models(). AUTO is resolved by model_choice.py.
 MODEL_NAMES = {
     'AUTO': "sun05",
     'SUN05': "sun05",
@@ -49,7 +49,7 @@ class AirlightSceneSettings(bpy.types.PropertyGroup):
         name="Model",
         description="Which airlight model computes the fog",
         items=(
-            ('AUTO', "Automatic", "Choose the model automatically (currently the tabulated Sun 2005 model)"),
+            ('AUTO', "Automatic", "The cheapest model whose measured error meets the Accuracy target"),
             ('SUN05', "Sun 2005 (table)", "Sun et al. 2005 analytic airlight with a tabulated special function F"),
             ('SUN05_EXACT', "Sun 2005 (exact)", "Sun et al. 2005 analytic airlight with F evaluated exactly"),
             ('QUADRATURE', "Quadrature", "Numerical integration along each view ray: slow, the reference"),
@@ -58,8 +58,8 @@ class AirlightSceneSettings(bpy.types.PropertyGroup):
     )
     accuracy: FloatProperty(
         name="Accuracy",
-        description="Target relative error of the fog in percent, used by the automatic "
-                    "model choice",
+        description="Largest relative error of the fog you accept, in percent: the "
+                    "Automatic model picks the cheapest model whose measured error is below it",
         default=1.0, min=0.01, max=100.0, soft_min=0.1, soft_max=10.0,
         subtype='PERCENTAGE',
     )

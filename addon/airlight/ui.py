@@ -2,7 +2,7 @@
 
 import bpy
 
-from . import compositor, native, scene_export
+from . import compositor, model_choice, native, scene_export
 
 
 class AIRLIGHT_PT_scene(bpy.types.Panel):
@@ -39,6 +39,8 @@ class AIRLIGHT_PT_scene(bpy.types.Panel):
         sub = col.column()
         sub.active = settings.model == 'AUTO'
         sub.prop(settings, "accuracy")
+        name, label, error = model_choice.choose(settings)
+        col.label(text=f"Uses {label}, error \u2264 {100.0 * error:.2g} %", icon='INFO')
         col.prop(settings, "aa_samples")
         col.prop(settings, "threads")
         col.prop(settings, "cache_dir")
