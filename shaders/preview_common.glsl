@@ -10,6 +10,9 @@
 //               albedo * I0 (W/sr per RGB channel)
 //   inv_persp   inverse of (projection * view) of the region
 //   eye         xyz = view origin (world), w = 1 for perspective, 0 for orthographic
+//   clip        xyz = unit view axis (world, into the scene), w = clip_start: the near
+//               plane's view-axis depth, where the fog begins (Cycles starts camera rays
+//               there); the far plane needs no input, the depth pass already clips there
 //   viewport    zw = full-resolution size of the region in pixels
 //   sigma_t     extinction coefficient (1/m); light_count = number of lights
 
@@ -47,12 +50,28 @@ float preview_distance(ivec2 px, vec2 ndc, vec3 origin, vec3 dir)
 #endif
 }
 
-// Premultiplied fog of one ray: rgb = airlight of all point lights, a = 1 - Tr.
+// Distance along the view ray _dir_ from _origin_ (preview_ray) to the near clip plane:
+// clip_start / cos(angle to the view axis) from the eye; 0 for orthographic rays, which
+// already start on the projection's near plane.
+float preview_near(vec3 dir)
+{
+  return (eye.w > 0.5) ? clip.w / max(dot(dir, clip.xyz), 1e-6) : 0.0;
+}
+
+// Premultiplied fog of one ray from _origin_ to the surface at distance _Dvp_ (inf: no
+// surface), clipped as Cycles renders it: rgb = airlight of all point lights over
+// [t0, Dvp], attenuated from the near-plane point p0 = origin + t0 dir on, a = 1 - Tr with
+// Tr = exp(-sigma_t (Dvp - t0)). The medium is homogeneous, so that is the airlight of a
+// viewer at p0 (one sun05_airlight per light, no difference of two evaluations: its F
+// arguments are the same as in the bake's exp(sigma_t t0) (La(eye, Dvp) - La(eye, t0))).
 vec4 preview_fog(vec3 origin, vec3 dir, float Dvp)
 {
+  float t0 = preview_near(dir);
+  vec3 p0 = origin + t0 * dir;
+  float D = max(Dvp - t0, 0.0);  // inf stays inf
   vec3 La = vec3(0.0);
   for (int i = 0; i < light_count; i++) {
-    vec3 to_light = texelFetch(lights, ivec2(i, 0), 0).xyz - origin;
+    vec3 to_light = texelFetch(lights, ivec2(i, 0), 0).xyz - p0;
     vec3 I0 = texelFetch(lights, ivec2(i, 1), 0).rgb;
     float Dsv = length(to_light);
     if (Dsv <= 0.0) {
@@ -63,8 +82,8 @@ vec4 preview_fog(vec3 origin, vec3 dir, float Dvp)
     // exactly through the light (which sun05_airlight regularises to sin(gamma) = 1e-8,
     // 1e4 times brighter than any nearby pixel). 0.99999994 = 1 - 2^-24.
     float cos_gamma = clamp(dot(to_light, dir) / Dsv, -1.0, 0.99999994);
-    La += I0 * sun05_airlight(Ftab, sigma_t, Dsv, cos_gamma, Dvp);
+    La += I0 * sun05_airlight(Ftab, sigma_t, Dsv, cos_gamma, D);
   }
-  float Tr = exp(-sigma_t * Dvp);
+  float Tr = exp(-sigma_t * D);
   return vec4(La, 1.0 - Tr);
 }

@@ -11,8 +11,11 @@ Per draw (POST_VIEW):
    draw, e.g. curves' bevel-free wires, point clouds, volumes): the region's depth is read
    back from the bound framebuffer and uploaded as window depth.
 2. The fog (shaders/fog_preview_frag.glsl): per pixel the view ray from the region's
-   matrices, the airlight of all point lights by sun05_airlight and Tr =
-   exp(-sigma_t Dvp), premultiplied (rgb = airlight, alpha = 1 - Tr). At FULL scale
+   matrices, clipped like Cycles and the bake clip it (`view_clip_range`: the fog
+   begins on the near plane, t0 = clip_start / cos(angle to the view axis), and
+   surfaces beyond the far plane are already missing from the depth), the airlight of
+   all point lights over [t0, Dvp] by sun05_airlight and Tr = exp(-sigma_t (Dvp - t0)),
+   premultiplied (rgb = airlight, alpha = 1 - Tr). At FULL scale
    it is drawn straight into the viewport; at HALF / QUARTER into a float offscreen of
    1/2 or 1/4 the size, then
 3. composited by a depth-aware upsampling pass (shaders/preview_upsample_frag.glsl:
@@ -80,7 +83,7 @@ def _missing_reason():
 
 
 _FOG_INPUTS = dict(
-    push_constants=(('MAT4', "inv_persp"), ('VEC4', "eye"), ('VEC4', "viewport"),
+    push_constants=(('MAT4', "inv_persp"), ('VEC4', "eye"), ('VEC4', "clip"), ('VEC4', "viewport"),
                     ('FLOAT', "sigma_t"), ('INT', "light_count"), ('INT', "scale"),
                     ('INT', "mode")),
     samplers=("Ftab", "depth_tex", "lights", "fog_lo"))
@@ -308,17 +311,49 @@ def _lights_texture(positions, intensities):
     return gs.float_texture(data)
 
 
+def view_axis(perspective_matrix):
+    """Unit view direction (world) of a perspective _perspective_matrix_ (projection @
+    view): its last row is -(the view matrix's z row), i.e. the camera's -Z axis, for any
+    lens shift. Orthographic matrices have no such row; their rays need none."""
+    row = perspective_matrix.row[3].xyz
+    return row.normalized() if row.length > 0.0 else Vector((0.0, 0.0, -1.0))
+
+
+def view_clip_range(context):
+    """(clip_start, clip_end) of what the 3D viewport of _context_ shows: the scene
+    camera's in camera view (region_data.view_perspective == 'CAMERA'), else the
+    viewport's own (space_data.clip_start / clip_end). The region's projection matrix
+    is built from the same values, so its near plane is at view-axis depth clip_start in
+    perspective views. Orthographic user views are centred on the view: Blender (and
+    Cycles' viewport render) put their near plane at -clip_end / 2 and their far plane at
+    +clip_end / 2, and the preview's orthographic rays start on that projected near plane
+    anyway (tests/gpu/test_05_clip_range.py checks both)."""
+    rv3d, space = context.region_data, context.space_data
+    camera = context.scene.camera
+    if (rv3d is not None and rv3d.view_perspective == 'CAMERA' and camera is not None
+            and camera.type == 'CAMERA'):
+        data = camera.evaluated_get(context.evaluated_depsgraph_get()).data
+        return float(data.clip_start), float(data.clip_end)
+    if rv3d is not None and not rv3d.is_perspective:
+        half = 0.5 * float(space.clip_end)
+        return -half, half
+    return float(space.clip_start), float(space.clip_end)
+
+
 def draw_fog(*, depth_tex, perspective_matrix, view_origin, is_perspective, viewport,
-             sigma_t, light_positions, light_intensities, window_depth=True, scale=1,
-             mode=UPSAMPLE_BILATERAL_EXACT):
+             sigma_t, light_positions, light_intensities, clip_start=0.0, window_depth=True,
+             scale=1, mode=UPSAMPLE_BILATERAL_EXACT):
     """Draws the fog over the bound framebuffer with premultiplied blending.
 
     depth_tex: full-resolution R32F texture of the region (viewport[2] x viewport[3]):
     window depth in [0, 1] (window_depth=True) or linear distance Dvp, inf = nothing
     (window_depth=False); perspective_matrix: mathutils.Matrix, projection @ view;
     view_origin: 3 floats; viewport: (x, y, width, height) of the region in the
-    framebuffer; scale: 1 draws the fog directly, 2 or 4 evaluate it in a float
-    offscreen of 1/scale the size and upsample it (mode: UPSAMPLE_*).
+    framebuffer; clip_start: view-axis depth of the near clip plane (`view_clip_range`),
+    where the fog begins as in Cycles and the bake (perspective only: orthographic rays
+    start on the projection's near plane; surfaces beyond the far plane are already
+    missing from the depth); scale: 1 draws the fog directly, 2 or 4 evaluate it in a
+    float offscreen of 1/scale the size and upsample it (mode: UPSAMPLE_*).
     Restores every gpu.state it changes.
     """
     import gpu
@@ -326,11 +361,13 @@ def draw_fog(*, depth_tex, perspective_matrix, view_origin, is_perspective, view
     x, y, w, h = (int(v) for v in viewport)
     lights = _lights_texture(light_positions, light_intensities)
     fog = _shader('fog', window_depth)
+    clip = (*view_axis(perspective_matrix), float(clip_start) if is_perspective else 0.0)
 
     def bind(shader, target_viewport, fog_lo):
         shader.bind()
         shader.uniform_float("inv_persp", perspective_matrix.inverted())
         shader.uniform_float("eye", (*view_origin, 1.0 if is_perspective else 0.0))
+        shader.uniform_float("clip", clip)
         shader.uniform_float("viewport", tuple(float(v) for v in target_viewport))
         shader.uniform_float("sigma_t", float(sigma_t))
         shader.uniform_int("light_count", len(light_positions))
@@ -421,10 +458,12 @@ def _draw_callback():
         _state["last_depth_ms"] = (time.perf_counter() - t0) * 1e3
         scene = context.scene
         positions, intensities = scene_lights(scene, context.view_layer)
+        clip_start, clip_end = view_clip_range(context)
         draw_fog(depth_tex=depth_tex, perspective_matrix=persp, view_origin=view_origin,
                  is_perspective=rv3d.is_perspective, viewport=(x, y, w, h),
                  sigma_t=scene.airlight.density, light_positions=positions,
-                 light_intensities=intensities, window_depth=readback, scale=scale)
+                 light_intensities=intensities, clip_start=clip_start,
+                 window_depth=readback, scale=scale)
         _state["last_ms"] = (time.perf_counter() - t0) * 1e3
         if _state["capture"] is not None:
             if readback:
@@ -447,7 +486,8 @@ def _draw_callback():
             _state["capture"].update(
                 depth=depth, fog_lo=fog_lo, window_depth=readback, viewport=(x, y, w, h), scale=scale,
                 perspective_matrix=persp, view_origin=view_origin,
-                sigma_t=scene.airlight.density, lights=(positions, intensities))
+                sigma_t=scene.airlight.density, lights=(positions, intensities),
+                clip=(clip_start, clip_end))
     except Exception as ex:  # never break Blender's draw loop
         _state["error"] = f"{type(ex).__name__}: {ex}"
         print(f"Airlight preview disabled: {_state['error']}")

@@ -2,7 +2,9 @@
 
 - test01: the fog pass (`preview.draw_fog`, the very code the draw handler runs), fed
   scene depth rendered on the GPU for the scene camera, against `_native.bake` of the
-  same view: mean relative difference of the airlight <= 2 %. Images are saved under
+  same view with the same clip range (fog from the near plane, as Cycles): mean relative
+  difference of the airlight <= 1e-4 (float32 GLSL vs the double C++ on the same F
+  table: measured 2e-5; without the near clip it was 6e-3). Images are saved under
   out/test_artifacts/.
 - test02..: the draw handler in a real 3D viewport (redrawn with wm.redraw_timer): it
   draws, the depth it reads in POST_VIEW gives the right distances (checked against the
@@ -104,7 +106,8 @@ def test01_preview_matches_bake(addon, native, fog_scene, gs, artifacts):
             addon.draw_fog(depth_tex=depth_tex, perspective_matrix=persp,
                            view_origin=tuple(cam.matrix_world.translation),
                            is_perspective=True, viewport=(0, 0, W, H), sigma_t=SIGMA_T,
-                           light_positions=positions, light_intensities=intensities)
+                           light_positions=positions, light_intensities=intensities,
+                           clip_start=desc["clip_start"])
         out = gs.read_offscreen(off)[::-1].astype(np.float64)  # to top row first
     finally:
         off.free()
@@ -126,8 +129,11 @@ def test01_preview_matches_bake(addon, native, fog_scene, gs, artifacts):
     native.write_exr(os.path.join(artifacts, "preview_vs_bake.exr"),
                      {"preview": got.astype(np.float32), "bake": ref.astype(np.float32)})
     assert np.isfinite(got).all()
-    assert rel.mean() <= 0.02
-    assert rel_T.mean() <= 0.02
+    # Float32 evaluation of the same formulas and F table: ~1e-5 per pixel; a few
+    # silhouette pixels differ by hit/miss (rasterised vs ray-cast edges).
+    assert rel.mean() <= 1e-4
+    assert np.percentile(rel, 99) <= 1e-3
+    assert rel_T.mean() <= 1e-4
 
 
 # ---- the real draw handler in the window's 3D viewport ---------------------------------

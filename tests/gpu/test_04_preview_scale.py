@@ -34,12 +34,12 @@ def _camera_view(scene, native):
     baked = native.bake(**desc, model="sun05", aa_samples=1, threads=0)
     cam = scene.camera
     persp = Matrix(desc["projection"].tolist()) @ cam.matrix_world.inverted()
-    return baked, persp, tuple(cam.matrix_world.translation)
+    return baked, persp, tuple(cam.matrix_world.translation), desc["clip_start"]
 
 
 @pytest.fixture(scope="module")
 def view(addon, native, fog_scene):  # noqa: F811
-    baked, persp, eye = _camera_view(fog_scene, native)
+    baked, persp, eye, clip_start = _camera_view(fog_scene, native)
     addon.free_gpu_resources()
     # Distance pass through the camera (the handler's code, with the camera's matrices).
     off = gpu.types.GPUOffScreen(W, H, format='RGBA32F')
@@ -54,7 +54,8 @@ def view(addon, native, fog_scene):  # noqa: F811
         off.free()
     from airlight import gpu_shaders as gs
     distance = gs.buffer_to_numpy(buf, (H, W))[::-1]  # top row first, like the bake
-    return dict(baked=baked, persp=persp, eye=eye, distance=distance, distance_tex=tex)
+    return dict(baked=baked, persp=persp, eye=eye, clip_start=clip_start, distance=distance,
+                distance_tex=tex)
 
 
 def test01_own_distance_matches_bake_depth(view):
@@ -81,7 +82,7 @@ def _fog(addon, view, scene, scale, mode):
                            view_origin=view["eye"], is_perspective=True,
                            viewport=(0, 0, W, H), sigma_t=scene.airlight.density,
                            light_positions=positions, light_intensities=intensities,
-                           window_depth=False, scale=scale, mode=mode)
+                           clip_start=view["clip_start"], window_depth=False, scale=scale, mode=mode)
         from airlight import gpu_shaders as gs
         return gs.read_offscreen(off)[::-1].astype(np.float64)
     finally:
@@ -134,6 +135,8 @@ def test02_reduced_scale_accuracy(addon, view, fog_scene, artifacts):  # noqa: F
                 scale_png = 1.0 / np.percentile(ref, 99)
                 _save_png(f"{artifacts}/preview_{scale_name.lower()}.png",
                           np.clip(got * scale_png, 0, 1))
+    # FULL: the bake's clip range, float32 (measured 1.5e-5).
+    assert full_rel.mean() <= 1e-4
     for scale_name in ("HALF", "QUARTER"):
         mean, sil_mean = results[scale_name, "bilateral+exact"]
         _, sil_bilinear = results[scale_name, "bilinear"]
