@@ -80,8 +80,10 @@ inline float table_Q(const float* __restrict table, int nu, int nT, float x, flo
 // sin^2(gamma) and dx = Dvp - Dsv cos(gamma), computed in double where cancellation
 // would cost float digits (omc near the light, dx where the surface is near the point
 // of closest approach), then rounded to float.
+// With a near distance t0 the viewer moves to o + t0 d (sun05_geometry_shift): a, n0
+// and the viewer-light distance Dsv become per lane, and V = Dvp - t0 is the segment.
 struct BlockAngles {
-    float c[kBlock], omc[kBlock], sin2[kBlock], dx[kBlock];
+    float sin2[kBlock], dx[kBlock], a[kBlock], n0[kBlock], Dsv[kBlock], V[kBlock];
 };
 
 AIRLIGHT_SIMD_CLONES
@@ -92,24 +94,48 @@ void block_angles(double Dsv, const double* __restrict cos_gamma, const float* _
         c = c > -1.0 ? c : -1.0;
         c = c < 1.0 ? c : 1.0;
         const double omc = 1.0 - c;
-        out.c[k] = float(c);
-        out.omc[k] = float(omc);
         out.sin2[k] = float(omc * (1.0 + c));
         out.dx[k] = float(double(Dvp[k]) - Dsv * c);  // inf for Dvp = inf
+        out.a[k] = float(Dsv * c);
+        out.n0[k] = float(Dsv * omc);
+        out.Dsv[k] = float(Dsv);
+        out.V[k] = Dvp[k];
     }
 }
 
-// Float geometry of one lane (sun05_geometry).
+// The same from the near distances t0[k] >= 0 on (n(t0) cancellation-free, like n1).
+AIRLIGHT_SIMD_CLONES
+void block_angles_near(double Dsv, const double* __restrict cos_gamma, const float* __restrict Dvp,
+                       const float* __restrict t0, int n, BlockAngles& __restrict out) {
+    for (int k = 0; k < n; ++k) {
+        double c = cos_gamma[k];
+        c = c > -1.0 ? c : -1.0;
+        c = c < 1.0 ? c : 1.0;
+        const double omc = 1.0 - c, sin2 = omc * (1.0 + c);
+        const double h2 = Dsv * Dsv * sin2, a = Dsv * c, t = t0[k];
+        const double dx0 = t - a, d0 = std::sqrt(h2 + dx0 * dx0);
+        const double n0 = dx0 >= 0.0 ? d0 + dx0 : h2 / (d0 - dx0);
+        out.sin2[k] = float(sin2);
+        out.dx[k] = float(double(Dvp[k]) - a);  // inf for Dvp = inf
+        out.a[k] = float(-dx0);
+        out.n0[k] = float(n0);
+        out.Dsv[k] = float(d0);
+        out.V[k] = float(double(Dvp[k]) - t);
+    }
+}
+
+// Float geometry of one lane (sun05_geometry, shifted by t0 where given).
 struct LaneGeometry {
     float a, h, n0, n1, d_p, sin_g;
 };
 
-inline LaneGeometry lane_geometry(float Dsv, float c, float omc, float sin2, float dx) {
+inline LaneGeometry lane_geometry(float Dsv, const BlockAngles& ang, int k) {
     LaneGeometry g;
-    g.sin_g = std::sqrt(sin2);
-    g.a = Dsv * c;
+    const float dx = ang.dx[k];
+    g.sin_g = std::sqrt(ang.sin2[k]);
+    g.a = ang.a[k];
     g.h = Dsv * g.sin_g;
-    g.n0 = Dsv * omc;
+    g.n0 = ang.n0[k];
     g.d_p = std::sqrt(g.h * g.h + dx * dx);
     g.n1 = dx >= 0.0f ? g.d_p + dx : g.h * g.h / (g.d_p - dx);  // inf for Dvp = inf
     return g;
@@ -121,8 +147,7 @@ inline LaneGeometry lane_geometry(float Dsv, float c, float omc, float sin2, flo
 // band around the scalar test (only the scalar path gives the scalar path's result).
 AIRLIGHT_SIMD_CLONES
 void table_block(const float* __restrict table, int nu, int nT, float sigma_t, float Dsv_f,
-                 const BlockAngles& __restrict ang, const float* __restrict Dvp, int n,
-                 float* __restrict out, int* __restrict fallback) {
+                 const BlockAngles& __restrict ang, int n, float* __restrict out, int* __restrict fallback) {
     const float prefactor = sigma_t / float(2.0 * sun05::kPi);
     const float kCancel = float(sun05::kCancel) * kCancelMargin;
     const float kSinMin = float(sun05::kSinGammaMin);
@@ -132,8 +157,8 @@ void table_block(const float* __restrict table, int nu, int nT, float sigma_t, f
     // prove distinct (even __restrict): results go to a local array first.
     float result[kBlock];
     for (int k = 0; k < n; ++k) {
-        const float V = Dvp[k];
-        const LaneGeometry g = lane_geometry(Dsv_f, ang.c[k], ang.omc[k], ang.sin2[k], ang.dx[k]);
+        const float V = ang.V[k];
+        const LaneGeometry g = lane_geometry(Dsv_f, ang, k);
         // F(u, t0), F(u, t1) from the table (special_F_table_pair), inf-safe forms.
         const float h = g.h, u = sigma_t * h, opu = 1.0f + u;
         const float s = std::sqrt(u / (u + kTableK));
@@ -159,18 +184,19 @@ void table_block(const float* __restrict table, int nu, int nT, float sigma_t, f
 // Gauss-Legendre in n, in float; with a 1 % margin on its criterion, so that the
 // scalar path would take the same branch. value[m] is valid where done[m] = 1.
 AIRLIGHT_SIMD_CLONES
-void short_block(float sigma_t, float Dsv_f, const BlockAngles& __restrict ang, const float* __restrict Dvp,
-                 const int* __restrict idx, int n, float* __restrict value, int* __restrict done) {
+void short_block(float sigma_t, float Dsv_f, const BlockAngles& __restrict ang, const int* __restrict idx, int n,
+                 float* __restrict value, int* __restrict done) {
     const float prefactor = sigma_t / float(2.0 * sun05::kPi);
     const float kSinMin = float(sun05::kSinGammaMin);
     const float kMargin = 1.0f / kCancelMargin;
-    const float Dsv_exp = exp_float(-sigma_t * Dsv_f);
     for (int m = 0; m < n; ++m) {
         const int k = idx[m];
-        const float V = Dvp[k];
-        const LaneGeometry g = lane_geometry(Dsv_f, ang.c[k], ang.omc[k], ang.sin2[k], ang.dx[k]);
+        const float V = ang.V[k];
+        const float Dsv_k = ang.Dsv[k];  // from the (shifted) viewer
+        const LaneGeometry g = lane_geometry(Dsv_f, ang, k);
+        const float Dsv_exp = exp_float(-sigma_t * Dsv_k);
         // dn = n1 - n0 without cancellation (sun05_geometry_dn).
-        const float dn = V * (g.n0 + g.n1) / (g.d_p + Dsv_f);
+        const float dn = V * (g.n0 + g.n1) / (g.d_p + Dsv_k);
         const float scale = g.n0 > g.h ? g.n0 : g.h;
         const float h2 = g.h * g.h;
         auto node = [&](int q) {  // one Gauss-Legendre node (written out: GCC 12 leaves
@@ -196,7 +222,7 @@ void transmittance_block(float sigma_t, const float* __restrict Dvp, int n, floa
 }  // namespace
 
 int sun05_airlight_table_batch(const float* table, int nu, int nT, double sigma_t, double Dsv,
-                               const double* cos_gamma, const float* Dvp, int n, float* out) {
+                               const double* cos_gamma, const float* Dvp, int n, float* out, const float* t0) {
     if (!(sigma_t > 0.0)) {
         for (int k = 0; k < n; ++k) out[k] = 0.0f;
         return 0;
@@ -213,14 +239,16 @@ int sun05_airlight_table_batch(const float* table, int nu, int nT, double sigma_
         const int m = std::min(kBlock, n - k0);
         const double* c = cos_gamma + k0;
         const float* V = Dvp + k0;
+        const float* near = t0 ? t0 + k0 : nullptr;
         float* o = out + k0;
         int n_left = 0;
         if (float_ok) {
-            block_angles(Dsv, c, V, m, angles);
-            table_block(table, nu, nT, float(sigma_t), Dsv_f, angles, V, m, o, fallback);
+            if (near) block_angles_near(Dsv, c, V, near, m, angles);
+            else block_angles(Dsv, c, V, m, angles);
+            table_block(table, nu, nT, float(sigma_t), Dsv_f, angles, m, o, fallback);
             for (int k = 0; k < m; ++k)
                 if (fallback[k] == 1) idx[n_left++] = k;
-            short_block(float(sigma_t), Dsv_f, angles, V, idx, n_left, value, done);
+            short_block(float(sigma_t), Dsv_f, angles, idx, n_left, value, done);
             for (int q = 0; q < n_left; ++q)
                 if (done[q]) {
                     o[idx[q]] = value[q];
@@ -232,7 +260,8 @@ int sun05_airlight_table_batch(const float* table, int nu, int nT, double sigma_
         // Pass 3: the scalar double path for whatever is left.
         for (int k = 0; k < m; ++k) {
             if (!fallback[k]) continue;
-            o[k] = float(sun05_airlight_table(table, nu, nT, sigma_t, Dsv, c[k], double(V[k])));
+            o[k] = float(sun05_airlight_table(table, nu, nT, sigma_t, Dsv, c[k], double(V[k]),
+                                              near ? double(near[k]) : 0.0));
             ++n_fallback;
         }
     }

@@ -22,10 +22,14 @@ namespace airlight {
 // k < n, the view rays sharing the viewer-light distance _Dsv_ (perspective camera).
 // cos_gamma is double because 1 - cos(gamma) near the light needs it (a float
 // cos(gamma) would put 6e-8 / gamma^2 relative error on the distance of closest
-// approach); Dvp may be +inf (ray leaves the scene). Returns the number of lanes
-// evaluated by the scalar fallback (the measure of how often the fast path fails).
+// approach); Dvp may be +inf (ray leaves the scene). _t0_ (optional, null: all 0): the
+// near distances, each in [0, Dvp): the airlight of the segment [t0, Dvp] only,
+// attenuated from o + t0 d (the near clip plane, as Cycles integrates it), in one
+// evaluation (sun05_geometry_shift); lanes with Dvp <= t0 give 0. Returns the number
+// of lanes evaluated by the scalar fallback (the measure of how often the fast path fails).
 int sun05_airlight_table_batch(const float* table, int nu, int nT, double sigma_t, double Dsv,
-                               const double* cos_gamma, const float* Dvp, int n, float* out);
+                               const double* cos_gamma, const float* Dvp, int n, float* out,
+                               const float* t0 = nullptr);
 
 // Tr[k] = exp(-sigma_t Dvp[k]) (0 for Dvp = inf, 1 for sigma_t = 0), float, ~2e-7
 // relative for exponents down to -87 (0 below).

@@ -154,6 +154,84 @@ TEST(Sun05Batch, Limits) {
     EXPECT_NEAR(out[0] / sigma_t, thin, 1e-3 * thin);
 }
 
+// Reference for the segment [t0, Dvp] seen from the near point o + t0 d: the viewer moved
+// there in double (its own Dsv and cos(gamma)), then quadrature of eq. 5.
+double near_quadrature(double sigma_t, double Dsv, double c, double Dvp, double t0) {
+    const double s = std::sqrt((1 - c) * (1 + c));
+    const double x = Dsv * c - t0, h = Dsv * s;  // light at (x, h) from the near point
+    const double d0 = std::hypot(x, h);
+    return sun05_airlight_quadrature(sigma_t, d0, x / d0, Dvp - t0, 1e-11);
+}
+
+TEST(Sun05Batch, NearSegmentMatchesScalarAndQuadrature) {
+    // t0 > 0: one evaluation of [t0, Dvp] (sun05_geometry_shift) in the batch and the
+    // scalar path, against quadrature from the near point, including the light between
+    // eye and near plane, near points close to the light, the sky (Dvp = inf), Dvp <= t0.
+    std::mt19937_64 rng(21);
+    std::uniform_real_distribution<double> U(0.0, 1.0);
+    const SpecialFTable& t = table();
+    std::vector<double> err_q;
+    double worst_scalar = 0.0;
+    for (int g = 0; g < 400; ++g) {
+        const double sigma_t = std::pow(10.0, -3 + 3 * U(rng));
+        const double Dsv = 0.2 + 50 * U(rng);
+        const int n = 1 + int(U(rng) * 300);
+        std::vector<double> c(n);
+        std::vector<float> Dvp(n), t0(n), out(n);
+        for (int k = 0; k < n; ++k) {
+            c[k] = U(rng) < 0.1 ? 1.0 - std::pow(10.0, -8 + 7 * U(rng)) : std::cos(kPi * U(rng));
+            t0[k] = float(U(rng) < 0.3 ? Dsv * U(rng) * 1.5 : 0.1 / std::max(0.3, U(rng)));
+            const double q = U(rng);
+            Dvp[k] = q < 0.1 ? float(kInf) : q < 0.15 ? t0[k] * float(U(rng)) : float(t0[k] + std::pow(10.0, -2 + 4 * U(rng)));
+        }
+        sun05_airlight_table_batch(t.data().data(), t.nu(), t.nT(), sigma_t, Dsv, c.data(), Dvp.data(), n,
+                                   out.data(), t0.data());
+        for (int k = 0; k < n; ++k) {
+            const double ref = sun05_airlight_table(t.data().data(), t.nu(), t.nT(), sigma_t, Dsv, c[k],
+                                                    double(Dvp[k]), double(t0[k]));
+            if (!(Dvp[k] > t0[k])) {
+                EXPECT_EQ(out[k], 0.0f);
+                EXPECT_EQ(ref, 0.0);
+                continue;
+            }
+            ASSERT_TRUE(std::isfinite(out[k]) && out[k] >= 0.0f) << sigma_t << " " << Dsv << " " << c[k];
+            // Float a, n0 of the shifted viewer are rounded from double: same bound as
+            // the unshifted sweep.
+            EXPECT_LE(std::abs(out[k] - ref), kFloatTol * ref + 1e-30)
+                << sigma_t << " " << Dsv << " " << c[k] << " " << Dvp[k] << " " << t0[k];
+            if (ref > 1e-30) worst_scalar = std::max(worst_scalar, std::abs(out[k] - ref) / ref);
+            if (k % 7 == 0) {
+                const double q = near_quadrature(sigma_t, Dsv, c[k], double(Dvp[k]), double(t0[k]));
+                err_q.push_back(std::abs(ref / q - 1));
+            }
+        }
+    }
+    std::sort(err_q.begin(), err_q.end());
+    std::printf("near segment: batch vs scalar max rel %.3g; scalar vs quadrature p99 %.3g max %.3g (%zu)\n",
+                worst_scalar, err_q[err_q.size() * 99 / 100], err_q.back(), err_q.size());
+    EXPECT_LE(err_q[err_q.size() * 99 / 100], 1e-3);
+    EXPECT_LE(err_q.back(), 4e-3);
+}
+
+TEST(Sun05Batch, NearZeroIsTheWholeRay) {
+    // t0 = 0 everywhere gives the unshifted result (scalar: bit for bit).
+    const SpecialFTable& t = table();
+    std::vector<double> c = {0.3, 0.99, -0.7, 0.9, 1.0};
+    std::vector<float> Dvp = {5.0f, 30.0f, float(kInf), 0.5f, 2.0f}, t0(c.size(), 0.0f), a(c.size()), b(c.size());
+    sun05_airlight_table_batch(t.data().data(), t.nu(), t.nT(), 0.05, 10.0, c.data(), Dvp.data(), 5, a.data());
+    sun05_airlight_table_batch(t.data().data(), t.nu(), t.nT(), 0.05, 10.0, c.data(), Dvp.data(), 5, b.data(),
+                               t0.data());
+    for (size_t k = 0; k < c.size(); ++k) {
+        const double s0 = sun05_airlight_table(t.data().data(), t.nu(), t.nT(), 0.05, 10.0, c[k], Dvp[k]);
+        EXPECT_EQ(sun05_airlight_table(t.data().data(), t.nu(), t.nT(), 0.05, 10.0, c[k], Dvp[k], 0.0), s0);
+        EXPECT_NEAR(a[k], b[k], kFloatTol * a[k]);
+        EXPECT_NEAR(a[k], s0, kFloatTol * s0);
+    }
+    // gamma = 0, light behind the surface, from a near point: the closed form moved.
+    const double near = sun05_airlight_table(t.data().data(), t.nu(), t.nT(), 0.1, 10.0, 1.0, 2.0, 0.5);
+    EXPECT_NEAR(near, sun05_behind_limit(0.1, 9.5, 1.5), 1e-12 * near);
+}
+
 TEST(Sun05Batch, Transmittance) {
     std::vector<float> Dvp = {0.0f, 1e-6f, 0.5f, 3.0f, 100.0f, 1e4f, float(kInf)};
     std::vector<float> Tr(Dvp.size());

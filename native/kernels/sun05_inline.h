@@ -177,17 +177,43 @@ inline double sun05_direct_E(double sigma_t, const Sun05Geometry& g) {
     return E + sun05_direct_inv(sigma_t, g.h, g.n0, start, g.n1);
 }
 
+// Moves the viewer of _g_ (from sun05_geometry) forward along the ray to x = _t0_ > 0
+// (the near clip plane), so the airlight below covers only the segment [t0, Dvp] and is
+// attenuated from the new viewer, as Cycles integrates from the near plane. The
+// reduction is invariant under the shift: h and n1 stay, a -> a - t0, Dsv -> the
+// distance d0 from o + t0 d to the light, n0 -> n(t0) = d0 + t0 - a (cancellation-free,
+// like n1), so La over [t0, t1] = sigma_t / (2 pi h) e^{-sigma_t (a - t0)} [F(u, n1 / h)
+// - F(u, n(t0) / h)]: the same cost as from the eye, two table columns. Dvp - t0 is the
+// new view-segment length; the caller has checked Dvp > t0. Not for behind_limit.
+inline void sun05_geometry_shift(Sun05Geometry& g, double t0) {
+    const double dx0 = t0 - g.a;
+    const double d0 = std::sqrt(g.h * g.h + dx0 * dx0);
+    g.n0 = dx0 >= 0.0 ? d0 + dx0 : g.h * g.h / (d0 - dx0);
+    g.a = -dx0;
+    g.Dsv = std::max(d0, sun05::kDsvMin);
+}
+
 // Closed form for gamma = 0 with the light behind the surface (Dvp < Dsv).
 inline double sun05_behind_limit(double sigma_t, double Dsv, double Dvp) {
     return sigma_t * std::exp(-sigma_t * Dsv) * Dvp / (4.0 * sun05::kPi * Dsv * (Dsv - Dvp));
 }
 
 // Airlight per unit I0 and albedo, table path. Inputs assumed valid (see sun05_check_inputs).
+// _t0_ > 0: only the part of the view ray beyond x = t0 (the near clip plane), attenuated
+// from there (sun05_geometry_shift); t0 = 0 is the whole ray from the eye.
 inline double sun05_airlight_table(const float* data, int nu, int nT, double sigma_t, double Dsv,
-                                   double cos_gamma, double Dvp) {
-    if (!(sigma_t > 0.0) || !(Dvp > 0.0)) return 0.0;
+                                   double cos_gamma, double Dvp, double t0 = 0.0) {
+    if (!(sigma_t > 0.0) || !(Dvp > t0) || !(t0 >= 0.0)) return 0.0;
     Sun05Geometry g = sun05_geometry(Dsv, cos_gamma, Dvp);
-    if (g.behind_limit) return sun05_behind_limit(sigma_t, g.Dsv, Dvp);
+    if (g.behind_limit) {
+        // gamma = 0, light behind the surface: the shifted viewer sees the same limit.
+        if (t0 > 0.0) return sun05_behind_limit(sigma_t, std::max(g.Dsv - t0, sun05::kDsvMin), Dvp - t0);
+        return sun05_behind_limit(sigma_t, g.Dsv, Dvp);
+    }
+    if (t0 > 0.0) {
+        sun05_geometry_shift(g, t0);
+        Dvp -= t0;
+    }
     if (g.h > 0.0) {
         const double u = sigma_t * g.h;
         double F0, F1;
