@@ -72,5 +72,6 @@ inline std::vector<CArray<double>> broadcast_doubles(const std::vector<std::pair
 void bind_physics(py::module_& m);
 void bind_bake(py::module_& m);
 void bind_rbf(py::module_& m);
+void bind_models(py::module_& m);
 
 }  // namespace airlight::bindings
