@@ -154,7 +154,7 @@ class FogModel {
   public:
     FogModel(const SceneDescription& scene, const BakeSettings& settings, bool shared_origin,
              const Vec3& origin)
-        : model_(settings.model), sigma_t_(scene.medium.sigma_t), shared_origin_(shared_origin) {
+        : model_(settings.model), sigma_t_(scene.medium.sigma_t), shared_origin_(shared_origin), origin_(origin) {
         if (model_ == ModelId::Sun05Table) table_ = shared_special_F_table(settings.table_nu, settings.table_nT);
         for (const PointLight& light : scene.point_lights) {
             RGB weight = scene.medium.albedo * light.I0;
@@ -180,43 +180,74 @@ class FogModel {
         }
     }
 
+    // True if _eval_soa_ applies (perspective camera, table model, fog): then a near
+    // distance t0 costs nothing extra (one evaluation of the segment, sun05_batch.h).
+    bool soa() const { return shared_origin_ && model_ == ModelId::Sun05Table && sigma_t_ > 0.0; }
+
+    // Hot path (soa() only): _n_ rays from the shared origin with unit directions (dx,
+    // dy, dz)[k] (structure of arrays, so the per-light dot products and accumulations
+    // vectorise), segment [t0[k], Dvp[k]] (t0 null: 0). Writes Tr[k] = exp(-sigma_t (Dvp -
+    // t0)) and the airlight summed over the lights to rgb[3 k .. 3 k + 2].
+    void eval_soa(const double* dx, const double* dy, const double* dz, const float* Dvp, const float* t0, int n,
+                  float* Tr, float* rgb) const {
+        constexpr int kChunk = 256;
+        double cos_gamma[kChunk];
+        float sum_r[kChunk], sum_g[kChunk], sum_b[kChunk], value[kChunk], seg[kChunk];
+        const float* data = table_->data().data();
+        const int nu = table_->nu(), nT = table_->nT();
+        for (int k0 = 0; k0 < n; k0 += kChunk) {
+            const int m = std::min(kChunk, n - k0);
+            const float* near = t0 ? t0 + k0 : nullptr;
+            if (near) {
+                for (int k = 0; k < m; ++k) seg[k] = Dvp[k0 + k] - near[k];
+                transmittance_batch(float(sigma_t_), seg, m, Tr + k0);
+            } else {
+                transmittance_batch(float(sigma_t_), Dvp + k0, m, Tr + k0);
+            }
+            for (int k = 0; k < m; ++k) sum_r[k] = sum_g[k] = sum_b[k] = 0.0f;
+            for (const LightData& light : lights_) {
+                const Vec3 sv = (light.s - origin_) * (light.Dsv > 0.0 ? 1.0 / light.Dsv : 0.0);
+                const bool at_light = !(light.Dsv > 0.0);
+                for (int k = 0; k < m; ++k)
+                    cos_gamma[k] = at_light ? 1.0 : dx[k0 + k] * sv.x + dy[k0 + k] * sv.y + dz[k0 + k] * sv.z;
+                sun05_airlight_table_batch(data, nu, nT, sigma_t_, light.Dsv, cos_gamma, Dvp + k0, m, value, near);
+                const float wr = float(light.weight.x), wg = float(light.weight.y), wb = float(light.weight.z);
+                for (int k = 0; k < m; ++k) {
+                    sum_r[k] += wr * value[k];
+                    sum_g[k] += wg * value[k];
+                    sum_b[k] += wb * value[k];
+                }
+            }
+            float* out = rgb + 3 * size_t(k0);
+            for (int k = 0; k < m; ++k) {
+                out[3 * k] = sum_r[k];
+                out[3 * k + 1] = sum_g[k];
+                out[3 * k + 2] = sum_b[k];
+            }
+        }
+    }
+
     // The same for _n_ rays at once, light by light: the iterations of the inner loop
     // are independent, so the CPU overlaps the long dependency chains of the model.
-    void eval_many(const Ray* rays, const float* Dvp, int n, double* Tr, RGB* La) const {
-        if (shared_origin_ && model_ == ModelId::Sun05Table && sigma_t_ > 0.0) {
-            // Hot path: perspective camera, table model, in SIMD chunks (sun05_batch.h).
-            // Directions and the RGB sums are kept as separate arrays (structure of
-            // arrays) so the per-light dot products and accumulations vectorise too.
+    // _t0_ (near distances, may be null) only where soa(); otherwise the caller
+    // subtracts the near part itself.
+    void eval_many(const Ray* rays, const float* Dvp, const float* t0, int n, double* Tr, RGB* La) const {
+        if (soa()) {
             constexpr int kChunk = 256;
-            double dx[kChunk], dy[kChunk], dz[kChunk], cos_gamma[kChunk];
-            double sum_r[kChunk], sum_g[kChunk], sum_b[kChunk];
-            float Tr_f[kChunk], value[kChunk];
-            const float* data = table_->data().data();
-            const int nu = table_->nu(), nT = table_->nT();
+            double dx[kChunk], dy[kChunk], dz[kChunk];
+            float Tr_f[kChunk], rgb[3 * kChunk];
             for (int k0 = 0; k0 < n; k0 += kChunk) {
                 const int m = std::min(kChunk, n - k0);
-                transmittance_batch(float(sigma_t_), Dvp + k0, m, Tr_f);
                 for (int k = 0; k < m; ++k) {
-                    Tr[k0 + k] = Tr_f[k];
                     dx[k] = rays[k0 + k].d.x;
                     dy[k] = rays[k0 + k].d.y;
                     dz[k] = rays[k0 + k].d.z;
-                    sum_r[k] = sum_g[k] = sum_b[k] = 0.0;
                 }
-                for (const LightData& light : lights_) {
-                    const Vec3 sv = (light.s - rays[0].o) * (light.Dsv > 0.0 ? 1.0 / light.Dsv : 0.0);
-                    const bool at_light = !(light.Dsv > 0.0);
-                    for (int k = 0; k < m; ++k)
-                        cos_gamma[k] = at_light ? 1.0 : dx[k] * sv.x + dy[k] * sv.y + dz[k] * sv.z;
-                    sun05_airlight_table_batch(data, nu, nT, sigma_t_, light.Dsv, cos_gamma, Dvp + k0, m, value);
-                    const RGB w = light.weight;
-                    for (int k = 0; k < m; ++k) {
-                        sum_r[k] += w.x * value[k];
-                        sum_g[k] += w.y * value[k];
-                        sum_b[k] += w.z * value[k];
-                    }
+                eval_soa(dx, dy, dz, Dvp + k0, t0 ? t0 + k0 : nullptr, m, Tr_f, rgb);
+                for (int k = 0; k < m; ++k) {
+                    Tr[k0 + k] = Tr_f[k];
+                    La[k0 + k] = RGB(rgb[3 * k], rgb[3 * k + 1], rgb[3 * k + 2]);
                 }
-                for (int k = 0; k < m; ++k) La[k0 + k] = RGB(sum_r[k], sum_g[k], sum_b[k]);
             }
             return;
         }
@@ -252,6 +283,7 @@ class FogModel {
     ModelId model_;
     double sigma_t_;
     bool shared_origin_;
+    Vec3 origin_;
     std::shared_ptr<const SpecialFTable> table_;
     std::vector<LightData> lights_;
 };
@@ -377,28 +409,89 @@ BakeResult bake(const SceneDescription& scene, const BakeSettings& settings, con
 
     // Pass 1: first-hit distance through every pixel centre, a row at a time. Also keep
     // a per-pixel key that is affine in pixel coordinates on any plane (1 / view-axis
-    // depth for perspective, the distance itself for orthographic rays), so the edge
-    // test below sees silhouettes and creases but not the slope of an oblique plane.
+    // depth for perspective, the distance itself for orthographic rays; 0 where the ray
+    // misses), so the edge test below sees silhouettes and creases but not the slope of
+    // an oblique plane.
     const RayCaster caster(scene.geometry);
-    const Vec3 forward = -glm::normalize(Vec3(scene.camera.cam_to_world[2]));
+    const Vec3 forward = rays.forward();
     const bool ortho = rays.orthographic();
+    const bool clipped = rays.clipped();
+    const Vec3 eye = rays.position();
+    // Perspective cameras with Blender's matrices (affine rays) generate each row's
+    // directions incrementally, D0 + px Dx + py Dy, normalised once, as arrays.
+    const bool affine = rays.affine_perspective();
+    Vec3 D0(0.0), Dx(0.0), Dy(0.0);
+    if (affine) rays.affine_direction(D0, Dx, Dy);
     std::vector<float> key;
     allocate_image(key, n_pixels);
-    // First hits of _n_ camera rays inside the clip range, as Cycles sees them: cast from
-    // the near plane (o + t_near d; nearer surfaces are clipped away), surfaces beyond
-    // t_far hidden (inf). _depth_ is measured from the ray origin (the eye for perspective
-    // rays), not from the near plane. _moved_ is scratch space of size n.
-    const bool clipped = rays.clipped();
-    auto cast = [&](const Ray* r, int n, float* depth, std::vector<Ray>& moved) {
+
+    // Unit directions of a row's centre rays (double for the fog's cos(gamma), float for
+    // Embree), cos of the angle to the view axis and the clip range along each ray.
+    struct RowRays {
+        std::vector<double> dx, dy, dz;
+        std::vector<float> fx, fy, fz, cos_view, t_near, t_far;
+        void resize(size_t n) {
+            for (auto* v : {&dx, &dy, &dz}) v->resize(n);
+            for (auto* v : {&fx, &fy, &fz, &cos_view, &t_near, &t_far}) v->resize(n);
+        }
+    };
+    const double clip_start = rays.clip_start(), clip_end = rays.clip_end();
+    auto row_rays = [&](int j, RowRays& r) {
+        const Vec3 Dj = D0 + (j + 0.5) * Dy;
+        for (int i = 0; i < W; ++i) {
+            const double px = i + 0.5;
+            const double X = Dj.x + px * Dx.x, Y = Dj.y + px * Dx.y, Z = Dj.z + px * Dx.z;
+            const double inv = 1.0 / std::sqrt(X * X + Y * Y + Z * Z);
+            const double x = X * inv, y = Y * inv, z = Z * inv;
+            r.dx[i] = x;
+            r.dy[i] = y;
+            r.dz[i] = z;
+            r.fx[i] = float(x);
+            r.fy[i] = float(y);
+            r.fz[i] = float(z);
+            const double cos_view = x * forward.x + y * forward.y + z * forward.z;
+            r.cos_view[i] = float(cos_view);
+            r.t_near[i] = float(clip_start / cos_view);  // 0 without a near plane
+            r.t_far[i] = float(clip_end / cos_view);     // inf without a far plane
+        }
+    };
+    // First hits of _n_ camera rays inside the clip range, as Cycles sees them: nearer
+    // surfaces clipped away, surfaces beyond t_far hidden (inf). _depth_ is measured from
+    // the ray origin (the eye for perspective rays). Perspective rays share the origin and
+    // go to Embree with [t_near, t_far]; orthographic ones are cast from the near plane.
+    // _t0_ (size n) receives t_near. _scratch_ is reused between calls.
+    struct CastScratch {
+        RowRays soa;
+        std::vector<Ray> moved;
+    };
+    auto cast = [&](const Ray* r, int n, float* depth, float* t0, CastScratch& scratch) {
+        if (!ortho) {
+            RowRays& s = scratch.soa;
+            if (s.fx.size() < size_t(n)) s.resize(size_t(n));
+            for (int k = 0; k < n; ++k) {
+                double t_near = 0.0, t_far = std::numeric_limits<double>::infinity();
+                if (clipped) rays.clip_range(r[k], t_near, t_far);
+                s.fx[k] = float(r[k].d.x);
+                s.fy[k] = float(r[k].d.y);
+                s.fz[k] = float(r[k].d.z);
+                s.t_near[k] = t0[k] = float(t_near);
+                s.t_far[k] = float(t_far);
+            }
+            caster.first_hits(eye, s.fx.data(), s.fy.data(), s.fz.data(), s.t_near.data(), s.t_far.data(), n, depth);
+            return;
+        }
         if (!clipped) {
+            for (int k = 0; k < n; ++k) t0[k] = 0.0f;
             caster.first_hits(r, n, depth);
             return;
         }
+        std::vector<Ray>& moved = scratch.moved;
         moved.resize(size_t(n));
         std::vector<double> t_near(static_cast<size_t>(n)), t_far(static_cast<size_t>(n));
         for (int k = 0; k < n; ++k) {
             rays.clip_range(r[k], t_near[k], t_far[k]);
             moved[k] = {r[k].o + t_near[k] * r[k].d, r[k].d};
+            t0[k] = float(t_near[k]);
         }
         caster.first_hits(moved.data(), n, depth);
         for (int k = 0; k < n; ++k)
@@ -410,14 +503,28 @@ BakeResult bake(const SceneDescription& scene, const BakeSettings& settings, con
     run_parallel(
         n_bands, n_threads,
         [&](int band) {
-            std::vector<Ray> row(W), moved;
+            RowRays r;
+            CastScratch scratch;
+            std::vector<Ray> row;
+            std::vector<float> t0(W);
+            if (affine) r.resize(W);
+            else row.resize(W);
             for (int j = band * kBandRows; j < std::min(H, (band + 1) * kBandRows); ++j) {
-                for (int i = 0; i < W; ++i) row[i] = rays(i + 0.5, j + 0.5);
                 float* depth = &result.depth[size_t(j) * W];
-                cast(row.data(), W, depth, moved);
+                float* k = &key[size_t(j) * W];
+                if (affine) {
+                    row_rays(j, r);
+                    caster.first_hits(eye, r.fx.data(), r.fy.data(), r.fz.data(), r.t_near.data(), r.t_far.data(), W,
+                                      depth);
+                    for (int i = 0; i < W; ++i) k[i] = 1.0f / (depth[i] * r.cos_view[i]);  // inf -> 0
+                    continue;
+                }
+                for (int i = 0; i < W; ++i) row[i] = rays(i + 0.5, j + 0.5);
+                cast(row.data(), W, depth, t0.data(), scratch);
                 for (int i = 0; i < W; ++i)
-                    key[size_t(j) * W + i] =
-                        ortho ? depth[i] : float(1.0 / (double(depth[i]) * glm::dot(row[i].d, forward)));
+                    k[i] = std::isinf(depth[i]) ? 0.0f
+                           : ortho          ? depth[i]
+                                            : float(1.0 / (double(depth[i]) * glm::dot(row[i].d, forward)));
             }
         },
         reporter(0.0, kRaycastProgressShare));
@@ -430,6 +537,7 @@ BakeResult bake(const SceneDescription& scene, const BakeSettings& settings, con
     // neither side's linear extrapolation predicts the other. p is an edge pixel if it
     // is discontinuous with any of its 8 neighbours.
     static constexpr int kLine[4][2] = {{1, 0}, {0, 1}, {1, 1}, {1, -1}};
+    // Kinks of pixel (i, j), any position (the image border included).
     auto kinks = [&](int i, int j) {
         const size_t p = size_t(j) * W + i;
         const bool p_miss = std::isinf(result.depth[p]);
@@ -453,28 +561,49 @@ BakeResult bake(const SceneDescription& scene, const BakeSettings& settings, con
         }
         return bits;
     };
-    // Edge flags of rows [j0, j1) from the kinks of rows [j0 - 1, j1 + 1).
+    // The same for a whole row _j_ into _out_[0, W): branch-free on the interior (misses
+    // are key 0 there), the border pixels by _kinks_.
+    auto kink_row = [&](int j, unsigned char* out) {
+        if (j == 0 || j == H - 1 || W < 3) {
+            for (int i = 0; i < W; ++i) out[i] = (unsigned char)kinks(i, j);
+            return;
+        }
+        const float* __restrict up = &key[size_t(j - 1) * W];
+        const float* __restrict mid = &key[size_t(j) * W];
+        const float* __restrict down = &key[size_t(j + 1) * W];
+        auto kink = [](float kp, float ka, float kb) -> unsigned {
+            const bool zp = kp == 0.0f, za = ka == 0.0f, zb = kb == 0.0f;
+            const float tol = 0.01f * std::min(std::abs(kp), std::min(std::abs(ka), std::abs(kb)));
+            const bool bad = !(std::abs(ka + kb - 2.0f * kp) <= tol);  // NaN counts as a kink
+            return (zp | za | zb) ? unsigned(!(zp & za & zb)) : unsigned(bad);
+        };
+        out[0] = (unsigned char)kinks(0, j);
+        out[W - 1] = (unsigned char)kinks(W - 1, j);
+        for (int i = 1; i < W - 1; ++i) {
+            const float kp = mid[i];
+            out[i] = (unsigned char)(kink(kp, mid[i - 1], mid[i + 1]) | kink(kp, up[i], down[i]) << 1 |
+                                     kink(kp, up[i - 1], down[i + 1]) << 2 | kink(kp, down[i - 1], up[i + 1]) << 3);
+        }
+    };
+    // Edge flags of rows [j0, j1) from the kinks of rows [j0 - 1, j1 + 1), kept in a
+    // buffer with a zero border (one row above and below, one column each side).
     auto edge_rows = [&](int j0, int j1, std::vector<unsigned char>& kink, std::vector<unsigned char>& edge) {
         const int k0 = std::max(0, j0 - 1), k1 = std::min(H, j1 + 1);
-        kink.assign(size_t(k1 - k0) * W, 0);
-        for (int j = k0; j < k1; ++j)
-            for (int i = 0; i < W; ++i) kink[size_t(j - k0) * W + i] = (unsigned char)kinks(i, j);
-        auto K = [&](int i, int j) -> unsigned {
-            return (i < 0 || i >= W || j < k0 || j >= k1) ? 0u : kink[size_t(j - k0) * W + i];
-        };
+        const size_t stride = size_t(W) + 2;
+        kink.assign(size_t(k1 - k0 + 2) * stride, 0);
+        for (int j = k0; j < k1; ++j) kink_row(j, &kink[size_t(j - k0 + 1) * stride + 1]);
         edge.assign(size_t(j1 - j0) * W, 0);
-        for (int j = j0; j < j1; ++j)
+        for (int j = j0; j < j1; ++j) {
+            const unsigned char* c = &kink[size_t(j - k0 + 1) * stride + 1];
+            const unsigned char* u = c - stride;
+            const unsigned char* d = c + stride;
+            unsigned char* e = &edge[size_t(j - j0) * W];
             for (int i = 0; i < W; ++i) {
-                const unsigned kp = K(i, j);
-                bool is_edge = false;
-                for (int l = 0; l < 4 && kp; ++l) {
-                    const unsigned bit = 1u << l;
-                    if ((kp & bit) && ((K(i + kLine[l][0], j + kLine[l][1]) & bit) ||
-                                       (K(i - kLine[l][0], j - kLine[l][1]) & bit)))
-                        is_edge = true;
-                }
-                edge[size_t(j - j0) * W + i] = is_edge;
+                const unsigned n = ((c[i - 1] | c[i + 1]) & 1u) | ((u[i] | d[i]) & 2u) | ((u[i - 1] | d[i + 1]) & 4u) |
+                                   ((d[i - 1] | u[i + 1]) & 8u);
+                e[i] = (unsigned char)((c[i] & n) != 0);
             }
+        }
     };
 
     // Pass 2: fog per pixel; edge pixels averaged over the filter-importance-sampled set.
@@ -482,32 +611,33 @@ BakeResult bake(const SceneDescription& scene, const BakeSettings& settings, con
     const int n_aa = supersample ? settings.aa_samples : 1;
     const std::vector<glm::dvec2> pattern = filter_pattern(n_aa, settings.filter_width);
     const FogModel fog(scene, settings, !rays.orthographic(), rays.position());
-    // Fog of _n_ rays from the near plane to _depth_ (from the origin, inf: none), as
-    // Cycles integrates it: La over [t_near, depth] with attenuation measured from the
-    // near plane, Tr = exp(-sigma_t (depth - t_near)). Along one ray the airlight from the
-    // origin is additive in the segment, La(o, [0, t1]) = La(o, [0, t0]) + exp(-sigma_t t0)
-    // La(o + t0 d, [0, t1 - t0]), so La(near plane) = exp(sigma_t t0) (La(o, t1) - La(o, t0)).
-    // Both terms come from the shared-origin (eye) evaluation, which keeps the model's
-    // fast path. The difference loses relative accuracy only where the fog between eye
-    // and near plane outshines the fog behind it (a light inside the clip range).
+    // Fog of _n_ rays from the near plane (t0, from _cast_) to _depth_ (from the origin,
+    // inf: none), as Cycles integrates it: La over [t0, depth] with attenuation measured
+    // from the near plane, Tr = exp(-sigma_t (depth - t0)). The table model's fast path
+    // does that in one evaluation (viewer moved to the near point, sun05_batch.h). The
+    // other models use additivity along the ray: La(o, [0, t1]) = La(o, [0, t0]) +
+    // exp(-sigma_t t0) La(o + t0 d, [0, t1 - t0]), so La(near plane) = exp(sigma_t t0)
+    // (La(o, t1) - La(o, t0)); that difference loses relative accuracy only where the fog
+    // between eye and near plane outshines the fog behind it (a light inside the clip range).
     const double sigma_t = scene.medium.sigma_t;
-    const bool near_clip = clipped && scene.camera.clip_start > 0.0;
-    auto fog_eval = [&](const Ray* r, const float* depth, int n, double* Tr, RGB* La, std::vector<float>& t0,
-                        std::vector<double>& Tr0, std::vector<RGB>& La0) {
-        fog.eval_many(r, depth, n, Tr, La);
-        if (!near_clip) return;
-        t0.resize(size_t(n));
-        Tr0.resize(size_t(n));
-        La0.resize(size_t(n));
-        for (int k = 0; k < n; ++k) {
-            double t_near, t_far;
-            rays.clip_range(r[k], t_near, t_far);
-            t0[k] = float(t_near);
+    const bool near_clip = clipped && clip_start > 0.0;
+    struct FogScratch {
+        std::vector<double> Tr0;
+        std::vector<RGB> La0;
+    };
+    auto fog_eval = [&](const Ray* r, const float* depth, const float* t0, int n, double* Tr, RGB* La,
+                        FogScratch& scratch) {
+        if (!near_clip || fog.soa()) {
+            fog.eval_many(r, depth, near_clip ? t0 : nullptr, n, Tr, La);
+            return;
         }
-        fog.eval_many(r, t0.data(), n, Tr0.data(), La0.data());
+        scratch.Tr0.resize(size_t(n));
+        scratch.La0.resize(size_t(n));
+        fog.eval_many(r, depth, nullptr, n, Tr, La);
+        fog.eval_many(r, t0, nullptr, n, scratch.Tr0.data(), scratch.La0.data());
         for (int k = 0; k < n; ++k) {
             const double scale = std::exp(sigma_t * double(t0[k]));
-            La[k] = glm::max(scale * (La[k] - La0[k]), RGB(0.0));
+            La[k] = glm::max(scale * (La[k] - scratch.La0[k]), RGB(0.0));
             Tr[k] = std::isinf(depth[k]) ? Tr[k] : std::min(1.0, Tr[k] * scale);
         }
     };
@@ -516,86 +646,114 @@ BakeResult bake(const SceneDescription& scene, const BakeSettings& settings, con
     run_parallel(
         n_bands, n_threads,
         [&](int band) {
-            std::vector<Ray> sub(pattern.size()), moved;
-            std::vector<float> sub_t(sub.size()), t0;
-            std::vector<double> Tr0;
-            std::vector<RGB> La0;
+            const size_t n_sub = pattern.size();
+            std::vector<Ray> sub(n_sub);
+            std::vector<float> sub_t(n_sub), sub_t0(n_sub), t0(W);
+            std::vector<double> sub_Tr(n_sub);
+            std::vector<RGB> sub_La(n_sub);
+            CastScratch cast_scratch;
+            FogScratch fog_scratch;
             std::vector<unsigned char> kink, edge;
             const int j0 = band * kBandRows, j1 = std::min(H, (band + 1) * kBandRows);
             if (supersample) edge_rows(j0, j1, kink, edge);
             long long band_supersampled = 0, band_samples = 0;
-            std::vector<Ray> row(W);
-            std::vector<double> row_Tr(W), sub_Tr(sub.size());
-            std::vector<RGB> row_La(W), sub_La(sub.size());
+            const bool fast = affine && fog.soa();
+            RowRays r;
+            std::vector<Ray> row;
+            std::vector<double> row_Tr_d;
+            std::vector<RGB> row_La;
+            std::vector<float> row_Tr(W);
+            if (fast) {
+                r.resize(W);
+            } else {
+                row.resize(W);
+                row_Tr_d.resize(W);
+                row_La.resize(W);
+            }
             for (int j = j0; j < j1; ++j) {
                 // Centre samples of the whole row (edge pixels are overwritten below).
                 const size_t p0 = size_t(j) * W;
-                for (int i = 0; i < W; ++i) row[i] = rays(i + 0.5, j + 0.5);
-                fog_eval(row.data(), &result.depth[p0], W, row_Tr.data(), row_La.data(), t0, Tr0, La0);
+                const float* depth = &result.depth[p0];
+                float* A = &result.airlight[3 * p0];
+                float* T = &result.transmittance[3 * p0];
+                if (fast) {
+                    row_rays(j, r);
+                    fog.eval_soa(r.dx.data(), r.dy.data(), r.dz.data(), depth, near_clip ? r.t_near.data() : nullptr,
+                                 W, row_Tr.data(), A);
+                } else {
+                    for (int i = 0; i < W; ++i) {
+                        row[i] = rays(i + 0.5, j + 0.5);
+                        double t_near = 0.0, t_far;
+                        if (near_clip) rays.clip_range(row[i], t_near, t_far);
+                        t0[i] = float(t_near);
+                    }
+                    fog_eval(row.data(), depth, t0.data(), W, row_Tr_d.data(), row_La.data(), fog_scratch);
+                    for (int i = 0; i < W; ++i) {
+                        row_Tr[i] = float(row_Tr_d[i]);
+                        for (int c = 0; c < 3; ++c) A[3 * i + c] = float(row_La[i][c]);
+                    }
+                }
+                for (int i = 0; i < W; ++i) T[3 * i] = T[3 * i + 1] = T[3 * i + 2] = row_Tr[i];
+                band_samples += W;
+                if (!supersample) continue;
+                const unsigned char* edge_row = &edge[size_t(j - j0) * W];
                 for (int i = 0; i < W; ++i) {
-                    double Tr = row_Tr[i];
-                    RGB La = row_La[i];
-                    if (supersample && edge[size_t(j - j0) * W + i]) {
-                        // Cast the sub-pixel rays as packets, then average their fog.
-                        for (size_t k = 0; k < pattern.size(); ++k)
-                            sub[k] = rays(i + 0.5 + pattern[k].x, j + 0.5 + pattern[k].y);
-                        cast(sub.data(), int(sub.size()), sub_t.data(), moved);
-                        fog_eval(sub.data(), sub_t.data(), int(sub.size()), sub_Tr.data(), sub_La.data(), t0,
-                                 Tr0, La0);
-                        // Airlight: the filtered mean over all samples. Transmittance: the
-                        // mean over the samples that hit a surface. The composite is
-                        // render * T + A, and at a silhouette the render mixes surface
-                        // (coverage alpha) and background: R = alpha R_s + (1 - alpha) R_b.
-                        // The fogged truth is alpha R_s T_s + (1 - alpha) R_b T_b + A, with
-                        // T_b = 0 behind a miss (fog out to infinity). T = mean of all
-                        // samples = alpha T_s errs by -alpha (1 - alpha) (R_s - R_b) T_s: a
-                        // dark outline up to (1 - alpha) of the surface's own fogged radiance
-                        // where a lit object meets a dark sky. T = T_s errs by
-                        // (1 - alpha) R_b T_s: exact for a black world or a transparent film
-                        // (the renders in which infinite fog is consistent: whatever the
-                        // world shows is hidden by it), and never darker than the truth.
-                        // Behind a bright world it leaves a fringe of the world's colour,
-                        // 1 / alpha times the all-sample mean's error. Between two surfaces
-                        // (all samples hit) both are the same coverage-weighted mean.
-                        double Tr_hits = 0.0, Tr_all = 0.0;
-                        int hits = 0;
-                        La = RGB(0.0);
-                        for (size_t k = 0; k < sub.size(); ++k) {
-                            Tr_all += sub_Tr[k];
-                            La += sub_La[k];
-                            if (!std::isinf(sub_t[k])) Tr_hits += sub_Tr[k], ++hits;
-                        }
-                        // No sample hit, yet the pixel was flagged: a surface lies in the
-                        // filter's tail (coverage < 1/(2N), e.g. 2 % of an emitter showing
-                        // in the render). The render there is that surface's light, so use
-                        // the transmittance of the neighbouring hits' centre samples (with
-                        // the all-sample mean, 0, that light would vanish: measured -20 %
-                        // on such pixels of the halo scene).
-                        if (hits == 0) {
-                            for (int dj = -1; dj <= 1; ++dj)
-                                for (int di = -1; di <= 1; ++di) {
-                                    const int ni = i + di, nj = j + dj;
-                                    if (ni < 0 || ni >= W || nj < 0 || nj >= H) continue;
-                                    const float depth_n = result.depth[size_t(nj) * W + ni];
-                                    if (std::isinf(depth_n)) continue;
-                                    double t_near = 0.0, t_far;
-                                    if (near_clip) rays.clip_range(rays(ni + 0.5, nj + 0.5), t_near, t_far);
-                                    Tr_hits += std::exp(-sigma_t * (double(depth_n) - t_near));
-                                    ++hits;
-                                }
-                        }
-                        Tr = hits > 0 ? Tr_hits / hits : Tr_all / double(sub.size());
-                        La /= double(sub.size());
-                        ++band_supersampled;
-                        band_samples += (long long)sub.size();
-                    } else {
-                        ++band_samples;
+                    if (!edge_row[i]) continue;
+                    // Cast the sub-pixel rays as packets, then average their fog.
+                    for (size_t k = 0; k < n_sub; ++k) sub[k] = rays(i + 0.5 + pattern[k].x, j + 0.5 + pattern[k].y);
+                    cast(sub.data(), int(n_sub), sub_t.data(), sub_t0.data(), cast_scratch);
+                    fog_eval(sub.data(), sub_t.data(), sub_t0.data(), int(n_sub), sub_Tr.data(), sub_La.data(),
+                             fog_scratch);
+                    // Airlight: the filtered mean over all samples. Transmittance: the
+                    // mean over the samples that hit a surface. The composite is
+                    // render * T + A, and at a silhouette the render mixes surface
+                    // (coverage alpha) and background: R = alpha R_s + (1 - alpha) R_b.
+                    // The fogged truth is alpha R_s T_s + (1 - alpha) R_b T_b + A, with
+                    // T_b = 0 behind a miss (fog out to infinity). T = mean of all
+                    // samples = alpha T_s errs by -alpha (1 - alpha) (R_s - R_b) T_s: a
+                    // dark outline up to (1 - alpha) of the surface's own fogged radiance
+                    // where a lit object meets a dark sky. T = T_s errs by
+                    // (1 - alpha) R_b T_s: exact for a black world or a transparent film
+                    // (the renders in which infinite fog is consistent: whatever the
+                    // world shows is hidden by it), and never darker than the truth.
+                    // Behind a bright world it leaves a fringe of the world's colour,
+                    // 1 / alpha times the all-sample mean's error. Between two surfaces
+                    // (all samples hit) both are the same coverage-weighted mean.
+                    double Tr_hits = 0.0, Tr_all = 0.0;
+                    int hits = 0;
+                    RGB La(0.0);
+                    for (size_t k = 0; k < n_sub; ++k) {
+                        Tr_all += sub_Tr[k];
+                        La += sub_La[k];
+                        if (!std::isinf(sub_t[k])) Tr_hits += sub_Tr[k], ++hits;
                     }
-                    const size_t p = p0 + i;
+                    // No sample hit, yet the pixel was flagged: a surface lies in the
+                    // filter's tail (coverage < 1/(2N), e.g. 2 % of an emitter showing
+                    // in the render). The render there is that surface's light, so use
+                    // the transmittance of the neighbouring hits' centre samples (with
+                    // the all-sample mean, 0, that light would vanish: measured -20 %
+                    // on such pixels of the halo scene).
+                    if (hits == 0) {
+                        for (int dj = -1; dj <= 1; ++dj)
+                            for (int di = -1; di <= 1; ++di) {
+                                const int ni = i + di, nj = j + dj;
+                                if (ni < 0 || ni >= W || nj < 0 || nj >= H) continue;
+                                const float depth_n = result.depth[size_t(nj) * W + ni];
+                                if (std::isinf(depth_n)) continue;
+                                double t_near = 0.0, t_far;
+                                if (near_clip) rays.clip_range(rays(ni + 0.5, nj + 0.5), t_near, t_far);
+                                Tr_hits += std::exp(-sigma_t * (double(depth_n) - t_near));
+                                ++hits;
+                            }
+                    }
+                    const double Tr = hits > 0 ? Tr_hits / hits : Tr_all / double(n_sub);
+                    La /= double(n_sub);
                     for (int c = 0; c < 3; ++c) {
-                        result.airlight[3 * p + c] = float(La[c]);
-                        result.transmittance[3 * p + c] = float(Tr);
+                        A[3 * i + c] = float(La[c]);
+                        T[3 * i + c] = float(Tr);
                     }
+                    ++band_supersampled;
+                    band_samples += (long long)n_sub - 1;
                 }
             }
             supersampled += band_supersampled;

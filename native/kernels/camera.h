@@ -43,6 +43,19 @@ class CameraRays {
     bool clipped() const { return clip_start_ > 0.0 || clip_end_ < std::numeric_limits<double>::infinity(); }
     // Camera position in world space (the ray origin of every perspective ray).
     Vec3 position() const { return position_; }
+    // Unit view axis (camera -Z) and the clip range as view-axis depths.
+    Vec3 forward() const { return forward_; }
+    double clip_start() const { return clip_start_; }
+    double clip_end() const { return clip_end_; }
+    // Perspective rays with an affine unnormalised direction D(px, py) = D0 + px Dx + py
+    // Dy (Blender's matrices): _operator()_ returns (position(), normalize(D)). Lets a
+    // caller generate a row of rays incrementally. False for orthographic or projective.
+    bool affine_perspective() const { return affine_ && !ortho_; }
+    void affine_direction(Vec3& D0, Vec3& Dx, Vec3& Dy) const {
+        D0 = D0_;
+        Dx = Dx_;
+        Dy = Dy_;
+    }
 
   private:
     Ray unproject(double px, double py) const;  // the general (projective) case

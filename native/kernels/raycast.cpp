@@ -156,4 +156,43 @@ void RayCaster::first_hits(const Ray* rays, int n, float* t) const {
     }
 }
 
+void RayCaster::first_hits(const Vec3& o, const float* dx, const float* dy, const float* dz,
+                           const float* t_near, const float* t_far, int n, float* t) const {
+    if (!impl_->scene) {
+        for (int i = 0; i < n; ++i) t[i] = kInf;
+        return;
+    }
+    // Trace packets of 16 coherent rays from the shared origin; the tail masks lanes off.
+    RTCIntersectContext context;
+    rtcInitIntersectContext(&context);
+    context.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
+    const float ox = float(o.x), oy = float(o.y), oz = float(o.z);
+    for (int base = 0; base < n; base += 16) {
+        alignas(64) int valid[16];
+        alignas(64) RTCRayHit16 rh;
+        for (int k = 0; k < 16; ++k) {
+            const bool live = base + k < n;
+            const int i = live ? base + k : n - 1;
+            valid[k] = live ? -1 : 0;
+            rh.ray.org_x[k] = ox;
+            rh.ray.org_y[k] = oy;
+            rh.ray.org_z[k] = oz;
+            rh.ray.dir_x[k] = dx[i];
+            rh.ray.dir_y[k] = dy[i];
+            rh.ray.dir_z[k] = dz[i];
+            rh.ray.tnear[k] = t_near[i];
+            rh.ray.tfar[k] = t_far[i];
+            rh.ray.time[k] = 0.0f;
+            rh.ray.mask[k] = 0xFFFFFFFFu;
+            rh.ray.id[k] = unsigned(k);
+            rh.ray.flags[k] = 0;
+            rh.hit.geomID[k] = RTC_INVALID_GEOMETRY_ID;
+            rh.hit.instID[0][k] = RTC_INVALID_GEOMETRY_ID;
+        }
+        rtcIntersect16(valid, impl_->scene, &context, &rh);
+        for (int k = 0; k < 16 && base + k < n; ++k)
+            t[base + k] = rh.hit.geomID[k] == RTC_INVALID_GEOMETRY_ID ? kInf : rh.ray.tfar[k];
+    }
+}
+
 }  // namespace airlight

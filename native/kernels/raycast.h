@@ -21,6 +21,12 @@ class RayCaster {
     // to _t_ (+inf where none). Faster than _first_hit_ for camera rays. Thread safe.
     void first_hits(const Ray* rays, int n, float* t) const;
 
+    // First hits of _n_ rays from one origin _o_ along directions (dx, dy, dz)[k] (any
+    // length), inside [t_near[k], t_far[k]] in units of the direction (Cycles' clip
+    // range), written to _t_ (+inf where none). Packets of 16 coherent rays. Thread safe.
+    void first_hits(const Vec3& o, const float* dx, const float* dy, const float* dz, const float* t_near,
+                    const float* t_far, int n, float* t) const;
+
   private:
     struct Impl;
     std::unique_ptr<Impl> impl_;
