@@ -76,7 +76,8 @@ enum class GammaEval { Table, Exact };
 // GammaEval::Table and must be built for _phase_. The table path falls back to the exact
 // difference where the lookup difference would cancel (G1 - G0 < G1 / 16) or overflow;
 // biri06.cpp states how often that happens. A ray through the light is regularised as in
-// sun05 (sin gamma >= 1e-8). Inputs are validated by sun05_check_inputs (throws).
+// sun05 (sin gamma >= 1e-8); at gamma = pi exactly that puts theta within 1e-8 of pi, where
+// the exact path is good to ~1e-6 relative (not 1e-12). Inputs are validated by sun05_check_inputs (throws).
 double biri06_airlight(const PhaseFunction& phase, double sigma_t, double Dsv, double cos_gamma, double Dvp,
                        const Biri06Table* table, GammaEval how, bool* used_exact = nullptr);
 

@@ -157,7 +157,9 @@ TEST(Biri06, Extremes) {
                     ASSERT_TRUE(std::isfinite(tab) && std::isfinite(ex) && tab >= 0.0) << g << " " << Tsv << " " << c;
                     const double want = phase_airlight_quadrature(p, sigma, Dsv, c, Dvp);
                     if (want < 1e-280) continue;  // underflow (e^{-Tsv - Tvp}): nothing to compare
-                    EXPECT_NEAR(ex, want, 1e-7 * want) << g << " " << Tsv << " " << c << " " << Dvp;
+                    // gamma = pi exactly: theta lives within ~1e-8 of pi, where double theta
+                    // resolves the segment to ~1e-6 relative (documented in biri06.h).
+                    EXPECT_NEAR(ex, want, (c == -1.0 ? 2e-6 : 1e-7) * want) << g << " " << Tsv << " " << c << " " << Dvp;
                     EXPECT_NEAR(tab, want, (std::abs(g) > 0.95 ? 5e-2 : 5e-3) * want)
                         << g << " " << Tsv << " " << c << " " << Dvp;
                 }
