@@ -27,6 +27,8 @@ def _args():
     p.add_argument("--lights", type=int, nargs="+", default=[1, 4, 16])
     p.add_argument("--scales", nargs="+", default=["FULL", "HALF", "QUARTER"])
     p.add_argument("--depth", nargs="+", default=["DRAWN", "READBACK"])
+    p.add_argument("--passes-only", action="store_true",
+                   help="only time the passes alone (offscreen), not whole viewport draws")
     return p.parse_args(argv)
 
 
@@ -135,13 +137,18 @@ def _time_passes(region, repeats):
             run("depth: read-back + upload", readback)
             run("depth: own distance pass", drawn)
             dist = drawn()
+            modes = (("bilinear", preview.UPSAMPLE_BILINEAR),
+                     ("bilateral", preview.UPSAMPLE_BILATERAL),
+                     ("bilateral+exact", preview.UPSAMPLE_BILATERAL_EXACT))
             for scale in (1, 2, 4):
-                run(f"fog at 1/{scale} (+ upsampling)" if scale > 1 else "fog at full res",
-                    lambda scale=scale: preview.draw_fog(
-                        depth_tex=dist, perspective_matrix=persp, view_origin=eye,
-                        is_perspective=True, viewport=(0, 0, w, h),
-                        sigma_t=scene.airlight.density, light_positions=positions,
-                        light_intensities=intensities, window_depth=False, scale=scale))
+                for mode_name, mode in (modes if scale > 1 else modes[-1:]):
+                    run(f"fog at 1/{scale} + {mode_name}" if scale > 1 else "fog at full res",
+                        lambda scale=scale, mode=mode: preview.draw_fog(
+                            depth_tex=dist, perspective_matrix=persp, view_origin=eye,
+                            is_perspective=True, viewport=(0, 0, w, h),
+                            sigma_t=scene.airlight.density, light_positions=positions,
+                            light_intensities=intensities, window_depth=False, scale=scale,
+                            mode=mode))
     finally:
         off.free()
     return rows
@@ -161,7 +168,7 @@ def main():
     wm = bpy.context.window_manager
     for n in args.lights:
         _scene(n)
-        for depth_mode in args.depth:
+        for depth_mode in ([] if args.passes_only else args.depth):
             for scale in args.scales:
                 preview._state["error"] = None
                 base, fog, depth, cbase, cfog = _time_draws(window, area, region, args.repeats,

@@ -1,20 +1,31 @@
 // preview_upsample_frag.glsl: composites the reduced-resolution fog over the full-
 // resolution viewport with depth-aware (joint bilateral) upsampling.
 //
-// Low-res texel (i, j) holds the exact fog of full-resolution pixel
-// (i, j) * scale + scale / 2 (fog_preview_frag.glsl), so its surface distance is read
-// back from the full-resolution depth. A full-resolution pixel blends its four
+// Low-res texel (i, j) holds the exact airlight of full-resolution pixel
+// (i, j) * scale + scale / 2 and that pixel's surface distance (fog_preview_frag.glsl with
+// PREVIEW_LOWRES: rgb = La, a = Dvp). A full-resolution pixel blends the rgb of its four
 // surrounding low-res samples with bilinear weights times a depth similarity
 // exp(-(r / PREVIEW_DEPTH_SIGMA)^2), r = |D_k - (D + slope . offset)| / D: the distance
 // a sample would have on the plane through the pixel (slopes from one-sided differences
 // of the full-resolution depth), so fog never leaks across a silhouette and grazing
-// surfaces still interpolate smoothly. Where no sample shares the pixel's surface (best similarity below
-// PREVIEW_DEPTH_ACCEPT: thin objects, the first pixels past an edge) the pixel's fog is
-// evaluated here at full resolution. mode: 0 = plain bilinear (for comparison),
-// 1 = joint bilateral with nearest-depth fallback, 2 = joint bilateral with exact
-// re-evaluation (the default).
+// surfaces still interpolate smoothly. Its transmittance is exact: Tr = exp(-sigma_t
+// (D - t0)) from its own distance. Where no sample shares the pixel's surface (best
+// similarity below PREVIEW_DEPTH_ACCEPT: thin objects, the first pixels past an edge)
+// the pixel's airlight is evaluated at full resolution.
 //
-//   fog_lo      reduced fog (RGBA, premultiplied), lo_size texels
+// That evaluation is a separate draw of this file (PREVIEW_EXACT_PASS 1), which discards
+// every other pixel, while the blending draw (PREVIEW_EXACT_PASS 0) discards those pixels
+// and contains no airlight code: software rasterisers (llvmpipe) run both sides of a
+// branch under a lane mask, so an in-shader fallback cost one full airlight evaluation
+// per light loop for EVERY pixel (~as much as the whole fog at full resolution with one
+// light); a discarded group of pixels skips the rest of the shader there.
+// Both draws make the same decision from the same code.
+//
+// mode: 0 = plain bilinear (for comparison; no exact pass), 1 = joint bilateral with
+// nearest-depth fallback (no exact pass), 2 = joint bilateral with exact re-evaluation
+// (the default).
+//
+//   fog_lo      reduced fog (RGBA32F: rgb = airlight, a = Dvp), lo_size texels
 //   viewport    xy = lower-left corner of the region in the framebuffer, zw = its size
 //   scale, mode (and the inputs of preview_common.glsl)
 
@@ -63,49 +74,49 @@ void main()
   ivec2 i0 = ivec2(floor(f));
   vec2 t = f - vec2(i0);
 
-  float D = preview_distance_at(px);
+  vec2 ndc;
+  vec3 origin, dir;
+  preview_ray(px, ndc, origin, dir);
+  float D = preview_distance(px, ndc, origin, dir);
   vec2 slope = vec2(0.0);
   if (mode != 0 && !isinf(D)) {
     slope = vec2(preview_slope(px, ivec2(1, 0), D), preview_slope(px, ivec2(0, 1), D));
   }
 
-  vec4 sum = vec4(0.0);
+  vec3 sum = vec3(0.0);
   float wsum = 0.0, best = -1.0;
-  vec4 nearest = vec4(0.0);
+  vec3 nearest = vec3(0.0);
   for (int k = 0; k < 4; k++) {
     ivec2 o = ivec2(k & 1, k >> 1);
     ivec2 q = clamp(i0 + o, ivec2(0), lo_size - 1);
     float wb = (o.x == 1 ? t.x : 1.0 - t.x) * (o.y == 1 ? t.y : 1.0 - t.y);
     vec4 fog = texelFetch(fog_lo, q, 0);
-    if (mode == 0) {
-      sum += wb * fog;
-      wsum += wb;
-      continue;
+    float s = 1.0;
+    if (mode != 0) {
+      ivec2 qpx = min(q * scale + scale / 2, ivec2(viewport.zw) - 1);
+      s = preview_similarity(fog.a, D, slope, vec2(qpx - px));
+      if (s > best) {
+        best = s;
+        nearest = fog.rgb;
+      }
+      wb += 1e-3;
     }
-    ivec2 qpx = min(q * scale + scale / 2, ivec2(viewport.zw) - 1);
-    float s = preview_similarity(preview_distance_at(qpx), D, slope, vec2(qpx - px));
-    if (s > best) {
-      best = s;
-      nearest = fog;
-    }
-    float w = (wb + 1e-3) * s;
-    sum += w * fog;
+    float w = wb * s;
+    sum += w * fog.rgb;
     wsum += w;
   }
-
-  if (mode == 0) {
-    frag_color = sum / wsum;
+  bool exact = mode == 2 && best < PREVIEW_DEPTH_ACCEPT;
+#if PREVIEW_EXACT_PASS
+  if (!exact) {
+    discard;
   }
-  else if (best >= PREVIEW_DEPTH_ACCEPT) {
-    frag_color = sum / wsum;
+  frag_color = preview_fog(origin, dir, D);
+#else
+  if (exact) {
+    discard;
   }
-  else if (mode == 1) {
-    frag_color = nearest;
-  }
-  else {
-    vec2 ndc;
-    vec3 origin, dir;
-    preview_ray(px, ndc, origin, dir);
-    frag_color = preview_fog(origin, dir, D);
-  }
+  vec3 La = (mode == 0 || best >= PREVIEW_DEPTH_ACCEPT) ? sum / wsum : nearest;
+  float Tr = exp(-sigma_t * max(D - preview_near(dir), 0.0));
+  frag_color = vec4(La, 1.0 - Tr);
+#endif
 }

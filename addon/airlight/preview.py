@@ -17,11 +17,11 @@ Per draw (POST_VIEW):
    all point lights over [t0, Dvp] by sun05_airlight and Tr = exp(-sigma_t (Dvp - t0)),
    premultiplied (rgb = airlight, alpha = 1 - Tr). At FULL scale
    it is drawn straight into the viewport; at HALF / QUARTER into a float offscreen of
-   1/2 or 1/4 the size, then
+   1/2 or 1/4 the size (airlight and surface distance), then
 3. composited by a depth-aware upsampling pass (shaders/preview_upsample_frag.glsl:
-   joint bilateral weights from the full-resolution depth, exact re-evaluation where no
-   low-resolution sample lies on the pixel's surface), with ALPHA_PREMULT blending:
-   L = La + Tr L_scene.
+   joint bilateral weights from the full-resolution depth, exact Tr per pixel, and a
+   second draw that re-evaluates the airlight exactly where no low-resolution sample
+   lies on the pixel's surface), with ALPHA_PREMULT blending: L = La + Tr L_scene.
 
 Lifetime: GPU resources (shaders, batches, targets, F table texture) are built on the
 first draw, kept in `_state`, and dropped on unregister and on file load (load_pre).
@@ -64,8 +64,9 @@ MAX_LIGHTS = 256
 SCALES = {'FULL': 1, 'HALF': 2, 'QUARTER': 4}
 # Upsampling modes of preview_upsample_frag.glsl.
 UPSAMPLE_BILINEAR, UPSAMPLE_BILATERAL, UPSAMPLE_BILATERAL_EXACT = 0, 1, 2
-# Format of the reduced fog target (premultiplied airlight can exceed 1, so float).
-LOWRES_FORMAT = 'RGBA16F'
+# Format of the reduced fog target: rgb = airlight (can exceed 1), a = surface distance
+# (inf where nothing is hit), which the upsampling compares at full float precision.
+LOWRES_FORMAT = 'RGBA32F'
 
 
 def _native_for_preview():
@@ -102,17 +103,21 @@ def _gpu_resources():
     return res
 
 
-def _shader(kind, window_depth):
-    """Fog ('fog') or upsampling ('upsample') shader reading window depth or distance."""
+def _shader(kind, window_depth, variant=False):
+    """Fog ('fog'; variant: the reduced target's output, airlight + distance) or
+    upsampling ('upsample'; variant: the exact re-evaluation draw) shader, reading
+    window depth or distance."""
     from . import gpu_shaders as gs
     res = _gpu_resources()
-    key = (kind, bool(window_depth))
+    key = (kind, bool(window_depth), bool(variant))
     shader = res["shaders"].get(key)
     if shader is None:
         frag = "fog_preview_frag.glsl" if kind == 'fog' else "preview_upsample_frag.glsl"
+        flag = "PREVIEW_LOWRES" if kind == 'fog' else "PREVIEW_EXACT_PASS"
         shader = gs.create_fullscreen_shader(
             f"preview_{kind}", frag, libs=("sun05_airlight.glsl", "preview_common.glsl"),
-            defines=(("PREVIEW_WINDOW_DEPTH", int(bool(window_depth))),), **_FOG_INPUTS)
+            defines=(("PREVIEW_WINDOW_DEPTH", int(bool(window_depth))),
+                     (flag, int(bool(variant)))), **_FOG_INPUTS)
         res["shaders"][key] = shader
         if res["batch"] is None:
             res["batch"] = gs.fullscreen_batch(shader)
@@ -364,20 +369,27 @@ def draw_fog(*, depth_tex, perspective_matrix, view_origin, is_perspective, view
     clip = (*view_axis(perspective_matrix), float(clip_start) if is_perspective else 0.0)
 
     def bind(shader, target_viewport, fog_lo):
+        # The blending draw of the upsampling has no airlight code, so the compiler
+        # drops the light inputs there: set what the shader has.
+        def put(setter, name, value):
+            try:
+                setter(name, value)
+            except ValueError:
+                pass
         shader.bind()
-        shader.uniform_float("inv_persp", perspective_matrix.inverted())
-        shader.uniform_float("eye", (*view_origin, 1.0 if is_perspective else 0.0))
-        shader.uniform_float("clip", clip)
-        shader.uniform_float("viewport", tuple(float(v) for v in target_viewport))
-        shader.uniform_float("sigma_t", float(sigma_t))
-        shader.uniform_int("light_count", len(light_positions))
-        shader.uniform_int("scale", int(scale))
-        shader.uniform_sampler("Ftab", res["ftab"])
-        shader.uniform_sampler("depth_tex", depth_tex)
-        shader.uniform_sampler("lights", lights)
+        put(shader.uniform_float, "inv_persp", perspective_matrix.inverted())
+        put(shader.uniform_float, "eye", (*view_origin, 1.0 if is_perspective else 0.0))
+        put(shader.uniform_float, "clip", clip)
+        put(shader.uniform_float, "viewport", tuple(float(v) for v in target_viewport))
+        put(shader.uniform_float, "sigma_t", float(sigma_t))
+        put(shader.uniform_int, "light_count", len(light_positions))
+        put(shader.uniform_int, "scale", int(scale))
+        put(shader.uniform_sampler, "Ftab", res["ftab"])
+        put(shader.uniform_sampler, "depth_tex", depth_tex)
+        put(shader.uniform_sampler, "lights", lights)
         if fog_lo is not None:  # the upsampling pass (the fog pass has neither)
-            shader.uniform_int("mode", int(mode))
-            shader.uniform_sampler("fog_lo", fog_lo)
+            put(shader.uniform_int, "mode", int(mode))
+            put(shader.uniform_sampler, "fog_lo", fog_lo)
 
     prev_blend = gpu.state.blend_get()
     prev_depth = gpu.state.depth_test_get()
@@ -394,15 +406,21 @@ def draw_fog(*, depth_tex, perspective_matrix, view_origin, is_perspective, view
             lw, lh = -(-w // scale), -(-h // scale)
             target = _target("fog_lo", lw, lh, LOWRES_FORMAT)
             gpu.state.blend_set('NONE')
+            fog_lo = _shader('fog', window_depth, variant=True)
             with _framebuffer(target).bind():
                 gpu.state.viewport_set(0, 0, lw, lh)
-                bind(fog, (0, 0, w, h), None)
-                res["batch"].draw(fog)
+                bind(fog_lo, (0, 0, w, h), None)
+                res["batch"].draw(fog_lo)
             gpu.state.viewport_set(*prev_viewport)
-            up = _shader('upsample', window_depth)
             gpu.state.blend_set('ALPHA_PREMULT')
-            bind(up, (x, y, w, h), target["colour"])
-            res["batch"].draw(up)
+            # Blend where the samples share the pixel's surface, then (default mode)
+            # evaluate the other pixels exactly: two draws, each discarding the other's
+            # pixels (see preview_upsample_frag.glsl for why not one).
+            passes = (False, True) if mode == UPSAMPLE_BILATERAL_EXACT else (False,)
+            for exact in passes:
+                up = _shader('upsample', window_depth, variant=exact)
+                bind(up, (x, y, w, h), target["colour"])
+                res["batch"].draw(up)
     finally:
         gpu.state.blend_set(prev_blend)
         gpu.state.depth_test_set(prev_depth)
