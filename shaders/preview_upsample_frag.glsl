@@ -13,13 +13,16 @@
 // similarity below PREVIEW_DEPTH_ACCEPT: thin objects, the first pixels past an edge)
 // the pixel's airlight is evaluated at full resolution.
 //
-// That evaluation is a separate draw of this file (PREVIEW_EXACT_PASS 1), which discards
-// every other pixel, while the blending draw (PREVIEW_EXACT_PASS 0) discards those pixels
-// and contains no airlight code: software rasterisers (llvmpipe) run both sides of a
-// branch under a lane mask, so an in-shader fallback cost one full airlight evaluation
-// per light loop for EVERY pixel (~as much as the whole fog at full resolution with one
-// light); a discarded group of pixels skips the rest of the shader there.
-// Both draws make the same decision from the same code.
+// That evaluation is a separate draw of this file (PREVIEW_EXACT_PASS 1) that the depth
+// test limits to those pixels: the blending draw (PREVIEW_EXACT_PASS 0, no airlight
+// code) writes them into a full-resolution target and, with PREVIEW_MARK 1, marks them
+// with depth 0 (others 1), and the exact draw, a quad at depth 0.5 tested GREATER, only
+// runs there. Software rasterisers (llvmpipe) run both sides of a branch under a lane
+// mask, and a discard does not end the shader early either, so an in-shader fallback
+// cost one airlight evaluation for EVERY pixel (as much as the whole fog at full
+// resolution with one light); a block of pixels that fails the early depth test is
+// skipped. Without PREVIEW_MARK (modes 0 and 1) the blending draw composites straight
+// into the region.
 //
 // mode: 0 = plain bilinear (for comparison; no exact pass), 1 = joint bilateral with
 // nearest-depth fallback (no exact pass), 2 = joint bilateral with exact re-evaluation
@@ -107,14 +110,11 @@ void main()
   }
   bool exact = mode == 2 && best < PREVIEW_DEPTH_ACCEPT;
 #if PREVIEW_EXACT_PASS
-  if (!exact) {
-    discard;
-  }
   frag_color = preview_fog(origin, dir, D);
 #else
-  if (exact) {
-    discard;
-  }
+#  if PREVIEW_MARK
+  gl_FragDepth = exact ? 0.0 : 1.0;
+#  endif
   vec3 La = (mode == 0 || best >= PREVIEW_DEPTH_ACCEPT) ? sum / wsum : nearest;
   float Tr = exp(-sigma_t * max(D - preview_near(dir), 0.0));
   frag_color = vec4(La, 1.0 - Tr);

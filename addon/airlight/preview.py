@@ -104,20 +104,26 @@ def _gpu_resources():
 
 
 def _shader(kind, window_depth, variant=False):
-    """Fog ('fog'; variant: the reduced target's output, airlight + distance) or
-    upsampling ('upsample'; variant: the exact re-evaluation draw) shader, reading
-    window depth or distance."""
+    """Fog ('fog'; variant: the reduced target's output, airlight + distance),
+    upsampling ('upsample'; variant: 'mark' = blend and mark the pixels to re-evaluate
+    in the depth buffer, 'exact' = the re-evaluation draw) or 'composite' shader,
+    reading window depth or distance."""
     from . import gpu_shaders as gs
     res = _gpu_resources()
-    key = (kind, bool(window_depth), bool(variant))
+    key = (kind, bool(window_depth), variant)
     shader = res["shaders"].get(key)
     if shader is None:
-        frag = "fog_preview_frag.glsl" if kind == 'fog' else "preview_upsample_frag.glsl"
-        flag = "PREVIEW_LOWRES" if kind == 'fog' else "PREVIEW_EXACT_PASS"
+        frag, defines = {
+            'fog': ("fog_preview_frag.glsl", (("PREVIEW_LOWRES", int(bool(variant))),)),
+            'upsample': ("preview_upsample_frag.glsl",
+                         (("PREVIEW_EXACT_PASS", int(variant == 'exact')),
+                          ("PREVIEW_MARK", int(variant == 'mark')))),
+            'composite': ("preview_composite_frag.glsl", ()),
+        }[kind]
         shader = gs.create_fullscreen_shader(
             f"preview_{kind}", frag, libs=("sun05_airlight.glsl", "preview_common.glsl"),
-            defines=(("PREVIEW_WINDOW_DEPTH", int(bool(window_depth))),
-                     (flag, int(bool(variant)))), **_FOG_INPUTS)
+            defines=(("PREVIEW_WINDOW_DEPTH", int(bool(window_depth))),) + defines,
+            **_FOG_INPUTS)
         res["shaders"][key] = shader
         if res["batch"] is None:
             res["batch"] = gs.fullscreen_batch(shader)
@@ -412,15 +418,36 @@ def draw_fog(*, depth_tex, perspective_matrix, view_origin, is_perspective, view
                 bind(fog_lo, (0, 0, w, h), None)
                 res["batch"].draw(fog_lo)
             gpu.state.viewport_set(*prev_viewport)
-            gpu.state.blend_set('ALPHA_PREMULT')
-            # Blend where the samples share the pixel's surface, then (default mode)
-            # evaluate the other pixels exactly: two draws, each discarding the other's
-            # pixels (see preview_upsample_frag.glsl for why not one).
-            passes = (False, True) if mode == UPSAMPLE_BILATERAL_EXACT else (False,)
-            for exact in passes:
-                up = _shader('upsample', window_depth, variant=exact)
+            if mode != UPSAMPLE_BILATERAL_EXACT:
+                gpu.state.blend_set('ALPHA_PREMULT')
+                up = _shader('upsample', window_depth)
                 bind(up, (x, y, w, h), target["colour"])
                 res["batch"].draw(up)
+            else:
+                # Blend where the samples share the pixel's surface into a full-res
+                # target, marking the other pixels with depth 0; evaluate those exactly
+                # (a quad at depth 0.5 tested GREATER: the rest is never shaded); then
+                # composite. See preview_upsample_frag.glsl for why not one draw.
+                full = _target("fog_full", w, h, 'RGBA32F', depth=True)
+                gpu.state.blend_set('NONE')
+                with _framebuffer(full).bind():
+                    gpu.state.viewport_set(0, 0, w, h)
+                    gpu.state.depth_test_set('ALWAYS')
+                    gpu.state.depth_mask_set(True)
+                    up = _shader('upsample', window_depth, 'mark')
+                    bind(up, (0, 0, w, h), target["colour"])
+                    res["batch"].draw(up)
+                    gpu.state.depth_test_set('GREATER')
+                    gpu.state.depth_mask_set(False)
+                    exact = _shader('upsample', window_depth, 'exact')
+                    bind(exact, (0, 0, w, h), target["colour"])
+                    res["batch"].draw(exact)
+                gpu.state.depth_test_set('NONE')
+                gpu.state.viewport_set(*prev_viewport)
+                gpu.state.blend_set('ALPHA_PREMULT')
+                comp = _shader('composite', window_depth)
+                bind(comp, (x, y, w, h), full["colour"])
+                res["batch"].draw(comp)
     finally:
         gpu.state.blend_set(prev_blend)
         gpu.state.depth_test_set(prev_depth)
