@@ -14,6 +14,15 @@ const std::vector<ModelInfo>& model_registry() {
     return registry;
 }
 
+const std::vector<ModelInfo>& kernel_models_pending_bake() {
+    static const std::vector<ModelInfo> pending{
+        {ModelId::Biri06, "biri06", "Biri et al. 2006 airlight with the Gamma table of any phase function"},
+        {ModelId::Hoffman02, "hoffman02", "Hoffman & Preetham 2002 sun (directional light) fog, Rayleigh + Mie"},
+        {ModelId::Baseline, "baseline", "Constant-colour fog (Blender Mist / OpenGL fog), the bar to beat"},
+    };
+    return pending;
+}
+
 ModelId model_from_name(const std::string& name) {
     std::string valid;
     for (const ModelInfo& info : model_registry()) {

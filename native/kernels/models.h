@@ -12,6 +12,9 @@ enum class ModelId {
     Sun05Table,   // Sun 2005 airlight, F from the table (default, fast)
     Sun05Exact,   // Sun 2005 airlight, exact F (slower)
     Quadrature,   // adaptive quadrature of eq. 5 (reference, slow)
+    Biri06,       // Biri 2006 Gamma table, any phase function (biri06.h)
+    Hoffman02,    // Hoffman & Preetham 2002 sun fog (hoffman02.h)
+    Baseline,     // constant-colour fog, what Blender's Mist pass does (baseline_fog.h)
 };
 
 struct ModelInfo {
@@ -21,6 +24,9 @@ struct ModelInfo {
 };
 
 const std::vector<ModelInfo>& model_registry();
+// Kernels with tests and bindings that the bake does not dispatch yet (bake.cpp would
+// return 0 for them); they move into model_registry() when the bake handles them.
+const std::vector<ModelInfo>& kernel_models_pending_bake();
 // Throws std::invalid_argument listing the valid names if _name_ is unknown.
 ModelId model_from_name(const std::string& name);
 
