@@ -142,6 +142,71 @@ std::vector<glm::dvec2> filter_pattern(int n, double w) {
     return points;
 }
 
+#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__)
+// AVX-512 / AVX2 / baseline versions of the per-row loops, picked at load time.
+#define AIRLIGHT_ROW_CLONES __attribute__((target_clones("arch=x86-64-v4", "arch=x86-64-v3", "default")))
+#else
+#define AIRLIGHT_ROW_CLONES
+#endif
+
+// Unit directions of the _n_ rays D = Dj + (i + 0.5) Dx (float, for Embree), their
+// cos to the view axis _forward_ and the clip range [near, far] along each ray, as
+// depths over cos: t = depth |D| / (D . forward). One square root and two divisions.
+AIRLIGHT_ROW_CLONES
+void row_directions_cast(const Vec3& Dj, const Vec3& Dx, const Vec3& forward, float near, float far, int n,
+                         float* __restrict fx, float* __restrict fy, float* __restrict fz,
+                         float* __restrict cos_view, float* __restrict t_near, float* __restrict t_far) {
+    for (int i = 0; i < n; ++i) {
+        const double px = i + 0.5;
+        const double X = Dj.x + px * Dx.x, Y = Dj.y + px * Dx.y, Z = Dj.z + px * Dx.z;
+        const double len = std::sqrt(X * X + Y * Y + Z * Z), inv = 1.0 / len;
+        fx[i] = float(X * inv);
+        fy[i] = float(Y * inv);
+        fz[i] = float(Z * inv);
+        const float depth_per_t = float(X * forward.x + Y * forward.y + Z * forward.z);  // |D| cos_view
+        const float t_per_depth = float(len) / depth_per_t;
+        cos_view[i] = depth_per_t * float(inv);
+        t_near[i] = near * t_per_depth;  // 0 without a near plane
+        t_far[i] = far * t_per_depth;    // inf without a far plane
+    }
+}
+
+// The same rays' unit directions in double (the fog's cos(gamma) needs it) and t_near.
+AIRLIGHT_ROW_CLONES
+void row_directions_fog(const Vec3& Dj, const Vec3& Dx, const Vec3& forward, float near, int n,
+                        double* __restrict dx, double* __restrict dy, double* __restrict dz,
+                        float* __restrict t_near) {
+    for (int i = 0; i < n; ++i) {
+        const double px = i + 0.5;
+        const double X = Dj.x + px * Dx.x, Y = Dj.y + px * Dx.y, Z = Dj.z + px * Dx.z;
+        const double len = std::sqrt(X * X + Y * Y + Z * Z), inv = 1.0 / len;
+        dx[i] = X * inv;
+        dy[i] = Y * inv;
+        dz[i] = Z * inv;
+        t_near[i] = near * (float(len) / float(X * forward.x + Y * forward.y + Z * forward.z));
+    }
+}
+
+// Kink bits (see bake(): bit l set if the key's second difference along line l exceeds
+// 1 % or the line mixes hits and misses) of pixels 1 .. n - 2 of the row _mid_ between
+// rows _up_ and _down_. Keys are >= 0, 0 where the ray missed: with mn, mx the least and
+// greatest key on a line, "mixes" is mn = 0 < mx, and all-miss lines (mx = 0) pass the
+// 1 % test exactly. NaN counts as a kink.
+AIRLIGHT_ROW_CLONES
+void kink_interior(const float* __restrict up, const float* __restrict mid, const float* __restrict down, int n,
+                   unsigned char* __restrict out) {
+    auto kink = [](float kp, float ka, float kb) -> int {
+        const float mn = std::min(kp, std::min(ka, kb)), mx = std::max(kp, std::max(ka, kb));
+        const float d = std::abs(ka + kb - 2.0f * kp);
+        return int(!(d <= 0.01f * mn)) | (int(mn == 0.0f) & int(mx > 0.0f));
+    };
+    for (int i = 1; i < n - 1; ++i) {
+        const float kp = mid[i];
+        out[i] = (unsigned char)(kink(kp, mid[i - 1], mid[i + 1]) | kink(kp, up[i], down[i]) << 1 |
+                                 kink(kp, up[i - 1], down[i + 1]) << 2 | kink(kp, down[i - 1], up[i + 1]) << 3);
+    }
+}
+
 // Per-light data, precomputed once per bake.
 struct LightData {
     Vec3 s;          // position
@@ -422,8 +487,13 @@ BakeResult bake(const SceneDescription& scene, const BakeSettings& settings, con
     const bool affine = rays.affine_perspective();
     Vec3 D0(0.0), Dx(0.0), Dy(0.0);
     if (affine) rays.affine_direction(D0, Dx, Dy);
-    std::vector<float> key;
-    allocate_image(key, n_pixels);
+    // Scratch image, kept per calling thread between bakes (fresh pages cost ~10 us per
+    // 4 KiB page fault here); every pixel is written by pass 1 before it is read.
+    // (The lambdas below run on worker threads: they use this reference, not the name of
+    // the thread_local, which would be their own thread's copy.)
+    thread_local std::vector<float> key_cache;
+    if (key_cache.size() != n_pixels) allocate_image(key_cache, n_pixels);
+    std::vector<float>& key = key_cache;
 
     // Unit directions of a row's centre rays (double for the fog's cos(gamma), float for
     // Embree), cos of the angle to the view axis and the clip range along each ray.
@@ -436,24 +506,17 @@ BakeResult bake(const SceneDescription& scene, const BakeSettings& settings, con
         }
     };
     const double clip_start = rays.clip_start(), clip_end = rays.clip_end();
-    auto row_rays = [&](int j, RowRays& r) {
+    // Pass 1 wants float directions with the clip range and cos_view, pass 2 double
+    // directions (and t_near): _cast_ selects. One square root and two divisions per
+    // ray: t = depth / cos_view = depth |D| / (D . forward).
+    auto row_rays = [&](int j, RowRays& r, bool for_cast) {
         const Vec3 Dj = D0 + (j + 0.5) * Dy;
-        for (int i = 0; i < W; ++i) {
-            const double px = i + 0.5;
-            const double X = Dj.x + px * Dx.x, Y = Dj.y + px * Dx.y, Z = Dj.z + px * Dx.z;
-            const double inv = 1.0 / std::sqrt(X * X + Y * Y + Z * Z);
-            const double x = X * inv, y = Y * inv, z = Z * inv;
-            r.dx[i] = x;
-            r.dy[i] = y;
-            r.dz[i] = z;
-            r.fx[i] = float(x);
-            r.fy[i] = float(y);
-            r.fz[i] = float(z);
-            const double cos_view = x * forward.x + y * forward.y + z * forward.z;
-            r.cos_view[i] = float(cos_view);
-            r.t_near[i] = float(clip_start / cos_view);  // 0 without a near plane
-            r.t_far[i] = float(clip_end / cos_view);     // inf without a far plane
-        }
+        if (for_cast)
+            row_directions_cast(Dj, Dx, forward, float(clip_start), float(clip_end), W, r.fx.data(), r.fy.data(),
+                                r.fz.data(), r.cos_view.data(), r.t_near.data(), r.t_far.data());
+        else
+            row_directions_fog(Dj, Dx, forward, float(clip_start), W, r.dx.data(), r.dy.data(), r.dz.data(),
+                               r.t_near.data());
     };
     // First hits of _n_ camera rays inside the clip range, as Cycles sees them: nearer
     // surfaces clipped away, surfaces beyond t_far hidden (inf). _depth_ is measured from
@@ -513,7 +576,7 @@ BakeResult bake(const SceneDescription& scene, const BakeSettings& settings, con
                 float* depth = &result.depth[size_t(j) * W];
                 float* k = &key[size_t(j) * W];
                 if (affine) {
-                    row_rays(j, r);
+                    row_rays(j, r, true);
                     caster.first_hits(eye, r.fx.data(), r.fy.data(), r.fz.data(), r.t_near.data(), r.t_far.data(), W,
                                       depth);
                     for (int i = 0; i < W; ++i) k[i] = 1.0f / (depth[i] * r.cos_view[i]);  // inf -> 0
@@ -568,22 +631,9 @@ BakeResult bake(const SceneDescription& scene, const BakeSettings& settings, con
             for (int i = 0; i < W; ++i) out[i] = (unsigned char)kinks(i, j);
             return;
         }
-        const float* __restrict up = &key[size_t(j - 1) * W];
-        const float* __restrict mid = &key[size_t(j) * W];
-        const float* __restrict down = &key[size_t(j + 1) * W];
-        auto kink = [](float kp, float ka, float kb) -> unsigned {
-            const bool zp = kp == 0.0f, za = ka == 0.0f, zb = kb == 0.0f;
-            const float tol = 0.01f * std::min(std::abs(kp), std::min(std::abs(ka), std::abs(kb)));
-            const bool bad = !(std::abs(ka + kb - 2.0f * kp) <= tol);  // NaN counts as a kink
-            return (zp | za | zb) ? unsigned(!(zp & za & zb)) : unsigned(bad);
-        };
         out[0] = (unsigned char)kinks(0, j);
         out[W - 1] = (unsigned char)kinks(W - 1, j);
-        for (int i = 1; i < W - 1; ++i) {
-            const float kp = mid[i];
-            out[i] = (unsigned char)(kink(kp, mid[i - 1], mid[i + 1]) | kink(kp, up[i], down[i]) << 1 |
-                                     kink(kp, up[i - 1], down[i + 1]) << 2 | kink(kp, down[i - 1], up[i + 1]) << 3);
-        }
+        kink_interior(&key[size_t(j - 1) * W], &key[size_t(j) * W], &key[size_t(j + 1) * W], W, out);
     };
     // Edge flags of rows [j0, j1) from the kinks of rows [j0 - 1, j1 + 1), kept in a
     // buffer with a zero border (one row above and below, one column each side).
@@ -677,7 +727,7 @@ BakeResult bake(const SceneDescription& scene, const BakeSettings& settings, con
                 float* A = &result.airlight[3 * p0];
                 float* T = &result.transmittance[3 * p0];
                 if (fast) {
-                    row_rays(j, r);
+                    row_rays(j, r, false);
                     fog.eval_soa(r.dx.data(), r.dy.data(), r.dz.data(), depth, near_clip ? r.t_near.data() : nullptr,
                                  W, row_Tr.data(), A);
                 } else {

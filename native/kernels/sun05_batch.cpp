@@ -146,7 +146,7 @@ inline LaneGeometry lane_geometry(float Dsv, const BlockAngles& ang, int k) {
 // scalar path would not use it either) or the lane is degenerate; 2 inside the margin
 // band around the scalar test (only the scalar path gives the scalar path's result).
 AIRLIGHT_SIMD_CLONES
-void table_block(const float* __restrict table, int nu, int nT, float sigma_t, float Dsv_f,
+int table_block(const float* __restrict table, int nu, int nT, float sigma_t, float Dsv_f,
                  const BlockAngles& __restrict ang, int n, float* __restrict out, int* __restrict fallback) {
     const float prefactor = sigma_t / float(2.0 * sun05::kPi);
     const float kCancel = float(sun05::kCancel) * kCancelMargin;
@@ -156,6 +156,7 @@ void table_block(const float* __restrict table, int nu, int nT, float sigma_t, f
     // GCC 12 does not vectorise gathers next to stores through a pointer it cannot
     // prove distinct (even __restrict): results go to a local array first.
     float result[kBlock];
+    int n_flagged = 0;
     for (int k = 0; k < n; ++k) {
         const float V = ang.V[k];
         const LaneGeometry g = lane_geometry(Dsv_f, ang, k);
@@ -175,8 +176,10 @@ void table_block(const float* __restrict table, int nu, int nT, float sigma_t, f
         const bool ambiguous = !ok && G * kCancelMargin > kCancel * F1;
         result[k] = ok ? La : 0.0f;
         fallback[k] = ok ? 0 : ambiguous ? 2 : 1;
+        n_flagged += ok ? 0 : 1;
     }
     for (int k = 0; k < n; ++k) out[k] = result[k];
+    return n_flagged;
 }
 
 // Pass 2 on the lanes _idx_ that pass 1 flagged 1: short view segments (the common reason
@@ -245,7 +248,8 @@ int sun05_airlight_table_batch(const float* table, int nu, int nT, double sigma_
         if (float_ok) {
             if (near) block_angles_near(Dsv, c, V, near, m, angles);
             else block_angles(Dsv, c, V, m, angles);
-            table_block(table, nu, nT, float(sigma_t), Dsv_f, angles, m, o, fallback);
+            // Most blocks have no flagged lane: skip passes 2 and 3 then.
+            if (table_block(table, nu, nT, float(sigma_t), Dsv_f, angles, m, o, fallback) == 0) continue;
             for (int k = 0; k < m; ++k)
                 if (fallback[k] == 1) idx[n_left++] = k;
             short_block(float(sigma_t), Dsv_f, angles, idx, n_left, value, done);
