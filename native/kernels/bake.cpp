@@ -149,25 +149,23 @@ std::vector<glm::dvec2> filter_pattern(int n, double w) {
 #define AIRLIGHT_ROW_CLONES
 #endif
 
-// Unit directions of the _n_ rays D = Dj + (i + 0.5) Dx (float, for Embree), their
-// cos to the view axis _forward_ and the clip range [near, far] along each ray, as
-// depths over cos: t = depth |D| / (D . forward). One square root and two divisions.
+// Directions of the _n_ rays D = Dj + (i + 0.5) Dx for Embree, scaled to unit length
+// along the view axis _forward_ (D / (D . forward)): the ray parameter t is then the
+// view-axis depth, so the clip range is [clip_start, clip_end] for every ray and the
+// edge key 1 / depth is 1 / t; _len_ = |D / (D . forward)| = 1 / cos_view converts t
+// to distance. Float, no square root in double, one division.
 AIRLIGHT_ROW_CLONES
-void row_directions_cast(const Vec3& Dj, const Vec3& Dx, const Vec3& forward, float near, float far, int n,
-                         float* __restrict fx, float* __restrict fy, float* __restrict fz,
-                         float* __restrict cos_view, float* __restrict t_near, float* __restrict t_far) {
+void row_directions_cast(const Vec3& Dj, const Vec3& Dx, const Vec3& forward, int n, float* __restrict fx,
+                         float* __restrict fy, float* __restrict fz, float* __restrict len) {
     for (int i = 0; i < n; ++i) {
         const double px = i + 0.5;
         const double X = Dj.x + px * Dx.x, Y = Dj.y + px * Dx.y, Z = Dj.z + px * Dx.z;
-        const double len = std::sqrt(X * X + Y * Y + Z * Z), inv = 1.0 / len;
-        fx[i] = float(X * inv);
-        fy[i] = float(Y * inv);
-        fz[i] = float(Z * inv);
-        const float depth_per_t = float(X * forward.x + Y * forward.y + Z * forward.z);  // |D| cos_view
-        const float t_per_depth = float(len) / depth_per_t;
-        cos_view[i] = depth_per_t * float(inv);
-        t_near[i] = near * t_per_depth;  // 0 without a near plane
-        t_far[i] = far * t_per_depth;    // inf without a far plane
+        const float rc = 1.0f / float(X * forward.x + Y * forward.y + Z * forward.z);
+        const float x = float(X) * rc, y = float(Y) * rc, z = float(Z) * rc;
+        fx[i] = x;
+        fy[i] = y;
+        fz[i] = z;
+        len[i] = std::sqrt(x * x + y * y + z * z);
     }
 }
 
@@ -204,6 +202,24 @@ void kink_interior(const float* __restrict up, const float* __restrict mid, cons
         const float kp = mid[i];
         out[i] = (unsigned char)(kink(kp, mid[i - 1], mid[i + 1]) | kink(kp, up[i], down[i]) << 1 |
                                  kink(kp, up[i - 1], down[i + 1]) << 2 | kink(kp, down[i - 1], up[i + 1]) << 3);
+    }
+}
+
+// cos(gamma) of unit directions (dx, dy, dz)[k] with the unit vector _sv_ to a light.
+AIRLIGHT_ROW_CLONES
+void cos_to_light(const double* __restrict dx, const double* __restrict dy, const double* __restrict dz,
+                  const Vec3& sv, int n, double* __restrict cos_gamma) {
+    for (int k = 0; k < n; ++k) cos_gamma[k] = dx[k] * sv.x + dy[k] * sv.y + dz[k] * sv.z;
+}
+
+// sum_c[k] += w_c value[k] for the three colour channels.
+AIRLIGHT_ROW_CLONES
+void accumulate_rgb(const float* __restrict value, float wr, float wg, float wb, int n, float* __restrict r,
+                    float* __restrict g, float* __restrict b) {
+    for (int k = 0; k < n; ++k) {
+        r[k] += wr * value[k];
+        g[k] += wg * value[k];
+        b[k] += wb * value[k];
     }
 }
 
@@ -273,15 +289,11 @@ class FogModel {
             for (const LightData& light : lights_) {
                 const Vec3 sv = (light.s - origin_) * (light.Dsv > 0.0 ? 1.0 / light.Dsv : 0.0);
                 const bool at_light = !(light.Dsv > 0.0);
-                for (int k = 0; k < m; ++k)
-                    cos_gamma[k] = at_light ? 1.0 : dx[k0 + k] * sv.x + dy[k0 + k] * sv.y + dz[k0 + k] * sv.z;
+                if (at_light) std::fill(cos_gamma, cos_gamma + m, 1.0);
+                else cos_to_light(dx + k0, dy + k0, dz + k0, sv, m, cos_gamma);
                 sun05_airlight_table_batch(data, nu, nT, sigma_t_, light.Dsv, cos_gamma, Dvp + k0, m, value, near);
-                const float wr = float(light.weight.x), wg = float(light.weight.y), wb = float(light.weight.z);
-                for (int k = 0; k < m; ++k) {
-                    sum_r[k] += wr * value[k];
-                    sum_g[k] += wg * value[k];
-                    sum_b[k] += wb * value[k];
-                }
+                accumulate_rgb(value, float(light.weight.x), float(light.weight.y), float(light.weight.z), m, sum_r,
+                               sum_g, sum_b);
             }
             float* out = rgb + 3 * size_t(k0);
             for (int k = 0; k < m; ++k) {
@@ -499,21 +511,20 @@ BakeResult bake(const SceneDescription& scene, const BakeSettings& settings, con
     // Embree), cos of the angle to the view axis and the clip range along each ray.
     struct RowRays {
         std::vector<double> dx, dy, dz;
-        std::vector<float> fx, fy, fz, cos_view, t_near, t_far;
+        std::vector<float> fx, fy, fz, t_near, t_far;
+        std::vector<float> len;  // pass 1: |D| over its view-axis component
         void resize(size_t n) {
             for (auto* v : {&dx, &dy, &dz}) v->resize(n);
-            for (auto* v : {&fx, &fy, &fz, &cos_view, &t_near, &t_far}) v->resize(n);
+            for (auto* v : {&fx, &fy, &fz, &len, &t_near, &t_far}) v->resize(n);
         }
     };
     const double clip_start = rays.clip_start(), clip_end = rays.clip_end();
-    // Pass 1 wants float directions with the clip range and cos_view, pass 2 double
-    // directions (and t_near): _cast_ selects. One square root and two divisions per
-    // ray: t = depth / cos_view = depth |D| / (D . forward).
+    // Pass 1 wants float directions scaled to unit view-axis depth (row_directions_cast),
+    // pass 2 unit directions in double and t_near (row_directions_fog): _cast_ selects.
     auto row_rays = [&](int j, RowRays& r, bool for_cast) {
         const Vec3 Dj = D0 + (j + 0.5) * Dy;
         if (for_cast)
-            row_directions_cast(Dj, Dx, forward, float(clip_start), float(clip_end), W, r.fx.data(), r.fy.data(),
-                                r.fz.data(), r.cos_view.data(), r.t_near.data(), r.t_far.data());
+            row_directions_cast(Dj, Dx, forward, W, r.fx.data(), r.fy.data(), r.fz.data(), r.len.data());
         else
             row_directions_fog(Dj, Dx, forward, float(clip_start), W, r.dx.data(), r.dy.data(), r.dz.data(),
                                r.t_near.data());
@@ -570,16 +581,26 @@ BakeResult bake(const SceneDescription& scene, const BakeSettings& settings, con
             CastScratch scratch;
             std::vector<Ray> row;
             std::vector<float> t0(W);
-            if (affine) r.resize(W);
-            else row.resize(W);
+            std::vector<float> near_depth, far_depth;
+            if (affine) {
+                r.resize(W);
+                near_depth.assign(W, float(clip_start));
+                far_depth.assign(W, float(clip_end));
+            } else {
+                row.resize(W);
+            }
             for (int j = band * kBandRows; j < std::min(H, (band + 1) * kBandRows); ++j) {
                 float* depth = &result.depth[size_t(j) * W];
                 float* k = &key[size_t(j) * W];
                 if (affine) {
+                    // t: view-axis depth (row_directions_cast), len: distance per unit t.
                     row_rays(j, r, true);
-                    caster.first_hits(eye, r.fx.data(), r.fy.data(), r.fz.data(), r.t_near.data(), r.t_far.data(), W,
-                                      depth);
-                    for (int i = 0; i < W; ++i) k[i] = 1.0f / (depth[i] * r.cos_view[i]);  // inf -> 0
+                    caster.first_hits(eye, r.fx.data(), r.fy.data(), r.fz.data(), near_depth.data(), far_depth.data(),
+                                      W, depth);
+                    for (int i = 0; i < W; ++i) {
+                        k[i] = 1.0f / depth[i];  // inf -> 0
+                        depth[i] *= r.len[i];
+                    }
                     continue;
                 }
                 for (int i = 0; i < W; ++i) row[i] = rays(i + 0.5, j + 0.5);
@@ -697,10 +718,11 @@ BakeResult bake(const SceneDescription& scene, const BakeSettings& settings, con
         n_bands, n_threads,
         [&](int band) {
             const size_t n_sub = pattern.size();
-            std::vector<Ray> sub(n_sub);
-            std::vector<float> sub_t(n_sub), sub_t0(n_sub), t0(W);
-            std::vector<double> sub_Tr(n_sub);
-            std::vector<RGB> sub_La(n_sub);
+            std::vector<Ray> sub;
+            std::vector<float> sub_t, sub_t0, t0(W);
+            std::vector<double> sub_Tr;
+            std::vector<RGB> sub_La;
+            std::vector<int> edge_px;
             CastScratch cast_scratch;
             FogScratch fog_scratch;
             std::vector<unsigned char> kink, edge;
@@ -746,14 +768,27 @@ BakeResult bake(const SceneDescription& scene, const BakeSettings& settings, con
                 for (int i = 0; i < W; ++i) T[3 * i] = T[3 * i + 1] = T[3 * i + 2] = row_Tr[i];
                 band_samples += W;
                 if (!supersample) continue;
+                // The sub-pixel rays of all the row's edge pixels at once: cast as
+                // packets and evaluated in full SIMD chunks, then averaged per pixel.
                 const unsigned char* edge_row = &edge[size_t(j - j0) * W];
-                for (int i = 0; i < W; ++i) {
-                    if (!edge_row[i]) continue;
-                    // Cast the sub-pixel rays as packets, then average their fog.
-                    for (size_t k = 0; k < n_sub; ++k) sub[k] = rays(i + 0.5 + pattern[k].x, j + 0.5 + pattern[k].y);
-                    cast(sub.data(), int(n_sub), sub_t.data(), sub_t0.data(), cast_scratch);
-                    fog_eval(sub.data(), sub_t.data(), sub_t0.data(), int(n_sub), sub_Tr.data(), sub_La.data(),
-                             fog_scratch);
+                edge_px.clear();
+                for (int i = 0; i < W; ++i)
+                    if (edge_row[i]) edge_px.push_back(i);
+                if (edge_px.empty()) continue;
+                const size_t m = edge_px.size() * n_sub;
+                sub.resize(m);
+                sub_t.resize(m);
+                sub_t0.resize(m);
+                sub_Tr.resize(m);
+                sub_La.resize(m);
+                for (size_t e = 0; e < edge_px.size(); ++e)
+                    for (size_t k = 0; k < n_sub; ++k)
+                        sub[e * n_sub + k] = rays(edge_px[e] + 0.5 + pattern[k].x, j + 0.5 + pattern[k].y);
+                cast(sub.data(), int(m), sub_t.data(), sub_t0.data(), cast_scratch);
+                fog_eval(sub.data(), sub_t.data(), sub_t0.data(), int(m), sub_Tr.data(), sub_La.data(), fog_scratch);
+                for (size_t e = 0; e < edge_px.size(); ++e) {
+                    const int i = edge_px[e];
+                    const size_t s0 = e * n_sub;
                     // Airlight: the filtered mean over all samples. Transmittance: the
                     // mean over the samples that hit a surface. The composite is
                     // render * T + A, and at a silhouette the render mixes surface
@@ -772,7 +807,7 @@ BakeResult bake(const SceneDescription& scene, const BakeSettings& settings, con
                     double Tr_hits = 0.0, Tr_all = 0.0;
                     int hits = 0;
                     RGB La(0.0);
-                    for (size_t k = 0; k < n_sub; ++k) {
+                    for (size_t k = s0; k < s0 + n_sub; ++k) {
                         Tr_all += sub_Tr[k];
                         La += sub_La[k];
                         if (!std::isinf(sub_t[k])) Tr_hits += sub_Tr[k], ++hits;
