@@ -157,11 +157,15 @@ std::vector<glm::dvec2> filter_pattern(int n, double w) {
 AIRLIGHT_ROW_CLONES
 void row_directions_cast(const Vec3& Dj, const Vec3& Dx, const Vec3& forward, int n, float* __restrict fx,
                          float* __restrict fy, float* __restrict fz, float* __restrict len) {
+    // All float (Embree's precision; GCC vectorises loops of one element width best).
+    const float jx = float(Dj.x), jy = float(Dj.y), jz = float(Dj.z);
+    const float ix = float(Dx.x), iy = float(Dx.y), iz = float(Dx.z);
+    const float vx = float(forward.x), vy = float(forward.y), vz = float(forward.z);
     for (int i = 0; i < n; ++i) {
-        const double px = i + 0.5;
-        const double X = Dj.x + px * Dx.x, Y = Dj.y + px * Dx.y, Z = Dj.z + px * Dx.z;
-        const float rc = 1.0f / float(X * forward.x + Y * forward.y + Z * forward.z);
-        const float x = float(X) * rc, y = float(Y) * rc, z = float(Z) * rc;
+        const float px = float(i) + 0.5f;
+        const float X = jx + px * ix, Y = jy + px * iy, Z = jz + px * iz;
+        const float rc = 1.0f / (X * vx + Y * vy + Z * vz);
+        const float x = X * rc, y = Y * rc, z = Z * rc;
         fx[i] = x;
         fy[i] = y;
         fz[i] = z;
@@ -169,7 +173,8 @@ void row_directions_cast(const Vec3& Dj, const Vec3& Dx, const Vec3& forward, in
     }
 }
 
-// The same rays' unit directions in double (the fog's cos(gamma) needs it) and t_near.
+// The same rays' unit directions in double (the fog's cos(gamma) near a light needs it)
+// and, in float, the near-plane distance t_near = near |D| / (D . forward).
 AIRLIGHT_ROW_CLONES
 void row_directions_fog(const Vec3& Dj, const Vec3& Dx, const Vec3& forward, float near, int n,
                         double* __restrict dx, double* __restrict dy, double* __restrict dz,
@@ -177,11 +182,22 @@ void row_directions_fog(const Vec3& Dj, const Vec3& Dx, const Vec3& forward, flo
     for (int i = 0; i < n; ++i) {
         const double px = i + 0.5;
         const double X = Dj.x + px * Dx.x, Y = Dj.y + px * Dx.y, Z = Dj.z + px * Dx.z;
-        const double len = std::sqrt(X * X + Y * Y + Z * Z), inv = 1.0 / len;
+        const double inv = 1.0 / std::sqrt(X * X + Y * Y + Z * Z);
         dx[i] = X * inv;
         dy[i] = Y * inv;
         dz[i] = Z * inv;
-        t_near[i] = near * (float(len) / float(X * forward.x + Y * forward.y + Z * forward.z));
+    }
+    if (near == 0.0f) {
+        for (int i = 0; i < n; ++i) t_near[i] = 0.0f;
+        return;
+    }
+    const float jx = float(Dj.x), jy = float(Dj.y), jz = float(Dj.z);
+    const float ix = float(Dx.x), iy = float(Dx.y), iz = float(Dx.z);
+    const float vx = float(forward.x), vy = float(forward.y), vz = float(forward.z);
+    for (int i = 0; i < n; ++i) {
+        const float px = float(i) + 0.5f;
+        const float X = jx + px * ix, Y = jy + px * iy, Z = jz + px * iz;
+        t_near[i] = near * (std::sqrt(X * X + Y * Y + Z * Z) / (X * vx + Y * vy + Z * vz));
     }
 }
 
