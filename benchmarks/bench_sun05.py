@@ -9,10 +9,14 @@ matrix_world and calc_matrix_camera). `_native` is imported from addon/airlight 
 `_native` CMake target first) or from $AIRLIGHT_NATIVE_DIR. Prints medians over --runs runs of:
   - the airlight kernel cost in ns per pixel*light (bake stats) and per evaluation of the
     vectorised `_native.sun05_airlight` on random inputs;
-  - bake wall time at 1920x1080 with 1 and 4 lights, split into raycast / airlight phases;
+  - bake wall time at 1920x1080 with 1 and 4 lights, split into raycast / airlight phases
+    (the rest of the wall time, "overhead", is validation, the BVH build, output allocation
+    and the numpy wrapping), from the eye (clip_start 0) and from Blender's default near
+    plane (clip_start 0.1 m, clip_end 1000 m, as the add-on passes the camera's range);
   - models "sun05_exact" and "quadrature" on row bands spread over the image (timed on the
     bands, scaled to the full image: the output says so), their speed ratio vs the table
     model, and the table model's error against quadrature over those rows;
+    (also from the near plane, against quadrature from the near plane);
   - PASS/FAIL lines against the targets (4 lights <= 50 ms, p99 error <= 0.5 %).
 """
 
