@@ -1,0 +1,259 @@
+"""Fog objects: inhomogeneous fog as a sum of isotropic Gaussians (Zhou et al. 2007, eq. 6)
+
+    beta(x) = sum_i c_i exp(-a_i^2 |x - b_i|^2)
+
+stored as Blender data. A fog object is a mesh object whose vertices are the Gaussian
+centres b_i (object space) with two float point-domain attributes, "airlight_scale"
+(a_i, 1/m) and "airlight_amplitude" (c_i, 1/m), and `obj.airlight_fog.is_fog = True`.
+A mesh with only vertices renders nothing in Cycles or EEVEE; the object is drawn as
+its bounding box in the viewport. Being plain mesh data, fog objects save with the
+.blend, undo, duplicate (Shift+D copies the Gaussians, Alt+D shares them), link and
+append like any mesh.
+
+All access is in bulk (`foreach_get` / `foreach_set` with numpy): `read`, `write`,
+`append`. `gather(depsgraph)` hands the bake every render-visible fog object's Gaussians
+in world space.
+"""
+
+import bpy
+import numpy as np
+from bpy.props import BoolProperty, FloatProperty
+
+SCALE_ATTR = "airlight_scale"
+AMPLITUDE_ATTR = "airlight_amplitude"
+
+
+class FogObjectError(ValueError):
+    """Invalid fog object data; `object_name` names the offending object."""
+
+    def __init__(self, object_name, message):
+        super().__init__(f"Fog object '{object_name}': {message}")
+        self.object_name = object_name
+
+
+class AirlightFogObjectSettings(bpy.types.PropertyGroup):
+    is_fog: BoolProperty(
+        name="Fog Object",
+        description="This mesh's vertices are centres of Gaussian fog blobs (with the "
+                    "airlight_scale and airlight_amplitude attributes); the Airlight bake "
+                    "adds them to the fog",
+        default=False,
+    )
+
+
+def is_fog_object(obj):
+    return (obj is not None and obj.type == 'MESH'
+            and getattr(getattr(obj, "airlight_fog", None), "is_fog", False))
+
+
+def _point_attribute(mesh, name):
+    attr = mesh.attributes.get(name)
+    if attr is not None and (attr.data_type != 'FLOAT' or attr.domain != 'POINT'):
+        mesh.attributes.remove(attr)
+        attr = None
+    if attr is None:
+        attr = mesh.attributes.new(name, 'FLOAT', 'POINT')
+    return attr
+
+
+def read_mesh(mesh, object_name=None):
+    """(centres (n,3) float64 object space, scales (n,), amplitudes (n,)) of a fog mesh.
+    A missing attribute raises FogObjectError."""
+    n = len(mesh.vertices)
+    co = np.empty(3 * n, dtype=np.float32)
+    mesh.vertices.foreach_get("co", co)
+    out = [co.reshape(n, 3).astype(np.float64)]
+    for name in (SCALE_ATTR, AMPLITUDE_ATTR):
+        attr = mesh.attributes.get(name)
+        if attr is None or attr.domain != 'POINT' or attr.data_type != 'FLOAT':
+            raise FogObjectError(object_name or mesh.name,
+                                 f"missing the float point attribute '{name}'")
+        values = np.empty(n, dtype=np.float32)
+        attr.data.foreach_get("value", values)
+        out.append(values.astype(np.float64))
+    return tuple(out)
+
+
+def read(obj):
+    """Object-space Gaussians of a fog object (see read_mesh)."""
+    return read_mesh(obj.data, obj.name)
+
+
+def write_mesh(mesh, centres, scales, amplitudes):
+    """Replaces the mesh's geometry by the Gaussians (object space), in bulk."""
+    centres = np.ascontiguousarray(centres, dtype=np.float32).reshape(-1, 3)
+    n = len(centres)
+    scales = np.ascontiguousarray(np.broadcast_to(scales, (n,)), dtype=np.float32)
+    amplitudes = np.ascontiguousarray(np.broadcast_to(amplitudes, (n,)), dtype=np.float32)
+    mesh.clear_geometry()
+    if n:
+        mesh.vertices.add(n)
+        mesh.vertices.foreach_set("co", centres.ravel())
+    _point_attribute(mesh, SCALE_ATTR).data.foreach_set("value", scales)
+    _point_attribute(mesh, AMPLITUDE_ATTR).data.foreach_set("value", amplitudes)
+    mesh.update()
+
+
+def write(obj, centres, scales, amplitudes):
+    write_mesh(obj.data, centres, scales, amplitudes)
+
+
+def append(obj, centres, scales, amplitudes):
+    """Adds Gaussians (object space) to a fog object, in bulk."""
+    centres = np.asarray(centres, dtype=np.float64).reshape(-1, 3)
+    n = len(centres)
+    if n == 0:
+        return
+    old_c, old_s, old_a = read(obj)
+    write(obj, np.concatenate([old_c, centres]),
+          np.concatenate([old_s, np.broadcast_to(scales, (n,))]),
+          np.concatenate([old_a, np.broadcast_to(amplitudes, (n,))]))
+
+
+def new_fog_object(name, collection, centres=(), scales=1.0, amplitudes=0.1, location=(0, 0, 0)):
+    """Creates a fog object holding the given object-space Gaussians, linked to _collection_."""
+    mesh = bpy.data.meshes.new(name)
+    obj = bpy.data.objects.new(name, mesh)
+    obj.airlight_fog.is_fog = True
+    obj.location = location
+    # Vertices alone are not drawn in object mode: show the extent as a box instead.
+    obj.display_type = 'WIRE'
+    obj.show_bounds = True
+    obj.display_bounds_type = 'BOX'
+    write_mesh(mesh, np.asarray(centres, dtype=np.float64).reshape(-1, 3), scales, amplitudes)
+    collection.objects.link(obj)
+    return obj
+
+
+def validate(name, centres, scales, amplitudes):
+    """Raises FogObjectError for data the kernels cannot use."""
+    if len(centres) == 0:
+        raise FogObjectError(name, "has no Gaussians (an empty fog object); paint some or delete it")
+    if not np.isfinite(centres).all():
+        raise FogObjectError(name, f"{int((~np.isfinite(centres).all(1)).sum())} Gaussian "
+                                   "centre(s) are NaN or infinite")
+    if not np.isfinite(scales).all() or (scales <= 0).any():
+        bad = int((~(np.isfinite(scales) & (scales > 0))).sum())
+        raise FogObjectError(name, f"{bad} Gaussian(s) have a zero, negative or non-finite "
+                                   f"'{SCALE_ATTR}' (a must be > 0, in 1/m)")
+    if not np.isfinite(amplitudes).all() or (amplitudes < 0).any():
+        bad = int((~(np.isfinite(amplitudes) & (amplitudes >= 0))).sum())
+        raise FogObjectError(name, f"{bad} Gaussian(s) have a negative or non-finite "
+                                   f"'{AMPLITUDE_ATTR}' (c must be >= 0, in 1/m)")
+
+
+def _hidden_collections(view_layer):
+    hidden = set()
+
+    def walk(layer_collection, parent_hidden):
+        is_hidden = (parent_hidden or layer_collection.exclude
+                     or layer_collection.collection.hide_render)
+        if is_hidden:
+            hidden.add(layer_collection.collection.name)
+        for child in layer_collection.children:
+            walk(child, is_hidden)
+
+    if view_layer is not None:
+        for child in view_layer.layer_collection.children:
+            walk(child, False)
+    return hidden
+
+
+def _render_visible(obj, hidden):
+    original = obj.original
+    if original.hide_render:
+        return False
+    collections = original.users_collection
+    return not collections or any(c.name not in hidden for c in collections)
+
+
+def uniform_scale(matrix3):
+    """The isotropic scale factor of a 3x3 linear map: |det|^(1/3)."""
+    return float(abs(np.linalg.det(np.asarray(matrix3, dtype=np.float64)))) ** (1.0 / 3.0)
+
+
+def gather(depsgraph):
+    """World-space Gaussians of all render-visible fog objects (and their instances):
+    (centres (n,3) float64, scales (n,) float64, amplitudes (n,) float64).
+
+    Centres are transformed by the instance's matrix_world. Gaussians stay isotropic:
+    the scale a is divided by s = |det M|^(1/3), the object's uniform scale factor, so an
+    object scaled by 2 has blobs twice as wide (a/2) with the same peak density c. Under
+    a NON-uniform scale the centres spread anisotropically but each blob stays a sphere
+    whose width follows the geometric mean of the three axis scales (s above), not an
+    ellipsoid. Invalid data raises FogObjectError (a ValueError) naming the object.
+    """
+    hidden = _hidden_collections(depsgraph.view_layer)
+    blocks = []
+    for instance in depsgraph.object_instances:
+        obj = instance.object
+        if not is_fog_object(obj):
+            continue
+        source = instance.parent if instance.is_instance else obj
+        if source is None or not _render_visible(source, hidden):
+            continue
+        name = obj.original.name
+        centres, scales, amplitudes = read_mesh(obj.data, name)
+        validate(name, centres, scales, amplitudes)
+        matrix = np.array(instance.matrix_world, dtype=np.float64)
+        s = uniform_scale(matrix[:3, :3])
+        if not s > 0.0 or not np.isfinite(s):
+            raise FogObjectError(name, "has a zero (degenerate) object scale")
+        blocks.append((centres @ matrix[:3, :3].T + matrix[:3, 3], scales / s, amplitudes))
+    if not blocks:
+        return np.zeros((0, 3)), np.zeros(0), np.zeros(0)
+    return tuple(np.concatenate([b[i] for b in blocks]) for i in range(3))
+
+
+class AIRLIGHT_OT_add_fog_object(bpy.types.Operator):
+    """Add a fog object: Gaussian fog blobs that the Airlight fog tools paint and erase"""
+    bl_idname = "airlight.add_fog_object"
+    bl_label = "Airlight Fog Object"
+    bl_options = {'REGISTER', 'UNDO'}
+
+    scale: FloatProperty(
+        name="Scale",
+        description="Scale a of the first Gaussian, in 1/m (its radius is about 1/a)",
+        default=1.0, min=1e-4, soft_min=0.01, soft_max=100.0,
+    )
+    amplitude: FloatProperty(
+        name="Amplitude",
+        description="Peak density c of the first Gaussian, in 1/m",
+        default=0.1, min=0.0, soft_max=10.0,
+    )
+
+    @classmethod
+    def poll(cls, context):
+        return context.scene is not None and context.mode == 'OBJECT'
+
+    def execute(self, context):
+        collection = context.collection or context.scene.collection
+        location = tuple(context.scene.cursor.location)
+        obj = new_fog_object("Fog", collection, centres=[(0.0, 0.0, 0.0)],
+                             scales=self.scale, amplitudes=self.amplitude, location=location)
+        for other in context.view_layer.objects:
+            other.select_set(False)
+        context.view_layer.objects.active = obj
+        obj.select_set(True)
+        return {'FINISHED'}
+
+
+def _menu_add(self, context):
+    self.layout.operator(AIRLIGHT_OT_add_fog_object.bl_idname, icon='OUTLINER_OB_VOLUME')
+
+
+classes = (AirlightFogObjectSettings, AIRLIGHT_OT_add_fog_object)
+
+
+def register():
+    for cls in classes:
+        bpy.utils.register_class(cls)
+    bpy.types.Object.airlight_fog = bpy.props.PointerProperty(type=AirlightFogObjectSettings)
+    bpy.types.VIEW3D_MT_add.append(_menu_add)
+
+
+def unregister():
+    bpy.types.VIEW3D_MT_add.remove(_menu_add)
+    del bpy.types.Object.airlight_fog
+    for cls in reversed(classes):
+        bpy.utils.unregister_class(cls)

@@ -1,0 +1,178 @@
+"""Fog objects (addon/airlight/fog_object.py): Gaussians stored as mesh vertices with
+point attributes; bulk I/O, persistence, duplication, gather() with transforms, errors.
+Expectations are computed independently from the inputs (transforms in numpy)."""
+import math
+import time
+
+import bpy
+import numpy as np
+import pytest
+from mathutils import Matrix
+
+from airlight import fog_object as fo
+
+
+def _cloud(n, seed=0):
+    rng = np.random.default_rng(seed)
+    return (rng.uniform(-5, 5, (n, 3)), rng.uniform(0.2, 3.0, n), rng.uniform(0.0, 1.0, n))
+
+
+@pytest.fixture
+def scene():
+    bpy.ops.wm.read_homefile(use_factory_startup=True, use_empty=True)
+    return bpy.context.scene
+
+
+def test01_add_operator_creates_fog_object(scene):
+    scene.cursor.location = (1.0, 2.0, 3.0)
+    assert bpy.ops.airlight.add_fog_object(scale=2.0, amplitude=0.25) == {'FINISHED'}
+    obj = bpy.context.view_layer.objects.active
+    assert fo.is_fog_object(obj) and obj.type == 'MESH'
+    assert tuple(obj.location) == pytest.approx((1.0, 2.0, 3.0))
+    c, a, amp = fo.read(obj)
+    np.testing.assert_array_equal(c, [[0.0, 0.0, 0.0]])
+    assert a[0] == pytest.approx(2.0) and amp[0] == pytest.approx(0.25)
+    # renders nothing: only vertices
+    assert len(obj.data.polygons) == 0 and len(obj.data.edges) == 0
+    assert obj.data.attributes[fo.SCALE_ATTR].domain == 'POINT'
+    # in the Add menu
+    assert fo._menu_add in bpy.types.VIEW3D_MT_add._dyn_ui_initialize()
+
+
+def test02_attributes_round_trip(scene):
+    c, a, amp = _cloud(1000)
+    obj = fo.new_fog_object("F", scene.collection, c, a, amp)
+    c2, a2, amp2 = fo.read(obj)
+    np.testing.assert_array_equal(c2, c.astype(np.float32))
+    np.testing.assert_array_equal(a2, a.astype(np.float32))
+    np.testing.assert_array_equal(amp2, amp.astype(np.float32))
+    fo.append(obj, [[9.0, 9.0, 9.0]], 4.0, 0.5)
+    c3, a3, amp3 = fo.read(obj)
+    assert len(c3) == 1001
+    np.testing.assert_array_equal(c3[:1000], c2)
+    assert tuple(c3[-1]) == (9.0, 9.0, 9.0) and a3[-1] == 4.0 and amp3[-1] == 0.5
+    fo.write(obj, c[:10], a[:10], amp[:10])  # shrinking keeps attributes consistent
+    assert [len(x) for x in fo.read(obj)] == [10, 10, 10]
+
+
+def test03_bulk_io_timing_1e5(scene):
+    n = 100_000
+    c, a, amp = _cloud(n, 1)
+    obj = fo.new_fog_object("Big", scene.collection)
+    t0 = time.perf_counter()
+    fo.write(obj, c, a, amp)
+    t1 = time.perf_counter()
+    c2, a2, amp2 = fo.read(obj)
+    t2 = time.perf_counter()
+    print(f"\nfog object 1e5 Gaussians: write {1e3 * (t1 - t0):.1f} ms, read {1e3 * (t2 - t1):.1f} ms")
+    np.testing.assert_array_equal(amp2, amp.astype(np.float32))
+    assert (t2 - t0) < 0.5
+
+
+def test04_save_and_reload(scene, tmp_path):
+    c, a, amp = _cloud(50, 2)
+    obj = fo.new_fog_object("Saved", scene.collection, c, a, amp)
+    obj.scale = (2.0, 2.0, 2.0)
+    path = str(tmp_path / "fog.blend")
+    bpy.ops.wm.save_as_mainfile(filepath=path)
+    bpy.ops.wm.read_homefile(use_factory_startup=True, use_empty=True)
+    assert "Saved" not in bpy.data.objects
+    bpy.ops.wm.open_mainfile(filepath=path)
+    obj = bpy.data.objects["Saved"]
+    assert fo.is_fog_object(obj)
+    c2, a2, amp2 = fo.read(obj)
+    np.testing.assert_array_equal(c2, c.astype(np.float32))
+    np.testing.assert_array_equal(a2, a.astype(np.float32))
+    np.testing.assert_array_equal(amp2, amp.astype(np.float32))
+
+
+# Undo/redo of the add operator needs a window (ed.undo's poll fails under -b): it is
+# tested in the GPU tier, tests/gpu/test_06_brush_ops.py.
+
+
+def test06_duplicate_copies_data(scene):
+    c, a, amp = _cloud(20, 3)
+    obj = fo.new_fog_object("Orig", scene.collection, c, a, amp)
+    bpy.context.view_layer.objects.active = obj
+    obj.select_set(True)
+    bpy.ops.object.duplicate(linked=False)
+    dup = bpy.context.view_layer.objects.active
+    assert dup is not obj and dup.data is not obj.data and fo.is_fog_object(dup)
+    fo.write(dup, c[:5], a[:5], amp[:5])
+    assert len(fo.read(obj)[0]) == 20 and len(fo.read(dup)[0]) == 5
+
+
+def test07_gather_two_objects_with_transforms(scene):
+    c1, a1, amp1 = _cloud(30, 4)
+    c2, a2, amp2 = _cloud(40, 5)
+    o1 = fo.new_fog_object("A", scene.collection, c1, a1, amp1)
+    o2 = fo.new_fog_object("B", scene.collection, c2, a2, amp2)
+    o1.location = (1.0, -2.0, 0.5)
+    o1.rotation_euler = (0.3, 0.0, 1.1)
+    o1.scale = (2.0, 2.0, 2.0)
+    o2.location = (-3.0, 0.0, 4.0)
+    # not gathered: hidden in render, or not a fog object
+    hidden = fo.new_fog_object("Hidden", scene.collection, c1[:3], 1.0, 1.0)
+    hidden.hide_render = True
+    plain = fo.new_fog_object("Plain", scene.collection, c1[:3], 1.0, 1.0)
+    plain.airlight_fog.is_fog = False
+    bpy.context.view_layer.update()
+    centres, scales, amps = fo.gather(bpy.context.evaluated_depsgraph_get())
+    assert centres.shape == (70, 3) and scales.shape == (70,) and amps.shape == (70,)
+    # expected: rotation R, scale 2, translation
+    rz, rx = 1.1, 0.3
+    Rz = np.array([[math.cos(rz), -math.sin(rz), 0], [math.sin(rz), math.cos(rz), 0], [0, 0, 1]])
+    Rx = np.array([[1, 0, 0], [0, math.cos(rx), -math.sin(rx)], [0, math.sin(rx), math.cos(rx)]])
+    w1 = (c1.astype(np.float32) @ (2.0 * Rz @ Rx).T) + [1.0, -2.0, 0.5]
+    w2 = c2.astype(np.float32) + [-3.0, 0.0, 4.0]
+    order = np.argsort(amps)
+    exp_c = np.concatenate([w1, w2])
+    exp_s = np.concatenate([a1.astype(np.float32) / 2.0, a2.astype(np.float32)])
+    exp_a = np.concatenate([amp1, amp2]).astype(np.float32)
+    exp_order = np.argsort(exp_a)
+    np.testing.assert_allclose(centres[order], exp_c[exp_order], atol=1e-5)
+    np.testing.assert_allclose(scales[order], exp_s[exp_order], rtol=1e-6)
+    np.testing.assert_array_equal(amps[order], exp_a[exp_order].astype(np.float64))
+
+
+def test08_gather_nonuniform_scale_uses_geometric_mean(scene):
+    o = fo.new_fog_object("N", scene.collection, [[1.0, 1.0, 1.0]], 3.0, 0.5)
+    o.scale = (1.0, 2.0, 4.0)
+    bpy.context.view_layer.update()
+    centres, scales, _ = fo.gather(bpy.context.evaluated_depsgraph_get())
+    np.testing.assert_allclose(centres, [[1.0, 2.0, 4.0]])
+    assert scales[0] == pytest.approx(3.0 / 2.0)  # (1*2*4)^(1/3) = 2
+
+
+@pytest.mark.parametrize("case", ["empty", "zero_scale", "negative_scale", "nan_centre",
+                                  "nan_scale", "nan_amplitude", "negative_amplitude",
+                                  "missing_attribute"])
+def test09_bad_input_raises_with_object_name(scene, case):
+    c, a, amp = _cloud(5, 6)
+    if case == "zero_scale":
+        a[2] = 0.0
+    elif case == "negative_scale":
+        a[1] = -1.0
+    elif case == "nan_centre":
+        c[3, 1] = np.nan
+    elif case == "nan_scale":
+        a[0] = np.nan
+    elif case == "nan_amplitude":
+        amp[4] = np.nan
+    elif case == "negative_amplitude":
+        amp[4] = -0.1
+    obj = fo.new_fog_object(f"Bad_{case}", scene.collection, *((c[:0], a[:0], amp[:0]) if case == "empty" else (c, a, amp)))
+    if case == "missing_attribute":
+        obj.data.attributes.remove(obj.data.attributes[fo.AMPLITUDE_ATTR])
+    fo.new_fog_object("Good", scene.collection, c[:2], 1.0, 1.0)
+    bpy.context.view_layer.update()
+    with pytest.raises(fo.FogObjectError) as info:
+        fo.gather(bpy.context.evaluated_depsgraph_get())
+    assert isinstance(info.value, ValueError)
+    assert info.value.object_name == f"Bad_{case}" and f"Bad_{case}" in str(info.value)
+    print(f"\n{case}: {info.value}")
+
+
+def test10_gather_without_fog_objects_is_empty(scene):
+    c, s, a = fo.gather(bpy.context.evaluated_depsgraph_get())
+    assert c.shape == (0, 3) and s.shape == (0,) and a.shape == (0,)
