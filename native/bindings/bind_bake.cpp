@@ -6,6 +6,7 @@
 #include "kernels/bake.h"
 #include "kernels/exr_io.h"
 #include "kernels/models.h"
+#include "kernels/phase.h"
 #include "numpy_util.h"
 
 namespace airlight::bindings {
@@ -50,10 +51,28 @@ glm::dvec3 to_rgb(const py::object& obj, const char* name) {
     return {a.data()[0], a.data()[1], a.data()[2]};
 }
 
+// The medium's phase function from the bake's names ("mie_hazy" / "mie_murky", as the
+// add-on spells them; phase.h's "hazy_mie" / "murky_mie" are accepted too).
+PhaseFunction bake_phase(std::string name, double g) {
+    if (name == "mie_hazy") name = "hazy_mie";
+    else if (name == "mie_murky") name = "murky_mie";
+    else if (name == "hazy_mie" || name == "murky_mie" || name == "isotropic" || name == "hg" || name == "rayleigh") {
+    } else {
+        throw py::value_error("phase: unknown phase function '" + name +
+                              "'; valid: 'isotropic', 'hg', 'rayleigh', 'mie_hazy', 'mie_murky'");
+    }
+    if (!(std::abs(g) < 1.0)) throw py::value_error("g: must be finite with |g| < 1, got " + std::to_string(g));
+    if (name != "hg" && g != 0.0)
+        throw py::value_error("g: only the 'hg' phase takes an anisotropy, got g = " + std::to_string(g) +
+                              " with phase '" + name + "'");
+    return phase_from_name(name, g);
+}
+
 py::dict bake_py(int width, int height, const py::object& cam_to_world, const py::object& projection,
                  const py::object& vertices, const py::object& triangles,
                  const py::object& light_positions, const py::object& light_intensities, double sigma_t,
-                 const py::object& albedo, const std::string& model, int threads, int aa_samples,
+                 const py::object& albedo, const std::string& phase, double g, const std::string& model,
+                 int threads, int aa_samples,
                  double filter_width, double clip_start, double clip_end, const py::object& progress) {
     // Gather the scene description from the arrays (shapes checked here, values in bake()).
     SceneDescription scene;
@@ -65,6 +84,7 @@ py::dict bake_py(int width, int height, const py::object& cam_to_world, const py
     scene.camera.clip_end = clip_end;
     scene.medium.sigma_t = sigma_t;
     scene.medium.albedo = to_rgb(albedo, "albedo");
+    scene.medium.phase = bake_phase(phase, g);
 
     auto v = as_array<float>(vertices, "vertices");
     py::ssize_t n_vertices = require_rows_of(v, 3, "vertices");
@@ -148,7 +168,7 @@ void write_exr_py(const std::string& path, const py::dict& passes, const std::st
 void bind_bake(py::module_& m) {
     m.def("bake", &bake_py, py::kw_only(), "width"_a, "height"_a, "cam_to_world"_a, "projection"_a,
           "vertices"_a, "triangles"_a, "light_positions"_a, "light_intensities"_a, "sigma_t"_a,
-          "albedo"_a = py::make_tuple(1.0, 1.0, 1.0), "model"_a = "sun05", "threads"_a = 0,
+          "albedo"_a = py::make_tuple(1.0, 1.0, 1.0), "phase"_a = "isotropic", "g"_a = 0.0, "model"_a = "sun05", "threads"_a = 0,
           "aa_samples"_a = 4, "filter_width"_a = 1.5, "clip_start"_a = 0.0,
           "clip_end"_a = std::numeric_limits<double>::infinity(), "progress"_a = py::none(),
           R"doc(Bake fog passes for one camera view (all arguments keyword-only).
@@ -160,7 +180,13 @@ vertices: (N, 3) float32 world-space positions; triangles: (M, 3) integer indice
 light_positions: (L, 3); light_intensities: (L, 3) radiant intensity in W/sr
   (= colour * power / (4 pi) for a Blender point light).
 sigma_t: extinction 1/m (>= 0); albedo: 3 floats (scattering = albedo * sigma_t).
-model: "sun05", "sun05_exact" or "quadrature" (see models()).
+phase: the medium's phase function, "isotropic" (default), "hg" (Henyey-Greenstein with
+  anisotropy g, Cycles' sign: g > 0 forward), "rayleigh", "mie_hazy", "mie_murky" (Nishita).
+  g: HG asymmetry in (-1, 1); must be 0 for the other phases.
+model: "sun05", "sun05_exact", "quadrature" or "biri06" (see models()). The Sun 2005
+  models are isotropic only: with an anisotropic phase (anything but "isotropic" or "hg"
+  with g = 0) they raise ValueError; "biri06" (Gamma table of the phase) and
+  "quadrature" (phase-aware reference) take any phase.
 threads: worker threads (0: all). aa_samples: per-axis samples on edge pixels;
 filter_width: Blackman-Harris film filter width in pixels (Cycles' default 1.5).
 clip_start, clip_end: the camera's clip range (view-axis depths, camera.data.clip_start

@@ -25,6 +25,7 @@
 #include <sys/mman.h>
 #endif
 
+#include "biri06.h"
 #include "camera.h"
 #include "quadrature.h"
 #include "raycast.h"
@@ -68,6 +69,17 @@ void validate(const SceneDescription& scene, const BakeSettings& settings) {
     require(finite3(medium.albedo) && medium.albedo.x >= 0.0 && medium.albedo.y >= 0.0 &&
                 medium.albedo.z >= 0.0,
             "albedo must be finite and >= 0");
+    require(std::abs(medium.phase.g) < 1.0,
+            "phase: g (anisotropy) must be finite with |g| < 1, got " + std::to_string(medium.phase.g));
+    // The Sun 2005 models integrate the isotropic phase only: refuse rather than bake wrong fog.
+    require(phase_is_isotropic(medium.phase) ||
+                (settings.model != ModelId::Sun05Table && settings.model != ModelId::Sun05Exact),
+            std::string("model '") + (settings.model == ModelId::Sun05Table ? "sun05" : "sun05_exact") +
+                "' supports only the isotropic phase, got '" + phase_name(medium.phase.kind) +
+                "' (g = " + std::to_string(medium.phase.g) + "); use 'biri06' or 'quadrature'");
+    require(settings.model == ModelId::Sun05Table || settings.model == ModelId::Sun05Exact ||
+                settings.model == ModelId::Quadrature || settings.model == ModelId::Biri06,
+            "the bake does not dispatch this model (see models())");
     for (size_t i = 0; i < scene.point_lights.size(); ++i) {
         const PointLight& light = scene.point_lights[i];
         require(finite3(light.position), "light " + std::to_string(i) + ": position must be finite");
@@ -251,29 +263,18 @@ class FogModel {
   public:
     FogModel(const SceneDescription& scene, const BakeSettings& settings, bool shared_origin,
              const Vec3& origin)
-        : model_(settings.model), sigma_t_(scene.medium.sigma_t), shared_origin_(shared_origin), origin_(origin) {
+        : model_(settings.model),
+          sigma_t_(scene.medium.sigma_t),
+          phase_(scene.medium.phase),
+          isotropic_(phase_is_isotropic(scene.medium.phase)),
+          shared_origin_(shared_origin),
+          origin_(origin) {
         if (model_ == ModelId::Sun05Table) table_ = shared_special_F_table(settings.table_nu, settings.table_nT);
+        if (model_ == ModelId::Biri06) biri_table_ = shared_biri06_table(phase_, settings.table_nu, settings.table_nT);
         for (const PointLight& light : scene.point_lights) {
             RGB weight = scene.medium.albedo * light.I0;
             if (weight.x == 0.0 && weight.y == 0.0 && weight.z == 0.0) continue;
             lights_.push_back({light.position, weight, glm::length(light.position - origin)});
-        }
-    }
-
-    // Transmittance exp(-sigma_t Dvp) (0 at Dvp = inf unless sigma_t = 0) and airlight
-    // summed over the lights, for the ray (_o_, unit _d_) ending at _Dvp_.
-    void eval(const Ray& ray, double Dvp, double& Tr, RGB& La) const {
-        La = RGB(0.0);
-        if (sigma_t_ == 0.0) {
-            Tr = 1.0;
-            return;
-        }
-        Tr = std::isinf(Dvp) ? 0.0 : std::exp(-sigma_t_ * Dvp);
-        for (const LightData& light : lights_) {
-            Vec3 sv = light.s - ray.o;
-            double Dsv = shared_origin_ ? light.Dsv : glm::length(sv);
-            double cos_gamma = Dsv > 0.0 ? std::clamp(glm::dot(ray.d, sv) / Dsv, -1.0, 1.0) : 1.0;
-            La += light.weight * airlight(Dsv, cos_gamma, Dvp);
         }
     }
 
@@ -322,8 +323,11 @@ class FogModel {
 
     // The same for _n_ rays at once, light by light: the iterations of the inner loop
     // are independent, so the CPU overlaps the long dependency chains of the model.
-    // _t0_ (near distances, may be null) only where soa(); otherwise the caller
-    // subtracts the near part itself.
+    // _t0_ (near distances, may be null): the fog of the segment [t0, Dvp] with
+    // attenuation from the near point, as Cycles integrates it. soa() folds t0 into the
+    // table evaluation; the other models move the viewer to the near point o + t0 d (same
+    // direction, so the same phase angles along the ray; Dsv and gamma from there), one
+    // evaluation per ray and light with no difference to cancel.
     void eval_many(const Ray* rays, const float* Dvp, const float* t0, int n, double* Tr, RGB* La) const {
         if (soa()) {
             constexpr int kChunk = 256;
@@ -345,16 +349,21 @@ class FogModel {
             return;
         }
         for (int k = 0; k < n; ++k) {
+            const double near = t0 ? double(t0[k]) : 0.0;
+            const double seg = std::max(0.0, double(Dvp[k]) - near);  // inf stays inf
             La[k] = RGB(0.0);
-            Tr[k] = sigma_t_ == 0.0 ? 1.0 : std::isinf(Dvp[k]) ? 0.0 : std::exp(-sigma_t_ * double(Dvp[k]));
+            Tr[k] = sigma_t_ == 0.0 ? 1.0 : std::isinf(seg) ? 0.0 : std::exp(-sigma_t_ * seg);
         }
         if (sigma_t_ == 0.0) return;
         for (const LightData& light : lights_) {
             for (int k = 0; k < n; ++k) {
-                const Vec3 sv = light.s - rays[k].o;
-                const double Dsv = shared_origin_ ? light.Dsv : glm::length(sv);
+                const double near = t0 ? double(t0[k]) : 0.0;
+                const Vec3 o = near > 0.0 ? rays[k].o + near * rays[k].d : rays[k].o;
+                const Vec3 sv = light.s - o;
+                const double Dsv = shared_origin_ && !(near > 0.0) ? light.Dsv : glm::length(sv);
                 const double cos_gamma = Dsv > 0.0 ? std::clamp(glm::dot(rays[k].d, sv) / Dsv, -1.0, 1.0) : 1.0;
-                La[k] += light.weight * airlight(Dsv, cos_gamma, double(Dvp[k]));
+                const double seg = std::max(0.0, double(Dvp[k]) - near);
+                La[k] += light.weight * airlight(Dsv, cos_gamma, seg);
             }
         }
     }
@@ -367,17 +376,26 @@ class FogModel {
                                             Dsv, cos_gamma, Dvp);
             case ModelId::Sun05Exact:
                 return sun05_airlight(sigma_t_, Dsv, cos_gamma, Dvp, nullptr, FEval::Exact);
-            case ModelId::Quadrature:
-                return sun05_airlight_quadrature(sigma_t_, Dsv, cos_gamma, Dvp, kQuadratureRelTol);
+            case ModelId::Quadrature:  // the phase-aware reference unless isotropic
+                return isotropic_ ? sun05_airlight_quadrature(sigma_t_, Dsv, cos_gamma, Dvp, kQuadratureRelTol)
+                                  : phase_airlight_quadrature(phase_, sigma_t_, Dsv, cos_gamma, Dvp,
+                                                              kQuadratureRelTol);
+            case ModelId::Biri06:  // Gamma table of the medium's phase (exact where it would cancel)
+                return biri06_airlight(phase_, sigma_t_, Dsv, cos_gamma, Dvp, biri_table_.get(), GammaEval::Table);
+            default:  // rejected by validate()
+                break;
         }
         return 0.0;
     }
 
     ModelId model_;
     double sigma_t_;
+    PhaseFunction phase_;
+    bool isotropic_;
     bool shared_origin_;
     Vec3 origin_;
     std::shared_ptr<const SpecialFTable> table_;
+    std::shared_ptr<const Biri06Table> biri_table_;
     std::vector<LightData> lights_;
 };
 
@@ -700,34 +718,12 @@ BakeResult bake(const SceneDescription& scene, const BakeSettings& settings, con
     const FogModel fog(scene, settings, !rays.orthographic(), rays.position());
     // Fog of _n_ rays from the near plane (t0, from _cast_) to _depth_ (from the origin,
     // inf: none), as Cycles integrates it: La over [t0, depth] with attenuation measured
-    // from the near plane, Tr = exp(-sigma_t (depth - t0)). The table model's fast path
-    // does that in one evaluation (viewer moved to the near point, sun05_batch.h). The
-    // other models use additivity along the ray: La(o, [0, t1]) = La(o, [0, t0]) +
-    // exp(-sigma_t t0) La(o + t0 d, [0, t1 - t0]), so La(near plane) = exp(sigma_t t0)
-    // (La(o, t1) - La(o, t0)); that difference loses relative accuracy only where the fog
-    // between eye and near plane outshines the fog behind it (a light inside the clip range).
+    // from the near plane, Tr = exp(-sigma_t (depth - t0)) (FogModel::eval_many).
     const double sigma_t = scene.medium.sigma_t;
     const bool near_clip = clipped && clip_start > 0.0;
-    struct FogScratch {
-        std::vector<double> Tr0;
-        std::vector<RGB> La0;
-    };
+    struct FogScratch {};
     auto fog_eval = [&](const Ray* r, const float* depth, const float* t0, int n, double* Tr, RGB* La,
-                        FogScratch& scratch) {
-        if (!near_clip || fog.soa()) {
-            fog.eval_many(r, depth, near_clip ? t0 : nullptr, n, Tr, La);
-            return;
-        }
-        scratch.Tr0.resize(size_t(n));
-        scratch.La0.resize(size_t(n));
-        fog.eval_many(r, depth, nullptr, n, Tr, La);
-        fog.eval_many(r, t0, nullptr, n, scratch.Tr0.data(), scratch.La0.data());
-        for (int k = 0; k < n; ++k) {
-            const double scale = std::exp(sigma_t * double(t0[k]));
-            La[k] = glm::max(scale * (La[k] - scratch.La0[k]), RGB(0.0));
-            Tr[k] = std::isinf(depth[k]) ? Tr[k] : std::min(1.0, Tr[k] * scale);
-        }
-    };
+                        FogScratch&) { fog.eval_many(r, depth, near_clip ? t0 : nullptr, n, Tr, La); };
     std::atomic<long long> supersampled{0}, samples{0};
     start = Clock::now();
     run_parallel(

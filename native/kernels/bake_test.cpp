@@ -9,6 +9,7 @@
 #include <glm/gtc/matrix_transform.hpp>
 
 #include "bake.h"
+#include "biri06.h"
 #include "camera.h"
 #include "raycast.h"
 #include "quadrature.h"
@@ -228,6 +229,100 @@ TEST(Bake, TableModelFromNearPlaneMatchesQuadrature) {
         std::printf("table model from the near plane at view depth %g: max rel %.3g vs quadrature\n", clip_start,
                     worst);
     }
+}
+
+// Anisotropic media: the biri06 model (Gamma table of the medium's phase) and the
+// quadrature model (phase-aware) per pixel against phase_airlight_quadrature from the
+// near point, for each phase kind, a light in the frame (forward lobe visible) and one
+// outside, with the near plane before and beyond the in-frame light (view depth 4).
+// Bounds: the table's measured error (biri06.cpp: max 8.9e-4 for smooth lobes, up to
+// 6e-3 for HG |g| >= 0.95), the quadrature model's tolerance 1e-8 plus float32 output
+// and near distances (measured 7.5e-7).
+TEST(Bake, PhaseModelsMatchPhaseQuadrature) {
+    struct Case {
+        PhaseFunction phase;
+        double bound;
+    };
+    const Case cases[] = {
+        {{PhaseKind::HenyeyGreenstein, 0.6}, 1e-3},  {{PhaseKind::HenyeyGreenstein, -0.4}, 1e-3},
+        {{PhaseKind::HenyeyGreenstein, 0.95}, 6e-3}, {{PhaseKind::Rayleigh, 0.0}, 1e-3},
+        {{PhaseKind::HazyMie, 0.0}, 1e-3},           {{PhaseKind::MurkyMie, 0.0}, 1e-3},
+    };
+    for (double clip_start : {0.0, 2.5, 5.0})
+        for (const Case& c : cases) {
+            SceneDescription scene = test_scene();
+            scene.point_lights.push_back({Vec3(0.5, 0.3, -4.0), RGB(2.0, 1.0, 0.5)});
+            scene.medium.phase = c.phase;
+            scene.medium.albedo = RGB(0.9, 0.8, 0.7);
+            scene.camera.clip_start = clip_start;
+            BakeSettings settings;
+            settings.aa_samples = 1;
+            settings.model = ModelId::Biri06;
+            BakeResult r = bake(scene, settings);
+            settings.model = ModelId::Quadrature;
+            BakeResult q = bake(scene, settings);
+            const CameraRays rays(scene.camera);
+            double worst = 0.0, worst_q = 0.0, sum = 0.0;
+            int n = 0;
+            for (int j = 0; j < 30; j += 2)
+                for (int i = 0; i < 40; i += 2) {
+                    const Ray ray = rays(i + 0.5, j + 0.5);
+                    const double cos_view = -ray.d.z, t_near = clip_start / cos_view, Dvp = 6.0 / cos_view;
+                    const Vec3 o = ray.o + t_near * ray.d;
+                    const size_t p = size_t(j) * 40 + i;
+                    EXPECT_NEAR(r.transmittance[3 * p], std::exp(-0.1 * (Dvp - t_near)), 1e-6);
+                    RGB La(0.0);
+                    for (const PointLight& light : scene.point_lights) {
+                        const Vec3 sv = light.position - o;
+                        const double Dsv = glm::length(sv);
+                        La += light.I0 * scene.medium.albedo *
+                              phase_airlight_quadrature(c.phase, 0.1, Dsv, glm::dot(ray.d, sv) / Dsv, Dvp - t_near,
+                                                        1e-11);
+                    }
+                    for (int k = 0; k < 3; ++k) {
+                        const double e = std::abs(r.airlight[3 * p + k] / La[k] - 1);
+                        worst = std::max(worst, e);
+                        sum += e, ++n;
+                        worst_q = std::max(worst_q, std::abs(q.airlight[3 * p + k] / La[k] - 1));
+                    }
+                }
+            std::printf("biri06 bake vs phase quadrature, %s g=%g clip_start %g: mean rel %.2g max %.2g "
+                        "(quadrature model max %.2g)\n",
+                        phase_name(c.phase.kind), c.phase.g, clip_start, sum / n, worst, worst_q);
+            EXPECT_LE(worst, c.bound) << phase_name(c.phase.kind) << " g=" << c.phase.g << " near " << clip_start;
+            EXPECT_LE(worst_q, 5e-6) << phase_name(c.phase.kind) << " g=" << c.phase.g << " near " << clip_start;
+        }
+}
+
+// The Sun 2005 models are isotropic only: an anisotropic phase is refused, HG g = 0 is
+// the isotropic phase (same image), and biri06 with the isotropic phase agrees with sun05.
+TEST(Bake, PhaseSupportPerModel) {
+    SceneDescription scene = test_scene();
+    BakeSettings settings;
+    settings.aa_samples = 1;
+    BakeResult iso = bake(scene, settings);
+    scene.medium.phase = {PhaseKind::HenyeyGreenstein, 0.0};
+    BakeResult hg0 = bake(scene, settings);
+    EXPECT_EQ(iso.airlight, hg0.airlight);
+    for (ModelId model : {ModelId::Sun05Table, ModelId::Sun05Exact}) {
+        settings.model = model;
+        for (PhaseFunction phase : {PhaseFunction{PhaseKind::HenyeyGreenstein, 0.3}, PhaseFunction{PhaseKind::Rayleigh, 0.0}}) {
+            scene.medium.phase = phase;
+            try {
+                bake(scene, settings);
+                ADD_FAILURE() << "sun05 accepted an anisotropic phase";
+            } catch (const std::invalid_argument& e) {
+                EXPECT_NE(std::string(e.what()).find("biri06"), std::string::npos) << e.what();
+            }
+        }
+    }
+    scene.medium.phase = {PhaseKind::HenyeyGreenstein, 1.0};
+    settings.model = ModelId::Biri06;
+    EXPECT_THROW(bake(scene, settings), std::invalid_argument);
+    scene.medium.phase = {};
+    BakeResult biri = bake(scene, settings);
+    for (size_t p = 0; p < iso.airlight.size(); ++p)
+        EXPECT_NEAR(biri.airlight[p], iso.airlight[p], 2e-3 * iso.airlight[p]);
 }
 
 TEST(Bake, ThreadCountDoesNotChangeTheResult) {

@@ -9,14 +9,15 @@ const std::vector<ModelInfo>& model_registry() {
     static const std::vector<ModelInfo> registry{
         {ModelId::Sun05Table, "sun05", "Sun et al. 2005 airlight with the tabulated F (fast, default)"},
         {ModelId::Sun05Exact, "sun05_exact", "Sun et al. 2005 airlight with the exact F (slower reference)"},
-        {ModelId::Quadrature, "quadrature", "Adaptive quadrature of the single-scattering integral (slow reference)"},
+        {ModelId::Quadrature, "quadrature",
+         "Adaptive quadrature of the single-scattering integral, any phase function (slow reference)"},
+        {ModelId::Biri06, "biri06", "Biri et al. 2006 airlight with the Gamma table of any phase function"},
     };
     return registry;
 }
 
 const std::vector<ModelInfo>& kernel_models_pending_bake() {
     static const std::vector<ModelInfo> pending{
-        {ModelId::Biri06, "biri06", "Biri et al. 2006 airlight with the Gamma table of any phase function"},
         {ModelId::Hoffman02, "hoffman02", "Hoffman & Preetham 2002 sun (directional light) fog, Rayleigh + Mie"},
         {ModelId::Baseline, "baseline", "Constant-colour fog (Blender Mist / OpenGL fog), the bar to beat"},
     };

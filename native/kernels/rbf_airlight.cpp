@@ -22,6 +22,7 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "phase.h"
 #include "quadrature.h"
 #include "sun05.h"
 
@@ -29,7 +30,7 @@ namespace airlight {
 
 namespace {
 
-constexpr double kInv4Pi = 0.0795774715459476678844;
+// kInv4Pi (1 / (4 pi)) comes from phase.h, which scene.h includes.
 constexpr double kSqrtPi = 1.77245385090551602729;
 constexpr double kInf = std::numeric_limits<double>::infinity();
 constexpr double kMinD2 = 1e-12;

@@ -12,6 +12,8 @@
 
 #include <glm/glm.hpp>
 
+#include "phase.h"
+
 namespace airlight {
 
 using Vec3 = glm::dvec3;
@@ -19,10 +21,19 @@ using RGB = glm::dvec3;
 
 // Homogeneous medium: extinction coefficient _sigma_t_ (Sun 2005's beta) in 1/m,
 // and single-scattering albedo (the fog colour), so sigma_s = albedo * sigma_t.
+// _phase_ (kind + Henyey-Greenstein g, Cycles' sign: g > 0 forward; phase.h) defaults
+// to isotropic. Only models that support it (biri06, quadrature) accept an anisotropic
+// phase; bake() rejects the Sun 2005 models with one (see phase_is_isotropic).
 struct HomogeneousMedium {
     double sigma_t = 0.0;
     RGB albedo{1.0, 1.0, 1.0};
+    PhaseFunction phase;
 };
+
+// True for the isotropic phase, including Henyey-Greenstein with g = 0 (the same function).
+inline bool phase_is_isotropic(const PhaseFunction& phase) {
+    return phase.kind == PhaseKind::Isotropic || (phase.kind == PhaseKind::HenyeyGreenstein && phase.g == 0.0);
+}
 
 // Isotropic point light. _I0_ is the radiant intensity in W/sr per RGB channel:
 // a Blender point light of power P and colour C has I0 = C * P / (4 pi) (Cycles).
