@@ -615,6 +615,8 @@ class AIRLIGHT_PT_viewport_preview(bpy.types.Panel):
         col.prop(context.window_manager, "airlight_preview_depth")
         layout.prop(settings, "density")
         layout.prop(settings, "color")
+        if not (settings.phase == 'HENYEY_GREENSTEIN' and settings.anisotropy == 0.0):
+            layout.label(text="Preview shows isotropic fog (the bake uses the phase)", icon='INFO')
 
 
 def register():

@@ -10,6 +10,15 @@ MODEL_NAMES = {
     'SUN05': "sun05",
     'SUN05_EXACT': "sun05_exact",
     'QUADRATURE': "quadrature",
+    'BIRI06': "biri06",
+}
+
+# Scene phase enum -> `_native.bake(phase=...)`; the anisotropy g applies to HG only.
+PHASE_NAMES = {
+    'HENYEY_GREENSTEIN': "hg",
+    'RAYLEIGH': "rayleigh",
+    'MIE_HAZY': "mie_hazy",
+    'MIE_MURKY': "mie_murky",
 }
 
 # Light types the bake scatters; the others are listed in the UI as "not yet in fog".
@@ -52,9 +61,35 @@ class AirlightSceneSettings(bpy.types.PropertyGroup):
             ('AUTO', "Automatic", "The cheapest model whose measured error meets the Accuracy target"),
             ('SUN05', "Sun 2005 (table)", "Sun et al. 2005 analytic airlight with a tabulated special function F"),
             ('SUN05_EXACT', "Sun 2005 (exact)", "Sun et al. 2005 analytic airlight with F evaluated exactly"),
-            ('QUADRATURE', "Quadrature", "Numerical integration along each view ray: slow, the reference"),
+            ('QUADRATURE', "Quadrature", "Numerical integration along each view ray, any phase "
+                                         "function: slow, the reference"),
+            ('BIRI06', "Biri 2006 (any phase)", "Biri et al. 2006 analytic airlight with a table per phase "
+                                                "function: handles anisotropic fog"),
         ),
         default='AUTO',
+    )
+    phase: EnumProperty(
+        name="Phase",
+        description="Phase function of the fog: how much light it scatters in each direction "
+                    "(the Sun 2005 models handle only isotropic fog, Henyey-Greenstein with "
+                    "Anisotropy 0)",
+        items=(
+            ('HENYEY_GREENSTEIN', "Henyey-Greenstein",
+             "Henyey-Greenstein lobe set by Anisotropy, as Cycles' Volume Scatter node "
+             "(Anisotropy 0 is isotropic)"),
+            ('RAYLEIGH', "Rayleigh", "Rayleigh scattering by particles much smaller than the "
+                                     "wavelength (clear air): 3 (1 + cos^2) / (16 pi)"),
+            ('MIE_HAZY', "Mie (hazy)", "Nishita's hazy-atmosphere Mie approximation: a mild forward lobe"),
+            ('MIE_MURKY', "Mie (murky)", "Nishita's murky-atmosphere Mie approximation: a sharp forward lobe"),
+        ),
+        default='HENYEY_GREENSTEIN',
+    )
+    anisotropy: FloatProperty(
+        name="Anisotropy",
+        description="Henyey-Greenstein g, Blender's sign: positive is forward scattering "
+                    "(light glows around lights seen through the fog), negative is back "
+                    "scattering, 0 is isotropic",
+        default=0.0, min=-0.99, max=0.99, step=1, precision=3,
     )
     accuracy: FloatProperty(
         name="Accuracy",

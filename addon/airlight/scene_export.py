@@ -2,7 +2,8 @@
 
 `export_scene(scene, depsgraph)` returns a dict whose keys are exactly `_native.bake`'s
 scene keyword arguments (width, height, cam_to_world, projection, clip_start, clip_end,
-vertices, triangles, light_positions, light_intensities, sigma_t, albedo), all numpy arrays or numbers, for
+vertices, triangles, light_positions, light_intensities, sigma_t, albedo, phase, g), all numpy arrays,
+numbers or strings, for
 the frame the depsgraph is evaluated at. Nothing here calls the native module.
 
 Units: everything is in Blender units. `unit_settings.scale_length` is not applied, so
@@ -13,6 +14,7 @@ import math
 
 import numpy as np
 
+from . import model_choice
 from .properties import SUPPORTED_LIGHT_TYPES
 
 # Object types that can be turned into a mesh for ray casting.
@@ -164,7 +166,7 @@ def export_geometry_and_lights(scene, depsgraph):
 
 
 def export_medium(scene):
-    """(sigma_t, albedo) of the scene fog, validated."""
+    """(sigma_t, albedo) of the scene fog, validated (the phase: `export_phase`)."""
     settings = scene.airlight
     sigma_t = float(settings.density)
     if not math.isfinite(sigma_t) or sigma_t < 0.0:
@@ -175,9 +177,20 @@ def export_medium(scene):
     return sigma_t, albedo
 
 
+def export_phase(scene):
+    """(phase, g) of the scene fog for `_native.bake`: "isotropic" for Henyey-Greenstein
+    with Anisotropy 0, else the phase name and HG's g (Blender's sign, > 0 forward)."""
+    settings = scene.airlight
+    g = float(settings.anisotropy)
+    if not (math.isfinite(g) and abs(g) < 1.0):
+        raise ExportError(f"Fog anisotropy must be a finite number in (-1, 1) (got {g}).")
+    return model_choice.native_phase(settings)
+
+
 def export_scene(scene, depsgraph):
     """The scene description for `_native.bake(**description, ...)` at the depsgraph's frame."""
     sigma_t, albedo = export_medium(scene)
+    phase, g = export_phase(scene)
     width, height, cam_to_world, projection = export_camera(scene, depsgraph)
     clip_start, clip_end = export_clip_range(scene, depsgraph)
     vertices, triangles, light_positions, light_intensities, _ = export_geometry_and_lights(scene, depsgraph)
@@ -192,7 +205,7 @@ def export_scene(scene, depsgraph):
         clip_start=clip_start, clip_end=clip_end,
         vertices=vertices, triangles=triangles,
         light_positions=light_positions, light_intensities=light_intensities,
-        sigma_t=sigma_t, albedo=albedo,
+        sigma_t=sigma_t, albedo=albedo, phase=phase, g=g,
     )
 
 

@@ -35,12 +35,22 @@ class AIRLIGHT_PT_scene(bpy.types.Panel):
         col.active = settings.enabled
         col.prop(settings, "density")
         col.prop(settings, "color")
+        col.prop(settings, "phase")
+        sub = col.column()
+        sub.active = settings.phase == 'HENYEY_GREENSTEIN'
+        sub.prop(settings, "anisotropy")
         col.prop(settings, "model")
         sub = col.column()
         sub.active = settings.model == 'AUTO'
         sub.prop(settings, "accuracy")
-        name, label, error = model_choice.choose(settings)
-        col.label(text=f"Uses {label}, error \u2264 {100.0 * error:.2g} %", icon='INFO')
+        problem = model_choice.phase_problem(settings)
+        if problem:
+            box = col.box()
+            box.alert = True
+            box.label(text=problem, icon='ERROR')
+        else:
+            name, label, error = model_choice.choose(settings)
+            col.label(text=f"Uses {label}, error \u2264 {100.0 * error:.2g} %", icon='INFO')
         col.prop(settings, "aa_samples")
         col.prop(settings, "threads")
         col.prop(settings, "cache_dir")

@@ -2,9 +2,10 @@
 and the bake operator runs the model it names."""
 import bpy
 import numpy as np
+import pytest
 
 from airlight import bake, model_choice, native
-from conftest import needs_real_native
+from conftest import build_plane_scene, needs_real_native
 
 
 def test01_auto_follows_accuracy_target():
@@ -15,6 +16,15 @@ def test01_auto_follows_accuracy_target():
     settings.accuracy = 0.05  # below it: the cheaper of the exact models
     name, _, error = model_choice.choose(settings)
     assert name == "quadrature" and error <= 0.05 / 100.0
+
+
+@pytest.fixture(autouse=True)
+def isotropic_default():
+    """Each test starts from the isotropic phase and leaves it so."""
+    settings = bpy.context.scene.airlight
+    settings.phase, settings.anisotropy = 'HENYEY_GREENSTEIN', 0.0
+    yield
+    settings.phase, settings.anisotropy = 'HENYEY_GREENSTEIN', 0.0
 
 
 def test02_explicit_model_is_kept():
@@ -39,3 +49,63 @@ def test04_bake_settings_carry_the_choice():
     assert bake.bake_settings(bpy.context.scene)["model"] == "quadrature"
     settings.accuracy = 2.0
     assert bake.bake_settings(bpy.context.scene)["model"] == "sun05"
+
+
+def test05_isotropic_auto_is_unchanged_by_biri06():
+    """HG with g = 0 is the isotropic phase: AUTO picks as before (biri06 is no candidate)."""
+    settings = bpy.context.scene.airlight
+    settings.model = 'AUTO'
+    for accuracy, expected in ((1.0, "sun05"), (0.1, "quadrature"), (0.05, "quadrature")):
+        settings.accuracy = accuracy
+        assert model_choice.choose(settings)[0] == expected
+    assert model_choice.native_phase(settings) == ("isotropic", 0.0)
+
+
+def test06_anisotropic_auto_needs_a_phase_model():
+    """biri06 where its measured error meets the target, else the phase-aware quadrature."""
+    settings = bpy.context.scene.airlight
+    settings.model = 'AUTO'
+    settings.anisotropy = 0.6
+    settings.accuracy = 1.0
+    name, _, error = model_choice.choose(settings)
+    assert name == "biri06" and error == pytest.approx(8.9e-4)
+    settings.accuracy = 0.05   # below biri06's 8.9e-4
+    assert model_choice.choose(settings)[0] == "quadrature"
+    settings.accuracy = 0.5    # meets 8.9e-4, but not the narrow-lobe 6e-3
+    settings.anisotropy = -0.97
+    name, _, error = model_choice.choose(settings)
+    assert name == "quadrature" and error <= 0.005
+    settings.accuracy = 1.0
+    assert model_choice.choose(settings)[:3:2] == ("biri06", pytest.approx(6e-3))
+    for phase, native_name in (('RAYLEIGH', "rayleigh"), ('MIE_HAZY', "mie_hazy"), ('MIE_MURKY', "mie_murky")):
+        settings.phase = phase
+        assert model_choice.choose(settings)[0] == "biri06"
+        assert model_choice.native_phase(settings) == (native_name, 0.0)   # g is HG's only
+    assert model_choice.phase_problem(settings) is None
+
+
+def test07_explicit_sun05_with_anisotropic_phase_is_flagged():
+    settings = bpy.context.scene.airlight
+    settings.anisotropy = 0.6
+    for model in ('SUN05', 'SUN05_EXACT'):
+        settings.model = model
+        assert "isotropic" in model_choice.phase_problem(settings)
+        assert model_choice.choose(settings)[2] == float("inf")   # no error figure for the wrong phase
+    for model in ('BIRI06', 'QUADRATURE', 'AUTO'):
+        settings.model = model
+        assert model_choice.phase_problem(settings) is None
+
+
+@needs_real_native
+def test08_bake_refuses_sun05_with_anisotropic_phase(tmp_path):
+    """The bake path reports a clear error rather than baking isotropic fog."""
+    scene = build_plane_scene(tmp_path)
+    scene.airlight.model = 'SUN05'
+    scene.airlight.anisotropy = 0.6
+    description, settings = bake.prepare(scene, bpy.context.evaluated_depsgraph_get())
+    assert description["phase"] == "hg" and settings["model"] == "sun05"
+    with pytest.raises(bake.BakeError, match="isotropic"):
+        bake.run(description, settings, str(tmp_path / "fog.exr"))
+    scene.airlight.model = 'BIRI06'
+    description, settings = bake.prepare(scene, bpy.context.evaluated_depsgraph_get())
+    stats, _ = bake.run(description, settings, str(tmp_path / "fog.exr"))

@@ -71,12 +71,19 @@ def test04_property_limits_clamp():
     s.color = (2.0, -1.0, 0.5)
     assert tuple(s.color) == pytest.approx((1.0, 0.0, 0.5))
     props = type(s).bl_rna.properties
+    s.anisotropy = 1.5
+    assert s.anisotropy == pytest.approx(0.99)
+    s.anisotropy = -1.5
+    assert s.anisotropy == pytest.approx(-0.99)
     for name in ("enabled", "density", "color", "model", "accuracy", "aa_samples", "threads",
-                 "cache_dir", "auto_composite"):
+                 "cache_dir", "auto_composite", "phase", "anisotropy"):
         description = props[name].description
         assert description and description[0].isupper(), name
     assert {item.identifier for item in props["model"].enum_items} == {
-        'AUTO', 'SUN05', 'SUN05_EXACT', 'QUADRATURE'}
+        'AUTO', 'SUN05', 'SUN05_EXACT', 'QUADRATURE', 'BIRI06'}
+    assert {item.identifier for item in props["phase"].enum_items} == {
+        'HENYEY_GREENSTEIN', 'RAYLEIGH', 'MIE_HAZY', 'MIE_MURKY'}
+    assert props["phase"].default == 'HENYEY_GREENSTEIN' and props["anisotropy"].default == 0.0
 
 
 def test05_operators_poll_defined():

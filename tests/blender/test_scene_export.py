@@ -93,11 +93,18 @@ def test04_description_keys_match_bake_arguments(tmp_path):
     description = scene_export.export_scene(scene, bpy.context.evaluated_depsgraph_get())
     assert set(description) == {"width", "height", "cam_to_world", "projection", "clip_start", "clip_end",
                                 "vertices", "triangles", "light_positions", "light_intensities",
-                                "sigma_t", "albedo"}
+                                "sigma_t", "albedo", "phase", "g"}
     cam = scene.camera.data
     assert (description["clip_start"], description["clip_end"]) == pytest.approx((cam.clip_start, cam.clip_end))
     assert description["sigma_t"] == pytest.approx(0.2)
     assert description["albedo"] == pytest.approx((0.9, 0.8, 0.7))
+    assert (description["phase"], description["g"]) == ("isotropic", 0.0)
+    scene.airlight.anisotropy = 0.6
+    description = scene_export.export_scene(scene, bpy.context.evaluated_depsgraph_get())
+    assert (description["phase"], description["g"]) == ("hg", pytest.approx(0.6))
+    scene.airlight.phase = 'MIE_MURKY'
+    description = scene_export.export_scene(scene, bpy.context.evaluated_depsgraph_get())
+    assert (description["phase"], description["g"]) == ("mie_murky", 0.0)
 
 
 def test05_errors_are_clear(tmp_path):
