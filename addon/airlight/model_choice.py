@@ -9,7 +9,7 @@ The figures are measurements, not guesses; each names where it was measured:
   (biri06.cpp: max 8.9e-4 for isotropic, Rayleigh, hazy/murky Mie and HG |g| < 0.95, up
   to 6e-3 for HG |g| >= 0.95, whose lobe is narrower than the table resolves);
 - cost: time relative to the table model on the same 1920x1080 image, from
-  benchmarks/bench_sun05.py (sun05_exact ~27x, quadrature ~20x the table model) and for
+  benchmarks/bench_sun05.py (same run: sun05_exact ~98x, quadrature ~72x the table model) and for
   biri06 the bake's airlight pass, 1 light on 2 threads (150-240 ms vs 40 ms: ~5x).
 
 The phase: the Sun 2005 models integrate the isotropic phase only (Henyey-Greenstein
@@ -27,8 +27,8 @@ from .properties import MODEL_NAMES, PHASE_NAMES
 # native name -> (label, max relative error, relative cost)
 MEASURED = {
     "sun05": ("Sun 2005 (table)", 1.9e-3, 1.0),
-    "quadrature": ("Quadrature", 1e-8, 20.0),
-    "sun05_exact": ("Sun 2005 (exact)", 1e-8, 27.0),
+    "quadrature": ("Quadrature", 1e-8, 72.0),
+    "sun05_exact": ("Sun 2005 (exact)", 1e-8, 98.0),
     "biri06": ("Biri 2006 (table)", 8.9e-4, 5.0),
 }
 # biri06's measured worst case for Henyey-Greenstein lobes with |g| >= 0.95.
