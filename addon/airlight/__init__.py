@@ -26,6 +26,8 @@ from . import native, properties, cache, scene_export, compositor, bake, render,
 # Registration order: data first, then what uses it.
 _modules = [properties, compositor, bake, render, ui]
 from . import fog_object; _modules.append(fog_object)  # noqa: E402,E702  Gaussian fog objects
+from . import brush_ops; _modules.append(brush_ops)  # noqa: E402,E702  fog paintbrush and eraser
+from . import tools_ui; _modules.append(tools_ui)  # noqa: E402,E702  N panel > Airlight > Fog Tools
 
 # The viewport preview (preview.py, GPU) registers itself when it is part of the package.
 if _os.path.exists(_os.path.join(__path__[0], "preview.py")):

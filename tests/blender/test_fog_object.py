@@ -176,3 +176,79 @@ def test09_bad_input_raises_with_object_name(scene, case):
 def test10_gather_without_fog_objects_is_empty(scene):
     c, s, a = fo.gather(bpy.context.evaluated_depsgraph_get())
     assert c.shape == (0, 3) and s.shape == (0,) and a.shape == (0,)
+
+
+# ---- paintbrush and eraser logic (addon/airlight/brush_ops.py, pure functions) ----------
+
+from airlight import brush_ops as bo  # noqa: E402
+
+
+def test11_resample_stroke_spacing_exact():
+    # an L-shaped polyline of length 3 + 4 = 7, spacing 0.5: 15 positions at s = 0..7
+    pts = np.array([[0.0, 0.0, 0.0], [3.0, 0.0, 0.0], [3.0, 4.0, 0.0]])
+    pos, tan, s = bo.resample_stroke(pts, 0.5)
+    np.testing.assert_allclose(s, 0.5 * np.arange(15))
+    assert len(pos) == 15
+    np.testing.assert_allclose(pos[6], [3.0, 0.0, 0.0], atol=1e-12)
+    np.testing.assert_allclose(pos[8], [3.0, 1.0, 0.0], atol=1e-12)
+    np.testing.assert_allclose(pos[-1], [3.0, 4.0, 0.0], atol=1e-12)
+    np.testing.assert_allclose(tan[:6], np.tile([1.0, 0.0, 0.0], (6, 1)))
+    np.testing.assert_allclose(tan[7:], np.tile([0.0, 1.0, 0.0], (8, 1)))
+    # offset start, repeated points ignored
+    pos, _, s = bo.resample_stroke(np.array([[0.0, 0, 0], [0, 0, 0], [1.0, 0, 0]]), 0.3, offset=0.2)
+    np.testing.assert_allclose(s, [0.2, 0.5, 0.8])
+    # a click: one position
+    pos, tan, s = bo.resample_stroke(np.array([[1.0, 2.0, 3.0]]), 0.3)
+    np.testing.assert_array_equal(pos, [[1.0, 2.0, 3.0]])
+    with pytest.raises(ValueError):
+        bo.resample_stroke(pts, 0.0)
+
+
+@pytest.mark.parametrize("a", [0.5, 2.0, 10.0])
+def test12_paint_dabs_spacing_and_offsets(a):
+    """Default spacing 0.75/a along the stroke; each offset perpendicular to the stroke
+    and shorter than 1/a (Fogshop section 6); the offsets fill the disc (not degenerate)."""
+    length = 40.0 / a
+    pts = np.array([[0.0, 0.0, 1.0], [length, 0.0, 1.0]])
+    dabs = bo.paint_dabs(pts, a, seed=7)
+    expected_n = int(np.floor(length / (0.75 / a) + 1e-9)) + 1
+    assert len(dabs) == expected_n == 54
+    along = dabs[:, 0]
+    np.testing.assert_allclose(along, 0.75 / a * np.arange(expected_n), atol=1e-12)  # no tangential jitter
+    radial = np.linalg.norm(dabs[:, 1:] - [0.0, 1.0], axis=1)
+    assert radial.max() < 1.0 / a
+    assert radial.max() > 0.8 / a and (dabs[:, 1] > 0).any() and (dabs[:, 1] < 0).any()
+    assert (np.abs(dabs[:, 2] - 1.0) > 0.1 / a).any()  # offsets leave the stroke's plane too
+    # deterministic per seed, different across seeds; a longer stroke extends a shorter one
+    np.testing.assert_array_equal(dabs, bo.paint_dabs(pts, a, seed=7))
+    assert not np.allclose(dabs, bo.paint_dabs(pts, a, seed=8))
+    longer = bo.paint_dabs(np.array([[0.0, 0.0, 1.0], [length, 0.0, 1.0], [length, 5.0, 1.0]]), a, seed=7)
+    np.testing.assert_allclose(longer[:expected_n], dabs, atol=1e-12)
+    # jitter 0: exactly on the stroke; custom spacing
+    exact = bo.paint_dabs(pts, a, spacing=2.0, jitter=0.0)
+    np.testing.assert_allclose(exact, np.stack([2.0 / a * np.arange(len(exact)),
+                                                np.zeros(len(exact)), np.ones(len(exact))], 1))
+
+
+def test13_perpendicular_offsets_any_direction():
+    rng = np.random.default_rng(3)
+    t = rng.standard_normal((500, 3))
+    t /= np.linalg.norm(t, axis=1, keepdims=True)
+    t[0] = [1.0, 0.0, 0.0]
+    t[1] = [0.0, 0.0, -1.0]
+    off = bo.perpendicular_offsets(t, 0.25, np.random.default_rng(0))
+    np.testing.assert_allclose(np.einsum("ij,ij->i", off, t), 0.0, atol=1e-12)
+    assert np.linalg.norm(off, axis=1).max() < 0.25
+
+
+def test14_project_points_matches_matrix():
+    # orthographic top view of a 10 x 8 m box into 200 x 160 pixels
+    m = np.diag([2.0 / 10.0, 2.0 / 8.0, -0.01, 1.0])
+    xy, vis = bo.project_points([[0.0, 0.0, 0.0], [5.0, -4.0, 0.0], [-2.5, 2.0, 3.0]], m, 200, 160)
+    np.testing.assert_allclose(xy, [[100.0, 80.0], [200.0, 0.0], [50.0, 120.0]])
+    assert vis.all()
+    # perspective: a point behind the viewer (w <= 0) is not visible
+    persp = np.array([[1.0, 0, 0, 0], [0, 1.0, 0, 0], [0, 0, -1.0, -0.2], [0, 0, -1.0, 0]])
+    _, vis = bo.project_points([[0.0, 0.0, -5.0], [0.0, 0.0, 5.0]], persp, 100, 100)
+    assert vis.tolist() == [True, False]
+

@@ -1,0 +1,63 @@
+"""3D viewport sidebar (N panel) > Airlight > Fog Tools: brush settings and the buttons
+that start the paintbrush and the eraser on the active fog object."""
+
+import bpy
+
+from . import fog_object
+
+
+class AIRLIGHT_PT_fog_tools(bpy.types.Panel):
+    bl_label = "Fog Tools"
+    bl_idname = "AIRLIGHT_PT_fog_tools"
+    bl_space_type = 'VIEW_3D'
+    bl_region_type = 'UI'
+    bl_category = "Airlight"
+
+    @classmethod
+    def poll(cls, context):
+        return context.scene is not None and hasattr(context.scene, "airlight_brush")
+
+    def draw(self, context):
+        layout = self.layout
+        settings = context.scene.airlight_brush
+        obj = context.active_object
+
+        layout.operator("airlight.add_fog_object", icon='ADD')
+        if context.mode != 'OBJECT':
+            layout.label(text="Fog tools work in Object Mode.", icon='INFO')
+        elif not fog_object.is_fog_object(obj):
+            layout.label(text="Select a fog object to paint or erase.", icon='INFO')
+        else:
+            box = layout.box()
+            box.label(text=f"{obj.name}: {len(obj.data.vertices)} Gaussians",
+                      icon='OUTLINER_OB_VOLUME')
+        row = layout.row(align=True)
+        row.scale_y = 1.4
+        row.operator("airlight.fog_paint", icon='BRUSH_DATA')
+
+        layout.use_property_split = True
+        layout.use_property_decorate = False
+        col = layout.column(heading="Paintbrush")
+        col.prop(settings, "plane")
+        col.prop(settings, "scale")
+        col.prop(settings, "scale_radius")
+        col.prop(settings, "amplitude")
+        col.prop(settings, "spacing")
+        col.prop(settings, "jitter")
+        col.prop(settings, "seed")
+        col = layout.column(heading="Eraser")
+        col.prop(settings, "radius")
+        col.prop(settings, "strength")
+
+
+classes = (AIRLIGHT_PT_fog_tools,)
+
+
+def register():
+    for cls in classes:
+        bpy.utils.register_class(cls)
+
+
+def unregister():
+    for cls in reversed(classes):
+        bpy.utils.unregister_class(cls)
