@@ -103,6 +103,22 @@ def project_points(points, perspective_matrix, width, height):
     return xy, visible
 
 
+def falloff(distance, radius):
+    """Smooth brush falloff (1 - (d/R)^2)^2 inside the radius, 0 outside."""
+    q = np.clip(np.asarray(distance, dtype=np.float64) / radius, 0.0, 1.0)
+    return (1.0 - q * q) ** 2
+
+
+def erase(xy, visible, amplitudes, centre, radius, strength):
+    """One eraser dab at pixel _centre_: amplitudes lowered by strength * falloff; returns
+    (new amplitudes, keep mask): Gaussians that reached zero are not kept."""
+    amplitudes = np.asarray(amplitudes, dtype=np.float64)
+    d = np.linalg.norm(np.asarray(xy, dtype=np.float64) - np.asarray(centre, dtype=np.float64), axis=1)
+    amount = np.where(np.asarray(visible, dtype=bool), strength * falloff(d, radius), 0.0)
+    new = np.maximum(amplitudes - amount, 0.0)
+    return new, new > 0.0
+
+
 # ---- settings ---------------------------------------------------------------------------
 
 
@@ -455,6 +471,63 @@ class AIRLIGHT_OT_fog_paint(_FogBrush, bpy.types.Operator):
         return True
 
 
+class AIRLIGHT_OT_fog_erase(_FogBrush, bpy.types.Operator):
+    """Erase Gaussian fog under the brush on the active fog object (left-drag; F radius,
+    Shift+F strength, Esc cancels)"""
+    bl_idname = "airlight.fog_erase"
+    bl_label = "Erase Fog"
+    bl_options = {'REGISTER', 'UNDO'}
+    hint = ("Fog Erase: left-drag lowers density (deleted at zero), F radius, "
+            "Shift+F strength, Esc/right-click cancels")
+
+    def adjust_targets(self):
+        return "radius", "strength"
+
+    def brush_radius_px(self, context):
+        return context.scene.airlight_brush.radius
+
+    def stroke_begin(self, context, xy):
+        centres, self._scales, amplitudes = fog_object.read(self._object)
+        matrix = np.array(self._object.matrix_world, dtype=np.float64)
+        self._world = centres @ matrix[:3, :3].T + matrix[:3, 3]
+        self._amplitudes = amplitudes
+        self._original = amplitudes.copy()
+        self._last = None
+        self._state.colour = (1.0, 0.4, 0.3, 0.8)
+        self._dab_along(context, xy)
+
+    def _dab_along(self, context, xy):
+        """Dabs every radius/4 pixels from the last dab to _xy_."""
+        settings = context.scene.airlight_brush
+        spacing = max(1.0, 0.25 * settings.radius)
+        if self._last is None:
+            dabs = [np.asarray(xy)]
+        else:
+            path = np.array([self._last, xy], dtype=np.float64)
+            if np.linalg.norm(path[1] - path[0]) < spacing:
+                return
+            dabs, _, _ = resample_stroke(path, spacing, offset=spacing)
+        rv3d = self._area.spaces.active.region_3d
+        xy_all, visible = project_points(self._world, rv3d.perspective_matrix,
+                                         self._region.width, self._region.height)
+        for centre in dabs:
+            self._amplitudes, _ = erase(xy_all, visible, self._amplitudes, centre,
+                                        settings.radius, settings.strength)
+            self._last = tuple(centre)
+        self._state.points = self._world[self._amplitudes > 0.0]
+
+    def stroke_move(self, context, xy):
+        self._dab_along(context, xy)
+
+    def stroke_end(self, context):
+        if np.array_equal(self._amplitudes, self._original):
+            return False
+        keep = self._amplitudes > 0.0
+        centres, scales, _ = fog_object.read(self._object)
+        fog_object.write(self._object, centres[keep], scales[keep], self._amplitudes[keep])
+        return True
+
+
 def _scale_radius_get(self):
     return 1.0 / self.scale
 
@@ -472,7 +545,7 @@ AirlightBrushSettings.__annotations__["scale_radius"] = FloatProperty(
     min=1e-4, max=1e3, unit='LENGTH',
 )
 
-classes = (AirlightBrushSettings, AIRLIGHT_OT_fog_paint)
+classes = (AirlightBrushSettings, AIRLIGHT_OT_fog_paint, AIRLIGHT_OT_fog_erase)
 
 
 def register():

@@ -34,6 +34,7 @@ class AIRLIGHT_PT_fog_tools(bpy.types.Panel):
         row = layout.row(align=True)
         row.scale_y = 1.4
         row.operator("airlight.fog_paint", icon='BRUSH_DATA')
+        row.operator("airlight.fog_erase", icon='X')
 
         layout.use_property_split = True
         layout.use_property_decorate = False

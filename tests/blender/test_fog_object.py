@@ -252,3 +252,35 @@ def test14_project_points_matches_matrix():
     _, vis = bo.project_points([[0.0, 0.0, -5.0], [0.0, 0.0, 5.0]], persp, 100, 100)
     assert vis.tolist() == [True, False]
 
+
+def test15_erase_lowers_with_falloff_and_deletes_at_zero():
+    xy = np.array([[50.0, 50.0], [60.0, 50.0], [75.0, 50.0], [100.0, 50.0], [50.0, 50.0]])
+    visible = np.array([True, True, True, True, False])
+    amp = np.array([0.5, 0.5, 0.5, 0.5, 0.5])
+    new, keep = bo.erase(xy, visible, amp, (50.0, 50.0), 50.0, 0.2)
+    f = (1.0 - (np.array([0.0, 10.0, 25.0]) / 50.0) ** 2) ** 2
+    np.testing.assert_allclose(new[:3], 0.5 - 0.2 * f)
+    assert new[3] == 0.5 and new[4] == 0.5  # outside the radius; not visible
+    assert keep.all()
+    # repeated dabs reach zero at the centre first, exactly zero (clamped) and deleted
+    a = amp.copy()
+    for _ in range(2):  # 2 x 0.25 removes exactly the 0.5 at the centre
+        a, keep = bo.erase(xy, visible, a, (50.0, 50.0), 50.0, 0.25)
+    assert a[0] == 0.0 and not keep[0] and keep[1:].all()
+    assert a[1] == pytest.approx(0.5 - 0.5 * (1 - 0.2 ** 2) ** 2) and 0.0 < a[1] < a[2] < 0.5
+
+
+def test16_unregister_removes_fog_types():
+    import addon_utils
+    addon_utils.disable("airlight", default_set=True)
+    try:
+        assert not hasattr(bpy.types.Object, "airlight_fog")
+        assert not hasattr(bpy.types.Scene, "airlight_brush")
+        for name in ("AIRLIGHT_OT_add_fog_object", "AIRLIGHT_OT_fog_paint", "AIRLIGHT_OT_fog_erase",
+                     "AIRLIGHT_PT_fog_tools"):
+            assert not hasattr(bpy.types, name), name
+        assert bo._draw_handles == set()
+    finally:
+        addon_utils.enable("airlight", default_set=True)
+    assert hasattr(bpy.types.Object, "airlight_fog") and hasattr(bpy.types.Scene, "airlight_brush")
+    assert hasattr(bpy.types, "AIRLIGHT_OT_fog_erase") and hasattr(bpy.types, "AIRLIGHT_PT_fog_tools")

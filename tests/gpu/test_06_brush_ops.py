@@ -184,6 +184,36 @@ def _drive(out_path):
         record["handles_after_adjust"] = len(brush_ops._draw_handles)
         st().scale, st().amplitude = SCALE, AMPLITUDE
 
+        # 6. eraser: one dab at the stroke's middle
+        st().radius = 30.0
+        st().strength = 10.0
+        obj = fog_objects()[0]
+        before_c, _, before_a = fog_object.read(obj)
+        world = before_c @ np.array(obj.matrix_world)[:3, :3].T + np.array(obj.matrix_world)[:3, 3]
+        cx, cy = region.width // 2, region.height // 2
+        xy = np.array([view3d_utils.location_3d_to_region_2d(region, rv3d, p) for p in world])
+        record["erase_pixels"] = (xy - [cx, cy]).tolist()
+        record["erase_before"] = before_a.tolist()
+        with override():
+            bpy.ops.ed.undo_push(message="eraser settings")
+        with override():
+            bpy.ops.airlight.fog_erase('INVOKE_DEFAULT')
+        ev('MOUSEMOVE', 'NOTHING', 0, 0)
+        yield
+        ev('LEFTMOUSE', 'PRESS', 0, 0)
+        yield
+        ev('LEFTMOUSE', 'RELEASE', 0, 0)
+        yield
+        yield
+        _, _, after_a = fog_object.read(fog_objects()[0])
+        record["erase_after"] = after_a.tolist()
+        record["handles_after_erase"] = len(brush_ops._draw_handles)
+        with override():
+            bpy.ops.ed.undo()
+        yield
+        record["count_after_erase_undo"] = len(fog_objects()[0].data.vertices)
+        record["draws_total"] = brush_ops._draw_count[0]
+
     gen = steps()
 
     def tick():
@@ -256,7 +286,7 @@ else:
 
     def test03_brush_circle_drawn_and_removed(record):
         assert record["handles_during_stroke"] == 1
-        assert record["draws_during_stroke"] > 0
+        assert record["draws_during_stroke"] > 0 and record["draws_total"] > record["draws_during_stroke"]
         assert record["handles_after_stroke"] == 0
 
     def test04_one_undo_removes_the_stroke(record):
@@ -279,3 +309,20 @@ else:
         assert record["count_after_adjust"] == len(record["painted"]["centres"])
         assert record["handles_after_adjust"] == 0
 
+    def test07_eraser_dab(record):
+        """Strength 10 per dab, radius 30 px, smooth falloff (1 - (d/R)^2)^2: Gaussians
+        whose centres project within the radius lose 10 f(d) (deleted at zero); the others
+        are untouched. Pixels from view3d_utils, independent of brush_ops.project_points."""
+        xy = np.array(record["erase_pixels"])
+        before = np.array(record["erase_before"])
+        d = np.linalg.norm(xy, axis=1)
+        f = np.where(d < 30.0, (1.0 - np.minimum(d / 30.0, 1.0) ** 2) ** 2, 0.0)
+        expected = np.maximum(before - 10.0 * f, 0.0)
+        expected = expected[expected > 0.0]
+        after = np.array(record["erase_after"])
+        deleted = len(before) - len(after)
+        print(f"\neraser: {deleted} of {len(before)} Gaussians deleted")
+        assert deleted >= 3
+        np.testing.assert_allclose(after, expected, rtol=1e-5, atol=1e-4)
+        assert record["handles_after_erase"] == 0
+        assert record["count_after_erase_undo"] == len(before)
