@@ -212,6 +212,31 @@ def _drive(out_path):
             bpy.ops.ed.undo()
         yield
         record["count_after_erase_undo"] = len(fog_objects()[0].data.vertices)
+
+        # 7. the other planes: VIEW (top view: z = cursor z) and SURFACE (a floor at
+        # z = 0.5, centres lifted by 1/a along its normal)
+        with override():
+            bpy.ops.mesh.primitive_plane_add(size=40.0, location=(0.0, 0.0, 0.5))
+        bpy.context.view_layer.objects.active = fog_objects()[0]
+        for plane, cursor_z in (('VIEW', -1.0), ('SURFACE', 3.0)):
+            st().plane = plane
+            win.scene.cursor.location = (0.0, 0.0, cursor_z)
+            n0 = len(fog_objects()[0].data.vertices)
+            with override():
+                bpy.ops.airlight.fog_paint('INVOKE_DEFAULT')
+            ev('MOUSEMOVE', 'NOTHING', x0, 100)
+            yield
+            ev('LEFTMOUSE', 'PRESS', x0, 100)
+            yield
+            ev('MOUSEMOVE', 'NOTHING', x1, 100)
+            yield
+            ev('LEFTMOUSE', 'RELEASE', x1, 100)
+            yield
+            c, _, _ = fog_object.read(fog_objects()[0])
+            record[f"plane_{plane}"] = dict(
+                centres=c[n0:].tolist(),
+                start=view3d_utils.region_2d_to_location_3d(
+                    region, rv3d, (region.width // 2 + x0, region.height // 2 + 100), (0, 0, 0))[:])
         record["draws_total"] = brush_ops._draw_count[0]
 
     gen = steps()
@@ -326,3 +351,17 @@ else:
         np.testing.assert_allclose(after, expected, rtol=1e-5, atol=1e-4)
         assert record["handles_after_erase"] == 0
         assert record["count_after_erase_undo"] == len(before)
+
+    @pytest.mark.parametrize("plane,height", [("VIEW", -1.0), ("SURFACE", 0.5 + 1.0 / SCALE)])
+    def test08_view_and_surface_planes(record, plane, height):
+        """A horizontal stroke in the top view: on the view plane through the cursor
+        (z = -1), and on the floor z = 0.5 lifted by 1/a; offsets < 1/a in the y-z plane."""
+        rec = record[f"plane_{plane}"]
+        c = np.array(rec["centres"])
+        y0 = rec["start"][1]
+        assert len(c) >= 5
+        along = np.sort(c[:, 0] - c[:, 0].min())
+        np.testing.assert_allclose(np.diff(along), 0.75 / SCALE, atol=1e-4)
+        r = np.hypot(c[:, 1] - y0, c[:, 2] - height)
+        assert r.max() < 1.0 / SCALE + 1e-6
+        assert abs(np.mean(c[:, 2]) - height) < 0.5 / SCALE
