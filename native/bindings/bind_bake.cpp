@@ -73,7 +73,8 @@ py::dict bake_py(int width, int height, const py::object& cam_to_world, const py
                  const py::object& light_positions, const py::object& light_intensities, double sigma_t,
                  const py::object& albedo, const std::string& phase, double g, const std::string& model,
                  int threads, int aa_samples,
-                 double filter_width, double clip_start, double clip_end, const py::object& progress) {
+                 double filter_width, double clip_start, double clip_end, const py::object& progress,
+                 const py::object& rbf_centres, const py::object& rbf_scales, const py::object& rbf_amplitudes) {
     // Gather the scene description from the arrays (shapes checked here, values in bake()).
     SceneDescription scene;
     scene.camera.width = width;
@@ -100,6 +101,36 @@ py::dict bake_py(int width, int height, const py::object& cam_to_world, const py
         light.position = {lp.at(l, 0), lp.at(l, 1), lp.at(l, 2)};
         light.I0 = {li.at(l, 0), li.at(l, 1), li.at(l, 2)};
         scene.point_lights.push_back(light);
+    }
+
+    // Gaussian fog: all three arrays or none; values checked here so the errors name them.
+    const int n_rbf_given = int(!rbf_centres.is_none()) + int(!rbf_scales.is_none()) + int(!rbf_amplitudes.is_none());
+    if (n_rbf_given != 0 && n_rbf_given != 3)
+        throw py::value_error("rbf_centres, rbf_scales and rbf_amplitudes must be given together (or all None)");
+    if (n_rbf_given == 3) {
+        auto bc = as_array<double>(rbf_centres, "rbf_centres");
+        const py::ssize_t n = require_rows_of(bc, 3, "rbf_centres");
+        auto a = as_array<double>(rbf_scales, "rbf_scales");
+        auto c = as_array<double>(rbf_amplitudes, "rbf_amplitudes");
+        if (!(a.ndim() == 1 && a.shape(0) == n))
+            throw py::value_error("rbf_scales: expected shape (" + std::to_string(n) + ",) to match rbf_centres, got " +
+                                  shape_str(a));
+        if (!(c.ndim() == 1 && c.shape(0) == n))
+            throw py::value_error("rbf_amplitudes: expected shape (" + std::to_string(n) +
+                                  ",) to match rbf_centres, got " + shape_str(c));
+        for (py::ssize_t i = 0; i < 3 * n; ++i)
+            if (!std::isfinite(bc.data()[i])) throw py::value_error("rbf_centres: must be finite (found NaN or inf)");
+        for (py::ssize_t i = 0; i < n; ++i) {
+            if (!(std::isfinite(a.data()[i]) && a.data()[i] > 0.0))
+                throw py::value_error("rbf_scales: must be finite and > 0, got " + std::to_string(a.data()[i]) +
+                                      " at index " + std::to_string(i));
+            if (!(std::isfinite(c.data()[i]) && c.data()[i] >= 0.0))
+                throw py::value_error("rbf_amplitudes: must be finite and >= 0, got " + std::to_string(c.data()[i]) +
+                                      " at index " + std::to_string(i));
+        }
+        scene.gaussians.centres.assign(bc.data(), bc.data() + 3 * n);
+        scene.gaussians.scales.assign(a.data(), a.data() + n);
+        scene.gaussians.amplitudes.assign(c.data(), c.data() + n);
     }
 
     BakeSettings settings;
@@ -171,6 +202,7 @@ void bind_bake(py::module_& m) {
           "albedo"_a = py::make_tuple(1.0, 1.0, 1.0), "phase"_a = "isotropic", "g"_a = 0.0, "model"_a = "sun05", "threads"_a = 0,
           "aa_samples"_a = 4, "filter_width"_a = 1.5, "clip_start"_a = 0.0,
           "clip_end"_a = std::numeric_limits<double>::infinity(), "progress"_a = py::none(),
+          "rbf_centres"_a = py::none(), "rbf_scales"_a = py::none(), "rbf_amplitudes"_a = py::none(),
           R"doc(Bake fog passes for one camera view (all arguments keyword-only).
 
 width, height: render resolution in pixels.
@@ -195,6 +227,11 @@ clip_start, clip_end: the camera's clip range (view-axis depths, camera.data.cli
   no far clip.
 progress: optional callable(fraction) -> bool|None, called from this thread
   between row bands; returning False cancels and raises BakeCancelled.
+rbf_centres (n, 3), rbf_scales (n,) > 0, rbf_amplitudes (n,) >= 0: optional Gaussian
+  fog (Fogshop): density sigma_t + sum_i c_i exp(-a_i^2 |x - b_i|^2) in 1/m (sigma_t is
+  the background). Isotropic phase only; models "sun05" / "sun05_exact" use the Fogshop
+  approximation (Zhou et al. 2007), "quadrature" its exact reference. Transmittance is
+  exact (culled to 1e-7 per Gaussian). Give all three or none; n = 0 is homogeneous fog.
 
 Returns dict(airlight=(H, W, 3) float32, transmittance=(H, W, 3) float32,
 depth=(H, W) float32 (distance from the eye, or from the near plane for

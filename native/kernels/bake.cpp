@@ -29,6 +29,8 @@
 #include "camera.h"
 #include "quadrature.h"
 #include "raycast.h"
+#include "rbf_airlight.h"
+#include "rbf_medium.h"
 #include "sun05.h"
 #include "sun05_batch.h"
 #include "sun05_inline.h"
@@ -80,6 +82,32 @@ void validate(const SceneDescription& scene, const BakeSettings& settings) {
     require(settings.model == ModelId::Sun05Table || settings.model == ModelId::Sun05Exact ||
                 settings.model == ModelId::Quadrature || settings.model == ModelId::Biri06,
             "the bake does not dispatch this model (see models())");
+    // Gaussian fog (Fogshop): isotropic only, through the Fogshop approximation (sun05,
+    // sun05_exact: F table or exact F for the background term) or its quadrature reference.
+    const GaussianMedium& gauss = scene.gaussians;
+    if (!gauss.empty()) {
+        const size_t n = gauss.scales.size();
+        require(gauss.amplitudes.size() == n && gauss.centres.size() == 3 * n,
+                "gaussians: centres (" + std::to_string(gauss.centres.size()) + " values), scales (" +
+                    std::to_string(n) + ") and amplitudes (" + std::to_string(gauss.amplitudes.size()) +
+                    ") must describe the same number of Gaussians (3 centre values each)");
+        for (double x : gauss.centres) require(std::isfinite(x), "gaussians: centres must be finite");
+        for (size_t i = 0; i < n; ++i) {
+            require(std::isfinite(gauss.scales[i]) && gauss.scales[i] > 0.0,
+                    "gaussians: scale " + std::to_string(i) + " must be finite and > 0, got " +
+                        std::to_string(gauss.scales[i]));
+            require(std::isfinite(gauss.amplitudes[i]) && gauss.amplitudes[i] >= 0.0,
+                    "gaussians: amplitude " + std::to_string(i) + " must be finite and >= 0, got " +
+                        std::to_string(gauss.amplitudes[i]));
+        }
+        require(phase_is_isotropic(medium.phase),
+                std::string("Gaussian fog supports only the isotropic phase, got '") + phase_name(medium.phase.kind) +
+                    "' (g = " + std::to_string(medium.phase.g) + ")");
+        require(settings.model == ModelId::Sun05Table || settings.model == ModelId::Sun05Exact ||
+                    settings.model == ModelId::Quadrature,
+                "Gaussian fog supports the models 'sun05', 'sun05_exact' (Fogshop approximation) and "
+                "'quadrature' (reference)");
+    }
     for (size_t i = 0; i < scene.point_lights.size(); ++i) {
         const PointLight& light = scene.point_lights[i];
         require(finite3(light.position), "light " + std::to_string(i) + ": position must be finite");
@@ -276,11 +304,27 @@ class FogModel {
             if (weight.x == 0.0 && weight.y == 0.0 && weight.z == 0.0) continue;
             lights_.push_back({light.position, weight, glm::length(light.position - origin)});
         }
+        if (!scene.gaussians.empty()) {
+            const GaussianMedium& g = scene.gaussians;
+            rbf_ = std::make_unique<RbfMedium>(g.centres, g.scales, g.amplitudes, sigma_t_);
+            for (const LightData& light : lights_) rbf_lights_.push_back(light.s);
+            // Fogshop's per-(light, Gaussian) precomputation, once for the shared viewpoint.
+            if (model_ != ModelId::Quadrature && shared_origin_)
+                fogshop_ = std::make_unique<RbfAirlightFogshop>(*rbf_, origin_, rbf_lights_, table_.get(),
+                                                                std::max(0, settings.threads));
+        }
+    }
+
+    // Transmittance of the ray _r_ from t0 to _depth_ (inf: none), as eval_many computes it.
+    double transmittance(const Ray& r, double t0, double depth) const {
+        if (!rbf_) return std::exp(-sigma_t_ * (depth - t0));
+        const double seg = std::max(0.0, depth - t0);
+        return std::exp(-rbf_->optical_depth_ray(t0 > 0.0 ? r.o + t0 * r.d : r.o, r.d, seg));
     }
 
     // True if _eval_soa_ applies (perspective camera, table model, fog): then a near
     // distance t0 costs nothing extra (one evaluation of the segment, sun05_batch.h).
-    bool soa() const { return shared_origin_ && model_ == ModelId::Sun05Table && sigma_t_ > 0.0; }
+    bool soa() const { return shared_origin_ && model_ == ModelId::Sun05Table && sigma_t_ > 0.0 && !rbf_; }
 
     // Hot path (soa() only): _n_ rays from the shared origin with unit directions (dx,
     // dy, dz)[k] (structure of arrays, so the per-light dot products and accumulations
@@ -348,6 +392,10 @@ class FogModel {
             }
             return;
         }
+        if (rbf_) {
+            eval_rbf(rays, Dvp, t0, n, Tr, La);
+            return;
+        }
         for (int k = 0; k < n; ++k) {
             const double near = t0 ? double(t0[k]) : 0.0;
             const double seg = std::max(0.0, double(Dvp[k]) - near);  // inf stays inf
@@ -369,6 +417,47 @@ class FogModel {
     }
 
   private:
+    // Gaussian fog: Tr = exp(-(sigma_t (t1 - t0) + sum_i T_i)) with the culled optical depth,
+    // La = sum_l albedo I0_l Fogshop(l) over the same segment [t0, t1], attenuated from the
+    // near point o + t0 d. Fogshop is set up once at the eye (perspective): the segment's
+    // airlight is then exp(T(eye, near point)) (La_eye(t1) - La_eye(t0)), which is exact for
+    // the integral (the eye-side attenuation of every point beyond t0 carries the factor
+    // exp(-T(eye, near point))). Orthographic rays (own origins) set it up per ray; the
+    // quadrature model integrates from the near point directly.
+    void eval_rbf(const Ray* rays, const float* Dvp, const float* t0, int n, double* Tr, RGB* La) const {
+        const size_t L = lights_.size();
+        std::vector<double> far_La(L), near_La(L);
+        for (int k = 0; k < n; ++k) {
+            const Ray& ray = rays[k];
+            const double near = t0 ? double(t0[k]) : 0.0;
+            const double seg = std::max(0.0, double(Dvp[k]) - near);  // inf stays inf
+            const Vec3 o = near > 0.0 ? ray.o + near * ray.d : ray.o;
+            Tr[k] = std::exp(-rbf_->optical_depth_ray(o, ray.d, seg));
+            La[k] = RGB(0.0);
+            if (!(seg > 0.0) || L == 0) continue;
+            if (model_ == ModelId::Quadrature) {
+                for (size_t l = 0; l < L; ++l)
+                    La[k] += lights_[l].weight *
+                             rbf_airlight_quadrature(*rbf_, lights_[l].s, o, ray.d, seg, kQuadratureRelTol);
+                continue;
+            }
+            if (fogshop_) {
+                fogshop_->eval(ray.d, near + seg, far_La.data());
+                double scale = 1.0;
+                if (near > 0.0) {
+                    fogshop_->eval(ray.d, near, near_La.data());
+                    scale = std::exp(rbf_->optical_depth_ray(ray.o, ray.d, near));
+                    for (size_t l = 0; l < L; ++l) far_La[l] = std::max(0.0, far_La[l] - near_La[l]);
+                }
+                for (size_t l = 0; l < L; ++l) La[k] += lights_[l].weight * (scale * far_La[l]);
+                continue;
+            }
+            const RbfAirlightFogshop local(*rbf_, o, rbf_lights_, table_.get(), 1);
+            local.eval(ray.d, seg, far_La.data());
+            for (size_t l = 0; l < L; ++l) La[k] += lights_[l].weight * far_La[l];
+        }
+    }
+
     double airlight(double Dsv, double cos_gamma, double Dvp) const {
         switch (model_) {
             case ModelId::Sun05Table:  // inlined fast path, same as sun05_airlight(..., Table)
@@ -397,6 +486,11 @@ class FogModel {
     std::shared_ptr<const SpecialFTable> table_;
     std::shared_ptr<const Biri06Table> biri_table_;
     std::vector<LightData> lights_;
+    // Gaussian fog (null without): the medium (beta0 = sigma_t), the lights' positions in
+    // lights_' order, and Fogshop set up at the shared viewpoint.
+    std::unique_ptr<RbfMedium> rbf_;
+    std::vector<Vec3> rbf_lights_;
+    std::unique_ptr<RbfAirlightFogshop> fogshop_;
 };
 
 // Runs _work(i)_ for i in [0, n) on _n_threads_ workers that take items from an atomic
@@ -719,7 +813,6 @@ BakeResult bake(const SceneDescription& scene, const BakeSettings& settings, con
     // Fog of _n_ rays from the near plane (t0, from _cast_) to _depth_ (from the origin,
     // inf: none), as Cycles integrates it: La over [t0, depth] with attenuation measured
     // from the near plane, Tr = exp(-sigma_t (depth - t0)) (FogModel::eval_many).
-    const double sigma_t = scene.medium.sigma_t;
     const bool near_clip = clipped && clip_start > 0.0;
     struct FogScratch {};
     auto fog_eval = [&](const Ray* r, const float* depth, const float* t0, int n, double* Tr, RGB* La,
@@ -839,7 +932,7 @@ BakeResult bake(const SceneDescription& scene, const BakeSettings& settings, con
                                 if (std::isinf(depth_n)) continue;
                                 double t_near = 0.0, t_far;
                                 if (near_clip) rays.clip_range(rays(ni + 0.5, nj + 0.5), t_near, t_far);
-                                Tr_hits += std::exp(-sigma_t * (double(depth_n) - t_near));
+                                Tr_hits += fog.transmittance(rays(ni + 0.5, nj + 0.5), t_near, double(depth_n));
                                 ++hits;
                             }
                     }

@@ -1,10 +1,12 @@
 // bake_test.cpp: camera rays, Embree first hits and the bake against analytic geometry.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <limits>
 #include <random>
+#include <string>
 
 #include <glm/gtc/matrix_transform.hpp>
 
@@ -12,6 +14,8 @@
 #include "biri06.h"
 #include "camera.h"
 #include "raycast.h"
+#include "rbf_airlight.h"
+#include "rbf_medium.h"
 #include "quadrature.h"
 #include "sun05.h"
 
@@ -364,6 +368,152 @@ TEST(Bake, ProgressIsMonotoneAndCancels) {
     for (size_t i = 1; i < seen.size(); ++i) EXPECT_GE(seen[i], seen[i - 1]);
     EXPECT_EQ(seen.back(), 1.0);
     EXPECT_THROW(bake(scene, BakeSettings{}, [](double f) { return f < 0.5; }), Cancelled);
+}
+
+// Gaussian fog (Fogshop): thin smooth fog of broad Gaussians over a background sigma_t,
+// a floor in the lower half of the image (upper half: misses, fog to infinity), two lights
+// outside the cloud, near plane at view depth 0.5. Reference per pixel centre: the exact
+// transmittance exp(-optical depth over all Gaussians, unculled) from the near point to
+// the hit, and the airlight by rbf_airlight_quadrature from the near point. Bounds: the
+// Fogshop approximation's thin-fog bound from rbf_airlight_test.cpp (mean 1 %, p99 3 %),
+// the transmittance to 1e-6 (float output, culling <= 1e-7 per Gaussian), the bake's
+// quadrature model to 1e-6 relative (tolerance 1e-8 plus float output).
+SceneDescription gaussian_scene(double amplitude_scale) {
+    SceneDescription scene;
+    const int W = 32, H = 24;
+    scene.camera = test_camera(glm::dmat4(1.0), blender_perspective(kPi / 3, W, H), W, H);
+    scene.camera.clip_start = 0.5;
+    scene.medium.sigma_t = 0.01;
+    scene.medium.albedo = RGB(0.9, 0.8, 0.7);
+    std::mt19937_64 rng(5);
+    std::uniform_real_distribution<double> U(0.0, 1.0);
+    for (int i = 0; i < 12; ++i) {
+        scene.gaussians.centres.insert(scene.gaussians.centres.end(),
+                                       {16.0 * U(rng) - 8.0, 4.0 * U(rng) - 2.0, -(20.0 + 16.0 * U(rng))});
+        scene.gaussians.scales.push_back(0.15 + 0.15 * U(rng));
+        scene.gaussians.amplitudes.push_back(amplitude_scale * (0.02 + 0.04 * U(rng)));
+    }
+    scene.point_lights.push_back({Vec3(4.0, 30.0, -28.0), RGB(100.0, 80.0, 60.0)});
+    scene.point_lights.push_back({Vec3(-20.0, 10.0, -5.0), RGB(30.0, 30.0, 40.0)});
+    // Floor y = -3 from z = +1 to z = -200.
+    scene.geometry.vertices = {-300, -3, 1, 300, -3, 1, 300, -3, -200, -300, -3, -200};
+    scene.geometry.triangles = {0, 1, 2, 0, 2, 3};
+    return scene;
+}
+
+RbfMedium medium_of(const SceneDescription& scene) {
+    return RbfMedium(scene.gaussians.centres, scene.gaussians.scales, scene.gaussians.amplitudes,
+                     scene.medium.sigma_t);
+}
+
+TEST(BakeGaussians, FogshopAndTransmittanceMatchReferences) {
+    const SceneDescription scene = gaussian_scene(0.01);
+    BakeSettings settings;
+    settings.aa_samples = 1;
+    const BakeResult r = bake(scene, settings);
+    settings.model = ModelId::Quadrature;
+    const BakeResult q = bake(scene, settings);
+    const RbfMedium m = medium_of(scene);
+    const CameraRays rays(scene.camera);
+    std::vector<double> err;
+    double worst_T = 0.0, worst_q = 0.0, gauss_share = 0.0;
+    int hits = 0, misses = 0;
+    for (int j = 0; j < 24; ++j)
+        for (int i = 0; i < 32; ++i) {
+            const Ray ray = rays(i + 0.5, j + 0.5);
+            double t_near, t_far;
+            rays.clip_range(ray, t_near, t_far);
+            const size_t p = size_t(j) * 32 + i;
+            const double depth = r.depth[p];
+            std::isinf(depth) ? ++misses : ++hits;
+            const Vec3 o = ray.o + t_near * ray.d;
+            const double T = std::isinf(depth) ? m.optical_depth_all_ray(o, ray.d, depth)
+                                               : m.optical_depth_all(o, ray.o + depth * ray.d);
+            gauss_share = std::max(gauss_share, T - scene.medium.sigma_t * (depth - t_near));
+            for (int c = 0; c < 3; ++c) EXPECT_NEAR(r.transmittance[3 * p + c], std::exp(-T), 1e-6) << i << " " << j;
+            worst_T = std::max(worst_T, std::abs(double(r.transmittance[3 * p]) - std::exp(-T)));
+            RGB ref(0.0);
+            for (const PointLight& light : scene.point_lights)
+                ref += scene.medium.albedo * light.I0 *
+                       rbf_airlight_quadrature(m, light.position, o, ray.d, depth - t_near, 1e-10);
+            for (int c = 0; c < 3; ++c) {
+                err.push_back(std::abs(r.airlight[3 * p + c] / ref[c] - 1.0));
+                EXPECT_NEAR(q.airlight[3 * p + c], ref[c], 1e-6 * ref[c]) << i << " " << j;
+                worst_q = std::max(worst_q, std::abs(q.airlight[3 * p + c] / ref[c] - 1.0));
+                EXPECT_EQ(q.transmittance[3 * p + c], r.transmittance[3 * p + c]);
+            }
+        }
+    EXPECT_GT(hits, 100);
+    EXPECT_GT(misses, 100);
+    // The Gaussians matter here (else the test would only check the background).
+    EXPECT_GT(gauss_share, 0.01);
+    double mean = 0.0;
+    for (double e : err) mean += e;
+    mean /= double(err.size());
+    std::sort(err.begin(), err.end());
+    const double p99 = err[size_t(0.99 * double(err.size()))];
+    std::printf("[ bake rbf ] fogshop vs quadrature: mean %.4f p99 %.4f max %.4f; quadrature model max %.2g; "
+                "transmittance max abs %.2g; Gaussian optical depth up to %.3f\n",
+                mean, p99, err.back(), worst_q, worst_T, gauss_share);
+    EXPECT_LT(mean, 0.01);
+    EXPECT_LT(p99, 0.03);
+}
+
+// Supersampled edges, threads and an orthographic camera go through the same path.
+TEST(BakeGaussians, OrthographicAndSupersampledAreFinite) {
+    SceneDescription scene = gaussian_scene(0.25);
+    // A wall at z = -50 behind the cloud (the orthographic rays run parallel to the floor).
+    scene.geometry.vertices.insert(scene.geometry.vertices.end(), {-300, -300, -50, 300, -300, -50, 300, 300, -50, -300, 300, -50});
+    scene.geometry.triangles.insert(scene.geometry.triangles.end(), {4, 5, 6, 4, 6, 7});
+    BakeSettings settings;
+    settings.model = ModelId::Sun05Exact;
+    const BakeResult persp = bake(scene, settings);
+    EXPECT_GT(persp.stats.supersampled_pixels, 0);
+    scene.camera.projection = glm::ortho(-10.0, 10.0, -7.5, 7.5, 0.1, 100.0);
+    const BakeResult ortho = bake(scene, settings);
+    for (const BakeResult* r : {&persp, &ortho})
+        for (size_t k = 0; k < r->airlight.size(); ++k) {
+            ASSERT_TRUE(std::isfinite(r->airlight[k]) && r->airlight[k] >= 0.0f) << k;
+            ASSERT_TRUE(r->transmittance[k] >= 0.0f && r->transmittance[k] <= 1.0f) << k;
+        }
+    // Orthographic centre pixel: rays start on the near plane; T from there to the hit.
+    const CameraRays rays(scene.camera);
+    const RbfMedium m = medium_of(scene);
+    for (int j : {4, 12, 20}) {
+        const Ray ray = rays(16.5, j + 0.5);
+        double t_near, t_far;
+        rays.clip_range(ray, t_near, t_far);
+        const size_t p = size_t(j) * 32 + 16;
+        ASSERT_FALSE(std::isinf(ortho.depth[p]));
+        EXPECT_NEAR(ortho.transmittance[3 * p],
+                    std::exp(-m.optical_depth_all(ray.o + t_near * ray.d, ray.o + double(ortho.depth[p]) * ray.d)),
+                    1e-6);
+    }
+}
+
+TEST(BakeGaussians, RejectsBadInput) {
+    BakeSettings settings;
+    SceneDescription scene = gaussian_scene(0.01);
+    scene.gaussians.scales[3] = 0.0;
+    EXPECT_THROW(bake(scene, settings), std::invalid_argument);
+    scene = gaussian_scene(0.01);
+    scene.gaussians.amplitudes.pop_back();
+    EXPECT_THROW(bake(scene, settings), std::invalid_argument);
+    scene = gaussian_scene(0.01);
+    scene.gaussians.centres[4] = std::nan("");
+    EXPECT_THROW(bake(scene, settings), std::invalid_argument);
+    scene = gaussian_scene(0.01);
+    scene.medium.phase = phase_from_name("hg", 0.5);
+    settings.model = ModelId::Quadrature;
+    try {
+        bake(scene, settings);
+        ADD_FAILURE() << "anisotropic phase with Gaussians accepted";
+    } catch (const std::invalid_argument& e) {
+        EXPECT_NE(std::string(e.what()).find("isotropic"), std::string::npos) << e.what();
+    }
+    scene = gaussian_scene(0.01);
+    settings.model = ModelId::Biri06;
+    EXPECT_THROW(bake(scene, settings), std::invalid_argument);
 }
 
 }  // namespace

@@ -65,9 +65,22 @@ struct TriangleMesh {
     std::vector<uint32_t> triangles;  // 3 indices per triangle
 };
 
+// Optional inhomogeneous part of the medium, a sum of Gaussians (Fogshop, Zhou et al.
+// 2007; rbf_medium.h): beta(x) = medium.sigma_t + sum_i c_i exp(-a_i^2 |x - b_i|^2), i.e.
+// the homogeneous sigma_t acts as the background beta0. Centres _b_ in m (3 doubles per
+// Gaussian), scales _a_ in 1/m (> 0), amplitudes _c_ in 1/m (>= 0). The Gaussians
+// scatter with the medium's albedo and (isotropic) phase. Empty: homogeneous fog.
+struct GaussianMedium {
+    std::vector<double> centres;  // x, y, z per Gaussian
+    std::vector<double> scales;
+    std::vector<double> amplitudes;
+    bool empty() const { return scales.empty() && amplitudes.empty() && centres.empty(); }
+};
+
 struct SceneDescription {
     Camera camera;
     HomogeneousMedium medium;
+    GaussianMedium gaussians;
     std::vector<PointLight> point_lights;
     TriangleMesh geometry;
 };
