@@ -376,6 +376,9 @@ class _FogBrush:
                                     "the mouse, click to confirm, Esc/right-click to restore")
             return {'RUNNING_MODAL'}
         if event.type == 'LEFTMOUSE' and event.value == 'PRESS' and not self._stroking:
+            x, y = self._state.mouse
+            if not (0 <= x < self._region.width and 0 <= y < self._region.height):
+                return {'PASS_THROUGH'}  # a click on the sidebar, header or another editor
             self._begin(context, self._state.mouse)
             return {'RUNNING_MODAL'}
         if event.type in {'MOUSEMOVE', 'INBETWEEN_MOUSEMOVE'} and self._stroking:
@@ -523,6 +526,9 @@ class AIRLIGHT_OT_fog_erase(_FogBrush, bpy.types.Operator):
         if np.array_equal(self._amplitudes, self._original):
             return False
         keep = self._amplitudes > 0.0
+        if not keep.any():
+            self.report({'WARNING'}, f"All Gaussians of '{self._object.name}' erased: the bake "
+                                     "refuses an empty fog object (paint some or delete it)")
         centres, scales, _ = fog_object.read(self._object)
         fog_object.write(self._object, centres[keep], scales[keep], self._amplitudes[keep])
         return True
