@@ -1,0 +1,125 @@
+"""Bakes with Gaussian fog (Fogshop) through the binding: the Transmittance pass against
+exp(-optical depth) summed here in numpy/scipy from eq. 31 (erf, independent of the C++),
+the Airlight pass against `RbfMedium.airlight(model="quadrature")` from the near point
+(the Fogshop approximation's thin-fog bound: mean 1 %, p99 3 %, rbf_airlight_test.cpp),
+the "quadrature" model to 1e-6, no-Gaussians bit-identical, and bad rbf_* input."""
+import math
+
+import numpy as np
+import pytest
+from scipy.special import erf
+
+import _native
+from scene_util import camera_matrix, perspective, pixel_dirs_camera, quad, rotation_x
+
+W, H = 32, 24
+FOV = math.radians(60.0)
+SIGMA_T = 0.01
+CLIP = 0.5
+CAM_POS = np.array([0.0, 0.0, 0.0])
+FLOOR_Y = -3.0
+LIGHTS = np.array([[4.0, 30.0, -28.0], [-20.0, 10.0, -5.0]])
+INTENSITY = np.array([[100.0, 80.0, 60.0], [30.0, 30.0, 40.0]])
+ALBEDO = (0.9, 0.8, 0.7)
+
+
+def gaussians(scale=0.01, n=12, seed=5):
+    rng = np.random.default_rng(seed)
+    b = np.column_stack([16 * rng.random(n) - 8, 4 * rng.random(n) - 2, -(20 + 16 * rng.random(n))])
+    a = 0.15 + 0.15 * rng.random(n)
+    c = scale * (0.02 + 0.04 * rng.random(n))
+    return b, a, c
+
+
+def bake(**kw):
+    s = 300.0
+    vertices, triangles = quad([[-s, FLOOR_Y, 1.0], [s, FLOOR_Y, 1.0], [s, FLOOR_Y, -200.0], [-s, FLOOR_Y, -200.0]])
+    args = dict(width=W, height=H, cam_to_world=camera_matrix(rotation_x(0.0), CAM_POS),
+                projection=perspective(FOV, W, H), vertices=vertices, triangles=triangles,
+                light_positions=LIGHTS, light_intensities=INTENSITY, sigma_t=SIGMA_T, albedo=ALBEDO,
+                clip_start=CLIP, threads=2, aa_samples=1)
+    args.update(kw)
+    return _native.bake(**args)
+
+
+def optical_depth(b, a, c, o, d, t0, t1):
+    """sigma_t (t1 - t0) + sum_i T_i along o + t d (eq. 31), plain erf (fine for these sizes)."""
+    if math.isinf(t1):
+        return math.inf
+    rel = b - o
+    ts = rel @ d
+    h2 = np.sum(rel * rel, axis=1) - ts * ts
+    Ti = c * math.sqrt(math.pi) / (2 * a) * np.exp(-a * a * h2) * (erf(a * (t1 - ts)) - erf(a * (t0 - ts)))
+    return SIGMA_T * (t1 - t0) + Ti.sum()
+
+
+def test01_transmittance_and_airlight_match_references():
+    b, a, c = gaussians()
+    out = bake(rbf_centres=b, rbf_scales=a, rbf_amplitudes=c)
+    quad_model = bake(rbf_centres=b, rbf_scales=a, rbf_amplitudes=c, model="quadrature")
+    medium = _native.RbfMedium(b, a, c, beta0=SIGMA_T)
+    dirs = pixel_dirs_camera(FOV, W, H)
+    errs, hits = [], 0
+    for j in range(H):
+        for i in range(W):
+            d = dirs[j, i]
+            t0 = CLIP / -d[2]
+            depth = float(out["depth"][j, i])
+            hits += not math.isinf(depth)
+            T = optical_depth(b, a, c, CAM_POS, d, t0, depth)
+            np.testing.assert_allclose(out["transmittance"][j, i], math.exp(-T), atol=1e-6)
+            if (i + j) % 3:
+                continue  # the quadrature reference is slow: a third of the pixels
+            o = CAM_POS + t0 * d
+            per_light = medium.airlight(LIGHTS, o, d[None, :], np.array([depth - t0]), model="quadrature")[0]
+            ref = (per_light[:, None] * INTENSITY).sum(0) * np.array(ALBEDO)
+            errs.extend(np.abs(out["airlight"][j, i] / ref - 1))
+            np.testing.assert_allclose(quad_model["airlight"][j, i], ref, rtol=1e-6)
+    assert 100 < hits < W * H - 100
+    errs = np.sort(errs)
+    mean, p99 = errs.mean(), errs[int(0.99 * len(errs))]
+    print(f"fogshop bake vs quadrature: mean {mean:.4f} p99 {p99:.4f} max {errs[-1]:.4f}")
+    assert mean < 0.01 and p99 < 0.03
+
+
+def test02_gaussians_change_the_passes_and_none_is_bit_identical():
+    plain = bake()
+    b, a, c = gaussians(scale=1.0)
+    fog = bake(rbf_centres=b, rbf_scales=a, rbf_amplitudes=c)
+    assert np.max(plain["transmittance"] - fog["transmittance"]) > 0.05
+    assert np.all(fog["transmittance"] <= plain["transmittance"] + 1e-7)
+    empty = bake(rbf_centres=np.zeros((0, 3)), rbf_scales=np.zeros(0), rbf_amplitudes=np.zeros(0))
+    for key in ("airlight", "transmittance", "depth"):
+        assert np.array_equal(plain[key], empty[key])
+        assert np.array_equal(plain[key], bake(rbf_centres=None)[key])
+
+
+def test03_progress_and_cancel_with_gaussians():
+    b, a, c = gaussians()
+    seen = []
+    bake(rbf_centres=b, rbf_scales=a, rbf_amplitudes=c, progress=lambda f: seen.append(f))
+    assert seen[-1] == 1.0 and seen == sorted(seen)
+    with pytest.raises(_native.BakeCancelled):
+        bake(rbf_centres=b, rbf_scales=a, rbf_amplitudes=c, progress=lambda f: f < 0.5)
+
+
+def test04_bad_input():
+    b, a, c = gaussians()
+    bad = [
+        dict(rbf_centres=b, rbf_scales=a),                                    # not all three
+        dict(rbf_centres=b[:, :2], rbf_scales=a, rbf_amplitudes=c),           # shape
+        dict(rbf_centres=b, rbf_scales=a[:-1], rbf_amplitudes=c),             # length
+        dict(rbf_centres=b, rbf_scales=a, rbf_amplitudes=c[:-1]),
+        dict(rbf_centres=np.where(np.arange(12)[:, None] == 3, np.nan, b), rbf_scales=a, rbf_amplitudes=c),
+        dict(rbf_centres=b, rbf_scales=np.where(np.arange(12) == 2, 0.0, a), rbf_amplitudes=c),
+        dict(rbf_centres=b, rbf_scales=np.where(np.arange(12) == 2, -1.0, a), rbf_amplitudes=c),
+        dict(rbf_centres=b, rbf_scales=a, rbf_amplitudes=np.where(np.arange(12) == 1, np.nan, c)),
+        dict(rbf_centres=b, rbf_scales=a, rbf_amplitudes=-c),
+    ]
+    for kw in bad:
+        with pytest.raises(ValueError, match="rbf_"):
+            bake(**kw)
+    with pytest.raises(ValueError, match="isotropic"):
+        bake(rbf_centres=b, rbf_scales=a, rbf_amplitudes=c, phase="hg", g=0.5, model="quadrature")
+    with pytest.raises(ValueError, match="Gaussian fog supports the models"):
+        bake(rbf_centres=b, rbf_scales=a, rbf_amplitudes=c, model="biri06")
