@@ -2,9 +2,9 @@
 
 `export_scene(scene, depsgraph)` returns a dict whose keys are exactly `_native.bake`'s
 scene keyword arguments (width, height, cam_to_world, projection, clip_start, clip_end,
-vertices, triangles, light_positions, light_intensities, sigma_t, albedo, phase, g), all numpy arrays,
-numbers or strings, for
-the frame the depsgraph is evaluated at. Nothing here calls the native module.
+vertices, triangles, light_positions, light_intensities, sigma_t, albedo, phase, g, and
+rbf_centres, rbf_scales, rbf_amplitudes when render-visible fog objects hold Gaussians),
+all numpy arrays, numbers or strings, for the frame the depsgraph is evaluated at. Nothing here calls the native module.
 
 Units: everything is in Blender units. `unit_settings.scale_length` is not applied, so
 the density is per Blender unit (per metre with the default scale of 1).
@@ -14,7 +14,7 @@ import math
 
 import numpy as np
 
-from . import model_choice
+from . import fog_object, model_choice
 from .properties import SUPPORTED_LIGHT_TYPES
 
 # Object types that can be turned into a mesh for ray casting.
@@ -187,6 +187,21 @@ def export_phase(scene):
     return model_choice.native_phase(settings)
 
 
+def export_fog_objects(depsgraph):
+    """World-space Gaussians of the render-visible fog objects (`fog_object.gather`) as
+    `_native.bake`'s rbf_* keyword arguments, or {} when there are none (then the bake is
+    the homogeneous one, unchanged). Invalid fog objects raise ExportError."""
+    try:
+        centres, scales, amplitudes = fog_object.gather(depsgraph)
+    except ValueError as ex:
+        raise ExportError(str(ex)) from None
+    if len(scales) == 0:
+        return {}
+    return dict(rbf_centres=np.ascontiguousarray(centres, dtype=np.float64),
+                rbf_scales=np.ascontiguousarray(scales, dtype=np.float64),
+                rbf_amplitudes=np.ascontiguousarray(amplitudes, dtype=np.float64))
+
+
 def export_scene(scene, depsgraph):
     """The scene description for `_native.bake(**description, ...)` at the depsgraph's frame."""
     sigma_t, albedo = export_medium(scene)
@@ -199,6 +214,7 @@ def export_scene(scene, depsgraph):
                         ("light intensities", light_intensities)):
         if not np.all(np.isfinite(array)):
             raise ExportError(f"The scene's {name} contain NaN or infinite values.")
+    gaussians = export_fog_objects(depsgraph)
     return dict(
         width=width, height=height,
         cam_to_world=cam_to_world, projection=projection,
@@ -206,6 +222,7 @@ def export_scene(scene, depsgraph):
         vertices=vertices, triangles=triangles,
         light_positions=light_positions, light_intensities=light_intensities,
         sigma_t=sigma_t, albedo=albedo, phase=phase, g=g,
+        **gaussians,
     )
 
 

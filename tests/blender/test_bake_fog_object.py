@@ -1,0 +1,92 @@
+"""bpy.ops.airlight.bake with fog objects (Gaussian fog, Fogshop): the Transmittance pass
+against exp(-optical depth) from `_native.RbfMedium` (exact, unculled) on the pixel-centre
+rays of interior pixels, rays computed here from the camera data; clear errors for empty or
+invalid fog objects; without (render-visible) fog objects the passes are bit-identical."""
+import os
+
+import bpy
+import numpy as np
+import pytest
+
+from airlight import fog_object, native, scene_export
+from conftest import build_plane_scene, exr_pass, needs_real_native
+
+W, H = 48, 36
+CENTRES = np.array([[0.0, 0.0, 1.0], [0.3, -0.2, 0.8], [-0.4, 0.3, 1.2], [0.1, 0.35, 0.6]])
+SCALES = np.array([3.0, 4.0, 2.5, 5.0])
+AMPLITUDES = np.array([1.5, 1.0, 0.8, 2.0])
+
+
+def _bake(path):
+    assert bpy.ops.airlight.bake(filepath=str(path)) == {'FINISHED'}
+    return str(path)
+
+
+def _pixel_rays(scene):
+    """Eye, unit directions (H, W, 3) through pixel centres, near and hit distances on z = 0
+    (camera at (0, 0, 2) looking straight down, sensor fit AUTO, landscape)."""
+    cam = scene.camera.data
+    scale = cam.sensor_width / cam.lens / W
+    i = (np.arange(W) + 0.5 - W / 2) * scale
+    j = (H / 2 - (np.arange(H) + 0.5)) * scale
+    x, y = np.meshgrid(i, j)
+    norm = np.sqrt(1.0 + x * x + y * y)
+    d = np.stack([x, y, -np.ones_like(x)], axis=-1) / norm[..., None]
+    return np.array([0.0, 0.0, 2.0]), d, cam.clip_start * norm, 2.0 * norm
+
+
+@needs_real_native
+def test01_transmittance_is_exp_minus_optical_depth(tmp_path):
+    scene = build_plane_scene(tmp_path, size=(W, H))
+    fog_object.new_fog_object("Fog", scene.collection, CENTRES, SCALES, AMPLITUDES)
+    description = scene_export.export_scene(scene, bpy.context.evaluated_depsgraph_get())
+    assert len(description["rbf_scales"]) == len(CENTRES)
+    T_pass = exr_pass(_bake(tmp_path / "fog.exr"), "Transmittance")
+    eye, d, t0, t1 = _pixel_rays(scene)
+    medium = native.get().RbfMedium(CENTRES, SCALES, AMPLITUDES, beta0=scene.airlight.density)
+    inner = (slice(1, H - 1), slice(1, W - 1))
+    dirs = d[inner].reshape(-1, 3)
+    p = eye + t0[inner].reshape(-1, 1) * dirs
+    q = eye + t1[inner].reshape(-1, 1) * dirs
+    expected = np.exp(-medium.optical_depth(p, q, culled=False)).reshape(H - 2, W - 2)
+    for c in range(3):
+        np.testing.assert_allclose(T_pass[inner][..., c], expected, rtol=2e-5, atol=1e-6)
+    # The Gaussians matter: against the homogeneous fog alone.
+    homogeneous = np.exp(-scene.airlight.density * (t1 - t0))[inner]
+    assert np.max(homogeneous - expected) > 0.1
+
+
+@needs_real_native
+@pytest.mark.parametrize("case,message", [("empty", "has no Gaussians"),
+                                          ("scale", "airlight_scale"),
+                                          ("amplitude", "airlight_amplitude")])
+def test02_empty_or_invalid_fog_object_is_a_clear_error(tmp_path, case, message):
+    scene = build_plane_scene(tmp_path, size=(W, H))
+    if case == "empty":
+        fog_object.new_fog_object("Bad", scene.collection)
+    else:
+        scales = SCALES.copy()
+        amplitudes = AMPLITUDES.copy()
+        (scales if case == "scale" else amplitudes)[1] = -1.0
+        fog_object.new_fog_object("Bad", scene.collection, CENTRES, scales, amplitudes)
+    path = tmp_path / "x.exr"
+    with pytest.raises(RuntimeError, match=message) as info:
+        bpy.ops.airlight.bake(filepath=str(path))
+    assert "'Bad'" in str(info.value)
+    assert not os.path.exists(path)
+
+
+@needs_real_native
+def test03_no_visible_fog_object_is_bit_identical(tmp_path):
+    scene = build_plane_scene(tmp_path, size=(W, H))
+    before = _bake(tmp_path / "before.exr")
+    description = scene_export.export_scene(scene, bpy.context.evaluated_depsgraph_get())
+    assert not any(k.startswith("rbf_") for k in description)
+    hidden = fog_object.new_fog_object("Hidden", scene.collection, CENTRES, SCALES, AMPLITUDES)
+    hidden.hide_render = True
+    after = _bake(tmp_path / "after.exr")
+    for name in ("Airlight", "Transmittance"):
+        assert np.array_equal(exr_pass(before, name), exr_pass(after, name))
+    hidden.hide_render = False
+    visible = _bake(tmp_path / "visible.exr")
+    assert not np.array_equal(exr_pass(before, "Transmittance"), exr_pass(visible, "Transmittance"))
