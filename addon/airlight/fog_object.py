@@ -19,6 +19,8 @@ import bpy
 import numpy as np
 from bpy.props import BoolProperty, FloatProperty
 
+from . import visibility
+
 SCALE_ATTR = "airlight_scale"
 AMPLITUDE_ATTR = "airlight_amplitude"
 
@@ -142,31 +144,6 @@ def validate(name, centres, scales, amplitudes):
                                    f"'{AMPLITUDE_ATTR}' (c must be >= 0, in 1/m)")
 
 
-def _hidden_collections(view_layer):
-    hidden = set()
-
-    def walk(layer_collection, parent_hidden):
-        is_hidden = (parent_hidden or layer_collection.exclude
-                     or layer_collection.collection.hide_render)
-        if is_hidden:
-            hidden.add(layer_collection.collection.name)
-        for child in layer_collection.children:
-            walk(child, is_hidden)
-
-    if view_layer is not None:
-        for child in view_layer.layer_collection.children:
-            walk(child, False)
-    return hidden
-
-
-def _render_visible(obj, hidden):
-    original = obj.original
-    if original.hide_render:
-        return False
-    collections = original.users_collection
-    return not collections or any(c.name not in hidden for c in collections)
-
-
 def uniform_scale(matrix3):
     """The isotropic scale factor of a 3x3 linear map: |det|^(1/3)."""
     return float(abs(np.linalg.det(np.asarray(matrix3, dtype=np.float64)))) ** (1.0 / 3.0)
@@ -183,14 +160,14 @@ def gather(depsgraph):
     whose width follows the geometric mean of the three axis scales (s above), not an
     ellipsoid. Invalid data raises FogObjectError (a ValueError) naming the object.
     """
-    hidden = _hidden_collections(depsgraph.view_layer)
+    hidden = visibility.render_hidden_collections(depsgraph.view_layer)
     blocks = []
     for instance in depsgraph.object_instances:
         obj = instance.object
         if not is_fog_object(obj):
             continue
         source = instance.parent if instance.is_instance else obj
-        if source is None or not _render_visible(source, hidden):
+        if source is None or not visibility.is_render_visible(source, hidden):
             continue
         name = obj.original.name
         centres, scales, amplitudes = read_mesh(obj.data, name)

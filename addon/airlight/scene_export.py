@@ -14,7 +14,7 @@ import math
 
 import numpy as np
 
-from . import fog_object, model_choice
+from . import fog_object, model_choice, visibility
 from .properties import SUPPORTED_LIGHT_TYPES
 
 # Object types that can be turned into a mesh for ray casting.
@@ -63,37 +63,6 @@ def export_clip_range(scene, depsgraph):
     return float(data.clip_start), float(data.clip_end)
 
 
-def _render_hidden_collections(scene, view_layer):
-    """Names of collections whose objects do not render in `view_layer`."""
-    hidden = set()
-
-    def walk(layer_collection, parent_hidden):
-        collection = layer_collection.collection
-        is_hidden = parent_hidden or layer_collection.exclude or collection.hide_render
-        if is_hidden:
-            hidden.add(collection.name)
-        for child in layer_collection.children:
-            walk(child, is_hidden)
-
-    if view_layer is not None:
-        for child in view_layer.layer_collection.children:
-            walk(child, False)
-    return hidden
-
-
-def _is_render_visible(obj, hidden_collections):
-    """Whether an original (not instanced) object shows up in the render."""
-    original = obj.original
-    if original.hide_render:
-        return False
-    collections = original.users_collection
-    if not collections:
-        return True
-    # Visible when at least one collection holding it renders (the scene master
-    # collection never appears in hidden_collections).
-    return any(c.name not in hidden_collections for c in collections)
-
-
 def _mesh_arrays(obj_eval):
     """Local-space vertices (N,3) float32 and triangles (M,3) uint32 of an evaluated object."""
     try:
@@ -123,7 +92,7 @@ def export_geometry_and_lights(scene, depsgraph):
     Returns (vertices (N,3) float32, triangles (M,3) uint32, light_positions (L,3),
     light_intensities (L,3), skipped_lights [(name, type)]).
     """
-    hidden = _render_hidden_collections(scene, depsgraph.view_layer)
+    hidden = visibility.render_hidden_collections(depsgraph.view_layer)
     vertex_blocks, triangle_blocks = [], []
     n_vertices = 0
     positions, intensities, skipped = [], [], []
@@ -132,7 +101,7 @@ def export_geometry_and_lights(scene, depsgraph):
         # An instance is visible when whatever instances it renders (the instanced
         # object itself is often hidden, e.g. in a particle collection).
         source = instance.parent if instance.is_instance else obj
-        if source is None or not _is_render_visible(source, hidden):
+        if source is None or not visibility.is_render_visible(source, hidden):
             continue
         matrix = np.array(instance.matrix_world, dtype=np.float64)
         if obj.type == 'LIGHT':
