@@ -230,21 +230,7 @@ double phase_airlight_quadrature(const PhaseFunction& phase, double sigma_t, dou
         if (a + w > 0.0 && a + w < end) cuts.push_back(a + w);
     }
     std::sort(cuts.begin(), cuts.end());
-    double sum = 0.0;
-    for (size_t i = 0; i + 1 < cuts.size(); ++i)
-        sum += integrate_adaptive(integrand, cuts[i], cuts[i + 1], rel_tol * 0.1);
-    const double last = cuts.back();
-    if (std::isinf(end)) {
-        const double L = std::max({last, Dsv, 1e-300});
-        auto g = [&](double t) {
-            const double om = 1.0 - t;
-            const double v = integrand(last + L * t / om);
-            return v == 0.0 ? 0.0 : v * L / (om * om);
-        };
-        sum += integrate_adaptive(g, 0.0, 1.0, rel_tol * 0.1);
-    } else if (end > last) {
-        sum += integrate_adaptive(integrand, last, end, rel_tol * 0.1);
-    }
+    const double sum = integrate_piecewise(integrand, cuts, end, Dsv, rel_tol);
     return sigma_t * sum;
 }
 

@@ -112,6 +112,26 @@ double integrate_adaptive(const std::function<double(double)>& f, double a, doub
     return sum;
 }
 
+double integrate_piecewise(const std::function<double(double)>& f, const std::vector<double>& cuts,
+                           double end, double tail_scale, double rel_tol) {
+    double sum = 0.0;
+    for (size_t i = 0; i + 1 < cuts.size(); ++i) sum += integrate_adaptive(f, cuts[i], cuts[i + 1], rel_tol * 0.1);
+    const double last = cuts.back();
+    if (std::isinf(end)) {
+        // Tail [last, inf): x = last + L t / (1 - t) with L the natural length scale.
+        const double L = std::max({last, tail_scale, 1e-300});
+        auto g = [&](double t) {
+            const double om = 1.0 - t;
+            const double v = f(last + L * t / om);
+            return v == 0.0 ? 0.0 : v * L / (om * om);
+        };
+        sum += integrate_adaptive(g, 0.0, 1.0, rel_tol * 0.1);
+    } else if (end > last) {
+        sum += integrate_adaptive(f, last, end, rel_tol * 0.1);
+    }
+    return sum;
+}
+
 double sun05_airlight_quadrature(double sigma_t, double Dsv, double cos_gamma, double Dvp, double rel_tol) {
     if (sigma_t == 0.0 || Dvp == 0.0) return 0.0;
     const double c = std::clamp(cos_gamma, -1.0, 1.0);
@@ -138,22 +158,7 @@ double sun05_airlight_quadrature(double sigma_t, double Dsv, double cos_gamma, d
         }
     }
     std::sort(cuts.begin(), cuts.end());
-    double sum = 0.0;
-    for (size_t i = 0; i + 1 < cuts.size(); ++i)
-        sum += integrate_adaptive(integrand, cuts[i], cuts[i + 1], rel_tol * 0.1);
-    const double last = cuts.back();
-    if (std::isinf(end)) {
-        // Tail [last, inf): x = last + L t / (1 - t) with L the natural length scale.
-        const double L = std::max({last, Dsv, 1e-300});
-        auto g = [&](double t) {
-            const double om = 1.0 - t;
-            const double v = integrand(last + L * t / om);
-            return v == 0.0 ? 0.0 : v * L / (om * om);
-        };
-        sum += integrate_adaptive(g, 0.0, 1.0, rel_tol * 0.1);
-    } else if (end > last) {
-        sum += integrate_adaptive(integrand, last, end, rel_tol * 0.1);
-    }
+    const double sum = integrate_piecewise(integrand, cuts, end, Dsv, rel_tol);
     return sigma_t / (4.0 * kPi) * sum;
 }
 

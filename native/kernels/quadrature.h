@@ -2,6 +2,7 @@
 #pragma once
 
 #include <functional>
+#include <vector>
 
 namespace airlight {
 
@@ -9,6 +10,12 @@ namespace airlight {
 // by a change of variables) to relative tolerance _rel_tol_.
 double integrate_adaptive(const std::function<double(double)>& f, double a, double b,
                           double rel_tol = 1e-10, double abs_tol = 0.0, int max_depth = 60);
+
+// Integrates f over [cuts[0], end] piecewise between the sorted breakpoints _cuts_ (each
+// piece to rel_tol / 10). When _end_ is +inf the tail beyond the last cut is mapped to
+// [0, 1) by x = last + L t / (1 - t), L = max(last, tail_scale).
+double integrate_piecewise(const std::function<double(double)>& f, const std::vector<double>& cuts,
+                           double end, double tail_scale, double rel_tol);
 
 // Reference airlight: adaptive quadrature of Sun 2005 eq. 5 with I0 = 1, omega = 1,
 //   La = sigma_t/(4 pi) int_0^Dvp exp(-sigma_t d(x)) / d(x)^2 * exp(-sigma_t x) dx,
