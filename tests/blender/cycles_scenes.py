@@ -383,13 +383,17 @@ def floor_depth(o, d, desc: FogScene):
     return np.where(hit, t, np.inf)
 
 
-def quadrature_airlight(o, d, Dvp, light_pos, I0, sigma_t, n=256):
+def quadrature_airlight(o, d, Dvp, light_pos, I0, sigma_t, n=256, phase=None):
     """Single-scattering airlight (Sun 2005 eq. 5, isotropic phase 1/(4 pi), albedo 1)
     by Gauss-Legendre quadrature, independent of the native code. With the foot of the
     perpendicular from the light at x0 = Dsv cos(gamma) and h = Dsv sin(gamma), the
     substitution x = x0 + h tan(theta) (dx / d^2 = d(theta) / h) turns the 1/d^2 peak
     into the smooth integrand sigma_t I0 / (4 pi h) * exp(-sigma_t (x + h sec(theta)))
-    in theta."""
+    in theta.
+
+    _phase_ (optional) is p(mu) with mu the cosine between the light's travel direction
+    and the scattered one toward the eye (-d): the light -> x direction has component
+    h tan(th) / (h sec(th)) = sin(th) along d, so mu = -sin(th). Default: 1/(4 pi)."""
     sv = np.asarray(light_pos, np.float64) - o
     Dsv = np.linalg.norm(sv, axis=-1)
     x0 = np.sum(sv * d, axis=-1)
@@ -401,12 +405,13 @@ def quadrature_airlight(o, d, Dvp, light_pos, I0, sigma_t, n=256):
     half = 0.5 * (th_b - th_a)[..., None]
     mid = 0.5 * (th_b + th_a)[..., None]
     th = mid + half * xg
+    p = 1.0 / (4.0 * math.pi) if phase is None else phase(-np.sin(th))
     with np.errstate(over="ignore", invalid="ignore"):
         c = np.cos(th)
         expo = -sigma_t * (x0[..., None] + h[..., None] * (np.sin(th) + 1.0) / c)
-        f = np.where(c > 0, np.exp(expo), 0.0)
+        f = np.where(c > 0, p * np.exp(expo), 0.0)
     integral = np.sum(f * wg, axis=-1) * half[..., 0]
-    return sigma_t * I0 * integral / (4.0 * math.pi * h)
+    return sigma_t * I0 * integral / h
 
 
 def reference_image(desc: FogScene, cam_to_world, projection, n=256):

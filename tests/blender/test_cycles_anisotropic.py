@@ -61,29 +61,11 @@ def _report(name, **figures):
 
 
 def hg_quadrature_airlight(o, d, Dvp, light_pos, I0, sigma_t, g, n=512):
-    """Single scattering with the HG phase (Cycles' sign), independent of the native code.
-    As cs.quadrature_airlight, x = x0 + h tan(th): the light -> x direction has component
-    h tan(th) / (h sec(th)) = sin(th) along d, so the phase angle between the light's
-    travel direction and the scattered one (toward the eye, -d) has cos = -sin(th)."""
-    sv = np.asarray(light_pos, np.float64) - o
-    Dsv = np.linalg.norm(sv, axis=-1)
-    x0 = np.sum(sv * d, axis=-1)
-    h = np.sqrt(np.maximum(Dsv ** 2 - x0 ** 2, 1e-300))
-    th_a = np.arctan2(-x0, h)
-    th_b = np.where(np.isfinite(Dvp), np.arctan2(np.where(np.isfinite(Dvp), Dvp, 0) - x0, h),
-                    0.5 * np.pi)
-    xg, wg = np.polynomial.legendre.leggauss(n)
-    half = 0.5 * (th_b - th_a)[..., None]
-    mid = 0.5 * (th_b + th_a)[..., None]
-    th = mid + half * xg
-    mu = -np.sin(th)
-    phase = (1 - g * g) / (4 * math.pi * (1 + g * g - 2 * g * mu) ** 1.5)
-    with np.errstate(over="ignore", invalid="ignore"):
-        c = np.cos(th)
-        expo = -sigma_t * (x0[..., None] + h[..., None] * (np.sin(th) + 1.0) / c)
-        f = np.where(c > 0, phase * np.exp(expo), 0.0)
-    integral = np.sum(f * wg, axis=-1) * half[..., 0]
-    return sigma_t * I0 * integral / h
+    """Single scattering with the HG phase (Cycles' sign), independent of the native code:
+    cs.quadrature_airlight with p(mu) = (1 - g^2) / (4 pi (1 + g^2 - 2 g mu)^1.5)."""
+    def hg(mu):
+        return (1 - g * g) / (4 * math.pi * (1 + g * g - 2 * g * mu) ** 1.5)
+    return cs.quadrature_airlight(o, d, Dvp, light_pos, I0, sigma_t, n=n, phase=hg)
 
 
 def _set_anisotropy(scene, g):
