@@ -27,6 +27,7 @@ from . import native, properties, cache, scene_export, compositor, bake, render,
 _modules = [properties, compositor, bake, render, ui]
 from . import fog_object; _modules.append(fog_object)  # noqa: E402,E702  Gaussian fog objects
 from . import brush_ops; _modules.append(brush_ops)  # noqa: E402,E702  fog paintbrush and eraser
+from . import fog_clipboard; _modules.append(fog_clipboard)  # noqa: E402,E702  fog select/copy/paste/move
 from . import tools_ui; _modules.append(tools_ui)  # noqa: E402,E702  N panel > Airlight > Fog Tools
 
 # The viewport preview (preview.py, GPU) registers itself when it is part of the package.

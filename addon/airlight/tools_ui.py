@@ -4,6 +4,7 @@ that start the paintbrush and the eraser on the active fog object."""
 import bpy
 
 from . import fog_object
+from . import fog_clipboard
 
 
 class AIRLIGHT_PT_fog_tools(bpy.types.Panel):
@@ -35,6 +36,17 @@ class AIRLIGHT_PT_fog_tools(bpy.types.Panel):
         row.scale_y = 1.4
         row.operator("airlight.fog_paint", icon='BRUSH_DATA')
         row.operator("airlight.fog_erase", icon='X')
+        col = layout.column(align=True)
+        col.operator("airlight.fog_select_rect", icon='SELECT_SET')
+        row = col.row(align=True)
+        row.operator("airlight.fog_copy", icon='COPYDOWN')
+        row.operator("airlight.fog_paste", icon='PASTEDOWN')
+        col.operator("airlight.fog_move", icon='VIEW_PAN')
+        if fog_object.is_fog_object(obj):
+            clip = fog_clipboard.clipboard()
+            n_sel = int(fog_clipboard.read_selection(obj).sum())
+            n_clip = 0 if clip is None else len(clip["centres"])
+            col.label(text=f"{n_sel} selected, {n_clip} in clipboard (not saved)")
 
         layout.use_property_split = True
         layout.use_property_decorate = False
