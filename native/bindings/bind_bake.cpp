@@ -74,7 +74,9 @@ py::dict bake_py(int width, int height, const py::object& cam_to_world, const py
                  const py::object& albedo, const std::string& phase, double g, const std::string& model,
                  int threads, int aa_samples,
                  double filter_width, double clip_start, double clip_end, const py::object& progress,
-                 const py::object& rbf_centres, const py::object& rbf_scales, const py::object& rbf_amplitudes) {
+                 const py::object& rbf_centres, const py::object& rbf_scales, const py::object& rbf_amplitudes,
+                 const py::object& spot_positions, const py::object& spot_axes, const py::object& spot_intensities,
+                 const py::object& spot_size, const py::object& spot_blend) {
     // Gather the scene description from the arrays (shapes checked here, values in bake()).
     SceneDescription scene;
     scene.camera.width = width;
@@ -131,6 +133,38 @@ py::dict bake_py(int width, int height, const py::object& cam_to_world, const py
         scene.gaussians.centres.assign(bc.data(), bc.data() + 3 * n);
         scene.gaussians.scales.assign(a.data(), a.data() + n);
         scene.gaussians.amplitudes.assign(c.data(), c.data() + n);
+    }
+
+    // Spot lights: all five arrays or none; shapes here, values (finite, ranges) in bake().
+    const int n_spot_given = int(!spot_positions.is_none()) + int(!spot_axes.is_none()) +
+                             int(!spot_intensities.is_none()) + int(!spot_size.is_none()) + int(!spot_blend.is_none());
+    if (n_spot_given != 0 && n_spot_given != 5)
+        throw py::value_error(
+            "spot_positions, spot_axes, spot_intensities, spot_size and spot_blend must be given together (or all None)");
+    if (n_spot_given == 5) {
+        auto sp = as_array<double>(spot_positions, "spot_positions");
+        const py::ssize_t n = require_rows_of(sp, 3, "spot_positions");
+        auto sa = as_array<double>(spot_axes, "spot_axes");
+        require_rows_of(sa, 3, "spot_axes", n);
+        auto si = as_array<double>(spot_intensities, "spot_intensities");
+        require_rows_of(si, 3, "spot_intensities", n);
+        auto ss = as_array<double>(spot_size, "spot_size");
+        auto sb = as_array<double>(spot_blend, "spot_blend");
+        if (!(ss.ndim() == 1 && ss.shape(0) == n))
+            throw py::value_error("spot_size: expected shape (" + std::to_string(n) + ",) to match spot_positions, got " +
+                                  shape_str(ss));
+        if (!(sb.ndim() == 1 && sb.shape(0) == n))
+            throw py::value_error("spot_blend: expected shape (" + std::to_string(n) +
+                                  ",) to match spot_positions, got " + shape_str(sb));
+        for (py::ssize_t l = 0; l < n; ++l) {
+            SpotLight spot;
+            spot.position = {sp.at(l, 0), sp.at(l, 1), sp.at(l, 2)};
+            spot.axis = {sa.at(l, 0), sa.at(l, 1), sa.at(l, 2)};
+            spot.I0 = {si.at(l, 0), si.at(l, 1), si.at(l, 2)};
+            spot.spot_size = ss.data()[l];
+            spot.spot_blend = sb.data()[l];
+            scene.spot_lights.push_back(spot);
+        }
     }
 
     BakeSettings settings;
@@ -203,6 +237,8 @@ void bind_bake(py::module_& m) {
           "aa_samples"_a = 4, "filter_width"_a = 1.5, "clip_start"_a = 0.0,
           "clip_end"_a = std::numeric_limits<double>::infinity(), "progress"_a = py::none(),
           "rbf_centres"_a = py::none(), "rbf_scales"_a = py::none(), "rbf_amplitudes"_a = py::none(),
+          "spot_positions"_a = py::none(), "spot_axes"_a = py::none(), "spot_intensities"_a = py::none(),
+          "spot_size"_a = py::none(), "spot_blend"_a = py::none(),
           R"doc(Bake fog passes for one camera view (all arguments keyword-only).
 
 width, height: render resolution in pixels.
@@ -232,6 +268,11 @@ rbf_centres (n, 3), rbf_scales (n,) > 0, rbf_amplitudes (n,) >= 0: optional Gaus
   the background). Isotropic phase only; models "sun05" / "sun05_exact" use the Fogshop
   approximation (Zhou et al. 2007), "quadrature" its exact reference. Transmittance is
   exact (culled to 1e-7 per Gaussian). Give all three or none; n = 0 is homogeneous fog.
+spot_positions (S, 3), spot_axes (S, 3) (spot direction, the lamp's -Z; normalised here),
+  spot_intensities (S, 3) W/sr (= colour * power / (4 pi), as a point light), spot_size (S,)
+  full cone angle in rad (0, pi], spot_blend (S,) in [0, 1]: optional Blender spot lights with
+  Cycles' profile I0 cos(theta) smoothstep(...), evaluated by adaptive quadrature for every
+  model (phase-aware; homogeneous fog only: ValueError with rbf_*). Give all five or none.
 
 Returns dict(airlight=(H, W, 3) float32, transmittance=(H, W, 3) float32,
 depth=(H, W) float32 (distance from the eye, or from the near plane for

@@ -33,6 +33,7 @@
 #include "rbf_medium.h"
 #include "sun05.h"
 #include "sun05_batch.h"
+#include "spot_light.h"
 #include "sun05_inline.h"
 
 namespace airlight {
@@ -44,6 +45,9 @@ constexpr int kMaxResolution = 32768;
 constexpr double kPi = 3.14159265358979323846;
 // Relative tolerance of the quadrature model inside a bake (reference, not speed).
 constexpr double kQuadratureRelTol = 1e-8;
+// Relative tolerance of the spot-light quadrature (every model: spots have no closed form);
+// far below the float passes' and Cycles' noise, and ~3x cheaper than 1e-8.
+constexpr double kSpotRelTol = 1e-5;
 // Share of the progress bar given to pass 1 (ray casting).
 constexpr double kRaycastProgressShare = 0.3;
 
@@ -114,6 +118,20 @@ void validate(const SceneDescription& scene, const BakeSettings& settings) {
         require(finite3(light.I0) && light.I0.x >= 0.0 && light.I0.y >= 0.0 && light.I0.z >= 0.0,
                 "light " + std::to_string(i) + ": intensity must be finite and >= 0");
     }
+    for (size_t i = 0; i < scene.spot_lights.size(); ++i) {
+        const SpotLight& spot = scene.spot_lights[i];
+        const std::string name = "spot light " + std::to_string(i);
+        require(finite3(spot.position), name + ": position must be finite");
+        require(finite3(spot.axis) && glm::length(spot.axis) > 0.0, name + ": axis must be finite and nonzero");
+        require(finite3(spot.I0) && spot.I0.x >= 0.0 && spot.I0.y >= 0.0 && spot.I0.z >= 0.0,
+                name + ": intensity must be finite and >= 0");
+        require(std::isfinite(spot.spot_size) && spot.spot_size > 0.0 && spot.spot_size <= kPi + 1e-9,
+                name + ": spot_size must be in (0, pi] rad, got " + std::to_string(spot.spot_size));
+        require(std::isfinite(spot.spot_blend) && spot.spot_blend >= 0.0 && spot.spot_blend <= 1.0,
+                name + ": spot_blend must be in [0, 1], got " + std::to_string(spot.spot_blend));
+    }
+    require(scene.spot_lights.empty() || scene.gaussians.empty(),
+            "spot lights are not supported with Gaussian fog (rbf_*): bake them in homogeneous fog only");
     const TriangleMesh& mesh = scene.geometry;
     require(mesh.vertices.size() % 3 == 0, "vertices must hold 3 floats per vertex");
     require(mesh.triangles.size() % 3 == 0, "triangles must hold 3 indices per triangle");
@@ -304,6 +322,11 @@ class FogModel {
             if (weight.x == 0.0 && weight.y == 0.0 && weight.z == 0.0) continue;
             lights_.push_back({light.position, weight, glm::length(light.position - origin)});
         }
+        for (const SpotLight& spot : scene.spot_lights) {
+            RGB weight = scene.medium.albedo * spot.I0;
+            if (weight.x == 0.0 && weight.y == 0.0 && weight.z == 0.0) continue;
+            spots_.push_back({make_spot_cone(spot.axis, spot.spot_size, spot.spot_blend), spot.position, weight});
+        }
         if (!scene.gaussians.empty()) {
             const GaussianMedium& g = scene.gaussians;
             rbf_ = std::make_unique<RbfMedium>(g.centres, g.scales, g.amplitudes, sigma_t_);
@@ -362,6 +385,14 @@ class FogModel {
                 out[3 * k + 1] = sum_g[k];
                 out[3 * k + 2] = sum_b[k];
             }
+            if (!spots_.empty()) {
+                for (int k = 0; k < m; ++k) {
+                    const Vec3 d(dx[k0 + k], dy[k0 + k], dz[k0 + k]);
+                    const double t_near = near ? double(near[k]) : 0.0;
+                    const RGB La = spot_airlight(origin_, d, t_near, double(Dvp[k0 + k]));
+                    for (int c = 0; c < 3; ++c) out[3 * k + c] = float(double(out[3 * k + c]) + La[c]);
+                }
+            }
         }
     }
 
@@ -414,6 +445,23 @@ class FogModel {
                 La[k] += light.weight * airlight(Dsv, cos_gamma, seg);
             }
         }
+        if (!spots_.empty())
+            for (int k = 0; k < n; ++k) La[k] += spot_airlight(rays[k].o, rays[k].d, t0 ? double(t0[k]) : 0.0, double(Dvp[k]));
+    }
+
+    // Airlight of all spot lights along the ray o + t d over [t_near, Dvp] (Dvp from o; inf:
+    // none), attenuated from the near point (the viewer moved there, as eval_many does for
+    // the other models). Quadrature with the medium's phase (spot_light.h).
+    RGB spot_airlight(const Vec3& o, const Vec3& d, double t_near, double Dvp) const {
+        RGB La(0.0);
+        if (sigma_t_ == 0.0) return La;
+        const double seg = std::max(0.0, Dvp - t_near);  // inf stays inf
+        if (!(seg > 0.0)) return La;
+        const Vec3 start = t_near > 0.0 ? o + t_near * d : o;
+        for (const SpotData& spot : spots_)
+            La += spot.weight *
+                  spot_airlight_quadrature(spot.cone, spot.s, phase_, sigma_t_, start, d, seg, kSpotRelTol);
+        return La;
     }
 
   private:
@@ -486,6 +534,12 @@ class FogModel {
     std::shared_ptr<const SpecialFTable> table_;
     std::shared_ptr<const Biri06Table> biri_table_;
     std::vector<LightData> lights_;
+    struct SpotData {
+        SpotCone cone;
+        Vec3 s;
+        RGB weight;  // albedo * I0
+    };
+    std::vector<SpotData> spots_;
     // Gaussian fog (null without): the medium (beta0 = sigma_t), the lights' positions in
     // lights_' order, and Fogshop set up at the shared viewpoint.
     std::unique_ptr<RbfMedium> rbf_;

@@ -42,6 +42,18 @@ struct PointLight {
     RGB I0{0.0};
 };
 
+// Blender spot light (Cycles' profile, spot_light.h): _I0_ = C * P / (4 pi) in W/sr as for
+// a point light (Blender gives spot power in W like point power), _axis_ the spot
+// direction (the lamp's -Z, normalised by the bake), _spot_size_ the full cone angle in
+// rad (0, pi], _spot_blend_ in [0, 1].
+struct SpotLight {
+    Vec3 position{0.0};
+    Vec3 axis{0.0, 0.0, -1.0};
+    RGB I0{0.0};
+    double spot_size = 0.785398163397448;  // Blender's default 45 deg
+    double spot_blend = 0.15;
+};
+
 // Pinhole or orthographic camera, given the way Blender gives it:
 // _cam_to_world_ is the camera object's matrix_world (the camera looks down -Z),
 // _projection_ is camera.calc_matrix_camera(depsgraph, x=width, y=height,
@@ -83,6 +95,7 @@ struct SceneDescription {
     GaussianMedium gaussians;
     std::vector<PointLight> point_lights;
     TriangleMesh geometry;
+    std::vector<SpotLight> spot_lights;  // airlight by quadrature (spot_light.h)
 };
 
 }  // namespace airlight
