@@ -22,7 +22,7 @@ PHASE_NAMES = {
 }
 
 # Light types the bake scatters; the others are listed in the UI as "not yet in fog".
-SUPPORTED_LIGHT_TYPES = {'POINT'}
+SUPPORTED_LIGHT_TYPES = {'POINT', 'SPOT'}
 
 
 def _on_fog_changed(self, context):

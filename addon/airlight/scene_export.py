@@ -109,7 +109,7 @@ def export_geometry_and_lights(scene, depsgraph):
             if light.type not in SUPPORTED_LIGHT_TYPES:
                 skipped.append((obj.name, light.type))
                 continue
-            if not light.airlight.participate:
+            if not light.airlight.participate or light.type == 'SPOT':  # spots: export_spot_lights
                 continue
             # Cycles point light: radiant intensity I0 = C * P / (4 pi) W/sr (NOTES.md).
             positions.append(matrix[:3, 3])
@@ -132,6 +132,49 @@ def export_geometry_and_lights(scene, depsgraph):
     light_positions = np.array(positions, dtype=np.float64).reshape(-1, 3)
     light_intensities = np.array(intensities, dtype=np.float64).reshape(-1, 3)
     return vertices, triangles, light_positions, light_intensities, skipped
+
+
+def export_spot_lights(depsgraph):
+    """Render-visible participating spot lights as `_native.bake`'s spot_* keyword arguments,
+    or {} when there are none (then the bake is the point-light one, unchanged).
+
+    Cycles' spot (NOTES.md): I(theta) = C P / (4 pi) cos(theta) smoothstep(...) with theta
+    from the lamp's -Z; Blender gives a spot's power in W like a point light's, so the
+    intensity is the point light's formula and the profile is applied by the bake.
+    """
+    hidden = visibility.render_hidden_collections(depsgraph.view_layer)
+    positions, axes, intensities, sizes, blends = [], [], [], [], []
+    for instance in depsgraph.object_instances:
+        obj = instance.object
+        if obj.type != 'LIGHT' or obj.data.type != 'SPOT':
+            continue
+        source = instance.parent if instance.is_instance else obj
+        if source is None or not visibility.is_render_visible(source, hidden):
+            continue
+        light = obj.data
+        if not light.airlight.participate:
+            continue
+        matrix = np.array(instance.matrix_world, dtype=np.float64)
+        axis = -matrix[:3, 2]
+        norm = float(np.linalg.norm(axis))
+        if not (norm > 0.0 and math.isfinite(norm)):
+            raise ExportError(f"Spot light '{obj.name}' has a degenerate transform (no direction).")
+        positions.append(matrix[:3, 3])
+        axes.append(axis / norm)
+        intensities.append(np.array(light.color, dtype=np.float64) * light.energy / (4.0 * math.pi))
+        sizes.append(float(light.spot_size))
+        blends.append(float(light.spot_blend))
+    if not positions:
+        return {}
+    description = dict(spot_positions=np.array(positions, dtype=np.float64).reshape(-1, 3),
+                       spot_axes=np.array(axes, dtype=np.float64).reshape(-1, 3),
+                       spot_intensities=np.array(intensities, dtype=np.float64).reshape(-1, 3),
+                       spot_size=np.array(sizes, dtype=np.float64),
+                       spot_blend=np.array(blends, dtype=np.float64))
+    for name, array in description.items():
+        if not np.all(np.isfinite(array)):
+            raise ExportError(f"The scene's {name.replace('_', ' ')} contain NaN or infinite values.")
+    return description
 
 
 def export_medium(scene):
@@ -184,6 +227,10 @@ def export_scene(scene, depsgraph):
         if not np.all(np.isfinite(array)):
             raise ExportError(f"The scene's {name} contain NaN or infinite values.")
     gaussians = export_fog_objects(depsgraph)
+    spots = export_spot_lights(depsgraph)
+    if spots and gaussians:
+        raise ExportError("Spot lights are not supported together with fog objects yet: "
+                          "turn off the spots' fog participation or remove the fog objects.")
     return dict(
         width=width, height=height,
         cam_to_world=cam_to_world, projection=projection,
@@ -192,6 +239,7 @@ def export_scene(scene, depsgraph):
         light_positions=light_positions, light_intensities=light_intensities,
         sigma_t=sigma_t, albedo=albedo, phase=phase, g=g,
         **gaussians,
+        **spots,
     )
 
 
