@@ -11,13 +11,12 @@ computed independently (bpy_extras.view3d_utils for the view mapping, the Fogsho
 spacing 0.75/a and offset bound 1/a).
 """
 
-import json
 import os
-import subprocess
 import sys
 
 HERE = os.path.dirname(os.path.abspath(__file__))
-REPO = os.path.normpath(os.path.join(HERE, "..", ".."))
+sys.path.insert(0, HERE)
+import event_driver  # noqa: E402
 
 SCALE = 2.0        # a (1/m): spacing 0.75/a = 0.375 m, offsets < 0.5 m
 AMPLITUDE = 0.3
@@ -28,7 +27,6 @@ VIEW_DISTANCE = 10.0
 # ---- the driver (runs in the child Blender) ---------------------------------------------
 
 def _drive(out_path):
-    import traceback
 
     import bpy
     import numpy as np
@@ -239,22 +237,7 @@ def _drive(out_path):
                     region, rv3d, (region.width // 2 + x0, region.height // 2 + 100), (0, 0, 0))[:])
         record["draws_total"] = brush_ops._draw_count[0]
 
-    gen = steps()
-
-    def tick():
-        try:
-            next(gen)
-            return 0.05
-        except StopIteration:
-            record["done"] = True
-        except Exception:
-            record["error"] = traceback.format_exc()
-        with open(out_path, "w") as f:
-            json.dump(record, f)
-        sys.stdout.flush()
-        os._exit(0)
-
-    bpy.app.timers.register(tick, first_interval=1.0)
+    event_driver.drive(steps(), record, out_path)
 
 
 if __name__ == "__main__":
@@ -268,18 +251,7 @@ else:
 
     @pytest.fixture(scope="module")
     def record(tmp_path_factory):
-        out = str(tmp_path_factory.mktemp("brush") / "record.json")
-        cmd = [os.path.join(REPO, "tools", "blender.sh"), "--enable-event-simulate",
-               "--python", os.path.abspath(__file__), "--", out]
-        proc = subprocess.run(cmd, capture_output=True, text=True, timeout=240)
-        if not os.path.exists(out):
-            pytest.fail(f"event driver wrote nothing (rc {proc.returncode}):\n"
-                        f"{proc.stdout[-3000:]}\n{proc.stderr[-3000:]}")
-        with open(out) as f:
-            rec = json.load(f)
-        assert "error" not in rec, rec["error"]
-        assert rec.get("done"), rec
-        return rec
+        return event_driver.run_child(__file__, tmp_path_factory.mktemp("brush"))
 
     def test01_add_fog_object_undo_redo(record):
         assert record["add_undo_redo"] == [1, 0, 1]

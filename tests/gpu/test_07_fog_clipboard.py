@@ -7,13 +7,12 @@ side checks the record against expectations from bpy_extras.view3d_utils (indepe
 fog_clipboard's own projection).
 """
 
-import json
 import os
-import subprocess
 import sys
 
 HERE = os.path.dirname(os.path.abspath(__file__))
-REPO = os.path.normpath(os.path.join(HERE, "..", ".."))
+sys.path.insert(0, HERE)
+import event_driver  # noqa: E402
 
 N = 60
 RECT_PX = ((-110.0, -70.0), (90.0, 60.0))    # relative to the region centre
@@ -25,7 +24,6 @@ VIEW_DISTANCE = 12.0
 # ---- the driver (runs in the child Blender) ---------------------------------------------
 
 def _drive(out_path):
-    import traceback
 
     import bpy
     import numpy as np
@@ -188,22 +186,7 @@ def _drive(out_path):
         record["after_redo"] = world_centres().tolist()
         record["draws_total"] = fog_clipboard._draw_count[0]
 
-    gen = steps()
-
-    def tick():
-        try:
-            next(gen)
-            return 0.05
-        except StopIteration:
-            record["done"] = True
-        except Exception:
-            record["error"] = traceback.format_exc()
-        with open(out_path, "w") as f:
-            json.dump(record, f)
-        sys.stdout.flush()
-        os._exit(0)
-
-    bpy.app.timers.register(tick, first_interval=1.0)
+    event_driver.drive(steps(), record, out_path)
 
 
 if __name__ == "__main__":
@@ -217,18 +200,7 @@ else:
 
     @pytest.fixture(scope="module")
     def record(tmp_path_factory):
-        out = str(tmp_path_factory.mktemp("clipboard") / "record.json")
-        cmd = [os.path.join(REPO, "tools", "blender.sh"), "--enable-event-simulate",
-               "--python", os.path.abspath(__file__), "--", out]
-        proc = subprocess.run(cmd, capture_output=True, text=True, timeout=240)
-        if not os.path.exists(out):
-            pytest.fail(f"event driver wrote nothing (rc {proc.returncode}):\n"
-                        f"{proc.stdout[-3000:]}\n{proc.stderr[-3000:]}")
-        with open(out) as f:
-            rec = json.load(f)
-        assert "error" not in rec, rec["error"]
-        assert rec.get("done"), rec
-        return rec
+        return event_driver.run_child(__file__, tmp_path_factory.mktemp("clipboard"))
 
     def _inside(xy, rect):
         (x0, y0), (x1, y1) = rect
