@@ -202,46 +202,53 @@ class _DrawState:
         self.colour = (1.0, 1.0, 1.0, 0.8)
 
 
-def _draw_callback(state):
+def draw_overlay(state, outline, outline_colour, points_colour):
+    """Draws a modal tool's screen-space outline (N x 2 pixels, a line strip) and its
+    world-space `state.points` projected, in the tool's own region only, never during
+    renders, restoring the gpu state it changes. Shared by every fog tool."""
     context = bpy.context
     region = context.region
     if region is None or region.as_pointer() != state.region_pointer:
-        return
+        return False
     if getattr(bpy.app, "is_job_running", lambda kind: False)('RENDER'):
-        return
+        return False
     import gpu
     from gpu_extras.batch import batch_for_shader
     shader = _uniform_color_shader()
-    n = 48
-    phi = np.linspace(0.0, 2.0 * math.pi, n + 1)
-    circle = np.stack([state.mouse[0] + state.radius * np.cos(phi),
-                       state.mouse[1] + state.radius * np.sin(phi)], axis=1).astype(np.float32)
     gpu.state.blend_set('ALPHA')
     gpu.state.line_width_set(1.5)
     try:
         shader.bind()
-        shader.uniform_float("color", state.colour)
-        batch_for_shader(shader, 'LINE_STRIP', {"pos": circle}).draw(shader)
+        if outline is not None:
+            shader.uniform_float("color", outline_colour)
+            batch_for_shader(shader, 'LINE_STRIP', {"pos": outline.astype(np.float32)}).draw(shader)
         if len(state.points):
-            rv3d = context.region_data
-            xy, visible = project_points(state.points, rv3d.perspective_matrix,
+            xy, visible = project_points(state.points, context.region_data.perspective_matrix,
                                          region.width, region.height)
             if visible.any():
                 gpu.state.point_size_set(4.0)
-                shader.uniform_float("color", (1.0, 1.0, 1.0, 0.9))
-                batch_for_shader(shader, 'POINTS',
-                                 {"pos": xy[visible].astype(np.float32)}).draw(shader)
+                shader.uniform_float("color", points_colour)
+                batch_for_shader(shader, 'POINTS', {"pos": xy[visible].astype(np.float32)}).draw(shader)
                 gpu.state.point_size_set(1.0)
     finally:
         gpu.state.line_width_set(1.0)
         gpu.state.blend_set('NONE')
-    _draw_count[0] += 1
+    return True
 
 
-def _remove_draw_handle(handle):
-    if handle in _draw_handles:
-        _draw_handles.discard(handle)
+def remove_draw_handle(handles, handle):
+    """Removes a SpaceView3D WINDOW draw handler once, forgetting it in `handles`."""
+    if handle in handles:
+        handles.discard(handle)
         bpy.types.SpaceView3D.draw_handler_remove(handle, 'WINDOW')
+
+
+def _draw_callback(state):
+    phi = np.linspace(0.0, 2.0 * math.pi, 49)
+    circle = np.stack([state.mouse[0] + state.radius * np.cos(phi),
+                       state.mouse[1] + state.radius * np.sin(phi)], axis=1)
+    if draw_overlay(state, circle, state.colour, (1.0, 1.0, 1.0, 0.9)):
+        _draw_count[0] += 1
 
 
 # ---- operators --------------------------------------------------------------------------
@@ -323,7 +330,7 @@ class _FogBrush:
             context.workspace.status_text_set(text)
 
     def _cleanup(self, context):
-        _remove_draw_handle(self._handle)
+        remove_draw_handle(_draw_handles, self._handle)
         self._handle = None
         self._set_text(context, None)
         self._area.tag_redraw()
@@ -562,7 +569,7 @@ def register():
 
 def unregister():
     for handle in list(_draw_handles):
-        _remove_draw_handle(handle)
+        remove_draw_handle(_draw_handles, handle)
     del bpy.types.Scene.airlight_brush
     for cls in reversed(classes):
         bpy.utils.unregister_class(cls)

@@ -161,42 +161,12 @@ class _DrawState:
 
 
 def _draw_callback(state):
-    context = bpy.context
-    region = context.region
-    if region is None or region.as_pointer() != state.region_pointer:
-        return
-    if getattr(bpy.app, "is_job_running", lambda kind: False)('RENDER'):
-        return
-    import gpu
-    from gpu_extras.batch import batch_for_shader
-    shader = brush_ops._uniform_color_shader()
-    gpu.state.blend_set('ALPHA')
-    gpu.state.line_width_set(1.5)
-    try:
-        shader.bind()
-        if state.rect is not None:
-            x0, y0, x1, y1 = state.rect
-            loop = np.array([(x0, y0), (x1, y0), (x1, y1), (x0, y1), (x0, y0)], dtype=np.float32)
-            shader.uniform_float("color", (1.0, 1.0, 1.0, 0.9))
-            batch_for_shader(shader, 'LINE_STRIP', {"pos": loop}).draw(shader)
-        if len(state.points):
-            xy, visible = brush_ops.project_points(state.points, context.region_data.perspective_matrix,
-                                                   region.width, region.height)
-            if visible.any():
-                gpu.state.point_size_set(4.0)
-                shader.uniform_float("color", (1.0, 0.6, 0.1, 0.9))
-                batch_for_shader(shader, 'POINTS', {"pos": xy[visible].astype(np.float32)}).draw(shader)
-                gpu.state.point_size_set(1.0)
-    finally:
-        gpu.state.line_width_set(1.0)
-        gpu.state.blend_set('NONE')
-    _draw_count[0] += 1
-
-
-def _remove_draw_handle(handle):
-    if handle in _draw_handles:
-        _draw_handles.discard(handle)
-        bpy.types.SpaceView3D.draw_handler_remove(handle, 'WINDOW')
+    outline = None
+    if state.rect is not None:
+        x0, y0, x1, y1 = state.rect
+        outline = np.array([(x0, y0), (x1, y0), (x1, y1), (x0, y1), (x0, y0)])
+    if brush_ops.draw_overlay(state, outline, (1.0, 1.0, 1.0, 0.9), (1.0, 0.6, 0.1, 0.9)):
+        _draw_count[0] += 1
 
 
 class _ModalInView:
@@ -233,7 +203,7 @@ class _ModalInView:
             context.workspace.status_text_set(text)
 
     def _cleanup(self, context):
-        _remove_draw_handle(self._handle)
+        brush_ops.remove_draw_handle(_draw_handles, self._handle)
         self._handle = None
         self._set_text(context, None)
         self._area.tag_redraw()
@@ -453,6 +423,6 @@ def register():
 
 def unregister():
     for handle in list(_draw_handles):
-        _remove_draw_handle(handle)
+        brush_ops.remove_draw_handle(_draw_handles, handle)
     for cls in reversed(classes):
         bpy.utils.unregister_class(cls)
