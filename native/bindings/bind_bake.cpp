@@ -76,7 +76,8 @@ py::dict bake_py(int width, int height, const py::object& cam_to_world, const py
                  double filter_width, double clip_start, double clip_end, const py::object& progress,
                  const py::object& rbf_centres, const py::object& rbf_scales, const py::object& rbf_amplitudes,
                  const py::object& spot_positions, const py::object& spot_axes, const py::object& spot_intensities,
-                 const py::object& spot_size, const py::object& spot_blend) {
+                 const py::object& spot_size, const py::object& spot_blend, const py::object& sun_directions,
+                 const py::object& sun_irradiances, double fog_top) {
     // Gather the scene description from the arrays (shapes checked here, values in bake()).
     SceneDescription scene;
     scene.camera.width = width;
@@ -167,6 +168,23 @@ py::dict bake_py(int width, int height, const py::object& cam_to_world, const py
         }
     }
 
+    // Sun lamps: both arrays or none; shapes here, values in bake().
+    if (sun_directions.is_none() != sun_irradiances.is_none())
+        throw py::value_error("sun_directions and sun_irradiances must be given together (or both None)");
+    if (!sun_directions.is_none()) {
+        auto sd = as_array<double>(sun_directions, "sun_directions");
+        const py::ssize_t n = require_rows_of(sd, 3, "sun_directions");
+        auto se = as_array<double>(sun_irradiances, "sun_irradiances");
+        require_rows_of(se, 3, "sun_irradiances", n);
+        for (py::ssize_t l = 0; l < n; ++l) {
+            SunLight sun;
+            sun.direction = {sd.at(l, 0), sd.at(l, 1), sd.at(l, 2)};
+            sun.E = {se.at(l, 0), se.at(l, 1), se.at(l, 2)};
+            scene.sun_lights.push_back(sun);
+        }
+    }
+    scene.fog_top = fog_top;
+
     BakeSettings settings;
     settings.model = model_from_name(model);
     settings.threads = threads;
@@ -238,7 +256,8 @@ void bind_bake(py::module_& m) {
           "clip_end"_a = std::numeric_limits<double>::infinity(), "progress"_a = py::none(),
           "rbf_centres"_a = py::none(), "rbf_scales"_a = py::none(), "rbf_amplitudes"_a = py::none(),
           "spot_positions"_a = py::none(), "spot_axes"_a = py::none(), "spot_intensities"_a = py::none(),
-          "spot_size"_a = py::none(), "spot_blend"_a = py::none(),
+          "spot_size"_a = py::none(), "spot_blend"_a = py::none(), "sun_directions"_a = py::none(),
+          "sun_irradiances"_a = py::none(), "fog_top"_a = std::numeric_limits<double>::infinity(),
           R"doc(Bake fog passes for one camera view (all arguments keyword-only).
 
 width, height: render resolution in pixels.
@@ -251,10 +270,12 @@ sigma_t: extinction 1/m (>= 0); albedo: 3 floats (scattering = albedo * sigma_t)
 phase: the medium's phase function, "isotropic" (default), "hg" (Henyey-Greenstein with
   anisotropy g, Cycles' sign: g > 0 forward), "rayleigh", "mie_hazy", "mie_murky" (Nishita).
   g: HG asymmetry in (-1, 1); must be 0 for the other phases.
-model: "sun05", "sun05_exact", "quadrature" or "biri06" (see models()). The Sun 2005
+model: "sun05", "sun05_exact", "quadrature", "biri06" or "baseline" (see models()). The Sun 2005
   models are isotropic only: with an anisotropic phase (anything but "isotropic" or "hg"
   with g = 0) they raise ValueError; "biri06" (Gamma table of the phase) and
-  "quadrature" (phase-aware reference) take any phase.
+  "quadrature" (phase-aware reference) take any phase. "baseline": constant-colour fog
+  C (1 - transmittance), C per channel least-squares fitted to the sun05 (biri06 for an
+  anisotropic phase) airlight of the same view: the bar every model must beat.
 threads: worker threads (0: all). aa_samples: per-axis samples on edge pixels;
 filter_width: Blackman-Harris film filter width in pixels (Cycles' default 1.5).
 clip_start, clip_end: the camera's clip range (view-axis depths, camera.data.clip_start
@@ -273,6 +294,13 @@ spot_positions (S, 3), spot_axes (S, 3) (spot direction, the lamp's -Z; normalis
   full cone angle in rad (0, pi], spot_blend (S,) in [0, 1]: optional Blender spot lights with
   Cycles' profile I0 cos(theta) smoothstep(...), evaluated by adaptive quadrature for every
   model (phase-aware; homogeneous fog only: ValueError with rbf_*). Give all five or none.
+sun_directions (U, 3) (direction of propagation, the lamp's -Z; normalised here),
+  sun_irradiances (U, 3) W/m^2 (= colour * strength, Cycles): optional sun lamps, closed
+  form for every model ("quadrature": its quadrature), any phase (sun_layer.h).
+  fog_top: world Z of the fog layer's top for the suns' light: the sun reaches a point at
+  height z through (fog_top - z) / cos of fog; +inf (default): Hoffman & Preetham's
+  unattenuated sun. Point/spot lights and the transmittance ignore fog_top.
+  Homogeneous fog only (ValueError with rbf_*).
 
 Returns dict(airlight=(H, W, 3) float32, transmittance=(H, W, 3) float32,
 depth=(H, W) float32 (distance from the eye, or from the near plane for

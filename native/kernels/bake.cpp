@@ -34,6 +34,7 @@
 #include "sun05.h"
 #include "sun05_batch.h"
 #include "spot_light.h"
+#include "sun_layer.h"
 #include "sun05_inline.h"
 
 namespace airlight {
@@ -60,6 +61,22 @@ bool finite3(const glm::dvec3& v) {
     return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z);
 }
 
+// Sun lamps and the fog top (sun_layer.h).
+void validate_suns(const SceneDescription& scene) {
+    for (size_t i = 0; i < scene.sun_lights.size(); ++i) {
+        const SunLight& sun = scene.sun_lights[i];
+        const std::string name = "sun light " + std::to_string(i);
+        require(finite3(sun.direction) && glm::length(sun.direction) > 0.0,
+                name + ": direction must be finite and nonzero");
+        require(finite3(sun.E) && sun.E.x >= 0.0 && sun.E.y >= 0.0 && sun.E.z >= 0.0,
+                name + ": irradiance must be finite and >= 0");
+    }
+    require(!std::isnan(scene.fog_top) && scene.fog_top != -std::numeric_limits<double>::infinity(),
+            "fog_top must be a finite height or +inf (no top), got " + std::to_string(scene.fog_top));
+    require(scene.sun_lights.empty() || scene.gaussians.empty(),
+            "sun lights are not supported with Gaussian fog (rbf_*): bake them in homogeneous fog only");
+}
+
 // Validate the scene and settings once, before any work starts.
 void validate(const SceneDescription& scene, const BakeSettings& settings) {
     const Camera& cam = scene.camera;
@@ -84,8 +101,10 @@ void validate(const SceneDescription& scene, const BakeSettings& settings) {
                 "' supports only the isotropic phase, got '" + phase_name(medium.phase.kind) +
                 "' (g = " + std::to_string(medium.phase.g) + "); use 'biri06' or 'quadrature'");
     require(settings.model == ModelId::Sun05Table || settings.model == ModelId::Sun05Exact ||
-                settings.model == ModelId::Quadrature || settings.model == ModelId::Biri06,
+                settings.model == ModelId::Quadrature || settings.model == ModelId::Biri06 ||
+                settings.model == ModelId::Baseline,
             "the bake does not dispatch this model (see models())");
+    validate_suns(scene);
     // Gaussian fog (Fogshop): isotropic only, through the Fogshop approximation (sun05,
     // sun05_exact: F table or exact F for the background term) or its quadrature reference.
     const GaussianMedium& gauss = scene.gaussians;
@@ -108,9 +127,9 @@ void validate(const SceneDescription& scene, const BakeSettings& settings) {
                 std::string("Gaussian fog supports only the isotropic phase, got '") + phase_name(medium.phase.kind) +
                     "' (g = " + std::to_string(medium.phase.g) + ")");
         require(settings.model == ModelId::Sun05Table || settings.model == ModelId::Sun05Exact ||
-                    settings.model == ModelId::Quadrature,
-                "Gaussian fog supports the models 'sun05', 'sun05_exact' (Fogshop approximation) and "
-                "'quadrature' (reference)");
+                    settings.model == ModelId::Quadrature || settings.model == ModelId::Baseline,
+                "Gaussian fog supports the models 'sun05', 'sun05_exact' (Fogshop approximation), "
+                "'quadrature' (reference) and 'baseline'");
     }
     for (size_t i = 0; i < scene.point_lights.size(); ++i) {
         const PointLight& light = scene.point_lights[i];
@@ -327,6 +346,13 @@ class FogModel {
             if (weight.x == 0.0 && weight.y == 0.0 && weight.z == 0.0) continue;
             spots_.push_back({make_spot_cone(spot.axis, spot.spot_size, spot.spot_blend), spot.position, weight});
         }
+        for (const SunLight& sun : scene.sun_lights) {
+            const RGB weight = scene.medium.albedo * sun.E * sigma_t_;  // sigma_s E
+            if (weight.x == 0.0 && weight.y == 0.0 && weight.z == 0.0) continue;
+            const Vec3 w = glm::normalize(sun.direction);
+            suns_.push_back({w, -w.z, weight});
+        }
+        fog_top_ = scene.fog_top;
         if (!scene.gaussians.empty()) {
             const GaussianMedium& g = scene.gaussians;
             rbf_ = std::make_unique<RbfMedium>(g.centres, g.scales, g.amplitudes, sigma_t_);
@@ -393,6 +419,13 @@ class FogModel {
                     for (int c = 0; c < 3; ++c) out[3 * k + c] = float(double(out[3 * k + c]) + La[c]);
                 }
             }
+            if (!suns_.empty()) {
+                for (int k = 0; k < m; ++k) {
+                    const Vec3 d(dx[k0 + k], dy[k0 + k], dz[k0 + k]);
+                    const RGB La = sun_airlight(origin_, d, near ? double(near[k]) : 0.0, double(Dvp[k0 + k]));
+                    for (int c = 0; c < 3; ++c) out[3 * k + c] = float(double(out[3 * k + c]) + La[c]);
+                }
+            }
         }
     }
 
@@ -447,6 +480,25 @@ class FogModel {
         }
         if (!spots_.empty())
             for (int k = 0; k < n; ++k) La[k] += spot_airlight(rays[k].o, rays[k].d, t0 ? double(t0[k]) : 0.0, double(Dvp[k]));
+        if (!suns_.empty())
+            for (int k = 0; k < n; ++k) La[k] += sun_airlight(rays[k].o, rays[k].d, t0 ? double(t0[k]) : 0.0, double(Dvp[k]));
+    }
+
+    // Airlight of all sun lamps along o + t d over [t_near, Dvp] (inf: none): sigma_s p E G
+    // with the closed form G of sun_layer.h (its quadrature for the quadrature model). The
+    // phase angle is the same all along the ray.
+    RGB sun_airlight(const Vec3& o, const Vec3& d, double t_near, double Dvp) const {
+        RGB La(0.0);
+        if (sigma_t_ == 0.0 || !(Dvp > t_near)) return La;
+        for (const SunData& sun : suns_) {
+            const double p = phase_.eval(-glm::dot(sun.w, d));
+            const double G = model_ == ModelId::Quadrature
+                                 ? sun_layer_factor_quadrature(sigma_t_, fog_top_, sun.mu_s, o.z, d.z, t_near, Dvp,
+                                                               kQuadratureRelTol)
+                                 : sun_layer_factor(sigma_t_, fog_top_, sun.mu_s, o.z, d.z, t_near, Dvp);
+            La += sun.weight * (p * G);
+        }
+        return La;
     }
 
     // Airlight of all spot lights along the ray o + t d over [t_near, Dvp] (Dvp from o; inf:
@@ -540,6 +592,13 @@ class FogModel {
         RGB weight;  // albedo * I0
     };
     std::vector<SpotData> spots_;
+    struct SunData {
+        Vec3 w;       // unit propagation direction
+        double mu_s;  // -w.z: the cosine of the sun's path through the layer to the vertical
+        RGB weight;   // albedo * sigma_t * E
+    };
+    std::vector<SunData> suns_;
+    double fog_top_ = std::numeric_limits<double>::infinity();
     // Gaussian fog (null without): the medium (beta0 = sigma_t), the lights' positions in
     // lights_' order, and Fogshop set up at the shared viewpoint.
     std::unique_ptr<RbfMedium> rbf_;
@@ -630,6 +689,32 @@ double seconds_since(Clock::time_point start) {
 
 }  // namespace
 
+// ModelId::Baseline: what Blender's Mist pass does, L = C_fog (1 - Tr), one fog colour for
+// the whole image (baseline_fog.h). C_fog is the least-squares fit per channel to the
+// physically based airlight of the same view (sun05's table model for isotropic fog,
+// biri06 for any other phase; every light type included): the best a constant fog colour
+// can do, so the baseline's reported error is a lower bound of any hand-picked colour's.
+// 1 - Tr is 1 - e^{-sigma_t D} with D from the near plane to the first hit (1 for misses).
+static BakeResult bake_baseline(const SceneDescription& scene, const BakeSettings& settings,
+                                const ProgressFn& progress) {
+    BakeSettings reference = settings;
+    reference.model = phase_is_isotropic(scene.medium.phase) ? ModelId::Sun05Table : ModelId::Biri06;
+    BakeResult result = bake(scene, reference, progress);
+    const size_t n = size_t(result.width) * size_t(result.height);
+    for (int c = 0; c < 3; ++c) {
+        double num = 0.0, den = 0.0;
+        for (size_t i = 0; i < n; ++i) {
+            const double f = 1.0 - double(result.transmittance[3 * i + c]);
+            num += double(result.airlight[3 * i + c]) * f;
+            den += f * f;
+        }
+        const double C_fog = den > 0.0 ? num / den : 0.0;
+        for (size_t i = 0; i < n; ++i)
+            result.airlight[3 * i + c] = float(C_fog * (1.0 - double(result.transmittance[3 * i + c])));
+    }
+    return result;
+}
+
 // F tables are deterministic and costly to build: keep one per (nu, nT) for the process.
 std::shared_ptr<const SpecialFTable> shared_special_F_table(int nu, int nT) {
     static std::mutex mutex;
@@ -642,6 +727,7 @@ std::shared_ptr<const SpecialFTable> shared_special_F_table(int nu, int nT) {
 
 BakeResult bake(const SceneDescription& scene, const BakeSettings& settings, const ProgressFn& progress) {
     validate(scene, settings);
+    if (settings.model == ModelId::Baseline) return bake_baseline(scene, settings, progress);
     const CameraRays rays(scene.camera);
     const int W = scene.camera.width, H = scene.camera.height;
     const size_t n_pixels = size_t(W) * size_t(H);
