@@ -135,7 +135,9 @@ class AIRLIGHT_OT_bake(bpy.types.Operator):
     def _finish(self, context, scene, filepath, stats, seconds):
         if scene.airlight.auto_composite:
             compositor.sync(scene, filepath)
-        self.report({'INFO'}, f"Fog baked in {seconds * 1000.0:.0f} ms ({os.path.basename(filepath)})")
+        skipped = sorted(model_choice.skipped_lights(scene))
+        note = f"; skipped below the accuracy target: {', '.join(skipped)}" if skipped else ""
+        self.report({'INFO'}, f"Fog baked in {seconds * 1000.0:.0f} ms ({os.path.basename(filepath)}){note}")
         return {'FINISHED'}
 
     def execute(self, context):

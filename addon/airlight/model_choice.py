@@ -21,8 +21,12 @@ by the bake (ValueError -> BakeError), never baked as isotropic fog.
 """
 
 import math
+from collections import namedtuple
 
-from .properties import MODEL_NAMES, PHASE_NAMES
+import numpy as np
+
+from . import light_bounds, visibility
+from .properties import MODEL_NAMES, PHASE_NAMES, SUPPORTED_LIGHT_TYPES
 
 # native name -> (label, max relative error, relative cost)
 MEASURED = {
@@ -74,6 +78,8 @@ def phase_problem(settings):
 
 def choose(settings):
     """(native model name, label, expected max relative error) for these fog settings."""
+    if settings.model == 'BASELINE':
+        return BASELINE
     if settings.model != 'AUTO':
         name = MODEL_NAMES[settings.model]
     else:
@@ -89,3 +95,103 @@ def choose(settings):
     if name in ISOTROPIC_ONLY and not is_isotropic(settings):
         error = math.inf  # refused by the bake; never an error figure for the wrong phase
     return name, label, error
+
+
+# The constant-colour bar (never chosen by Automatic): its error depends on the scene.
+BASELINE = ("baseline", "Baseline (constant colour)", math.inf)
+# Lights that are not point lights get one model whatever the scene's model is:
+# spots the adaptive quadrature (bake.cpp kSpotRelTol = 1e-5), suns the closed form of
+# sun_layer.h (exact; held to 1e-6 against quadrature by sun_layer_test.cpp) or, with the
+# quadrature model, its quadrature (1e-8).
+SPOT_MODEL = ("Quadrature (spot)", 1e-5)
+SUN_MODEL = ("Closed form (sun)", 1e-6)
+SUN_QUADRATURE_MODEL = ("Quadrature (sun)", 1e-8)
+
+# One row of light_plan: status 'fog' (baked), 'skipped' (Automatic: below the target),
+# 'off' (Scatter in Fog off), 'unsupported' (type not in the bake); label/error: the model
+# it gets and its measured max relative error; share: its upper bound over the fog
+# brightness bound (light_bounds.py), the largest over the colour channels.
+LightRow = namedtuple("LightRow", "name type status label error share")
+
+
+def _frame(scene, depsgraph):
+    """light_bounds.Frame of the scene camera, or None when there is none to bound."""
+    camera = scene.camera
+    if camera is None or camera.type != 'CAMERA' or camera.data.type == 'PANO':
+        return None
+    cam = camera.evaluated_get(depsgraph) if depsgraph is not None else camera
+    corners = [tuple(v) for v in cam.data.view_frame(scene=scene)]
+    return light_bounds.Frame(np.array(cam.matrix_world), corners, cam.data.type == 'ORTHO',
+                              float(cam.data.clip_start))
+
+
+def light_plan(scene, depsgraph=None, view_layer=None):
+    """Per render-visible light of the scene (not instanced ones): what the bake does with
+    it, as LightRows. Cheap (no bake): the panel redraws it when settings change.
+
+    With the Automatic model, lights whose airlight is rigorously below the accuracy target
+    everywhere in frame are skipped (light_bounds.py says what is guaranteed); instanced
+    lights are never skipped. Explicit models bake every participating light."""
+    settings = scene.airlight
+    if view_layer is None:
+        view_layer = depsgraph.view_layer if depsgraph is not None else scene.view_layers[0]
+    hidden = visibility.render_hidden_collections(view_layer)
+    name, point_label, point_error = choose(settings)
+    sigma = float(settings.density)
+    albedo = np.array(settings.color, dtype=np.float64)
+    phase, g = native_phase(settings)
+    p_min, p_max = light_bounds.phase_range(phase, g)
+    frame = _frame(scene, depsgraph)
+    rows, uppers, lowers, fogged = [], [], [], []
+    for obj in scene.objects:
+        if obj.type != 'LIGHT' or not visibility.is_render_visible(obj, hidden):
+            continue
+        light = obj.data
+        if light.type not in SUPPORTED_LIGHT_TYPES:
+            rows.append(LightRow(obj.name, light.type, 'unsupported', "", math.nan, math.nan))
+            continue
+        if not light.airlight.participate:
+            rows.append(LightRow(obj.name, light.type, 'off', "", math.nan, math.nan))
+            continue
+        if name == "baseline":
+            label, error = BASELINE[1], BASELINE[2]
+        elif light.type == 'SUN':
+            label, error = SUN_QUADRATURE_MODEL if name == "quadrature" else SUN_MODEL
+        elif light.type == 'SPOT':
+            label, error = SPOT_MODEL
+        else:
+            label, error = point_label, point_error
+        rows.append(LightRow(obj.name, light.type, 'fog', label, error, math.nan))
+        colour = np.array(light.color, dtype=np.float64)
+        if light.type == 'SUN':
+            upper, lower = light_bounds.sun_bounds(colour * light.energy, sigma, albedo, p_min, p_max,
+                                                   bool(settings.use_fog_top))
+        elif frame is not None:
+            src = obj.evaluated_get(depsgraph) if depsgraph is not None else obj
+            position = np.array(src.matrix_world.translation, dtype=np.float64)
+            upper, lower = light_bounds.point_bounds(frame, position, colour * light.energy / (4.0 * math.pi),
+                                                     sigma, albedo, p_min, p_max, spot=light.type == 'SPOT')
+        else:
+            upper, lower = np.full(3, math.inf), np.zeros(3)
+        uppers.append(upper)
+        lowers.append(lower)
+        fogged.append(len(rows) - 1)
+    if not fogged:
+        return rows
+    total_lower = np.sum(lowers, axis=0)
+    skip = set()
+    if settings.model == 'AUTO' and frame is not None and sigma > 0.0:
+        skip = light_bounds.skip_faint(uppers, lowers, settings.accuracy / 100.0)
+    for k, i in enumerate(fogged):
+        with np.errstate(divide='ignore', invalid='ignore'):
+            ratio = np.where(uppers[k] > 0.0, uppers[k] / total_lower, 0.0)
+        share = float(np.max(ratio))
+        rows[i] = rows[i]._replace(share=share, status='skipped' if k in skip else 'fog')
+    return rows
+
+
+def skipped_lights(scene, depsgraph=None):
+    """Names of the lights light_plan skips (empty unless the model is Automatic)."""
+    if scene.airlight.model != 'AUTO':
+        return set()
+    return {row.name for row in light_plan(scene, depsgraph) if row.status == 'skipped'}

@@ -11,6 +11,7 @@ MODEL_NAMES = {
     'SUN05_EXACT': "sun05_exact",
     'QUADRATURE': "quadrature",
     'BIRI06': "biri06",
+    'BASELINE': "baseline",
 }
 
 # Scene phase enum -> `_native.bake(phase=...)`; the anisotropy g applies to HG only.
@@ -22,7 +23,7 @@ PHASE_NAMES = {
 }
 
 # Light types the bake scatters; the others are listed in the UI as "not yet in fog".
-SUPPORTED_LIGHT_TYPES = {'POINT', 'SPOT'}
+SUPPORTED_LIGHT_TYPES = {'POINT', 'SPOT', 'SUN'}
 
 
 def _on_fog_changed(self, context):
@@ -65,6 +66,10 @@ class AirlightSceneSettings(bpy.types.PropertyGroup):
                                          "function: slow, the reference"),
             ('BIRI06', "Biri 2006 (any phase)", "Biri et al. 2006 analytic airlight with a table per phase "
                                                 "function: handles anisotropic fog"),
+            ('BASELINE', "Baseline (constant colour)",
+             "What Blender's Mist pass does: one fog colour for the whole image, "
+             "C (1 - transmittance), with C fitted to the physical fog. No light shapes; "
+             "the bar the other models beat"),
         ),
         default='AUTO',
     )
@@ -90,6 +95,22 @@ class AirlightSceneSettings(bpy.types.PropertyGroup):
                     "(light glows around lights seen through the fog), negative is back "
                     "scattering, 0 is isotropic",
         default=0.0, min=-0.99, max=0.99, step=1, precision=3,
+    )
+    use_fog_top: BoolProperty(
+        name="Fog Top",
+        description="Bound the fog above at the Top height for sun lamps: sunlight then "
+                    "crosses the fog from the top down and fades with depth, as in a "
+                    "Cycles volume slab. Off: sunlight reaches all the fog unattenuated "
+                    "(Hoffman-Preetham), a fair approximation near the ground only",
+        default=True,
+    )
+    fog_top: FloatProperty(
+        name="Top",
+        description="World Z height of the top of the fog layer that sun lamps shine "
+                    "through (used when Fog Top is on; point and spot lights and the "
+                    "transmittance treat the fog as unbounded)",
+        default=10.0, soft_min=-1000.0, soft_max=1000.0,
+        subtype='DISTANCE', unit='LENGTH',
     )
     accuracy: FloatProperty(
         name="Accuracy",
