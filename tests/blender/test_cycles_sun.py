@@ -31,6 +31,8 @@ Measured here (2 x 256 samples, 6912 pixels per view, ~11-16 s of Cycles per vie
   inside, HG g = 0.5: bake (biri06) vs Cycles mean 0.129 %, p99 0.69 % (noise 0.115 %, 0.74 %).
   above, isotropic: bake vs Cycles mean 0.010 %, p99 0.036 % (noise 0.009 %, 0.037 %);
     unbounded: 52 %.
+  The constant-colour baseline (best least-squares colour) vs Cycles: mean 14.5 % (p99 37 %)
+  inside isotropic, 44 % (145 %) inside g = 0.5, 10.1 % (20 %) above.
 """
 
 import json
@@ -223,3 +225,9 @@ def test02_sun_bake_matches_cycles(refs):
     hp_mean, _ = cs.rel_stats(hp[..., 0], C[..., 0], refs["mask"])
     _report(f"{refs['name']}_unbounded_vs_cycles", mean=hp_mean)
     assert hp_mean > 5 * (nmean + 0.002), hp_mean
+    # The bar: the constant-colour baseline (best least-squares colour) in the same view.
+    description["fog_top"] = FOG_TOP
+    base = native.get().bake(**description, model="baseline", threads=2)["airlight"].astype(np.float64)
+    base_mean, base_p99 = cs.rel_stats(base[..., 0], C[..., 0], refs["mask"])
+    _report(f"{refs['name']}_baseline_vs_cycles", mean=base_mean, p99=base_p99)
+    assert base_mean > figures["mean_R"], (base_mean, figures["mean_R"])
