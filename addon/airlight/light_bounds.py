@@ -65,8 +65,9 @@ def phase_range(phase, g):
 
 class Frame:
     """A camera's frame: cam_to_world (4, 4), the 4 corners of its view frame in camera
-    space (Blender's camera.view_frame(scene), counter-clockwise or clockwise), whether it is
-    orthographic, and the near clip distance along the view axis."""
+    space (Blender's camera.view_frame(scene), in order around the frame), whether it is
+    orthographic, and the near clip distance along the view axis. Its methods take (N, 3)
+    arrays of world points (all lights at once: the panel redraws this)."""
 
     def __init__(self, cam_to_world, corners, ortho, clip_start=0.0):
         self.m = np.asarray(cam_to_world, dtype=np.float64)
@@ -79,114 +80,111 @@ class Frame:
             self.xmin, self.xmax = c[:, 0].min(), c[:, 0].max()
             self.ymin, self.ymax = c[:, 1].min(), c[:, 1].max()
             self.near_corners = np.column_stack([c[:, 0], c[:, 1], np.full(4, -self.clip_start)])
-        else:
-            dirs = c / -c[:, 2:3]                      # scaled to unit view-axis depth
-            self.dirs = dirs / np.linalg.norm(dirs, axis=1, keepdims=True)
-            self.near_corners = dirs * self.clip_start
-            centre = self.dirs.sum(axis=0)
-            self.normals = []
-            for i in range(4):
-                n = np.cross(self.dirs[i], self.dirs[(i + 1) % 4])
-                n /= np.linalg.norm(n)
-                self.normals.append(n if n @ centre >= 0.0 else -n)   # pointing into the frustum
-
-    def local(self, p):
-        """World point -> camera space."""
-        return self.rot.T @ (np.asarray(p, dtype=np.float64) - self.eye)
-
-    def ray_distance(self, p):
-        """(h, behind): the least distance from the world point p to a camera ray's line (0
-        inside the frame), and whether p is at least 90 deg from every ray (then h is its
-        distance to the eye, and the bound's half-line form applies)."""
-        q = self.local(p)
-        if self.ortho:
-            dx = max(self.xmin - q[0], 0.0, q[0] - self.xmax)
-            dy = max(self.ymin - q[1], 0.0, q[1] - self.ymax)
-            return math.hypot(dx, dy), False
-        D = float(np.linalg.norm(q))
-        if D == 0.0:
-            return 0.0, False
-        u = q / D
-        if all(float(n @ u) >= 0.0 for n in self.normals):
-            return 0.0, False
-        # Angle to the frustum's boundary: the nearest point on one of its 4 faces (each a
-        # wedge between two corner rays), or a corner ray itself.
-        best = min(math.acos(min(1.0, max(-1.0, float(u @ c)))) for c in self.dirs)
+            return
+        dirs = c / -c[:, 2:3]                      # scaled to unit view-axis depth
+        self.dirs = dirs / np.linalg.norm(dirs, axis=1, keepdims=True)
+        self.near_corners = dirs * self.clip_start
+        centre = self.dirs.sum(axis=0)
+        normals, wedge_a, wedge_b = [], [], []
         for i in range(4):
             a, b = self.dirs[i], self.dirs[(i + 1) % 4]
-            n = self.normals[i]
-            proj = u - (u @ n) * n
-            norm = float(np.linalg.norm(proj))
-            if norm == 0.0:
-                continue
-            proj /= norm
-            # Inside the wedge between a and b (the short arc)?
-            if np.cross(a, proj) @ np.cross(a, b) >= 0.0 and np.cross(proj, b) @ np.cross(a, b) >= 0.0:
-                best = min(best, math.atan2(abs(float(u @ n)), float(u @ proj)))
-        if best >= 0.5 * math.pi:
-            return D, True
-        return D * math.sin(best), False
+            n = np.cross(a, b)
+            n /= np.linalg.norm(n)
+            normals.append(n if n @ centre >= 0.0 else -n)   # pointing into the frustum
+            # p lies in the wedge between a and b iff (a x p).(a x b) >= 0 and
+            # (p x b).(a x b) >= 0, i.e. p.((a x b) x a) >= 0 and p.(b x (a x b)) >= 0.
+            ab = np.cross(a, b)
+            wedge_a.append(np.cross(ab, a))
+            wedge_b.append(np.cross(b, ab))
+        self.normals = np.array(normals)
+        self.wedge_a, self.wedge_b = np.array(wedge_a), np.array(wedge_b)
 
-    def start_distances(self, p):
-        """(least, largest) distance from the world point p to a camera ray's start."""
-        q = self.local(p)
-        far = max(float(np.linalg.norm(q - c)) for c in self.near_corners)
+    def local(self, points):
+        """World points (N, 3) -> camera space."""
+        return (np.asarray(points, dtype=np.float64).reshape(-1, 3) - self.eye) @ self.rot
+
+    def ray_distances(self, points):
+        """(h, behind), each (N,): the least distance from each world point to a camera
+        ray's line (0 inside the frame), and whether the point is at least 90 deg from every
+        ray (then h is its distance to the eye and the bound's half-line form applies)."""
+        q = self.local(points)
         if self.ortho:
-            near_plane_q = np.array([min(max(q[0], self.xmin), self.xmax), min(max(q[1], self.ymin), self.ymax),
-                                     -self.clip_start])
-            return float(np.linalg.norm(q - near_plane_q)), far
-        if self.clip_start == 0.0:
-            D = float(np.linalg.norm(q))
+            dx = np.maximum(np.maximum(self.xmin - q[:, 0], 0.0), q[:, 0] - self.xmax)
+            dy = np.maximum(np.maximum(self.ymin - q[:, 1], 0.0), q[:, 1] - self.ymax)
+            return np.hypot(dx, dy), np.zeros(len(q), dtype=bool)
+        D = np.linalg.norm(q, axis=1)
+        u = q / np.where(D > 0.0, D, 1.0)[:, None]
+        inside = np.all(u @ self.normals.T >= 0.0, axis=1) | (D == 0.0)
+        # Angle to the frustum: to a corner ray, or to the nearest point of a face (the
+        # wedge between two corner rays) when the projection onto its plane lies in it.
+        best = np.min(np.arccos(np.clip(u @ self.dirs.T, -1.0, 1.0)), axis=1)
+        for i in range(4):
+            n = self.normals[i]
+            un = u @ n
+            proj = u - un[:, None] * n
+            norm = np.linalg.norm(proj, axis=1)
+            ok = (norm > 0.0) & (proj @ self.wedge_a[i] >= 0.0) & (proj @ self.wedge_b[i] >= 0.0)
+            angle = np.arctan2(np.abs(un), norm)
+            best = np.where(ok, np.minimum(best, angle), best)
+        behind = ~inside & (best >= 0.5 * math.pi)
+        h = np.where(behind, D, D * np.sin(np.minimum(best, 0.5 * math.pi)))
+        return np.where(inside, 0.0, h), behind
+
+    def start_distances(self, points):
+        """(least, largest), each (N,): distances from each world point to a ray start."""
+        q = self.local(points)
+        far = np.max(np.linalg.norm(q[:, None, :] - self.near_corners[None, :, :], axis=2), axis=1)
+        if not self.ortho and self.clip_start == 0.0:
+            D = np.linalg.norm(q, axis=1)
             return D, D
-        # Ray starts lie on the near plane's frame rectangle: its nearest point to q.
-        z = -self.clip_start
+        # Ray starts fill the near plane's frame rectangle: its nearest point to q.
         xs, ys = self.near_corners[:, 0], self.near_corners[:, 1]
-        nearest = np.array([min(max(q[0], xs.min()), xs.max()), min(max(q[1], ys.min()), ys.max()), z])
-        return float(np.linalg.norm(q - nearest)), far
+        nearest = np.column_stack([np.clip(q[:, 0], xs.min(), xs.max()), np.clip(q[:, 1], ys.min(), ys.max()),
+                                   np.full(len(q), -self.clip_start)])
+        return np.linalg.norm(q - nearest, axis=1), far
 
 
-def point_bounds(frame, position, I0, sigma, albedo, p_min, p_max, spot=False):
-    """(upper, lower) RGB bounds of a point (or spot: lower 0) light's airlight over the frame."""
-    I0 = np.asarray(I0, dtype=np.float64)
-    w = np.asarray(albedo, dtype=np.float64) * I0
-    if sigma <= 0.0 or not np.any(w > 0.0):
-        return np.zeros(3), np.zeros(3)
-    h, behind = frame.ray_distance(position)
-    d_min, d_max = frame.start_distances(position)
-    if h == 0.0:
-        upper = np.full(3, math.inf)
-    else:
-        line = sigma * math.pi * math.exp(-sigma * d_min) / h * (0.5 if behind else 1.0)
-        upper = w * (p_max * min(line, math.exp(-sigma * h) / (h * h)))
-    upper = np.where(w > 0.0, upper, 0.0)
-    if spot:
-        return upper, np.zeros(3)
-    lower = w * (p_min * E2 * math.exp(-sigma * d_max) / (d_max + 1.0 / sigma) ** 2)
+def point_bounds(frame, positions, I0, sigma, albedo, p_min, p_max, spot=False):
+    """(upper, lower), each (N, 3) RGB, for N point lights (positions (N, 3), I0 (N, 3)
+    W/sr); _spot_ (bool or (N,)): spot lights, whose lower bound is 0."""
+    positions = np.asarray(positions, dtype=np.float64).reshape(-1, 3)
+    w = np.asarray(albedo, dtype=np.float64) * np.asarray(I0, dtype=np.float64).reshape(-1, 3)
+    n = len(positions)
+    if sigma <= 0.0 or n == 0:
+        return np.zeros((n, 3)), np.zeros((n, 3))
+    h, behind = frame.ray_distances(positions)
+    d_min, d_max = frame.start_distances(positions)
+    with np.errstate(divide='ignore', over='ignore', invalid='ignore'):
+        line = sigma * math.pi * np.exp(-sigma * d_min) / h * np.where(behind, 0.5, 1.0)
+        direct = np.exp(-sigma * h) / (h * h)
+        scale = np.where(h > 0.0, p_max * np.minimum(line, direct), math.inf)
+    upper = np.where(w > 0.0, w * scale[:, None], 0.0)
+    lower = w * (p_min * E2 * np.exp(-sigma * d_max) / (d_max + 1.0 / sigma) ** 2)[:, None]
+    lower = np.where(np.broadcast_to(np.asarray(spot), (n,))[:, None], 0.0, lower)
     return upper, lower
 
 
 def sun_bounds(E, sigma, albedo, p_min, p_max, layered):
-    """(upper, lower) RGB bounds of a sun lamp's airlight (sun_layer.h)."""
-    w = np.asarray(albedo, dtype=np.float64) * np.asarray(E, dtype=np.float64)
+    """(upper, lower), each (N, 3), for N sun lamps of irradiance E (N, 3) (sun_layer.h)."""
+    w = np.asarray(albedo, dtype=np.float64) * np.asarray(E, dtype=np.float64).reshape(-1, 3)
     if sigma <= 0.0:
-        return np.zeros(3), np.zeros(3)
-    lower = np.zeros(3) if layered else w * (p_min * (1.0 - math.exp(-1.0)))
+        return np.zeros_like(w), np.zeros_like(w)
+    lower = np.zeros_like(w) if layered else w * (p_min * (1.0 - math.exp(-1.0)))
     return w * p_max, lower
 
 
 def skip_faint(uppers, lowers, target):
-    """Indices of lights to skip: the faintest (by upper bound) while the sum of the
-    skipped upper bounds stays <= target * (sum of all lower bounds) in every channel."""
-    if not uppers:
-        return set()
-    budget = target * np.sum(np.asarray(lowers, dtype=np.float64), axis=0)
-    order = sorted(range(len(uppers)), key=lambda i: float(np.max(uppers[i])))
-    used = np.zeros(3)
-    skipped = set()
-    for i in order:
-        u = np.asarray(uppers[i], dtype=np.float64)
-        if not np.all(np.isfinite(u)) or not np.all(used + u <= budget):
-            break
-        used += u
-        skipped.add(i)
-    return skipped
+    """Bool mask (N,) of the lights to skip: the faintest (by upper bound) while the sum of
+    the skipped upper bounds stays <= target * (sum of all lower bounds) in every channel."""
+    uppers = np.asarray(uppers, dtype=np.float64).reshape(-1, 3)
+    skip = np.zeros(len(uppers), dtype=bool)
+    if len(uppers) == 0:
+        return skip
+    budget = target * np.sum(np.asarray(lowers, dtype=np.float64).reshape(-1, 3), axis=0)
+    order = np.argsort(np.max(uppers, axis=1), kind="stable")
+    with np.errstate(invalid='ignore'):
+        cumulative = np.cumsum(uppers[order], axis=0)
+    fits = np.all(np.isfinite(cumulative) & (cumulative <= budget), axis=1)
+    n_skip = len(fits) if fits.all() else int(np.argmin(fits))
+    skip[order[:n_skip]] = True
+    return skip

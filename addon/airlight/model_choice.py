@@ -142,7 +142,8 @@ def light_plan(scene, depsgraph=None, view_layer=None):
     phase, g = native_phase(settings)
     p_min, p_max = light_bounds.phase_range(phase, g)
     frame = _frame(scene, depsgraph)
-    rows, uppers, lowers, fogged = [], [], [], []
+    rows, fogged = [], []
+    kinds, weights, positions = [], [], []   # per fogged light: type, I0 or E (RGB), position
     for obj in scene.objects:
         if obj.type != 'LIGHT' or not visibility.is_render_visible(obj, hidden):
             continue
@@ -162,31 +163,32 @@ def light_plan(scene, depsgraph=None, view_layer=None):
         else:
             label, error = point_label, point_error
         rows.append(LightRow(obj.name, light.type, 'fog', label, error, math.nan))
-        colour = np.array(light.color, dtype=np.float64)
-        if light.type == 'SUN':
-            upper, lower = light_bounds.sun_bounds(colour * light.energy, sigma, albedo, p_min, p_max,
-                                                   bool(settings.use_fog_top))
-        elif frame is not None:
-            src = obj.evaluated_get(depsgraph) if depsgraph is not None else obj
-            position = np.array(src.matrix_world.translation, dtype=np.float64)
-            upper, lower = light_bounds.point_bounds(frame, position, colour * light.energy / (4.0 * math.pi),
-                                                     sigma, albedo, p_min, p_max, spot=light.type == 'SPOT')
-        else:
-            upper, lower = np.full(3, math.inf), np.zeros(3)
-        uppers.append(upper)
-        lowers.append(lower)
         fogged.append(len(rows) - 1)
+        kinds.append(light.type)
+        colour = np.array(light.color, dtype=np.float64) * light.energy
+        weights.append(colour if light.type == 'SUN' else colour / (4.0 * math.pi))
+        src = obj.evaluated_get(depsgraph) if depsgraph is not None else obj
+        positions.append(tuple(src.matrix_world.translation))
     if not fogged:
         return rows
-    total_lower = np.sum(lowers, axis=0)
-    skip = set()
+    kinds = np.array(kinds)
+    weights = np.array(weights, dtype=np.float64).reshape(-1, 3)
+    positions = np.array(positions, dtype=np.float64).reshape(-1, 3)
+    uppers, lowers = np.full(weights.shape, math.inf), np.zeros(weights.shape)
+    sun = kinds == 'SUN'
+    uppers[sun], lowers[sun] = light_bounds.sun_bounds(weights[sun], sigma, albedo, p_min, p_max,
+                                                       bool(settings.use_fog_top))
+    if frame is not None and np.any(~sun):
+        uppers[~sun], lowers[~sun] = light_bounds.point_bounds(
+            frame, positions[~sun], weights[~sun], sigma, albedo, p_min, p_max, spot=kinds[~sun] == 'SPOT')
+    skip = np.zeros(len(fogged), dtype=bool)
     if settings.model == 'AUTO' and frame is not None and sigma > 0.0:
         skip = light_bounds.skip_faint(uppers, lowers, settings.accuracy / 100.0)
+    total_lower = lowers.sum(axis=0)
+    with np.errstate(divide='ignore', invalid='ignore'):
+        shares = np.max(np.where(uppers > 0.0, uppers / total_lower, 0.0), axis=1)
     for k, i in enumerate(fogged):
-        with np.errstate(divide='ignore', invalid='ignore'):
-            ratio = np.where(uppers[k] > 0.0, uppers[k] / total_lower, 0.0)
-        share = float(np.max(ratio))
-        rows[i] = rows[i]._replace(share=share, status='skipped' if k in skip else 'fog')
+        rows[i] = rows[i]._replace(share=float(shares[k]), status='skipped' if skip[k] else 'fog')
     return rows
 
 

@@ -133,8 +133,9 @@ def test04_bounds_hold_against_the_bake(tmp_path):
         A = result["airlight"].astype(float)
         obj = scene.objects[name]
         upper, lower = light_bounds.point_bounds(
-            frame, np.array(obj.matrix_world.translation), np.ones(3) * obj.data.energy / (4 * math.pi),
+            frame, [tuple(obj.matrix_world.translation)], [np.ones(3) * obj.data.energy / (4 * math.pi)],
             SIGMA, (1.0, 1.0, 1.0), p_min, p_max)
+        upper, lower = upper[0], lower[0]
         assert np.all(A <= upper[None, None, :] * (1 + 1e-5))
         deep = np.isinf(result["depth"]) | (result["depth"] >= 1.0 / SIGMA)
         assert np.all(A[deep] >= lower[None, :] * (1 - 1e-5))
