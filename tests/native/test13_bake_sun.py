@@ -153,3 +153,27 @@ def test_bad_sun_input():
     with pytest.raises(ValueError, match="Gaussian"):
         _native.bake(**base, sun_directions=SUN_DIR[:1], sun_irradiances=np.ones((1, 3)),
                      rbf_centres=np.zeros((1, 3)), rbf_scales=np.ones(1), rbf_amplitudes=np.ones(1))
+
+
+def test_orthographic_camera():
+    """Orthographic rays have their own origins (the bake's per-ray path, not the SoA one)."""
+    from scene_util import orthographic
+    cam = camera_matrix(rotation_x(math.radians(80.0)), [0.0, 0.0, 2.0])  # looks along +y, 10 deg down
+    scale = 6.0
+    out = _native.bake(width=W, height=H, cam_to_world=cam, projection=orthographic(scale, W, H),
+                       vertices=np.zeros((0, 3), np.float32), triangles=np.zeros((0, 3), np.uint32),
+                       light_positions=np.zeros((0, 3)), light_intensities=np.zeros((0, 3)), sigma_t=SIGMA_T,
+                       albedo=ALBEDO, phase="hg", g=0.3, model="biri06", aa_samples=1,
+                       sun_directions=SUN_DIR, sun_irradiances=SUN_E, fog_top=4.0)
+    r, t = scale / 2, scale / 2 * H / W
+    d = -cam[:3, 2]
+    worst = 0.0
+    for j in range(H):
+        for i in range(W):
+            x = (2 * (i + 0.5) / W - 1) * r
+            y = (1 - 2 * (j + 0.5) / H) * t
+            o = cam[:3, 3] + x * cam[:3, 0] + y * cam[:3, 1] + 0.1 * d   # rays start on the near plane
+            want = reference(o, d, 0.0, math.inf, 4.0, 0.3)
+            got = out["airlight"][j, i]
+            worst = max(worst, float(np.max(np.abs(got - want) / want)))
+    assert worst < 2e-5, worst
