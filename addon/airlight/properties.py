@@ -11,6 +11,7 @@ MODEL_NAMES = {
     'SUN05_EXACT': "sun05_exact",
     'QUADRATURE': "quadrature",
     'BIRI06': "biri06",
+    'PEGORARO10': "pegoraro10",
 }
 
 # Scene phase enum -> `_native.bake(phase=...)`; the anisotropy g applies to HG only.
@@ -65,6 +66,9 @@ class AirlightSceneSettings(bpy.types.PropertyGroup):
                                          "function: slow, the reference"),
             ('BIRI06', "Biri 2006 (any phase)", "Biri et al. 2006 analytic airlight with a table per phase "
                                                 "function: handles anisotropic fog"),
+            ('PEGORARO10', "Pegoraro 2010 (closed form)", "Pegoraro et al. 2010 exact closed form with the "
+                                                          "phase function as a Legendre polynomial: any phase, "
+                                                          "no table"),
         ),
         default='AUTO',
     )

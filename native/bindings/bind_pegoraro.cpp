@@ -94,7 +94,7 @@ the sign of Im z, including -0.0, picks the side). Power series |z| < 5, DLMF 6.
         [](const std::string& phase, double g, int order, double rel_tol) {
             return make_phase(phase, g, order, rel_tol).legendre;
         },
-        "phase"_a = "hg", "g"_a = 0.0, "order"_a = -1, "rel_tol"_a = 1e-3,
+        "phase"_a = "hg", "g"_a = 0.0, "order"_a = -1, "rel_tol"_a = 1e-6,
         "Legendre coefficients a_n (4 pi p(mu) = sum a_n P_n(mu)) of the phase polynomial Pegoraro 2010 uses; "
         "order < 0: the Henyey-Greenstein order whose truncation bound meets rel_tol.");
 
@@ -130,7 +130,7 @@ the sign of Im z, including -0.0, picks the side). Power series |z| < 5, DLMF 6.
             return out;
         },
         "sigma_t"_a, "Dsv"_a, "cos_gamma"_a, "Dvp"_a, "phase"_a = "hg", "g"_a = 0.0, "order"_a = -1,
-        "rel_tol"_a = 1e-3,
+        "rel_tol"_a = 1e-6,
         R"doc(Pegoraro et al. 2010 closed-form airlight of an isotropic point light with the phase polynomial
 (exact for isotropic, rayleigh, hazy_mie, murky_mie; HG truncated at _order_, or chosen from rel_tol when
 order < 0), per unit I0 and albedo; arguments as sun05_airlight (broadcast; Dvp may be inf).)doc");
@@ -140,7 +140,7 @@ order < 0), per unit I0 and albedo; arguments as sun05_airlight (broadcast; Dvp 
         [](const py::object& light_poly, const py::object& axis, const py::object& position, double sigma_t,
            const py::object& origins, const py::object& directions, const py::object& x0, const py::object& x1,
            const std::string& phase, double g, int order) {
-            const PegoraroPhase p = make_phase(phase, g, order, 1e-3);
+            const PegoraroPhase p = make_phase(phase, g, order, 1e-6);
             std::vector<double> light = py::cast<std::vector<double>>(light_poly);
             if (light.empty() || light.size() > 9) throw py::value_error("light_poly: 1 to 9 coefficients");
             const glm::dvec3 A = glm::normalize(vec3(axis, "axis")), s = vec3(position, "position");
@@ -188,7 +188,7 @@ order < 0), per unit I0 and albedo; arguments as sun05_airlight (broadcast; Dvp 
             return to_numpy(std::move(out), {py::ssize_t(r.d.size())});
         },
         "position"_a, "axis"_a, "spot_size"_a, "spot_blend"_a, "sigma_t"_a, "origins"_a, "directions"_a, "Dvp"_a,
-        "phase"_a = "isotropic", "g"_a = 0.0, "order"_a = -1, "rel_tol"_a = 1e-3,
+        "phase"_a = "isotropic", "g"_a = 0.0, "order"_a = -1, "rel_tol"_a = 1e-6,
         "Closed-form (Pegoraro 2010) airlight of a Blender spot light (Cycles profile, exact piecewise "
         "polynomial) along each ray, per unit I0 and albedo.");
 

@@ -12,6 +12,8 @@ const std::vector<ModelInfo>& model_registry() {
         {ModelId::Quadrature, "quadrature",
          "Adaptive quadrature of the single-scattering integral, any phase function (slow reference)"},
         {ModelId::Biri06, "biri06", "Biri et al. 2006 airlight with the Gamma table of any phase function"},
+        {ModelId::Pegoraro10, "pegoraro10",
+         "Pegoraro et al. 2010 closed form (complex E1), any phase function as a Legendre polynomial"},
     };
     return registry;
 }

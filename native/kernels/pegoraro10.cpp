@@ -218,18 +218,21 @@ PegoraroPhase pegoraro_phase(const PhaseFunction& phase, int order) {
 int pegoraro_hg_order(double g, double rel_tol, int max_order) {
     const double ag = std::abs(g);
     if (ag == 0.0) return 0;
-    const double pmax = (1.0 + ag) / ((1.0 - ag) * (1.0 - ag));  // 4 pi p(mu = +-1)
-    // Tail sum_{n>N} (2n+1) |g|^n, from the closed form of the full series minus the head.
-    for (int N = 0; N < max_order; ++N) {
+    const double pmin = (1.0 - ag) / ((1.0 + ag) * (1.0 + ag));  // 4 pi p at the lobe's far side
+    for (int N = 0; N <= max_order; ++N) {
         double tail = 0.0, gn = std::pow(ag, N + 1);
-        for (int n = N + 1; n < N + 100000 && gn > 1e-18 * (tail + 1e-300); ++n, gn *= ag) tail += (2.0 * n + 1.0) * gn;
-        if (tail <= rel_tol * pmax) return N;
+        for (int n = N + 1; gn > 1e-18 * (tail + 1e-300); ++n, gn *= ag) tail += (2.0 * n + 1.0) * gn;
+        if (tail <= rel_tol * pmin) return N;
     }
-    return max_order;
+    return -1;
 }
 
 PegoraroPhase pegoraro_phase_auto(const PhaseFunction& phase, double rel_tol, int max_order) {
-    const int order = phase.kind == PhaseKind::HenyeyGreenstein ? pegoraro_hg_order(phase.g, rel_tol, max_order) : 0;
+    int order = 0;
+    if (phase.kind == PhaseKind::HenyeyGreenstein) {
+        order = pegoraro_hg_order(phase.g, rel_tol, max_order);
+        if (order < 0) order = max_order;
+    }
     return pegoraro_phase(phase, order);
 }
 

@@ -59,11 +59,13 @@ struct PegoraroPhase {
 PegoraroPhase pegoraro_phase(const PhaseFunction& phase, int order);
 // Builds one from Legendre coefficients (a_0 should be 1 for a normalised phase).
 PegoraroPhase pegoraro_phase_from_legendre(const std::vector<double>& legendre);
-// Henyey-Greenstein order whose pointwise truncation error bound
-// sum_{n>N} (2n+1)|g|^n / (4 pi p_max) is <= _rel_tol_, capped at _max_order_.
-int pegoraro_hg_order(double g, double rel_tol, int max_order = 64);
-// pegoraro_phase with the HG order from pegoraro_hg_order (exact phases: their order).
-PegoraroPhase pegoraro_phase_auto(const PhaseFunction& phase, double rel_tol, int max_order = 64);
+// Henyey-Greenstein order whose pointwise truncation bound sum_{n>N} (2n+1)|g|^n is at most
+// _rel_tol_ times 4 pi p_min (the lobe's smallest value, so the bound is relative everywhere);
+// -1 if no order up to _max_order_ meets it (|g| -> 1 needs hundreds).
+int pegoraro_hg_order(double g, double rel_tol, int max_order = 96);
+// pegoraro_phase with the HG order from pegoraro_hg_order (_max_order_ where none meets
+// _rel_tol_); exact phases: their own order.
+PegoraroPhase pegoraro_phase_auto(const PhaseFunction& phase, double rel_tol, int max_order = 96);
 
 // G_m, m = 0.._K_, for H > 0 and 0 <= v0 < v1 (v1 may be inf), scaled by e^{H v0}.
 void pegoraro_moments(double H, double v0, double v1, int K, std::complex<double>* G);
