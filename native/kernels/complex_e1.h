@@ -22,7 +22,7 @@ cplx complex_e1_scaled(cplx z);
 
 // e^{za} [E1(za) - E1(zb)] = int_za^zb e^{-(t - za)}/t dt along the straight segment (which
 // must not cross the cut), without the cancellation of the two nearly equal terms when
-// zb is close to za (then a 16-point Gauss-Legendre rule on the segment). zb may be
+// zb is close to za (|zb - za| <= 0.1 |za|: an 8-point Gauss-Legendre rule on the segment). zb may be
 // complex infinity's stand-in: pass _zb_infinite_ = true for e^{za} E1(za).
 cplx complex_e1_difference_scaled(cplx za, cplx zb, bool zb_infinite = false);
 
