@@ -10,7 +10,13 @@ The figures are measurements, not guesses; each names where it was measured:
   to 6e-3 for HG |g| >= 0.95, whose lobe is narrower than the table resolves);
 - cost: time relative to the table model on the same 1920x1080 image, from
   benchmarks/bench_sun05.py (same run: sun05_exact ~98x, quadrature ~72x the table model) and for
-  biri06 the bake's airlight pass, 1 light on 2 threads (150-240 ms vs 40 ms: ~5x).
+  biri06 the bake's airlight pass, 1 light on 2 threads (150-240 ms vs 40 ms: ~5x);
+- pegoraro10 (closed form, benchmarks/bench_pegoraro.py): max error vs quadrature 1.2e-11 for
+  the exact polynomial phases (isotropic, Rayleigh, hazy/murky Mie); for Henyey-Greenstein,
+  truncated at the order the bake picks (Legendre tail below 1e-6 of the lobe, at most 96),
+  max 2.6e-7 for |g| <= 0.75 (g = 0.3, 0.6, 0.75 measured), 9.6e-2 at |g| = 0.9 (order 96 is
+  not enough), not measured beyond (treated as unusable). Cost: ~1.5-5.3 us per evaluation
+  vs 0.24 us for the table in the same run (order 0 to 32-41): 22x, the high-order figure.
 
 The phase: the Sun 2005 models integrate the isotropic phase only (Henyey-Greenstein
 with g = 0). For that case the Automatic choice is the one it has always been (biri06 is
@@ -34,12 +40,16 @@ MEASURED = {
     "quadrature": ("Quadrature", 1e-8, 72.0),
     "sun05_exact": ("Sun 2005 (exact)", 1e-8, 98.0),
     "biri06": ("Biri 2006 (table)", 8.9e-4, 5.0),
+    "pegoraro10": ("Pegoraro 2010 (closed form)", 1.2e-11, 22.0),
 }
+# pegoraro10 with Henyey-Greenstein: error at the bake's truncation order, by |g|
+# (bench_pegoraro.py): the order that meets the bake's tolerance exists up to |g| ~ 0.78.
+PEGORARO10_HG_ERROR = ((0.78, 2.6e-7), (0.9, 9.6e-2))
 # biri06's measured worst case for Henyey-Greenstein lobes with |g| >= 0.95.
 BIRI06_NARROW_LOBE_ERROR = 6e-3
 BIRI06_NARROW_LOBE_G = 0.95
 # Models that integrate any phase function; the others are isotropic only.
-PHASE_MODELS = ("biri06", "quadrature")
+PHASE_MODELS = ("biri06", "pegoraro10", "quadrature")
 ISOTROPIC_ONLY = ("sun05", "sun05_exact")
 
 
@@ -62,6 +72,9 @@ def model_error(name, settings):
     if (name == "biri06" and settings.phase == 'HENYEY_GREENSTEIN'
             and abs(settings.anisotropy) >= BIRI06_NARROW_LOBE_G):
         error = BIRI06_NARROW_LOBE_ERROR
+    if name == "pegoraro10" and settings.phase == 'HENYEY_GREENSTEIN' and settings.anisotropy != 0.0:
+        g = abs(settings.anisotropy)
+        error = next((e for limit, e in PEGORARO10_HG_ERROR if g <= limit), math.inf)
     return error
 
 
@@ -72,7 +85,7 @@ def phase_problem(settings):
     name = MODEL_NAMES[settings.model]
     if name in ISOTROPIC_ONLY:
         return (f"{MEASURED[name][0]} handles isotropic fog only: use Biri 2006, "
-                f"Quadrature or Automatic for this phase")
+                f"Pegoraro 2010, Quadrature or Automatic for this phase")
     return None
 
 

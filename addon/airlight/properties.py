@@ -12,6 +12,7 @@ MODEL_NAMES = {
     'QUADRATURE': "quadrature",
     'BIRI06': "biri06",
     'BASELINE': "baseline",
+    'PEGORARO10': "pegoraro10",
 }
 
 # Scene phase enum -> `_native.bake(phase=...)`; the anisotropy g applies to HG only.
@@ -70,6 +71,9 @@ class AirlightSceneSettings(bpy.types.PropertyGroup):
              "What Blender's Mist pass does: one fog colour for the whole image, "
              "C (1 - transmittance), with C fitted to the physical fog. No light shapes; "
              "the bar the other models beat"),
+            ('PEGORARO10', "Pegoraro 2010 (closed form)", "Pegoraro et al. 2010 exact closed form with the "
+                                                          "phase function as a Legendre polynomial: any phase, "
+                                                          "no table"),
         ),
         default='AUTO',
     )

@@ -35,6 +35,7 @@
 #include "sun05_batch.h"
 #include "spot_light.h"
 #include "sun_layer.h"
+#include "pegoraro10.h"
 #include "sun05_inline.h"
 
 namespace airlight {
@@ -49,6 +50,12 @@ constexpr double kQuadratureRelTol = 1e-8;
 // Relative tolerance of the spot-light quadrature (every model: spots have no closed form);
 // far below the float passes' and Cycles' noise, and ~3x cheaper than 1e-8.
 constexpr double kSpotRelTol = 1e-5;
+// Pegoraro 2010 (spots for every model but 'quadrature', point lights for 'pegoraro10'):
+// Henyey-Greenstein is truncated where its Legendre tail is below kPegoraroPhaseTol of the
+// lobe everywhere (airlight error ~1e-7, bench_pegoraro.py), at most kPegoraroMaxOrder;
+// where that is not enough (|g| >~ 0.75) spots fall back to quadrature.
+constexpr double kPegoraroPhaseTol = 1e-6;
+constexpr int kPegoraroMaxOrder = 96;
 // Share of the progress bar given to pass 1 (ray casting).
 constexpr double kRaycastProgressShare = 0.3;
 
@@ -102,7 +109,7 @@ void validate(const SceneDescription& scene, const BakeSettings& settings) {
                 "' (g = " + std::to_string(medium.phase.g) + "); use 'biri06' or 'quadrature'");
     require(settings.model == ModelId::Sun05Table || settings.model == ModelId::Sun05Exact ||
                 settings.model == ModelId::Quadrature || settings.model == ModelId::Biri06 ||
-                settings.model == ModelId::Baseline,
+                settings.model == ModelId::Baseline || settings.model == ModelId::Pegoraro10,
             "the bake does not dispatch this model (see models())");
     validate_suns(scene);
     // Gaussian fog (Fogshop): isotropic only, through the Fogshop approximation (sun05,
@@ -336,6 +343,12 @@ class FogModel {
           origin_(origin) {
         if (model_ == ModelId::Sun05Table) table_ = shared_special_F_table(settings.table_nu, settings.table_nT);
         if (model_ == ModelId::Biri06) biri_table_ = shared_biri06_table(phase_, settings.table_nu, settings.table_nT);
+        if (model_ == ModelId::Pegoraro10 || (model_ != ModelId::Quadrature && !scene.spot_lights.empty())) {
+            pegoraro_phase_ = pegoraro_phase_auto(phase_, kPegoraroPhaseTol, kPegoraroMaxOrder);
+            spot_closed_form_ = model_ != ModelId::Quadrature &&
+                                (phase_.kind != PhaseKind::HenyeyGreenstein ||
+                                 pegoraro_hg_order(phase_.g, kPegoraroPhaseTol, kPegoraroMaxOrder) >= 0);
+        }
         for (const PointLight& light : scene.point_lights) {
             RGB weight = scene.medium.albedo * light.I0;
             if (weight.x == 0.0 && weight.y == 0.0 && weight.z == 0.0) continue;
@@ -503,7 +516,8 @@ class FogModel {
 
     // Airlight of all spot lights along the ray o + t d over [t_near, Dvp] (Dvp from o; inf:
     // none), attenuated from the near point (the viewer moved there, as eval_many does for
-    // the other models). Quadrature with the medium's phase (spot_light.h).
+    // the other models). Pegoraro 2010 closed form with the medium's phase (pegoraro10.h), or
+    // quadrature (spot_light.h) for the 'quadrature' model and HG lobes too narrow for order 96.
     RGB spot_airlight(const Vec3& o, const Vec3& d, double t_near, double Dvp) const {
         RGB La(0.0);
         if (sigma_t_ == 0.0) return La;
@@ -512,7 +526,9 @@ class FogModel {
         const Vec3 start = t_near > 0.0 ? o + t_near * d : o;
         for (const SpotData& spot : spots_)
             La += spot.weight *
-                  spot_airlight_quadrature(spot.cone, spot.s, phase_, sigma_t_, start, d, seg, kSpotRelTol);
+                  (!spot_closed_form_
+                       ? spot_airlight_quadrature(spot.cone, spot.s, phase_, sigma_t_, start, d, seg, kSpotRelTol)
+                       : pegoraro10_spot_airlight(pegoraro_phase_, spot.cone, spot.s, sigma_t_, start, d, seg));
         return La;
     }
 
@@ -571,6 +587,8 @@ class FogModel {
                                                               kQuadratureRelTol);
             case ModelId::Biri06:  // Gamma table of the medium's phase (exact where it would cancel)
                 return biri06_airlight(phase_, sigma_t_, Dsv, cos_gamma, Dvp, biri_table_.get(), GammaEval::Table);
+            case ModelId::Pegoraro10:  // closed form with the phase as a Legendre polynomial
+                return pegoraro10_airlight(pegoraro_phase_, sigma_t_, Dsv, cos_gamma, Dvp);
             default:  // rejected by validate()
                 break;
         }
@@ -585,6 +603,8 @@ class FogModel {
     Vec3 origin_;
     std::shared_ptr<const SpecialFTable> table_;
     std::shared_ptr<const Biri06Table> biri_table_;
+    PegoraroPhase pegoraro_phase_;  // spots (all models but quadrature) and model pegoraro10
+    bool spot_closed_form_ = false;  // spots by pegoraro10_spot_airlight (else quadrature)
     std::vector<LightData> lights_;
     struct SpotData {
         SpotCone cone;

@@ -14,6 +14,8 @@ const std::vector<ModelInfo>& model_registry() {
         {ModelId::Biri06, "biri06", "Biri et al. 2006 airlight with the Gamma table of any phase function"},
         {ModelId::Baseline, "baseline",
          "Constant-colour fog (Blender Mist / OpenGL fog) with the best-fitting colour: the bar to beat"},
+        {ModelId::Pegoraro10, "pegoraro10",
+         "Pegoraro et al. 2010 closed form (complex E1), any phase function as a Legendre polynomial"},
     };
     return registry;
 }
