@@ -31,6 +31,18 @@ MEASURED = {
     "sun05_exact": ("Sun 2005 (exact)", 1e-8, 98.0),
     "biri06": ("Biri 2006 (table)", 8.9e-4, 5.0),
 }
+# sun05's table choices (scene.airlight.table_resolution, table_interpolation): worst
+# per-ray airlight error against the exact-F model, measured over 20000 random rays by
+# native/kernels/sun05_nearest_test.cpp (AirlightErrorAgainstExactF). model_error takes the
+# larger of this and MEASURED["sun05"] (the 256 bilinear default against quadrature).
+# Nearest is no faster in the bake (benchmarks/bench_trade.py), so AUTO gains nothing from
+# it; the entries make the shown error honest when a user picks a coarser table.
+SUN05_TABLE_ERROR = {
+    (64, 'NEAREST'): 9.26e-2, (128, 'NEAREST'): 4.31e-2,
+    (256, 'NEAREST'): 2.22e-2, (512, 'NEAREST'): 1.16e-2,
+    (64, 'BILINEAR'): 8.36e-3, (128, 'BILINEAR'): 3.11e-3,
+    (256, 'BILINEAR'): 1.30e-3, (512, 'BILINEAR'): 6.17e-4,
+}
 # biri06's measured worst case for Henyey-Greenstein lobes with |g| >= 0.95.
 BIRI06_NARROW_LOBE_ERROR = 6e-3
 BIRI06_NARROW_LOBE_G = 0.95
@@ -55,10 +67,27 @@ def native_phase(settings):
 def model_error(name, settings):
     """Measured max relative error of model _name_ for the settings' phase."""
     error = MEASURED[name][1]
+    if name == "sun05":
+        error = max(error, SUN05_TABLE_ERROR[_table_choice(settings)])
     if (name == "biri06" and settings.phase == 'HENYEY_GREENSTEIN'
             and abs(settings.anisotropy) >= BIRI06_NARROW_LOBE_G):
         error = BIRI06_NARROW_LOBE_ERROR
     return error
+
+
+def _table_choice(settings):
+    """(size, interpolation) of the Sun 2005 table the settings ask for."""
+    return (int(getattr(settings, "table_resolution", '256')),
+            getattr(settings, "table_interpolation", 'BILINEAR'))
+
+
+def table_settings(settings):
+    """`_native.bake` keywords for the Sun 2005 table. Other table models (biri06) keep
+    the 256 x 256 bilinear table their error was measured with."""
+    size, interp = _table_choice(settings)
+    if choose(settings)[0] != "sun05":
+        size, interp = 256, 'BILINEAR'
+    return dict(table_size=size, table_interpolation=interp.lower())
 
 
 def phase_problem(settings):

@@ -51,6 +51,10 @@ class AIRLIGHT_PT_scene(bpy.types.Panel):
         else:
             name, label, error = model_choice.choose(settings)
             col.label(text=f"Uses {label}, error \u2264 {100.0 * error:.2g} %", icon='INFO')
+            if name == "sun05":
+                row = col.row(align=True)
+                row.prop(settings, "table_resolution", text="Table")
+                row.prop(settings, "table_interpolation", text="")
         col.prop(settings, "aa_samples")
         col.prop(settings, "threads")
         col.prop(settings, "cache_dir")
