@@ -106,6 +106,11 @@ def _unit(v):
 # D_sv = |light - camera| = 14.3 m for the default light (0.5, 6, 2.5).
 D_SV = float(np.linalg.norm(np.subtract((0.5, 6.0, 2.5), CAMERA["camera_location"])))
 NEAR_LIGHT = (0.5, -1.0, 0.25)     # 0.25 m above the floor, 7 m in front of the camera
+# A floor to the horizon: with the light near the floor (or the sun above it), view rays
+# past the default floor's far edge would go on below z = 0 through fog that the floor
+# shadows in Cycles, which the analytic models (no shadows) do not; here every ray below
+# the horizon ends on the floor.
+WIDE_FLOOR = dict(floor_x=(-2000.0, 2000.0), floor_y=(-15.0, 2000.0))
 THICK_LIGHT = (0.3, -3.0, 1.2)     # 5 m from the camera
 SCENES = [
     Scene("point_thin", "point, thin fog T_sv=0.1, isotropic", 0.1 / D_SV),
@@ -115,10 +120,10 @@ SCENES = [
     Scene("point_forward", "point, T_sv=1, forward g=0.6", 1.0 / D_SV, g=0.6),
     Scene("point_backward", "point, T_sv=1, backward g=-0.4", 1.0 / D_SV, g=-0.4),
     Scene("near_surface", "point 0.25 m above the floor, T_sv=1", 1.0 / float(np.linalg.norm(
-        np.subtract(NEAR_LIGHT, CAMERA["camera_location"]))), light_location=NEAR_LIGHT),
+        np.subtract(NEAR_LIGHT, CAMERA["camera_location"]))), light_location=NEAR_LIGHT, **WIDE_FLOOR),
     Scene("spot", "spot 60 deg, blend 0.3, T_sv=1, isotropic", 1.0 / D_SV, light_type='SPOT',
           light_location=(0.5, 2.0, 4.0), spot_axis=_unit((0.0, 0.5, -1.0))),
-    Scene("sun", "sun, sigma_t=0.1, fog top 30 m, isotropic", 0.1, light_type='SUN'),
+    Scene("sun", "sun, sigma_t=0.1, fog top 30 m, isotropic", 0.1, light_type='SUN', **WIDE_FLOOR),
 ]
 QUICK_SCENES = ("point_mid", "point_forward", "near_surface", "spot", "sun")
 
@@ -233,6 +238,8 @@ def measure_models(native, sc, err_size, runs, threads, log):
     scale = FULL_HD[0] * FULL_HD[1] / (err_size[0] * err_size[1])
     for label, kw in variants(native):
         try:
+            # Warm-up at 16x9: builds the model's table (a one-off per process) untimed.
+            native.bake(**dict(bake_args(sc, 16, 9, threads), **kw))
             t_small, out = timed_bake(native, dict(small, **kw), 1)
         except (ValueError, TypeError) as ex:
             log(f"  {sc.name}: {label} skipped: {why(ex)}")
@@ -348,6 +355,8 @@ def plot(rows, scenes, path, log):
     floor = 1e-6  # errors of exactly 0 (the spot path, the reference) drawn at this floor
     markers = {"sun05": "o", "sun05_exact": "s", "biri06": "^", "baseline": "x",
                "pegoraro10": "D", "hoffman02": "v"}
+    colours = {"sun05_exact": "tab:purple", "biri06": "tab:orange", "baseline": "black",
+               "pegoraro10": "tab:brown", "hoffman02": "tab:olive"}
     for ax, name in zip(axes.ravel(), names):
         mine = [r for r in rows if r["scene"] == name and r["model"] != "quadrature"]
         cyc = [r for r in mine if r["model"].startswith("Cycles")]
@@ -355,7 +364,7 @@ def plot(rows, scenes, path, log):
             if r in cyc:
                 continue
             base = r["model"].split()[0]
-            colour = None
+            colour = colours.get(base, "tab:grey")
             if base == "sun05" and len(r["model"].split()) == 3:  # "sun05 <size> <interp>"
                 _, size, interp = r["model"].split()
                 shade = 0.35 + 0.65 * TABLE_SIZES_ALL.index(int(size)) / (len(TABLE_SIZES_ALL) - 1)
@@ -412,7 +421,7 @@ def main():
     err_size = (240, 135) if opts.quick else (480, 270)
     cycles_size = (96, 54) if opts.quick else (160, 90)
     samples = (1, 4, 16, 64) if opts.quick else (1, 4, 16, 64, 256)
-    runs = opts.runs or (1 if opts.quick else 3)
+    runs = opts.runs or (1 if opts.quick else 5)
     global TABLE_SIZES
     if opts.quick:
         TABLE_SIZES = (64, 256)
@@ -426,6 +435,8 @@ def main():
         f"spp {samples}")
     for sc in scenes:
         log(f"scene {sc.name}: {sc.family}; sigma_t={sc.sigma_t:.4g}/m, T_sv={sc.T_sv:.3g}")
+    # Timings depend on what else runs on the machine: say how busy it was.
+    log(f"load average at start: {os.getloadavg()[0]:.1f} on {os.cpu_count()} CPUs")
     t_start = time.perf_counter()
     rows = []
     for sc in scenes:
@@ -448,7 +459,7 @@ def main():
                        err_size=err_size, cycles_size=cycles_size, samples=samples, runs=runs,
                        threads=opts.threads), f, indent=1)
     plot(rows, scenes, os.path.join(opts.out, "trade.png"), log)
-    log(f"total {time.perf_counter() - t_start:.0f} s")
+    log(f"load average at end: {os.getloadavg()[0]:.1f}; total {time.perf_counter() - t_start:.0f} s")
 
 
 if __name__ == "__main__":
