@@ -25,7 +25,7 @@ def bake_settings(scene):
     """Keyword arguments of `_native.bake` that are not part of the scene description."""
     settings = scene.airlight
     return dict(model=model_choice.choose(settings)[0], threads=settings.threads,
-                aa_samples=settings.aa_samples)
+                aa_samples=settings.aa_samples, **model_choice.table_settings(settings))
 
 
 def prepare(scene, depsgraph):

@@ -123,6 +123,29 @@ class AirlightSceneSettings(bpy.types.PropertyGroup):
         default=1.0, min=0.01, max=100.0, soft_min=0.1, soft_max=10.0,
         subtype='PERCENTAGE',
     )
+    table_resolution: EnumProperty(
+        name="Table Size",
+        description="Samples per axis of the Sun 2005 special-function table: larger is "
+                    "more accurate and costs a little more memory and a one-off build "
+                    "(the expected error shown below follows it)",
+        items=(
+            ('64', "64", "64 x 64 samples: coarsest"),
+            ('128', "128", "128 x 128 samples"),
+            ('256', "256", "256 x 256 samples (default)"),
+            ('512', "512", "512 x 512 samples: finest"),
+        ),
+        default='256',
+    )
+    table_interpolation: EnumProperty(
+        name="Table Lookup",
+        description="How the Sun 2005 table is read between its samples",
+        items=(
+            ('BILINEAR', "Bilinear", "Blend the four nearest samples: accurate (default)"),
+            ('NEAREST', "Nearest", "Take the nearest sample: about 20 times the error of "
+                                   "bilinear at the same size, no faster in the bake"),
+        ),
+        default='BILINEAR',
+    )
     aa_samples: IntProperty(
         name="Edge Samples",
         description="Antialiasing at depth edges: pixels there are supersampled with "

@@ -59,6 +59,10 @@ class AIRLIGHT_PT_scene(bpy.types.Panel):
             name, label, error = model_choice.choose(settings)
             bound = "unbounded" if math.isinf(error) else f"\u2264 {100.0 * error:.2g} %"
             col.label(text=f"Uses {label}, error {bound}", icon='INFO')
+            if name == "sun05":
+                row = col.row(align=True)
+                row.prop(settings, "table_resolution", text="Table")
+                row.prop(settings, "table_interpolation", text="")
         col.prop(settings, "aa_samples")
         col.prop(settings, "threads")
         col.prop(settings, "cache_dir")

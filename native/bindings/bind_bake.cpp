@@ -77,7 +77,8 @@ py::dict bake_py(int width, int height, const py::object& cam_to_world, const py
                  const py::object& rbf_centres, const py::object& rbf_scales, const py::object& rbf_amplitudes,
                  const py::object& spot_positions, const py::object& spot_axes, const py::object& spot_intensities,
                  const py::object& spot_size, const py::object& spot_blend, const py::object& sun_directions,
-                 const py::object& sun_irradiances, double fog_top) {
+                 const py::object& sun_irradiances, double fog_top, int table_size,
+                 const std::string& table_interpolation) {
     // Gather the scene description from the arrays (shapes checked here, values in bake()).
     SceneDescription scene;
     scene.camera.width = width;
@@ -190,6 +191,13 @@ py::dict bake_py(int width, int height, const py::object& cam_to_world, const py
     settings.threads = threads;
     settings.aa_samples = aa_samples;
     settings.filter_width = filter_width;
+    if (table_size < 8 || table_size > 4096)
+        throw py::value_error("table_size must be in [8, 4096], got " + std::to_string(table_size));
+    settings.table_nu = settings.table_nT = table_size;
+    if (table_interpolation == "bilinear") settings.table_interp = Interp::Bilinear;
+    else if (table_interpolation == "nearest") settings.table_interp = Interp::Nearest;
+    else throw py::value_error("table_interpolation must be \"bilinear\" or \"nearest\", got \"" +
+                               table_interpolation + "\"");
 
     // The callback runs on this (the calling) thread between bands: take the GIL for it.
     ProgressFn progress_fn;
@@ -258,6 +266,7 @@ void bind_bake(py::module_& m) {
           "spot_positions"_a = py::none(), "spot_axes"_a = py::none(), "spot_intensities"_a = py::none(),
           "spot_size"_a = py::none(), "spot_blend"_a = py::none(), "sun_directions"_a = py::none(),
           "sun_irradiances"_a = py::none(), "fog_top"_a = std::numeric_limits<double>::infinity(),
+          "table_size"_a = 256, "table_interpolation"_a = "bilinear",
           R"doc(Bake fog passes for one camera view (all arguments keyword-only).
 
 width, height: render resolution in pixels.
@@ -301,6 +310,10 @@ sun_directions (U, 3) (direction of propagation, the lamp's -Z; normalised here)
   height z through (fog_top - z) / cos of fog; +inf (default): Hoffman & Preetham's
   unattenuated sun. Point/spot lights and the transmittance ignore fog_top.
   Homogeneous fog only (ValueError with rbf_*).
+table_size: samples per axis of the model's 2D table (sun05's F table, biri06's Gamma
+  table), in [8, 4096], default 256. table_interpolation: "bilinear" (default) or "nearest"
+  lookup of sun05's F table (nearest: one load per lookup, ~20x the error; special_f.cpp
+  lists both measured errors per size).
 
 Returns dict(airlight=(H, W, 3) float32, transmittance=(H, W, 3) float32,
 depth=(H, W) float32 (distance from the eye, or from the near plane for

@@ -20,6 +20,7 @@
 #include <stdexcept>
 #include <string>
 #include <thread>
+#include <tuple>
 
 #ifdef __linux__
 #include <sys/mman.h>
@@ -170,7 +171,9 @@ void validate(const SceneDescription& scene, const BakeSettings& settings) {
     require(settings.aa_samples >= 1 && settings.aa_samples <= 64, "aa_samples must be in [1, 64]");
     require(std::isfinite(settings.filter_width) && settings.filter_width >= 0.0,
             "filter_width must be finite and >= 0");
-    require(settings.table_nu >= 2 && settings.table_nT >= 2, "table size must be at least 2 x 2");
+    require(settings.table_nu >= 2 && settings.table_nT >= 2 && settings.table_nu <= 16384 &&
+                settings.table_nT <= 16384,
+            "table size must be in [2, 16384] per axis");
     // The camera matrices are checked by CameraRays (finite, invertible).
 }
 
@@ -341,7 +344,8 @@ class FogModel {
           isotropic_(phase_is_isotropic(scene.medium.phase)),
           shared_origin_(shared_origin),
           origin_(origin) {
-        if (model_ == ModelId::Sun05Table) table_ = shared_special_F_table(settings.table_nu, settings.table_nT);
+        if (model_ == ModelId::Sun05Table)
+            table_ = shared_special_F_table(settings.table_nu, settings.table_nT, settings.table_interp);
         if (model_ == ModelId::Biri06) biri_table_ = shared_biri06_table(phase_, settings.table_nu, settings.table_nT);
         if (model_ == ModelId::Pegoraro10 || (model_ != ModelId::Quadrature && !scene.spot_lights.empty())) {
             pegoraro_phase_ = pegoraro_phase_auto(phase_, kPegoraroPhaseTol, kPegoraroMaxOrder);
@@ -414,7 +418,8 @@ class FogModel {
                 const bool at_light = !(light.Dsv > 0.0);
                 if (at_light) std::fill(cos_gamma, cos_gamma + m, 1.0);
                 else cos_to_light(dx + k0, dy + k0, dz + k0, sv, m, cos_gamma);
-                sun05_airlight_table_batch(data, nu, nT, sigma_t_, light.Dsv, cos_gamma, Dvp + k0, m, value, near);
+                sun05_airlight_table_batch(data, nu, nT, sigma_t_, light.Dsv, cos_gamma, Dvp + k0, m, value, near,
+                                           table_->interp());
                 accumulate_rgb(value, float(light.weight.x), float(light.weight.y), float(light.weight.z), m, sum_r,
                                sum_g, sum_b);
             }
@@ -578,7 +583,7 @@ class FogModel {
         switch (model_) {
             case ModelId::Sun05Table:  // inlined fast path, same as sun05_airlight(..., Table)
                 return sun05_airlight_table(table_->data().data(), table_->nu(), table_->nT(), sigma_t_,
-                                            Dsv, cos_gamma, Dvp);
+                                            Dsv, cos_gamma, Dvp, 0.0, table_->interp());
             case ModelId::Sun05Exact:
                 return sun05_airlight(sigma_t_, Dsv, cos_gamma, Dvp, nullptr, FEval::Exact);
             case ModelId::Quadrature:  // the phase-aware reference unless isotropic
@@ -735,13 +740,13 @@ static BakeResult bake_baseline(const SceneDescription& scene, const BakeSetting
     return result;
 }
 
-// F tables are deterministic and costly to build: keep one per (nu, nT) for the process.
-std::shared_ptr<const SpecialFTable> shared_special_F_table(int nu, int nT) {
+// F tables are deterministic and costly to build: keep one per (nu, nT, interp) for the process.
+std::shared_ptr<const SpecialFTable> shared_special_F_table(int nu, int nT, Interp interp) {
     static std::mutex mutex;
-    static std::map<std::pair<int, int>, std::shared_ptr<const SpecialFTable>> cache;
+    static std::map<std::tuple<int, int, Interp>, std::shared_ptr<const SpecialFTable>> cache;
     std::lock_guard<std::mutex> lock(mutex);
-    auto& slot = cache[{nu, nT}];
-    if (!slot) slot = std::make_shared<const SpecialFTable>(nu, nT);
+    auto& slot = cache[{nu, nT, interp}];
+    if (!slot) slot = std::make_shared<const SpecialFTable>(nu, nT, interp);
     return slot;
 }
 
