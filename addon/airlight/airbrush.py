@@ -361,8 +361,8 @@ class AIRLIGHT_OT_airbrush(brush_ops._FogBrush, bpy.types.Operator):
         if event.type in {'ESC', 'RIGHTMOUSE'} and event.value == 'PRESS':
             self._cleanup(context)  # nothing was written: nothing to undo
             return {'CANCELLED'}
-        if event.type == 'TIMER':
-            if self._stroking and event.timer is not None and event.timer == self._timer:
+        if event.type == 'TIMER':  # any timer (3.4 events don't say which): steps use real dt
+            if self._stroking:
                 self._tick(context)
                 return {'RUNNING_MODAL'}
             return {'PASS_THROUGH'}
