@@ -27,7 +27,8 @@ simulating. When no particle is alive the target holds one Gaussian of amplitude
 bake refuses an empty fog object).
 
 The emitter's motion over time is read from its own F-curves (location, Euler rotation,
-scale) when it has no parent and no constraints; otherwise the current world matrix is
+scale; cached per particle while the animation is unchanged) when it has no parent,
+constraints, delta transform or F-curve modifier; otherwise the current world matrix is
 used for every birth (an emitter moved by a parent or constraint emits from where it is
 now, not from where it was: bake it with a static parent or keyframe the emitter itself).
 """
@@ -166,28 +167,69 @@ def _euler_matrices(angles, order):
     return out
 
 
+# Emitter matrices at birth times, per emitter: (fingerprint of its animation, {time: 4x4}).
+# A particle's birth matrix never changes while the animation doesn't, so scrubbing only
+# evaluates F-curves for the particles born since the last frame.
+_track_cache = {}
+_TRACK_CACHE_LIMIT = 200_000
+
+
+def _is_identity_delta(obj):
+    return (tuple(obj.delta_location) == (0.0, 0.0, 0.0)
+            and tuple(obj.delta_rotation_euler) == (0.0, 0.0, 0.0)
+            and tuple(obj.delta_rotation_quaternion) == (1.0, 0.0, 0.0, 0.0)
+            and tuple(obj.delta_scale) == (1.0, 1.0, 1.0))
+
+
+def _fingerprint(obj, curves, frame_start, fps):
+    parts = [frame_start, fps, obj.rotation_mode]
+    for path in ("location", "rotation_euler", "scale"):  # channels without F-curves
+        values = getattr(obj, path)
+        parts += [values[i] for i in range(3) if (path, i) not in curves]
+    for key in sorted(curves):
+        fc = curves[key]
+        n = len(fc.keyframe_points)
+        data = np.empty(6 * n, dtype=np.float64)
+        for i, attr in enumerate(("co", "handle_left", "handle_right")):
+            block = np.empty(2 * n, dtype=np.float64)
+            fc.keyframe_points.foreach_get(attr, block)
+            data[2 * n * i:2 * n * (i + 1)] = block
+        parts += [key, data.tobytes(), fc.extrapolation, fc.mute,
+                  tuple((k.interpolation, k.easing) for k in fc.keyframe_points)]
+    return hash(tuple(parts))
+
+
 def matrix_track(obj, scene):
     """matrix_at(times) for simulate(): the emitter's world matrices at birth times (s
-    after its first frame), from its own F-curves when it is keyframed and has no parent
-    or constraints, else its current world matrix for every time."""
+    after its first frame), from its own F-curves when it is keyframed and has no parent,
+    constraints, delta transforms, quaternion rotation or F-curve modifiers, else its
+    current world matrix for every time."""
     current = np.array(obj.matrix_world, dtype=np.float64)
     settings = obj.airlight_emitter
     action = obj.animation_data.action if obj.animation_data is not None else None
     if (action is None or obj.parent is not None or len(obj.constraints)
-            or obj.rotation_mode in {'QUATERNION', 'AXIS_ANGLE'}):
+            or obj.rotation_mode in {'QUATERNION', 'AXIS_ANGLE'} or not _is_identity_delta(obj)):
         return lambda times: current
     curves = {}
     for fc in action.fcurves:
         if fc.data_path in {"location", "rotation_euler", "scale"}:
+            if len(fc.modifiers):
+                return lambda times: current
             curves[(fc.data_path, fc.array_index)] = fc
     if not curves:
         return lambda times: current
     fps = scene.render.fps / scene.render.fps_base
     base = {"location": tuple(obj.location), "rotation_euler": tuple(obj.rotation_euler),
             "scale": tuple(obj.scale)}
+    key = obj.as_pointer()
+    fingerprint = _fingerprint(obj, curves, settings.frame_start, fps)
+    entry = _track_cache.get(key)
+    if entry is None or entry[0] != fingerprint or len(entry[1]) > _TRACK_CACHE_LIMIT:
+        entry = (fingerprint, {})
+        _track_cache[key] = entry
+    cache = entry[1]
 
-    def matrix_at(times):
-        frames = settings.frame_start + np.asarray(times, dtype=np.float64) * fps
+    def evaluate_frames(frames):
         values = {}
         for path in base:
             cols = []
@@ -202,6 +244,14 @@ def matrix_track(obj, scene):
         m[:, :3, 3] = values["location"]
         m[:, 3, 3] = 1.0
         return m
+
+    def matrix_at(times):
+        times = np.asarray(times, dtype=np.float64).ravel()
+        missing = [t for t in times.tolist() if t not in cache]
+        if missing:
+            computed = evaluate_frames(settings.frame_start + np.array(missing) * fps)
+            cache.update(zip(missing, computed))
+        return np.stack([cache[t] for t in times.tolist()]) if len(times) else np.zeros((0, 4, 4))
     return matrix_at
 
 

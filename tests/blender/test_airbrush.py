@@ -81,6 +81,19 @@ def test04_no_surfaces_free_flight():
     np.testing.assert_allclose(p, [[0.5, 0, 0]] * 3)
 
 
+def test04b_mirror_bounce_off_a_floor(scene):
+    """A move of (0.2, 0, -0.2) from 0.1 above a floor: it reaches the floor at x = 0.1 and
+    the rest of the move and the velocity are mirrored (law of reflection)."""
+    mesh = bpy.data.meshes.new("Floor")
+    mesh.from_pydata([(-5, -5, 0), (5, -5, 0), (5, 5, 0), (-5, 5, 0)], [], [(0, 1, 2, 3)])
+    scene.collection.objects.link(bpy.data.objects.new("Floor", mesh))
+    bvh = airbrush.scene_bvh(bpy.context.evaluated_depsgraph_get())
+    rng = np.random.default_rng(0)
+    p, v = airbrush.step([[0.0, 0.0, 0.1]], [[0.2, 0.0, -0.2]], 1.0, 0.0, 0.0, bvh, rng)
+    np.testing.assert_allclose(p, [[0.2, 0.0, 0.1]], atol=2e-4)
+    np.testing.assert_allclose(v, [[0.2, 0.0, 0.2]], atol=1e-6)
+
+
 def _uv_sphere(scene, radius=1.0, segments=48, rings=24):
     bpy.ops.mesh.primitive_uv_sphere_add(radius=radius, segments=segments, ring_count=rings,
                                          location=(0.5, -0.25, 1.0))

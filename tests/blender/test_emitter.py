@@ -143,6 +143,19 @@ def test05_keyframed_emitter_emits_from_where_it_was(scene):
     c = fo.read(obj.airlight_emitter.target)[0]  # target at the origin: local = world
     assert len(c) == 20  # one per frame (rate = fps)
     np.testing.assert_allclose(np.sort(c, axis=0), np.sort(np.array(expected), axis=0), atol=1e-4)
+    # editing the animation is seen at once (birth matrices are cached per animation state)
+    fc = next(f for f in obj.animation_data.action.fcurves
+              if f.data_path == "location" and f.array_index == 0)
+    fc.keyframe_points[1].co.y += 5.0
+    fc.keyframe_points[1].handle_left.y += 5.0
+    fc.keyframe_points[1].handle_right.y += 5.0
+    fc.update()
+    scene.frame_set(11)
+    moved = np.array(obj.matrix_world.translation)
+    assert moved[0] == pytest.approx(7.0)
+    scene.frame_set(20)
+    c = fo.read(obj.airlight_emitter.target)[0]
+    assert np.linalg.norm(c - moved, axis=1).min() < 1e-4
 
 
 def test06_bad_input(scene, capsys):
