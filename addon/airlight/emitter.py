@@ -287,14 +287,19 @@ def to_local(target, centres, scales):
     return local, np.asarray(scales) * s
 
 
-def _write_frame(mesh, obj, target, centres, scales, amplitudes, colors):
-    if len(centres) == 0:  # nothing alive: one invisible Gaussian (an empty fog object is an error)
-        centres = np.array(obj.matrix_world.translation, dtype=np.float64)[None, :]
-        scales = np.array([obj.airlight_emitter.scale])
-        amplitudes = np.zeros(1)
-        colors = np.array([obj.airlight_emitter.color], dtype=np.float32)
+def _local_frame(obj, scene, target):
+    """Emitter _obj_'s Gaussians at the current frame in _target_'s object space:
+    (centres, scales, amplitudes, colors), from its baked frame when it has one."""
+    stored = baked_mesh(obj.airlight_emitter, scene.frame_current) if len(obj.airlight_emitter.baked) else None
+    if stored is not None:
+        centres, scales, amplitudes = fog_object.read_mesh(stored)
+        colors = fog_object.read_colors(stored)
+        if colors is None:
+            colors = np.zeros((len(centres), 3), dtype=np.float32)
+        return centres, scales, amplitudes, colors
+    centres, scales, amplitudes, colors = evaluate(obj, scene)
     local, local_scales = to_local(target, centres, scales)
-    fog_object.write_mesh(mesh, local, local_scales, amplitudes, colors)
+    return local, local_scales, amplitudes, colors
 
 
 def baked_mesh(settings, frame):
@@ -315,44 +320,63 @@ def ensure_target(obj, context_collection=None):
                                         else bpy.context.scene.collection)
     target = fog_object.new_fog_object(f"{obj.name} Smoke", collection, centres=np.zeros((1, 3)),
                                        scales=settings.scale, amplitudes=0.0, colors=settings.color)
-    target.hide_select = False
     settings.target = target
     return target
-
-
-def update_emitter(obj, scene):
-    """Writes emitter _obj_'s Gaussians at the scene's current frame into its target
-    (the baked frame when there is one). Returns the number of live particles, or None
-    when the emitter has no target or is disabled."""
-    settings = obj.airlight_emitter
-    target = settings.target
-    if not settings.is_emitter or not settings.enabled or target is None \
-            or not fog_object.is_fog_object(target):
-        return None
-    stored = baked_mesh(settings, scene.frame_current) if len(settings.baked) else None
-    if stored is not None:
-        centres, scales, amplitudes = fog_object.read_mesh(stored)
-        colors = fog_object.read_colors(stored)
-        fog_object.write_mesh(target.data, centres, scales, amplitudes, colors)
-        target.data.update()
-        return int((amplitudes > 0).sum())
-    centres, scales, amplitudes, colors = evaluate(obj, scene)
-    _write_frame(target.data, obj, target, centres, scales, amplitudes, colors)
-    return len(centres)
 
 
 def emitters(scene):
     return [o for o in scene.objects if getattr(o.airlight_emitter, "is_emitter", False)]
 
 
+def _active(obj):
+    settings = obj.airlight_emitter
+    return (settings.is_emitter and settings.enabled and settings.target is not None
+            and fog_object.is_fog_object(settings.target))
+
+
+def update_target(target, scene):
+    """Rewrites fog object _target_ with the Gaussians of every enabled emitter of the
+    scene that writes into it (several emitters can share one smoke object). When none
+    is alive it holds one Gaussian of amplitude 0 (the bake refuses an empty fog object).
+    Returns {emitter name: live particles}."""
+    blocks, counts = [], {}
+    for obj in emitters(scene):
+        if _active(obj) and obj.airlight_emitter.target == target:
+            block = _local_frame(obj, scene, target)
+            counts[obj.name] = int((block[2] > 0.0).sum())
+            blocks.append(block)
+    if not blocks:
+        return counts
+    centres, scales, amplitudes, colors = (np.concatenate([b[i] for b in blocks]) for i in range(4))
+    if len(centres) == 0:
+        centres, scales, amplitudes = np.zeros((1, 3)), np.ones(1), np.zeros(1)
+        colors = np.ones((1, 3), dtype=np.float32)
+    fog_object.write_mesh(target.data, centres, scales, amplitudes, colors)
+    return counts
+
+
+def update_emitter(obj, scene):
+    """Writes emitter _obj_'s Gaussians at the scene's current frame (the baked frame when
+    there is one) into its target, with those of the other emitters sharing it. Returns
+    _obj_'s number of live particles, or None when it has no target or is disabled."""
+    if not _active(obj):
+        return None
+    return update_target(obj.airlight_emitter.target, scene).get(obj.name, 0)
+
+
 @persistent
 def on_frame_change_post(scene, *_):
+    done = set()
     for obj in emitters(scene):
+        if not _active(obj) or obj.airlight_emitter.target.name in done:
+            continue
+        target = obj.airlight_emitter.target
+        done.add(target.name)
         try:
-            update_emitter(obj, scene)
+            update_target(target, scene)
         except Exception as ex:  # a handler must never break playback or a render
-            print(f"Airlight: emitter '{obj.name}' not updated at frame {scene.frame_current}: {ex}",
-                  flush=True)
+            print(f"Airlight: fog object '{target.name}' not updated by its emitters at frame "
+                  f"{scene.frame_current}: {ex}", flush=True)
 
 
 def _on_setting_changed(self, context):
@@ -473,6 +497,10 @@ class AIRLIGHT_OT_add_emitter(bpy.types.Operator):
         settings.frame_end = context.scene.frame_end
         ensure_target(obj, collection)
         update_emitter(obj, context.scene)
+        # The frame handler rewrites a mesh: renders from the UI run it in the render
+        # thread, which is only safe with the interface locked (Blender's advice for
+        # handlers that change data).
+        context.scene.render.use_lock_interface = True
         for other in context.view_layer.objects:
             other.select_set(False)
         context.view_layer.objects.active = obj
@@ -503,7 +531,8 @@ def bake_frames(obj, scene, frame_start, frame_end, progress=None):
         centres, scales, amplitudes, colors = evaluate(obj, scene, float(frame))
         mesh = bpy.data.meshes.new(f".{obj.name}.airlight.{frame:05d}")
         mesh.use_fake_user = True
-        _write_frame(mesh, obj, target, centres, scales, amplitudes, colors)
+        local, local_scales = to_local(target, centres, scales)
+        fog_object.write_mesh(mesh, local, local_scales, amplitudes, colors)
         item = settings.baked.add()
         item.frame = frame
         item.mesh = mesh

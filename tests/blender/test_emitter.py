@@ -118,6 +118,25 @@ def test04_scrubbing_is_deterministic(scene):
     np.testing.assert_array_equal(fo.read(obj.airlight_emitter.target)[0], first[0])
 
 
+def test04b_two_emitters_share_one_target(scene):
+    """A second emitter writing into the first one's fog object: the target holds both
+    emitters' particles (each equal to its own evaluate()), in the target's object space."""
+    first = _add(scene, rate=10.0, seed=1, color=(1.0, 0.0, 0.0))
+    second = _add(scene, rate=7.0, seed=2, color=(0.0, 0.0, 1.0))
+    extra = second.airlight_emitter.target
+    second.airlight_emitter.target = first.airlight_emitter.target
+    bpy.data.objects.remove(extra)
+    second.location = (3.0, 0.0, 0.0)
+    first.airlight_emitter.target.location = (0.0, 1.0, 0.0)
+    scene.frame_set(30)
+    g = fo.gather(bpy.context.evaluated_depsgraph_get())
+    expected = [emitter.evaluate(o, scene) for o in (first, second)]
+    assert len(g["centres"]) == sum(len(e[0]) for e in expected) > 20
+    red = g["colors"][:, 0] > 0.5
+    for mask, e in ((red, expected[0]), (~red, expected[1])):
+        np.testing.assert_allclose(np.sort(g["centres"][mask], axis=0), np.sort(e[0], axis=0), atol=1e-5)
+
+
 def test05_keyframed_emitter_emits_from_where_it_was(scene):
     """Velocity 0: each particle stays where it was born, i.e. at the emitter's world
     position (Blender's own matrix_world after frame_set) at its birth frame."""
@@ -255,7 +274,6 @@ def test09_background_animation_render_has_moving_smoke(tmp_path, baked):
     scene.cursor.location = (0.0, 0.0, 0.3)
     obj = _add(scene, rate=16.0, lifetime=2.0, velocity=(0.6, 0.0, 0.4), scale=3.0, amplitude=3.0,
                frame_start=1, frame_end=3)
-    obj.airlight_emitter.target.hide_select = False
     bpy.ops.airlight.setup_compositor()
     if baked:
         bpy.context.view_layer.objects.active = obj
