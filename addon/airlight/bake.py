@@ -12,7 +12,7 @@ import time
 import bpy
 from bpy.props import IntProperty, StringProperty
 
-from . import cache, compositor, model_choice, native, scene_export
+from . import cache, compositor, environment, model_choice, native, scene_export
 
 class BakeError(RuntimeError):
     """A bake failed for a reason the user can fix; the message says which."""
@@ -29,12 +29,17 @@ def bake_settings(scene):
 
 
 def prepare(scene, depsgraph):
-    """Everything the bake needs, gathered in the main thread (touches bpy)."""
+    """Everything the bake needs, gathered in the main thread (touches bpy).
+
+    The World for the environment glow travels in the settings under "environment"
+    (environment.prepare(); None when off), which `run` takes out before the native bake."""
     try:
         description = scene_export.export_scene(scene, depsgraph)
-    except scene_export.ExportError as ex:
+        settings = bake_settings(scene)
+        settings["environment"] = environment.prepare(scene)
+    except (scene_export.ExportError, environment.WorldMapError) as ex:
         raise BakeError(str(ex)) from None
-    return description, bake_settings(scene)
+    return description, settings
 
 
 def run(description, settings, filepath, progress=None):
@@ -49,15 +54,20 @@ def run(description, settings, filepath, progress=None):
     except cache.CacheError as ex:
         raise BakeError(str(ex)) from None
     start = time.perf_counter()
+    settings = dict(settings)
+    world = settings.pop("environment", None)
     try:
         result = module.bake(**description, **settings, progress=progress)
+        stats = dict(result["stats"])
+        if world is not None:
+            stats["seconds_environment"] = environment.apply(module, world, description, result)
     except ValueError as ex:
         raise BakeError(f"Invalid fog scene: {ex}") from None
     try:
         cache.write_passes(filepath, result["airlight"], result["transmittance"])
     except cache.CacheError as ex:
         raise BakeError(str(ex)) from None
-    return dict(result["stats"]), time.perf_counter() - start
+    return stats, time.perf_counter() - start
 
 
 def bake_frame(scene, depsgraph, filepath=None, progress=None):

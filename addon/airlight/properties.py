@@ -170,6 +170,28 @@ class AirlightSceneSettings(bpy.types.PropertyGroup):
                     "point them at the baked passes of the frame being rendered",
         default=True,
     )
+    environment_glow: BoolProperty(
+        name="Environment Glow",
+        description="Show the World through the fog (Sun 2005, eq. 25-27): bright parts of the "
+                    "World's colour or Environment Texture glow, and the World is dimmed by the fog "
+                    "up to the Environment Distance instead of hidden",
+        default=False,
+    )
+    environment_distance: FloatProperty(
+        name="Environment Distance",
+        description="Distance of the World's light sources (the sky, an HDRI's lamps and sun) from "
+                    "the camera. The World is seen through density x distance of fog: larger "
+                    "distances dim it more and widen its glows",
+        default=50.0, min=1.0e-3, soft_min=1.0, soft_max=1000.0, max=1.0e7,
+        subtype='DISTANCE', unit='LENGTH',
+    )
+    environment_sh_order: IntProperty(
+        name="Glow Detail",
+        description="Spherical-harmonic bands of the glow convolution: more bands give tighter "
+                    "glows around small bright sources and cost more (time grows with the "
+                    "square of the bands)",
+        default=24, min=2, max=96, soft_max=64,
+    )
 
 
 class AirlightLightSettings(bpy.types.PropertyGroup):

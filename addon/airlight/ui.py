@@ -136,7 +136,43 @@ class AIRLIGHT_PT_light(bpy.types.Panel):
             layout.label(text=f"{light.type.title()} lights are not yet in fog.", icon='INFO')
 
 
-classes = (AIRLIGHT_PT_scene, AIRLIGHT_PT_light)
+class AIRLIGHT_PT_environment(bpy.types.Panel):
+    bl_label = "Environment Glow"
+    bl_idname = "AIRLIGHT_PT_environment"
+    bl_space_type = 'PROPERTIES'
+    bl_region_type = 'WINDOW'
+    bl_context = "scene"
+    bl_parent_id = "AIRLIGHT_PT_scene"
+    bl_options = {'DEFAULT_CLOSED'}
+
+    def draw_header(self, context):
+        self.layout.prop(context.scene.airlight, "environment_glow", text="")
+
+    def draw(self, context):
+        from . import environment
+        layout = self.layout
+        layout.use_property_split = True
+        layout.use_property_decorate = False
+        settings = context.scene.airlight
+        col = layout.column()
+        col.active = settings.enabled and settings.environment_glow
+        col.prop(settings, "environment_distance")
+        col.prop(settings, "environment_sh_order")
+        if settings.environment_glow:
+            try:
+                source = environment.world_source(context.scene)
+            except environment.WorldMapError as ex:
+                box = col.box()
+                box.alert = True
+                box.label(text=str(ex)[:120], icon='ERROR')
+            else:
+                if source is None or (source[0] == 'COLOR' and not any(source[1])):
+                    col.label(text="The World emits no light: nothing glows.", icon='INFO')
+                elif source[0] == 'IMAGE':
+                    col.label(text=f"Glow from '{source[1].name}'", icon='WORLD')
+
+
+classes = (AIRLIGHT_PT_scene, AIRLIGHT_PT_light, AIRLIGHT_PT_environment)
 
 
 def register():
