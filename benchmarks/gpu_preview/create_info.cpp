@@ -95,6 +95,11 @@ std::string numbered(const std::string &src)
   return out.str();
 }
 
+const char *stage_name(GLenum stage)
+{
+  return stage == GL_VERTEX_SHADER ? " (vertex)" : stage == GL_FRAGMENT_SHADER ? " (fragment)" : " (compute)";
+}
+
 unsigned compile(GLenum stage, const std::string &src, const std::string &name)
 {
   GLuint s = glCreateShader(stage);
@@ -107,9 +112,8 @@ unsigned compile(GLenum stage, const std::string &src, const std::string &name)
     char log[8192] = "";
     glGetShaderInfoLog(s, sizeof(log), nullptr, log);
     glDeleteShader(s);
-    throw std::runtime_error("GLSL compile error in " + name +
-                             (stage == GL_VERTEX_SHADER ? " (vertex)" : " (fragment)") + ":\n" +
-                             log + "\n" + numbered(src));
+    throw std::runtime_error("GLSL compile error in " + name + stage_name(stage) + ":\n" + log +
+                             "\n" + numbered(src));
   }
   return s;
 }
@@ -146,6 +150,46 @@ std::string create_info_fragment_glsl(const CreateInfo &info, const GLSLTarget &
   }
   ss << "\n" << info.fragment_source;
   return ss.str();
+}
+
+std::string create_info_compute_glsl(const CreateInfo &info, const GLSLTarget &t)
+{
+  std::string body = info.fragment_source;
+  for (size_t pos = 0; (pos = body.find("gl_FragCoord", pos)) != std::string::npos;)
+    body.replace(pos, 12, "bench_FragCoord");
+  std::stringstream ss;
+  ss << "#version 430\n#define GPU_COMPUTE_SHADER\n" << standard_defines(t) << defines_declare(info)
+     << resources_declare(info);
+  ss << "layout(local_size_x = 8, local_size_y = 8) in;\n";
+  ss << "layout(binding = 0, rgba32f) writeonly uniform image2D bench_out;\n";
+  ss << "vec4 bench_FragCoord;\n";
+  for (const auto &o : info.fragment_out) ss << o.first << " " << o.second << ";\n";
+  ss << "#define main bench_fragment_main\n" << body << "\n#undef main\n";
+  ss << "void main()\n{\n"
+        "  ivec2 p = ivec2(gl_GlobalInvocationID.xy);\n"
+        "  if (any(greaterThanEqual(p, imageSize(bench_out)))) return;\n"
+        "  bench_FragCoord = vec4(vec2(p) + 0.5, 0.5, 1.0);\n"
+        "  bench_fragment_main();\n"
+        "  imageStore(bench_out, p, " << info.fragment_out[0].second << ");\n}\n";
+  return ss.str();
+}
+
+unsigned create_info_compute_program(const CreateInfo &info, const GLSLTarget &t)
+{
+  GLuint cs = compile(GL_COMPUTE_SHADER, create_info_compute_glsl(info, t), info.name);
+  GLuint prog = glCreateProgram();
+  glAttachShader(prog, cs);
+  glLinkProgram(prog);
+  glDeleteShader(cs);
+  GLint ok = 0;
+  glGetProgramiv(prog, GL_LINK_STATUS, &ok);
+  if (!ok) {
+    char log[8192] = "";
+    glGetProgramInfoLog(prog, sizeof(log), nullptr, log);
+    glDeleteProgram(prog);
+    throw std::runtime_error("GLSL link error in " + info.name + " (compute):\n" + log);
+  }
+  return prog;
 }
 
 unsigned create_info_program(const CreateInfo &info, const GLSLTarget &t)

@@ -39,6 +39,12 @@ struct GLSLTarget {
 std::string create_info_vertex_glsl(const CreateInfo &info, const GLSLTarget &target);
 std::string create_info_fragment_glsl(const CreateInfo &info, const GLSLTarget &target);
 
+// The fragment stage's main() run as a compute shader (8 x 8 groups, one invocation per
+// pixel; an experiment, not what Blender compiles): gl_FragCoord becomes the invocation's
+// pixel centre and frag_color is stored into image unit 0 (RGBA32F, "bench_out").
+std::string create_info_compute_glsl(const CreateInfo &info, const GLSLTarget &target);
+unsigned create_info_compute_program(const CreateInfo &info, const GLSLTarget &target);
+
 // Compiles and links; throws std::runtime_error with the log and the numbered source.
 unsigned create_info_program(const CreateInfo &info, const GLSLTarget &target);
 

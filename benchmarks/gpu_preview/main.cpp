@@ -1,22 +1,25 @@
 // main.cpp: standalone GPU benchmark of the viewport fog preview (addon/airlight/preview.py).
 //
-// Compiles the preview's own GLSL files (shaders/) with the interface Blender 3.4
-// generates from gpu_shaders.py's create-infos (create_info.cpp), and draws what
-// preview._draw_callback draws per viewport redraw, headless through EGL:
-//   1. the preview's distance pass (preview_distance_*.glsl) of the scene's triangles
-//      into an R32F + depth target at full resolution ('DRAWN' depth source);
-//   2. the fog (preview.draw_fog): at FULL scale fog_preview_frag.glsl straight onto
-//      the viewport with premultiplied blending; at HALF / QUARTER the reduced fog
-//      target (PREVIEW_LOWRES), the upsampling 'mark' draw into a full-resolution target,
-//      the 'exact' draw tested GREATER, and the composite onto the viewport;
-//   3. optionally the Gaussian fog splatting pass (gaussian_pass.cpp).
-// Each configuration is timed with GL_TIME_ELAPSED around the whole frame and
-// GL_TIMESTAMP between the passes (GPU time), and with the wall clock from frame start to
-// glFinish; medians over --frames frames after --warmup frames. One more frame per
-// configuration is drawn over a black RGBA32F viewport (the fog alone: rgb = airlight,
-// a = 1 - Tr) and read back: its per-channel means are printed and, with --out, a
-// decimated copy is written as .npy for comparison between drivers.
+// Compiles the preview's own GLSL files (shaders/) with the interfaces Blender 3.4
+// generates from gpu_shaders.py's create-infos (create_info.cpp) and draws, headless
+// through EGL, what preview._draw_callback draws per viewport redraw (preview.cpp):
+//   1. the distance pass (preview_distance_*.glsl) of the scene into an R32F + depth
+//      target at full resolution (the 'DRAWN' depth source);
+//   2. the fog (preview.draw_fog): at FULL scale fog_preview_frag.glsl onto the viewport
+//      with premultiplied blending; at HALF / QUARTER the reduced fog target, the
+//      upsampling 'mark' draw, the 'exact' draw tested GREATER and the composite;
+//      with Gaussian fog (configurations gauss_*): the add-on's splat pass at 1/scale,
+//      then the fog pass at full resolution with the Gaussian sums; or (standin_*) the
+//      harness's own splat pass (standin_splat.cpp) after the homogeneous fog;
+//      compute_full: the FULL fog pass's GLSL run as a compute shader (an experiment:
+//      how much of the cost is the fragment pipeline's on this GPU).
+// Per configuration: GL_TIME_ELAPSED around the frame and GL_TIMESTAMP between passes
+// (GPU time), and the wall clock from frame start to glFinish; medians over --frames
+// frames after --warmup. Then one frame over a black RGBA32F viewport (the fog alone:
+// rgb = airlight, a = 1 - Tr) is read back: its per-channel means are printed, and with
+// --out a copy (every --npy-step-th pixel) is written as .npy (row 0 = bottom).
 #include <algorithm>
+#include <cstdarg>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -26,17 +29,13 @@
 #include <string>
 #include <vector>
 
-#define GL_GLEXT_PROTOTYPES 1
-#include <GL/glcorearb.h>
-
-#include <glm/glm.hpp>
-#include <glm/gtc/matrix_transform.hpp>
-#include <glm/gtc/type_ptr.hpp>
-
 #include "create_info.h"
-#include "gaussian_pass.h"
+#include "gaussians.h"
 #include "gl_context.h"
+#include "gl_util.h"
 #include "npy.h"
+#include "preview.h"
+#include "standin_splat.h"
 
 namespace {
 
@@ -45,17 +44,16 @@ struct Args {
   int frames = 200, warmup = 30;
   double budget_s = 60.0;  // per configuration: stop timing after this (>= 10 frames)
   std::string shaders = "shaders";                             // the add-on's GLSL
-  std::string bench_shaders = "benchmarks/gpu_preview/shaders";  // the stand-ins
-  double cull_eps = 1e-7;  // RbfMedium::kDefaultCullEps
-  std::string ftable;            // binary F table (make_ftable.py)
-  std::string out;               // folder for .npy images and results (optional)
+  std::string bench_shaders = "benchmarks/gpu_preview/shaders";  // the stand-in's GLSL
+  std::string ftable;
+  std::string out;
   std::string platform = "auto";
   int device = 0;
   int lights = 4;
   int gaussians = 3000;
+  double cull_eps = 1e-4;  // preview_gaussians.CULL_EPS
   float sigma_t = 0.08f;
-  int npy_step = 4;              // decimation of the written images
-  bool full_npy = false;
+  int npy_step = 4;
   std::vector<std::string> configs = {"homog_full", "homog_half", "homog_quarter",
                                       "gauss_full", "gauss_half", "gauss_quarter"};
 };
@@ -63,10 +61,11 @@ struct Args {
 void usage()
 {
   std::puts(
-      "gpu_preview_bench --ftable FILE [--shaders DIR] [--bench-shaders DIR] [--cull-eps E] [--size WxH] [--frames N] [--warmup N]\n"
-      "  [--budget-s S] [--configs a,b,...] [--lights N] [--gaussians N] [--sigma-t X] [--out DIR]\n"
-      "  [--npy-step N] [--full-npy] [--platform auto|device|surfaceless|default] [--device I]\n"
-      "configs: homog_full homog_half homog_quarter gauss_full gauss_half gauss_quarter");
+      "gpu_preview_bench --ftable FILE [--shaders DIR] [--bench-shaders DIR] [--size WxH]\n"
+      "  [--frames N] [--warmup N] [--budget-s S] [--configs a,b,...] [--lights N]\n"
+      "  [--gaussians N] [--cull-eps E] [--sigma-t X] [--out DIR] [--npy-step N]\n"
+      "  [--platform auto|device|surfaceless|default] [--device I]\n"
+      "configs: {homog,gauss,standin}_{full,half,quarter}, compute_full");
 }
 
 std::vector<std::string> split(const std::string &s, char sep)
@@ -102,17 +101,16 @@ Args parse(int argc, char **argv)
     else if (k == "--budget-s") a.budget_s = std::stod(next());
     else if (k == "--shaders") a.shaders = next();
     else if (k == "--bench-shaders") a.bench_shaders = next();
-    else if (k == "--cull-eps") a.cull_eps = std::stod(next());
     else if (k == "--ftable") a.ftable = next();
     else if (k == "--out") a.out = next();
     else if (k == "--platform") a.platform = next();
     else if (k == "--device") a.device = std::stoi(next());
     else if (k == "--lights") a.lights = std::stoi(next());
     else if (k == "--gaussians") a.gaussians = std::stoi(next());
+    else if (k == "--cull-eps") a.cull_eps = std::stod(next());
     else if (k == "--sigma-t") a.sigma_t = std::stof(next());
     else if (k == "--configs") a.configs = split(next(), ',');
     else if (k == "--npy-step") a.npy_step = std::stoi(next());
-    else if (k == "--full-npy") a.full_npy = true;
     else if (k == "-h" || k == "--help") {
       usage();
       std::exit(0);
@@ -120,362 +118,16 @@ Args parse(int argc, char **argv)
     else throw std::invalid_argument("unknown argument " + k);
   }
   if (a.ftable.empty()) throw std::invalid_argument("--ftable is required");
-  if (a.width < 8 || a.height < 8 || a.frames < 1 || a.warmup < 0 || a.lights < 0 ||
-      a.lights > 256 || a.gaussians < 0 || !(a.sigma_t >= 0.0f) || a.npy_step < 1 || !(a.cull_eps > 0.0))
-    throw std::invalid_argument("bad size, frame, light, Gaussian or sigma_t value");
+  if (a.width < 8 || a.height < 8 || a.width > 16384 || a.height > 16384 || a.frames < 1 ||
+      a.warmup < 0 || a.lights < 0 || a.lights > 256 || a.gaussians < 1 ||
+      !(a.sigma_t >= 0.0f) || a.npy_step < 1 || !(a.cull_eps > 0.0) || !(a.budget_s > 0.0))
+    throw std::invalid_argument("bad size, frame, light, Gaussian, eps or sigma_t value");
   return a;
 }
 
-// ---- GL objects ----------------------------------------------------------------------
-
-struct Target {
-  GLuint fbo = 0, colour = 0, depth = 0;
-  int w = 0, h = 0;
-};
-
-GLuint texture(int w, int h, GLenum fmt, const void *data = nullptr, GLenum type = GL_FLOAT,
-               GLenum format = GL_RGBA)
-{
-  GLuint t = 0;
-  glCreateTextures(GL_TEXTURE_2D, 1, &t);
-  glTextureStorage2D(t, 1, fmt, w, h);
-  glTextureParameteri(t, GL_TEXTURE_MIN_FILTER, GL_NEAREST);
-  glTextureParameteri(t, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
-  glTextureParameteri(t, GL_TEXTURE_WRAP_S, GL_CLAMP_TO_EDGE);
-  glTextureParameteri(t, GL_TEXTURE_WRAP_T, GL_CLAMP_TO_EDGE);
-  if (data != nullptr) glTextureSubImage2D(t, 0, 0, 0, w, h, format, type, data);
-  return t;
-}
-
-Target make_target(int w, int h, GLenum colour_fmt, bool depth)
-{
-  Target t;
-  t.w = w;
-  t.h = h;
-  t.colour = texture(w, h, colour_fmt);
-  glCreateFramebuffers(1, &t.fbo);
-  glNamedFramebufferTexture(t.fbo, GL_COLOR_ATTACHMENT0, t.colour, 0);
-  if (depth) {
-    t.depth = texture(w, h, GL_DEPTH_COMPONENT32F);
-    glNamedFramebufferTexture(t.fbo, GL_DEPTH_ATTACHMENT, t.depth, 0);
-  }
-  if (glCheckNamedFramebufferStatus(t.fbo, GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE)
-    throw std::runtime_error("incomplete framebuffer");
-  return t;
-}
-
-void free_target(Target &t)
-{
-  glDeleteFramebuffers(1, &t.fbo);
-  glDeleteTextures(1, &t.colour);
-  if (t.depth) glDeleteTextures(1, &t.depth);
-  t = Target();
-}
-
-// Indexed triangles with one vec attribute at location 0 (gpu_extras batch_for_shader).
-struct Mesh {
-  GLuint vao = 0, vbo = 0, ibo = 0;
-  GLsizei count = 0;
-};
-
-Mesh make_mesh(const std::vector<float> &verts, int comps, const std::vector<unsigned> &tris)
-{
-  Mesh m;
-  glCreateVertexArrays(1, &m.vao);
-  glCreateBuffers(1, &m.vbo);
-  glCreateBuffers(1, &m.ibo);
-  glNamedBufferStorage(m.vbo, verts.size() * sizeof(float), verts.data(), 0);
-  glNamedBufferStorage(m.ibo, tris.size() * sizeof(unsigned), tris.data(), 0);
-  glVertexArrayVertexBuffer(m.vao, 0, m.vbo, 0, comps * sizeof(float));
-  glVertexArrayElementBuffer(m.vao, m.ibo);
-  glEnableVertexArrayAttrib(m.vao, 0);
-  glVertexArrayAttribFormat(m.vao, 0, comps, GL_FLOAT, GL_FALSE, 0);
-  glVertexArrayAttribBinding(m.vao, 0, 0);
-  m.count = static_cast<GLsizei>(tris.size());
-  return m;
-}
-
-void draw(const Mesh &m)
-{
-  glBindVertexArray(m.vao);
-  glDrawElements(GL_TRIANGLES, m.count, GL_UNSIGNED_INT, nullptr);
-}
-
-// Axis-aligned box of half-size _h_ centred at _c_, appended to _v_ / _t_.
-void add_box(std::vector<float> &v, std::vector<unsigned> &t, glm::vec3 c, glm::vec3 h)
-{
-  unsigned base = static_cast<unsigned>(v.size() / 3);
-  for (int i = 0; i < 8; ++i) {
-    v.push_back(c.x + ((i & 1) ? h.x : -h.x));
-    v.push_back(c.y + ((i & 2) ? h.y : -h.y));
-    v.push_back(c.z + ((i & 4) ? h.z : -h.z));
-  }
-  const unsigned q[6][4] = {{0, 2, 3, 1}, {4, 5, 7, 6}, {0, 1, 5, 4},
-                            {2, 6, 7, 3}, {0, 4, 6, 2}, {1, 3, 7, 5}};
-  for (const auto &f : q) {
-    unsigned a[6] = {f[0], f[1], f[2], f[0], f[2], f[3]};
-    for (unsigned k : a) t.push_back(base + k);
-  }
-}
-
-void set(GLuint prog, const char *name, const glm::mat4 &m)
-{
-  GLint loc = glGetUniformLocation(prog, name);
-  if (loc >= 0) glProgramUniformMatrix4fv(prog, loc, 1, GL_FALSE, glm::value_ptr(m));
-}
-void set(GLuint prog, const char *name, const glm::vec4 &v)
-{
-  GLint loc = glGetUniformLocation(prog, name);
-  if (loc >= 0) glProgramUniform4fv(prog, loc, 1, glm::value_ptr(v));
-}
-void set(GLuint prog, const char *name, float f)
-{
-  GLint loc = glGetUniformLocation(prog, name);
-  if (loc >= 0) glProgramUniform1f(prog, loc, f);
-}
-void set(GLuint prog, const char *name, int i)
-{
-  GLint loc = glGetUniformLocation(prog, name);
-  if (loc >= 0) glProgramUniform1i(prog, loc, i);
-}
-
-// ---- the preview ---------------------------------------------------------------------
-
-constexpr int kUpsampleBilateralExact = 2;  // preview.UPSAMPLE_BILATERAL_EXACT (default)
-
-struct View {
-  glm::mat4 persp, inv_persp;
-  glm::vec3 eye, axis;
-  glm::vec2 tan_half;  // tangents of the half field of view
-  float clip_start;
-};
-
-// The scene of benchmarks/bench_preview.py: 40 m floor, 2 m cube, camera at (1, -12, 5)
-// looking at (0, 0, 1) with Blender's default 50 mm lens on a 36 mm sensor (sensor fit
-// AUTO: the wider side gets the sensor), clip 0.1 .. 100.
-View make_view(int w, int h)
-{
-  View v;
-  v.eye = glm::vec3(1.0f, -12.0f, 5.0f);
-  glm::vec3 target(0.0f, 0.0f, 1.0f);
-  float aspect = float(w) / float(h);
-  float half_w = 18.0f / 50.0f;  // tan(fov_x / 2)
-  float tan_half_y = (aspect >= 1.0f) ? half_w / aspect : half_w;
-  v.clip_start = 0.1f;
-  v.tan_half = glm::vec2(tan_half_y * aspect, tan_half_y);
-  glm::mat4 proj = glm::perspective(2.0f * std::atan(tan_half_y), aspect, v.clip_start, 100.0f);
-  glm::mat4 view = glm::lookAt(v.eye, target, glm::vec3(0.0f, 0.0f, 1.0f));
-  v.persp = proj * view;
-  v.inv_persp = glm::inverse(v.persp);
-  v.axis = glm::normalize(target - v.eye);
-  return v;
-}
-
-struct Preview {
-  GLSLTarget target;
-  std::string dir;
-  GLuint distance = 0, fog = 0, fog_lo = 0, up_mark = 0, up_exact = 0, composite = 0;
-  GLuint ftab = 0, lights = 0;
-  int light_count = 0;
-  std::vector<glm::vec3> light_positions;
-  Mesh quad, scene;
-  std::vector<GLsizei> object_offsets, object_counts;  // one draw per object, as the preview
-  Target distance_target, lo_target, full_target;
-  int lo_scale = 0;
-
-  std::string src(const std::string &name) const { return read_text_file(dir + "/" + name); }
-
-  // gpu_shaders.create_fullscreen_shader with preview._FOG_INPUTS and these defines.
-  GLuint fullscreen(const std::string &name, const std::string &frag,
-                    std::vector<std::pair<std::string, std::string>> defines)
-  {
-    CreateInfo ci;
-    ci.name = name;
-    ci.vertex_in = {{"vec2", "pos"}};
-    ci.iface_name = "airlight_" + name + "_iface";
-    ci.iface = {{"smooth", "vec2", "uv"}};
-    ci.push_constants = {{"mat4", "inv_persp"}, {"vec4", "eye"},      {"vec4", "clip"},
-                         {"vec4", "viewport"},  {"float", "sigma_t"}, {"int", "light_count"},
-                         {"int", "scale"},      {"int", "mode"}};
-    ci.samplers = {"Ftab", "depth_tex", "lights", "fog_lo"};
-    ci.defines = std::move(defines);
-    ci.vertex_source = src("fullscreen_vert.glsl");
-    ci.fragment_source = src("sun05_airlight.glsl") + "\n" + src("preview_common.glsl") + "\n" +
-                         src(frag);
-    return create_info_program(ci, target);
-  }
-
-  void build(const Args &a)
-  {
-    // gpu_shaders.create_distance_shader
-    CreateInfo d;
-    d.name = "distance";
-    d.vertex_in = {{"vec3", "pos"}};
-    d.iface_name = "airlight_distance_iface";
-    d.iface = {{"smooth", "vec3", "wpos"}};
-    d.push_constants = {{"mat4", "model"}, {"mat4", "persp"}, {"vec4", "eye"}, {"vec4", "axis"}};
-    d.vertex_source = src("preview_distance_vert.glsl");
-    d.fragment_source = src("preview_distance_frag.glsl");
-    distance = create_info_program(d, target);
-    // preview._shader: PREVIEW_WINDOW_DEPTH 0 is the 'DRAWN' depth source.
-    fog = fullscreen("preview_fog", "fog_preview_frag.glsl",
-                     {{"PREVIEW_WINDOW_DEPTH", "0"}, {"PREVIEW_LOWRES", "0"}});
-    fog_lo = fullscreen("preview_fog", "fog_preview_frag.glsl",
-                        {{"PREVIEW_WINDOW_DEPTH", "0"}, {"PREVIEW_LOWRES", "1"}});
-    up_mark = fullscreen("preview_upsample", "preview_upsample_frag.glsl",
-                         {{"PREVIEW_WINDOW_DEPTH", "0"}, {"PREVIEW_EXACT_PASS", "0"},
-                          {"PREVIEW_MARK", "1"}});
-    up_exact = fullscreen("preview_upsample", "preview_upsample_frag.glsl",
-                          {{"PREVIEW_WINDOW_DEPTH", "0"}, {"PREVIEW_EXACT_PASS", "1"},
-                           {"PREVIEW_MARK", "0"}});
-    composite = fullscreen("preview_composite", "preview_composite_frag.glsl",
-                           {{"PREVIEW_WINDOW_DEPTH", "0"}});
-
-    // gpu_shaders.fullscreen_batch
-    quad = make_mesh({-1, -1, 1, -1, 1, 1, -1, 1}, 2, {0, 1, 2, 0, 2, 3});
-
-    // Floor (plane of size 40) and the 2 m cube at (0, 0, 1), one batch each.
-    std::vector<float> v = {-20, -20, 0, 20, -20, 0, 20, 20, 0, -20, 20, 0};
-    std::vector<unsigned> t = {0, 1, 2, 0, 2, 3};
-    object_offsets = {0};
-    object_counts = {6};
-    add_box(v, t, glm::vec3(0, 0, 1), glm::vec3(1, 1, 1));
-    object_offsets.push_back(6);
-    object_counts.push_back(36);
-    scene = make_mesh(v, 3, t);
-
-    // F table: int32 nu, int32 nT, float32 data[nu][nT] (make_ftable.py from
-    // _native.special_F_table()); texture of width nT and height nu, as f_table_texture.
-    FILE *f = std::fopen(a.ftable.c_str(), "rb");
-    if (f == nullptr) throw std::runtime_error("cannot read F table " + a.ftable);
-    int dims[2] = {0, 0};
-    if (std::fread(dims, sizeof(int), 2, f) != 2 || dims[0] < 2 || dims[1] < 2 ||
-        dims[0] > 65536 || dims[1] > 65536)
-      throw std::runtime_error("bad F table header in " + a.ftable);
-    std::vector<float> data(size_t(dims[0]) * dims[1]);
-    if (std::fread(data.data(), sizeof(float), data.size(), f) != data.size())
-      throw std::runtime_error("short F table " + a.ftable);
-    std::fclose(f);
-    ftab = texture(dims[1], dims[0], GL_R32F, data.data(), GL_FLOAT, GL_RED);
-
-    // Point lights of bench_preview.py: 1000 W white, I0 = P / (4 pi), albedo 1.
-    light_count = a.lights;
-    int n = std::max(1, a.lights);
-    std::vector<float> ltex(size_t(2) * n * 4, 0.0f);
-    for (int i = 0; i < a.lights; ++i) {
-      float x = -6.0f + 12.0f * i / float(std::max(1, a.lights - 1));
-      float y = 2.0f * float(i % 3) - 2.0f;
-      float *p = &ltex[size_t(i) * 4], *c = &ltex[(size_t(n) + i) * 4];
-      p[0] = x, p[1] = y, p[2] = 2.5f;
-      light_positions.emplace_back(x, y, 2.5f);
-      c[0] = c[1] = c[2] = 1000.0f / (4.0f * float(M_PI));
-    }
-    lights = texture(n, 2, GL_RGBA32F, ltex.data());
-
-    distance_target = make_target(a.width, a.height, GL_R32F, true);
-  }
-
-  void bind_inputs(GLuint prog, const View &v, glm::vec4 viewport, float sigma_t, int scale,
-                   GLuint fog_lo_tex) const
-  {
-    glUseProgram(prog);
-    set(prog, "inv_persp", v.inv_persp);
-    set(prog, "eye", glm::vec4(v.eye, 1.0f));
-    set(prog, "clip", glm::vec4(v.axis, v.clip_start));
-    set(prog, "viewport", viewport);
-    set(prog, "sigma_t", sigma_t);
-    set(prog, "light_count", light_count);
-    set(prog, "scale", scale);
-    glBindTextureUnit(0, ftab);
-    glBindTextureUnit(1, distance_target.colour);
-    glBindTextureUnit(2, lights);
-    if (fog_lo_tex != 0) {
-      set(prog, "mode", kUpsampleBilateralExact);
-      glBindTextureUnit(3, fog_lo_tex);
-    }
-  }
-
-  // preview.draw_distance
-  void draw_distance(const View &v)
-  {
-    glBindFramebuffer(GL_FRAMEBUFFER, distance_target.fbo);
-    glViewport(0, 0, distance_target.w, distance_target.h);
-    const float inf = INFINITY, zero[4] = {inf, 0, 0, 0};
-    glClearNamedFramebufferfv(distance_target.fbo, GL_COLOR, 0, zero);
-    glClearNamedFramebufferfi(distance_target.fbo, GL_DEPTH_STENCIL, 0, 1.0f, 0);
-    glDisable(GL_BLEND);
-    glEnable(GL_DEPTH_TEST);
-    glDepthFunc(GL_LEQUAL);
-    glDepthMask(GL_TRUE);
-    glUseProgram(distance);
-    set(distance, "persp", v.persp);
-    set(distance, "eye", glm::vec4(v.eye, 1.0f));
-    set(distance, "axis", glm::vec4(v.axis, -glm::dot(v.axis, v.eye)));
-    glBindVertexArray(scene.vao);
-    for (size_t i = 0; i < object_offsets.size(); ++i) {
-      set(distance, "model", glm::mat4(1.0f));
-      glDrawElements(GL_TRIANGLES, object_counts[i], GL_UNSIGNED_INT,
-                     reinterpret_cast<void *>(size_t(object_offsets[i]) * sizeof(unsigned)));
-    }
-    glDisable(GL_DEPTH_TEST);
-    glDepthMask(GL_FALSE);
-  }
-
-  // preview.draw_fog onto _viewport_ (bound by the caller), mode UPSAMPLE_BILATERAL_EXACT.
-  void draw_fog(const View &v, const Target &viewport, float sigma_t, int scale)
-  {
-    const int w = viewport.w, h = viewport.h;
-    const glm::vec4 region(0.0f, 0.0f, float(w), float(h));
-    glDisable(GL_DEPTH_TEST);
-    glDepthMask(GL_FALSE);
-    glBlendFuncSeparate(GL_ONE, GL_ONE_MINUS_SRC_ALPHA, GL_ONE, GL_ONE_MINUS_SRC_ALPHA);
-    if (scale == 1) {
-      glEnable(GL_BLEND);
-      bind_inputs(fog, v, region, sigma_t, scale, 0);
-      draw(quad);
-      return;
-    }
-    const int lw = (w + scale - 1) / scale, lh = (h + scale - 1) / scale;
-    if (lo_scale != scale || lo_target.w != lw || lo_target.h != lh) {
-      if (lo_target.fbo) free_target(lo_target);
-      lo_target = make_target(lw, lh, GL_RGBA32F, false);
-      lo_scale = scale;
-    }
-    if (full_target.w != w || full_target.h != h) {
-      if (full_target.fbo) free_target(full_target);
-      full_target = make_target(w, h, GL_RGBA32F, true);
-    }
-    glDisable(GL_BLEND);
-    glBindFramebuffer(GL_FRAMEBUFFER, lo_target.fbo);
-    glViewport(0, 0, lw, lh);
-    bind_inputs(fog_lo, v, region, sigma_t, scale, 0);
-    draw(quad);
-    // Blend where the samples share the pixel's surface, mark the rest with depth 0,
-    // evaluate those exactly (quad at depth 0.5 tested GREATER), composite.
-    glBindFramebuffer(GL_FRAMEBUFFER, full_target.fbo);
-    glViewport(0, 0, w, h);
-    glEnable(GL_DEPTH_TEST);
-    glDepthFunc(GL_ALWAYS);
-    glDepthMask(GL_TRUE);
-    bind_inputs(up_mark, v, region, sigma_t, scale, lo_target.colour);
-    draw(quad);
-    glDepthFunc(GL_GREATER);
-    glDepthMask(GL_FALSE);
-    bind_inputs(up_exact, v, region, sigma_t, scale, lo_target.colour);
-    draw(quad);
-    glDisable(GL_DEPTH_TEST);
-    glBindFramebuffer(GL_FRAMEBUFFER, viewport.fbo);
-    glViewport(0, 0, w, h);
-    glEnable(GL_BLEND);
-    bind_inputs(composite, v, region, sigma_t, scale, full_target.colour);
-    draw(quad);
-  }
-};
-
 struct Config {
-  std::string name;
+  std::string name, kind;  // kind: homog, gauss (the add-on's splat), standin
   int scale = 1;
-  bool gaussians = false;
 };
 
 Config parse_config(const std::string &s)
@@ -483,9 +135,12 @@ Config parse_config(const std::string &s)
   Config c;
   c.name = s;
   auto parts = split(s, '_');
-  if (parts.size() != 2 || (parts[0] != "homog" && parts[0] != "gauss"))
+  if (parts.size() != 2 || (parts[0] != "homog" && parts[0] != "gauss" && parts[0] != "standin" &&
+                            parts[0] != "compute"))
     throw std::invalid_argument("bad config " + s);
-  c.gaussians = parts[0] == "gauss";
+  c.kind = parts[0];
+  if (c.kind == "compute" && parts[1] != "full")
+    throw std::invalid_argument("compute_full is the only compute configuration");
   if (parts[1] == "full") c.scale = 1;
   else if (parts[1] == "half") c.scale = 2;
   else if (parts[1] == "quarter") c.scale = 4;
@@ -505,32 +160,41 @@ double percentile(std::vector<double> x, double p)
 {
   if (x.empty()) return NAN;
   std::sort(x.begin(), x.end());
-  size_t i = std::min(x.size() - 1, size_t(p * (x.size() - 1) + 0.5));
-  return x[i];
+  return x[std::min(x.size() - 1, size_t(p * double(x.size() - 1) + 0.5))];
 }
 
-void check_gl(const char *where)
-{
-  GLenum e = glGetError();
-  if (e != GL_NO_ERROR) {
-    char buf[128];
-    std::snprintf(buf, sizeof(buf), "GL error 0x%x after %s", e, where);
-    throw std::runtime_error(buf);
+struct Report {
+  FILE *file = nullptr;
+  void line(const std::string &s)
+  {
+    std::printf("%s\n", s.c_str());
+    std::fflush(stdout);
+    if (file) std::fprintf(file, "%s\n", s.c_str());
   }
+};
+
+std::string fmt(const char *f, ...) __attribute__((format(printf, 1, 2)));
+std::string fmt(const char *f, ...)
+{
+  char buf[2048];
+  va_list ap;
+  va_start(ap, f);
+  std::vsnprintf(buf, sizeof(buf), f, ap);
+  va_end(ap);
+  return buf;
 }
 
 int run(const Args &a)
 {
   GLContextInfo ctx = gl_context_create(a.platform, a.device);
-  std::printf("EGL platform: %s\nGL_VENDOR: %s\nGL_RENDERER: %s\nGL_VERSION: %s\nGLSL: %s\n",
-              ctx.platform.c_str(), ctx.vendor.c_str(), ctx.renderer.c_str(),
-              ctx.version.c_str(), ctx.glsl_version.c_str());
-  std::printf("size %dx%d, %d lights, sigma_t %g, %d frames after %d warm-up\n", a.width,
-              a.height, a.lights, a.sigma_t, a.frames, a.warmup);
-  std::fflush(stdout);
+  Report rep;
+  if (!a.out.empty()) rep.file = std::fopen((a.out + "/results.txt").c_str(), "w");
+  rep.line("EGL platform: " + ctx.platform);
+  rep.line("GL_VENDOR: " + ctx.vendor);
+  rep.line("GL_RENDERER: " + ctx.renderer);
+  rep.line("GL_VERSION: " + ctx.version + " (GLSL " + ctx.glsl_version + ")");
 
   Preview p;
-  p.dir = a.shaders;
   p.target.nvidia = ctx.vendor.find("NVIDIA") != std::string::npos;
   p.target.mesa = ctx.vendor.find("Mesa") != std::string::npos;
   GLint n_ext = 0;
@@ -539,108 +203,112 @@ int run(const Args &a)
     const char *e = reinterpret_cast<const char *>(glGetStringi(GL_EXTENSIONS, i));
     if (e && std::strcmp(e, "GL_ARB_conservative_depth") == 0) p.target.conservative_depth = true;
   }
-  p.build(a);
+  p.build(a.shaders, a.ftable, a.lights, a.width, a.height);
   check_gl("build");
+  rep.line(fmt("size %dx%d, %d lights, sigma_t %g, shaders %s (interface %s), %d frames after "
+               "%d warm-up, budget %g s per configuration",
+               a.width, a.height, a.lights, a.sigma_t, a.shaders.c_str(), p.v2 ? "v2" : "v1",
+               a.frames, a.warmup, a.budget_s));
   const View view = make_view(a.width, a.height);
 
-  GaussianPass gauss;
-  bool gauss_built = false;
+  GaussianSet gset;
+  StandinSplat standin;
+  bool have_set = false, have_addon = false, have_standin = false;
 
-  // The viewport colour target: RGBA16F like Blender's viewport colour for timing;
-  // RGBA32F cleared to 0 for the read-back (the fog alone).
+  // Viewport colour: RGBA16F like Blender's viewport colour for timing; RGBA32F cleared
+  // to 0 for the read-back (the fog alone).
   Target viewport = make_target(a.width, a.height, GL_RGBA16F, true);
   Target check = make_target(a.width, a.height, GL_RGBA32F, true);
-
-  GLuint q_elapsed = 0, q_ts[4] = {0, 0, 0, 0};
+  GLuint q_elapsed = 0;
   glGenQueries(1, &q_elapsed);
-  glGenQueries(4, q_ts);
-
-  FILE *results = nullptr;
-  if (!a.out.empty()) {
-    results = std::fopen((a.out + "/results.txt").c_str(), "w");
-    if (results)
-      std::fprintf(results, "renderer=%s\nversion=%s\nsize=%dx%d\n", ctx.renderer.c_str(),
-                   ctx.version.c_str(), a.width, a.height);
-  }
 
   for (const std::string &cs : a.configs) {
     const Config c = parse_config(cs);
-    if (c.gaussians && !gauss_built) {
-      auto t0 = std::chrono::steady_clock::now();
-      gauss.build(a.shaders, a.bench_shaders, p.target, a.gaussians, view.eye, view.axis,
-                  view.tan_half, p.light_positions,
-                  a.sigma_t, a.cull_eps, p.ftab, p.lights);
-      std::printf("Gaussian pass: %d Gaussians, cull eps %g, set up in %.1f s (CPU f1 factors)\n",
-                  a.gaussians, a.cull_eps,
-                  std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
-      gauss_built = true;
-      check_gl("gaussian build");
+    if (c.kind == "gauss" && !p.v2) {
+      rep.line(fmt("%-15s skipped: these shaders have no Gaussian splat pass (interface v1)",
+                   c.name.c_str()));
+      continue;
     }
-    auto frame = [&](const Target &vp, const float clear[4], bool timed) {
-      if (timed) {
-        glBeginQuery(GL_TIME_ELAPSED, q_elapsed);
-        glQueryCounter(q_ts[0], GL_TIMESTAMP);
-      }
+    if ((c.kind == "gauss" || c.kind == "standin") && !have_set) {
+      auto t0 = std::chrono::steady_clock::now();
+      gset = make_gaussians(a.gaussians, view.eye, view.axis, view.tan_half, p.light_positions,
+                            a.sigma_t, a.cull_eps);
+      have_set = true;
+      double R = 0.0;
+      for (double r : gset.R) R += r;
+      rep.line(fmt("Gaussians: %d, cull eps %g (mean cull radius %.3f m), CPU factors f1 and "
+                   "C_sv in %.2f s (not timed below: the add-on computes them per view change)",
+                   a.gaussians, a.cull_eps, R / double(gset.size()),
+                   std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count()));
+    }
+    if (c.kind == "gauss" && !have_addon) {
+      p.build_gaussians(gset);
+      have_addon = true;
+      check_gl("Gaussian build");
+    }
+    if (c.kind == "standin" && !have_standin) {
+      standin.build(a.shaders, a.bench_shaders, p.target, gset, a.lights, p.ftab, p.lights);
+      have_standin = true;
+      check_gl("stand-in build");
+    }
+    unsigned long long standin_fragments = 0;
+    auto frame = [&](const Target &vp, const float clear[4], bool count) {
       p.draw_distance(view);
-      if (timed) glQueryCounter(q_ts[1], GL_TIMESTAMP);
       // The viewport as the POST_VIEW handler finds it: the scene is drawn already.
       glBindFramebuffer(GL_FRAMEBUFFER, vp.fbo);
       glViewport(0, 0, vp.w, vp.h);
       glClearNamedFramebufferfv(vp.fbo, GL_COLOR, 0, clear);
-      p.draw_fog(view, vp, a.sigma_t, c.scale);
-      if (timed) glQueryCounter(q_ts[2], GL_TIMESTAMP);
-      if (c.gaussians) {
-        gauss.draw(vp.fbo, vp.w, vp.h, view.persp, view.inv_persp, glm::vec4(view.eye, 1.0f),
-                   glm::vec4(view.axis, view.clip_start), p.distance_target.colour, a.sigma_t,
-                   c.scale);
-      }
-      if (timed) {
-        glQueryCounter(q_ts[3], GL_TIMESTAMP);
-        glEndQuery(GL_TIME_ELAPSED);
+      p.count_samples = count;
+      if (c.kind == "compute") p.draw_fog_compute(view, vp, a.sigma_t);
+      else p.draw_fog(view, vp, a.sigma_t, c.kind == "standin" ? 1 : c.scale, c.kind == "gauss");
+      p.count_samples = false;
+      if (c.kind == "standin") {
+        standin_fragments = standin.draw(vp.fbo, vp.w, vp.h, view.persp, view.inv_persp,
+                                         glm::vec4(view.eye, 1.0f),
+                                         glm::vec4(view.axis, view.clip_start),
+                                         p.distance_target.colour[0], a.sigma_t, c.scale, count);
       }
     };
     const float grey[4] = {0.2f, 0.2f, 0.2f, 1.0f}, black[4] = {0, 0, 0, 0};
-    std::vector<double> gpu_ms, wall_ms, dist_ms, fog_ms, gauss_ms;
+    std::vector<double> gpu_ms, wall_ms;
+    std::vector<std::pair<std::string, std::vector<double>>> passes;
     const auto start = std::chrono::steady_clock::now();
     auto seconds = [&]() {
       return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     };
-    // Warm-up: --warmup frames, fewer (at least one) when they take a quarter of the budget;
-    // then --frames frames, fewer (at least 10) when the budget is spent.
+    // Warm-up: --warmup frames, fewer (at least one) once they took a quarter of the
+    // budget; then --frames frames, fewer (at least 10) once the budget is spent.
     for (int f = 0; f < a.warmup && (f == 0 || seconds() < 0.25 * a.budget_s); ++f) {
-      frame(viewport, grey, true);
+      frame(viewport, grey, false);
       glFinish();
     }
     for (int f = 0; f < a.frames && (f < 10 || seconds() < a.budget_s); ++f) {
       auto t0 = std::chrono::steady_clock::now();
-      frame(viewport, grey, true);
+      glBeginQuery(GL_TIME_ELAPSED, q_elapsed);
+      g_stamps.begin();
+      frame(viewport, grey, false);
+      glEndQuery(GL_TIME_ELAPSED);
       glFinish();
       auto t1 = std::chrono::steady_clock::now();
-      GLuint64 elapsed = 0, ts[4] = {0, 0, 0, 0};
+      GLuint64 elapsed = 0;
       glGetQueryObjectui64v(q_elapsed, GL_QUERY_RESULT, &elapsed);
-      for (int k = 0; k < 4; ++k) glGetQueryObjectui64v(q_ts[k], GL_QUERY_RESULT, &ts[k]);
-      gpu_ms.push_back(elapsed * 1e-6);
-      dist_ms.push_back((ts[1] - ts[0]) * 1e-6);
-      fog_ms.push_back((ts[2] - ts[1]) * 1e-6);
-      gauss_ms.push_back((ts[3] - ts[2]) * 1e-6);
+      g_stamps.collect(passes);
+      gpu_ms.push_back(double(elapsed) * 1e-6);
       wall_ms.push_back(std::chrono::duration<double, std::milli>(t1 - t0).count());
     }
     check_gl(c.name.c_str());
     const double g = median(gpu_ms), w = median(wall_ms);
-    char line[1024];
-    std::snprintf(line, sizeof(line),
-                  "%-14s scale=%d gaussians=%d lights=%d frames=%zu  gpu_ms median %.3f (p10 %.3f, p90 %.3f)"
-                  " fps %.1f | wall_ms median %.3f fps %.1f | passes ms: distance %.3f fog %.3f"
-                  " gaussians %.3f",
-                  c.name.c_str(), c.scale, c.gaussians ? a.gaussians : 0, a.lights, gpu_ms.size(), g,
-                  percentile(gpu_ms, 0.1), percentile(gpu_ms, 0.9), 1e3 / g, w, 1e3 / w,
-                  median(dist_ms), median(fog_ms), median(gauss_ms));
-    std::printf("%s\n", line);
-    if (results) std::fprintf(results, "%s\n", line);
+    std::string pass_text;
+    for (const auto &e : passes) pass_text += fmt(" %s %.3f", e.first.c_str(), median(e.second));
+    rep.line(fmt("%-15s scale=%d gaussians=%d lights=%d frames=%zu  GPU ms median %.3f (p10 %.3f, "
+                 "p90 %.3f) = %.1f fps | wall ms median %.3f = %.1f fps | passes (ms):%s",
+                 c.name.c_str(), c.scale,
+                 c.kind == "gauss" || c.kind == "standin" ? a.gaussians : 0, a.lights,
+                 gpu_ms.size(), g, percentile(gpu_ms, 0.1), percentile(gpu_ms, 0.9), 1e3 / g, w,
+                 1e3 / w, pass_text.c_str()));
 
     // The fog alone over black, at float precision, read back.
-    gauss.count_fragments = c.gaussians;
-    frame(check, black, false);
+    frame(check, black, true);
     glFinish();
     std::vector<float> px(size_t(a.width) * a.height * 4);
     glBindFramebuffer(GL_READ_FRAMEBUFFER, check.fbo);
@@ -658,21 +326,17 @@ int run(const Args &a)
       sum[i % 4] += px[i];
     }
     const double npx = double(a.width) * a.height;
-    std::snprintf(line, sizeof(line),
-                  "%-14s fog image mean r %.7g g %.7g b %.7g a(1-Tr) %.7g  non-finite %zu",
-                  c.name.c_str(), sum[0] / npx, sum[1] / npx, sum[2] / npx, sum[3] / npx, bad);
-    std::printf("%s\n", line);
-    if (results) std::fprintf(results, "%s\n", line);
-    if (c.gaussians) {
+    rep.line(fmt("%-15s fog image mean r %.7g g %.7g b %.7g a(1-Tr) %.7g  non-finite %zu",
+                 c.name.c_str(), sum[0] / npx, sum[1] / npx, sum[2] / npx, sum[3] / npx, bad));
+    if (c.scale > 1 && c.kind != "gauss" && c.kind != "standin")
+      rep.line(fmt("%-15s exact re-evaluation: %llu pixels (%.2f %% of the region)", c.name.c_str(),
+                   p.exact_samples, 100.0 * double(p.exact_samples) / npx));
+    if (c.kind == "gauss" || c.kind == "standin") {
       const int lw = (a.width + c.scale - 1) / c.scale, lh = (a.height + c.scale - 1) / c.scale;
-      std::snprintf(line, sizeof(line),
-                    "%-14s splat fragments %llu = %.1f per splat-target pixel (%dx%d)",
-                    c.name.c_str(), gauss.fragments, double(gauss.fragments) / (double(lw) * lh),
-                    lw, lh);
-      std::printf("%s\n", line);
-      if (results) std::fprintf(results, "%s\n", line);
+      const unsigned long long n = c.kind == "gauss" ? p.splat_samples : standin_fragments;
+      rep.line(fmt("%-15s splat fragments %llu = %.1f per splat-target pixel (%dx%d)",
+                   c.name.c_str(), n, double(n) / (double(lw) * lh), lw, lh));
     }
-    std::fflush(stdout);
     if (!a.out.empty()) {
       const int s = a.npy_step;
       const size_t hh = (a.height + s - 1) / s, ww = (a.width + s - 1) / s;
@@ -682,12 +346,9 @@ int run(const Args &a)
           for (int k = 0; k < 4; ++k)
             dec[(y * ww + x) * 4 + k] = px[((y * s) * a.width + x * s) * 4 + k];
       write_npy_f32(a.out + "/" + c.name + ".npy", dec.data(), {hh, ww, 4});
-      if (a.full_npy)
-        write_npy_f32(a.out + "/" + c.name + "_full.npy", px.data(),
-                      {size_t(a.height), size_t(a.width), 4});
     }
   }
-  if (results) std::fclose(results);
+  if (rep.file) std::fclose(rep.file);
   gl_context_destroy();
   return 0;
 }
