@@ -86,6 +86,14 @@ CreateInfo Preview::fullscreen_info(const std::string &name, const std::string &
     ci.samplers.insert(ci.samplers.end(), {"gauss_acc", "gauss_near", "Gtab"});
     libs += src("biri06_airlight.glsl") + "\n";
   }
+  if (spots) {
+    ci.samplers.push_back("spots");
+    libs += src("spot_airlight.glsl") + "\n";
+  }
+  if (suns) {
+    ci.samplers.push_back("suns");
+    libs += src("sun_airlight.glsl") + "\n";
+  }
   libs += src("preview_common.glsl") + "\n";
   ci.defines = std::move(defines);
   ci.vertex_source = src("fullscreen_vert.glsl");
@@ -99,15 +107,25 @@ GLuint Preview::fullscreen(const std::string &name, const std::string &frag,
   return create_info_program(fullscreen_info(name, frag, std::move(defines)), target);
 }
 
+// preview._shader's leading defines: the 'DRAWN' depth source, isotropic, no spots/suns.
+std::vector<std::pair<std::string, std::string>> Preview::head_defines() const
+{
+  std::vector<std::pair<std::string, std::string>> d = {{"PREVIEW_WINDOW_DEPTH", "0"}};
+  if (v2) d.push_back({"PREVIEW_PHASE", "0"});
+  if (spots) d.push_back({"PREVIEW_SPOTS", "0"});
+  if (suns) d.push_back({"PREVIEW_SUNS", "0"});
+  return d;
+}
+
 GLuint Preview::fog_gauss_program(int S)
 {
   auto it = fog_gauss.find(S);
   if (it != fog_gauss.end()) return it->second;
   // preview._shader('fog', False, ('gauss', S))
-  GLuint p = fullscreen("preview_fog", "fog_preview_frag.glsl",
-                        {{"PREVIEW_WINDOW_DEPTH", "0"}, {"PREVIEW_PHASE", "0"},
-                         {"PREVIEW_LOWRES", "0"}, {"PREVIEW_GAUSSIANS", "1"},
-                         {"PREVIEW_GAUSS_SCALE", std::to_string(S)}});
+  std::vector<std::pair<std::string, std::string>> defs = head_defines();
+  defs.insert(defs.end(), {{"PREVIEW_LOWRES", "0"}, {"PREVIEW_GAUSSIANS", "1"},
+                           {"PREVIEW_GAUSS_SCALE", std::to_string(S)}});
+  GLuint p = fullscreen("preview_fog", "fog_preview_frag.glsl", defs);
   fog_gauss[S] = p;
   return p;
 }
@@ -117,6 +135,8 @@ void Preview::build(const std::string &shader_dir, const std::string &ftable_pat
 {
   dir = shader_dir;
   v2 = file_exists(dir + "/rbf_splat_vert.glsl");
+  spots = v2 && file_exists(dir + "/spot_airlight.glsl");
+  suns = v2 && file_exists(dir + "/sun_airlight.glsl");
   // gpu_shaders.create_distance_shader
   CreateInfo d;
   d.name = "distance";
@@ -129,8 +149,7 @@ void Preview::build(const std::string &shader_dir, const std::string &ftable_pat
   distance = create_info_program(d, target);
   // preview._shader for the 'DRAWN' depth source (PREVIEW_WINDOW_DEPTH 0), isotropic.
   using Defs = std::vector<std::pair<std::string, std::string>>;
-  Defs head = {{"PREVIEW_WINDOW_DEPTH", "0"}};
-  if (v2) head.push_back({"PREVIEW_PHASE", "0"});
+  const Defs head = head_defines();
   auto with = [&](Defs extra, bool gauss_off) {
     Defs all = head;
     all.insert(all.end(), extra.begin(), extra.end());
@@ -220,6 +239,8 @@ void Preview::build_gaussians(const GaussianSet &g)
   s.defines = {{"RBF_TEX_WIDTH", std::to_string(kRbfTexWidth)},
                {"PREVIEW_WINDOW_DEPTH", "0"},
                {"PREVIEW_PHASE", "0"}};
+  if (spots) s.defines.push_back({"PREVIEW_SPOTS", "0"});
+  if (suns) s.defines.push_back({"PREVIEW_SUNS", "0"});
   s.fragment_out = {{"vec4", "frag_color"}, {"vec4", "frag_near"}};
   s.vertex_source = src("rbf_splat_vert.glsl");
   s.fragment_source = src("sun05_airlight.glsl") + "\n" + src("preview_common.glsl") + "\n" +
@@ -290,6 +311,8 @@ void Preview::bind_inputs(GLuint prog, const View &v, glm::vec4 viewport, float 
       glBindTextureUnit(5, gauss->colour[1]);
     }
     glBindTextureUnit(6, ftab);  // Gtab: the F table stands in for the isotropic phase
+    if (spots) glBindTextureUnit(7, ftab);  // unread with PREVIEW_SPOTS 0
+    if (suns) glBindTextureUnit(spots ? 8 : 7, ftab);
   }
 }
 
@@ -435,8 +458,7 @@ void Preview::draw_fog_compute(const View &v, const Target &viewport, float sigm
 {
   const int w = viewport.w, h = viewport.h;
   if (fog_compute == 0) {
-    std::vector<std::pair<std::string, std::string>> defs = {{"PREVIEW_WINDOW_DEPTH", "0"}};
-    if (v2) defs.push_back({"PREVIEW_PHASE", "0"});
+    std::vector<std::pair<std::string, std::string>> defs = head_defines();
     defs.push_back({"PREVIEW_LOWRES", "0"});
     if (v2) defs.insert(defs.end(), {{"PREVIEW_GAUSSIANS", "0"}, {"PREVIEW_GAUSS_SCALE", "1"}});
     fog_compute = create_info_compute_program(

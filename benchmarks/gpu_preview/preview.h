@@ -11,6 +11,9 @@
 //       samplers + gauss_acc, gauss_near, Gtab, defines PREVIEW_PHASE and
 //       PREVIEW_GAUSSIANS / PREVIEW_GAUSS_SCALE; plus the Gaussian splat pass
 //       (gpu_shaders.create_rbf_splat_shader, rbf_splat_batch, rbf_data_textures).
+//       With spot_airlight.glsl / sun_airlight.glsl present (spot lights and sun lamps in
+//       the preview), those libs and the samplers spots / suns follow, and the defines
+//       PREVIEW_SPOTS / PREVIEW_SUNS are given as 0 (the benchmark has point lights only).
 #pragma once
 
 #include <map>
@@ -35,7 +38,7 @@ View make_view(int w, int h);
 struct Preview {
   GLSLTarget target;
   std::string dir;
-  bool v2 = false;
+  bool v2 = false, spots = false, suns = false;
   GLuint distance = 0, fog = 0, fog_lo = 0, up_mark = 0, up_exact = 0, composite = 0;
   std::map<int, GLuint> fog_gauss;  // v2: fog pass with the Gaussian sums at scale S
   GLuint ftab = 0, lights = 0, lights_csv = 0;
@@ -76,6 +79,7 @@ struct Preview {
   GLuint fullscreen(const std::string &name, const std::string &frag,
                     std::vector<std::pair<std::string, std::string>> defines);
   GLuint fog_gauss_program(int gauss_scale);
+  std::vector<std::pair<std::string, std::string>> head_defines() const;
   void bind_inputs(GLuint prog, const View &v, glm::vec4 viewport, float sigma_t, int scale,
                    GLuint fog_lo_tex, GLuint lights_tex, const Target *gauss) const;
   void draw_splat(const View &v, int w, int h, float sigma_t, int gauss_scale);
