@@ -11,6 +11,12 @@
 //               full resolution, 0 for a reduced offscreen target), zw = the region's
 //               full-resolution size
 //   scale       full-resolution pixels per output texel (1, 2, 4)
+//   gauss_acc, gauss_near  (PREVIEW_GAUSSIANS 1 only) the full-resolution sums of
+//               rbf_splat_frag.glsl: rgb = Gaussian airlight sum_i (L_i(Dvp) - L_i(t0)),
+//               a = Gaussian optical depth of [t0, Dvp]; near.r = that of [0, t0]. As
+//               in the bake: La = e^{T_near} (La_0 + e^{sigma_t t0} rgb) with La_0 the
+//               homogeneous airlight from the near point (scaled by C_sv per light),
+//               Tr = e^{-sigma_t (Dvp - t0) - a}
 //   (and the inputs of preview_common.glsl)
 
 void main()
@@ -22,6 +28,14 @@ void main()
   preview_ray(px, ndc, origin, dir);
   float Dvp = preview_distance(px, ndc, origin, dir);
   vec4 fog = preview_fog(origin, dir, Dvp);
+#if PREVIEW_GAUSSIANS
+  vec4 g = texelFetch(gauss_acc, px, 0);
+  float T_near = texelFetch(gauss_near, px, 0).r;
+  float t0 = min(preview_near(dir), Dvp);
+  float T_hom = sigma_t > 0.0 ? sigma_t * max(Dvp - t0, 0.0) : 0.0;  // 0 * inf = NaN
+  float Tr = exp(-T_hom - g.a);
+  fog = vec4(exp(T_near) * (fog.rgb + exp(sigma_t * t0) * g.rgb), 1.0 - Tr);
+#endif
 #if PREVIEW_LOWRES
   frag_color = vec4(fog.rgb, Dvp);
 #else

@@ -7,7 +7,9 @@
 //               _Dvp_ along the view ray (inf = nothing hit) or, with
 //               PREVIEW_WINDOW_DEPTH defined to 1, the window depth in [0, 1] (1 = none)
 //   lights      RGBA32F, light_count x 2 texels: row 0 = position (world), row 1 =
-//               albedo * I0 (W/sr per RGB channel)
+//               rgb: albedo * I0 (W/sr per RGB channel), a: C_sv, the transmittance of
+//               the Gaussian fog on the segment light -> eye (Fogshop eq. 15-17; 1
+//               without fog objects), which scales the homogeneous airlight
 //   inv_persp   inverse of (projection * view) of the region
 //   eye         xyz = view origin (world), w = 1 for perspective, 0 for orthographic
 //   clip        xyz = unit view axis (world, into the scene), w = clip_start: the near
@@ -72,7 +74,7 @@ vec4 preview_fog(vec3 origin, vec3 dir, float Dvp)
   vec3 La = vec3(0.0);
   for (int i = 0; i < light_count; i++) {
     vec3 to_light = texelFetch(lights, ivec2(i, 0), 0).xyz - p0;
-    vec3 I0 = texelFetch(lights, ivec2(i, 1), 0).rgb;
+    vec4 I0 = texelFetch(lights, ivec2(i, 1), 0);
     float Dsv = length(to_light);
     if (Dsv <= 0.0) {
       continue;
@@ -82,7 +84,7 @@ vec4 preview_fog(vec3 origin, vec3 dir, float Dvp)
     // exactly through the light (which sun05_airlight regularises to sin(gamma) = 1e-8,
     // 1e4 times brighter than any nearby pixel). 0.99999994 = 1 - 2^-24.
     float cos_gamma = clamp(dot(to_light, dir) / Dsv, -1.0, 0.99999994);
-    La += I0 * sun05_airlight(Ftab, sigma_t, Dsv, cos_gamma, D);
+    La += (I0.rgb * I0.a) * sun05_airlight(Ftab, sigma_t, Dsv, cos_gamma, D);
   }
   float Tr = exp(-sigma_t * D);
   return vec4(La, 1.0 - Tr);

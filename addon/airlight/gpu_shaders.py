@@ -206,3 +206,107 @@ def render_depth(vertices, triangles, persp, width, height):
 def depth_texture(buf, width, height):
     """R32F texture from a read_depth() Buffer (no copy through Python lists)."""
     return gpu.types.GPUTexture((width, height), format='R32F', data=buf)
+
+
+# ---- Gaussian fog (fog objects) in the preview -----------------------------------------
+# Each shader's full interface is in one function below, so a standalone GL harness can
+# mirror it (vertex inputs, interface blocks, push constants, samplers, fragment outputs,
+# defines, and the order in which files are concatenated).
+
+# Width of the per-Gaussian data textures (texel (i % W, ...) for Gaussian i).
+RBF_TEX_WIDTH = 1024
+
+# Inputs shared by the fog pass and the splat pass (preview_common.glsl).
+PREVIEW_FOG_PUSH_CONSTANTS = (('MAT4', "inv_persp"), ('VEC4', "eye"), ('VEC4', "clip"),
+                              ('VEC4', "viewport"), ('FLOAT', "sigma_t"), ('INT', "light_count"),
+                              ('INT', "scale"), ('INT', "mode"))
+PREVIEW_FOG_SAMPLERS = ("Ftab", "depth_tex", "lights", "fog_lo", "gauss_acc", "gauss_near")
+
+
+def create_rbf_splat_shader(window_depth=False):
+    """The Gaussian splat pass (Fogshop section 5).
+
+    Sources: vertex = rbf_splat_vert.glsl; fragment = sun05_airlight.glsl +
+    preview_common.glsl + rbf_gaussian.glsl + rbf_splat_frag.glsl, concatenated in this
+    order (the create-info adds the declarations below in front of each).
+    Defines: RBF_TEX_WIDTH (int), PREVIEW_WINDOW_DEPTH (0: depth_tex holds linear
+    distance, 1: window depth).
+    Vertex inputs: 0 VEC2 "corner" (quad corner in {-1, 1}^2), 1 FLOAT "gid" (Gaussian
+    index); 4 vertices per Gaussian, drawn as TRIS with 6 indices per Gaussian
+    (`rbf_splat_batch`).
+    Vertex -> fragment: interface "airlight_rbf_splat_iface", flat INT "gi".
+    Push constants: MAT4 "persp" (projection @ view), then PREVIEW_FOG_PUSH_CONSTANTS
+    (MAT4 inv_persp, VEC4 eye, VEC4 clip, VEC4 viewport, FLOAT sigma_t, INT light_count,
+    INT scale, INT mode; scale and mode unused).
+    Samplers (FLOAT_2D, slots in order): 0 Ftab, 1 depth_tex, 2 lights, 3 gauss, 4 gauss_f1
+    (Ftab is declared because preview_common.glsl refers to it; unused here).
+    Fragment outputs: 0 VEC4 "frag_color" (rgb airlight, a optical depth [t0, Dvp]),
+    1 VEC4 "frag_near" (r = optical depth [0, t0]); blend ADDITIVE_PREMULT into two
+    RGBA32F targets cleared to 0.
+    """
+    iface = gpu.types.GPUStageInterfaceInfo("airlight_rbf_splat_iface")
+    iface.flat('INT', "gi")
+    info = gpu.types.GPUShaderCreateInfo()
+    info.vertex_in(0, 'VEC2', "corner")
+    info.vertex_in(1, 'FLOAT', "gid")
+    info.vertex_out(iface)
+    info.push_constant('MAT4', "persp")
+    for ptype, pname in PREVIEW_FOG_PUSH_CONSTANTS:
+        info.push_constant(ptype, pname)
+    for slot, sname in enumerate(("Ftab", "depth_tex", "lights", "gauss", "gauss_f1")):
+        info.sampler(slot, 'FLOAT_2D', sname)
+    info.define("RBF_TEX_WIDTH", str(RBF_TEX_WIDTH))
+    info.define("PREVIEW_WINDOW_DEPTH", str(int(bool(window_depth))))
+    info.fragment_out(0, 'VEC4', "frag_color")
+    info.fragment_out(1, 'VEC4', "frag_near")
+    info.vertex_source(load_source("rbf_splat_vert.glsl"))
+    info.fragment_source("".join(load_source(name) + "\n" for name in (
+        "sun05_airlight.glsl", "preview_common.glsl", "rbf_gaussian.glsl", "rbf_splat_frag.glsl")))
+    return gpu.shader.create_from_info(info)
+
+
+def rbf_splat_batch(shader, count):
+    """4 vertices and 2 triangles per Gaussian for `create_rbf_splat_shader` (attribute
+    "corner" in {-1, 1}^2, "gid" = Gaussian index). Depends on _count_ only: the data
+    come from textures, so the batch is rebuilt only when the number of Gaussians changes."""
+    import numpy as np
+    from gpu_extras.batch import batch_for_shader
+    n = int(count)
+    corner = np.tile(np.array(_QUAD, np.float32), (n, 1))
+    gid = np.repeat(np.arange(n, dtype=np.float32), 4)
+    base = (np.arange(n, dtype=np.int32) * 4)[:, None, None]
+    tris = (np.array(_QUAD_TRIS, np.int32)[None] + base).reshape(-1, 3)
+    return batch_for_shader(shader, 'TRIS', {"corner": corner, "gid": gid}, indices=tris)
+
+
+def rbf_data_textures(centres, scales, amplitudes, radii, f1):
+    """The splat pass's per-Gaussian textures (layout in rbf_splat_vert.glsl and
+    rbf_splat_frag.glsl): gauss (RGBA32F, RBF_TEX_WIDTH x 2 rows per block of W Gaussians)
+    and gauss_f1 (R32F, RBF_TEX_WIDTH x L rows per block), f1 of shape (L, n)."""
+    import numpy as np
+    n = len(scales)
+    W = RBF_TEX_WIDTH
+    blocks = max(1, -(-n // W))
+    gauss = np.zeros((blocks, 2, W, 4), np.float32)
+    flat = gauss.reshape(blocks, 2, W, 4)
+    idx = np.arange(n)
+    blk, col = idx // W, idx % W
+    flat[blk, 0, col, :3] = np.asarray(centres, np.float64).reshape(-1, 3)
+    flat[blk, 0, col, 3] = scales
+    flat[blk, 1, col, 0] = amplitudes
+    flat[blk, 1, col, 1] = radii
+    f1 = np.asarray(f1, np.float64).reshape(-1, n)
+    L = max(1, f1.shape[0])
+    f1_tex = np.zeros((blocks, L, W), np.float32)
+    for l in range(f1.shape[0]):
+        f1_tex[blk, l, col] = f1[l]
+    return (float_texture(gauss.reshape(blocks * 2, W, 4)),
+            float_texture(f1_tex.reshape(blocks * L, W)))
+
+
+def create_rbf_test_shader():
+    """GLSL-vs-C++ agreement shader for rbf_gaussian.glsl (test_09): fullscreen_vert.glsl
+    + rbf_gaussian.glsl + test_rbf_frag.glsl; samplers 0..4 "in0".."in4" (RGBA32F, one
+    input point per pixel; layout in test_rbf_frag.glsl); output frag_color."""
+    return create_fullscreen_shader("test_rbf", "test_rbf_frag.glsl", libs=("rbf_gaussian.glsl",),
+                                    samplers=("in0", "in1", "in2", "in3", "in4"))

@@ -87,7 +87,7 @@ _FOG_INPUTS = dict(
     push_constants=(('MAT4', "inv_persp"), ('VEC4', "eye"), ('VEC4', "clip"), ('VEC4', "viewport"),
                     ('FLOAT', "sigma_t"), ('INT', "light_count"), ('INT', "scale"),
                     ('INT', "mode")),
-    samplers=("Ftab", "depth_tex", "lights", "fog_lo"))
+    samplers=("Ftab", "depth_tex", "lights", "fog_lo", "gauss_acc", "gauss_near"))
 
 
 def _gpu_resources():
@@ -114,7 +114,8 @@ def _shader(kind, window_depth, variant=False):
     shader = res["shaders"].get(key)
     if shader is None:
         frag, defines = {
-            'fog': ("fog_preview_frag.glsl", (("PREVIEW_LOWRES", int(bool(variant))),)),
+            'fog': ("fog_preview_frag.glsl", (("PREVIEW_LOWRES", int(variant is True)),
+                                              ("PREVIEW_GAUSSIANS", int(variant == 'gauss')))),
             'upsample': ("preview_upsample_frag.glsl",
                          (("PREVIEW_EXACT_PASS", int(variant == 'exact')),
                           ("PREVIEW_MARK", int(variant == 'mark')))),
@@ -122,7 +123,8 @@ def _shader(kind, window_depth, variant=False):
         }[kind]
         shader = gs.create_fullscreen_shader(
             f"preview_{kind}", frag, libs=("sun05_airlight.glsl", "preview_common.glsl"),
-            defines=(("PREVIEW_WINDOW_DEPTH", int(bool(window_depth))),) + defines,
+            defines=(("PREVIEW_WINDOW_DEPTH", int(bool(window_depth))),) + defines
+            + ((("PREVIEW_GAUSSIANS", 0),) if kind != 'fog' else ()),
             **_FOG_INPUTS)
         res["shaders"][key] = shader
         if res["batch"] is None:
@@ -311,15 +313,55 @@ def scene_lights(scene, view_layer=None):
     return positions, intensities
 
 
-def _lights_texture(positions, intensities):
+def _lights_texture(positions, intensities, Csv=None):
+    """Row 0: positions; row 1: rgb = albedo I0, a = C_sv (Gaussian fog transmittance
+    light -> eye, 1 without fog objects)."""
     import numpy as np
     from . import gpu_shaders as gs
     n = max(1, len(positions))
     data = np.zeros((2, n, 4), np.float32)
+    data[1, :, 3] = 1.0
     if positions:
         data[0, :len(positions), :3] = positions
         data[1, :len(positions), :3] = intensities
+        if Csv is not None:
+            data[1, :len(positions), 3] = Csv
     return gs.float_texture(data)
+
+
+def _gaussian_fog(res, *, gaussians, window_depth, sigma_t, view_origin, light_positions):
+    """The splat shader and the current GaussianFog (textures, batch, factors) for these
+    inputs (preview_gaussians.py; rebuilt only when one changes)."""
+    from . import gpu_shaders as gs
+    from . import preview_gaussians as pg
+    key = ('splat', bool(window_depth))
+    shader = res["shaders"].get(key)
+    if shader is None:
+        shader = res["shaders"][key] = gs.create_rbf_splat_shader(window_depth)
+    fog = res.get("gaussian_fog")
+    if fog is None:
+        fog = res["gaussian_fog"] = pg.GaussianFog()
+    fog.update(_native_for_preview(), shader, gaussians, sigma_t, view_origin, light_positions)
+    return shader, fog
+
+
+def _draw_gaussians(shader, fog, size, bind):
+    """Splat pass of the Gaussian fog into two full-resolution RGBA32F targets (cleared,
+    then ADDITIVE_PREMULT); returns (acc, near) textures. The caller restores gpu.state."""
+    import gpu
+    w, h = size
+    acc = _target("gauss_acc", w, h, 'RGBA32F')
+    near = _target("gauss_near", w, h, 'RGBA32F')
+    fb = gpu.types.GPUFrameBuffer(color_slots=(acc["colour"], near["colour"]))
+    with fb.bind():
+        gpu.state.viewport_set(0, 0, w, h)
+        fb.clear(color=(0.0, 0.0, 0.0, 0.0))
+        gpu.state.blend_set('ADDITIVE_PREMULT')
+        bind(shader, (0, 0, w, h), None)
+        shader.uniform_sampler("gauss", fog.gauss_tex)
+        shader.uniform_sampler("gauss_f1", fog.f1_tex)
+        fog.batch.draw(shader)
+    return acc["colour"], near["colour"]
 
 
 def view_axis(perspective_matrix):
@@ -353,7 +395,7 @@ def view_clip_range(context):
 
 def draw_fog(*, depth_tex, perspective_matrix, view_origin, is_perspective, viewport,
              sigma_t, light_positions, light_intensities, clip_start=0.0, window_depth=True,
-             scale=1, mode=UPSAMPLE_BILATERAL_EXACT):
+             scale=1, mode=UPSAMPLE_BILATERAL_EXACT, gaussians=None):
     """Draws the fog over the bound framebuffer with premultiplied blending.
 
     depth_tex: full-resolution R32F texture of the region (viewport[2] x viewport[3]):
@@ -365,14 +407,28 @@ def draw_fog(*, depth_tex, perspective_matrix, view_origin, is_perspective, view
     start on the projection's near plane; surfaces beyond the far plane are already
     missing from the depth); scale: 1 draws the fog directly, 2 or 4 evaluate it in a
     float offscreen of 1/scale the size and upsample it (mode: UPSAMPLE_*).
+    gaussians: None, or dict(centres (n, 3), scales (n,), amplitudes (n,), key) of the
+    fog objects' world-space Gaussians (key: any hashable that changes with the arrays);
+    with n > 0 the Gaussian fog is splatted first (preview_gaussians.py) and the fog is
+    evaluated at full resolution (scale is ignored).
     Restores every gpu.state it changes.
     """
     import gpu
     res = _gpu_resources()
     x, y, w, h = (int(v) for v in viewport)
-    lights = _lights_texture(light_positions, light_intensities)
-    fog = _shader('fog', window_depth)
+    splat = None
+    Csv = None
+    if gaussians is not None and len(gaussians["scales"]) > 0:
+        splat = _gaussian_fog(res, gaussians=gaussians, window_depth=window_depth,
+                              sigma_t=sigma_t, view_origin=view_origin,
+                              light_positions=light_positions)
+        Csv = splat[1].Csv
+        scale = 1
+    lights = _lights_texture(light_positions, light_intensities, Csv)
+    fog = _shader('fog', window_depth, 'gauss' if splat is not None else False)
     clip = (*view_axis(perspective_matrix), float(clip_start) if is_perspective else 0.0)
+
+    gauss_targets = None
 
     def bind(shader, target_viewport, fog_lo):
         # The blending draw of the upsampling has no airlight code, so the compiler
@@ -383,6 +439,7 @@ def draw_fog(*, depth_tex, perspective_matrix, view_origin, is_perspective, view
             except ValueError:
                 pass
         shader.bind()
+        put(shader.uniform_float, "persp", perspective_matrix)
         put(shader.uniform_float, "inv_persp", perspective_matrix.inverted())
         put(shader.uniform_float, "eye", (*view_origin, 1.0 if is_perspective else 0.0))
         put(shader.uniform_float, "clip", clip)
@@ -396,6 +453,9 @@ def draw_fog(*, depth_tex, perspective_matrix, view_origin, is_perspective, view
         if fog_lo is not None:  # the upsampling pass (the fog pass has neither)
             put(shader.uniform_int, "mode", int(mode))
             put(shader.uniform_sampler, "fog_lo", fog_lo)
+        if gauss_targets is not None:
+            put(shader.uniform_sampler, "gauss_acc", gauss_targets[0])
+            put(shader.uniform_sampler, "gauss_near", gauss_targets[1])
 
     prev_blend = gpu.state.blend_get()
     prev_depth = gpu.state.depth_test_get()
@@ -404,6 +464,9 @@ def draw_fog(*, depth_tex, perspective_matrix, view_origin, is_perspective, view
     try:
         gpu.state.depth_test_set('NONE')
         gpu.state.depth_mask_set(False)
+        if splat is not None:
+            gauss_targets = _draw_gaussians(splat[0], splat[1], (w, h), bind)
+            gpu.state.viewport_set(*prev_viewport)
         if scale == 1:
             gpu.state.blend_set('ALPHA_PREMULT')
             bind(fog, (x, y, w, h), None)
