@@ -56,6 +56,7 @@ _state = {
     "last_depth_ms": None,  # of which the scene depth (own pass or read-back + upload)
     "draws": 0,         # number of fog passes drawn (tests read it)
     "capture": None,    # tests: set to {} and the next draw stores its inputs there
+    "gaussians": None,  # fog objects' Gaussians (dict, see draw_fog) of one generation
 }
 
 MAX_LIGHTS = 256
@@ -156,6 +157,7 @@ def _framebuffer(target):
 
 def free_gpu_resources():
     _state["gpu"] = None
+    _state["gaussians"] = None
     _state["meshes"] = {}
     _state["instances"] = None
 
@@ -291,6 +293,19 @@ def _on_frame_change(*_args):
     _state["meshes"] = {}
 
 
+def scene_gaussians(context):
+    """World-space Gaussians of the render-visible fog objects (what the bake gets) as
+    draw_fog's _gaussians_ dict, gathered once per depsgraph generation (a depsgraph
+    update or frame change starts a new one). Invalid fog objects raise ValueError."""
+    cached = _state["gaussians"]
+    if cached is None or cached["key"] != _state["generation"]:
+        from . import fog_object
+        centres, scales, amplitudes = fog_object.gather(context.evaluated_depsgraph_get())
+        cached = _state["gaussians"] = dict(centres=centres, scales=scales,
+                                            amplitudes=amplitudes, key=_state["generation"])
+    return cached
+
+
 def scene_lights(scene, view_layer=None):
     """(positions, intensities) of the visible point lights that scatter in the fog:
     lists of 3-tuples; intensity = albedo * colour * power / (4 pi) W/sr (the bake's
@@ -424,6 +439,7 @@ def draw_fog(*, depth_tex, perspective_matrix, view_origin, is_perspective, view
                               light_positions=light_positions)
         Csv = splat[1].Csv
         scale = 1
+    _state["last_scale"] = scale
     lights = _lights_texture(light_positions, light_intensities, Csv)
     fog = _shader('fog', window_depth, 'gauss' if splat is not None else False)
     clip = (*view_axis(perspective_matrix), float(clip_start) if is_perspective else 0.0)
@@ -567,11 +583,12 @@ def _draw_callback():
         scene = context.scene
         positions, intensities = scene_lights(scene, context.view_layer)
         clip_start, clip_end = view_clip_range(context)
+        gaussians = scene_gaussians(context)
         draw_fog(depth_tex=depth_tex, perspective_matrix=persp, view_origin=view_origin,
                  is_perspective=rv3d.is_perspective, viewport=(x, y, w, h),
                  sigma_t=scene.airlight.density, light_positions=positions,
                  light_intensities=intensities, clip_start=clip_start,
-                 window_depth=readback, scale=scale)
+                 window_depth=readback, scale=scale, gaussians=gaussians)
         _state["last_ms"] = (time.perf_counter() - t0) * 1e3
         if _state["capture"] is not None:
             if readback:
@@ -583,6 +600,7 @@ def _draw_callback():
                 depth = gs.buffer_to_numpy(buf, (h, w))
                 gpu.state.viewport_set(x, y, w, h)
             fog_lo = None
+            scale = _state.get("last_scale", scale)  # FULL while Gaussians are drawn
             if scale > 1:
                 target = _state["gpu"]["targets"]["fog_lo"]
                 lw, lh = target["size"]
@@ -595,7 +613,7 @@ def _draw_callback():
                 depth=depth, fog_lo=fog_lo, window_depth=readback, viewport=(x, y, w, h), scale=scale,
                 perspective_matrix=persp, view_origin=view_origin,
                 sigma_t=scene.airlight.density, lights=(positions, intensities),
-                clip=(clip_start, clip_end))
+                clip=(clip_start, clip_end), gaussians=gaussians)
     except Exception as ex:  # never break Blender's draw loop
         _state["error"] = f"{type(ex).__name__}: {ex}"
         print(f"Airlight preview disabled: {_state['error']}")

@@ -242,3 +242,48 @@ def test02_preview_matches_bake(addon, native, gs, gauss_scene, artifacts):
     assert rel.mean() <= 1e-3
     assert np.percentile(rel, 99) <= 1e-2
     assert dT.mean() <= 1e-4
+
+
+# ---- the draw handler with a fog object ----------------------------------------------------
+
+def _redraw():
+    window = bpy.context.window_manager.windows[0]
+    with bpy.context.temp_override(window=window, screen=window.screen):
+        bpy.ops.wm.redraw_timer(type='DRAW_WIN_SWAP', iterations=1)
+
+
+def test03_handler_draws_fog_objects_and_follows_edits(addon, gauss_scene):
+    """A fog object in the scene reaches the handler's draw (the same gather as the
+    bake), the draw succeeds, and removing the object reaches the next draw (the
+    cached Gaussians belong to one depsgraph generation)."""
+    from airlight import fog_object
+    scene = gauss_scene
+    centres, scales, amplitudes = _gaussians(tuple(scene.camera.matrix_world.translation))
+    obj = fog_object.new_fog_object("PreviewFog", scene.collection, centres, scales, amplitudes)
+    bpy.context.view_layer.update()
+    wm = bpy.context.window_manager
+    addon._state["error"] = None
+    wm.airlight_preview = True
+    for area in wm.windows[0].screen.areas:
+        if area.type == 'VIEW_3D':
+            area.spaces.active.region_3d.view_perspective = 'CAMERA'
+    try:
+        addon._state["capture"] = cap = {}
+        _redraw()
+        assert addon._state["error"] is None, addon._state["error"]
+        assert len(cap["gaussians"]["scales"]) == len(scales)
+        np.testing.assert_allclose(cap["gaussians"]["centres"], centres, rtol=0, atol=1e-5)
+        fog = addon._state["gpu"]["gaussian_fog"]
+        print(f"\nhandler with {len(scales)} Gaussians: fog pass {addon._state['last_ms']:.1f} ms "
+              f"(factors {fog.factor_ms:.1f} ms when rebuilt)")
+        bpy.data.objects.remove(obj)
+        bpy.context.view_layer.update()
+        addon._state["capture"] = cap = {}
+        _redraw()
+        assert addon._state["error"] is None, addon._state["error"]
+        assert len(cap["gaussians"]["scales"]) == 0
+    finally:
+        wm.airlight_preview = False
+        addon._state["capture"] = None
+        if "PreviewFog" in bpy.data.objects:
+            bpy.data.objects.remove(bpy.data.objects["PreviewFog"])
