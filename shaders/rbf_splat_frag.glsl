@@ -5,7 +5,9 @@
 //   frag_color.rgb += sum_l I_l (L_il(Dvp) - L_il(t0))   (rbf_gaussian.glsl, eq. 11)
 //   frag_color.a   += T_i(t0, Dvp)                         (optical depth of the segment)
 //   frag_near.r    += T_i(0, t0)                           (eye to the near plane)
-// where [t0, Dvp] is the pixel's clipped view segment (preview_common.glsl). Gaussians
+// where [t0, Dvp] is the pixel's clipped view segment (preview_common.glsl). At a
+// reduced scale (scale = 2, 4: targets of 1/scale the size) texel q stands for the
+// full-resolution pixel q * scale + scale / 2, as in fog_preview_frag.glsl. Gaussians
 // whose cull sphere the view segment [0, Dvp] misses are skipped, as the bake's
 // RbfMedium::for_each_near does.
 //
@@ -18,7 +20,7 @@
 
 void main()
 {
-  ivec2 px = ivec2(gl_FragCoord.xy - viewport.xy);
+  ivec2 px = min(ivec2(gl_FragCoord.xy) * scale + scale / 2, ivec2(viewport.zw) - 1);
   vec2 ndc;
   vec3 origin, dir;
   preview_ray(px, ndc, origin, dir);
@@ -44,7 +46,10 @@ void main()
   float Tvp, Tvr, Tvp0, Tvr0;
   vec3 xr, xr0;
   bool far_ok = rbf_fogshop_view(b, a, c, origin, dir, Dvp, Tvp, Tvr, xr);
-  bool near_ok = t0 > 0.0 && T_near > 0.0 && rbf_fogshop_view(b, a, c, origin, dir, t0, Tvp0, Tvr0, xr0);
+  // L_i(t0) is proportional to T_near: skip it where it cannot matter (a Gaussian
+  // away from the eye: T_near is then ~1e-10 of Tvp and the erfs cost as much again).
+  bool near_ok = t0 > 0.0 && T_near > 1e-6 * T_seg &&
+                 rbf_fogshop_view(b, a, c, origin, dir, t0, Tvp0, Tvr0, xr0);
   if (far_ok) {
     int row = (gi / RBF_TEX_WIDTH) * light_count;
     for (int l = 0; l < light_count; l++) {

@@ -116,7 +116,9 @@ def _shader(kind, window_depth, variant=False):
     if shader is None:
         frag, defines = {
             'fog': ("fog_preview_frag.glsl", (("PREVIEW_LOWRES", int(variant is True)),
-                                              ("PREVIEW_GAUSSIANS", int(variant == 'gauss')))),
+                                              ("PREVIEW_GAUSSIANS", int(isinstance(variant, tuple))),
+                                              ("PREVIEW_GAUSS_SCALE",
+                                               variant[1] if isinstance(variant, tuple) else 1))),
             'upsample': ("preview_upsample_frag.glsl",
                          (("PREVIEW_EXACT_PASS", int(variant == 'exact')),
                           ("PREVIEW_MARK", int(variant == 'mark')))),
@@ -360,19 +362,22 @@ def _gaussian_fog(res, *, gaussians, window_depth, sigma_t, view_origin, light_p
     return shader, fog
 
 
-def _draw_gaussians(shader, fog, size, bind):
-    """Splat pass of the Gaussian fog into two full-resolution RGBA32F targets (cleared,
-    then ADDITIVE_PREMULT); returns (acc, near) textures. The caller restores gpu.state."""
+def _draw_gaussians(shader, fog, size, scale, bind):
+    """Splat pass of the Gaussian fog into two RGBA32F targets of 1/_scale_ the region
+    (cleared, then ADDITIVE_PREMULT); returns (acc, near) textures. The caller restores
+    gpu.state."""
     import gpu
     w, h = size
-    acc = _target("gauss_acc", w, h, 'RGBA32F')
-    near = _target("gauss_near", w, h, 'RGBA32F')
+    lw, lh = -(-w // scale), -(-h // scale)
+    acc = _target("gauss_acc", lw, lh, 'RGBA32F')
+    near = _target("gauss_near", lw, lh, 'RGBA32F')
     fb = gpu.types.GPUFrameBuffer(color_slots=(acc["colour"], near["colour"]))
     with fb.bind():
-        gpu.state.viewport_set(0, 0, w, h)
+        gpu.state.viewport_set(0, 0, lw, lh)
         fb.clear(color=(0.0, 0.0, 0.0, 0.0))
         gpu.state.blend_set('ADDITIVE_PREMULT')
         bind(shader, (0, 0, w, h), None)
+        shader.uniform_int("scale", int(scale))
         shader.uniform_sampler("gauss", fog.gauss_tex)
         shader.uniform_sampler("gauss_f1", fog.f1_tex)
         fog.batch.draw(shader)
@@ -424,8 +429,9 @@ def draw_fog(*, depth_tex, perspective_matrix, view_origin, is_perspective, view
     float offscreen of 1/scale the size and upsample it (mode: UPSAMPLE_*).
     gaussians: None, or dict(centres (n, 3), scales (n,), amplitudes (n,), key) of the
     fog objects' world-space Gaussians (key: any hashable that changes with the arrays);
-    with n > 0 the Gaussian fog is splatted first (preview_gaussians.py) and the fog is
-    evaluated at full resolution (scale is ignored).
+    with n > 0 the Gaussian fog is splatted first (preview_gaussians.py) at 1/scale of
+    the resolution, and the fog pass runs at full resolution, upsampling the Gaussian
+    sums depth-aware (fog_preview_frag.glsl preview_gauss_fetch).
     Restores every gpu.state it changes.
     """
     import gpu
@@ -438,10 +444,10 @@ def draw_fog(*, depth_tex, perspective_matrix, view_origin, is_perspective, view
                               sigma_t=sigma_t, view_origin=view_origin,
                               light_positions=light_positions)
         Csv = splat[1].Csv
-        scale = 1
+        gauss_scale, scale = int(scale), 1
     _state["last_scale"] = scale
     lights = _lights_texture(light_positions, light_intensities, Csv)
-    fog = _shader('fog', window_depth, 'gauss' if splat is not None else False)
+    fog = _shader('fog', window_depth, ('gauss', gauss_scale) if splat is not None else False)
     clip = (*view_axis(perspective_matrix), float(clip_start) if is_perspective else 0.0)
 
     gauss_targets = None
@@ -481,7 +487,7 @@ def draw_fog(*, depth_tex, perspective_matrix, view_origin, is_perspective, view
         gpu.state.depth_test_set('NONE')
         gpu.state.depth_mask_set(False)
         if splat is not None:
-            gauss_targets = _draw_gaussians(splat[0], splat[1], (w, h), bind)
+            gauss_targets = _draw_gaussians(splat[0], splat[1], (w, h), gauss_scale, bind)
             gpu.state.viewport_set(*prev_viewport)
         if scale == 1:
             gpu.state.blend_set('ALPHA_PREMULT')

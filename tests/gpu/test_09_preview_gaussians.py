@@ -174,7 +174,7 @@ def _save_png(path, rgb):
     bpy.data.images.remove(img)
 
 
-def render_preview(addon, gs, scene, desc, gaussians, *, clip_start=None):
+def render_preview(addon, gs, scene, desc, gaussians, *, clip_start=None, scale=1):
     """(airlight (H, W, 3), transmittance (H, W)) of the preview, top row first."""
     cam = scene.camera
     proj = Matrix(desc["projection"].tolist())
@@ -192,7 +192,7 @@ def render_preview(addon, gs, scene, desc, gaussians, *, clip_start=None):
                            sigma_t=scene.airlight.density,
                            light_positions=positions, light_intensities=intensities,
                            clip_start=desc["clip_start"] if clip_start is None else clip_start,
-                           window_depth=True, gaussians=gaussians)
+                           window_depth=True, gaussians=gaussians, scale=scale)
         out = gs.read_offscreen(off)[::-1].astype(np.float64)
     finally:
         off.free()
@@ -244,6 +244,26 @@ def test02_preview_matches_bake(addon, native, gs, gauss_scene, artifacts):
     assert dT.mean() <= 1e-4
 
 
+@pytest.mark.parametrize("scale", [2, 4])
+def test04_reduced_scale_splat(addon, native, gs, gauss_scene, scale):
+    """HALF / QUARTER: the Gaussians are splatted at 1/scale and upsampled depth-aware in
+    the full-resolution fog pass; vs the bake (figures printed)."""
+    from airlight import scene_export
+    scene = gauss_scene
+    desc = scene_export.export_scene(scene, bpy.context.evaluated_depsgraph_get())
+    centres, scales, amplitudes = _gaussians(tuple(scene.camera.matrix_world.translation))
+    baked = native.bake(**desc, rbf_centres=centres, rbf_scales=scales,
+                        rbf_amplitudes=amplitudes, model="sun05", aa_samples=1, threads=0)
+    ref = baked["airlight"].astype(np.float64)
+    ref_T = baked["transmittance"].astype(np.float64)[..., 0]
+    gaussians = dict(centres=centres, scales=scales, amplitudes=amplitudes, key="test09")
+    got, got_T = render_preview(addon, gs, scene, desc, gaussians, scale=scale)
+    rel, dT = _compare(f"Gaussian preview at 1/{scale} vs bake", got, got_T, ref, ref_T)
+    assert np.isfinite(got).all()
+    assert rel.mean() <= 0.02
+    assert dT.mean() <= 2e-3
+
+
 # ---- the draw handler with a fog object ----------------------------------------------------
 
 def _redraw():
@@ -275,6 +295,7 @@ def test03_handler_draws_fog_objects_and_follows_edits(addon, gauss_scene):
         np.testing.assert_allclose(cap["gaussians"]["centres"], centres, rtol=0, atol=1e-5)
         fog = addon._state["gpu"]["gaussian_fog"]
         print(f"\nhandler with {len(scales)} Gaussians: fog pass {addon._state['last_ms']:.1f} ms "
+              f"at {cap['viewport'][2]}x{cap['viewport'][3]}, scale {addon._state['last_scale']} "
               f"(factors {fog.factor_ms:.1f} ms when rebuilt)")
         bpy.data.objects.remove(obj)
         bpy.context.view_layer.update()
