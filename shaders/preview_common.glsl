@@ -17,6 +17,9 @@
 //               there); the far plane needs no input, the depth pass already clips there
 //   viewport    zw = full-resolution size of the region in pixels
 //   sigma_t     extinction coefficient (1/m); light_count = number of lights
+//   PREVIEW_PHASE  1: the airlight of a non-isotropic phase function through the Biri
+//               2006 table (biri06_airlight.glsl, needs it in front; inputs Gtab and
+//               phase = (kind, g, K, k)); 0: Sun 2005 (isotropic)
 
 vec3 preview_unproject(vec2 ndc_xy, float ndc_z)
 {
@@ -84,7 +87,11 @@ vec4 preview_fog(vec3 origin, vec3 dir, float Dvp)
     // exactly through the light (which sun05_airlight regularises to sin(gamma) = 1e-8,
     // 1e4 times brighter than any nearby pixel). 0.99999994 = 1 - 2^-24.
     float cos_gamma = clamp(dot(to_light, dir) / Dsv, -1.0, 0.99999994);
+#if PREVIEW_PHASE
+    La += (I0.rgb * I0.a) * biri06_airlight(Gtab, phase, sigma_t, Dsv, cos_gamma, D);
+#else
     La += (I0.rgb * I0.a) * sun05_airlight(Ftab, sigma_t, Dsv, cos_gamma, D);
+#endif
   }
   float Tr = exp(-sigma_t * D);
   return vec4(La, 1.0 - Tr);

@@ -216,11 +216,31 @@ def depth_texture(buf, width, height):
 # Width of the per-Gaussian data textures (texel (i % W, ...) for Gaussian i).
 RBF_TEX_WIDTH = 1024
 
-# Inputs shared by the fog pass and the splat pass (preview_common.glsl).
+# Inputs shared by the fog passes and the splat pass (preview_common.glsl).
 PREVIEW_FOG_PUSH_CONSTANTS = (('MAT4', "inv_persp"), ('VEC4', "eye"), ('VEC4', "clip"),
                               ('VEC4', "viewport"), ('FLOAT', "sigma_t"), ('INT', "light_count"),
-                              ('INT', "scale"), ('INT', "mode"))
-PREVIEW_FOG_SAMPLERS = ("Ftab", "depth_tex", "lights", "fog_lo", "gauss_acc", "gauss_near")
+                              ('INT', "scale"), ('INT', "mode"), ('VEC4', "phase"))
+PREVIEW_FOG_SAMPLERS = ("Ftab", "depth_tex", "lights", "fog_lo", "gauss_acc", "gauss_near", "Gtab")
+PREVIEW_LIBS = ("sun05_airlight.glsl", "biri06_airlight.glsl", "preview_common.glsl")
+
+
+def create_preview_shader(name, frag, defines=()):
+    """A full-screen pass of the preview (fog_preview_frag.glsl, preview_upsample_frag.glsl,
+    preview_composite_frag.glsl).
+
+    Sources: vertex = fullscreen_vert.glsl (vertex input 0 VEC2 "pos", interface
+    "airlight_<name>_iface" with smooth VEC2 "uv"); fragment = PREVIEW_LIBS + _frag_,
+    concatenated in that order.
+    Push constants: PREVIEW_FOG_PUSH_CONSTANTS in that order (MAT4 inv_persp, VEC4 eye,
+    VEC4 clip, VEC4 viewport, FLOAT sigma_t, INT light_count, INT scale, INT mode,
+    VEC4 phase). Samplers (FLOAT_2D, slots in order): PREVIEW_FOG_SAMPLERS.
+    Defines (all must be given): PREVIEW_WINDOW_DEPTH, PREVIEW_PHASE, PREVIEW_GAUSSIANS,
+    and per file: PREVIEW_LOWRES and PREVIEW_GAUSS_SCALE (fog), PREVIEW_EXACT_PASS and
+    PREVIEW_MARK (upsample). Output: 0 VEC4 "frag_color".
+    """
+    return create_fullscreen_shader(name, frag, libs=PREVIEW_LIBS,
+                                    push_constants=PREVIEW_FOG_PUSH_CONSTANTS,
+                                    samplers=PREVIEW_FOG_SAMPLERS, defines=defines)
 
 
 def create_rbf_splat_shader(window_depth=False):
@@ -230,14 +250,14 @@ def create_rbf_splat_shader(window_depth=False):
     preview_common.glsl + rbf_gaussian.glsl + rbf_splat_frag.glsl, concatenated in this
     order (the create-info adds the declarations below in front of each).
     Defines: RBF_TEX_WIDTH (int), PREVIEW_WINDOW_DEPTH (0: depth_tex holds linear
-    distance, 1: window depth).
+    distance, 1: window depth), PREVIEW_PHASE 0.
     Vertex inputs: 0 VEC2 "corner" (quad corner in {-1, 1}^2), 1 FLOAT "gid" (Gaussian
     index); 4 vertices per Gaussian, drawn as TRIS with 6 indices per Gaussian
     (`rbf_splat_batch`).
     Vertex -> fragment: interface "airlight_rbf_splat_iface", flat INT "gi".
     Push constants: MAT4 "persp" (projection @ view), then PREVIEW_FOG_PUSH_CONSTANTS
     (MAT4 inv_persp, VEC4 eye, VEC4 clip, VEC4 viewport, FLOAT sigma_t, INT light_count,
-    INT scale, INT mode; scale and mode unused).
+    INT scale (the splat target's reduction), INT mode, VEC4 phase; mode, phase unused).
     Samplers (FLOAT_2D, slots in order): 0 Ftab, 1 depth_tex, 2 lights, 3 gauss, 4 gauss_f1
     (Ftab is declared because preview_common.glsl refers to it; unused here).
     Fragment outputs: 0 VEC4 "frag_color" (rgb airlight, a optical depth [t0, Dvp]),
@@ -257,6 +277,7 @@ def create_rbf_splat_shader(window_depth=False):
         info.sampler(slot, 'FLOAT_2D', sname)
     info.define("RBF_TEX_WIDTH", str(RBF_TEX_WIDTH))
     info.define("PREVIEW_WINDOW_DEPTH", str(int(bool(window_depth))))
+    info.define("PREVIEW_PHASE", "0")
     info.fragment_out(0, 'VEC4', "frag_color")
     info.fragment_out(1, 'VEC4', "frag_near")
     info.vertex_source(load_source("rbf_splat_vert.glsl"))
@@ -310,3 +331,12 @@ def create_rbf_test_shader():
     input point per pixel; layout in test_rbf_frag.glsl); output frag_color."""
     return create_fullscreen_shader("test_rbf", "test_rbf_frag.glsl", libs=("rbf_gaussian.glsl",),
                                     samplers=("in0", "in1", "in2", "in3", "in4"))
+
+
+def create_biri_test_shader():
+    """GLSL-vs-C++ agreement shader for biri06_airlight.glsl (test_10): fullscreen_vert.glsl
+    + sun05_airlight.glsl + biri06_airlight.glsl + test_biri_frag.glsl; samplers 0 "in0"
+    (RGBA32F inputs), 1 "Gtab" (the Biri table); push constant VEC4 "phase"."""
+    return create_fullscreen_shader("test_biri", "test_biri_frag.glsl",
+                                    libs=("sun05_airlight.glsl", "biri06_airlight.glsl"),
+                                    push_constants=(('VEC4', "phase"),), samplers=("in0", "Gtab"))

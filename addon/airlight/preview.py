@@ -84,11 +84,22 @@ def _missing_reason():
     return "The native module lacks special_F_table(); rebuild it."
 
 
-_FOG_INPUTS = dict(
-    push_constants=(('MAT4', "inv_persp"), ('VEC4', "eye"), ('VEC4', "clip"), ('VEC4', "viewport"),
-                    ('FLOAT', "sigma_t"), ('INT', "light_count"), ('INT', "scale"),
-                    ('INT', "mode")),
-    samplers=("Ftab", "depth_tex", "lights", "fog_lo", "gauss_acc", "gauss_near"))
+def _phase_inputs(res, phase):
+    """((kind, g, K, k), Gtab texture) for biri06_airlight.glsl: the bake's own Biri 2006
+    table of _phase_ = (name, g), uploaded once per (name, g); the F table stands in as
+    Gtab for the isotropic phase (the shader does not read it then)."""
+    name, g = phase[0], float(phase[1])
+    if name == "isotropic":
+        return (0.0, 0.0, 1.0, 1.0), res["ftab"]
+    kinds = {"hg": 1, "rayleigh": 2, "hazy_mie": 3, "murky_mie": 4}
+    key = (name, g)
+    cached = res.get("gtab")
+    if cached is None or cached[0] != key:
+        from . import gpu_shaders as gs
+        table = _native_for_preview().biri06_table(name, g)
+        vec = (float(kinds[table["phase"]]), float(table["g"]), float(table["K"]), float(table["k"]))
+        cached = res["gtab"] = (key, vec, gs.float_texture(table["data"]))
+    return cached[1], cached[2]
 
 
 def _gpu_resources():
@@ -104,14 +115,16 @@ def _gpu_resources():
     return res
 
 
-def _shader(kind, window_depth, variant=False):
-    """Fog ('fog'; variant: the reduced target's output, airlight + distance),
-    upsampling ('upsample'; variant: 'mark' = blend and mark the pixels to re-evaluate
-    in the depth buffer, 'exact' = the re-evaluation draw) or 'composite' shader,
-    reading window depth or distance."""
+def _shader(kind, window_depth, variant=False, phase=False):
+    """Fog ('fog'; variant: the reduced target's output, airlight + distance, or
+    ('gauss', scale): with the Gaussian sums), upsampling ('upsample'; variant: 'mark' =
+    blend and mark the pixels to re-evaluate in the depth buffer, 'exact' = the
+    re-evaluation draw) or 'composite' shader, reading window depth or distance;
+    phase: the homogeneous airlight through the Biri 2006 table of a non-isotropic phase
+    function (biri06_airlight.glsl) instead of Sun 2005."""
     from . import gpu_shaders as gs
     res = _gpu_resources()
-    key = (kind, bool(window_depth), variant)
+    key = (kind, bool(window_depth), variant, bool(phase))
     shader = res["shaders"].get(key)
     if shader is None:
         frag, defines = {
@@ -124,11 +137,11 @@ def _shader(kind, window_depth, variant=False):
                           ("PREVIEW_MARK", int(variant == 'mark')))),
             'composite': ("preview_composite_frag.glsl", ()),
         }[kind]
-        shader = gs.create_fullscreen_shader(
-            f"preview_{kind}", frag, libs=("sun05_airlight.glsl", "preview_common.glsl"),
-            defines=(("PREVIEW_WINDOW_DEPTH", int(bool(window_depth))),) + defines
-            + ((("PREVIEW_GAUSSIANS", 0),) if kind != 'fog' else ()),
-            **_FOG_INPUTS)
+        shader = gs.create_preview_shader(
+            f"preview_{kind}", frag,
+            defines=(("PREVIEW_WINDOW_DEPTH", int(bool(window_depth))),
+                     ("PREVIEW_PHASE", int(bool(phase)))) + defines
+            + ((("PREVIEW_GAUSSIANS", 0),) if kind != 'fog' else ()))
         res["shaders"][key] = shader
         if res["batch"] is None:
             res["batch"] = gs.fullscreen_batch(shader)
@@ -415,7 +428,7 @@ def view_clip_range(context):
 
 def draw_fog(*, depth_tex, perspective_matrix, view_origin, is_perspective, viewport,
              sigma_t, light_positions, light_intensities, clip_start=0.0, window_depth=True,
-             scale=1, mode=UPSAMPLE_BILATERAL_EXACT, gaussians=None):
+             scale=1, mode=UPSAMPLE_BILATERAL_EXACT, gaussians=None, phase=("isotropic", 0.0)):
     """Draws the fog over the bound framebuffer with premultiplied blending.
 
     depth_tex: full-resolution R32F texture of the region (viewport[2] x viewport[3]):
@@ -432,10 +445,16 @@ def draw_fog(*, depth_tex, perspective_matrix, view_origin, is_perspective, view
     with n > 0 the Gaussian fog is splatted first (preview_gaussians.py) at 1/scale of
     the resolution, and the fog pass runs at full resolution, upsampling the Gaussian
     sums depth-aware (fog_preview_frag.glsl preview_gauss_fetch).
+    phase: (name, g) of the fog's phase function as `model_choice.native_phase` gives it
+    for the bake; other than isotropic, the homogeneous airlight uses the Biri 2006 table
+    of that phase (the bake's "biri06" model). The Gaussian terms stay isotropic (the
+    bake refuses anisotropic Gaussian fog).
     Restores every gpu.state it changes.
     """
     import gpu
     res = _gpu_resources()
+    aniso = phase[0] != "isotropic"
+    phase_vec, gtab = _phase_inputs(res, phase)
     x, y, w, h = (int(v) for v in viewport)
     splat = None
     Csv = None
@@ -447,7 +466,8 @@ def draw_fog(*, depth_tex, perspective_matrix, view_origin, is_perspective, view
         gauss_scale, scale = int(scale), 1
     _state["last_scale"] = scale
     lights = _lights_texture(light_positions, light_intensities, Csv)
-    fog = _shader('fog', window_depth, ('gauss', gauss_scale) if splat is not None else False)
+    fog = _shader('fog', window_depth, ('gauss', gauss_scale) if splat is not None else False,
+                  phase=aniso)
     clip = (*view_axis(perspective_matrix), float(clip_start) if is_perspective else 0.0)
 
     gauss_targets = None
@@ -470,6 +490,8 @@ def draw_fog(*, depth_tex, perspective_matrix, view_origin, is_perspective, view
         put(shader.uniform_int, "light_count", len(light_positions))
         put(shader.uniform_int, "scale", int(scale))
         put(shader.uniform_sampler, "Ftab", res["ftab"])
+        put(shader.uniform_float, "phase", phase_vec)
+        put(shader.uniform_sampler, "Gtab", gtab)
         put(shader.uniform_sampler, "depth_tex", depth_tex)
         put(shader.uniform_sampler, "lights", lights)
         if fog_lo is not None:  # the upsampling pass (the fog pass has neither)
@@ -497,7 +519,7 @@ def draw_fog(*, depth_tex, perspective_matrix, view_origin, is_perspective, view
             lw, lh = -(-w // scale), -(-h // scale)
             target = _target("fog_lo", lw, lh, LOWRES_FORMAT)
             gpu.state.blend_set('NONE')
-            fog_lo = _shader('fog', window_depth, variant=True)
+            fog_lo = _shader('fog', window_depth, variant=True, phase=aniso)
             with _framebuffer(target).bind():
                 gpu.state.viewport_set(0, 0, lw, lh)
                 bind(fog_lo, (0, 0, w, h), None)
@@ -505,7 +527,7 @@ def draw_fog(*, depth_tex, perspective_matrix, view_origin, is_perspective, view
             gpu.state.viewport_set(*prev_viewport)
             if mode != UPSAMPLE_BILATERAL_EXACT:
                 gpu.state.blend_set('ALPHA_PREMULT')
-                up = _shader('upsample', window_depth)
+                up = _shader('upsample', window_depth, phase=aniso)
                 bind(up, (x, y, w, h), target["colour"])
                 res["batch"].draw(up)
             else:
@@ -519,18 +541,18 @@ def draw_fog(*, depth_tex, perspective_matrix, view_origin, is_perspective, view
                     gpu.state.viewport_set(0, 0, w, h)
                     gpu.state.depth_test_set('ALWAYS')
                     gpu.state.depth_mask_set(True)
-                    up = _shader('upsample', window_depth, 'mark')
+                    up = _shader('upsample', window_depth, 'mark', phase=aniso)
                     bind(up, (0, 0, w, h), target["colour"])
                     res["batch"].draw(up)
                     gpu.state.depth_test_set('GREATER')
                     gpu.state.depth_mask_set(False)
-                    exact = _shader('upsample', window_depth, 'exact')
+                    exact = _shader('upsample', window_depth, 'exact', phase=aniso)
                     bind(exact, (0, 0, w, h), target["colour"])
                     res["batch"].draw(exact)
                 gpu.state.depth_test_set('NONE')
                 gpu.state.viewport_set(*prev_viewport)
                 gpu.state.blend_set('ALPHA_PREMULT')
-                comp = _shader('composite', window_depth)
+                comp = _shader('composite', window_depth, phase=aniso)
                 bind(comp, (x, y, w, h), full["colour"])
                 res["batch"].draw(comp)
     finally:
@@ -590,11 +612,13 @@ def _draw_callback():
         positions, intensities = scene_lights(scene, context.view_layer)
         clip_start, clip_end = view_clip_range(context)
         gaussians = scene_gaussians(context)
+        from . import model_choice
+        phase = model_choice.native_phase(scene.airlight)
         draw_fog(depth_tex=depth_tex, perspective_matrix=persp, view_origin=view_origin,
                  is_perspective=rv3d.is_perspective, viewport=(x, y, w, h),
                  sigma_t=scene.airlight.density, light_positions=positions,
                  light_intensities=intensities, clip_start=clip_start,
-                 window_depth=readback, scale=scale, gaussians=gaussians)
+                 window_depth=readback, scale=scale, gaussians=gaussians, phase=phase)
         _state["last_ms"] = (time.perf_counter() - t0) * 1e3
         if _state["capture"] is not None:
             if readback:
@@ -619,7 +643,7 @@ def _draw_callback():
                 depth=depth, fog_lo=fog_lo, window_depth=readback, viewport=(x, y, w, h), scale=scale,
                 perspective_matrix=persp, view_origin=view_origin,
                 sigma_t=scene.airlight.density, lights=(positions, intensities),
-                clip=(clip_start, clip_end), gaussians=gaussians)
+                clip=(clip_start, clip_end), gaussians=gaussians, phase=phase)
     except Exception as ex:  # never break Blender's draw loop
         _state["error"] = f"{type(ex).__name__}: {ex}"
         print(f"Airlight preview disabled: {_state['error']}")
@@ -703,7 +727,7 @@ class AIRLIGHT_PT_viewport_preview(bpy.types.Panel):
         layout.prop(settings, "density")
         layout.prop(settings, "color")
         if not (settings.phase == 'HENYEY_GREENSTEIN' and settings.anisotropy == 0.0):
-            layout.label(text="Preview shows isotropic fog (the bake uses the phase)", icon='INFO')
+            layout.label(text="Fog objects are previewed isotropic", icon='INFO')
 
 
 def register():

@@ -133,6 +133,11 @@ def _gaussians(cam_location):
 
 @pytest.fixture(scope="module")
 def gauss_scene(addon, native):
+    return build_scene(SIGMA_T)
+
+
+def build_scene(sigma_t):
+    """Floor, cube, two point lights, a camera (W x H); fog on (also used by test_10)."""
     scene = bpy.context.scene
     for obj in list(scene.objects):
         bpy.data.objects.remove(obj)
@@ -156,8 +161,9 @@ def gauss_scene(addon, native):
     scene.render.resolution_x, scene.render.resolution_y = W, H
     scene.render.resolution_percentage = 100
     scene.airlight.enabled = True
-    scene.airlight.density = SIGMA_T
+    scene.airlight.density = sigma_t
     scene.airlight.color = ALBEDO
+    scene.airlight.anisotropy = 0.0
     bpy.context.view_layer.update()
     return scene
 
@@ -174,7 +180,7 @@ def _save_png(path, rgb):
     bpy.data.images.remove(img)
 
 
-def render_preview(addon, gs, scene, desc, gaussians, *, clip_start=None, scale=1):
+def render_preview(addon, gs, scene, desc, gaussians, *, clip_start=None, scale=1, **extra):
     """(airlight (H, W, 3), transmittance (H, W)) of the preview, top row first."""
     cam = scene.camera
     proj = Matrix(desc["projection"].tolist())
@@ -192,7 +198,7 @@ def render_preview(addon, gs, scene, desc, gaussians, *, clip_start=None, scale=
                            sigma_t=scene.airlight.density,
                            light_positions=positions, light_intensities=intensities,
                            clip_start=desc["clip_start"] if clip_start is None else clip_start,
-                           window_depth=True, gaussians=gaussians, scale=scale)
+                           window_depth=True, gaussians=gaussians, scale=scale, **extra)
         out = gs.read_offscreen(off)[::-1].astype(np.float64)
     finally:
         off.free()
