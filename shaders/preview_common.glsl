@@ -20,6 +20,10 @@
 //   PREVIEW_PHASE  1: the airlight of a non-isotropic phase function through the Biri
 //               2006 table (biri06_airlight.glsl, needs it in front; inputs Gtab and
 //               phase = (kind, g, K, k)); 0: Sun 2005 (isotropic)
+//   PREVIEW_SPOTS  1: spot lights (spot_airlight.glsl, needs it in front): spots,
+//               RGBA32F spot_count x 3 texels: row 0 = (position, cos(size / 2)), row 1 =
+//               (unit axis, (1 - cos(size / 2)) blend), row 2 = albedo * I0; with the phase
+//               of PREVIEW_PHASE
 
 vec3 preview_unproject(vec2 ndc_xy, float ndc_z)
 {
@@ -93,6 +97,15 @@ vec4 preview_fog(vec3 origin, vec3 dir, float Dvp)
     La += (I0.rgb * I0.a) * sun05_airlight(Ftab, sigma_t, Dsv, cos_gamma, D);
 #endif
   }
+#if PREVIEW_SPOTS
+  int spot_count = textureSize(spots, 0).x;
+  for (int i = 0; i < spot_count; i++) {
+    vec4 s0 = texelFetch(spots, ivec2(i, 0), 0);
+    vec4 s1 = texelFetch(spots, ivec2(i, 1), 0);
+    vec3 I0 = texelFetch(spots, ivec2(i, 2), 0).rgb;
+    La += I0 * spot_airlight(s0.xyz, s1.xyz, s0.w, s1.w, sigma_t, p0, dir, D, PREVIEW_PHASE != 0, phase);
+  }
+#endif
   float Tr = exp(-sigma_t * D);
   return vec4(La, 1.0 - Tr);
 }

@@ -220,8 +220,10 @@ RBF_TEX_WIDTH = 1024
 PREVIEW_FOG_PUSH_CONSTANTS = (('MAT4', "inv_persp"), ('VEC4', "eye"), ('VEC4', "clip"),
                               ('VEC4', "viewport"), ('FLOAT', "sigma_t"), ('INT', "light_count"),
                               ('INT', "scale"), ('INT', "mode"), ('VEC4', "phase"))
-PREVIEW_FOG_SAMPLERS = ("Ftab", "depth_tex", "lights", "fog_lo", "gauss_acc", "gauss_near", "Gtab")
-PREVIEW_LIBS = ("sun05_airlight.glsl", "biri06_airlight.glsl", "preview_common.glsl")
+PREVIEW_FOG_SAMPLERS = ("Ftab", "depth_tex", "lights", "fog_lo", "gauss_acc", "gauss_near", "Gtab",
+                        "spots")
+PREVIEW_LIBS = ("sun05_airlight.glsl", "biri06_airlight.glsl", "spot_airlight.glsl",
+                "preview_common.glsl")
 
 
 def create_preview_shader(name, frag, defines=()):
@@ -234,7 +236,8 @@ def create_preview_shader(name, frag, defines=()):
     Push constants: PREVIEW_FOG_PUSH_CONSTANTS in that order (MAT4 inv_persp, VEC4 eye,
     VEC4 clip, VEC4 viewport, FLOAT sigma_t, INT light_count, INT scale, INT mode,
     VEC4 phase). Samplers (FLOAT_2D, slots in order): PREVIEW_FOG_SAMPLERS.
-    Defines (all must be given): PREVIEW_WINDOW_DEPTH, PREVIEW_PHASE, PREVIEW_GAUSSIANS,
+    Defines (all must be given): PREVIEW_WINDOW_DEPTH, PREVIEW_PHASE, PREVIEW_SPOTS,
+    PREVIEW_GAUSSIANS,
     and per file: PREVIEW_LOWRES and PREVIEW_GAUSS_SCALE (fog), PREVIEW_EXACT_PASS and
     PREVIEW_MARK (upsample). Output: 0 VEC4 "frag_color".
     """
@@ -250,7 +253,7 @@ def create_rbf_splat_shader(window_depth=False):
     preview_common.glsl + rbf_gaussian.glsl + rbf_splat_frag.glsl, concatenated in this
     order (the create-info adds the declarations below in front of each).
     Defines: RBF_TEX_WIDTH (int), PREVIEW_WINDOW_DEPTH (0: depth_tex holds linear
-    distance, 1: window depth), PREVIEW_PHASE 0.
+    distance, 1: window depth), PREVIEW_PHASE 0, PREVIEW_SPOTS 0.
     Vertex inputs: 0 VEC2 "corner" (quad corner in {-1, 1}^2), 1 FLOAT "gid" (Gaussian
     index); 4 vertices per Gaussian, drawn as TRIS with 6 indices per Gaussian
     (`rbf_splat_batch`).
@@ -278,6 +281,7 @@ def create_rbf_splat_shader(window_depth=False):
     info.define("RBF_TEX_WIDTH", str(RBF_TEX_WIDTH))
     info.define("PREVIEW_WINDOW_DEPTH", str(int(bool(window_depth))))
     info.define("PREVIEW_PHASE", "0")
+    info.define("PREVIEW_SPOTS", "0")
     info.fragment_out(0, 'VEC4', "frag_color")
     info.fragment_out(1, 'VEC4', "frag_near")
     info.vertex_source(load_source("rbf_splat_vert.glsl"))

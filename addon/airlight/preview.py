@@ -115,16 +115,17 @@ def _gpu_resources():
     return res
 
 
-def _shader(kind, window_depth, variant=False, phase=False):
+def _shader(kind, window_depth, variant=False, phase=False, spots=False):
     """Fog ('fog'; variant: the reduced target's output, airlight + distance, or
     ('gauss', scale): with the Gaussian sums), upsampling ('upsample'; variant: 'mark' =
     blend and mark the pixels to re-evaluate in the depth buffer, 'exact' = the
     re-evaluation draw) or 'composite' shader, reading window depth or distance;
     phase: the homogeneous airlight through the Biri 2006 table of a non-isotropic phase
-    function (biri06_airlight.glsl) instead of Sun 2005."""
+    function (biri06_airlight.glsl) instead of Sun 2005; spots: with the spot-light loop
+    (spot_airlight.glsl)."""
     from . import gpu_shaders as gs
     res = _gpu_resources()
-    key = (kind, bool(window_depth), variant, bool(phase))
+    key = (kind, bool(window_depth), variant, bool(phase), bool(spots))
     shader = res["shaders"].get(key)
     if shader is None:
         frag, defines = {
@@ -140,7 +141,8 @@ def _shader(kind, window_depth, variant=False, phase=False):
         shader = gs.create_preview_shader(
             f"preview_{kind}", frag,
             defines=(("PREVIEW_WINDOW_DEPTH", int(bool(window_depth))),
-                     ("PREVIEW_PHASE", int(bool(phase)))) + defines
+                     ("PREVIEW_PHASE", int(bool(phase))),
+                     ("PREVIEW_SPOTS", int(bool(spots)))) + defines
             + ((("PREVIEW_GAUSSIANS", 0),) if kind != 'fog' else ()))
         res["shaders"][key] = shader
         if res["batch"] is None:
@@ -343,6 +345,52 @@ def scene_lights(scene, view_layer=None):
     return positions, intensities
 
 
+def scene_spots(scene, view_layer=None):
+    """The visible participating spot lights for draw_fog's _spots_: dict of lists
+    positions, axes (unit, the lamp's -Z), intensities (albedo * colour * power / (4 pi),
+    as scene_lights), sizes (spot_size, rad) and blends (spot_blend), the values the bake
+    gets from scene_export.export_spot_lights."""
+    albedo = tuple(scene.airlight.color)
+    out = dict(positions=[], axes=[], intensities=[], sizes=[], blends=[])
+    objects = view_layer.objects if view_layer is not None else scene.objects
+    for obj in objects:
+        if obj.type != 'LIGHT' or obj.data.type != 'SPOT' or not obj.data.airlight.participate:
+            continue
+        if view_layer is not None and not obj.visible_get(view_layer=view_layer):
+            continue
+        m = obj.matrix_world
+        axis = -m.col[2].xyz
+        if not axis.length > 0.0:
+            continue
+        scale = obj.data.energy / (4.0 * math.pi)
+        out["positions"].append(tuple(m.translation))
+        out["axes"].append(tuple(axis.normalized()))
+        out["intensities"].append(tuple(a * c * scale for a, c in zip(albedo, obj.data.color)))
+        out["sizes"].append(float(obj.data.spot_size))
+        out["blends"].append(float(obj.data.spot_blend))
+        if len(out["positions"]) == MAX_LIGHTS:
+            break
+    return out
+
+
+def _spots_texture(spots):
+    """RGBA32F, spot_count x 3 (spot_airlight.glsl via preview_common.glsl): row 0 =
+    (position, cos(size / 2)), row 1 = (axis, (1 - cos(size / 2)) blend), row 2 = albedo I0."""
+    import numpy as np
+    from . import gpu_shaders as gs
+    n = 0 if spots is None else len(spots["positions"])
+    data = np.zeros((3, max(1, n), 4), np.float32)
+    if n:
+        cos_half = np.cos(0.5 * np.asarray(spots["sizes"], np.float64))
+        data[0, :n, :3] = spots["positions"]
+        data[0, :n, 3] = cos_half
+        axes = np.asarray(spots["axes"], np.float64)
+        data[1, :n, :3] = axes / np.linalg.norm(axes, axis=1, keepdims=True)
+        data[1, :n, 3] = (1.0 - cos_half) * np.asarray(spots["blends"], np.float64)
+        data[2, :n, :3] = spots["intensities"]
+    return gs.float_texture(data)
+
+
 def _lights_texture(positions, intensities, Csv=None):
     """Row 0: positions; row 1: rgb = albedo I0, a = C_sv (Gaussian fog transmittance
     light -> eye, 1 without fog objects)."""
@@ -428,7 +476,8 @@ def view_clip_range(context):
 
 def draw_fog(*, depth_tex, perspective_matrix, view_origin, is_perspective, viewport,
              sigma_t, light_positions, light_intensities, clip_start=0.0, window_depth=True,
-             scale=1, mode=UPSAMPLE_BILATERAL_EXACT, gaussians=None, phase=("isotropic", 0.0)):
+             scale=1, mode=UPSAMPLE_BILATERAL_EXACT, gaussians=None, phase=("isotropic", 0.0),
+             spots=None):
     """Draws the fog over the bound framebuffer with premultiplied blending.
 
     depth_tex: full-resolution R32F texture of the region (viewport[2] x viewport[3]):
@@ -449,11 +498,15 @@ def draw_fog(*, depth_tex, perspective_matrix, view_origin, is_perspective, view
     for the bake; other than isotropic, the homogeneous airlight uses the Biri 2006 table
     of that phase (the bake's "biri06" model). The Gaussian terms stay isotropic (the
     bake refuses anisotropic Gaussian fog).
+    spots: None or `scene_spots`' dict (positions, axes, intensities = albedo I0, sizes,
+    blends): spot lights by a fixed quadrature over the ray's part inside each cone
+    (spot_airlight.glsl).
     Restores every gpu.state it changes.
     """
     import gpu
     res = _gpu_resources()
-    aniso = phase[0] != "isotropic"
+    flags = dict(phase=phase[0] != "isotropic", spots=bool(spots is not None and len(spots["positions"])))
+    spots_tex = _spots_texture(spots)
     phase_vec, gtab = _phase_inputs(res, phase)
     x, y, w, h = (int(v) for v in viewport)
     splat = None
@@ -467,7 +520,7 @@ def draw_fog(*, depth_tex, perspective_matrix, view_origin, is_perspective, view
     _state["last_scale"] = scale
     lights = _lights_texture(light_positions, light_intensities, Csv)
     fog = _shader('fog', window_depth, ('gauss', gauss_scale) if splat is not None else False,
-                  phase=aniso)
+                  **flags)
     clip = (*view_axis(perspective_matrix), float(clip_start) if is_perspective else 0.0)
 
     gauss_targets = None
@@ -492,6 +545,7 @@ def draw_fog(*, depth_tex, perspective_matrix, view_origin, is_perspective, view
         put(shader.uniform_sampler, "Ftab", res["ftab"])
         put(shader.uniform_float, "phase", phase_vec)
         put(shader.uniform_sampler, "Gtab", gtab)
+        put(shader.uniform_sampler, "spots", spots_tex)
         put(shader.uniform_sampler, "depth_tex", depth_tex)
         put(shader.uniform_sampler, "lights", lights)
         if fog_lo is not None:  # the upsampling pass (the fog pass has neither)
@@ -519,7 +573,7 @@ def draw_fog(*, depth_tex, perspective_matrix, view_origin, is_perspective, view
             lw, lh = -(-w // scale), -(-h // scale)
             target = _target("fog_lo", lw, lh, LOWRES_FORMAT)
             gpu.state.blend_set('NONE')
-            fog_lo = _shader('fog', window_depth, variant=True, phase=aniso)
+            fog_lo = _shader('fog', window_depth, variant=True, **flags)
             with _framebuffer(target).bind():
                 gpu.state.viewport_set(0, 0, lw, lh)
                 bind(fog_lo, (0, 0, w, h), None)
@@ -527,7 +581,7 @@ def draw_fog(*, depth_tex, perspective_matrix, view_origin, is_perspective, view
             gpu.state.viewport_set(*prev_viewport)
             if mode != UPSAMPLE_BILATERAL_EXACT:
                 gpu.state.blend_set('ALPHA_PREMULT')
-                up = _shader('upsample', window_depth, phase=aniso)
+                up = _shader('upsample', window_depth, **flags)
                 bind(up, (x, y, w, h), target["colour"])
                 res["batch"].draw(up)
             else:
@@ -541,18 +595,18 @@ def draw_fog(*, depth_tex, perspective_matrix, view_origin, is_perspective, view
                     gpu.state.viewport_set(0, 0, w, h)
                     gpu.state.depth_test_set('ALWAYS')
                     gpu.state.depth_mask_set(True)
-                    up = _shader('upsample', window_depth, 'mark', phase=aniso)
+                    up = _shader('upsample', window_depth, 'mark', **flags)
                     bind(up, (0, 0, w, h), target["colour"])
                     res["batch"].draw(up)
                     gpu.state.depth_test_set('GREATER')
                     gpu.state.depth_mask_set(False)
-                    exact = _shader('upsample', window_depth, 'exact', phase=aniso)
+                    exact = _shader('upsample', window_depth, 'exact', **flags)
                     bind(exact, (0, 0, w, h), target["colour"])
                     res["batch"].draw(exact)
                 gpu.state.depth_test_set('NONE')
                 gpu.state.viewport_set(*prev_viewport)
                 gpu.state.blend_set('ALPHA_PREMULT')
-                comp = _shader('composite', window_depth, phase=aniso)
+                comp = _shader('composite', window_depth, **flags)
                 bind(comp, (x, y, w, h), full["colour"])
                 res["batch"].draw(comp)
     finally:
@@ -614,11 +668,13 @@ def _draw_callback():
         gaussians = scene_gaussians(context)
         from . import model_choice
         phase = model_choice.native_phase(scene.airlight)
+        spots = scene_spots(scene, context.view_layer)
         draw_fog(depth_tex=depth_tex, perspective_matrix=persp, view_origin=view_origin,
                  is_perspective=rv3d.is_perspective, viewport=(x, y, w, h),
                  sigma_t=scene.airlight.density, light_positions=positions,
                  light_intensities=intensities, clip_start=clip_start,
-                 window_depth=readback, scale=scale, gaussians=gaussians, phase=phase)
+                 window_depth=readback, scale=scale, gaussians=gaussians, phase=phase,
+                 spots=spots)
         _state["last_ms"] = (time.perf_counter() - t0) * 1e3
         if _state["capture"] is not None:
             if readback:

@@ -4,6 +4,8 @@
   table the bake uses) vs `_native.biri06_airlight` on the same float32 inputs, g = 0.6.
 - test02: the preview with Henyey-Greenstein g = 0.6 vs `_native.bake(model="biri06")` of
   the same view (figures printed; images under out/test_artifacts/).
+- test03: spot lights (spot_airlight.glsl: fixed Gauss-Legendre panels over the analytic
+  cone interval) vs the bake's adaptive quadrature, isotropic and g = 0.6.
 """
 
 import os
@@ -103,4 +105,65 @@ def test02_preview_hg_matches_bake(addon, native, gs, artifacts):
         assert np.percentile(rel, 99) <= 2e-2
         assert dT.mean() <= 1e-4
     finally:
+        scene.airlight.anisotropy = 0.0
+
+
+def _add_spot(scene, name, location, target, size, blend, energy, colour):
+    from mathutils import Vector
+    data = bpy.data.lights.new(name, 'SPOT')
+    data.energy = energy
+    data.color = colour
+    data.spot_size = size
+    data.spot_blend = blend
+    data.shadow_soft_size = 0.0
+    obj = bpy.data.objects.new(name, data)
+    obj.location = location
+    direction = Vector(target) - Vector(location)
+    obj.rotation_euler = direction.to_track_quat('-Z', 'Y').to_euler()
+    scene.collection.objects.link(obj)
+    return obj
+
+
+@pytest.mark.parametrize("g", [0.0, G])
+def test03_preview_spots_match_bake(addon, native, gs, artifacts, g):
+    """Two spots (soft 60 deg, hard 100 deg), the point lights left out of the fog: the
+    preview's fixed quadrature over the cone interval vs the bake's adaptive quadrature
+    (<= 2 % mean asked; figures printed)."""
+    import math
+    from airlight import scene_export
+    scene = build_scene(0.08)
+    scene.airlight.phase = 'HENYEY_GREENSTEIN'
+    scene.airlight.anisotropy = g
+    spots = [_add_spot(scene, "SpotSoft", (3.0, -2.0, 5.0), (0.0, 1.0, 0.0), math.radians(60), 0.3,
+                       3000.0, (1.0, 0.9, 0.7)),
+             _add_spot(scene, "SpotHard", (-3.0, 2.0, 4.0), (-1.0, 0.0, 0.0), math.radians(100), 0.0,
+                       1500.0, (0.6, 0.8, 1.0))]
+    for obj in [o for o in scene.objects if o.type == 'LIGHT' and o.data.type == 'POINT']:
+        bpy.data.objects.remove(obj)  # (build_scene makes them again for the next test)
+    bpy.context.view_layer.update()
+    try:
+        desc = scene_export.export_scene(scene, bpy.context.evaluated_depsgraph_get())
+        assert len(desc["spot_positions"]) == 2
+        model = "sun05" if g == 0.0 else "biri06"
+        baked = native.bake(**desc, model=model, aa_samples=1, threads=0)
+        ref = baked["airlight"].astype(np.float64)
+        ref_T = baked["transmittance"].astype(np.float64)[..., 0]
+        spot_dict = addon.scene_spots(scene, bpy.context.view_layer)
+        got, got_T = render_preview(addon, gs, scene, desc, None, phase=(desc["phase"], desc["g"]),
+                                    spots=spot_dict)
+        rel, dT = _compare(f"preview vs bake, 2 spots only (g = {g})", got, got_T, ref, ref_T)
+        lit = (ref > 1e-3 * ref.max()).mean()
+        print(f"pixels with spot fog above 1e-3 of the max: {lit:.3g}")
+        scale = 1.0 / np.percentile(ref, 99)
+        _save_png(os.path.join(artifacts, f"preview_spots_g{g}_gpu.png"), np.clip(got * scale, 0, 1))
+        _save_png(os.path.join(artifacts, f"preview_spots_g{g}_bake.png"), np.clip(ref * scale, 0, 1))
+        assert len(desc["light_positions"]) == 0
+        assert lit > 0.2
+        # Asked: <= 2 %; measured 1e-4 mean, 4e-4 p99 (max: hit/miss pixels on a cone edge).
+        assert rel.mean() <= 2e-3
+        assert np.percentile(rel, 99) <= 1e-2
+        assert dT.mean() <= 1e-4
+    finally:
+        for obj in spots:
+            bpy.data.objects.remove(obj)
         scene.airlight.anisotropy = 0.0
