@@ -24,6 +24,9 @@
 //               RGBA32F spot_count x 3 texels: row 0 = (position, cos(size / 2)), row 1 =
 //               (unit axis, (1 - cos(size / 2)) blend), row 2 = albedo * I0; with the phase
 //               of PREVIEW_PHASE
+//   PREVIEW_SUNS   1: sun lamps (sun_airlight.glsl, needs it in front): suns, RGBA32F
+//               sun_count x 2 texels: row 0 = (unit propagation direction w (the lamp's
+//               -Z), fog top height h_top (inf: none)), row 1 = albedo * colour * strength
 
 vec3 preview_unproject(vec2 ndc_xy, float ndc_z)
 {
@@ -104,6 +107,20 @@ vec4 preview_fog(vec3 origin, vec3 dir, float Dvp)
     vec4 s1 = texelFetch(spots, ivec2(i, 1), 0);
     vec3 I0 = texelFetch(spots, ivec2(i, 2), 0).rgb;
     La += I0 * spot_airlight(s0.xyz, s1.xyz, s0.w, s1.w, sigma_t, p0, dir, D, PREVIEW_PHASE != 0, phase);
+  }
+#endif
+#if PREVIEW_SUNS
+  int sun_count = textureSize(suns, 0).x;
+  for (int i = 0; i < sun_count; i++) {
+    vec4 s0 = texelFetch(suns, ivec2(i, 0), 0);
+    vec3 E = texelFetch(suns, ivec2(i, 1), 0).rgb;
+    float mu = -dot(s0.xyz, dir);
+#if PREVIEW_PHASE
+    float p = biri06_phase(phase, mu);
+#else
+    float p = 0.07957747154594767;
+#endif
+    La += (sigma_t * p) * E * sun_layer_factor(sigma_t, s0.w, -s0.z, p0.z, dir.z, 0.0, D);
   }
 #endif
   float Tr = exp(-sigma_t * D);

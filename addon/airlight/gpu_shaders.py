@@ -221,9 +221,9 @@ PREVIEW_FOG_PUSH_CONSTANTS = (('MAT4', "inv_persp"), ('VEC4', "eye"), ('VEC4', "
                               ('VEC4', "viewport"), ('FLOAT', "sigma_t"), ('INT', "light_count"),
                               ('INT', "scale"), ('INT', "mode"), ('VEC4', "phase"))
 PREVIEW_FOG_SAMPLERS = ("Ftab", "depth_tex", "lights", "fog_lo", "gauss_acc", "gauss_near", "Gtab",
-                        "spots")
+                        "spots", "suns")
 PREVIEW_LIBS = ("sun05_airlight.glsl", "biri06_airlight.glsl", "spot_airlight.glsl",
-                "preview_common.glsl")
+                "sun_airlight.glsl", "preview_common.glsl")
 
 
 def create_preview_shader(name, frag, defines=()):
@@ -236,7 +236,7 @@ def create_preview_shader(name, frag, defines=()):
     Push constants: PREVIEW_FOG_PUSH_CONSTANTS in that order (MAT4 inv_persp, VEC4 eye,
     VEC4 clip, VEC4 viewport, FLOAT sigma_t, INT light_count, INT scale, INT mode,
     VEC4 phase). Samplers (FLOAT_2D, slots in order): PREVIEW_FOG_SAMPLERS.
-    Defines (all must be given): PREVIEW_WINDOW_DEPTH, PREVIEW_PHASE, PREVIEW_SPOTS,
+    Defines (all must be given): PREVIEW_WINDOW_DEPTH, PREVIEW_PHASE, PREVIEW_SPOTS, PREVIEW_SUNS,
     PREVIEW_GAUSSIANS,
     and per file: PREVIEW_LOWRES and PREVIEW_GAUSS_SCALE (fog), PREVIEW_EXACT_PASS and
     PREVIEW_MARK (upsample). Output: 0 VEC4 "frag_color".
@@ -253,7 +253,7 @@ def create_rbf_splat_shader(window_depth=False):
     preview_common.glsl + rbf_gaussian.glsl + rbf_splat_frag.glsl, concatenated in this
     order (the create-info adds the declarations below in front of each).
     Defines: RBF_TEX_WIDTH (int), PREVIEW_WINDOW_DEPTH (0: depth_tex holds linear
-    distance, 1: window depth), PREVIEW_PHASE 0, PREVIEW_SPOTS 0.
+    distance, 1: window depth), PREVIEW_PHASE 0, PREVIEW_SPOTS 0, PREVIEW_SUNS 0.
     Vertex inputs: 0 VEC2 "corner" (quad corner in {-1, 1}^2), 1 FLOAT "gid" (Gaussian
     index); 4 vertices per Gaussian, drawn as TRIS with 6 indices per Gaussian
     (`rbf_splat_batch`).
@@ -282,6 +282,7 @@ def create_rbf_splat_shader(window_depth=False):
     info.define("PREVIEW_WINDOW_DEPTH", str(int(bool(window_depth))))
     info.define("PREVIEW_PHASE", "0")
     info.define("PREVIEW_SPOTS", "0")
+    info.define("PREVIEW_SUNS", "0")
     info.fragment_out(0, 'VEC4', "frag_color")
     info.fragment_out(1, 'VEC4', "frag_near")
     info.vertex_source(load_source("rbf_splat_vert.glsl"))
@@ -344,3 +345,11 @@ def create_biri_test_shader():
     return create_fullscreen_shader("test_biri", "test_biri_frag.glsl",
                                     libs=("sun05_airlight.glsl", "biri06_airlight.glsl"),
                                     push_constants=(('VEC4', "phase"),), samplers=("in0", "Gtab"))
+
+
+def create_sun_test_shader():
+    """GLSL-vs-reference shader for sun_airlight.glsl (test_10): fullscreen_vert.glsl +
+    sun05_airlight.glsl + sun_airlight.glsl + test_sun_frag.glsl; samplers 0 "in0", 1 "in1"."""
+    return create_fullscreen_shader("test_sun", "test_sun_frag.glsl",
+                                    libs=("sun05_airlight.glsl", "sun_airlight.glsl"),
+                                    samplers=("in0", "in1"))

@@ -115,17 +115,17 @@ def _gpu_resources():
     return res
 
 
-def _shader(kind, window_depth, variant=False, phase=False, spots=False):
+def _shader(kind, window_depth, variant=False, phase=False, spots=False, suns=False):
     """Fog ('fog'; variant: the reduced target's output, airlight + distance, or
     ('gauss', scale): with the Gaussian sums), upsampling ('upsample'; variant: 'mark' =
     blend and mark the pixels to re-evaluate in the depth buffer, 'exact' = the
     re-evaluation draw) or 'composite' shader, reading window depth or distance;
     phase: the homogeneous airlight through the Biri 2006 table of a non-isotropic phase
     function (biri06_airlight.glsl) instead of Sun 2005; spots: with the spot-light loop
-    (spot_airlight.glsl)."""
+    (spot_airlight.glsl); suns: with the sun-lamp loop (sun_airlight.glsl)."""
     from . import gpu_shaders as gs
     res = _gpu_resources()
-    key = (kind, bool(window_depth), variant, bool(phase), bool(spots))
+    key = (kind, bool(window_depth), variant, bool(phase), bool(spots), bool(suns))
     shader = res["shaders"].get(key)
     if shader is None:
         frag, defines = {
@@ -142,7 +142,8 @@ def _shader(kind, window_depth, variant=False, phase=False, spots=False):
             f"preview_{kind}", frag,
             defines=(("PREVIEW_WINDOW_DEPTH", int(bool(window_depth))),
                      ("PREVIEW_PHASE", int(bool(phase))),
-                     ("PREVIEW_SPOTS", int(bool(spots)))) + defines
+                     ("PREVIEW_SPOTS", int(bool(spots))),
+                     ("PREVIEW_SUNS", int(bool(suns)))) + defines
             + ((("PREVIEW_GAUSSIANS", 0),) if kind != 'fog' else ()))
         res["shaders"][key] = shader
         if res["batch"] is None:
@@ -373,6 +374,47 @@ def scene_spots(scene, view_layer=None):
     return out
 
 
+def scene_suns(scene, view_layer=None):
+    """The visible participating sun lamps for draw_fog's _suns_: dict of lists
+    directions (unit propagation direction, the lamp's -Z), irradiances (albedo * colour *
+    strength, W/m^2) and fog_top (world height of the fog layer's top when the scene has
+    `airlight.use_fog_top` on, else inf: Hoffman-Preetham's unattenuated sun)."""
+    settings = scene.airlight
+    albedo = tuple(settings.color)
+    top = float(getattr(settings, "fog_top", math.inf)) if getattr(settings, "use_fog_top", False) \
+        else math.inf
+    out = dict(directions=[], irradiances=[], fog_top=top)
+    objects = view_layer.objects if view_layer is not None else scene.objects
+    for obj in objects:
+        if obj.type != 'LIGHT' or obj.data.type != 'SUN' or not obj.data.airlight.participate:
+            continue
+        if view_layer is not None and not obj.visible_get(view_layer=view_layer):
+            continue
+        w = -obj.matrix_world.col[2].xyz
+        if not w.length > 0.0:
+            continue
+        out["directions"].append(tuple(w.normalized()))
+        out["irradiances"].append(tuple(a * c * obj.data.energy for a, c in zip(albedo, obj.data.color)))
+        if len(out["directions"]) == MAX_LIGHTS:
+            break
+    return out
+
+
+def _suns_texture(suns):
+    """RGBA32F, sun_count x 2 (sun_airlight.glsl via preview_common.glsl): row 0 =
+    (direction, fog top), row 1 = albedo E."""
+    import numpy as np
+    from . import gpu_shaders as gs
+    n = 0 if suns is None else len(suns["directions"])
+    data = np.zeros((2, max(1, n), 4), np.float32)
+    if n:
+        w = np.asarray(suns["directions"], np.float64)
+        data[0, :n, :3] = w / np.linalg.norm(w, axis=1, keepdims=True)
+        data[0, :n, 3] = suns["fog_top"]
+        data[1, :n, :3] = suns["irradiances"]
+    return gs.float_texture(data)
+
+
 def _spots_texture(spots):
     """RGBA32F, spot_count x 3 (spot_airlight.glsl via preview_common.glsl): row 0 =
     (position, cos(size / 2)), row 1 = (axis, (1 - cos(size / 2)) blend), row 2 = albedo I0."""
@@ -477,7 +519,7 @@ def view_clip_range(context):
 def draw_fog(*, depth_tex, perspective_matrix, view_origin, is_perspective, viewport,
              sigma_t, light_positions, light_intensities, clip_start=0.0, window_depth=True,
              scale=1, mode=UPSAMPLE_BILATERAL_EXACT, gaussians=None, phase=("isotropic", 0.0),
-             spots=None):
+             spots=None, suns=None):
     """Draws the fog over the bound framebuffer with premultiplied blending.
 
     depth_tex: full-resolution R32F texture of the region (viewport[2] x viewport[3]):
@@ -501,12 +543,16 @@ def draw_fog(*, depth_tex, perspective_matrix, view_origin, is_perspective, view
     spots: None or `scene_spots`' dict (positions, axes, intensities = albedo I0, sizes,
     blends): spot lights by a fixed quadrature over the ray's part inside each cone
     (spot_airlight.glsl).
+    suns: None or `scene_suns`' dict (directions, irradiances = albedo E, fog_top): sun
+    lamps by the closed form of the bake's sun_layer.h (sun_airlight.glsl).
     Restores every gpu.state it changes.
     """
     import gpu
     res = _gpu_resources()
-    flags = dict(phase=phase[0] != "isotropic", spots=bool(spots is not None and len(spots["positions"])))
+    flags = dict(phase=phase[0] != "isotropic", spots=bool(spots is not None and len(spots["positions"])),
+                 suns=bool(suns is not None and len(suns["directions"])))
     spots_tex = _spots_texture(spots)
+    suns_tex = _suns_texture(suns)
     phase_vec, gtab = _phase_inputs(res, phase)
     x, y, w, h = (int(v) for v in viewport)
     splat = None
@@ -546,6 +592,7 @@ def draw_fog(*, depth_tex, perspective_matrix, view_origin, is_perspective, view
         put(shader.uniform_float, "phase", phase_vec)
         put(shader.uniform_sampler, "Gtab", gtab)
         put(shader.uniform_sampler, "spots", spots_tex)
+        put(shader.uniform_sampler, "suns", suns_tex)
         put(shader.uniform_sampler, "depth_tex", depth_tex)
         put(shader.uniform_sampler, "lights", lights)
         if fog_lo is not None:  # the upsampling pass (the fog pass has neither)
@@ -669,12 +716,13 @@ def _draw_callback():
         from . import model_choice
         phase = model_choice.native_phase(scene.airlight)
         spots = scene_spots(scene, context.view_layer)
+        suns = scene_suns(scene, context.view_layer)
         draw_fog(depth_tex=depth_tex, perspective_matrix=persp, view_origin=view_origin,
                  is_perspective=rv3d.is_perspective, viewport=(x, y, w, h),
                  sigma_t=scene.airlight.density, light_positions=positions,
                  light_intensities=intensities, clip_start=clip_start,
                  window_depth=readback, scale=scale, gaussians=gaussians, phase=phase,
-                 spots=spots)
+                 spots=spots, suns=suns)
         _state["last_ms"] = (time.perf_counter() - t0) * 1e3
         if _state["capture"] is not None:
             if readback:
