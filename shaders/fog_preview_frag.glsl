@@ -69,7 +69,7 @@ void preview_gauss_fetch(ivec2 px, float Dvp, out vec4 g, out float T_near)
 
 void main()
 {
-  ivec2 px = min(ivec2(gl_FragCoord.xy - viewport.xy) * scale + scale / 2,
+  ivec2 px = min(ivec2(gl_FragCoord.xy - viewport.xy) * pv_scale + pv_scale / 2,
                  ivec2(viewport.zw) - 1);
   vec2 ndc;
   vec3 origin, dir;
@@ -81,9 +81,9 @@ void main()
   float T_near;
   preview_gauss_fetch(px, Dvp, g, T_near);
   float t0 = min(preview_near(dir), Dvp);
-  float T_hom = sigma_t > 0.0 ? sigma_t * max(Dvp - t0, 0.0) : 0.0;  // 0 * inf = NaN
+  float T_hom = pv_sigma_t > 0.0 ? pv_sigma_t * max(Dvp - t0, 0.0) : 0.0;  // 0 * inf = NaN
   float Tr = exp(-T_hom - g.a);
-  fog = vec4(exp(T_near) * (fog.rgb + exp(sigma_t * t0) * g.rgb), 1.0 - Tr);
+  fog = vec4(exp(T_near) * (fog.rgb + exp(pv_sigma_t * t0) * g.rgb), 1.0 - Tr);
 #endif
 #if PREVIEW_LOWRES
   frag_color = vec4(fog.rgb, Dvp);

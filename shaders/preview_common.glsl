@@ -16,10 +16,12 @@
 //               plane's view-axis depth, where the fog begins (Cycles starts camera rays
 //               there); the far plane needs no input, the depth pass already clips there
 //   viewport    zw = full-resolution size of the region in pixels
-//   sigma_t     extinction coefficient (1/m); light_count = number of lights
+//   pv_sigma_t  extinction coefficient (1/m); light_count = number of lights
+//   (inv_persp, eye, clip, viewport, pv_sigma_t, light_count, pv_phase, pv_scale, pv_mode
+//   are members of the uniform buffer of preview_params.glsl, read through defines)
 //   PREVIEW_PHASE  1: the airlight of a non-isotropic phase function through the Biri
 //               2006 table (biri06_airlight.glsl, needs it in front; inputs Gtab and
-//               phase = (kind, g, K, k)); 0: Sun 2005 (isotropic)
+//               pv_phase = (kind, g, K, k)); 0: Sun 2005 (isotropic)
 //   PREVIEW_SPOTS  1: spot lights (spot_airlight.glsl, needs it in front): spots,
 //               RGBA32F spot_count x 3 texels: row 0 = (position, cos(size / 2)), row 1 =
 //               (unit axis, (1 - cos(size / 2)) blend), row 2 = albedo * I0; with the phase
@@ -95,9 +97,9 @@ vec4 preview_fog(vec3 origin, vec3 dir, float Dvp)
     // 1e4 times brighter than any nearby pixel). 0.99999994 = 1 - 2^-24.
     float cos_gamma = clamp(dot(to_light, dir) / Dsv, -1.0, 0.99999994);
 #if PREVIEW_PHASE
-    La += (I0.rgb * I0.a) * biri06_airlight(Gtab, phase, sigma_t, Dsv, cos_gamma, D);
+    La += (I0.rgb * I0.a) * biri06_airlight(Gtab, pv_phase, pv_sigma_t, Dsv, cos_gamma, D);
 #else
-    La += (I0.rgb * I0.a) * sun05_airlight(Ftab, sigma_t, Dsv, cos_gamma, D);
+    La += (I0.rgb * I0.a) * sun05_airlight(Ftab, pv_sigma_t, Dsv, cos_gamma, D);
 #endif
   }
 #if PREVIEW_SPOTS
@@ -106,7 +108,7 @@ vec4 preview_fog(vec3 origin, vec3 dir, float Dvp)
     vec4 s0 = texelFetch(spots, ivec2(i, 0), 0);
     vec4 s1 = texelFetch(spots, ivec2(i, 1), 0);
     vec3 I0 = texelFetch(spots, ivec2(i, 2), 0).rgb;
-    La += I0 * spot_airlight(s0.xyz, s1.xyz, s0.w, s1.w, sigma_t, p0, dir, D, PREVIEW_PHASE != 0, phase);
+    La += I0 * spot_airlight(s0.xyz, s1.xyz, s0.w, s1.w, pv_sigma_t, p0, dir, D, PREVIEW_PHASE != 0, pv_phase);
   }
 #endif
 #if PREVIEW_SUNS
@@ -116,13 +118,13 @@ vec4 preview_fog(vec3 origin, vec3 dir, float Dvp)
     vec3 E = texelFetch(suns, ivec2(i, 1), 0).rgb;
     float mu = -dot(s0.xyz, dir);
 #if PREVIEW_PHASE
-    float p = biri06_phase(phase, mu);
+    float p = biri06_phase(pv_phase, mu);
 #else
     float p = 0.07957747154594767;
 #endif
-    La += (sigma_t * p) * E * sun_layer_factor(sigma_t, s0.w, -s0.z, p0.z, dir.z, 0.0, D);
+    La += (pv_sigma_t * p) * E * sun_layer_factor(pv_sigma_t, s0.w, -s0.z, p0.z, dir.z, 0.0, D);
   }
 #endif
-  float Tr = exp(-sigma_t * D);
+  float Tr = exp(-pv_sigma_t * D);
   return vec4(La, 1.0 - Tr);
 }

@@ -20,7 +20,7 @@
 
 void main()
 {
-  ivec2 px = min(ivec2(gl_FragCoord.xy) * scale + scale / 2, ivec2(viewport.zw) - 1);
+  ivec2 px = min(ivec2(gl_FragCoord.xy) * pv_scale + pv_scale / 2, ivec2(viewport.zw) - 1);
   vec2 ndc;
   vec3 origin, dir;
   preview_ray(px, ndc, origin, dir);

@@ -256,6 +256,7 @@ def draw_distance(context, *, perspective_matrix, view_origin, is_perspective, s
     R32F distance target of _size_ and returns that texture. Restores the viewport and
     depth state; the caller's framebuffer is bound again afterwards."""
     import gpu
+    from . import gpu_shaders as gs
     w, h = size
     target = _target("distance", w, h, 'R32F', depth=True)
     instances = _scene_instances(context)
@@ -274,8 +275,8 @@ def draw_distance(context, *, perspective_matrix, view_origin, is_perspective, s
             gpu.state.depth_mask_set(True)
             shader.bind()
             shader.uniform_float("persp", perspective_matrix)
-            shader.uniform_float("eye", (*view_origin, 1.0 if is_perspective else 0.0))
-            shader.uniform_float("axis", (*axis, offset))
+            ubo = gs.distance_params_ubo((*view_origin, 1.0 if is_perspective else 0.0), (*axis, offset))
+            shader.uniform_block("dv", ubo)
             for batch, matrix in instances:
                 shader.uniform_float("model", matrix)
                 batch.draw(shader)
@@ -479,8 +480,7 @@ def _draw_gaussians(shader, fog, size, scale, bind):
         gpu.state.viewport_set(0, 0, lw, lh)
         fb.clear(color=(0.0, 0.0, 0.0, 0.0))
         gpu.state.blend_set('ADDITIVE_PREMULT')
-        bind(shader, (0, 0, w, h), None)
-        shader.uniform_int("scale", int(scale))
+        bind(shader, (0, 0, w, h), None, pass_scale=scale)
         shader.uniform_sampler("gauss", fog.gauss_tex)
         shader.uniform_sampler("gauss_f1", fog.f1_tex)
         fog.batch.draw(shader)
@@ -548,6 +548,7 @@ def draw_fog(*, depth_tex, perspective_matrix, view_origin, is_perspective, view
     Restores every gpu.state it changes.
     """
     import gpu
+    from . import gpu_shaders as gs
     res = _gpu_resources()
     flags = dict(phase=phase[0] != "isotropic", spots=bool(spots is not None and len(spots["positions"])),
                  suns=bool(suns is not None and len(suns["directions"])))
@@ -571,7 +572,9 @@ def draw_fog(*, depth_tex, perspective_matrix, view_origin, is_perspective, view
 
     gauss_targets = None
 
-    def bind(shader, target_viewport, fog_lo):
+    ubos = []
+
+    def bind(shader, target_viewport, fog_lo, pass_scale=None):
         # The blending draw of the upsampling has no airlight code, so the compiler
         # drops the light inputs there: set what the shader has.
         def put(setter, name, value):
@@ -580,23 +583,21 @@ def draw_fog(*, depth_tex, perspective_matrix, view_origin, is_perspective, view
             except ValueError:
                 pass
         shader.bind()
-        put(shader.uniform_float, "persp", perspective_matrix)
-        put(shader.uniform_float, "inv_persp", perspective_matrix.inverted())
-        put(shader.uniform_float, "eye", (*view_origin, 1.0 if is_perspective else 0.0))
-        put(shader.uniform_float, "clip", clip)
-        put(shader.uniform_float, "viewport", tuple(float(v) for v in target_viewport))
-        put(shader.uniform_float, "sigma_t", float(sigma_t))
-        put(shader.uniform_int, "light_count", len(light_positions))
-        put(shader.uniform_int, "scale", int(scale))
+        ubo = gs.preview_params_ubo(
+            inv_persp=perspective_matrix.inverted(), persp=perspective_matrix,
+            eye=(*view_origin, 1.0 if is_perspective else 0.0), clip=clip,
+            viewport=tuple(float(v) for v in target_viewport), phase=phase_vec,
+            sigma_t=float(sigma_t), light_count=len(light_positions),
+            scale=int(pass_scale if pass_scale is not None else scale), mode=int(mode))
+        ubos.append(ubo)  # alive until the draws are done
+        shader.uniform_block("pv", ubo)
         put(shader.uniform_sampler, "Ftab", res["ftab"])
-        put(shader.uniform_float, "phase", phase_vec)
         put(shader.uniform_sampler, "Gtab", gtab)
         put(shader.uniform_sampler, "spots", spots_tex)
         put(shader.uniform_sampler, "suns", suns_tex)
         put(shader.uniform_sampler, "depth_tex", depth_tex)
         put(shader.uniform_sampler, "lights", lights)
         if fog_lo is not None:  # the upsampling pass (the fog pass has neither)
-            put(shader.uniform_int, "mode", int(mode))
             put(shader.uniform_sampler, "fog_lo", fog_lo)
         if gauss_targets is not None:
             put(shader.uniform_sampler, "gauss_acc", gauss_targets[0])
