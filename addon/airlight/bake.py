@@ -32,11 +32,13 @@ def prepare(scene, depsgraph):
     """Everything the bake needs, gathered in the main thread (touches bpy).
 
     The World for the environment glow travels in the settings under "environment"
-    (environment.prepare(); None when off), which `run` takes out before the native bake."""
+    (environment.prepare(); absent when off), which `run` takes out before the native bake."""
     try:
         description = scene_export.export_scene(scene, depsgraph)
         settings = bake_settings(scene)
-        settings["environment"] = environment.prepare(scene)
+        world = environment.prepare(scene)
+        if world is not None:
+            settings["environment"] = world
     except (scene_export.ExportError, environment.WorldMapError) as ex:
         raise BakeError(str(ex)) from None
     return description, settings
