@@ -121,7 +121,7 @@ SCENES = [
     Scene("point_backward", "point, T_sv=1, backward g=-0.4", 1.0 / D_SV, g=-0.4),
     Scene("near_surface", "point 0.25 m above the floor, T_sv=1", 1.0 / float(np.linalg.norm(
         np.subtract(NEAR_LIGHT, CAMERA["camera_location"]))), light_location=NEAR_LIGHT, **WIDE_FLOOR),
-    Scene("spot", "spot 60 deg, blend 0.3, T_sv=1, isotropic", 1.0 / D_SV, light_type='SPOT',
+    Scene("spot", "spot 60 deg, blend 0.3, sigma_t of point_mid (T_sv=0.74), isotropic", 1.0 / D_SV, light_type='SPOT',
           light_location=(0.5, 2.0, 4.0), spot_axis=_unit((0.0, 0.5, -1.0))),
     Scene("sun", "sun, sigma_t=0.1, fog top 30 m, isotropic", 0.1, light_type='SUN', **WIDE_FLOOR),
 ]
