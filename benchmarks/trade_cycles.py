@@ -18,7 +18,6 @@ sampling noise, not the difference between a filtered and a point-sampled peak a
 """
 
 import json
-import math
 import os
 import sys
 
