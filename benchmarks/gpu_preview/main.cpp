@@ -207,7 +207,9 @@ int run(const Args &a)
   check_gl("build");
   rep.line(fmt("size %dx%d, %d lights, sigma_t %g, shaders %s (interface %s), %d frames after "
                "%d warm-up, budget %g s per configuration",
-               a.width, a.height, a.lights, a.sigma_t, a.shaders.c_str(), p.v2 ? "v2" : "v1",
+               a.width, a.height, a.lights, a.sigma_t, a.shaders.c_str(),
+               (std::string(p.v2 ? "v2" : "v1") + (p.spots ? " +spots" : "") + (p.suns ? " +suns" : "") +
+                (p.ubo ? " +UBO" : " push constants")).c_str(),
                a.frames, a.warmup, a.budget_s));
   const View view = make_view(a.width, a.height);
 

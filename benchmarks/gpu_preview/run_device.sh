@@ -9,7 +9,8 @@
 #   images_1080.npz       the fog images of the shaders/ 1080 run (every 4th pixel)
 #   images_small.npz      the fog images of the small run (every pixel)
 # Environment: PLATFORM (EGL platform, default device), FRAMES, BUDGET (s per
-# configuration), CONFIGS_1080, CONFIGS_SMALL, GAUSSIANS, PYTHON (one with numpy).
+# configuration), CONFIGS_1080, CONFIGS_SMALL, GAUSSIANS, PYTHON (one with numpy),
+# EPS_SWEEP (cull tolerances for extra Gaussian runs into log_eps.txt), EPS_CONFIGS.
 set -u
 here=$(cd "$(dirname "$0")" && pwd)
 OUT=${OUT:-$here/out}
@@ -30,6 +31,12 @@ for d in "$here"/shaders "$here"/shaders_*; do
     --warmup 20 --budget-s "${BUDGET:-20}" --gaussians "${GAUSSIANS:-3000}" \
     --configs "${CONFIGS_1080:-$all}" --out "/tmp/gpb_1080_$set_name" --npy-step 4 2>&1 |
     tee "$OUT/log_1080_$set_name.txt"
+done
+# Optional: the splat cost against the cull tolerance (EPS_SWEEP="1e-3 1e-2").
+for eps in ${EPS_SWEEP:-}; do
+  timeout 120 "${bench[@]}" --shaders "$here/shaders" --size 1920x1080 --frames 50 --warmup 3 \
+    --budget-s 15 --gaussians "${GAUSSIANS:-3000}" --cull-eps "$eps" \
+    --configs "${EPS_CONFIGS:-gauss_half,gauss_quarter}" 2>&1 | tee -a "$OUT/log_eps.txt"
 done
 mkdir -p /tmp/gpb_small
 timeout "${TSMALL:-90}" "${bench[@]}" --shaders "$here/shaders" --size 240x135 --frames 20 --warmup 5 \
