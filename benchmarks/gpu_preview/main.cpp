@@ -278,9 +278,11 @@ int run(const Args &a)
     auto seconds = [&]() {
       return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     };
-    // Warm-up: --warmup frames, fewer (at least one) once they took a quarter of the
-    // budget; then --frames frames, fewer (at least 10) once the budget is spent.
-    for (int f = 0; f < a.warmup && (f == 0 || seconds() < 0.25 * a.budget_s); ++f) {
+    // Warm-up: --warmup frames (at least one: drivers compile shaders lazily on the first
+    // draw, and llvmpipe's first timer query reads garbage), fewer once they took a
+    // quarter of the budget; then --frames frames, fewer (at least 10) once the budget
+    // is spent.
+    for (int f = 0; f < std::max(1, a.warmup) && (f == 0 || seconds() < 0.25 * a.budget_s); ++f) {
       frame(viewport, grey, false);
       glFinish();
     }
