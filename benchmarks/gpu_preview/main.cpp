@@ -236,6 +236,14 @@ int run(const Args &a)
       gset = make_gaussians(a.gaussians, view.eye, view.axis, view.tan_half, p.light_positions,
                             a.sigma_t, a.cull_eps);
       have_set = true;
+      if (!a.out.empty()) {
+        // What the GPU draws (float32): b.xyz, a, c per row, for a bake of the same fog.
+        std::vector<float> rows;
+        for (size_t i = 0; i < gset.size(); ++i)
+          rows.insert(rows.end(), {float(gset.b[i].x), float(gset.b[i].y), float(gset.b[i].z),
+                                   float(gset.a[i]), float(gset.c[i])});
+        write_npy_f32(a.out + "/gaussians.npy", rows.data(), {gset.size(), 5});
+      }
       double R = 0.0;
       for (double r : gset.R) R += r;
       rep.line(fmt("Gaussians: %d, cull eps %g (mean cull radius %.3f m), CPU factors f1 and "
