@@ -3,7 +3,9 @@
 //   (GPU_SHADER, vendor, OS, backend), create-info defines, resources (samplers with
 //   layout(binding = slot), push constants as uniforms), stage interface, sources.
 // Blender also appends glsl_shader_defines.glsl (type aliases and helper functions the
-// preview's GLSL never references); it is left out here.
+// preview's GLSL never references), and in front of a typedef_source the macros of
+// GPU_shader_shared_utils.h (float4 = vec4 and the like, which the preview's typedefs do
+// not use); both are left out here.
 #include "create_info.h"
 
 #define GL_GLEXT_PROTOTYPES 1
@@ -70,6 +72,11 @@ std::string resources_declare(const CreateInfo &info)
   for (size_t slot = 0; slot < info.samplers.size(); ++slot) {
     ss << "layout(binding = " << slot << ") uniform sampler2D " << info.samplers[slot] << ";\n";
   }
+  for (const auto &u : info.uniform_bufs) {
+    ss << "layout(binding = " << u.slot << ", std140) uniform " << u.name << " { " << u.type_name
+       << " _" << u.name << "; };\n";
+  }
+  for (const auto &u : info.uniform_bufs) ss << "#define " << u.name << " (_" << u.name << ")\n";
   ss << "\n/* Batch Resources. */\n";
   ss << "\n/* Push Constants. */\n";
   for (const auto &p : info.push_constants) ss << "uniform " << p.first << " " << p.second << ";\n";
@@ -123,8 +130,8 @@ unsigned compile(GLenum stage, const std::string &src, const std::string &name)
 std::string create_info_vertex_glsl(const CreateInfo &info, const GLSLTarget &t)
 {
   std::stringstream ss;
-  ss << patch(t) << "#define GPU_VERTEX_SHADER\n" << standard_defines(t) << defines_declare(info)
-     << resources_declare(info);
+  ss << patch(t) << standard_defines(t) << "#define GPU_VERTEX_SHADER\n" << defines_declare(info)
+     << info.typedef_source << resources_declare(info);
   ss << "\n/* Inputs. */\n";
   for (size_t i = 0; i < info.vertex_in.size(); ++i) {
     ss << "layout(location = " << i << ") in " << info.vertex_in[i].first << " "
@@ -138,8 +145,8 @@ std::string create_info_vertex_glsl(const CreateInfo &info, const GLSLTarget &t)
 std::string create_info_fragment_glsl(const CreateInfo &info, const GLSLTarget &t)
 {
   std::stringstream ss;
-  ss << patch(t) << "#define GPU_FRAGMENT_SHADER\n" << standard_defines(t)
-     << defines_declare(info) << resources_declare(info);
+  ss << patch(t) << standard_defines(t) << "#define GPU_FRAGMENT_SHADER\n"
+     << defines_declare(info) << info.typedef_source << resources_declare(info);
   ss << "\n/* Interfaces. */\n" << interface_block(info, "in");
   // The Python create-info leaves depth_write at its default (ANY).
   if (t.conservative_depth) ss << "layout(depth_any) out float gl_FragDepth;\n";
@@ -158,8 +165,8 @@ std::string create_info_compute_glsl(const CreateInfo &info, const GLSLTarget &t
   for (size_t pos = 0; (pos = body.find("gl_FragCoord", pos)) != std::string::npos;)
     body.replace(pos, 12, "bench_FragCoord");
   std::stringstream ss;
-  ss << "#version 430\n#define GPU_COMPUTE_SHADER\n" << standard_defines(t) << defines_declare(info)
-     << resources_declare(info);
+  ss << "#version 430\n" << standard_defines(t) << "#define GPU_COMPUTE_SHADER\n"
+     << defines_declare(info) << info.typedef_source << resources_declare(info);
   ss << "layout(local_size_x = 8, local_size_y = 8) in;\n";
   ss << "layout(binding = 0, rgba32f) writeonly uniform image2D bench_out;\n";
   ss << "vec4 bench_FragCoord;\n";

@@ -25,6 +25,14 @@ struct CreateInfo {
   std::vector<std::string> samplers;
   // define(name, value)
   std::vector<std::pair<std::string, std::string>> defines;
+  // typedef_source(text) and uniform_buf(slot, type_name, name): a std140 block at
+  // binding _slot_ whose one member _name_ (a struct of the typedef) the GLSL reads.
+  std::string typedef_source;
+  struct UniformBuf {
+    int slot;
+    std::string type_name, name;
+  };
+  std::vector<UniformBuf> uniform_bufs;
   // fragment_out(0, 'VEC4', "frag_color") and the like: (type, name).
   std::vector<std::pair<std::string, std::string>> fragment_out = {{"vec4", "frag_color"}};
   std::string vertex_source, fragment_source;

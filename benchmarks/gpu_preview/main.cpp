@@ -207,7 +207,9 @@ int run(const Args &a)
   check_gl("build");
   rep.line(fmt("size %dx%d, %d lights, sigma_t %g, shaders %s (interface %s), %d frames after "
                "%d warm-up, budget %g s per configuration",
-               a.width, a.height, a.lights, a.sigma_t, a.shaders.c_str(), p.v2 ? "v2" : "v1",
+               a.width, a.height, a.lights, a.sigma_t, a.shaders.c_str(),
+               (std::string(p.v2 ? "v2" : "v1") + (p.spots ? " +spots" : "") + (p.suns ? " +suns" : "") +
+                (p.ubo ? " +UBO" : " push constants")).c_str(),
                a.frames, a.warmup, a.budget_s));
   const View view = make_view(a.width, a.height);
 
@@ -234,6 +236,14 @@ int run(const Args &a)
       gset = make_gaussians(a.gaussians, view.eye, view.axis, view.tan_half, p.light_positions,
                             a.sigma_t, a.cull_eps);
       have_set = true;
+      if (!a.out.empty()) {
+        // What the GPU draws (float32): b.xyz, a, c per row, for a bake of the same fog.
+        std::vector<float> rows;
+        for (size_t i = 0; i < gset.size(); ++i)
+          rows.insert(rows.end(), {float(gset.b[i].x), float(gset.b[i].y), float(gset.b[i].z),
+                                   float(gset.a[i]), float(gset.c[i])});
+        write_npy_f32(a.out + "/gaussians.npy", rows.data(), {gset.size(), 5});
+      }
       double R = 0.0;
       for (double r : gset.R) R += r;
       rep.line(fmt("Gaussians: %d, cull eps %g (mean cull radius %.3f m), CPU factors f1 and "
@@ -276,9 +286,11 @@ int run(const Args &a)
     auto seconds = [&]() {
       return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     };
-    // Warm-up: --warmup frames, fewer (at least one) once they took a quarter of the
-    // budget; then --frames frames, fewer (at least 10) once the budget is spent.
-    for (int f = 0; f < a.warmup && (f == 0 || seconds() < 0.25 * a.budget_s); ++f) {
+    // Warm-up: --warmup frames (at least one: drivers compile shaders lazily on the first
+    // draw, and llvmpipe's first timer query reads garbage), fewer once they took a
+    // quarter of the budget; then --frames frames, fewer (at least 10) once the budget
+    // is spent.
+    for (int f = 0; f < std::max(1, a.warmup) && (f == 0 || seconds() < 0.25 * a.budget_s); ++f) {
       frame(viewport, grey, false);
       glFinish();
     }

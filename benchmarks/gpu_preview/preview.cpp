@@ -3,8 +3,10 @@
 #include "preview.h"
 
 #include <glm/gtc/matrix_transform.hpp>
+#include <glm/gtc/type_ptr.hpp>
 
 #include <cmath>
+#include <cstring>
 #include <cstdio>
 #include <fstream>
 #include <stdexcept>
@@ -76,13 +78,14 @@ CreateInfo Preview::fullscreen_info(const std::string &name, const std::string &
   ci.vertex_in = {{"vec2", "pos"}};
   ci.iface_name = "airlight_" + name + "_iface";
   ci.iface = {{"smooth", "vec2", "uv"}};
-  ci.push_constants = {{"mat4", "inv_persp"}, {"vec4", "eye"},      {"vec4", "clip"},
-                       {"vec4", "viewport"},  {"float", "sigma_t"}, {"int", "light_count"},
-                       {"int", "scale"},      {"int", "mode"}};
+  if (!ubo)
+    ci.push_constants = {{"mat4", "inv_persp"}, {"vec4", "eye"},      {"vec4", "clip"},
+                         {"vec4", "viewport"},  {"float", "sigma_t"}, {"int", "light_count"},
+                         {"int", "scale"},      {"int", "mode"}};
   ci.samplers = {"Ftab", "depth_tex", "lights", "fog_lo"};
   std::string libs = src("sun05_airlight.glsl") + "\n";
   if (v2) {
-    ci.push_constants.push_back({"vec4", "phase"});
+    if (!ubo) ci.push_constants.push_back({"vec4", "phase"});
     ci.samplers.insert(ci.samplers.end(), {"gauss_acc", "gauss_near", "Gtab"});
     libs += src("biri06_airlight.glsl") + "\n";
   }
@@ -96,6 +99,7 @@ CreateInfo Preview::fullscreen_info(const std::string &name, const std::string &
   }
   libs += src("preview_common.glsl") + "\n";
   ci.defines = std::move(defines);
+  if (ubo) add_ubo(ci, false);
   ci.vertex_source = src("fullscreen_vert.glsl");
   ci.fragment_source = libs + src(frag);
   return ci;
@@ -105,6 +109,39 @@ GLuint Preview::fullscreen(const std::string &name, const std::string &frag,
                            std::vector<std::pair<std::string, std::string>> defines)
 {
   return create_info_program(fullscreen_info(name, frag, std::move(defines)), target);
+}
+
+// gpu_shaders._add_ubo with PREVIEW_UBO (or DISTANCE_UBO): typedef, block at slot 0,
+// and a define per member alias.
+void Preview::add_ubo(CreateInfo &ci, bool dist) const
+{
+  if (dist) {
+    ci.typedef_source = src("preview_distance_params.glsl");
+    ci.uniform_bufs.push_back({0, "AirlightDistanceParams", "dv"});
+    ci.defines.insert(ci.defines.end(), {{"eye", "dv.u_eye"}, {"axis", "dv.u_axis"}});
+    return;
+  }
+  ci.typedef_source = src("preview_params.glsl");
+  ci.uniform_bufs.push_back({0, "AirlightPreviewParams", "pv"});
+  ci.defines.insert(ci.defines.end(),
+                    {{"inv_persp", "pv.u_inv_persp"}, {"persp", "pv.u_persp"},
+                     {"eye", "pv.u_eye"}, {"clip", "pv.u_clip"}, {"viewport", "pv.u_viewport"},
+                     {"pv_phase", "pv.u_phase"}, {"pv_sigma_t", "pv.u_fparams.x"},
+                     {"light_count", "pv.u_iparams.x"}, {"pv_scale", "pv.u_iparams.y"},
+                     {"pv_mode", "pv.u_iparams.z"}});
+}
+
+// A fresh std140 block at binding 0 for the next draw (Blender's GPUUniformBuf per bind).
+void Preview::bind_ubo(const void *data, size_t bytes)
+{
+  if (ubo_ring.empty()) {
+    ubo_ring.resize(32);
+    glCreateBuffers(GLsizei(ubo_ring.size()), ubo_ring.data());
+    for (GLuint b : ubo_ring) glNamedBufferData(b, 256, nullptr, GL_DYNAMIC_DRAW);
+  }
+  GLuint b = ubo_ring[ubo_next++ % ubo_ring.size()];
+  glNamedBufferSubData(b, 0, GLsizeiptr(bytes), data);
+  glBindBufferBase(GL_UNIFORM_BUFFER, 0, b);
 }
 
 // preview._shader's leading defines: the 'DRAWN' depth source, isotropic, no spots/suns.
@@ -135,6 +172,7 @@ void Preview::build(const std::string &shader_dir, const std::string &ftable_pat
 {
   dir = shader_dir;
   v2 = file_exists(dir + "/rbf_splat_vert.glsl");
+  ubo = v2 && file_exists(dir + "/preview_params.glsl");
   spots = v2 && file_exists(dir + "/spot_airlight.glsl");
   suns = v2 && file_exists(dir + "/sun_airlight.glsl");
   // gpu_shaders.create_distance_shader
@@ -143,7 +181,9 @@ void Preview::build(const std::string &shader_dir, const std::string &ftable_pat
   d.vertex_in = {{"vec3", "pos"}};
   d.iface_name = "airlight_distance_iface";
   d.iface = {{"smooth", "vec3", "wpos"}};
-  d.push_constants = {{"mat4", "model"}, {"mat4", "persp"}, {"vec4", "eye"}, {"vec4", "axis"}};
+  d.push_constants = {{"mat4", "model"}, {"mat4", "persp"}};
+  if (ubo) add_ubo(d, true);
+  else d.push_constants.insert(d.push_constants.end(), {{"vec4", "eye"}, {"vec4", "axis"}});
   d.vertex_source = src("preview_distance_vert.glsl");
   d.fragment_source = src("preview_distance_frag.glsl");
   distance = create_info_program(d, target);
@@ -231,14 +271,16 @@ void Preview::build_gaussians(const GaussianSet &g)
   s.vertex_in = {{"vec2", "corner"}, {"float", "gid"}};
   s.iface_name = "airlight_rbf_splat_iface";
   s.iface = {{"flat", "int", "gi"}};
-  s.push_constants = {{"mat4", "persp"},      {"mat4", "inv_persp"}, {"vec4", "eye"},
-                      {"vec4", "clip"},       {"vec4", "viewport"},  {"float", "sigma_t"},
-                      {"int", "light_count"}, {"int", "scale"},      {"int", "mode"},
-                      {"vec4", "phase"}};
+  if (ubo) add_ubo(s, false);
+  else
+    s.push_constants = {{"mat4", "persp"},      {"mat4", "inv_persp"}, {"vec4", "eye"},
+                        {"vec4", "clip"},       {"vec4", "viewport"},  {"float", "sigma_t"},
+                        {"int", "light_count"}, {"int", "scale"},      {"int", "mode"},
+                        {"vec4", "phase"}};
   s.samplers = {"Ftab", "depth_tex", "lights", "gauss", "gauss_f1"};
-  s.defines = {{"RBF_TEX_WIDTH", std::to_string(kRbfTexWidth)},
-               {"PREVIEW_WINDOW_DEPTH", "0"},
-               {"PREVIEW_PHASE", "0"}};
+  s.defines.insert(s.defines.end(), {{"RBF_TEX_WIDTH", std::to_string(kRbfTexWidth)},
+                                     {"PREVIEW_WINDOW_DEPTH", "0"},
+                                     {"PREVIEW_PHASE", "0"}});
   if (spots) s.defines.push_back({"PREVIEW_SPOTS", "0"});
   if (suns) s.defines.push_back({"PREVIEW_SUNS", "0"});
   s.fragment_out = {{"vec4", "frag_color"}, {"vec4", "frag_near"}};
@@ -289,6 +331,21 @@ void Preview::bind_inputs(GLuint prog, const View &v, glm::vec4 viewport, float 
                           GLuint fog_lo_tex, GLuint lights_tex, const Target *gauss) const
 {
   glUseProgram(prog);
+  if (ubo) {
+    // gpu_shaders.preview_params_ubo: 224 bytes std140.
+    float f[56] = {};
+    std::memcpy(f, glm::value_ptr(v.inv_persp), 64);
+    std::memcpy(f + 16, glm::value_ptr(v.persp), 64);
+    const glm::vec4 eye4(v.eye, 1.0f), clip4(v.axis, v.clip_start), phase4(0, 0, 1, 1);
+    std::memcpy(f + 32, glm::value_ptr(eye4), 16);
+    std::memcpy(f + 36, glm::value_ptr(clip4), 16);
+    std::memcpy(f + 40, glm::value_ptr(viewport), 16);
+    std::memcpy(f + 44, glm::value_ptr(phase4), 16);
+    f[48] = sigma_t;
+    const int ip[4] = {light_count, scale, kUpsampleBilateralExact, 0};
+    std::memcpy(f + 52, ip, 16);
+    const_cast<Preview *>(this)->bind_ubo(f, sizeof(f));
+  }
   set_uniform(prog, "persp", v.persp);
   set_uniform(prog, "inv_persp", v.inv_persp);
   set_uniform(prog, "eye", glm::vec4(v.eye, 1.0f));
@@ -329,8 +386,15 @@ void Preview::draw_distance(const View &v)
   glDepthMask(GL_TRUE);
   glUseProgram(distance);
   set_uniform(distance, "persp", v.persp);
-  set_uniform(distance, "eye", glm::vec4(v.eye, 1.0f));
-  set_uniform(distance, "axis", glm::vec4(v.axis, -glm::dot(v.axis, v.eye)));
+  const glm::vec4 eye4(v.eye, 1.0f), axis4(v.axis, -glm::dot(v.axis, v.eye));
+  if (ubo) {
+    float f[8];
+    std::memcpy(f, glm::value_ptr(eye4), 16);
+    std::memcpy(f + 4, glm::value_ptr(axis4), 16);
+    bind_ubo(f, sizeof(f));
+  }
+  set_uniform(distance, "eye", eye4);
+  set_uniform(distance, "axis", axis4);
   glBindVertexArray(scene.vao);
   for (size_t i = 0; i < object_offsets.size(); ++i) {
     set_uniform(distance, "model", glm::mat4(1.0f));

@@ -14,6 +14,9 @@
 //       With spot_airlight.glsl / sun_airlight.glsl present (spot lights and sun lamps in
 //       the preview), those libs and the samplers spots / suns follow, and the defines
 //       PREVIEW_SPOTS / PREVIEW_SUNS are given as 0 (the benchmark has point lights only).
+//       With preview_params.glsl present the passes read their parameters from uniform
+//       buffers instead of push constants (gpu_shaders.PREVIEW_UBO "pv", DISTANCE_UBO
+//       "dv"; filled per bind as preview_params_ubo / distance_params_ubo do).
 #pragma once
 
 #include <map>
@@ -38,7 +41,9 @@ View make_view(int w, int h);
 struct Preview {
   GLSLTarget target;
   std::string dir;
-  bool v2 = false, spots = false, suns = false;
+  bool v2 = false, spots = false, suns = false, ubo = false;
+  std::vector<GLuint> ubo_ring;  // one uniform buffer per bind (Blender makes a new one)
+  size_t ubo_next = 0;
   GLuint distance = 0, fog = 0, fog_lo = 0, up_mark = 0, up_exact = 0, composite = 0;
   std::map<int, GLuint> fog_gauss;  // v2: fog pass with the Gaussian sums at scale S
   GLuint ftab = 0, lights = 0, lights_csv = 0;
@@ -80,6 +85,8 @@ struct Preview {
                     std::vector<std::pair<std::string, std::string>> defines);
   GLuint fog_gauss_program(int gauss_scale);
   std::vector<std::pair<std::string, std::string>> head_defines() const;
+  void add_ubo(CreateInfo &ci, bool distance) const;
+  void bind_ubo(const void *data, size_t bytes);
   void bind_inputs(GLuint prog, const View &v, glm::vec4 viewport, float sigma_t, int scale,
                    GLuint fog_lo_tex, GLuint lights_tex, const Target *gauss) const;
   void draw_splat(const View &v, int w, int h, float sigma_t, int gauss_scale);

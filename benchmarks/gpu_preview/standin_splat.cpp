@@ -23,7 +23,10 @@ void StandinSplat::build(const std::string &repo_dir, const std::string &bench_d
                       {"vec4", "clip"},      {"vec4", "viewport"},  {"float", "sigma_t"},
                       {"int", "light_count"}, {"int", "scale"},      {"vec4", "phase"}};
   s.samplers = {"Ftab", "depth_tex", "lights", "gauss", "f1tab"};
-  s.defines = {{"PREVIEW_WINDOW_DEPTH", "0"}, {"PREVIEW_PHASE", "0"}};
+  // preview_common.glsl reads pv_* names once the preview has uniform buffers: point
+  // them at this pass's push constants (harmless where they are unused).
+  s.defines = {{"PREVIEW_WINDOW_DEPTH", "0"}, {"PREVIEW_PHASE", "0"}, {"pv_sigma_t", "sigma_t"},
+               {"pv_phase", "phase"}, {"pv_scale", "scale"}};
   s.vertex_source = read_text_file(bench_dir + "/bench_gaussian_splat_vert.glsl");
   s.fragment_source = libs + read_text_file(bench_dir + "/bench_gaussian_splat_frag.glsl");
   splat = create_info_program(s, target);
