@@ -37,6 +37,8 @@ def _args():
     p.add_argument("--gauss-lights", type=int, default=4)
     p.add_argument("--gauss-repeats", type=int, default=3)
     p.add_argument("--gauss-scales", nargs="+", default=["FULL", "HALF", "QUARTER"])
+    p.add_argument("--factors-only", action="store_true",
+                   help="Gaussian section: only time the native factor computation")
     p.add_argument("--skip-point-section", action="store_true",
                    help="only run the Gaussian section")
     p.add_argument("--passes-only", action="store_true",
@@ -81,6 +83,29 @@ def _add_fog_object(n, seed=1):
                                     np.full(n, 2.0), np.full(n, 0.3))
     bpy.context.view_layer.update()
     return obj
+
+
+def _time_factors(count, n_lights, repeats):
+    """Median ms of the native per-view factors (f1, C_sv) with nothing cached (new fog or
+    lights) and after a view change only (the light side reused)."""
+    from airlight import _native, preview, preview_gaussians as pg
+    ctx = bpy.context
+    g = preview.scene_gaussians(ctx)
+    lights, _ = preview.scene_lights(ctx.scene, ctx.view_layer)
+    full, view = [], []
+    for k in range(repeats):
+        pg.clear_cache()
+        t0 = time.perf_counter()
+        pg.fogshop_factors(_native, g["centres"], g["scales"], g["amplitudes"], 0.08, (1.0, -12.0, 5.0),
+                           lights, data_key=("bench", k))
+        full.append((time.perf_counter() - t0) * 1e3)
+        t0 = time.perf_counter()
+        pg.fogshop_factors(_native, g["centres"], g["scales"], g["amplitudes"], 0.08, (2.0, -11.0, 5.5),
+                           lights, data_key=("bench", k))
+        view.append((time.perf_counter() - t0) * 1e3)
+    pg.clear_cache()
+    print(f"factors ({count} Gaussians, {n_lights} lights): {statistics.median(full):.1f} ms from scratch, "
+          f"{statistics.median(view):.1f} ms after a view change (median of {repeats})", flush=True)
 
 
 def _view3d_region():
@@ -216,7 +241,8 @@ def main():
     for count in args.gaussians:
         _scene(args.gauss_lights)
         _add_fog_object(count)
-        for scale in args.gauss_scales:
+        _time_factors(count, args.gauss_lights, args.gauss_repeats)
+        for scale in ([] if args.factors_only else args.gauss_scales):
             preview._state["error"] = None
             base, fog, _depth, cbase, cfog = _time_draws(window, area, region, args.gauss_repeats,
                                                          wm, scale, 'DRAWN')
