@@ -176,6 +176,8 @@ def _framebuffer(target):
 def free_gpu_resources():
     _state["gpu"] = None
     _state["gaussians"] = None
+    from . import preview_gaussians
+    preview_gaussians.clear_cache()
     _state["meshes"] = {}
     _state["instances"] = None
 

@@ -46,13 +46,28 @@ def cull_radii(scales, amplitudes, eps=CULL_EPS):
     return np.where(arg > 0.0, np.sqrt(np.maximum(arg, 0.0)) / a, 0.0)
 
 
-def _factors_from_optical_depth(native, centres, scales, amplitudes, beta0, eye, lights):
+# The light-side optical depths T(s, b_i) of the last call, kept while the Gaussians,
+# beta0 and the lights stay the same: moving the view then recomputes only T(v, b_i)
+# and C_sv (one segment per Gaussian instead of 1 + L).
+_light_side = {"key": None, "Ts": None, "medium": None}
+
+
+def clear_cache():
+    """Drops the cached light side (on file load / unregister)."""
+    _light_side.update(key=None, Ts=None, medium=None)
+
+
+def _factors_from_optical_depth(native, centres, scales, amplitudes, beta0, eye, lights, data_key=None):
     """f1 and C_sv with the RbfMedium binding: culled optical depths of the segments
     s -> b_i and v -> b_i, minus Gaussian i's own part T_i(p, b_i) = c sqrt(pi)/(2a)
     erf(a |b_i - p|) (the line ends at the centre), as RbfAirlightFogshop's constructor
-    sums the medium without Gaussian i."""
+    sums the medium without Gaussian i. _data_key_ (changes with the Gaussian arrays)
+    lets the light side be reused across view changes."""
     n = len(scales)
-    medium = native.RbfMedium(centres, scales, amplitudes, beta0=float(beta0))
+    key = None if data_key is None else (data_key, float(beta0), tuple(map(tuple, np.asarray(lights).tolist())))
+    reuse = key is not None and _light_side["key"] == key
+    medium = _light_side["medium"] if reuse else native.RbfMedium(centres, scales, amplitudes,
+                                                                   beta0=float(beta0))
     a = np.asarray(scales, np.float64)
     k = np.asarray(amplitudes, np.float64) * _SQRT_PI / (2.0 * a)
     eye = np.asarray(eye, np.float64).reshape(3)
@@ -66,10 +81,13 @@ def _factors_from_optical_depth(native, centres, scales, amplitudes, beta0, eye,
 
     Tv = depth_to_centres(eye)
     L = len(lights)
+    Ts = _light_side["Ts"] if reuse else [depth_to_centres(s) for s in lights]
+    if key is not None:
+        _light_side.update(key=key, Ts=Ts, medium=medium)
     f1 = np.empty((L, n))
     Csv = np.ones(L)
     for l, s in enumerate(lights):
-        f1[l] = np.exp(-(depth_to_centres(s) + Tv))
+        f1[l] = np.exp(-(Ts[l] + Tv))
         s = np.asarray(s, np.float64)
         D = float(np.linalg.norm(s - eye))
         if D > 0.0:
@@ -78,7 +96,7 @@ def _factors_from_optical_depth(native, centres, scales, amplitudes, beta0, eye,
     return f1, Csv
 
 
-def fogshop_factors(native, centres, scales, amplitudes, beta0, eye, lights):
+def fogshop_factors(native, centres, scales, amplitudes, beta0, eye, lights, data_key=None):
     """(f1 (L, n), C_sv (L,)) of Fogshop's per-(light, Gaussian) precomputation at the
     viewpoint _eye_. The one place to switch to `_native.rbf_preview_factors` (being added
     on another branch): it is used when present."""
@@ -91,7 +109,7 @@ def fogshop_factors(native, centres, scales, amplitudes, beta0, eye, lights):
         out = fast(centres, np.asarray(scales, np.float64), np.asarray(amplitudes, np.float64),
                    float(beta0), np.asarray(eye, np.float64), lights)
         return np.asarray(out["f1"], np.float64).reshape(len(lights), -1), np.asarray(out["Csv"], np.float64)
-    return _factors_from_optical_depth(native, centres, scales, amplitudes, beta0, eye, lights)
+    return _factors_from_optical_depth(native, centres, scales, amplitudes, beta0, eye, lights, data_key)
 
 
 class GaussianFog:
@@ -120,7 +138,8 @@ class GaussianFog:
         if key != self.key:
             t0 = time.perf_counter()
             f1, self.Csv = fogshop_factors(native, gaussians["centres"], gaussians["scales"],
-                                           gaussians["amplitudes"], beta0, eye, lights)
+                                           gaussians["amplitudes"], beta0, eye, lights,
+                                           data_key=gaussians["key"])
             radii = cull_radii(gaussians["scales"], gaussians["amplitudes"])
             self.gauss_tex, self.f1_tex = gs.rbf_data_textures(
                 gaussians["centres"], gaussians["scales"], gaussians["amplitudes"], radii, f1)

@@ -314,3 +314,22 @@ def test03_handler_draws_fog_objects_and_follows_edits(addon, gauss_scene):
         addon._state["capture"] = None
         if "PreviewFog" in bpy.data.objects:
             bpy.data.objects.remove(bpy.data.objects["PreviewFog"])
+
+
+def test05_factor_cache_matches_fresh(native):
+    """Moving the view reuses the light-side optical depths: the factors equal a fresh
+    computation at the new viewpoint (and differ from the old one's)."""
+    from airlight import preview_gaussians as pg
+    centres, scales, amplitudes = _gaussians((1.0, -12.0, 5.0))
+    lights = [(2.0, -1.0, 3.0), (-4.0, 3.0, 2.0)]
+    pg.clear_cache()
+    f1_a, _ = pg.fogshop_factors(native, centres, scales, amplitudes, SIGMA_T, (1.0, -12.0, 5.0),
+                                 lights, data_key="k")
+    f1_b, Csv_b = pg.fogshop_factors(native, centres, scales, amplitudes, SIGMA_T, (3.0, -9.0, 4.0),
+                                     lights, data_key="k")
+    f1_c, Csv_c = pg.fogshop_factors(native, centres, scales, amplitudes, SIGMA_T, (3.0, -9.0, 4.0),
+                                     lights)
+    pg.clear_cache()
+    np.testing.assert_allclose(f1_b, f1_c, rtol=1e-12)
+    np.testing.assert_allclose(Csv_b, Csv_c, rtol=1e-12)
+    assert np.abs(f1_a - f1_b).max() > 1e-3
