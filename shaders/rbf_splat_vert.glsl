@@ -9,10 +9,10 @@
 //   persp     projection * view of the target
 //   eye       xyz = view origin, w = 1 perspective / 0 orthographic
 //
-// The quad covers the projection of the sphere's bounding box (its 8 corners; exact
-// for a convex set in front of the eye). Full screen when a corner is on or behind the
-// eye plane (the sphere holds the eye or crosses it). Degenerate (nothing drawn) when
-// R = 0 or the bounds miss the screen.
+// The quad covers the exact screen bounds of the projected cull sphere (tangent planes
+// through the eye; for orthographic views the same formula gives centre +- R). Full
+// screen when the sphere reaches the eye plane (it holds the eye or crosses it); nothing
+// when it lies wholly behind the eye, when R = 0, or when the bounds miss the screen.
 //   out: flat int gi (the Gaussian's index)
 
 ivec2 rbf_texel(int i)
@@ -31,22 +31,31 @@ void main()
     gl_Position = vec4(2.0, 2.0, 2.0, 1.0);  // outside the clip volume: culled
     return;
   }
-  vec2 lo = vec2(1e30), hi = vec2(-1e30);
-  bool full = false;
-  for (int k = 0; k < 8; k++) {
-    vec3 sgn = vec3((k & 1) != 0 ? 1.0 : -1.0, (k & 2) != 0 ? 1.0 : -1.0, (k & 4) != 0 ? 1.0 : -1.0);
-    vec4 q = persp * vec4(ba.xyz + R * sgn, 1.0);
-    if (!(q.w > 1e-6)) {
-      full = true;
-      break;
+  // Exact NDC bounds of the projected sphere: the planes x_ndc = k through the eye,
+  // (r0 - k r3) . (p, 1) = 0 (r0, r3: rows of persp), tangent to the sphere satisfy
+  // (a - k b)^2 = R^2 |u - k v|^2 with a = r0 . (c, 1), b = r3 . (c, 1), u = r0.xyz,
+  // v = r3.xyz: a quadratic in k whose roots bound x (and likewise y with r1). Valid when
+  // the sphere lies in front of the eye plane (b^2 > R^2 |v|^2); else full screen.
+  vec4 c1 = vec4(ba.xyz, 1.0);
+  vec4 r3 = vec4(persp[0][3], persp[1][3], persp[2][3], persp[3][3]);
+  float bw = dot(r3, c1), R2 = R * R;
+  float A = bw * bw - R2 * dot(r3.xyz, r3.xyz);
+  vec2 lo = vec2(-1.0), hi = vec2(1.0);
+  if (A > 1e-12 * bw * bw && bw > 0.0) {
+    for (int axis = 0; axis < 2; axis++) {
+      vec4 r = vec4(persp[0][axis], persp[1][axis], persp[2][axis], persp[3][axis]);
+      float a = dot(r, c1);
+      float Bh = a * bw - R2 * dot(r.xyz, r3.xyz);  // half of -B
+      float C = a * a - R2 * dot(r.xyz, r.xyz);
+      float disc = max(Bh * Bh - A * C, 0.0);
+      float k0 = (Bh - sqrt(disc)) / A, k1 = (Bh + sqrt(disc)) / A;
+      lo[axis] = k0;
+      hi[axis] = k1;
     }
-    vec2 ndc = q.xy / q.w;
-    lo = min(lo, ndc);
-    hi = max(hi, ndc);
   }
-  if (full) {
-    lo = vec2(-1.0);
-    hi = vec2(1.0);
+  else if (bw < 0.0 && A > 0.0) {
+    gl_Position = vec4(2.0, 2.0, 2.0, 1.0);  // wholly behind the eye
+    return;
   }
   lo = max(lo, vec2(-1.0));
   hi = min(hi, vec2(1.0));

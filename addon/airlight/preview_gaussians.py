@@ -96,19 +96,47 @@ def _factors_from_optical_depth(native, centres, scales, amplitudes, beta0, eye,
     return f1, Csv
 
 
+def _factors_from_native(native, fast, centres, scales, amplitudes, beta0, eye, lights, data_key):
+    """Branch wt-rbf's `rbf_preview_factors`: optical depths T(v, b_i), T(s, b_i) (beta0
+    included) and Gaussian i's own parts, and C_sv; f1 leaves the own parts out (as the
+    bake's constructor). After a view change with the same Gaussians and lights only the
+    eye side is asked for (no lights) and C_sv comes from L segments of a cached medium."""
+    a = np.asarray(scales, np.float64)
+    c = np.asarray(amplitudes, np.float64)
+    eye = np.asarray(eye, np.float64).reshape(3)
+    key = None if data_key is None else ("native", data_key, float(beta0), tuple(map(tuple, lights.tolist())))
+    if key is not None and _light_side["key"] == key:
+        out = fast(centres, a, c, float(beta0), eye, np.zeros((0, 3)))
+        Ts = _light_side["Ts"]
+        medium = _light_side["medium"]
+        if medium is None:
+            medium = _light_side["medium"] = native.RbfMedium(centres, a, c, beta0=float(beta0))
+        D = np.linalg.norm(lights - eye, axis=1)
+        T = medium.optical_depth(lights, np.broadcast_to(eye, lights.shape).copy())
+        Csv = np.where(D > 0.0, np.exp(-np.maximum(T - beta0 * D, 0.0)), 1.0)
+    else:
+        out = fast(centres, a, c, float(beta0), eye, lights)
+        Ts = np.asarray(out["T_sb"], np.float64) - np.asarray(out["own_sb"], np.float64)
+        Csv = np.asarray(out["C_sv"], np.float64)
+        if key is not None:
+            _light_side.update(key=key, Ts=Ts, medium=None)
+    Tv = np.asarray(out["T_vb"], np.float64) - np.asarray(out["own_vb"], np.float64)
+    f1 = np.exp(-(np.maximum(Ts, 0.0) + np.maximum(Tv, 0.0)[None, :]))
+    return f1.reshape(len(lights), -1), Csv
+
+
 def fogshop_factors(native, centres, scales, amplitudes, beta0, eye, lights, data_key=None):
     """(f1 (L, n), C_sv (L,)) of Fogshop's per-(light, Gaussian) precomputation at the
-    viewpoint _eye_. The one place to switch to `_native.rbf_preview_factors` (being added
-    on another branch): it is used when present."""
+    viewpoint _eye_. `_native.rbf_preview_factors` (branch wt-rbf: dict T_vb, own_vb,
+    T_sb, own_sb, C_sv, ...) is used when the module has it; else the RbfMedium optical
+    depths (with the light side cached across view changes under _data_key_)."""
     centres = np.ascontiguousarray(np.asarray(centres, np.float64).reshape(-1, 3))
     lights = np.asarray(lights, np.float64).reshape(-1, 3)
     if len(lights) == 0 or len(scales) == 0:
         return np.zeros((len(lights), len(scales))), np.ones(len(lights))
     fast = getattr(native, "rbf_preview_factors", None)
     if fast is not None:
-        out = fast(centres, np.asarray(scales, np.float64), np.asarray(amplitudes, np.float64),
-                   float(beta0), np.asarray(eye, np.float64), lights)
-        return np.asarray(out["f1"], np.float64).reshape(len(lights), -1), np.asarray(out["Csv"], np.float64)
+        return _factors_from_native(native, fast, centres, scales, amplitudes, beta0, eye, lights, data_key)
     return _factors_from_optical_depth(native, centres, scales, amplitudes, beta0, eye, lights, data_key)
 
 
