@@ -16,7 +16,7 @@ fog images of two runs (e.g. an NVIDIA GPU's against Mesa llvmpipe's).
         without the 0.1 % brightest pixels (the pixels whose view ray passes within a
         fraction of a pixel of a light, where the airlight diverges and float rounding of
         the ray direction alone changes it by tens of percent).
-    /usr/bin/python3 benchmarks/bench_gpu_preview.py bake-check IMAGES --size WxH [--step S]
+    /usr/bin/python3 benchmarks/bench_gpu_preview.py bake-check IMAGES --size WxH [--step S] [--configs a,b]
         the reference: bakes the harness's scene with _native.bake (model sun05,
         aa_samples 1: one sample per pixel centre, as the preview) at WxH, with the
         Gaussians of IMAGES (its "gaussians" array) for the gauss_* images, and compares
@@ -151,9 +151,10 @@ def cmd_bake_check(args):
     print(f"{'config':16s} {'airlight mean rel':>18s} {'Tr mean rel':>12s} {'px rel med':>11s} "
           f"{'r w/o 0.1%':>11s}")
     worst = 0.0
+    only = set(args.configs.split(",")) if args.configs else None
     for name in sorted(images):
         img = images[name]
-        if img.ndim != 3:
+        if img.ndim != 3 or (only is not None and name not in only):
             continue
         gauss = name.startswith("gauss")
         if gauss and "gaussians" not in images:
@@ -211,6 +212,7 @@ def main():
     b.add_argument("images")
     b.add_argument("--size", required=True, help="WxH of the run the images come from")
     b.add_argument("--step", type=int, default=1, help="its --npy-step")
+    b.add_argument("--configs", help="comma-separated names to check (default: all)")
     b.add_argument("--native-dir", default=os.path.join(REPO, "addon", "airlight"))
     args = p.parse_args()
     return {"run": cmd_run, "stage": cmd_stage, "compare": cmd_compare,

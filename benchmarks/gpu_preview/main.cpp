@@ -202,6 +202,7 @@ int run(const Args &a)
   for (GLint i = 0; i < n_ext; ++i) {
     const char *e = reinterpret_cast<const char *>(glGetStringi(GL_EXTENSIONS, i));
     if (e && std::strcmp(e, "GL_ARB_conservative_depth") == 0) p.target.conservative_depth = true;
+    if (e && std::strcmp(e, "GL_ARB_pipeline_statistics_query") == 0) p.has_pipeline_stats = true;
   }
   p.build(a.shaders, a.ftable, a.lights, a.width, a.height);
   check_gl("build");
@@ -348,6 +349,11 @@ int run(const Args &a)
       const unsigned long long n = c.kind == "gauss" ? p.splat_samples : standin_fragments;
       rep.line(fmt("%-15s splat fragments %llu = %.1f per splat-target pixel (%dx%d)",
                    c.name.c_str(), n, double(n) / (double(lw) * lh), lw, lh));
+      if (c.kind == "gauss" && p.splat_invocations > 0)
+        rep.line(fmt("%-15s splat fragment shader invocations %llu = %.1f per splat-target pixel "
+                     "(before the cull test's discard)",
+                     c.name.c_str(), p.splat_invocations,
+                     double(p.splat_invocations) / (double(lw) * lh)));
     }
     if (!a.out.empty()) {
       const int s = a.npy_step;

@@ -425,18 +425,22 @@ void Preview::draw_splat(const View &v, int w, int h, float sigma_t, int S)
   glBindTextureUnit(3, gauss_tex);
   glBindTextureUnit(4, f1_tex);
   glBindTextureUnit(5, 0);  // no stale binding of the target being drawn
-  GLuint q = 0;
+  GLuint q[2] = {0, 0};
   if (count_samples) {
-    glGenQueries(1, &q);
-    glBeginQuery(GL_SAMPLES_PASSED, q);
+    glGenQueries(2, q);
+    glBeginQuery(GL_SAMPLES_PASSED, q[0]);
+    if (has_pipeline_stats) glBeginQuery(GL_FRAGMENT_SHADER_INVOCATIONS_ARB, q[1]);
   }
   ::draw(splat_batch);
   if (count_samples) {
     glEndQuery(GL_SAMPLES_PASSED);
-    GLuint64 n = 0;
-    glGetQueryObjectui64v(q, GL_QUERY_RESULT, &n);
+    if (has_pipeline_stats) glEndQuery(GL_FRAGMENT_SHADER_INVOCATIONS_ARB);
+    GLuint64 n = 0, m = 0;
+    glGetQueryObjectui64v(q[0], GL_QUERY_RESULT, &n);
+    if (has_pipeline_stats) glGetQueryObjectui64v(q[1], GL_QUERY_RESULT, &m);
     splat_samples = n;
-    glDeleteQueries(1, &q);
+    splat_invocations = m;
+    glDeleteQueries(2, q);
   }
   stamp("splat");
 }

@@ -63,6 +63,10 @@ struct Preview {
   // Samples the last 'exact' draw shaded and the last splat drew (when counting).
   bool count_samples = false;
   unsigned long long exact_samples = 0, splat_samples = 0;
+  // Fragment shader invocations of the last counted splat (ARB_pipeline_statistics_query;
+  // 0 where the driver lacks it): every fragment the quads cover, before the cull test.
+  bool has_pipeline_stats = false;
+  unsigned long long splat_invocations = 0;
 
   // Compiles the passes, uploads the F table (ftable file), lights and the scene.
   void build(const std::string &shader_dir, const std::string &ftable_path, int lights,
