@@ -299,6 +299,37 @@ void RbfSplat::bin(const Vec3& D0, const Vec3& Dx, const Vec3& Dy, const Vec3& f
     const std::size_t n = medium_.size();
     std::vector<int> rect(4 * n);  // tile range x0, x1, y0, y1 (x1 < x0: none)
     std::vector<std::uint32_t> count(n_tiles + 1, 0);
+    // Each tile's cone of rays: unit axis through its centre, cos and sin of the largest
+    // angle to its corner rays. A ball of angular radius rho around direction u can meet
+    // the tile's rays only if angle(axis, u) <= theta + rho: cuts the bounding boxes'
+    // corners and the tile rounding.
+    struct Cone {
+        Vec3 axis;
+        double cos_t, sin_t;
+    };
+    std::vector<Cone> cones(n_tiles);
+    for (int ty = 0; ty < tiles_y_; ++ty)
+        for (int tx = 0; tx < tiles_x_; ++tx) {
+            const double x0 = tx * kTile, x1 = std::min(W, (tx + 1) * kTile);
+            const double y0 = ty * kTile, y1 = std::min(H, (ty + 1) * kTile);
+            Cone& c = cones[ty * tiles_x_ + tx];
+            c.axis = glm::normalize(D0 + 0.5 * (x0 + x1) * Dx + 0.5 * (y0 + y1) * Dy);
+            double cmin = 1.0;
+            for (double px : {x0, x1})
+                for (double py : {y0, y1})
+                    cmin = std::min(cmin, glm::dot(c.axis, glm::normalize(D0 + px * Dx + py * Dy)));
+            cmin = std::clamp(cmin - 1e-9, -1.0, 1.0);  // rounding margin
+            c.cos_t = cmin;
+            c.sin_t = std::sqrt(std::max(0.0, 1.0 - cmin * cmin));
+        }
+    // Ball i (centre direction u, sin and cos of its angular radius) against tile t.
+    auto meets = [&](int t, const Vec3& u, double sin_r, double cos_r) {
+        const Cone& c = cones[t];
+        const double cos_sum = c.cos_t * cos_r - c.sin_t * sin_r;  // cos(theta + rho)
+        // theta + rho >= pi: every direction qualifies (sin of the sum < 0 with cos < 0).
+        if (c.sin_t * cos_r + c.cos_t * sin_r < 0.0) return true;
+        return glm::dot(c.axis, u) >= cos_sum;
+    };
     // Film-coordinate interval of the ball (c, R) along axis q: the two planes through
     // the eye with normal q - p q0 tangent to the ball. False: the ball reaches the plane
     // lambda = 0 (no finite bounds).
@@ -344,8 +375,15 @@ void RbfSplat::bin(const Vec3& D0, const Vec3& Dx, const Vec3& Dy, const Vec3& f
         r[1] = tx1;
         r[2] = ty0;
         r[3] = ty1;
+        // Cone test inside the rectangle (all tiles if the eye is inside the ball).
+        const bool inside = dist <= R * (1.0 + 1e-9);
+        const Vec3 u = inside ? Vec3(0.0) : c / dist;
+        const double sin_r = inside ? 1.0 : R / dist, cos_r = inside ? 0.0 : std::sqrt(1.0 - sin_r * sin_r);
         for (int ty = ty0; ty <= ty1; ++ty)
-            for (int tx = tx0; tx <= tx1; ++tx) ++count[ty * tiles_x_ + tx + 1];
+            for (int tx = tx0; tx <= tx1; ++tx) {
+                const int t = ty * tiles_x_ + tx;
+                if (inside || meets(t, u, sin_r, cos_r)) ++count[t + 1];
+            }
     }
     for (int t = 0; t < n_tiles; ++t) count[t + 1] += count[t];
     bin_start_ = count;
@@ -353,8 +391,17 @@ void RbfSplat::bin(const Vec3& D0, const Vec3& Dx, const Vec3& Dy, const Vec3& f
     std::vector<std::uint32_t> fill(count.begin(), count.end() - 1);
     for (std::size_t i = 0; i < n; ++i) {
         const int* r = &rect[4 * i];
+        if (r[1] < r[0]) continue;
+        const Vec3 c = medium_.centre(i) - eye_;
+        const double dist = glm::length(c), R = medium_.cull_radius(i);
+        const bool inside = dist <= R * (1.0 + 1e-9);
+        const Vec3 u = inside ? Vec3(0.0) : c / dist;
+        const double sin_r = inside ? 1.0 : R / dist, cos_r = inside ? 0.0 : std::sqrt(1.0 - sin_r * sin_r);
         for (int ty = r[2]; ty <= r[3]; ++ty)
-            for (int tx = r[0]; tx <= r[1]; ++tx) bin_index_[fill[ty * tiles_x_ + tx]++] = std::uint32_t(i);
+            for (int tx = r[0]; tx <= r[1]; ++tx) {
+                const int t = ty * tiles_x_ + tx;
+                if (inside || meets(t, u, sin_r, cos_r)) bin_index_[fill[t]++] = std::uint32_t(i);
+            }
     }
 }
 

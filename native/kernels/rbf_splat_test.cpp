@@ -7,6 +7,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <ctime>
 #include <cmath>
 #include <cstdio>
 #include <random>
@@ -298,5 +299,40 @@ TEST(RbfSplat, NoiseOffIdenticalOnBounded) {
     EXPECT_LT(max_change, 3.0);
 }
 
+}  // namespace
+}  // namespace airlight
+
+namespace airlight {
+namespace {
+// Profiling aid (not a timed test; run with --gtest_also_run_disabled_tests): the
+// 3000-Gaussian benchmark cloud of bench_rbf.py at 480 x 270, one light, one thread.
+TEST(RbfSplat, DISABLED_Profile3000) {
+    std::mt19937 rng(2);
+    std::uniform_real_distribution<double> U(0.0, 1.0);
+    std::vector<double> b, a, c;
+    for (int i = 0; i < 3000; ++i) {
+        b.insert(b.end(), {-30.0 + 60.0 * U(rng), -2.0 + 8.0 * U(rng), 10.0 + 70.0 * U(rng)});
+        a.push_back(1.0 / (1.0 + 2.0 * U(rng)));
+        c.push_back(0.01 + 0.04 * U(rng));
+    }
+    const RbfMedium m(b, a, c, 0.002);
+    SmallCamera cam(480, 270);
+    const SpecialFTable table(256, 256);
+    RbfSplat s(m, Vec3(0.0), {Vec3(-8.0, 4.0, 30.0)}, {RGB(40.0)}, RGB(0.9), {}, &table, RbfNoise{}, 1);
+    s.bin(cam.D0, cam.Dx, cam.Dy, cam.forward, cam.W, cam.H, 0.1);
+    std::vector<float> depth(size_t(cam.W) * cam.H);
+    for (int j = 0; j < cam.H; ++j)
+        for (int i = 0; i < cam.W; ++i) {
+            const Vec3 d = cam.dir(i, j);
+            depth[size_t(j) * cam.W + i] = d.y < -1e-6 ? float(-2.0 / d.y) : std::numeric_limits<float>::infinity();
+        }
+    std::vector<float> T(3 * depth.size()), A(3 * depth.size());
+    const std::clock_t t0 = std::clock();  // CPU time: the machine may be shared
+    for (int t = 0; t < s.num_tiles(); ++t) s.splat_tile(t, depth.data(), T.data(), A.data());
+    const double sec = double(std::clock() - t0) / CLOCKS_PER_SEC;
+    std::printf("splat 480x270: %.3f s CPU, %zu (tile, Gaussian) pairs = %.1f per pixel, %.2f ns per pixel-Gaussian\n",
+                sec, s.num_pairs(), double(s.num_pairs()) * RbfSplat::kTile * RbfSplat::kTile / depth.size(),
+                sec * 1e9 / (double(s.num_pairs()) * RbfSplat::kTile * RbfSplat::kTile));
+}
 }  // namespace
 }  // namespace airlight
