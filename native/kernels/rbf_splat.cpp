@@ -521,47 +521,101 @@ void RbfSplat::splat_tile(int t, const float* depth, float* transmittance, float
 }
 
 void RbfSplat::eval_rays(const Vec3* dirs, const float* Dvp, const float* t0, int n, double* Tr, RGB* La) const {
+    // Chunks of up to kChunk rays (the bake passes each edge pixel's sub-samples together,
+    // so a chunk's rays are close): the union of the Gaussians whose cull spheres the
+    // chunk's segments reach, each evaluated over the whole chunk with the splat's kernels.
+    constexpr int kChunk = 16;
     const std::size_t L = lights_.size();
     const double beta0 = medium_.beta0();
-    std::vector<std::uint32_t> near_list;
-    for (int k = 0; k < n; ++k) {
-        const Vec3& d = dirs[k];
-        const float dxf = float(d.x), dyf = float(d.y), dzf = float(d.z);
-        const float tn = t0 ? t0[k] : 0.0f;
-        const float far = std::max(Dvp[k], tn);
-        float Tf = 0, Rf = 0, Gf = 0, Bf = 0, Tn = 0, Rn = 0, Gn = 0, Bn = 0;
-        near_list.clear();
-        medium_.for_each_near(eye_, d, double(far), [&](std::size_t i) { near_list.push_back(std::uint32_t(i)); });
-        for (std::uint32_t i : near_list) {
-            splat_gaussian(i, 1, &dxf, &dyf, &dzf, &far, &Tf, &Rf, &Gf, &Bf);
-            if (tn > 0.0f) splat_gaussian(i, 1, &dxf, &dyf, &dzf, &tn, &Tn, &Rn, &Gn, &Bn);
+    thread_local std::vector<std::uint32_t> stamp;
+    thread_local std::uint32_t generation = 0;
+    if (stamp.size() != medium_.size()) {
+        stamp.assign(medium_.size(), 0);
+        generation = 0;
+    }
+    std::vector<std::uint32_t> gauss;
+    for (int k0 = 0; k0 < n; k0 += kChunk) {
+        const int m = std::min(kChunk, n - k0);
+        float dx[kChunk], dy[kChunk], dz[kChunk], far[kChunk], tn[kChunk];
+        double ddx[kChunk], ddy[kChunk], ddz[kChunk];
+        bool any_near = false;
+        if (++generation == 0) {  // wrapped: reset the stamps
+            std::fill(stamp.begin(), stamp.end(), 0);
+            generation = 1;
         }
-        const double seg = double(far) - double(tn);
-        Tr[k] = std::exp(-(background_depth(beta0, seg) + std::max(0.0, double(Tf) - double(Tn))));
-        La[k] = RGB(0.0);
-        if (!(seg > 0.0)) continue;
-        const double scale_g = tn > 0.0f ? std::exp(double(Tn)) : 1.0;
-        const double scale = tn > 0.0f ? scale_g * std::exp(beta0 * double(tn)) : 1.0;
-        La[k] = scale * glm::max(RGB(double(Rf) - Rn, double(Gf) - Gn, double(Bf) - Bn), RGB(0.0));
+        gauss.clear();
+        for (int k = 0; k < m; ++k) {
+            const Vec3& d = dirs[k0 + k];
+            ddx[k] = d.x;
+            ddy[k] = d.y;
+            ddz[k] = d.z;
+            dx[k] = float(d.x);
+            dy[k] = float(d.y);
+            dz[k] = float(d.z);
+            tn[k] = t0 ? t0[k0 + k] : 0.0f;
+            far[k] = std::max(Dvp[k0 + k], tn[k]);
+            any_near = any_near || tn[k] > 0.0f;
+            medium_.for_each_near(eye_, d, double(far[k]), [&](std::size_t i) {
+                if (stamp[i] != generation) {
+                    stamp[i] = generation;
+                    gauss.push_back(std::uint32_t(i));
+                }
+            });
+        }
+        float Tf[kChunk] = {}, Rf[kChunk] = {}, Gf[kChunk] = {}, Bf[kChunk] = {};
+        float Tn[kChunk] = {}, Rn[kChunk] = {}, Gn[kChunk] = {}, Bn[kChunk] = {};
+        for (std::uint32_t i : gauss) {
+            splat_gaussian(i, m, dx, dy, dz, far, Tf, Rf, Gf, Bf);
+            // The near segment [0, t0] only meets Gaussians near the eye (as in bin()).
+            if (any_near && glm::length(medium_.centre(i) - eye_) < medium_.cull_radius(i) + double(*std::max_element(tn, tn + m)))
+                splat_gaussian(i, m, dx, dy, dz, tn, Tn, Rn, Gn, Bn);
+        }
+        float L0[kChunk][3] = {};
         if (beta0 > 0.0) {
+            double cos_gamma[kChunk];
+            float value[kChunk];
             for (std::size_t l = 0; l < L; ++l) {
                 const double D = Dsv_[l];
-                const double cg = D > 0.0 ? std::clamp(glm::dot(d, lights_[l] - eye_) / D, -1.0, 1.0) : 1.0;
-                float v;
-                homogeneous(&cg, l, &far, tn > 0.0f ? &tn : nullptr, 1, &v);
-                La[k] += weight0_[l] * Csv_[l] * (scale_g * double(v));
+                const Vec3 sv = D > 0.0 ? (lights_[l] - eye_) / D : Vec3(0.0);
+                for (int k = 0; k < m; ++k)
+                    cos_gamma[k] =
+                        D > 0.0 ? std::clamp(ddx[k] * sv.x + ddy[k] * sv.y + ddz[k] * sv.z, -1.0, 1.0) : 1.0;
+                homogeneous(cos_gamma, l, far, any_near ? tn : nullptr, m, value);
+                const RGB w = weight0_[l] * Csv_[l];
+                for (int k = 0; k < m; ++k)
+                    for (int c = 0; c < 3; ++c) L0[k][c] += float(w[c]) * value[k];
             }
+        }
+        for (int k = 0; k < m; ++k) {
+            const double seg = double(far[k]) - double(tn[k]);
+            Tr[k0 + k] = std::exp(-(background_depth(beta0, seg) + std::max(0.0, double(Tf[k]) - double(Tn[k]))));
+            const double scale_g = tn[k] > 0.0f ? std::exp(double(Tn[k])) : 1.0;
+            const double scale = tn[k] > 0.0f ? scale_g * std::exp(beta0 * double(tn[k])) : 1.0;
+            const RGB g(double(Rf[k]) - Rn[k], double(Gf[k]) - Gn[k], double(Bf[k]) - Bn[k]);
+            La[k0 + k] = seg > 0.0 ? scale * glm::max(g, RGB(0.0)) +
+                                         scale_g * RGB(double(L0[k][0]), double(L0[k][1]), double(L0[k][2]))
+                                   : RGB(0.0);
         }
     }
 }
 
 RbfPreviewFactors rbf_preview_factors(const RbfMedium& medium, const Vec3& eye, const std::vector<Vec3>& lights,
-                                      int threads) {
+                                      int threads, const RbfPreviewFactors* previous, std::size_t first_new) {
     auto finite = [](const Vec3& p) { return std::isfinite(p.x) && std::isfinite(p.y) && std::isfinite(p.z); };
     if (!finite(eye)) throw std::invalid_argument("rbf_preview_factors: eye is not finite");
     for (const Vec3& s : lights)
         if (!finite(s)) throw std::invalid_argument("rbf_preview_factors: a light position is not finite");
     const std::size_t n = medium.size(), m = lights.size();
+    const std::size_t n_old = previous ? first_new : 0;
+    if (previous) {
+        if (first_new > n || previous->T_vb.size() != n_old || previous->own_vb.size() != n_old ||
+            previous->T_sb.size() != m * n_old || previous->own_sb.size() != m * n_old) {
+            std::ostringstream os;
+            os << "rbf_preview_factors: previous factors must describe the first first_new = " << first_new
+               << " Gaussians and the same " << m << " lights";
+            throw std::invalid_argument(os.str());
+        }
+    }
     RbfPreviewFactors f;
     f.T_vb.resize(n);
     f.own_vb.resize(n);
@@ -575,20 +629,62 @@ RbfPreviewFactors rbf_preview_factors(const RbfMedium& medium, const Vec3& eye, 
         f.Dsv.push_back(D);
         f.Csv.push_back(D > 0.0 ? std::exp(-medium.optical_depth_ray(s, d / D, D, RbfMedium::npos, false)) : 1.0);
     }
-    // Row 0: the eye; rows 1..m: the lights. The others in float (fast_erf.h: relative
-    // error ~1e-5 per Gaussian), the own half exactly.
-    const std::vector<double> others = depths_to_centres(medium, eye, lights, threads);
-    for (std::size_t k = 0; k < (m + 1) * n; ++k) {
-        const std::size_t row = k / n, i = k % n;
-        const Vec3 from = row == 0 ? eye : lights[row - 1];
-        const Vec3 d = medium.centre(i) - from;
-        const double D = glm::length(d);
-        const double own = D > 0.0 ? medium.gaussian_optical_depth(i, from, d / D, 0.0, D) : 0.0;
-        double* Tout = row == 0 ? &f.T_vb[i] : &f.T_sb[(row - 1) * n + i];
-        double* own_out = row == 0 ? &f.own_vb[i] : &f.own_sb[(row - 1) * n + i];
-        *Tout = others[k] + own;
-        *own_out = own;
+    const std::size_t rows = m + 1;  // row 0: the eye; rows 1..m: the lights
+    auto from_of = [&](std::size_t row) { return row == 0 ? eye : lights[row - 1]; };
+    auto T_at = [&](std::size_t row, std::size_t i) -> double& { return row == 0 ? f.T_vb[i] : f.T_sb[(row - 1) * n + i]; };
+    auto own_at = [&](std::size_t row, std::size_t i) -> double& {
+        return row == 0 ? f.own_vb[i] : f.own_sb[(row - 1) * n + i];
+    };
+    // Gaussians [n_old, n): everything (the others in float, fast_erf.h: ~1e-5 relative
+    // per Gaussian; the own half exactly).
+    const std::size_t n_new = n - n_old;
+    parallel_chunks(rows * n_new, threads, 16, [&](std::size_t b, std::size_t e) {
+        SegmentScratch scratch;
+        for (std::size_t k = b; k < e; ++k) {
+            const std::size_t row = k / n_new, i = n_old + k % n_new;
+            const Vec3 from = from_of(row);
+            const Vec3 d = medium.centre(i) - from;
+            const double D = glm::length(d);
+            const double own = D > 0.0 ? medium.gaussian_optical_depth(i, from, d / D, 0.0, D) : 0.0;
+            T_at(row, i) = fast_depth_excluding(medium, from, medium.centre(i), i, scratch) + own;
+            own_at(row, i) = own;
+        }
+    });
+    if (n_old == 0) return f;
+    // Gaussians [0, n_old): the previous factors plus the new Gaussians' line integrals
+    // (T is a sum over Gaussians), all new ones at once in one vectorised loop.
+    std::vector<std::vector<float>> rel(rows * 3);
+    std::vector<float> a(n_new), k0(n_new);
+    for (std::size_t j = 0; j < n_new; ++j) {
+        a[j] = float(medium.scale(n_old + j));
+        k0[j] = float(medium.amplitude(n_old + j) * kSqrtPi / (2.0 * medium.scale(n_old + j)));
     }
+    for (std::size_t row = 0; row < rows; ++row)
+        for (int c = 0; c < 3; ++c) {
+            std::vector<float>& v = rel[row * 3 + c];
+            v.resize(n_new);
+            for (std::size_t j = 0; j < n_new; ++j) v[j] = float(medium.centre(n_old + j)[c] - from_of(row)[c]);
+        }
+    parallel_chunks(rows * n_old, threads, 64, [&](std::size_t b, std::size_t e) {
+        std::vector<float> out(n_new);
+        for (std::size_t k = b; k < e; ++k) {
+            const std::size_t row = k / n_old, i = k % n_old;
+            const Vec3 from = from_of(row);
+            const Vec3 d = medium.centre(i) - from;
+            const double D = glm::length(d);
+            double add = 0.0;
+            if (D > 0.0 && n_new > 0) {
+                const Vec3 r = d / D;
+                segment_integrals(int(n_new), rel[row * 3].data(), rel[row * 3 + 1].data(), rel[row * 3 + 2].data(),
+                                  a.data(), k0.data(), float(r.x), float(r.y), float(r.z), float(D), out.data());
+                for (std::size_t j = 0; j < n_new; ++j) add += double(out[j]);
+            }
+            const double prev_T = row == 0 ? previous->T_vb[i] : previous->T_sb[(row - 1) * n_old + i];
+            const double prev_own = row == 0 ? previous->own_vb[i] : previous->own_sb[(row - 1) * n_old + i];
+            T_at(row, i) = prev_T + add;
+            own_at(row, i) = prev_own;
+        }
+    });
     return f;
 }
 

@@ -148,7 +148,14 @@ class RbfSplat {
 struct RbfPreviewFactors {
     std::vector<double> T_vb, own_vb, T_sb, own_sb, Csv, Dsv, radius;
 };
+// Incremental form (an edit that appended Gaussians): with _previous_ = the factors of
+// the first _first_new_ Gaussians (same positions, scales, amplitudes, eye, lights and
+// beta0), only Gaussians [first_new, n) get the full computation; the others add the new
+// Gaussians' line integrals to their previous T (optical depth is a sum over Gaussians).
+// Eq. to the full call to float rounding (tested). Throws std::invalid_argument on
+// mismatched sizes or non-finite points.
 RbfPreviewFactors rbf_preview_factors(const RbfMedium& medium, const Vec3& eye, const std::vector<Vec3>& lights,
-                                      int threads = 0);
+                                      int threads = 0, const RbfPreviewFactors* previous = nullptr,
+                                      std::size_t first_new = 0);
 
 }  // namespace airlight

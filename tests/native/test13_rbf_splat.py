@@ -164,3 +164,17 @@ def test04_noise_off_is_identical_on_is_bounded():
         bake(**kw, noise_amplitude=0.5, noise_offset=(0.0, np.nan, 0.0))
     with pytest.raises(ValueError):
         bake(**kw, noise_amplitude=0.5, model="quadrature")
+
+
+def test05_preview_factors_incremental_equals_full():
+    b, a, c = cloud(40, seed=8)
+    eye = np.array([0.3, 0.1, 0.5])
+    old = _native.rbf_preview_factors(b[:30], a[:30], c[:30], SIGMA_T, eye, LIGHTS)
+    full = _native.rbf_preview_factors(b, a, c, SIGMA_T, eye, LIGHTS)
+    inc = _native.rbf_preview_factors(b, a, c, SIGMA_T, eye, LIGHTS, previous=old, first_new=30)
+    for key in ("T_vb", "own_vb", "T_sb", "own_sb", "C_sv", "D_sv", "cull_radius"):
+        np.testing.assert_allclose(inc[key], full[key], rtol=2e-5, atol=1e-7, err_msg=key)
+    with pytest.raises(ValueError):
+        _native.rbf_preview_factors(b, a, c, SIGMA_T, eye, LIGHTS, previous=old, first_new=29)
+    with pytest.raises(ValueError):
+        _native.rbf_preview_factors(b, a, c, SIGMA_T, eye, LIGHTS[:1], previous=old, first_new=30)
