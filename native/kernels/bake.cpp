@@ -331,8 +331,8 @@ class FogModel {
         if (model_ == ModelId::Sun05Table) table_ = shared_special_F_table(settings.table_nu, settings.table_nT);
         if (model_ == ModelId::Biri06) biri_table_ = shared_biri06_table(phase_, settings.table_nu, settings.table_nT);
         for (const PointLight& light : scene.point_lights) {
+            if (!keeps_light(scene, light)) continue;
             RGB weight = scene.medium.albedo * light.I0;
-            if (weight.x == 0.0 && weight.y == 0.0 && weight.z == 0.0) continue;
             lights_.push_back({light.position, weight, glm::length(light.position - origin)});
         }
         for (const SpotLight& spot : scene.spot_lights) {
@@ -346,11 +346,8 @@ class FogModel {
             for (const LightData& light : lights_) rbf_lights_.push_back(light.s);
             // Per-light I0 (the Gaussians' weights carry their own albedo), per-Gaussian albedo.
             medium_albedo_ = scene.medium.albedo;
-            for (const PointLight& light : scene.point_lights) {
-                const RGB weight = scene.medium.albedo * light.I0;
-                if (weight.x == 0.0 && weight.y == 0.0 && weight.z == 0.0) continue;
-                rbf_I0_.push_back(light.I0);
-            }
+            for (const PointLight& light : scene.point_lights)
+                if (keeps_light(scene, light)) rbf_I0_.push_back(light.I0);
             rbf_albedo_ = g.albedo;
             if (rbf_albedo_.empty())
                 for (size_t i = 0; i < g.scales.size(); ++i)
@@ -497,13 +494,22 @@ class FogModel {
     }
 
   private:
+    // A light scatters if albedo * I0 is nonzero, or (Gaussian fog with its own colours) if
+    // I0 is: a black background medium can carry coloured fog objects.
+    static bool keeps_light(const SceneDescription& scene, const PointLight& light) {
+        const RGB weight = scene.medium.albedo * light.I0;
+        if (weight.x != 0.0 || weight.y != 0.0 || weight.z != 0.0) return true;
+        return !scene.gaussians.albedo.empty() && (light.I0.x != 0.0 || light.I0.y != 0.0 || light.I0.z != 0.0);
+    }
+
     // Gaussian fog: Tr = exp(-(sigma_t (t1 - t0) + sum_i T_i)) with the culled optical depth,
-    // La = sum_l albedo I0_l Fogshop(l) over the same segment [t0, t1], attenuated from the
-    // near point o + t0 d. Fogshop is set up once at the eye (perspective): the segment's
-    // airlight is then exp(T(eye, near point)) (La_eye(t1) - La_eye(t0)), which is exact for
-    // the integral (the eye-side attenuation of every point beyond t0 carries the factor
-    // exp(-T(eye, near point))). Orthographic rays (own origins) set it up per ray; the
-    // quadrature model integrates from the near point directly.
+    // La = sum_l I0_l [albedo L_0,l + sum_i albedo_i L_i,l] (Fogshop) over the same segment
+    // [t0, t1], attenuated from the near point o + t0 d: exp(T(eye, near point)) (La_eye(t1) -
+    // La_eye(t0)), exact for the integral (the eye-side attenuation of every point beyond t0
+    // carries the factor exp(-T(eye, near point))). Perspective cameras: the centre samples
+    // come from the tiled splat and the rays here (edge samples) from its per-ray twin, both
+    // float (rbf_splat.h). Orthographic rays (own origins) set the exact double Fogshop up per
+    // ray; the quadrature model integrates from the near point directly.
     void eval_rbf(const Ray* rays, const float* Dvp, const float* t0, int n, double* Tr, RGB* La) const {
         if (splat_) {  // perspective: rays from the shared eye (rbf_splat.h)
             thread_local std::vector<Vec3> dirs;

@@ -74,9 +74,11 @@ class RbfSplat {
     // tile's pixels into the W x H images. Thread safe for distinct tiles.
     void splat_tile(int t, const float* depth, float* transmittance, float* airlight) const;
 
-    // Any rays from the eye (unit d; o is ignored and taken as the eye), segment
-    // [t0[k], Dvp[k]] (t0 null: 0): the same quantities as splat_tile, with the Gaussians
-    // gathered per ray from the medium's hierarchy (edge supersampling).
+    // Rays from the eye with unit directions dirs[k], segment [t0[k], Dvp[k]] (t0 null: 0):
+    // the same quantities as splat_tile (Tr, RGB airlight), for edge supersampling. Rays go
+    // in chunks of 16 (pass neighbouring rays together, e.g. one pixel's sub-samples); each
+    // chunk evaluates the union of the Gaussians whose cull spheres its segments reach
+    // (from the medium's hierarchy) with the splat's kernels. Thread safe.
     void eval_rays(const Vec3* dirs, const float* Dvp, const float* t0, int n, double* Tr, RGB* La) const;
 
     // Exact double reference for one ray (no noise support; RbfAirlightFogshop::eval with

@@ -110,6 +110,9 @@ def test03_per_gaussian_colour():
     assert left[2] < 1e-3 * left[0]
     np.testing.assert_allclose(right[1] / right[2], 0.3, rtol=1e-3)
     assert right[0] < 1e-3 * right[2]
+    # A black background medium still carries coloured fog objects (no homogeneous term here).
+    black = bake(**{**kw, "albedo": (0.0, 0.0, 0.0)}, rbf_albedo=colours)
+    assert np.array_equal(black["airlight"], out["airlight"])
     # Every Gaussian with the medium's colour: the same image as without rbf_albedo.
     grey = bake(**kw, rbf_albedo=np.ones((2, 3)))
     plain = bake(**kw)
