@@ -46,12 +46,6 @@ class RbfAirlightFogshop {
     RGB eval_rgb(const Vec3& r, double Dvp, const double* albedo, const RGB* I0, const RGB& medium_albedo) const;
 
     std::size_t num_lights() const { return lights_.size(); }
-    // The per-(light, Gaussian) and per-light factors of the constructor: f1(b_i) with
-    // Gaussian i's own terms removed (see f1_ below), C_sv and D_sv of light l.
-    double f1_without_own(std::size_t l, std::size_t i) const { return f1_[l * medium_.size() + i]; }
-    double Csv(std::size_t l) const { return Csv_[l]; }
-    double Dsv(std::size_t l) const { return Dsv_[l]; }
-    const Vec3& origin() const { return v_; }
 
   private:
     // Calls homogeneous(l, L_0) and gaussian(l, i, L_i) for every term of the ray.
