@@ -922,8 +922,11 @@ BakeResult bake(const SceneDescription& scene, const BakeSettings& settings, con
         run_parallel(
             n_tiles, n_threads,
             [&](int t) { splat.splat_tile(t, result.depth.data(), result.transmittance.data(), result.airlight.data()); },
-            [&](int done) {
-                if (!progress) return;
+            [&, last = -1](int done) mutable {
+                // Thousands of tiles: report (and check for cancel) once per percent.
+                const int percent = int(100LL * done / n_tiles);
+                if (!progress || percent == last) return;
+                last = percent;
                 const double f = kRaycastProgressShare + (end - kRaycastProgressShare) * done / n_tiles;
                 if (!progress(f)) throw Cancelled();
             });
