@@ -135,37 +135,50 @@ AIRLIGHT_SPLAT_CLONES void segment_integrals(int n, const float* __restrict rx, 
 }
 
 // Culled optical depth of the medium on the segment from -> to, Gaussian _skip_ left out,
-// beta0 included, in float (fast_erf.h); _scratch_ is reused between calls.
+// beta0 included, in float (fast_erf.h); _scratch_ is reused between calls, _a_ and _k0_
+// are the per-Gaussian scale and c sqrt(pi) / (2 a) in float.
 struct SegmentScratch {
     std::vector<float> rx, ry, rz, a, k0, out;
+    std::size_t n = 0;
 };
-double fast_depth_excluding(const RbfMedium& m, const Vec3& from, const Vec3& to, std::size_t skip,
-                            SegmentScratch& g) {
+double fast_depth_excluding(const RbfMedium& m, const float* a, const float* k0, const Vec3& from, const Vec3& to,
+                            std::size_t skip, SegmentScratch& g) {
     const Vec3 d = to - from;
     const double D = glm::length(d);
     if (!(D > 0.0)) return 0.0;
     const Vec3 r = d / D;
-    g.rx.clear();
-    g.ry.clear();
-    g.rz.clear();
-    g.a.clear();
-    g.k0.clear();
+    if (g.rx.size() < m.size()) {
+        for (auto* v : {&g.rx, &g.ry, &g.rz, &g.a, &g.k0, &g.out}) v->resize(m.size());
+    }
+    std::size_t n = 0;
+    float* rx = g.rx.data();
+    float* ry = g.ry.data();
+    float* rz = g.rz.data();
+    float* ga = g.a.data();
+    float* gk = g.k0.data();
     m.for_each_near(from, r, D, [&](std::size_t j) {
         if (j == skip) return;
         const Vec3 rel = m.centre(j) - from;
-        g.rx.push_back(float(rel.x));
-        g.ry.push_back(float(rel.y));
-        g.rz.push_back(float(rel.z));
-        g.a.push_back(float(m.scale(j)));
-        g.k0.push_back(float(m.amplitude(j) * kSqrtPi / (2.0 * m.scale(j))));
+        rx[n] = float(rel.x);
+        ry[n] = float(rel.y);
+        rz[n] = float(rel.z);
+        ga[n] = a[j];
+        gk[n] = k0[j];
+        ++n;
     });
-    const int n = int(g.rx.size());
-    g.out.resize(std::size_t(n));
-    segment_integrals(n, g.rx.data(), g.ry.data(), g.rz.data(), g.a.data(), g.k0.data(), float(r.x), float(r.y),
-                      float(r.z), float(D), g.out.data());
+    segment_integrals(int(n), rx, ry, rz, ga, gk, float(r.x), float(r.y), float(r.z), float(D), g.out.data());
     double T = 0.0;
-    for (int k = 0; k < n; ++k) T += double(g.out[k]);
+    for (std::size_t k = 0; k < n; ++k) T += double(g.out[k]);
     return T + background_depth(m.beta0(), D);
+}
+
+void scale_arrays(const RbfMedium& m, std::vector<float>& a, std::vector<float>& k0) {
+    a.resize(m.size());
+    k0.resize(m.size());
+    for (std::size_t j = 0; j < m.size(); ++j) {
+        a[j] = float(m.scale(j));
+        k0[j] = float(m.amplitude(j) * kSqrtPi / (2.0 * m.scale(j)));
+    }
 }
 
 // T(from_row, b_i) without Gaussian i (beta0 included) for row 0 = the eye and rows 1..L
@@ -173,12 +186,15 @@ double fast_depth_excluding(const RbfMedium& m, const Vec3& from, const Vec3& to
 std::vector<double> depths_to_centres(const RbfMedium& m, const Vec3& eye, const std::vector<Vec3>& lights,
                                       int threads) {
     const std::size_t n = m.size(), rows = lights.size() + 1;
+    std::vector<float> a, k0;
+    scale_arrays(m, a, k0);
     std::vector<double> out(rows * n);
     parallel_chunks(rows * n, threads, 64, [&](std::size_t b, std::size_t e) {
         SegmentScratch scratch;
         for (std::size_t k = b; k < e; ++k) {
             const std::size_t row = k / n, i = k % n;
-            out[k] = fast_depth_excluding(m, row == 0 ? eye : lights[row - 1], m.centre(i), i, scratch);
+            out[k] = fast_depth_excluding(m, a.data(), k0.data(), row == 0 ? eye : lights[row - 1], m.centre(i), i,
+                                          scratch);
         }
     });
     return out;
@@ -638,6 +654,8 @@ RbfPreviewFactors rbf_preview_factors(const RbfMedium& medium, const Vec3& eye, 
     // Gaussians [n_old, n): everything (the others in float, fast_erf.h: ~1e-5 relative
     // per Gaussian; the own half exactly).
     const std::size_t n_new = n - n_old;
+    std::vector<float> fa, fk0;
+    scale_arrays(medium, fa, fk0);
     parallel_chunks(rows * n_new, threads, 16, [&](std::size_t b, std::size_t e) {
         SegmentScratch scratch;
         for (std::size_t k = b; k < e; ++k) {
@@ -646,7 +664,8 @@ RbfPreviewFactors rbf_preview_factors(const RbfMedium& medium, const Vec3& eye, 
             const Vec3 d = medium.centre(i) - from;
             const double D = glm::length(d);
             const double own = D > 0.0 ? medium.gaussian_optical_depth(i, from, d / D, 0.0, D) : 0.0;
-            T_at(row, i) = fast_depth_excluding(medium, from, medium.centre(i), i, scratch) + own;
+            T_at(row, i) =
+                fast_depth_excluding(medium, fa.data(), fk0.data(), from, medium.centre(i), i, scratch) + own;
             own_at(row, i) = own;
         }
     });
