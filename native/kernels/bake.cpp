@@ -358,7 +358,7 @@ class FogModel {
                                             "Gaussian fog without noise only)");
             // Fogshop's per-(light, Gaussian) precomputation, once for the shared viewpoint,
             // and the tiled splatting (rbf_splat.h) that evaluates it.
-            if (model_ != ModelId::Quadrature && shared_origin_)
+            if ((model_ == ModelId::Sun05Table || model_ == ModelId::Sun05Exact) && shared_origin_)
                 splat_ = std::make_unique<RbfSplat>(*rbf_, origin_, rbf_lights_, rbf_I0_, scene.medium.albedo,
                                                     g.albedo, table_.get(), noise, std::max(0, settings.threads));
         }
