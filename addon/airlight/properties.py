@@ -116,6 +116,28 @@ class AirlightSceneSettings(bpy.types.PropertyGroup):
         default=10.0, soft_min=-1000.0, soft_max=1000.0,
         subtype='DISTANCE', unit='LENGTH',
     )
+    # Fog-object noise (Fogshop section 5.5): perturbs each Gaussian's optical depth along
+    # the view rays with world-space gradient noise. Keyframe these to animate it.
+    noise_amplitude: FloatProperty(
+        name="Noise Amplitude",
+        description="Strength of the noise that breaks up fog objects (0 turns it off): "
+                    "how far each fog blob's view rays are bent, relative to the blob's size "
+                    "as seen from the camera. Perspective cameras only",
+        default=0.0, min=0.0, soft_max=2.0, max=100.0, step=1, precision=3,
+    )
+    noise_scale: FloatProperty(
+        name="Noise Scale",
+        description="Size of the noise features in scene units (world space, so the noise "
+                    "stays put when the camera moves)",
+        default=1.0, min=1.0e-4, soft_min=0.01, soft_max=100.0, max=1.0e6,
+        step=10, precision=3, subtype='DISTANCE',
+    )
+    noise_offset: FloatVectorProperty(
+        name="Noise Offset",
+        description="Shift of the noise pattern, in multiples of Noise Scale: keyframe it "
+                    "to make the fog objects' noise drift over time",
+        size=3, default=(0.0, 0.0, 0.0), subtype='XYZ',
+    )
     accuracy: FloatProperty(
         name="Accuracy",
         description="Largest relative error of the fog you accept, in percent: the "

@@ -250,16 +250,50 @@ def export_phase(scene):
 def export_fog_objects(depsgraph):
     """World-space Gaussians of the render-visible fog objects (`fog_object.gather`) as
     `_native.bake`'s rbf_* keyword arguments, or {} when there are none (then the bake is
-    the homogeneous one, unchanged). Invalid fog objects raise ExportError."""
+    the homogeneous one, unchanged). Invalid fog objects raise ExportError. Per-Gaussian
+    colours go to rbf_albedo when the gathered data has them: gather() returning a dict
+    with key 'colors' ((n, 3) floats), or a 4-tuple (centres, scales, amplitudes, colors)."""
     try:
-        centres, scales, amplitudes = fog_object.gather(depsgraph)
+        gathered = fog_object.gather(depsgraph)
     except ValueError as ex:
         raise ExportError(str(ex)) from None
+    colors = None
+    if isinstance(gathered, dict):
+        centres, scales, amplitudes = gathered["centres"], gathered["scales"], gathered["amplitudes"]
+        colors = gathered.get("colors")
+    elif len(gathered) == 4:
+        centres, scales, amplitudes, colors = gathered
+    else:
+        centres, scales, amplitudes = gathered
     if len(scales) == 0:
         return {}
-    return dict(rbf_centres=np.ascontiguousarray(centres, dtype=np.float64),
-                rbf_scales=np.ascontiguousarray(scales, dtype=np.float64),
-                rbf_amplitudes=np.ascontiguousarray(amplitudes, dtype=np.float64))
+    out = dict(rbf_centres=np.ascontiguousarray(centres, dtype=np.float64),
+               rbf_scales=np.ascontiguousarray(scales, dtype=np.float64),
+               rbf_amplitudes=np.ascontiguousarray(amplitudes, dtype=np.float64))
+    if colors is not None:
+        colors = np.ascontiguousarray(colors, dtype=np.float64).reshape(-1, 3)
+        if colors.shape[0] != len(scales):
+            raise ExportError(f"Fog objects have {colors.shape[0]} colours for {len(scales)} blobs.")
+        if not np.all(np.isfinite(colors)) or np.any(colors < 0.0):
+            raise ExportError("Fog object colours must be finite and not negative.")
+        out["rbf_albedo"] = colors
+    return out
+
+
+def export_noise(scene):
+    """Fog-object noise settings (Fogshop section 5.5) as `_native.bake` keyword arguments,
+    read at the scene's current frame (so keyframed values animate)."""
+    settings = scene.airlight
+    amplitude = float(settings.noise_amplitude)
+    scale = float(settings.noise_scale)
+    offset = tuple(float(x) for x in settings.noise_offset)
+    if not (math.isfinite(amplitude) and amplitude >= 0.0):
+        raise ExportError(f"Noise Amplitude must be a finite number >= 0 (got {amplitude}).")
+    if not (math.isfinite(scale) and scale > 0.0):
+        raise ExportError(f"Noise Scale must be a finite number > 0 (got {scale}).")
+    if not all(math.isfinite(x) for x in offset):
+        raise ExportError("Noise Offset must be finite.")
+    return dict(noise_amplitude=amplitude, noise_scale=scale, noise_offset=offset)
 
 
 def export_scene(scene, depsgraph):
@@ -292,6 +326,7 @@ def export_scene(scene, depsgraph):
         light_positions=light_positions, light_intensities=light_intensities,
         sigma_t=sigma_t, albedo=albedo, phase=phase, g=g,
         **gaussians,
+        **(export_noise(scene) if gaussians else {}),
         **spots,
         **suns,
     )

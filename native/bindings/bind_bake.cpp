@@ -78,7 +78,8 @@ py::dict bake_py(int width, int height, const py::object& cam_to_world, const py
                  const py::object& spot_positions, const py::object& spot_axes, const py::object& spot_intensities,
                  const py::object& spot_size, const py::object& spot_blend, const py::object& sun_directions,
                  const py::object& sun_irradiances, double fog_top, int table_size,
-                 const std::string& table_interpolation) {
+                 const std::string& table_interpolation, const py::object& rbf_albedo,
+                 double noise_amplitude, double noise_scale, const py::object& noise_offset) {
     // Gather the scene description from the arrays (shapes checked here, values in bake()).
     SceneDescription scene;
     scene.camera.width = width;
@@ -135,6 +136,20 @@ py::dict bake_py(int width, int height, const py::object& cam_to_world, const py
         scene.gaussians.centres.assign(bc.data(), bc.data() + 3 * n);
         scene.gaussians.scales.assign(a.data(), a.data() + n);
         scene.gaussians.amplitudes.assign(c.data(), c.data() + n);
+        if (!rbf_albedo.is_none()) {
+            auto al = as_array<double>(rbf_albedo, "rbf_albedo");
+            require_rows_of(al, 3, "rbf_albedo", n);
+            scene.gaussians.albedo.assign(al.data(), al.data() + 3 * n);
+        }
+    } else if (!rbf_albedo.is_none()) {
+        throw py::value_error("rbf_albedo needs rbf_centres, rbf_scales and rbf_amplitudes");
+    }
+    scene.gaussians.noise_amplitude = noise_amplitude;
+    scene.gaussians.noise_scale = noise_scale;
+    {
+        auto no = as_array<double>(noise_offset, "noise_offset");
+        if (no.size() != 3) throw py::value_error("noise_offset: expected 3 numbers, got shape " + shape_str(no));
+        scene.gaussians.noise_offset = {no.data()[0], no.data()[1], no.data()[2]};
     }
 
     // Spot lights: all five arrays or none; shapes here, values (finite, ranges) in bake().
@@ -266,7 +281,8 @@ void bind_bake(py::module_& m) {
           "spot_positions"_a = py::none(), "spot_axes"_a = py::none(), "spot_intensities"_a = py::none(),
           "spot_size"_a = py::none(), "spot_blend"_a = py::none(), "sun_directions"_a = py::none(),
           "sun_irradiances"_a = py::none(), "fog_top"_a = std::numeric_limits<double>::infinity(),
-          "table_size"_a = 256, "table_interpolation"_a = "bilinear",
+          "table_size"_a = 256, "table_interpolation"_a = "bilinear", "rbf_albedo"_a = py::none(),
+          "noise_amplitude"_a = 0.0, "noise_scale"_a = 1.0, "noise_offset"_a = py::make_tuple(0.0, 0.0, 0.0),
           R"doc(Bake fog passes for one camera view (all arguments keyword-only).
 
 width, height: render resolution in pixels.
@@ -298,6 +314,13 @@ rbf_centres (n, 3), rbf_scales (n,) > 0, rbf_amplitudes (n,) >= 0: optional Gaus
   the background). Isotropic phase only; models "sun05" / "sun05_exact" use the Fogshop
   approximation (Zhou et al. 2007), "quadrature" its exact reference. Transmittance is
   exact (culled to 1e-7 per Gaussian). Give all three or none; n = 0 is homogeneous fog.
+  Perspective cameras evaluate it by tiled screen-space splatting in float (rbf_splat.h).
+rbf_albedo (n, 3) >= 0: optional per-Gaussian colour (scattering albedo) used instead of
+  `albedo` for that Gaussian's airlight (not with model "quadrature").
+noise_amplitude >= 0 (0: off), noise_scale > 0 (m), noise_offset (3,): Fogshop section 5.5
+  noise: each Gaussian's optical depth along a view ray is taken along the ray direction
+  perturbed by world-space gradient noise (cell size noise_scale, lookup point / scale +
+  offset; animate the offset or amplitude). Perspective cameras and the Fogshop models only.
 spot_positions (S, 3), spot_axes (S, 3) (spot direction, the lamp's -Z; normalised here),
   spot_intensities (S, 3) W/sr (= colour * power / (4 pi), as a point light), spot_size (S,)
   full cone angle in rad (0, pi], spot_blend (S,) in [0, 1]: optional Blender spot lights with

@@ -5,6 +5,7 @@
 #include "kernels/bake.h"
 #include "kernels/rbf_airlight.h"
 #include "kernels/rbf_medium.h"
+#include "kernels/rbf_splat.h"
 #include "numpy_util.h"
 
 namespace airlight::bindings {
@@ -124,6 +125,54 @@ py::array_t<double> airlight(const RbfMedium& m, const py::object& light_positio
     return to_numpy(std::move(out), {n, static_cast<py::ssize_t>(L)});
 }
 
+py::dict preview_factors(const py::object& centres, const py::object& scales, const py::object& amplitudes,
+                         double beta0, const py::object& eye, const py::object& light_positions, double cull_eps,
+                         int threads, const py::object& previous, py::ssize_t first_new) {
+    RbfMedium medium = make_medium(centres, scales, amplitudes, beta0, cull_eps);
+    const Vec3 v = to_point(eye, "eye");
+    auto lp = as_array<double>(light_positions, "lights");
+    std::vector<Vec3> lights;
+    if (!(lp.ndim() == 2 && lp.shape(0) == 0)) lights = to_vec3(lp, "lights");
+    RbfPreviewFactors prev;
+    const bool incremental = !previous.is_none();
+    if (incremental) {
+        const py::ssize_t m = static_cast<py::ssize_t>(lights.size());
+        if (first_new < 0 || first_new > static_cast<py::ssize_t>(medium.size()))
+            throw py::value_error("first_new must be in [0, number of Gaussians]");
+        py::dict d = previous.cast<py::dict>();
+        auto take = [&](const char* key, py::ssize_t rows) {
+            if (!d.contains(key)) throw py::value_error(std::string("previous: missing '") + key + "'");
+            auto a = as_array<double>(d[key], key);
+            const py::ssize_t want = rows < 0 ? first_new : rows * first_new;
+            if (a.size() != want)
+                throw py::value_error(std::string("previous['") + key + "']: expected " + std::to_string(want) +
+                                      " values (first_new Gaussians" + (rows < 0 ? "" : " x lights") + "), got " +
+                                      shape_str(a));
+            return std::vector<double>(a.data(), a.data() + a.size());
+        };
+        prev.T_vb = take("T_vb", -1);
+        prev.own_vb = take("own_vb", -1);
+        prev.T_sb = take("T_sb", m);
+        prev.own_sb = take("own_sb", m);
+    }
+    RbfPreviewFactors f;
+    {
+        py::gil_scoped_release release;
+        try {
+            f = rbf_preview_factors(medium, v, lights, threads, incremental ? &prev : nullptr,
+                                    static_cast<std::size_t>(first_new));
+        } catch (const std::invalid_argument& e) {
+            py::gil_scoped_acquire acquire;
+            throw py::value_error(e.what());
+        }
+    }
+    const py::ssize_t n = static_cast<py::ssize_t>(medium.size()), m = static_cast<py::ssize_t>(lights.size());
+    return py::dict("T_vb"_a = to_numpy(std::move(f.T_vb), {n}), "own_vb"_a = to_numpy(std::move(f.own_vb), {n}),
+                    "T_sb"_a = to_numpy(std::move(f.T_sb), {m, n}), "own_sb"_a = to_numpy(std::move(f.own_sb), {m, n}),
+                    "C_sv"_a = to_numpy(std::move(f.Csv), {m}), "D_sv"_a = to_numpy(std::move(f.Dsv), {m}),
+                    "cull_radius"_a = to_numpy(std::move(f.radius), {n}));
+}
+
 }  // namespace
 
 void bind_rbf(py::module_& m) {
@@ -164,6 +213,31 @@ origin: the viewpoint (3,); directions (m, 3) (normalised here); Dvp (m,) > 0, m
 model: "fogshop" (the paper's approximation, eq. 8-17; homogeneous term through the F
 table) or "quadrature" (adaptive quadrature of eq. 2 with exact optical depths; slow).
 Multiply by albedo * I0 (W/sr). The GIL is released during the work.)doc");
+
+    m.def("rbf_preview_factors", &preview_factors, "centres"_a, "scales"_a, "amplitudes"_a, "beta0"_a, "eye"_a,
+          "lights"_a, "cull_eps"_a = RbfMedium::kDefaultCullEps, "threads"_a = 0, "previous"_a = py::none(),
+          "first_new"_a = 0,
+          R"doc(Per-edit Fogshop factors for a viewport preview that splats the Gaussians (section 5.1).
+
+centres (n, 3), scales (n,) a > 0 (1/m), amplitudes (n,) c >= 0 (1/m), beta0 >= 0 (1/m,
+the homogeneous background), eye (3,), lights (m, 3) point-light positions (m may be 0).
+Builds the medium (cull hierarchy) and returns a dict of float64 arrays:
+  T_vb (n,):        T(v, b_i), optical depth of the whole medium (beta0 and all Gaussians,
+                    Gaussian i's own half included) on the segment eye -> b_i;
+  own_vb (n,):      T_i(v, b_i), Gaussian i's own share of T_vb;
+  T_sb (m, n):      T(s_l, b_i), the same from light l to b_i;
+  own_sb (m, n):    T_i(s_l, b_i);
+  C_sv (m,):        exp(-(T(s_l, v) - beta0 |s_l - v|)), the Gaussians alone on light -> eye (eq. 16);
+  D_sv (m,):        |s_l - v|;
+  cull_radius (n,): R_i, beyond which Gaussian i integrates to < cull_eps on any segment.
+Paper eq. 13: f1 = exp(-T_sb - T_vb). The bake uses exp(-(T_sb - own_sb) - (T_vb - own_vb))
+and attenuates Gaussian i by itself along light -> b_i^r -> eye (rbf_airlight.h).
+Culled optical depths (each skipped Gaussian < cull_eps), the other Gaussians summed in
+float (fast_erf.h: ~1e-5 relative), the own halves exactly.
+Incremental use after a brush stroke appended Gaussians: previous = the dict of an earlier
+call whose Gaussians are the first first_new of these (unchanged, same eye, lights, beta0):
+only the new ones are computed in full, the others add the new Gaussians' integrals.
+Raises ValueError on bad input. The GIL is released during the work.)doc");
 
     m.def(
         "erf_diff",

@@ -32,6 +32,7 @@
 #include "raycast.h"
 #include "rbf_airlight.h"
 #include "rbf_medium.h"
+#include "rbf_splat.h"
 #include "sun05.h"
 #include "sun05_batch.h"
 #include "spot_light.h"
@@ -131,6 +132,18 @@ void validate(const SceneDescription& scene, const BakeSettings& settings) {
                     "gaussians: amplitude " + std::to_string(i) + " must be finite and >= 0, got " +
                         std::to_string(gauss.amplitudes[i]));
         }
+        require(gauss.albedo.empty() || gauss.albedo.size() == 3 * n,
+                "gaussians: albedo must hold 3 values per Gaussian (" + std::to_string(3 * n) + "), got " +
+                    std::to_string(gauss.albedo.size()));
+        for (double x : gauss.albedo)
+            require(std::isfinite(x) && x >= 0.0, "gaussians: albedo must be finite and >= 0");
+        validate_noise({gauss.noise_amplitude, gauss.noise_scale, gauss.noise_offset});
+        require(gauss.albedo.empty() || settings.model != ModelId::Quadrature,
+                "per-Gaussian colours are not supported by the 'quadrature' reference model; use 'sun05' or "
+                "'sun05_exact'");
+        require(gauss.noise_amplitude == 0.0 || settings.model != ModelId::Quadrature,
+                "fog noise is not supported by the 'quadrature' reference model; set the noise amplitude to 0 or "
+                "use 'sun05'");
         require(phase_is_isotropic(medium.phase),
                 std::string("Gaussian fog supports only the isotropic phase, got '") + phase_name(medium.phase.kind) +
                     "' (g = " + std::to_string(medium.phase.g) + ")");
@@ -354,8 +367,8 @@ class FogModel {
                                  pegoraro_hg_order(phase_.g, kPegoraroPhaseTol, kPegoraroMaxOrder) >= 0);
         }
         for (const PointLight& light : scene.point_lights) {
+            if (!keeps_light(scene, light)) continue;
             RGB weight = scene.medium.albedo * light.I0;
-            if (weight.x == 0.0 && weight.y == 0.0 && weight.z == 0.0) continue;
             lights_.push_back({light.position, weight, glm::length(light.position - origin)});
         }
         for (const SpotLight& spot : scene.spot_lights) {
@@ -374,10 +387,23 @@ class FogModel {
             const GaussianMedium& g = scene.gaussians;
             rbf_ = std::make_unique<RbfMedium>(g.centres, g.scales, g.amplitudes, sigma_t_);
             for (const LightData& light : lights_) rbf_lights_.push_back(light.s);
-            // Fogshop's per-(light, Gaussian) precomputation, once for the shared viewpoint.
-            if (model_ != ModelId::Quadrature && shared_origin_)
-                fogshop_ = std::make_unique<RbfAirlightFogshop>(*rbf_, origin_, rbf_lights_, table_.get(),
-                                                                std::max(0, settings.threads));
+            // Per-light I0 (the Gaussians' weights carry their own albedo), per-Gaussian albedo.
+            medium_albedo_ = scene.medium.albedo;
+            for (const PointLight& light : scene.point_lights)
+                if (keeps_light(scene, light)) rbf_I0_.push_back(light.I0);
+            rbf_albedo_ = g.albedo;
+            if (rbf_albedo_.empty())
+                for (size_t i = 0; i < g.scales.size(); ++i)
+                    for (int c = 0; c < 3; ++c) rbf_albedo_.push_back(scene.medium.albedo[c]);
+            const RbfNoise noise{g.noise_amplitude, g.noise_scale, g.noise_offset};
+            if (noise.on() && !shared_origin_)
+                throw std::invalid_argument("fog noise needs a perspective camera (orthographic cameras bake "
+                                            "Gaussian fog without noise only)");
+            // Fogshop's per-(light, Gaussian) precomputation, once for the shared viewpoint,
+            // and the tiled splatting (rbf_splat.h) that evaluates it.
+            if ((model_ == ModelId::Sun05Table || model_ == ModelId::Sun05Exact) && shared_origin_)
+                splat_ = std::make_unique<RbfSplat>(*rbf_, origin_, rbf_lights_, rbf_I0_, scene.medium.albedo,
+                                                    g.albedo, table_.get(), noise, std::max(0, settings.threads));
         }
     }
 
@@ -387,6 +413,9 @@ class FogModel {
         const double seg = std::max(0.0, depth - t0);
         return std::exp(-rbf_->optical_depth_ray(t0 > 0.0 ? r.o + t0 * r.d : r.o, r.d, seg));
     }
+
+    // Gaussian fog through the tiled splat (perspective, Fogshop models): null otherwise.
+    RbfSplat* splat() const { return splat_.get(); }
 
     // True if _eval_soa_ applies (perspective camera, table model, fog): then a near
     // distance t0 costs nothing extra (one evaluation of the segment, sun05_batch.h).
@@ -538,16 +567,31 @@ class FogModel {
     }
 
   private:
+    // A light scatters if albedo * I0 is nonzero, or (Gaussian fog with its own colours) if
+    // I0 is: a black background medium can carry coloured fog objects.
+    static bool keeps_light(const SceneDescription& scene, const PointLight& light) {
+        const RGB weight = scene.medium.albedo * light.I0;
+        if (weight.x != 0.0 || weight.y != 0.0 || weight.z != 0.0) return true;
+        return !scene.gaussians.albedo.empty() && (light.I0.x != 0.0 || light.I0.y != 0.0 || light.I0.z != 0.0);
+    }
+
     // Gaussian fog: Tr = exp(-(sigma_t (t1 - t0) + sum_i T_i)) with the culled optical depth,
-    // La = sum_l albedo I0_l Fogshop(l) over the same segment [t0, t1], attenuated from the
-    // near point o + t0 d. Fogshop is set up once at the eye (perspective): the segment's
-    // airlight is then exp(T(eye, near point)) (La_eye(t1) - La_eye(t0)), which is exact for
-    // the integral (the eye-side attenuation of every point beyond t0 carries the factor
-    // exp(-T(eye, near point))). Orthographic rays (own origins) set it up per ray; the
-    // quadrature model integrates from the near point directly.
+    // La = sum_l I0_l [albedo L_0,l + sum_i albedo_i L_i,l] (Fogshop) over the same segment
+    // [t0, t1], attenuated from the near point o + t0 d: exp(T(eye, near point)) (La_eye(t1) -
+    // La_eye(t0)), exact for the integral (the eye-side attenuation of every point beyond t0
+    // carries the factor exp(-T(eye, near point))). Perspective cameras: the centre samples
+    // come from the tiled splat and the rays here (edge samples) from its per-ray twin, both
+    // float (rbf_splat.h). Orthographic rays (own origins) set the exact double Fogshop up per
+    // ray; the quadrature model integrates from the near point directly.
     void eval_rbf(const Ray* rays, const float* Dvp, const float* t0, int n, double* Tr, RGB* La) const {
+        if (splat_) {  // perspective: rays from the shared eye (rbf_splat.h)
+            thread_local std::vector<Vec3> dirs;
+            dirs.resize(size_t(n));
+            for (int k = 0; k < n; ++k) dirs[k] = rays[k].d;
+            splat_->eval_rays(dirs.data(), Dvp, t0, n, Tr, La);
+            return;
+        }
         const size_t L = lights_.size();
-        std::vector<double> far_La(L), near_La(L);
         for (int k = 0; k < n; ++k) {
             const Ray& ray = rays[k];
             const double near = t0 ? double(t0[k]) : 0.0;
@@ -562,20 +606,8 @@ class FogModel {
                              rbf_airlight_quadrature(*rbf_, lights_[l].s, o, ray.d, seg, kQuadratureRelTol);
                 continue;
             }
-            if (fogshop_) {
-                fogshop_->eval(ray.d, near + seg, far_La.data());
-                double scale = 1.0;
-                if (near > 0.0) {
-                    fogshop_->eval(ray.d, near, near_La.data());
-                    scale = std::exp(rbf_->optical_depth_ray(ray.o, ray.d, near));
-                    for (size_t l = 0; l < L; ++l) far_La[l] = std::max(0.0, far_La[l] - near_La[l]);
-                }
-                for (size_t l = 0; l < L; ++l) La[k] += lights_[l].weight * (scale * far_La[l]);
-                continue;
-            }
             const RbfAirlightFogshop local(*rbf_, o, rbf_lights_, table_.get(), 1);
-            local.eval(ray.d, seg, far_La.data());
-            for (size_t l = 0; l < L; ++l) La[k] += lights_[l].weight * far_La[l];
+            La[k] = local.eval_rgb(ray.d, seg, rbf_albedo_.data(), rbf_I0_.data(), medium_albedo_);
         }
     }
 
@@ -628,7 +660,10 @@ class FogModel {
     // lights_' order, and Fogshop set up at the shared viewpoint.
     std::unique_ptr<RbfMedium> rbf_;
     std::vector<Vec3> rbf_lights_;
-    std::unique_ptr<RbfAirlightFogshop> fogshop_;
+    std::vector<RGB> rbf_I0_;         // I0 of the lights in lights_' order
+    std::vector<double> rbf_albedo_;  // 3 per Gaussian (the medium's if none given)
+    RGB medium_albedo_{1.0};
+    std::unique_ptr<RbfSplat> splat_;
 };
 
 // Runs _work(i)_ for i in [0, n) on _n_threads_ workers that take items from an atomic
@@ -984,6 +1019,30 @@ BakeResult bake(const SceneDescription& scene, const BakeSettings& settings, con
                         FogScratch&) { fog.eval_many(r, depth, near_clip ? t0 : nullptr, n, Tr, La); };
     std::atomic<long long> supersampled{0}, samples{0};
     start = Clock::now();
+    // Gaussian fog with a perspective camera: the centre samples of every pixel come from
+    // the tiled splat (rbf_splat.h) in one pass over tiles; the band loop below then only
+    // supersamples edge pixels (through eval_rbf, the same kernels per ray).
+    const bool splatted = affine && fog.splat() != nullptr;
+    double band_progress_begin = kRaycastProgressShare;
+    if (splatted) {
+        RbfSplat& splat = *fog.splat();
+        splat.bin(D0, Dx, Dy, forward, W, H, near_clip ? clip_start : 0.0);
+        const int n_tiles = splat.num_tiles();
+        constexpr double kSplatShare = 0.6;  // of the progress bar, after pass 1
+        const double end = kRaycastProgressShare + kSplatShare;
+        run_parallel(
+            n_tiles, n_threads,
+            [&](int t) { splat.splat_tile(t, result.depth.data(), result.transmittance.data(), result.airlight.data()); },
+            [&, last = -1](int done) mutable {
+                // Thousands of tiles: report (and check for cancel) once per percent.
+                const int percent = int(100LL * done / n_tiles);
+                if (!progress || percent == last) return;
+                last = percent;
+                const double f = kRaycastProgressShare + (end - kRaycastProgressShare) * done / n_tiles;
+                if (!progress(f)) throw Cancelled();
+            });
+        band_progress_begin = end;
+    }
     run_parallel(
         n_bands, n_threads,
         [&](int band) {
@@ -1018,7 +1077,9 @@ BakeResult bake(const SceneDescription& scene, const BakeSettings& settings, con
                 const float* depth = &result.depth[p0];
                 float* A = &result.airlight[3 * p0];
                 float* T = &result.transmittance[3 * p0];
-                if (fast) {
+                if (splatted) {
+                    // Already written by the splat.
+                } else if (fast) {
                     row_rays(j, r, false);
                     fog.eval_soa(r.dx.data(), r.dy.data(), r.dz.data(), depth, near_clip ? r.t_near.data() : nullptr,
                                  W, row_Tr.data(), A);
@@ -1035,7 +1096,8 @@ BakeResult bake(const SceneDescription& scene, const BakeSettings& settings, con
                         for (int c = 0; c < 3; ++c) A[3 * i + c] = float(row_La[i][c]);
                     }
                 }
-                for (int i = 0; i < W; ++i) T[3 * i] = T[3 * i + 1] = T[3 * i + 2] = row_Tr[i];
+                if (!splatted)
+                    for (int i = 0; i < W; ++i) T[3 * i] = T[3 * i + 1] = T[3 * i + 2] = row_Tr[i];
                 band_samples += W;
                 if (!supersample) continue;
                 // The sub-pixel rays of all the row's edge pixels at once: cast as
@@ -1114,7 +1176,7 @@ BakeResult bake(const SceneDescription& scene, const BakeSettings& settings, con
             supersampled += band_supersampled;
             samples += band_samples;
         },
-        reporter(kRaycastProgressShare, 1.0));
+        reporter(band_progress_begin, 1.0));
     result.stats.seconds_airlight = seconds_since(start);
     result.stats.supersampled_pixels = supersampled;
     result.stats.samples = samples;

@@ -440,7 +440,9 @@ TEST(BakeGaussians, FogshopAndTransmittanceMatchReferences) {
                 err.push_back(std::abs(r.airlight[3 * p + c] / ref[c] - 1.0));
                 EXPECT_NEAR(q.airlight[3 * p + c], ref[c], 1e-6 * ref[c]) << i << " " << j;
                 worst_q = std::max(worst_q, std::abs(q.airlight[3 * p + c] / ref[c] - 1.0));
-                EXPECT_EQ(q.transmittance[3 * p + c], r.transmittance[3 * p + c]);
+                // The Fogshop models splat in float (rbf_splat.h), the quadrature model sums
+                // in double: both within 1e-6 of the exact transmittance (checked above).
+                EXPECT_NEAR(q.transmittance[3 * p + c], r.transmittance[3 * p + c], 1e-6);
             }
         }
     EXPECT_GT(hits, 100);

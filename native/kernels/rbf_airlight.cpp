@@ -79,7 +79,8 @@ RbfAirlightFogshop::RbfAirlightFogshop(const RbfMedium& medium, const Vec3& orig
     }
 }
 
-void RbfAirlightFogshop::eval(const Vec3& r, double Dvp, double* out) const {
+template <typename H, typename G>
+void RbfAirlightFogshop::eval_terms(const Vec3& r, double Dvp, H&& homogeneous, G&& gaussian) const {
     const std::size_t L = lights_.size(), n = medium_.size();
     const double beta0 = medium_.beta0();
     // Homogeneous term L_0 (eq. 17).
@@ -88,9 +89,10 @@ void RbfAirlightFogshop::eval(const Vec3& r, double Dvp, double* out) const {
             const double D = Dsv_[l];
             double cos_gamma = D > 0.0 ? glm::dot(r, lights_[l] - v_) / D : 1.0;
             cos_gamma = std::clamp(cos_gamma, -1.0, 1.0);
-            out[l] = Csv_[l] * sun05_airlight(beta0, D, cos_gamma, Dvp, table_, table_ ? FEval::Table : FEval::Exact);
+            homogeneous(l, Csv_[l] * sun05_airlight(beta0, D, cos_gamma, Dvp, table_,
+                                                     table_ ? FEval::Table : FEval::Exact));
         } else {
-            out[l] = 0.0;
+            homogeneous(l, 0.0);
         }
     }
     // Gaussian terms L_i (eq. 11-13).
@@ -113,9 +115,26 @@ void RbfAirlightFogshop::eval(const Vec3& r, double Dvp, double* out) const {
             const double d2 = glm::dot(sx, sx);
             const double Ds = std::sqrt(d2);
             const double Tsr = Ds > 0.0 ? gaussian_line_integral(c, a, b, lights_[l], sx / Ds, 0.0, Ds) : 0.0;
-            out[l] += kInv4Pi / std::max(d2, kMinD2) * std::exp(-Tsr - Tvr) * f1_[l * n + i] * Tvp;
+            gaussian(l, i, kInv4Pi / std::max(d2, kMinD2) * std::exp(-Tsr - Tvr) * f1_[l * n + i] * Tvp);
         }
     });
+}
+
+void RbfAirlightFogshop::eval(const Vec3& r, double Dvp, double* out) const {
+    eval_terms(
+        r, Dvp, [&](std::size_t l, double v) { out[l] = v; },
+        [&](std::size_t l, std::size_t, double v) { out[l] += v; });
+}
+
+RGB RbfAirlightFogshop::eval_rgb(const Vec3& r, double Dvp, const double* albedo, const RGB* I0,
+                                 const RGB& medium_albedo) const {
+    RGB out(0.0);
+    eval_terms(
+        r, Dvp, [&](std::size_t l, double v) { out += medium_albedo * I0[l] * v; },
+        [&](std::size_t l, std::size_t i, double v) {
+            out += RGB(albedo[3 * i], albedo[3 * i + 1], albedo[3 * i + 2]) * I0[l] * v;
+        });
+    return out;
 }
 
 double rbf_airlight_quadrature(const RbfMedium& medium, const Vec3& s, const Vec3& v, const Vec3& r, double Dvp,

@@ -41,10 +41,17 @@ class RbfAirlightFogshop {
     // Writes the airlight of light l to out[l], per unit I0 and albedo, for the view ray
     // origin + t r, t in [0, Dvp]; r unit, Dvp > 0 (may be inf).
     void eval(const Vec3& r, double Dvp, double* out) const;
+    // The same in RGB with per-Gaussian albedo (3 per Gaussian) and the lights' I0:
+    // out = sum_l [medium_albedo I0_l L_0,l + sum_i albedo_i I0_l L_i,l].
+    RGB eval_rgb(const Vec3& r, double Dvp, const double* albedo, const RGB* I0, const RGB& medium_albedo) const;
 
     std::size_t num_lights() const { return lights_.size(); }
 
   private:
+    // Calls homogeneous(l, L_0) and gaussian(l, i, L_i) for every term of the ray.
+    template <typename H, typename G>
+    void eval_terms(const Vec3& r, double Dvp, H&& homogeneous, G&& gaussian) const;
+
     const RbfMedium& medium_;
     const SpecialFTable* table_;
     Vec3 v_;

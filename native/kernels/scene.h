@@ -89,11 +89,20 @@ struct TriangleMesh {
 // 2007; rbf_medium.h): beta(x) = medium.sigma_t + sum_i c_i exp(-a_i^2 |x - b_i|^2), i.e.
 // the homogeneous sigma_t acts as the background beta0. Centres _b_ in m (3 doubles per
 // Gaussian), scales _a_ in 1/m (> 0), amplitudes _c_ in 1/m (>= 0). The Gaussians
-// scatter with the medium's albedo and (isotropic) phase. Empty: homogeneous fog.
+// scatter with the medium's (isotropic) phase and with their own _albedo_ (3 per Gaussian,
+// RGB in [0, inf), e.g. the fog object's `airlight_color`) or, if that is empty, the
+// medium's albedo; the background beta0 always uses the medium's. Empty: homogeneous fog.
+// Noise (Fogshop section 5.5, rbf_splat.h): perturbs each Gaussian's optical depth along
+// the view rays with world-space gradient noise of cell size _noise_scale_ (m, > 0) and
+// strength _noise_amplitude_ (>= 0; 0 = off), looked up at point / scale + _noise_offset_.
 struct GaussianMedium {
     std::vector<double> centres;  // x, y, z per Gaussian
     std::vector<double> scales;
     std::vector<double> amplitudes;
+    std::vector<double> albedo;   // r, g, b per Gaussian, or empty
+    double noise_amplitude = 0.0;
+    double noise_scale = 1.0;
+    Vec3 noise_offset{0.0};
     bool empty() const { return scales.empty() && amplitudes.empty() && centres.empty(); }
 };
 

@@ -90,3 +90,56 @@ def test03_no_visible_fog_object_is_bit_identical(tmp_path):
     hidden.hide_render = False
     visible = _bake(tmp_path / "visible.exr")
     assert not np.array_equal(exr_pass(before, "Transmittance"), exr_pass(visible, "Transmittance"))
+
+
+@needs_real_native
+def test04_noise_properties_export_animate_and_bake(tmp_path):
+    scene = build_plane_scene(tmp_path, size=(W, H))
+    fog_object.new_fog_object("Fog", scene.collection, CENTRES, SCALES, AMPLITUDES)
+    settings = scene.airlight
+    assert settings.noise_amplitude == 0.0  # off by default
+    plain = _bake(tmp_path / "plain.exr")
+    # Keyframed amplitude and offset: the export reads them at the current frame.
+    settings.noise_scale = 0.05
+    settings.noise_amplitude = 0.0
+    settings.keyframe_insert("noise_amplitude", frame=1)
+    settings.noise_amplitude = 0.6
+    settings.keyframe_insert("noise_amplitude", frame=11)
+    settings.noise_offset = (0.0, 0.0, 0.0)
+    settings.keyframe_insert("noise_offset", frame=1)
+    settings.noise_offset = (2.0, 0.0, 0.0)
+    settings.keyframe_insert("noise_offset", frame=11)
+    scene.frame_set(1)
+    description = scene_export.export_scene(scene, bpy.context.evaluated_depsgraph_get())
+    assert description["noise_amplitude"] == 0.0
+    off = _bake(tmp_path / "off.exr")
+    for name in ("Airlight", "Transmittance"):  # amplitude 0: bit-identical
+        assert np.array_equal(exr_pass(plain, name), exr_pass(off, name))
+    scene.frame_set(11)
+    description = scene_export.export_scene(scene, bpy.context.evaluated_depsgraph_get())
+    assert description["noise_amplitude"] == pytest.approx(0.6)
+    assert description["noise_scale"] == pytest.approx(0.05)
+    assert description["noise_offset"] == pytest.approx((2.0, 0.0, 0.0))
+    noisy = _bake(tmp_path / "noisy.exr")
+    T0, T1 = exr_pass(plain, "Transmittance"), exr_pass(noisy, "Transmittance")
+    assert not np.array_equal(T0, T1)
+    assert np.all(np.isfinite(T1)) and np.all((T1 >= 0) & (T1 <= 1))
+
+
+@needs_real_native
+def test05_fog_colours_are_exported_when_gathered(tmp_path, monkeypatch):
+    scene = build_plane_scene(tmp_path, size=(W, H))
+    fog_object.new_fog_object("Fog", scene.collection, CENTRES, SCALES, AMPLITUDES)
+    depsgraph = bpy.context.evaluated_depsgraph_get()
+    assert "rbf_albedo" not in scene_export.export_scene(scene, depsgraph)
+    colours = np.tile([[1.0, 0.5, 0.25]], (len(CENTRES), 1))
+    monkeypatch.setattr(fog_object, "gather", lambda dg: dict(centres=CENTRES, scales=SCALES,
+                                                              amplitudes=AMPLITUDES, colors=colours))
+    description = scene_export.export_scene(scene, depsgraph)
+    np.testing.assert_array_equal(description["rbf_albedo"], colours)
+    bad = colours.copy()
+    bad[0, 0] = -1.0
+    monkeypatch.setattr(fog_object, "gather", lambda dg: dict(centres=CENTRES, scales=SCALES,
+                                                              amplitudes=AMPLITUDES, colors=bad))
+    with pytest.raises(scene_export.ExportError, match="colours"):
+        scene_export.export_scene(scene, depsgraph)

@@ -1,0 +1,163 @@
+// rbf_splat.h: the bake's fast path for Gaussian fog (Fogshop, Zhou et al. 2007, §5.2-5.3
+// and the noise of §5.5): screen-space splatting of the Gaussians' cull spheres into
+// 16x16 pixel tiles, float SIMD evaluation of the paper's per-(pixel, Gaussian) terms.
+//
+// Per pixel (perspective camera at the eye v, unit direction r, near distance t0 along
+// the ray, first hit Dvp) it computes the same quantities as the exact double path
+// (RbfAirlightFogshop::eval, used by FogModel::eval_rbf before; still the reference):
+//   T  = beta0 (Dvp - t0) + sum_i [T_i(v, Dvp) - T_i(v, t0)]
+//   La = exp(T(v, t0)) sum_l [ Lg_l(Dvp) - Lg_l(t0) ] + sum_l w_l C_sv,l exp(Tg(v, t0)) L0seg_l
+//   Lg_l(t) = sum_i w_{l,i} f1'_{l,i} exp(-T_i(s_l, b_i^r) - T_i(v, b_i^r)) T_i(v, t) / |b_i^r - s_l|^2
+// with b_i^r the projection of b_i on the ray clamped to [0, t], f1' = f1 exp(T_i(s, b_i) +
+// T_i(v, b_i)) (the other Gaussians and beta0 on s -> b_i -> v), w_{l,i} = albedo_i I0_l /
+// (4 pi) (albedo_i: the Gaussian's own colour if GaussianMedium::albedo is given, else the
+// medium's), w_l = medium albedo I0_l, and L0seg the homogeneous Sun 2005 term of the
+// segment [t0, Dvp] attenuated from the near point (sun05_batch.h; F table or exact F).
+// Differences to the exact path: float arithmetic with fast_erf.h (error bound there;
+// rbf_splat_test.cpp measures the whole image against the exact path), and every Gaussian
+// whose cull sphere's screen bounds cover a pixel is evaluated there (a superset of the
+// per-ray cull, whose skipped terms are < cull_eps each).
+//
+// Noise (§5.5; off when amplitude = 0, then the code path is the one without noise): per
+// (pixel, Gaussian) the view direction used for T_i(v, Dvp) and T_i(v, t0) is perturbed,
+//   r' = normalize(r + amplitude (R_i / |b_i - v|) N(b_i^r / scale + offset)),
+// N the vector gradient noise of noise.h (world space, so it sticks to the scene when the
+// camera moves; _offset_ animates it), R_i the Gaussian's cull radius; the integration
+// distance is unchanged, and the light-side terms (f0, b_i^r) use the unperturbed ray,
+// as in the paper. It perturbs both the screen optical depth and the airlight.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <memory>
+#include <vector>
+
+#include "rbf_airlight.h"
+#include "rbf_medium.h"
+#include "scene.h"
+#include "special_f.h"
+
+namespace airlight {
+
+struct RbfNoise {
+    double amplitude = 0.0;  // 0: off (bit-identical to no noise)
+    double scale = 1.0;      // world-space size of the noise cells in m (> 0)
+    Vec3 offset{0.0};        // added to the noise lookup point (in cells): animate it
+    bool on() const { return amplitude > 0.0; }
+};
+
+// Throws std::invalid_argument unless amplitude >= 0, scale > 0 and all are finite.
+void validate_noise(const RbfNoise& noise);
+
+class RbfSplat {
+  public:
+    static constexpr int kTile = 16;
+
+    // _lights_ and _I0_ (W/sr per channel) of the point lights; _medium_albedo_ the
+    // homogeneous medium's albedo; _albedo_ 3 per Gaussian or empty (use medium_albedo);
+    // _table_ F table for the homogeneous term (nullptr = exact F). The medium and table
+    // must outlive this object. Does Fogshop's per-(light, Gaussian) precomputation.
+    RbfSplat(const RbfMedium& medium, const Vec3& eye, const std::vector<Vec3>& lights, const std::vector<RGB>& I0,
+             const RGB& medium_albedo, const std::vector<double>& albedo, const SpecialFTable* table,
+             const RbfNoise& noise, int threads = 0);
+
+    // Bins the Gaussians into tiles for the image W x H whose pixel (px, py) (film
+    // position, pixel centres at +0.5) looks along D0 + px Dx + py Dy from the eye;
+    // _forward_ the unit view axis, _clip_start_ the near clip depth along it (0: none).
+    void bin(const Vec3& D0, const Vec3& Dx, const Vec3& Dy, const Vec3& forward, int W, int H, double clip_start);
+    int num_tiles() const { return tiles_x_ * tiles_y_; }
+    // Pairs (tile, Gaussian) binned: the work of the splat.
+    std::size_t num_pairs() const { return bin_index_.size(); }
+
+    // Evaluates tile _t_ (after bin()): reads depth[W H] (distance from the eye, inf: no
+    // hit), writes transmittance (3 equal floats per pixel) and airlight (RGB) of the
+    // tile's pixels into the W x H images. Thread safe for distinct tiles.
+    void splat_tile(int t, const float* depth, float* transmittance, float* airlight) const;
+
+    // Rays from the eye with unit directions dirs[k], segment [t0[k], Dvp[k]] (t0 null: 0):
+    // the same quantities as splat_tile (Tr, RGB airlight), for edge supersampling. Rays go
+    // in chunks of 16 (pass neighbouring rays together, e.g. one pixel's sub-samples); each
+    // chunk evaluates the union of the Gaussians whose cull spheres its segments reach
+    // (from the medium's hierarchy) with the splat's kernels. Thread safe.
+    void eval_rays(const Vec3* dirs, const float* Dvp, const float* t0, int n, double* Tr, RGB* La) const;
+
+    // Exact double reference for one ray (no noise support; RbfAirlightFogshop::eval with
+    // per-Gaussian albedo, its f1 in double): RGB airlight of the segment [0, Dvp] from
+    // the eye. Sets up the reference on first use: not thread safe (tests).
+    RGB eval_exact(const Vec3& dir, double Dvp) const;
+
+
+    // Float per-Gaussian data (relative to the eye).
+    struct GaussF {
+        float rx, ry, rz;      // b - eye
+        float a, a2, k0;       // scale, a^2, c sqrt(pi) / (2 a)
+        float nscale;          // noise: amplitude R / |b - eye|
+        bool near;             // the cull sphere reaches the near clip ball
+    };
+    // Per (Gaussian, light): b - s and the RGB weight albedo I0 f1' / (4 pi).
+    struct GaussLightF {
+        float sx, sy, sz;
+        float wr, wg, wb;
+    };
+    struct LightF {
+        float vx, vy, vz;  // eye - s
+    };
+
+  private:
+    // Accumulates Gaussian g's optical depth over [0, tend[k]] into accT and its airlight
+    // (all lights) into accR/G/B for the n rays (dx, dy, dz).
+    void splat_gaussian(std::size_t g, int n, const float* dx, const float* dy, const float* dz, const float* tend,
+                        float* accT, float* accR, float* accG, float* accB) const;
+    // Homogeneous term of light l for n rays: segment [t0, Dvp] attenuated from t0.
+    void homogeneous(const double* cos_gamma, std::size_t l, const float* Dvp, const float* t0, int n,
+                     float* out) const;
+
+    const RbfMedium& medium_;
+    const SpecialFTable* table_;
+    Vec3 eye_;
+    std::vector<Vec3> lights_;
+    std::vector<RGB> I0_;
+    RGB medium_albedo_;
+    std::vector<RGB> weight0_;  // medium albedo * I0 per light (homogeneous term)
+    RbfNoise noise_;
+    int threads_ = 0;
+    std::vector<double> Dsv_, Csv_;
+    mutable std::unique_ptr<RbfAirlightFogshop> exact_;
+    std::vector<double> albedo_;  // 3 per Gaussian (resolved: medium albedo if none given)
+    std::vector<GaussF> g_;
+    std::vector<GaussLightF> gl_;  // [i * L + l]
+    std::vector<LightF> lf_;
+    float eye_f_[3];
+    // Binning.
+    int W_ = 0, H_ = 0, tiles_x_ = 0, tiles_y_ = 0;
+    Vec3 D0_{0.0}, Dx_{0.0}, Dy_{0.0}, forward_{0.0, 0.0, -1.0};
+    double clip_start_ = 0.0;
+    std::vector<std::uint32_t> bin_start_;  // per tile, into bin_index_ (size tiles + 1)
+    std::vector<std::uint32_t> bin_index_;
+};
+
+// Per-edit factors for a viewport preview that splats the Gaussians itself (Fogshop
+// section 5.1): for the eye v, lights s_l (m of them) and Gaussians b_i (n):
+//   T_vb[i]       = T(v, b_i): optical depth of the whole medium (beta0 and every Gaussian,
+//                   i's own half included) on the segment v -> b_i;
+//   own_vb[i]     = T_i(v, b_i): Gaussian i's own share of it;
+//   T_sb[l n + i], own_sb[l n + i]: the same from light l;
+//   Csv[l]        = exp(-(T(s_l, v) - beta0 D_sv)): the Gaussians alone on s_l -> v (eq. 16);
+//   Dsv[l]        = |s_l - v|;  radius[i] = the cull radius R_i (rbf_medium.h).
+// f1 (eq. 13) is exp(-T_sb - T_vb); the bake uses exp(-(T_sb - own_sb) - (T_vb - own_vb))
+// with Gaussian i's own attenuation taken along the true path (rbf_airlight.h).
+// Optical depths are culled with the medium's cull_eps (each skipped Gaussian < eps).
+struct RbfPreviewFactors {
+    std::vector<double> T_vb, own_vb, T_sb, own_sb, Csv, Dsv, radius;
+};
+// Incremental form (an edit that appended Gaussians): with _previous_ = the factors of
+// the first _first_new_ Gaussians (same positions, scales, amplitudes, eye, lights and
+// beta0), only Gaussians [first_new, n) get the full computation; the others add the new
+// Gaussians' line integrals to their previous T (optical depth is a sum over Gaussians).
+// Eq. to the full call to float rounding (tested). Throws std::invalid_argument on
+// mismatched sizes or non-finite points.
+RbfPreviewFactors rbf_preview_factors(const RbfMedium& medium, const Vec3& eye, const std::vector<Vec3>& lights,
+                                      int threads = 0, const RbfPreviewFactors* previous = nullptr,
+                                      std::size_t first_new = 0);
+
+}  // namespace airlight

@@ -1,0 +1,338 @@
+// rbf_splat_test.cpp: the float fast paths against their double references: fast_erf.h
+// against erf_diff / std::erfc, and the tiled splat (and its per-ray twin) against the
+// exact Fogshop evaluation (RbfAirlightFogshop, double) pixel by pixel; per-Gaussian
+// colour; the noise perturbation (off = bit-identical, on = bounded change).
+#include "rbf_splat.h"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <ctime>
+#include <cmath>
+#include <cstdio>
+#include <random>
+
+#include "fast_erf.h"
+#include "noise.h"
+
+namespace airlight {
+namespace {
+
+TEST(FastErf, ExpAndErfcRelativeError) {
+    double worst_exp = 0.0, worst_erfc = 0.0;
+    for (double x = -87.0; x <= 88.0; x += 0.00731) {
+        const double ref = std::exp(double(float(x)));
+        worst_exp = std::max(worst_exp, std::abs(double(fast_expf(float(x))) - ref) / ref);
+    }
+    for (double x = 0.0; x <= 9.0; x += 0.000977) {
+        const float xf = float(x);
+        const double ref = std::erfc(double(xf));
+        const double tol = x <= 4.0 ? 2e-6 : 2e-6 + 1.2e-7 * x * x;
+        const double rel = std::abs(double(fast_erfc_pos(xf)) - ref) / ref;
+        worst_erfc = std::max(worst_erfc, rel);
+        ASSERT_LE(rel, tol) << "erfc at x = " << x;
+    }
+    EXPECT_LE(worst_exp, 3e-7);
+    EXPECT_EQ(fast_expf(-100.0f), 0.0f);
+    EXPECT_EQ(fast_erfc_pos(std::numeric_limits<float>::infinity()), 0.0f);
+    std::printf("fast_expf max rel %.2g, fast_erfc_pos max rel (x <= 9) %.2g\n", worst_exp, worst_erfc);
+}
+
+TEST(FastErf, ErfDiffBoundAgainstDouble) {
+    // |fast - exact| <= 1e-5 exact + (4e-6 + 2.4e-7 m^2) max(erfc|x1|, erfc|x2|) + 1e-37, m the
+    // larger finite one of |x1|, |x2| (fast_erf.h), on x1 < x2
+    // in [-9, 9] and x2 = inf, arguments exactly representable in float.
+    std::mt19937 rng(7);
+    std::uniform_real_distribution<double> U(-9.0, 9.0), W(-6.0, 1.0);
+    double worst = 0.0;
+    for (int k = 0; k < 200000; ++k) {
+        const float x1 = float(U(rng));
+        const float x2 = k % 10 == 0 ? std::numeric_limits<float>::infinity()
+                                     : float(double(x1) + std::pow(10.0, W(rng)) * 4.0);
+        if (!(x2 > x1)) continue;
+        const double exact = erf_diff(double(x1), double(x2));
+        const double fast = fast_erf_diff(x1, x2);
+        const double big = std::max(std::erfc(std::abs(double(x1))), std::erfc(std::abs(double(x2))));
+        const double mm = std::isinf(x2) ? std::abs(double(x1)) : std::max(std::abs(double(x1)), std::abs(double(x2)));
+        const double bound = 1e-5 * exact + (4e-6 + 2.4e-7 * mm * mm) * big + 1e-37;
+        ASSERT_LE(std::abs(fast - exact), bound) << "x1 " << x1 << " x2 " << x2 << " exact " << exact;
+        if (exact > 1e-20) worst = std::max(worst, std::abs(fast - exact) / bound);
+    }
+    std::printf("fast_erf_diff: worst error / bound %.3f\n", worst);
+}
+
+TEST(Noise, DeterministicAndBounded) {
+    EXPECT_EQ(gradient_noise(1.0f, 2.0f, 3.0f), 0.0f);  // lattice point
+    float lo = 0.0f, hi = 0.0f;
+    double mean = 0.0;
+    std::mt19937 rng(3);
+    std::uniform_real_distribution<float> U(-50.0f, 50.0f);
+    for (int k = 0; k < 100000; ++k) {
+        const float n = gradient_noise(U(rng), U(rng), U(rng));
+        lo = std::min(lo, n);
+        hi = std::max(hi, n);
+        mean += n;
+    }
+    EXPECT_LE(hi, 1.7320508f);
+    EXPECT_GE(lo, -1.7320508f);
+    EXPECT_GT(hi - lo, 0.8f);  // not flat
+    EXPECT_LT(std::abs(mean / 100000.0), 0.05);
+    // Continuity: a small step changes the value a little.
+    EXPECT_NEAR(gradient_noise(0.3f, 0.7f, 0.1f), gradient_noise(0.3001f, 0.7f, 0.1f), 1e-3f);
+}
+
+// A small camera: eye at the origin looking down +z, 60 degree horizontal view, film
+// position (px, py) -> D0 + px Dx + py Dy (pixel rows downwards).
+struct SmallCamera {
+    int W = 72, H = 40;
+    Vec3 D0, Dx, Dy, forward{0.0, 0.0, 1.0};
+    SmallCamera(int w, int h) : W(w), H(h) {
+        const double t = std::tan(30.0 * 3.14159265358979323846 / 180.0);
+        Dx = Vec3(2.0 * t / W, 0.0, 0.0);
+        Dy = Vec3(0.0, -2.0 * t / W, 0.0);
+        D0 = Vec3(-t, t * H / W, 1.0);
+    }
+    Vec3 dir(int i, int j) const { return glm::normalize(D0 + (i + 0.5) * Dx + (j + 0.5) * Dy); }
+};
+
+// Gaussians in front of the camera, a ground plane y = -1.5 as the depth.
+RbfMedium cloud(int n, unsigned seed, double beta0) {
+    std::mt19937 rng(seed);
+    std::uniform_real_distribution<double> U(0.0, 1.0);
+    std::vector<double> b, a, c;
+    for (int i = 0; i < n; ++i) {
+        b.insert(b.end(), {-8.0 + 16.0 * U(rng), -1.5 + 4.0 * U(rng), 4.0 + 16.0 * U(rng)});
+        a.push_back(1.0 / (0.5 + 2.0 * U(rng)));
+        c.push_back(0.05 + 0.3 * U(rng));
+    }
+    // One Gaussian around the eye (crosses the near plane: full-screen bin, near terms).
+    b.insert(b.end(), {0.2, 0.1, 0.3});
+    a.push_back(1.5);
+    c.push_back(0.2);
+    return RbfMedium(b, a, c, beta0);
+}
+
+std::vector<float> ground_depth(const SmallCamera& cam) {
+    std::vector<float> depth(size_t(cam.W) * cam.H);
+    for (int j = 0; j < cam.H; ++j)
+        for (int i = 0; i < cam.W; ++i) {
+            const Vec3 d = cam.dir(i, j);
+            depth[size_t(j) * cam.W + i] = d.y < -1e-6 ? float(-1.5 / d.y) : std::numeric_limits<float>::infinity();
+        }
+    return depth;
+}
+
+struct Image {
+    std::vector<float> T, A;
+};
+
+Image splat_image(const RbfSplat& s, const SmallCamera& cam, const std::vector<float>& depth) {
+    Image im;
+    im.T.assign(3 * depth.size(), -1.0f);
+    im.A.assign(3 * depth.size(), -1.0f);
+    for (int t = 0; t < s.num_tiles(); ++t) s.splat_tile(t, depth.data(), im.T.data(), im.A.data());
+    return im;
+}
+
+const std::vector<Vec3> kLights = {Vec3(-3.0, 3.0, 8.0), Vec3(4.0, 1.0, 15.0)};
+const std::vector<RGB> kI0 = {RGB(1.0, 0.8, 0.6), RGB(0.5, 0.5, 1.0)};
+
+// The splat (float, tiles) against the exact double Fogshop path, no near clip.
+TEST(RbfSplat, MatchesExactPerRayPath) {
+    const RbfMedium m = cloud(40, 11, 0.01);
+    const SmallCamera cam(72, 40);
+    const RGB albedo(0.9, 0.8, 0.7);
+    RbfSplat s(m, Vec3(0.0), kLights, kI0, albedo, {}, nullptr, RbfNoise{}, 2);
+    s.bin(cam.D0, cam.Dx, cam.Dy, cam.forward, cam.W, cam.H, 0.0);
+    const std::vector<float> depth = ground_depth(cam);
+    const Image im = splat_image(s, cam, depth);
+    double worst_A = 0.0, worst_T = 0.0, peak = 0.0, gauss_T = 0.0;
+    for (int j = 0; j < cam.H; ++j)
+        for (int i = 0; i < cam.W; ++i) {
+            const size_t p = size_t(j) * cam.W + i;
+            const Vec3 d = cam.dir(i, j);
+            const RGB ref = s.eval_exact(d, double(depth[p]));
+            const double T_ref = std::exp(-m.optical_depth_all_ray(Vec3(0.0), d, double(depth[p])));
+            if (!std::isinf(depth[p]))
+                gauss_T = std::max(gauss_T, m.optical_depth_all_ray(Vec3(0.0), d, double(depth[p])) - 0.01 * depth[p]);
+            worst_T = std::max(worst_T, std::abs(double(im.T[3 * p]) - T_ref));
+            for (int c = 0; c < 3; ++c) {
+                peak = std::max(peak, ref[c]);
+                worst_A = std::max(worst_A, std::abs(double(im.A[3 * p + c]) - ref[c]) / ref[c]);
+            }
+        }
+    std::printf("splat vs exact: airlight max rel %.3g, transmittance max abs %.3g (Gaussian T up to %.2f)\n",
+                worst_A, worst_T, gauss_T);
+    EXPECT_GT(gauss_T, 0.5);  // the Gaussians matter
+    EXPECT_LT(worst_A, 2e-4);
+    EXPECT_LT(worst_T, 2e-5);
+}
+
+// Near clip: the segment [t0, Dvp] against the exact formula
+// exp(T(v, t0)) (La(Dvp) - La(t0)), and the per-ray twin (edge samples) against the splat.
+TEST(RbfSplat, NearClipAndPerRayTwin) {
+    const RbfMedium m = cloud(30, 5, 0.02);
+    const SmallCamera cam(48, 32);
+    const double clip_start = 0.25;
+    const RGB albedo(1.0);
+    RbfSplat s(m, Vec3(0.0), kLights, kI0, albedo, {}, nullptr, RbfNoise{}, 2);
+    s.bin(cam.D0, cam.Dx, cam.Dy, cam.forward, cam.W, cam.H, clip_start);
+    const std::vector<float> depth = ground_depth(cam);
+    const Image im = splat_image(s, cam, depth);
+    std::vector<Vec3> dirs;
+    std::vector<float> t0;
+    for (int j = 0; j < cam.H; ++j)
+        for (int i = 0; i < cam.W; ++i) {
+            dirs.push_back(cam.dir(i, j));
+            t0.push_back(float(clip_start / glm::dot(dirs.back(), cam.forward)));
+        }
+    std::vector<double> Tr(dirs.size());
+    std::vector<RGB> La(dirs.size());
+    s.eval_rays(dirs.data(), depth.data(), t0.data(), int(dirs.size()), Tr.data(), La.data());
+    double worst_A = 0.0, worst_twin = 0.0, worst_T = 0.0;
+    for (size_t p = 0; p < dirs.size(); ++p) {
+        const double tn = double(t0[p]), Dvp = double(depth[p]);
+        const double Tn = m.optical_depth_all_ray(Vec3(0.0), dirs[p], tn);
+        const RGB ref = std::exp(Tn) * (s.eval_exact(dirs[p], Dvp) - s.eval_exact(dirs[p], tn));
+        const double T_ref = std::exp(-m.optical_depth_all(dirs[p] * tn, std::isinf(Dvp) ? dirs[p] * 1e4 : dirs[p] * Dvp));
+        if (!std::isinf(Dvp)) worst_T = std::max(worst_T, std::abs(double(im.T[3 * p]) - T_ref));
+        for (int c = 0; c < 3; ++c) {
+            worst_A = std::max(worst_A, std::abs(double(im.A[3 * p + c]) - ref[c]) / ref[c]);
+            worst_twin = std::max(worst_twin, std::abs(double(im.A[3 * p + c]) - La[p][c]) / La[p][c]);
+        }
+        worst_twin = std::max(worst_twin, std::abs(double(im.T[3 * p]) - Tr[p]));
+    }
+    std::printf("near clip: splat vs exact airlight max rel %.3g, T max abs %.3g; splat vs per-ray twin %.3g\n",
+                worst_A, worst_T, worst_twin);
+    EXPECT_LT(worst_A, 5e-4);
+    EXPECT_LT(worst_T, 2e-5);
+    EXPECT_LT(worst_twin, 1e-5);
+}
+
+// Per-Gaussian colour: two Gaussians far apart, one red and one blue: each pixel's
+// airlight takes its Gaussian's colour, and the splat matches the exact RGB path.
+TEST(RbfSplat, PerGaussianColour) {
+    const RbfMedium m({-3.0, 0.0, 10.0, 3.0, 0.0, 10.0}, {2.0, 2.0}, {0.5, 0.5}, 0.0);
+    const SmallCamera cam(64, 32);
+    const std::vector<double> colours = {1.0, 0.2, 0.0, 0.0, 0.3, 1.0};
+    const std::vector<Vec3> light = {Vec3(0.0, 4.0, 10.0)};
+    const std::vector<RGB> I0 = {RGB(1.0)};
+    RbfSplat s(m, Vec3(0.0), light, I0, RGB(1.0), colours, nullptr, RbfNoise{}, 1);
+    s.bin(cam.D0, cam.Dx, cam.Dy, cam.forward, cam.W, cam.H, 0.0);
+    const std::vector<float> depth(size_t(cam.W) * cam.H, std::numeric_limits<float>::infinity());
+    const Image im = splat_image(s, cam, depth);
+    double worst = 0.0;
+    for (int j = 0; j < cam.H; ++j)
+        for (int i = 0; i < cam.W; ++i) {
+            const size_t p = size_t(j) * cam.W + i;
+            const RGB ref = s.eval_exact(cam.dir(i, j), std::numeric_limits<double>::infinity());
+            for (int c = 0; c < 3; ++c)
+                if (ref[c] > 0.0) worst = std::max(worst, std::abs(double(im.A[3 * p + c]) - ref[c]) / ref[c]);
+        }
+    EXPECT_LT(worst, 2e-4);
+    // Through the left (red) Gaussian's centre: R : G : B = 1 : 0.2 : ~0; right: 0 : 0.3 : 1.
+    const int jm = cam.H / 2;
+    auto px = [&](double x) {  // pixel column looking at (x, 0, 10)
+        return int((x / 10.0 - cam.D0.x) / cam.Dx.x);
+    };
+    const float* left = &im.A[3 * (size_t(jm) * cam.W + px(-3.0))];
+    const float* right = &im.A[3 * (size_t(jm) * cam.W + px(3.0))];
+    EXPECT_NEAR(left[1] / left[0], 0.2, 1e-3);
+    EXPECT_LT(left[2], 1e-3 * left[0]);
+    EXPECT_NEAR(right[1] / right[2], 0.3, 1e-3);
+    EXPECT_LT(right[0], 1e-3 * right[2]);
+    // With one colour for all, per-Gaussian albedo equal to the medium's gives the same image.
+    RbfSplat grey(m, Vec3(0.0), light, I0, RGB(0.5), {0.5, 0.5, 0.5, 0.5, 0.5, 0.5}, nullptr, RbfNoise{}, 1);
+    RbfSplat plain(m, Vec3(0.0), light, I0, RGB(0.5), {}, nullptr, RbfNoise{}, 1);
+    grey.bin(cam.D0, cam.Dx, cam.Dy, cam.forward, cam.W, cam.H, 0.0);
+    plain.bin(cam.D0, cam.Dx, cam.Dy, cam.forward, cam.W, cam.H, 0.0);
+    EXPECT_EQ(splat_image(grey, cam, depth).A, splat_image(plain, cam, depth).A);
+}
+
+// Noise: amplitude 0 is the code path without noise (bit-identical images); a nonzero
+// amplitude changes the image, deterministically, and each Gaussian's optical depth stays
+// within its line-integral bound c sqrt(pi) / a (so T >= exp(-sum of the bounds)).
+TEST(RbfSplat, NoiseOffIdenticalOnBounded) {
+    const RbfMedium m = cloud(30, 9, 0.01);
+    const SmallCamera cam(48, 32);
+    const std::vector<float> depth = ground_depth(cam);
+    auto render = [&](const RbfNoise& noise) {
+        RbfSplat s(m, Vec3(0.0), kLights, kI0, RGB(1.0), {}, nullptr, noise, 1);
+        s.bin(cam.D0, cam.Dx, cam.Dy, cam.forward, cam.W, cam.H, 0.1);
+        return splat_image(s, cam, depth);
+    };
+    const Image base = render(RbfNoise{});
+    RbfNoise zero;
+    zero.scale = 0.37;
+    zero.offset = Vec3(1.0, 2.0, 3.0);
+    const Image off = render(zero);
+    EXPECT_EQ(base.A, off.A);
+    EXPECT_EQ(base.T, off.T);
+    RbfNoise on;
+    on.amplitude = 0.5;
+    on.scale = 0.7;
+    const Image a = render(on), b = render(on);
+    EXPECT_EQ(a.A, b.A);  // deterministic
+    on.offset = Vec3(0.5, 0.0, 0.0);
+    const Image shifted = render(on);
+    double sum_bound = 0.0;
+    for (std::size_t i = 0; i < m.size(); ++i) sum_bound += m.amplitude(i) * 1.7724538509 / m.scale(i);
+    double mean_change = 0.0, mean_shift = 0.0, max_change = 0.0;
+    int count = 0;
+    for (size_t p = 0; p < depth.size(); ++p) {
+        if (std::isinf(depth[p])) continue;
+        const double tb = -std::log(double(base.T[3 * p])), tn = -std::log(double(a.T[3 * p]));
+        const double bg = 0.01 * (double(depth[p]) - 0.1);
+        EXPECT_LE(tn - bg, sum_bound * (1.0 + 1e-5));
+        EXPECT_GE(tn - bg, -1e-5);
+        mean_change += std::abs(tn - tb);
+        mean_shift += std::abs(-std::log(double(shifted.T[3 * p])) - tn);
+        max_change = std::max(max_change, std::abs(double(a.A[3 * p]) - base.A[3 * p]) / base.A[3 * p]);
+        ++count;
+    }
+    mean_change /= count;
+    mean_shift /= count;
+    std::printf("noise 0.5: mean |dT| %.3g, with shifted offset %.3g, max airlight rel change %.3g\n", mean_change,
+                mean_shift, max_change);
+    EXPECT_GT(mean_change, 1e-3);
+    EXPECT_GT(mean_shift, 1e-4);  // the offset animates it
+    EXPECT_LT(max_change, 3.0);
+}
+
+}  // namespace
+}  // namespace airlight
+
+namespace airlight {
+namespace {
+// Profiling aid (not a timed test; run with --gtest_also_run_disabled_tests): the
+// 3000-Gaussian benchmark cloud of bench_rbf.py at 480 x 270, one light, one thread.
+TEST(RbfSplat, DISABLED_Profile3000) {
+    std::mt19937 rng(2);
+    std::uniform_real_distribution<double> U(0.0, 1.0);
+    std::vector<double> b, a, c;
+    for (int i = 0; i < 3000; ++i) {
+        b.insert(b.end(), {-30.0 + 60.0 * U(rng), -2.0 + 8.0 * U(rng), 10.0 + 70.0 * U(rng)});
+        a.push_back(1.0 / (1.0 + 2.0 * U(rng)));
+        c.push_back(0.01 + 0.04 * U(rng));
+    }
+    const RbfMedium m(b, a, c, 0.002);
+    SmallCamera cam(480, 270);
+    const SpecialFTable table(256, 256);
+    RbfSplat s(m, Vec3(0.0), {Vec3(-8.0, 4.0, 30.0)}, {RGB(40.0)}, RGB(0.9), {}, &table, RbfNoise{}, 1);
+    s.bin(cam.D0, cam.Dx, cam.Dy, cam.forward, cam.W, cam.H, 0.1);
+    std::vector<float> depth(size_t(cam.W) * cam.H);
+    for (int j = 0; j < cam.H; ++j)
+        for (int i = 0; i < cam.W; ++i) {
+            const Vec3 d = cam.dir(i, j);
+            depth[size_t(j) * cam.W + i] = d.y < -1e-6 ? float(-2.0 / d.y) : std::numeric_limits<float>::infinity();
+        }
+    std::vector<float> T(3 * depth.size()), A(3 * depth.size());
+    const std::clock_t t0 = std::clock();  // CPU time: the machine may be shared
+    for (int t = 0; t < s.num_tiles(); ++t) s.splat_tile(t, depth.data(), T.data(), A.data());
+    const double sec = double(std::clock() - t0) / CLOCKS_PER_SEC;
+    std::printf("splat 480x270: %.3f s CPU, %zu (tile, Gaussian) pairs = %.1f per pixel, %.2f ns per pixel-Gaussian\n",
+                sec, s.num_pairs(), double(s.num_pairs()) * RbfSplat::kTile * RbfSplat::kTile / depth.size(),
+                sec * 1e9 / (double(s.num_pairs()) * RbfSplat::kTile * RbfSplat::kTile));
+}
+}  // namespace
+}  // namespace airlight
