@@ -76,7 +76,7 @@ py::dict bake_py(int width, int height, const py::object& cam_to_world, const py
                  double filter_width, double clip_start, double clip_end, const py::object& progress,
                  const py::object& rbf_centres, const py::object& rbf_scales, const py::object& rbf_amplitudes,
                  const py::object& spot_positions, const py::object& spot_axes, const py::object& spot_intensities,
-                 const py::object& spot_size, const py::object& spot_blend) {
+                 const py::object& spot_size, const py::object& spot_blend, bool surface) {
     // Gather the scene description from the arrays (shapes checked here, values in bake()).
     SceneDescription scene;
     scene.camera.width = width;
@@ -172,6 +172,7 @@ py::dict bake_py(int width, int height, const py::object& cam_to_world, const py
     settings.threads = threads;
     settings.aa_samples = aa_samples;
     settings.filter_width = filter_width;
+    settings.surface = surface;
 
     // The callback runs on this (the calling) thread between bands: take the GIL for it.
     ProgressFn progress_fn;
@@ -194,10 +195,23 @@ py::dict bake_py(int width, int height, const py::object& cam_to_world, const py
     py::dict stats("seconds_raycast"_a = result.stats.seconds_raycast,
                    "seconds_airlight"_a = result.stats.seconds_airlight,
                    "supersampled_pixels"_a = result.stats.supersampled_pixels,
-                   "samples"_a = result.stats.samples);
-    return py::dict("airlight"_a = to_numpy(std::move(result.airlight), {H, W, 3}),
+                   "samples"_a = result.stats.samples, "seconds_surface"_a = result.stats.seconds_surface);
+    // Surface shading: (L, H, W, 3) attenuation per light and (H, W, 3) glow, when asked for.
+    py::dict extra;
+    if (surface) {
+        const py::ssize_t L = py::ssize_t(result.surface_attenuation.size());
+        std::vector<float> att(size_t(L) * size_t(H) * size_t(W) * 3);
+        for (py::ssize_t l = 0; l < L; ++l)
+            std::copy(result.surface_attenuation[l].begin(), result.surface_attenuation[l].end(),
+                      att.begin() + l * H * W * 3);
+        extra["surface_attenuation"] = to_numpy(std::move(att), {L, H, W, 3});
+        extra["surface_glow"] = to_numpy(std::move(result.surface_glow), {H, W, 3});
+    }
+    py::dict out("airlight"_a = to_numpy(std::move(result.airlight), {H, W, 3}),
                     "transmittance"_a = to_numpy(std::move(result.transmittance), {H, W, 3}),
                     "depth"_a = to_numpy(std::move(result.depth), {H, W}), "stats"_a = stats);
+    for (const auto& item : extra) out[item.first] = item.second;
+    return out;
 }
 
 void write_exr_py(const std::string& path, const py::dict& passes, const std::string& layer_prefix) {
@@ -238,7 +252,7 @@ void bind_bake(py::module_& m) {
           "clip_end"_a = std::numeric_limits<double>::infinity(), "progress"_a = py::none(),
           "rbf_centres"_a = py::none(), "rbf_scales"_a = py::none(), "rbf_amplitudes"_a = py::none(),
           "spot_positions"_a = py::none(), "spot_axes"_a = py::none(), "spot_intensities"_a = py::none(),
-          "spot_size"_a = py::none(), "spot_blend"_a = py::none(),
+          "spot_size"_a = py::none(), "spot_blend"_a = py::none(), "surface"_a = false,
           R"doc(Bake fog passes for one camera view (all arguments keyword-only).
 
 width, height: render resolution in pixels.
@@ -273,6 +287,11 @@ spot_positions (S, 3), spot_axes (S, 3) (spot direction, the lamp's -Z; normalis
   full cone angle in rad (0, pi], spot_blend (S,) in [0, 1]: optional Blender spot lights with
   Cycles' profile I0 cos(theta) smoothstep(...), evaluated by adaptive quadrature for every
   model (phase-aware; homogeneous fog only: ValueError with rbf_*). Give all five or none.
+surface: also bake surface shading through the fog (Sun 2005 eq. 13-19, bake_surface.h):
+  adds surface_attenuation=(L, H, W, 3) float32, e^{-T(light, first hit)} per light (the
+  point lights, then the spot lights, in argument order; 1 where no hit), and
+  surface_glow=(H, W, 3) float32, the point lights' scattered light on a Lambert surface
+  per unit diffuse colour (multiply by Cycles' DiffCol pass), and stats seconds_surface.
 
 Returns dict(airlight=(H, W, 3) float32, transmittance=(H, W, 3) float32,
 depth=(H, W) float32 (distance from the eye, or from the near plane for

@@ -25,6 +25,11 @@ struct BakeSettings {
     int aa_samples = 4;
     double filter_width = 1.5;
     int table_nu = 256, table_nT = 256;
+    // Surface shading (bake_surface.h, Sun 2005 eq. 13-19): also bake the per-light
+    // attenuation from each light to the first hit and the Lambert glow. Off: the bake is
+    // unchanged. The Lambert G table (sun05_surface.h) is _surface_table_nT_ x _ntheta_.
+    bool surface = false;
+    int surface_table_nT = 128, surface_table_ntheta = 128;
 };
 
 struct BakeStats {
@@ -32,6 +37,7 @@ struct BakeStats {
     double seconds_airlight = 0.0;
     long long supersampled_pixels = 0;
     long long samples = 0;
+    double seconds_surface = 0.0;  // the surface-shading pass (0 when off)
 };
 
 // Output images are row-major, top row first, 3 floats (RGB) per pixel.
@@ -45,6 +51,12 @@ struct BakeResult {
     // near plane for orthographic ones) to the first hit at the pixel centre inside the
     // clip range (inf: none, or beyond clip_end).
     std::vector<float> depth;
+    // Surface shading (settings.surface only; empty otherwise), at pixel centres, RGB:
+    // surface_attenuation[l] = e^{-T(light l, first hit)} per fogged light l (point lights,
+    // then spot lights, in SceneDescription order; 1 where no hit); surface_glow = the
+    // Lambert glow of all point lights per unit diffuse colour (bake_surface.h).
+    std::vector<std::vector<float>> surface_attenuation;
+    std::vector<float> surface_glow;
     BakeStats stats;
 };
 
