@@ -12,13 +12,16 @@ import time
 import bpy
 from bpy.props import IntProperty, StringProperty
 
-from . import cache, compositor, model_choice, native, scene_export
+from . import cache, compositor, model_choice, native, scene_export, surface
 
 class BakeError(RuntimeError):
     """A bake failed for a reason the user can fix; the message says which."""
 
 
 cache_path = cache.cache_path
+# Key of the settings dict (not a `_native.bake` argument; run() takes it out): the light
+# group name per bake light when surface shading is on (surface.ensure_passes).
+SURFACE_GROUPS = "surface_groups"
 
 
 def bake_settings(scene):
@@ -34,7 +37,12 @@ def prepare(scene, depsgraph):
         description = scene_export.export_scene(scene, depsgraph)
     except scene_export.ExportError as ex:
         raise BakeError(str(ex)) from None
-    return description, bake_settings(scene)
+    settings = bake_settings(scene)
+    if surface.active(scene):
+        # Surface shading: the light groups and DiffCol pass the composite reads (surface.py).
+        settings["surface"] = True
+        settings[SURFACE_GROUPS] = surface.ensure_passes(scene, depsgraph)
+    return description, settings
 
 
 def run(description, settings, filepath, progress=None):
@@ -49,12 +57,15 @@ def run(description, settings, filepath, progress=None):
     except cache.CacheError as ex:
         raise BakeError(str(ex)) from None
     start = time.perf_counter()
+    settings = dict(settings)
+    groups = settings.pop(SURFACE_GROUPS, None)
     try:
         result = module.bake(**description, **settings, progress=progress)
     except ValueError as ex:
         raise BakeError(f"Invalid fog scene: {ex}") from None
+    extra = surface.pass_arrays(result, groups) if settings.get("surface") else None
     try:
-        cache.write_passes(filepath, result["airlight"], result["transmittance"])
+        cache.write_passes(filepath, result["airlight"], result["transmittance"], extra)
     except cache.CacheError as ex:
         raise BakeError(str(ex)) from None
     return dict(result["stats"]), time.perf_counter() - start

@@ -122,6 +122,15 @@ class AirlightSceneSettings(bpy.types.PropertyGroup):
                     "point them at the baked passes of the frame being rendered",
         default=True,
     )
+    surface_shading: BoolProperty(
+        name="Surface Shading",
+        description="Cycles only: light surfaces through the fog (each fogged light's direct "
+                    "light attenuated along its own path, plus the light the fog scatters onto "
+                    "diffuse surfaces). Adds one light group per fogged light and the Diffuse "
+                    "Color pass to the view layers automatically. Eevee and Workbench renders "
+                    "keep the plain composite (render x Transmittance + Airlight)",
+        default=True,
+    )
 
 
 class AirlightLightSettings(bpy.types.PropertyGroup):
