@@ -33,6 +33,19 @@ def _on_fog_changed(self, context):
         compositor.sync(scene)
 
 
+def _on_surface_changed(self, context):
+    """Rebuilds the compositor's surface-shading chain (and its passes) when switched, so the
+    next render composites with it (a render reads the node links as they are when it starts);
+    the Image node gets neutral passes with the right names until the next bake."""
+    from . import compositor
+    scene = context.scene if context else None
+    if scene is not None and getattr(scene, "airlight", None) is not None and compositor.is_set_up(scene):
+        try:
+            compositor.setup(scene, compositor.neutral_passes(scene))
+        except Exception as ex:  # an update callback must not raise into the UI
+            print(f"Airlight: cannot update the compositor: {ex}", flush=True)
+
+
 class AirlightSceneSettings(bpy.types.PropertyGroup):
     enabled: BoolProperty(
         name="Fog",
@@ -130,6 +143,7 @@ class AirlightSceneSettings(bpy.types.PropertyGroup):
                     "Color pass to the view layers automatically. Eevee and Workbench renders "
                     "keep the plain composite (render x Transmittance + Airlight)",
         default=True,
+        update=_on_surface_changed,
     )
 
 

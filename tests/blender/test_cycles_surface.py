@@ -124,7 +124,7 @@ def renders():
     plain, _, _ = _composite(False, "plain")
     _report("cycles", samples=desc.samples, seconds=seconds, floor_pixels=int(floor.sum()),
             noise_mean=float(noise[floor].mean()), noise_p99=float(np.percentile(noise[floor], 99)))
-    return dict(ref=ref, noise=noise, floor=floor, surface=surface, plain=plain, groups=groups,
+    return dict(ref=ref, cycles=cycles, noise=noise, floor=floor, surface=surface, plain=plain, groups=groups,
                 composite_seconds=time.perf_counter() - t0)
 
 
@@ -143,6 +143,26 @@ def test02_surface_composite_matches_cycles(renders):
     pmean, pp99 = cs.rel_stats(renders["plain"], ref, floor)
     _report("surface_vs_cycles", mean=mean, p99=p99)
     _report("plain_vs_cycles", mean=pmean, p99=pp99)
+    # Per-pixel figures are dominated by Cycles' noise (diffuse bounce + volume scattering);
+    # 8x8-pixel block means and the floor-wide ratio average it away and show the bias.
+    def blocks(img):
+        H, W = img.shape
+        return img[:H - H % 8, :W - W % 8].reshape(H // 8, 8, W // 8, 8).mean(axis=(1, 3))
+    assert floor.all()  # the whole frame is floor (so blocks are floor only)
+    c1, c2 = renders["cycles"]
+    block_noise = np.abs(blocks(c1) - blocks(c2)) / (blocks(c1) + blocks(c2))
+    bref = blocks(ref)
+    bmean = float(np.mean(np.abs(blocks(renders["surface"]) - bref) / bref))
+    bmax = float(np.max(np.abs(blocks(renders["surface"]) - bref) / bref))
+    pbmean = float(np.mean(np.abs(blocks(renders["plain"]) - bref) / bref))
+    bias = float(renders["surface"].sum() / ref.sum() - 1.0)
+    pbias = float(renders["plain"].sum() / ref.sum() - 1.0)
+    nbias = float(abs(c1.sum() - c2.sum()) / (c1.sum() + c2.sum()))
+    _report("blocks_8x8", surface_mean=bmean, surface_max=bmax, plain_mean=pbmean,
+            cycles_noise_mean=float(block_noise.mean()), cycles_noise_max=float(block_noise.max()))
+    _report("floor_total", surface_bias=bias, plain_bias=pbias, cycles_noise=nbias)
+    assert abs(bias) < 0.01 + 2.0 * nbias, (bias, nbias)
+    assert bmean < 0.01 + 2.0 * float(block_noise.mean()), (bmean, float(block_noise.mean()))
     nmean = float(noise[floor].mean())
     # The composite's own Monte Carlo noise (64 spp without fog) and the table error are
     # small; the bound is the Cycles noise plus 1 %.
