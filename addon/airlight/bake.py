@@ -41,7 +41,10 @@ def prepare(scene, depsgraph):
     if surface.active(scene):
         # Surface shading: the light groups and DiffCol pass the composite reads (surface.py).
         settings["surface"] = True
-        settings[SURFACE_GROUPS] = surface.ensure_passes(scene, depsgraph)
+        # (Interactive renders call this from the render thread: there nothing is written.)
+        main = threading.current_thread() is threading.main_thread()
+        settings[SURFACE_GROUPS] = (surface.ensure_passes(scene, depsgraph) if main
+                                    else surface.current_groups(depsgraph))
     return description, settings
 
 

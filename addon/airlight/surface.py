@@ -66,9 +66,16 @@ def fogged_lights(depsgraph):
     return rows
 
 
+def current_groups(depsgraph):
+    """The group name per bake light where it is already set up (else None), changing
+    nothing: for the render thread, where bpy data must not be written."""
+    return [group if group is not None and obj.lightgroup == group else None
+            for obj, group in fogged_lights(depsgraph)]
+
+
 def ensure_passes(scene, depsgraph):
     """Enables the light groups and DiffCol pass the composite needs; returns the group name
-    per bake light (None: no surface pass for that light). Touches bpy (main thread)."""
+    per bake light (None: no surface pass for that light). Writes bpy data: main thread only."""
     rows = fogged_lights(depsgraph)
     groups = [group for _, group in rows]
     for obj, group in rows:

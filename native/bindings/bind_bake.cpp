@@ -199,12 +199,8 @@ py::dict bake_py(int width, int height, const py::object& cam_to_world, const py
     // Surface shading: (L, H, W, 3) attenuation per light and (H, W, 3) glow, when asked for.
     py::dict extra;
     if (surface) {
-        const py::ssize_t L = py::ssize_t(result.surface_attenuation.size());
-        std::vector<float> att(size_t(L) * size_t(H) * size_t(W) * 3);
-        for (py::ssize_t l = 0; l < L; ++l)
-            std::copy(result.surface_attenuation[l].begin(), result.surface_attenuation[l].end(),
-                      att.begin() + l * H * W * 3);
-        extra["surface_attenuation"] = to_numpy(std::move(att), {L, H, W, 3});
+        const py::ssize_t L = result.surface_lights;
+        extra["surface_attenuation"] = to_numpy(std::move(result.surface_attenuation), {L, H, W, 3});
         extra["surface_glow"] = to_numpy(std::move(result.surface_glow), {H, W, 3});
     }
     py::dict out("airlight"_a = to_numpy(std::move(result.airlight), {H, W, 3}),

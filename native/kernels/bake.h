@@ -52,10 +52,12 @@ struct BakeResult {
     // clip range (inf: none, or beyond clip_end).
     std::vector<float> depth;
     // Surface shading (settings.surface only; empty otherwise), at pixel centres, RGB:
-    // surface_attenuation[l] = e^{-T(light l, first hit)} per fogged light l (point lights,
-    // then spot lights, in SceneDescription order; 1 where no hit); surface_glow = the
-    // Lambert glow of all point lights per unit diffuse colour (bake_surface.h).
-    std::vector<std::vector<float>> surface_attenuation;
+    // surface_attenuation = e^{-T(light l, first hit)}, image after image for the fogged
+    // lights l (point lights, then spot lights, in SceneDescription order; 1 where no hit):
+    // 3 * width * height floats per light; surface_glow = the Lambert glow of all point
+    // lights per unit diffuse colour (bake_surface.h).
+    int surface_lights = 0;
+    std::vector<float> surface_attenuation;
     std::vector<float> surface_glow;
     BakeStats stats;
 };

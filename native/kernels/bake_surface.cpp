@@ -35,8 +35,8 @@ void bake_surface_pass(const SceneDescription& scene, const BakeSettings& settin
     const size_t n_point = scene.point_lights.size(), n_lights = n_point + scene.spot_lights.size();
     const double sigma_t = scene.medium.sigma_t;
     const RGB albedo = scene.medium.albedo;
-    result.surface_attenuation.assign(n_lights, std::vector<float>());
-    for (auto& image : result.surface_attenuation) image.assign(3 * n_pixels, 1.0f);
+    result.surface_lights = int(n_lights);
+    result.surface_attenuation.assign(n_lights * 3 * n_pixels, 1.0f);
     result.surface_glow.assign(3 * n_pixels, 0.0f);
 
     // Light positions (point lights first, then spots) and the point lights' glow scale.
@@ -77,7 +77,7 @@ void bake_surface_pass(const SceneDescription& scene, const BakeSettings& settin
                     const double D = glm::length(v);
                     const double T = rbf ? rbf->optical_depth(positions[l], p) : sigma_t * D;
                     const float att = float(std::exp(-T));
-                    float* a = &result.surface_attenuation[l][3 * px];
+                    float* a = &result.surface_attenuation[(l * n_pixels + px) * 3];
                     a[0] = a[1] = a[2] = att;
                     if (l >= n_point || !table || !(D > 0.0)) continue;
                     // Lambert glow of point light l (homogeneous part of the fog).
