@@ -76,7 +76,8 @@ py::dict bake_py(int width, int height, const py::object& cam_to_world, const py
                  double filter_width, double clip_start, double clip_end, const py::object& progress,
                  const py::object& rbf_centres, const py::object& rbf_scales, const py::object& rbf_amplitudes,
                  const py::object& spot_positions, const py::object& spot_axes, const py::object& spot_intensities,
-                 const py::object& spot_size, const py::object& spot_blend, bool surface) {
+                 const py::object& spot_size, const py::object& spot_blend, bool surface,
+                 double surface_phong_exponent) {
     // Gather the scene description from the arrays (shapes checked here, values in bake()).
     SceneDescription scene;
     scene.camera.width = width;
@@ -173,6 +174,7 @@ py::dict bake_py(int width, int height, const py::object& cam_to_world, const py
     settings.aa_samples = aa_samples;
     settings.filter_width = filter_width;
     settings.surface = surface;
+    settings.surface_phong_exponent = surface_phong_exponent;
 
     // The callback runs on this (the calling) thread between bands: take the GIL for it.
     ProgressFn progress_fn;
@@ -202,6 +204,8 @@ py::dict bake_py(int width, int height, const py::object& cam_to_world, const py
         const py::ssize_t L = result.surface_lights;
         extra["surface_attenuation"] = to_numpy(std::move(result.surface_attenuation), {L, H, W, 3});
         extra["surface_glow"] = to_numpy(std::move(result.surface_glow), {H, W, 3});
+        if (surface_phong_exponent > 0.0)
+            extra["surface_gloss_glow"] = to_numpy(std::move(result.surface_gloss_glow), {H, W, 3});
     }
     py::dict out("airlight"_a = to_numpy(std::move(result.airlight), {H, W, 3}),
                     "transmittance"_a = to_numpy(std::move(result.transmittance), {H, W, 3}),
@@ -249,7 +253,7 @@ void bind_bake(py::module_& m) {
           "rbf_centres"_a = py::none(), "rbf_scales"_a = py::none(), "rbf_amplitudes"_a = py::none(),
           "spot_positions"_a = py::none(), "spot_axes"_a = py::none(), "spot_intensities"_a = py::none(),
           "spot_size"_a = py::none(), "spot_blend"_a = py::none(), "surface"_a = false,
-          R"doc(Bake fog passes for one camera view (all arguments keyword-only).
+          "surface_phong_exponent"_a = 0.0, R"doc(Bake fog passes for one camera view (all arguments keyword-only).
 
 width, height: render resolution in pixels.
 cam_to_world: (4, 4) camera matrix_world; projection: (4, 4)
@@ -288,6 +292,9 @@ surface: also bake surface shading through the fog (Sun 2005 eq. 13-19, bake_sur
   point lights, then the spot lights, in argument order; 1 where no hit), and
   surface_glow=(H, W, 3) float32, the point lights' scattered light on a Lambert surface
   per unit diffuse colour (multiply by Cycles' DiffCol pass), and stats seconds_surface.
+surface_phong_exponent: with surface, n in [1, 10000] also adds surface_gloss_glow=(H, W, 3):
+  the point lights' scattered light on a normalised Phong lobe (n + 2)/(2 pi) cos^n about the
+  mirrored view direction (Sun 2005 eq. 18, Gn), per unit glossy colour. 0: off.
 
 Returns dict(airlight=(H, W, 3) float32, transmittance=(H, W, 3) float32,
 depth=(H, W) float32 (distance from the eye, or from the near plane for

@@ -30,6 +30,10 @@ struct BakeSettings {
     // unchanged. The Lambert G table (sun05_surface.h) is _surface_table_nT_ x _ntheta_.
     bool surface = false;
     int surface_table_nT = 128, surface_table_ntheta = 128;
+    // Glossy glow (Sun 2005 eq. 18, Gn) for a normalised Phong lobe of this exponent n about
+    // the mirrored view direction; 0: none. Its G table is _surface_phong_table_n_ squared.
+    double surface_phong_exponent = 0.0;
+    int surface_phong_table_n = 64;
 };
 
 struct BakeStats {
@@ -59,6 +63,9 @@ struct BakeResult {
     int surface_lights = 0;
     std::vector<float> surface_attenuation;
     std::vector<float> surface_glow;
+    // settings.surface_phong_exponent > 0 only: the point lights' glossy glow per unit
+    // glossy colour, (n + 2) / (2 pi) sum_l albedo I0 sigma_t Gn(T, theta'_s) / (2 pi D).
+    std::vector<float> surface_gloss_glow;
     BakeStats stats;
 };
 

@@ -7,7 +7,9 @@
 #include <map>
 #include <memory>
 #include <mutex>
+#include <stdexcept>
 #include <thread>
+#include <tuple>
 #include <vector>
 
 #include "rbf_medium.h"
@@ -19,12 +21,12 @@ namespace {
 constexpr double kPi = 3.14159265358979323846;
 }  // namespace
 
-std::shared_ptr<const SurfaceGTable> shared_surface_G_table(int nT, int ntheta) {
+std::shared_ptr<const SurfaceGTable> shared_surface_G_table(int nT, int ntheta, double m) {
     static std::mutex mutex;
-    static std::map<std::pair<int, int>, std::shared_ptr<const SurfaceGTable>> cache;
+    static std::map<std::tuple<int, int, double>, std::shared_ptr<const SurfaceGTable>> cache;
     std::lock_guard<std::mutex> lock(mutex);
-    auto& slot = cache[{nT, ntheta}];
-    if (!slot) slot = std::make_shared<const SurfaceGTable>(1.0, nT, ntheta, 0);
+    auto& slot = cache[{nT, ntheta, m}];
+    if (!slot) slot = std::make_shared<const SurfaceGTable>(m, nT, ntheta, 0);
     return slot;
 }
 
@@ -38,13 +40,23 @@ void bake_surface_pass(const SceneDescription& scene, const BakeSettings& settin
     result.surface_lights = int(n_lights);
     result.surface_attenuation.assign(n_lights * 3 * n_pixels, 1.0f);
     result.surface_glow.assign(3 * n_pixels, 0.0f);
+    const double n_phong = settings.surface_phong_exponent;
+    if (!(n_phong == 0.0 || (n_phong >= 1.0 && n_phong <= 10000.0)))
+        throw std::invalid_argument("surface_phong_exponent: must be 0 (off) or in [1, 10000], got " +
+                                    std::to_string(n_phong));
+    if (n_phong > 0.0) result.surface_gloss_glow.assign(3 * n_pixels, 0.0f);
 
     // Light positions (point lights first, then spots) and the point lights' glow scale.
     std::vector<Vec3> positions;
     for (const PointLight& l : scene.point_lights) positions.push_back(l.position);
     for (const SpotLight& l : scene.spot_lights) positions.push_back(l.position);
     std::shared_ptr<const SurfaceGTable> table;
-    if (sigma_t > 0.0 && n_point > 0) table = shared_surface_G_table(settings.surface_table_nT, settings.surface_table_ntheta);
+    std::shared_ptr<const SurfaceGTable> phong;
+    if (sigma_t > 0.0 && n_point > 0) {
+        table = shared_surface_G_table(settings.surface_table_nT, settings.surface_table_ntheta);
+        if (n_phong > 0.0)
+            phong = shared_surface_G_table(settings.surface_phong_table_n, settings.surface_phong_table_n, n_phong);
+    }
     std::unique_ptr<RbfMedium> rbf;
     if (!scene.gaussians.empty())
         rbf = std::make_unique<RbfMedium>(scene.gaussians.centres, scene.gaussians.scales,
@@ -71,7 +83,8 @@ void bake_surface_pass(const SceneDescription& scene, const BakeSettings& settin
                 const Vec3 p = row[i].o + double(t[i]) * row[i].d;
                 Vec3 n(ng[3 * i], ng[3 * i + 1], ng[3 * i + 2]);
                 if (glm::dot(n, row[i].d) > 0.0) n = -n;  // facing the camera
-                RGB glow(0.0);
+                RGB glow(0.0), gloss(0.0);
+                const Vec3 mirror = row[i].d - 2.0 * glm::dot(row[i].d, n) * n;  // r about n
                 for (size_t l = 0; l < n_lights; ++l) {
                     const Vec3 v = positions[l] - p;
                     const double D = glm::length(v);
@@ -84,8 +97,17 @@ void bake_surface_pass(const SceneDescription& scene, const BakeSettings& settin
                     const double cos_s = std::clamp(glm::dot(n, v) / D, -1.0, 1.0);
                     const double G = table->eval(sigma_t * D, std::acos(cos_s));
                     glow += scene.point_lights[l].I0 * (sigma_t * G / (2.0 * kPi * D * kPi));
+                    if (phong) {
+                        // Glossy: angles from the mirrored view direction (Ramamoorthi-Hanrahan).
+                        const double cos_r = std::clamp(glm::dot(mirror, v) / D, -1.0, 1.0);
+                        const double Gn = phong->eval(sigma_t * D, std::acos(cos_r));
+                        gloss += scene.point_lights[l].I0 *
+                                 ((n_phong + 2.0) / (2.0 * kPi) * sigma_t * Gn / (2.0 * kPi * D));
+                    }
                 }
                 for (int c = 0; c < 3; ++c) result.surface_glow[3 * px + c] = float(albedo[c] * glow[c]);
+                if (phong)
+                    for (int c = 0; c < 3; ++c) result.surface_gloss_glow[3 * px + c] = float(albedo[c] * gloss[c]);
             }
         }
     };

@@ -7,6 +7,11 @@
 //   glow = (1 / pi) sum_l albedo I0_l sigma_t G(T_l, theta_l, 1) / (2 pi D_l)
 // (eq. 17's scattered term with f_r = DiffCol / pi), so that
 //   surface = sum_l LightGroup_l attenuation_l + DiffCol glow + (lights outside the fog).
+// With settings.surface_phong_exponent = n > 0 it also writes the glossy glow of eq. 18 for
+// a normalised Phong lobe (n + 2)/(2 pi) cos^n about the mirrored view direction r:
+//   gloss_glow = (n + 2)/(2 pi) sum_l albedo I0_l sigma_t Gn(T_l, theta'_l) / (2 pi D_l),
+// theta'_l the angle between the light and r (per unit glossy colour; the paper's
+// reparameterisation drops the cos(theta_i) factor). Not wired into the add-on.
 // p is the first hit of the pixel-centre camera ray, the normal its geometric normal (the
 // triangle's, not interpolated) turned towards the camera (Cycles shades both sides).
 // Limits (documented, not hidden): the glow assumes unbounded unshadowed fog around p (the
@@ -26,7 +31,8 @@ namespace airlight {
 void bake_surface_pass(const SceneDescription& scene, const BakeSettings& settings, const CameraRays& rays,
                        const RayCaster& caster, int n_threads, BakeResult& result);
 
-// The Lambert (m = 1) G table the bake uses, built once per size for the process.
-std::shared_ptr<const class SurfaceGTable> shared_surface_G_table(int nT, int ntheta);
+// The G table of exponent _m_ (1: Lambert) the bake uses, built once per (m, size) for the
+// process.
+std::shared_ptr<const class SurfaceGTable> shared_surface_G_table(int nT, int ntheta, double m = 1.0);
 
 }  // namespace airlight
