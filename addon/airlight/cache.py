@@ -13,6 +13,8 @@ from . import native
 # node exposes as outputs of those names. (Without a layer prefix the passes also show,
 # but in a nameless layer that RNA cannot represent.)
 LAYER_PREFIX = "Fog."
+# With surface shading the file also holds Surface_<light group> (attenuation - 1 per
+# fogged light) and SurfaceGlow (Lambert glow per unit DiffCol): see surface.py.
 PASS_AIRLIGHT = "Airlight"
 PASS_TRANSMITTANCE = "Transmittance"
 

@@ -5,6 +5,10 @@
 a MixRGB Add, inserted between whatever fed the Composite node (or the Render Layers
 node) and the Composite/Viewer nodes. `sync(scene, filepath)` points the Image node at a
 baked file and mutes the fog nodes when the fog is disabled, so the image passes through.
+
+With surface shading (surface.py; Cycles only) a chain in the same frame first corrects the
+render's surfaces for the fog: Image + sum_g Combined_<g> x Surface_<g> + DiffCol x
+SurfaceGlow, and that feeds the x Transmittance node.
 """
 
 import os
