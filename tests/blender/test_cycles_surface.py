@@ -13,7 +13,8 @@ scene.airlight on (density 0.3), bpy.ops.airlight.bake (sets up light groups, th
 pass and the compositor's "Airlight Fog" frame), then a Cycles render with compositing (the
 render_pre handler bakes again): final = (Combined + Combined_fog_<light> (att - 1) +
 DiffCol x glow) x T + A. The same with surface shading off is the old composite
-render x T + A, which must be clearly worse, or the test shows nothing.
+render x T + A, which must be clearly worse, or the test shows nothing; so must the
+composite without the glow term (attenuation only).
 
 Figures (mean / p99 relative difference over floor pixels) go to
 out/test_artifacts/cycles_surface/summary.json and stdout.
@@ -163,6 +164,16 @@ def test02_surface_composite_matches_cycles(renders):
     _report("floor_total", surface_bias=bias, plain_bias=pbias, cycles_noise=nbias)
     assert abs(bias) < 0.01 + 2.0 * nbias, (bias, nbias)
     assert bmean < 0.01 + 2.0 * float(block_noise.mean()), (bmean, float(block_noise.mean()))
+    # Without the glow term (Sun 2005 eq. 17's G0 part): the surface composite minus
+    # DiffCol x SurfaceGlow x T, from the baked passes (the floor's DiffCol is FLOOR_ALBEDO).
+    from conftest import exr_pass
+    baked = os.path.join(ARTIFACTS, "cache_surface", "fog_0001.exr")
+    glow_term = FLOOR_ALBEDO * exr_pass(baked, "SurfaceGlow")[..., 0] * exr_pass(baked, "Transmittance")[..., 0]
+    no_glow = renders["surface"] - glow_term
+    gbias = float(no_glow.sum() / ref.sum() - 1.0)
+    gbmean = float(np.mean(np.abs(blocks(no_glow) - bref) / bref))
+    _report("attenuation_only", block_mean=gbmean, floor_bias=gbias)
+    assert gbmean > 3.0 * bmean, (gbmean, bmean)
     nmean = float(noise[floor].mean())
     # The composite's own Monte Carlo noise (64 spp without fog) and the table error are
     # small; the bound is the Cycles noise plus 1 %.
