@@ -218,6 +218,12 @@ SurfaceGTable::SurfaceGTable(double m, int nT, int ntheta, int threads) : m_(m),
 double SurfaceGTable::eval(double T, double theta_s) const {
     if (!(T >= 0.0) || !(theta_s >= 0.0)) require_args(T, theta_s, m_);
     if (T > kTableTMax) return sun05_surface_G_exact(T, std::min(theta_s, kPi), m_);
+    return eval_scaled(T, theta_s) * std::exp(-T);
+}
+
+double SurfaceGTable::eval_scaled(double T, double theta_s) const {
+    if (!(T >= 0.0) || !(theta_s >= 0.0)) require_args(T, theta_s, m_);
+    if (T > kTableTMax) return sun05_surface_G_scaled_exact(T, std::min(theta_s, kPi), m_);
     const double fi = std::min(std::sqrt(std::log1p(T) / std::log1p(kTableTMax)), 1.0) * (nT_ - 1);
     const double fj = std::min(theta_s / kPi, 1.0) * (ntheta_ - 1);
     const int i = std::min(int(fi), nT_ - 2), j = std::min(int(fj), ntheta_ - 2);
@@ -225,7 +231,7 @@ double SurfaceGTable::eval(double T, double theta_s) const {
     const double* r0 = &data_[size_t(i) * ntheta_ + j];
     const double* r1 = r0 + ntheta_;
     const double q = (1.0 - di) * ((1.0 - dj) * r0[0] + dj * r0[1]) + di * ((1.0 - dj) * r1[0] + dj * r1[1]);
-    return q * std::exp(-T);
+    return q;
 }
 
 double sun05_surface_glow_reference(double beta, double D, double theta_s, double m, double rel_tol) {

@@ -46,6 +46,8 @@ class SurfaceGTable {
     explicit SurfaceGTable(double m = 1.0, int nT = 96, int ntheta = 64, int threads = 0);
     // G(T, theta_s); beyond the tabulated T range the exact evaluator.
     double eval(double T, double theta_s) const;
+    // e^{T} G(T, theta_s) (no exp: for callers that have e^{-T} already).
+    double eval_scaled(double T, double theta_s) const;
     double exponent() const { return m_; }
 
   private:
