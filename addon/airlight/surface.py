@@ -98,7 +98,7 @@ def pass_arrays(result, groups):
     and the glow."""
     passes = {}
     attenuation = result["surface_attenuation"]
-    for index, group in enumerate(groups):
+    for index, group in enumerate(groups or ()):
         if group is not None and index < len(attenuation):
             passes[PASS_PREFIX + group] = attenuation[index] - 1.0
     passes[PASS_GLOW] = result["surface_glow"]

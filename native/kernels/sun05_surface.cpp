@@ -22,8 +22,9 @@
 // MEASURED (sun05_surface_test.cpp asserts these bounds; relative error vs the exact
 // evaluator over 300 random points, T log-uniform in [1e-3, 60] plus T = 0, theta_s uniform
 // in [0, pi] where G > 1e-6 G(T, 0)):
-//     m = 1,  128 x 128 (the bake's): max 3.1e-3, mean 1.1e-4 (build ~5 s on 2 busy cores)
-//     m = 1,   96 x 64:               max 1.3e-2, mean 3.6e-4 (2 s)
+//     m = 1,  128 x 128 (the bake's): max 3.1e-3, mean 1.1e-4 (build 3-5 s on 2 busy cores,
+//                                      benchmarks/bench_surface.py; once per process)
+//     m = 1,   96 x 64:               max 1.3e-2, mean 3.6e-4 (build ~2 s)
 //     m = 20,  64 x 64:               max 1.4e-2, mean 1.2e-3
 //   The worst case sits at theta_s just below pi/2 and T ~ 16: at large T the glow comes
 //   from a cone ~1/T wide around the light, so G bends sharply where that cone crosses the
