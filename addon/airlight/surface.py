@@ -13,7 +13,8 @@ Render passes this needs, enabled here automatically on every view layer of the 
 one Cycles light group per fogged light (`view_layer.lightgroups`, `Object.lightgroup`,
 Blender 3.2+; its pass Combined_<group>) and the Diffuse Color pass (DiffCol). Lights that
 already belong to a light group of the user's, and light objects instanced more than once,
-are left alone (no surface attenuation for them). Eevee and Workbench have no light
+are left alone (no surface attenuation for them), as are lights of other types (sun lamps:
+their light reaches surfaces unattenuated). Eevee and Workbench have no light
 groups: there the composite stays render x Transmittance + Airlight.
 """
 
@@ -22,6 +23,7 @@ import re
 from . import visibility
 
 GROUP_PREFIX = "fog_"
+SURFACE_LIGHT_TYPES = ('POINT', 'SPOT')  # lights the bake's surface pass attenuates
 PASS_PREFIX = "Surface_"
 PASS_GLOW = "SurfaceGlow"
 
@@ -42,7 +44,6 @@ def fogged_lights(depsgraph):
     """[(light object, group name or None)] in the bake's light order: the point lights, then
     the spot lights, as scene_export exports them (tests/blender/test_surface.py holds the
     two to the same order). The group is None where surface shading cannot apply."""
-    from .properties import SUPPORTED_LIGHT_TYPES
     hidden = visibility.render_hidden_collections(depsgraph.view_layer)
     points, spots, counts = [], [], {}
     for instance in depsgraph.object_instances:
@@ -53,7 +54,8 @@ def fogged_lights(depsgraph):
         if obj.type != 'LIGHT':
             continue
         light = obj.data
-        if light.type not in SUPPORTED_LIGHT_TYPES or not light.airlight.participate:
+        # Point and spot lights only: the bake's surface pass covers no other type.
+        if light.type not in SURFACE_LIGHT_TYPES or not light.original.airlight.participate:
             continue
         original = obj.original
         counts[original.name] = counts.get(original.name, 0) + 1
