@@ -8,6 +8,12 @@ with the preview off and on, for each depth source (DRAWN: the preview's own dis
 pass; READBACK: viewport depth read back and uploaded) and fog resolution scale
 (FULL / HALF / QUARTER). Prints ms per viewport draw, the fog's extra cost and the
 ratio, plus the handler's own depth time (own pass, or read-back + upload).
+
+Gaussian fog (--gaussians, default 300 and 3000; --gauss-lights, default 4): the same
+scene with a fog object of N Gaussians (scale a = 2/m, i.e. paintbrush-sized 0.5 m blobs,
+amplitude 0.3/m, centres uniform in a 16 x 10 x 3 m box around the cube), timed the
+same way (preview on vs off, interleaved, medians), plus the native per-view factor
+computation (f1, C_sv) the preview redoes when the view or the fog changes.
 """
 
 import argparse
@@ -27,6 +33,14 @@ def _args():
     p.add_argument("--lights", type=int, nargs="+", default=[1, 4, 16])
     p.add_argument("--scales", nargs="+", default=["FULL", "HALF", "QUARTER"])
     p.add_argument("--depth", nargs="+", default=["DRAWN", "READBACK"])
+    p.add_argument("--gaussians", type=int, nargs="*", default=[300, 3000])
+    p.add_argument("--gauss-lights", type=int, default=4)
+    p.add_argument("--gauss-repeats", type=int, default=3)
+    p.add_argument("--gauss-scales", nargs="+", default=["FULL", "HALF", "QUARTER"])
+    p.add_argument("--factors-only", action="store_true",
+                   help="Gaussian section: only time the native factor computation")
+    p.add_argument("--skip-point-section", action="store_true",
+                   help="only run the Gaussian section")
     p.add_argument("--passes-only", action="store_true",
                    help="only time the passes alone (offscreen), not whole viewport draws")
     return p.parse_args(argv)
@@ -56,6 +70,42 @@ def _scene(n_lights):
     scene.display.viewport_aa = 'OFF'
     bpy.context.preferences.view.show_splash = False
     bpy.context.view_layer.update()
+
+
+def _add_fog_object(n, seed=1):
+    """A fog object of _n_ Gaussians (see the module docstring)."""
+    import numpy as np
+    from airlight import fog_object
+    rng = np.random.default_rng(seed)
+    centres = np.column_stack([rng.uniform(-8.0, 8.0, n), rng.uniform(-5.0, 5.0, n),
+                               rng.uniform(0.0, 3.0, n)])
+    obj = fog_object.new_fog_object("BenchFog", bpy.context.scene.collection, centres,
+                                    np.full(n, 2.0), np.full(n, 0.3))
+    bpy.context.view_layer.update()
+    return obj
+
+
+def _time_factors(count, n_lights, repeats):
+    """Median ms of the native per-view factors (f1, C_sv) with nothing cached (new fog or
+    lights) and after a view change only (the light side reused)."""
+    from airlight import _native, preview, preview_gaussians as pg
+    ctx = bpy.context
+    g = preview.scene_gaussians(ctx)
+    lights, _ = preview.scene_lights(ctx.scene, ctx.view_layer)
+    full, view = [], []
+    for k in range(repeats):
+        pg.clear_cache()
+        t0 = time.perf_counter()
+        pg.fogshop_factors(_native, g["centres"], g["scales"], g["amplitudes"], 0.08, (1.0, -12.0, 5.0),
+                           lights, data_key=("bench", k))
+        full.append((time.perf_counter() - t0) * 1e3)
+        t0 = time.perf_counter()
+        pg.fogshop_factors(_native, g["centres"], g["scales"], g["amplitudes"], 0.08, (2.0, -11.0, 5.5),
+                           lights, data_key=("bench", k))
+        view.append((time.perf_counter() - t0) * 1e3)
+    pg.clear_cache()
+    print(f"factors ({count} Gaussians, {n_lights} lights): {statistics.median(full):.1f} ms from scratch, "
+          f"{statistics.median(view):.1f} ms after a view change (median of {repeats})", flush=True)
 
 
 def _view3d_region():
@@ -166,7 +216,7 @@ def main():
     print("(wall ms per region draw; CPU = process CPU time incl. llvmpipe threads, "
           "robust to other load; depth = read-back + upload in the handler)")
     wm = bpy.context.window_manager
-    for n in args.lights:
+    for n in ([] if args.skip_point_section else args.lights):
         _scene(n)
         for depth_mode in ([] if args.passes_only else args.depth):
             for scale in args.scales:
@@ -183,6 +233,26 @@ def main():
               f"(median of {args.repeats}, wall / CPU ms):")
         for name, wall, cpu in _time_passes(region, args.repeats):
             print(f"    {name:<32} {wall:>8.1f} {cpu:>8.1f}", flush=True)
+    if args.gaussians:
+        print(f"Gaussian fog: {args.gauss_lights} point lights, DRAWN depth, "
+              f"{args.gauss_repeats} draws each (median)")
+        print(f"{'gaussians':>9} {'scale':>7} {'no fog ms':>10} {'fog ms':>9} {'ratio':>7} "
+              f"{'CPU no fog':>11} {'CPU fog':>9} {'CPU ratio':>9} {'factors ms':>10}")
+    for count in args.gaussians:
+        _scene(args.gauss_lights)
+        _add_fog_object(count)
+        _time_factors(count, args.gauss_lights, args.gauss_repeats)
+        for scale in ([] if args.factors_only else args.gauss_scales):
+            preview._state["error"] = None
+            base, fog, _depth, cbase, cfog = _time_draws(window, area, region, args.gauss_repeats,
+                                                         wm, scale, 'DRAWN')
+            if preview._state["error"]:
+                print("preview error:", preview._state["error"])
+                return 1
+            gf = (preview._state["gpu"] or {}).get("gaussian_fog")
+            factor_ms = gf.factor_ms if gf is not None else float("nan")
+            print(f"{count:>9} {scale:>7} {base:>10.1f} {fog:>9.1f} {fog / base:>7.2f} "
+                  f"{cbase:>11.1f} {cfog:>9.1f} {cfog / cbase:>9.2f} {factor_ms:>10.1f}", flush=True)
     return 0
 
 

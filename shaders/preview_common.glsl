@@ -7,14 +7,28 @@
 //               _Dvp_ along the view ray (inf = nothing hit) or, with
 //               PREVIEW_WINDOW_DEPTH defined to 1, the window depth in [0, 1] (1 = none)
 //   lights      RGBA32F, light_count x 2 texels: row 0 = position (world), row 1 =
-//               albedo * I0 (W/sr per RGB channel)
+//               rgb: albedo * I0 (W/sr per RGB channel), a: C_sv, the transmittance of
+//               the Gaussian fog on the segment light -> eye (Fogshop eq. 15-17; 1
+//               without fog objects), which scales the homogeneous airlight
 //   inv_persp   inverse of (projection * view) of the region
 //   eye         xyz = view origin (world), w = 1 for perspective, 0 for orthographic
 //   clip        xyz = unit view axis (world, into the scene), w = clip_start: the near
 //               plane's view-axis depth, where the fog begins (Cycles starts camera rays
 //               there); the far plane needs no input, the depth pass already clips there
 //   viewport    zw = full-resolution size of the region in pixels
-//   sigma_t     extinction coefficient (1/m); light_count = number of lights
+//   pv_sigma_t  extinction coefficient (1/m); light_count = number of lights
+//   (inv_persp, eye, clip, viewport, pv_sigma_t, light_count, pv_phase, pv_scale, pv_mode
+//   are members of the uniform buffer of preview_params.glsl, read through defines)
+//   PREVIEW_PHASE  1: the airlight of a non-isotropic phase function through the Biri
+//               2006 table (biri06_airlight.glsl, needs it in front; inputs Gtab and
+//               pv_phase = (kind, g, K, k)); 0: Sun 2005 (isotropic)
+//   PREVIEW_SPOTS  1: spot lights (spot_airlight.glsl, needs it in front): spots,
+//               RGBA32F spot_count x 3 texels: row 0 = (position, cos(size / 2)), row 1 =
+//               (unit axis, (1 - cos(size / 2)) blend), row 2 = albedo * I0; with the phase
+//               of PREVIEW_PHASE
+//   PREVIEW_SUNS   1: sun lamps (sun_airlight.glsl, needs it in front): suns, RGBA32F
+//               sun_count x 2 texels: row 0 = (unit propagation direction w (the lamp's
+//               -Z), fog top height h_top (inf: none)), row 1 = albedo * colour * strength
 
 vec3 preview_unproject(vec2 ndc_xy, float ndc_z)
 {
@@ -72,7 +86,7 @@ vec4 preview_fog(vec3 origin, vec3 dir, float Dvp)
   vec3 La = vec3(0.0);
   for (int i = 0; i < light_count; i++) {
     vec3 to_light = texelFetch(lights, ivec2(i, 0), 0).xyz - p0;
-    vec3 I0 = texelFetch(lights, ivec2(i, 1), 0).rgb;
+    vec4 I0 = texelFetch(lights, ivec2(i, 1), 0);
     float Dsv = length(to_light);
     if (Dsv <= 0.0) {
       continue;
@@ -82,8 +96,35 @@ vec4 preview_fog(vec3 origin, vec3 dir, float Dvp)
     // exactly through the light (which sun05_airlight regularises to sin(gamma) = 1e-8,
     // 1e4 times brighter than any nearby pixel). 0.99999994 = 1 - 2^-24.
     float cos_gamma = clamp(dot(to_light, dir) / Dsv, -1.0, 0.99999994);
-    La += I0 * sun05_airlight(Ftab, sigma_t, Dsv, cos_gamma, D);
+#if PREVIEW_PHASE
+    La += (I0.rgb * I0.a) * biri06_airlight(Gtab, pv_phase, pv_sigma_t, Dsv, cos_gamma, D);
+#else
+    La += (I0.rgb * I0.a) * sun05_airlight(Ftab, pv_sigma_t, Dsv, cos_gamma, D);
+#endif
   }
-  float Tr = exp(-sigma_t * D);
+#if PREVIEW_SPOTS
+  int spot_count = textureSize(spots, 0).x;
+  for (int i = 0; i < spot_count; i++) {
+    vec4 s0 = texelFetch(spots, ivec2(i, 0), 0);
+    vec4 s1 = texelFetch(spots, ivec2(i, 1), 0);
+    vec3 I0 = texelFetch(spots, ivec2(i, 2), 0).rgb;
+    La += I0 * spot_airlight(s0.xyz, s1.xyz, s0.w, s1.w, pv_sigma_t, p0, dir, D, PREVIEW_PHASE != 0, pv_phase);
+  }
+#endif
+#if PREVIEW_SUNS
+  int sun_count = textureSize(suns, 0).x;
+  for (int i = 0; i < sun_count; i++) {
+    vec4 s0 = texelFetch(suns, ivec2(i, 0), 0);
+    vec3 E = texelFetch(suns, ivec2(i, 1), 0).rgb;
+    float mu = -dot(s0.xyz, dir);
+#if PREVIEW_PHASE
+    float p = biri06_phase(pv_phase, mu);
+#else
+    float p = 0.07957747154594767;
+#endif
+    La += (pv_sigma_t * p) * E * sun_layer_factor(pv_sigma_t, s0.w, -s0.z, p0.z, dir.z, 0.0, D);
+  }
+#endif
+  float Tr = exp(-pv_sigma_t * D);
   return vec4(La, 1.0 - Tr);
 }

@@ -73,7 +73,7 @@ void main()
   ivec2 px = ivec2(gl_FragCoord.xy - viewport.xy);
   ivec2 lo_size = textureSize(fog_lo, 0);
   // Position in low-res texels of the samples' full-resolution pixels.
-  vec2 f = (vec2(px) - float(scale / 2)) / float(scale);
+  vec2 f = (vec2(px) - float(pv_scale / 2)) / float(pv_scale);
   ivec2 i0 = ivec2(floor(f));
   vec2 t = f - vec2(i0);
 
@@ -82,7 +82,7 @@ void main()
   preview_ray(px, ndc, origin, dir);
   float D = preview_distance(px, ndc, origin, dir);
   vec2 slope = vec2(0.0);
-  if (mode != 0 && !isinf(D)) {
+  if (pv_mode != 0 && !isinf(D)) {
     slope = vec2(preview_slope(px, ivec2(1, 0), D), preview_slope(px, ivec2(0, 1), D));
   }
 
@@ -95,8 +95,8 @@ void main()
     float wb = (o.x == 1 ? t.x : 1.0 - t.x) * (o.y == 1 ? t.y : 1.0 - t.y);
     vec4 fog = texelFetch(fog_lo, q, 0);
     float s = 1.0;
-    if (mode != 0) {
-      ivec2 qpx = min(q * scale + scale / 2, ivec2(viewport.zw) - 1);
+    if (pv_mode != 0) {
+      ivec2 qpx = min(q * pv_scale + pv_scale / 2, ivec2(viewport.zw) - 1);
       s = preview_similarity(fog.a, D, slope, vec2(qpx - px));
       if (s > best) {
         best = s;
@@ -108,15 +108,15 @@ void main()
     sum += w * fog.rgb;
     wsum += w;
   }
-  bool exact = mode == 2 && best < PREVIEW_DEPTH_ACCEPT;
+  bool exact = pv_mode == 2 && best < PREVIEW_DEPTH_ACCEPT;
 #if PREVIEW_EXACT_PASS
   frag_color = preview_fog(origin, dir, D);
 #else
 #  if PREVIEW_MARK
   gl_FragDepth = exact ? 0.0 : 1.0;
 #  endif
-  vec3 La = (mode == 0 || best >= PREVIEW_DEPTH_ACCEPT) ? sum / wsum : nearest;
-  float Tr = exp(-sigma_t * max(D - preview_near(dir), 0.0));
+  vec3 La = (pv_mode == 0 || best >= PREVIEW_DEPTH_ACCEPT) ? sum / wsum : nearest;
+  float Tr = exp(-pv_sigma_t * max(D - preview_near(dir), 0.0));
   frag_color = vec4(La, 1.0 - Tr);
 #endif
 }

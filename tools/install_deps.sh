@@ -9,7 +9,7 @@ PKGS=(
   libopenimageio-dev openimageio-tools python3-openimageio
   libembree-dev libtbb-dev
   libgtest-dev googletest
-  python3-numpy python3-scipy python3-mpmath python3-pytest
+  python3-numpy python3-scipy python3-mpmath python3-pytest python3-matplotlib
   blender xvfb xauth
 )
 

@@ -28,6 +28,8 @@ _modules = [properties, compositor, bake, render, ui]
 from . import fog_object; _modules.append(fog_object)  # noqa: E402,E702  Gaussian fog objects
 from . import brush_ops; _modules.append(brush_ops)  # noqa: E402,E702  fog paintbrush and eraser
 from . import fog_clipboard; _modules.append(fog_clipboard)  # noqa: E402,E702  fog select/copy/paste/move
+from . import airbrush; _modules.append(airbrush)  # noqa: E402,E702  airbrush and Fill Mesh with Fog
+from . import emitter; _modules.append(emitter)  # noqa: E402,E702  particle emitter (smoke)
 from . import tools_ui; _modules.append(tools_ui)  # noqa: E402,E702  N panel > Airlight > Fog Tools
 
 # The viewport preview (preview.py, GPU) registers itself when it is part of the package.

@@ -12,7 +12,7 @@ import time
 import bpy
 from bpy.props import IntProperty, StringProperty
 
-from . import cache, compositor, model_choice, native, scene_export, surface
+from . import cache, compositor, environment, model_choice, native, scene_export, surface
 
 class BakeError(RuntimeError):
     """A bake failed for a reason the user can fix; the message says which."""
@@ -28,16 +28,22 @@ def bake_settings(scene):
     """Keyword arguments of `_native.bake` that are not part of the scene description."""
     settings = scene.airlight
     return dict(model=model_choice.choose(settings)[0], threads=settings.threads,
-                aa_samples=settings.aa_samples)
+                aa_samples=settings.aa_samples, **model_choice.table_settings(settings))
 
 
 def prepare(scene, depsgraph):
-    """Everything the bake needs, gathered in the main thread (touches bpy)."""
+    """Everything the bake needs, gathered in the main thread (touches bpy).
+
+    The World for the environment glow travels in the settings under "environment"
+    (environment.prepare(); absent when off), which `run` takes out before the native bake."""
     try:
         description = scene_export.export_scene(scene, depsgraph)
-    except scene_export.ExportError as ex:
+        settings = bake_settings(scene)
+        world = environment.prepare(scene)
+        if world is not None:
+            settings["environment"] = world
+    except (scene_export.ExportError, environment.WorldMapError) as ex:
         raise BakeError(str(ex)) from None
-    settings = bake_settings(scene)
     if surface.active(scene):
         # Surface shading: the light groups and DiffCol pass the composite reads (surface.py).
         settings["surface"] = True
@@ -62,8 +68,12 @@ def run(description, settings, filepath, progress=None):
     start = time.perf_counter()
     settings = dict(settings)
     groups = settings.pop(SURFACE_GROUPS, None)
+    world = settings.pop("environment", None)
     try:
         result = module.bake(**description, **settings, progress=progress)
+        stats = dict(result["stats"])
+        if world is not None:
+            stats["seconds_environment"] = environment.apply(module, world, description, result)
     except ValueError as ex:
         raise BakeError(f"Invalid fog scene: {ex}") from None
     extra = surface.pass_arrays(result, groups) if settings.get("surface") else None
@@ -71,7 +81,7 @@ def run(description, settings, filepath, progress=None):
         cache.write_passes(filepath, result["airlight"], result["transmittance"], extra)
     except cache.CacheError as ex:
         raise BakeError(str(ex)) from None
-    return dict(result["stats"]), time.perf_counter() - start
+    return stats, time.perf_counter() - start
 
 
 def bake_frame(scene, depsgraph, filepath=None, progress=None):
@@ -149,7 +159,9 @@ class AIRLIGHT_OT_bake(bpy.types.Operator):
     def _finish(self, context, scene, filepath, stats, seconds):
         if scene.airlight.auto_composite:
             compositor.sync(scene, filepath)
-        self.report({'INFO'}, f"Fog baked in {seconds * 1000.0:.0f} ms ({os.path.basename(filepath)})")
+        skipped = sorted(model_choice.skipped_lights(scene))
+        note = f"; skipped below the accuracy target: {', '.join(skipped)}" if skipped else ""
+        self.report({'INFO'}, f"Fog baked in {seconds * 1000.0:.0f} ms ({os.path.basename(filepath)}){note}")
         return {'FINISHED'}
 
     def execute(self, context):

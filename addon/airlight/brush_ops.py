@@ -537,7 +537,9 @@ class AIRLIGHT_OT_fog_erase(_FogBrush, bpy.types.Operator):
             self.report({'WARNING'}, f"All Gaussians of '{self._object.name}' erased: the bake "
                                      "refuses an empty fog object (paint some or delete it)")
         centres, scales, _ = fog_object.read(self._object)
-        fog_object.write(self._object, centres[keep], scales[keep], self._amplitudes[keep])
+        colors = fog_object.read_colors(self._object.data)  # per-Gaussian albedo, if any
+        fog_object.write(self._object, centres[keep], scales[keep], self._amplitudes[keep],
+                         None if colors is None else colors[keep])
         return True
 
 

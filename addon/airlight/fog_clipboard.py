@@ -311,6 +311,9 @@ class AIRLIGHT_OT_fog_copy(bpy.types.Operator):
                                      "with Select Fog first")
             return {'CANCELLED'}
         _clipboard["data"] = copy_selection(read_world(obj), mask)
+        colors = fog_object.read_colors(obj.data)  # per-Gaussian albedo travels with the copy
+        if colors is not None:
+            _clipboard["data"]["colors"] = np.array(colors[np.asarray(mask, dtype=bool)])
         self.report({'INFO'}, f"{int(mask.sum())} Gaussians copied")
         return {'FINISHED'}
 
@@ -335,11 +338,9 @@ class AIRLIGHT_OT_fog_paste(bpy.types.Operator):
         obj = context.active_object
         centres, scales, amplitudes = paste(clipboard(), target=np.array(context.scene.cursor.location))
         local, local_scales = _to_local(obj, centres, scales)
-        old = fog_object.read(obj)
-        n_old = len(old[0])
-        fog_object.write(obj, np.concatenate([old[0], local]),
-                         np.concatenate([old[1], local_scales]),
-                         np.concatenate([old[2], amplitudes]))
+        n_old = len(obj.data.vertices)
+        # append keeps the object's colours (and gives uncoloured Gaussians the fog colour).
+        fog_object.append(obj, local, local_scales, amplitudes, colors=clipboard().get("colors"))
         mask = np.zeros(n_old + len(local), dtype=bool)
         mask[n_old:] = True
         write_selection(obj, mask)

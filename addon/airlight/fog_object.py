@@ -6,7 +6,9 @@ stored as Blender data. A fog object is a mesh object whose vertices are the Gau
 centres b_i (object space) with two float point-domain attributes, "airlight_scale"
 (a_i, 1/m) and "airlight_amplitude" (c_i, 1/m), and `obj.airlight_fog.is_fog = True`.
 A mesh with only vertices renders nothing in Cycles or EEVEE; the object is drawn as
-its bounding box in the viewport. Being plain mesh data, fog objects save with the
+its bounding box in the viewport. An optional third point attribute "airlight_color"
+(FLOAT_COLOR, RGB used, alpha ignored) is a per-Gaussian single-scattering albedo (the
+particle emitter writes it); without it the scene fog's colour applies. Being plain mesh data, fog objects save with the
 .blend, undo, duplicate (Shift+D copies the Gaussians, Alt+D shares them), link and
 append like any mesh.
 
@@ -23,6 +25,7 @@ from . import visibility
 
 SCALE_ATTR = "airlight_scale"
 AMPLITUDE_ATTR = "airlight_amplitude"
+COLOR_ATTR = "airlight_color"
 
 
 class FogObjectError(ValueError):
@@ -81,38 +84,79 @@ def read(obj):
     return read_mesh(obj.data, obj.name)
 
 
-def write_mesh(mesh, centres, scales, amplitudes):
-    """Replaces the mesh's geometry by the Gaussians (object space), in bulk."""
+def read_colors(mesh):
+    """Per-Gaussian RGB albedo (n, 3) float32 from the "airlight_color" point attribute
+    (FLOAT_COLOR, or FLOAT_VECTOR), or None when the mesh has no such attribute."""
+    attr = mesh.attributes.get(COLOR_ATTR)
+    if attr is None or attr.domain != 'POINT':
+        return None
+    n = len(mesh.vertices)
+    if attr.data_type in {'FLOAT_COLOR', 'BYTE_COLOR'}:
+        rgba = np.empty(4 * n, dtype=np.float32)
+        attr.data.foreach_get("color", rgba)
+        return np.ascontiguousarray(rgba.reshape(n, 4)[:, :3])
+    if attr.data_type == 'FLOAT_VECTOR':
+        rgb = np.empty(3 * n, dtype=np.float32)
+        attr.data.foreach_get("vector", rgb)
+        return rgb.reshape(n, 3)
+    return None
+
+
+def write_mesh(mesh, centres, scales, amplitudes, colors=None):
+    """Replaces the mesh's geometry by the Gaussians (object space), in bulk. _colors_
+    (n, 3) RGB albedo, or one RGB for all, writes the "airlight_color" attribute; None
+    leaves the mesh without it."""
     centres = np.ascontiguousarray(centres, dtype=np.float32).reshape(-1, 3)
     n = len(centres)
     scales = np.ascontiguousarray(np.broadcast_to(scales, (n,)), dtype=np.float32)
     amplitudes = np.ascontiguousarray(np.broadcast_to(amplitudes, (n,)), dtype=np.float32)
-    mesh.clear_geometry()
+    mesh.clear_geometry()  # also removes every attribute (checked in Blender 3.4)
     if n:
         mesh.vertices.add(n)
         mesh.vertices.foreach_set("co", centres.ravel())
     _point_attribute(mesh, SCALE_ATTR).data.foreach_set("value", scales)
     _point_attribute(mesh, AMPLITUDE_ATTR).data.foreach_set("value", amplitudes)
+    if colors is not None:
+        rgba = np.ones((n, 4), dtype=np.float32)
+        rgba[:, :3] = np.broadcast_to(np.asarray(colors, dtype=np.float32), (n, 3))
+        mesh.attributes.new(COLOR_ATTR, 'FLOAT_COLOR', 'POINT').data.foreach_set("color", rgba.ravel())
     mesh.update()
 
 
-def write(obj, centres, scales, amplitudes):
-    write_mesh(obj.data, centres, scales, amplitudes)
+def write(obj, centres, scales, amplitudes, colors=None):
+    write_mesh(obj.data, centres, scales, amplitudes, colors)
 
 
-def append(obj, centres, scales, amplitudes):
-    """Adds Gaussians (object space) to a fog object, in bulk."""
+def _default_color():
+    """The scene fog's colour (albedo), the colour of Gaussians that have none."""
+    scene = getattr(bpy.context, "scene", None)
+    settings = getattr(scene, "airlight", None)
+    return np.array(settings.color if settings is not None else (1.0, 1.0, 1.0), dtype=np.float32)
+
+
+def append(obj, centres, scales, amplitudes, colors=None):
+    """Adds Gaussians (object space) to a fog object, in bulk. The object keeps its
+    colour attribute: when only one side has colours, the other side's Gaussians get the
+    scene fog's colour."""
     centres = np.asarray(centres, dtype=np.float64).reshape(-1, 3)
     n = len(centres)
     if n == 0:
         return
     old_c, old_s, old_a = read(obj)
+    old_rgb = read_colors(obj.data)
+    rgb = None
+    if old_rgb is not None or colors is not None:
+        fill = _default_color()
+        old_rgb = np.broadcast_to(fill, (len(old_c), 3)) if old_rgb is None else old_rgb
+        new_rgb = np.broadcast_to(fill if colors is None else np.asarray(colors, dtype=np.float32), (n, 3))
+        rgb = np.concatenate([old_rgb, new_rgb])
     write(obj, np.concatenate([old_c, centres]),
           np.concatenate([old_s, np.broadcast_to(scales, (n,))]),
-          np.concatenate([old_a, np.broadcast_to(amplitudes, (n,))]))
+          np.concatenate([old_a, np.broadcast_to(amplitudes, (n,))]), rgb)
 
 
-def new_fog_object(name, collection, centres=(), scales=1.0, amplitudes=0.1, location=(0, 0, 0)):
+def new_fog_object(name, collection, centres=(), scales=1.0, amplitudes=0.1, location=(0, 0, 0),
+                   colors=None):
     """Creates a fog object holding the given object-space Gaussians, linked to _collection_."""
     mesh = bpy.data.meshes.new(name)
     obj = bpy.data.objects.new(name, mesh)
@@ -122,7 +166,7 @@ def new_fog_object(name, collection, centres=(), scales=1.0, amplitudes=0.1, loc
     obj.display_type = 'WIRE'
     obj.show_bounds = True
     obj.display_bounds_type = 'BOX'
-    write_mesh(mesh, np.asarray(centres, dtype=np.float64).reshape(-1, 3), scales, amplitudes)
+    write_mesh(mesh, np.asarray(centres, dtype=np.float64).reshape(-1, 3), scales, amplitudes, colors)
     collection.objects.link(obj)
     return obj
 
@@ -149,9 +193,47 @@ def uniform_scale(matrix3):
     return float(abs(np.linalg.det(np.asarray(matrix3, dtype=np.float64)))) ** (1.0 / 3.0)
 
 
+class GatheredFog(tuple):
+    """What gather() returns: unpacks as (centres, scales, amplitudes), as before, and is
+    also read by key: g['centres'], g['scales'], g['amplitudes'], g['colors'] ((n, 3)
+    float32 RGB albedo, or None when no gathered fog object has an "airlight_color"
+    attribute), `'colors' in g` (True only when there are colours) and g.get(key)."""
+
+    KEYS = ("centres", "scales", "amplitudes")
+
+    def __new__(cls, centres, scales, amplitudes, colors=None):
+        self = super().__new__(cls, (centres, scales, amplitudes))
+        self.colors = colors
+        return self
+
+    def __getitem__(self, key):
+        if isinstance(key, str):
+            if key == "colors":
+                return self.colors
+            return tuple.__getitem__(self, self.KEYS.index(key))
+        return tuple.__getitem__(self, key)
+
+    def __contains__(self, key):
+        if key == "colors":
+            return self.colors is not None
+        return key in self.KEYS
+
+    def get(self, key, default=None):
+        try:
+            value = self[key]
+        except ValueError:
+            return default
+        return default if value is None else value
+
+    def keys(self):
+        return self.KEYS + (("colors",) if self.colors is not None else ())
+
+
 def gather(depsgraph):
     """World-space Gaussians of all render-visible fog objects (and their instances):
-    (centres (n,3) float64, scales (n,) float64, amplitudes (n,) float64).
+    (centres (n,3) float64, scales (n,) float64, amplitudes (n,) float64), a GatheredFog
+    that also holds 'colors' (n,3) float32 when any of them has the "airlight_color"
+    attribute (the others' Gaussians then get the scene fog's colour), else None.
 
     Centres are transformed by the instance's matrix_world. Gaussians stay isotropic:
     the scale a is divided by s = |det M|^(1/3), the object's uniform scale factor, so an
@@ -162,6 +244,7 @@ def gather(depsgraph):
     """
     hidden = visibility.render_hidden_collections(depsgraph.view_layer)
     blocks = []
+    colors = []
     for instance in depsgraph.object_instances:
         obj = instance.object
         if not is_fog_object(obj):
@@ -177,9 +260,20 @@ def gather(depsgraph):
         if not s > 0.0 or not np.isfinite(s):
             raise FogObjectError(name, "has a zero (degenerate) object scale")
         blocks.append((centres @ matrix[:3, :3].T + matrix[:3, 3], scales / s, amplitudes))
+        rgb = read_colors(obj.data)
+        if rgb is not None and (not np.isfinite(rgb).all() or (rgb < 0.0).any()):
+            raise FogObjectError(name, f"'{COLOR_ATTR}' has negative or non-finite values")
+        colors.append(rgb)
     if not blocks:
-        return np.zeros((0, 3)), np.zeros(0), np.zeros(0)
-    return tuple(np.concatenate([b[i] for b in blocks]) for i in range(3))
+        return GatheredFog(np.zeros((0, 3)), np.zeros(0), np.zeros(0))
+    rgb = None
+    if any(c is not None for c in colors):
+        scene_settings = getattr(depsgraph.scene, "airlight", None)
+        fill = np.array(scene_settings.color if scene_settings is not None else (1.0, 1.0, 1.0),
+                        dtype=np.float32)
+        rgb = np.concatenate([np.broadcast_to(fill, (len(b[0]), 3)) if c is None else c
+                              for b, c in zip(blocks, colors)]).astype(np.float32)
+    return GatheredFog(*(np.concatenate([b[i] for b in blocks]) for i in range(3)), colors=rgb)
 
 
 class AIRLIGHT_OT_add_fog_object(bpy.types.Operator):

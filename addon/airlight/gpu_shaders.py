@@ -43,12 +43,14 @@ def load_source(name):
 
 
 def create_fullscreen_shader(name, frag, *, libs=(), push_constants=(), samplers=(),
-                             defines=()):
+                             defines=(), ubo=None):
     """Compiles fullscreen_vert.glsl + _libs_ + _frag_ into a GPUShader.
 
     push_constants: (type, name) pairs, e.g. ('VEC4', 'color').
     samplers: sampler names (FLOAT_2D), bound to slots in order.
     defines: (name, value) pairs.
+    ubo: None or (typedef file, struct name, variable name, {alias: member}): a uniform
+    buffer at slot 0 whose members the GLSL reads as `alias` (a define).
     The fragment shader writes `frag_color` (vec4) and reads `uv` (vec2, 0..1).
     Raises an Exception with the compiler log on GLSL errors.
     """
@@ -63,6 +65,8 @@ def create_fullscreen_shader(name, frag, *, libs=(), push_constants=(), samplers
         info.sampler(slot, 'FLOAT_2D', sname)
     for dname, dvalue in defines:
         info.define(dname, str(dvalue))
+    if ubo is not None:
+        _add_ubo(info, *ubo)
     info.fragment_out(0, 'VEC4', "frag_color")
     info.vertex_source(load_source("fullscreen_vert.glsl"))
     fragment = "".join(load_source(lib) + "\n" for lib in libs) + load_source(frag)
@@ -70,6 +74,13 @@ def create_fullscreen_shader(name, frag, *, libs=(), push_constants=(), samplers
     shader = gpu.shader.create_from_info(info)
     # Keep the interface alive as long as the shader (the create-info refers to it).
     return shader
+
+
+def _add_ubo(info, typedef_file, struct, var, aliases):
+    info.typedef_source(load_source(typedef_file))
+    info.uniform_buf(0, struct, var)
+    for alias, member in aliases.items():
+        info.define(alias, f"{var}.{member}")
 
 
 def fullscreen_batch(shader):
@@ -150,11 +161,22 @@ def create_depth_shader():
     return gpu.shader.create_from_info(info)
 
 
+DISTANCE_UBO = ("preview_distance_params.glsl", "AirlightDistanceParams", "dv",
+                {"eye": "u_eye", "axis": "u_axis"})
+
+
+def distance_params_ubo(eye, axis):
+    """GPUUniformBuf of AirlightDistanceParams (bind with shader.uniform_block("dv", ubo))."""
+    import numpy as np
+    return gpu.types.GPUUniformBuf(np.array([*eye, *axis], np.float32).tobytes())
+
+
 def create_distance_shader():
     """Shader drawing object-space triangles (attribute "pos", VEC3) through push
-    constants `model` (object to world) and `persp` (projection * view), writing the
-    linear surface distance (preview_distance_*.glsl) into colour channel 0; `eye` and
-    `axis` (VEC4) say how distance is measured (see the fragment file)."""
+    constants `model` (object to world) and `persp` (projection * view; 128 bytes in
+    all), writing the linear surface distance (preview_distance_*.glsl) into colour
+    channel 0; `eye` and `axis` (VEC4, uniform buffer DISTANCE_UBO at slot 0, "dv") say
+    how distance is measured (see the fragment file)."""
     iface = gpu.types.GPUStageInterfaceInfo("airlight_distance_iface")
     iface.smooth('VEC3', "wpos")
     info = gpu.types.GPUShaderCreateInfo()
@@ -162,8 +184,7 @@ def create_distance_shader():
     info.vertex_out(iface)
     for name in ("model", "persp"):
         info.push_constant('MAT4', name)
-    for name in ("eye", "axis"):
-        info.push_constant('VEC4', name)
+    _add_ubo(info, *DISTANCE_UBO)
     info.fragment_out(0, 'VEC4', "frag_color")
     info.vertex_source(load_source("preview_distance_vert.glsl"))
     info.fragment_source(load_source("preview_distance_frag.glsl"))
@@ -206,3 +227,166 @@ def render_depth(vertices, triangles, persp, width, height):
 def depth_texture(buf, width, height):
     """R32F texture from a read_depth() Buffer (no copy through Python lists)."""
     return gpu.types.GPUTexture((width, height), format='R32F', data=buf)
+
+
+# ---- Gaussian fog (fog objects) in the preview -----------------------------------------
+# Each shader's full interface is in one function below, so a standalone GL harness can
+# mirror it (vertex inputs, interface blocks, push constants, samplers, fragment outputs,
+# defines, and the order in which files are concatenated).
+
+# Width of the per-Gaussian data textures (texel (i % W, ...) for Gaussian i).
+RBF_TEX_WIDTH = 1024
+
+# Inputs shared by the fog passes and the splat pass (preview_common.glsl): one uniform
+# buffer (shaders/preview_params.glsl, 224 bytes, std140) instead of push constants; the
+# GLSL reads its members under these names (pv_*: names the kernels use for parameters).
+PREVIEW_UBO = ("preview_params.glsl", "AirlightPreviewParams", "pv", {
+    "inv_persp": "u_inv_persp", "persp": "u_persp", "eye": "u_eye", "clip": "u_clip",
+    "viewport": "u_viewport", "pv_phase": "u_phase", "pv_sigma_t": "u_fparams.x",
+    "light_count": "u_iparams.x", "pv_scale": "u_iparams.y", "pv_mode": "u_iparams.z"})
+
+
+def preview_params_ubo(*, inv_persp, persp, eye, clip, viewport, phase, sigma_t, light_count,
+                       scale, mode):
+    """GPUUniformBuf of AirlightPreviewParams (shaders/preview_params.glsl): matrices as
+    mathutils.Matrix or 4x4 nested sequences (row-major; stored column-major), vec4s as
+    4 numbers. Bind with shader.uniform_block("pv", ubo)."""
+    import numpy as np
+    f = np.zeros(56, np.float32)
+    f[0:16] = np.asarray(inv_persp, np.float64).T.ravel()
+    f[16:32] = np.asarray(persp, np.float64).T.ravel()
+    f[32:36], f[36:40], f[40:44], f[44:48] = eye, clip, viewport, phase
+    f[48] = sigma_t
+    i = f.view(np.int32)
+    i[52:56] = (int(light_count), int(scale), int(mode), 0)
+    return gpu.types.GPUUniformBuf(f.tobytes())
+PREVIEW_FOG_SAMPLERS = ("Ftab", "depth_tex", "lights", "fog_lo", "gauss_acc", "gauss_near", "Gtab",
+                        "spots", "suns")
+PREVIEW_LIBS = ("sun05_airlight.glsl", "biri06_airlight.glsl", "spot_airlight.glsl",
+                "sun_airlight.glsl", "preview_common.glsl")
+
+
+def create_preview_shader(name, frag, defines=()):
+    """A full-screen pass of the preview (fog_preview_frag.glsl, preview_upsample_frag.glsl,
+    preview_composite_frag.glsl).
+
+    Sources: vertex = fullscreen_vert.glsl (vertex input 0 VEC2 "pos", interface
+    "airlight_<name>_iface" with smooth VEC2 "uv"); fragment = PREVIEW_LIBS + _frag_,
+    concatenated in that order.
+    Uniform buffer: slot 0, struct AirlightPreviewParams (typedef preview_params.glsl) as
+    variable "pv"; the GLSL names of PREVIEW_UBO are defines for its members (no push
+    constants). Samplers (FLOAT_2D, slots in order): PREVIEW_FOG_SAMPLERS.
+    Defines (all must be given): PREVIEW_WINDOW_DEPTH, PREVIEW_PHASE, PREVIEW_SPOTS, PREVIEW_SUNS,
+    PREVIEW_GAUSSIANS,
+    and per file: PREVIEW_LOWRES and PREVIEW_GAUSS_SCALE (fog), PREVIEW_EXACT_PASS and
+    PREVIEW_MARK (upsample). Output: 0 VEC4 "frag_color".
+    """
+    return create_fullscreen_shader(name, frag, libs=PREVIEW_LIBS, samplers=PREVIEW_FOG_SAMPLERS,
+                                    defines=defines, ubo=PREVIEW_UBO)
+
+
+def create_rbf_splat_shader(window_depth=False):
+    """The Gaussian splat pass (Fogshop section 5).
+
+    Sources: vertex = rbf_splat_vert.glsl; fragment = sun05_airlight.glsl +
+    preview_common.glsl + rbf_gaussian.glsl + rbf_splat_frag.glsl, concatenated in this
+    order (the create-info adds the declarations below in front of each).
+    Defines: RBF_TEX_WIDTH (int), PREVIEW_WINDOW_DEPTH (0: depth_tex holds linear
+    distance, 1: window depth), PREVIEW_PHASE 0, PREVIEW_SPOTS 0, PREVIEW_SUNS 0.
+    Vertex inputs: 0 VEC2 "corner" (quad corner in {-1, 1}^2), 1 FLOAT "gid" (Gaussian
+    index); 4 vertices per Gaussian, drawn as TRIS with 6 indices per Gaussian
+    (`rbf_splat_batch`).
+    Vertex -> fragment: interface "airlight_rbf_splat_iface", flat INT "gi".
+    Uniform buffer: as create_preview_shader (PREVIEW_UBO, "pv"): persp, inv_persp, eye,
+    clip, viewport, sigma_t, light_count, scale (the splat target's reduction); no push
+    constants.
+    Samplers (FLOAT_2D, slots in order): 0 Ftab, 1 depth_tex, 2 lights, 3 gauss, 4 gauss_f1
+    (Ftab is declared because preview_common.glsl refers to it; unused here).
+    Fragment outputs: 0 VEC4 "frag_color" (rgb airlight, a optical depth [t0, Dvp]),
+    1 VEC4 "frag_near" (r = optical depth [0, t0]); blend ADDITIVE_PREMULT into two
+    RGBA32F targets cleared to 0.
+    """
+    iface = gpu.types.GPUStageInterfaceInfo("airlight_rbf_splat_iface")
+    iface.flat('INT', "gi")
+    info = gpu.types.GPUShaderCreateInfo()
+    info.vertex_in(0, 'VEC2', "corner")
+    info.vertex_in(1, 'FLOAT', "gid")
+    info.vertex_out(iface)
+    _add_ubo(info, *PREVIEW_UBO)
+    for slot, sname in enumerate(("Ftab", "depth_tex", "lights", "gauss", "gauss_f1")):
+        info.sampler(slot, 'FLOAT_2D', sname)
+    info.define("RBF_TEX_WIDTH", str(RBF_TEX_WIDTH))
+    info.define("PREVIEW_WINDOW_DEPTH", str(int(bool(window_depth))))
+    info.define("PREVIEW_PHASE", "0")
+    info.define("PREVIEW_SPOTS", "0")
+    info.define("PREVIEW_SUNS", "0")
+    info.fragment_out(0, 'VEC4', "frag_color")
+    info.fragment_out(1, 'VEC4', "frag_near")
+    info.vertex_source(load_source("rbf_splat_vert.glsl"))
+    info.fragment_source("".join(load_source(name) + "\n" for name in (
+        "sun05_airlight.glsl", "preview_common.glsl", "rbf_gaussian.glsl", "rbf_splat_frag.glsl")))
+    return gpu.shader.create_from_info(info)
+
+
+def rbf_splat_batch(shader, count):
+    """4 vertices and 2 triangles per Gaussian for `create_rbf_splat_shader` (attribute
+    "corner" in {-1, 1}^2, "gid" = Gaussian index). Depends on _count_ only: the data
+    come from textures, so the batch is rebuilt only when the number of Gaussians changes."""
+    import numpy as np
+    from gpu_extras.batch import batch_for_shader
+    n = int(count)
+    corner = np.tile(np.array(_QUAD, np.float32), (n, 1))
+    gid = np.repeat(np.arange(n, dtype=np.float32), 4)
+    base = (np.arange(n, dtype=np.int32) * 4)[:, None, None]
+    tris = (np.array(_QUAD_TRIS, np.int32)[None] + base).reshape(-1, 3)
+    return batch_for_shader(shader, 'TRIS', {"corner": corner, "gid": gid}, indices=tris)
+
+
+def rbf_data_textures(centres, scales, amplitudes, radii, f1):
+    """The splat pass's per-Gaussian textures (layout in rbf_splat_vert.glsl and
+    rbf_splat_frag.glsl): gauss (RGBA32F, RBF_TEX_WIDTH x 2 rows per block of W Gaussians)
+    and gauss_f1 (R32F, RBF_TEX_WIDTH x L rows per block), f1 of shape (L, n)."""
+    import numpy as np
+    n = len(scales)
+    W = RBF_TEX_WIDTH
+    blocks = max(1, -(-n // W))
+    gauss = np.zeros((blocks, 2, W, 4), np.float32)
+    flat = gauss.reshape(blocks, 2, W, 4)
+    idx = np.arange(n)
+    blk, col = idx // W, idx % W
+    flat[blk, 0, col, :3] = np.asarray(centres, np.float64).reshape(-1, 3)
+    flat[blk, 0, col, 3] = scales
+    flat[blk, 1, col, 0] = amplitudes
+    flat[blk, 1, col, 1] = radii
+    f1 = np.asarray(f1, np.float64).reshape(-1, n)
+    L = max(1, f1.shape[0])
+    f1_tex = np.zeros((blocks, L, W), np.float32)
+    for l in range(f1.shape[0]):
+        f1_tex[blk, l, col] = f1[l]
+    return (float_texture(gauss.reshape(blocks * 2, W, 4)),
+            float_texture(f1_tex.reshape(blocks * L, W)))
+
+
+def create_rbf_test_shader():
+    """GLSL-vs-C++ agreement shader for rbf_gaussian.glsl (test_09): fullscreen_vert.glsl
+    + rbf_gaussian.glsl + test_rbf_frag.glsl; samplers 0..4 "in0".."in4" (RGBA32F, one
+    input point per pixel; layout in test_rbf_frag.glsl); output frag_color."""
+    return create_fullscreen_shader("test_rbf", "test_rbf_frag.glsl", libs=("rbf_gaussian.glsl",),
+                                    samplers=("in0", "in1", "in2", "in3", "in4"))
+
+
+def create_biri_test_shader():
+    """GLSL-vs-C++ agreement shader for biri06_airlight.glsl (test_10): fullscreen_vert.glsl
+    + sun05_airlight.glsl + biri06_airlight.glsl + test_biri_frag.glsl; samplers 0 "in0"
+    (RGBA32F inputs), 1 "Gtab" (the Biri table); push constant VEC4 "phase"."""
+    return create_fullscreen_shader("test_biri", "test_biri_frag.glsl",
+                                    libs=("sun05_airlight.glsl", "biri06_airlight.glsl"),
+                                    push_constants=(('VEC4', "phase"),), samplers=("in0", "Gtab"))
+
+
+def create_sun_test_shader():
+    """GLSL-vs-reference shader for sun_airlight.glsl (test_10): fullscreen_vert.glsl +
+    sun05_airlight.glsl + sun_airlight.glsl + test_sun_frag.glsl; samplers 0 "in0", 1 "in1"."""
+    return create_fullscreen_shader("test_sun", "test_sun_frag.glsl",
+                                    libs=("sun05_airlight.glsl", "sun_airlight.glsl"),
+                                    samplers=("in0", "in1"))

@@ -10,7 +10,13 @@ The figures are measurements, not guesses; each names where it was measured:
   to 6e-3 for HG |g| >= 0.95, whose lobe is narrower than the table resolves);
 - cost: time relative to the table model on the same 1920x1080 image, from
   benchmarks/bench_sun05.py (same run: sun05_exact ~98x, quadrature ~72x the table model) and for
-  biri06 the bake's airlight pass, 1 light on 2 threads (150-240 ms vs 40 ms: ~5x).
+  biri06 the bake's airlight pass, 1 light on 2 threads (150-240 ms vs 40 ms: ~5x);
+- pegoraro10 (closed form, benchmarks/bench_pegoraro.py): max error vs quadrature 1.2e-11 for
+  the exact polynomial phases (isotropic, Rayleigh, hazy/murky Mie); for Henyey-Greenstein,
+  truncated at the order the bake picks (Legendre tail below 1e-6 of the lobe, at most 96),
+  max 2.6e-7 for |g| <= 0.75 (g = 0.3, 0.6, 0.75 measured), 9.6e-2 at |g| = 0.9 (order 96 is
+  not enough), not measured beyond (treated as unusable). Cost: ~1.5-5.3 us per evaluation
+  vs 0.24 us for the table in the same run (order 0 to 32-41): 22x, the high-order figure.
 
 The phase: the Sun 2005 models integrate the isotropic phase only (Henyey-Greenstein
 with g = 0). For that case the Automatic choice is the one it has always been (biri06 is
@@ -21,8 +27,12 @@ by the bake (ValueError -> BakeError), never baked as isotropic fog.
 """
 
 import math
+from collections import namedtuple
 
-from .properties import MODEL_NAMES, PHASE_NAMES
+import numpy as np
+
+from . import light_bounds, visibility
+from .properties import MODEL_NAMES, PHASE_NAMES, SUPPORTED_LIGHT_TYPES
 
 # native name -> (label, max relative error, relative cost)
 MEASURED = {
@@ -30,12 +40,28 @@ MEASURED = {
     "quadrature": ("Quadrature", 1e-8, 72.0),
     "sun05_exact": ("Sun 2005 (exact)", 1e-8, 98.0),
     "biri06": ("Biri 2006 (table)", 8.9e-4, 5.0),
+    "pegoraro10": ("Pegoraro 2010 (closed form)", 1.2e-11, 22.0),
+}
+# pegoraro10 with Henyey-Greenstein: error at the bake's truncation order, by |g|
+# (bench_pegoraro.py): the order that meets the bake's tolerance exists up to |g| ~ 0.78.
+PEGORARO10_HG_ERROR = ((0.78, 2.6e-7), (0.9, 9.6e-2))
+# sun05's table choices (scene.airlight.table_resolution, table_interpolation): worst
+# per-ray airlight error against the exact-F model, measured over 20000 random rays by
+# native/kernels/sun05_nearest_test.cpp (AirlightErrorAgainstExactF). model_error takes the
+# larger of this and MEASURED["sun05"] (the 256 bilinear default against quadrature).
+# Nearest is no faster in the bake (benchmarks/bench_trade.py), so AUTO gains nothing from
+# it; the entries make the shown error honest when a user picks a coarser table.
+SUN05_TABLE_ERROR = {
+    (64, 'NEAREST'): 9.26e-2, (128, 'NEAREST'): 4.31e-2,
+    (256, 'NEAREST'): 2.22e-2, (512, 'NEAREST'): 1.16e-2,
+    (64, 'BILINEAR'): 8.36e-3, (128, 'BILINEAR'): 3.11e-3,
+    (256, 'BILINEAR'): 1.30e-3, (512, 'BILINEAR'): 6.17e-4,
 }
 # biri06's measured worst case for Henyey-Greenstein lobes with |g| >= 0.95.
 BIRI06_NARROW_LOBE_ERROR = 6e-3
 BIRI06_NARROW_LOBE_G = 0.95
 # Models that integrate any phase function; the others are isotropic only.
-PHASE_MODELS = ("biri06", "quadrature")
+PHASE_MODELS = ("biri06", "pegoraro10", "quadrature")
 ISOTROPIC_ONLY = ("sun05", "sun05_exact")
 
 
@@ -55,10 +81,30 @@ def native_phase(settings):
 def model_error(name, settings):
     """Measured max relative error of model _name_ for the settings' phase."""
     error = MEASURED[name][1]
+    if name == "sun05":
+        error = max(error, SUN05_TABLE_ERROR[_table_choice(settings)])
     if (name == "biri06" and settings.phase == 'HENYEY_GREENSTEIN'
             and abs(settings.anisotropy) >= BIRI06_NARROW_LOBE_G):
         error = BIRI06_NARROW_LOBE_ERROR
+    if name == "pegoraro10" and settings.phase == 'HENYEY_GREENSTEIN' and settings.anisotropy != 0.0:
+        g = abs(settings.anisotropy)
+        error = next((e for limit, e in PEGORARO10_HG_ERROR if g <= limit), math.inf)
     return error
+
+
+def _table_choice(settings):
+    """(size, interpolation) of the Sun 2005 table the settings ask for."""
+    return (int(getattr(settings, "table_resolution", '256')),
+            getattr(settings, "table_interpolation", 'BILINEAR'))
+
+
+def table_settings(settings):
+    """`_native.bake` keywords for the Sun 2005 table. Other table models (biri06) keep
+    the 256 x 256 bilinear table their error was measured with."""
+    size, interp = _table_choice(settings)
+    if choose(settings)[0] != "sun05":
+        size, interp = 256, 'BILINEAR'
+    return dict(table_size=size, table_interpolation=interp.lower())
 
 
 def phase_problem(settings):
@@ -68,12 +114,14 @@ def phase_problem(settings):
     name = MODEL_NAMES[settings.model]
     if name in ISOTROPIC_ONLY:
         return (f"{MEASURED[name][0]} handles isotropic fog only: use Biri 2006, "
-                f"Quadrature or Automatic for this phase")
+                f"Pegoraro 2010, Quadrature or Automatic for this phase")
     return None
 
 
 def choose(settings):
     """(native model name, label, expected max relative error) for these fog settings."""
+    if settings.model == 'BASELINE':
+        return BASELINE
     if settings.model != 'AUTO':
         name = MODEL_NAMES[settings.model]
     else:
@@ -89,3 +137,105 @@ def choose(settings):
     if name in ISOTROPIC_ONLY and not is_isotropic(settings):
         error = math.inf  # refused by the bake; never an error figure for the wrong phase
     return name, label, error
+
+
+# The constant-colour bar (never chosen by Automatic): its error depends on the scene.
+BASELINE = ("baseline", "Baseline (constant colour)", math.inf)
+# Lights that are not point lights get one model whatever the scene's model is:
+# spots the adaptive quadrature (bake.cpp kSpotRelTol = 1e-5), suns the closed form of
+# sun_layer.h (exact; held to 1e-6 against quadrature by sun_layer_test.cpp) or, with the
+# quadrature model, its quadrature (1e-8).
+SPOT_MODEL = ("Quadrature (spot)", 1e-5)
+SUN_MODEL = ("Closed form (sun)", 1e-6)
+SUN_QUADRATURE_MODEL = ("Quadrature (sun)", 1e-8)
+
+# One row of light_plan: status 'fog' (baked), 'skipped' (Automatic: below the target),
+# 'off' (Scatter in Fog off), 'unsupported' (type not in the bake); label/error: the model
+# it gets and its measured max relative error; share: its upper bound over the fog
+# brightness bound (light_bounds.py), the largest over the colour channels.
+LightRow = namedtuple("LightRow", "name type status label error share")
+
+
+def _frame(scene, depsgraph):
+    """light_bounds.Frame of the scene camera, or None when there is none to bound."""
+    camera = scene.camera
+    if camera is None or camera.type != 'CAMERA' or camera.data.type == 'PANO':
+        return None
+    cam = camera.evaluated_get(depsgraph) if depsgraph is not None else camera
+    corners = [tuple(v) for v in cam.data.view_frame(scene=scene)]
+    return light_bounds.Frame(np.array(cam.matrix_world), corners, cam.data.type == 'ORTHO',
+                              float(cam.data.clip_start))
+
+
+def light_plan(scene, depsgraph=None, view_layer=None):
+    """Per render-visible light of the scene (not instanced ones): what the bake does with
+    it, as LightRows. Cheap (no bake): the panel redraws it when settings change.
+
+    With the Automatic model, lights whose airlight is rigorously below the accuracy target
+    everywhere in frame are skipped (light_bounds.py says what is guaranteed); instanced
+    lights are never skipped. Explicit models bake every participating light."""
+    settings = scene.airlight
+    if view_layer is None:
+        view_layer = depsgraph.view_layer if depsgraph is not None else scene.view_layers[0]
+    hidden = visibility.render_hidden_collections(view_layer)
+    name, point_label, point_error = choose(settings)
+    sigma = float(settings.density)
+    albedo = np.array(settings.color, dtype=np.float64)
+    phase, g = native_phase(settings)
+    p_min, p_max = light_bounds.phase_range(phase, g)
+    frame = _frame(scene, depsgraph)
+    rows, fogged = [], []
+    kinds, weights, positions = [], [], []   # per fogged light: type, I0 or E (RGB), position
+    for obj in scene.objects:
+        if obj.type != 'LIGHT' or not visibility.is_render_visible(obj, hidden):
+            continue
+        light = obj.data
+        if light.type not in SUPPORTED_LIGHT_TYPES:
+            rows.append(LightRow(obj.name, light.type, 'unsupported', "", math.nan, math.nan))
+            continue
+        if not light.airlight.participate:
+            rows.append(LightRow(obj.name, light.type, 'off', "", math.nan, math.nan))
+            continue
+        if name == "baseline":
+            label, error = BASELINE[1], BASELINE[2]
+        elif light.type == 'SUN':
+            label, error = SUN_QUADRATURE_MODEL if name == "quadrature" else SUN_MODEL
+        elif light.type == 'SPOT':
+            label, error = SPOT_MODEL
+        else:
+            label, error = point_label, point_error
+        rows.append(LightRow(obj.name, light.type, 'fog', label, error, math.nan))
+        fogged.append(len(rows) - 1)
+        kinds.append(light.type)
+        colour = np.array(light.color, dtype=np.float64) * light.energy
+        weights.append(colour if light.type == 'SUN' else colour / (4.0 * math.pi))
+        src = obj.evaluated_get(depsgraph) if depsgraph is not None else obj
+        positions.append(tuple(src.matrix_world.translation))
+    if not fogged:
+        return rows
+    kinds = np.array(kinds)
+    weights = np.array(weights, dtype=np.float64).reshape(-1, 3)
+    positions = np.array(positions, dtype=np.float64).reshape(-1, 3)
+    uppers, lowers = np.full(weights.shape, math.inf), np.zeros(weights.shape)
+    sun = kinds == 'SUN'
+    uppers[sun], lowers[sun] = light_bounds.sun_bounds(weights[sun], sigma, albedo, p_min, p_max,
+                                                       bool(settings.use_fog_top))
+    if frame is not None and np.any(~sun):
+        uppers[~sun], lowers[~sun] = light_bounds.point_bounds(
+            frame, positions[~sun], weights[~sun], sigma, albedo, p_min, p_max, spot=kinds[~sun] == 'SPOT')
+    skip = np.zeros(len(fogged), dtype=bool)
+    if settings.model == 'AUTO' and frame is not None and sigma > 0.0:
+        skip = light_bounds.skip_faint(uppers, lowers, settings.accuracy / 100.0)
+    total_lower = lowers.sum(axis=0)
+    with np.errstate(divide='ignore', invalid='ignore'):
+        shares = np.max(np.where(uppers > 0.0, uppers / total_lower, 0.0), axis=1)
+    for k, i in enumerate(fogged):
+        rows[i] = rows[i]._replace(share=float(shares[k]), status='skipped' if skip[k] else 'fog')
+    return rows
+
+
+def skipped_lights(scene, depsgraph=None):
+    """Names of the lights light_plan skips (empty unless the model is Automatic)."""
+    if scene.airlight.model != 'AUTO':
+        return set()
+    return {row.name for row in light_plan(scene, depsgraph) if row.status == 'skipped'}

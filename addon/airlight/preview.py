@@ -56,6 +56,7 @@ _state = {
     "last_depth_ms": None,  # of which the scene depth (own pass or read-back + upload)
     "draws": 0,         # number of fog passes drawn (tests read it)
     "capture": None,    # tests: set to {} and the next draw stores its inputs there
+    "gaussians": None,  # fog objects' Gaussians (dict, see draw_fog) of one generation
 }
 
 MAX_LIGHTS = 256
@@ -83,11 +84,22 @@ def _missing_reason():
     return "The native module lacks special_F_table(); rebuild it."
 
 
-_FOG_INPUTS = dict(
-    push_constants=(('MAT4', "inv_persp"), ('VEC4', "eye"), ('VEC4', "clip"), ('VEC4', "viewport"),
-                    ('FLOAT', "sigma_t"), ('INT', "light_count"), ('INT', "scale"),
-                    ('INT', "mode")),
-    samplers=("Ftab", "depth_tex", "lights", "fog_lo"))
+def _phase_inputs(res, phase):
+    """((kind, g, K, k), Gtab texture) for biri06_airlight.glsl: the bake's own Biri 2006
+    table of _phase_ = (name, g), uploaded once per (name, g); the F table stands in as
+    Gtab for the isotropic phase (the shader does not read it then)."""
+    name, g = phase[0], float(phase[1])
+    if name == "isotropic":
+        return (0.0, 0.0, 1.0, 1.0), res["ftab"]
+    kinds = {"hg": 1, "rayleigh": 2, "hazy_mie": 3, "murky_mie": 4}
+    key = (name, g)
+    cached = res.get("gtab")
+    if cached is None or cached[0] != key:
+        from . import gpu_shaders as gs
+        table = _native_for_preview().biri06_table(name, g)
+        vec = (float(kinds[table["phase"]]), float(table["g"]), float(table["K"]), float(table["k"]))
+        cached = res["gtab"] = (key, vec, gs.float_texture(table["data"]))
+    return cached[1], cached[2]
 
 
 def _gpu_resources():
@@ -103,27 +115,36 @@ def _gpu_resources():
     return res
 
 
-def _shader(kind, window_depth, variant=False):
-    """Fog ('fog'; variant: the reduced target's output, airlight + distance),
-    upsampling ('upsample'; variant: 'mark' = blend and mark the pixels to re-evaluate
-    in the depth buffer, 'exact' = the re-evaluation draw) or 'composite' shader,
-    reading window depth or distance."""
+def _shader(kind, window_depth, variant=False, phase=False, spots=False, suns=False):
+    """Fog ('fog'; variant: the reduced target's output, airlight + distance, or
+    ('gauss', scale): with the Gaussian sums), upsampling ('upsample'; variant: 'mark' =
+    blend and mark the pixels to re-evaluate in the depth buffer, 'exact' = the
+    re-evaluation draw) or 'composite' shader, reading window depth or distance;
+    phase: the homogeneous airlight through the Biri 2006 table of a non-isotropic phase
+    function (biri06_airlight.glsl) instead of Sun 2005; spots: with the spot-light loop
+    (spot_airlight.glsl); suns: with the sun-lamp loop (sun_airlight.glsl)."""
     from . import gpu_shaders as gs
     res = _gpu_resources()
-    key = (kind, bool(window_depth), variant)
+    key = (kind, bool(window_depth), variant, bool(phase), bool(spots), bool(suns))
     shader = res["shaders"].get(key)
     if shader is None:
         frag, defines = {
-            'fog': ("fog_preview_frag.glsl", (("PREVIEW_LOWRES", int(bool(variant))),)),
+            'fog': ("fog_preview_frag.glsl", (("PREVIEW_LOWRES", int(variant is True)),
+                                              ("PREVIEW_GAUSSIANS", int(isinstance(variant, tuple))),
+                                              ("PREVIEW_GAUSS_SCALE",
+                                               variant[1] if isinstance(variant, tuple) else 1))),
             'upsample': ("preview_upsample_frag.glsl",
                          (("PREVIEW_EXACT_PASS", int(variant == 'exact')),
                           ("PREVIEW_MARK", int(variant == 'mark')))),
             'composite': ("preview_composite_frag.glsl", ()),
         }[kind]
-        shader = gs.create_fullscreen_shader(
-            f"preview_{kind}", frag, libs=("sun05_airlight.glsl", "preview_common.glsl"),
-            defines=(("PREVIEW_WINDOW_DEPTH", int(bool(window_depth))),) + defines,
-            **_FOG_INPUTS)
+        shader = gs.create_preview_shader(
+            f"preview_{kind}", frag,
+            defines=(("PREVIEW_WINDOW_DEPTH", int(bool(window_depth))),
+                     ("PREVIEW_PHASE", int(bool(phase))),
+                     ("PREVIEW_SPOTS", int(bool(spots))),
+                     ("PREVIEW_SUNS", int(bool(suns)))) + defines
+            + ((("PREVIEW_GAUSSIANS", 0),) if kind != 'fog' else ()))
         res["shaders"][key] = shader
         if res["batch"] is None:
             res["batch"] = gs.fullscreen_batch(shader)
@@ -154,6 +175,9 @@ def _framebuffer(target):
 
 def free_gpu_resources():
     _state["gpu"] = None
+    _state["gaussians"] = None
+    from . import preview_gaussians
+    preview_gaussians.clear_cache()
     _state["meshes"] = {}
     _state["instances"] = None
 
@@ -234,6 +258,7 @@ def draw_distance(context, *, perspective_matrix, view_origin, is_perspective, s
     R32F distance target of _size_ and returns that texture. Restores the viewport and
     depth state; the caller's framebuffer is bound again afterwards."""
     import gpu
+    from . import gpu_shaders as gs
     w, h = size
     target = _target("distance", w, h, 'R32F', depth=True)
     instances = _scene_instances(context)
@@ -252,8 +277,8 @@ def draw_distance(context, *, perspective_matrix, view_origin, is_perspective, s
             gpu.state.depth_mask_set(True)
             shader.bind()
             shader.uniform_float("persp", perspective_matrix)
-            shader.uniform_float("eye", (*view_origin, 1.0 if is_perspective else 0.0))
-            shader.uniform_float("axis", (*axis, offset))
+            ubo = gs.distance_params_ubo((*view_origin, 1.0 if is_perspective else 0.0), (*axis, offset))
+            shader.uniform_block("dv", ubo)
             for batch, matrix in instances:
                 shader.uniform_float("model", matrix)
                 batch.draw(shader)
@@ -289,6 +314,19 @@ def _on_frame_change(*_args):
     _state["meshes"] = {}
 
 
+def scene_gaussians(context):
+    """World-space Gaussians of the render-visible fog objects (what the bake gets) as
+    draw_fog's _gaussians_ dict, gathered once per depsgraph generation (a depsgraph
+    update or frame change starts a new one). Invalid fog objects raise ValueError."""
+    cached = _state["gaussians"]
+    if cached is None or cached["key"] != _state["generation"]:
+        from . import fog_object
+        centres, scales, amplitudes = fog_object.gather(context.evaluated_depsgraph_get())
+        cached = _state["gaussians"] = dict(centres=centres, scales=scales,
+                                            amplitudes=amplitudes, key=_state["generation"])
+    return cached
+
+
 def scene_lights(scene, view_layer=None):
     """(positions, intensities) of the visible point lights that scatter in the fog:
     lists of 3-tuples; intensity = albedo * colour * power / (4 pi) W/sr (the bake's
@@ -311,15 +349,144 @@ def scene_lights(scene, view_layer=None):
     return positions, intensities
 
 
-def _lights_texture(positions, intensities):
+def scene_spots(scene, view_layer=None):
+    """The visible participating spot lights for draw_fog's _spots_: dict of lists
+    positions, axes (unit, the lamp's -Z), intensities (albedo * colour * power / (4 pi),
+    as scene_lights), sizes (spot_size, rad) and blends (spot_blend), the values the bake
+    gets from scene_export.export_spot_lights."""
+    albedo = tuple(scene.airlight.color)
+    out = dict(positions=[], axes=[], intensities=[], sizes=[], blends=[])
+    objects = view_layer.objects if view_layer is not None else scene.objects
+    for obj in objects:
+        if obj.type != 'LIGHT' or obj.data.type != 'SPOT' or not obj.data.airlight.participate:
+            continue
+        if view_layer is not None and not obj.visible_get(view_layer=view_layer):
+            continue
+        m = obj.matrix_world
+        axis = -m.col[2].xyz
+        if not axis.length > 0.0:
+            continue
+        scale = obj.data.energy / (4.0 * math.pi)
+        out["positions"].append(tuple(m.translation))
+        out["axes"].append(tuple(axis.normalized()))
+        out["intensities"].append(tuple(a * c * scale for a, c in zip(albedo, obj.data.color)))
+        out["sizes"].append(float(obj.data.spot_size))
+        out["blends"].append(float(obj.data.spot_blend))
+        if len(out["positions"]) == MAX_LIGHTS:
+            break
+    return out
+
+
+def scene_suns(scene, view_layer=None):
+    """The visible participating sun lamps for draw_fog's _suns_: dict of lists
+    directions (unit propagation direction, the lamp's -Z), irradiances (albedo * colour *
+    strength, W/m^2) and fog_top (world height of the fog layer's top when the scene has
+    `airlight.use_fog_top` on, else inf: Hoffman-Preetham's unattenuated sun)."""
+    settings = scene.airlight
+    albedo = tuple(settings.color)
+    top = float(getattr(settings, "fog_top", math.inf)) if getattr(settings, "use_fog_top", False) \
+        else math.inf
+    out = dict(directions=[], irradiances=[], fog_top=top)
+    objects = view_layer.objects if view_layer is not None else scene.objects
+    for obj in objects:
+        if obj.type != 'LIGHT' or obj.data.type != 'SUN' or not obj.data.airlight.participate:
+            continue
+        if view_layer is not None and not obj.visible_get(view_layer=view_layer):
+            continue
+        w = -obj.matrix_world.col[2].xyz
+        if not w.length > 0.0:
+            continue
+        out["directions"].append(tuple(w.normalized()))
+        out["irradiances"].append(tuple(a * c * obj.data.energy for a, c in zip(albedo, obj.data.color)))
+        if len(out["directions"]) == MAX_LIGHTS:
+            break
+    return out
+
+
+def _suns_texture(suns):
+    """RGBA32F, sun_count x 2 (sun_airlight.glsl via preview_common.glsl): row 0 =
+    (direction, fog top), row 1 = albedo E."""
+    import numpy as np
+    from . import gpu_shaders as gs
+    n = 0 if suns is None else len(suns["directions"])
+    data = np.zeros((2, max(1, n), 4), np.float32)
+    if n:
+        w = np.asarray(suns["directions"], np.float64)
+        data[0, :n, :3] = w / np.linalg.norm(w, axis=1, keepdims=True)
+        data[0, :n, 3] = suns["fog_top"]
+        data[1, :n, :3] = suns["irradiances"]
+    return gs.float_texture(data)
+
+
+def _spots_texture(spots):
+    """RGBA32F, spot_count x 3 (spot_airlight.glsl via preview_common.glsl): row 0 =
+    (position, cos(size / 2)), row 1 = (axis, (1 - cos(size / 2)) blend), row 2 = albedo I0."""
+    import numpy as np
+    from . import gpu_shaders as gs
+    n = 0 if spots is None else len(spots["positions"])
+    data = np.zeros((3, max(1, n), 4), np.float32)
+    if n:
+        cos_half = np.cos(0.5 * np.asarray(spots["sizes"], np.float64))
+        data[0, :n, :3] = spots["positions"]
+        data[0, :n, 3] = cos_half
+        axes = np.asarray(spots["axes"], np.float64)
+        data[1, :n, :3] = axes / np.linalg.norm(axes, axis=1, keepdims=True)
+        data[1, :n, 3] = (1.0 - cos_half) * np.asarray(spots["blends"], np.float64)
+        data[2, :n, :3] = spots["intensities"]
+    return gs.float_texture(data)
+
+
+def _lights_texture(positions, intensities, Csv=None):
+    """Row 0: positions; row 1: rgb = albedo I0, a = C_sv (Gaussian fog transmittance
+    light -> eye, 1 without fog objects)."""
     import numpy as np
     from . import gpu_shaders as gs
     n = max(1, len(positions))
     data = np.zeros((2, n, 4), np.float32)
+    data[1, :, 3] = 1.0
     if positions:
         data[0, :len(positions), :3] = positions
         data[1, :len(positions), :3] = intensities
+        if Csv is not None:
+            data[1, :len(positions), 3] = Csv
     return gs.float_texture(data)
+
+
+def _gaussian_fog(res, *, gaussians, window_depth, sigma_t, view_origin, light_positions):
+    """The splat shader and the current GaussianFog (textures, batch, factors) for these
+    inputs (preview_gaussians.py; rebuilt only when one changes)."""
+    from . import gpu_shaders as gs
+    from . import preview_gaussians as pg
+    key = ('splat', bool(window_depth))
+    shader = res["shaders"].get(key)
+    if shader is None:
+        shader = res["shaders"][key] = gs.create_rbf_splat_shader(window_depth)
+    fog = res.get("gaussian_fog")
+    if fog is None:
+        fog = res["gaussian_fog"] = pg.GaussianFog()
+    fog.update(_native_for_preview(), shader, gaussians, sigma_t, view_origin, light_positions)
+    return shader, fog
+
+
+def _draw_gaussians(shader, fog, size, scale, bind):
+    """Splat pass of the Gaussian fog into two RGBA32F targets of 1/_scale_ the region
+    (cleared, then ADDITIVE_PREMULT); returns (acc, near) textures. The caller restores
+    gpu.state."""
+    import gpu
+    w, h = size
+    lw, lh = -(-w // scale), -(-h // scale)
+    acc = _target("gauss_acc", lw, lh, 'RGBA32F')
+    near = _target("gauss_near", lw, lh, 'RGBA32F')
+    fb = gpu.types.GPUFrameBuffer(color_slots=(acc["colour"], near["colour"]))
+    with fb.bind():
+        gpu.state.viewport_set(0, 0, lw, lh)
+        fb.clear(color=(0.0, 0.0, 0.0, 0.0))
+        gpu.state.blend_set('ADDITIVE_PREMULT')
+        bind(shader, (0, 0, w, h), None, pass_scale=scale)
+        shader.uniform_sampler("gauss", fog.gauss_tex)
+        shader.uniform_sampler("gauss_f1", fog.f1_tex)
+        fog.batch.draw(shader)
+    return acc["colour"], near["colour"]
 
 
 def view_axis(perspective_matrix):
@@ -353,7 +520,8 @@ def view_clip_range(context):
 
 def draw_fog(*, depth_tex, perspective_matrix, view_origin, is_perspective, viewport,
              sigma_t, light_positions, light_intensities, clip_start=0.0, window_depth=True,
-             scale=1, mode=UPSAMPLE_BILATERAL_EXACT):
+             scale=1, mode=UPSAMPLE_BILATERAL_EXACT, gaussians=None, phase=("isotropic", 0.0),
+             spots=None, suns=None):
     """Draws the fog over the bound framebuffer with premultiplied blending.
 
     depth_tex: full-resolution R32F texture of the region (viewport[2] x viewport[3]):
@@ -365,16 +533,50 @@ def draw_fog(*, depth_tex, perspective_matrix, view_origin, is_perspective, view
     start on the projection's near plane; surfaces beyond the far plane are already
     missing from the depth); scale: 1 draws the fog directly, 2 or 4 evaluate it in a
     float offscreen of 1/scale the size and upsample it (mode: UPSAMPLE_*).
+    gaussians: None, or dict(centres (n, 3), scales (n,), amplitudes (n,), key) of the
+    fog objects' world-space Gaussians (key: any hashable that changes with the arrays);
+    with n > 0 the Gaussian fog is splatted first (preview_gaussians.py) at 1/scale of
+    the resolution, and the fog pass runs at full resolution, upsampling the Gaussian
+    sums depth-aware (fog_preview_frag.glsl preview_gauss_fetch).
+    phase: (name, g) of the fog's phase function as `model_choice.native_phase` gives it
+    for the bake; other than isotropic, the homogeneous airlight uses the Biri 2006 table
+    of that phase (the bake's "biri06" model). The Gaussian terms stay isotropic (the
+    bake refuses anisotropic Gaussian fog).
+    spots: None or `scene_spots`' dict (positions, axes, intensities = albedo I0, sizes,
+    blends): spot lights by a fixed quadrature over the ray's part inside each cone
+    (spot_airlight.glsl).
+    suns: None or `scene_suns`' dict (directions, irradiances = albedo E, fog_top): sun
+    lamps by the closed form of the bake's sun_layer.h (sun_airlight.glsl).
     Restores every gpu.state it changes.
     """
     import gpu
+    from . import gpu_shaders as gs
     res = _gpu_resources()
+    flags = dict(phase=phase[0] != "isotropic", spots=bool(spots is not None and len(spots["positions"])),
+                 suns=bool(suns is not None and len(suns["directions"])))
+    spots_tex = _spots_texture(spots)
+    suns_tex = _suns_texture(suns)
+    phase_vec, gtab = _phase_inputs(res, phase)
     x, y, w, h = (int(v) for v in viewport)
-    lights = _lights_texture(light_positions, light_intensities)
-    fog = _shader('fog', window_depth)
+    splat = None
+    Csv = None
+    if gaussians is not None and len(gaussians["scales"]) > 0:
+        splat = _gaussian_fog(res, gaussians=gaussians, window_depth=window_depth,
+                              sigma_t=sigma_t, view_origin=view_origin,
+                              light_positions=light_positions)
+        Csv = splat[1].Csv
+        gauss_scale, scale = int(scale), 1
+    _state["last_scale"] = scale
+    lights = _lights_texture(light_positions, light_intensities, Csv)
+    fog = _shader('fog', window_depth, ('gauss', gauss_scale) if splat is not None else False,
+                  **flags)
     clip = (*view_axis(perspective_matrix), float(clip_start) if is_perspective else 0.0)
 
-    def bind(shader, target_viewport, fog_lo):
+    gauss_targets = None
+
+    ubos = []
+
+    def bind(shader, target_viewport, fog_lo, pass_scale=None):
         # The blending draw of the upsampling has no airlight code, so the compiler
         # drops the light inputs there: set what the shader has.
         def put(setter, name, value):
@@ -383,19 +585,25 @@ def draw_fog(*, depth_tex, perspective_matrix, view_origin, is_perspective, view
             except ValueError:
                 pass
         shader.bind()
-        put(shader.uniform_float, "inv_persp", perspective_matrix.inverted())
-        put(shader.uniform_float, "eye", (*view_origin, 1.0 if is_perspective else 0.0))
-        put(shader.uniform_float, "clip", clip)
-        put(shader.uniform_float, "viewport", tuple(float(v) for v in target_viewport))
-        put(shader.uniform_float, "sigma_t", float(sigma_t))
-        put(shader.uniform_int, "light_count", len(light_positions))
-        put(shader.uniform_int, "scale", int(scale))
+        ubo = gs.preview_params_ubo(
+            inv_persp=perspective_matrix.inverted(), persp=perspective_matrix,
+            eye=(*view_origin, 1.0 if is_perspective else 0.0), clip=clip,
+            viewport=tuple(float(v) for v in target_viewport), phase=phase_vec,
+            sigma_t=float(sigma_t), light_count=len(light_positions),
+            scale=int(pass_scale if pass_scale is not None else scale), mode=int(mode))
+        ubos.append(ubo)  # alive until the draws are done
+        shader.uniform_block("pv", ubo)
         put(shader.uniform_sampler, "Ftab", res["ftab"])
+        put(shader.uniform_sampler, "Gtab", gtab)
+        put(shader.uniform_sampler, "spots", spots_tex)
+        put(shader.uniform_sampler, "suns", suns_tex)
         put(shader.uniform_sampler, "depth_tex", depth_tex)
         put(shader.uniform_sampler, "lights", lights)
         if fog_lo is not None:  # the upsampling pass (the fog pass has neither)
-            put(shader.uniform_int, "mode", int(mode))
             put(shader.uniform_sampler, "fog_lo", fog_lo)
+        if gauss_targets is not None:
+            put(shader.uniform_sampler, "gauss_acc", gauss_targets[0])
+            put(shader.uniform_sampler, "gauss_near", gauss_targets[1])
 
     prev_blend = gpu.state.blend_get()
     prev_depth = gpu.state.depth_test_get()
@@ -404,6 +612,9 @@ def draw_fog(*, depth_tex, perspective_matrix, view_origin, is_perspective, view
     try:
         gpu.state.depth_test_set('NONE')
         gpu.state.depth_mask_set(False)
+        if splat is not None:
+            gauss_targets = _draw_gaussians(splat[0], splat[1], (w, h), gauss_scale, bind)
+            gpu.state.viewport_set(*prev_viewport)
         if scale == 1:
             gpu.state.blend_set('ALPHA_PREMULT')
             bind(fog, (x, y, w, h), None)
@@ -412,7 +623,7 @@ def draw_fog(*, depth_tex, perspective_matrix, view_origin, is_perspective, view
             lw, lh = -(-w // scale), -(-h // scale)
             target = _target("fog_lo", lw, lh, LOWRES_FORMAT)
             gpu.state.blend_set('NONE')
-            fog_lo = _shader('fog', window_depth, variant=True)
+            fog_lo = _shader('fog', window_depth, variant=True, **flags)
             with _framebuffer(target).bind():
                 gpu.state.viewport_set(0, 0, lw, lh)
                 bind(fog_lo, (0, 0, w, h), None)
@@ -420,7 +631,7 @@ def draw_fog(*, depth_tex, perspective_matrix, view_origin, is_perspective, view
             gpu.state.viewport_set(*prev_viewport)
             if mode != UPSAMPLE_BILATERAL_EXACT:
                 gpu.state.blend_set('ALPHA_PREMULT')
-                up = _shader('upsample', window_depth)
+                up = _shader('upsample', window_depth, **flags)
                 bind(up, (x, y, w, h), target["colour"])
                 res["batch"].draw(up)
             else:
@@ -434,18 +645,18 @@ def draw_fog(*, depth_tex, perspective_matrix, view_origin, is_perspective, view
                     gpu.state.viewport_set(0, 0, w, h)
                     gpu.state.depth_test_set('ALWAYS')
                     gpu.state.depth_mask_set(True)
-                    up = _shader('upsample', window_depth, 'mark')
+                    up = _shader('upsample', window_depth, 'mark', **flags)
                     bind(up, (0, 0, w, h), target["colour"])
                     res["batch"].draw(up)
                     gpu.state.depth_test_set('GREATER')
                     gpu.state.depth_mask_set(False)
-                    exact = _shader('upsample', window_depth, 'exact')
+                    exact = _shader('upsample', window_depth, 'exact', **flags)
                     bind(exact, (0, 0, w, h), target["colour"])
                     res["batch"].draw(exact)
                 gpu.state.depth_test_set('NONE')
                 gpu.state.viewport_set(*prev_viewport)
                 gpu.state.blend_set('ALPHA_PREMULT')
-                comp = _shader('composite', window_depth)
+                comp = _shader('composite', window_depth, **flags)
                 bind(comp, (x, y, w, h), full["colour"])
                 res["batch"].draw(comp)
     finally:
@@ -504,11 +715,17 @@ def _draw_callback():
         scene = context.scene
         positions, intensities = scene_lights(scene, context.view_layer)
         clip_start, clip_end = view_clip_range(context)
+        gaussians = scene_gaussians(context)
+        from . import model_choice
+        phase = model_choice.native_phase(scene.airlight)
+        spots = scene_spots(scene, context.view_layer)
+        suns = scene_suns(scene, context.view_layer)
         draw_fog(depth_tex=depth_tex, perspective_matrix=persp, view_origin=view_origin,
                  is_perspective=rv3d.is_perspective, viewport=(x, y, w, h),
                  sigma_t=scene.airlight.density, light_positions=positions,
                  light_intensities=intensities, clip_start=clip_start,
-                 window_depth=readback, scale=scale)
+                 window_depth=readback, scale=scale, gaussians=gaussians, phase=phase,
+                 spots=spots, suns=suns)
         _state["last_ms"] = (time.perf_counter() - t0) * 1e3
         if _state["capture"] is not None:
             if readback:
@@ -520,6 +737,7 @@ def _draw_callback():
                 depth = gs.buffer_to_numpy(buf, (h, w))
                 gpu.state.viewport_set(x, y, w, h)
             fog_lo = None
+            scale = _state.get("last_scale", scale)  # FULL while Gaussians are drawn
             if scale > 1:
                 target = _state["gpu"]["targets"]["fog_lo"]
                 lw, lh = target["size"]
@@ -532,7 +750,7 @@ def _draw_callback():
                 depth=depth, fog_lo=fog_lo, window_depth=readback, viewport=(x, y, w, h), scale=scale,
                 perspective_matrix=persp, view_origin=view_origin,
                 sigma_t=scene.airlight.density, lights=(positions, intensities),
-                clip=(clip_start, clip_end))
+                clip=(clip_start, clip_end), gaussians=gaussians, phase=phase)
     except Exception as ex:  # never break Blender's draw loop
         _state["error"] = f"{type(ex).__name__}: {ex}"
         print(f"Airlight preview disabled: {_state['error']}")
@@ -616,7 +834,7 @@ class AIRLIGHT_PT_viewport_preview(bpy.types.Panel):
         layout.prop(settings, "density")
         layout.prop(settings, "color")
         if not (settings.phase == 'HENYEY_GREENSTEIN' and settings.anisotropy == 0.0):
-            layout.label(text="Preview shows isotropic fog (the bake uses the phase)", icon='INFO')
+            layout.label(text="Fog objects are previewed isotropic", icon='INFO')
 
 
 def register():

@@ -11,6 +11,8 @@ MODEL_NAMES = {
     'SUN05_EXACT': "sun05_exact",
     'QUADRATURE': "quadrature",
     'BIRI06': "biri06",
+    'BASELINE': "baseline",
+    'PEGORARO10': "pegoraro10",
 }
 
 # Scene phase enum -> `_native.bake(phase=...)`; the anisotropy g applies to HG only.
@@ -22,7 +24,7 @@ PHASE_NAMES = {
 }
 
 # Light types the bake scatters; the others are listed in the UI as "not yet in fog".
-SUPPORTED_LIGHT_TYPES = {'POINT', 'SPOT'}
+SUPPORTED_LIGHT_TYPES = {'POINT', 'SPOT', 'SUN'}
 
 
 def _on_fog_changed(self, context):
@@ -78,6 +80,13 @@ class AirlightSceneSettings(bpy.types.PropertyGroup):
                                          "function: slow, the reference"),
             ('BIRI06', "Biri 2006 (any phase)", "Biri et al. 2006 analytic airlight with a table per phase "
                                                 "function: handles anisotropic fog"),
+            ('BASELINE', "Baseline (constant colour)",
+             "What Blender's Mist pass does: one fog colour for the whole image, "
+             "C (1 - transmittance), with C fitted to the physical fog. No light shapes; "
+             "the bar the other models beat"),
+            ('PEGORARO10', "Pegoraro 2010 (closed form)", "Pegoraro et al. 2010 exact closed form with the "
+                                                          "phase function as a Legendre polynomial: any phase, "
+                                                          "no table"),
         ),
         default='AUTO',
     )
@@ -104,12 +113,51 @@ class AirlightSceneSettings(bpy.types.PropertyGroup):
                     "scattering, 0 is isotropic",
         default=0.0, min=-0.99, max=0.99, step=1, precision=3,
     )
+    use_fog_top: BoolProperty(
+        name="Fog Top",
+        description="Bound the fog above at the Top height for sun lamps: sunlight then "
+                    "crosses the fog from the top down and fades with depth, as in a "
+                    "Cycles volume slab. Off: sunlight reaches all the fog unattenuated "
+                    "(Hoffman-Preetham), a fair approximation near the ground only",
+        default=True,
+    )
+    fog_top: FloatProperty(
+        name="Top",
+        description="World Z height of the top of the fog layer that sun lamps shine "
+                    "through (used when Fog Top is on; point and spot lights and the "
+                    "transmittance treat the fog as unbounded)",
+        default=10.0, soft_min=-1000.0, soft_max=1000.0,
+        subtype='DISTANCE', unit='LENGTH',
+    )
     accuracy: FloatProperty(
         name="Accuracy",
         description="Largest relative error of the fog you accept, in percent: the "
                     "Automatic model picks the cheapest model whose measured error is below it",
         default=1.0, min=0.01, max=100.0, soft_min=0.1, soft_max=10.0,
         subtype='PERCENTAGE',
+    )
+    table_resolution: EnumProperty(
+        name="Table Size",
+        description="Samples per axis of the Sun 2005 special-function table: larger is "
+                    "more accurate and costs a little more memory and a one-off build "
+                    "(the expected error shown below follows it)",
+        items=(
+            ('64', "64", "64 x 64 samples: coarsest"),
+            ('128', "128", "128 x 128 samples"),
+            ('256', "256", "256 x 256 samples (default)"),
+            ('512', "512", "512 x 512 samples: finest"),
+        ),
+        default='256',
+    )
+    table_interpolation: EnumProperty(
+        name="Table Lookup",
+        description="How the Sun 2005 table is read between its samples",
+        items=(
+            ('BILINEAR', "Bilinear", "Blend the four nearest samples: accurate (default)"),
+            ('NEAREST', "Nearest", "Take the nearest sample: about 20 times the error of "
+                                   "bilinear at the same size, no faster in the bake"),
+        ),
+        default='BILINEAR',
     )
     aa_samples: IntProperty(
         name="Edge Samples",
@@ -144,6 +192,28 @@ class AirlightSceneSettings(bpy.types.PropertyGroup):
                     "keep the plain composite (render x Transmittance + Airlight)",
         default=True,
         update=_on_surface_changed,
+    )
+    environment_glow: BoolProperty(
+        name="Environment Glow",
+        description="Show the World through the fog (Sun 2005, eq. 25-27): bright parts of the "
+                    "World's colour or Environment Texture glow, and the World is dimmed by the fog "
+                    "up to the Environment Distance instead of hidden",
+        default=False,
+    )
+    environment_distance: FloatProperty(
+        name="Environment Distance",
+        description="Distance of the World's light sources (the sky, an HDRI's lamps and sun) from "
+                    "the camera. The World is seen through density x distance of fog: larger "
+                    "distances dim it more and widen its glows",
+        default=50.0, min=1.0e-3, soft_min=1.0, soft_max=1000.0, max=1.0e7,
+        subtype='DISTANCE', unit='LENGTH',
+    )
+    environment_sh_order: IntProperty(
+        name="Glow Detail",
+        description="Spherical-harmonic bands of the glow convolution: more bands give tighter "
+                    "glows around small bright sources and cost more (time grows with the "
+                    "square of the bands)",
+        default=24, min=2, max=96, soft_max=64,
     )
 
 

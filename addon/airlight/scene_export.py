@@ -86,8 +86,9 @@ def _mesh_arrays(obj_eval):
         obj_eval.to_mesh_clear()
 
 
-def export_geometry_and_lights(scene, depsgraph):
-    """World-space triangle soup and point lights of all render-visible objects.
+def export_geometry_and_lights(scene, depsgraph, skip=frozenset()):
+    """World-space triangle soup and point lights of all render-visible objects (lights
+    named in _skip_ left out: model_choice.skipped_lights; instanced lights never are).
 
     Returns (vertices (N,3) float32, triangles (M,3) uint32, light_positions (L,3),
     light_intensities (L,3), skipped_lights [(name, type)]).
@@ -109,7 +110,11 @@ def export_geometry_and_lights(scene, depsgraph):
             if light.type not in SUPPORTED_LIGHT_TYPES:
                 skipped.append((obj.name, light.type))
                 continue
-            if not light.airlight.participate or light.type == 'SPOT':  # spots: export_spot_lights
+            # Read from the original light: add-on properties do not tag the depsgraph,
+            # so the evaluated copy can hold a stale value after the user toggles it.
+            if not light.original.airlight.participate or light.type in {'SPOT', 'SUN'}:  # export_spot/sun_lights
+                continue
+            if not instance.is_instance and obj.name in skip:
                 continue
             # Cycles point light: radiant intensity I0 = C * P / (4 pi) W/sr (NOTES.md).
             positions.append(matrix[:3, 3])
@@ -134,7 +139,7 @@ def export_geometry_and_lights(scene, depsgraph):
     return vertices, triangles, light_positions, light_intensities, skipped
 
 
-def export_spot_lights(depsgraph):
+def export_spot_lights(depsgraph, skip=frozenset()):
     """Render-visible participating spot lights as `_native.bake`'s spot_* keyword arguments,
     or {} when there are none (then the bake is the point-light one, unchanged).
 
@@ -152,7 +157,7 @@ def export_spot_lights(depsgraph):
         if source is None or not visibility.is_render_visible(source, hidden):
             continue
         light = obj.data
-        if not light.airlight.participate:
+        if not light.original.airlight.participate or (not instance.is_instance and obj.name in skip):
             continue
         matrix = np.array(instance.matrix_world, dtype=np.float64)
         axis = -matrix[:3, 2]
@@ -174,6 +179,49 @@ def export_spot_lights(depsgraph):
     for name, array in description.items():
         if not np.all(np.isfinite(array)):
             raise ExportError(f"The scene's {name.replace('_', ' ')} contain NaN or infinite values.")
+    return description
+
+
+def export_sun_lights(scene, depsgraph, skip=frozenset()):
+    """Render-visible participating sun lamps as `_native.bake`'s sun_directions,
+    sun_irradiances and fog_top keyword arguments, or {} when there are none.
+
+    Cycles' sun: irradiance E = colour * strength in W/m^2 arriving along the lamp's -Z; its
+    angle (soft shadows) is ignored. fog_top: the world Z of the fog layer's top when
+    `scene.airlight.use_fog_top` is on (sunlight fades through the fog above each point),
+    else +inf (Hoffman-Preetham: unattenuated sunlight), see native/kernels/sun_layer.h.
+    """
+    hidden = visibility.render_hidden_collections(depsgraph.view_layer)
+    directions, irradiances = [], []
+    for instance in depsgraph.object_instances:
+        obj = instance.object
+        if obj.type != 'LIGHT' or obj.data.type != 'SUN':
+            continue
+        source = instance.parent if instance.is_instance else obj
+        if source is None or not visibility.is_render_visible(source, hidden):
+            continue
+        light = obj.data
+        if not light.original.airlight.participate or (not instance.is_instance and obj.name in skip):
+            continue
+        matrix = np.array(instance.matrix_world, dtype=np.float64)
+        direction = -matrix[:3, 2]
+        norm = float(np.linalg.norm(direction))
+        if not (norm > 0.0 and math.isfinite(norm)):
+            raise ExportError(f"Sun light '{obj.name}' has a degenerate transform (no direction).")
+        directions.append(direction / norm)
+        irradiances.append(np.array(light.color, dtype=np.float64) * light.energy)
+    if not directions:
+        return {}
+    settings = scene.airlight
+    fog_top = float(settings.fog_top) if settings.use_fog_top else math.inf
+    if math.isnan(fog_top):
+        raise ExportError("The fog top height is not a number.")
+    description = dict(sun_directions=np.array(directions, dtype=np.float64).reshape(-1, 3),
+                       sun_irradiances=np.array(irradiances, dtype=np.float64).reshape(-1, 3))
+    for name, array in description.items():
+        if not np.all(np.isfinite(array)):
+            raise ExportError(f"The scene's {name.replace('_', ' ')} contain NaN or infinite values.")
+    description["fog_top"] = fog_top
     return description
 
 
@@ -220,17 +268,22 @@ def export_scene(scene, depsgraph):
     phase, g = export_phase(scene)
     width, height, cam_to_world, projection = export_camera(scene, depsgraph)
     clip_start, clip_end = export_clip_range(scene, depsgraph)
-    vertices, triangles, light_positions, light_intensities, _ = export_geometry_and_lights(scene, depsgraph)
+    skip = model_choice.skipped_lights(scene, depsgraph)  # Automatic: lights below the target
+    vertices, triangles, light_positions, light_intensities, _ = export_geometry_and_lights(scene, depsgraph, skip)
     for name, array in (("camera matrix", cam_to_world), ("projection", projection),
                         ("vertices", vertices), ("light positions", light_positions),
                         ("light intensities", light_intensities)):
         if not np.all(np.isfinite(array)):
             raise ExportError(f"The scene's {name} contain NaN or infinite values.")
     gaussians = export_fog_objects(depsgraph)
-    spots = export_spot_lights(depsgraph)
+    spots = export_spot_lights(depsgraph, skip)
     if spots and gaussians:
         raise ExportError("Spot lights are not supported together with fog objects yet: "
                           "turn off the spots' fog participation or remove the fog objects.")
+    suns = export_sun_lights(scene, depsgraph, skip)
+    if suns and gaussians:
+        raise ExportError("Sun lights are not supported together with fog objects yet: "
+                          "turn off the suns' fog participation or remove the fog objects.")
     return dict(
         width=width, height=height,
         cam_to_world=cam_to_world, projection=projection,
@@ -240,6 +293,7 @@ def export_scene(scene, depsgraph):
         sigma_t=sigma_t, albedo=albedo, phase=phase, g=g,
         **gaussians,
         **spots,
+        **suns,
     )
 
 

@@ -1,5 +1,6 @@
 """3D viewport sidebar (N panel) > Airlight > Fog Tools: brush settings and the buttons
-that start the paintbrush and the eraser on the active fog object."""
+that start the paintbrush, the eraser, the airbrush and Fill Mesh with Fog on the active
+fog object, and adding a particle emitter."""
 
 import bpy
 
@@ -23,7 +24,9 @@ class AIRLIGHT_PT_fog_tools(bpy.types.Panel):
         settings = context.scene.airlight_brush
         obj = context.active_object
 
-        layout.operator("airlight.add_fog_object", icon='ADD')
+        row = layout.row(align=True)
+        row.operator("airlight.add_fog_object", icon='ADD')
+        row.operator("airlight.add_emitter", text="Emitter", icon='OUTLINER_OB_FORCE_FIELD')
         if context.mode != 'OBJECT':
             layout.label(text="Fog tools work in Object Mode.", icon='INFO')
         elif not fog_object.is_fog_object(obj):
@@ -36,6 +39,9 @@ class AIRLIGHT_PT_fog_tools(bpy.types.Panel):
         row.scale_y = 1.4
         row.operator("airlight.fog_paint", icon='BRUSH_DATA')
         row.operator("airlight.fog_erase", icon='X')
+        row = layout.row(align=True)
+        row.operator("airlight.airbrush", icon='MOD_FLUIDSIM')
+        row.operator("airlight.fill_mesh", icon='MESH_ICOSPHERE')
         col = layout.column(align=True)
         col.operator("airlight.fog_select_rect", icon='SELECT_SET')
         row = col.row(align=True)
@@ -61,6 +67,20 @@ class AIRLIGHT_PT_fog_tools(bpy.types.Panel):
         col = layout.column(heading="Eraser")
         col.prop(settings, "radius")
         col.prop(settings, "strength")
+        air = getattr(context.scene, "airlight_airbrush", None)
+        if air is not None:
+            col = layout.column(heading="Airbrush")
+            col.prop(air, "scale_radius")
+            col.prop(air, "amplitude")
+            col.prop(air, "rate")
+            col.prop(air, "speed")
+            col.prop(air, "diffusion")
+            col.prop(air, "damping")
+            col.prop(air, "offset")
+            col.prop(air, "distance")
+            col.prop(air, "max_particles")
+            col.prop(air, "seed")
+            col.prop(air, "fill_spacing")
 
 
 classes = (AIRLIGHT_PT_fog_tools,)

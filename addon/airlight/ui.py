@@ -1,8 +1,11 @@
 """Properties-editor panels: Scene > Airlight Fog and Light > Airlight Fog."""
 
+import math
+
 import bpy
 
-from . import compositor, model_choice, native, scene_export
+from . import compositor, model_choice, native
+from .properties import SUPPORTED_LIGHT_TYPES
 
 
 class AIRLIGHT_PT_scene(bpy.types.Panel):
@@ -39,6 +42,10 @@ class AIRLIGHT_PT_scene(bpy.types.Panel):
         sub = col.column()
         sub.active = settings.phase == 'HENYEY_GREENSTEIN'
         sub.prop(settings, "anisotropy")
+        col.prop(settings, "use_fog_top")
+        sub = col.column()
+        sub.active = settings.use_fog_top
+        sub.prop(settings, "fog_top")
         col.prop(settings, "model")
         sub = col.column()
         sub.active = settings.model == 'AUTO'
@@ -50,7 +57,12 @@ class AIRLIGHT_PT_scene(bpy.types.Panel):
             box.label(text=problem, icon='ERROR')
         else:
             name, label, error = model_choice.choose(settings)
-            col.label(text=f"Uses {label}, error \u2264 {100.0 * error:.2g} %", icon='INFO')
+            bound = "unbounded" if math.isinf(error) else f"\u2264 {100.0 * error:.2g} %"
+            col.label(text=f"Uses {label}, error {bound}", icon='INFO')
+            if name == "sun05":
+                row = col.row(align=True)
+                row.prop(settings, "table_resolution", text="Table")
+                row.prop(settings, "table_interpolation", text="")
         col.prop(settings, "aa_samples")
         col.prop(settings, "threads")
         col.prop(settings, "cache_dir")
@@ -66,19 +78,44 @@ class AIRLIGHT_PT_scene(bpy.types.Panel):
         if settings.enabled and not compositor.is_set_up(context.scene) and not settings.auto_composite:
             layout.label(text="Compositor fog nodes are missing.", icon='INFO')
 
-        lights = scene_export.fog_lights(context.scene)
         box = layout.box()
         box.label(text="Lights in the Fog")
-        if not lights:
+        lines = light_lines(context.scene, context.view_layer)
+        if not lines:
             box.label(text="No render-visible lights.", icon='INFO')
-        for name, light_type, supported, participates in lights:
-            row = box.row()
-            if not supported:
-                row.label(text=f"{name}: {light_type.lower()} light, not yet in fog", icon='LIGHT')
-            elif participates:
-                row.label(text=f"{name}: in fog", icon='LIGHT_POINT')
-            else:
-                row.label(text=f"{name}: excluded (Scatter in Fog is off)", icon='LIGHT_POINT')
+        for text, icon in lines:
+            box.row().label(text=text, icon=icon)
+
+
+_LIGHT_ICONS = {'POINT': 'LIGHT_POINT', 'SPOT': 'LIGHT_SPOT', 'SUN': 'LIGHT_SUN', 'AREA': 'LIGHT_AREA'}
+
+
+def _percent(fraction):
+    return f"{100.0 * fraction:.2g} %"
+
+
+def light_lines(scene, view_layer=None):
+    """(text, icon) per render-visible light for the panel: the model each fogged light
+    gets and its expected error, or why it is not in the fog (model_choice.light_plan;
+    no bake, so it follows the settings as they change)."""
+    try:
+        rows = model_choice.light_plan(scene, view_layer=view_layer)
+    except ValueError as ex:   # e.g. a degenerate camera: say so instead of failing the panel
+        return [(f"Cannot plan the lights: {ex}", 'ERROR')]
+    lines = []
+    for row in rows:
+        icon = _LIGHT_ICONS.get(row.type, 'LIGHT')
+        if row.status == 'unsupported':
+            text = f"{row.name}: {row.type.lower()} light, not yet in fog"
+        elif row.status == 'off':
+            text = f"{row.name}: excluded (Scatter in Fog is off)"
+        elif row.status == 'skipped':
+            text = f"{row.name}: skipped: below {_percent(row.share)} of the fog"
+        else:
+            error = "unbounded" if math.isinf(row.error) else f"\u2264 {_percent(row.error)}"
+            text = f"{row.name}: {row.label}, error {error}"
+        lines.append((text, icon))
+    return lines
 
 
 class AIRLIGHT_PT_light(bpy.types.Panel):
@@ -95,14 +132,51 @@ class AIRLIGHT_PT_light(bpy.types.Panel):
     def draw(self, context):
         layout = self.layout
         light = context.light
+        supported = light.type in SUPPORTED_LIGHT_TYPES
         row = layout.row()
-        row.active = light.type == 'POINT'
+        row.active = supported
         row.prop(light.airlight, "participate")
-        if light.type != 'POINT':
+        if not supported:
             layout.label(text=f"{light.type.title()} lights are not yet in fog.", icon='INFO')
 
 
-classes = (AIRLIGHT_PT_scene, AIRLIGHT_PT_light)
+class AIRLIGHT_PT_environment(bpy.types.Panel):
+    bl_label = "Environment Glow"
+    bl_idname = "AIRLIGHT_PT_environment"
+    bl_space_type = 'PROPERTIES'
+    bl_region_type = 'WINDOW'
+    bl_context = "scene"
+    bl_parent_id = "AIRLIGHT_PT_scene"
+    bl_options = {'DEFAULT_CLOSED'}
+
+    def draw_header(self, context):
+        self.layout.prop(context.scene.airlight, "environment_glow", text="")
+
+    def draw(self, context):
+        from . import environment
+        layout = self.layout
+        layout.use_property_split = True
+        layout.use_property_decorate = False
+        settings = context.scene.airlight
+        col = layout.column()
+        col.active = settings.enabled and settings.environment_glow
+        col.prop(settings, "environment_distance")
+        col.prop(settings, "environment_sh_order")
+        if settings.environment_glow:
+            try:
+                source = environment.world_source(context.scene)
+            except environment.WorldMapError as ex:
+                box = col.box()
+                box.alert = True
+                box.label(text=str(ex)[:120], icon='ERROR')
+            else:
+                if source is None or (source[0] == 'COLOR' and not any(source[1])):
+                    col.label(text="The World emits no light: nothing glows.", icon='INFO')
+                elif source[0] == 'IMAGE':
+                    col.label(text=f"Glow from '{source[1].name}'", icon='WORLD')
+
+
+classes = (AIRLIGHT_PT_scene, AIRLIGHT_PT_light, AIRLIGHT_PT_environment)
 
 
 def register():

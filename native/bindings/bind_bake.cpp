@@ -76,8 +76,9 @@ py::dict bake_py(int width, int height, const py::object& cam_to_world, const py
                  double filter_width, double clip_start, double clip_end, const py::object& progress,
                  const py::object& rbf_centres, const py::object& rbf_scales, const py::object& rbf_amplitudes,
                  const py::object& spot_positions, const py::object& spot_axes, const py::object& spot_intensities,
-                 const py::object& spot_size, const py::object& spot_blend, bool surface,
-                 double surface_phong_exponent) {
+                 const py::object& spot_size, const py::object& spot_blend, const py::object& sun_directions,
+                 const py::object& sun_irradiances, double fog_top, int table_size,
+                 const std::string& table_interpolation, bool surface, double surface_phong_exponent) {
     // Gather the scene description from the arrays (shapes checked here, values in bake()).
     SceneDescription scene;
     scene.camera.width = width;
@@ -168,6 +169,23 @@ py::dict bake_py(int width, int height, const py::object& cam_to_world, const py
         }
     }
 
+    // Sun lamps: both arrays or none; shapes here, values in bake().
+    if (sun_directions.is_none() != sun_irradiances.is_none())
+        throw py::value_error("sun_directions and sun_irradiances must be given together (or both None)");
+    if (!sun_directions.is_none()) {
+        auto sd = as_array<double>(sun_directions, "sun_directions");
+        const py::ssize_t n = require_rows_of(sd, 3, "sun_directions");
+        auto se = as_array<double>(sun_irradiances, "sun_irradiances");
+        require_rows_of(se, 3, "sun_irradiances", n);
+        for (py::ssize_t l = 0; l < n; ++l) {
+            SunLight sun;
+            sun.direction = {sd.at(l, 0), sd.at(l, 1), sd.at(l, 2)};
+            sun.E = {se.at(l, 0), se.at(l, 1), se.at(l, 2)};
+            scene.sun_lights.push_back(sun);
+        }
+    }
+    scene.fog_top = fog_top;
+
     BakeSettings settings;
     settings.model = model_from_name(model);
     settings.threads = threads;
@@ -175,6 +193,13 @@ py::dict bake_py(int width, int height, const py::object& cam_to_world, const py
     settings.filter_width = filter_width;
     settings.surface = surface;
     settings.surface_phong_exponent = surface_phong_exponent;
+    if (table_size < 8 || table_size > 4096)
+        throw py::value_error("table_size must be in [8, 4096], got " + std::to_string(table_size));
+    settings.table_nu = settings.table_nT = table_size;
+    if (table_interpolation == "bilinear") settings.table_interp = Interp::Bilinear;
+    else if (table_interpolation == "nearest") settings.table_interp = Interp::Nearest;
+    else throw py::value_error("table_interpolation must be \"bilinear\" or \"nearest\", got \"" +
+                               table_interpolation + "\"");
 
     // The callback runs on this (the calling) thread between bands: take the GIL for it.
     ProgressFn progress_fn;
@@ -252,8 +277,11 @@ void bind_bake(py::module_& m) {
           "clip_end"_a = std::numeric_limits<double>::infinity(), "progress"_a = py::none(),
           "rbf_centres"_a = py::none(), "rbf_scales"_a = py::none(), "rbf_amplitudes"_a = py::none(),
           "spot_positions"_a = py::none(), "spot_axes"_a = py::none(), "spot_intensities"_a = py::none(),
-          "spot_size"_a = py::none(), "spot_blend"_a = py::none(), "surface"_a = false,
-          "surface_phong_exponent"_a = 0.0, R"doc(Bake fog passes for one camera view (all arguments keyword-only).
+          "spot_size"_a = py::none(), "spot_blend"_a = py::none(), "sun_directions"_a = py::none(),
+          "sun_irradiances"_a = py::none(), "fog_top"_a = std::numeric_limits<double>::infinity(),
+          "table_size"_a = 256, "table_interpolation"_a = "bilinear", "surface"_a = false,
+          "surface_phong_exponent"_a = 0.0,
+          R"doc(Bake fog passes for one camera view (all arguments keyword-only).
 
 width, height: render resolution in pixels.
 cam_to_world: (4, 4) camera matrix_world; projection: (4, 4)
@@ -265,10 +293,12 @@ sigma_t: extinction 1/m (>= 0); albedo: 3 floats (scattering = albedo * sigma_t)
 phase: the medium's phase function, "isotropic" (default), "hg" (Henyey-Greenstein with
   anisotropy g, Cycles' sign: g > 0 forward), "rayleigh", "mie_hazy", "mie_murky" (Nishita).
   g: HG asymmetry in (-1, 1); must be 0 for the other phases.
-model: "sun05", "sun05_exact", "quadrature" or "biri06" (see models()). The Sun 2005
+model: "sun05", "sun05_exact", "quadrature", "biri06" or "baseline" (see models()). The Sun 2005
   models are isotropic only: with an anisotropic phase (anything but "isotropic" or "hg"
   with g = 0) they raise ValueError; "biri06" (Gamma table of the phase) and
-  "quadrature" (phase-aware reference) take any phase.
+  "quadrature" (phase-aware reference) take any phase. "baseline": constant-colour fog
+  C (1 - transmittance), C per channel least-squares fitted to the sun05 (biri06 for an
+  anisotropic phase) airlight of the same view: the bar every model must beat.
 threads: worker threads (0: all). aa_samples: per-axis samples on edge pixels;
 filter_width: Blackman-Harris film filter width in pixels (Cycles' default 1.5).
 clip_start, clip_end: the camera's clip range (view-axis depths, camera.data.clip_start
@@ -287,6 +317,17 @@ spot_positions (S, 3), spot_axes (S, 3) (spot direction, the lamp's -Z; normalis
   full cone angle in rad (0, pi], spot_blend (S,) in [0, 1]: optional Blender spot lights with
   Cycles' profile I0 cos(theta) smoothstep(...), evaluated by adaptive quadrature for every
   model (phase-aware; homogeneous fog only: ValueError with rbf_*). Give all five or none.
+sun_directions (U, 3) (direction of propagation, the lamp's -Z; normalised here),
+  sun_irradiances (U, 3) W/m^2 (= colour * strength, Cycles): optional sun lamps, closed
+  form for every model ("quadrature": its quadrature), any phase (sun_layer.h).
+  fog_top: world Z of the fog layer's top for the suns' light: the sun reaches a point at
+  height z through (fog_top - z) / cos of fog; +inf (default): Hoffman & Preetham's
+  unattenuated sun. Point/spot lights and the transmittance ignore fog_top.
+  Homogeneous fog only (ValueError with rbf_*).
+table_size: samples per axis of the model's 2D table (sun05's F table, biri06's Gamma
+  table), in [8, 4096], default 256. table_interpolation: "bilinear" (default) or "nearest"
+  lookup of sun05's F table (nearest: one load per lookup, ~20x the error; special_f.cpp
+  lists both measured errors per size).
 surface: also bake surface shading through the fog (Sun 2005 eq. 13-19, bake_surface.h):
   adds surface_attenuation=(L, H, W, 3) float32, e^{-T(light, first hit)} per light (the
   point lights, then the spot lights, in argument order; 1 where no hit), and

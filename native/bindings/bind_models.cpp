@@ -160,6 +160,30 @@ Returns dict(F_ex=(..., 3), L_in=(..., 3)); composite L = L0 * F_ex + L_in.)doc"
             return py::make_tuple(b[0], b[1], b[2]);
         },
         "beta_R_550"_a, "Rayleigh coefficients for R, G, B (650, 570, 475 nm) from the one at 550 nm (1/lambda^4).");
+
+    // Preview: the Biri 2006 table itself, for the GPU (shaders/biri06_airlight.glsl).
+    m.def(
+        "biri06_table",
+        [](const std::string& phase, double g, int nl, int nT) {
+            if (nl < 2 || nT < 2 || nl > 16384 || nT > 16384)
+                throw py::value_error("biri06_table: nl and nT must be in [2, 16384]");
+            const PhaseFunction p = parse_phase(phase, g);
+            std::shared_ptr<const Biri06Table> table;
+            {
+                py::gil_scoped_release release;
+                table = shared_biri06_table(p, nl, nT);
+            }
+            py::array_t<float> arr({py::ssize_t(nl), py::ssize_t(nT)});
+            std::copy(table->data().begin(), table->data().end(), arr.mutable_data());
+            return py::dict("data"_a = arr, "nl"_a = nl, "nT"_a = nT, "K"_a = table->K(), "k"_a = table->k(),
+                            "phase"_a = phase_name(p.kind), "g"_a = p.g);
+        },
+        "phase"_a = "hg", "g"_a = 0.0, "nl"_a = 256, "nT"_a = 256,
+        R"doc(The Biri 2006 G table the bake's "biri06" model uses for this phase function (the same
+shared instance): dict(data=(nl, nT) float32 array of Q(s, w), nl, nT, K, k, phase, g).
+Rows i over s = sqrt(lambda / (lambda + k)), columns j over w = tau / (1 + tau),
+tau = T (K + lambda); G(lambda, T) = Q w / (K + lambda) by bilinear interpolation
+(native/kernels/biri06.cpp). ValueError on an unknown phase, |g| >= 1 or bad sizes.)doc");
 }
 
 }  // namespace airlight::bindings

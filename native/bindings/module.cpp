@@ -29,4 +29,6 @@ PYBIND11_MODULE(_native, m) {
     airlight::bindings::bind_bake(m);
     airlight::bindings::bind_rbf(m);
     airlight::bindings::bind_models(m);
+    airlight::bindings::bind_pegoraro(m);
+    airlight::bindings::bind_env(m);
 }

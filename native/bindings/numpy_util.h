@@ -73,5 +73,7 @@ void bind_physics(py::module_& m);
 void bind_bake(py::module_& m);
 void bind_rbf(py::module_& m);
 void bind_models(py::module_& m);
+void bind_pegoraro(py::module_& m);
+void bind_env(py::module_& m);
 
 }  // namespace airlight::bindings

@@ -20,6 +20,7 @@
 #include <stdexcept>
 #include <string>
 #include <thread>
+#include <tuple>
 
 #ifdef __linux__
 #include <sys/mman.h>
@@ -35,6 +36,8 @@
 #include "sun05.h"
 #include "sun05_batch.h"
 #include "spot_light.h"
+#include "sun_layer.h"
+#include "pegoraro10.h"
 #include "sun05_inline.h"
 
 namespace airlight {
@@ -49,6 +52,12 @@ constexpr double kQuadratureRelTol = 1e-8;
 // Relative tolerance of the spot-light quadrature (every model: spots have no closed form);
 // far below the float passes' and Cycles' noise, and ~3x cheaper than 1e-8.
 constexpr double kSpotRelTol = 1e-5;
+// Pegoraro 2010 (spots for every model but 'quadrature', point lights for 'pegoraro10'):
+// Henyey-Greenstein is truncated where its Legendre tail is below kPegoraroPhaseTol of the
+// lobe everywhere (airlight error ~1e-7, bench_pegoraro.py), at most kPegoraroMaxOrder;
+// where that is not enough (|g| >~ 0.75) spots fall back to quadrature.
+constexpr double kPegoraroPhaseTol = 1e-6;
+constexpr int kPegoraroMaxOrder = 96;
 // Share of the progress bar given to pass 1 (ray casting).
 constexpr double kRaycastProgressShare = 0.3;
 
@@ -59,6 +68,22 @@ void require(bool ok, const std::string& msg) {
 
 bool finite3(const glm::dvec3& v) {
     return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z);
+}
+
+// Sun lamps and the fog top (sun_layer.h).
+void validate_suns(const SceneDescription& scene) {
+    for (size_t i = 0; i < scene.sun_lights.size(); ++i) {
+        const SunLight& sun = scene.sun_lights[i];
+        const std::string name = "sun light " + std::to_string(i);
+        require(finite3(sun.direction) && glm::length(sun.direction) > 0.0,
+                name + ": direction must be finite and nonzero");
+        require(finite3(sun.E) && sun.E.x >= 0.0 && sun.E.y >= 0.0 && sun.E.z >= 0.0,
+                name + ": irradiance must be finite and >= 0");
+    }
+    require(!std::isnan(scene.fog_top) && scene.fog_top != -std::numeric_limits<double>::infinity(),
+            "fog_top must be a finite height or +inf (no top), got " + std::to_string(scene.fog_top));
+    require(scene.sun_lights.empty() || scene.gaussians.empty(),
+            "sun lights are not supported with Gaussian fog (rbf_*): bake them in homogeneous fog only");
 }
 
 // Validate the scene and settings once, before any work starts.
@@ -85,8 +110,10 @@ void validate(const SceneDescription& scene, const BakeSettings& settings) {
                 "' supports only the isotropic phase, got '" + phase_name(medium.phase.kind) +
                 "' (g = " + std::to_string(medium.phase.g) + "); use 'biri06' or 'quadrature'");
     require(settings.model == ModelId::Sun05Table || settings.model == ModelId::Sun05Exact ||
-                settings.model == ModelId::Quadrature || settings.model == ModelId::Biri06,
+                settings.model == ModelId::Quadrature || settings.model == ModelId::Biri06 ||
+                settings.model == ModelId::Baseline || settings.model == ModelId::Pegoraro10,
             "the bake does not dispatch this model (see models())");
+    validate_suns(scene);
     // Gaussian fog (Fogshop): isotropic only, through the Fogshop approximation (sun05,
     // sun05_exact: F table or exact F for the background term) or its quadrature reference.
     const GaussianMedium& gauss = scene.gaussians;
@@ -109,9 +136,9 @@ void validate(const SceneDescription& scene, const BakeSettings& settings) {
                 std::string("Gaussian fog supports only the isotropic phase, got '") + phase_name(medium.phase.kind) +
                     "' (g = " + std::to_string(medium.phase.g) + ")");
         require(settings.model == ModelId::Sun05Table || settings.model == ModelId::Sun05Exact ||
-                    settings.model == ModelId::Quadrature,
-                "Gaussian fog supports the models 'sun05', 'sun05_exact' (Fogshop approximation) and "
-                "'quadrature' (reference)");
+                    settings.model == ModelId::Quadrature || settings.model == ModelId::Baseline,
+                "Gaussian fog supports the models 'sun05', 'sun05_exact' (Fogshop approximation), "
+                "'quadrature' (reference) and 'baseline'");
     }
     for (size_t i = 0; i < scene.point_lights.size(); ++i) {
         const PointLight& light = scene.point_lights[i];
@@ -145,7 +172,9 @@ void validate(const SceneDescription& scene, const BakeSettings& settings) {
     require(settings.aa_samples >= 1 && settings.aa_samples <= 64, "aa_samples must be in [1, 64]");
     require(std::isfinite(settings.filter_width) && settings.filter_width >= 0.0,
             "filter_width must be finite and >= 0");
-    require(settings.table_nu >= 2 && settings.table_nT >= 2, "table size must be at least 2 x 2");
+    require(settings.table_nu >= 2 && settings.table_nT >= 2 && settings.table_nu <= 16384 &&
+                settings.table_nT <= 16384,
+            "table size must be in [2, 16384] per axis");
     // The camera matrices are checked by CameraRays (finite, invertible).
 }
 
@@ -316,8 +345,15 @@ class FogModel {
           isotropic_(phase_is_isotropic(scene.medium.phase)),
           shared_origin_(shared_origin),
           origin_(origin) {
-        if (model_ == ModelId::Sun05Table) table_ = shared_special_F_table(settings.table_nu, settings.table_nT);
+        if (model_ == ModelId::Sun05Table)
+            table_ = shared_special_F_table(settings.table_nu, settings.table_nT, settings.table_interp);
         if (model_ == ModelId::Biri06) biri_table_ = shared_biri06_table(phase_, settings.table_nu, settings.table_nT);
+        if (model_ == ModelId::Pegoraro10 || (model_ != ModelId::Quadrature && !scene.spot_lights.empty())) {
+            pegoraro_phase_ = pegoraro_phase_auto(phase_, kPegoraroPhaseTol, kPegoraroMaxOrder);
+            spot_closed_form_ = model_ != ModelId::Quadrature &&
+                                (phase_.kind != PhaseKind::HenyeyGreenstein ||
+                                 pegoraro_hg_order(phase_.g, kPegoraroPhaseTol, kPegoraroMaxOrder) >= 0);
+        }
         for (const PointLight& light : scene.point_lights) {
             RGB weight = scene.medium.albedo * light.I0;
             if (weight.x == 0.0 && weight.y == 0.0 && weight.z == 0.0) continue;
@@ -328,6 +364,13 @@ class FogModel {
             if (weight.x == 0.0 && weight.y == 0.0 && weight.z == 0.0) continue;
             spots_.push_back({make_spot_cone(spot.axis, spot.spot_size, spot.spot_blend), spot.position, weight});
         }
+        for (const SunLight& sun : scene.sun_lights) {
+            const RGB weight = scene.medium.albedo * sun.E * sigma_t_;  // sigma_s E
+            if (weight.x == 0.0 && weight.y == 0.0 && weight.z == 0.0) continue;
+            const Vec3 w = glm::normalize(sun.direction);
+            suns_.push_back({w, -w.z, weight});
+        }
+        fog_top_ = scene.fog_top;
         if (!scene.gaussians.empty()) {
             const GaussianMedium& g = scene.gaussians;
             rbf_ = std::make_unique<RbfMedium>(g.centres, g.scales, g.amplitudes, sigma_t_);
@@ -376,7 +419,8 @@ class FogModel {
                 const bool at_light = !(light.Dsv > 0.0);
                 if (at_light) std::fill(cos_gamma, cos_gamma + m, 1.0);
                 else cos_to_light(dx + k0, dy + k0, dz + k0, sv, m, cos_gamma);
-                sun05_airlight_table_batch(data, nu, nT, sigma_t_, light.Dsv, cos_gamma, Dvp + k0, m, value, near);
+                sun05_airlight_table_batch(data, nu, nT, sigma_t_, light.Dsv, cos_gamma, Dvp + k0, m, value, near,
+                                           table_->interp());
                 accumulate_rgb(value, float(light.weight.x), float(light.weight.y), float(light.weight.z), m, sum_r,
                                sum_g, sum_b);
             }
@@ -391,6 +435,13 @@ class FogModel {
                     const Vec3 d(dx[k0 + k], dy[k0 + k], dz[k0 + k]);
                     const double t_near = near ? double(near[k]) : 0.0;
                     const RGB La = spot_airlight(origin_, d, t_near, double(Dvp[k0 + k]));
+                    for (int c = 0; c < 3; ++c) out[3 * k + c] = float(double(out[3 * k + c]) + La[c]);
+                }
+            }
+            if (!suns_.empty()) {
+                for (int k = 0; k < m; ++k) {
+                    const Vec3 d(dx[k0 + k], dy[k0 + k], dz[k0 + k]);
+                    const RGB La = sun_airlight(origin_, d, near ? double(near[k]) : 0.0, double(Dvp[k0 + k]));
                     for (int c = 0; c < 3; ++c) out[3 * k + c] = float(double(out[3 * k + c]) + La[c]);
                 }
             }
@@ -448,11 +499,31 @@ class FogModel {
         }
         if (!spots_.empty())
             for (int k = 0; k < n; ++k) La[k] += spot_airlight(rays[k].o, rays[k].d, t0 ? double(t0[k]) : 0.0, double(Dvp[k]));
+        if (!suns_.empty())
+            for (int k = 0; k < n; ++k) La[k] += sun_airlight(rays[k].o, rays[k].d, t0 ? double(t0[k]) : 0.0, double(Dvp[k]));
+    }
+
+    // Airlight of all sun lamps along o + t d over [t_near, Dvp] (inf: none): sigma_s p E G
+    // with the closed form G of sun_layer.h (its quadrature for the quadrature model). The
+    // phase angle is the same all along the ray.
+    RGB sun_airlight(const Vec3& o, const Vec3& d, double t_near, double Dvp) const {
+        RGB La(0.0);
+        if (sigma_t_ == 0.0 || !(Dvp > t_near)) return La;
+        for (const SunData& sun : suns_) {
+            const double p = phase_.eval(-glm::dot(sun.w, d));
+            const double G = model_ == ModelId::Quadrature
+                                 ? sun_layer_factor_quadrature(sigma_t_, fog_top_, sun.mu_s, o.z, d.z, t_near, Dvp,
+                                                               kQuadratureRelTol)
+                                 : sun_layer_factor(sigma_t_, fog_top_, sun.mu_s, o.z, d.z, t_near, Dvp);
+            La += sun.weight * (p * G);
+        }
+        return La;
     }
 
     // Airlight of all spot lights along the ray o + t d over [t_near, Dvp] (Dvp from o; inf:
     // none), attenuated from the near point (the viewer moved there, as eval_many does for
-    // the other models). Quadrature with the medium's phase (spot_light.h).
+    // the other models). Pegoraro 2010 closed form with the medium's phase (pegoraro10.h), or
+    // quadrature (spot_light.h) for the 'quadrature' model and HG lobes too narrow for order 96.
     RGB spot_airlight(const Vec3& o, const Vec3& d, double t_near, double Dvp) const {
         RGB La(0.0);
         if (sigma_t_ == 0.0) return La;
@@ -461,7 +532,9 @@ class FogModel {
         const Vec3 start = t_near > 0.0 ? o + t_near * d : o;
         for (const SpotData& spot : spots_)
             La += spot.weight *
-                  spot_airlight_quadrature(spot.cone, spot.s, phase_, sigma_t_, start, d, seg, kSpotRelTol);
+                  (!spot_closed_form_
+                       ? spot_airlight_quadrature(spot.cone, spot.s, phase_, sigma_t_, start, d, seg, kSpotRelTol)
+                       : pegoraro10_spot_airlight(pegoraro_phase_, spot.cone, spot.s, sigma_t_, start, d, seg));
         return La;
     }
 
@@ -511,7 +584,7 @@ class FogModel {
         switch (model_) {
             case ModelId::Sun05Table:  // inlined fast path, same as sun05_airlight(..., Table)
                 return sun05_airlight_table(table_->data().data(), table_->nu(), table_->nT(), sigma_t_,
-                                            Dsv, cos_gamma, Dvp);
+                                            Dsv, cos_gamma, Dvp, 0.0, table_->interp());
             case ModelId::Sun05Exact:
                 return sun05_airlight(sigma_t_, Dsv, cos_gamma, Dvp, nullptr, FEval::Exact);
             case ModelId::Quadrature:  // the phase-aware reference unless isotropic
@@ -520,6 +593,8 @@ class FogModel {
                                                               kQuadratureRelTol);
             case ModelId::Biri06:  // Gamma table of the medium's phase (exact where it would cancel)
                 return biri06_airlight(phase_, sigma_t_, Dsv, cos_gamma, Dvp, biri_table_.get(), GammaEval::Table);
+            case ModelId::Pegoraro10:  // closed form with the phase as a Legendre polynomial
+                return pegoraro10_airlight(pegoraro_phase_, sigma_t_, Dsv, cos_gamma, Dvp);
             default:  // rejected by validate()
                 break;
         }
@@ -534,6 +609,8 @@ class FogModel {
     Vec3 origin_;
     std::shared_ptr<const SpecialFTable> table_;
     std::shared_ptr<const Biri06Table> biri_table_;
+    PegoraroPhase pegoraro_phase_;  // spots (all models but quadrature) and model pegoraro10
+    bool spot_closed_form_ = false;  // spots by pegoraro10_spot_airlight (else quadrature)
     std::vector<LightData> lights_;
     struct SpotData {
         SpotCone cone;
@@ -541,6 +618,13 @@ class FogModel {
         RGB weight;  // albedo * I0
     };
     std::vector<SpotData> spots_;
+    struct SunData {
+        Vec3 w;       // unit propagation direction
+        double mu_s;  // -w.z: the cosine of the sun's path through the layer to the vertical
+        RGB weight;   // albedo * sigma_t * E
+    };
+    std::vector<SunData> suns_;
+    double fog_top_ = std::numeric_limits<double>::infinity();
     // Gaussian fog (null without): the medium (beta0 = sigma_t), the lights' positions in
     // lights_' order, and Fogshop set up at the shared viewpoint.
     std::unique_ptr<RbfMedium> rbf_;
@@ -631,18 +715,45 @@ double seconds_since(Clock::time_point start) {
 
 }  // namespace
 
-// F tables are deterministic and costly to build: keep one per (nu, nT) for the process.
-std::shared_ptr<const SpecialFTable> shared_special_F_table(int nu, int nT) {
+// ModelId::Baseline: what Blender's Mist pass does, L = C_fog (1 - Tr), one fog colour for
+// the whole image (baseline_fog.h). C_fog is the least-squares fit per channel to the
+// physically based airlight of the same view (sun05's table model for isotropic fog,
+// biri06 for any other phase; every light type included): the best a constant fog colour
+// can do, so the baseline's reported error is a lower bound of any hand-picked colour's.
+// 1 - Tr is 1 - e^{-sigma_t D} with D from the near plane to the first hit (1 for misses).
+static BakeResult bake_baseline(const SceneDescription& scene, const BakeSettings& settings,
+                                const ProgressFn& progress) {
+    BakeSettings reference = settings;
+    reference.model = phase_is_isotropic(scene.medium.phase) ? ModelId::Sun05Table : ModelId::Biri06;
+    BakeResult result = bake(scene, reference, progress);
+    const size_t n = size_t(result.width) * size_t(result.height);
+    for (int c = 0; c < 3; ++c) {
+        double num = 0.0, den = 0.0;
+        for (size_t i = 0; i < n; ++i) {
+            const double f = 1.0 - double(result.transmittance[3 * i + c]);
+            num += double(result.airlight[3 * i + c]) * f;
+            den += f * f;
+        }
+        const double C_fog = den > 0.0 ? num / den : 0.0;
+        for (size_t i = 0; i < n; ++i)
+            result.airlight[3 * i + c] = float(C_fog * (1.0 - double(result.transmittance[3 * i + c])));
+    }
+    return result;
+}
+
+// F tables are deterministic and costly to build: keep one per (nu, nT, interp) for the process.
+std::shared_ptr<const SpecialFTable> shared_special_F_table(int nu, int nT, Interp interp) {
     static std::mutex mutex;
-    static std::map<std::pair<int, int>, std::shared_ptr<const SpecialFTable>> cache;
+    static std::map<std::tuple<int, int, Interp>, std::shared_ptr<const SpecialFTable>> cache;
     std::lock_guard<std::mutex> lock(mutex);
-    auto& slot = cache[{nu, nT}];
-    if (!slot) slot = std::make_shared<const SpecialFTable>(nu, nT);
+    auto& slot = cache[{nu, nT, interp}];
+    if (!slot) slot = std::make_shared<const SpecialFTable>(nu, nT, interp);
     return slot;
 }
 
 BakeResult bake(const SceneDescription& scene, const BakeSettings& settings, const ProgressFn& progress) {
     validate(scene, settings);
+    if (settings.model == ModelId::Baseline) return bake_baseline(scene, settings, progress);
     const CameraRays rays(scene.camera);
     const int W = scene.camera.width, H = scene.camera.height;
     const size_t n_pixels = size_t(W) * size_t(H);

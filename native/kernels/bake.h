@@ -25,6 +25,9 @@ struct BakeSettings {
     int aa_samples = 4;
     double filter_width = 1.5;
     int table_nu = 256, table_nT = 256;
+    // Lookup in the Sun 2005 F table (sun05 model): bilinear, or nearest sample (cheaper,
+    // ~20x the error: special_f.cpp). Biri06's Gamma table is always bilinear.
+    Interp table_interp = Interp::Bilinear;
     // Surface shading (bake_surface.h, Sun 2005 eq. 13-19): also bake the per-light
     // attenuation from each light to the first hit and the Lambert glow. Off: the bake is
     // unchanged. The Lambert G table (sun05_surface.h) is _surface_table_nT_ x _ntheta_.
@@ -82,8 +85,8 @@ struct Cancelled : std::exception {
 BakeResult bake(const SceneDescription& scene, const BakeSettings& settings,
                 const ProgressFn& progress = nullptr);
 
-// The F table the bake uses for ModelId::Sun05Table, built once per (nu, nT) and
+// The F table the bake uses for ModelId::Sun05Table, built once per (nu, nT, interp) and
 // shared for the life of the process (thread safe).
-std::shared_ptr<const SpecialFTable> shared_special_F_table(int nu, int nT);
+std::shared_ptr<const SpecialFTable> shared_special_F_table(int nu, int nT, Interp interp = Interp::Bilinear);
 
 }  // namespace airlight

@@ -12,6 +12,10 @@ const std::vector<ModelInfo>& model_registry() {
         {ModelId::Quadrature, "quadrature",
          "Adaptive quadrature of the single-scattering integral, any phase function (slow reference)"},
         {ModelId::Biri06, "biri06", "Biri et al. 2006 airlight with the Gamma table of any phase function"},
+        {ModelId::Baseline, "baseline",
+         "Constant-colour fog (Blender Mist / OpenGL fog) with the best-fitting colour: the bar to beat"},
+        {ModelId::Pegoraro10, "pegoraro10",
+         "Pegoraro et al. 2010 closed form (complex E1), any phase function as a Legendre polynomial"},
     };
     return registry;
 }
@@ -19,7 +23,6 @@ const std::vector<ModelInfo>& model_registry() {
 const std::vector<ModelInfo>& kernel_models_pending_bake() {
     static const std::vector<ModelInfo> pending{
         {ModelId::Hoffman02, "hoffman02", "Hoffman & Preetham 2002 sun (directional light) fog, Rayleigh + Mie"},
-        {ModelId::Baseline, "baseline", "Constant-colour fog (Blender Mist / OpenGL fog), the bar to beat"},
     };
     return pending;
 }

@@ -15,6 +15,7 @@ enum class ModelId {
     Biri06,       // Biri 2006 Gamma table, any phase function (biri06.h)
     Hoffman02,    // Hoffman & Preetham 2002 sun fog (hoffman02.h)
     Baseline,     // constant-colour fog, what Blender's Mist pass does (baseline_fog.h)
+    Pegoraro10,   // Pegoraro 2010 closed form, polynomial phase / spot profile (pegoraro10.h)
 };
 
 struct ModelInfo {

@@ -54,6 +54,14 @@ struct SpotLight {
     double spot_blend = 0.15;
 };
 
+// Blender sun lamp (sun_layer.h): _direction_ of propagation (the lamp's -Z, normalised by
+// the bake), _E_ the irradiance in W/m^2 per RGB channel (= colour * strength, Cycles).
+// The lamp's angle (soft shadows) is ignored: a sun of angle 0.
+struct SunLight {
+    Vec3 direction{0.0, 0.0, -1.0};
+    RGB E{0.0};
+};
+
 // Pinhole or orthographic camera, given the way Blender gives it:
 // _cam_to_world_ is the camera object's matrix_world (the camera looks down -Z),
 // _projection_ is camera.calc_matrix_camera(depsgraph, x=width, y=height,
@@ -96,6 +104,10 @@ struct SceneDescription {
     std::vector<PointLight> point_lights;
     TriangleMesh geometry;
     std::vector<SpotLight> spot_lights;  // airlight by quadrature (spot_light.h)
+    // Sun lamps and the world height (Z) of the fog layer's top that bounds the fog they
+    // light: +inf is Hoffman & Preetham's unattenuated sun (sun_layer.h).
+    std::vector<SunLight> sun_lights;
+    double fog_top = std::numeric_limits<double>::infinity();
 };
 
 }  // namespace airlight

@@ -89,6 +89,13 @@ double spot_airlight_quadrature(const SpotCone& cone, const glm::dvec3& s, const
     add(ray_cone_crossings(o, d, s, cone.axis, cone.cos_half_angle, 0.0, end));
     const double cos_blend = cone.cos_half_angle + cone.smooth;
     if (cone.smooth > 0.0 && cos_blend < 1.0) add(ray_cone_crossings(o, d, s, cone.axis, cos_blend, 0.0, end));
+    // The plane through the light normal to the axis: it separates the cone from its back
+    // nappe, and for a 180 deg spot it is the cone (whose quadratic has a lost double root).
+    const double k_axis = glm::dot(d, cone.axis);
+    if (k_axis != 0.0) {
+        const double xp = -glm::dot(w, cone.axis) / k_axis;
+        if (xp > 0.0 && xp < end) cuts.push_back(xp);
+    }
     if (a > 0.0 && a < end) {
         cuts.push_back(a);
         for (double wd = std::max(h, 1e-12 * Dsv); wd < 4.0 * Dsv; wd *= 8.0) {

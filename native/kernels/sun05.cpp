@@ -63,9 +63,8 @@ double sun05_airlight(double sigma_t, double Dsv, double cos_gamma, double Dvp, 
                       FEval how) {
     if (how == FEval::Table) {
         if (!table) throw std::invalid_argument("sun05_airlight: the table path needs a SpecialFTable");
-        if (table->interp() != Interp::Bilinear)
-            throw std::invalid_argument("sun05_airlight: the table path needs a bilinear SpecialFTable");
-        return sun05_airlight_table(table->data().data(), table->nu(), table->nT(), sigma_t, Dsv, cos_gamma, Dvp);
+        return sun05_airlight_table(table->data().data(), table->nu(), table->nT(), sigma_t, Dsv, cos_gamma, Dvp, 0.0,
+                                    table->interp());
     }
     if (!(sigma_t > 0.0) || !(Dvp > 0.0)) return 0.0;
     Sun05Geometry g = sun05_geometry(Dsv, cos_gamma, Dvp);

@@ -75,6 +75,23 @@ inline float table_Q(const float* __restrict table, int nu, int nT, float x, flo
     return r0 + fx * (r1 - r0);
 }
 
+// Nearest-neighbour lookup of Q at (x, y) in index units, clamped into the table (NaN -> 0),
+// the same sample as special_F_table_Q_nearest (up to float rounding of x, y at a cell edge).
+inline float table_Q_nearest(const float* __restrict table, int nu, int nT, float x, float y) {
+    x = x > 0.0f ? x : 0.0f;
+    y = y > 0.0f ? y : 0.0f;
+    x = x < float(nu - 1) ? x : float(nu - 1);
+    y = y < float(nT - 1) ? y : float(nT - 1);
+    const int i = static_cast<int>(x + 0.5f), j = static_cast<int>(y + 0.5f);
+    return table[i * nT + j];
+}
+
+template <Interp kInterp>
+inline float table_Q_of(const float* __restrict table, int nu, int nT, float x, float y) {
+    if constexpr (kInterp == Interp::Nearest) return table_Q_nearest(table, nu, nT, x, y);
+    else return table_Q(table, nu, nT, x, y);
+}
+
 // The double part of the geometry for a block, in its own loop (GCC 12 does not
 // vectorise loops mixing double and float masks): cos(gamma) clamped, 1 - cos(gamma),
 // sin^2(gamma) and dx = Dvp - Dsv cos(gamma), computed in double where cancellation
@@ -145,9 +162,12 @@ inline LaneGeometry lane_geometry(float Dsv, const BlockAngles& ang, int k) {
 // F difference is well conditioned with a margin; 1 where it is clearly not (the
 // scalar path would not use it either) or the lane is degenerate; 2 inside the margin
 // band around the scalar test (only the scalar path gives the scalar path's result).
-AIRLIGHT_SIMD_CLONES
-int table_block(const float* __restrict table, int nu, int nT, float sigma_t, float Dsv_f,
-                 const BlockAngles& __restrict ang, int n, float* __restrict out, int* __restrict fallback) {
+// (One body for both interpolations, instantiated below into two cloned functions.)
+template <Interp kInterp>
+__attribute__((always_inline)) inline int table_block_impl(const float* __restrict table, int nu, int nT,
+                                                           float sigma_t, float Dsv_f,
+                                                           const BlockAngles& __restrict ang, int n,
+                                                           float* __restrict out, int* __restrict fallback) {
     const float prefactor = sigma_t / float(2.0 * sun05::kPi);
     const float kCancel = float(sun05::kCancel) * kCancelMargin;
     const float kSinMin = float(sun05::kSinGammaMin);
@@ -166,8 +186,8 @@ int table_block(const float* __restrict table, int nu, int nT, float sigma_t, fl
         const float m0 = g.n0 * opu, m1 = g.n1 * opu;
         const float r0 = 1.0f / (h + m0), r1 = 1.0f / (h + m1);
         const float w0 = m0 * r0, w1 = 1.0f - h * r1;
-        const float F0 = table_Q(table, nu, nT, s * su, w0 * sT) * g.n0 * r0;
-        const float F1 = table_Q(table, nu, nT, s * su, w1 * sT) / (opu + h / g.n1);
+        const float F0 = table_Q_of<kInterp>(table, nu, nT, s * su, w0 * sT) * g.n0 * r0;
+        const float F1 = table_Q_of<kInterp>(table, nu, nT, s * su, w1 * sT) / (opu + h / g.n1);
         const float G = F1 - F0;
         const float x = -sigma_t * g.a;
         const float La = prefactor / h * exp_float(x) * G;
@@ -180,6 +200,18 @@ int table_block(const float* __restrict table, int nu, int nT, float sigma_t, fl
     }
     for (int k = 0; k < n; ++k) out[k] = result[k];
     return n_flagged;
+}
+
+AIRLIGHT_SIMD_CLONES
+int table_block_bilinear(const float* __restrict table, int nu, int nT, float sigma_t, float Dsv_f,
+                         const BlockAngles& __restrict ang, int n, float* __restrict out, int* __restrict fallback) {
+    return table_block_impl<Interp::Bilinear>(table, nu, nT, sigma_t, Dsv_f, ang, n, out, fallback);
+}
+
+AIRLIGHT_SIMD_CLONES
+int table_block_nearest(const float* __restrict table, int nu, int nT, float sigma_t, float Dsv_f,
+                        const BlockAngles& __restrict ang, int n, float* __restrict out, int* __restrict fallback) {
+    return table_block_impl<Interp::Nearest>(table, nu, nT, sigma_t, Dsv_f, ang, n, out, fallback);
 }
 
 // Pass 2 on the lanes _idx_ that pass 1 flagged 1: short view segments (the common reason
@@ -225,7 +257,8 @@ void transmittance_block(float sigma_t, const float* __restrict Dvp, int n, floa
 }  // namespace
 
 int sun05_airlight_table_batch(const float* table, int nu, int nT, double sigma_t, double Dsv,
-                               const double* cos_gamma, const float* Dvp, int n, float* out, const float* t0) {
+                               const double* cos_gamma, const float* Dvp, int n, float* out, const float* t0,
+                               Interp interp) {
     if (!(sigma_t > 0.0)) {
         for (int k = 0; k < n; ++k) out[k] = 0.0f;
         return 0;
@@ -249,7 +282,11 @@ int sun05_airlight_table_batch(const float* table, int nu, int nT, double sigma_
             if (near) block_angles_near(Dsv, c, V, near, m, angles);
             else block_angles(Dsv, c, V, m, angles);
             // Most blocks have no flagged lane: skip passes 2 and 3 then.
-            if (table_block(table, nu, nT, float(sigma_t), Dsv_f, angles, m, o, fallback) == 0) continue;
+            const int n_flagged =
+                interp == Interp::Nearest
+                    ? table_block_nearest(table, nu, nT, float(sigma_t), Dsv_f, angles, m, o, fallback)
+                    : table_block_bilinear(table, nu, nT, float(sigma_t), Dsv_f, angles, m, o, fallback);
+            if (n_flagged == 0) continue;
             for (int k = 0; k < m; ++k)
                 if (fallback[k] == 1) idx[n_left++] = k;
             short_block(float(sigma_t), Dsv_f, angles, idx, n_left, value, done);
@@ -265,7 +302,7 @@ int sun05_airlight_table_batch(const float* table, int nu, int nT, double sigma_
         for (int k = 0; k < m; ++k) {
             if (!fallback[k]) continue;
             o[k] = float(sun05_airlight_table(table, nu, nT, sigma_t, Dsv, c[k], double(V[k]),
-                                              near ? double(near[k]) : 0.0));
+                                              near ? double(near[k]) : 0.0, interp));
             ++n_fallback;
         }
     }

@@ -16,6 +16,8 @@
 // to the table's own error (special_f.cpp) amplified the same way.
 #pragma once
 
+#include "special_f.h"
+
 namespace airlight {
 
 // out[k] = sun05_airlight_table(table, nu, nT, sigma_t, Dsv, cos_gamma[k], Dvp[k]) for
@@ -27,9 +29,11 @@ namespace airlight {
 // attenuated from o + t0 d (the near clip plane, as Cycles integrates it), in one
 // evaluation (sun05_geometry_shift); lanes with Dvp <= t0 give 0. Returns the number
 // of lanes evaluated by the scalar fallback (the measure of how often the fast path fails).
+// _interp_: the table lookup (the table's SpecialFTable::interp()); with Nearest a lane may
+// pick the neighbouring sample where float and double rounding of the index differ.
 int sun05_airlight_table_batch(const float* table, int nu, int nT, double sigma_t, double Dsv,
                                const double* cos_gamma, const float* Dvp, int n, float* out,
-                               const float* t0 = nullptr);
+                               const float* t0 = nullptr, Interp interp = Interp::Bilinear);
 
 // Tr[k] = exp(-sigma_t Dvp[k]) (0 for Dvp = inf, 1 for sigma_t = 0), float, ~2e-7
 // relative for exponents down to -87 (0 below).

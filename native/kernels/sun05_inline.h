@@ -58,6 +58,20 @@ inline double special_F_table_Q(const float* data, int nu, int nT, double s, dou
     return (1.0 - fx) * ((1.0 - fy) * r0[0] + fy * r0[1]) + fx * ((1.0 - fy) * r1[0] + fy * r1[1]);
 }
 
+// Nearest-neighbour lookup of Q(s, w): the closest sample, rounded as SpecialFTable::eval_tan
+// does (half away from zero); cheaper (one load, no blend) and ~20x less accurate (special_f.cpp).
+inline double special_F_table_Q_nearest(const float* data, int nu, int nT, double s, double w) {
+    const int i = std::clamp(static_cast<int>(s * (nu - 1) + 0.5), 0, nu - 1);
+    const int j = std::clamp(static_cast<int>(w * (nT - 1) + 0.5), 0, nT - 1);
+    return data[static_cast<long>(i) * nT + j];
+}
+
+// Q(s, w) with the chosen interpolation.
+inline double special_F_table_Q(const float* data, int nu, int nT, double s, double w, Interp interp) {
+    return interp == Interp::Nearest ? special_F_table_Q_nearest(data, nu, nT, s, w)
+                                     : special_F_table_Q(data, nu, nT, s, w);
+}
+
 // Row coordinate s in [0, 1] of _u_ (s = 1 is u = inf).
 inline double special_F_table_s(double u) { return std::sqrt(u / (u + kSpecialFTableK)); }
 
@@ -72,15 +86,15 @@ inline double special_F_table_eval(const float* data, int nu, int nT, double u, 
 // F(u, t0) and F(u, t1) from the table with t = n / h, sharing the row coordinate
 // (w = tau / (1 + tau) with tau = n (1 + u) / h takes one division).
 inline void special_F_table_pair(const float* data, int nu, int nT, double u, double h, double n0, double n1,
-                                 bool n1_is_inf, double* F0, double* F1) {
+                                 bool n1_is_inf, double* F0, double* F1, Interp interp = Interp::Bilinear) {
     const double s = special_F_table_s(u);
     // F = Q w / (1 + u) = Q n / (h + n (1 + u)).
     const double m0 = n0 * (1.0 + u), m1 = n1 * (1.0 + u);
     const double r0 = 1.0 / (h + m0), r1 = 1.0 / (h + m1);
     const double w0 = m0 * r0;
     const double w1 = n1_is_inf ? 1.0 : m1 * r1;
-    *F0 = special_F_table_Q(data, nu, nT, s, w0) * n0 * r0;
-    *F1 = special_F_table_Q(data, nu, nT, s, w1) * (n1_is_inf ? 1.0 / (1.0 + u) : n1 * r1);
+    *F0 = special_F_table_Q(data, nu, nT, s, w0, interp) * n0 * r0;
+    *F1 = special_F_table_Q(data, nu, nT, s, w1, interp) * (n1_is_inf ? 1.0 / (1.0 + u) : n1 * r1);
 }
 
 // Ray geometry of one (view ray, light) pair, see the header comment.
@@ -200,9 +214,11 @@ inline double sun05_behind_limit(double sigma_t, double Dsv, double Dvp) {
 
 // Airlight per unit I0 and albedo, table path. Inputs assumed valid (see sun05_check_inputs).
 // _t0_ > 0: only the part of the view ray beyond x = t0 (the near clip plane), attenuated
-// from there (sun05_geometry_shift); t0 = 0 is the whole ray from the eye.
+// from there (sun05_geometry_shift); t0 = 0 is the whole ray from the eye. _interp_: the
+// table lookup (the table's own SpecialFTable::interp()).
 inline double sun05_airlight_table(const float* data, int nu, int nT, double sigma_t, double Dsv,
-                                   double cos_gamma, double Dvp, double t0 = 0.0) {
+                                   double cos_gamma, double Dvp, double t0 = 0.0,
+                                   Interp interp = Interp::Bilinear) {
     if (!(sigma_t > 0.0) || !(Dvp > t0) || !(t0 >= 0.0)) return 0.0;
     Sun05Geometry g = sun05_geometry(Dsv, cos_gamma, Dvp);
     if (g.behind_limit) {
@@ -217,7 +233,7 @@ inline double sun05_airlight_table(const float* data, int nu, int nT, double sig
     if (g.h > 0.0) {
         const double u = sigma_t * g.h;
         double F0, F1;
-        special_F_table_pair(data, nu, nT, u, g.h, g.n0, g.n1, g.Dvp_inf, &F0, &F1);
+        special_F_table_pair(data, nu, nT, u, g.h, g.n0, g.n1, g.Dvp_inf, &F0, &F1, interp);
         const double G = F1 - F0;
         if (G > sun05::kCancel * F1)
             return sigma_t / (2.0 * sun05::kPi * g.h) * std::exp(-sigma_t * g.a) * G;

@@ -195,3 +195,19 @@ def test06_poll_messages(scene):
             op()
     for cls in fc.classes:
         assert cls.bl_options == {'REGISTER', 'UNDO'}
+
+
+def test07_colours_survive_copy_paste_and_erase(scene):
+    """Per-Gaussian colours (airlight_color, e.g. from emitters) travel with copy/paste; an
+    uncoloured target gets the scene fog colour for its own Gaussians."""
+    rgb = np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]], dtype=np.float32)
+    src = fo.new_fog_object("Src", scene.collection, [[0, 0, 0], [1, 0, 0], [2, 0, 0]], 1.0, 0.5, colors=rgb)
+    dst = fo.new_fog_object("Dst", scene.collection, [[0.0, 0.0, 5.0]], 1.0, 0.2)
+    scene.airlight.color = (0.5, 0.5, 0.5)
+    bpy.context.view_layer.update()
+    _activate(src)
+    fc.write_selection(src, [False, True, True])
+    assert bpy.ops.airlight.fog_copy() == {'FINISHED'}
+    _activate(dst)
+    assert bpy.ops.airlight.fog_paste() == {'FINISHED'}
+    np.testing.assert_allclose(fo.read_colors(dst.data), [[0.5, 0.5, 0.5], rgb[1], rgb[2]], rtol=1e-6)

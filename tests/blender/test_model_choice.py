@@ -13,9 +13,9 @@ def test01_auto_follows_accuracy_target():
     settings.model = 'AUTO'
     settings.accuracy = 1.0   # 1 % > the table path's measured worst case (0.19 %)
     assert model_choice.choose(settings)[0] == "sun05"
-    settings.accuracy = 0.05  # below it: the cheaper of the exact models
+    settings.accuracy = 0.05  # below it: the cheapest of the exact models (the closed form)
     name, _, error = model_choice.choose(settings)
-    assert name == "quadrature" and error <= 0.05 / 100.0
+    assert name == "pegoraro10" and error <= 0.05 / 100.0
 
 
 @pytest.fixture(autouse=True)
@@ -46,7 +46,7 @@ def test04_bake_settings_carry_the_choice():
     settings = bpy.context.scene.airlight
     settings.model = 'AUTO'
     settings.accuracy = 0.05
-    assert bake.bake_settings(bpy.context.scene)["model"] == "quadrature"
+    assert bake.bake_settings(bpy.context.scene)["model"] == "pegoraro10"
     settings.accuracy = 2.0
     assert bake.bake_settings(bpy.context.scene)["model"] == "sun05"
 
@@ -55,7 +55,7 @@ def test05_isotropic_auto_is_unchanged_by_biri06():
     """HG with g = 0 is the isotropic phase: AUTO picks as before (biri06 is no candidate)."""
     settings = bpy.context.scene.airlight
     settings.model = 'AUTO'
-    for accuracy, expected in ((1.0, "sun05"), (0.1, "quadrature"), (0.05, "quadrature")):
+    for accuracy, expected in ((1.0, "sun05"), (0.1, "pegoraro10"), (0.05, "pegoraro10")):
         settings.accuracy = accuracy
         assert model_choice.choose(settings)[0] == expected
     assert model_choice.native_phase(settings) == ("isotropic", 0.0)
@@ -69,9 +69,9 @@ def test06_anisotropic_auto_needs_a_phase_model():
     settings.accuracy = 1.0
     name, _, error = model_choice.choose(settings)
     assert name == "biri06" and error == pytest.approx(8.9e-4)
-    settings.accuracy = 0.05   # below biri06's 8.9e-4
-    assert model_choice.choose(settings)[0] == "quadrature"
-    settings.accuracy = 0.5    # meets 8.9e-4, but not the narrow-lobe 6e-3
+    settings.accuracy = 0.05   # below biri06's 8.9e-4: the closed form (HG g = 0.6 truncated at its order)
+    assert model_choice.choose(settings)[:3:2] == ("pegoraro10", pytest.approx(2.6e-7))
+    settings.accuracy = 0.5    # meets 8.9e-4, but not the narrow-lobe 6e-3; pegoraro10 can't reach |g| = 0.97
     settings.anisotropy = -0.97
     name, _, error = model_choice.choose(settings)
     assert name == "quadrature" and error <= 0.005

@@ -76,11 +76,11 @@ def test04_property_limits_clamp():
     s.anisotropy = -1.5
     assert s.anisotropy == pytest.approx(-0.99)
     for name in ("enabled", "density", "color", "model", "accuracy", "aa_samples", "threads",
-                 "cache_dir", "auto_composite", "phase", "anisotropy"):
+                 "cache_dir", "auto_composite", "phase", "anisotropy", "use_fog_top", "fog_top"):
         description = props[name].description
         assert description and description[0].isupper(), name
     assert {item.identifier for item in props["model"].enum_items} == {
-        'AUTO', 'SUN05', 'SUN05_EXACT', 'QUADRATURE', 'BIRI06'}
+        'AUTO', 'SUN05', 'SUN05_EXACT', 'QUADRATURE', 'BIRI06', 'BASELINE', 'PEGORARO10'}
     assert {item.identifier for item in props["phase"].enum_items} == {
         'HENYEY_GREENSTEIN', 'RAYLEIGH', 'MIE_HAZY', 'MIE_MURKY'}
     assert props["phase"].default == 'HENYEY_GREENSTEIN' and props["anisotropy"].default == 0.0

@@ -1,0 +1,544 @@
+// preview.cpp: see preview.h. Comments name the preview.py / gpu_shaders.py code each
+// step mirrors.
+#include "preview.h"
+
+#include <glm/gtc/matrix_transform.hpp>
+#include <glm/gtc/type_ptr.hpp>
+
+#include <cmath>
+#include <cstring>
+#include <cstdio>
+#include <fstream>
+#include <stdexcept>
+
+namespace {
+
+constexpr int kUpsampleBilateralExact = 2;  // preview.UPSAMPLE_BILATERAL_EXACT (default)
+constexpr int kRbfTexWidth = 1024;          // gpu_shaders.RBF_TEX_WIDTH
+
+bool file_exists(const std::string &path)
+{
+  std::ifstream f(path);
+  return bool(f);
+}
+
+// Axis-aligned box of half-size _h_ centred at _c_, appended to _v_ / _t_.
+void add_box(std::vector<float> &v, std::vector<unsigned> &t, glm::vec3 c, glm::vec3 h)
+{
+  unsigned base = static_cast<unsigned>(v.size() / 3);
+  for (int i = 0; i < 8; ++i) {
+    v.push_back(c.x + ((i & 1) ? h.x : -h.x));
+    v.push_back(c.y + ((i & 2) ? h.y : -h.y));
+    v.push_back(c.z + ((i & 4) ? h.z : -h.z));
+  }
+  const unsigned q[6][4] = {{0, 2, 3, 1}, {4, 5, 7, 6}, {0, 1, 5, 4},
+                            {2, 6, 7, 3}, {0, 4, 6, 2}, {1, 3, 7, 5}};
+  for (const auto &f : q) {
+    unsigned a[6] = {f[0], f[1], f[2], f[0], f[2], f[3]};
+    for (unsigned k : a) t.push_back(base + k);
+  }
+}
+
+// ALPHA_PREMULT of gpu.state.blend_set.
+void blend_alpha_premult()
+{
+  glEnable(GL_BLEND);
+  glBlendFuncSeparate(GL_ONE, GL_ONE_MINUS_SRC_ALPHA, GL_ONE, GL_ONE_MINUS_SRC_ALPHA);
+}
+
+}  // namespace
+
+View make_view(int w, int h)
+{
+  View v;
+  v.eye = glm::vec3(1.0f, -12.0f, 5.0f);
+  glm::vec3 target(0.0f, 0.0f, 1.0f);
+  float aspect = float(w) / float(h);
+  float half_w = 18.0f / 50.0f;  // tan(fov_x / 2) with the sensor on the wider side
+  float tan_half_y = (aspect >= 1.0f) ? half_w / aspect : half_w;
+  v.clip_start = 0.1f;
+  v.tan_half = glm::vec2(tan_half_y * aspect, tan_half_y);
+  glm::mat4 proj = glm::perspective(2.0f * std::atan(tan_half_y), aspect, v.clip_start, 100.0f);
+  glm::mat4 view = glm::lookAt(v.eye, target, glm::vec3(0.0f, 0.0f, 1.0f));
+  v.persp = proj * view;
+  v.inv_persp = glm::inverse(v.persp);
+  v.axis = glm::normalize(target - v.eye);
+  return v;
+}
+
+std::string Preview::src(const std::string &name) const { return read_text_file(dir + "/" + name); }
+
+// gpu_shaders.create_fullscreen_shader with the preview's inputs (v1: preview._FOG_INPUTS,
+// v2: create_preview_shader).
+CreateInfo Preview::fullscreen_info(const std::string &name, const std::string &frag,
+                                   std::vector<std::pair<std::string, std::string>> defines)
+{
+  CreateInfo ci;
+  ci.name = name;
+  ci.vertex_in = {{"vec2", "pos"}};
+  ci.iface_name = "airlight_" + name + "_iface";
+  ci.iface = {{"smooth", "vec2", "uv"}};
+  if (!ubo)
+    ci.push_constants = {{"mat4", "inv_persp"}, {"vec4", "eye"},      {"vec4", "clip"},
+                         {"vec4", "viewport"},  {"float", "sigma_t"}, {"int", "light_count"},
+                         {"int", "scale"},      {"int", "mode"}};
+  ci.samplers = {"Ftab", "depth_tex", "lights", "fog_lo"};
+  std::string libs = src("sun05_airlight.glsl") + "\n";
+  if (v2) {
+    if (!ubo) ci.push_constants.push_back({"vec4", "phase"});
+    ci.samplers.insert(ci.samplers.end(), {"gauss_acc", "gauss_near", "Gtab"});
+    libs += src("biri06_airlight.glsl") + "\n";
+  }
+  if (spots) {
+    ci.samplers.push_back("spots");
+    libs += src("spot_airlight.glsl") + "\n";
+  }
+  if (suns) {
+    ci.samplers.push_back("suns");
+    libs += src("sun_airlight.glsl") + "\n";
+  }
+  libs += src("preview_common.glsl") + "\n";
+  ci.defines = std::move(defines);
+  if (ubo) add_ubo(ci, false);
+  ci.vertex_source = src("fullscreen_vert.glsl");
+  ci.fragment_source = libs + src(frag);
+  return ci;
+}
+
+GLuint Preview::fullscreen(const std::string &name, const std::string &frag,
+                           std::vector<std::pair<std::string, std::string>> defines)
+{
+  return create_info_program(fullscreen_info(name, frag, std::move(defines)), target);
+}
+
+// gpu_shaders._add_ubo with PREVIEW_UBO (or DISTANCE_UBO): typedef, block at slot 0,
+// and a define per member alias.
+void Preview::add_ubo(CreateInfo &ci, bool dist) const
+{
+  if (dist) {
+    ci.typedef_source = src("preview_distance_params.glsl");
+    ci.uniform_bufs.push_back({0, "AirlightDistanceParams", "dv"});
+    ci.defines.insert(ci.defines.end(), {{"eye", "dv.u_eye"}, {"axis", "dv.u_axis"}});
+    return;
+  }
+  ci.typedef_source = src("preview_params.glsl");
+  ci.uniform_bufs.push_back({0, "AirlightPreviewParams", "pv"});
+  ci.defines.insert(ci.defines.end(),
+                    {{"inv_persp", "pv.u_inv_persp"}, {"persp", "pv.u_persp"},
+                     {"eye", "pv.u_eye"}, {"clip", "pv.u_clip"}, {"viewport", "pv.u_viewport"},
+                     {"pv_phase", "pv.u_phase"}, {"pv_sigma_t", "pv.u_fparams.x"},
+                     {"light_count", "pv.u_iparams.x"}, {"pv_scale", "pv.u_iparams.y"},
+                     {"pv_mode", "pv.u_iparams.z"}});
+}
+
+// A fresh std140 block at binding 0 for the next draw (Blender's GPUUniformBuf per bind).
+void Preview::bind_ubo(const void *data, size_t bytes)
+{
+  if (ubo_ring.empty()) {
+    ubo_ring.resize(32);
+    glCreateBuffers(GLsizei(ubo_ring.size()), ubo_ring.data());
+    for (GLuint b : ubo_ring) glNamedBufferData(b, 256, nullptr, GL_DYNAMIC_DRAW);
+  }
+  GLuint b = ubo_ring[ubo_next++ % ubo_ring.size()];
+  glNamedBufferSubData(b, 0, GLsizeiptr(bytes), data);
+  glBindBufferBase(GL_UNIFORM_BUFFER, 0, b);
+}
+
+// preview._shader's leading defines: the 'DRAWN' depth source, isotropic, no spots/suns.
+std::vector<std::pair<std::string, std::string>> Preview::head_defines() const
+{
+  std::vector<std::pair<std::string, std::string>> d = {{"PREVIEW_WINDOW_DEPTH", "0"}};
+  if (v2) d.push_back({"PREVIEW_PHASE", "0"});
+  if (spots) d.push_back({"PREVIEW_SPOTS", "0"});
+  if (suns) d.push_back({"PREVIEW_SUNS", "0"});
+  return d;
+}
+
+GLuint Preview::fog_gauss_program(int S)
+{
+  auto it = fog_gauss.find(S);
+  if (it != fog_gauss.end()) return it->second;
+  // preview._shader('fog', False, ('gauss', S))
+  std::vector<std::pair<std::string, std::string>> defs = head_defines();
+  defs.insert(defs.end(), {{"PREVIEW_LOWRES", "0"}, {"PREVIEW_GAUSSIANS", "1"},
+                           {"PREVIEW_GAUSS_SCALE", std::to_string(S)}});
+  GLuint p = fullscreen("preview_fog", "fog_preview_frag.glsl", defs);
+  fog_gauss[S] = p;
+  return p;
+}
+
+void Preview::build(const std::string &shader_dir, const std::string &ftable_path, int n_lights,
+                    int width, int height)
+{
+  dir = shader_dir;
+  v2 = file_exists(dir + "/rbf_splat_vert.glsl");
+  ubo = v2 && file_exists(dir + "/preview_params.glsl");
+  spots = v2 && file_exists(dir + "/spot_airlight.glsl");
+  suns = v2 && file_exists(dir + "/sun_airlight.glsl");
+  // gpu_shaders.create_distance_shader
+  CreateInfo d;
+  d.name = "distance";
+  d.vertex_in = {{"vec3", "pos"}};
+  d.iface_name = "airlight_distance_iface";
+  d.iface = {{"smooth", "vec3", "wpos"}};
+  d.push_constants = {{"mat4", "model"}, {"mat4", "persp"}};
+  if (ubo) add_ubo(d, true);
+  else d.push_constants.insert(d.push_constants.end(), {{"vec4", "eye"}, {"vec4", "axis"}});
+  d.vertex_source = src("preview_distance_vert.glsl");
+  d.fragment_source = src("preview_distance_frag.glsl");
+  distance = create_info_program(d, target);
+  // preview._shader for the 'DRAWN' depth source (PREVIEW_WINDOW_DEPTH 0), isotropic.
+  using Defs = std::vector<std::pair<std::string, std::string>>;
+  const Defs head = head_defines();
+  auto with = [&](Defs extra, bool gauss_off) {
+    Defs all = head;
+    all.insert(all.end(), extra.begin(), extra.end());
+    if (v2 && gauss_off) all.push_back({"PREVIEW_GAUSSIANS", "0"});
+    return all;
+  };
+  if (v2) {
+    fog = fullscreen("preview_fog", "fog_preview_frag.glsl",
+                     with({{"PREVIEW_LOWRES", "0"}, {"PREVIEW_GAUSSIANS", "0"},
+                           {"PREVIEW_GAUSS_SCALE", "1"}}, false));
+    fog_lo = fullscreen("preview_fog", "fog_preview_frag.glsl",
+                        with({{"PREVIEW_LOWRES", "1"}, {"PREVIEW_GAUSSIANS", "0"},
+                              {"PREVIEW_GAUSS_SCALE", "1"}}, false));
+  }
+  else {
+    fog = fullscreen("preview_fog", "fog_preview_frag.glsl", with({{"PREVIEW_LOWRES", "0"}}, false));
+    fog_lo = fullscreen("preview_fog", "fog_preview_frag.glsl", with({{"PREVIEW_LOWRES", "1"}}, false));
+  }
+  up_mark = fullscreen("preview_upsample", "preview_upsample_frag.glsl",
+                       with({{"PREVIEW_EXACT_PASS", "0"}, {"PREVIEW_MARK", "1"}}, true));
+  up_exact = fullscreen("preview_upsample", "preview_upsample_frag.glsl",
+                        with({{"PREVIEW_EXACT_PASS", "1"}, {"PREVIEW_MARK", "0"}}, true));
+  composite = fullscreen("preview_composite", "preview_composite_frag.glsl", with({}, true));
+
+  // gpu_shaders.fullscreen_batch
+  quad = make_mesh({{2, {-1, -1, 1, -1, 1, 1, -1, 1}}}, {0, 1, 2, 0, 2, 3});
+
+  // Floor (plane of size 40) and the 2 m cube at (0, 0, 1), one batch each (one draw
+  // per object, as preview._scene_instances).
+  std::vector<float> verts = {-20, -20, 0, 20, -20, 0, 20, 20, 0, -20, 20, 0};
+  std::vector<unsigned> tris = {0, 1, 2, 0, 2, 3};
+  object_offsets = {0};
+  object_counts = {6};
+  add_box(verts, tris, glm::vec3(0, 0, 1), glm::vec3(1, 1, 1));
+  object_offsets.push_back(6);
+  object_counts.push_back(36);
+  scene = make_mesh({{3, verts}}, tris);
+
+  // F table: int32 nu, int32 nT, float32 data[nu][nT] (make_ftable.py from
+  // _native.special_F_table()); width nT, height nu, as gpu_shaders.f_table_texture.
+  FILE *f = std::fopen(ftable_path.c_str(), "rb");
+  if (f == nullptr) throw std::runtime_error("cannot read F table " + ftable_path);
+  int dims[2] = {0, 0};
+  if (std::fread(dims, sizeof(int), 2, f) != 2 || dims[0] < 2 || dims[1] < 2 ||
+      dims[0] > 65536 || dims[1] > 65536) {
+    std::fclose(f);
+    throw std::runtime_error("bad F table header in " + ftable_path);
+  }
+  std::vector<float> data(size_t(dims[0]) * dims[1]);
+  const size_t got = std::fread(data.data(), sizeof(float), data.size(), f);
+  std::fclose(f);
+  if (got != data.size()) throw std::runtime_error("short F table " + ftable_path);
+  ftab = gl_texture(dims[1], dims[0], GL_R32F, data.data(), GL_RED);
+
+  // Point lights of bench_preview.py: 1000 W white, I0 = P / (4 pi), albedo 1; row 1
+  // alpha = C_sv = 1 (preview._lights_texture without fog objects).
+  light_count = n_lights;
+  const int n = std::max(1, n_lights);
+  std::vector<float> ltex(size_t(2) * n * 4, 0.0f);
+  for (int i = 0; i < n; ++i) ltex[(size_t(n) + i) * 4 + 3] = 1.0f;
+  for (int i = 0; i < n_lights; ++i) {
+    float x = -6.0f + 12.0f * i / float(std::max(1, n_lights - 1));
+    float y = 2.0f * float(i % 3) - 2.0f;
+    float *p = &ltex[size_t(i) * 4], *c = &ltex[(size_t(n) + i) * 4];
+    p[0] = x, p[1] = y, p[2] = 2.5f;
+    light_positions.emplace_back(x, y, 2.5f);
+    c[0] = c[1] = c[2] = 1000.0f / (4.0f * float(M_PI));
+  }
+  lights = gl_texture(n, 2, GL_RGBA32F, ltex.data());
+  distance_target = make_target(width, height, GL_R32F, true);
+}
+
+void Preview::build_gaussians(const GaussianSet &g)
+{
+  if (!v2) throw std::runtime_error("the shader folder has no Gaussian splat pass (v1 shaders)");
+  // gpu_shaders.create_rbf_splat_shader(window_depth=False)
+  CreateInfo s;
+  s.name = "rbf_splat";
+  s.vertex_in = {{"vec2", "corner"}, {"float", "gid"}};
+  s.iface_name = "airlight_rbf_splat_iface";
+  s.iface = {{"flat", "int", "gi"}};
+  if (ubo) add_ubo(s, false);
+  else
+    s.push_constants = {{"mat4", "persp"},      {"mat4", "inv_persp"}, {"vec4", "eye"},
+                        {"vec4", "clip"},       {"vec4", "viewport"},  {"float", "sigma_t"},
+                        {"int", "light_count"}, {"int", "scale"},      {"int", "mode"},
+                        {"vec4", "phase"}};
+  s.samplers = {"Ftab", "depth_tex", "lights", "gauss", "gauss_f1"};
+  s.defines.insert(s.defines.end(), {{"RBF_TEX_WIDTH", std::to_string(kRbfTexWidth)},
+                                     {"PREVIEW_WINDOW_DEPTH", "0"},
+                                     {"PREVIEW_PHASE", "0"}});
+  if (spots) s.defines.push_back({"PREVIEW_SPOTS", "0"});
+  if (suns) s.defines.push_back({"PREVIEW_SUNS", "0"});
+  s.fragment_out = {{"vec4", "frag_color"}, {"vec4", "frag_near"}};
+  s.vertex_source = src("rbf_splat_vert.glsl");
+  s.fragment_source = src("sun05_airlight.glsl") + "\n" + src("preview_common.glsl") + "\n" +
+                      src("rbf_gaussian.glsl") + "\n" + src("rbf_splat_frag.glsl") + "\n";
+  splat = create_info_program(s, target);
+
+  // gpu_shaders.rbf_splat_batch: 4 vertices and 2 triangles per Gaussian.
+  const int n = int(g.size());
+  gauss_count = n;
+  std::vector<float> corner, gid;
+  std::vector<unsigned> tris;
+  const float qc[8] = {-1, -1, 1, -1, 1, 1, -1, 1};
+  const unsigned qt[6] = {0, 1, 2, 0, 2, 3};
+  for (int i = 0; i < n; ++i) {
+    corner.insert(corner.end(), qc, qc + 8);
+    for (int k = 0; k < 4; ++k) gid.push_back(float(i));
+    for (unsigned k : qt) tris.push_back(unsigned(i) * 4 + k);
+  }
+  splat_batch = make_mesh({{2, corner}, {1, gid}}, tris);
+
+  // gpu_shaders.rbf_data_textures
+  const int W = kRbfTexWidth, blocks = std::max(1, (n + W - 1) / W);
+  const int L = std::max(1, light_count);
+  std::vector<float> gauss(size_t(blocks) * 2 * W * 4, 0.0f), f1(size_t(blocks) * L * W, 0.0f);
+  for (int i = 0; i < n; ++i) {
+    const int blk = i / W, col = i % W;
+    float *r0 = &gauss[(size_t(blk * 2) * W + col) * 4];
+    float *r1 = &gauss[(size_t(blk * 2 + 1) * W + col) * 4];
+    r0[0] = float(g.b[i].x), r0[1] = float(g.b[i].y), r0[2] = float(g.b[i].z), r0[3] = float(g.a[i]);
+    r1[0] = float(g.c[i]), r1[1] = float(g.R[i]);
+    for (int l = 0; l < light_count; ++l)
+      f1[size_t(blk * L + l) * W + col] = float(g.f1[size_t(l) * n + i]);
+  }
+  gauss_tex = gl_texture(W, blocks * 2, GL_RGBA32F, gauss.data());
+  f1_tex = gl_texture(W, blocks * L, GL_R32F, f1.data(), GL_RED);
+
+  // preview._lights_texture(..., Csv)
+  const int nl = std::max(1, light_count);
+  std::vector<float> ltex(size_t(2) * nl * 4, 0.0f);
+  glGetTextureImage(lights, 0, GL_RGBA, GL_FLOAT, GLsizei(ltex.size() * sizeof(float)), ltex.data());
+  for (int l = 0; l < light_count; ++l) ltex[(size_t(nl) + l) * 4 + 3] = float(g.Csv[l]);
+  lights_csv = gl_texture(nl, 2, GL_RGBA32F, ltex.data());
+}
+
+void Preview::bind_inputs(GLuint prog, const View &v, glm::vec4 viewport, float sigma_t, int scale,
+                          GLuint fog_lo_tex, GLuint lights_tex, const Target *gauss) const
+{
+  glUseProgram(prog);
+  if (ubo) {
+    // gpu_shaders.preview_params_ubo: 224 bytes std140.
+    float f[56] = {};
+    std::memcpy(f, glm::value_ptr(v.inv_persp), 64);
+    std::memcpy(f + 16, glm::value_ptr(v.persp), 64);
+    const glm::vec4 eye4(v.eye, 1.0f), clip4(v.axis, v.clip_start), phase4(0, 0, 1, 1);
+    std::memcpy(f + 32, glm::value_ptr(eye4), 16);
+    std::memcpy(f + 36, glm::value_ptr(clip4), 16);
+    std::memcpy(f + 40, glm::value_ptr(viewport), 16);
+    std::memcpy(f + 44, glm::value_ptr(phase4), 16);
+    f[48] = sigma_t;
+    const int ip[4] = {light_count, scale, kUpsampleBilateralExact, 0};
+    std::memcpy(f + 52, ip, 16);
+    const_cast<Preview *>(this)->bind_ubo(f, sizeof(f));
+  }
+  set_uniform(prog, "persp", v.persp);
+  set_uniform(prog, "inv_persp", v.inv_persp);
+  set_uniform(prog, "eye", glm::vec4(v.eye, 1.0f));
+  set_uniform(prog, "clip", glm::vec4(v.axis, v.clip_start));
+  set_uniform(prog, "viewport", viewport);
+  set_uniform(prog, "sigma_t", sigma_t);
+  set_uniform(prog, "light_count", light_count);
+  set_uniform(prog, "scale", scale);
+  set_uniform(prog, "phase", glm::vec4(0.0f, 0.0f, 1.0f, 1.0f));  // isotropic
+  glBindTextureUnit(0, ftab);
+  glBindTextureUnit(1, distance_target.colour[0]);
+  glBindTextureUnit(2, lights_tex);
+  if (fog_lo_tex != 0) {
+    set_uniform(prog, "mode", kUpsampleBilateralExact);
+    glBindTextureUnit(3, fog_lo_tex);
+  }
+  if (v2) {
+    if (gauss != nullptr) {
+      glBindTextureUnit(4, gauss->colour[0]);
+      glBindTextureUnit(5, gauss->colour[1]);
+    }
+    glBindTextureUnit(6, ftab);  // Gtab: the F table stands in for the isotropic phase
+    if (spots) glBindTextureUnit(7, ftab);  // unread with PREVIEW_SPOTS 0
+    if (suns) glBindTextureUnit(spots ? 8 : 7, ftab);
+  }
+}
+
+void Preview::draw_distance(const View &v)
+{
+  glBindFramebuffer(GL_FRAMEBUFFER, distance_target.fbo);
+  glViewport(0, 0, distance_target.w, distance_target.h);
+  const float clear[4] = {INFINITY, 0, 0, 0};
+  glClearNamedFramebufferfv(distance_target.fbo, GL_COLOR, 0, clear);
+  glClearNamedFramebufferfi(distance_target.fbo, GL_DEPTH_STENCIL, 0, 1.0f, 0);
+  glDisable(GL_BLEND);
+  glEnable(GL_DEPTH_TEST);
+  glDepthFunc(GL_LEQUAL);
+  glDepthMask(GL_TRUE);
+  glUseProgram(distance);
+  set_uniform(distance, "persp", v.persp);
+  const glm::vec4 eye4(v.eye, 1.0f), axis4(v.axis, -glm::dot(v.axis, v.eye));
+  if (ubo) {
+    float f[8];
+    std::memcpy(f, glm::value_ptr(eye4), 16);
+    std::memcpy(f + 4, glm::value_ptr(axis4), 16);
+    bind_ubo(f, sizeof(f));
+  }
+  set_uniform(distance, "eye", eye4);
+  set_uniform(distance, "axis", axis4);
+  glBindVertexArray(scene.vao);
+  for (size_t i = 0; i < object_offsets.size(); ++i) {
+    set_uniform(distance, "model", glm::mat4(1.0f));
+    glDrawElements(GL_TRIANGLES, object_counts[i], GL_UNSIGNED_INT,
+                   reinterpret_cast<void *>(size_t(object_offsets[i]) * sizeof(unsigned)));
+  }
+  glDisable(GL_DEPTH_TEST);
+  glDepthMask(GL_FALSE);
+  stamp("distance");
+}
+
+// preview._draw_gaussians
+void Preview::draw_splat(const View &v, int w, int h, float sigma_t, int S)
+{
+  const int lw = (w + S - 1) / S, lh = (h + S - 1) / S;
+  if (gauss_target.w != lw || gauss_target.h != lh) {
+    if (gauss_target.fbo) free_target(gauss_target);
+    gauss_target = make_target(lw, lh, GL_RGBA32F, false, 2);
+  }
+  glBindFramebuffer(GL_FRAMEBUFFER, gauss_target.fbo);
+  glViewport(0, 0, lw, lh);
+  const float zero[4] = {0, 0, 0, 0};
+  glClearNamedFramebufferfv(gauss_target.fbo, GL_COLOR, 0, zero);
+  glClearNamedFramebufferfv(gauss_target.fbo, GL_COLOR, 1, zero);
+  glEnable(GL_BLEND);
+  glBlendFunc(GL_ONE, GL_ONE);  // ADDITIVE_PREMULT
+  bind_inputs(splat, v, glm::vec4(0, 0, float(w), float(h)), sigma_t, S, 0, lights_csv, nullptr);
+  glBindTextureUnit(3, gauss_tex);
+  glBindTextureUnit(4, f1_tex);
+  glBindTextureUnit(5, 0);  // no stale binding of the target being drawn
+  GLuint q = 0;
+  if (count_samples) {
+    glGenQueries(1, &q);
+    glBeginQuery(GL_SAMPLES_PASSED, q);
+  }
+  ::draw(splat_batch);
+  if (count_samples) {
+    glEndQuery(GL_SAMPLES_PASSED);
+    GLuint64 n = 0;
+    glGetQueryObjectui64v(q, GL_QUERY_RESULT, &n);
+    splat_samples = n;
+    glDeleteQueries(1, &q);
+  }
+  stamp("splat");
+}
+
+void Preview::draw_fog(const View &v, const Target &viewport, float sigma_t, int scale, bool gaussians)
+{
+  const int w = viewport.w, h = viewport.h;
+  const glm::vec4 region(0.0f, 0.0f, float(w), float(h));
+  glDisable(GL_DEPTH_TEST);
+  glDepthMask(GL_FALSE);
+  if (gaussians) {
+    // Splat at 1/scale, then the fog pass at full resolution with the sums.
+    draw_splat(v, w, h, sigma_t, scale);
+    GLuint prog = fog_gauss_program(scale);
+    glBindFramebuffer(GL_FRAMEBUFFER, viewport.fbo);
+    glViewport(0, 0, w, h);
+    blend_alpha_premult();
+    bind_inputs(prog, v, region, sigma_t, 1, 0, lights_csv, &gauss_target);
+    ::draw(quad);
+    stamp("fog");
+    return;
+  }
+  if (scale == 1) {
+    blend_alpha_premult();
+    bind_inputs(fog, v, region, sigma_t, scale, 0, lights, nullptr);
+    ::draw(quad);
+    stamp("fog");
+    return;
+  }
+  const int lw = (w + scale - 1) / scale, lh = (h + scale - 1) / scale;
+  if (lo_scale != scale || lo_target.w != lw || lo_target.h != lh) {
+    if (lo_target.fbo) free_target(lo_target);
+    lo_target = make_target(lw, lh, GL_RGBA32F, false);
+    lo_scale = scale;
+  }
+  if (full_target.w != w || full_target.h != h) {
+    if (full_target.fbo) free_target(full_target);
+    full_target = make_target(w, h, GL_RGBA32F, true);
+  }
+  glDisable(GL_BLEND);
+  glBindFramebuffer(GL_FRAMEBUFFER, lo_target.fbo);
+  glViewport(0, 0, lw, lh);
+  bind_inputs(fog_lo, v, region, sigma_t, scale, 0, lights, nullptr);
+  ::draw(quad);
+  stamp("fog_lo");
+  // Blend where the samples share the pixel's surface, mark the rest with depth 0,
+  // evaluate those exactly (quad at depth 0.5 tested GREATER), composite.
+  glBindFramebuffer(GL_FRAMEBUFFER, full_target.fbo);
+  glViewport(0, 0, w, h);
+  glEnable(GL_DEPTH_TEST);
+  glDepthFunc(GL_ALWAYS);
+  glDepthMask(GL_TRUE);
+  bind_inputs(up_mark, v, region, sigma_t, scale, lo_target.colour[0], lights, nullptr);
+  ::draw(quad);
+  stamp("mark");
+  glDepthFunc(GL_GREATER);
+  glDepthMask(GL_FALSE);
+  bind_inputs(up_exact, v, region, sigma_t, scale, lo_target.colour[0], lights, nullptr);
+  GLuint q = 0;
+  if (count_samples) {
+    glGenQueries(1, &q);
+    glBeginQuery(GL_SAMPLES_PASSED, q);
+  }
+  ::draw(quad);
+  if (count_samples) {
+    glEndQuery(GL_SAMPLES_PASSED);
+    GLuint64 n = 0;
+    glGetQueryObjectui64v(q, GL_QUERY_RESULT, &n);
+    exact_samples = n;
+    glDeleteQueries(1, &q);
+  }
+  stamp("exact");
+  glDisable(GL_DEPTH_TEST);
+  glBindFramebuffer(GL_FRAMEBUFFER, viewport.fbo);
+  glViewport(0, 0, w, h);
+  blend_alpha_premult();
+  bind_inputs(composite, v, region, sigma_t, scale, full_target.colour[0], lights, nullptr);
+  ::draw(quad);
+  stamp("composite");
+}
+
+void Preview::draw_fog_compute(const View &v, const Target &viewport, float sigma_t)
+{
+  const int w = viewport.w, h = viewport.h;
+  if (fog_compute == 0) {
+    std::vector<std::pair<std::string, std::string>> defs = head_defines();
+    defs.push_back({"PREVIEW_LOWRES", "0"});
+    if (v2) defs.insert(defs.end(), {{"PREVIEW_GAUSSIANS", "0"}, {"PREVIEW_GAUSS_SCALE", "1"}});
+    fog_compute = create_info_compute_program(
+        fullscreen_info("preview_fog_compute", "fog_preview_frag.glsl", defs), target);
+    compute_image = gl_texture(w, h, GL_RGBA32F);
+  }
+  const glm::vec4 region(0.0f, 0.0f, float(w), float(h));
+  bind_inputs(fog_compute, v, region, sigma_t, 1, 0, lights, nullptr);
+  glBindImageTexture(0, compute_image, 0, GL_FALSE, 0, GL_WRITE_ONLY, GL_RGBA32F);
+  glDispatchCompute(GLuint((w + 7) / 8), GLuint((h + 7) / 8), 1);
+  glMemoryBarrier(GL_TEXTURE_FETCH_BARRIER_BIT);
+  stamp("fog_compute");
+  glBindFramebuffer(GL_FRAMEBUFFER, viewport.fbo);
+  glViewport(0, 0, w, h);
+  blend_alpha_premult();
+  bind_inputs(composite, v, region, sigma_t, 1, compute_image, lights, nullptr);
+  ::draw(quad);
+  stamp("composite");
+}

@@ -1,0 +1,335 @@
+"""Gaussian fog (fog objects) in the viewport preview (preview_gaussians.py,
+shaders/rbf_*.glsl).
+
+- test01: GLSL vs C++ on the same float32 inputs: rbf_erf_diff vs `_native.erf_diff`,
+  rbf_erf vs math.erf, the Gaussian line integral vs `RbfMedium.optical_depth(culled=False)`
+  and Fogshop's per-Gaussian L_i (eq. 11) vs `RbfMedium.airlight(model="fogshop")` of a
+  one-Gaussian medium with beta0 = 0 (so f1 = 1 and the homogeneous term is 0).
+- test02: the preview (`preview.draw_fog` with Gaussians: splat pass + composite) vs
+  `_native.bake` of the same view, Gaussians, lights and clip range at full resolution
+  (model "sun05": the same Fogshop approximation): mean relative difference of the
+  airlight <= 5 % (the figure is printed), transmittance likewise. One broad Gaussian
+  holds the camera (the full-screen splat path). Images are saved under
+  out/test_artifacts/ (or $AIRLIGHT_TEST_ARTIFACTS).
+"""
+
+import math
+import os
+
+import bpy
+import gpu
+import numpy as np
+import pytest
+from mathutils import Matrix, Vector
+
+from conftest import draw_fullscreen
+
+N = 48  # N x N input points in the agreement test
+W, H = 160, 120
+SIGMA_T = 0.03
+ALBEDO = (1.0, 0.8, 0.6)
+
+
+@pytest.fixture(scope="module")
+def addon():
+    import airlight
+    if not hasattr(bpy.types.Scene, "airlight"):
+        airlight.register()
+    from airlight import preview
+    return preview
+
+
+def _texture(gs, q):
+    return gs.float_texture(np.ascontiguousarray(q, np.float32))
+
+
+def test01_glsl_matches_cpp(gs, native):
+    rng = np.random.default_rng(9)
+    n = N * N
+    # erf_diff arguments: both signs, straddling, short intervals, far tails, +inf.
+    x1 = rng.uniform(-6.0, 6.0, n)
+    x2 = x1 + 10.0 ** rng.uniform(-4.0, 1.0, n)
+    x2[rng.uniform(0, 1, n) < 0.05] = np.inf
+    # Gaussians and rays: centre near the ray, distance and scale over a few decades.
+    a = 10.0 ** rng.uniform(-1.0, 0.7, n)
+    c = 10.0 ** rng.uniform(-2.0, 0.5, n)
+    o = rng.uniform(-5.0, 5.0, (n, 3))
+    r = rng.normal(size=(n, 3))
+    r /= np.linalg.norm(r, axis=1, keepdims=True)
+    t_centre = rng.uniform(-2.0, 20.0, n)
+    perp = rng.normal(size=(n, 3))
+    perp -= (perp * r).sum(1, keepdims=True) * r
+    perp /= np.linalg.norm(perp, axis=1, keepdims=True)
+    b = o + t_centre[:, None] * r + (rng.uniform(0.0, 2.0, n) / a)[:, None] * perp
+    D = 10.0 ** rng.uniform(-0.5, 1.6, n)
+    s = b + rng.normal(size=(n, 3)) * rng.uniform(0.5, 6.0, n)[:, None]
+    inputs = [np.stack([x1, x2, D, np.ones(n)], -1), np.concatenate([b, a[:, None]], -1),
+              np.concatenate([o, c[:, None]], -1), np.concatenate([r, np.zeros((n, 1))], -1),
+              np.concatenate([s, np.zeros((n, 1))], -1)]
+    inputs = [q.astype(np.float32).reshape(N, N, 4) for q in inputs]
+    # The C++ runs on the float32-rounded inputs (directions renormalised in double).
+    q0, q1, q2, q3, q4 = (q.reshape(n, 4).astype(np.float64) for q in inputs)
+    x1, x2, D = q0[:, 0], q0[:, 1], q0[:, 2]
+    b, a, o, c, s = q1[:, :3], q1[:, 3], q2[:, :3], q2[:, 3], q4[:, :3]
+    r = q3[:, :3] / np.linalg.norm(q3[:, :3], axis=1, keepdims=True)
+
+    shader = gs.create_rbf_test_shader()
+    batch = gs.fullscreen_batch(shader)
+    textures = [_texture(gs, q) for q in inputs]
+    off = gpu.types.GPUOffScreen(N, N, format='RGBA32F')
+    try:
+        draw_fullscreen(off, shader, batch,
+                        samplers=[(f"in{k}", t) for k, t in enumerate(textures)])
+        got = gs.read_offscreen(off).reshape(n, 4).astype(np.float64)
+    finally:
+        off.free()
+
+    ref_diff = native.erf_diff(x1, x2)
+    ref_erf = np.array([math.erf(v) for v in x1])
+    ref_T = np.empty(n)
+    ref_L = np.empty(n)
+    for j in range(n):
+        medium = native.RbfMedium(b[j:j + 1], a[j:j + 1], c[j:j + 1], beta0=0.0)
+        ref_T[j] = medium.optical_depth(o[j:j + 1], (o[j] + D[j] * r[j])[None], culled=False)[0]
+        ref_L[j] = medium.airlight(s[j], o[j], r[j:j + 1], D[j:j + 1], model="fogshop")[0]
+
+    def stats(name, got_v, ref_v, floor_fraction):
+        floor = floor_fraction * np.max(np.abs(ref_v))
+        use = np.abs(ref_v) > floor
+        rel = np.abs(got_v[use] - ref_v[use]) / np.abs(ref_v[use])
+        absd = np.abs(got_v - ref_v)
+        print(f"\n{name}: {use.sum()} points, rel mean {rel.mean():.3g} p99 "
+              f"{np.percentile(rel, 99):.3g} max {rel.max():.3g}; abs max {absd.max():.3g}")
+        return rel, absd
+
+    rel_d, abs_d = stats("rbf_erf_diff vs erf_diff", got[:, 0], ref_diff, 1e-30)
+    rel_e, abs_e = stats("rbf_erf vs math.erf", got[:, 1], ref_erf, 1e-30)
+    rel_T, _ = stats("line integral vs RbfMedium.optical_depth", got[:, 2], ref_T, 1e-6)
+    # L_i: the C++ culls Gaussians whose line integral is below 1e-7; compare above a floor.
+    rel_L, _ = stats("Fogshop L_i vs RbfMedium.airlight", got[:, 3], ref_L, 1e-5)
+    assert np.isfinite(got).all()
+    assert abs_e.max() < 3e-7            # erf: absolute error (float32 + the fit)
+    # Measured: p99 5e-6 / max 8e-6 (erf_diff), 3e-6 / 9e-6 (T_i and L_i).
+    assert np.percentile(rel_d, 99) < 2e-5 and rel_d.max() < 1e-4
+    assert np.percentile(rel_T, 99) < 2e-5 and rel_T.max() < 1e-4
+    assert np.percentile(rel_L, 99) < 2e-5 and rel_L.max() < 1e-4
+
+
+# ---- preview vs bake -------------------------------------------------------------------
+
+def _gaussians(cam_location):
+    rng = np.random.default_rng(5)
+    n = 60
+    centres = np.column_stack([rng.uniform(-6.0, 6.0, n), rng.uniform(-4.0, 6.0, n),
+                               rng.uniform(0.0, 4.0, n)])
+    scales = rng.uniform(0.4, 1.2, n)
+    amplitudes = rng.uniform(0.05, 0.6, n)
+    # A broad faint Gaussian around the camera: its cull sphere holds the eye.
+    centres = np.vstack([centres, np.array(cam_location)[None] + (0.5, 1.0, 0.0)])
+    scales = np.append(scales, 0.15)
+    amplitudes = np.append(amplitudes, 0.02)
+    return centres, scales, amplitudes
+
+
+@pytest.fixture(scope="module")
+def gauss_scene(addon, native):
+    return build_scene(SIGMA_T)
+
+
+def build_scene(sigma_t):
+    """Floor, cube, two point lights, a camera (W x H); fog on (also used by test_10)."""
+    scene = bpy.context.scene
+    for obj in list(scene.objects):
+        bpy.data.objects.remove(obj)
+    bpy.ops.mesh.primitive_plane_add(size=40.0, location=(0.0, 0.0, 0.0))
+    bpy.ops.mesh.primitive_cube_add(size=2.0, location=(0.0, 0.0, 1.0))
+    for name, loc, energy, colour in (("LampA", (2.0, -1.0, 3.0), 2000.0, (1.0, 1.0, 1.0)),
+                                      ("LampB", (-4.0, 3.0, 2.0), 800.0, (1.0, 0.5, 0.2))):
+        data = bpy.data.lights.new(name, 'POINT')
+        data.energy = energy
+        data.color = colour
+        data.shadow_soft_size = 0.0
+        obj = bpy.data.objects.new(name, data)
+        obj.location = loc
+        scene.collection.objects.link(obj)
+    cam = bpy.data.objects.new("Cam", bpy.data.cameras.new("Cam"))
+    cam.location = (1.0, -12.0, 5.0)
+    direction = Vector((0.0, 0.0, 1.0)) - cam.location
+    cam.rotation_euler = direction.to_track_quat('-Z', 'Y').to_euler()
+    scene.collection.objects.link(cam)
+    scene.camera = cam
+    scene.render.resolution_x, scene.render.resolution_y = W, H
+    scene.render.resolution_percentage = 100
+    scene.airlight.enabled = True
+    scene.airlight.density = sigma_t
+    scene.airlight.color = ALBEDO
+    scene.airlight.anisotropy = 0.0
+    bpy.context.view_layer.update()
+    return scene
+
+
+def _save_png(path, rgb):
+    h, w, _ = rgb.shape
+    img = bpy.data.images.new(os.path.basename(path), w, h, alpha=True, float_buffer=True)
+    rgba = np.ones((h, w, 4), np.float32)
+    rgba[..., :3] = rgb
+    img.pixels.foreach_set(np.ascontiguousarray(rgba[::-1]).ravel())
+    img.filepath_raw = path
+    img.file_format = 'PNG'
+    img.save()
+    bpy.data.images.remove(img)
+
+
+def render_preview(addon, gs, scene, desc, gaussians, *, clip_start=None, scale=1, **extra):
+    """(airlight (H, W, 3), transmittance (H, W)) of the preview, top row first."""
+    cam = scene.camera
+    proj = Matrix(desc["projection"].tolist())
+    persp = proj @ cam.matrix_world.inverted()
+    depth_tex, _ = gs.render_depth(desc["vertices"], desc["triangles"], persp, W, H)
+    positions, intensities = addon.scene_lights(scene, bpy.context.view_layer)
+    off = gpu.types.GPUOffScreen(W, H, format='RGBA32F')
+    try:
+        with off.bind():
+            fb = gpu.state.active_framebuffer_get()
+            fb.clear(color=(0.0, 0.0, 0.0, 0.0))
+            addon.draw_fog(depth_tex=depth_tex, perspective_matrix=persp,
+                           view_origin=tuple(cam.matrix_world.translation),
+                           is_perspective=True, viewport=(0, 0, W, H),
+                           sigma_t=scene.airlight.density,
+                           light_positions=positions, light_intensities=intensities,
+                           clip_start=desc["clip_start"] if clip_start is None else clip_start,
+                           window_depth=True, gaussians=gaussians, scale=scale, **extra)
+        out = gs.read_offscreen(off)[::-1].astype(np.float64)
+    finally:
+        off.free()
+    return out[..., :3], 1.0 - out[..., 3]
+
+
+def _compare(name, got, got_T, ref, ref_T):
+    floor = 1e-4 * np.percentile(ref, 99)
+    use = ref > floor
+    rel = np.abs(got - ref)[use] / ref[use]
+    dT = np.abs(got_T - ref_T)
+    print(f"\n{name}: airlight mean rel {rel.mean():.4g}, p99 {np.percentile(rel, 99):.4g}, "
+          f"max {rel.max():.4g}; transmittance mean abs {dT.mean():.3g}, max {dT.max():.3g}")
+    return rel, dT
+
+
+def test02_preview_matches_bake(addon, native, gs, gauss_scene, artifacts):
+    from airlight import scene_export
+    scene = gauss_scene
+    depsgraph = bpy.context.evaluated_depsgraph_get()
+    desc = scene_export.export_scene(scene, depsgraph)
+    centres, scales, amplitudes = _gaussians(tuple(scene.camera.matrix_world.translation))
+    baked = native.bake(**desc, rbf_centres=centres, rbf_scales=scales,
+                        rbf_amplitudes=amplitudes, model="sun05", aa_samples=1, threads=0)
+    ref = baked["airlight"].astype(np.float64)
+    ref_T = baked["transmittance"].astype(np.float64)[..., 0]
+    gaussians = dict(centres=centres, scales=scales, amplitudes=amplitudes, key="test09")
+    got, got_T = render_preview(addon, gs, scene, desc, gaussians)
+    rel, dT = _compare(f"Gaussian preview vs bake ({W}x{H}, {len(scales)} Gaussians, 2 lights)",
+                       got, got_T, ref, ref_T)
+    # Without the Gaussians the same scene is much darker / clearer: the test sees them.
+    plain = native.bake(**desc, model="sun05", aa_samples=1, threads=0)
+    change = np.abs(plain["airlight"] - ref).mean() / ref.mean()
+    print(f"Gaussians change the bake's airlight by {change:.3g} (mean abs / mean)")
+
+    scale = 1.0 / np.percentile(ref, 99)
+    _save_png(os.path.join(artifacts, "preview_gauss_gpu.png"), np.clip(got * scale, 0, 1))
+    _save_png(os.path.join(artifacts, "preview_gauss_bake.png"), np.clip(ref * scale, 0, 1))
+    native.write_exr(os.path.join(artifacts, "preview_gauss_vs_bake.exr"),
+                     {"preview": got.astype(np.float32), "bake": ref.astype(np.float32),
+                      "preview_T": np.repeat(got_T[..., None], 3, -1).astype(np.float32),
+                      "bake_T": np.repeat(ref_T[..., None], 3, -1).astype(np.float32)})
+    assert np.isfinite(got).all() and np.isfinite(got_T).all()
+    assert change > 0.2
+    # The issue asks for <= 5 % mean; the same approximation in float32 gives ~2e-5 (a
+    # few silhouette pixels differ by hit/miss), so hold it much tighter.
+    assert rel.mean() <= 1e-3
+    assert np.percentile(rel, 99) <= 1e-2
+    assert dT.mean() <= 1e-4
+
+
+@pytest.mark.parametrize("scale", [2, 4])
+def test04_reduced_scale_splat(addon, native, gs, gauss_scene, scale):
+    """HALF / QUARTER: the Gaussians are splatted at 1/scale and upsampled depth-aware in
+    the full-resolution fog pass; vs the bake (figures printed)."""
+    from airlight import scene_export
+    scene = gauss_scene
+    desc = scene_export.export_scene(scene, bpy.context.evaluated_depsgraph_get())
+    centres, scales, amplitudes = _gaussians(tuple(scene.camera.matrix_world.translation))
+    baked = native.bake(**desc, rbf_centres=centres, rbf_scales=scales,
+                        rbf_amplitudes=amplitudes, model="sun05", aa_samples=1, threads=0)
+    ref = baked["airlight"].astype(np.float64)
+    ref_T = baked["transmittance"].astype(np.float64)[..., 0]
+    gaussians = dict(centres=centres, scales=scales, amplitudes=amplitudes, key="test09")
+    got, got_T = render_preview(addon, gs, scene, desc, gaussians, scale=scale)
+    rel, dT = _compare(f"Gaussian preview at 1/{scale} vs bake", got, got_T, ref, ref_T)
+    assert np.isfinite(got).all()
+    assert rel.mean() <= 0.02
+    assert dT.mean() <= 2e-3
+
+
+# ---- the draw handler with a fog object ----------------------------------------------------
+
+def _redraw():
+    window = bpy.context.window_manager.windows[0]
+    with bpy.context.temp_override(window=window, screen=window.screen):
+        bpy.ops.wm.redraw_timer(type='DRAW_WIN_SWAP', iterations=1)
+
+
+def test03_handler_draws_fog_objects_and_follows_edits(addon, gauss_scene):
+    """A fog object in the scene reaches the handler's draw (the same gather as the
+    bake), the draw succeeds, and removing the object reaches the next draw (the
+    cached Gaussians belong to one depsgraph generation)."""
+    from airlight import fog_object
+    scene = gauss_scene
+    centres, scales, amplitudes = _gaussians(tuple(scene.camera.matrix_world.translation))
+    obj = fog_object.new_fog_object("PreviewFog", scene.collection, centres, scales, amplitudes)
+    bpy.context.view_layer.update()
+    wm = bpy.context.window_manager
+    addon._state["error"] = None
+    wm.airlight_preview = True
+    for area in wm.windows[0].screen.areas:
+        if area.type == 'VIEW_3D':
+            area.spaces.active.region_3d.view_perspective = 'CAMERA'
+    try:
+        addon._state["capture"] = cap = {}
+        _redraw()
+        assert addon._state["error"] is None, addon._state["error"]
+        assert len(cap["gaussians"]["scales"]) == len(scales)
+        np.testing.assert_allclose(cap["gaussians"]["centres"], centres, rtol=0, atol=1e-5)
+        fog = addon._state["gpu"]["gaussian_fog"]
+        print(f"\nhandler with {len(scales)} Gaussians: fog pass {addon._state['last_ms']:.1f} ms "
+              f"at {cap['viewport'][2]}x{cap['viewport'][3]}, scale {addon._state['last_scale']} "
+              f"(factors {fog.factor_ms:.1f} ms when rebuilt)")
+        bpy.data.objects.remove(obj)
+        bpy.context.view_layer.update()
+        addon._state["capture"] = cap = {}
+        _redraw()
+        assert addon._state["error"] is None, addon._state["error"]
+        assert len(cap["gaussians"]["scales"]) == 0
+    finally:
+        wm.airlight_preview = False
+        addon._state["capture"] = None
+        if "PreviewFog" in bpy.data.objects:
+            bpy.data.objects.remove(bpy.data.objects["PreviewFog"])
+
+
+def test05_factor_cache_matches_fresh(native):
+    """Moving the view reuses the light-side optical depths: the factors equal a fresh
+    computation at the new viewpoint (and differ from the old one's)."""
+    from airlight import preview_gaussians as pg
+    centres, scales, amplitudes = _gaussians((1.0, -12.0, 5.0))
+    lights = [(2.0, -1.0, 3.0), (-4.0, 3.0, 2.0)]
+    pg.clear_cache()
+    f1_a, _ = pg.fogshop_factors(native, centres, scales, amplitudes, SIGMA_T, (1.0, -12.0, 5.0),
+                                 lights, data_key="k")
+    f1_b, Csv_b = pg.fogshop_factors(native, centres, scales, amplitudes, SIGMA_T, (3.0, -9.0, 4.0),
+                                     lights, data_key="k")
+    f1_c, Csv_c = pg.fogshop_factors(native, centres, scales, amplitudes, SIGMA_T, (3.0, -9.0, 4.0),
+                                     lights)
+    pg.clear_cache()
+    np.testing.assert_allclose(f1_b, f1_c, rtol=1e-12)
+    np.testing.assert_allclose(Csv_b, Csv_c, rtol=1e-12)
+    assert np.abs(f1_a - f1_b).max() > 1e-3
