@@ -31,6 +31,7 @@ def test01_light_order_matches_the_export(tmp_path):
     _add_light(scene, "Spot A", 'SPOT', (1.0, 2.0, 3.0))
     _add_light(scene, "Key", 'POINT', (-1.0, 0.5, 1.5), group="user_key")
     _add_light(scene, "Fill.001", 'POINT', (2.0, -1.0, 1.0))
+    _add_light(scene, "Sun", 'SUN', (0.0, 0.0, 10.0))  # no surface pass for suns
     bpy.context.view_layer.update()
     depsgraph = bpy.context.evaluated_depsgraph_get()
     rows = surface.fogged_lights(depsgraph)
@@ -41,6 +42,7 @@ def test01_light_order_matches_the_export(tmp_path):
     for (obj, _), p in zip(rows, positions):
         np.testing.assert_allclose(np.array(obj.matrix_world.translation), p, atol=1e-6)
     groups = {obj.name: group for obj, group in rows}
+    assert "Sun" not in groups
     # The user's own light group is kept (no surface attenuation for that light).
     assert groups["Key"] is None
     assert groups["Fill.001"] == "fog_Fill_001" and groups["Spot A"] == "fog_Spot_A"
