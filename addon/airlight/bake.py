@@ -12,13 +12,16 @@ import time
 import bpy
 from bpy.props import IntProperty, StringProperty
 
-from . import cache, compositor, environment, model_choice, native, scene_export
+from . import cache, compositor, environment, model_choice, native, scene_export, surface
 
 class BakeError(RuntimeError):
     """A bake failed for a reason the user can fix; the message says which."""
 
 
 cache_path = cache.cache_path
+# Key of the settings dict (not a `_native.bake` argument; run() takes it out): the light
+# group name per bake light when surface shading is on (surface.ensure_passes).
+SURFACE_GROUPS = "surface_groups"
 
 
 def bake_settings(scene):
@@ -41,6 +44,13 @@ def prepare(scene, depsgraph):
             settings["environment"] = world
     except (scene_export.ExportError, environment.WorldMapError) as ex:
         raise BakeError(str(ex)) from None
+    if surface.active(scene):
+        # Surface shading: the light groups and DiffCol pass the composite reads (surface.py).
+        settings["surface"] = True
+        # (Interactive renders call this from the render thread: there nothing is written.)
+        main = threading.current_thread() is threading.main_thread()
+        settings[SURFACE_GROUPS] = (surface.ensure_passes(scene, depsgraph) if main
+                                    else surface.current_groups(depsgraph))
     return description, settings
 
 
@@ -57,6 +67,7 @@ def run(description, settings, filepath, progress=None):
         raise BakeError(str(ex)) from None
     start = time.perf_counter()
     settings = dict(settings)
+    groups = settings.pop(SURFACE_GROUPS, None)
     world = settings.pop("environment", None)
     try:
         result = module.bake(**description, **settings, progress=progress)
@@ -65,8 +76,9 @@ def run(description, settings, filepath, progress=None):
             stats["seconds_environment"] = environment.apply(module, world, description, result)
     except ValueError as ex:
         raise BakeError(f"Invalid fog scene: {ex}") from None
+    extra = surface.pass_arrays(result, groups) if settings.get("surface") else None
     try:
-        cache.write_passes(filepath, result["airlight"], result["transmittance"])
+        cache.write_passes(filepath, result["airlight"], result["transmittance"], extra)
     except cache.CacheError as ex:
         raise BakeError(str(ex)) from None
     return stats, time.perf_counter() - start

@@ -1,6 +1,7 @@
 """Where baked fog passes live on disk, and the EXR layout the compositor reads."""
 
 import os
+import zlib
 
 import bpy
 import numpy as np
@@ -12,6 +13,8 @@ from . import native
 # node exposes as outputs of those names. (Without a layer prefix the passes also show,
 # but in a nameless layer that RNA cannot represent.)
 LAYER_PREFIX = "Fog."
+# With surface shading the file also holds Surface_<light group> (attenuation - 1 per
+# fogged light) and SurfaceGlow (Lambert glow per unit DiffCol): see surface.py.
 PASS_AIRLIGHT = "Airlight"
 PASS_TRANSMITTANCE = "Transmittance"
 
@@ -45,25 +48,32 @@ def ensure_parent_dir(filepath):
                          "Choose another Cache Folder in the Airlight Fog panel.")
 
 
-def write_passes(filepath, airlight, transmittance):
-    """Writes the two passes as one multilayer EXR (through `_native.write_exr`)."""
+def write_passes(filepath, airlight, transmittance, extra=None):
+    """Writes the two passes as one multilayer EXR (through `_native.write_exr`), plus the
+    passes in `extra` ({name: (H, W, 3) float32}, e.g. surface.py's Surface_<group> and
+    SurfaceGlow: layer "Fog", pass <name>)."""
     ensure_parent_dir(filepath)
+    passes = {PASS_AIRLIGHT: airlight, PASS_TRANSMITTANCE: transmittance}
+    passes.update(extra or {})
     try:
-        native.get().write_exr(filepath, {PASS_AIRLIGHT: airlight, PASS_TRANSMITTANCE: transmittance},
-                               layer_prefix=LAYER_PREFIX)
+        native.get().write_exr(filepath, passes, layer_prefix=LAYER_PREFIX)
     except RuntimeError as ex:
         raise CacheError(f"Cannot write the fog passes to '{filepath}': {ex}") from None
 
 
-def neutral_path(scene, width, height):
+def neutral_path(scene, width, height, extra_names=()):
     """Passes that leave an image unchanged (Airlight 0, Transmittance 1), written on demand.
 
     The compositor links the Image node's pass outputs only when the file exposes them,
     and a render reads the links as they were before render_pre ran, so the node tree is
     set up on this file until a real bake replaces it.
     """
-    filepath = os.path.join(cache_dir(scene), f"fog_neutral_{width}x{height}.exr")
+    extra_names = tuple(extra_names)
+    # Surface passes (names depend on the lights) are 0: no correction, no glow.
+    suffix = f"_{zlib.crc32(chr(0).join(extra_names).encode()):08x}" if extra_names else ""
+    filepath = os.path.join(cache_dir(scene), f"fog_neutral_{width}x{height}{suffix}.exr")
     if not os.path.exists(filepath):
-        write_passes(filepath, np.zeros((height, width, 3), np.float32),
-                     np.ones((height, width, 3), np.float32))
+        zeros = np.zeros((height, width, 3), np.float32)
+        write_passes(filepath, zeros, np.ones((height, width, 3), np.float32),
+                     {name: zeros for name in extra_names})
     return filepath

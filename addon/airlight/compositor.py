@@ -5,13 +5,18 @@
 a MixRGB Add, inserted between whatever fed the Composite node (or the Render Layers
 node) and the Composite/Viewer nodes. `sync(scene, filepath)` points the Image node at a
 baked file and mutes the fog nodes when the fog is disabled, so the image passes through.
+
+With surface shading (surface.py; Cycles only) a chain in the same frame first corrects the
+render's surfaces for the fog: Image + sum_g Combined_<g> x Surface_<g> + DiffCol x
+SurfaceGlow, and that feeds the x Transmittance node.
 """
 
 import os
+import threading
 
 import bpy
 
-from . import cache, native
+from . import cache, native, surface
 from .cache import PASS_AIRLIGHT, PASS_TRANSMITTANCE
 
 FRAME = "Airlight Fog"
@@ -19,6 +24,11 @@ NODE_IMAGE = "Airlight Passes"
 NODE_MULTIPLY = "Airlight Multiply"
 NODE_ADD = "Airlight Add"
 IMAGE_NAME = "Airlight Passes"
+# Surface-shading chain (surface.py), rebuilt by every setup(); its first Add node takes
+# the render's Image.
+SURFACE_NODE_PREFIX = "Airlight Surface "
+NODE_SURFACE_FIRST = SURFACE_NODE_PREFIX + "Add 0"
+SURFACE_SIGNATURE = "airlight_surface_chain"  # node tree ID property: the chain's groups
 
 
 def _fog_nodes(tree):
@@ -144,8 +154,87 @@ def setup(scene, filepath=None):
         tree.links.new(add.outputs[0], viewer.inputs["Image"])
 
     _link_passes(tree, image_node, multiply, add)
+    _setup_surface(scene, tree, frame, image_node, multiply)
     _mute(scene, tree)
     return image_node, multiply, add
+
+
+def _surface_nodes(tree):
+    return [node for node in tree.nodes if node.name.startswith(SURFACE_NODE_PREFIX)]
+
+
+def _setup_surface(scene, tree, frame, image_node, multiply):
+    """Builds the surface-shading chain (surface.py) in front of the x Transmittance node:
+
+        Image -> + Combined_<g> x Surface_<g> (per light group g) -> + DiffCol x SurfaceGlow
+
+    from the Render Layers node's passes and the baked EXR's. Only when surface shading is
+    active (Cycles) and the fog multiplies the Render Layers' Image directly (a user's own
+    processing in between is left alone: then no surface shading, said in the console).
+    Passes missing on either side are skipped (a light without its group, or an EXR baked
+    without surface shading). An unchanged chain is kept as it is (render_pre calls this
+    while a render starts).
+    """
+    chain = _surface_nodes(tree)
+    first = tree.nodes.get(NODE_SURFACE_FIRST)
+    # The chain's source: what feeds its first Add node, else what feeds the multiply node.
+    if first is not None and first.inputs[1].is_linked:
+        source = first.inputs[1].links[0].from_socket
+    elif multiply.inputs[1].is_linked and not multiply.inputs[1].links[0].from_node.name.startswith(
+            SURFACE_NODE_PREFIX):
+        source = multiply.inputs[1].links[0].from_socket
+    else:
+        source = None
+    terms = []
+    render_layers = source.node if source is not None else None
+    if surface.active(scene) and render_layers is not None:
+        if render_layers.type != 'R_LAYERS' or source.name != "Image":
+            print("Airlight: surface shading skipped: the fog's input is not the Render Layers "
+                  "node's Image output", flush=True)
+        else:
+            for output in image_node.outputs:
+                if output.name.startswith(surface.PASS_PREFIX):
+                    group = output.name[len(surface.PASS_PREFIX):]
+                    light = render_layers.outputs.get("Combined_" + group)
+                    if light is not None and light.enabled:
+                        terms.append((group, light, output))
+            glow = image_node.outputs.get(surface.PASS_GLOW)
+            diffcol = render_layers.outputs.get("DiffCol")
+            if glow is not None and diffcol is not None and diffcol.enabled:
+                terms.append(("glow", diffcol, glow))
+    signature = ",".join(group for group, _, _ in terms)
+    if chain and tree.get(SURFACE_SIGNATURE) == signature and len(chain) == 2 * len(terms):
+        return
+    # Rebuild: take the old chain out and reconnect its source to the multiply node.
+    for node in chain:
+        tree.nodes.remove(node)
+    tree[SURFACE_SIGNATURE] = signature
+    if source is None:
+        return
+    if not terms:
+        tree.links.new(source, multiply.inputs[1])
+        return
+    x, y = multiply.location.x, multiply.location.y
+    accumulated = source
+    n = len(terms)
+    for k, (group, light, baked) in enumerate(terms):
+        label = "Glow" if group == "glow" else group
+        scale = _node(tree, f"{SURFACE_NODE_PREFIX}Multiply {k}", "CompositorNodeMixRGB",
+                      f"Surface: {label} x pass", (x - 420 - 360 * (n - k), y - 220), frame)
+        plus = _node(tree, f"{SURFACE_NODE_PREFIX}Add {k}", "CompositorNodeMixRGB",
+                     f"Surface: + {label}", (x - 240 - 360 * (n - k), y), frame)
+        scale.blend_type = 'MULTIPLY'
+        plus.blend_type = 'ADD'
+        for node in (scale, plus):
+            node.use_alpha = False
+            node.use_clamp = False
+            node.inputs[0].default_value = 1.0
+        tree.links.new(light, scale.inputs[1])
+        tree.links.new(baked, scale.inputs[2])
+        tree.links.new(accumulated, plus.inputs[1])
+        tree.links.new(scale.outputs[0], plus.inputs[2])
+        accumulated = plus.outputs[0]
+    tree.links.new(accumulated, multiply.inputs[1])
 
 
 def neutral_passes(scene):
@@ -154,8 +243,16 @@ def neutral_passes(scene):
     if not native.available():
         return None
     width, height = render_size(scene)
+    names = ()
+    if surface.active(scene) and threading.current_thread() is threading.main_thread():
+        # Enable the light groups now (before any render starts) and expose their passes.
+        try:
+            groups = surface.ensure_passes(scene, bpy.context.evaluated_depsgraph_get())
+            names = [surface.PASS_PREFIX + g for g in groups if g is not None] + [surface.PASS_GLOW]
+        except Exception as ex:  # never block the plain fog composite
+            print(f"Airlight: surface shading passes not set up: {ex}", flush=True)
     try:
-        return cache.neutral_path(scene, max(width, 1), max(height, 1))
+        return cache.neutral_path(scene, max(width, 1), max(height, 1), names)
     except cache.CacheError as ex:
         print(f"Airlight: {ex}", flush=True)
         return None
@@ -163,7 +260,7 @@ def neutral_passes(scene):
 
 def _mute(scene, tree):
     muted = not scene.airlight.enabled
-    for node in _fog_nodes(tree)[1:]:
+    for node in _fog_nodes(tree)[1:] + _surface_nodes(tree):
         if node is not None and node.mute != muted:
             node.mute = muted
 

@@ -35,6 +35,19 @@ def _on_fog_changed(self, context):
         compositor.sync(scene)
 
 
+def _on_surface_changed(self, context):
+    """Rebuilds the compositor's surface-shading chain (and its passes) when switched, so the
+    next render composites with it (a render reads the node links as they are when it starts);
+    the Image node gets neutral passes with the right names until the next bake."""
+    from . import compositor
+    scene = context.scene if context else None
+    if scene is not None and getattr(scene, "airlight", None) is not None and compositor.is_set_up(scene):
+        try:
+            compositor.setup(scene, compositor.neutral_passes(scene))
+        except Exception as ex:  # an update callback must not raise into the UI
+            print(f"Airlight: cannot update the compositor: {ex}", flush=True)
+
+
 class AirlightSceneSettings(bpy.types.PropertyGroup):
     enabled: BoolProperty(
         name="Fog",
@@ -191,6 +204,16 @@ class AirlightSceneSettings(bpy.types.PropertyGroup):
         description="Keep the compositor fog nodes in sync: create them when needed and "
                     "point them at the baked passes of the frame being rendered",
         default=True,
+    )
+    surface_shading: BoolProperty(
+        name="Surface Shading",
+        description="Cycles only: light surfaces through the fog (each fogged light's direct "
+                    "light attenuated along its own path, plus the light the fog scatters onto "
+                    "diffuse surfaces). Adds one light group per fogged light and the Diffuse "
+                    "Color pass to the view layers automatically. Eevee and Workbench renders "
+                    "keep the plain composite (render x Transmittance + Airlight)",
+        default=True,
+        update=_on_surface_changed,
     )
     environment_glow: BoolProperty(
         name="Environment Glow",

@@ -67,6 +67,10 @@ class AIRLIGHT_PT_scene(bpy.types.Panel):
         col.prop(settings, "threads")
         col.prop(settings, "cache_dir")
         col.prop(settings, "auto_composite")
+        col.prop(settings, "surface_shading")
+        if settings.surface_shading and context.scene.render.engine != 'CYCLES':
+            col.label(text="Surface shading needs Cycles (light groups): "
+                           "plain fog composite here", icon='INFO')
 
         row = layout.row(align=True)
         row.operator("airlight.bake", icon='RENDER_STILL')

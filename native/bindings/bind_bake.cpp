@@ -79,7 +79,8 @@ py::dict bake_py(int width, int height, const py::object& cam_to_world, const py
                  const py::object& spot_size, const py::object& spot_blend, const py::object& sun_directions,
                  const py::object& sun_irradiances, double fog_top, int table_size,
                  const std::string& table_interpolation, const py::object& rbf_albedo,
-                 double noise_amplitude, double noise_scale, const py::object& noise_offset) {
+                 double noise_amplitude, double noise_scale, const py::object& noise_offset, bool surface,
+                 double surface_phong_exponent) {
     // Gather the scene description from the arrays (shapes checked here, values in bake()).
     SceneDescription scene;
     scene.camera.width = width;
@@ -206,6 +207,8 @@ py::dict bake_py(int width, int height, const py::object& cam_to_world, const py
     settings.threads = threads;
     settings.aa_samples = aa_samples;
     settings.filter_width = filter_width;
+    settings.surface = surface;
+    settings.surface_phong_exponent = surface_phong_exponent;
     if (table_size < 8 || table_size > 4096)
         throw py::value_error("table_size must be in [8, 4096], got " + std::to_string(table_size));
     settings.table_nu = settings.table_nT = table_size;
@@ -235,10 +238,21 @@ py::dict bake_py(int width, int height, const py::object& cam_to_world, const py
     py::dict stats("seconds_raycast"_a = result.stats.seconds_raycast,
                    "seconds_airlight"_a = result.stats.seconds_airlight,
                    "supersampled_pixels"_a = result.stats.supersampled_pixels,
-                   "samples"_a = result.stats.samples);
-    return py::dict("airlight"_a = to_numpy(std::move(result.airlight), {H, W, 3}),
+                   "samples"_a = result.stats.samples, "seconds_surface"_a = result.stats.seconds_surface);
+    // Surface shading: (L, H, W, 3) attenuation per light and (H, W, 3) glow, when asked for.
+    py::dict extra;
+    if (surface) {
+        const py::ssize_t L = result.surface_lights;
+        extra["surface_attenuation"] = to_numpy(std::move(result.surface_attenuation), {L, H, W, 3});
+        extra["surface_glow"] = to_numpy(std::move(result.surface_glow), {H, W, 3});
+        if (surface_phong_exponent > 0.0)
+            extra["surface_gloss_glow"] = to_numpy(std::move(result.surface_gloss_glow), {H, W, 3});
+    }
+    py::dict out("airlight"_a = to_numpy(std::move(result.airlight), {H, W, 3}),
                     "transmittance"_a = to_numpy(std::move(result.transmittance), {H, W, 3}),
                     "depth"_a = to_numpy(std::move(result.depth), {H, W}), "stats"_a = stats);
+    for (const auto& item : extra) out[item.first] = item.second;
+    return out;
 }
 
 void write_exr_py(const std::string& path, const py::dict& passes, const std::string& layer_prefix) {
@@ -283,6 +297,7 @@ void bind_bake(py::module_& m) {
           "sun_irradiances"_a = py::none(), "fog_top"_a = std::numeric_limits<double>::infinity(),
           "table_size"_a = 256, "table_interpolation"_a = "bilinear", "rbf_albedo"_a = py::none(),
           "noise_amplitude"_a = 0.0, "noise_scale"_a = 1.0, "noise_offset"_a = py::make_tuple(0.0, 0.0, 0.0),
+          "surface"_a = false, "surface_phong_exponent"_a = 0.0,
           R"doc(Bake fog passes for one camera view (all arguments keyword-only).
 
 width, height: render resolution in pixels.
@@ -337,6 +352,14 @@ table_size: samples per axis of the model's 2D table (sun05's F table, biri06's 
   table), in [8, 4096], default 256. table_interpolation: "bilinear" (default) or "nearest"
   lookup of sun05's F table (nearest: one load per lookup, ~20x the error; special_f.cpp
   lists both measured errors per size).
+surface: also bake surface shading through the fog (Sun 2005 eq. 13-19, bake_surface.h):
+  adds surface_attenuation=(L, H, W, 3) float32, e^{-T(light, first hit)} per light (the
+  point lights, then the spot lights, in argument order; 1 where no hit), and
+  surface_glow=(H, W, 3) float32, the point lights' scattered light on a Lambert surface
+  per unit diffuse colour (multiply by Cycles' DiffCol pass), and stats seconds_surface.
+surface_phong_exponent: with surface, n in [1, 10000] also adds surface_gloss_glow=(H, W, 3):
+  the point lights' scattered light on a normalised Phong lobe (n + 2)/(2 pi) cos^n about the
+  mirrored view direction (Sun 2005 eq. 18, Gn), per unit glossy colour. 0: off.
 
 Returns dict(airlight=(H, W, 3) float32, transmittance=(H, W, 3) float32,
 depth=(H, W) float32 (distance from the eye, or from the near plane for

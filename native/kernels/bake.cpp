@@ -26,6 +26,7 @@
 #include <sys/mman.h>
 #endif
 
+#include "bake_surface.h"
 #include "biri06.h"
 #include "camera.h"
 #include "quadrature.h"
@@ -1180,6 +1181,12 @@ BakeResult bake(const SceneDescription& scene, const BakeSettings& settings, con
     result.stats.seconds_airlight = seconds_since(start);
     result.stats.supersampled_pixels = supersampled;
     result.stats.samples = samples;
+    // Surface shading pass (bake_surface.cpp), only when asked for.
+    if (settings.surface) {
+        start = Clock::now();
+        bake_surface_pass(scene, settings, rays, caster, n_threads, result);
+        result.stats.seconds_surface = seconds_since(start);
+    }
     return result;
 }
 

@@ -28,6 +28,15 @@ struct BakeSettings {
     // Lookup in the Sun 2005 F table (sun05 model): bilinear, or nearest sample (cheaper,
     // ~20x the error: special_f.cpp). Biri06's Gamma table is always bilinear.
     Interp table_interp = Interp::Bilinear;
+    // Surface shading (bake_surface.h, Sun 2005 eq. 13-19): also bake the per-light
+    // attenuation from each light to the first hit and the Lambert glow. Off: the bake is
+    // unchanged. The Lambert G table (sun05_surface.h) is _surface_table_nT_ x _ntheta_.
+    bool surface = false;
+    int surface_table_nT = 128, surface_table_ntheta = 128;
+    // Glossy glow (Sun 2005 eq. 18, Gn) for a normalised Phong lobe of this exponent n about
+    // the mirrored view direction; 0: none. Its G table is _surface_phong_table_n_ squared.
+    double surface_phong_exponent = 0.0;
+    int surface_phong_table_n = 64;
 };
 
 struct BakeStats {
@@ -35,6 +44,7 @@ struct BakeStats {
     double seconds_airlight = 0.0;
     long long supersampled_pixels = 0;
     long long samples = 0;
+    double seconds_surface = 0.0;  // the surface-shading pass (0 when off)
 };
 
 // Output images are row-major, top row first, 3 floats (RGB) per pixel.
@@ -48,6 +58,17 @@ struct BakeResult {
     // near plane for orthographic ones) to the first hit at the pixel centre inside the
     // clip range (inf: none, or beyond clip_end).
     std::vector<float> depth;
+    // Surface shading (settings.surface only; empty otherwise), at pixel centres, RGB:
+    // surface_attenuation = e^{-T(light l, first hit)}, image after image for the fogged
+    // lights l (point lights, then spot lights, in SceneDescription order; 1 where no hit):
+    // 3 * width * height floats per light; surface_glow = the Lambert glow of all point
+    // lights per unit diffuse colour (bake_surface.h).
+    int surface_lights = 0;
+    std::vector<float> surface_attenuation;
+    std::vector<float> surface_glow;
+    // settings.surface_phong_exponent > 0 only: the point lights' glossy glow per unit
+    // glossy colour, (n + 2) / (2 pi) sum_l albedo I0 sigma_t Gn(T, theta'_s) / (2 pi D).
+    std::vector<float> surface_gloss_glow;
     BakeStats stats;
 };
 

@@ -195,4 +195,58 @@ void RayCaster::first_hits(const Vec3& o, const float* dx, const float* dy, cons
     }
 }
 
+void RayCaster::first_hits_normals(const Ray* rays, const float* t_near, const float* t_far, int n, float* t,
+                                   float* ng) const {
+    if (!impl_->scene) {
+        for (int i = 0; i < n; ++i) {
+            t[i] = kInf;
+            ng[3 * i] = ng[3 * i + 1] = ng[3 * i + 2] = 0.0f;
+        }
+        return;
+    }
+    // Packets of 16 rays; the tail masks lanes off. Ng comes back unnormalised.
+    RTCIntersectContext context;
+    rtcInitIntersectContext(&context);
+    context.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
+    for (int base = 0; base < n; base += 16) {
+        alignas(64) int valid[16];
+        alignas(64) RTCRayHit16 rh;
+        for (int k = 0; k < 16; ++k) {
+            const bool live = base + k < n;
+            const int i = live ? base + k : n - 1;
+            valid[k] = live ? -1 : 0;
+            rh.ray.org_x[k] = float(rays[i].o.x);
+            rh.ray.org_y[k] = float(rays[i].o.y);
+            rh.ray.org_z[k] = float(rays[i].o.z);
+            rh.ray.dir_x[k] = float(rays[i].d.x);
+            rh.ray.dir_y[k] = float(rays[i].d.y);
+            rh.ray.dir_z[k] = float(rays[i].d.z);
+            rh.ray.tnear[k] = t_near[i];
+            rh.ray.tfar[k] = t_far[i];
+            rh.ray.time[k] = 0.0f;
+            rh.ray.mask[k] = 0xFFFFFFFFu;
+            rh.ray.id[k] = unsigned(k);
+            rh.ray.flags[k] = 0;
+            rh.hit.geomID[k] = RTC_INVALID_GEOMETRY_ID;
+            rh.hit.instID[0][k] = RTC_INVALID_GEOMETRY_ID;
+        }
+        rtcIntersect16(valid, impl_->scene, &context, &rh);
+        for (int k = 0; k < 16 && base + k < n; ++k) {
+            const int i = base + k;
+            if (rh.hit.geomID[k] == RTC_INVALID_GEOMETRY_ID) {
+                t[i] = kInf;
+                ng[3 * i] = ng[3 * i + 1] = ng[3 * i + 2] = 0.0f;
+                continue;
+            }
+            t[i] = rh.ray.tfar[k];
+            const double x = rh.hit.Ng_x[k], y = rh.hit.Ng_y[k], z = rh.hit.Ng_z[k];
+            const double len = std::sqrt(x * x + y * y + z * z);
+            const double inv = len > 0.0 ? 1.0 / len : 0.0;
+            ng[3 * i] = float(x * inv);
+            ng[3 * i + 1] = float(y * inv);
+            ng[3 * i + 2] = float(z * inv);
+        }
+    }
+}
+
 }  // namespace airlight

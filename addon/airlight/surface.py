@@ -1,0 +1,107 @@
+"""Surface shading through the fog (Sun 2005 eq. 13-19), composited over Cycles' own shading.
+
+The bake (`_native.bake(surface=True)`, native/kernels/bake_surface.h) writes per fogged
+light l the attenuation e^{-T(light, p)} of the first hit p, and the Lambert glow (the light
+the fog scatters onto p) per unit diffuse colour. The compositor then forms
+
+    surface = Combined + sum_l Combined_<group l> (attenuation_l - 1) + DiffCol x glow
+
+and the usual fog on top (x Transmittance + Airlight), so the user's materials stay Cycles'
+own: only each light's contribution is attenuated by its own path through the fog.
+
+Render passes this needs, enabled here automatically on every view layer of the scene:
+one Cycles light group per fogged light (`view_layer.lightgroups`, `Object.lightgroup`,
+Blender 3.2+; its pass Combined_<group>) and the Diffuse Color pass (DiffCol). Lights that
+already belong to a light group of the user's, and light objects instanced more than once,
+are left alone (no surface attenuation for them), as are lights of other types (sun lamps:
+their light reaches surfaces unattenuated). Eevee and Workbench have no light
+groups: there the composite stays render x Transmittance + Airlight.
+"""
+
+import re
+
+from . import visibility
+
+GROUP_PREFIX = "fog_"
+SURFACE_LIGHT_TYPES = ('POINT', 'SPOT')  # lights the bake's surface pass attenuates
+PASS_PREFIX = "Surface_"
+PASS_GLOW = "SurfaceGlow"
+
+
+def active(scene):
+    """True when the bake and the compositor do surface shading for `scene`."""
+    settings = scene.airlight
+    return bool(settings.surface_shading) and scene.render.engine == 'CYCLES'
+
+
+def group_name(object_name):
+    """Light group name of a fogged light: fog_<name> with only [A-Za-z0-9_] (Blender turns
+    other characters into '_' anyway; this makes the name predictable)."""
+    return GROUP_PREFIX + re.sub(r"[^A-Za-z0-9_]", "_", object_name)
+
+
+def fogged_lights(depsgraph):
+    """[(light object, group name or None)] in the bake's light order: the point lights, then
+    the spot lights, as scene_export exports them (tests/blender/test_surface.py holds the
+    two to the same order). The group is None where surface shading cannot apply."""
+    hidden = visibility.render_hidden_collections(depsgraph.view_layer)
+    points, spots, counts = [], [], {}
+    for instance in depsgraph.object_instances:
+        obj = instance.object
+        source = instance.parent if instance.is_instance else obj
+        if source is None or not visibility.is_render_visible(source, hidden):
+            continue
+        if obj.type != 'LIGHT':
+            continue
+        light = obj.data
+        # Point and spot lights only: the bake's surface pass covers no other type.
+        if light.type not in SURFACE_LIGHT_TYPES or not light.original.airlight.participate:
+            continue
+        original = obj.original
+        counts[original.name] = counts.get(original.name, 0) + 1
+        (spots if light.type == 'SPOT' else points).append(original)
+    rows = []
+    for obj in points + spots:
+        group = group_name(obj.name)
+        usable = counts[obj.name] == 1 and obj.lightgroup in ("", group)
+        rows.append((obj, group if usable else None))
+    return rows
+
+
+def current_groups(depsgraph):
+    """The group name per bake light where it is already set up (else None), changing
+    nothing: for the render thread, where bpy data must not be written."""
+    return [group if group is not None and obj.lightgroup == group else None
+            for obj, group in fogged_lights(depsgraph)]
+
+
+def ensure_passes(scene, depsgraph):
+    """Enables the light groups and DiffCol pass the composite needs; returns the group name
+    per bake light (None: no surface pass for that light). Writes bpy data: main thread only."""
+    rows = fogged_lights(depsgraph)
+    groups = [group for _, group in rows]
+    for obj, group in rows:
+        if group is not None and obj.lightgroup != group:
+            obj.lightgroup = group
+    for view_layer in scene.view_layers:
+        existing = {lg.name for lg in view_layer.lightgroups}
+        for group in groups:
+            if group is not None and group not in existing:
+                view_layer.lightgroups.add(name=group)
+                existing.add(group)
+        if not view_layer.use_pass_diffuse_color:
+            view_layer.use_pass_diffuse_color = True
+    return groups
+
+
+def pass_arrays(result, groups):
+    """{pass name: (H, W, 3) float32} of the surface passes from a bake result: attenuation
+    - 1 per light with a group (so that Combined_<group> x pass is the correction to add)
+    and the glow."""
+    passes = {}
+    attenuation = result["surface_attenuation"]
+    for index, group in enumerate(groups or ()):
+        if group is not None and index < len(attenuation):
+            passes[PASS_PREFIX + group] = attenuation[index] - 1.0
+    passes[PASS_GLOW] = result["surface_glow"]
+    return passes

@@ -1,0 +1,122 @@
+"""Surface shading plumbing (surface.py, compositor.py): light groups and passes enabled
+automatically, the compositor chain built once and removed when off, the Eevee fallback, the
+bake's light order, and the surface passes in the baked EXR."""
+import math
+import os
+
+import bpy
+import numpy as np
+
+from airlight import compositor, scene_export, surface
+from conftest import build_plane_scene, exr_pass, needs_native
+
+
+def _surface_nodes(tree):
+    return sorted(n.name for n in tree.nodes if n.name.startswith(compositor.SURFACE_NODE_PREFIX))
+
+
+def _add_light(scene, name, kind, location, group=""):
+    data = bpy.data.lights.new(name, kind)
+    data.energy = 100.0
+    obj = bpy.data.objects.new(name, data)
+    obj.location = location
+    obj.lightgroup = group
+    scene.collection.objects.link(obj)
+    return obj
+
+
+def test01_light_order_matches_the_export(tmp_path):
+    """fogged_lights lists the lights in the bake's order: point lights, then spots."""
+    scene = build_plane_scene(tmp_path)
+    _add_light(scene, "Spot A", 'SPOT', (1.0, 2.0, 3.0))
+    _add_light(scene, "Key", 'POINT', (-1.0, 0.5, 1.5), group="user_key")
+    _add_light(scene, "Fill.001", 'POINT', (2.0, -1.0, 1.0))
+    _add_light(scene, "Sun", 'SUN', (0.0, 0.0, 10.0))  # no surface pass for suns
+    bpy.context.view_layer.update()
+    depsgraph = bpy.context.evaluated_depsgraph_get()
+    rows = surface.fogged_lights(depsgraph)
+    description = scene_export.export_scene(scene, depsgraph)
+    positions = np.concatenate([description["light_positions"],
+                                description.get("spot_positions", np.zeros((0, 3)))])
+    assert len(rows) == len(positions) == 4
+    for (obj, _), p in zip(rows, positions):
+        np.testing.assert_allclose(np.array(obj.matrix_world.translation), p, atol=1e-6)
+    groups = {obj.name: group for obj, group in rows}
+    assert "Sun" not in groups
+    # The user's own light group is kept (no surface attenuation for that light).
+    assert groups["Key"] is None
+    assert groups["Fill.001"] == "fog_Fill_001" and groups["Spot A"] == "fog_Spot_A"
+
+
+def test02_eevee_keeps_the_plain_composite(tmp_path):
+    scene = build_plane_scene(tmp_path)
+    scene.render.engine = 'BLENDER_EEVEE'
+    assert scene.airlight.surface_shading
+    compositor.setup(scene)
+    tree = scene.node_tree
+    assert _surface_nodes(tree) == []
+    assert tree.nodes["Airlight Multiply"].inputs[1].links[0].from_node.type == 'R_LAYERS'
+    assert len(bpy.context.view_layer.lightgroups) == 0
+
+
+@needs_native
+def test03_cycles_bake_sets_up_groups_passes_and_chain(tmp_path):
+    scene = build_plane_scene(tmp_path)
+    scene.render.engine = 'CYCLES'
+    _add_light(scene, "Key", 'POINT', (-1.0, 0.5, 1.5), group="user_key")
+    path = str(tmp_path / "fog.exr")
+    assert bpy.ops.airlight.bake('EXEC_DEFAULT', filepath=path) == {'FINISHED'}
+    view_layer = bpy.context.view_layer
+    assert [lg.name for lg in view_layer.lightgroups] == ["fog_Lamp"]
+    assert scene.objects["Lamp"].lightgroup == "fog_Lamp"
+    assert scene.objects["Key"].lightgroup == "user_key"
+    assert view_layer.use_pass_diffuse_color
+    # The EXR has the surface passes: attenuation - 1 (in (-1, 0]) and the glow (>= 0).
+    delta = exr_pass(path, "Surface_fog_Lamp")
+    glow = exr_pass(path, "SurfaceGlow")
+    assert np.all(delta <= 0.0) and np.all(delta > -1.0) and delta.min() < -0.1
+    assert np.all(glow >= 0.0) and glow.max() > 0.0
+    # Chain: Image + Combined_fog_Lamp x Surface_fog_Lamp + DiffCol x SurfaceGlow -> x T.
+    tree = scene.node_tree
+    assert _surface_nodes(tree) == ["Airlight Surface Add 0", "Airlight Surface Add 1",
+                                    "Airlight Surface Multiply 0", "Airlight Surface Multiply 1"]
+    render_layers = next(n for n in tree.nodes if n.type == 'R_LAYERS')
+    m0, m1 = tree.nodes["Airlight Surface Multiply 0"], tree.nodes["Airlight Surface Multiply 1"]
+    a0, a1 = tree.nodes["Airlight Surface Add 0"], tree.nodes["Airlight Surface Add 1"]
+    assert m0.inputs[1].links[0].from_socket == render_layers.outputs["Combined_fog_Lamp"]
+    assert m0.inputs[2].links[0].from_socket.name == "Surface_fog_Lamp"
+    assert m1.inputs[1].links[0].from_socket == render_layers.outputs["DiffCol"]
+    assert m1.inputs[2].links[0].from_socket.name == "SurfaceGlow"
+    assert a0.inputs[1].links[0].from_socket == render_layers.outputs["Image"]
+    assert a1.inputs[1].links[0].from_node == a0
+    assert tree.nodes["Airlight Multiply"].inputs[1].links[0].from_node == a1
+    # Idempotent.
+    before = (len(tree.nodes), len(tree.links))
+    compositor.setup(scene, path)
+    compositor.setup(scene)
+    assert (len(tree.nodes), len(tree.links)) == before
+    # Fog off mutes the chain too.
+    scene.airlight.enabled = False
+    assert a0.mute and m1.mute
+    scene.airlight.enabled = True
+    assert not a0.mute
+    # Surface shading off: the chain goes, the render feeds the fog nodes directly.
+    scene.airlight.surface_shading = False
+    assert _surface_nodes(tree) == []
+    assert tree.nodes["Airlight Multiply"].inputs[1].links[0].from_socket == render_layers.outputs["Image"]
+    # And back on: neutral passes with the surface names until the next bake.
+    scene.airlight.surface_shading = True
+    assert len(_surface_nodes(tree)) == 4
+
+
+@needs_native
+def test04_bake_without_surface_writes_no_surface_passes(tmp_path):
+    from conftest import read_exr
+    scene = build_plane_scene(tmp_path)
+    scene.render.engine = 'CYCLES'
+    scene.airlight.surface_shading = False
+    path = str(tmp_path / "fog.exr")
+    assert bpy.ops.airlight.bake('EXEC_DEFAULT', filepath=path) == {'FINISHED'}
+    _, names = read_exr(path)
+    assert not any("Surface" in n for n in names)
+    assert len(bpy.context.view_layer.lightgroups) == 0

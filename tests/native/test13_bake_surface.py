@@ -1,0 +1,188 @@
+"""Surface shading in the bake (Sun 2005 eq. 13-19; native/kernels/bake_surface.h): per-light
+attenuation e^{-sigma_t |s - p|} and the Lambert glow albedo I0 sigma_t G(T, theta_s) /
+(2 pi^2 D) at the first hit, checked per pixel against values computed here from the depth
+pass and the scene (p, the floor normal, D, theta_s), with G by an independent scipy
+quadrature of eq. 16 (e^{-T cos g} [F(T sin g, pi/2) - F(T sin g, g/2)] with F integrated
+here, the azimuth integral of cos(theta_i) numerically). Also: surface=False leaves the bake
+unchanged and adds nothing; pixels without a hit get attenuation 1 and no glow."""
+import math
+
+import numpy as np
+import pytest
+from scipy import integrate
+
+import _native
+from scene_util import camera_matrix, perspective, pixel_dirs_camera, quad, rotation_x
+
+W, H = 20, 14
+FOV = math.radians(60.0)
+SIGMA_T = 0.2
+ALBEDO = (0.9, 0.8, 0.6)
+TILT = math.radians(-35.0)
+CAM_POS = np.array([0.0, -6.0, 3.0])
+POINT_POS = np.array([[0.5, 0.0, 2.0], [-2.0, 3.0, 1.0]])
+POINT_I = np.array([[30.0, 20.0, 10.0], [5.0, 8.0, 12.0]])
+SPOT_POS = np.array([[1.0, 1.0, 4.0]])
+
+
+def scene(surface=True, spots=False):
+    # Camera looks along +Y (rotate -Z to +Y), tilted down onto the floor z = 0 (y < 8).
+    R = rotation_x(math.pi / 2 + TILT)
+    v, t = quad([(-30, -20, 0), (30, -20, 0), (30, 8, 0), (-30, 8, 0)])
+    kw = dict(width=W, height=H, cam_to_world=camera_matrix(R, CAM_POS), projection=perspective(FOV, W, H),
+              vertices=v, triangles=t, light_positions=POINT_POS, light_intensities=POINT_I,
+              sigma_t=SIGMA_T, albedo=ALBEDO, aa_samples=1, surface=surface, threads=2)
+    if spots:
+        kw.update(spot_positions=SPOT_POS, spot_axes=np.array([[0.0, 0.0, -1.0]]),
+                  spot_intensities=np.array([[10.0, 10.0, 10.0]]), spot_size=np.array([1.0]),
+                  spot_blend=np.array([0.1]))
+    return kw, R
+
+
+def F(u, v):
+    return integrate.quad(lambda x: math.exp(-u * math.tan(x)), 0.0, v, epsabs=0, epsrel=1e-11, limit=200)[0]
+
+
+def G_ref(T, theta, m=1.0):
+    """Eq. 16 in coordinates about the light direction: int H(T, g) W_m(g, theta) dg."""
+    def H(g):
+        u = T * math.sin(g)
+        return math.exp(-T * math.cos(g)) * (F(u, math.pi / 2) - F(u, g / 2))
+
+    def Wm(g):
+        a, b = math.cos(g) * math.cos(theta), math.sin(g) * math.sin(theta)
+        return integrate.quad(lambda p: max(0.0, a + b * math.cos(p)) ** m, 0.0, 2 * math.pi, epsrel=1e-10,
+                              points=[math.acos(-a / b)] if abs(b) > abs(a) else None, limit=200)[0]
+
+    edge = abs(math.pi / 2 - theta)
+    return integrate.quad(lambda g: H(g) * Wm(g), 0.0, math.pi, points=[edge, math.pi - edge], epsrel=1e-9,
+                          limit=200)[0]
+
+
+@pytest.fixture(scope="module")
+def baked():
+    kw, R = scene()
+    return _native.bake(**kw), R
+
+
+def hit_points(result, R):
+    d = pixel_dirs_camera(FOV, W, H) @ R.T
+    return CAM_POS + result["depth"][..., None] * d
+
+
+def test01_attenuation_per_light(baked):
+    result, R = baked
+    att = result["surface_attenuation"]
+    assert att.shape == (2, H, W, 3) and att.dtype == np.float32
+    p = hit_points(result, R)
+    hit = np.isfinite(result["depth"])
+    assert hit.sum() > 0.5 * W * H
+    for l, s in enumerate(POINT_POS):
+        D = np.linalg.norm(s - p[hit], axis=-1)
+        expected = np.exp(-SIGMA_T * D)
+        for c in range(3):
+            np.testing.assert_allclose(att[l][hit][:, c], expected, rtol=2e-5)
+        assert np.all(att[l][~hit] == 1.0)
+
+
+def test02_glow_against_scipy(baked):
+    result, R = baked
+    glow = result["surface_glow"]
+    assert glow.shape == (H, W, 3)
+    p = hit_points(result, R)
+    hit = np.isfinite(result["depth"])
+    assert np.all(glow[~hit] == 0.0)
+    rng = np.random.default_rng(3)
+    pixels = np.argwhere(hit)[rng.choice(int(hit.sum()), 4, replace=False)]
+    for j, i in pixels:
+        total = np.zeros(3)
+        for s, I0 in zip(POINT_POS, POINT_I):
+            v = s - p[j, i]
+            D = float(np.linalg.norm(v))
+            theta = math.acos(v[2] / D)  # floor normal +z (faces the camera above it)
+            total += I0 * SIGMA_T * G_ref(SIGMA_T * D, theta) / (2 * math.pi ** 2 * D)
+        expected = np.array(ALBEDO) * total
+        # Table error (sun05_surface.cpp): max 3.1e-3 relative.
+        np.testing.assert_allclose(glow[j, i], expected, rtol=4e-3)
+
+
+def test03_surface_off_is_unchanged(baked):
+    result, _ = baked
+    kw, _ = scene(surface=False)
+    plain = _native.bake(**kw)
+    assert "surface_attenuation" not in plain and "surface_glow" not in plain
+    np.testing.assert_array_equal(plain["airlight"], result["airlight"])
+    np.testing.assert_array_equal(plain["transmittance"], result["transmittance"])
+
+
+def test04_spot_lights_attenuated_after_points():
+    kw, R = scene(spots=True)
+    result = _native.bake(**kw)
+    att = result["surface_attenuation"]
+    assert att.shape[0] == 3
+    p = hit_points(result, R)
+    hit = np.isfinite(result["depth"])
+    D = np.linalg.norm(SPOT_POS[0] - p[hit], axis=-1)
+    np.testing.assert_allclose(att[2][hit][:, 0], np.exp(-SIGMA_T * D), rtol=2e-5)
+    # Spot lights add no glow (G assumes an isotropic point light): same glow as without them.
+    kw0, _ = scene()
+    np.testing.assert_array_equal(result["surface_glow"], _native.bake(**kw0)["surface_glow"])
+
+
+def test05_no_fog_is_neutral():
+    kw, _ = scene()
+    kw["sigma_t"] = 0.0
+    result = _native.bake(**kw)
+    assert np.all(result["surface_attenuation"] == 1.0)
+    assert np.all(result["surface_glow"] == 0.0)
+
+
+def test06_gaussian_fog_attenuation_uses_the_exact_optical_depth():
+    """With fog objects (Gaussians), the attenuation from each light to the hit is
+    exp(-optical depth through beta0 + the Gaussians) (Fogshop's T(s, p)), checked against
+    RbfMedium.optical_depth without culling; the glow stays the homogeneous background's."""
+    kw, R = scene()
+    centres = np.array([[0.0, 0.5, 1.0], [-1.5, 2.0, 0.5], [1.0, -1.0, 0.3]])
+    scales = np.array([0.8, 1.2, 0.6])
+    amplitudes = np.array([0.6, 0.3, 0.9])
+    kw.update(rbf_centres=centres, rbf_scales=scales, rbf_amplitudes=amplitudes)
+    result = _native.bake(**kw)
+    p = hit_points(result, R)
+    hit = np.isfinite(result["depth"])
+    medium = _native.RbfMedium(centres, scales, amplitudes, beta0=SIGMA_T)
+    for l, s in enumerate(POINT_POS):
+        q = p[hit]
+        T = medium.optical_depth(np.repeat(s[None, :], len(q), axis=0), q, culled=False)
+        np.testing.assert_allclose(result["surface_attenuation"][l][hit][:, 0], np.exp(-T), rtol=1e-5, atol=1e-7)
+        # The Gaussians make a difference here (else this test shows nothing).
+        assert np.max(np.abs(np.exp(-T) - np.exp(-SIGMA_T * np.linalg.norm(q - s, axis=-1)))) > 0.05
+    kw0, _ = scene()
+    np.testing.assert_allclose(result["surface_glow"], _native.bake(**kw0)["surface_glow"], rtol=1e-6)
+
+
+def test07_phong_gloss_glow_against_scipy():
+    """surface_phong_exponent = n: (n + 2)/(2 pi) albedo I0 sigma_t Gn(T, theta') / (2 pi D) summed
+    over the point lights, theta' from the view direction mirrored about the floor normal."""
+    n = 20.0
+    kw, R = scene()
+    result = _native.bake(**kw, surface_phong_exponent=n)
+    gloss = result["surface_gloss_glow"]
+    assert gloss.shape == (H, W, 3)
+    d = pixel_dirs_camera(FOV, W, H) @ R.T
+    p = hit_points(result, R)
+    hit = np.isfinite(result["depth"])
+    rng = np.random.default_rng(5)
+    for j, i in np.argwhere(hit)[rng.choice(int(hit.sum()), 3, replace=False)]:
+        r = d[j, i] * np.array([1.0, 1.0, -1.0])  # mirrored about the floor normal +z
+        total = np.zeros(3)
+        for s, I0 in zip(POINT_POS, POINT_I):
+            v = s - p[j, i]
+            D = float(np.linalg.norm(v))
+            theta = math.acos(min(1.0, max(-1.0, float(r @ v) / D)))
+            total += I0 * (n + 2) / (2 * math.pi) * SIGMA_T * G_ref(SIGMA_T * D, theta, n) / (2 * math.pi * D)
+        # Gn table (64 x 64) error: max 1.4e-2 relative (sun05_surface.cpp).
+        np.testing.assert_allclose(gloss[j, i], np.array(ALBEDO) * total, rtol=2e-2)
+    # The Lambert outputs do not change with the glossy option; bad exponents are refused.
+    np.testing.assert_array_equal(result["surface_glow"], _native.bake(**kw)["surface_glow"])
+    with pytest.raises(ValueError, match="surface_phong_exponent"):
+        _native.bake(**kw, surface_phong_exponent=0.5)
