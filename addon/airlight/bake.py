@@ -51,6 +51,9 @@ def prepare(scene, depsgraph):
         main = threading.current_thread() is threading.main_thread()
         settings[SURFACE_GROUPS] = (surface.ensure_passes(scene, depsgraph) if main
                                     else surface.current_groups(depsgraph))
+        if world is not None:
+            world["group"] = (surface.ensure_world_group(scene) if main
+                              else surface.current_world_group(scene))
     return description, settings
 
 
@@ -77,6 +80,9 @@ def run(description, settings, filepath, progress=None):
     except ValueError as ex:
         raise BakeError(f"Invalid fog scene: {ex}") from None
     extra = surface.pass_arrays(result, groups) if settings.get("surface") else None
+    if extra is not None and "environment_surface" in result:
+        name, ratio = result["environment_surface"]
+        extra[surface.PASS_PREFIX + name] = ratio
     try:
         cache.write_passes(filepath, result["airlight"], result["transmittance"], extra)
     except cache.CacheError as ex:

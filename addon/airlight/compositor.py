@@ -249,6 +249,9 @@ def neutral_passes(scene):
         try:
             groups = surface.ensure_passes(scene, bpy.context.evaluated_depsgraph_get())
             names = [surface.PASS_PREFIX + g for g in groups if g is not None] + [surface.PASS_GLOW]
+            world_group = surface.ensure_world_group(scene)
+            if world_group is not None:
+                names.append(surface.PASS_PREFIX + world_group)
         except Exception as ex:  # never block the plain fog composite
             print(f"Airlight: surface shading passes not set up: {ex}", flush=True)
     try:

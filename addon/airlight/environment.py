@@ -160,4 +160,29 @@ def apply(module, environment, description, result):
     miss = ~np.isfinite(result["depth"])
     result["airlight"][miss] += glow[miss]
     result["transmittance"][miss] = np.float32(fog["transmittance"])
+    group = environment.get("group")
+    if group is not None and "surface_normals" in result:
+        result["environment_surface"] = (group, surface_ratio(module, fog, description, result))
     return time.perf_counter() - start
+
+
+def surface_ratio(module, fog, description, result):
+    """(H, W, 3) float32: E_fogged(n) / E_world(n) - 1 per pixel, the correction the
+    compositor multiplies the World's light-group pass by (surface.py): the irradiance the
+    World gives a surface of normal n through the fog (attenuated World plus its airlight,
+    eq. 26-27, spherical-harmonic bands l <= 2) over the fog-free one. 0 where no surface
+    (normal 0) or where the World gives that normal (almost) no light, whose pass is ~0
+    anyway."""
+    normals = result["surface_normals"].reshape(-1, 3)
+    hit = np.any(normals != 0.0, axis=1)
+    ratio = np.zeros_like(normals, dtype=np.float32)
+    if hit.any():
+        e_world, e_fogged = module.environment_irradiance(
+            fog["sh_world"], fog["eigenvalues"], fog["transmittance"],
+            np.asarray(description["albedo"], dtype=np.float64), normals[hit].astype(np.float64))
+        floor = 1e-6 * max(float(e_world.max()), 1e-30)
+        lit = e_world > floor
+        r = np.zeros_like(e_world)
+        r[lit] = e_fogged[lit] / e_world[lit] - 1.0
+        ratio[hit] = r.astype(np.float32)
+    return ratio.reshape(result["surface_normals"].shape)

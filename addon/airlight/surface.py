@@ -68,6 +68,47 @@ def fogged_lights(depsgraph):
     return rows
 
 
+# The World's light group when the environment glow is on (environment.py): its pass is
+# scaled by the fog-aware environment irradiance ratio, like a light's by its attenuation.
+WORLD_GROUP = GROUP_PREFIX + "world_environment"
+
+
+def world_group_wanted(scene):
+    """True when the World's light on surfaces gets the environment fog (surface shading
+    and Environment Glow both on, and a World to light the scene)."""
+    return active(scene) and bool(scene.airlight.environment_glow) and scene.world is not None
+
+
+def ensure_world_group(scene):
+    """Puts the World in its light group on every view layer (main thread only); returns the
+    group name, or None when not wanted or the World already has a group of the user's."""
+    if not world_group_wanted(scene):
+        return None
+    world = scene.world
+    if world.lightgroup not in ("", WORLD_GROUP):
+        return None
+    if world.lightgroup != WORLD_GROUP:
+        world.lightgroup = WORLD_GROUP
+    for view_layer in scene.view_layers:
+        if WORLD_GROUP not in {lg.name for lg in view_layer.lightgroups}:
+            view_layer.lightgroups.add(name=WORLD_GROUP)
+            refresh_render_layer_sockets(view_layer)
+    return WORLD_GROUP
+
+
+def refresh_render_layer_sockets(view_layer):
+    """Makes Render Layers nodes show new light-group passes: adding a light group does not
+    update them (Blender 3.4), a pass toggle's update does, so set one to its own value."""
+    view_layer.use_pass_diffuse_color = view_layer.use_pass_diffuse_color
+
+
+def current_world_group(scene):
+    """The World's group where already set up (render thread: writes nothing), else None."""
+    if world_group_wanted(scene) and scene.world.lightgroup == WORLD_GROUP:
+        return WORLD_GROUP
+    return None
+
+
 def current_groups(depsgraph):
     """The group name per bake light where it is already set up (else None), changing
     nothing: for the render thread, where bpy data must not be written."""
@@ -85,12 +126,16 @@ def ensure_passes(scene, depsgraph):
             obj.lightgroup = group
     for view_layer in scene.view_layers:
         existing = {lg.name for lg in view_layer.lightgroups}
+        added = False
         for group in groups:
             if group is not None and group not in existing:
                 view_layer.lightgroups.add(name=group)
                 existing.add(group)
+                added = True
         if not view_layer.use_pass_diffuse_color:
             view_layer.use_pass_diffuse_color = True
+        elif added:
+            refresh_render_layer_sockets(view_layer)
     return groups
 
 

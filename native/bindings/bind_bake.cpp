@@ -245,6 +245,7 @@ py::dict bake_py(int width, int height, const py::object& cam_to_world, const py
         const py::ssize_t L = result.surface_lights;
         extra["surface_attenuation"] = to_numpy(std::move(result.surface_attenuation), {L, H, W, 3});
         extra["surface_glow"] = to_numpy(std::move(result.surface_glow), {H, W, 3});
+        extra["surface_normals"] = to_numpy(std::move(result.surface_normals), {H, W, 3});
         if (surface_phong_exponent > 0.0)
             extra["surface_gloss_glow"] = to_numpy(std::move(result.surface_gloss_glow), {H, W, 3});
     }
@@ -356,7 +357,9 @@ surface: also bake surface shading through the fog (Sun 2005 eq. 13-19, bake_sur
   adds surface_attenuation=(L, H, W, 3) float32, e^{-T(light, first hit)} per light (the
   point lights, then the spot lights, in argument order; 1 where no hit), and
   surface_glow=(H, W, 3) float32, the point lights' scattered light on a Lambert surface
-  per unit diffuse colour (multiply by Cycles' DiffCol pass), and stats seconds_surface.
+  per unit diffuse colour (multiply by Cycles' DiffCol pass), surface_normals=(H, W, 3)
+  float32, the first hit's geometric normal facing the camera (0 where no hit), and stats
+  seconds_surface.
 surface_phong_exponent: with surface, n in [1, 10000] also adds surface_gloss_glow=(H, W, 3):
   the point lights' scattered light on a normalised Phong lobe (n + 2)/(2 pi) cos^n about the
   mirrored view direction (Sun 2005 eq. 18, Gn), per unit glossy colour. 0: off.

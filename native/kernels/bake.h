@@ -69,6 +69,10 @@ struct BakeResult {
     // settings.surface_phong_exponent > 0 only: the point lights' glossy glow per unit
     // glossy colour, (n + 2) / (2 pi) sum_l albedo I0 sigma_t Gn(T, theta'_s) / (2 pi D).
     std::vector<float> surface_gloss_glow;
+    // settings.surface only: the geometric normal of the first hit at each pixel centre,
+    // turned towards the camera (3 floats per pixel, 0 where the ray hits nothing), for
+    // image-space shading done after the bake (the environment's irradiance ratio).
+    std::vector<float> surface_normals;
     BakeStats stats;
 };
 

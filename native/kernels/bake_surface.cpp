@@ -66,6 +66,7 @@ void bake_surface_pass(const SceneDescription& scene, const BakeSettings& settin
         throw std::invalid_argument("surface_phong_exponent: must be 0 (off) or in [1, 10000], got " +
                                     std::to_string(n_phong));
     if (n_phong > 0.0) allocate_filled(result.surface_gloss_glow, 3 * n_pixels, 0.0f);
+    allocate_filled(result.surface_normals, 3 * n_pixels, 0.0f);
 
     // Light positions (point lights first, then spots) and the point lights' glow scale.
     std::vector<Vec3> positions;
@@ -82,7 +83,8 @@ void bake_surface_pass(const SceneDescription& scene, const BakeSettings& settin
     if (!scene.gaussians.empty())
         rbf = std::make_unique<RbfMedium>(scene.gaussians.centres, scene.gaussians.scales,
                                           scene.gaussians.amplitudes, sigma_t);
-    if (sigma_t <= 0.0 && !rbf) return;  // no fog: attenuation 1, glow 0
+    // No fog: attenuation 1, glow 0 (normals are still written below: they do not depend on it).
+    const bool fog = sigma_t > 0.0 || rbf;
 
     // Rows interleaved over the threads; each row casts its centre rays with normals.
     auto work = [&](int first) {
@@ -104,6 +106,8 @@ void bake_surface_pass(const SceneDescription& scene, const BakeSettings& settin
                 const Vec3 p = row[i].o + double(t[i]) * row[i].d;
                 Vec3 n(ng[3 * i], ng[3 * i + 1], ng[3 * i + 2]);
                 if (glm::dot(n, row[i].d) > 0.0) n = -n;  // facing the camera
+                for (int c = 0; c < 3; ++c) result.surface_normals[3 * px + c] = float(n[c]);
+                if (!fog) continue;
                 RGB glow(0.0), gloss(0.0);
                 const Vec3 mirror = row[i].d - 2.0 * glm::dot(row[i].d, n) * n;  // r about n
                 for (size_t l = 0; l < n_lights; ++l) {

@@ -183,3 +183,68 @@ def test03_bake_with_glow_matches_exact_psf_reference(tmp_path):
     assert rel.mean() < 0.05
     # And without the glow nothing changes on surfaces or in the sky's airlight.
     np.testing.assert_allclose(A[~miss], plain["airlight"][~miss], rtol=1e-6)
+
+
+def _psf_lambda0_scipy(Tsv):
+    """lambda_0 = 2 pi int_0^pi PSF(gamma) sin(gamma) dgamma with Sun 2005's eq. 20 PSF and F
+    by scipy quadrature (independent of the native kernels)."""
+    from scipy.integrate import quad
+
+    def F(u, v):
+        return quad(lambda x: math.exp(-u * math.tan(x)) if x < math.pi / 2 else 0.0, 0.0, v, limit=200)[0]
+
+    def integrand(g):
+        s = math.sin(g)
+        psf = Tsv * math.exp(-Tsv * math.cos(g)) * (F(Tsv * s, math.pi / 2) - F(Tsv * s, g / 2)) / (2 * math.pi * s)
+        return psf * s
+
+    return 2 * math.pi * quad(integrand, 1e-9, math.pi, limit=200, points=[0.01, 0.1, 1.0])[0]
+
+
+@needs_real_native
+def test04_world_light_on_surfaces_through_fog(tmp_path):
+    """Surface shading + Environment Glow: the World goes in its own light group and the bake
+    writes its correction pass E_fogged / E_world - 1 per pixel (eq. 26-27 irradiance). For a
+    constant World that is e^-T + albedo lambda_0 - 1 on every surface, lambda_0 from an
+    independent scipy quadrature of the PSF."""
+    from airlight import surface
+    scene = build_plane_scene(tmp_path, fog=True, light=False, size=(40, 30))
+    scene.render.engine = 'CYCLES'
+    scene.camera.rotation_euler = (math.radians(70.0), 0.0, 0.0)
+    world = bpy.data.worlds.new("Sky")
+    world.use_nodes = True
+    world.node_tree.nodes['Background'].inputs['Color'].default_value = (0.5, 0.6, 0.8, 1.0)
+    scene.world = world
+    settings = scene.airlight
+    settings.density = 0.05
+    settings.color = (0.8, 0.8, 0.8)
+    settings.surface_shading = True
+    settings.environment_glow = True
+    settings.environment_distance = 30.0
+    depsgraph = bpy.context.evaluated_depsgraph_get()
+    description, bake_kw = bake.prepare(scene, depsgraph)
+    assert bake_kw["environment"]["group"] == surface.WORLD_GROUP
+    assert world.lightgroup == surface.WORLD_GROUP
+    assert surface.WORLD_GROUP in {lg.name for lg in scene.view_layers[0].lightgroups}
+    path = str(tmp_path / "world_surface.exr")
+    bake.run(description, bake_kw, path)
+    pixels, names = read_exr(path)
+    ratio = pixels[..., [names.index(f"Fog.Surface_{surface.WORLD_GROUP}.{c}") for c in "RGB"]]
+    depth = native.get().bake(**description, **{k: v for k, v in bake_kw.items()
+                                                if k not in ("environment", "surface_groups")})["depth"]
+    floor = np.isfinite(depth)
+    assert 100 < floor.sum() < floor.size - 50
+    T = 0.05 * 30.0
+    want = math.exp(-T) + 0.8 * _psf_lambda0_scipy(T) - 1.0
+    print(f"world surface ratio - 1: {ratio[floor].mean():.5f} (want {want:.5f})")
+    np.testing.assert_allclose(ratio[floor], want, rtol=2e-3, atol=2e-4)
+    np.testing.assert_array_equal(ratio[~floor], 0.0)
+    # The compositor multiplies the World's light-group pass by it (the operator's bake
+    # syncs the compositor, as F12 does).
+    assert bpy.ops.airlight.bake('EXEC_DEFAULT', filepath=path) == {'FINISHED'}
+    links = [(l.from_socket.name, l.to_node.name) for l in scene.node_tree.links]
+    assert any(name == f"Combined_{surface.WORLD_GROUP}" for name, _ in links), links
+    assert any(name == f"Surface_{surface.WORLD_GROUP}" for name, _ in links), links
+    # Off: no group wanted, no pass.
+    settings.environment_glow = False
+    assert surface.ensure_world_group(scene) is None
