@@ -140,6 +140,47 @@ class AIRLIGHT_PT_light(bpy.types.Panel):
             layout.label(text=f"{light.type.title()} lights are not yet in fog.", icon='INFO')
 
 
+def fog_object_note(model_name):
+    """One line saying how the chosen model treats fog objects (Gaussian fog) and its
+    measured error (README: rbf_airlight_test.cpp, tests/blender/test_cycles_gaussians.py)."""
+    if model_name in ("sun05", "sun05_exact", "baseline"):
+        return ("Fogshop 2007 approximation: ~1 % on thin fog, 12-29 % on thick fog "
+                "near a light; Quadrature is exact (slow)")
+    if model_name == "quadrature":
+        return "Exact single scattering (quadrature with exact optical depths)"
+    return "This model does not take fog objects: the bake refuses them"
+
+
+class AIRLIGHT_PT_fog_objects(bpy.types.Panel):
+    bl_label = "Fog Objects"
+    bl_idname = "AIRLIGHT_PT_fog_objects"
+    bl_space_type = 'PROPERTIES'
+    bl_region_type = 'WINDOW'
+    bl_context = "scene"
+    bl_parent_id = "AIRLIGHT_PT_scene"
+    bl_options = {'DEFAULT_CLOSED'}
+
+    def draw(self, context):
+        layout = self.layout
+        layout.use_property_split = True
+        layout.use_property_decorate = False
+        settings = context.scene.airlight
+        count = sum(1 for obj in context.scene.objects
+                    if getattr(getattr(obj, "airlight_fog", None), "is_fog", False))
+        col = layout.column()
+        col.active = settings.enabled
+        if count == 0:
+            col.label(text="No fog objects (Add > Airlight Fog Object, or paint one)", icon='INFO')
+        else:
+            col.label(text=f"{count} fog object{'s' if count != 1 else ''}", icon='OUTLINER_OB_POINTCLOUD')
+            col.label(text=fog_object_note(model_choice.choose(settings)[0]), icon='INFO')
+        col.prop(settings, "noise_amplitude")
+        sub = col.column()
+        sub.active = settings.noise_amplitude > 0.0
+        sub.prop(settings, "noise_scale")
+        sub.prop(settings, "noise_offset")
+
+
 class AIRLIGHT_PT_environment(bpy.types.Panel):
     bl_label = "Environment Glow"
     bl_idname = "AIRLIGHT_PT_environment"
@@ -176,7 +217,7 @@ class AIRLIGHT_PT_environment(bpy.types.Panel):
                     col.label(text=f"Glow from '{source[1].name}'", icon='WORLD')
 
 
-classes = (AIRLIGHT_PT_scene, AIRLIGHT_PT_light, AIRLIGHT_PT_environment)
+classes = (AIRLIGHT_PT_scene, AIRLIGHT_PT_light, AIRLIGHT_PT_fog_objects, AIRLIGHT_PT_environment)
 
 
 def register():

@@ -1,0 +1,66 @@
+"""The Scene > Airlight Fog panels draw without errors, show only properties that exist
+and have tooltips, and say what the model does with fog objects."""
+import bpy
+import numpy as np
+import pytest
+
+from airlight import fog_object, ui
+from conftest import build_plane_scene
+
+
+class _Layout:
+    """Records what a panel draws; checks that each property exists and has a tooltip."""
+
+    def __init__(self, seen):
+        self.seen = seen
+        self.use_property_split = self.use_property_decorate = self.alert = self.active = False
+
+    def _child(self, *args, **kwargs):
+        return _Layout(self.seen)
+    row = column = box = _child
+
+    def prop(self, data, name, **kwargs):
+        assert name in data.bl_rna.properties, name
+        assert data.bl_rna.properties[name].description, name
+        self.seen.append(name)
+
+    def operator(self, idname, **kwargs):
+        module, name = idname.split(".")
+        assert hasattr(getattr(bpy.ops, module), name), idname
+        self.seen.append(idname)
+
+    def label(self, **kwargs):
+        self.seen.append(kwargs.get("text", ""))
+
+
+def _draw(panel):
+    seen = []
+
+    class Fake:
+        layout = _Layout(seen)
+    getattr(bpy.types, panel).draw(Fake(), bpy.context)
+    return seen
+
+
+@pytest.mark.parametrize("model", ['AUTO', 'QUADRATURE', 'BIRI06'])
+def test01_scene_panels_draw(tmp_path, model):
+    scene = build_plane_scene(tmp_path)
+    scene.airlight.model = model
+    seen = _draw("AIRLIGHT_PT_scene")
+    assert {"density", "color", "model", "accuracy", "surface_shading", "airlight.bake"} <= set(seen)
+    seen = _draw("AIRLIGHT_PT_fog_objects")
+    assert {"noise_amplitude", "noise_scale", "noise_offset"} <= set(seen)
+    assert any(text.startswith("No fog objects") for text in seen)
+    fog_object.new_fog_object("Fog", scene.collection, np.zeros((3, 3)), 1.0, 0.1)
+    seen = _draw("AIRLIGHT_PT_fog_objects")
+    assert "1 fog object" in seen
+    note = {'AUTO': "Fogshop 2007", 'QUADRATURE': "Exact", 'BIRI06': "does not take fog objects"}[model]
+    assert any(note in text for text in seen), seen
+    scene.airlight.environment_glow = True
+    seen = _draw("AIRLIGHT_PT_environment")
+    assert {"environment_distance", "environment_sh_order"} <= set(seen)
+
+
+def test02_fog_object_note_matches_what_the_bake_does():
+    assert "Fogshop" in ui.fog_object_note("sun05") and "Fogshop" in ui.fog_object_note("sun05_exact")
+    assert "Exact" in ui.fog_object_note("quadrature")
