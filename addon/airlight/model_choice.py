@@ -14,8 +14,8 @@ The figures are measurements, not guesses; each names where it was measured:
 - pegoraro10 (closed form, benchmarks/bench_pegoraro.py): max error vs quadrature 1.2e-11 for
   the exact polynomial phases (isotropic, Rayleigh, hazy/murky Mie); for Henyey-Greenstein,
   truncated at the order the bake picks (Legendre tail below 1e-6 of the lobe, at most 96),
-  max 2.6e-7 for |g| <= 0.75 (g = 0.3, 0.6, 0.75 measured), 9.6e-2 at |g| = 0.9 (order 96 is
-  not enough), not measured beyond (treated as unusable). Cost: ~1.5-5.3 us per evaluation
+  max 2.6e-7 for |g| <= 0.75 (g = 0.3, 0.6, 0.75 measured); beyond |g| ~ 0.78 order 96 is not
+  enough (9.6e-2 at 0.9, negative values at 0.99) and the bake refuses it. Cost: ~1.5-5.3 us per evaluation
   vs 0.24 us for the table in the same run (order 0 to 32-41): 22x, the high-order figure.
 
 The phase: the Sun 2005 models integrate the isotropic phase only (Henyey-Greenstein
@@ -38,9 +38,10 @@ MEASURED = {
     "biri06": ("Biri 2006 (table)", 8.9e-4, 5.0),
     "pegoraro10": ("Pegoraro 2010 (closed form)", 1.2e-11, 22.0),
 }
-# pegoraro10 with Henyey-Greenstein: error at the bake's truncation order, by |g|
-# (bench_pegoraro.py): the order that meets the bake's tolerance exists up to |g| ~ 0.78.
-PEGORARO10_HG_ERROR = ((0.78, 2.6e-7), (0.9, 9.6e-2))
+# pegoraro10 with Henyey-Greenstein: error at the bake's truncation order (bench_pegoraro.py);
+# the bake refuses |g| above PEGORARO10_MAX_G (no order <= 96 meets its tolerance there).
+PEGORARO10_HG_ERROR = 2.6e-7
+PEGORARO10_MAX_G = 0.78
 # biri06's measured worst case for Henyey-Greenstein lobes with |g| >= 0.95.
 BIRI06_NARROW_LOBE_ERROR = 6e-3
 BIRI06_NARROW_LOBE_G = 0.95
@@ -69,8 +70,7 @@ def model_error(name, settings):
             and abs(settings.anisotropy) >= BIRI06_NARROW_LOBE_G):
         error = BIRI06_NARROW_LOBE_ERROR
     if name == "pegoraro10" and settings.phase == 'HENYEY_GREENSTEIN' and settings.anisotropy != 0.0:
-        g = abs(settings.anisotropy)
-        error = next((e for limit, e in PEGORARO10_HG_ERROR if g <= limit), math.inf)
+        error = PEGORARO10_HG_ERROR if abs(settings.anisotropy) <= PEGORARO10_MAX_G else math.inf
     return error
 
 
@@ -82,6 +82,9 @@ def phase_problem(settings):
     if name in ISOTROPIC_ONLY:
         return (f"{MEASURED[name][0]} handles isotropic fog only: use Biri 2006, "
                 f"Pegoraro 2010, Quadrature or Automatic for this phase")
+    if name == "pegoraro10" and math.isinf(model_error(name, settings)):
+        return (f"Pegoraro 2010 represents Henyey-Greenstein up to Anisotropy +-{PEGORARO10_MAX_G} "
+                f"(Legendre order 96): use Biri 2006, Quadrature or Automatic for this lobe")
     return None
 
 

@@ -26,7 +26,12 @@ namespace {
 PegoraroPhase make_phase(const std::string& name, double g, int order, double rel_tol) {
     try {
         const PhaseFunction p = phase_from_name(name, g);
-        if (order < 0) return pegoraro_phase_auto(p, rel_tol);
+        if (order < 0) {
+            if (p.kind == PhaseKind::HenyeyGreenstein && pegoraro_hg_order(p.g, rel_tol) < 0)
+                throw py::value_error("pegoraro10: Henyey-Greenstein g = " + std::to_string(g) +
+                                      " needs a Legendre order above 96 for rel_tol; pass order= explicitly");
+            return pegoraro_phase_auto(p, rel_tol);
+        }
         return pegoraro_phase(p, order);
     } catch (const std::invalid_argument& e) {
         throw py::value_error(e.what());

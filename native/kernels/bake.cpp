@@ -94,6 +94,13 @@ void validate(const SceneDescription& scene, const BakeSettings& settings) {
                 settings.model == ModelId::Quadrature || settings.model == ModelId::Biri06 ||
                 settings.model == ModelId::Pegoraro10,
             "the bake does not dispatch this model (see models())");
+    // Pegoraro 2010 truncates Henyey-Greenstein; lobes that order kPegoraroMaxOrder cannot
+    // represent (|g| >~ 0.79) would bake wrong (even negative) fog: refuse them.
+    require(settings.model != ModelId::Pegoraro10 || medium.phase.kind != PhaseKind::HenyeyGreenstein ||
+                pegoraro_hg_order(medium.phase.g, kPegoraroPhaseTol, kPegoraroMaxOrder) >= 0,
+            "model 'pegoraro10': Henyey-Greenstein g = " + std::to_string(medium.phase.g) +
+                " needs a Legendre order above " + std::to_string(kPegoraroMaxOrder) +
+                " (|g| <= 0.78 works); use 'biri06' or 'quadrature'");
     // Gaussian fog (Fogshop): isotropic only, through the Fogshop approximation (sun05,
     // sun05_exact: F table or exact F for the background term) or its quadrature reference.
     const GaussianMedium& gauss = scene.gaussians;
