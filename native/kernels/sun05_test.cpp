@@ -36,12 +36,13 @@ double thin_limit_per_sigma(double Dsv, double c, double Dvp) {
 
 TEST(Models, Registry) {
     const auto& r = model_registry();
-    ASSERT_EQ(r.size(), 4u);
+    ASSERT_EQ(r.size(), 5u);
     EXPECT_EQ(r[0].name, "sun05");
     EXPECT_EQ(model_from_name("sun05"), ModelId::Sun05Table);
     EXPECT_EQ(model_from_name("sun05_exact"), ModelId::Sun05Exact);
     EXPECT_EQ(model_from_name("quadrature"), ModelId::Quadrature);
     EXPECT_EQ(model_from_name("biri06"), ModelId::Biri06);
+    EXPECT_EQ(model_from_name("pegoraro10"), ModelId::Pegoraro10);
     try {
         model_from_name("sun06");
         FAIL() << "no exception";
