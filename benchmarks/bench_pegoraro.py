@@ -145,7 +145,8 @@ def spot_bake(runs, threads, width, height):
     print(f"## 4. Spot bake {width}x{height}, {threads} threads: closed form vs quadrature\n")
     print("One 45 deg spot (blend 0.15), no point lights, floor at 10 m: the airlight pass with the")
     print("spot minus the same bake without it (medians). Isotropic: model sun05 (spot by the closed")
-    print("form) vs quadrature; HG g = 0.5: biri06 (closed form, order 30) vs quadrature.\n")
+    print("form) vs quadrature; HG g = 0.5: pegoraro10 (closed form, order 30) vs quadrature (the")
+    print("other models bake spots of phase order > 8 by quadrature).\n")
     fov = math.radians(60.0)
     tilt = math.radians(-10.0)
     big = 1000.0
@@ -157,7 +158,7 @@ def spot_bake(runs, threads, width, height):
     spot = dict(spot_positions=np.array([[0.5, 3.0, -5.0]]), spot_axes=np.array([[0.1, -1.0, -0.2]]),
                 spot_intensities=np.array([[30.0, 20.0, 10.0]]), spot_size=np.array([math.radians(45.0)]),
                 spot_blend=np.array([0.15]))
-    for phase, g, fast in (("isotropic", 0.0, "sun05"), ("hg", 0.5, "biri06")):
+    for phase, g, fast in (("isotropic", 0.0, "sun05"), ("hg", 0.5, "pegoraro10")):
         out = {}
         for model in (fast, "quadrature"):
             times = {}
