@@ -14,8 +14,8 @@ The figures are measurements, not guesses; each names where it was measured:
 - pegoraro10 (closed form, benchmarks/bench_pegoraro.py): max error vs quadrature 1.2e-11 for
   the exact polynomial phases (isotropic, Rayleigh, hazy/murky Mie); for Henyey-Greenstein,
   truncated at the order the bake picks (Legendre tail below 1e-6 of the lobe, at most 96),
-  max 2.6e-7 for |g| <= 0.75 (g = 0.3, 0.6, 0.75 measured), 9.6e-2 at |g| = 0.9 (order 96 is
-  not enough), not measured beyond (treated as unusable). Cost: ~1.5-5.3 us per evaluation
+  max 2.6e-7 for |g| <= 0.75 (g = 0.3, 0.6, 0.75 measured); beyond |g| ~ 0.78 order 96 is not
+  enough (9.6e-2 at 0.9, negative values at 0.99) and the bake refuses it. Cost: ~1.5-5.3 us per evaluation
   vs 0.24 us for the table in the same run (order 0 to 32-41): 22x, the high-order figure.
 
 The phase: the Sun 2005 models integrate the isotropic phase only (Henyey-Greenstein
@@ -42,9 +42,10 @@ MEASURED = {
     "biri06": ("Biri 2006 (table)", 8.9e-4, 5.0),
     "pegoraro10": ("Pegoraro 2010 (closed form)", 1.2e-11, 22.0),
 }
-# pegoraro10 with Henyey-Greenstein: error at the bake's truncation order, by |g|
-# (bench_pegoraro.py): the order that meets the bake's tolerance exists up to |g| ~ 0.78.
-PEGORARO10_HG_ERROR = ((0.78, 2.6e-7), (0.9, 9.6e-2))
+# pegoraro10 with Henyey-Greenstein: error at the bake's truncation order (bench_pegoraro.py);
+# the bake refuses |g| above PEGORARO10_MAX_G (no order <= 96 meets its tolerance there).
+PEGORARO10_HG_ERROR = 2.6e-7
+PEGORARO10_MAX_G = 0.78
 # sun05's table choices (scene.airlight.table_resolution, table_interpolation): worst
 # per-ray airlight error against the exact-F model, measured over 20000 random rays by
 # native/kernels/sun05_nearest_test.cpp (AirlightErrorAgainstExactF). model_error takes the
@@ -87,8 +88,7 @@ def model_error(name, settings):
             and abs(settings.anisotropy) >= BIRI06_NARROW_LOBE_G):
         error = BIRI06_NARROW_LOBE_ERROR
     if name == "pegoraro10" and settings.phase == 'HENYEY_GREENSTEIN' and settings.anisotropy != 0.0:
-        g = abs(settings.anisotropy)
-        error = next((e for limit, e in PEGORARO10_HG_ERROR if g <= limit), math.inf)
+        error = PEGORARO10_HG_ERROR if abs(settings.anisotropy) <= PEGORARO10_MAX_G else math.inf
     return error
 
 
@@ -115,6 +115,9 @@ def phase_problem(settings):
     if name in ISOTROPIC_ONLY:
         return (f"{MEASURED[name][0]} handles isotropic fog only: use Biri 2006, "
                 f"Pegoraro 2010, Quadrature or Automatic for this phase")
+    if name == "pegoraro10" and math.isinf(model_error(name, settings)):
+        return (f"Pegoraro 2010 represents Henyey-Greenstein up to Anisotropy +-{PEGORARO10_MAX_G} "
+                f"(Legendre order 96): use Biri 2006, Quadrature or Automatic for this lobe")
     return None
 
 
@@ -141,11 +144,26 @@ def choose(settings):
 
 # The constant-colour bar (never chosen by Automatic): its error depends on the scene.
 BASELINE = ("baseline", "Baseline (constant colour)", math.inf)
-# Lights that are not point lights get one model whatever the scene's model is:
-# spots the adaptive quadrature (bake.cpp kSpotRelTol = 1e-5), suns the closed form of
-# sun_layer.h (exact; held to 1e-6 against quadrature by sun_layer_test.cpp) or, with the
-# quadrature model, its quadrature (1e-8).
+# Lights that are not point lights get their own model (bake.cpp): spots Pegoraro 2010's
+# closed form with the exact piecewise cone profile for model pegoraro10, and for the other
+# non-quadrature models when the phase polynomial has order <= 8 (isotropic, Rayleigh, hazy
+# Mie: there it costs about what the quadrature does), else the adaptive quadrature
+# (kSpotRelTol = 1e-5); suns the closed form of sun_layer.h (exact; held to 1e-6 against
+# quadrature by sun_layer_test.cpp) or, with the quadrature model, its quadrature (1e-8).
 SPOT_MODEL = ("Quadrature (spot)", 1e-5)
+SPOT_CLOSED_FORM_MODEL = ("Pegoraro 2010 (spot)", 1e-6)
+# Phase polynomial orders of the closed form (pegoraro10.h): HG with g != 0 needs >= 15.
+_PHASE_ORDER = {'RAYLEIGH': 2, 'MIE_HAZY': 8, 'MIE_MURKY': 32}
+
+
+def spot_model(name, settings):
+    """(label, error) of the model spot lights get with point-light model _name_."""
+    if name == "quadrature":
+        return SPOT_MODEL
+    order = 0 if is_isotropic(settings) else _PHASE_ORDER.get(settings.phase, 99)
+    if name == "pegoraro10" or order <= 8:
+        return SPOT_CLOSED_FORM_MODEL
+    return SPOT_MODEL
 SUN_MODEL = ("Closed form (sun)", 1e-6)
 SUN_QUADRATURE_MODEL = ("Quadrature (sun)", 1e-8)
 
@@ -201,7 +219,7 @@ def light_plan(scene, depsgraph=None, view_layer=None):
         elif light.type == 'SUN':
             label, error = SUN_QUADRATURE_MODEL if name == "quadrature" else SUN_MODEL
         elif light.type == 'SPOT':
-            label, error = SPOT_MODEL
+            label, error = spot_model(name, settings)
         else:
             label, error = point_label, point_error
         rows.append(LightRow(obj.name, light.type, 'fog', label, error, math.nan))

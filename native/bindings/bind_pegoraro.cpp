@@ -1,4 +1,4 @@
-// bind_pegoraro.cpp: the complex exponential integral, the Pegoraro et al. 2010 closed form
+// bind_pegoraro.cpp: the complex exponential integral, the baseline fog term (for the stability suite), the Pegoraro et al. 2010 closed form
 // (point and spot lights, any polynomial phase / light distribution) and the spot-light
 // quadrature reference, over numpy arrays (GIL released around the loops).
 #include <cmath>
@@ -9,6 +9,7 @@
 #include <pybind11/complex.h>
 #include <pybind11/stl.h>
 
+#include "kernels/baseline_fog.h"
 #include "kernels/complex_e1.h"
 #include "kernels/pegoraro10.h"
 #include "kernels/spot_light.h"
@@ -25,7 +26,12 @@ namespace {
 PegoraroPhase make_phase(const std::string& name, double g, int order, double rel_tol) {
     try {
         const PhaseFunction p = phase_from_name(name, g);
-        if (order < 0) return pegoraro_phase_auto(p, rel_tol);
+        if (order < 0) {
+            if (p.kind == PhaseKind::HenyeyGreenstein && pegoraro_hg_order(p.g, rel_tol) < 0)
+                throw py::value_error("pegoraro10: Henyey-Greenstein g = " + std::to_string(g) +
+                                      " needs a Legendre order above 96 for rel_tol; pass order= explicitly");
+            return pegoraro_phase_auto(p, rel_tol);
+        }
         return pegoraro_phase(p, order);
     } catch (const std::invalid_argument& e) {
         throw py::value_error(e.what());
@@ -72,6 +78,23 @@ Rays make_rays(const py::object& origins, const py::object& directions, const py
 }  // namespace
 
 void bind_pegoraro(py::module_& m) {
+    m.def(
+        "baseline_fog_airlight",
+        [](const py::object& C_fog, const py::object& sigma_t, const py::object& D) {
+            auto args = broadcast_doubles({{C_fog, "C_fog"}, {sigma_t, "sigma_t"}, {D, "D"}});
+            py::array_t<double> out(std::vector<py::ssize_t>(args[0].shape(), args[0].shape() + args[0].ndim()));
+            const double *pc = args[0].data(), *ps = args[1].data(), *pd = args[2].data();
+            double* po = out.mutable_data();
+            for (py::ssize_t i = 0; i < args[0].size(); ++i) {
+                if (!std::isfinite(pc[i]) || !std::isfinite(ps[i]) || ps[i] < 0.0 || !(pd[i] >= 0.0))
+                    throw py::value_error("baseline_fog_airlight: C_fog, sigma_t finite (sigma_t >= 0), D >= 0 (inf ok)");
+                po[i] = baseline_fog_airlight(pc[i], ps[i], pd[i]);
+            }
+            return out;
+        },
+        "C_fog"_a, "sigma_t"_a, "D"_a,
+        "Baseline fog (Blender Mist / OpenGL fog) airlight C_fog (1 - e^{-sigma_t D}) (baseline_fog.h); D may be inf.");
+
     m.def(
         "complex_e1",
         [](const py::object& z) {

@@ -53,12 +53,13 @@ constexpr double kQuadratureRelTol = 1e-8;
 // Relative tolerance of the spot-light quadrature (every model: spots have no closed form);
 // far below the float passes' and Cycles' noise, and ~3x cheaper than 1e-8.
 constexpr double kSpotRelTol = 1e-5;
-// Pegoraro 2010 (spots for every model but 'quadrature', point lights for 'pegoraro10'):
-// Henyey-Greenstein is truncated where its Legendre tail is below kPegoraroPhaseTol of the
-// lobe everywhere (airlight error ~1e-7, bench_pegoraro.py), at most kPegoraroMaxOrder;
-// where that is not enough (|g| >~ 0.75) spots fall back to quadrature.
+// Pegoraro 2010 (point lights for 'pegoraro10'; spots see FogModel): Henyey-Greenstein is
+// truncated where its Legendre tail is below kPegoraroPhaseTol of the lobe everywhere
+// (airlight error ~1e-7, bench_pegoraro.py), at most kPegoraroMaxOrder (|g| <= ~0.78; model
+// pegoraro10 refuses wider lobes). Spots of other models use it up to kPegoraroSpotMaxOrder.
 constexpr double kPegoraroPhaseTol = 1e-6;
 constexpr int kPegoraroMaxOrder = 96;
+constexpr int kPegoraroSpotMaxOrder = 8;
 // Share of the progress bar given to pass 1 (ray casting).
 constexpr double kRaycastProgressShare = 0.3;
 
@@ -115,6 +116,13 @@ void validate(const SceneDescription& scene, const BakeSettings& settings) {
                 settings.model == ModelId::Baseline || settings.model == ModelId::Pegoraro10,
             "the bake does not dispatch this model (see models())");
     validate_suns(scene);
+    // Pegoraro 2010 truncates Henyey-Greenstein; lobes that order kPegoraroMaxOrder cannot
+    // represent (|g| >~ 0.79) would bake wrong (even negative) fog: refuse them.
+    require(settings.model != ModelId::Pegoraro10 || medium.phase.kind != PhaseKind::HenyeyGreenstein ||
+                pegoraro_hg_order(medium.phase.g, kPegoraroPhaseTol, kPegoraroMaxOrder) >= 0,
+            "model 'pegoraro10': Henyey-Greenstein g = " + std::to_string(medium.phase.g) +
+                " needs a Legendre order above " + std::to_string(kPegoraroMaxOrder) +
+                " (|g| <= 0.78 works); use 'biri06' or 'quadrature'");
     // Gaussian fog (Fogshop): isotropic only, through the Fogshop approximation (sun05,
     // sun05_exact: F table or exact F for the background term) or its quadrature reference.
     const GaussianMedium& gauss = scene.gaussians;
@@ -363,9 +371,12 @@ class FogModel {
         if (model_ == ModelId::Biri06) biri_table_ = shared_biri06_table(phase_, settings.table_nu, settings.table_nT);
         if (model_ == ModelId::Pegoraro10 || (model_ != ModelId::Quadrature && !scene.spot_lights.empty())) {
             pegoraro_phase_ = pegoraro_phase_auto(phase_, kPegoraroPhaseTol, kPegoraroMaxOrder);
-            spot_closed_form_ = model_ != ModelId::Quadrature &&
-                                (phase_.kind != PhaseKind::HenyeyGreenstein ||
-                                 pegoraro_hg_order(phase_.g, kPegoraroPhaseTol, kPegoraroMaxOrder) >= 0);
+            // Spots: the closed form for model pegoraro10, and for the other non-quadrature models
+            // while the phase polynomial is of order <= kPegoraroSpotMaxOrder: there it costs about
+            // what the 1e-5 quadrature does (bench_pegoraro.py, isotropic); at HG order 30 it was
+            // ~5x slower, so those spots keep the quadrature.
+            spot_closed_form_ = model_ == ModelId::Pegoraro10 ||
+                                (model_ != ModelId::Quadrature && pegoraro_phase_.order() <= kPegoraroSpotMaxOrder);
         }
         for (const PointLight& light : scene.point_lights) {
             if (!keeps_light(scene, light)) continue;
@@ -552,7 +563,7 @@ class FogModel {
     // Airlight of all spot lights along the ray o + t d over [t_near, Dvp] (Dvp from o; inf:
     // none), attenuated from the near point (the viewer moved there, as eval_many does for
     // the other models). Pegoraro 2010 closed form with the medium's phase (pegoraro10.h), or
-    // quadrature (spot_light.h) for the 'quadrature' model and HG lobes too narrow for order 96.
+    // quadrature (spot_light.h): model 'quadrature', and phases above order 8 unless 'pegoraro10'.
     RGB spot_airlight(const Vec3& o, const Vec3& d, double t_near, double Dvp) const {
         RGB La(0.0);
         if (sigma_t_ == 0.0) return La;

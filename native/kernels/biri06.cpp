@@ -212,7 +212,8 @@ double phase_airlight_quadrature(const PhaseFunction& phase, double sigma_t, dou
     if (sigma_t == 0.0 || Dvp == 0.0) return 0.0;
     const double c = std::clamp(cos_gamma, -1.0, 1.0);
     const double a = Dsv * c;
-    const double h = Dsv * std::sqrt((1.0 - c) * (1.0 + c));
+    // Regularised as sun05 (sin gamma >= 1e-8): a ray through the light gave NaN (stability suite).
+    const double h = Dsv * std::max(std::sqrt((1.0 - c) * (1.0 + c)), 1e-8);
     // Single-scattering integrand; cos theta = (a - x) / d (phase.h convention).
     auto integrand = [=, &phase](double x) {
         const double dx = x - a;

@@ -268,8 +268,9 @@ void pegoraro_moments(double H, double v0, double v1, int K, cplx* G) {
     }
     // Olver: rows m = 1 .. N-1 of the recurrence as a tridiagonal system (row 1 does not
     // involve G_0), end value G_N from integration by parts, Thomas algorithm.
-    // The end value's error decays slowly going down when H is small: more rows then.
-    const int N = 3 * K + 100 + (H < 3.0 ? int(300.0 / H) : 0);
+    // The end value's error decays slowly going down when H is small: more rows for the
+    // high orders (K > 40) that reach this branch below H = 3.
+    const int N = 3 * K + 100 + (H < 3.0 && K > 40 ? int(300.0 / H) : 0);
     thread_local std::vector<cplx> cp, rp;
     if (int(cp.size()) < N) {
         cp.resize(N);

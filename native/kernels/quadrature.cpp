@@ -136,7 +136,9 @@ double sun05_airlight_quadrature(double sigma_t, double Dsv, double cos_gamma, d
     if (sigma_t == 0.0 || Dvp == 0.0) return 0.0;
     const double c = std::clamp(cos_gamma, -1.0, 1.0);
     const double a = Dsv * c;                                // abscissa of the closest approach
-    const double h = Dsv * std::sqrt((1.0 - c) * (1.0 + c));  // closest distance to the light
+    // Closest distance to the light, regularised as sun05 does (sin gamma >= 1e-8): a ray
+    // through the light diverges and gave inf (stability suite).
+    const double h = Dsv * std::max(std::sqrt((1.0 - c) * (1.0 + c)), 1e-8);
     // Eq. 5 integrand; d^2 written around the closest approach to avoid cancellation.
     auto integrand = [=](double x) {
         const double dx = x - a;

@@ -94,6 +94,11 @@ def test07_explicit_sun05_with_anisotropic_phase_is_flagged():
     for model in ('BIRI06', 'QUADRATURE', 'AUTO'):
         settings.model = model
         assert model_choice.phase_problem(settings) is None
+    settings.model = 'PEGORARO10'
+    assert model_choice.phase_problem(settings) is None   # g = 0.6: within order 96
+    settings.anisotropy = 0.9
+    assert "Pegoraro" in model_choice.phase_problem(settings)
+    assert model_choice.choose(settings)[2] == float("inf")
 
 
 @needs_real_native

@@ -178,7 +178,8 @@ def test08_bad_input_is_a_value_error():
 
 
 def test09_bake_spot_closed_form_vs_quadrature():
-    """The bake's spot fast path (any model but 'quadrature') against its quadrature path."""
+    """The bake's closed-form spots (sun05 isotropic; pegoraro10 with HG 0.5, order 30; biri06 with
+    HG order 30 keeps the quadrature, so it must equal it) against the 'quadrature' model."""
     import sys
     import os
     sys.path.insert(0, os.path.dirname(__file__))
