@@ -85,6 +85,9 @@ void main()
   float Tr = exp(-T_hom - g.a);
   fog = vec4(exp(T_near) * (fog.rgb + exp(pv_sigma_t * t0) * g.rgb), 1.0 - Tr);
 #endif
+#if PREVIEW_ENV
+  preview_env(dir, Dvp, fog);
+#endif
 #if PREVIEW_LOWRES
   frag_color = vec4(fog.rgb, Dvp);
 #else

@@ -128,3 +128,45 @@ vec4 preview_fog(vec3 origin, vec3 dir, float Dvp)
   float Tr = exp(-pv_sigma_t * D);
   return vec4(La, 1.0 - Tr);
 }
+
+#ifndef PREVIEW_ENV  // shaders that never draw the World (the splat pass) leave it out
+#  define PREVIEW_ENV 0
+#endif
+#if PREVIEW_ENV
+// The World seen through the fog (addon/airlight/environment.py, native sun05_psf.h): the
+// glow map env_glow (equirectangular, Blender's mapping u = 1/2 - atan2(y, x) / (2 pi),
+// v = 1 - acos(z) / pi; row 0 = top) looked up bilinearly in direction _dir_ exactly as
+// the C++ environment_lookup does (u wraps, rows clamp).
+vec3 preview_env_lookup(vec3 dir)
+{
+  ivec2 size = textureSize(env_glow, 0);
+  float u = 0.5 - atan(dir.y, dir.x) * 0.15915494309189535;
+  u = u - floor(u);
+  float v = 1.0 - acos(clamp(dir.z / length(dir), -1.0, 1.0)) * 0.3183098861837907;
+  vec2 xy = vec2(u * float(size.x) - 0.5, (1.0 - v) * float(size.y) - 0.5);
+  vec2 f = floor(xy);
+  vec2 a = xy - f;
+  ivec2 p0 = ivec2(f);
+  vec3 sum = vec3(0.0);
+  for (int k = 0; k < 4; k++) {
+    ivec2 o = ivec2(k & 1, k >> 1);
+    int i = (p0.x + o.x) % size.x;
+    i = i < 0 ? i + size.x : i;
+    int j = clamp(p0.y + o.y, 0, size.y - 1);
+    vec2 w = mix(vec2(1.0) - a, a, vec2(o));
+    sum += w.x * w.y * texelFetch(env_glow, ivec2(i, j), 0).rgb;
+  }
+  return sum;
+}
+
+// Where the ray meets no surface: add the World's glow and let the World through with
+// Tr = pv_env_T = e^{-sigma_t distance} (eq. 26-27), as the bake does for those pixels.
+void preview_env(vec3 dir, float Dvp, inout vec4 fog)
+{
+  if (isinf(Dvp)) {
+    fog.rgb += preview_env_lookup(dir);
+    fog.a = 1.0 - pv_env_T;
+  }
+}
+#endif
+

@@ -10,6 +10,6 @@ struct AirlightPreviewParams {
   vec4 u_clip;       /* xyz unit view axis, w = clip_start */
   vec4 u_viewport;   /* xy target corner, zw full-resolution size */
   vec4 u_phase;      /* (kind, g, K, k) for biri06_airlight.glsl */
-  vec4 u_fparams;    /* x = sigma_t */
+  vec4 u_fparams;    /* x = sigma_t, y = the World's transmittance (PREVIEW_ENV) */
   ivec4 u_iparams;   /* x = light_count, y = scale, z = mode */
 };

@@ -111,12 +111,18 @@ void main()
   bool exact = pv_mode == 2 && best < PREVIEW_DEPTH_ACCEPT;
 #if PREVIEW_EXACT_PASS
   frag_color = preview_fog(origin, dir, D);
+#  if PREVIEW_ENV
+  preview_env(dir, D, frag_color);
+#  endif
 #else
 #  if PREVIEW_MARK
   gl_FragDepth = exact ? 0.0 : 1.0;
 #  endif
   vec3 La = (pv_mode == 0 || best >= PREVIEW_DEPTH_ACCEPT) ? sum / wsum : nearest;
   float Tr = exp(-pv_sigma_t * max(D - preview_near(dir), 0.0));
+#  if PREVIEW_ENV
+  Tr = isinf(D) ? pv_env_T : Tr;  // the World through the fog (its glow is in La)
+#  endif
   frag_color = vec4(La, 1.0 - Tr);
 #endif
 }

@@ -243,11 +243,12 @@ RBF_TEX_WIDTH = 1024
 PREVIEW_UBO = ("preview_params.glsl", "AirlightPreviewParams", "pv", {
     "inv_persp": "u_inv_persp", "persp": "u_persp", "eye": "u_eye", "clip": "u_clip",
     "viewport": "u_viewport", "pv_phase": "u_phase", "pv_sigma_t": "u_fparams.x",
-    "light_count": "u_iparams.x", "pv_scale": "u_iparams.y", "pv_mode": "u_iparams.z"})
+    "light_count": "u_iparams.x", "pv_scale": "u_iparams.y", "pv_mode": "u_iparams.z",
+    "pv_env_T": "u_fparams.y"})
 
 
 def preview_params_ubo(*, inv_persp, persp, eye, clip, viewport, phase, sigma_t, light_count,
-                       scale, mode):
+                       scale, mode, env_T=0.0):
     """GPUUniformBuf of AirlightPreviewParams (shaders/preview_params.glsl): matrices as
     mathutils.Matrix or 4x4 nested sequences (row-major; stored column-major), vec4s as
     4 numbers. Bind with shader.uniform_block("pv", ubo)."""
@@ -257,11 +258,12 @@ def preview_params_ubo(*, inv_persp, persp, eye, clip, viewport, phase, sigma_t,
     f[16:32] = np.asarray(persp, np.float64).T.ravel()
     f[32:36], f[36:40], f[40:44], f[44:48] = eye, clip, viewport, phase
     f[48] = sigma_t
+    f[49] = env_T  # the World's transmittance e^(-sigma_t distance) (PREVIEW_ENV)
     i = f.view(np.int32)
     i[52:56] = (int(light_count), int(scale), int(mode), 0)
     return gpu.types.GPUUniformBuf(f.tobytes())
 PREVIEW_FOG_SAMPLERS = ("Ftab", "depth_tex", "lights", "fog_lo", "gauss_acc", "gauss_near", "Gtab",
-                        "spots", "suns")
+                        "spots", "suns", "env_glow")
 PREVIEW_LIBS = ("sun05_airlight.glsl", "biri06_airlight.glsl", "spot_airlight.glsl",
                 "sun_airlight.glsl", "preview_common.glsl")
 
@@ -277,7 +279,8 @@ def create_preview_shader(name, frag, defines=()):
     variable "pv"; the GLSL names of PREVIEW_UBO are defines for its members (no push
     constants). Samplers (FLOAT_2D, slots in order): PREVIEW_FOG_SAMPLERS.
     Defines (all must be given): PREVIEW_WINDOW_DEPTH, PREVIEW_PHASE, PREVIEW_SPOTS, PREVIEW_SUNS,
-    PREVIEW_GAUSSIANS,
+    PREVIEW_GAUSSIANS, PREVIEW_ENV (the World's glow: sampler env_glow, an equirectangular
+    RGBA map with row 0 at the top, and pv_env_T),
     and per file: PREVIEW_LOWRES and PREVIEW_GAUSS_SCALE (fog), PREVIEW_EXACT_PASS and
     PREVIEW_MARK (upsample). Output: 0 VEC4 "frag_color".
     """

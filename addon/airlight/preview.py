@@ -57,6 +57,7 @@ _state = {
     "draws": 0,         # number of fog passes drawn (tests read it)
     "capture": None,    # tests: set to {} and the next draw stores its inputs there
     "gaussians": None,  # fog objects' Gaussians (dict, see draw_fog) of one generation
+    "environment": None,  # (key, scene_environment's value): the World's glow map
 }
 
 MAX_LIGHTS = 256
@@ -115,17 +116,18 @@ def _gpu_resources():
     return res
 
 
-def _shader(kind, window_depth, variant=False, phase=False, spots=False, suns=False):
+def _shader(kind, window_depth, variant=False, phase=False, spots=False, suns=False, env=False):
     """Fog ('fog'; variant: the reduced target's output, airlight + distance, or
     ('gauss', scale): with the Gaussian sums), upsampling ('upsample'; variant: 'mark' =
     blend and mark the pixels to re-evaluate in the depth buffer, 'exact' = the
     re-evaluation draw) or 'composite' shader, reading window depth or distance;
     phase: the homogeneous airlight through the Biri 2006 table of a non-isotropic phase
     function (biri06_airlight.glsl) instead of Sun 2005; spots: with the spot-light loop
-    (spot_airlight.glsl); suns: with the sun-lamp loop (sun_airlight.glsl)."""
+    (spot_airlight.glsl); suns: with the sun-lamp loop (sun_airlight.glsl); env: with the
+    World's glow where rays meet no surface (preview_common.glsl preview_env)."""
     from . import gpu_shaders as gs
     res = _gpu_resources()
-    key = (kind, bool(window_depth), variant, bool(phase), bool(spots), bool(suns))
+    key = (kind, bool(window_depth), variant, bool(phase), bool(spots), bool(suns), bool(env))
     shader = res["shaders"].get(key)
     if shader is None:
         frag, defines = {
@@ -143,7 +145,8 @@ def _shader(kind, window_depth, variant=False, phase=False, spots=False, suns=Fa
             defines=(("PREVIEW_WINDOW_DEPTH", int(bool(window_depth))),
                      ("PREVIEW_PHASE", int(bool(phase))),
                      ("PREVIEW_SPOTS", int(bool(spots))),
-                     ("PREVIEW_SUNS", int(bool(suns)))) + defines
+                     ("PREVIEW_SUNS", int(bool(suns))),
+                     ("PREVIEW_ENV", int(bool(env)))) + defines
             + ((("PREVIEW_GAUSSIANS", 0),) if kind != 'fog' else ()))
         res["shaders"][key] = shader
         if res["batch"] is None:
@@ -176,6 +179,7 @@ def _framebuffer(target):
 def free_gpu_resources():
     _state["gpu"] = None
     _state["gaussians"] = None
+    _state["environment"] = None
     from . import preview_gaussians
     preview_gaussians.clear_cache()
     _state["meshes"] = {}
@@ -436,6 +440,54 @@ def _spots_texture(spots):
     return gs.float_texture(data)
 
 
+def _environment_texture(res, environment):
+    """(GPU texture of the glow map, World transmittance); a 1x1 black texture when off
+    (every preview shader declares the sampler)."""
+    from . import gpu_shaders as gs
+    import numpy as np
+    if environment is None:
+        tex = res.get("env_off")
+        if tex is None:
+            tex = res["env_off"] = gs.float_texture(np.zeros((1, 1, 4), np.float32))
+        return tex, 0.0
+    glow = np.asarray(environment["glow"], dtype=np.float32)
+    rgba = np.concatenate([glow, np.ones(glow.shape[:2] + (1,), np.float32)], axis=2)
+    return gs.float_texture(rgba), float(environment["transmittance"])
+
+
+def scene_environment(scene):
+    """draw_fog's _environment_ for the scene: None when Environment Glow is off or the World
+    emits nothing, else dict(glow, transmittance) from the same native convolution the bake
+    uses (environment.py). Cached on the World's data and the fog settings it depends on
+    (the convolution costs ~0.1-0.3 s); a World the glow cannot read raises WorldMapError."""
+    from . import environment, native
+    settings = scene.airlight
+    if not settings.environment_glow or scene.world is None:
+        return None
+    source = environment.world_source(scene)
+    if source is None:
+        return None
+    key = (scene.world.name, repr(source[1]) if source[0] == 'COLOR' else
+           (source[1].name, source[1].is_dirty, tuple(source[1].size), source[2]),
+           float(settings.density), tuple(settings.color), float(settings.environment_distance),
+           int(settings.environment_sh_order), _state["generation"] if source[0] == 'IMAGE' else 0)
+    cached = _state.get("environment")
+    if cached is not None and cached[0] == key:
+        return cached[1]
+    world = environment.world_map(scene)
+    if world is None:
+        value = None
+    else:
+        import numpy as np
+        fog = native.get().environment_fog(
+            world=world, sigma_t=float(settings.density), distance=float(settings.environment_distance),
+            albedo=np.asarray(settings.color, dtype=np.float64), sh_order=int(settings.environment_sh_order),
+            out_width=256, out_height=128, kind="exact")
+        value = dict(glow=fog["glow"], transmittance=fog["transmittance"])
+    _state["environment"] = (key, value)
+    return value
+
+
 def _lights_texture(positions, intensities, Csv=None):
     """Row 0: positions; row 1: rgb = albedo I0, a = C_sv (Gaussian fog transmittance
     light -> eye, 1 without fog objects)."""
@@ -521,7 +573,7 @@ def view_clip_range(context):
 def draw_fog(*, depth_tex, perspective_matrix, view_origin, is_perspective, viewport,
              sigma_t, light_positions, light_intensities, clip_start=0.0, window_depth=True,
              scale=1, mode=UPSAMPLE_BILATERAL_EXACT, gaussians=None, phase=("isotropic", 0.0),
-             spots=None, suns=None):
+             spots=None, suns=None, environment=None):
     """Draws the fog over the bound framebuffer with premultiplied blending.
 
     depth_tex: full-resolution R32F texture of the region (viewport[2] x viewport[3]):
@@ -547,13 +599,18 @@ def draw_fog(*, depth_tex, perspective_matrix, view_origin, is_perspective, view
     (spot_airlight.glsl).
     suns: None or `scene_suns`' dict (directions, irradiances = albedo E, fog_top): sun
     lamps by the closed form of the bake's sun_layer.h (sun_airlight.glsl).
+    environment: None or `scene_environment`'s dict (glow = the World's airlight as an
+    equirectangular (h, w, 3) map, albedo included; transmittance = e^(-sigma_t distance)):
+    where a ray meets no surface, the glow is added and the World shows through with that
+    transmittance, as the bake's environment.apply does.
     Restores every gpu.state it changes.
     """
     import gpu
     from . import gpu_shaders as gs
     res = _gpu_resources()
     flags = dict(phase=phase[0] != "isotropic", spots=bool(spots is not None and len(spots["positions"])),
-                 suns=bool(suns is not None and len(suns["directions"])))
+                 suns=bool(suns is not None and len(suns["directions"])), env=environment is not None)
+    env_tex, env_T = _environment_texture(res, environment)
     spots_tex = _spots_texture(spots)
     suns_tex = _suns_texture(suns)
     phase_vec, gtab = _phase_inputs(res, phase)
@@ -590,13 +647,15 @@ def draw_fog(*, depth_tex, perspective_matrix, view_origin, is_perspective, view
             eye=(*view_origin, 1.0 if is_perspective else 0.0), clip=clip,
             viewport=tuple(float(v) for v in target_viewport), phase=phase_vec,
             sigma_t=float(sigma_t), light_count=len(light_positions),
-            scale=int(pass_scale if pass_scale is not None else scale), mode=int(mode))
+            scale=int(pass_scale if pass_scale is not None else scale), mode=int(mode),
+            env_T=env_T)
         ubos.append(ubo)  # alive until the draws are done
         shader.uniform_block("pv", ubo)
         put(shader.uniform_sampler, "Ftab", res["ftab"])
         put(shader.uniform_sampler, "Gtab", gtab)
         put(shader.uniform_sampler, "spots", spots_tex)
         put(shader.uniform_sampler, "suns", suns_tex)
+        put(shader.uniform_sampler, "env_glow", env_tex)
         put(shader.uniform_sampler, "depth_tex", depth_tex)
         put(shader.uniform_sampler, "lights", lights)
         if fog_lo is not None:  # the upsampling pass (the fog pass has neither)
@@ -720,12 +779,13 @@ def _draw_callback():
         phase = model_choice.native_phase(scene.airlight)
         spots = scene_spots(scene, context.view_layer)
         suns = scene_suns(scene, context.view_layer)
+        env = scene_environment(scene)
         draw_fog(depth_tex=depth_tex, perspective_matrix=persp, view_origin=view_origin,
                  is_perspective=rv3d.is_perspective, viewport=(x, y, w, h),
                  sigma_t=scene.airlight.density, light_positions=positions,
                  light_intensities=intensities, clip_start=clip_start,
                  window_depth=readback, scale=scale, gaussians=gaussians, phase=phase,
-                 spots=spots, suns=suns)
+                 spots=spots, suns=suns, environment=env)
         _state["last_ms"] = (time.perf_counter() - t0) * 1e3
         if _state["capture"] is not None:
             if readback:
