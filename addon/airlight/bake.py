@@ -47,6 +47,8 @@ def prepare(scene, depsgraph):
     if surface.active(scene):
         # Surface shading: the light groups and DiffCol pass the composite reads (surface.py).
         settings["surface"] = True
+        if surface.gloss_exponent(scene) > 0.0:
+            settings["surface_phong_exponent"] = max(1.0, surface.gloss_exponent(scene))
         # (Interactive renders call this from the render thread: there nothing is written.)
         main = threading.current_thread() is threading.main_thread()
         settings[SURFACE_GROUPS] = (surface.ensure_passes(scene, depsgraph) if main

@@ -202,6 +202,11 @@ def _setup_surface(scene, tree, frame, image_node, multiply):
             diffcol = render_layers.outputs.get("DiffCol")
             if glow is not None and diffcol is not None and diffcol.enabled:
                 terms.append(("glow", diffcol, glow))
+            gloss = image_node.outputs.get(surface.PASS_GLOSS)
+            glosscol = render_layers.outputs.get("GlossCol")
+            if (gloss is not None and glosscol is not None and glosscol.enabled
+                    and surface.gloss_exponent(scene) > 0.0):
+                terms.append(("gloss", glosscol, gloss))
     signature = ",".join(group for group, _, _ in terms)
     if chain and tree.get(SURFACE_SIGNATURE) == signature and len(chain) == 2 * len(terms):
         return
@@ -218,7 +223,7 @@ def _setup_surface(scene, tree, frame, image_node, multiply):
     accumulated = source
     n = len(terms)
     for k, (group, light, baked) in enumerate(terms):
-        label = "Glow" if group == "glow" else group
+        label = {"glow": "Glow", "gloss": "Gloss"}.get(group, group)
         scale = _node(tree, f"{SURFACE_NODE_PREFIX}Multiply {k}", "CompositorNodeMixRGB",
                       f"Surface: {label} x pass", (x - 420 - 360 * (n - k), y - 220), frame)
         plus = _node(tree, f"{SURFACE_NODE_PREFIX}Add {k}", "CompositorNodeMixRGB",
@@ -249,6 +254,8 @@ def neutral_passes(scene):
         try:
             groups = surface.ensure_passes(scene, bpy.context.evaluated_depsgraph_get())
             names = [surface.PASS_PREFIX + g for g in groups if g is not None] + [surface.PASS_GLOW]
+            if surface.gloss_exponent(scene) > 0.0:
+                names.append(surface.PASS_GLOSS)
             world_group = surface.ensure_world_group(scene)
             if world_group is not None:
                 names.append(surface.PASS_PREFIX + world_group)

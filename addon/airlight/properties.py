@@ -215,6 +215,15 @@ class AirlightSceneSettings(bpy.types.PropertyGroup):
         default=True,
         update=_on_surface_changed,
     )
+    surface_gloss: FloatProperty(
+        name="Gloss Exponent",
+        description="Cycles surface shading: Phong exponent of the fog's glossy glow (Sun 2005 "
+                    "eq. 18, Gn), the point lights' scattered light seen in glossy reflections, "
+                    "added per unit of the Glossy Color pass (enabled automatically). Higher is a "
+                    "tighter lobe (about 2 / roughness^2 - 2 for a GGX roughness); 0 turns it off",
+        default=0.0, min=0.0, max=10000.0, soft_max=200.0, step=100, precision=0,
+        update=_on_surface_changed,
+    )
     environment_glow: BoolProperty(
         name="Environment Glow",
         description="Show the World through the fog (Sun 2005, eq. 25-27): bright parts of the "

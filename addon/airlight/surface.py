@@ -26,6 +26,12 @@ GROUP_PREFIX = "fog_"
 SURFACE_LIGHT_TYPES = ('POINT', 'SPOT')  # lights the bake's surface pass attenuates
 PASS_PREFIX = "Surface_"
 PASS_GLOW = "SurfaceGlow"
+PASS_GLOSS = "SurfaceGloss"  # glossy glow per unit Glossy Color (scene.airlight.surface_gloss > 0)
+
+
+def gloss_exponent(scene):
+    """The Phong exponent of the glossy glow the bake adds (0: none)."""
+    return float(scene.airlight.surface_gloss) if active(scene) else 0.0
 
 
 def active(scene):
@@ -132,6 +138,9 @@ def ensure_passes(scene, depsgraph):
                 view_layer.lightgroups.add(name=group)
                 existing.add(group)
                 added = True
+        if gloss_exponent(scene) > 0.0 and not view_layer.use_pass_glossy_color:
+            view_layer.use_pass_glossy_color = True
+            added = False  # that update refreshed the Render Layers sockets already
         if not view_layer.use_pass_diffuse_color:
             view_layer.use_pass_diffuse_color = True
         elif added:
@@ -149,4 +158,6 @@ def pass_arrays(result, groups):
         if group is not None and index < len(attenuation):
             passes[PASS_PREFIX + group] = attenuation[index] - 1.0
     passes[PASS_GLOW] = result["surface_glow"]
+    if "surface_gloss_glow" in result:
+        passes[PASS_GLOSS] = result["surface_gloss_glow"]
     return passes

@@ -68,6 +68,9 @@ class AIRLIGHT_PT_scene(bpy.types.Panel):
         col.prop(settings, "cache_dir")
         col.prop(settings, "auto_composite")
         col.prop(settings, "surface_shading")
+        sub = col.column()
+        sub.active = settings.surface_shading
+        sub.prop(settings, "surface_gloss")
         if settings.surface_shading and context.scene.render.engine != 'CYCLES':
             col.label(text="Surface shading needs Cycles (light groups): "
                            "plain fog composite here", icon='INFO')

@@ -120,3 +120,38 @@ def test04_bake_without_surface_writes_no_surface_passes(tmp_path):
     _, names = read_exr(path)
     assert not any("Surface" in n for n in names)
     assert len(bpy.context.view_layer.lightgroups) == 0
+
+
+@needs_native
+def test05_gloss_exponent_adds_the_glossy_glow(tmp_path):
+    """Gloss Exponent > 0: the bake writes SurfaceGloss (Sun 2005 eq. 18 glossy glow, the
+    kernel is held to scipy in tests/native/test13_bake_surface.py), equal to the native
+    bake with that exponent; Glossy Color is enabled and the chain adds GlossCol x it."""
+    from airlight import bake
+    scene = build_plane_scene(tmp_path)
+    scene.render.engine = 'CYCLES'
+    scene.airlight.surface_gloss = 20.0
+    path = str(tmp_path / "fog.exr")
+    assert bpy.ops.airlight.bake('EXEC_DEFAULT', filepath=path) == {'FINISHED'}
+    assert bpy.context.view_layer.use_pass_glossy_color
+    gloss = exr_pass(path, surface.PASS_GLOSS)
+    assert np.all(gloss >= 0.0) and gloss.max() > 0.0
+    description, settings = bake.prepare(scene, bpy.context.evaluated_depsgraph_get())
+    assert settings["surface_phong_exponent"] == 20.0
+    from airlight import native
+    kw = {k: v for k, v in settings.items() if k not in (bake.SURFACE_GROUPS, "environment")}
+    ref = native.get().bake(**description, **kw)["surface_gloss_glow"]
+    np.testing.assert_allclose(gloss, ref, rtol=1e-5, atol=1e-9)
+    tree = scene.node_tree
+    render_layers = next(n for n in tree.nodes if n.type == 'R_LAYERS')
+    links = {(l.from_socket.name, l.to_node.name) for l in tree.links}
+    assert any(name == "GlossCol" for name, _ in links), links
+    assert any(name == surface.PASS_GLOSS for name, _ in links), links
+    assert render_layers.outputs["GlossCol"].enabled
+    # 0 turns it off again: no pass, no term.
+    scene.airlight.surface_gloss = 0.0
+    assert bpy.ops.airlight.bake('EXEC_DEFAULT', filepath=path) == {'FINISHED'}
+    from conftest import read_exr
+    _, names = read_exr(path)
+    assert not any(surface.PASS_GLOSS in n for n in names)
+    assert not any(l.from_socket.name == "GlossCol" for l in tree.links)
