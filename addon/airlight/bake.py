@@ -27,8 +27,10 @@ SURFACE_GROUPS = "surface_groups"
 def bake_settings(scene):
     """Keyword arguments of `_native.bake` that are not part of the scene description."""
     settings = scene.airlight
-    return dict(model=model_choice.choose(settings)[0], threads=settings.threads,
-                aa_samples=settings.aa_samples, **model_choice.table_settings(settings))
+    model = model_choice.choose(settings)[0]
+    extra = dict(rayleigh_density=float(settings.rayleigh_density)) if model == "hoffman02" else {}
+    return dict(model=model, threads=settings.threads, aa_samples=settings.aa_samples,
+                **model_choice.table_settings(settings), **extra)
 
 
 def prepare(scene, depsgraph):

@@ -115,6 +115,9 @@ def phase_problem(settings):
     if name in ISOTROPIC_ONLY:
         return (f"{MEASURED[name][0]} handles isotropic fog only: use Biri 2006, "
                 f"Pegoraro 2010, Quadrature or Automatic for this phase")
+    if name == "hoffman02" and settings.phase != 'HENYEY_GREENSTEIN':
+        return ("Hoffman-Preetham 2002 has its own Rayleigh part: its Mie haze is "
+                "Henyey-Greenstein (set Phase to Henyey-Greenstein)")
     if name == "pegoraro10" and math.isinf(model_error(name, settings)):
         return (f"Pegoraro 2010 represents Henyey-Greenstein up to Anisotropy +-{PEGORARO10_MAX_G} "
                 f"(Legendre order 96): use Biri 2006, Quadrature or Automatic for this lobe")
@@ -125,6 +128,8 @@ def choose(settings):
     """(native model name, label, expected max relative error) for these fog settings."""
     if settings.model == 'BASELINE':
         return BASELINE
+    if settings.model == 'HOFFMAN02':
+        return HOFFMAN02
     if settings.model != 'AUTO':
         name = MODEL_NAMES[settings.model]
     else:
@@ -142,6 +147,11 @@ def choose(settings):
     return name, label, error
 
 
+# Hoffman & Preetham 2002 daylight (never chosen by Automatic: it is another medium, with
+# Rayleigh scattering): exact single scattering of sun lamps in it (closed form of
+# sun_layer.h per colour channel, held to 2e-5 against scipy by test15_bake_hoffman02.py);
+# point and spot lights are left out of its fog.
+HOFFMAN02 = ("hoffman02", "Hoffman-Preetham 2002 (daylight)", 2e-5)
 # The constant-colour bar (never chosen by Automatic): its error depends on the scene.
 BASELINE = ("baseline", "Baseline (constant colour)", math.inf)
 # Lights that are not point lights get their own model (bake.cpp): spots Pegoraro 2010's
@@ -213,6 +223,9 @@ def light_plan(scene, depsgraph=None, view_layer=None):
             continue
         if not light.airlight.participate:
             rows.append(LightRow(obj.name, light.type, 'off', "", math.nan, math.nan))
+            continue
+        if name == "hoffman02" and light.type != 'SUN':
+            rows.append(LightRow(obj.name, light.type, 'unsupported', "", math.nan, math.nan))
             continue
         if name == "baseline":
             label, error = BASELINE[1], BASELINE[2]

@@ -13,6 +13,7 @@ MODEL_NAMES = {
     'BIRI06': "biri06",
     'BASELINE': "baseline",
     'PEGORARO10': "pegoraro10",
+    'HOFFMAN02': "hoffman02",
 }
 
 # Scene phase enum -> `_native.bake(phase=...)`; the anisotropy g applies to HG only.
@@ -87,6 +88,10 @@ class AirlightSceneSettings(bpy.types.PropertyGroup):
             ('PEGORARO10', "Pegoraro 2010 (closed form)", "Pegoraro et al. 2010 exact closed form with the "
                                                           "phase function as a Legendre polynomial: any phase, "
                                                           "no table"),
+            ('HOFFMAN02', "Hoffman-Preetham 2002 (daylight)",
+             "Hoffman & Preetham 2002 daylight haze: sun lamps only, in Rayleigh scattering "
+             "(Rayleigh Density, bluer with 1/wavelength^4) plus Mie haze (Density, Anisotropy); "
+             "per-colour extinction. Point and spot lights are left out of the fog"),
         ),
         default='AUTO',
     )
@@ -204,6 +209,14 @@ class AirlightSceneSettings(bpy.types.PropertyGroup):
         description="Keep the compositor fog nodes in sync: create them when needed and "
                     "point them at the baked passes of the frame being rendered",
         default=True,
+    )
+    rayleigh_density: FloatProperty(
+        name="Rayleigh Density",
+        description="Hoffman-Preetham model only: Rayleigh scattering coefficient of the air at "
+                    "550 nm, per scene unit (clear air at sea level: about 1.2e-5 per metre). "
+                    "It scatters and extinguishes blue more than red (1/wavelength^4); Density is "
+                    "the Mie haze on top",
+        default=1.2e-5, min=0.0, soft_max=0.01, max=100.0, step=1, precision=6,
     )
     surface_shading: BoolProperty(
         name="Surface Shading",

@@ -303,14 +303,17 @@ def export_scene(scene, depsgraph):
     width, height, cam_to_world, projection = export_camera(scene, depsgraph)
     clip_start, clip_end = export_clip_range(scene, depsgraph)
     skip = model_choice.skipped_lights(scene, depsgraph)  # Automatic: lights below the target
+    daylight = model_choice.choose(scene.airlight)[0] == "hoffman02"  # sun lamps only
     vertices, triangles, light_positions, light_intensities, _ = export_geometry_and_lights(scene, depsgraph, skip)
+    if daylight:
+        light_positions, light_intensities = np.zeros((0, 3)), np.zeros((0, 3))
     for name, array in (("camera matrix", cam_to_world), ("projection", projection),
                         ("vertices", vertices), ("light positions", light_positions),
                         ("light intensities", light_intensities)):
         if not np.all(np.isfinite(array)):
             raise ExportError(f"The scene's {name} contain NaN or infinite values.")
     gaussians = export_fog_objects(depsgraph)
-    spots = export_spot_lights(depsgraph, skip)
+    spots = {} if daylight else export_spot_lights(depsgraph, skip)
     if spots and gaussians:
         raise ExportError("Spot lights are not supported together with fog objects yet: "
                           "turn off the spots' fog participation or remove the fog objects.")

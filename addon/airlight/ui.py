@@ -42,6 +42,8 @@ class AIRLIGHT_PT_scene(bpy.types.Panel):
         sub = col.column()
         sub.active = settings.phase == 'HENYEY_GREENSTEIN'
         sub.prop(settings, "anisotropy")
+        if settings.model == 'HOFFMAN02':
+            col.prop(settings, "rayleigh_density")
         col.prop(settings, "use_fog_top")
         sub = col.column()
         sub.active = settings.use_fog_top
@@ -108,7 +110,9 @@ def light_lines(scene, view_layer=None):
     lines = []
     for row in rows:
         icon = _LIGHT_ICONS.get(row.type, 'LIGHT')
-        if row.status == 'unsupported':
+        if row.status == 'unsupported' and row.type in ('POINT', 'SPOT'):
+            text = f"{row.name}: not in Hoffman-Preetham's daylight fog (sun lamps only)"
+        elif row.status == 'unsupported':
             text = f"{row.name}: {row.type.lower()} light, not yet in fog"
         elif row.status == 'off':
             text = f"{row.name}: excluded (Scatter in Fog is off)"

@@ -80,7 +80,7 @@ py::dict bake_py(int width, int height, const py::object& cam_to_world, const py
                  const py::object& sun_irradiances, double fog_top, int table_size,
                  const std::string& table_interpolation, const py::object& rbf_albedo,
                  double noise_amplitude, double noise_scale, const py::object& noise_offset, bool surface,
-                 double surface_phong_exponent) {
+                 double surface_phong_exponent, double rayleigh_density) {
     // Gather the scene description from the arrays (shapes checked here, values in bake()).
     SceneDescription scene;
     scene.camera.width = width;
@@ -90,6 +90,7 @@ py::dict bake_py(int width, int height, const py::object& cam_to_world, const py
     scene.camera.clip_start = clip_start;
     scene.camera.clip_end = clip_end;
     scene.medium.sigma_t = sigma_t;
+    scene.medium.rayleigh_550 = rayleigh_density;
     scene.medium.albedo = to_rgb(albedo, "albedo");
     scene.medium.phase = bake_phase(phase, g);
 
@@ -298,7 +299,7 @@ void bind_bake(py::module_& m) {
           "sun_irradiances"_a = py::none(), "fog_top"_a = std::numeric_limits<double>::infinity(),
           "table_size"_a = 256, "table_interpolation"_a = "bilinear", "rbf_albedo"_a = py::none(),
           "noise_amplitude"_a = 0.0, "noise_scale"_a = 1.0, "noise_offset"_a = py::make_tuple(0.0, 0.0, 0.0),
-          "surface"_a = false, "surface_phong_exponent"_a = 0.0,
+          "surface"_a = false, "surface_phong_exponent"_a = 0.0, "rayleigh_density"_a = 0.0,
           R"doc(Bake fog passes for one camera view (all arguments keyword-only).
 
 width, height: render resolution in pixels.
@@ -360,6 +361,9 @@ surface: also bake surface shading through the fog (Sun 2005 eq. 13-19, bake_sur
   per unit diffuse colour (multiply by Cycles' DiffCol pass), surface_normals=(H, W, 3)
   float32, the first hit's geometric normal facing the camera (0 where no hit), and stats
   seconds_surface.
+rayleigh_density: Rayleigh scattering coefficient at 550 nm in 1/m for model "hoffman02"
+  (Hoffman & Preetham 2002: beta_R ~ 1/lambda^4 per channel, sigma_t is the Mie part with the
+  HG g; sun lamps only, per-channel transmittance; bake_hoffman02.h). Ignored by other models.
 surface_phong_exponent: with surface, n in [1, 10000] also adds surface_gloss_glow=(H, W, 3):
   the point lights' scattered light on a normalised Phong lobe (n + 2)/(2 pi) cos^n about the
   mirrored view direction (Sun 2005 eq. 18, Gn), per unit glossy colour. 0: off.

@@ -38,6 +38,7 @@
 #include "sun05_batch.h"
 #include "spot_light.h"
 #include "sun_layer.h"
+#include "bake_hoffman02.h"
 #include "pegoraro10.h"
 #include "sun05_inline.h"
 
@@ -113,9 +114,22 @@ void validate(const SceneDescription& scene, const BakeSettings& settings) {
                 "' (g = " + std::to_string(medium.phase.g) + "); use 'biri06' or 'quadrature'");
     require(settings.model == ModelId::Sun05Table || settings.model == ModelId::Sun05Exact ||
                 settings.model == ModelId::Quadrature || settings.model == ModelId::Biri06 ||
-                settings.model == ModelId::Baseline || settings.model == ModelId::Pegoraro10,
+                settings.model == ModelId::Baseline || settings.model == ModelId::Pegoraro10 ||
+                settings.model == ModelId::Hoffman02,
             "the bake does not dispatch this model (see models())");
     validate_suns(scene);
+    require(std::isfinite(medium.rayleigh_550) && medium.rayleigh_550 >= 0.0,
+            "rayleigh_density must be finite and >= 0, got " + std::to_string(medium.rayleigh_550));
+    if (settings.model == ModelId::Hoffman02) {
+        // Hoffman & Preetham model daylight: sun lamps in a Rayleigh + Mie (HG) medium.
+        require(scene.point_lights.empty() && scene.spot_lights.empty(),
+                "model 'hoffman02' (Hoffman & Preetham 2002) scatters sun lamps only: exclude the point "
+                "and spot lights from the fog or use another model");
+        require(scene.gaussians.empty(), "model 'hoffman02' does not take fog objects (Gaussians)");
+        require(medium.phase.kind == PhaseKind::Isotropic || medium.phase.kind == PhaseKind::HenyeyGreenstein,
+                "model 'hoffman02': the Mie part is Henyey-Greenstein (the Rayleigh part is built in); got phase '" +
+                    std::string(phase_name(medium.phase.kind)) + "'");
+    }
     // Pegoraro 2010 truncates Henyey-Greenstein; lobes that order kPegoraroMaxOrder cannot
     // represent (|g| >~ 0.79) would bake wrong (even negative) fog: refuse them.
     require(settings.model != ModelId::Pegoraro10 || medium.phase.kind != PhaseKind::HenyeyGreenstein ||
@@ -800,6 +814,7 @@ std::shared_ptr<const SpecialFTable> shared_special_F_table(int nu, int nT, Inte
 BakeResult bake(const SceneDescription& scene, const BakeSettings& settings, const ProgressFn& progress) {
     validate(scene, settings);
     if (settings.model == ModelId::Baseline) return bake_baseline(scene, settings, progress);
+    if (settings.model == ModelId::Hoffman02) return bake_hoffman02(scene, settings, progress);
     const CameraRays rays(scene.camera);
     const int W = scene.camera.width, H = scene.camera.height;
     const size_t n_pixels = size_t(W) * size_t(H);

@@ -14,6 +14,8 @@ const std::vector<ModelInfo>& model_registry() {
         {ModelId::Biri06, "biri06", "Biri et al. 2006 airlight with the Gamma table of any phase function"},
         {ModelId::Baseline, "baseline",
          "Constant-colour fog (Blender Mist / OpenGL fog) with the best-fitting colour: the bar to beat"},
+        {ModelId::Hoffman02, "hoffman02",
+         "Hoffman & Preetham 2002 daylight: Rayleigh (1/lambda^4 per channel) + Mie haze lit by sun lamps only"},
         {ModelId::Pegoraro10, "pegoraro10",
          "Pegoraro et al. 2010 closed form (complex E1), any phase function as a Legendre polynomial"},
     };
@@ -21,9 +23,7 @@ const std::vector<ModelInfo>& model_registry() {
 }
 
 const std::vector<ModelInfo>& kernel_models_pending_bake() {
-    static const std::vector<ModelInfo> pending{
-        {ModelId::Hoffman02, "hoffman02", "Hoffman & Preetham 2002 sun (directional light) fog, Rayleigh + Mie"},
-    };
+    static const std::vector<ModelInfo> pending{};
     return pending;
 }
 

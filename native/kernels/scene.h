@@ -26,6 +26,9 @@ using RGB = glm::dvec3;
 // phase; bake() rejects the Sun 2005 models with one (see phase_is_isotropic).
 struct HomogeneousMedium {
     double sigma_t = 0.0;
+    // Rayleigh scattering coefficient at 550 nm in 1/m, used by ModelId::Hoffman02 only
+    // (bake_hoffman02.h: beta_R ~ 1/lambda^4 per channel on top of sigma_t as Mie).
+    double rayleigh_550 = 0.0;
     RGB albedo{1.0, 1.0, 1.0};
     PhaseFunction phase;
 };

@@ -36,7 +36,7 @@ double thin_limit_per_sigma(double Dsv, double c, double Dvp) {
 
 TEST(Models, Registry) {
     const auto& r = model_registry();
-    ASSERT_EQ(r.size(), 6u);
+    ASSERT_EQ(r.size(), 7u);
     EXPECT_EQ(r[0].name, "sun05");
     EXPECT_EQ(model_from_name("sun05"), ModelId::Sun05Table);
     EXPECT_EQ(model_from_name("sun05_exact"), ModelId::Sun05Exact);
@@ -44,6 +44,7 @@ TEST(Models, Registry) {
     EXPECT_EQ(model_from_name("biri06"), ModelId::Biri06);
     EXPECT_EQ(model_from_name("baseline"), ModelId::Baseline);
     EXPECT_EQ(model_from_name("pegoraro10"), ModelId::Pegoraro10);
+    EXPECT_EQ(model_from_name("hoffman02"), ModelId::Hoffman02);
     try {
         model_from_name("sun06");
         FAIL() << "no exception";

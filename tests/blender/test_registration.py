@@ -80,7 +80,7 @@ def test04_property_limits_clamp():
         description = props[name].description
         assert description and description[0].isupper(), name
     assert {item.identifier for item in props["model"].enum_items} == {
-        'AUTO', 'SUN05', 'SUN05_EXACT', 'QUADRATURE', 'BIRI06', 'BASELINE', 'PEGORARO10'}
+        'AUTO', 'SUN05', 'SUN05_EXACT', 'QUADRATURE', 'BIRI06', 'BASELINE', 'PEGORARO10', 'HOFFMAN02'}
     assert {item.identifier for item in props["phase"].enum_items} == {
         'HENYEY_GREENSTEIN', 'RAYLEIGH', 'MIE_HAZY', 'MIE_MURKY'}
     assert props["phase"].default == 'HENYEY_GREENSTEIN' and props["anisotropy"].default == 0.0
