@@ -337,58 +337,16 @@ class AIRLIGHT_OT_airbrush(brush_ops._FogBrush, bpy.types.Operator):
             self._timer = None
         super()._cleanup(context)
 
-    def _modal(self, context, event):
-        settings = context.scene.airlight_airbrush
-        if event.type in {'MOUSEMOVE', 'INBETWEEN_MOUSEMOVE', 'LEFTMOUSE', 'RIGHTMOUSE', 'ESC'}:
-            self._state.mouse = self._mouse(event)
-        self._area.tag_redraw()
+    def tool_settings(self, context):
+        return context.scene.airlight_airbrush
 
-        if self._adjust is not None:  # F / Shift+F: mouse x scales the value
-            name, start, start_x = self._adjust
-            if event.type == 'MOUSEMOVE':
-                prop = settings.bl_rna.properties[name]
-                value = start * 2.0 ** ((self._state.mouse[0] - start_x) / 100.0)
-                setattr(settings, name, min(max(value, prop.hard_min), prop.hard_max))
-                self._update_circle(context)
-            elif event.type in {'LEFTMOUSE', 'RET', 'NUMPAD_ENTER'} and event.value == 'PRESS':
-                self._adjust = None
-                self._set_text(context, self.hint)
-            elif event.type in {'ESC', 'RIGHTMOUSE'} and event.value == 'PRESS':
-                setattr(settings, name, start)
-                self._adjust = None
-                self._update_circle(context)
-                self._set_text(context, self.hint)
-            return {'RUNNING_MODAL'}
-
-        if event.type in {'ESC', 'RIGHTMOUSE'} and event.value == 'PRESS':
-            self._cleanup(context)  # nothing was written: nothing to undo
-            return {'CANCELLED'}
+    def other_event(self, context, event):
         if event.type == 'TIMER':  # any timer (3.4 events don't say which): steps use real dt
             if self._stroking:
                 self._tick(context)
                 return {'RUNNING_MODAL'}
             return {'PASS_THROUGH'}
-        if event.type == 'F' and event.value == 'PRESS' and not self._stroking:
-            size_name, strength_name = self.adjust_targets()
-            name = strength_name if event.shift else size_name
-            self._adjust = (name, getattr(settings, name), self._state.mouse[0])
-            self._set_text(context, f"Adjust {settings.bl_rna.properties[name].name}: move "
-                                    "the mouse, click to confirm, Esc/right-click to restore")
-            return {'RUNNING_MODAL'}
-        if event.type == 'LEFTMOUSE' and event.value == 'PRESS' and not self._stroking:
-            x, y = self._state.mouse
-            if not (0 <= x < self._region.width and 0 <= y < self._region.height):
-                return {'PASS_THROUGH'}
-            self._begin(context, self._state.mouse)
-            return {'RUNNING_MODAL'}
-        if event.type in {'MOUSEMOVE', 'INBETWEEN_MOUSEMOVE'} and self._stroking:
-            self.stroke_move(context, self._state.mouse)
-            return {'RUNNING_MODAL'}
-        if event.type == 'LEFTMOUSE' and event.value == 'RELEASE' and self._stroking:
-            changed = self.stroke_end(context)
-            self._cleanup(context)
-            return {'FINISHED'} if changed else {'CANCELLED'}
-        return {'RUNNING_MODAL'} if self._stroking else {'PASS_THROUGH'}
+        return None
 
 
 class AIRLIGHT_OT_fill_mesh(bpy.types.Operator):

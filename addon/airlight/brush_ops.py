@@ -281,7 +281,7 @@ class _FogBrush:
 
     # ---- hooks of the tools
     def adjust_targets(self):
-        """(property for F, property for Shift+F), names in scene.airlight_brush."""
+        """(property for F, property for Shift+F), names in tool_settings()."""
         raise NotImplementedError
 
     def brush_radius_px(self, context):
@@ -349,8 +349,17 @@ class _FogBrush:
             self._cleanup(context)
             raise
 
+    def tool_settings(self, context):
+        """The property group that F / Shift+F adjust (adjust_targets names its properties)."""
+        return context.scene.airlight_brush
+
+    def other_event(self, context, event):
+        """A subclass's own events (after F-adjusting and cancelling are handled, before
+        strokes): a modal result to return, or None to go on."""
+        return None
+
     def _modal(self, context, event):
-        settings = context.scene.airlight_brush
+        settings = self.tool_settings(context)
         if event.type in {'MOUSEMOVE', 'INBETWEEN_MOUSEMOVE', 'LEFTMOUSE', 'RIGHTMOUSE', 'ESC'}:
             self._state.mouse = self._mouse(event)
         self._area.tag_redraw()
@@ -375,6 +384,9 @@ class _FogBrush:
         if event.type in {'ESC', 'RIGHTMOUSE'} and event.value == 'PRESS':
             self._cleanup(context)  # the stroke was never written: nothing to undo
             return {'CANCELLED'}
+        result = self.other_event(context, event)
+        if result is not None:
+            return result
         if event.type == 'F' and event.value == 'PRESS' and not self._stroking:
             size_name, strength_name = self.adjust_targets()
             name = strength_name if event.shift else size_name

@@ -139,19 +139,15 @@ def export_geometry_and_lights(scene, depsgraph, skip=frozenset()):
     return vertices, triangles, light_positions, light_intensities, skipped
 
 
-def export_spot_lights(depsgraph, skip=frozenset()):
-    """Render-visible participating spot lights as `_native.bake`'s spot_* keyword arguments,
-    or {} when there are none (then the bake is the point-light one, unchanged).
-
-    Cycles' spot (NOTES.md): I(theta) = C P / (4 pi) cos(theta) smoothstep(...) with theta
-    from the lamp's -Z; Blender gives a spot's power in W like a point light's, so the
-    intensity is the point light's formula and the profile is applied by the bake.
-    """
+def _directed_lights(depsgraph, light_type, skip):
+    """(light data, world matrix (4, 4), unit -Z direction) of every render-visible,
+    participating light instance of _light_type_ ('SPOT', 'SUN'); lights named in _skip_
+    (Automatic's skipped lights) are left out unless instanced. A degenerate transform
+    raises ExportError."""
     hidden = visibility.render_hidden_collections(depsgraph.view_layer)
-    positions, axes, intensities, sizes, blends = [], [], [], [], []
     for instance in depsgraph.object_instances:
         obj = instance.object
-        if obj.type != 'LIGHT' or obj.data.type != 'SPOT':
+        if obj.type != 'LIGHT' or obj.data.type != light_type:
             continue
         source = instance.parent if instance.is_instance else obj
         if source is None or not visibility.is_render_visible(source, hidden):
@@ -160,12 +156,26 @@ def export_spot_lights(depsgraph, skip=frozenset()):
         if not light.original.airlight.participate or (not instance.is_instance and obj.name in skip):
             continue
         matrix = np.array(instance.matrix_world, dtype=np.float64)
-        axis = -matrix[:3, 2]
-        norm = float(np.linalg.norm(axis))
+        direction = -matrix[:3, 2]
+        norm = float(np.linalg.norm(direction))
         if not (norm > 0.0 and math.isfinite(norm)):
-            raise ExportError(f"Spot light '{obj.name}' has a degenerate transform (no direction).")
+            raise ExportError(f"{light_type.title()} light '{obj.name}' has a degenerate transform "
+                              "(no direction).")
+        yield light, matrix, direction / norm
+
+
+def export_spot_lights(depsgraph, skip=frozenset()):
+    """Render-visible participating spot lights as `_native.bake`'s spot_* keyword arguments,
+    or {} when there are none (then the bake is the point-light one, unchanged).
+
+    Cycles' spot (NOTES.md): I(theta) = C P / (4 pi) cos(theta) smoothstep(...) with theta
+    from the lamp's -Z; Blender gives a spot's power in W like a point light's, so the
+    intensity is the point light's formula and the profile is applied by the bake.
+    """
+    positions, axes, intensities, sizes, blends = [], [], [], [], []
+    for light, matrix, axis in _directed_lights(depsgraph, 'SPOT', skip):
         positions.append(matrix[:3, 3])
-        axes.append(axis / norm)
+        axes.append(axis)
         intensities.append(np.array(light.color, dtype=np.float64) * light.energy / (4.0 * math.pi))
         sizes.append(float(light.spot_size))
         blends.append(float(light.spot_blend))
@@ -191,24 +201,9 @@ def export_sun_lights(scene, depsgraph, skip=frozenset()):
     `scene.airlight.use_fog_top` is on (sunlight fades through the fog above each point),
     else +inf (Hoffman-Preetham: unattenuated sunlight), see native/kernels/sun_layer.h.
     """
-    hidden = visibility.render_hidden_collections(depsgraph.view_layer)
     directions, irradiances = [], []
-    for instance in depsgraph.object_instances:
-        obj = instance.object
-        if obj.type != 'LIGHT' or obj.data.type != 'SUN':
-            continue
-        source = instance.parent if instance.is_instance else obj
-        if source is None or not visibility.is_render_visible(source, hidden):
-            continue
-        light = obj.data
-        if not light.original.airlight.participate or (not instance.is_instance and obj.name in skip):
-            continue
-        matrix = np.array(instance.matrix_world, dtype=np.float64)
-        direction = -matrix[:3, 2]
-        norm = float(np.linalg.norm(direction))
-        if not (norm > 0.0 and math.isfinite(norm)):
-            raise ExportError(f"Sun light '{obj.name}' has a degenerate transform (no direction).")
-        directions.append(direction / norm)
+    for light, _matrix, direction in _directed_lights(depsgraph, 'SUN', skip):
+        directions.append(direction)
         irradiances.append(np.array(light.color, dtype=np.float64) * light.energy)
     if not directions:
         return {}
