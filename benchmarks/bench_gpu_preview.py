@@ -16,7 +16,8 @@ fog images of two runs (e.g. an NVIDIA GPU's against Mesa llvmpipe's).
         without the 0.1 % brightest pixels (the pixels whose view ray passes within a
         fraction of a pixel of a light, where the airlight diverges and float rounding of
         the ray direction alone changes it by tens of percent).
-    /usr/bin/python3 benchmarks/bench_gpu_preview.py bake-check IMAGES --size WxH [--step S] [--configs a,b]
+    /usr/bin/python3 benchmarks/bench_gpu_preview.py bake-check IMAGES --size WxH [--step S]
+            [--configs a,b]
         the reference: bakes the harness's scene with _native.bake (model sun05,
         aa_samples 1: one sample per pixel centre, as the preview) at WxH, with the
         Gaussians of IMAGES (its "gaussians" array) for the gauss_* images, and compares
@@ -70,7 +71,8 @@ def _load(path):
     import glob
     import numpy as np
     if os.path.isdir(path):
-        return {os.path.basename(f)[:-4]: np.load(f) for f in sorted(glob.glob(os.path.join(path, "*.npy")))}
+        files = sorted(glob.glob(os.path.join(path, "*.npy")))
+        return {os.path.basename(f)[:-4]: np.load(f) for f in files}
     data = np.load(path)
     return {k: data[k] for k in data.files}
 
@@ -111,13 +113,15 @@ def _scene(width, height):
     """The harness's scene (gpu_preview/preview.cpp make_view, Preview::build) as bake
     arguments."""
     import numpy as np
-    eye, target, up = np.array([1.0, -12.0, 5.0]), np.array([0.0, 0.0, 1.0]), np.array([0.0, 0.0, 1.0])
+    eye, target = np.array([1.0, -12.0, 5.0]), np.array([0.0, 0.0, 1.0])
+    up = np.array([0.0, 0.0, 1.0])
     f = (target - eye) / np.linalg.norm(target - eye)
     r = np.cross(f, up)
     r /= np.linalg.norm(r)
     u = np.cross(r, f)
     cam_to_world = np.eye(4)
-    cam_to_world[:3, 0], cam_to_world[:3, 1], cam_to_world[:3, 2], cam_to_world[:3, 3] = r, u, -f, eye
+    cam_to_world[:3, 0], cam_to_world[:3, 1] = r, u
+    cam_to_world[:3, 2], cam_to_world[:3, 3] = -f, eye
     aspect = width / height
     tan_half_y = 0.36 / aspect if aspect >= 1.0 else 0.36
     near, far = 0.1, 100.0
@@ -128,7 +132,7 @@ def _scene(width, height):
     verts = [(-20, -20, 0), (20, -20, 0), (20, 20, 0), (-20, 20, 0)]
     tris = [(0, 1, 2), (0, 2, 3)]
     base = len(verts)
-    verts += [(-1 if i & 1 == 0 else 1, -1 if i & 2 == 0 else 1, 0 if i & 4 == 0 else 2) for i in range(8)]
+    verts += [(1 if i & 1 else -1, 1 if i & 2 else -1, 2 if i & 4 else 0) for i in range(8)]
     for q in ((0, 2, 3, 1), (4, 5, 7, 6), (0, 1, 5, 4), (2, 6, 7, 3), (0, 4, 6, 2), (1, 3, 7, 5)):
         tris += [(base + q[0], base + q[1], base + q[2]), (base + q[0], base + q[2], base + q[3])]
     n = 4
@@ -185,7 +189,8 @@ def cmd_bake_check(args):
 
 
 def main():
-    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p = argparse.ArgumentParser(description=__doc__,
+                                formatter_class=argparse.RawDescriptionHelpFormatter)
     sub = p.add_subparsers(dest="cmd", required=True)
     r = sub.add_parser("run")
     r.add_argument("--size", default="480x270")

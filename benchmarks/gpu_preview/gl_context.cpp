@@ -6,6 +6,7 @@
 #define GL_GLEXT_PROTOTYPES 1
 #include <GL/glcorearb.h>
 
+#include <cstdio>
 #include <cstring>
 #include <stdexcept>
 #include <vector>
@@ -71,6 +72,13 @@ EGLDisplay default_display()
   return EGL_NO_DISPLAY;
 }
 
+std::string hex(unsigned v)
+{
+  char buf[16];
+  std::snprintf(buf, sizeof(buf), "0x%04x", v);
+  return buf;
+}
+
 std::string gl_string(GLenum name)
 {
   const GLubyte *s = glGetString(name);
@@ -96,7 +104,7 @@ GLContextInfo gl_context_create(const std::string &platform, int device_index)
   }
   if (g_display == EGL_NO_DISPLAY) {
     throw std::runtime_error("no EGL display for platform '" + platform +
-                             "' (eglGetError 0x" + std::to_string(eglGetError()) + ")");
+                             "' (eglGetError " + hex(unsigned(eglGetError())) + ")");
   }
   if (!eglBindAPI(EGL_OPENGL_API)) throw std::runtime_error("eglBindAPI(EGL_OPENGL_API) failed");
   const EGLint config_attribs[] = {EGL_RENDERABLE_TYPE, EGL_OPENGL_BIT, EGL_NONE};
@@ -111,8 +119,8 @@ GLContextInfo gl_context_create(const std::string &platform, int device_index)
                                     EGL_CONTEXT_OPENGL_CORE_PROFILE_BIT, EGL_NONE};
   g_context = eglCreateContext(g_display, config, EGL_NO_CONTEXT, context_attribs);
   if (g_context == EGL_NO_CONTEXT) {
-    throw std::runtime_error("eglCreateContext(GL 4.5 core) failed: 0x" +
-                             std::to_string(eglGetError()));
+    throw std::runtime_error("eglCreateContext(GL 4.5 core) failed: " +
+                             hex(unsigned(eglGetError())));
   }
   if (!eglMakeCurrent(g_display, EGL_NO_SURFACE, EGL_NO_SURFACE, g_context)) {
     throw std::runtime_error("eglMakeCurrent without surface failed");
