@@ -25,29 +25,6 @@ constexpr double kForwardMaxH = 1.5;
 // ~1e-6 at worst (typically 1e-9: pegoraro10 tests).
 constexpr double kMaxCancellation = 1e6;
 
-// Gauss-Legendre nodes/weights on [-1, 1] (Newton on P_n), for projecting phases.
-void gauss_legendre(int n, std::vector<double>& x, std::vector<double>& w) {
-    x.resize(n);
-    w.resize(n);
-    for (int i = 0; i < n; ++i) {
-        double z = std::cos(kPi * (i + 0.75) / (n + 0.5)), dp = 0.0;
-        for (int it = 0; it < 100; ++it) {
-            double p0 = 1.0, p1 = z;
-            for (int k = 2; k <= n; ++k) {
-                const double p2 = ((2.0 * k - 1.0) * z * p1 - (k - 1.0) * p0) / k;
-                p0 = p1;
-                p1 = p2;
-            }
-            dp = n * (z * p1 - p0) / (z * z - 1.0);
-            const double dz = p1 / dp;
-            z -= dz;
-            if (std::abs(dz) < 1e-16) break;
-        }
-        x[i] = z;
-        w[i] = 2.0 / ((1.0 - z * z) * dp * dp);
-    }
-}
-
 // v = u + sqrt(1 + u^2) without cancellation for u < 0.
 double v_of_u(double u) {
     if (std::isinf(u)) return u > 0.0 ? std::numeric_limits<double>::infinity() : 0.0;

@@ -164,4 +164,27 @@ double sun05_airlight_quadrature(double sigma_t, double Dsv, double cos_gamma, d
     return sigma_t / (4.0 * kPi) * sum;
 }
 
+void gauss_legendre(int n, std::vector<double>& x, std::vector<double>& w) {
+    constexpr double kPi = 3.14159265358979323846;
+    x.assign(size_t(n), 0.0);
+    w.assign(size_t(n), 0.0);
+    for (int i = 0; i < n; ++i) {
+        double z = std::cos(kPi * (i + 0.75) / (n + 0.5)), dp = 1.0;
+        for (int it = 0; it < 100; ++it) {
+            double p0 = 1.0, p1 = z;
+            for (int k = 2; k <= n; ++k) {
+                const double p2 = ((2.0 * k - 1.0) * z * p1 - (k - 1.0) * p0) / k;
+                p0 = p1;
+                p1 = p2;
+            }
+            dp = n * (z * p1 - p0) / (z * z - 1.0);
+            const double dz = p1 / dp;
+            z -= dz;
+            if (std::abs(dz) < 1e-16) break;
+        }
+        x[size_t(i)] = z;
+        w[size_t(i)] = 2.0 / ((1.0 - z * z) * dp * dp);
+    }
+}
+
 }  // namespace airlight

@@ -65,29 +65,6 @@ void require(bool ok, const std::string& msg) {
     if (!ok) throw std::invalid_argument(msg);
 }
 
-// Gauss-Legendre nodes/weights on [-1, 1] (Newton on the Legendre recurrence).
-void gauss_legendre(int n, std::vector<double>& x, std::vector<double>& w) {
-    x.resize(n);
-    w.resize(n);
-    for (int i = 0; i < n; ++i) {
-        double z = std::cos(kPi * (i + 0.75) / (n + 0.5)), dp = 0.0;
-        for (int it = 0; it < 100; ++it) {
-            double p0 = 1.0, p1 = 0.0;
-            for (int k = 1; k <= n; ++k) {
-                const double p2 = p1;
-                p1 = p0;
-                p0 = ((2.0 * k - 1.0) * z * p1 - (k - 1.0) * p2) / k;
-            }
-            dp = n * (z * p0 - p1) / (z * z - 1.0);
-            const double dz = p0 / dp;
-            z -= dz;
-            if (std::abs(dz) < 1e-16) break;
-        }
-        x[i] = z;
-        w[i] = 2.0 / ((1.0 - z * z) * dp * dp);
-    }
-}
-
 // Normalised associated Legendre functions Pbar_l^m(x) = K_lm P_l^m(x) for 0 <= m <= l <= L,
 // stored at index l (l + 1) / 2 + m (no Condon-Shortley phase: the same basis is used for
 // projection and evaluation, so the phase convention cancels).

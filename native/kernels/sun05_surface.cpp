@@ -128,29 +128,6 @@ double sun05_surface_G_exact(double T, double theta_s, double m) {
 
 namespace {
 
-// Gauss-Legendre nodes and weights on [-1, 1] (Newton on P_n; n <= 64).
-void gauss_legendre(int n, std::vector<double>& x, std::vector<double>& w) {
-    x.assign(n, 0.0);
-    w.assign(n, 0.0);
-    for (int i = 0; i < n; ++i) {
-        double z = std::cos(kPi * (i + 0.75) / (n + 0.5)), dp = 1.0;
-        for (int it = 0; it < 100; ++it) {
-            double p0 = 1.0, p1 = z;
-            for (int k = 2; k <= n; ++k) {
-                const double p2 = ((2.0 * k - 1.0) * z * p1 - (k - 1.0) * p0) / k;
-                p0 = p1;
-                p1 = p2;
-            }
-            dp = n * (z * p1 - p0) / (z * z - 1.0);
-            const double dz = p1 / dp;
-            z -= dz;
-            if (std::abs(dz) < 1e-16) break;
-        }
-        x[i] = z;
-        w[i] = 2.0 / ((1.0 - z * z) * dp * dp);
-    }
-}
-
 // W_m by a fixed Gauss-Legendre rule in the azimuth (table build; smooth integrand on
 // [0, psi0], vanishing there like (psi0 - psi)^m).
 double W_fixed(double gamma, double theta_s, double m, const std::vector<double>& x, const std::vector<double>& w) {
