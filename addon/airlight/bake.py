@@ -53,8 +53,14 @@ def prepare(scene, depsgraph):
             settings["surface_phong_exponent"] = max(1.0, surface.gloss_exponent(scene))
         # (Interactive renders call this from the render thread: there nothing is written.)
         main = threading.current_thread() is threading.main_thread()
-        settings[SURFACE_GROUPS] = (surface.ensure_passes(scene, depsgraph) if main
-                                    else surface.current_groups(depsgraph))
+        groups = (surface.ensure_passes(scene, depsgraph) if main
+                  else surface.current_groups(depsgraph))
+        # One entry per light the bake gets: Automatic's skipped lights are not exported
+        # (scene_export), so drop their groups or the attenuation images would shift.
+        skipped = model_choice.skipped_lights(scene, depsgraph)
+        rows = surface.fogged_lights(depsgraph)
+        settings[SURFACE_GROUPS] = [group for (obj, _), group in zip(rows, groups)
+                                    if obj.name not in skipped]
         if world is not None:
             world["group"] = (surface.ensure_world_group(scene) if main
                               else surface.current_world_group(scene))

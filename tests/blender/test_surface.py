@@ -155,3 +155,31 @@ def test05_gloss_exponent_adds_the_glossy_glow(tmp_path):
     _, names = read_exr(path)
     assert not any(surface.PASS_GLOSS in n for n in names)
     assert not any(l.from_socket.name == "GlossCol" for l in tree.links)
+
+
+@needs_native
+def test06_skipped_lights_keep_groups_aligned(tmp_path):
+    """Automatic skips a faint light (not exported to the bake): its group must not take a
+    place in the bake's light order, or the attenuation images would shift onto the wrong
+    light groups. The faint light comes first in the scene so a shift would show."""
+    from airlight import bake, model_choice
+    scene = build_plane_scene(tmp_path, light=False)
+    scene.render.engine = 'CYCLES'
+    _add_light(scene, "Faint", 'POINT', (0.0, -60.0, 3.0)).data.energy = 0.01
+    _add_light(scene, "Key", 'POINT', (0.5, 0.3, 1.0)).data.energy = 300.0
+    scene.airlight.model = 'AUTO'
+    bpy.context.view_layer.update()
+    depsgraph = bpy.context.evaluated_depsgraph_get()
+    assert model_choice.skipped_lights(scene, depsgraph) == {"Faint"}
+    description, settings = bake.prepare(scene, depsgraph)
+    assert len(description["light_positions"]) == 1
+    assert settings[bake.SURFACE_GROUPS] == ["fog_Key"]
+    path = str(tmp_path / "fog.exr")
+    assert bpy.ops.airlight.bake('EXEC_DEFAULT', filepath=path) == {'FINISHED'}
+    from conftest import read_exr
+    _, names = read_exr(path)
+    assert {n.rsplit(".", 1)[0] for n in names if n.startswith("Fog.Surface_")} == {"Fog.Surface_fog_Key"}
+    from airlight import native
+    kw = {k: v for k, v in settings.items() if k not in (bake.SURFACE_GROUPS, "environment")}
+    ref = native.get().bake(**description, **kw)["surface_attenuation"][0] - 1.0
+    np.testing.assert_allclose(exr_pass(path, "Surface_fog_Key"), ref, rtol=1e-5, atol=1e-7)
