@@ -13,9 +13,11 @@ Render passes this needs, enabled here automatically on every view layer of the 
 one Cycles light group per fogged light (`view_layer.lightgroups`, `Object.lightgroup`,
 Blender 3.2+; its pass Combined_<group>) and the Diffuse Color pass (DiffCol). Lights that
 already belong to a light group of the user's, and light objects instanced more than once,
-are left alone (no surface attenuation for them), as are lights of other types (sun lamps:
-their light reaches surfaces unattenuated). Eevee and Workbench have no light
-groups: there the composite stays render x Transmittance + Airlight.
+are left alone (no surface attenuation for them), as are lights of other types (area
+lights). Sun lamps are attenuated by the fog layer above the surface (with Fog Top on;
+without it their light reaches surfaces unattenuated, as Hoffman-Preetham assume), with no
+glow. Eevee and Workbench have no light groups: there the composite stays
+render x Transmittance + Airlight; the Hoffman-Preetham model has no surface pass.
 """
 
 import re
@@ -23,7 +25,7 @@ import re
 from . import visibility
 
 GROUP_PREFIX = "fog_"
-SURFACE_LIGHT_TYPES = ('POINT', 'SPOT')  # lights the bake's surface pass attenuates
+SURFACE_LIGHT_TYPES = ('POINT', 'SPOT', 'SUN')  # lights the bake's surface pass attenuates
 PASS_PREFIX = "Surface_"
 PASS_GLOW = "SurfaceGlow"
 PASS_GLOSS = "SurfaceGloss"  # glossy glow per unit Glossy Color (scene.airlight.surface_gloss > 0)
@@ -35,9 +37,11 @@ def gloss_exponent(scene):
 
 
 def active(scene):
-    """True when the bake and the compositor do surface shading for `scene`."""
+    """True when the bake and the compositor do surface shading for `scene` (Cycles; not
+    with the Hoffman-Preetham daylight model, whose extinction differs per colour channel)."""
     settings = scene.airlight
-    return bool(settings.surface_shading) and scene.render.engine == 'CYCLES'
+    return (bool(settings.surface_shading) and scene.render.engine == 'CYCLES'
+            and settings.model != 'HOFFMAN02')
 
 
 def group_name(object_name):
@@ -47,11 +51,11 @@ def group_name(object_name):
 
 
 def fogged_lights(depsgraph):
-    """[(light object, group name or None)] in the bake's light order: the point lights, then
-    the spot lights, as scene_export exports them (tests/blender/test_surface.py holds the
-    two to the same order). The group is None where surface shading cannot apply."""
+    """[(light object, group name or None)] in the bake's light order: the point lights, the
+    spot lights, then the sun lamps, as scene_export exports them (tests/blender/test_surface.py
+    holds them to the same order). The group is None where surface shading cannot apply."""
     hidden = visibility.render_hidden_collections(depsgraph.view_layer)
-    points, spots, counts = [], [], {}
+    points, spots, suns, counts = [], [], [], {}
     for instance in depsgraph.object_instances:
         obj = instance.object
         source = instance.parent if instance.is_instance else obj
@@ -60,14 +64,14 @@ def fogged_lights(depsgraph):
         if obj.type != 'LIGHT':
             continue
         light = obj.data
-        # Point and spot lights only: the bake's surface pass covers no other type.
+        # Point, spot and sun lights: the bake's surface pass covers no other type.
         if light.type not in SURFACE_LIGHT_TYPES or not light.original.airlight.participate:
             continue
         original = obj.original
         counts[original.name] = counts.get(original.name, 0) + 1
-        (spots if light.type == 'SPOT' else points).append(original)
+        {'SPOT': spots, 'SUN': suns}.get(light.type, points).append(original)
     rows = []
-    for obj in points + spots:
+    for obj in points + spots + suns:
         group = group_name(obj.name)
         usable = counts[obj.name] == 1 and obj.lightgroup in ("", group)
         rows.append((obj, group if usable else None))

@@ -242,6 +242,11 @@ py::dict bake_py(int width, int height, const py::object& cam_to_world, const py
                    "samples"_a = result.stats.samples, "seconds_surface"_a = result.stats.seconds_surface);
     // Surface shading: (L, H, W, 3) attenuation per light and (H, W, 3) glow, when asked for.
     py::dict extra;
+    // The surface arrays exist only where the bake ran its surface pass (bake() refuses
+    // surface=True where it would not); never wrap an array of the wrong size.
+    const size_t n_px3 = size_t(3) * size_t(H) * size_t(W);
+    if (surface && result.surface_glow.size() != n_px3)
+        throw std::logic_error("bake: surface pass missing from the result");
     if (surface) {
         const py::ssize_t L = result.surface_lights;
         extra["surface_attenuation"] = to_numpy(std::move(result.surface_attenuation), {L, H, W, 3});

@@ -126,6 +126,8 @@ void validate(const SceneDescription& scene, const BakeSettings& settings) {
                 "model 'hoffman02' (Hoffman & Preetham 2002) scatters sun lamps only: exclude the point "
                 "and spot lights from the fog or use another model");
         require(scene.gaussians.empty(), "model 'hoffman02' does not take fog objects (Gaussians)");
+        require(!settings.surface, "model 'hoffman02' has no surface-shading pass (per-channel extinction): "
+                                   "bake it with surface=False");
         require(medium.phase.kind == PhaseKind::Isotropic || medium.phase.kind == PhaseKind::HenyeyGreenstein,
                 "model 'hoffman02': the Mie part is Henyey-Greenstein (the Rayleigh part is built in); got phase '" +
                     std::string(phase_name(medium.phase.kind)) + "'");

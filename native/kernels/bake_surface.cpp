@@ -55,7 +55,13 @@ void bake_surface_pass(const SceneDescription& scene, const BakeSettings& settin
                        const RayCaster& caster, int n_threads, BakeResult& result) {
     const int W = scene.camera.width, H = scene.camera.height;
     const size_t n_pixels = size_t(W) * size_t(H);
-    const size_t n_point = scene.point_lights.size(), n_lights = n_point + scene.spot_lights.size();
+    const size_t n_point = scene.point_lights.size(), n_positional = n_point + scene.spot_lights.size();
+    // Sun lamps follow the positional lights: their light reaches the surface through the fog
+    // layer above it (sun_layer.h): e^{-sigma_t (h_top - z) / mu_s}, 1 above the top or without
+    // one (Hoffman-Preetham's unattenuated sun), 0 for a sun shining up into an unbounded layer.
+    const size_t n_lights = n_positional + scene.sun_lights.size();
+    std::vector<double> sun_mu;
+    for (const SunLight& sun : scene.sun_lights) sun_mu.push_back(-glm::normalize(sun.direction).z);
     const double sigma_t = scene.medium.sigma_t;
     const RGB albedo = scene.medium.albedo;
     result.surface_lights = int(n_lights);
@@ -110,7 +116,14 @@ void bake_surface_pass(const SceneDescription& scene, const BakeSettings& settin
                 if (!fog) continue;
                 RGB glow(0.0), gloss(0.0);
                 const Vec3 mirror = row[i].d - 2.0 * glm::dot(row[i].d, n) * n;  // r about n
-                for (size_t l = 0; l < n_lights; ++l) {
+                for (size_t k = 0; k < sun_mu.size(); ++k) {
+                    double att = 1.0;
+                    if (std::isfinite(scene.fog_top) && p.z < scene.fog_top)
+                        att = sun_mu[k] > 0.0 ? std::exp(-sigma_t * (scene.fog_top - p.z) / sun_mu[k]) : 0.0;
+                    float* a = &result.surface_attenuation[((n_positional + k) * n_pixels + px) * 3];
+                    a[0] = a[1] = a[2] = float(att);
+                }
+                for (size_t l = 0; l < n_positional; ++l) {
                     const Vec3 v = positions[l] - p;
                     const double D = glm::length(v);
                     const double T = rbf ? rbf->optical_depth(positions[l], p) : sigma_t * D;

@@ -26,23 +26,24 @@ def _add_light(scene, name, kind, location, group=""):
 
 
 def test01_light_order_matches_the_export(tmp_path):
-    """fogged_lights lists the lights in the bake's order: point lights, then spots."""
+    """fogged_lights lists the lights in the bake's order: point lights, spots, then suns."""
     scene = build_plane_scene(tmp_path)
     _add_light(scene, "Spot A", 'SPOT', (1.0, 2.0, 3.0))
     _add_light(scene, "Key", 'POINT', (-1.0, 0.5, 1.5), group="user_key")
+    _add_light(scene, "Sun", 'SUN', (0.0, 0.0, 10.0))
     _add_light(scene, "Fill.001", 'POINT', (2.0, -1.0, 1.0))
-    _add_light(scene, "Sun", 'SUN', (0.0, 0.0, 10.0))  # no surface pass for suns
     bpy.context.view_layer.update()
     depsgraph = bpy.context.evaluated_depsgraph_get()
     rows = surface.fogged_lights(depsgraph)
     description = scene_export.export_scene(scene, depsgraph)
     positions = np.concatenate([description["light_positions"],
                                 description.get("spot_positions", np.zeros((0, 3)))])
-    assert len(rows) == len(positions) == 4
+    assert len(rows) == len(positions) + len(description["sun_directions"]) == 5
     for (obj, _), p in zip(rows, positions):
         np.testing.assert_allclose(np.array(obj.matrix_world.translation), p, atol=1e-6)
+    assert rows[-1][0].name == "Sun"
     groups = {obj.name: group for obj, group in rows}
-    assert "Sun" not in groups
+    assert groups["Sun"] == "fog_Sun"
     # The user's own light group is kept (no surface attenuation for that light).
     assert groups["Key"] is None
     assert groups["Fill.001"] == "fog_Fill_001" and groups["Spot A"] == "fog_Spot_A"
@@ -183,3 +184,30 @@ def test06_skipped_lights_keep_groups_aligned(tmp_path):
     kw = {k: v for k, v in settings.items() if k not in (bake.SURFACE_GROUPS, "environment")}
     ref = native.get().bake(**description, **kw)["surface_attenuation"][0] - 1.0
     np.testing.assert_allclose(exr_pass(path, "Surface_fog_Key"), ref, rtol=1e-5, atol=1e-7)
+
+
+@needs_native
+def test07_sun_light_on_surfaces_is_dimmed_by_the_fog_layer(tmp_path):
+    """A sun lamp's light on a surface inside the fog layer crosses (top - z) / mu_s of fog:
+    its group's pass is e^(-sigma (top - z) / mu_s) - 1 (sun_layer.h), computed here from the
+    hit points; without a fog top the sun is unattenuated (pass 0)."""
+    from airlight import bake
+    scene = build_plane_scene(tmp_path, light=False)
+    scene.render.engine = 'CYCLES'
+    sun = _add_light(scene, "Sun", 'SUN', (0.0, 0.0, 10.0))
+    sun.rotation_euler = (math.radians(30.0), 0.0, 0.0)
+    scene.airlight.density = 0.05
+    scene.airlight.use_fog_top = True
+    scene.airlight.fog_top = 8.0
+    bpy.context.view_layer.update()
+    path = str(tmp_path / "fog.exr")
+    assert bpy.ops.airlight.bake('EXEC_DEFAULT', filepath=path) == {'FINISHED'}
+    delta = exr_pass(path, "Surface_fog_Sun")[..., 0]
+    floor = delta != 0.0
+    assert floor.sum() > 100
+    mu_s = math.cos(math.radians(30.0))          # the lamp's -Z tilted 30 deg from straight down
+    want = math.exp(-0.05 * (8.0 - 0.0) / mu_s) - 1.0   # the floor is at z = 0
+    np.testing.assert_allclose(delta[floor], want, rtol=1e-5)
+    scene.airlight.use_fog_top = False
+    assert bpy.ops.airlight.bake('EXEC_DEFAULT', filepath=path) == {'FINISHED'}
+    np.testing.assert_array_equal(exr_pass(path, "Surface_fog_Sun"), 0.0)

@@ -122,3 +122,5 @@ def test_refusals():
         bake(6.0, rayleigh_density=-1.0)
     with pytest.raises(ValueError, match="rayleigh_density"):
         bake(6.0, rayleigh_density=float("nan"))
+    with pytest.raises(ValueError, match="surface"):
+        bake(6.0, surface=True)
