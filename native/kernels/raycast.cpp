@@ -119,30 +119,33 @@ double RayCaster::first_hit(const Ray& ray) const {
     return double(rh.ray.tfar);
 }
 
-void RayCaster::first_hits(const Ray* rays, int n, float* t) const {
-    if (!impl_->scene) {
-        for (int i = 0; i < n; ++i) t[i] = kInf;
-        return;
-    }
-    // Trace packets of 8 coherent rays; the tail packet masks off unused lanes.
+namespace {
+
+// Traces _n_ rays in coherent packets of 16 (the tail's unused lanes masked off):
+// set(i, org, dir, tnear, tfar) fills in ray i (tnear 0 and tfar inf unless set), done(k, i,
+// rayhit) reads lane k, ray i's hit.
+template <typename Set, typename Done>
+void trace_packets(RTCScene scene, int n, Set&& set, Done&& done) {
     RTCIntersectContext context;
     rtcInitIntersectContext(&context);
     context.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
-    for (int base = 0; base < n; base += 8) {
-        alignas(32) int valid[8];
-        RTCRayHit8 rh;
-        for (int k = 0; k < 8; ++k) {
-            int i = base + k < n ? base + k : n - 1;
-            valid[k] = base + k < n ? -1 : 0;
-            const Ray& ray = rays[i];
-            rh.ray.org_x[k] = float(ray.o.x);
-            rh.ray.org_y[k] = float(ray.o.y);
-            rh.ray.org_z[k] = float(ray.o.z);
-            rh.ray.dir_x[k] = float(ray.d.x);
-            rh.ray.dir_y[k] = float(ray.d.y);
-            rh.ray.dir_z[k] = float(ray.d.z);
-            rh.ray.tnear[k] = 0.0f;
-            rh.ray.tfar[k] = kInf;
+    for (int base = 0; base < n; base += 16) {
+        alignas(64) int valid[16];
+        alignas(64) RTCRayHit16 rh;
+        for (int k = 0; k < 16; ++k) {
+            const bool live = base + k < n;
+            const int i = live ? base + k : n - 1;
+            valid[k] = live ? -1 : 0;
+            float org[3], dir[3], tnear = 0.0f, tfar = kInf;
+            set(i, org, dir, tnear, tfar);
+            rh.ray.org_x[k] = org[0];
+            rh.ray.org_y[k] = org[1];
+            rh.ray.org_z[k] = org[2];
+            rh.ray.dir_x[k] = dir[0];
+            rh.ray.dir_y[k] = dir[1];
+            rh.ray.dir_z[k] = dir[2];
+            rh.ray.tnear[k] = tnear;
+            rh.ray.tfar[k] = tfar;
             rh.ray.time[k] = 0.0f;
             rh.ray.mask[k] = 0xFFFFFFFFu;
             rh.ray.id[k] = unsigned(k);
@@ -150,10 +153,32 @@ void RayCaster::first_hits(const Ray* rays, int n, float* t) const {
             rh.hit.geomID[k] = RTC_INVALID_GEOMETRY_ID;
             rh.hit.instID[0][k] = RTC_INVALID_GEOMETRY_ID;
         }
-        rtcIntersect8(valid, impl_->scene, &context, &rh);
-        for (int k = 0; k < 8 && base + k < n; ++k)
-            t[base + k] = rh.hit.geomID[k] == RTC_INVALID_GEOMETRY_ID ? kInf : rh.ray.tfar[k];
+        rtcIntersect16(valid, scene, &context, &rh);
+        for (int k = 0; k < 16 && base + k < n; ++k) done(k, base + k, rh);
     }
+}
+
+void ray_arrays(const Ray& ray, float* org, float* dir) {
+    org[0] = float(ray.o.x);
+    org[1] = float(ray.o.y);
+    org[2] = float(ray.o.z);
+    dir[0] = float(ray.d.x);
+    dir[1] = float(ray.d.y);
+    dir[2] = float(ray.d.z);
+}
+
+}  // namespace
+
+void RayCaster::first_hits(const Ray* rays, int n, float* t) const {
+    if (!impl_->scene) {
+        for (int i = 0; i < n; ++i) t[i] = kInf;
+        return;
+    }
+    trace_packets(
+        impl_->scene, n, [&](int i, float* org, float* dir, float&, float&) { ray_arrays(rays[i], org, dir); },
+        [&](int k, int i, const RTCRayHit16& rh) {
+            t[i] = rh.hit.geomID[k] == RTC_INVALID_GEOMETRY_ID ? kInf : rh.ray.tfar[k];
+        });
 }
 
 void RayCaster::first_hits(const Vec3& o, const float* dx, const float* dy, const float* dz,
@@ -162,37 +187,23 @@ void RayCaster::first_hits(const Vec3& o, const float* dx, const float* dy, cons
         for (int i = 0; i < n; ++i) t[i] = kInf;
         return;
     }
-    // Trace packets of 16 coherent rays from the shared origin; the tail masks lanes off.
-    RTCIntersectContext context;
-    rtcInitIntersectContext(&context);
-    context.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
+    // Coherent rays from the shared origin (the bake's pixel rows).
     const float ox = float(o.x), oy = float(o.y), oz = float(o.z);
-    for (int base = 0; base < n; base += 16) {
-        alignas(64) int valid[16];
-        alignas(64) RTCRayHit16 rh;
-        for (int k = 0; k < 16; ++k) {
-            const bool live = base + k < n;
-            const int i = live ? base + k : n - 1;
-            valid[k] = live ? -1 : 0;
-            rh.ray.org_x[k] = ox;
-            rh.ray.org_y[k] = oy;
-            rh.ray.org_z[k] = oz;
-            rh.ray.dir_x[k] = dx[i];
-            rh.ray.dir_y[k] = dy[i];
-            rh.ray.dir_z[k] = dz[i];
-            rh.ray.tnear[k] = t_near[i];
-            rh.ray.tfar[k] = t_far[i];
-            rh.ray.time[k] = 0.0f;
-            rh.ray.mask[k] = 0xFFFFFFFFu;
-            rh.ray.id[k] = unsigned(k);
-            rh.ray.flags[k] = 0;
-            rh.hit.geomID[k] = RTC_INVALID_GEOMETRY_ID;
-            rh.hit.instID[0][k] = RTC_INVALID_GEOMETRY_ID;
-        }
-        rtcIntersect16(valid, impl_->scene, &context, &rh);
-        for (int k = 0; k < 16 && base + k < n; ++k)
-            t[base + k] = rh.hit.geomID[k] == RTC_INVALID_GEOMETRY_ID ? kInf : rh.ray.tfar[k];
-    }
+    trace_packets(
+        impl_->scene, n,
+        [&](int i, float* org, float* dir, float& tn, float& tf) {
+            org[0] = ox;
+            org[1] = oy;
+            org[2] = oz;
+            dir[0] = dx[i];
+            dir[1] = dy[i];
+            dir[2] = dz[i];
+            tn = t_near[i];
+            tf = t_far[i];
+        },
+        [&](int k, int i, const RTCRayHit16& rh) {
+            t[i] = rh.hit.geomID[k] == RTC_INVALID_GEOMETRY_ID ? kInf : rh.ray.tfar[k];
+        });
 }
 
 void RayCaster::first_hits_normals(const Ray* rays, const float* t_near, const float* t_far, int n, float* t,
@@ -204,49 +215,28 @@ void RayCaster::first_hits_normals(const Ray* rays, const float* t_near, const f
         }
         return;
     }
-    // Packets of 16 rays; the tail masks lanes off. Ng comes back unnormalised.
-    RTCIntersectContext context;
-    rtcInitIntersectContext(&context);
-    context.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
-    for (int base = 0; base < n; base += 16) {
-        alignas(64) int valid[16];
-        alignas(64) RTCRayHit16 rh;
-        for (int k = 0; k < 16; ++k) {
-            const bool live = base + k < n;
-            const int i = live ? base + k : n - 1;
-            valid[k] = live ? -1 : 0;
-            rh.ray.org_x[k] = float(rays[i].o.x);
-            rh.ray.org_y[k] = float(rays[i].o.y);
-            rh.ray.org_z[k] = float(rays[i].o.z);
-            rh.ray.dir_x[k] = float(rays[i].d.x);
-            rh.ray.dir_y[k] = float(rays[i].d.y);
-            rh.ray.dir_z[k] = float(rays[i].d.z);
-            rh.ray.tnear[k] = t_near[i];
-            rh.ray.tfar[k] = t_far[i];
-            rh.ray.time[k] = 0.0f;
-            rh.ray.mask[k] = 0xFFFFFFFFu;
-            rh.ray.id[k] = unsigned(k);
-            rh.ray.flags[k] = 0;
-            rh.hit.geomID[k] = RTC_INVALID_GEOMETRY_ID;
-            rh.hit.instID[0][k] = RTC_INVALID_GEOMETRY_ID;
-        }
-        rtcIntersect16(valid, impl_->scene, &context, &rh);
-        for (int k = 0; k < 16 && base + k < n; ++k) {
-            const int i = base + k;
+    trace_packets(
+        impl_->scene, n,
+        [&](int i, float* org, float* dir, float& tn, float& tf) {
+            ray_arrays(rays[i], org, dir);
+            tn = t_near[i];
+            tf = t_far[i];
+        },
+        [&](int k, int i, const RTCRayHit16& rh) {
             if (rh.hit.geomID[k] == RTC_INVALID_GEOMETRY_ID) {
                 t[i] = kInf;
                 ng[3 * i] = ng[3 * i + 1] = ng[3 * i + 2] = 0.0f;
-                continue;
+                return;
             }
             t[i] = rh.ray.tfar[k];
+            // Embree's Ng comes back unnormalised.
             const double x = rh.hit.Ng_x[k], y = rh.hit.Ng_y[k], z = rh.hit.Ng_z[k];
             const double len = std::sqrt(x * x + y * y + z * z);
             const double inv = len > 0.0 ? 1.0 / len : 0.0;
             ng[3 * i] = float(x * inv);
             ng[3 * i + 1] = float(y * inv);
             ng[3 * i + 2] = float(z * inv);
-        }
-    }
+        });
 }
 
 }  // namespace airlight
