@@ -239,18 +239,7 @@ class AIRLIGHT_OT_airbrush(brush_ops._FogBrush, bpy.types.Operator):
         return "scale_radius", "amplitude"
 
     def brush_radius_px(self, context):
-        """1/a projected at the 3D cursor's depth."""
-        from bpy_extras import view3d_utils
-        from mathutils import Vector
-        rv3d = self._area.spaces.active.region_3d
-        settings = context.scene.airlight_airbrush
-        cursor = context.scene.cursor.location
-        right = rv3d.view_rotation @ Vector((1.0, 0.0, 0.0))
-        a = view3d_utils.location_3d_to_region_2d(self._region, rv3d, cursor)
-        b = view3d_utils.location_3d_to_region_2d(self._region, rv3d, cursor + right / settings.scale)
-        if a is None or b is None:
-            return 20.0
-        return max(2.0, float((a - b).length))
+        return self.scale_radius_px(context)
 
     def invoke(self, context, event):
         self._timer = None

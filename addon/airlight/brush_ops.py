@@ -349,6 +349,21 @@ class _FogBrush:
             self._cleanup(context)
             raise
 
+    def scale_radius_px(self, context):
+        """The tool's Gaussian radius 1/a (tool_settings().scale) in pixels, projected at the 3D
+        cursor's depth: the brush circle of the tools that place Gaussians."""
+        from bpy_extras import view3d_utils
+        from mathutils import Vector
+        rv3d = self._area.spaces.active.region_3d
+        settings = self.tool_settings(context)
+        cursor = context.scene.cursor.location
+        right = rv3d.view_rotation @ Vector((1.0, 0.0, 0.0))
+        a = view3d_utils.location_3d_to_region_2d(self._region, rv3d, cursor)
+        b = view3d_utils.location_3d_to_region_2d(self._region, rv3d, cursor + right / settings.scale)
+        if a is None or b is None:
+            return 20.0
+        return max(2.0, float((a - b).length))
+
     def tool_settings(self, context):
         """The property group that F / Shift+F adjust (adjust_targets names its properties)."""
         return context.scene.airlight_brush
@@ -424,18 +439,7 @@ class AIRLIGHT_OT_fog_paint(_FogBrush, bpy.types.Operator):
         return "scale_radius", "amplitude"
 
     def brush_radius_px(self, context):
-        """1/a projected at the 3D cursor's depth."""
-        from bpy_extras import view3d_utils
-        from mathutils import Vector
-        rv3d = self._area.spaces.active.region_3d
-        settings = context.scene.airlight_brush
-        cursor = context.scene.cursor.location
-        right = rv3d.view_rotation @ Vector((1.0, 0.0, 0.0))
-        a = view3d_utils.location_3d_to_region_2d(self._region, rv3d, cursor)
-        b = view3d_utils.location_3d_to_region_2d(self._region, rv3d, cursor + right / settings.scale)
-        if a is None or b is None:
-            return 20.0
-        return max(2.0, float((a - b).length))
+        return self.scale_radius_px(context)
 
     def _point_3d(self, context, xy):
         """The stroke point under pixel _xy_ on the chosen plane, or None."""
