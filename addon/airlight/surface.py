@@ -15,8 +15,9 @@ Blender 3.2+; its pass Combined_<group>) and the Diffuse Color pass (DiffCol). L
 already belong to a light group of the user's, and light objects instanced more than once,
 are left alone (no surface attenuation for them), as are lights of other types (area
 lights). Sun lamps are attenuated by the fog layer above the surface (with Fog Top on;
-without it their light reaches surfaces unattenuated, as Hoffman-Preetham assume), with no
-glow. Eevee and Workbench have no light groups: there the composite stays
+without it their light reaches surfaces unattenuated, as Hoffman-Preetham assume), and
+their glow is the sunlight the fog (layer) scatters onto the surface
+(native/kernels/sun_layer_glow.h). Eevee and Workbench have no light groups: there the composite stays
 render x Transmittance + Airlight; the Hoffman-Preetham model has no surface pass.
 """
 

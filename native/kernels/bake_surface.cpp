@@ -19,6 +19,7 @@
 
 #include "rbf_medium.h"
 #include "sun05_surface.h"
+#include "sun_layer_glow.h"
 
 namespace airlight {
 
@@ -51,6 +52,20 @@ std::shared_ptr<const SurfaceGTable> shared_surface_G_table(int nT, int ntheta, 
     return slot;
 }
 
+// The sun-glow table for one sun direction and phase function, built once and shared
+// across bakes (an animation with a fixed sun builds it once; ~0.2-0.6 s on one thread).
+std::shared_ptr<const SunLayerGlowTable> shared_sun_glow_table(const PhaseFunction& phase, const Vec3& to_sun,
+                                                              bool has_top) {
+    static std::mutex mutex;
+    static std::map<std::tuple<int, double, double, double, double, bool>, std::shared_ptr<const SunLayerGlowTable>>
+        cache;
+    std::lock_guard<std::mutex> lock(mutex);
+    if (cache.size() > 64) cache.clear();  // a sun animated over many frames: keep memory bounded
+    auto& slot = cache[{int(phase.kind), phase.g, to_sun.x, to_sun.y, to_sun.z, has_top}];
+    if (!slot) slot = std::make_shared<const SunLayerGlowTable>(phase, to_sun, has_top);
+    return slot;
+}
+
 void bake_surface_pass(const SceneDescription& scene, const BakeSettings& settings, const CameraRays& rays,
                        const RayCaster& caster, int n_threads, BakeResult& result) {
     const int W = scene.camera.width, H = scene.camera.height;
@@ -63,6 +78,13 @@ void bake_surface_pass(const SceneDescription& scene, const BakeSettings& settin
     std::vector<double> sun_mu;
     for (const SunLight& sun : scene.sun_lights) sun_mu.push_back(-glm::normalize(sun.direction).z);
     const double sigma_t = scene.medium.sigma_t;
+    // The suns' glow on Lambert surfaces (sun_layer_glow.h): the light each sun scatters in
+    // the homogeneous fog (the layer below fog_top, or unbounded) towards the surface.
+    const bool has_top = std::isfinite(scene.fog_top);
+    std::vector<std::shared_ptr<const SunLayerGlowTable>> sun_glow;
+    if (sigma_t > 0.0)
+        for (const SunLight& sun : scene.sun_lights)
+            sun_glow.push_back(shared_sun_glow_table(scene.medium.phase, -glm::normalize(sun.direction), has_top));
     const RGB albedo = scene.medium.albedo;
     result.surface_lights = int(n_lights);
     allocate_filled(result.surface_attenuation, n_lights * 3 * n_pixels, 1.0f);
@@ -122,6 +144,8 @@ void bake_surface_pass(const SceneDescription& scene, const BakeSettings& settin
                         att = sun_mu[k] > 0.0 ? std::exp(-sigma_t * (scene.fog_top - p.z) / sun_mu[k]) : 0.0;
                     float* a = &result.surface_attenuation[((n_positional + k) * n_pixels + px) * 3];
                     a[0] = a[1] = a[2] = float(att);
+                    if (!sun_glow.empty())
+                        glow += scene.sun_lights[k].E * sun_glow[k]->eval(has_top ? sigma_t * (scene.fog_top - p.z) : 0.0, n);
                 }
                 for (size_t l = 0; l < n_positional; ++l) {
                     const Vec3 v = positions[l] - p;
