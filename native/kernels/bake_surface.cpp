@@ -55,14 +55,15 @@ std::shared_ptr<const SurfaceGTable> shared_surface_G_table(int nT, int ntheta, 
 // The sun-glow table for one sun direction and phase function, built once and shared
 // across bakes (an animation with a fixed sun builds it once; ~0.2-0.6 s on one thread).
 std::shared_ptr<const SunLayerGlowTable> shared_sun_glow_table(const PhaseFunction& phase, const Vec3& to_sun,
-                                                              bool has_top) {
+                                                              bool has_top, double m) {
     static std::mutex mutex;
-    static std::map<std::tuple<int, double, double, double, double, bool>, std::shared_ptr<const SunLayerGlowTable>>
+    static std::map<std::tuple<int, double, double, double, double, bool, double>,
+                    std::shared_ptr<const SunLayerGlowTable>>
         cache;
     std::lock_guard<std::mutex> lock(mutex);
     if (cache.size() > 64) cache.clear();  // a sun animated over many frames: keep memory bounded
-    auto& slot = cache[{int(phase.kind), phase.g, to_sun.x, to_sun.y, to_sun.z, has_top}];
-    if (!slot) slot = std::make_shared<const SunLayerGlowTable>(phase, to_sun, has_top);
+    auto& slot = cache[{int(phase.kind), phase.g, to_sun.x, to_sun.y, to_sun.z, has_top, m}];
+    if (!slot) slot = std::make_shared<const SunLayerGlowTable>(phase, to_sun, has_top, m);
     return slot;
 }
 
@@ -81,10 +82,7 @@ void bake_surface_pass(const SceneDescription& scene, const BakeSettings& settin
     // The suns' glow on Lambert surfaces (sun_layer_glow.h): the light each sun scatters in
     // the homogeneous fog (the layer below fog_top, or unbounded) towards the surface.
     const bool has_top = std::isfinite(scene.fog_top);
-    std::vector<std::shared_ptr<const SunLayerGlowTable>> sun_glow;
-    if (sigma_t > 0.0)
-        for (const SunLight& sun : scene.sun_lights)
-            sun_glow.push_back(shared_sun_glow_table(scene.medium.phase, -glm::normalize(sun.direction), has_top));
+    std::vector<std::shared_ptr<const SunLayerGlowTable>> sun_glow, sun_gloss;
     const RGB albedo = scene.medium.albedo;
     result.surface_lights = int(n_lights);
     allocate_filled(result.surface_attenuation, n_lights * 3 * n_pixels, 1.0f);
@@ -94,6 +92,12 @@ void bake_surface_pass(const SceneDescription& scene, const BakeSettings& settin
         throw std::invalid_argument("surface_phong_exponent: must be 0 (off) or in [1, 10000], got " +
                                     std::to_string(n_phong));
     if (n_phong > 0.0) allocate_filled(result.surface_gloss_glow, 3 * n_pixels, 0.0f);
+    if (sigma_t > 0.0)
+        for (const SunLight& sun : scene.sun_lights) {
+            const Vec3 to_sun = -glm::normalize(sun.direction);
+            sun_glow.push_back(shared_sun_glow_table(scene.medium.phase, to_sun, has_top, 1.0));
+            if (n_phong > 0.0) sun_gloss.push_back(shared_sun_glow_table(scene.medium.phase, to_sun, has_top, n_phong));
+        }
     allocate_filled(result.surface_normals, 3 * n_pixels, 0.0f);
 
     // Light positions (point lights first, then spots) and the point lights' glow scale.
@@ -144,8 +148,11 @@ void bake_surface_pass(const SceneDescription& scene, const BakeSettings& settin
                         att = sun_mu[k] > 0.0 ? std::exp(-sigma_t * (scene.fog_top - p.z) / sun_mu[k]) : 0.0;
                     float* a = &result.surface_attenuation[((n_positional + k) * n_pixels + px) * 3];
                     a[0] = a[1] = a[2] = float(att);
-                    if (!sun_glow.empty())
-                        glow += scene.sun_lights[k].E * sun_glow[k]->eval(has_top ? sigma_t * (scene.fog_top - p.z) : 0.0, n);
+                    const double tau = has_top ? sigma_t * (scene.fog_top - p.z) : 0.0;
+                    if (!sun_glow.empty()) glow += scene.sun_lights[k].E * sun_glow[k]->eval(tau, n);
+                    // Phong: (n + 2)/(2 pi) int L_in cos^n = albedo E (n + 2)/2 Q_n(tau, r).
+                    if (!sun_gloss.empty())
+                        gloss += scene.sun_lights[k].E * (0.5 * (n_phong + 2.0) * sun_gloss[k]->eval(tau, mirror));
                 }
                 for (size_t l = 0; l < n_positional; ++l) {
                     const Vec3 v = positions[l] - p;
@@ -171,7 +178,7 @@ void bake_surface_pass(const SceneDescription& scene, const BakeSettings& settin
                     }
                 }
                 for (int c = 0; c < 3; ++c) result.surface_glow[3 * px + c] = float(albedo[c] * glow[c]);
-                if (phong)
+                if (n_phong > 0.0)
                     for (int c = 0; c < 3; ++c) result.surface_gloss_glow[3 * px + c] = float(albedo[c] * gloss[c]);
             }
         }

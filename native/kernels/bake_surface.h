@@ -18,7 +18,8 @@
 // through the fog layer above p (scene.fog_top; 1 without a top or above it), and their
 // Lambert glow E albedo Q(sigma_t (h_top - z_p), n) (sun_layer_glow.h: the sun's light
 // scattered once in the homogeneous fog of the layer, or of unbounded fog without a top,
-// for the medium's phase function) added to surface_glow; no glossy glow for suns.
+// for the medium's phase function) added to surface_glow, and with a Phong exponent n their
+// glossy glow E albedo (n + 2)/2 Q_n(tau, r) about the mirrored view direction r.
 // Limits (documented, not hidden): the glow assumes unbounded unshadowed fog around p (the
 // paper's assumption); spot lights get the attenuation but no glow (G assumes an isotropic
 // point light); with fog objects (Gaussians) the attenuation uses the exact optical depth

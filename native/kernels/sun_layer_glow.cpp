@@ -39,6 +39,16 @@ namespace {
 constexpr double kPi = 3.14159265358979323846;
 constexpr double kTauMax = 1e6;
 
+// The surface's weight of an incident direction: max(0, x)^m with x = n.w (Lambert, m = 1)
+// or x = r.w about the mirrored view direction r (Phong, m = n).
+inline double lobe(double x, double m) {
+    if (!(x > 0.0)) return 0.0;
+    return m == 1.0 ? x : std::pow(x, m);
+}
+
+// Angular width scale of the cos^m lobe (none for the Lambert cosine).
+inline double lobe_width(double m) { return m > 1.0 ? 1.0 / std::sqrt(m) : 0.0; }
+
 struct SunFrame {
     glm::dvec3 l, a, b;
     double mu_s;
@@ -75,8 +85,8 @@ double fog_factor_scaled(bool has_top, double tau, double mu_s, double mu) {
 
 // The psi pieces at polar angle gamma: the interval where n.w > 0 split at the Z horizon.
 // Returns the piece boundaries in _cuts_ (empty: no direction of this cone faces n).
-void psi_pieces(const SunFrame& f, const glm::dvec3& n, double gamma, std::vector<double>& cuts, double& A,
-                double& B, double& psi_n) {
+void psi_pieces(const SunFrame& f, const glm::dvec3& n, double m, double gamma, std::vector<double>& cuts,
+                double& A, double& B, double& psi_n) {
     cuts.clear();
     const double cg = std::cos(gamma), sg = std::sin(gamma);
     const double na = glm::dot(n, f.a), nb = glm::dot(n, f.b);
@@ -107,14 +117,26 @@ void psi_pieces(const SunFrame& f, const glm::dvec3& n, double gamma, std::vecto
                 }
         }
     }
+    // A cos^m lobe about psi_n: its angular width lw spans about lw / B in psi.
+    const double lw = lobe_width(m);
+    if (lw > 0.0 && B > 1e-9)
+        for (double c : {0.25, 1.0, 3.0}) {
+            const double d = c * lw / B;
+            if (d >= kPi) break;
+            for (double x : {psi_n - d, psi_n + d})
+                if (x > lo && x < hi) cuts.push_back(x);
+        }
     cuts.push_back(hi);
     std::sort(cuts.begin(), cuts.end());
 }
 
-std::vector<double> gamma_cuts(const PhaseFunction& phase, const SunFrame& f, const glm::dvec3& n) {
+std::vector<double> gamma_cuts(const PhaseFunction& phase, const SunFrame& f, const glm::dvec3& n, double m) {
     std::vector<double> cuts = {0.0, kPi};
     const double w = phase.lobe_width();
-    for (double m = 0.125; m * w < kPi; m *= 4.0) cuts.push_back(m * w);
+    for (double k = 0.125; k * w < kPi; k *= 4.0) cuts.push_back(k * w);
+    const double lw = lobe_width(m), gn = std::acos(std::clamp(glm::dot(n, f.l), -1.0, 1.0));
+    if (lw > 0.0)
+        for (double c : {-3.0, -1.0, -0.25, 0.25, 1.0, 3.0}) cuts.push_back(std::clamp(gn + c * lw, 0.0, kPi));
     for (double c : {std::abs(0.5 * kPi - std::acos(std::clamp(glm::dot(n, f.l), -1.0, 1.0))),
                      std::abs(0.5 * kPi - std::acos(std::clamp(f.l.z, -1.0, 1.0)))}) {
         cuts.push_back(c);
@@ -128,10 +150,10 @@ std::vector<double> gamma_cuts(const PhaseFunction& phase, const SunFrame& f, co
 
 // The integrand of Q at (gamma, psi) without the phase and sin(gamma): fog factor x n.w.
 template <class FogFactor>
-double psi_integrand(const SunFrame& f, double gamma, double psi, double A, double B, double psi_n,
+double psi_integrand(const SunFrame& f, double m, double gamma, double psi, double A, double B, double psi_n,
                      const FogFactor& fog) {
     const double mu = std::cos(gamma) * f.l.z + std::sin(gamma) * f.a.z * std::cos(psi);
-    return fog(mu) * std::max(0.0, A + B * std::cos(psi - psi_n));
+    return fog(mu) * lobe(A + B * std::cos(psi - psi_n), m);
 }
 
 struct FixedRule {
@@ -160,16 +182,19 @@ struct ThetaNode {
     double mu, weight;  // cos(theta), (1 / pi) x quadrature weight x sin(theta) x K(theta, n)
 };
 
-std::vector<ThetaNode> theta_nodes(const PhaseFunction& phase, double mu_s, const glm::dvec3& n_local) {
+std::vector<ThetaNode> theta_nodes(const PhaseFunction& phase, double mu_s, const glm::dvec3& n_local, double m) {
     const FixedRule& R = fixed_rule();
     const double w = phase.lobe_width();
     const double theta_s = std::acos(std::clamp(mu_s, -1.0, 1.0)), rs = std::sqrt(std::max(0.0, 1.0 - mu_s * mu_s));
     const double theta_n = std::acos(std::clamp(n_local.z, -1.0, 1.0));
     std::vector<double> cuts = {0.0, 0.5 * kPi, kPi, std::abs(0.5 * kPi - theta_n), kPi - std::abs(0.5 * kPi - theta_n)};
-    for (double m = 0.125; m * w < kPi; m *= 4.0) {
-        cuts.push_back(theta_s - m * w);
-        cuts.push_back(theta_s + m * w);
+    for (double k = 0.125; k * w < kPi; k *= 4.0) {
+        cuts.push_back(theta_s - k * w);
+        cuts.push_back(theta_s + k * w);
     }
+    const double lw = lobe_width(m);
+    if (lw > 0.0)
+        for (double c : {-3.0, -1.0, -0.25, 0.25, 1.0, 3.0}) cuts.push_back(theta_n + c * lw);
     for (double& c : cuts) c = std::clamp(c, 0.0, kPi);
     std::sort(cuts.begin(), cuts.end());
     cuts.erase(std::unique(cuts.begin(), cuts.end(), [](double x, double y) { return y - x < 1e-12; }), cuts.end());
@@ -200,12 +225,19 @@ std::vector<ThetaNode> theta_nodes(const PhaseFunction& phase, double mu_s, cons
                 // The phase lobe about phi = 0 (mod 2 pi): its angular half-width m w spans
                 // about m w / (r rs) in phi.
                 if (r * rs > 1e-9)
-                    for (double m = 0.125; m * w < 4.0 * r * rs; m *= 4.0)
-                        for (double base : {m * w / (r * rs), -m * w / (r * rs)})
+                    for (double k = 0.125; k * w < 4.0 * r * rs; k *= 4.0)
+                        for (double base : {k * w / (r * rs), -k * w / (r * rs)})
                             for (int q = -2; q <= 2; ++q) {
                                 const double x = base + 2.0 * kPi * q;
                                 if (x > lo && x < hi) pc.push_back(x);
                             }
+                if (lw > 0.0 && B > 1e-9)
+                    for (double c : {0.25, 1.0, 3.0}) {
+                        const double d = c * lw / B;
+                        if (d >= kPi) break;
+                        for (double x : {phi_n - d, phi_n + d})
+                            if (x > lo && x < hi) pc.push_back(x);
+                    }
                 std::sort(pc.begin(), pc.end());
                 double K = 0.0;
                 for (size_t q = 0; q + 1 < pc.size(); ++q) {
@@ -214,7 +246,7 @@ std::vector<ThetaNode> theta_nodes(const PhaseFunction& phase, double mu_s, cons
                     for (size_t j = 0; j < R.xp.size(); ++j) {
                         const double phi = pc[q] + 0.5 * hp * (R.xp[j] + 1.0);
                         const double cos_l = r * rs * std::cos(phi) + mu * mu_s;
-                        piece += R.wp[j] * phase.eval(cos_l) * std::max(0.0, C + B * std::cos(phi - phi_n));
+                        piece += R.wp[j] * phase.eval(cos_l) * lobe(C + B * std::cos(phi - phi_n), m);
                     }
                     K += 0.5 * hp * piece;
                 }
@@ -225,17 +257,17 @@ std::vector<ThetaNode> theta_nodes(const PhaseFunction& phase, double mu_s, cons
 }
 
 // e^{tau} Q by nested adaptive quadrature with the fog factor _fog_.
-double glow_adaptive(const PhaseFunction& phase, const SunFrame& f, const glm::dvec3& n,
+double glow_adaptive(const PhaseFunction& phase, const SunFrame& f, const glm::dvec3& n, double m,
                      const std::function<double(double)>& fog, double rel_tol) {
-    const std::vector<double> gc = gamma_cuts(phase, f, n);
+    const std::vector<double> gc = gamma_cuts(phase, f, n, m);
     auto outer = [&](double gamma) {
         std::vector<double> pc;
         double A, B, psi_n;
-        psi_pieces(f, n, gamma, pc, A, B, psi_n);
+        psi_pieces(f, n, m, gamma, pc, A, B, psi_n);
         double inner = 0.0;
         for (size_t q = 0; q + 1 < pc.size(); ++q)
             inner += integrate_adaptive(
-                [&](double psi) { return psi_integrand(f, gamma, psi, A, B, psi_n, fog); }, pc[q], pc[q + 1],
+                [&](double psi) { return psi_integrand(f, m, gamma, psi, A, B, psi_n, fog); }, pc[q], pc[q + 1],
                 0.1 * rel_tol, 1e-300);
         return std::sin(gamma) * phase.eval(std::cos(gamma)) * inner;
     };
@@ -244,7 +276,8 @@ double glow_adaptive(const PhaseFunction& phase, const SunFrame& f, const glm::d
     return total / kPi;
 }
 
-void check_inputs(bool has_top, double tau, const glm::dvec3& normal) {
+void check_inputs(bool has_top, double tau, const glm::dvec3& normal, double m) {
+    if (!(m >= 1.0 && m <= 10000.0)) throw std::invalid_argument("sun_layer_glow: the exponent m must be in [1, 10000]");
     if (has_top && !(tau >= 0.0)) throw std::invalid_argument("sun_layer_glow: tau must be >= 0");
     const double len = glm::length(normal);
     if (!(std::abs(len - 1.0) < 1e-6)) throw std::invalid_argument("sun_layer_glow: the normal must be a unit vector");
@@ -253,19 +286,19 @@ void check_inputs(bool has_top, double tau, const glm::dvec3& normal) {
 }  // namespace
 
 double sun_layer_glow_exact(const PhaseFunction& phase, const glm::dvec3& to_sun, bool has_top, double tau,
-                            const glm::dvec3& normal, double rel_tol) {
-    check_inputs(has_top, tau, normal);
+                            const glm::dvec3& normal, double m, double rel_tol) {
+    check_inputs(has_top, tau, normal, m);
     const SunFrame f = sun_frame(to_sun);
     if (has_top && !(f.mu_s > 0.0)) return 0.0;
     if (has_top && std::isinf(tau)) return 0.0;
     auto fog = [&](double mu) { return fog_factor_scaled(has_top, tau, f.mu_s, mu); };
     const double scale = has_top ? std::exp(-tau) : 1.0;
-    return scale * glow_adaptive(phase, f, normal, fog, rel_tol);
+    return scale * glow_adaptive(phase, f, normal, m, fog, rel_tol);
 }
 
 double sun_layer_glow_reference(const PhaseFunction& phase, const glm::dvec3& to_sun, bool has_top, double tau,
-                                const glm::dvec3& normal, double rel_tol) {
-    check_inputs(has_top, tau, normal);
+                                const glm::dvec3& normal, double m, double rel_tol) {
+    check_inputs(has_top, tau, normal, m);
     const SunFrame f = sun_frame(to_sun);
     if (has_top && !(f.mu_s > 0.0)) return 0.0;
     // sigma = 1, p at height 0, the top at tau (or none): the path integral along each ray.
@@ -274,12 +307,13 @@ double sun_layer_glow_reference(const PhaseFunction& phase, const glm::dvec3& to
         return sun_layer_factor_quadrature(1.0, h_top, f.mu_s, 0.0, mu, 0.0, std::numeric_limits<double>::infinity(),
                                            0.1 * rel_tol);
     };
-    return glow_adaptive(phase, f, normal, fog, rel_tol);
+    return glow_adaptive(phase, f, normal, m, fog, rel_tol);
 }
 
-SunLayerGlowTable::SunLayerGlowTable(const PhaseFunction& phase, const glm::dvec3& to_sun, bool has_top, int n_tau,
-                                     int n_theta, int n_phi, int threads)
-    : phase_(phase), has_top_(has_top), n_tau_(has_top ? n_tau : 1), n_theta_(n_theta), n_phi_(n_phi) {
+SunLayerGlowTable::SunLayerGlowTable(const PhaseFunction& phase, const glm::dvec3& to_sun, bool has_top, double m,
+                                     int n_tau, int n_theta, int n_phi, int threads)
+    : phase_(phase), m_(m), has_top_(has_top), n_tau_(has_top ? n_tau : 1), n_theta_(n_theta), n_phi_(n_phi) {
+    if (!(m >= 1.0 && m <= 10000.0)) throw std::invalid_argument("SunLayerGlowTable: the exponent m must be in [1, 10000]");
     if ((has_top && n_tau < 2) || n_theta < 2 || n_phi < 2)
         throw std::invalid_argument("SunLayerGlowTable: need at least 2 nodes per axis");
     const SunFrame f = sun_frame(to_sun);
@@ -298,7 +332,7 @@ SunLayerGlowTable::SunLayerGlowTable(const PhaseFunction& phase, const glm::dvec
             const double th = kPi * ith / (n_theta_ - 1), ph = kPi * iph / (n_phi_ - 1);
             // The normal in the table's frame (e1 towards the sun's azimuth, e2, Z).
             const glm::dvec3 n_local(std::sin(th) * std::cos(ph), std::sin(th) * std::sin(ph), std::cos(th));
-            const std::vector<ThetaNode> nodes = theta_nodes(phase_, f.mu_s, n_local);
+            const std::vector<ThetaNode> nodes = theta_nodes(phase_, f.mu_s, n_local, m_);
             for (int it = 0; it < n_tau_; ++it) {
                 const double s = n_tau_ > 1 ? s_max * it / (n_tau_ - 1) : 0.0;
                 const double tau = s / (1.0 - s);

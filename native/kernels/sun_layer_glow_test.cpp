@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdio>
 #include <random>
 
 namespace airlight {
@@ -24,6 +25,10 @@ TEST(SunLayerGlow, IsotropicWithoutTopIsQuarterOverPi) {
     const PhaseFunction iso;
     for (double th : {0.0, 0.7, 1.6, 2.9})
         EXPECT_NEAR(sun_layer_glow_exact(iso, unit(0.5, 0.3), false, 0.0, unit(th, 1.1)), 1.0 / (4.0 * kPi), 1e-9);
+    // A cos^m lobe: int max(0, x)^m dw = 2 pi / (m + 1).
+    for (double m : {5.0, 20.0, 200.0})
+        EXPECT_NEAR(sun_layer_glow_exact(iso, unit(0.5, 0.3), false, 0.0, unit(1.0, 1.1), m),
+                    2.0 / ((m + 1.0) * 4.0 * kPi), 1e-9 / m);
 }
 
 // Isotropic at the top: an up-facing surface sees no fog, a down-facing one
@@ -41,22 +46,24 @@ TEST(SunLayerGlow, IsotropicAtTheTop) {
 // No light in the layer from a sun at or below the horizon.
 TEST(SunLayerGlow, SunBelowHorizonGivesNothing) {
     EXPECT_EQ(sun_layer_glow_exact(hg(0.5), {1, 0, -0.2}, true, 1.0, {0, 0, 1}), 0.0);
-    SunLayerGlowTable table(hg(0.5), {1, 0, -0.2}, true, 4, 5, 3, 1);
+    SunLayerGlowTable table(hg(0.5), {1, 0, -0.2}, true, 1.0, 4, 5, 3, 1);
     EXPECT_EQ(table.eval(1.0, {0, 0, 1}), 0.0);
 }
 
 // The closed-form fog factor against the path integral done by quadrature.
 TEST(SunLayerGlow, ExactMatchesPathQuadrature) {
-    struct Case { PhaseFunction phase; glm::dvec3 sun; bool top; double tau; glm::dvec3 n; };
+    struct Case { PhaseFunction phase; glm::dvec3 sun; bool top; double tau; glm::dvec3 n; double m; };
     const Case cases[] = {
-        {PhaseFunction{}, unit(0.6, 0.0), true, 0.7, unit(0.4, 2.0)},
-        {hg(0.6), unit(1.1, 0.5), true, 2.5, unit(1.9, 0.1)},
-        {hg(-0.3), unit(0.3, 1.0), true, 0.05, unit(2.8, 0.0)},
-        {phase_from_name("rayleigh"), unit(0.9, 0.0), false, 0.0, unit(1.2, 3.0)},
+        {PhaseFunction{}, unit(0.6, 0.0), true, 0.7, unit(0.4, 2.0), 1.0},
+        {hg(0.6), unit(1.1, 0.5), true, 2.5, unit(1.9, 0.1), 1.0},
+        {hg(-0.3), unit(0.3, 1.0), true, 0.05, unit(2.8, 0.0), 1.0},
+        {phase_from_name("rayleigh"), unit(0.9, 0.0), false, 0.0, unit(1.2, 3.0), 1.0},
+        {hg(0.6), unit(0.7, 0.2), true, 0.4, unit(0.9, 0.5), 20.0},
+        {PhaseFunction{}, unit(0.5, 1.0), true, 0.1, unit(1.5, 0.0), 50.0},
     };
     for (const Case& c : cases) {
-        const double q = sun_layer_glow_exact(c.phase, c.sun, c.top, c.tau, c.n, 1e-8);
-        const double r = sun_layer_glow_reference(c.phase, c.sun, c.top, c.tau, c.n, 1e-5);
+        const double q = sun_layer_glow_exact(c.phase, c.sun, c.top, c.tau, c.n, c.m, 1e-8);
+        const double r = sun_layer_glow_reference(c.phase, c.sun, c.top, c.tau, c.n, c.m, 1e-5);
         EXPECT_NEAR(q, r, 2e-5 * r) << "tau " << c.tau;
     }
 }
@@ -77,7 +84,7 @@ TEST(SunLayerGlow, TableMatchesExact) {
             for (int k = 0; k < 60; ++k) {
                 const double tau = top ? 3.0 * U(rng) * U(rng) : 0.0;
                 const glm::dvec3 n = unit(std::acos(2.0 * U(rng) - 1.0), 2.0 * kPi * U(rng));
-                const double q = sun_layer_glow_exact(phase, sun, top, tau, n, 1e-8);
+                const double q = sun_layer_glow_exact(phase, sun, top, tau, n, 1.0, 1e-8);
                 const double t = table.eval(tau, n);
                 q_max = std::max(q_max, q);
                 errs.push_back(std::abs(t - q));
@@ -91,7 +98,34 @@ TEST(SunLayerGlow, TableMatchesExact) {
         }
 }
 
+// The glossy (Phong) lobe of exponent 20 about a random axis: the same bounds.
+TEST(SunLayerGlow, PhongTableMatchesExact) {
+    std::mt19937 rng(11);
+    std::uniform_real_distribution<double> U(0.0, 1.0);
+    const double m = 20.0;
+    for (const PhaseFunction& phase : {PhaseFunction{}, hg(0.6)})
+        for (bool top : {true, false}) {
+            const glm::dvec3 sun = unit(0.2 + 1.2 * U(rng), 6.0 * U(rng));
+            SunLayerGlowTable table(phase, sun, top, m);
+            double max_err = 0.0, sum_err = 0.0, q_max = 0.0;
+            const int n_samples = 40;
+            for (int k = 0; k < n_samples; ++k) {
+                const double tau = top ? 3.0 * U(rng) * U(rng) : 0.0;
+                const glm::dvec3 r = unit(std::acos(2.0 * U(rng) - 1.0), 2.0 * kPi * U(rng));
+                const double q = sun_layer_glow_exact(phase, sun, top, tau, r, m, 1e-8);
+                const double e = std::abs(table.eval(tau, r) - q);
+                q_max = std::max(q_max, q);
+                max_err = std::max(max_err, e);
+                sum_err += e;
+            }
+            printf("phong g %g top %d: max %.3g mean %.3g of the largest\n", phase.g, int(top), max_err / q_max, sum_err / n_samples / q_max);
+            EXPECT_LT(max_err, 2e-2 * q_max) << "g " << phase.g << " top " << top;
+            EXPECT_LT(sum_err / n_samples, 3e-3 * q_max) << "g " << phase.g << " top " << top;
+        }
+}
+
 TEST(SunLayerGlow, BadInputThrows) {
+    EXPECT_THROW(sun_layer_glow_exact(PhaseFunction{}, {0, 0, 1}, true, 1.0, {0, 0, 1}, 0.5), std::invalid_argument);
     EXPECT_THROW(sun_layer_glow_exact(PhaseFunction{}, {0, 0, 0}, true, 1.0, {0, 0, 1}), std::invalid_argument);
     EXPECT_THROW(sun_layer_glow_exact(PhaseFunction{}, {0, 0, 1}, true, -1.0, {0, 0, 1}), std::invalid_argument);
     EXPECT_THROW(sun_layer_glow_exact(PhaseFunction{}, {0, 0, 1}, true, 1.0, {0, 0, 2}), std::invalid_argument);

@@ -241,3 +241,44 @@ def test09_sun_glow_in_a_layer_against_scipy():
     # The glow is real here (not a rounding of zero), and the sun's attenuation is unchanged.
     assert Q > 1e-3
     np.testing.assert_allclose(result["surface_attenuation"][0][hit][:, 0], math.exp(-tau / mu_s), rtol=1e-5)
+
+
+def test10_sun_gloss_glow_against_scipy():
+    """surface_phong_exponent = n with a sun in the layer: the glossy glow per unit glossy colour
+    (n + 2)/(2 pi) int L_in(w) max(0, r.w)^n dw, r the view direction mirrored about the floor
+    normal, L_in = albedo E p(l.w) sigma G(w) with sigma G the path integral done by scipy
+    (sigma = 1 units), in coordinates about r. Table error <= 2e-2 (sun_layer_glow.cpp)."""
+    top, g, n = 2.5, 0.5, 20.0
+    kw, R = _sun_scene(top, "hg", g)
+    result = _native.bake(**kw, surface_phong_exponent=n)
+    hit = np.isfinite(result["depth"])
+    dirs = pixel_dirs_camera(FOV, W, H) @ R.T
+    d = np.array([-0.5, 0.3, -0.8])
+    l = -d / np.linalg.norm(d)
+    mu_s, tau = l[2], SIGMA_T * top
+
+    def sigma_G(mu):
+        end = tau / mu if mu > 0 else np.inf
+        return integrate.quad(lambda t: math.exp(-t - (tau - mu * t) / mu_s), 0.0, end, epsrel=1e-10)[0]
+
+    def hg(c):
+        return (1 - g * g) / (4 * math.pi * (1 + g * g - 2 * g * c) ** 1.5)
+
+    rng = np.random.default_rng(2)
+    for j, i in np.argwhere(hit)[rng.choice(int(hit.sum()), 2, replace=False)]:
+        r = dirs[j, i] * np.array([1.0, 1.0, -1.0])
+        r = r / np.linalg.norm(r)
+        a = np.cross(r, [1.0, 0.0, 0.0])
+        a /= np.linalg.norm(a)
+        b = np.cross(r, a)
+
+        def inner(alpha):
+            def f(beta):
+                w = math.cos(alpha) * r + math.sin(alpha) * (math.cos(beta) * a + math.sin(beta) * b)
+                return hg(float(l @ w)) * sigma_G(float(w[2]))
+            return integrate.quad(f, 0.0, 2 * math.pi, epsrel=1e-7, limit=100)[0] * math.cos(alpha) ** n * math.sin(alpha)
+
+        lobe = integrate.quad(inner, 0.0, math.pi / 2, points=[0.2, 0.5], epsrel=1e-7, limit=100)[0]
+        expect = np.array(ALBEDO) * np.array([3.0, 2.0, 1.0]) * (n + 2) / (2 * math.pi) * lobe
+        np.testing.assert_allclose(result["surface_gloss_glow"][j, i], expect, rtol=2e-2)
+        assert lobe > 1e-4
