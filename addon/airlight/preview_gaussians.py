@@ -33,6 +33,8 @@ import numpy as np
 # drops Gaussians that add < 1e-4 to a pixel's optical depth: their radii (and quads)
 # shrink by ~25 % (area ~45 %) for a measured difference to the bake in test_09.
 CULL_EPS = 1e-4
+# The bake's cull tolerance (RbfMedium::kDefaultCullEps): its cull radii scale the noise.
+BAKE_CULL_EPS = 1e-7
 _SQRT_PI = math.sqrt(math.pi)
 
 
@@ -140,9 +142,83 @@ def fogshop_factors(native, centres, scales, amplitudes, beta0, eye, lights, dat
     return _factors_from_optical_depth(native, centres, scales, amplitudes, beta0, eye, lights, data_key)
 
 
+def ndc_bounds(centres, radii, persp):
+    """NDC bounds (lo (n, 2), hi (n, 2)) of the projected cull spheres (centre, R) seen
+    through the 4x4 _persp_ (projection @ view, row-major), and a mask of the visible
+    ones: the formula of shaders/rbf_splat_vert.glsl in float64 (the planes x_ndc = k
+    through the eye tangent to the sphere); (-1, 1) where the sphere reaches the eye
+    plane, invisible where it lies wholly behind the eye or R = 0."""
+    P = np.asarray(persp, np.float64).reshape(4, 4)
+    b = np.asarray(centres, np.float64).reshape(-1, 3)
+    R2 = np.asarray(radii, np.float64) ** 2
+    r3 = P[3]
+    bw = b @ r3[:3] + r3[3]
+    A = bw * bw - R2 * np.dot(r3[:3], r3[:3])
+    finite = (A > 1e-12 * bw * bw) & (bw > 0.0)
+    lo = np.full((len(b), 2), -1.0)
+    hi = np.full((len(b), 2), 1.0)
+    with np.errstate(divide='ignore', invalid='ignore'):
+        for axis in range(2):
+            r = P[axis]
+            a = b @ r[:3] + r[3]
+            Bh = a * bw - R2 * np.dot(r[:3], r3[:3])
+            C = a * a - R2 * np.dot(r[:3], r[:3])
+            root = np.sqrt(np.maximum(Bh * Bh - A * C, 0.0))
+            lo[:, axis] = np.where(finite, (Bh - root) / A, -1.0)
+            hi[:, axis] = np.where(finite, (Bh + root) / A, 1.0)
+    visible = (np.asarray(radii) > 0.0) & ~(~finite & (bw < 0.0) & (A > 0.0))
+    lo = np.maximum(lo, -1.0)
+    hi = np.minimum(hi, 1.0)
+    visible &= (lo < hi).all(axis=1)
+    return lo, hi, visible
+
+
+def tile_lists(centres, radii, persp, size, scale, tile):
+    """Per-tile Gaussian lists of the tile pass (shaders/rbf_tiles_frag.glsl): the splat
+    target has ceil(size / scale) texels, texel q standing for the full-resolution pixel
+    q scale + scale // 2 (clamped to the image); a tile is _tile_ x _tile_ texels. Each
+    Gaussian goes to every tile that its cull sphere's screen bounds (`ndc_bounds`, one
+    texel of margin) touch. Returns (first (ty, tx) int64, count (ty, tx) int64, entries
+    (m,) int64 Gaussian indices, ascending within a tile)."""
+    W, H = (int(v) for v in size)
+    S = int(scale)
+    lw, lh = -(-W // S), -(-H // S)
+    tx_n, ty_n = -(-lw // tile), -(-lh // tile)
+    lo, hi, vis = ndc_bounds(centres, radii, persp)
+    full = np.array([W, H], np.float64)
+    # Continuous full-resolution pixel coordinates of the bounds -> texel ranges.
+    X_lo = (lo + 1.0) * 0.5 * full
+    X_hi = (hi + 1.0) * 0.5 * full
+    off = 0.5 + S // 2
+    q_lo = np.floor((X_lo - off) / S) - 1.0
+    q_hi = np.ceil((X_hi - off) / S) + 1.0
+    q_max = np.array([lw - 1, lh - 1], np.float64)
+    vis &= (q_hi >= 0.0).all(axis=1) & (q_lo <= q_max).all(axis=1)
+    q_lo = np.clip(q_lo, 0.0, q_max).astype(np.int64)
+    q_hi = np.clip(q_hi, 0.0, q_max).astype(np.int64)
+    t_lo, t_hi = q_lo // tile, q_hi // tile
+    gid = np.nonzero(vis)[0]
+    w = t_hi[gid, 0] - t_lo[gid, 0] + 1
+    h = t_hi[gid, 1] - t_lo[gid, 1] + 1
+    sizes = w * h
+    total = int(sizes.sum())
+    starts = np.cumsum(sizes) - sizes
+    g = np.repeat(np.arange(len(gid)), sizes)
+    k = np.arange(total, dtype=np.int64) - np.repeat(starts, sizes)
+    tx = t_lo[gid, 0][g] + k % w[g]
+    ty = t_lo[gid, 1][g] + k // w[g]
+    key = ty * tx_n + tx
+    order = np.argsort(key, kind='stable')
+    entries = gid[g[order]]
+    count = np.bincount(key, minlength=tx_n * ty_n)
+    first = np.cumsum(count) - count
+    return first.reshape(ty_n, tx_n), count.reshape(ty_n, tx_n), entries
+
+
 class GaussianFog:
     """GPU side of the Gaussian fog for one set of Gaussians: the data textures, the
-    batch and the factors, rebuilt only when an input changes (`update`)."""
+    batch, the factors and the tile lists, rebuilt only when an input changes (`update`,
+    `update_tiles`)."""
 
     def __init__(self):
         self.key = None          # (data id, beta0, eye, lights) the factors belong to
@@ -153,11 +229,19 @@ class GaussianFog:
         self.gauss_tex = None
         self.f1_tex = None
         self.Csv = None
+        self.radii = None
+        self.centres = None
         self.factor_ms = None    # duration of the last factor computation
+        self.tiles_key = None
+        self.tile_tex = None     # (tile_index, tile_list) textures
+        self.tile_pairs = 0      # (tile, Gaussian) entries of the last tile lists
+        self.tiles_ms = None     # duration of the last tile-list build (CPU + upload)
+        self.tiles_batch = None
 
     def update(self, native, shader, gaussians, beta0, eye, lights):
         """Makes textures/batch/factors current; _gaussians_ = dict(centres, scales,
-        amplitudes, key) where _key_ changes whenever the arrays do."""
+        amplitudes, key, optionally colors (n, 3) per-Gaussian albedo or None) where
+        _key_ changes whenever the arrays do."""
         import time
         from . import gpu_shaders as gs
         n = len(gaussians["scales"])
@@ -168,12 +252,36 @@ class GaussianFog:
             f1, self.Csv = fogshop_factors(native, gaussians["centres"], gaussians["scales"],
                                            gaussians["amplitudes"], beta0, eye, lights,
                                            data_key=gaussians["key"])
+            centres = np.asarray(gaussians["centres"], np.float64).reshape(-1, 3)
             radii = cull_radii(gaussians["scales"], gaussians["amplitudes"])
+            # The noise's per-Gaussian scale R_bake / |b - eye| (rbf_splat.h), as the bake.
+            dist = np.linalg.norm(centres - np.asarray(eye, np.float64), axis=1)
+            bake_radii = cull_radii(gaussians["scales"], gaussians["amplitudes"], BAKE_CULL_EPS)
+            with np.errstate(divide='ignore', invalid='ignore'):
+                noise_radii = np.where(dist > 0.0, bake_radii / dist, 0.0)
             self.gauss_tex, self.f1_tex = gs.rbf_data_textures(
-                gaussians["centres"], gaussians["scales"], gaussians["amplitudes"], radii, f1)
+                centres, gaussians["scales"], gaussians["amplitudes"], radii, f1,
+                albedo=gaussians.get("colors"), noise_radii=noise_radii)
+            self.radii = radii
+            self.centres = centres
             self.key = key
+            self.tiles_key = None
             self.count = n
             self.factor_ms = (time.perf_counter() - t0) * 1e3
-        if self.batch_count != n:
+        if shader is not None and self.batch_count != n:
             self.batch = gs.rbf_splat_batch(shader, n)
             self.batch_count = n
+
+    def update_tiles(self, persp, size, scale):
+        """Makes the tile lists current for the view _persp_ (4x4) at _size_ and _scale_."""
+        import time
+        from . import gpu_shaders as gs
+        P = np.asarray(persp, np.float64).reshape(4, 4)
+        key = (self.key, tuple(P.ravel().tolist()), tuple(size), int(scale))
+        if key != self.tiles_key:
+            t0 = time.perf_counter()
+            first, count, entries = tile_lists(self.centres, self.radii, P, size, scale, gs.RBF_TILE)
+            self.tile_tex = gs.rbf_tile_textures(first, count, entries)
+            self.tile_pairs = len(entries)
+            self.tiles_key = key
+            self.tiles_ms = (time.perf_counter() - t0) * 1e3
