@@ -297,7 +297,7 @@ RBF_SPLAT_SOURCES = ("sun05_airlight.glsl", "preview_common.glsl", "rbf_gaussian
                      "rbf_noise.glsl", "rbf_splat_pixel.glsl")
 # Tile pass (rbf_tiles_frag.glsl): tile size in splat-target texels and the width of the
 # list texture.
-RBF_TILE = 16
+RBF_TILE = 8
 RBF_LIST_WIDTH = 4096
 
 
@@ -461,3 +461,10 @@ def create_noise_test_shader():
     rbf_noise.glsl + test_noise_frag.glsl; sampler 0 "in0" (RGBA32F points)."""
     return create_fullscreen_shader("test_noise", "test_noise_frag.glsl", libs=("rbf_noise.glsl",),
                                     samplers=("in0",))
+
+
+def create_rbf_fast_test_shader():
+    """Agreement shader for rbf_gaussian.glsl's rbf_fast_erf_diff (test_09):
+    fullscreen_vert.glsl + rbf_gaussian.glsl + test_rbf_fast_frag.glsl; sampler 0 "in0"."""
+    return create_fullscreen_shader("test_rbf_fast", "test_rbf_fast_frag.glsl",
+                                    libs=("rbf_gaussian.glsl",), samplers=("in0",))

@@ -550,7 +550,7 @@ def _draw_gaussians(shader, fog, gauss_pass, size, scale, bind, persp):
     acc = _target("gauss_acc", lw, lh, 'RGBA32F')
     near = _target("gauss_near", lw, lh, 'RGBA32F')
     if gauss_pass == 'TILES':
-        fog.update_tiles(persp, (w, h), scale)
+        fog.update_tiles(_native_for_preview(), persp, (w, h), scale)
     fb = gpu.types.GPUFrameBuffer(color_slots=(acc["colour"], near["colour"]))
     with fb.bind():
         gpu.state.viewport_set(0, 0, lw, lh)

@@ -5,23 +5,32 @@
 Per frame (or per edit / view change, cached):
 - natively, per (light, Gaussian): f1 = exp(-(T(s, b_i) + T(v, b_i)) without Gaussian i's
   own terms) and per light C_sv = exp(-(T(s, v) - beta0 |s - v|)) (`fogshop_factors`);
-- per-Gaussian data (centre, scale, amplitude, cull radius) and f1 as float textures
-  (`gpu_shaders.rbf_data_textures`), and one quad per Gaussian (`rbf_splat_batch`).
+- per-Gaussian data (centre, scale, amplitude, cull radius, the noise's R_bake / |b - v|,
+  albedo: the fog objects' "airlight_color" or 1) and f1 as float textures
+  (`gpu_shaders.rbf_data_textures`);
+- TILES (default): per view, the Gaussians listed per 8x8 tile of the splat target
+  (`_native.rbf_tile_lists`, or `tile_lists` in numpy: the projected cull sphere's screen
+  bounds and the bake's per-tile cone test) as two textures; SPLAT: one quad per Gaussian
+  (`rbf_splat_batch`).
 Per draw:
-- the splat pass (shaders/rbf_splat_*.glsl): each Gaussian's quad covers the projected
-  bounds of its cull sphere; per pixel the analytic line integrals (erf form, eq. 31) up
-  to the pixel's surface and L_i = f0 f1 T_i (eq. 11) per light, added (ADDITIVE_PREMULT)
-  into two full-resolution RGBA32F targets;
+- the Gaussian sums at 1/scale of the viewport (shaders/rbf_splat_pixel.glsl, the GLSL
+  twin of the bake's splat kernels rbf_splat.cpp, incl. its noise): TILES draws one
+  full-screen pass whose pixels loop over their tile's list (rbf_tiles_frag.glsl, no
+  blending); SPLAT draws each Gaussian's quad over the projected bounds of its cull sphere
+  and adds the fragments (ADDITIVE_PREMULT, rbf_splat_frag.glsl). Both give the same two
+  RGBA32F targets (bit for bit on llvmpipe, where blending follows primitive order):
+  rgb = sum_i albedo_i sum_l I0_l (L_il(Dvp) - L_il(t0)), a = sum_i T_i(t0, Dvp),
+  near.r = sum_i T_i(0, t0);
 - the fog pass (fog_preview_frag.glsl with PREVIEW_GAUSSIANS) combines them with the
   homogeneous part (beta0 = scene density, scaled by C_sv per light) exactly as the bake's
   eval_rbf does: La = e^{T_near} (La_0 + e^{beta0 t0} sum_i (L_i(Dvp) - L_i(t0))),
-  Tr = exp(-(beta0 (Dvp - t0) + sum_i T_i(t0, Dvp))).
+  Tr = exp(-(beta0 (Dvp - t0) + sum_i T_i(t0, Dvp))), depth-aware upsampling of the sums
+  at HALF / QUARTER.
 
-Limits: the splat pass runs at full resolution (the preview's HALF/QUARTER scales fall
-back to FULL while fog objects are visible); f1 and C_sv are set up at the view origin,
-which for orthographic views is the view centre rather than each ray's own origin (the
-bake sets orthographic rays up per ray), so orthographic previews of Gaussian fog are
-approximate.
+Limits: f1 and C_sv are set up at the view origin, which for orthographic views is the
+view centre rather than each ray's own origin (the bake sets orthographic rays up per
+ray), so orthographic previews of Gaussian fog are approximate (the tile lists skip the
+cone test there).
 """
 
 import math
@@ -173,13 +182,44 @@ def ndc_bounds(centres, radii, persp):
     return lo, hi, visible
 
 
-def tile_lists(centres, radii, persp, size, scale, tile):
+def _tile_cones(inv_persp, eye, size, scale, tile, tx_n, ty_n):
+    """Per tile (perspective views): unit axis (ty, tx, 3) of the cone of its texels'
+    view rays and the cosine and sine of the largest angle to its corner rays (a rounding
+    margin included), as the bake's RbfSplat::bin."""
+    W, H = size
+    S = scale
+    off = S // 2 + 0.5
+
+    def directions(x, y):
+        ndc = np.stack([x / W * 2.0 - 1.0, y / H * 2.0 - 1.0], -1)
+        ones = np.ones(ndc.shape[:-1] + (1,))
+        far = np.concatenate([ndc, ones, ones], -1) @ inv_persp.T
+        d = far[..., :3] / far[..., 3:] - eye
+        return d / np.linalg.norm(d, axis=-1, keepdims=True)
+    # Sample positions (full-resolution pixels) of each tile's first and last texel.
+    x0 = np.arange(tx_n) * tile * S + off
+    x1 = (np.arange(tx_n) * tile + tile - 1) * S + off
+    y0 = np.arange(ty_n) * tile * S + off
+    y1 = (np.arange(ty_n) * tile + tile - 1) * S + off
+    X0, Y0 = np.meshgrid(x0, y0)
+    X1, Y1 = np.meshgrid(x1, y1)
+    axis = directions(0.5 * (X0 + X1), 0.5 * (Y0 + Y1))
+    cos_t = np.ones((ty_n, tx_n))
+    for X, Y in ((X0, Y0), (X1, Y0), (X0, Y1), (X1, Y1)):
+        cos_t = np.minimum(cos_t, (axis * directions(X, Y)).sum(-1))
+    cos_t = np.clip(cos_t - 1e-6, -1.0, 1.0)
+    return axis, cos_t, np.sqrt(np.maximum(0.0, 1.0 - cos_t * cos_t))
+
+
+def tile_lists(centres, radii, persp, size, scale, tile, cone_test=True):
     """Per-tile Gaussian lists of the tile pass (shaders/rbf_tiles_frag.glsl): the splat
     target has ceil(size / scale) texels, texel q standing for the full-resolution pixel
     q scale + scale // 2 (clamped to the image); a tile is _tile_ x _tile_ texels. Each
     Gaussian goes to every tile that its cull sphere's screen bounds (`ndc_bounds`, one
-    texel of margin) touch. Returns (first (ty, tx) int64, count (ty, tx) int64, entries
-    (m,) int64 Gaussian indices, ascending within a tile)."""
+    texel of margin) touch and, in perspective views with _cone_test_, whose cone of view
+    rays the sphere meets (the bake's per-tile test: cuts the bounding boxes' corners).
+    Returns (first (ty, tx) int64, count (ty, tx) int64, entries (m,) int64 Gaussian
+    indices, ascending within a tile)."""
     W, H = (int(v) for v in size)
     S = int(scale)
     lw, lh = -(-W // S), -(-H // S)
@@ -208,6 +248,27 @@ def tile_lists(centres, radii, persp, size, scale, tile):
     tx = t_lo[gid, 0][g] + k % w[g]
     ty = t_lo[gid, 1][g] + k // w[g]
     key = ty * tx_n + tx
+    P = np.asarray(persp, np.float64).reshape(4, 4)
+    if cone_test and total and np.any(P[3, :3] != 0.0):
+        # Sphere (direction u from the eye, angular radius rho) vs the tile's cone
+        # (theta): they can meet only if angle(axis, u) <= theta + rho.
+        inv = np.linalg.inv(P)
+        # The eye: clip x = y = w = 0 there.
+        eye = np.linalg.solve(P[[0, 1, 3], :3], -P[[0, 1, 3], 3])
+        axis, cos_t, sin_t = _tile_cones(inv, eye, (W, H), S, tile, tx_n, ty_n)
+        c = np.asarray(centres, np.float64).reshape(-1, 3)[gid] - eye
+        dist = np.linalg.norm(c, axis=1)
+        R = np.asarray(radii, np.float64)[gid]
+        inside = dist <= R * (1.0 + 1e-9)
+        with np.errstate(divide='ignore', invalid='ignore'):
+            u = np.where(inside[:, None], 0.0, c / dist[:, None])
+            sin_r = np.where(inside, 1.0, R / dist)
+        cos_r = np.sqrt(np.maximum(0.0, 1.0 - sin_r * sin_r))
+        ct, st = cos_t.ravel()[key], sin_t.ravel()[key]
+        sr, cr = sin_r[g], cos_r[g]
+        keep = inside[g] | (st * cr + ct * sr < 0.0) | \
+            ((axis.reshape(-1, 3)[key] * u[g]).sum(1) >= ct * cr - st * sr)
+        key, g = key[keep], g[keep]
     order = np.argsort(key, kind='stable')
     entries = gid[g[order]]
     count = np.bincount(key, minlength=tx_n * ty_n)
@@ -272,15 +333,21 @@ class GaussianFog:
             self.batch = gs.rbf_splat_batch(shader, n)
             self.batch_count = n
 
-    def update_tiles(self, persp, size, scale):
-        """Makes the tile lists current for the view _persp_ (4x4) at _size_ and _scale_."""
+    def update_tiles(self, native, persp, size, scale):
+        """Makes the tile lists current for the view _persp_ (4x4) at _size_ and _scale_
+        (`_native.rbf_tile_lists` when the module has it, else `tile_lists`: the same)."""
         import time
         from . import gpu_shaders as gs
         P = np.asarray(persp, np.float64).reshape(4, 4)
         key = (self.key, tuple(P.ravel().tolist()), tuple(size), int(scale))
         if key != self.tiles_key:
             t0 = time.perf_counter()
-            first, count, entries = tile_lists(self.centres, self.radii, P, size, scale, gs.RBF_TILE)
+            fast = getattr(native, "rbf_tile_lists", None)
+            if fast is not None:
+                first, count, entries = fast(self.centres, self.radii, P, int(size[0]), int(size[1]),
+                                             int(scale), gs.RBF_TILE)
+            else:
+                first, count, entries = tile_lists(self.centres, self.radii, P, size, scale, gs.RBF_TILE)
             self.tile_tex = gs.rbf_tile_textures(first, count, entries)
             self.tile_pairs = len(entries)
             self.tiles_key = key
