@@ -539,18 +539,16 @@ def _gaussian_fog(res, *, gaussians, window_depth, sigma_t, view_origin, light_p
     return shader, fog, gauss_pass
 
 
-def _draw_gaussians(shader, fog, gauss_pass, size, scale, bind, persp):
+def _draw_gaussians(shader, fog, gauss_pass, size, scale, bind):
     """The Gaussian fog's sums into two RGBA32F targets of 1/_scale_ the region: 'SPLAT'
     clears them and adds one quad per Gaussian (ADDITIVE_PREMULT); 'TILES' writes every
-    texel once from its tile's Gaussian list (no blending). Returns (acc, near)
-    textures. The caller restores gpu.state."""
+    texel once from its tile's Gaussian list (no blending; the lists made current by
+    fog.update_tiles). Returns (acc, near) textures. The caller restores gpu.state."""
     import gpu
     w, h = size
     lw, lh = -(-w // scale), -(-h // scale)
     acc = _target("gauss_acc", lw, lh, 'RGBA32F')
     near = _target("gauss_near", lw, lh, 'RGBA32F')
-    if gauss_pass == 'TILES':
-        fog.update_tiles(_native_for_preview(), persp, (w, h), scale)
     fb = gpu.types.GPUFrameBuffer(color_slots=(acc["colour"], near["colour"]))
     with fb.bind():
         gpu.state.viewport_set(0, 0, lw, lh)
@@ -673,8 +671,14 @@ def draw_fog(*, depth_tex, perspective_matrix, view_origin, is_perspective, view
         splat = _gaussian_fog(res, gaussians=gaussians, window_depth=window_depth,
                               sigma_t=sigma_t, view_origin=view_origin,
                               light_positions=light_positions, gauss_pass=gauss_pass)
-        Csv = splat[1].Csv
         gauss_scale, scale = int(scale), 1
+        if gauss_pass == 'TILES' and not splat[1].update_tiles(
+                _native_for_preview(), perspective_matrix, (w, h), gauss_scale):
+            # More list entries than the shader's float indices hold: draw the splat.
+            splat = _gaussian_fog(res, gaussians=gaussians, window_depth=window_depth,
+                                  sigma_t=sigma_t, view_origin=view_origin,
+                                  light_positions=light_positions, gauss_pass='SPLAT')
+        Csv = splat[1].Csv
     _state["last_scale"] = scale
     lights = _lights_texture(light_positions, light_intensities, Csv, splat_I0)
     fog = _shader('fog', window_depth, ('gauss', gauss_scale) if splat is not None else False,
@@ -724,7 +728,7 @@ def draw_fog(*, depth_tex, perspective_matrix, view_origin, is_perspective, view
         gpu.state.depth_test_set('NONE')
         gpu.state.depth_mask_set(False)
         if splat is not None:
-            gauss_targets = _draw_gaussians(*splat, (w, h), gauss_scale, bind, perspective_matrix)
+            gauss_targets = _draw_gaussians(*splat, (w, h), gauss_scale, bind)
             gpu.state.viewport_set(*prev_viewport)
         if scale == 1:
             gpu.state.blend_set('ALPHA_PREMULT')

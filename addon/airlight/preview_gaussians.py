@@ -44,6 +44,9 @@ import numpy as np
 CULL_EPS = 1e-4
 # The bake's cull tolerance (RbfMedium::kDefaultCullEps): its cull radii scale the noise.
 BAKE_CULL_EPS = 1e-7
+# rbf_tiles_frag.glsl reads list positions and Gaussian indices from float textures:
+# exact up to 2^24. Beyond that the preview draws the splat instead.
+MAX_TILE_ENTRIES = 1 << 24
 _SQRT_PI = math.sqrt(math.pi)
 
 
@@ -335,7 +338,9 @@ class GaussianFog:
 
     def update_tiles(self, native, persp, size, scale):
         """Makes the tile lists current for the view _persp_ (4x4) at _size_ and _scale_
-        (`_native.rbf_tile_lists` when the module has it, else `tile_lists`: the same)."""
+        (`_native.rbf_tile_lists` when the module has it, else `tile_lists`: the same).
+        False (and no textures) when the lists exceed MAX_TILE_ENTRIES: the caller draws
+        the splat instead."""
         import time
         from . import gpu_shaders as gs
         P = np.asarray(persp, np.float64).reshape(4, 4)
@@ -348,7 +353,9 @@ class GaussianFog:
                                              int(scale), gs.RBF_TILE)
             else:
                 first, count, entries = tile_lists(self.centres, self.radii, P, size, scale, gs.RBF_TILE)
-            self.tile_tex = gs.rbf_tile_textures(first, count, entries)
             self.tile_pairs = len(entries)
+            self.tile_tex = gs.rbf_tile_textures(first, count, entries) \
+                if len(entries) <= MAX_TILE_ENTRIES else None
             self.tiles_key = key
             self.tiles_ms = (time.perf_counter() - t0) * 1e3
+        return self.tile_tex is not None

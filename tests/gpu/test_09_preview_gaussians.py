@@ -476,6 +476,17 @@ def test07_tile_lists_cover_and_tiles_equal_splat(addon, native, gs, gauss_scene
     assert np.abs(a_T - b_T).max() < 1e-5
     with pytest.raises(ValueError):
         render_preview(addon, gs, scene, desc, gaussians, gauss_pass="BOGUS")
+    # Lists too long for the shader's float indices: the splat is drawn instead.
+    limit = pg.MAX_TILE_ENTRIES
+    pg.MAX_TILE_ENTRIES = 10
+    try:
+        c, c_T = render_preview(addon, gs, scene, desc, dict(gaussians, key="test09t2"),
+                                gauss_pass="TILES")
+    finally:
+        pg.MAX_TILE_ENTRIES = limit
+    assert addon._state["gpu"]["gaussian_fog"].tile_tex is None
+    np.testing.assert_array_equal(c, b)
+    np.testing.assert_array_equal(c_T, b_T)
     with pytest.raises(ValueError):
         native.rbf_tile_lists(centres, radii[:-1], persp, W, H, 1, gs.RBF_TILE)
     with pytest.raises(ValueError):
