@@ -33,12 +33,6 @@ ivec2 rbf_texel(int i, int row)
   return ivec2(i % RBF_TEX_WIDTH, 3 * (i / RBF_TEX_WIDTH) + row);
 }
 
-// erf(x2) - erf(x1) from E1 = erfc(|x1|), E2 = erfc(|x2|) (x1 <= x2).
-float rbf_diff_from_erfc(float x1, float x2, float E1, float E2)
-{
-  return x1 >= 0.0 ? E1 - E2 : (x2 <= 0.0 ? E2 - E1 : 2.0 - E1 - E2);
-}
-
 // View-ray part (view_terms): optical depth Tvp of Gaussian (rel = b - o, a, k0 = c
 // sqrt(pi) / (2 a)) over [0, te] (perturbed by the noise when nscale > 0), Tvr over
 // [0, b^r] and the clamped projection tr of b on the ray.
@@ -64,7 +58,7 @@ void rbf_view_terms(vec3 rel, float a, float k0, vec3 o, vec3 d, float te, float
     vec3 c2 = cross(rel, q);
     float e2 = k0 * exp(-a * a * dot(c2, c2));
     float y1 = -a * ts2, y2 = a * (te - ts2);
-    Tvp = e2 * rbf_diff_from_erfc(y1, y2, rbf_erfc_pos(abs(y1)), rbf_erfc_pos(abs(y2)));
+    Tvp = e2 * rbf_fast_erf_diff(y1, y2);
   }
 }
 
@@ -88,7 +82,7 @@ vec3 rbf_light_terms(int gi, vec3 b, float a, float k0, vec3 p, float Tvp, float
     vec3 c = cross(bs, u);
     float e = k0 * exp(-a * a * dot(c, c));
     float x1 = -a * ts, x2 = a * (Ds - ts);
-    float Tsr = e * rbf_diff_from_erfc(x1, x2, rbf_erfc_pos(abs(x1)), rbf_erfc_pos(abs(x2)));
+    float Tsr = e * rbf_fast_erf_diff(x1, x2);
     acc += I0 * (f1 * kRbfInv4Pi * exp(-Tsr - Tvr) * Tvp / d2);
   }
   return acc;
