@@ -467,6 +467,33 @@ def test07_tile_lists_cover_and_tiles_equal_splat(addon, native, gs, gauss_scene
               f"entries ({pairs} texel evaluations, {pairs / max(needed, 1):.2f}x the hits), missing {missing}")
         assert missing == 0
         assert needed > 1000
+    # Orthographic view (parallel rays from the near plane; no cone test): the lists
+    # still hold every Gaussian whose sphere a texel's ray line meets.
+    view = np.array(cam.matrix_world.inverted())
+    ortho = np.diag([1.0 / 8.0, 1.0 / 6.0, -2.0 / 100.0, 1.0])
+    ortho[2, 3] = -1.0
+    P = ortho @ view
+    inv = np.linalg.inv(P)
+    for S in (1, 4):
+        first, count, entries = native.rbf_tile_lists(centres, radii, P, W, H, S, gs.RBF_TILE)
+        lw, lh = -(-W // S), -(-H // S)
+        qx, qy = np.meshgrid(np.arange(lw), np.arange(lh))
+        px = np.minimum(qx * S + S // 2, W - 1) + 0.5
+        py = np.minimum(qy * S + S // 2, H - 1) + 0.5
+        ndc = np.stack([px / W * 2 - 1, py / H * 2 - 1], -1).reshape(-1, 2)
+        near = np.column_stack([ndc, -np.ones(len(ndc)), np.ones(len(ndc))]) @ inv.T
+        o = near[:, :3] / near[:, 3:]
+        d = (inv @ np.array([0.0, 0.0, 1.0, 0.0]))[:3]
+        d /= np.linalg.norm(d)
+        rel = centres[None] - o[:, None]                      # (texels, n, 3)
+        ts = np.maximum(rel @ d, 0.0)
+        dist2 = (rel ** 2).sum(-1) - 2 * ts * (rel @ d) + ts ** 2
+        hit = dist2 < radii[None] ** 2
+        tiles = (qy // gs.RBF_TILE * count.shape[1] + qx // gs.RBF_TILE).reshape(-1)
+        lists = [set(entries[f:f + c].tolist()) for f, c in zip(first.ravel(), count.ravel())]
+        missing = sum(len(set(np.nonzero(hit[k])[0].tolist()) - lists[tiles[k]]) for k in range(len(tiles)))
+        print(f"orthographic, scale {S}: {int(hit.sum())} pairs hit, {len(entries)} entries, missing {missing}")
+        assert missing == 0 and hit.sum() > 100
     gaussians = dict(centres=centres, scales=scales, amplitudes=amplitudes, key="test09t")
     a, a_T = render_preview(addon, gs, scene, desc, gaussians, gauss_pass="TILES")
     b, b_T = render_preview(addon, gs, scene, desc, gaussians, gauss_pass="SPLAT")
