@@ -20,7 +20,7 @@ fog images of two runs (e.g. an NVIDIA GPU's against Mesa llvmpipe's).
             [--configs a,b]
         the reference: bakes the harness's scene with _native.bake (model sun05,
         aa_samples 1: one sample per pixel centre, as the preview) at WxH, with the
-        Gaussians of IMAGES (its "gaussians" array) for the gauss_* images, and compares
+        Gaussians of IMAGES (its "gaussians" array) for the gauss_* and tiles_* images, and compares
         every image of IMAGES (every S-th pixel of a WxH image) with it: airlight against
         rgb, transmittance against 1 - alpha.
 """
@@ -160,7 +160,7 @@ def cmd_bake_check(args):
         img = images[name]
         if img.ndim != 3 or (only is not None and name not in only):
             continue
-        gauss = name.startswith("gauss")
+        gauss = name.startswith(("gauss", "tiles"))  # the splat and the tile pass
         if gauss and "gaussians" not in images:
             print(f"{name:16s} skipped: no gaussians array")
             continue
@@ -195,7 +195,7 @@ def main():
     r = sub.add_parser("run")
     r.add_argument("--size", default="480x270")
     r.add_argument("--configs", default="homog_full,homog_half,homog_quarter,compute_full,"
-                   "gauss_full,gauss_half,gauss_quarter")
+                   "gauss_full,gauss_half,gauss_quarter,tiles_full,tiles_half,tiles_quarter")
     r.add_argument("--frames", type=int, default=20)
     r.add_argument("--warmup", type=int, default=3)
     r.add_argument("--budget-s", type=float, default=20.0)

@@ -13,7 +13,10 @@ Gaussian fog (--gaussians, default 300 and 3000; --gauss-lights, default 4): the
 scene with a fog object of N Gaussians (scale a = 2/m, i.e. paintbrush-sized 0.5 m blobs,
 amplitude 0.3/m, centres uniform in a 16 x 10 x 3 m box around the cube), timed the
 same way (preview on vs off, interleaved, medians), plus the native per-view factor
-computation (f1, C_sv) the preview redoes when the view or the fog changes.
+computation (f1, C_sv) the preview redoes when the view or the fog changes. Each way of
+drawing the Gaussian sums (--gauss-passes, default TILES SPLAT: preview.GAUSS_PASS) is
+timed against its own interleaved no-fog draws; TILES also prints its (tile, Gaussian)
+list entries and the CPU time of building and uploading the lists (once per view change).
 """
 
 import argparse
@@ -37,6 +40,11 @@ def _args():
     p.add_argument("--gauss-lights", type=int, default=4)
     p.add_argument("--gauss-repeats", type=int, default=3)
     p.add_argument("--gauss-scales", nargs="+", default=["FULL", "HALF", "QUARTER"])
+    p.add_argument("--gauss-passes", nargs="+", default=["TILES", "SPLAT"],
+                   help="ways of drawing the Gaussian sums (preview.GAUSS_PASSES)")
+    p.add_argument("--gauss-alone", action="store_true",
+                   help="Gaussian section: time draw_fog alone offscreen (each pass and the fog "
+                        "without Gaussians, interleaved) instead of whole viewport draws")
     p.add_argument("--factors-only", action="store_true",
                    help="Gaussian section: only time the native factor computation")
     p.add_argument("--skip-point-section", action="store_true",
@@ -204,6 +212,60 @@ def _time_passes(region, repeats):
     return rows
 
 
+def _time_gauss_alone(region, repeats, scales, passes):
+    """Median wall / CPU ms of draw_fog alone offscreen at the region's size, interleaved:
+    the fog without the Gaussians and with them through each pass, per scale; each draw
+    is finished by a 1-pixel read-back. The factors and tile lists are built in the
+    warm-up draw (they belong to the view, not to the draw)."""
+    import gpu
+    from airlight import preview
+    ctx = bpy.context
+    w, h = region.width, region.height
+    rv3d = next(a for a in ctx.window_manager.windows[0].screen.areas
+                if a.type == 'VIEW_3D').spaces.active.region_3d
+    persp = rv3d.perspective_matrix.copy()
+    eye = tuple(rv3d.view_matrix.inverted().translation)
+    scene = ctx.scene
+    positions, intensities = preview.scene_lights(scene, ctx.view_layer)
+    gaussians = preview.scene_gaussians(ctx)
+    off = gpu.types.GPUOffScreen(w, h, format='RGBA8')
+    out = []
+    try:
+        with off.bind():
+            dist = preview.draw_distance(ctx, perspective_matrix=persp, view_origin=eye,
+                                         is_perspective=True, size=(w, h))
+            for scale in scales:
+                S = preview.SCALES[scale]
+                configs = [("no Gaussians", None, None)] + [(p, gaussians, p) for p in passes]
+
+                def draw(g, p):
+                    preview.draw_fog(depth_tex=dist, perspective_matrix=persp, view_origin=eye,
+                                     is_perspective=True, viewport=(0, 0, w, h),
+                                     sigma_t=scene.airlight.density, light_positions=positions,
+                                     light_intensities=intensities, window_depth=False, scale=S,
+                                     gaussians=g, gauss_pass=p)
+                    _sync()
+                for _name, g, p in configs:
+                    draw(g, p)  # warm-up: shaders, factors, tile lists
+                wall = {c[0]: [] for c in configs}
+                cpu = {c[0]: [] for c in configs}
+                for _ in range(repeats):
+                    for name, g, p in configs:
+                        t0, c0 = time.perf_counter(), time.process_time()
+                        draw(g, p)
+                        wall[name].append((time.perf_counter() - t0) * 1e3)
+                        cpu[name].append((time.process_time() - c0) * 1e3)
+                med = statistics.median
+                gf = preview._state["gpu"]["gaussian_fog"]
+                for name, _g, _p in configs:
+                    out.append((scale, name, med(wall[name]), med(cpu[name]),
+                                gf.tile_pairs if name == "TILES" else None,
+                                gf.tiles_ms if name == "TILES" else None))
+    finally:
+        off.free()
+    return out
+
+
 def main():
     args = _args()
     import gpu
@@ -236,23 +298,42 @@ def main():
     if args.gaussians:
         print(f"Gaussian fog: {args.gauss_lights} point lights, DRAWN depth, "
               f"{args.gauss_repeats} draws each (median)")
-        print(f"{'gaussians':>9} {'scale':>7} {'no fog ms':>10} {'fog ms':>9} {'ratio':>7} "
-              f"{'CPU no fog':>11} {'CPU fog':>9} {'CPU ratio':>9} {'factors ms':>10}")
+        print(f"{'gaussians':>9} {'scale':>7} {'pass':>6} {'no fog ms':>10} {'fog ms':>9} {'ratio':>7} "
+              f"{'CPU no fog':>11} {'CPU fog':>9} {'CPU ratio':>9} {'factors ms':>10} {'tiles ms':>9} "
+              f"{'entries':>9}")
     for count in args.gaussians:
         _scene(args.gauss_lights)
         _add_fog_object(count)
         _time_factors(count, args.gauss_lights, args.gauss_repeats)
+        if args.gauss_alone and not args.factors_only:
+            rows = _time_gauss_alone(region, args.gauss_repeats, args.gauss_scales, args.gauss_passes)
+            print(f"  draw_fog alone at {region.width}x{region.height}, {count} Gaussians, "
+                  f"{args.gauss_lights} lights (median of {args.gauss_repeats}; ratio = to the same "
+                  f"draw without Gaussians):")
+            base = {}
+            for scale, name, wall, cpu, entries, tiles_ms in rows:
+                if name == "no Gaussians":
+                    base[scale] = (wall, cpu)
+                extra = "" if entries is None else f"  tile entries {entries}, lists built in {tiles_ms:.1f} ms"
+                print(f"    {scale:>7} {name:<13} wall {wall:>9.1f} ms ({wall / base[scale][0]:>6.2f}x)  "
+                      f"CPU {cpu:>9.1f} ms ({cpu / base[scale][1]:>6.2f}x){extra}", flush=True)
+            continue
         for scale in ([] if args.factors_only else args.gauss_scales):
-            preview._state["error"] = None
-            base, fog, _depth, cbase, cfog = _time_draws(window, area, region, args.gauss_repeats,
-                                                         wm, scale, 'DRAWN')
-            if preview._state["error"]:
-                print("preview error:", preview._state["error"])
-                return 1
-            gf = (preview._state["gpu"] or {}).get("gaussian_fog")
-            factor_ms = gf.factor_ms if gf is not None else float("nan")
-            print(f"{count:>9} {scale:>7} {base:>10.1f} {fog:>9.1f} {fog / base:>7.2f} "
-                  f"{cbase:>11.1f} {cfog:>9.1f} {cfog / cbase:>9.2f} {factor_ms:>10.1f}", flush=True)
+            for gauss_pass in args.gauss_passes:
+                preview.GAUSS_PASS = gauss_pass
+                preview._state["error"] = None
+                base, fog, _depth, cbase, cfog = _time_draws(window, area, region, args.gauss_repeats,
+                                                             wm, scale, 'DRAWN')
+                if preview._state["error"]:
+                    print("preview error:", preview._state["error"])
+                    return 1
+                gf = (preview._state["gpu"] or {}).get("gaussian_fog")
+                factor_ms = gf.factor_ms if gf is not None else float("nan")
+                tiles_ms = gf.tiles_ms if gf is not None and gauss_pass == 'TILES' else float("nan")
+                entries = gf.tile_pairs if gf is not None and gauss_pass == 'TILES' else 0
+                print(f"{count:>9} {scale:>7} {gauss_pass:>6} {base:>10.1f} {fog:>9.1f} {fog / base:>7.2f} "
+                      f"{cbase:>11.1f} {cfog:>9.1f} {cfog / cbase:>9.2f} {factor_ms:>10.1f} "
+                      f"{tiles_ms:>9.1f} {entries:>9}", flush=True)
     return 0
 
 

@@ -10,6 +10,8 @@ struct AirlightPreviewParams {
   vec4 u_clip;       /* xyz unit view axis, w = clip_start */
   vec4 u_viewport;   /* xy target corner, zw full-resolution size */
   vec4 u_phase;      /* (kind, g, K, k) for biri06_airlight.glsl */
-  vec4 u_fparams;    /* x = sigma_t, y = the World's transmittance (PREVIEW_ENV) */
+  vec4 u_fparams;    /* x = sigma_t, y = the World's transmittance (PREVIEW_ENV), z = noise
+                        amplitude of the Gaussian fog (0: off) */
   ivec4 u_iparams;   /* x = light_count, y = scale, z = mode */
+  vec4 u_noise;      /* Gaussian fog noise: xyz = offset (cells), w = 1 / scale (1/m) */
 };

@@ -121,6 +121,22 @@ float rbf_erf_diff(float x1, float x2)
   return rbf_erf(x2) - rbf_erf(x1);
 }
 
+// The bake's splat kernel's form (native/kernels/fast_erf.h fast_erf_diff): erf(x2) -
+// erf(x1) for x1 <= x2 from E1 = erfc(|x1|), E2 = erfc(|x2|) only, branch-free (selects),
+// as rbf_splat.cpp evaluates every (pixel, Gaussian) pair; its error bound is fast_erf.h's
+// (checked in test_09 against the double erf_diff). rbf_splat_pixel.glsl uses it (with
+// E1, E2 it needs anyway) so that the preview computes what the bake computes, at a
+// fraction of rbf_erf_diff's cost.
+float rbf_diff_from_erfc(float x1, float x2, float E1, float E2)
+{
+  return x1 >= 0.0 ? E1 - E2 : (x2 <= 0.0 ? E2 - E1 : 2.0 - E1 - E2);
+}
+
+float rbf_fast_erf_diff(float x1, float x2)
+{
+  return rbf_diff_from_erfc(x1, x2, rbf_erfc_pos(abs(x1)), rbf_erfc_pos(abs(x2)));
+}
+
 // Line integral of Gaussian (c, a, b) along o + t r, t in [t0, t1] (r unit, t1 may be inf).
 float rbf_gaussian_line_integral(float c, float a, vec3 b, vec3 o, vec3 r, float t0, float t1)
 {

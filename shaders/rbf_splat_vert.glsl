@@ -3,9 +3,10 @@
 // Gaussian: _corner_ in {-1, 1}^2 and _gid_ the Gaussian's index (float, exact below 2^24),
 // so no instancing is needed (Blender 3.4's GPUBatch has no draw_instanced).
 //
-//   gauss     RGBA32F, RBF_TEX_WIDTH wide: texel (i % W, 2 (i / W)) = (b.xyz, a),
-//             texel (i % W, 2 (i / W) + 1) = (c, R, 0, 0), R the cull radius
-//             sqrt(ln(c sqrt(pi) / (a eps))) / a (0: never reaches a ray by > eps)
+//   gauss     RGBA32F, RBF_TEX_WIDTH wide, 3 rows per block (rbf_splat_pixel.glsl):
+//             texel (i % W, 3 (i / W)) = (b.xyz, a), texel (i % W, 3 (i / W) + 1) =
+//             (c, R, ...), R the cull radius sqrt(ln(c sqrt(pi) / (a eps))) / a (0: never
+//             reaches a ray by > eps)
 //   persp     projection * view of the target
 //   eye       xyz = view origin, w = 1 perspective / 0 orthographic
 //
@@ -17,7 +18,7 @@
 
 ivec2 rbf_texel(int i)
 {
-  return ivec2(i % RBF_TEX_WIDTH, 2 * (i / RBF_TEX_WIDTH));
+  return ivec2(i % RBF_TEX_WIDTH, 3 * (i / RBF_TEX_WIDTH));
 }
 
 void main()

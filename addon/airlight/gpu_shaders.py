@@ -244,21 +244,26 @@ PREVIEW_UBO = ("preview_params.glsl", "AirlightPreviewParams", "pv", {
     "inv_persp": "u_inv_persp", "persp": "u_persp", "eye": "u_eye", "clip": "u_clip",
     "viewport": "u_viewport", "pv_phase": "u_phase", "pv_sigma_t": "u_fparams.x",
     "light_count": "u_iparams.x", "pv_scale": "u_iparams.y", "pv_mode": "u_iparams.z",
-    "pv_env_T": "u_fparams.y"})
+    "pv_env_T": "u_fparams.y", "pv_noise_amp": "u_fparams.z", "pv_noise": "u_noise"})
 
 
 def preview_params_ubo(*, inv_persp, persp, eye, clip, viewport, phase, sigma_t, light_count,
-                       scale, mode, env_T=0.0):
-    """GPUUniformBuf of AirlightPreviewParams (shaders/preview_params.glsl): matrices as
-    mathutils.Matrix or 4x4 nested sequences (row-major; stored column-major), vec4s as
-    4 numbers. Bind with shader.uniform_block("pv", ubo)."""
+                       scale, mode, env_T=0.0, noise=None):
+    """GPUUniformBuf of AirlightPreviewParams (shaders/preview_params.glsl, 240 bytes):
+    matrices as mathutils.Matrix or 4x4 nested sequences (row-major; stored column-major),
+    vec4s as 4 numbers; _noise_ None (off) or (amplitude, scale, offset (3)) of the
+    Gaussian fog's noise. Bind with shader.uniform_block("pv", ubo)."""
     import numpy as np
-    f = np.zeros(56, np.float32)
+    f = np.zeros(60, np.float32)
     f[0:16] = np.asarray(inv_persp, np.float64).T.ravel()
     f[16:32] = np.asarray(persp, np.float64).T.ravel()
     f[32:36], f[36:40], f[40:44], f[44:48] = eye, clip, viewport, phase
     f[48] = sigma_t
     f[49] = env_T  # the World's transmittance e^(-sigma_t distance) (PREVIEW_ENV)
+    if noise is not None and noise[0] > 0.0:
+        f[50] = noise[0]
+        f[56:59] = noise[2]
+        f[59] = 1.0 / noise[1]
     i = f.view(np.int32)
     i[52:56] = (int(light_count), int(scale), int(mode), 0)
     return gpu.types.GPUUniformBuf(f.tobytes())
@@ -288,35 +293,19 @@ def create_preview_shader(name, frag, defines=()):
                                     defines=defines, ubo=PREVIEW_UBO)
 
 
-def create_rbf_splat_shader(window_depth=False):
-    """The Gaussian splat pass (Fogshop section 5).
+RBF_SPLAT_SOURCES = ("sun05_airlight.glsl", "preview_common.glsl", "rbf_gaussian.glsl",
+                     "rbf_noise.glsl", "rbf_splat_pixel.glsl")
+# Tile pass (rbf_tiles_frag.glsl): tile size in splat-target texels and the width of the
+# list texture.
+RBF_TILE = 8
+RBF_LIST_WIDTH = 4096
 
-    Sources: vertex = rbf_splat_vert.glsl; fragment = sun05_airlight.glsl +
-    preview_common.glsl + rbf_gaussian.glsl + rbf_splat_frag.glsl, concatenated in this
-    order (the create-info adds the declarations below in front of each).
-    Defines: RBF_TEX_WIDTH (int), PREVIEW_WINDOW_DEPTH (0: depth_tex holds linear
-    distance, 1: window depth), PREVIEW_PHASE 0, PREVIEW_SPOTS 0, PREVIEW_SUNS 0.
-    Vertex inputs: 0 VEC2 "corner" (quad corner in {-1, 1}^2), 1 FLOAT "gid" (Gaussian
-    index); 4 vertices per Gaussian, drawn as TRIS with 6 indices per Gaussian
-    (`rbf_splat_batch`).
-    Vertex -> fragment: interface "airlight_rbf_splat_iface", flat INT "gi".
-    Uniform buffer: as create_preview_shader (PREVIEW_UBO, "pv"): persp, inv_persp, eye,
-    clip, viewport, sigma_t, light_count, scale (the splat target's reduction); no push
-    constants.
-    Samplers (FLOAT_2D, slots in order): 0 Ftab, 1 depth_tex, 2 lights, 3 gauss, 4 gauss_f1
-    (Ftab is declared because preview_common.glsl refers to it; unused here).
-    Fragment outputs: 0 VEC4 "frag_color" (rgb airlight, a optical depth [t0, Dvp]),
-    1 VEC4 "frag_near" (r = optical depth [0, t0]); blend ADDITIVE_PREMULT into two
-    RGBA32F targets cleared to 0.
-    """
-    iface = gpu.types.GPUStageInterfaceInfo("airlight_rbf_splat_iface")
-    iface.flat('INT', "gi")
+
+def _rbf_create_info(window_depth, samplers):
+    """Create-info parts the splat and tile passes share (see create_rbf_splat_shader)."""
     info = gpu.types.GPUShaderCreateInfo()
-    info.vertex_in(0, 'VEC2', "corner")
-    info.vertex_in(1, 'FLOAT', "gid")
-    info.vertex_out(iface)
     _add_ubo(info, *PREVIEW_UBO)
-    for slot, sname in enumerate(("Ftab", "depth_tex", "lights", "gauss", "gauss_f1")):
+    for slot, sname in enumerate(samplers):
         info.sampler(slot, 'FLOAT_2D', sname)
     info.define("RBF_TEX_WIDTH", str(RBF_TEX_WIDTH))
     info.define("PREVIEW_WINDOW_DEPTH", str(int(bool(window_depth))))
@@ -325,10 +314,78 @@ def create_rbf_splat_shader(window_depth=False):
     info.define("PREVIEW_SUNS", "0")
     info.fragment_out(0, 'VEC4', "frag_color")
     info.fragment_out(1, 'VEC4', "frag_near")
+    return info
+
+
+def create_rbf_splat_shader(window_depth=False):
+    """The Gaussian splat pass (Fogshop section 5).
+
+    Sources: vertex = rbf_splat_vert.glsl; fragment = RBF_SPLAT_SOURCES (sun05_airlight.glsl,
+    preview_common.glsl, rbf_gaussian.glsl, rbf_noise.glsl, rbf_splat_pixel.glsl) +
+    rbf_splat_frag.glsl, concatenated in this order (the create-info adds the
+    declarations below in front of each).
+    Defines: RBF_TEX_WIDTH (int), PREVIEW_WINDOW_DEPTH (0: depth_tex holds linear
+    distance, 1: window depth), PREVIEW_PHASE 0, PREVIEW_SPOTS 0, PREVIEW_SUNS 0.
+    Vertex inputs: 0 VEC2 "corner" (quad corner in {-1, 1}^2), 1 FLOAT "gid" (Gaussian
+    index); 4 vertices per Gaussian, drawn as TRIS with 6 indices per Gaussian
+    (`rbf_splat_batch`).
+    Vertex -> fragment: interface "airlight_rbf_splat_iface", flat INT "gi".
+    Uniform buffer: as create_preview_shader (PREVIEW_UBO, "pv"): persp, inv_persp, eye,
+    clip, viewport, sigma_t, light_count, scale (the splat target's reduction), noise
+    (pv_noise_amp, pv_noise); no push constants.
+    Samplers (FLOAT_2D, slots in order): 0 Ftab, 1 depth_tex, 2 lights, 3 gauss, 4 gauss_f1
+    (Ftab is declared because preview_common.glsl refers to it; unused here).
+    Fragment outputs: 0 VEC4 "frag_color" (rgb airlight, a optical depth [t0, Dvp]),
+    1 VEC4 "frag_near" (r = optical depth [0, t0]); blend ADDITIVE_PREMULT into two
+    RGBA32F targets cleared to 0.
+    """
+    iface = gpu.types.GPUStageInterfaceInfo("airlight_rbf_splat_iface")
+    iface.flat('INT', "gi")
+    info = _rbf_create_info(window_depth, ("Ftab", "depth_tex", "lights", "gauss", "gauss_f1"))
+    info.vertex_in(0, 'VEC2', "corner")
+    info.vertex_in(1, 'FLOAT', "gid")
+    info.vertex_out(iface)
     info.vertex_source(load_source("rbf_splat_vert.glsl"))
-    info.fragment_source("".join(load_source(name) + "\n" for name in (
-        "sun05_airlight.glsl", "preview_common.glsl", "rbf_gaussian.glsl", "rbf_splat_frag.glsl")))
+    info.fragment_source("".join(load_source(name) + "\n" for name in
+                                 RBF_SPLAT_SOURCES + ("rbf_splat_frag.glsl",)))
     return gpu.shader.create_from_info(info)
+
+
+def create_rbf_tiles_shader(window_depth=False):
+    """The Gaussian tile pass: the splat pass's sums in one full-screen draw per target
+    (rbf_tiles_frag.glsl), no blending.
+
+    Sources: vertex = fullscreen_vert.glsl (vertex input 0 VEC2 "pos", interface
+    "airlight_rbf_tiles_iface" with smooth VEC2 "uv"); fragment = RBF_SPLAT_SOURCES +
+    rbf_tiles_frag.glsl. Defines: those of create_rbf_splat_shader plus RBF_TILE and
+    RBF_LIST_WIDTH. Uniform buffer: as create_rbf_splat_shader. Samplers (FLOAT_2D, slots
+    in order): 0 Ftab, 1 depth_tex, 2 lights, 3 gauss, 4 gauss_f1, 5 tile_index, 6
+    tile_list. Fragment outputs as create_rbf_splat_shader; drawn with blending NONE over
+    the two RGBA32F targets (no clear needed)."""
+    iface = gpu.types.GPUStageInterfaceInfo("airlight_rbf_tiles_iface")
+    iface.smooth('VEC2', "uv")
+    info = _rbf_create_info(window_depth, ("Ftab", "depth_tex", "lights", "gauss", "gauss_f1",
+                                           "tile_index", "tile_list"))
+    info.define("RBF_TILE", str(RBF_TILE))
+    info.define("RBF_LIST_WIDTH", str(RBF_LIST_WIDTH))
+    info.vertex_in(0, 'VEC2', "pos")
+    info.vertex_out(iface)
+    info.vertex_source(load_source("fullscreen_vert.glsl"))
+    info.fragment_source("".join(load_source(name) + "\n" for name in
+                                 RBF_SPLAT_SOURCES + ("rbf_tiles_frag.glsl",)))
+    return gpu.shader.create_from_info(info)
+
+
+def rbf_tile_textures(first, count, entries):
+    """(tile_index, tile_list) textures of rbf_tiles_frag.glsl from per-tile first entry
+    and count ((tiles_y, tiles_x) each) and the concatenated Gaussian indices."""
+    import numpy as np
+    index = np.stack([np.asarray(first, np.float32), np.asarray(count, np.float32)], -1)
+    entries = np.asarray(entries, np.float32).ravel()
+    rows = max(1, -(-len(entries) // RBF_LIST_WIDTH))
+    flat = np.zeros(rows * RBF_LIST_WIDTH, np.float32)
+    flat[:len(entries)] = entries
+    return float_texture(index), float_texture(flat.reshape(rows, RBF_LIST_WIDTH))
 
 
 def rbf_splat_batch(shader, count):
@@ -345,28 +402,32 @@ def rbf_splat_batch(shader, count):
     return batch_for_shader(shader, 'TRIS', {"corner": corner, "gid": gid}, indices=tris)
 
 
-def rbf_data_textures(centres, scales, amplitudes, radii, f1):
-    """The splat pass's per-Gaussian textures (layout in rbf_splat_vert.glsl and
-    rbf_splat_frag.glsl): gauss (RGBA32F, RBF_TEX_WIDTH x 2 rows per block of W Gaussians)
-    and gauss_f1 (R32F, RBF_TEX_WIDTH x L rows per block), f1 of shape (L, n)."""
+def rbf_data_textures(centres, scales, amplitudes, radii, f1, albedo=None, noise_radii=None):
+    """The splat pass's per-Gaussian textures (layout in rbf_splat_pixel.glsl): gauss
+    (RGBA32F, RBF_TEX_WIDTH x 3 rows per block of W Gaussians) and gauss_f1 (R32F,
+    RBF_TEX_WIDTH x L rows per block), f1 of shape (L, n); _albedo_ (n, 3) per-Gaussian
+    colours (None: 1, the lights' intensities then carry the fog's albedo); _noise_radii_
+    (n,) R_bake / |b - eye| for the noise (None: 0)."""
     import numpy as np
     n = len(scales)
     W = RBF_TEX_WIDTH
     blocks = max(1, -(-n // W))
-    gauss = np.zeros((blocks, 2, W, 4), np.float32)
-    flat = gauss.reshape(blocks, 2, W, 4)
+    flat = np.zeros((blocks, 3, W, 4), np.float32)
     idx = np.arange(n)
     blk, col = idx // W, idx % W
     flat[blk, 0, col, :3] = np.asarray(centres, np.float64).reshape(-1, 3)
     flat[blk, 0, col, 3] = scales
     flat[blk, 1, col, 0] = amplitudes
     flat[blk, 1, col, 1] = radii
+    if noise_radii is not None:
+        flat[blk, 1, col, 2] = noise_radii
+    flat[blk, 2, col, :3] = 1.0 if albedo is None else np.asarray(albedo, np.float64).reshape(-1, 3)
     f1 = np.asarray(f1, np.float64).reshape(-1, n)
     L = max(1, f1.shape[0])
     f1_tex = np.zeros((blocks, L, W), np.float32)
     for l in range(f1.shape[0]):
         f1_tex[blk, l, col] = f1[l]
-    return (float_texture(gauss.reshape(blocks * 2, W, 4)),
+    return (float_texture(flat.reshape(blocks * 3, W, 4)),
             float_texture(f1_tex.reshape(blocks * L, W)))
 
 
@@ -393,3 +454,17 @@ def create_sun_test_shader():
     return create_fullscreen_shader("test_sun", "test_sun_frag.glsl",
                                     libs=("sun05_airlight.glsl", "sun_airlight.glsl"),
                                     samplers=("in0", "in1"))
+
+
+def create_noise_test_shader():
+    """GLSL-vs-C++ agreement shader for rbf_noise.glsl (test_12): fullscreen_vert.glsl +
+    rbf_noise.glsl + test_noise_frag.glsl; sampler 0 "in0" (RGBA32F points)."""
+    return create_fullscreen_shader("test_noise", "test_noise_frag.glsl", libs=("rbf_noise.glsl",),
+                                    samplers=("in0",))
+
+
+def create_rbf_fast_test_shader():
+    """Agreement shader for rbf_gaussian.glsl's rbf_fast_erf_diff (test_09):
+    fullscreen_vert.glsl + rbf_gaussian.glsl + test_rbf_fast_frag.glsl; sampler 0 "in0"."""
+    return create_fullscreen_shader("test_rbf_fast", "test_rbf_fast_frag.glsl",
+                                    libs=("rbf_gaussian.glsl",), samplers=("in0",))

@@ -325,17 +325,21 @@ def scene_gaussians(context):
     cached = _state["gaussians"]
     if cached is None or cached["key"] != _state["generation"]:
         from . import fog_object
-        centres, scales, amplitudes = fog_object.gather(context.evaluated_depsgraph_get())
+        gathered = fog_object.gather(context.evaluated_depsgraph_get())
+        centres, scales, amplitudes = gathered
+        colors = gathered.get("colors") if hasattr(gathered, "get") else None
         cached = _state["gaussians"] = dict(centres=centres, scales=scales,
-                                            amplitudes=amplitudes, key=_state["generation"])
+                                            amplitudes=amplitudes, colors=colors,
+                                            key=_state["generation"])
     return cached
 
 
-def scene_lights(scene, view_layer=None):
+def scene_lights(scene, view_layer=None, with_albedo=True):
     """(positions, intensities) of the visible point lights that scatter in the fog:
     lists of 3-tuples; intensity = albedo * colour * power / (4 pi) W/sr (the bake's
-    I0 times the fog albedo)."""
-    albedo = tuple(scene.airlight.color)
+    I0 times the fog albedo; with_albedo=False: the bake's I0 alone, which Gaussians with
+    their own colours multiply by theirs)."""
+    albedo = tuple(scene.airlight.color) if with_albedo else (1.0, 1.0, 1.0)
     positions, intensities = [], []
     objects = view_layer.objects if view_layer is not None else scene.objects
     for obj in objects:
@@ -488,42 +492,58 @@ def scene_environment(scene):
     return value
 
 
-def _lights_texture(positions, intensities, Csv=None):
+def _lights_texture(positions, intensities, Csv=None, splat_I0=None):
     """Row 0: positions; row 1: rgb = albedo I0, a = C_sv (Gaussian fog transmittance
-    light -> eye, 1 without fog objects)."""
+    light -> eye, 1 without fog objects); row 2: rgb = the I0 the Gaussian fog's splat
+    multiplies by each Gaussian's albedo texel (rbf_splat_pixel.glsl): _splat_I0_ (the
+    bare I0 when the Gaussians have their own colours), else albedo I0 again."""
     import numpy as np
     from . import gpu_shaders as gs
     n = max(1, len(positions))
-    data = np.zeros((2, n, 4), np.float32)
+    data = np.zeros((3, n, 4), np.float32)
     data[1, :, 3] = 1.0
     if positions:
         data[0, :len(positions), :3] = positions
         data[1, :len(positions), :3] = intensities
+        data[2, :len(positions), :3] = intensities if splat_I0 is None else splat_I0
         if Csv is not None:
             data[1, :len(positions), 3] = Csv
     return gs.float_texture(data)
 
 
-def _gaussian_fog(res, *, gaussians, window_depth, sigma_t, view_origin, light_positions):
-    """The splat shader and the current GaussianFog (textures, batch, factors) for these
-    inputs (preview_gaussians.py; rebuilt only when one changes)."""
+# How the Gaussian fog's per-pixel sums are drawn: 'TILES' (one full-screen pass looping
+# over per-tile Gaussian lists, rbf_tiles_frag.glsl) or 'SPLAT' (one blended quad per
+# Gaussian, rbf_splat_*.glsl). Both give the same sums (tests/gpu/test_09).
+GAUSS_PASSES = ('TILES', 'SPLAT')
+GAUSS_PASS = 'TILES'
+
+
+def _gaussian_fog(res, *, gaussians, window_depth, sigma_t, view_origin, light_positions,
+                  gauss_pass):
+    """The splat or tile shader and the current GaussianFog (textures, batch, factors)
+    for these inputs (preview_gaussians.py; rebuilt only when one changes)."""
     from . import gpu_shaders as gs
     from . import preview_gaussians as pg
-    key = ('splat', bool(window_depth))
+    key = (gauss_pass.lower(), bool(window_depth))
     shader = res["shaders"].get(key)
     if shader is None:
-        shader = res["shaders"][key] = gs.create_rbf_splat_shader(window_depth)
+        create = gs.create_rbf_tiles_shader if gauss_pass == 'TILES' else gs.create_rbf_splat_shader
+        shader = res["shaders"][key] = create(window_depth)
     fog = res.get("gaussian_fog")
     if fog is None:
         fog = res["gaussian_fog"] = pg.GaussianFog()
-    fog.update(_native_for_preview(), shader, gaussians, sigma_t, view_origin, light_positions)
-    return shader, fog
+    fog.update(_native_for_preview(), shader if gauss_pass == 'SPLAT' else None, gaussians,
+               sigma_t, view_origin, light_positions)
+    if gauss_pass == 'TILES' and fog.tiles_batch is None:
+        fog.tiles_batch = gs.fullscreen_batch(shader)
+    return shader, fog, gauss_pass
 
 
-def _draw_gaussians(shader, fog, size, scale, bind):
-    """Splat pass of the Gaussian fog into two RGBA32F targets of 1/_scale_ the region
-    (cleared, then ADDITIVE_PREMULT); returns (acc, near) textures. The caller restores
-    gpu.state."""
+def _draw_gaussians(shader, fog, gauss_pass, size, scale, bind):
+    """The Gaussian fog's sums into two RGBA32F targets of 1/_scale_ the region: 'SPLAT'
+    clears them and adds one quad per Gaussian (ADDITIVE_PREMULT); 'TILES' writes every
+    texel once from its tile's Gaussian list (no blending; the lists made current by
+    fog.update_tiles). Returns (acc, near) textures. The caller restores gpu.state."""
     import gpu
     w, h = size
     lw, lh = -(-w // scale), -(-h // scale)
@@ -532,12 +552,18 @@ def _draw_gaussians(shader, fog, size, scale, bind):
     fb = gpu.types.GPUFrameBuffer(color_slots=(acc["colour"], near["colour"]))
     with fb.bind():
         gpu.state.viewport_set(0, 0, lw, lh)
-        fb.clear(color=(0.0, 0.0, 0.0, 0.0))
-        gpu.state.blend_set('ADDITIVE_PREMULT')
         bind(shader, (0, 0, w, h), None, pass_scale=scale)
         shader.uniform_sampler("gauss", fog.gauss_tex)
         shader.uniform_sampler("gauss_f1", fog.f1_tex)
-        fog.batch.draw(shader)
+        if gauss_pass == 'TILES':
+            gpu.state.blend_set('NONE')
+            shader.uniform_sampler("tile_index", fog.tile_tex[0])
+            shader.uniform_sampler("tile_list", fog.tile_tex[1])
+            fog.tiles_batch.draw(shader)
+        else:
+            fb.clear(color=(0.0, 0.0, 0.0, 0.0))
+            gpu.state.blend_set('ADDITIVE_PREMULT')
+            fog.batch.draw(shader)
     return acc["colour"], near["colour"]
 
 
@@ -573,7 +599,7 @@ def view_clip_range(context):
 def draw_fog(*, depth_tex, perspective_matrix, view_origin, is_perspective, viewport,
              sigma_t, light_positions, light_intensities, clip_start=0.0, window_depth=True,
              scale=1, mode=UPSAMPLE_BILATERAL_EXACT, gaussians=None, phase=("isotropic", 0.0),
-             spots=None, suns=None, environment=None):
+             spots=None, suns=None, environment=None, light_I0=None, noise=None, gauss_pass=None):
     """Draws the fog over the bound framebuffer with premultiplied blending.
 
     depth_tex: full-resolution R32F texture of the region (viewport[2] x viewport[3]):
@@ -585,11 +611,18 @@ def draw_fog(*, depth_tex, perspective_matrix, view_origin, is_perspective, view
     start on the projection's near plane; surfaces beyond the far plane are already
     missing from the depth); scale: 1 draws the fog directly, 2 or 4 evaluate it in a
     float offscreen of 1/scale the size and upsample it (mode: UPSAMPLE_*).
-    gaussians: None, or dict(centres (n, 3), scales (n,), amplitudes (n,), key) of the
-    fog objects' world-space Gaussians (key: any hashable that changes with the arrays);
-    with n > 0 the Gaussian fog is splatted first (preview_gaussians.py) at 1/scale of
-    the resolution, and the fog pass runs at full resolution, upsampling the Gaussian
-    sums depth-aware (fog_preview_frag.glsl preview_gauss_fetch).
+    gaussians: None, or dict(centres (n, 3), scales (n,), amplitudes (n,), key, and
+    optionally colors: None or (n, 3) per-Gaussian albedo) of the fog objects'
+    world-space Gaussians (key: any hashable that changes with the arrays); with n > 0
+    the Gaussian fog's sums are drawn first (preview_gaussians.py; _gauss_pass_ 'TILES'
+    or 'SPLAT', default GAUSS_PASS) at 1/scale of the resolution, and the fog pass runs
+    at full resolution, upsampling the Gaussian sums depth-aware (fog_preview_frag.glsl
+    preview_gauss_fetch).
+    light_I0: the point lights' I0 without the fog's albedo (`scene_lights(...,
+    with_albedo=False)`), required when the Gaussians have colours (their own albedo
+    replaces the fog's, as in the bake).
+    noise: None or (amplitude, scale, offset (3)) of the Gaussian fog's noise (Fogshop
+    section 5.5, scene.airlight.noise_*; amplitude 0 = off), as the bake's.
     phase: (name, g) of the fog's phase function as `model_choice.native_phase` gives it
     for the bake; other than isotropic, the homogeneous airlight uses the Biri 2006 table
     of that phase (the bake's "biri06" model). The Gaussian terms stay isotropic (the
@@ -617,14 +650,37 @@ def draw_fog(*, depth_tex, perspective_matrix, view_origin, is_perspective, view
     x, y, w, h = (int(v) for v in viewport)
     splat = None
     Csv = None
+    splat_I0 = None
+    if noise is not None:
+        amplitude, noise_scale = float(noise[0]), float(noise[1])
+        offset = tuple(float(v) for v in noise[2])
+        if not (math.isfinite(amplitude) and amplitude >= 0.0 and math.isfinite(noise_scale)
+                and noise_scale > 0.0 and len(offset) == 3 and all(map(math.isfinite, offset))):
+            raise ValueError(f"noise: amplitude must be finite and >= 0, scale finite and > 0, "
+                             f"offset 3 finite numbers (got {noise!r})")
+        noise = (amplitude, noise_scale, offset) if amplitude > 0.0 else None
     if gaussians is not None and len(gaussians["scales"]) > 0:
+        gauss_pass = GAUSS_PASS if gauss_pass is None else gauss_pass
+        if gauss_pass not in GAUSS_PASSES:
+            raise ValueError(f"gauss_pass must be one of {GAUSS_PASSES}, got {gauss_pass!r}")
+        if gaussians.get("colors") is not None:
+            if light_I0 is None or len(light_I0) != len(light_positions):
+                raise ValueError("Gaussians with colours need light_I0 (one I0 per light, "
+                                 "without the fog's albedo)")
+            splat_I0 = light_I0
         splat = _gaussian_fog(res, gaussians=gaussians, window_depth=window_depth,
                               sigma_t=sigma_t, view_origin=view_origin,
-                              light_positions=light_positions)
-        Csv = splat[1].Csv
+                              light_positions=light_positions, gauss_pass=gauss_pass)
         gauss_scale, scale = int(scale), 1
+        if gauss_pass == 'TILES' and not splat[1].update_tiles(
+                _native_for_preview(), perspective_matrix, (w, h), gauss_scale):
+            # More list entries than the shader's float indices hold: draw the splat.
+            splat = _gaussian_fog(res, gaussians=gaussians, window_depth=window_depth,
+                                  sigma_t=sigma_t, view_origin=view_origin,
+                                  light_positions=light_positions, gauss_pass='SPLAT')
+        Csv = splat[1].Csv
     _state["last_scale"] = scale
-    lights = _lights_texture(light_positions, light_intensities, Csv)
+    lights = _lights_texture(light_positions, light_intensities, Csv, splat_I0)
     fog = _shader('fog', window_depth, ('gauss', gauss_scale) if splat is not None else False,
                   **flags)
     clip = (*view_axis(perspective_matrix), float(clip_start) if is_perspective else 0.0)
@@ -648,7 +704,7 @@ def draw_fog(*, depth_tex, perspective_matrix, view_origin, is_perspective, view
             viewport=tuple(float(v) for v in target_viewport), phase=phase_vec,
             sigma_t=float(sigma_t), light_count=len(light_positions),
             scale=int(pass_scale if pass_scale is not None else scale), mode=int(mode),
-            env_T=env_T)
+            env_T=env_T, noise=noise)
         ubos.append(ubo)  # alive until the draws are done
         shader.uniform_block("pv", ubo)
         put(shader.uniform_sampler, "Ftab", res["ftab"])
@@ -672,7 +728,7 @@ def draw_fog(*, depth_tex, perspective_matrix, view_origin, is_perspective, view
         gpu.state.depth_test_set('NONE')
         gpu.state.depth_mask_set(False)
         if splat is not None:
-            gauss_targets = _draw_gaussians(splat[0], splat[1], (w, h), gauss_scale, bind)
+            gauss_targets = _draw_gaussians(*splat, (w, h), gauss_scale, bind)
             gpu.state.viewport_set(*prev_viewport)
         if scale == 1:
             gpu.state.blend_set('ALPHA_PREMULT')
@@ -775,6 +831,12 @@ def _draw_callback():
         positions, intensities = scene_lights(scene, context.view_layer)
         clip_start, clip_end = view_clip_range(context)
         gaussians = scene_gaussians(context)
+        light_I0 = None
+        if len(gaussians["scales"]) and gaussians.get("colors") is not None:
+            light_I0 = scene_lights(scene, context.view_layer, with_albedo=False)[1]
+        settings = scene.airlight
+        noise = (float(settings.noise_amplitude), float(settings.noise_scale),
+                 tuple(float(v) for v in settings.noise_offset))
         from . import model_choice
         phase = model_choice.native_phase(scene.airlight)
         spots = scene_spots(scene, context.view_layer)
@@ -785,7 +847,7 @@ def _draw_callback():
                  sigma_t=scene.airlight.density, light_positions=positions,
                  light_intensities=intensities, clip_start=clip_start,
                  window_depth=readback, scale=scale, gaussians=gaussians, phase=phase,
-                 spots=spots, suns=suns, environment=env)
+                 spots=spots, suns=suns, environment=env, light_I0=light_I0, noise=noise)
         _state["last_ms"] = (time.perf_counter() - t0) * 1e3
         if _state["capture"] is not None:
             if readback:
@@ -810,7 +872,7 @@ def _draw_callback():
                 depth=depth, fog_lo=fog_lo, window_depth=readback, viewport=(x, y, w, h), scale=scale,
                 perspective_matrix=persp, view_origin=view_origin,
                 sigma_t=scene.airlight.density, lights=(positions, intensities),
-                clip=(clip_start, clip_end), gaussians=gaussians, phase=phase)
+                clip=(clip_start, clip_end), gaussians=gaussians, phase=phase, noise=noise)
     except Exception as ex:  # never break Blender's draw loop
         _state["error"] = f"{type(ex).__name__}: {ex}"
         print(f"Airlight preview disabled: {_state['error']}")

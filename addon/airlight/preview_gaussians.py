@@ -5,23 +5,32 @@
 Per frame (or per edit / view change, cached):
 - natively, per (light, Gaussian): f1 = exp(-(T(s, b_i) + T(v, b_i)) without Gaussian i's
   own terms) and per light C_sv = exp(-(T(s, v) - beta0 |s - v|)) (`fogshop_factors`);
-- per-Gaussian data (centre, scale, amplitude, cull radius) and f1 as float textures
-  (`gpu_shaders.rbf_data_textures`), and one quad per Gaussian (`rbf_splat_batch`).
+- per-Gaussian data (centre, scale, amplitude, cull radius, the noise's R_bake / |b - v|,
+  albedo: the fog objects' "airlight_color" or 1) and f1 as float textures
+  (`gpu_shaders.rbf_data_textures`);
+- TILES (default): per view, the Gaussians listed per 8x8 tile of the splat target
+  (`_native.rbf_tile_lists`, or `tile_lists` in numpy: the projected cull sphere's screen
+  bounds and the bake's per-tile cone test) as two textures; SPLAT: one quad per Gaussian
+  (`rbf_splat_batch`).
 Per draw:
-- the splat pass (shaders/rbf_splat_*.glsl): each Gaussian's quad covers the projected
-  bounds of its cull sphere; per pixel the analytic line integrals (erf form, eq. 31) up
-  to the pixel's surface and L_i = f0 f1 T_i (eq. 11) per light, added (ADDITIVE_PREMULT)
-  into two full-resolution RGBA32F targets;
+- the Gaussian sums at 1/scale of the viewport (shaders/rbf_splat_pixel.glsl, the GLSL
+  twin of the bake's splat kernels rbf_splat.cpp, incl. its noise): TILES draws one
+  full-screen pass whose pixels loop over their tile's list (rbf_tiles_frag.glsl, no
+  blending); SPLAT draws each Gaussian's quad over the projected bounds of its cull sphere
+  and adds the fragments (ADDITIVE_PREMULT, rbf_splat_frag.glsl). Both give the same two
+  RGBA32F targets (bit for bit on llvmpipe, where blending follows primitive order):
+  rgb = sum_i albedo_i sum_l I0_l (L_il(Dvp) - L_il(t0)), a = sum_i T_i(t0, Dvp),
+  near.r = sum_i T_i(0, t0);
 - the fog pass (fog_preview_frag.glsl with PREVIEW_GAUSSIANS) combines them with the
   homogeneous part (beta0 = scene density, scaled by C_sv per light) exactly as the bake's
   eval_rbf does: La = e^{T_near} (La_0 + e^{beta0 t0} sum_i (L_i(Dvp) - L_i(t0))),
-  Tr = exp(-(beta0 (Dvp - t0) + sum_i T_i(t0, Dvp))).
+  Tr = exp(-(beta0 (Dvp - t0) + sum_i T_i(t0, Dvp))), depth-aware upsampling of the sums
+  at HALF / QUARTER.
 
-Limits: the splat pass runs at full resolution (the preview's HALF/QUARTER scales fall
-back to FULL while fog objects are visible); f1 and C_sv are set up at the view origin,
-which for orthographic views is the view centre rather than each ray's own origin (the
-bake sets orthographic rays up per ray), so orthographic previews of Gaussian fog are
-approximate.
+Limits: f1 and C_sv are set up at the view origin, which for orthographic views is the
+view centre rather than each ray's own origin (the bake sets orthographic rays up per
+ray), so orthographic previews of Gaussian fog are approximate (the tile lists skip the
+cone test there).
 """
 
 import math
@@ -33,6 +42,11 @@ import numpy as np
 # drops Gaussians that add < 1e-4 to a pixel's optical depth: their radii (and quads)
 # shrink by ~25 % (area ~45 %) for a measured difference to the bake in test_09.
 CULL_EPS = 1e-4
+# The bake's cull tolerance (RbfMedium::kDefaultCullEps): its cull radii scale the noise.
+BAKE_CULL_EPS = 1e-7
+# rbf_tiles_frag.glsl reads list positions and Gaussian indices from float textures:
+# exact up to 2^24. Beyond that the preview draws the splat instead.
+MAX_TILE_ENTRIES = 1 << 24
 _SQRT_PI = math.sqrt(math.pi)
 
 
@@ -140,9 +154,135 @@ def fogshop_factors(native, centres, scales, amplitudes, beta0, eye, lights, dat
     return _factors_from_optical_depth(native, centres, scales, amplitudes, beta0, eye, lights, data_key)
 
 
+def ndc_bounds(centres, radii, persp):
+    """NDC bounds (lo (n, 2), hi (n, 2)) of the projected cull spheres (centre, R) seen
+    through the 4x4 _persp_ (projection @ view, row-major), and a mask of the visible
+    ones: the formula of shaders/rbf_splat_vert.glsl in float64 (the planes x_ndc = k
+    through the eye tangent to the sphere); (-1, 1) where the sphere reaches the eye
+    plane, invisible where it lies wholly behind the eye or R = 0."""
+    P = np.asarray(persp, np.float64).reshape(4, 4)
+    b = np.asarray(centres, np.float64).reshape(-1, 3)
+    R2 = np.asarray(radii, np.float64) ** 2
+    r3 = P[3]
+    bw = b @ r3[:3] + r3[3]
+    A = bw * bw - R2 * np.dot(r3[:3], r3[:3])
+    finite = (A > 1e-12 * bw * bw) & (bw > 0.0)
+    lo = np.full((len(b), 2), -1.0)
+    hi = np.full((len(b), 2), 1.0)
+    with np.errstate(divide='ignore', invalid='ignore'):
+        for axis in range(2):
+            r = P[axis]
+            a = b @ r[:3] + r[3]
+            Bh = a * bw - R2 * np.dot(r[:3], r3[:3])
+            C = a * a - R2 * np.dot(r[:3], r[:3])
+            root = np.sqrt(np.maximum(Bh * Bh - A * C, 0.0))
+            lo[:, axis] = np.where(finite, (Bh - root) / A, -1.0)
+            hi[:, axis] = np.where(finite, (Bh + root) / A, 1.0)
+    visible = (np.asarray(radii) > 0.0) & ~(~finite & (bw < 0.0) & (A > 0.0))
+    lo = np.maximum(lo, -1.0)
+    hi = np.minimum(hi, 1.0)
+    visible &= (lo < hi).all(axis=1)
+    return lo, hi, visible
+
+
+def _tile_cones(inv_persp, eye, size, scale, tile, tx_n, ty_n):
+    """Per tile (perspective views): unit axis (ty, tx, 3) of the cone of its texels'
+    view rays and the cosine and sine of the largest angle to its corner rays (a rounding
+    margin included), as the bake's RbfSplat::bin."""
+    W, H = size
+    S = scale
+    off = S // 2 + 0.5
+
+    def directions(x, y):
+        ndc = np.stack([x / W * 2.0 - 1.0, y / H * 2.0 - 1.0], -1)
+        ones = np.ones(ndc.shape[:-1] + (1,))
+        far = np.concatenate([ndc, ones, ones], -1) @ inv_persp.T
+        d = far[..., :3] / far[..., 3:] - eye
+        return d / np.linalg.norm(d, axis=-1, keepdims=True)
+    # Sample positions (full-resolution pixels) of each tile's first and last texel.
+    x0 = np.arange(tx_n) * tile * S + off
+    x1 = (np.arange(tx_n) * tile + tile - 1) * S + off
+    y0 = np.arange(ty_n) * tile * S + off
+    y1 = (np.arange(ty_n) * tile + tile - 1) * S + off
+    X0, Y0 = np.meshgrid(x0, y0)
+    X1, Y1 = np.meshgrid(x1, y1)
+    axis = directions(0.5 * (X0 + X1), 0.5 * (Y0 + Y1))
+    cos_t = np.ones((ty_n, tx_n))
+    for X, Y in ((X0, Y0), (X1, Y0), (X0, Y1), (X1, Y1)):
+        cos_t = np.minimum(cos_t, (axis * directions(X, Y)).sum(-1))
+    cos_t = np.clip(cos_t - 1e-6, -1.0, 1.0)
+    return axis, cos_t, np.sqrt(np.maximum(0.0, 1.0 - cos_t * cos_t))
+
+
+def tile_lists(centres, radii, persp, size, scale, tile, cone_test=True):
+    """Per-tile Gaussian lists of the tile pass (shaders/rbf_tiles_frag.glsl): the splat
+    target has ceil(size / scale) texels, texel q standing for the full-resolution pixel
+    q scale + scale // 2 (clamped to the image); a tile is _tile_ x _tile_ texels. Each
+    Gaussian goes to every tile that its cull sphere's screen bounds (`ndc_bounds`, one
+    texel of margin) touch and, in perspective views with _cone_test_, whose cone of view
+    rays the sphere meets (the bake's per-tile test: cuts the bounding boxes' corners).
+    Returns (first (ty, tx) int64, count (ty, tx) int64, entries (m,) int64 Gaussian
+    indices, ascending within a tile)."""
+    W, H = (int(v) for v in size)
+    S = int(scale)
+    lw, lh = -(-W // S), -(-H // S)
+    tx_n, ty_n = -(-lw // tile), -(-lh // tile)
+    lo, hi, vis = ndc_bounds(centres, radii, persp)
+    full = np.array([W, H], np.float64)
+    # Continuous full-resolution pixel coordinates of the bounds -> texel ranges.
+    X_lo = (lo + 1.0) * 0.5 * full
+    X_hi = (hi + 1.0) * 0.5 * full
+    off = 0.5 + S // 2
+    q_lo = np.floor((X_lo - off) / S) - 1.0
+    q_hi = np.ceil((X_hi - off) / S) + 1.0
+    q_max = np.array([lw - 1, lh - 1], np.float64)
+    vis &= (q_hi >= 0.0).all(axis=1) & (q_lo <= q_max).all(axis=1)
+    q_lo = np.clip(q_lo, 0.0, q_max).astype(np.int64)
+    q_hi = np.clip(q_hi, 0.0, q_max).astype(np.int64)
+    t_lo, t_hi = q_lo // tile, q_hi // tile
+    gid = np.nonzero(vis)[0]
+    w = t_hi[gid, 0] - t_lo[gid, 0] + 1
+    h = t_hi[gid, 1] - t_lo[gid, 1] + 1
+    sizes = w * h
+    total = int(sizes.sum())
+    starts = np.cumsum(sizes) - sizes
+    g = np.repeat(np.arange(len(gid)), sizes)
+    k = np.arange(total, dtype=np.int64) - np.repeat(starts, sizes)
+    tx = t_lo[gid, 0][g] + k % w[g]
+    ty = t_lo[gid, 1][g] + k // w[g]
+    key = ty * tx_n + tx
+    P = np.asarray(persp, np.float64).reshape(4, 4)
+    if cone_test and total and np.any(P[3, :3] != 0.0):
+        # Sphere (direction u from the eye, angular radius rho) vs the tile's cone
+        # (theta): they can meet only if angle(axis, u) <= theta + rho.
+        inv = np.linalg.inv(P)
+        # The eye: clip x = y = w = 0 there.
+        eye = np.linalg.solve(P[[0, 1, 3], :3], -P[[0, 1, 3], 3])
+        axis, cos_t, sin_t = _tile_cones(inv, eye, (W, H), S, tile, tx_n, ty_n)
+        c = np.asarray(centres, np.float64).reshape(-1, 3)[gid] - eye
+        dist = np.linalg.norm(c, axis=1)
+        R = np.asarray(radii, np.float64)[gid]
+        inside = dist <= R * (1.0 + 1e-9)
+        with np.errstate(divide='ignore', invalid='ignore'):
+            u = np.where(inside[:, None], 0.0, c / dist[:, None])
+            sin_r = np.where(inside, 1.0, R / dist)
+        cos_r = np.sqrt(np.maximum(0.0, 1.0 - sin_r * sin_r))
+        ct, st = cos_t.ravel()[key], sin_t.ravel()[key]
+        sr, cr = sin_r[g], cos_r[g]
+        keep = inside[g] | (st * cr + ct * sr < 0.0) | \
+            ((axis.reshape(-1, 3)[key] * u[g]).sum(1) >= ct * cr - st * sr)
+        key, g = key[keep], g[keep]
+    order = np.argsort(key, kind='stable')
+    entries = gid[g[order]]
+    count = np.bincount(key, minlength=tx_n * ty_n)
+    first = np.cumsum(count) - count
+    return first.reshape(ty_n, tx_n), count.reshape(ty_n, tx_n), entries
+
+
 class GaussianFog:
     """GPU side of the Gaussian fog for one set of Gaussians: the data textures, the
-    batch and the factors, rebuilt only when an input changes (`update`)."""
+    batch, the factors and the tile lists, rebuilt only when an input changes (`update`,
+    `update_tiles`)."""
 
     def __init__(self):
         self.key = None          # (data id, beta0, eye, lights) the factors belong to
@@ -153,11 +293,19 @@ class GaussianFog:
         self.gauss_tex = None
         self.f1_tex = None
         self.Csv = None
+        self.radii = None
+        self.centres = None
         self.factor_ms = None    # duration of the last factor computation
+        self.tiles_key = None
+        self.tile_tex = None     # (tile_index, tile_list) textures
+        self.tile_pairs = 0      # (tile, Gaussian) entries of the last tile lists
+        self.tiles_ms = None     # duration of the last tile-list build (CPU + upload)
+        self.tiles_batch = None
 
     def update(self, native, shader, gaussians, beta0, eye, lights):
         """Makes textures/batch/factors current; _gaussians_ = dict(centres, scales,
-        amplitudes, key) where _key_ changes whenever the arrays do."""
+        amplitudes, key, optionally colors (n, 3) per-Gaussian albedo or None) where
+        _key_ changes whenever the arrays do."""
         import time
         from . import gpu_shaders as gs
         n = len(gaussians["scales"])
@@ -168,12 +316,46 @@ class GaussianFog:
             f1, self.Csv = fogshop_factors(native, gaussians["centres"], gaussians["scales"],
                                            gaussians["amplitudes"], beta0, eye, lights,
                                            data_key=gaussians["key"])
+            centres = np.asarray(gaussians["centres"], np.float64).reshape(-1, 3)
             radii = cull_radii(gaussians["scales"], gaussians["amplitudes"])
+            # The noise's per-Gaussian scale R_bake / |b - eye| (rbf_splat.h), as the bake.
+            dist = np.linalg.norm(centres - np.asarray(eye, np.float64), axis=1)
+            bake_radii = cull_radii(gaussians["scales"], gaussians["amplitudes"], BAKE_CULL_EPS)
+            with np.errstate(divide='ignore', invalid='ignore'):
+                noise_radii = np.where(dist > 0.0, bake_radii / dist, 0.0)
             self.gauss_tex, self.f1_tex = gs.rbf_data_textures(
-                gaussians["centres"], gaussians["scales"], gaussians["amplitudes"], radii, f1)
+                centres, gaussians["scales"], gaussians["amplitudes"], radii, f1,
+                albedo=gaussians.get("colors"), noise_radii=noise_radii)
+            self.radii = radii
+            self.centres = centres
             self.key = key
+            self.tiles_key = None
             self.count = n
             self.factor_ms = (time.perf_counter() - t0) * 1e3
-        if self.batch_count != n:
+        if shader is not None and self.batch_count != n:
             self.batch = gs.rbf_splat_batch(shader, n)
             self.batch_count = n
+
+    def update_tiles(self, native, persp, size, scale):
+        """Makes the tile lists current for the view _persp_ (4x4) at _size_ and _scale_
+        (`_native.rbf_tile_lists` when the module has it, else `tile_lists`: the same).
+        False (and no textures) when the lists exceed MAX_TILE_ENTRIES: the caller draws
+        the splat instead."""
+        import time
+        from . import gpu_shaders as gs
+        P = np.asarray(persp, np.float64).reshape(4, 4)
+        key = (self.key, tuple(P.ravel().tolist()), tuple(size), int(scale))
+        if key != self.tiles_key:
+            t0 = time.perf_counter()
+            fast = getattr(native, "rbf_tile_lists", None)
+            if fast is not None:
+                first, count, entries = fast(self.centres, self.radii, P, int(size[0]), int(size[1]),
+                                             int(scale), gs.RBF_TILE)
+            else:
+                first, count, entries = tile_lists(self.centres, self.radii, P, size, scale, gs.RBF_TILE)
+            self.tile_pairs = len(entries)
+            self.tile_tex = gs.rbf_tile_textures(first, count, entries) \
+                if len(entries) <= MAX_TILE_ENTRIES else None
+            self.tiles_key = key
+            self.tiles_ms = (time.perf_counter() - t0) * 1e3
+        return self.tile_tex is not None

@@ -64,6 +64,7 @@ GaussianSet make_gaussians(int n, const glm::vec3 &eye, const glm::vec3 &axis,
     g.a.push_back(a);
     g.c.push_back(c);
     g.R.push_back(cull_radius(a, c, cull_eps));
+    g.R_bake.push_back(cull_radius(a, c, 1e-7));  // RbfMedium::kDefaultCullEps
   }
   // Optical depths for the factors: culled at eps 1e-7 like RbfMedium's default.
   std::vector<double> R7(n);

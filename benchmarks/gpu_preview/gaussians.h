@@ -11,6 +11,7 @@ struct GaussianSet {
   std::vector<glm::dvec3> b;
   std::vector<double> a, c;
   std::vector<double> R;    // cull radii for the splat quads (cull_eps)
+  std::vector<double> R_bake;  // cull radii at the bake's eps 1e-7 (they scale the noise)
   std::vector<double> f1;   // [l * n + i]: exp(-(T(s_l, b_i) + T(v, b_i)) without Gaussian i)
   std::vector<double> Csv;  // [l]: exp(-(T(s_l, v) - beta0 |s_l - v|)) (Fogshop eq. 15-17)
   size_t size() const { return a.size(); }

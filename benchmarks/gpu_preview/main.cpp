@@ -9,7 +9,10 @@
 //      with premultiplied blending; at HALF / QUARTER the reduced fog target, the
 //      upsampling 'mark' draw, the 'exact' draw tested GREATER and the composite;
 //      with Gaussian fog (configurations gauss_*): the add-on's splat pass at 1/scale,
-//      then the fog pass at full resolution with the Gaussian sums; or (standin_*) the
+//      then the fog pass at full resolution with the Gaussian sums; (tiles_*, shaders
+//      with rbf_splat_pixel.glsl) the add-on's tile pass instead of the splat, its lists
+//      built on the CPU once per configuration (native/bindings/preview_tiles.h; not in
+//      the frame times, printed); or (standin_*) the
 //      harness's own splat pass (standin_splat.cpp) after the homogeneous fog;
 //      compute_full: the FULL fog pass's GLSL run as a compute shader (an experiment:
 //      how much of the cost is the fragment pipeline's on this GPU).
@@ -52,6 +55,7 @@ struct Args {
   int lights = 4;
   int gaussians = 3000;
   double cull_eps = 1e-4;  // preview_gaussians.CULL_EPS
+  float noise_amplitude = 0.0f, noise_scale = 1.0f;  // scene.airlight.noise_* (tiles/gauss, v3)
   float sigma_t = 0.08f;
   int npy_step = 4;
   std::vector<std::string> configs = {"homog_full", "homog_half", "homog_quarter",
@@ -64,8 +68,9 @@ void usage()
       "gpu_preview_bench --ftable FILE [--shaders DIR] [--bench-shaders DIR] [--size WxH]\n"
       "  [--frames N] [--warmup N] [--budget-s S] [--configs a,b,...] [--lights N]\n"
       "  [--gaussians N] [--cull-eps E] [--sigma-t X] [--out DIR] [--npy-step N]\n"
+      "  [--noise-amplitude A] [--noise-scale S]\n"
       "  [--platform auto|device|surfaceless|default] [--device I]\n"
-      "configs: {homog,gauss,standin}_{full,half,quarter}, compute_full");
+      "configs: {homog,gauss,tiles,standin}_{full,half,quarter}, compute_full");
 }
 
 std::vector<std::string> split(const std::string &s, char sep)
@@ -108,6 +113,8 @@ Args parse(int argc, char **argv)
     else if (k == "--lights") a.lights = std::stoi(next());
     else if (k == "--gaussians") a.gaussians = std::stoi(next());
     else if (k == "--cull-eps") a.cull_eps = std::stod(next());
+    else if (k == "--noise-amplitude") a.noise_amplitude = std::stof(next());
+    else if (k == "--noise-scale") a.noise_scale = std::stof(next());
     else if (k == "--sigma-t") a.sigma_t = std::stof(next());
     else if (k == "--configs") a.configs = split(next(), ',');
     else if (k == "--npy-step") a.npy_step = std::stoi(next());
@@ -120,13 +127,14 @@ Args parse(int argc, char **argv)
   if (a.ftable.empty()) throw std::invalid_argument("--ftable is required");
   if (a.width < 8 || a.height < 8 || a.width > 16384 || a.height > 16384 || a.frames < 1 ||
       a.warmup < 0 || a.lights < 0 || a.lights > 256 || a.gaussians < 1 ||
-      !(a.sigma_t >= 0.0f) || a.npy_step < 1 || !(a.cull_eps > 0.0) || !(a.budget_s > 0.0))
+      !(a.sigma_t >= 0.0f) || a.npy_step < 1 || !(a.cull_eps > 0.0) || !(a.budget_s > 0.0) ||
+      !(a.noise_amplitude >= 0.0f) || !(a.noise_scale > 0.0f))
     throw std::invalid_argument("bad size, frame, light, Gaussian, eps or sigma_t value");
   return a;
 }
 
 struct Config {
-  std::string name, kind;  // kind: homog, gauss (the add-on's splat), standin
+  std::string name, kind;  // kind: homog, gauss (the add-on's splat), tiles (its tile pass), standin
   int scale = 1;
 };
 
@@ -136,7 +144,7 @@ Config parse_config(const std::string &s)
   c.name = s;
   auto parts = split(s, '_');
   if (parts.size() != 2 || (parts[0] != "homog" && parts[0] != "gauss" && parts[0] != "standin" &&
-                            parts[0] != "compute"))
+                            parts[0] != "compute" && parts[0] != "tiles"))
     throw std::invalid_argument("bad config " + s);
   c.kind = parts[0];
   if (c.kind == "compute" && parts[1] != "full")
@@ -210,7 +218,7 @@ int run(const Args &a)
                "%d warm-up, budget %g s per configuration",
                a.width, a.height, a.lights, a.sigma_t, a.shaders.c_str(),
                (std::string(p.v2 ? "v2" : "v1") + (p.spots ? " +spots" : "") + (p.suns ? " +suns" : "") +
-                (p.ubo ? " +UBO" : " push constants")).c_str(),
+                (p.ubo ? " +UBO" : " push constants") + (p.v3 ? " +v3 (colours, noise, tile pass)" : "")).c_str(),
                a.frames, a.warmup, a.budget_s));
   const View view = make_view(a.width, a.height);
 
@@ -227,12 +235,18 @@ int run(const Args &a)
 
   for (const std::string &cs : a.configs) {
     const Config c = parse_config(cs);
-    if (c.kind == "gauss" && !p.v2) {
+    const bool addon_gauss = c.kind == "gauss" || c.kind == "tiles";
+    if (addon_gauss && !p.v2) {
       rep.line(fmt("%-15s skipped: these shaders have no Gaussian splat pass (interface v1)",
                    c.name.c_str()));
       continue;
     }
-    if ((c.kind == "gauss" || c.kind == "standin") && !have_set) {
+    if (c.kind == "tiles" && !p.v3) {
+      rep.line(fmt("%-15s skipped: these shaders have no tile pass (before rbf_splat_pixel.glsl)",
+                   c.name.c_str()));
+      continue;
+    }
+    if ((addon_gauss || c.kind == "standin") && !have_set) {
       auto t0 = std::chrono::steady_clock::now();
       gset = make_gaussians(a.gaussians, view.eye, view.axis, view.tan_half, p.light_positions,
                             a.sigma_t, a.cull_eps);
@@ -252,10 +266,22 @@ int run(const Args &a)
                    a.gaussians, a.cull_eps, R / double(gset.size()),
                    std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count()));
     }
-    if (c.kind == "gauss" && !have_addon) {
+    if (addon_gauss && !have_addon) {
+      p.noise_amplitude = a.noise_amplitude;
+      p.noise_scale = a.noise_scale;
       p.build_gaussians(gset);
       have_addon = true;
       check_gl("Gaussian build");
+    }
+    if (c.kind == "tiles") {
+      p.build_tiles(view, a.width, a.height, c.scale);
+      check_gl("tile lists");
+      const int lw = (a.width + c.scale - 1) / c.scale, lh = (a.height + c.scale - 1) / c.scale;
+      rep.line(fmt("%-15s tile lists: %llu entries (%.1f per %dx%d tile of the %dx%d target), built and "
+                   "uploaded in %.1f ms (CPU, once per view change; not in the frame times)",
+                   c.name.c_str(), p.tile_entries,
+                   double(p.tile_entries) / (double((lw + 7) / 8) * double((lh + 7) / 8)), 8, 8, lw, lh,
+                   p.tiles_build_ms));
     }
     if (c.kind == "standin" && !have_standin) {
       standin.build(a.shaders, a.bench_shaders, p.target, gset, a.lights, p.ftab, p.lights);
@@ -271,7 +297,8 @@ int run(const Args &a)
       glClearNamedFramebufferfv(vp.fbo, GL_COLOR, 0, clear);
       p.count_samples = count;
       if (c.kind == "compute") p.draw_fog_compute(view, vp, a.sigma_t);
-      else p.draw_fog(view, vp, a.sigma_t, c.kind == "standin" ? 1 : c.scale, c.kind == "gauss");
+      else p.draw_fog(view, vp, a.sigma_t, c.kind == "standin" ? 1 : c.scale, addon_gauss,
+                      c.kind == "tiles");
       p.count_samples = false;
       if (c.kind == "standin") {
         standin_fragments = standin.draw(vp.fbo, vp.w, vp.h, view.persp, view.inv_persp,
@@ -316,7 +343,7 @@ int run(const Args &a)
     rep.line(fmt("%-15s scale=%d gaussians=%d lights=%d frames=%zu  GPU ms median %.3f (p10 %.3f, "
                  "p90 %.3f) = %.1f fps | wall ms median %.3f = %.1f fps | passes (ms):%s",
                  c.name.c_str(), c.scale,
-                 c.kind == "gauss" || c.kind == "standin" ? a.gaussians : 0, a.lights,
+                 addon_gauss || c.kind == "standin" ? a.gaussians : 0, a.lights,
                  gpu_ms.size(), g, percentile(gpu_ms, 0.1), percentile(gpu_ms, 0.9), 1e3 / g, w,
                  1e3 / w, pass_text.c_str()));
 
@@ -341,7 +368,7 @@ int run(const Args &a)
     const double npx = double(a.width) * a.height;
     rep.line(fmt("%-15s fog image mean r %.7g g %.7g b %.7g a(1-Tr) %.7g  non-finite %zu",
                  c.name.c_str(), sum[0] / npx, sum[1] / npx, sum[2] / npx, sum[3] / npx, bad));
-    if (c.scale > 1 && c.kind != "gauss" && c.kind != "standin")
+    if (c.scale > 1 && !addon_gauss && c.kind != "standin")
       rep.line(fmt("%-15s exact re-evaluation: %llu pixels (%.2f %% of the region)", c.name.c_str(),
                    p.exact_samples, 100.0 * double(p.exact_samples) / npx));
     if (c.kind == "gauss" || c.kind == "standin") {

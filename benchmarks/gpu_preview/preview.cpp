@@ -5,16 +5,21 @@
 #include <glm/gtc/matrix_transform.hpp>
 #include <glm/gtc/type_ptr.hpp>
 
+#include <chrono>
 #include <cmath>
 #include <cstring>
 #include <cstdio>
 #include <fstream>
 #include <stdexcept>
 
+#include "bindings/preview_tiles.h"
+
 namespace {
 
 constexpr int kUpsampleBilateralExact = 2;  // preview.UPSAMPLE_BILATERAL_EXACT (default)
 constexpr int kRbfTexWidth = 1024;          // gpu_shaders.RBF_TEX_WIDTH
+constexpr int kRbfTile = 8;                 // gpu_shaders.RBF_TILE (v3)
+constexpr int kRbfListWidth = 4096;         // gpu_shaders.RBF_LIST_WIDTH (v3)
 
 bool file_exists(const std::string &path)
 {
@@ -129,6 +134,10 @@ void Preview::add_ubo(CreateInfo &ci, bool dist) const
                      {"pv_phase", "pv.u_phase"}, {"pv_sigma_t", "pv.u_fparams.x"},
                      {"light_count", "pv.u_iparams.x"}, {"pv_scale", "pv.u_iparams.y"},
                      {"pv_mode", "pv.u_iparams.z"}});
+  if (v3)
+    ci.defines.insert(ci.defines.end(), {{"pv_env_T", "pv.u_fparams.y"},
+                                         {"pv_noise_amp", "pv.u_fparams.z"},
+                                         {"pv_noise", "pv.u_noise"}});
 }
 
 // A fresh std140 block at binding 0 for the next draw (Blender's GPUUniformBuf per bind).
@@ -173,6 +182,7 @@ void Preview::build(const std::string &shader_dir, const std::string &ftable_pat
   dir = shader_dir;
   v2 = file_exists(dir + "/rbf_splat_vert.glsl");
   ubo = v2 && file_exists(dir + "/preview_params.glsl");
+  v3 = ubo && file_exists(dir + "/rbf_splat_pixel.glsl");
   spots = v2 && file_exists(dir + "/spot_airlight.glsl");
   suns = v2 && file_exists(dir + "/sun_airlight.glsl");
   // gpu_shaders.create_distance_shader
@@ -245,10 +255,12 @@ void Preview::build(const std::string &shader_dir, const std::string &ftable_pat
   ftab = gl_texture(dims[1], dims[0], GL_R32F, data.data(), GL_RED);
 
   // Point lights of bench_preview.py: 1000 W white, I0 = P / (4 pi), albedo 1; row 1
-  // alpha = C_sv = 1 (preview._lights_texture without fog objects).
+  // alpha = C_sv = 1 (preview._lights_texture without fog objects); v3: row 2 = the
+  // splat's I0 (albedo I0 again: the benchmark's Gaussians have no colours).
   light_count = n_lights;
   const int n = std::max(1, n_lights);
-  std::vector<float> ltex(size_t(2) * n * 4, 0.0f);
+  const int rows = v3 ? 3 : 2;
+  std::vector<float> ltex(size_t(rows) * n * 4, 0.0f);
   for (int i = 0; i < n; ++i) ltex[(size_t(n) + i) * 4 + 3] = 1.0f;
   for (int i = 0; i < n_lights; ++i) {
     float x = -6.0f + 12.0f * i / float(std::max(1, n_lights - 1));
@@ -257,8 +269,12 @@ void Preview::build(const std::string &shader_dir, const std::string &ftable_pat
     p[0] = x, p[1] = y, p[2] = 2.5f;
     light_positions.emplace_back(x, y, 2.5f);
     c[0] = c[1] = c[2] = 1000.0f / (4.0f * float(M_PI));
+    if (v3) {
+      float *c2 = &ltex[(size_t(2 * n) + i) * 4];
+      c2[0] = c2[1] = c2[2] = c[0];
+    }
   }
-  lights = gl_texture(n, 2, GL_RGBA32F, ltex.data());
+  lights = gl_texture(n, rows, GL_RGBA32F, ltex.data());
   distance_target = make_target(width, height, GL_R32F, true);
 }
 
@@ -285,9 +301,28 @@ void Preview::build_gaussians(const GaussianSet &g)
   if (suns) s.defines.push_back({"PREVIEW_SUNS", "0"});
   s.fragment_out = {{"vec4", "frag_color"}, {"vec4", "frag_near"}};
   s.vertex_source = src("rbf_splat_vert.glsl");
-  s.fragment_source = src("sun05_airlight.glsl") + "\n" + src("preview_common.glsl") + "\n" +
-                      src("rbf_gaussian.glsl") + "\n" + src("rbf_splat_frag.glsl") + "\n";
+  // gpu_shaders.RBF_SPLAT_SOURCES (v3 adds rbf_noise.glsl and rbf_splat_pixel.glsl).
+  std::string libs = src("sun05_airlight.glsl") + "\n" + src("preview_common.glsl") + "\n" +
+                     src("rbf_gaussian.glsl") + "\n";
+  if (v3) libs += src("rbf_noise.glsl") + "\n" + src("rbf_splat_pixel.glsl") + "\n";
+  s.fragment_source = libs + src("rbf_splat_frag.glsl") + "\n";
   splat = create_info_program(s, target);
+  gauss_set = &g;
+  if (v3) {
+    // gpu_shaders.create_rbf_tiles_shader: the fullscreen quad's interface, the splat's
+    // defines and outputs, two more samplers.
+    CreateInfo t = s;
+    t.name = "rbf_tiles";
+    t.vertex_in = {{"vec2", "pos"}};
+    t.iface_name = "airlight_rbf_tiles_iface";
+    t.iface = {{"smooth", "vec2", "uv"}};
+    t.samplers.insert(t.samplers.end(), {"tile_index", "tile_list"});
+    t.defines.insert(t.defines.end(), {{"RBF_TILE", std::to_string(kRbfTile)},
+                                       {"RBF_LIST_WIDTH", std::to_string(kRbfListWidth)}});
+    t.vertex_source = src("fullscreen_vert.glsl");
+    t.fragment_source = libs + src("rbf_tiles_frag.glsl") + "\n";
+    tiles = create_info_program(t, target);
+  }
 
   // gpu_shaders.rbf_splat_batch: 4 vertices and 2 triangles per Gaussian.
   const int n = int(g.size());
@@ -303,28 +338,67 @@ void Preview::build_gaussians(const GaussianSet &g)
   }
   splat_batch = make_mesh({{2, corner}, {1, gid}}, tris);
 
-  // gpu_shaders.rbf_data_textures
+  // gpu_shaders.rbf_data_textures (v3: 3 rows per block, no colours: albedo 1)
   const int W = kRbfTexWidth, blocks = std::max(1, (n + W - 1) / W);
   const int L = std::max(1, light_count);
-  std::vector<float> gauss(size_t(blocks) * 2 * W * 4, 0.0f), f1(size_t(blocks) * L * W, 0.0f);
+  const int rows = v3 ? 3 : 2;
+  const glm::dvec3 eye(make_view(16, 16).eye);  // the view's eye (independent of the size)
+  std::vector<float> gauss(size_t(blocks) * rows * W * 4, 0.0f), f1(size_t(blocks) * L * W, 0.0f);
   for (int i = 0; i < n; ++i) {
     const int blk = i / W, col = i % W;
-    float *r0 = &gauss[(size_t(blk * 2) * W + col) * 4];
-    float *r1 = &gauss[(size_t(blk * 2 + 1) * W + col) * 4];
+    float *r0 = &gauss[(size_t(blk * rows) * W + col) * 4];
+    float *r1 = &gauss[(size_t(blk * rows + 1) * W + col) * 4];
     r0[0] = float(g.b[i].x), r0[1] = float(g.b[i].y), r0[2] = float(g.b[i].z), r0[3] = float(g.a[i]);
     r1[0] = float(g.c[i]), r1[1] = float(g.R[i]);
+    if (v3) {
+      const double dist = glm::length(g.b[i] - eye);
+      r1[2] = dist > 0.0 ? float(g.R_bake[i] / dist) : 0.0f;
+      float *r2 = &gauss[(size_t(blk * rows + 2) * W + col) * 4];
+      r2[0] = r2[1] = r2[2] = 1.0f;
+    }
     for (int l = 0; l < light_count; ++l)
       f1[size_t(blk * L + l) * W + col] = float(g.f1[size_t(l) * n + i]);
   }
-  gauss_tex = gl_texture(W, blocks * 2, GL_RGBA32F, gauss.data());
+  gauss_tex = gl_texture(W, blocks * rows, GL_RGBA32F, gauss.data());
   f1_tex = gl_texture(W, blocks * L, GL_R32F, f1.data(), GL_RED);
 
   // preview._lights_texture(..., Csv)
   const int nl = std::max(1, light_count);
-  std::vector<float> ltex(size_t(2) * nl * 4, 0.0f);
+  std::vector<float> ltex(size_t(rows) * nl * 4, 0.0f);
   glGetTextureImage(lights, 0, GL_RGBA, GL_FLOAT, GLsizei(ltex.size() * sizeof(float)), ltex.data());
   for (int l = 0; l < light_count; ++l) ltex[(size_t(nl) + l) * 4 + 3] = float(g.Csv[l]);
-  lights_csv = gl_texture(nl, 2, GL_RGBA32F, ltex.data());
+  lights_csv = gl_texture(nl, rows, GL_RGBA32F, ltex.data());
+}
+
+// preview_gaussians.GaussianFog.update_tiles + gpu_shaders.rbf_tile_textures (v3).
+void Preview::build_tiles(const View &v, int w, int h, int S)
+{
+  if (tiles_scale == S) return;
+  const auto t0 = std::chrono::steady_clock::now();
+  const GaussianSet &g = *gauss_set;
+  std::vector<double> centres, radii(g.R.begin(), g.R.end());
+  for (const glm::dvec3 &b : g.b) centres.insert(centres.end(), {b.x, b.y, b.z});
+  const airlight::preview::TileLists lists = airlight::preview::tile_lists(
+      centres.data(), radii.data(), g.size(), glm::dmat4(v.persp), w, h, S, kRbfTile, true);
+  const int lw = (w + S - 1) / S, lh = (h + S - 1) / S;
+  const int tx_n = (lw + kRbfTile - 1) / kRbfTile, ty_n = (lh + kRbfTile - 1) / kRbfTile;
+  std::vector<float> index(size_t(tx_n) * ty_n * 2);
+  for (size_t t = 0; t < lists.first.size(); ++t) {
+    index[2 * t] = float(lists.first[t]);
+    index[2 * t + 1] = float(lists.count[t]);
+  }
+  const size_t m = lists.entries.size();
+  const int list_rows = int(std::max<size_t>(1, (m + kRbfListWidth - 1) / kRbfListWidth));
+  std::vector<float> list(size_t(list_rows) * kRbfListWidth, 0.0f);
+  for (size_t e = 0; e < m; ++e) list[e] = float(lists.entries[e]);
+  if (tile_index_tex) glDeleteTextures(1, &tile_index_tex);
+  if (tile_list_tex) glDeleteTextures(1, &tile_list_tex);
+  tile_index_tex = gl_texture(tx_n, ty_n, GL_RG32F, index.data(), GL_RG);
+  tile_list_tex = gl_texture(kRbfListWidth, list_rows, GL_R32F, list.data(), GL_RED);
+  glFinish();
+  tiles_scale = S;
+  tile_entries = m;
+  tiles_build_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
 }
 
 void Preview::bind_inputs(GLuint prog, const View &v, glm::vec4 viewport, float sigma_t, int scale,
@@ -344,7 +418,20 @@ void Preview::bind_inputs(GLuint prog, const View &v, glm::vec4 viewport, float 
     f[48] = sigma_t;
     const int ip[4] = {light_count, scale, kUpsampleBilateralExact, 0};
     std::memcpy(f + 52, ip, 16);
-    const_cast<Preview *>(this)->bind_ubo(f, sizeof(f));
+    if (!v3) {
+      const_cast<Preview *>(this)->bind_ubo(f, sizeof(f));
+    }
+    else {
+      // v3: 240 bytes, u_fparams.z = noise amplitude, u_noise = (offset, 1 / scale).
+      float f3[60] = {};
+      std::memcpy(f3, f, sizeof(f));
+      if (noise_amplitude > 0.0f) {
+        f3[50] = noise_amplitude;
+        f3[56] = noise_offset.x, f3[57] = noise_offset.y, f3[58] = noise_offset.z;
+        f3[59] = 1.0f / noise_scale;
+      }
+      const_cast<Preview *>(this)->bind_ubo(f3, sizeof(f3));
+    }
   }
   set_uniform(prog, "persp", v.persp);
   set_uniform(prog, "inv_persp", v.inv_persp);
@@ -445,15 +532,37 @@ void Preview::draw_splat(const View &v, int w, int h, float sigma_t, int S)
   stamp("splat");
 }
 
-void Preview::draw_fog(const View &v, const Target &viewport, float sigma_t, int scale, bool gaussians)
+// preview._draw_gaussians with gauss_pass 'TILES' (v3): every splat-target texel once.
+void Preview::draw_tiles(const View &v, int w, int h, float sigma_t, int S)
+{
+  const int lw = (w + S - 1) / S, lh = (h + S - 1) / S;
+  if (gauss_target.w != lw || gauss_target.h != lh) {
+    if (gauss_target.fbo) free_target(gauss_target);
+    gauss_target = make_target(lw, lh, GL_RGBA32F, false, 2);
+  }
+  glBindFramebuffer(GL_FRAMEBUFFER, gauss_target.fbo);
+  glViewport(0, 0, lw, lh);
+  glDisable(GL_BLEND);
+  bind_inputs(tiles, v, glm::vec4(0, 0, float(w), float(h)), sigma_t, S, 0, lights_csv, nullptr);
+  glBindTextureUnit(3, gauss_tex);
+  glBindTextureUnit(4, f1_tex);
+  glBindTextureUnit(5, tile_index_tex);
+  glBindTextureUnit(6, tile_list_tex);
+  ::draw(quad);
+  stamp("tiles");
+}
+
+void Preview::draw_fog(const View &v, const Target &viewport, float sigma_t, int scale, bool gaussians,
+                       bool tile_pass)
 {
   const int w = viewport.w, h = viewport.h;
   const glm::vec4 region(0.0f, 0.0f, float(w), float(h));
   glDisable(GL_DEPTH_TEST);
   glDepthMask(GL_FALSE);
   if (gaussians) {
-    // Splat at 1/scale, then the fog pass at full resolution with the sums.
-    draw_splat(v, w, h, sigma_t, scale);
+    // Splat (or the tile pass) at 1/scale, then the fog pass at full resolution with the sums.
+    if (tile_pass) draw_tiles(v, w, h, sigma_t, scale);
+    else draw_splat(v, w, h, sigma_t, scale);
     GLuint prog = fog_gauss_program(scale);
     glBindFramebuffer(GL_FRAMEBUFFER, viewport.fbo);
     glViewport(0, 0, w, h);

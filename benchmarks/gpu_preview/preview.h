@@ -17,6 +17,13 @@
 //       With preview_params.glsl present the passes read their parameters from uniform
 //       buffers instead of push constants (gpu_shaders.PREVIEW_UBO "pv", DISTANCE_UBO
 //       "dv"; filled per bind as preview_params_ubo / distance_params_ubo do).
+//   v3  (rbf_splat_pixel.glsl present) per-Gaussian colours and noise: the splat's
+//       fragment sources are gpu_shaders.RBF_SPLAT_SOURCES (+ rbf_noise.glsl,
+//       rbf_splat_pixel.glsl), the gauss texture has 3 rows per block (albedo, the noise's
+//       R_bake / |b - v|), the lights texture a third row (the splat's I0), the uniform
+//       buffer 240 bytes (noise amplitude, offset, 1 / scale); and the tile pass
+//       (gpu_shaders.create_rbf_tiles_shader: rbf_tiles_frag.glsl over per-tile lists
+//       from native/bindings/preview_tiles.h, as _native.rbf_tile_lists builds them).
 #pragma once
 
 #include <map>
@@ -41,7 +48,10 @@ View make_view(int w, int h);
 struct Preview {
   GLSLTarget target;
   std::string dir;
-  bool v2 = false, spots = false, suns = false, ubo = false;
+  bool v2 = false, spots = false, suns = false, ubo = false, v3 = false;
+  // v3: the Gaussian fog's noise (amplitude 0 = off), scene.airlight.noise_*.
+  float noise_amplitude = 0.0f, noise_scale = 1.0f;
+  glm::vec3 noise_offset{0.0f};
   std::vector<GLuint> ubo_ring;  // one uniform buffer per bind (Blender makes a new one)
   size_t ubo_next = 0;
   GLuint distance = 0, fog = 0, fog_lo = 0, up_mark = 0, up_exact = 0, composite = 0;
@@ -60,6 +70,12 @@ struct Preview {
   GLuint splat = 0, gauss_tex = 0, f1_tex = 0;
   Mesh splat_batch;
   int gauss_count = 0;
+  const GaussianSet *gauss_set = nullptr;
+  // v3 tile pass: program, lists for (scale), their textures and size.
+  GLuint tiles = 0, tile_index_tex = 0, tile_list_tex = 0;
+  int tiles_scale = 0;
+  unsigned long long tile_entries = 0;
+  double tiles_build_ms = 0.0;  // CPU time of the last list build + upload (not in the frame times)
   // Samples the last 'exact' draw shaded and the last splat drew (when counting).
   bool count_samples = false;
   unsigned long long exact_samples = 0, splat_samples = 0;
@@ -78,7 +94,12 @@ struct Preview {
   void draw_distance(const View &v);
   // preview.draw_fog onto _viewport_ (mode UPSAMPLE_BILATERAL_EXACT); with _gaussians_
   // (v2) the splat pass at 1/scale and the fog pass at full resolution.
-  void draw_fog(const View &v, const Target &viewport, float sigma_t, int scale, bool gaussians);
+  // _tiles_ (v3): the Gaussian sums by the tile pass instead of the splat.
+  void draw_fog(const View &v, const Target &viewport, float sigma_t, int scale, bool gaussians,
+                bool tiles = false);
+  // v3: the tile lists for _scale_ (rebuilt when the scale changes; preview_gaussians.
+  // GaussianFog.update_tiles).
+  void build_tiles(const View &v, int w, int h, int scale);
   void draw_fog_compute(const View &v, const Target &viewport, float sigma_t);
 
  private:
@@ -94,4 +115,5 @@ struct Preview {
   void bind_inputs(GLuint prog, const View &v, glm::vec4 viewport, float sigma_t, int scale,
                    GLuint fog_lo_tex, GLuint lights_tex, const Target *gauss) const;
   void draw_splat(const View &v, int w, int h, float sigma_t, int gauss_scale);
+  void draw_tiles(const View &v, int w, int h, float sigma_t, int gauss_scale);
 };

@@ -1,0 +1,121 @@
+// rbf_splat_pixel.glsl: the contribution of one Gaussian to one pixel's view segment, the
+// GLSL twin of the bake's tiled splat kernels (native/kernels/rbf_splat.cpp view_terms,
+// light_terms, splat_gaussian: same terms, same float formulas, rbf_fast_erf_diff for
+// fast_erf_diff); shared by the quad splat (rbf_splat_frag.glsl, one fragment per (pixel,
+// Gaussian), summed by blending) and the tile pass (rbf_tiles_frag.glsl, one fragment per
+// pixel looping over its screen tile's Gaussians). Adds to the caller's sums
+//   La     += albedo_i sum_l I0_l (L_il(Dvp) - L_il(t0))   (Fogshop eq. 11, rbf_splat.h)
+//   T_seg  += T_i(0, Dvp) - T_i(0, t0)
+//   T_near += T_i(0, t0)
+// for the view ray origin + t dir with [t0, Dvp] the pixel's clipped segment. Gaussians
+// whose cull sphere the segment [0, Dvp] misses add nothing (the bake's per-ray cull);
+// the near segment [0, t0] is evaluated only where the cull sphere reaches it.
+//
+// Noise (Fogshop section 5.5, pv_noise_amp > 0; rbf_splat.h): the optical depths T_i(0, D)
+// of the view segments (D = Dvp, t0) are taken along the perturbed direction
+//   r' = normalize(r + pv_noise_amp (R_i / |b_i - v|) N(b_i^r / scale + offset)),
+// N = rbf_gradient_noise3 (rbf_noise.glsl), b_i^r the point of the (unperturbed) ray
+// nearest b_i clamped to [0, D], R_i the bake's cull radius (eps 1e-7); the light-side
+// terms keep the unperturbed ray. pv_noise = (offset, 1 / scale).
+//
+// Needs sun05_airlight.glsl, preview_common.glsl, rbf_gaussian.glsl and rbf_noise.glsl in
+// front of it, and
+//   lights      row 0 = position, row 2 = rgb: I0_l the splat multiplies by albedo_i
+//   gauss       RGBA32F, RBF_TEX_WIDTH wide, 3 rows per block of W Gaussians: texel
+//               (i % W, 3 (i / W) + k): k = 0 (b.xyz, a), k = 1 (c, R, R_bake / |b - v|, 0)
+//               with R the preview's cull radius (preview_gaussians.CULL_EPS; 0: never
+//               reaches a ray by > eps) and R_bake the bake's, k = 2 (albedo_i rgb, 0)
+//   gauss_f1    R32F, RBF_TEX_WIDTH wide: texel (i % W, (i / W) L + l) = f1 of light l
+//               and Gaussian i with Gaussian i's own terms removed
+
+ivec2 rbf_texel(int i, int row)
+{
+  return ivec2(i % RBF_TEX_WIDTH, 3 * (i / RBF_TEX_WIDTH) + row);
+}
+
+// View-ray part (view_terms): optical depth Tvp of Gaussian (rel = b - o, a, k0 = c
+// sqrt(pi) / (2 a)) over [0, te] (perturbed by the noise when nscale > 0), Tvr over
+// [0, b^r] and the clamped projection tr of b on the ray.
+void rbf_view_terms(vec3 rel, float a, float k0, vec3 o, vec3 d, float te, float nscale,
+                    out float Tvp, out float Tvr, out float tr)
+{
+  float ts = dot(rel, d);
+  vec3 cr = cross(rel, d);
+  float e = k0 * exp(-a * a * dot(cr, cr));
+  float x1 = -a * ts, x2 = a * (te - ts);
+  float E1 = rbf_erfc_pos(abs(x1));
+  float E2 = rbf_erfc_pos(abs(x2));
+  float Tvp0 = e * rbf_diff_from_erfc(x1, x2, E1, E2);
+  tr = clamp(ts, 0.0, te);
+  Tvr = ts <= 0.0 ? 0.0 : (ts >= te ? Tvp0 : e * (1.0 - E1));
+  Tvp = Tvp0;
+  if (nscale > 0.0) {
+    // Perturbed direction (lookup at b^r in world space), same distance.
+    vec3 n = rbf_gradient_noise3((o + tr * d) * pv_noise.w + pv_noise.xyz);
+    vec3 q = d + nscale * n;
+    q *= 1.0 / sqrt(max(dot(q, q), 1e-30));
+    float ts2 = dot(rel, q);
+    vec3 c2 = cross(rel, q);
+    float e2 = k0 * exp(-a * a * dot(c2, c2));
+    float y1 = -a * ts2, y2 = a * (te - ts2);
+    Tvp = e2 * rbf_fast_erf_diff(y1, y2);
+  }
+}
+
+// Light part (light_terms): sum_l I0_l f1_l / (4 pi) exp(-T_i(s_l, b^r) - Tvr) Tvp / |b^r - s_l|^2
+// for the point p = b^r on the view ray.
+vec3 rbf_light_terms(int gi, vec3 b, float a, float k0, vec3 p, float Tvp, float Tvr)
+{
+  int row = (gi / RBF_TEX_WIDTH) * light_count;
+  vec3 acc = vec3(0.0);
+  for (int l = 0; l < light_count; l++) {
+    vec3 s = texelFetch(lights, ivec2(l, 0), 0).xyz;
+    vec3 I0 = texelFetch(lights, ivec2(l, 2), 0).rgb;
+    float f1 = texelFetch(gauss_f1, ivec2(gi % RBF_TEX_WIDTH, row + l), 0).r;
+    vec3 sx = p - s;
+    float d2 = max(dot(sx, sx), kRbfMinD2);
+    float inv = 1.0 / sqrt(d2);
+    vec3 u = sx * inv;
+    float Ds = d2 * inv;
+    vec3 bs = b - s;
+    float ts = dot(bs, u);
+    vec3 c = cross(bs, u);
+    float e = k0 * exp(-a * a * dot(c, c));
+    float x1 = -a * ts, x2 = a * (Ds - ts);
+    float Tsr = e * rbf_fast_erf_diff(x1, x2);
+    acc += I0 * (f1 * kRbfInv4Pi * exp(-Tsr - Tvr) * Tvp / d2);
+  }
+  return acc;
+}
+
+void rbf_splat_pixel(int gi, vec3 origin, vec3 dir, float t0, float Dvp, inout vec3 La,
+                     inout float T_seg_sum, inout float T_near_sum)
+{
+  vec4 ba = texelFetch(gauss, rbf_texel(gi, 0), 0);
+  vec4 cr = texelFetch(gauss, rbf_texel(gi, 1), 0);
+  vec3 b = ba.xyz;
+  float a = ba.w, c = cr.x, R = cr.y;
+  // Cull like the bake: distance from b to the segment [0, Dvp] below R.
+  vec3 rel = b - origin;
+  float tc = dot(rel, dir);
+  vec3 q = rel - clamp(tc, 0.0, Dvp) * dir;
+  if (!(dot(q, q) < R * R)) {
+    return;
+  }
+  float k0 = c * kRbfSqrtPi / (2.0 * a);
+  float nscale = pv_noise_amp * cr.z;
+  vec3 albedo = texelFetch(gauss, rbf_texel(gi, 2), 0).rgb;
+  float Tf, Tvr, tr;
+  rbf_view_terms(rel, a, k0, origin, dir, Dvp, nscale, Tf, Tvr, tr);
+  vec3 L = rbf_light_terms(gi, b, a, k0, origin + tr * dir, Tf, Tvr);
+  float Tn = 0.0;
+  // The near segment [0, t0] meets the cull sphere only if |b - o| < R + t0.
+  if (t0 > 0.0 && dot(rel, rel) < (R + t0) * (R + t0)) {
+    float Tvr0, tr0;
+    rbf_view_terms(rel, a, k0, origin, dir, t0, nscale, Tn, Tvr0, tr0);
+    L -= rbf_light_terms(gi, b, a, k0, origin + tr0 * dir, Tn, Tvr0);
+  }
+  La += albedo * L;
+  T_seg_sum += Tf - Tn;
+  T_near_sum += Tn;
+}
