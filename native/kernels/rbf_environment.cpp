@@ -449,25 +449,36 @@ void environment_irradiance_varying(const ShCoefficients& sh_world, const RGB& a
         require(std::isfinite(v.x + v.y + v.z) && glm::dot(v, v) > 0.0,
                 "environment_irradiance: normals must be finite and non-zero");
     }
-    // One coefficient set per band, so that E_l(n) is band l's irradiance.
+    // Band l's irradiance E_l(n) is a harmonic polynomial of degree l in the unit normal:
+    // E_0 = e0, E_1 = g . n, E_2 = n^T M n. Read e0, g and M off sh_irradiance() at fixed
+    // normals once (E_2(e_k) = M_kk, E_2((e_j + e_k) / sqrt 2) = (M_jj + M_kk) / 2 + M_jk).
     ShCoefficients band[3];
     for (int l = 0; l < 3; ++l) {
         band[l].L = 2;
         band[l].c.assign(9, RGB(0.0));
         for (int m = -l; m <= l; ++m) band[l].c[size_t(l * (l + 1) + m)] = sh_world.c[size_t(l * (l + 1) + m)];
     }
+    const Vec3 e[3] = {Vec3(1, 0, 0), Vec3(0, 1, 0), Vec3(0, 0, 1)};
+    const RGB e0 = sh_irradiance(band[0], e[2]);
+    RGB g[3], M[3][3];
+    for (int j = 0; j < 3; ++j) {
+        g[j] = 0.5 * (sh_irradiance(band[1], e[j]) - sh_irradiance(band[1], -e[j]));
+        M[j][j] = sh_irradiance(band[2], e[j]);
+    }
+    for (int j = 0; j < 3; ++j)
+        for (int k = j + 1; k < 3; ++k)
+            M[j][k] = M[k][j] = sh_irradiance(band[2], (e[j] + e[k]) / std::sqrt(2.0)) - 0.5 * (M[j][j] + M[k][k]);
     const PsfBandTable& table = psf_band_table();
     parallel_chunks(n, threads, 4096, [&](std::size_t begin, std::size_t end) {
         for (std::size_t k = begin; k < end; ++k) {
             const std::array<double, 3> lambda = table.lambda(T[k]);
-            RGB Ew(0.0), Eg(0.0);
-            for (int l = 0; l < 3; ++l) {
-                const RGB El = sh_irradiance(band[l], normals[k]);
-                Ew += El;
-                Eg += lambda[size_t(l)] * El;
-            }
+            const Vec3 v = glm::normalize(normals[k]);
+            const RGB E1 = v.x * g[0] + v.y * g[1] + v.z * g[2];
+            const RGB E2 = v.x * v.x * M[0][0] + v.y * v.y * M[1][1] + v.z * v.z * M[2][2] +
+                           2.0 * (v.x * v.y * M[0][1] + v.x * v.z * M[0][2] + v.y * v.z * M[1][2]);
+            const RGB Ew = e0 + E1 + E2;
             E_world[k] = Ew;
-            E_fogged[k] = std::exp(-T[k]) * Ew + albedo * Eg;
+            E_fogged[k] = std::exp(-T[k]) * Ew + albedo * (lambda[0] * e0 + lambda[1] * E1 + lambda[2] * E2);
         }
     });
 }
