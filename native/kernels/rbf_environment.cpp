@@ -39,22 +39,25 @@ void phi_series(double u, double& phi, double& dphi) {
     dphi = u > 0.0 ? ds : 0.0;
 }
 
-// Cubic Hermite table of phi(u) = F(u) / u on [0, kTableMax].
+// Cubic Hermite table of phi(u) = F(u) / u on [0, kTableMax], interleaved (phi, phi') per
+// node so that one lookup reads 32 contiguous bytes.
 constexpr int kTablePerUnit = 128;
-constexpr double kTableMax = 8.0;
+constexpr double kTableMax = 32.0;
 constexpr int kTableNodes = int(kTableMax) * kTablePerUnit + 1;
 
 struct PhiTable {
-    double phi[kTableNodes], dphi[kTableNodes];
-    PhiTable() {
+    std::vector<double> v;  // phi(u_k), phi'(u_k), ...
+    PhiTable() : v(2 * size_t(kTableNodes)) {
         for (int k = 0; k < kTableNodes; ++k) {
             const double u = double(k) / kTablePerUnit;
+            double& phi = v[2 * size_t(k)];
+            double& dphi = v[2 * size_t(k) + 1];
             if (u < 1.0) {
-                phi_series(u, phi[k], dphi[k]);
+                phi_series(u, phi, dphi);
             } else {
                 const double F = dawson(u);
-                phi[k] = F / u;
-                dphi[k] = (1.0 - 2.0 * u * F) / u - F / (u * u);  // (F' u - F) / u^2, F' = 1 - 2uF
+                phi = F / u;
+                dphi = (1.0 - 2.0 * u * F) / u - F / (u * u);  // (F' u - F) / u^2, F' = 1 - 2uF
             }
         }
     }
@@ -65,22 +68,47 @@ const PhiTable& phi_table() {
     return table;
 }
 
-// sqrt(pi) / (4 u^2) sum_k (2k-1)!! / (2u^2)^k (u >= 8: 13 terms reach 1e-14).
-inline double average_depth_asymptotic(double u) {
-    const double z = 0.5 / (u * u);
-    double s = 0.0;
-    for (int k = 12; k >= 1; --k) s = (2.0 * k - 1.0) * z * (1.0 + s);
-    return 0.25 * kSqrtPi / (u * u) * (1.0 + s);
-}
+#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__)
+#define AIRLIGHT_AVG_CLONES __attribute__((target_clones("arch=x86-64-v4", "arch=x86-64-v3", "default")))
+#else
+#define AIRLIGHT_AVG_CLONES
+#endif
 
-inline double average_depth_fast(const PhiTable& t, double u) {
-    if (u >= kTableMax) return average_depth_asymptotic(u);
-    const double x = u * kTablePerUnit;
+// T(u) from the table below kTableMax, else sqrt(pi) / (4 u^2) sum_{k <= 5} (2k-1)!! / (2u^2)^k
+// (at u >= 32 the next term is 3e-14). Branch-free, so that loops over it vectorise.
+inline double average_depth_fast(const double* table, double u) {
+    const double x = std::min(u, kTableMax - 1e-9) * kTablePerUnit;
     const int k = int(x);
     const double s = x - k, s2 = s * s, s3 = s2 * s, h = 1.0 / kTablePerUnit;
-    const double phi = (2.0 * s3 - 3.0 * s2 + 1.0) * t.phi[k] + (s3 - 2.0 * s2 + s) * h * t.dphi[k] +
-                       (3.0 * s2 - 2.0 * s3) * t.phi[k + 1] + (s3 - s2) * h * t.dphi[k + 1];
-    return 0.5 * kSqrtPi * phi;
+    const double* t = table + 2 * k;
+    const double phi = (2.0 * s3 - 3.0 * s2 + 1.0) * t[0] + (s3 - 2.0 * s2 + s) * h * t[1] +
+                       (3.0 * s2 - 2.0 * s3) * t[2] + (s3 - s2) * h * t[3];
+    const double iu2 = 1.0 / std::max(u * u, 1.0), z = 0.5 * iu2;
+    const double far =
+        0.25 * kSqrtPi * iu2 * (1.0 + z * (1.0 + 3.0 * z * (1.0 + 5.0 * z * (1.0 + 7.0 * z * (1.0 + 9.0 * z)))));
+    return u < kTableMax ? 0.5 * kSqrtPi * phi : far;
+}
+
+// sum_j ca_j T(a_j |x - b_j|) over Gaussians held as arrays (the near field of a point). The
+// terms go through _tmp_ (m doubles) first: a plain map vectorises, a double reduction
+// would not (no -ffast-math); four partial sums then hide the adds' latency.
+AIRLIGHT_AVG_CLONES
+double near_sum(const double* bx, const double* by, const double* bz, const double* a, const double* ca, std::size_t m,
+                double x, double y, double z, const double* table, double* tmp) {
+    for (std::size_t j = 0; j < m; ++j) {
+        const double dx = x - bx[j], dy = y - by[j], dz = z - bz[j];
+        tmp[j] = ca[j] * average_depth_fast(table, a[j] * std::sqrt(dx * dx + dy * dy + dz * dz));
+    }
+    double s0 = 0.0, s1 = 0.0, s2 = 0.0, s3 = 0.0;
+    std::size_t j = 0;
+    for (; j + 4 <= m; j += 4) {
+        s0 += tmp[j];
+        s1 += tmp[j + 1];
+        s2 += tmp[j + 2];
+        s3 += tmp[j + 3];
+    }
+    for (; j < m; ++j) s0 += tmp[j];
+    return (s0 + s1) + (s2 + s3);
 }
 
 }  // namespace
@@ -133,7 +161,7 @@ double average_depth_unit(double u) {
 double average_depth_unit_fast(double u) {
     require(u >= 0.0, "average_depth_unit_fast: need u >= 0");
     if (std::isinf(u)) return 0.0;
-    return average_depth_fast(phi_table(), u);
+    return average_depth_fast(phi_table().v.data(), u);
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -232,8 +260,8 @@ std::uint32_t RbfAverageDepth::build(std::uint32_t begin, std::uint32_t end) {
 
 void RbfAverageDepth::evaluate_group(const Vec3* p, const std::uint32_t* idx, std::size_t m, double* out, double tol,
                                      std::vector<std::uint32_t>& far, std::vector<std::uint32_t>& near,
-                                     AverageDepthStats& stats) const {
-    const PhiTable& table = phi_table();
+                                     std::vector<double> (&soa)[6], AverageDepthStats& stats) const {
+    const double* table = phi_table().v.data();
     far.clear();
     near.clear();
     if (!nodes_.empty()) {
@@ -292,6 +320,16 @@ void RbfAverageDepth::evaluate_group(const Vec3* p, const std::uint32_t* idx, st
             }
         }
     }
+    // The near Gaussians as arrays (b, a, c / a; soa[5] is scratch).
+    for (auto& v : soa) v.resize(near.size());
+    for (std::size_t j = 0; j < near.size(); ++j) {
+        const std::uint32_t i = near[j];
+        soa[0][j] = b_[i].x;
+        soa[1][j] = b_[i].y;
+        soa[2][j] = b_[i].z;
+        soa[3][j] = a_[i];
+        soa[4][j] = c_[i] / a_[i];
+    }
     for (std::size_t k = 0; k < m; ++k) {
         const Vec3 x = p[idx[k]];
         double sum = 0.0;
@@ -306,10 +344,8 @@ void RbfAverageDepth::evaluate_group(const Vec3* p, const std::uint32_t* idx, st
             const double s4 = glm::dot(d4, d4);
             sum += n.W * inv + (4.0 * dQd * inv - trQ) * inv * inv + n.V / (s4 * s4);
         }
-        for (std::uint32_t i : near) {
-            const double a = a_[i];
-            sum += c_[i] / a * average_depth_fast(table, a * glm::length(x - b_[i]));
-        }
+        sum += near_sum(soa[0].data(), soa[1].data(), soa[2].data(), soa[3].data(), soa[4].data(), near.size(), x.x,
+                        x.y, x.z, table, soa[5].data());
         out[idx[k]] = base_ + sum;
     }
     stats.points += m;
@@ -347,10 +383,11 @@ AverageDepthStats RbfAverageDepth::evaluate(const Vec3* p, std::size_t n, double
     std::mutex mutex;
     parallel_chunks(groups, threads, 16, [&](std::size_t begin, std::size_t end) {
         std::vector<std::uint32_t> far, near;
+        std::vector<double> soa[6];
         AverageDepthStats stats;
         for (std::size_t g = begin; g < end; ++g) {
             const std::size_t first = g * kGroup, m = std::min(kGroup, n - first);
-            evaluate_group(p, idx.data() + first, m, out, tol, far, near, stats);
+            evaluate_group(p, idx.data() + first, m, out, tol, far, near, soa, stats);
         }
         std::lock_guard<std::mutex> lock(mutex);
         total.points += stats.points;

@@ -32,7 +32,7 @@
 // computes a lower bound LB <= Tbar(p) of all its points (T is decreasing: per leaf,
 // sum c_i / a_i T(a_max (distance + R2))), then accepts a node when e <= tol LB W_node / W_all.
 // Accepted nodes are disjoint, so the far-field error is at most tol LB <= tol Tbar(p):
-//   |Tbar_approx(p) - Tbar(p)| <= tol Tbar(p)       (plus the T(u) table's 1e-9 relative),
+//   |Tbar_approx(p) - Tbar(p)| <= tol Tbar(p)       (plus the T(u) table's 1e-10 relative),
 // which rbf_environment_test.cpp checks against the brute-force sum on random clouds.
 //
 // The irradiance a surface of normal n gets from the World through the fog (sun05_psf.h's
@@ -59,8 +59,8 @@ double dawson(double x);
 
 // T(u) of the header comment, u >= 0 (u = |u|): exact through dawson() ...
 double average_depth_unit(double u);
-// ... and fast: cubic Hermite table of F(u)/u on [0, 8] (step 1/128, derivatives exact),
-// the asymptotic series beyond. Relative error < 1e-9 (rbf_environment_test.cpp).
+// ... and fast: cubic Hermite table of F(u)/u on [0, 32] (step 1/128, derivatives exact),
+// five terms of the asymptotic series beyond. Relative error < 1e-10 (rbf_environment_test.cpp).
 double average_depth_unit_fast(double u);
 
 struct AverageDepthStats {
@@ -98,7 +98,7 @@ class RbfAverageDepth {
     std::uint32_t build(std::uint32_t begin, std::uint32_t end);
     void evaluate_group(const Vec3* p, const std::uint32_t* idx, std::size_t m, double* out, double tol,
                         std::vector<std::uint32_t>& far, std::vector<std::uint32_t>& near,
-                        AverageDepthStats& stats) const;
+                        std::vector<double> (&soa)[6], AverageDepthStats& stats) const;
 
     std::vector<Vec3> b_;
     std::vector<double> a_, c_;
