@@ -89,6 +89,90 @@ inline double average_depth_fast(const double* table, double u) {
     return u < kTableMax ? 0.5 * kSqrtPi * phi : far;
 }
 
+// T'(u) of the same model (the Hermite cubic's derivative; the series' beyond kTableMax).
+inline double average_depth_fast_derivative(const double* table, double u) {
+    if (u >= kTableMax) {
+        // d/du sqrt(pi)/4 sum_k (2k-1)!! 2^-k u^(-2k-2)
+        const double iu2 = 1.0 / (u * u), z = 0.5 * iu2;
+        return -0.25 * kSqrtPi * iu2 / u *
+               (2.0 + z * (4.0 + 3.0 * z * (6.0 + 5.0 * z * (8.0 + 7.0 * z * 10.0))));
+    }
+    const double x = u * kTablePerUnit;
+    const int k = int(x);
+    const double s = x - k, s2 = s * s, h = 1.0 / kTablePerUnit;
+    const double* t = table + 2 * k;
+    const double dphi = ((6.0 * s2 - 6.0 * s) * t[0] + (3.0 * s2 - 4.0 * s + 1.0) * h * t[1] +
+                         (6.0 * s - 6.0 * s2) * t[2] + (3.0 * s2 - 2.0 * s) * h * t[3]) / h;
+    return 0.5 * kSqrtPi * dphi;
+}
+
+// phi'(u) and phi''(u) of phi = F / u (exact: series below 1, the asymptotic series from 16).
+void phi_derivatives(double u, double& d1, double& d2) {
+    if (u < 1.0) {
+        const double u2 = u * u;
+        double term = 1.0, s1 = 0.0, s2 = 0.0;  // term = (-2)^k u^(2k) / (2k+1)!!
+        for (int k = 1; k < 60; ++k) {
+            term *= -2.0 * u2 / (2.0 * k + 1.0);
+            s1 += 2.0 * k * term / u;
+            s2 += 2.0 * k * (2.0 * k - 1.0) * term / u2;
+            if (std::abs(term) < 1e-20) break;
+        }
+        d1 = s1;
+        d2 = u > 0.0 ? s2 : -4.0 / 3.0;
+        return;
+    }
+    if (u >= 16.0) {
+        // phi = sum_k (2k-1)!! 2^(-k-1) u^(-2k-2)
+        double c = 0.5, s1 = 0.0, s2 = 0.0;
+        for (int k = 0; k < 12; ++k) {
+            if (k > 0) c *= (2.0 * k - 1.0) * 0.5;
+            s1 -= c * (2.0 * k + 2.0) * std::pow(u, -2.0 * k - 3.0);
+            s2 += c * (2.0 * k + 2.0) * (2.0 * k + 3.0) * std::pow(u, -2.0 * k - 4.0);
+        }
+        d1 = s1;
+        d2 = s2;
+        return;
+    }
+    const double F = dawson(u), F1 = 1.0 - 2.0 * u * F, F2 = -2.0 * F - 2.0 * u * F1;
+    d1 = F1 / u - F / (u * u);
+    d2 = F2 / u - 2.0 * F1 / (u * u) + 2.0 * F / (u * u * u);
+}
+
+// K(u) >= sup_{v >= u} max(|T''(v)|, |T'(v) / v|): the Hessian of T(|x|) at |x| = v has these
+// eigenvalues, so a Gaussian's Tbar_i = c / a T(a r) has Hessian norm <= c a K(a r_min). An
+// envelope sampled every 1/256 (x 1.02) on [0, 64) at steps of 1/16; 2.7 / u^4 beyond (T'' ~
+// 6 sqrt(pi) / (4 u^4), T' / u ~ -sqrt(pi) / (2 u^4)).
+constexpr int kCurvPerUnit = 16;
+constexpr double kCurvMax = 64.0;
+
+struct CurvatureEnvelope {
+    std::vector<double> K;
+    CurvatureEnvelope() {
+        const int fine = 256, n = int(kCurvMax) * fine;
+        std::vector<double> run(size_t(n) + 1);
+        double sup = 2.7 / std::pow(kCurvMax, 4.0);
+        for (int j = n; j >= 0; --j) {
+            const double v = double(j) / fine;
+            double d1, d2;
+            phi_derivatives(v, d1, d2);
+            const double tv = v > 0.0 ? std::abs(d1) / v : 4.0 / 3.0;  // phi'(v) / v -> phi''(0)
+            sup = std::max(sup, 0.5 * kSqrtPi * std::max(std::abs(d2), tv));
+            run[size_t(j)] = sup;
+        }
+        K.resize(size_t(kCurvMax) * kCurvPerUnit + 1);
+        for (size_t k = 0; k < K.size(); ++k) K[k] = 1.02 * run[k * (fine / kCurvPerUnit)];
+    }
+    double operator()(double u) const {
+        if (u >= kCurvMax) return 2.7 / (u * u * u * u);
+        return K[size_t(u * kCurvPerUnit)];
+    }
+};
+
+const CurvatureEnvelope& curvature_envelope() {
+    static const CurvatureEnvelope env;
+    return env;
+}
+
 // sum_j ca_j T(a_j |x - b_j|) over Gaussians held as arrays (the near field of a point). The
 // terms go through _tmp_ (m doubles) first: a plain map vectorises, a double reduction
 // would not (no -ffast-math); four partial sums then hide the adds' latency.
@@ -264,6 +348,8 @@ void RbfAverageDepth::evaluate_group(const Vec3* p, const std::uint32_t* idx, st
     const double* table = phi_table().v.data();
     far.clear();
     near.clear();
+    Vec3 group_C(0.0);
+    double group_rho = 0.0, group_LB = 0.0;
     if (!nodes_.empty()) {
         // The group's bounding sphere (centre _C_, radius _rho_).
         Vec3 lo(INFINITY), hi(-INFINITY);
@@ -275,17 +361,20 @@ void RbfAverageDepth::evaluate_group(const Vec3* p, const std::uint32_t* idx, st
         const double rho = 0.5 * glm::length(hi - lo);
         // Lower bound LB of Tbar over the group (T decreasing, a_i r_i <= a_max (|B2 - C| + rho + R2)),
         // then the error budget per unit node weight.
-        double budget = 0.0;
+        double budget = 0.0, LB = 0.0;
         if (tol > 0.0 && W_all_ > 0.0) {
-            double LB = base_;
+            LB = base_;
             for (std::uint32_t li : leaves_) {
                 const Node& n = nodes_[li];
                 if (n.C <= 0.0) continue;
                 const double u = n.a_max * (glm::length(n.B2 - C) + rho + n.R2);
                 LB += n.C * average_depth_fast(table, u);
             }
-            budget = tol * LB / W_all_;
+            budget = 0.5 * tol * LB / W_all_;  // half for the far field, half for linear near terms
         }
+        group_C = C;
+        group_rho = rho;
+        group_LB = LB;
         // Traverse: accept a node when its error bound fits its share of the budget.
         std::uint32_t stack[128];
         int sp = 0;
@@ -320,6 +409,33 @@ void RbfAverageDepth::evaluate_group(const Vec3* p, const std::uint32_t* idx, st
             }
         }
     }
+    // Near Gaussians whose Tbar_i is linear over the group to within their share of the other
+    // half of the budget, |Tbar_i(p) - Tbar_i(C) - grad . (p - C)| <= c a K(u_min) rho^2 / 2 <=
+    // tol LB / 2 (c_i / a_i) / sum_j c_j / a_j, go into one linear model V + G . (p - C); the
+    // rest are evaluated at every point.
+    double V = 0.0;
+    Vec3 G(0.0);
+    std::size_t linear = 0;
+    if (tol > 0.0 && group_LB > 0.0 && !nodes_.empty() && nodes_[0].C > 0.0) {
+        const CurvatureEnvelope& K = curvature_envelope();
+        const double share = 0.5 * tol * group_LB / nodes_[0].C;
+        std::size_t kept = 0;
+        for (std::uint32_t i : near) {
+            const double a = a_[i], ca = c_[i] / a;
+            const Vec3 d = group_C - b_[i];
+            const double dist = glm::length(d);
+            const double u_min = a * std::max(0.0, dist - group_rho);
+            if (0.5 * c_[i] * a * K(u_min) * group_rho * group_rho <= share * ca) {
+                const double u = a * dist;
+                V += ca * average_depth_fast(table, u);
+                if (dist > 0.0) G += (c_[i] * average_depth_fast_derivative(table, u) / dist) * d;
+                ++linear;
+            } else {
+                near[kept++] = i;
+            }
+        }
+        near.resize(kept);
+    }
     // The near Gaussians as arrays (b, a, c / a; soa[5] is scratch).
     for (auto& v : soa) v.resize(near.size());
     for (std::size_t j = 0; j < near.size(); ++j) {
@@ -332,7 +448,7 @@ void RbfAverageDepth::evaluate_group(const Vec3* p, const std::uint32_t* idx, st
     }
     for (std::size_t k = 0; k < m; ++k) {
         const Vec3 x = p[idx[k]];
-        double sum = 0.0;
+        double sum = V + glm::dot(G, x - group_C);
         for (std::uint32_t ni : far) {
             const Node& n = nodes_[ni];
             const Vec3 d = x - n.B2;
@@ -351,6 +467,7 @@ void RbfAverageDepth::evaluate_group(const Vec3* p, const std::uint32_t* idx, st
     stats.points += m;
     stats.far_terms += m * far.size();
     stats.near_terms += m * near.size();
+    stats.linear_terms += m * linear;
 }
 
 AverageDepthStats RbfAverageDepth::evaluate(const Vec3* p, std::size_t n, double* out, double tol, int threads) const {
@@ -393,6 +510,7 @@ AverageDepthStats RbfAverageDepth::evaluate(const Vec3* p, std::size_t n, double
         total.points += stats.points;
         total.near_terms += stats.near_terms;
         total.far_terms += stats.far_terms;
+        total.linear_terms += stats.linear_terms;
     });
     return total;
 }

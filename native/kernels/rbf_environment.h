@@ -66,7 +66,8 @@ double average_depth_unit_fast(double u);
 struct AverageDepthStats {
     std::size_t points = 0;
     std::size_t near_terms = 0;  // exact per-Gaussian evaluations
-    std::size_t far_terms = 0;   // node expansions evaluated
+    std::size_t far_terms = 0;     // node expansions evaluated
+    std::size_t linear_terms = 0;  // Gaussians taken through a group's linear model (no per-point cost)
 };
 
 // Tbar(p) over the Gaussians of an RbfMedium (its beta0 times _distance_ D for the
