@@ -15,15 +15,6 @@ using namespace pybind11::literals;
 
 namespace {
 
-std::vector<Vec3> rows3(const py::object& obj, const char* name, py::ssize_t rows = -1) {
-    auto a = as_array<double>(obj, name);
-    const py::ssize_t n = require_rows_of(a, 3, name, rows);
-    std::vector<Vec3> out(static_cast<std::size_t>(n));
-    const double* p = a.data();
-    for (py::ssize_t k = 0; k < n; ++k) out[size_t(k)] = Vec3(p[3 * k], p[3 * k + 1], p[3 * k + 2]);
-    return out;
-}
-
 std::vector<double> column(const py::object& obj, const char* name, py::ssize_t n) {
     auto a = as_array<double>(obj, name);
     if (a.ndim() != 1 || a.shape(0) != n)
@@ -94,24 +85,27 @@ void bind_rbf_environment(py::module_& m) {
         [](const py::object& centres, const py::object& scales, const py::object& amplitudes,
            const py::object& points, double beta0, double distance, double tolerance, bool exact, int threads) {
             RbfMedium medium = medium_of(centres, scales, amplitudes, beta0);
-            const std::vector<Vec3> p = rows3(points, "points");
-            std::vector<double> out(p.size());
+            auto pts = as_array<double>(points, "points");
+            const size_t n = size_t(require_rows_of(pts, 3, "points"));
+            static_assert(sizeof(Vec3) == 3 * sizeof(double), "Vec3 must be 3 packed doubles");
+            const Vec3* p = reinterpret_cast<const Vec3*>(pts.data());  // numpy memory, no copy
+            py::array_t<double> out(std::vector<py::ssize_t>{py::ssize_t(n)});
+            double* o = out.mutable_data();
             AverageDepthStats stats;
             try {
                 py::gil_scoped_release release;
                 const RbfAverageDepth avg(medium, distance);
                 if (exact) {
-                    avg.evaluate_brute(p.data(), p.size(), out.data(), threads);
-                    stats.points = p.size();
-                    stats.near_terms = p.size() * avg.size();
+                    avg.evaluate_brute(p, n, o, threads);
+                    stats.points = n;
+                    stats.near_terms = n * avg.size();
                 } else {
-                    stats = avg.evaluate(p.data(), p.size(), out.data(), tolerance, threads);
+                    stats = avg.evaluate(p, n, o, tolerance, threads);
                 }
             } catch (const std::invalid_argument& e) {
                 throw py::value_error(e.what());
             }
-            return py::dict("average_depth"_a = to_numpy(std::move(out), {py::ssize_t(p.size())}),
-                            "stats"_a = stats_dict(stats));
+            return py::dict("average_depth"_a = out, "stats"_a = stats_dict(stats));
         },
         py::kw_only(), "centres"_a, "scales"_a, "amplitudes"_a, "points"_a, "beta0"_a = 0.0, "distance"_a = 0.0,
         "tolerance"_a = 1e-3, "exact"_a = false, "threads"_a = 0,
@@ -151,23 +145,26 @@ void bind_rbf_environment(py::module_& m) {
             world.c.resize(9);
             for (size_t i = 0; i < 9; ++i) world.c[i] = RGB(sh.data()[3 * i], sh.data()[3 * i + 1], sh.data()[3 * i + 2]);
             const RGB a = albedo_of(albedo);
-            const std::vector<Vec3> n = rows3(normals, "normals");
-            const std::vector<double> T = column(optical_depth, "optical_depth", py::ssize_t(n.size()));
-            std::vector<RGB> Ew(n.size()), Ef(n.size());
+            // Straight from and into numpy memory (an (N, 3) float64 C array is N glm::dvec3):
+            // at 1080p the copies' page faults cost more than the arithmetic.
+            static_assert(sizeof(Vec3) == 3 * sizeof(double), "Vec3 must be 3 packed doubles");
+            auto n = as_array<double>(normals, "normals");
+            const py::ssize_t rows = require_rows_of(n, 3, "normals");
+            auto T = as_array<double>(optical_depth, "optical_depth");
+            if (T.ndim() != 1 || T.shape(0) != rows)
+                throw py::value_error("optical_depth: expected shape (" + std::to_string(rows) + ",), got " + shape_str(T));
+            py::array_t<double> Ew({rows, py::ssize_t(3)}), Ef({rows, py::ssize_t(3)});
+            const Vec3* np_ = reinterpret_cast<const Vec3*>(n.data());
+            const double* Tp = T.data();
+            RGB* ew = reinterpret_cast<RGB*>(Ew.mutable_data());
+            RGB* ef = reinterpret_cast<RGB*>(Ef.mutable_data());
             try {
                 py::gil_scoped_release release;
-                environment_irradiance_varying(world, a, n.data(), T.data(), n.size(), Ew.data(), Ef.data(), threads);
+                environment_irradiance_varying(world, a, np_, Tp, size_t(rows), ew, ef, threads);
             } catch (const std::invalid_argument& e) {
                 throw py::value_error(e.what());
             }
-            std::vector<double> ew(3 * n.size()), ef(3 * n.size());
-            for (size_t i = 0; i < n.size(); ++i)
-                for (int c = 0; c < 3; ++c) {
-                    ew[3 * i + size_t(c)] = Ew[i][c];
-                    ef[3 * i + size_t(c)] = Ef[i][c];
-                }
-            const py::ssize_t rows = py::ssize_t(n.size());
-            return py::make_tuple(to_numpy(std::move(ew), {rows, 3}), to_numpy(std::move(ef), {rows, 3}));
+            return py::make_tuple(Ew, Ef);
         },
         "sh_world"_a, "albedo"_a, "normals"_a, "optical_depth"_a, "threads"_a = 0,
         "environment_irradiance() with one optical depth per surface (Fogshop eq. 27 with Tbar(p)): (E_world, "
@@ -202,6 +199,15 @@ void bind_rbf_environment(py::module_& m) {
                 CameraRays rays(cam);
                 std::vector<Vec3> miss_o, miss_d, hit_p;
                 std::vector<size_t> miss_px, hit_px;
+                size_t misses = 0;
+                for (size_t px = 0; px < n; ++px) misses += std::isinf(dp[px]) ? 1 : 0;
+                miss_o.reserve(misses);
+                miss_d.reserve(misses);
+                miss_px.reserve(misses);
+                if (average) {
+                    hit_p.reserve(n - misses);
+                    hit_px.reserve(n - misses);
+                }
                 for (int j = 0; j < height; ++j)
                     for (int i = 0; i < width; ++i) {
                         const size_t px = size_t(j) * width + i;

@@ -16,7 +16,7 @@ namespace {
 
 constexpr double kSqrtPi = 1.7724538509055160273;
 
-void require(bool ok, const std::string& msg) {
+inline void require(bool ok, const char* msg) {  // (no std::string unless it throws: hot loops call it)
     if (!ok) throw std::invalid_argument(msg);
 }
 
