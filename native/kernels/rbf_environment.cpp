@@ -253,7 +253,7 @@ double average_depth_unit_fast(double u) {
 
 namespace {
 constexpr std::uint32_t kLeaf = 8;
-constexpr std::size_t kGroup = 32;  // points evaluated together (Morton order)
+constexpr std::size_t kGroup = 16;  // points evaluated together (Morton order)
 
 inline std::uint64_t spread_bits(std::uint64_t v) {  // 21 bits -> every third bit
     v &= 0x1fffff;

@@ -28,7 +28,7 @@
 // norm <= 20 / |x|^6) bound its error by
 //   e = 4 W R2^3 / (d - R2)^5 + 10 V R4^2 / (d4 - R4)^6 + 1.2 X / (d - R2)^6,  X = sum w_i / a_i^4,
 // with R2, R4 the node's radii about B2, B4 and d, d4 lower bounds of |p - B2|, |p - B4|
-// (valid when every u_i >= 3). Points are evaluated in groups of 32 (Morton order; centre C,
+// (valid when every u_i >= 3). Points are evaluated in groups of 16 (Morton order; centre C,
 // radius rho); a group first computes a lower bound LB <= Tbar(p) of all its points (T is
 // decreasing: per leaf, sum c_i / a_i T(a_max (distance + R2))), then accepts a node when
 // e <= (tol / 2) LB W_node / W_all. Accepted nodes are disjoint: their error is <= tol LB / 2.
