@@ -10,6 +10,15 @@ measure) and `environment_view` (the glow along every camera ray) -> added to th
 pass where the camera sees the World, whose Transmittance becomes e^(-density x distance)
 (eq. 26-27). The compositor's `render x T + A` then shows the World through the fog.
 
+With fog objects (Gaussians in the scene description), `environment_rbf_view` adds per
+pixel (a) the Gaussians' optical depth along each ray that sees the World, which multiplies
+the World's transmittance and dims the glow (the glow is the homogeneous fog's, seen through
+the Gaussians in front; the Gaussians' own scattering of the World's light is not added),
+and (b) Fogshop's average optical depth Tbar(p) = density x distance + sum_i Tbar_i(p)
+(section 4.2) at every surface, which replaces the homogeneous optical depth in the
+World's light on that surface (`environment_irradiance_varying`). Tbar leaves out the fog
+objects' noise (Fogshop 5.5) and their own colours: the glow's albedo is the fog colour.
+
 The model assumes the World's light comes from sources all at one distance (the
 "Environment Distance" setting): without a distance, fog that fills all space would hide
 the World completely, which is what Cycles renders for a World volume.
@@ -20,6 +29,10 @@ import numpy as np
 # Largest width of the map handed to the spherical-harmonic projection: bands up to ~64
 # need ~128 columns; more only costs time.
 MAX_MAP_WIDTH = 256
+# Relative error allowed in Fogshop's average optical depth Tbar(p) (the far field's
+# bound, rbf_environment.h): 1e-2 of Tbar is at most 1e-2 Tbar relative in e^-Tbar; the
+# measured error is 20-150x below the bound (benchmarks/bench_rbf_environment.py).
+AVERAGE_DEPTH_TOLERANCE = 1e-2
 
 
 class WorldMapError(ValueError):
@@ -158,28 +171,69 @@ def apply(module, environment, description, result):
         cam_to_world=description["cam_to_world"], projection=description["projection"],
         width=int(description["width"]), height=int(description["height"]), glow=fog["glow"])
     miss = ~np.isfinite(result["depth"])
-    result["airlight"][miss] += glow[miss]
-    result["transmittance"][miss] = np.float32(fog["transmittance"])
     group = environment.get("group")
-    if group is not None and "surface_normals" in result:
-        result["environment_surface"] = (group, surface_ratio(module, fog, description, result))
+    shading = group is not None and "surface_normals" in result
+    rbf = gaussian_view(module, environment, description, result, average=shading)
+    if rbf is None:
+        result["airlight"][miss] += glow[miss]
+        result["transmittance"][miss] = np.float32(fog["transmittance"])
+    else:
+        # The Gaussians between the camera and the World dim both (the bake's own
+        # transmittance there is 0 with a background density: fog to infinity).
+        dim = np.exp(-rbf["world_optical_depth"][miss]).astype(np.float32)[:, None]
+        result["airlight"][miss] += glow[miss] * dim
+        result["transmittance"][miss] = np.float32(fog["transmittance"]) * dim
+    if shading:
+        depth = None if rbf is None else rbf["average_depth"]
+        result["environment_surface"] = (group, surface_ratio(module, fog, description, result, depth))
     return time.perf_counter() - start
 
 
-def surface_ratio(module, fog, description, result):
+def has_gaussians(description):
+    """True when the scene description carries fog objects' Gaussians (scene_export)."""
+    scales = description.get("rbf_scales")
+    return scales is not None and len(scales) > 0
+
+
+def gaussian_view(module, environment, description, result, average=True):
+    """None without fog objects; else `environment_rbf_view`'s per-pixel arrays for the
+    bake's camera: world_optical_depth (the Gaussians along rays that see the World) and,
+    with `average`, average_depth (Tbar at each pixel's first hit, Fogshop eq. 26)."""
+    if not has_gaussians(description):
+        return None
+    return module.environment_rbf_view(
+        cam_to_world=description["cam_to_world"], projection=description["projection"],
+        width=int(description["width"]), height=int(description["height"]),
+        clip_start=float(description.get("clip_start", 0.0)),
+        clip_end=float(description.get("clip_end", np.inf)),
+        depth=np.ascontiguousarray(result["depth"], dtype=np.float32),
+        centres=description["rbf_centres"], scales=description["rbf_scales"],
+        amplitudes=description["rbf_amplitudes"], beta0=float(description["sigma_t"]),
+        distance=float(environment["distance"]), tolerance=AVERAGE_DEPTH_TOLERANCE, average=average)
+
+
+def surface_ratio(module, fog, description, result, average_depth=None):
     """(H, W, 3) float32: E_fogged(n) / E_world(n) - 1 per pixel, the correction the
     compositor multiplies the World's light-group pass by (surface.py): the irradiance the
     World gives a surface of normal n through the fog (attenuated World plus its airlight,
     eq. 26-27, spherical-harmonic bands l <= 2) over the fog-free one. 0 where no surface
     (normal 0) or where the World gives that normal (almost) no light, whose pass is ~0
-    anyway."""
+    anyway. With `average_depth` ((H, W): Fogshop's Tbar per pixel, fog objects present)
+    each surface gets the PSF of its own optical depth (Fogshop eq. 27); without, every
+    surface gets the homogeneous density x distance (unchanged)."""
     normals = result["surface_normals"].reshape(-1, 3)
     hit = np.any(normals != 0.0, axis=1)
     ratio = np.zeros_like(normals, dtype=np.float32)
     if hit.any():
-        e_world, e_fogged = module.environment_irradiance(
-            fog["sh_world"], fog["eigenvalues"], fog["transmittance"],
-            np.asarray(description["albedo"], dtype=np.float64), normals[hit].astype(np.float64))
+        albedo = np.asarray(description["albedo"], dtype=np.float64)
+        if average_depth is None:
+            e_world, e_fogged = module.environment_irradiance(
+                fog["sh_world"], fog["eigenvalues"], fog["transmittance"], albedo,
+                normals[hit].astype(np.float64))
+        else:
+            e_world, e_fogged = module.environment_irradiance_varying(
+                fog["sh_world"], albedo, normals[hit].astype(np.float64),
+                np.asarray(average_depth, dtype=np.float64).reshape(-1)[hit])
         floor = 1e-6 * max(float(e_world.max()), 1e-30)
         lit = e_world > floor
         r = np.zeros_like(e_world)

@@ -32,4 +32,5 @@ PYBIND11_MODULE(_native, m) {
     airlight::bindings::bind_pegoraro(m);
     airlight::bindings::bind_env(m);
     airlight::bindings::bind_preview(m);
+    airlight::bindings::bind_rbf_environment(m);
 }

@@ -76,5 +76,6 @@ void bind_models(py::module_& m);
 void bind_pegoraro(py::module_& m);
 void bind_env(py::module_& m);
 void bind_preview(py::module_& m);
+void bind_rbf_environment(py::module_& m);
 
 }  // namespace airlight::bindings

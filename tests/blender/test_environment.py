@@ -248,3 +248,98 @@ def test04_world_light_on_surfaces_through_fog(tmp_path):
     # Off: no group wanted, no pass.
     settings.environment_glow = False
     assert surface.ensure_world_group(scene) is None
+
+
+def _pixel_rays(scene):
+    """Origin and unit directions (H, W, 3) of the pixel-centre rays of the scene camera, from
+    Blender's own view frame (row 0 = top), independent of the native camera code."""
+    cam = scene.camera
+    W, H = scene.render.resolution_x, scene.render.resolution_y
+    tr, br, bl, tl = (np.array(v) for v in cam.data.view_frame(scene=scene))
+    x = (np.arange(W) + 0.5) / W
+    y = (np.arange(H) + 0.5) / H
+    local = tl[None, None, :] + (tr - tl)[None, None, :] * x[None, :, None] + (bl - tl)[None, None, :] * y[:, None, None]
+    R = np.array(cam.matrix_world.to_3x3())
+    d = local @ R.T
+    return np.array(cam.matrix_world.translation), d / np.linalg.norm(d, axis=-1, keepdims=True)
+
+
+@needs_real_native
+def test05_world_light_with_fog_object(tmp_path):
+    """Environment Glow + surface shading + a fog object (Fogshop section 4.2): the World's
+    surface ratio uses each pixel's average optical depth Tbar(p) = sigma D + sum_i c_i / a_i
+    T(a_i |p - b_i|), T(u) = sqrt(pi)/2 dawsn(u)/u (scipy), so it dips where the Gaussian
+    sits on the floor; World pixels keep the Gaussians' optical depth in their transmittance
+    and the glow is dimmed by it (erf line integral, computed here)."""
+    from scipy.special import dawsn, erfc
+
+    from airlight import fog_object, surface
+    scene = build_plane_scene(tmp_path, fog=True, light=False, size=(40, 30))
+    scene.render.engine = 'CYCLES'
+    scene.camera.rotation_euler = (math.radians(80.0), 0.0, 0.0)  # floor and sky in frame
+    world = bpy.data.worlds.new("Sky")
+    world.use_nodes = True
+    world.node_tree.nodes['Background'].inputs['Color'].default_value = (0.5, 0.6, 0.8, 1.0)
+    scene.world = world
+    settings = scene.airlight
+    sigma, D, albedo = 0.05, 30.0, 0.8
+    settings.density = sigma
+    settings.color = (albedo,) * 3
+    settings.surface_shading = True
+    settings.environment_glow = True
+    settings.environment_distance = D
+    # One Gaussian on the floor ahead, one in front of the sky.
+    b = np.array([[0.0, 9.0, 0.3], [1.0, 20.0, 2.0 + 20.0 * math.tan(math.radians(4.0))]])
+    a = np.array([0.8, 0.5])
+    c = np.array([1.0, 0.4])
+    fog_object.new_fog_object("Fog", scene.collection, b, a, c)
+    depsgraph = bpy.context.evaluated_depsgraph_get()
+    description, bake_kw = bake.prepare(scene, depsgraph)
+    assert len(description["rbf_scales"]) == 2 and bake_kw["environment"]["group"] == surface.WORLD_GROUP
+    path = str(tmp_path / "world_fog_object.exr")
+    bake.run(description, bake_kw, path)
+    pixels, names = read_exr(path)
+    ratio = pixels[..., [names.index(f"Fog.Surface_{surface.WORLD_GROUP}.{c}") for c in "RGB"]]
+    A = pixels[..., [names.index(f"Fog.Airlight.{c}") for c in "RGB"]]
+    Tr = pixels[..., [names.index(f"Fog.Transmittance.{c}") for c in "RGB"]]
+
+    origin, d = _pixel_rays(scene)
+    with np.errstate(divide="ignore"):
+        t_floor = np.where(d[..., 2] < -1e-6, -origin[2] / d[..., 2], np.inf)
+    hit = origin + d * np.where(np.isfinite(t_floor), t_floor, 0.0)[..., None]
+    floor = np.isfinite(t_floor) & (np.abs(hit[..., 0]) < 50.0) & (np.abs(hit[..., 1]) < 50.0)  # the plane
+    sky = ~floor
+    assert 100 < floor.sum() and sky.sum() > 50
+    # Surfaces: Tbar at the floor hit, then e^-Tbar + albedo lambda_0(Tbar) - 1 (a constant
+    # World has band 0 only; lambda_0 interpolated between exact eigenvalues).
+    p = hit[floor]
+    u = a[None, :] * np.linalg.norm(p[:, None, :] - b[None, :, :], axis=-1)
+    Tbar = sigma * D + np.sum(c / a * 0.5 * np.sqrt(np.pi) * dawsn(u) / u, axis=1)
+    grid = np.linspace(Tbar.min(), Tbar.max(), 41)
+    lam0 = np.array([native.get().psf_eigenvalues(t, 0, "exact")[0] for t in grid])
+    want = np.exp(-Tbar) + albedo * np.interp(Tbar, grid, lam0) - 1.0
+    got = ratio[floor]
+    print(f"world surface ratio with a fog object: {got[:, 0].min():.4f} .. {got[:, 0].max():.4f}, "
+          f"max |error| {np.abs(got[:, 0] - want).max():.2e}")
+    np.testing.assert_allclose(got, np.repeat(want[:, None], 3, axis=1), atol=2e-3)
+    assert got[:, 0].max() - got[:, 0].min() > 0.05  # it changes where the fog object is
+    # World pixels: e^(-sigma D) times the Gaussians along the ray from the near plane.
+    ds = d[sky]
+    t0 = scene.camera.data.clip_start / (ds @ -np.array(scene.camera.matrix_world.to_3x3())[:, 2])
+    Tg = np.zeros(len(ds))
+    for bi, ai, ci in zip(b, a, c):
+        ts = (bi - origin) @ ds.T
+        h2 = np.sum((bi - origin) ** 2) - ts ** 2
+        Tg += ci * np.sqrt(np.pi) / (2 * ai) * np.exp(-ai * ai * h2) * erfc(ai * (t0 - ts))
+    assert Tg.max() > 0.3  # the second Gaussian is in front of the sky
+    np.testing.assert_allclose(Tr[sky], np.repeat((math.exp(-sigma * D) * np.exp(-Tg))[:, None], 3, axis=1),
+                               rtol=1e-4, atol=1e-6)
+    # The glow seen there is the homogeneous one dimmed by the same factor (no lights: the bake
+    # itself adds no airlight).
+    fog = native.get().environment_fog(
+        world=environment.world_map(scene), sigma_t=sigma, distance=D, albedo=[albedo] * 3,
+        sh_order=settings.environment_sh_order, out_width=256, out_height=128, kind="exact")
+    glow = native.get().environment_view(cam_to_world=description["cam_to_world"],
+                                         projection=description["projection"], width=40, height=30,
+                                         glow=fog["glow"])[sky]
+    np.testing.assert_allclose(A[sky], glow * np.exp(-Tg)[:, None], rtol=1e-4, atol=1e-7)
