@@ -192,6 +192,20 @@ AIRLIGHT_SPLAT_CLONES void segment_integrals(int n, const float* __restrict rx, 
     }
 }
 
+// keep[k] = 1 if the segment from + t d, t in [0, D], passes within sqrt(R2[k]) of the
+// Gaussian at rel[k] (relative to from; the test of RbfMedium::for_each_near, inflated by
+// 1e-4 for float rounding), else 0.
+AIRLIGHT_SPLAT_CLONES void segment_reaches(int n, const float* __restrict rx, const float* __restrict ry,
+                                           const float* __restrict rz, const float* __restrict R2, float dx,
+                                           float dy, float dz, float D, float* __restrict keep) {
+    for (int k = 0; k < n; ++k) {
+        const float ts = rx[k] * dx + ry[k] * dy + rz[k] * dz;
+        const float tc = ts < 0.0f ? 0.0f : (ts > D ? D : ts);
+        const float qx = rx[k] - tc * dx, qy = ry[k] - tc * dy, qz = rz[k] - tc * dz;
+        keep[k] = qx * qx + qy * qy + qz * qz < R2[k] * 1.0002f ? 1.0f : 0.0f;
+    }
+}
+
 // Culled optical depth of the medium on the segment from -> to, Gaussian _skip_ left out,
 // beta0 included, in float (fast_erf.h); _scratch_ is reused between calls, _a_ and _k0_
 // are the per-Gaussian scale and c sqrt(pi) / (2 a) in float.
@@ -1021,8 +1035,16 @@ RbfPreviewFactors rbf_preview_factors(const RbfMedium& medium, const Vec3& eye, 
             v.resize(n_new);
             for (std::size_t j = 0; j < n_new; ++j) v[j] = float(medium.centre(n_old + j)[c] - from_of(row)[c]);
         }
+    // Only the new Gaussians whose cull sphere the segment reaches (the full computation's
+    // culling, for_each_near): a vectorised distance test, then the integrals of those.
+    std::vector<float> R2(n_new);
+    for (std::size_t j = 0; j < n_new; ++j) {
+        const double R = medium.cull_radius(n_old + j);
+        R2[j] = float(R * R);
+    }
     parallel_chunks(rows * n_old, threads, 64, [&](std::size_t b, std::size_t e) {
-        std::vector<float> out(n_new);
+        std::vector<float> out(n_new), keep(n_new), crx(n_new), cry(n_new), crz(n_new), ca(n_new), ck0(n_new);
+        std::vector<std::uint32_t> idx(n_new + 1);
         for (std::size_t k = b; k < e; ++k) {
             const std::size_t row = k / n_old, i = k % n_old;
             const Vec3 from = from_of(row);
@@ -1031,9 +1053,27 @@ RbfPreviewFactors rbf_preview_factors(const RbfMedium& medium, const Vec3& eye, 
             double add = 0.0;
             if (D > 0.0 && n_new > 0) {
                 const Vec3 r = d / D;
-                segment_integrals(int(n_new), rel[row * 3].data(), rel[row * 3 + 1].data(), rel[row * 3 + 2].data(),
-                                  a.data(), k0.data(), float(r.x), float(r.y), float(r.z), float(D), out.data());
-                for (std::size_t j = 0; j < n_new; ++j) add += double(out[j]);
+                const float* rx = rel[row * 3].data();
+                const float* ry = rel[row * 3 + 1].data();
+                const float* rz = rel[row * 3 + 2].data();
+                segment_reaches(int(n_new), rx, ry, rz, R2.data(), float(r.x), float(r.y), float(r.z), float(D),
+                                keep.data());
+                std::size_t m = 0;
+                for (std::size_t j = 0; j < n_new; ++j) {
+                    idx[m] = std::uint32_t(j);
+                    m += keep[j] != 0.0f ? 1 : 0;
+                }
+                for (std::size_t q = 0; q < m; ++q) {
+                    const std::uint32_t j = idx[q];
+                    crx[q] = rx[j];
+                    cry[q] = ry[j];
+                    crz[q] = rz[j];
+                    ca[q] = a[j];
+                    ck0[q] = k0[j];
+                }
+                segment_integrals(int(m), crx.data(), cry.data(), crz.data(), ca.data(), ck0.data(), float(r.x),
+                                  float(r.y), float(r.z), float(D), out.data());
+                for (std::size_t q = 0; q < m; ++q) add += double(out[q]);
             }
             const double prev_T = row == 0 ? previous->T_vb[i] : previous->T_sb[(row - 1) * n_old + i];
             const double prev_own = row == 0 ? previous->own_vb[i] : previous->own_sb[(row - 1) * n_old + i];
