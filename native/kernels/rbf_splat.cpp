@@ -37,7 +37,8 @@ constexpr int kTilePixels = RbfSplat::kTile * RbfSplat::kTile;
 
 // View-ray part of one Gaussian for n rays: optical depth over [0, tend] (Tvp, perturbed
 // by noise if on), over [0, b^r] (Tvr) and the clamped projection tr.
-template <bool kNoise>
+// kInf (reduced resolution's lattice rays): every tend is +inf, the far erfc term is 0.
+template <bool kNoise, bool kInf = false>
 AIRLIGHT_SPLAT_CLONES void view_terms(const RbfSplat::GaussF g, const float* eye, float ninv_scale, float nox,
                                       float noy, float noz, int n, const float* __restrict dx,
                                       const float* __restrict dy, const float* __restrict dz,
@@ -48,10 +49,10 @@ AIRLIGHT_SPLAT_CLONES void view_terms(const RbfSplat::GaussF g, const float* eye
         const float ts = g.rx * x + g.ry * y + g.rz * z;
         const float cx = g.ry * z - g.rz * y, cy = g.rz * x - g.rx * z, cz = g.rx * y - g.ry * x;
         const float e = g.k0 * fast_expf(-g.a2 * (cx * cx + cy * cy + cz * cz));
-        const float te = tend[k];
+        const float te = kInf ? std::numeric_limits<float>::infinity() : tend[k];
         const float x1 = -g.a * ts, x2 = g.a * (te - ts);
         const float E1 = fast_erfc_pos(x1 < 0.0f ? -x1 : x1);
-        const float E2 = fast_erfc_pos(x2 < 0.0f ? -x2 : x2);
+        const float E2 = kInf ? 0.0f : fast_erfc_pos(x2 < 0.0f ? -x2 : x2);
         const float diff = x1 >= 0.0f ? E1 - E2 : (x2 <= 0.0f ? E2 - E1 : 2.0f - E1 - E2);
         const float Tvp0 = e * diff;
         const float tr = ts < 0.0f ? 0.0f : (ts > te ? te : ts);
@@ -74,7 +75,7 @@ AIRLIGHT_SPLAT_CLONES void view_terms(const RbfSplat::GaussF g, const float* eye
             const float e2 = g.k0 * fast_expf(-g.a2 * (c2x * c2x + c2y * c2y + c2z * c2z));
             const float y1 = -g.a * ts2, y2 = g.a * (te - ts2);
             const float F1 = fast_erfc_pos(y1 < 0.0f ? -y1 : y1);
-            const float F2 = fast_erfc_pos(y2 < 0.0f ? -y2 : y2);
+            const float F2 = kInf ? 0.0f : fast_erfc_pos(y2 < 0.0f ? -y2 : y2);
             const float d2 = y1 >= 0.0f ? F1 - F2 : (y2 <= 0.0f ? F2 - F1 : 2.0f - F1 - F2);
             Tvp_out[k] = e2 * d2;
         } else {
@@ -530,6 +531,23 @@ void RbfSplat::splat_gaussian(std::size_t i, int n, const float* dx, const float
                               const float* tend, float* accT, float* accR, float* accG, float* accB) const {
     float Tvp[kTilePixels], Tvr[kTilePixels], tr[kTilePixels];
     const GaussF& g = g_[i];
+    if (step_ > 1) {  // reduced resolution (tend null: all inf)
+        const float inv_scale = float(1.0 / noise_.scale);
+        const float ox = float(noise_.offset.x), oy = float(noise_.offset.y), oz = float(noise_.offset.z);
+        if (noise_.on() && tend)
+            view_terms<true, false>(g, eye_f_, inv_scale, ox, oy, oz, n, dx, dy, dz, tend, Tvp, Tvr, tr);
+        else if (noise_.on())
+            view_terms<true, true>(g, eye_f_, inv_scale, ox, oy, oz, n, dx, dy, dz, tend, Tvp, Tvr, tr);
+        else if (tend)
+            view_terms<false, false>(g, eye_f_, 0.0f, 0.0f, 0.0f, 0.0f, n, dx, dy, dz, tend, Tvp, Tvr, tr);
+        else
+            view_terms<false, true>(g, eye_f_, 0.0f, 0.0f, 0.0f, 0.0f, n, dx, dy, dz, tend, Tvp, Tvr, tr);
+        add_to(Tvp, n, accT);
+        const std::size_t L = lights_.size();
+        for (std::size_t l = 0; l < L; ++l)
+            light_terms(g, gl_[i * L + l], lf_[l], n, dx, dy, dz, Tvp, Tvr, tr, accR, accG, accB);
+        return;
+    }
     if (noise_.on()) {
         const float inv_scale = float(1.0 / noise_.scale);
         view_terms<true>(g, eye_f_, inv_scale, float(noise_.offset.x), float(noise_.offset.y),
@@ -678,7 +696,7 @@ void RbfSplat::splat_tile_reduced(int t, int x0, int y0, int w, int h, const flo
     constexpr int kMaxLattice = 96;  // (16 / 2 + 1)^2 = 81 at step 2, rounded up to 16
     const int nu = int((w - 0.5) / s) + 2, nv = int((h - 0.5) / s) + 2;
     const int m = nu * nv, m_pad = (m + 15) / 16 * 16;
-    float lx[kMaxLattice], ly[kMaxLattice], lz[kMaxLattice], linf[kMaxLattice];
+    float lx[kMaxLattice], ly[kMaxLattice], lz[kMaxLattice];
     for (int v = 0; v < nv; ++v)
         for (int u = 0; u < nu; ++u) {
             const Vec3 d = glm::normalize(D0_ + double(x0 + s * u) * Dx_ + double(y0 + s * v) * Dy_);
@@ -692,7 +710,6 @@ void RbfSplat::splat_tile_reduced(int t, int x0, int y0, int w, int h, const flo
         ly[k] = ly[m - 1];
         lz[k] = lz[m - 1];
     }
-    std::fill(linf, linf + m_pad, std::numeric_limits<float>::infinity());
     float cT[kMaxLattice] = {}, cR[kMaxLattice] = {}, cG[kMaxLattice] = {}, cB[kMaxLattice] = {};
     std::size_t lattice = 0, exact = 0, behind = 0;
     // The tile's pixels regrouped into 4x4 blocks (one SIMD vector each), so that a
@@ -761,7 +778,7 @@ void RbfSplat::splat_tile_reduced(int t, int x0, int y0, int w, int h, const flo
             continue;
         }
         if (front) {
-            splat_gaussian(i, m_pad, lx, ly, lz, linf, cT, cR, cG, cB);
+            splat_gaussian(i, m_pad, lx, ly, lz, nullptr, cT, cR, cG, cB);
             ++lattice;
             continue;
         }
@@ -781,7 +798,7 @@ void RbfSplat::splat_tile_reduced(int t, int x0, int y0, int w, int h, const flo
             else if (not_behind > 0) cut |= 1u << b;
         }
         if (all_front) {
-            splat_gaussian(i, m_pad, lx, ly, lz, linf, cT, cR, cG, cB);
+            splat_gaussian(i, m_pad, lx, ly, lz, nullptr, cT, cR, cG, cB);
             ++lattice;
             continue;
         }
@@ -797,7 +814,7 @@ void RbfSplat::splat_tile_reduced(int t, int x0, int y0, int w, int h, const flo
         }
         if (m_pad + cut_px + other_px / 8 < live_px) {
             float gT[kMaxLattice] = {}, gR[kMaxLattice] = {}, gG[kMaxLattice] = {}, gB[kMaxLattice] = {};
-            splat_gaussian(i, m_pad, lx, ly, lz, linf, gT, gR, gG, gB);
+            splat_gaussian(i, m_pad, lx, ly, lz, nullptr, gT, gR, gG, gB);
             add_to(gT, m_pad, cT);
             add_to(gR, m_pad, cR);
             add_to(gG, m_pad, cG);

@@ -133,7 +133,8 @@ class RbfSplat {
 
   private:
     // Accumulates Gaussian g's optical depth over [0, tend[k]] into accT and its airlight
-    // (all lights) into accR/G/B for the n rays (dx, dy, dz).
+    // (all lights) into accR/G/B for the n rays (dx, dy, dz). At step_ > 1, tend =
+    // nullptr means +inf for every ray (the lattice).
     void splat_gaussian(std::size_t g, int n, const float* dx, const float* dy, const float* dz, const float* tend,
                         float* accT, float* accR, float* accG, float* accB) const;
     // The Gaussian terms of tile (x0, y0, w x h, n pixels) at step_ > 1 (see splat_tile)

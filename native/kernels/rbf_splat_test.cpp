@@ -330,6 +330,14 @@ TEST(RbfSplat, DISABLED_Profile3000) {
             depth[size_t(j) * cam.W + i] = d.y < -1e-6 ? float(-2.0 / d.y) : std::numeric_limits<float>::infinity();
         }
     std::vector<float> T(3 * depth.size()), A(3 * depth.size());
+    // AIRLIGHT_PROFILE_STEP=s: only that step (for perf).
+    const char* only = std::getenv("AIRLIGHT_PROFILE_STEP");
+    if (only) {
+        s.bin(cam.D0, cam.Dx, cam.Dy, cam.forward, cam.W, cam.H, 0.1, std::atoi(only));
+        for (int rep = 0; rep < 3; ++rep)
+            for (int t = 0; t < s.num_tiles(); ++t) s.splat_tile(t, depth.data(), T.data(), A.data());
+        return;
+    }
     const std::clock_t t0 = std::clock();  // CPU time: the machine may be shared
     for (int t = 0; t < s.num_tiles(); ++t) s.splat_tile(t, depth.data(), T.data(), A.data());
     const double sec = double(std::clock() - t0) / CLOCKS_PER_SEC;
