@@ -711,6 +711,13 @@ void RbfSplat::splat_tile_reduced(int t, int x0, int y0, int w, int h, const flo
         lz[k] = lz[m - 1];
     }
     float cT[kMaxLattice] = {}, cR[kMaxLattice] = {}, cG[kMaxLattice] = {}, cB[kMaxLattice] = {};
+    // Near segments on the lattice (near clip only): lattice t0 and sums.
+    float lt0[kMaxLattice], nT[kMaxLattice] = {}, nR[kMaxLattice] = {}, nG[kMaxLattice] = {}, nB[kMaxLattice] = {};
+    bool near_lattice = false;
+    if (near_clip)
+        for (int k = 0; k < m_pad; ++k)
+            lt0[k] = float(clip_start_ / (double(lx[k]) * forward_.x + double(ly[k]) * forward_.y +
+                                          double(lz[k]) * forward_.z));
     std::size_t lattice = 0, exact = 0, behind = 0;
     // The tile's pixels regrouped into 4x4 blocks (one SIMD vector each), so that a
     // Gaussian the surface cuts is evaluated exactly only on the blocks it reaches.
@@ -760,10 +767,16 @@ void RbfSplat::splat_tile_reduced(int t, int x0, int y0, int w, int h, const flo
         const std::size_t i = bin_index_[e];
         const GaussF& g = g_[i];
         if (near_clip && g.near) {
-            splat_gaussian(i, n, dx, dy, dz, far, Tf, Rf, Gf, Bf);
-            splat_gaussian(i, n, dx, dy, dz, t0, Tn, Rn, Gn, Bn);
-            ++exact;
-            continue;
+            if (exact_tile) {
+                splat_gaussian(i, n, dx, dy, dz, far, Tf, Rf, Gf, Bf);
+                splat_gaussian(i, n, dx, dy, dz, t0, Tn, Rn, Gn, Bn);
+                ++exact;
+                continue;
+            }
+            // The near segment [0, t0] (t0 = clip_start / cos, smooth in the direction) on
+            // the lattice; the far segment is classified below like any other.
+            splat_gaussian(i, m_pad, lx, ly, lz, lt0, nT, nR, nG, nB);
+            near_lattice = true;
         }
         if (exact_tile) {
             splat_gaussian(i, n, dx, dy, dz, far, Tf, Rf, Gf, Bf);
@@ -853,7 +866,7 @@ void RbfSplat::splat_tile_reduced(int t, int x0, int y0, int w, int h, const flo
         Gf[q] += eG[k];
         Bf[q] += eB[k];
     }
-    if (lattice == 0) return;
+    if (lattice == 0 && !near_lattice) return;
     // Bilinear interpolation of the lattice sums to the pixel centres.
     const float inv_s = 1.0f / float(s);
     for (int j = 0; j < h; ++j) {
@@ -871,6 +884,12 @@ void RbfSplat::splat_tile_reduced(int t, int x0, int y0, int w, int h, const flo
             Rf[k] += w00 * cR[a] + w10 * cR[b] + w01 * cR[c] + w11 * cR[d];
             Gf[k] += w00 * cG[a] + w10 * cG[b] + w01 * cG[c] + w11 * cG[d];
             Bf[k] += w00 * cB[a] + w10 * cB[b] + w01 * cB[c] + w11 * cB[d];
+            if (near_lattice) {
+                Tn[k] += w00 * nT[a] + w10 * nT[b] + w01 * nT[c] + w11 * nT[d];
+                Rn[k] += w00 * nR[a] + w10 * nR[b] + w01 * nR[c] + w11 * nR[d];
+                Gn[k] += w00 * nG[a] + w10 * nG[b] + w01 * nG[c] + w11 * nG[d];
+                Bn[k] += w00 * nB[a] + w10 * nB[b] + w01 * nB[c] + w11 * nB[d];
+            }
         }
     }
 }

@@ -88,8 +88,13 @@ class RbfSplat {
     //    same): a smooth function of the direction alone. These are evaluated with Dvp =
     //    inf on a lattice of rays every s pixels (film corners x0 + s u, y0 + s v of the
     //    tile, (16/s + 1)^2 rays) and interpolated bilinearly to the pixel centres;
-    //  - otherwise (the surface cuts the sphere somewhere in the tile; and every Gaussian
-    //    reaching the near clip plane): evaluated exactly at every pixel, as at step 1.
+    //  - otherwise (the surface cuts the sphere somewhere in the tile): evaluated exactly,
+    //    on the tile's 4x4 pixel blocks whose segments the sphere does not wholly miss or
+    //    lie in front of (or, when cheaper, on the lattice with the exact value replacing
+    //    the interpolated one on the cut blocks).
+    //  A Gaussian reaching the near clip plane has its near segment [0, t0] (t0 = clip /
+    //  cos, smooth) on the lattice too. Tiles within 64 pixels of a light's image (where
+    //  the light terms peak) are evaluated exactly.
     // So depth edges cost no accuracy (a pixel's depth only selects which Gaussians are
     // exact); the error is the bilinear interpolation of smooth terms (measured in
     // rbf_splat_test.cpp and benchmarks/bench_rbf.py).

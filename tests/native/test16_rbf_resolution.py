@@ -180,6 +180,22 @@ def test04_against_exact_per_ray_double_path(res, tol, median_tol):
     assert np.median(np.abs(r["airlight"][rows, cols, 0] / ref - 1.0)) <= median_tol
 
 
+def test07_gaussian_around_the_eye():
+    """A broad Gaussian around the camera reaches the near clip plane: its near segment
+    [0, t0] is interpolated from the lattice, its far part classified like the others."""
+    b, a, c = cloud()
+    gauss = (np.vstack([b, [[0.3, 0.2, -0.5]]]), np.append(a, 0.3), np.append(c, 0.3))
+    full_e = bake("full", gauss=gauss)
+    assert not np.array_equal(full_e["transmittance"], bake("full")["transmittance"])
+    for res, p99_tol in (("half", 8e-4), ("quarter", 4e-3)):
+        r = bake(res, gauss=gauss)
+        for key in ("airlight", "transmittance"):
+            rel = rel_errors(r[key], full_e[key])
+            print(f"eye Gaussian, {res} {key}: mean {rel.mean():.2e} p99 {np.percentile(rel, 99):.2e} "
+                  f"max {rel.max():.2e}")
+            assert np.percentile(rel, 99) <= p99_tol, key
+
+
 def test05_noise_at_reduced_resolution():
     full_n = bake("full", noise=0.4)
     r = bake("quarter", noise=0.4)
