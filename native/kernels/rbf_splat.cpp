@@ -902,7 +902,10 @@ void RbfSplat::eval_rays(const Vec3* dirs, const float* Dvp, const float* t0, in
     // Chunks of up to kChunk rays (the bake passes each edge pixel's sub-samples together,
     // so a chunk's rays are close): the union of the Gaussians whose cull spheres the
     // chunk's segments reach, each evaluated over the whole chunk with the splat's kernels.
-    constexpr int kChunk = 16;
+    // Reduced resolution gathers from the tile bins: 4 pixels' sub-samples per chunk
+    // amortise the per-Gaussian call overhead (neighbouring edge pixels share tiles).
+    constexpr int kChunk = 64;
+    const int chunk = step_ > 1 && !bin_start_.empty() ? kChunk : 16;
     const std::size_t L = lights_.size();
     const double beta0 = medium_.beta0();
     thread_local std::vector<std::uint32_t> stamp;
@@ -912,8 +915,8 @@ void RbfSplat::eval_rays(const Vec3* dirs, const float* Dvp, const float* t0, in
         generation = 0;
     }
     std::vector<std::uint32_t> gauss;
-    for (int k0 = 0; k0 < n; k0 += kChunk) {
-        const int m = std::min(kChunk, n - k0);
+    for (int k0 = 0; k0 < n; k0 += chunk) {
+        const int m = std::min(chunk, n - k0);
         float dx[kChunk], dy[kChunk], dz[kChunk], far[kChunk], tn[kChunk];
         double ddx[kChunk], ddy[kChunk], ddz[kChunk];
         bool any_near = false;
