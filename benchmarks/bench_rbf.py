@@ -12,7 +12,8 @@ of it (seeded, so runs compare):
   - 34 broad Gaussians (1/a 3..10 m), 3 point lights;
   - 3000 paint-brush-sized Gaussians (1/a 1..3 m), 1 point light;
   - the same 3000 with two walls standing in the cloud (depth edges through the fog);
-  - 1e5 small Gaussians (1/a 0.3..1 m), 1 point light (at --size-1e5).
+  - 1e5 small Gaussians (1/a 0.3..1 m), 1 point light (at --size-1e5, once, at the last of
+    --resolutions).
 Each Gaussian scene is baked at every --resolutions value (gaussian_resolution: full, half,
 quarter, rbf_splat.h), with the relative error of the Airlight and Transmittance passes
 against the full-resolution bake (mean, p99, max over pixels above 1e-6 of the 99.9th
@@ -241,13 +242,16 @@ def main():
         ms = t_inc * 1e3
         print(f"[brush stroke] 3000 + 100 Gaussians, {L} light(s): rbf_preview_factors full {t_full * 1e3:.1f} ms, "
               f"incremental (previous=, first_new=3000) {ms:.2f} ms wall, {statistics.median(cpu) * 1e3:.2f} ms CPU "
-              f"(median of {runs}); target < {TARGET_BRUSH_MS:.0f} ms: {verdict(ms < TARGET_BRUSH_MS)}")
+              f"(median of {runs}); target < {TARGET_BRUSH_MS:.0f} ms: wall {verdict(ms < TARGET_BRUSH_MS)}, "
+              f"CPU {verdict(statistics.median(cpu) * 1e3 < TARGET_BRUSH_MS)}")
 
     if not args.skip_1e5:
         w5, h5 = (int(x) for x in args.size_1e5.split("x"))
-        wall, air, res, cpu = bake(w5, h5, 1, cloud(100000, (0.3, 1.0), (0.01, 0.05), 3), args.threads, 1)
+        wall, air, res, cpu = bake(w5, h5, 1, cloud(100000, (0.3, 1.0), (0.01, 0.05), 3), args.threads, 1,
+                                   RESOLUTIONS[-1])
         ok = bool(np.all(np.isfinite(res["airlight"])) and np.all(np.isfinite(res["transmittance"])))
-        print(f"[100000 Gaussians, 1 light] bake at {w5}x{h5}: {wall:.2f} s (airlight pass {air:.2f} s, "
+        print(f"[100000 Gaussians, 1 light] bake at {w5}x{h5}, {RESOLUTIONS[-1]} resolution: {wall:.2f} s "
+              f"(airlight pass {air:.2f} s, "
               f"CPU {cpu:.2f} s), "
               f"finite output: {verdict(ok)}")
 
