@@ -191,7 +191,9 @@ class AirlightSceneSettings(bpy.types.PropertyGroup):
         description="Where the bake evaluates fog objects (Gaussian fog): blobs wholly in front "
                     "of the surfaces are computed every 1, 2 or 4 pixels and blended in between; "
                     "blobs a surface cuts, and depth edges, stay exact per pixel. With Automatic "
-                    "a finer setting is used when the accuracy target asks for it",
+                    "a finer setting is used when the accuracy target asks for it. Noise is "
+                    "blended too: with Noise Amplitude 0.4 (scale 1 m) the error grows to 1.2 % "
+                    "(Half) and 5.8 % (Quarter) max, so Automatic at 1 % then bakes Full",
         items=(
             ('FULL', "Full", "Every pixel (the reference; slowest)"),
             ('HALF', "Half", "Every 2nd pixel. Measured at 1080p against Full (benchmarks/bench_rbf.py): "

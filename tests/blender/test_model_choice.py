@@ -142,8 +142,15 @@ def test20_gaussian_resolution_default_meets_default_accuracy():
         settings.accuracy = 0.01
         settings.gaussian_resolution = 'QUARTER'
         assert model_choice.gaussian_resolution(settings) == "quarter"
+        # Fog noise is interpolated too, with its own (larger) measured error.
+        settings.model = 'AUTO'
+        settings.noise_amplitude = 0.4
+        for accuracy, expected in ((1.0, "full"), (2.0, "half"), (6.0, "quarter")):
+            settings.accuracy = accuracy
+            assert model_choice.gaussian_resolution(settings) == expected, accuracy
     finally:
         settings.model, settings.accuracy, settings.gaussian_resolution = old
+        settings.noise_amplitude = 0.0
 
 
 def prop_default(settings, name):
