@@ -84,6 +84,28 @@ AIRLIGHT_SPLAT_CLONES void view_terms(const RbfSplat::GaussF g, const float* eye
     }
 }
 
+// The noise-perturbed view directions of view_terms<true> for n rays (lookup at b^r = eye +
+// tr d in world space), in a loop of its own so that it vectorises (the reduced-resolution
+// path: view_terms<false> on these directions then gives the perturbed Tvp).
+AIRLIGHT_SPLAT_CLONES void noise_dirs(float nscale, const float* eye, float ninv_scale, float nox, float noy,
+                                      float noz, int n, const float* __restrict dx, const float* __restrict dy,
+                                      const float* __restrict dz, const float* __restrict tr, float* __restrict qx_out,
+                                      float* __restrict qy_out, float* __restrict qz_out) {
+    for (int k = 0; k < n; ++k) {
+        const float x = dx[k], y = dy[k], z = dz[k], t = tr[k];
+        const float px = (eye[0] + t * x) * ninv_scale + nox;
+        const float py = (eye[1] + t * y) * ninv_scale + noy;
+        const float pz = (eye[2] + t * z) * ninv_scale + noz;
+        float nx, ny, nz;
+        gradient_noise3_inlined(px, py, pz, nx, ny, nz);
+        const float qx = x + nscale * nx, qy = y + nscale * ny, qz = z + nscale * nz;
+        const float inv = 1.0f / std::sqrt(std::max(qx * qx + qy * qy + qz * qz, 1e-30f));
+        qx_out[k] = qx * inv;
+        qy_out[k] = qy * inv;
+        qz_out[k] = qz * inv;
+    }
+}
+
 // Light part: adds w exp(-T_i(s, b^r) - Tvr) Tvp / |b^r - s|^2 to the RGB accumulators.
 AIRLIGHT_SPLAT_CLONES void light_terms(const RbfSplat::GaussF g, const RbfSplat::GaussLightF gl,
                                        const RbfSplat::LightF lf, int n, const float* __restrict dx,
@@ -532,13 +554,17 @@ void RbfSplat::splat_gaussian(std::size_t i, int n, const float* dx, const float
     float Tvp[kTilePixels], Tvr[kTilePixels], tr[kTilePixels];
     const GaussF& g = g_[i];
     if (step_ > 1) {  // reduced resolution (tend null: all inf)
-        const float inv_scale = float(1.0 / noise_.scale);
-        const float ox = float(noise_.offset.x), oy = float(noise_.offset.y), oz = float(noise_.offset.z);
-        if (noise_.on() && tend)
-            view_terms<true, false>(g, eye_f_, inv_scale, ox, oy, oz, n, dx, dy, dz, tend, Tvp, Tvr, tr);
-        else if (noise_.on())
-            view_terms<true, true>(g, eye_f_, inv_scale, ox, oy, oz, n, dx, dy, dz, tend, Tvp, Tvr, tr);
-        else if (tend)
+        if (noise_.on()) {
+            // view_terms<true> in three vectorised passes: the unperturbed terms, the
+            // perturbed directions, the optical depth along those.
+            float qx[kTilePixels], qy[kTilePixels], qz[kTilePixels], s1[kTilePixels], s2[kTilePixels];
+            if (tend) view_terms<false, false>(g, eye_f_, 0.0f, 0.0f, 0.0f, 0.0f, n, dx, dy, dz, tend, s1, Tvr, tr);
+            else view_terms<false, true>(g, eye_f_, 0.0f, 0.0f, 0.0f, 0.0f, n, dx, dy, dz, tend, s1, Tvr, tr);
+            noise_dirs(g.nscale, eye_f_, float(1.0 / noise_.scale), float(noise_.offset.x), float(noise_.offset.y),
+                       float(noise_.offset.z), n, dx, dy, dz, tr, qx, qy, qz);
+            if (tend) view_terms<false, false>(g, eye_f_, 0.0f, 0.0f, 0.0f, 0.0f, n, qx, qy, qz, tend, Tvp, s1, s2);
+            else view_terms<false, true>(g, eye_f_, 0.0f, 0.0f, 0.0f, 0.0f, n, qx, qy, qz, tend, Tvp, s1, s2);
+        } else if (tend)
             view_terms<false, false>(g, eye_f_, 0.0f, 0.0f, 0.0f, 0.0f, n, dx, dy, dz, tend, Tvp, Tvr, tr);
         else
             view_terms<false, true>(g, eye_f_, 0.0f, 0.0f, 0.0f, 0.0f, n, dx, dy, dz, tend, Tvp, Tvr, tr);
