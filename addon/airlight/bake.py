@@ -30,6 +30,7 @@ def bake_settings(scene):
     model = model_choice.choose(settings)[0]
     extra = dict(rayleigh_density=float(settings.rayleigh_density)) if model == "hoffman02" else {}
     return dict(model=model, threads=settings.threads, aa_samples=settings.aa_samples,
+                gaussian_resolution=model_choice.gaussian_resolution(settings),
                 **model_choice.table_settings(settings), **extra)
 
 

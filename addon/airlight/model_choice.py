@@ -107,6 +107,40 @@ def table_settings(settings):
     return dict(table_size=size, table_interpolation=interp.lower())
 
 
+# Fog objects at reduced resolution (scene.airlight.gaussian_resolution, rbf_splat.h): max
+# relative error of the Airlight and Transmittance passes against the full-resolution bake
+# at 1920x1080, the worst over benchmarks/bench_rbf.py's scenes (34 broad blobs x 3 lights,
+# 3000 blobs x 1 light, walls cutting the cloud). The error is the bilinear interpolation of
+# smooth terms over 2 or 4 pixels: it grows at lower render resolutions (at 320x180,
+# tests/native/test16_rbf_resolution.py measures up to ~4x these) and with fog noise.
+GAUSSIAN_RESOLUTION_ERROR = {'FULL': 0.0, 'HALF': 1.0e-3, 'QUARTER': 5.0e-3}
+# The same with fog noise (noise_amplitude 0.4, noise_scale 1 m, the 34 and 3000 scenes;
+# the noise is interpolated too): max 1.2 % (Half) and 5.8 % (Quarter) on the transmittance.
+# More noise (larger amplitude, smaller scale) errs more.
+GAUSSIAN_RESOLUTION_ERROR_NOISE = {'FULL': 0.0, 'HALF': 1.2e-2, 'QUARTER': 5.8e-2}
+_RESOLUTIONS = ('QUARTER', 'HALF', 'FULL')  # coarse to fine
+
+
+def gaussian_resolution_error(name, settings):
+    """Measured max relative error of fog objects at resolution _name_ (against Full)."""
+    noisy = getattr(settings, "noise_amplitude", 0.0) > 0.0
+    return (GAUSSIAN_RESOLUTION_ERROR_NOISE if noisy else GAUSSIAN_RESOLUTION_ERROR)[name]
+
+
+def gaussian_resolution(settings):
+    """`_native.bake`'s gaussian_resolution ("full", "half", "quarter"): the user's choice;
+    with the Automatic model the coarsest one, no coarser than that choice, whose measured
+    error (gaussian_resolution_error) meets the accuracy target."""
+    choice = getattr(settings, "gaussian_resolution", 'FULL')
+    if settings.model == 'AUTO':
+        target = settings.accuracy / 100.0
+        for name in _RESOLUTIONS[_RESOLUTIONS.index(choice):]:
+            if gaussian_resolution_error(name, settings) <= target:
+                choice = name
+                break
+    return choice.lower()
+
+
 def phase_problem(settings):
     """A message if the explicitly chosen model cannot take the fog's phase, else None."""
     if settings.model == 'AUTO' or is_isotropic(settings):

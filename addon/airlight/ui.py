@@ -181,6 +181,7 @@ class AIRLIGHT_PT_fog_objects(bpy.types.Panel):
         else:
             col.label(text=f"{count} fog object{'s' if count != 1 else ''}", icon='OUTLINER_OB_POINTCLOUD')
             col.label(text=fog_object_note(model_choice.choose(settings)[0]), icon='INFO')
+        col.prop(settings, "gaussian_resolution", text="Resolution")
         col.prop(settings, "noise_amplitude")
         sub = col.column()
         sub.active = settings.noise_amplitude > 0.0

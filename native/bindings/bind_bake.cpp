@@ -80,7 +80,7 @@ py::dict bake_py(int width, int height, const py::object& cam_to_world, const py
                  const py::object& sun_irradiances, double fog_top, int table_size,
                  const std::string& table_interpolation, const py::object& rbf_albedo,
                  double noise_amplitude, double noise_scale, const py::object& noise_offset, bool surface,
-                 double surface_phong_exponent, double rayleigh_density) {
+                 double surface_phong_exponent, double rayleigh_density, const std::string& gaussian_resolution) {
     // Gather the scene description from the arrays (shapes checked here, values in bake()).
     SceneDescription scene;
     scene.camera.width = width;
@@ -217,6 +217,11 @@ py::dict bake_py(int width, int height, const py::object& cam_to_world, const py
     else if (table_interpolation == "nearest") settings.table_interp = Interp::Nearest;
     else throw py::value_error("table_interpolation must be \"bilinear\" or \"nearest\", got \"" +
                                table_interpolation + "\"");
+    if (gaussian_resolution == "full") settings.gaussian_resolution = 1;
+    else if (gaussian_resolution == "half") settings.gaussian_resolution = 2;
+    else if (gaussian_resolution == "quarter") settings.gaussian_resolution = 4;
+    else throw py::value_error("gaussian_resolution must be \"full\", \"half\" or \"quarter\", got \"" +
+                               gaussian_resolution + "\"");
 
     // The callback runs on this (the calling) thread between bands: take the GIL for it.
     ProgressFn progress_fn;
@@ -305,6 +310,7 @@ void bind_bake(py::module_& m) {
           "table_size"_a = 256, "table_interpolation"_a = "bilinear", "rbf_albedo"_a = py::none(),
           "noise_amplitude"_a = 0.0, "noise_scale"_a = 1.0, "noise_offset"_a = py::make_tuple(0.0, 0.0, 0.0),
           "surface"_a = false, "surface_phong_exponent"_a = 0.0, "rayleigh_density"_a = 0.0,
+          "gaussian_resolution"_a = "full",
           R"doc(Bake fog passes for one camera view (all arguments keyword-only).
 
 width, height: render resolution in pixels.
@@ -339,6 +345,11 @@ rbf_centres (n, 3), rbf_scales (n,) > 0, rbf_amplitudes (n,) >= 0: optional Gaus
   Perspective cameras evaluate it by tiled screen-space splatting in float (rbf_splat.h).
 rbf_albedo (n, 3) >= 0: optional per-Gaussian colour (scattering albedo) used instead of
   `albedo` for that Gaussian's airlight (not with model "quadrature").
+gaussian_resolution: "full" (default), "half" or "quarter": perspective cameras evaluate the
+  Gaussians that lie wholly in front of a 16x16 tile's surfaces on a ray lattice every 2 / 4
+  pixels and interpolate them bilinearly (they do not depend on the depth there); the
+  Gaussians a surface cuts, and depth-edge pixels (supersampled), stay exact per pixel
+  (rbf_splat.h). "full" is the plain per-pixel splat.
 noise_amplitude >= 0 (0: off), noise_scale > 0 (m), noise_offset (3,): Fogshop section 5.5
   noise: each Gaussian's optical depth along a view ray is taken along the ray direction
   perturbed by world-space gradient noise (cell size noise_scale, lookup point / scale +

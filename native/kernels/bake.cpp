@@ -1055,7 +1055,7 @@ BakeResult bake(const SceneDescription& scene, const BakeSettings& settings, con
     double band_progress_begin = kRaycastProgressShare;
     if (splatted) {
         RbfSplat& splat = *fog.splat();
-        splat.bin(D0, Dx, Dy, forward, W, H, near_clip ? clip_start : 0.0);
+        splat.bin(D0, Dx, Dy, forward, W, H, near_clip ? clip_start : 0.0, settings.gaussian_resolution);
         const int n_tiles = splat.num_tiles();
         constexpr double kSplatShare = 0.6;  // of the progress bar, after pass 1
         const double end = kRaycastProgressShare + kSplatShare;

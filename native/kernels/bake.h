@@ -37,6 +37,10 @@ struct BakeSettings {
     // the mirrored view direction; 0: none. Its G table is _surface_phong_table_n_ squared.
     double surface_phong_exponent = 0.0;
     int surface_phong_table_n = 64;
+    // Gaussian fog (perspective, Fogshop models): the Gaussian terms are evaluated every
+    // _gaussian_resolution_ pixels (1 full, 2 half, 4 quarter) and interpolated where the
+    // surface does not cut a Gaussian, exactly per pixel where it does (rbf_splat.h).
+    int gaussian_resolution = 1;
 };
 
 struct BakeStats {

@@ -20,7 +20,7 @@
 
 namespace airlight {
 
-inline std::uint32_t noise_hash(std::int32_t x, std::int32_t y, std::int32_t z) {
+[[gnu::always_inline]] inline std::uint32_t noise_hash(std::int32_t x, std::int32_t y, std::int32_t z) {
     std::uint32_t h = static_cast<std::uint32_t>(x) * 0x8da6b343u ^ static_cast<std::uint32_t>(y) * 0xd8163841u ^
                       static_cast<std::uint32_t>(z) * 0xcb1ab31fu;
     h ^= h >> 16;
@@ -31,7 +31,7 @@ inline std::uint32_t noise_hash(std::int32_t x, std::int32_t y, std::int32_t z) 
     return h;
 }
 
-inline float noise_grad_dot(std::int32_t x, std::int32_t y, std::int32_t z, float fx, float fy, float fz) {
+[[gnu::always_inline]] inline float noise_grad_dot(std::int32_t x, std::int32_t y, std::int32_t z, float fx, float fy, float fz) {
     const std::uint32_t h = noise_hash(x, y, z);
     const float gx = static_cast<float>(h & 1023u) * (1.0f / 511.5f) - 1.0f;
     const float gy = static_cast<float>((h >> 10) & 1023u) * (1.0f / 511.5f) - 1.0f;
@@ -39,11 +39,14 @@ inline float noise_grad_dot(std::int32_t x, std::int32_t y, std::int32_t z, floa
     return gx * fx + gy * fy + gz * fz;
 }
 
-inline float noise_floor(float x) { return std::floor(x); }
+[[gnu::always_inline]] inline float noise_floor(float x) { return std::floor(x); }
 
-inline float noise_fade(float f) { return f * f * f * (f * (f * 6.0f - 15.0f) + 10.0f); }
+[[gnu::always_inline]] inline float noise_fade(float f) { return f * f * f * (f * (f * 6.0f - 15.0f) + 10.0f); }
 
-inline float gradient_noise(float px, float py, float pz) {
+// gradient_noise_inlined / gradient_noise3_inlined: the same, always inlined, so that a
+// loop calling them can vectorise (rbf_splat.cpp's reduced-resolution path); the plain
+// functions are the out-of-line form the full-resolution splat calls.
+[[gnu::always_inline]] inline float gradient_noise_inlined(float px, float py, float pz) {
     const float flx = noise_floor(px), fly = noise_floor(py), flz = noise_floor(pz);
     const std::int32_t ix = static_cast<std::int32_t>(flx), iy = static_cast<std::int32_t>(fly),
                        iz = static_cast<std::int32_t>(flz);
@@ -63,7 +66,16 @@ inline float gradient_noise(float px, float py, float pz) {
     return y0 + uz * (y1 - y0);
 }
 
+inline float gradient_noise(float px, float py, float pz) { return gradient_noise_inlined(px, py, pz); }
+
 // Vector noise: three decorrelated components (the same field at shifted points).
+[[gnu::always_inline]] inline void gradient_noise3_inlined(float px, float py, float pz, float& nx, float& ny,
+                                                           float& nz) {
+    nx = gradient_noise_inlined(px, py, pz);
+    ny = gradient_noise_inlined(px + 31.416f, py - 47.853f, pz + 12.679f);
+    nz = gradient_noise_inlined(px - 19.191f, py + 7.337f, pz - 57.931f);
+}
+
 inline void gradient_noise3(float px, float py, float pz, float& nx, float& ny, float& nz) {
     nx = gradient_noise(px, py, pz);
     ny = gradient_noise(px + 31.416f, py - 47.853f, pz + 12.679f);

@@ -37,7 +37,8 @@ constexpr int kTilePixels = RbfSplat::kTile * RbfSplat::kTile;
 
 // View-ray part of one Gaussian for n rays: optical depth over [0, tend] (Tvp, perturbed
 // by noise if on), over [0, b^r] (Tvr) and the clamped projection tr.
-template <bool kNoise>
+// kInf (reduced resolution's lattice rays): every tend is +inf, the far erfc term is 0.
+template <bool kNoise, bool kInf = false>
 AIRLIGHT_SPLAT_CLONES void view_terms(const RbfSplat::GaussF g, const float* eye, float ninv_scale, float nox,
                                       float noy, float noz, int n, const float* __restrict dx,
                                       const float* __restrict dy, const float* __restrict dz,
@@ -48,10 +49,10 @@ AIRLIGHT_SPLAT_CLONES void view_terms(const RbfSplat::GaussF g, const float* eye
         const float ts = g.rx * x + g.ry * y + g.rz * z;
         const float cx = g.ry * z - g.rz * y, cy = g.rz * x - g.rx * z, cz = g.rx * y - g.ry * x;
         const float e = g.k0 * fast_expf(-g.a2 * (cx * cx + cy * cy + cz * cz));
-        const float te = tend[k];
+        const float te = kInf ? std::numeric_limits<float>::infinity() : tend[k];
         const float x1 = -g.a * ts, x2 = g.a * (te - ts);
         const float E1 = fast_erfc_pos(x1 < 0.0f ? -x1 : x1);
-        const float E2 = fast_erfc_pos(x2 < 0.0f ? -x2 : x2);
+        const float E2 = kInf ? 0.0f : fast_erfc_pos(x2 < 0.0f ? -x2 : x2);
         const float diff = x1 >= 0.0f ? E1 - E2 : (x2 <= 0.0f ? E2 - E1 : 2.0f - E1 - E2);
         const float Tvp0 = e * diff;
         const float tr = ts < 0.0f ? 0.0f : (ts > te ? te : ts);
@@ -74,12 +75,34 @@ AIRLIGHT_SPLAT_CLONES void view_terms(const RbfSplat::GaussF g, const float* eye
             const float e2 = g.k0 * fast_expf(-g.a2 * (c2x * c2x + c2y * c2y + c2z * c2z));
             const float y1 = -g.a * ts2, y2 = g.a * (te - ts2);
             const float F1 = fast_erfc_pos(y1 < 0.0f ? -y1 : y1);
-            const float F2 = fast_erfc_pos(y2 < 0.0f ? -y2 : y2);
+            const float F2 = kInf ? 0.0f : fast_erfc_pos(y2 < 0.0f ? -y2 : y2);
             const float d2 = y1 >= 0.0f ? F1 - F2 : (y2 <= 0.0f ? F2 - F1 : 2.0f - F1 - F2);
             Tvp_out[k] = e2 * d2;
         } else {
             Tvp_out[k] = Tvp0;
         }
+    }
+}
+
+// The noise-perturbed view directions of view_terms<true> for n rays (lookup at b^r = eye +
+// tr d in world space), in a loop of its own so that it vectorises (the reduced-resolution
+// path: view_terms<false> on these directions then gives the perturbed Tvp).
+AIRLIGHT_SPLAT_CLONES void noise_dirs(float nscale, const float* eye, float ninv_scale, float nox, float noy,
+                                      float noz, int n, const float* __restrict dx, const float* __restrict dy,
+                                      const float* __restrict dz, const float* __restrict tr, float* __restrict qx_out,
+                                      float* __restrict qy_out, float* __restrict qz_out) {
+    for (int k = 0; k < n; ++k) {
+        const float x = dx[k], y = dy[k], z = dz[k], t = tr[k];
+        const float px = (eye[0] + t * x) * ninv_scale + nox;
+        const float py = (eye[1] + t * y) * ninv_scale + noy;
+        const float pz = (eye[2] + t * z) * ninv_scale + noz;
+        float nx, ny, nz;
+        gradient_noise3_inlined(px, py, pz, nx, ny, nz);
+        const float qx = x + nscale * nx, qy = y + nscale * ny, qz = z + nscale * nz;
+        const float inv = 1.0f / std::sqrt(std::max(qx * qx + qy * qy + qz * qz, 1e-30f));
+        qx_out[k] = qx * inv;
+        qy_out[k] = qy * inv;
+        qz_out[k] = qz * inv;
     }
 }
 
@@ -112,6 +135,64 @@ AIRLIGHT_SPLAT_CLONES void light_terms(const RbfSplat::GaussF g, const RbfSplat:
     }
 }
 
+// Reduced resolution (splat_tile_reduced): which of the n rays (segments [0, far[k]])
+// Gaussian g's cull sphere (radius^2 R2) makes depth-dependent. A ray that misses the
+// sphere is neither; one that crosses it is "not in front" unless the sphere's exit lies
+// before far[k], and "not behind" unless its entry lies beyond far[k]. Returns the two
+// counts as not_front and not_behind.
+AIRLIGHT_SPLAT_CLONES void depth_classes(const RbfSplat::GaussF g, float R2, int n, const float* __restrict dx,
+                                         const float* __restrict dy, const float* __restrict dz,
+                                         const float* __restrict far, int& not_front, int& not_behind) {
+    int nf = 0, nb = 0;
+    for (int k = 0; k < n; ++k) {
+        const float x = dx[k], y = dy[k], z = dz[k];
+        const float ts = g.rx * x + g.ry * y + g.rz * z;
+        const float cx = g.ry * z - g.rz * y, cy = g.rz * x - g.rx * z, cz = g.rx * y - g.ry * x;
+        const float h2 = cx * cx + cy * cy + cz * cz;
+        const float half = std::sqrt(std::max(R2 - h2, 0.0f));
+        const bool cross = h2 < R2;
+        const float te = far[k];
+        nf += (cross && !(te >= ts + half)) ? 1 : 0;
+        nb += (cross && !(te <= ts - half)) ? 1 : 0;
+    }
+    not_front = nf;
+    not_behind = nb;
+}
+
+// Subtracts the bilinear interpolation of the lattice values (T, R, G, B; lattice rows of
+// nu) at n pixels (top-left lattice index lat[k], weights wgt[4 k ..]) from the accumulators.
+AIRLIGHT_SPLAT_CLONES void sub_interp(int n, const int* __restrict lat, const float* __restrict wgt, int nu,
+                                      const float* __restrict T, const float* __restrict R,
+                                      const float* __restrict G, const float* __restrict B, float* __restrict aT,
+                                      float* __restrict aR, float* __restrict aG, float* __restrict aB) {
+    for (int k = 0; k < n; ++k) {
+        const int a = lat[k], b = a + 1, c = a + nu, d = c + 1;
+        const float w0 = wgt[4 * k], w1 = wgt[4 * k + 1], w2 = wgt[4 * k + 2], w3 = wgt[4 * k + 3];
+        aT[k] -= w0 * T[a] + w1 * T[b] + w2 * T[c] + w3 * T[d];
+        aR[k] -= w0 * R[a] + w1 * R[b] + w2 * R[c] + w3 * R[d];
+        aG[k] -= w0 * G[a] + w1 * G[b] + w2 * G[c] + w3 * G[d];
+        aB[k] -= w0 * B[a] + w1 * B[b] + w2 * B[c] + w3 * B[d];
+    }
+}
+
+// Per pixel of a tile at reduced resolution: transmittance exp(-(beta0 (far - t0) +
+// max(0, Tf - Tn))), the near-point attenuation scale_g = exp(Tn) and scale = scale_g
+// exp(beta0 t0) (both 1 without near clip), as splat_tile's double loop, in float.
+AIRLIGHT_SPLAT_CLONES void finish_float(int n, float beta0, bool near_clip, const float* __restrict far,
+                                        const float* __restrict t0, const float* __restrict Tf,
+                                        const float* __restrict Tn, float* __restrict Tr, float* __restrict sg,
+                                        float* __restrict sc) {
+    for (int k = 0; k < n; ++k) {
+        const float seg = far[k] - t0[k];
+        // beta0 seg: 0 for beta0 = 0 even when seg = inf (background_depth)
+        const float bg = beta0 > 0.0f ? beta0 * seg : 0.0f;
+        Tr[k] = fast_expf(-(bg + std::max(0.0f, Tf[k] - Tn[k])));
+        const float g = near_clip ? fast_expf(Tn[k]) : 1.0f;
+        sg[k] = g;
+        sc[k] = near_clip ? g * fast_expf(beta0 * t0[k]) : 1.0f;
+    }
+}
+
 AIRLIGHT_SPLAT_CLONES void add_to(const float* __restrict x, int n, float* __restrict acc) {
     for (int k = 0; k < n; ++k) acc[k] += x[k];
 }
@@ -131,6 +212,20 @@ AIRLIGHT_SPLAT_CLONES void segment_integrals(int n, const float* __restrict rx, 
         const float E1 = fast_erfc_pos(x1 < 0.0f ? -x1 : x1);
         const float E2 = fast_erfc_pos(x2 < 0.0f ? -x2 : x2);
         out[k] = e * (x1 >= 0.0f ? E1 - E2 : (x2 <= 0.0f ? E2 - E1 : 2.0f - E1 - E2));
+    }
+}
+
+// keep[k] = 1 if the segment from + t d, t in [0, D], passes within sqrt(R2[k]) of the
+// Gaussian at rel[k] (relative to from; the test of RbfMedium::for_each_near, inflated by
+// 1e-4 for float rounding), else 0.
+AIRLIGHT_SPLAT_CLONES void segment_reaches(int n, const float* __restrict rx, const float* __restrict ry,
+                                           const float* __restrict rz, const float* __restrict R2, float dx,
+                                           float dy, float dz, float D, float* __restrict keep) {
+    for (int k = 0; k < n; ++k) {
+        const float ts = rx[k] * dx + ry[k] * dy + rz[k] * dz;
+        const float tc = ts < 0.0f ? 0.0f : (ts > D ? D : ts);
+        const float qx = rx[k] - tc * dx, qy = ry[k] - tc * dy, qz = rz[k] - tc * dz;
+        keep[k] = qx * qx + qy * qy + qz * qz < R2[k] * 1.0002f ? 1.0f : 0.0f;
     }
 }
 
@@ -269,6 +364,8 @@ RbfSplat::RbfSplat(const RbfMedium& medium, const Vec3& eye, const std::vector<V
         g.k0 = float(c * kSqrtPi / (2.0 * a));
         g.nscale = dist > 0.0 ? float(noise.amplitude * medium.cull_radius(i) / dist) : 0.0f;
         g.near = false;
+        g.dist = dist;
+        g.radius = medium.cull_radius(i);
         for (std::size_t l = 0; l < L; ++l) {
             const Vec3 bs = medium.centre(i) - lights[l];
             const double f1 = std::exp(-depth[i] - depth[(l + 1) * n + i]) * kInv4Pi;
@@ -288,7 +385,16 @@ RbfSplat::RbfSplat(const RbfMedium& medium, const Vec3& eye, const std::vector<V
 }
 
 void RbfSplat::bin(const Vec3& D0, const Vec3& Dx, const Vec3& Dy, const Vec3& forward, int W, int H,
-                   double clip_start) {
+                   double clip_start, int step) {
+    if (step != 1 && step != 2 && step != 4) {
+        std::ostringstream os;
+        os << "Gaussian resolution step must be 1 (full), 2 (half) or 4 (quarter), got " << step;
+        throw std::invalid_argument(os.str());
+    }
+    step_ = step;
+    n_lattice_ = 0;
+    n_exact_ = 0;
+    n_behind_ = 0;
     W_ = W;
     H_ = H;
     D0_ = D0;
@@ -312,6 +418,9 @@ void RbfSplat::bin(const Vec3& D0, const Vec3& Dx, const Vec3& Dy, const Vec3& f
     const glm::dmat3 M(D0, Dx, Dy);
     const glm::dmat3 Qt = glm::transpose(glm::inverse(M));  // columns = rows of Q
     const Vec3 q0 = Qt[0], q1 = Qt[1], q2 = Qt[2];
+    q0_ = q0;
+    q1_ = q1;
+    q2_ = q2;
     const std::size_t n = medium_.size();
     std::vector<int> rect(4 * n);  // tile range x0, x1, y0, y1 (x1 < x0: none)
     std::vector<std::uint32_t> count(n_tiles + 1, 0);
@@ -338,6 +447,25 @@ void RbfSplat::bin(const Vec3& D0, const Vec3& Dx, const Vec3& Dy, const Vec3& f
             c.cos_t = cmin;
             c.sin_t = std::sqrt(std::max(0.0, 1.0 - cmin * cmin));
         }
+    // Reduced resolution: tiles within kLightMarginPx pixels (angle at the tile) of a
+    // light's direction stay exact (splat_tile_reduced).
+    exact_tile_.assign(step > 1 ? n_tiles : 0, 0);
+    if (step > 1) {
+        constexpr double kLightMarginPx = 64.0;
+        for (int t = 0; t < n_tiles; ++t) {
+            const int tx = t % tiles_x_, ty = t / tiles_x_;
+            const Vec3 Dc = D0 + (tx + 0.5) * kTile * Dx + (ty + 0.5) * kTile * Dy;
+            const double margin = kLightMarginPx * std::max(glm::length(Dx), glm::length(Dy)) / glm::length(Dc);
+            const double theta = std::acos(std::clamp(cones[t].cos_t, -1.0, 1.0)) + margin;
+            for (const Vec3& s : lights_) {
+                const Vec3 u = s - eye_;
+                const double len = glm::length(u);
+                if (!(len > 0.0) || theta >= 3.14159265358979323846 ||
+                    glm::dot(cones[t].axis, u / len) >= std::cos(theta))
+                    exact_tile_[t] = 1;
+            }
+        }
+    }
     // Ball i (centre direction u, sin and cos of its angular radius) against tile t.
     auto meets = [&](int t, const Vec3& u, double sin_r, double cos_r) {
         const Cone& c = cones[t];
@@ -425,6 +553,27 @@ void RbfSplat::splat_gaussian(std::size_t i, int n, const float* dx, const float
                               const float* tend, float* accT, float* accR, float* accG, float* accB) const {
     float Tvp[kTilePixels], Tvr[kTilePixels], tr[kTilePixels];
     const GaussF& g = g_[i];
+    if (step_ > 1) {  // reduced resolution (tend null: all inf)
+        if (noise_.on()) {
+            // view_terms<true> in three vectorised passes: the unperturbed terms, the
+            // perturbed directions, the optical depth along those.
+            float qx[kTilePixels], qy[kTilePixels], qz[kTilePixels], s1[kTilePixels], s2[kTilePixels];
+            if (tend) view_terms<false, false>(g, eye_f_, 0.0f, 0.0f, 0.0f, 0.0f, n, dx, dy, dz, tend, s1, Tvr, tr);
+            else view_terms<false, true>(g, eye_f_, 0.0f, 0.0f, 0.0f, 0.0f, n, dx, dy, dz, tend, s1, Tvr, tr);
+            noise_dirs(g.nscale, eye_f_, float(1.0 / noise_.scale), float(noise_.offset.x), float(noise_.offset.y),
+                       float(noise_.offset.z), n, dx, dy, dz, tr, qx, qy, qz);
+            if (tend) view_terms<false, false>(g, eye_f_, 0.0f, 0.0f, 0.0f, 0.0f, n, qx, qy, qz, tend, Tvp, s1, s2);
+            else view_terms<false, true>(g, eye_f_, 0.0f, 0.0f, 0.0f, 0.0f, n, qx, qy, qz, tend, Tvp, s1, s2);
+        } else if (tend)
+            view_terms<false, false>(g, eye_f_, 0.0f, 0.0f, 0.0f, 0.0f, n, dx, dy, dz, tend, Tvp, Tvr, tr);
+        else
+            view_terms<false, true>(g, eye_f_, 0.0f, 0.0f, 0.0f, 0.0f, n, dx, dy, dz, tend, Tvp, Tvr, tr);
+        add_to(Tvp, n, accT);
+        const std::size_t L = lights_.size();
+        for (std::size_t l = 0; l < L; ++l)
+            light_terms(g, gl_[i * L + l], lf_[l], n, dx, dy, dz, Tvp, Tvr, tr, accR, accG, accB);
+        return;
+    }
     if (noise_.on()) {
         const float inv_scale = float(1.0 / noise_.scale);
         view_terms<true>(g, eye_f_, inv_scale, float(noise_.offset.x), float(noise_.offset.y),
@@ -494,10 +643,14 @@ void RbfSplat::splat_tile(int t, const float* depth, float* transmittance, float
         }
     float Tf[kTilePixels] = {}, Rf[kTilePixels] = {}, Gf[kTilePixels] = {}, Bf[kTilePixels] = {};
     float Tn[kTilePixels] = {}, Rn[kTilePixels] = {}, Gn[kTilePixels] = {}, Bn[kTilePixels] = {};
-    for (std::uint32_t e = bin_start_[t]; e < bin_start_[t + 1]; ++e) {
-        const std::size_t i = bin_index_[e];
-        splat_gaussian(i, n, dx, dy, dz, far, Tf, Rf, Gf, Bf);
-        if (near_clip && g_[i].near) splat_gaussian(i, n, dx, dy, dz, t0, Tn, Rn, Gn, Bn);
+    if (step_ == 1) {
+        for (std::uint32_t e = bin_start_[t]; e < bin_start_[t + 1]; ++e) {
+            const std::size_t i = bin_index_[e];
+            splat_gaussian(i, n, dx, dy, dz, far, Tf, Rf, Gf, Bf);
+            if (near_clip && g_[i].near) splat_gaussian(i, n, dx, dy, dz, t0, Tn, Rn, Gn, Bn);
+        }
+    } else {
+        splat_tile_reduced(t, x0, y0, w, y1 - y0, dx, dy, dz, far, t0, Tf, Rf, Gf, Bf, Tn, Rn, Gn, Bn);
     }
     // Homogeneous term per light.
     float L0[kTilePixels][3] = {};
@@ -517,6 +670,23 @@ void RbfSplat::splat_tile(int t, const float* depth, float* transmittance, float
         }
     }
     const double beta0 = medium_.beta0();
+    if (step_ > 1) {
+        // Reduced resolution: the same combination in float (fast_expf, vectorised).
+        float Tr[kTilePixels], sg[kTilePixels], sc[kTilePixels];
+        finish_float(n, float(beta0), near_clip, far, t0, Tf, Tn, Tr, sg, sc);
+        for (int j = y0; j < y1; ++j)
+            for (int i = x0; i < x1; ++i) {
+                const int k = (j - y0) * w + (i - x0);
+                const size_t p = size_t(j) * W_ + i;
+                const bool seg = far[k] > t0[k];
+                const float gauss[3] = {Rf[k] - Rn[k], Gf[k] - Gn[k], Bf[k] - Bn[k]};
+                for (int c = 0; c < 3; ++c) {
+                    transmittance[3 * p + c] = Tr[k];
+                    airlight[3 * p + c] = seg ? sc[k] * std::max(0.0f, gauss[c]) + sg[k] * L0[k][c] : 0.0f;
+                }
+            }
+        return;
+    }
     for (int j = y0; j < y1; ++j)
         for (int i = x0; i < x1; ++i) {
             const int k = (j - y0) * w + (i - x0);
@@ -536,11 +706,232 @@ void RbfSplat::splat_tile(int t, const float* depth, float* transmittance, float
         }
 }
 
+void RbfSplat::splat_tile_reduced(int t, int x0, int y0, int w, int h, const float* dx, const float* dy,
+                                  const float* dz, const float* far, const float* t0, float* Tf, float* Rf, float* Gf,
+                                  float* Bf, float* Tn, float* Rn, float* Gn, float* Bn) const {
+    const int n = w * h, s = step_;
+    const bool near_clip = clip_start_ > 0.0;
+    // The tile's depth range (far = max(Dvp, t0); inf where no hit).
+    float dmin = std::numeric_limits<float>::infinity(), dmax = 0.0f;
+    for (int k = 0; k < n; ++k) {
+        dmin = std::min(dmin, far[k]);
+        dmax = std::max(dmax, far[k]);
+    }
+    // Lattice of rays at the film corners x0 + s u, y0 + s v covering the pixel centres,
+    // padded to whole SIMD vectors with copies of the last ray.
+    constexpr int kMaxLattice = 96;  // (16 / 2 + 1)^2 = 81 at step 2, rounded up to 16
+    const int nu = int((w - 0.5) / s) + 2, nv = int((h - 0.5) / s) + 2;
+    const int m = nu * nv, m_pad = (m + 15) / 16 * 16;
+    float lx[kMaxLattice], ly[kMaxLattice], lz[kMaxLattice];
+    for (int v = 0; v < nv; ++v)
+        for (int u = 0; u < nu; ++u) {
+            const Vec3 d = glm::normalize(D0_ + double(x0 + s * u) * Dx_ + double(y0 + s * v) * Dy_);
+            const int k = v * nu + u;
+            lx[k] = float(d.x);
+            ly[k] = float(d.y);
+            lz[k] = float(d.z);
+        }
+    for (int k = m; k < m_pad; ++k) {
+        lx[k] = lx[m - 1];
+        ly[k] = ly[m - 1];
+        lz[k] = lz[m - 1];
+    }
+    float cT[kMaxLattice] = {}, cR[kMaxLattice] = {}, cG[kMaxLattice] = {}, cB[kMaxLattice] = {};
+    // Near segments on the lattice (near clip only): lattice t0 and sums.
+    float lt0[kMaxLattice], nT[kMaxLattice] = {}, nR[kMaxLattice] = {}, nG[kMaxLattice] = {}, nB[kMaxLattice] = {};
+    bool near_lattice = false;
+    if (near_clip)
+        for (int k = 0; k < m_pad; ++k)
+            lt0[k] = float(clip_start_ / (double(lx[k]) * forward_.x + double(ly[k]) * forward_.y +
+                                          double(lz[k]) * forward_.z));
+    std::size_t lattice = 0, exact = 0, behind = 0;
+    // The tile's pixels regrouped into 4x4 blocks (one SIMD vector each), so that a
+    // Gaussian the surface cuts is evaluated exactly only on the blocks it reaches.
+    constexpr int kBlock = 4, kMaxBlocks = (RbfSplat::kTile / kBlock) * (RbfSplat::kTile / kBlock);
+    int perm[kTilePixels], block_start[kMaxBlocks + 1];
+    float bx[kTilePixels], by[kTilePixels], bz[kTilePixels], bfar[kTilePixels];
+    int n_blocks = 0;
+    {
+        int k = 0;
+        for (int by0 = 0; by0 < h; by0 += kBlock)
+            for (int bx0 = 0; bx0 < w; bx0 += kBlock) {
+                block_start[n_blocks++] = k;
+                for (int j = by0; j < std::min(h, by0 + kBlock); ++j)
+                    for (int i = bx0; i < std::min(w, bx0 + kBlock); ++i) {
+                        const int q = j * w + i;
+                        perm[k] = q;
+                        bx[k] = dx[q];
+                        by[k] = dy[q];
+                        bz[k] = dz[q];
+                        bfar[k] = far[q];
+                        ++k;
+                    }
+            }
+        block_start[n_blocks] = k;
+    }
+    // Per regrouped pixel: its lattice cell (top-left lattice index) and bilinear weights.
+    int lat[kTilePixels];
+    float wgt[4 * kTilePixels];
+    for (int k = 0; k < n; ++k) {
+        const int q = perm[k], j = q / w, i = q % w;
+        const float fx = (float(i) + 0.5f) / float(s), fy = (float(j) + 0.5f) / float(s);
+        const int u = int(fx), v = int(fy);
+        const float wx = fx - float(u), wy = fy - float(v);
+        lat[k] = v * nu + u;
+        wgt[4 * k] = (1.0f - wx) * (1.0f - wy);
+        wgt[4 * k + 1] = wx * (1.0f - wy);
+        wgt[4 * k + 2] = (1.0f - wx) * wy;
+        wgt[4 * k + 3] = wx * wy;
+    }
+    float eT[kTilePixels] = {}, eR[kTilePixels] = {}, eG[kTilePixels] = {}, eB[kTilePixels] = {};
+    // Conservative margins for the float depths (relative 1e-6).
+    const double far_lo = double(dmin) * (1.0 - 1e-6), far_hi = double(dmax) * (1.0 + 1e-6);
+    // Next to a light's image the light terms peak (1 / |b^r - s|^2 along rays passing
+    // close to the light): no interpolation there.
+    const bool exact_tile = exact_tile_[t] != 0;
+    for (std::uint32_t e = bin_start_[t]; e < bin_start_[t + 1]; ++e) {
+        const std::size_t i = bin_index_[e];
+        const GaussF& g = g_[i];
+        if (near_clip && g.near) {
+            if (exact_tile) {
+                splat_gaussian(i, n, dx, dy, dz, far, Tf, Rf, Gf, Bf);
+                splat_gaussian(i, n, dx, dy, dz, t0, Tn, Rn, Gn, Bn);
+                ++exact;
+                continue;
+            }
+            // The near segment [0, t0] (t0 = clip_start / cos, smooth in the direction) on
+            // the lattice; the far segment is classified below like any other.
+            splat_gaussian(i, m_pad, lx, ly, lz, lt0, nT, nR, nG, nB);
+            near_lattice = true;
+        }
+        if (exact_tile) {
+            splat_gaussian(i, n, dx, dy, dz, far, Tf, Rf, Gf, Bf);
+            ++exact;
+            continue;
+        }
+        // By the tile's depth range, else ray by ray (the sphere inflated by 1e-4 for
+        // the float rounding of ts and h).
+        const bool front = g.dist + g.radius <= far_lo, back = g.dist - g.radius >= far_hi;
+        if (back) {
+            ++behind;
+            continue;
+        }
+        if (front) {
+            splat_gaussian(i, m_pad, lx, ly, lz, nullptr, cT, cR, cG, cB);
+            ++lattice;
+            continue;
+        }
+        // Block by block: blocks wholly behind are skipped; if every block is in front the
+        // Gaussian goes to the lattice, else the blocks not behind are evaluated exactly.
+        const float R = float(g.radius * (1.0 + 1e-4));
+        bool all_front = true, any_exact = false;
+        unsigned live = 0, front_blocks = 0, cut = 0;  // blocks not wholly behind; in front; cut
+        for (int b = 0; b < n_blocks; ++b) {
+            int not_front = 0, not_behind = 0;
+            const int k0 = block_start[b];
+            depth_classes(g, R * R, block_start[b + 1] - k0, bx + k0, by + k0, bz + k0, bfar + k0, not_front,
+                          not_behind);
+            all_front = all_front && not_front == 0;
+            if (not_behind > 0) live |= 1u << b;
+            if (not_front == 0) front_blocks |= 1u << b;
+            else if (not_behind > 0) cut |= 1u << b;
+        }
+        if (all_front) {
+            splat_gaussian(i, m_pad, lx, ly, lz, nullptr, cT, cR, cG, cB);
+            ++lattice;
+            continue;
+        }
+        // Cheaper, when few blocks are cut: the Gaussian on the lattice like the ones in
+        // front, and on the other blocks its interpolated lattice value replaced, by the
+        // exact one on blocks it cuts and by nothing on blocks wholly behind.
+        int cut_px = 0, live_px = 0, other_px = 0;
+        for (int b = 0; b < n_blocks; ++b) {
+            const int nb = block_start[b + 1] - block_start[b];
+            if (live >> b & 1u) live_px += nb;
+            if (cut >> b & 1u) cut_px += nb;
+            if (!(front_blocks >> b & 1u)) other_px += nb;
+        }
+        if (m_pad + cut_px + other_px / 8 < live_px) {
+            float gT[kMaxLattice] = {}, gR[kMaxLattice] = {}, gG[kMaxLattice] = {}, gB[kMaxLattice] = {};
+            splat_gaussian(i, m_pad, lx, ly, lz, nullptr, gT, gR, gG, gB);
+            add_to(gT, m_pad, cT);
+            add_to(gR, m_pad, cR);
+            add_to(gG, m_pad, cG);
+            add_to(gB, m_pad, cB);
+            for (int b = 0; b < n_blocks; ++b) {
+                if (front_blocks >> b & 1u) continue;
+                const int k0 = block_start[b], nb = block_start[b + 1] - k0;
+                if (cut >> b & 1u) {
+                    splat_gaussian(i, nb, bx + k0, by + k0, bz + k0, bfar + k0, eT + k0, eR + k0, eG + k0, eB + k0);
+                }
+                sub_interp(nb, lat + k0, wgt + 4 * k0, nu, gT, gR, gG, gB, eT + k0, eR + k0, eG + k0, eB + k0);
+            }
+            ++lattice;
+            continue;
+        }
+        for (int b = 0; b < n_blocks; ++b) {
+            if (!(live >> b & 1u)) continue;
+            // Runs of consecutive live blocks in one call.
+            int e = b;
+            while (e + 1 < n_blocks && (live >> (e + 1) & 1u)) ++e;
+            const int k0 = block_start[b], k1 = block_start[e + 1];
+            splat_gaussian(i, k1 - k0, bx + k0, by + k0, bz + k0, bfar + k0, eT + k0, eR + k0, eG + k0, eB + k0);
+            any_exact = true;
+            b = e;
+        }
+        if (any_exact) ++exact;
+        else ++behind;
+    }
+    n_lattice_.fetch_add(lattice, std::memory_order_relaxed);
+    n_exact_.fetch_add(exact, std::memory_order_relaxed);
+    n_behind_.fetch_add(behind, std::memory_order_relaxed);
+    for (int k = 0; k < n; ++k) {
+        const int q = perm[k];
+        Tf[q] += eT[k];
+        Rf[q] += eR[k];
+        Gf[q] += eG[k];
+        Bf[q] += eB[k];
+    }
+    if (lattice == 0 && !near_lattice) return;
+    // Bilinear interpolation of the lattice sums to the pixel centres.
+    const float inv_s = 1.0f / float(s);
+    for (int j = 0; j < h; ++j) {
+        const float fy = (float(j) + 0.5f) * inv_s;
+        const int v = int(fy);
+        const float wy = fy - float(v);
+        for (int i = 0; i < w; ++i) {
+            const float fx = (float(i) + 0.5f) * inv_s;
+            const int u = int(fx);
+            const float wx = fx - float(u);
+            const int a = v * nu + u, b = a + 1, c = a + nu, d = c + 1;
+            const float w00 = (1.0f - wx) * (1.0f - wy), w10 = wx * (1.0f - wy), w01 = (1.0f - wx) * wy, w11 = wx * wy;
+            const int k = j * w + i;
+            Tf[k] += w00 * cT[a] + w10 * cT[b] + w01 * cT[c] + w11 * cT[d];
+            Rf[k] += w00 * cR[a] + w10 * cR[b] + w01 * cR[c] + w11 * cR[d];
+            Gf[k] += w00 * cG[a] + w10 * cG[b] + w01 * cG[c] + w11 * cG[d];
+            Bf[k] += w00 * cB[a] + w10 * cB[b] + w01 * cB[c] + w11 * cB[d];
+            if (near_lattice) {
+                Tn[k] += w00 * nT[a] + w10 * nT[b] + w01 * nT[c] + w11 * nT[d];
+                Rn[k] += w00 * nR[a] + w10 * nR[b] + w01 * nR[c] + w11 * nR[d];
+                Gn[k] += w00 * nG[a] + w10 * nG[b] + w01 * nG[c] + w11 * nG[d];
+                Bn[k] += w00 * nB[a] + w10 * nB[b] + w01 * nB[c] + w11 * nB[d];
+            }
+        }
+    }
+}
+
+RbfSplat::ReducedCounts RbfSplat::reduced_counts() const {
+    return {n_lattice_.load(), n_exact_.load(), n_behind_.load()};
+}
+
 void RbfSplat::eval_rays(const Vec3* dirs, const float* Dvp, const float* t0, int n, double* Tr, RGB* La) const {
     // Chunks of up to kChunk rays (the bake passes each edge pixel's sub-samples together,
     // so a chunk's rays are close): the union of the Gaussians whose cull spheres the
     // chunk's segments reach, each evaluated over the whole chunk with the splat's kernels.
-    constexpr int kChunk = 16;
+    // Reduced resolution gathers from the tile bins: 4 pixels' sub-samples per chunk
+    // amortise the per-Gaussian call overhead (neighbouring edge pixels share tiles).
+    constexpr int kChunk = 64;
+    const int chunk = step_ > 1 && !bin_start_.empty() ? kChunk : 16;
     const std::size_t L = lights_.size();
     const double beta0 = medium_.beta0();
     thread_local std::vector<std::uint32_t> stamp;
@@ -550,8 +941,8 @@ void RbfSplat::eval_rays(const Vec3* dirs, const float* Dvp, const float* t0, in
         generation = 0;
     }
     std::vector<std::uint32_t> gauss;
-    for (int k0 = 0; k0 < n; k0 += kChunk) {
-        const int m = std::min(kChunk, n - k0);
+    for (int k0 = 0; k0 < n; k0 += chunk) {
+        const int m = std::min(chunk, n - k0);
         float dx[kChunk], dy[kChunk], dz[kChunk], far[kChunk], tn[kChunk];
         double ddx[kChunk], ddy[kChunk], ddz[kChunk];
         bool any_near = false;
@@ -560,6 +951,17 @@ void RbfSplat::eval_rays(const Vec3* dirs, const float* Dvp, const float* t0, in
             generation = 1;
         }
         gauss.clear();
+        // Reduced resolution: the Gaussians binned to the tiles the rays fall in (a
+        // superset of each ray's cull; those wholly behind every segment left out) instead
+        // of one hierarchy traversal per ray. Full resolution keeps the per-ray traversal.
+        const bool from_bins = step_ > 1 && !bin_start_.empty();
+        float far_max = 0.0f;
+        for (int k = 0; k < m; ++k) {
+            tn[k] = t0 ? t0[k0 + k] : 0.0f;
+            far[k] = std::max(Dvp[k0 + k], tn[k]);
+            far_max = std::max(far_max, far[k]);
+        }
+        const double far_hi = double(far_max) * (1.0 + 1e-6);
         for (int k = 0; k < m; ++k) {
             const Vec3& d = dirs[k0 + k];
             ddx[k] = d.x;
@@ -568,9 +970,23 @@ void RbfSplat::eval_rays(const Vec3* dirs, const float* Dvp, const float* t0, in
             dx[k] = float(d.x);
             dy[k] = float(d.y);
             dz[k] = float(d.z);
-            tn[k] = t0 ? t0[k0 + k] : 0.0f;
-            far[k] = std::max(Dvp[k0 + k], tn[k]);
             any_near = any_near || tn[k] > 0.0f;
+            if (from_bins) {
+                const double lam = glm::dot(q0_, d);
+                const double px = lam > 0.0 ? glm::dot(q1_, d) / lam : -1.0, py = lam > 0.0 ? glm::dot(q2_, d) / lam : -1.0;
+                if (px >= 0.0 && py >= 0.0 && px <= double(W_) && py <= double(H_)) {
+                    const int tx = std::min(tiles_x_ - 1, int(px) / kTile), ty = std::min(tiles_y_ - 1, int(py) / kTile);
+                    const int t = ty * tiles_x_ + tx;
+                    for (std::uint32_t e = bin_start_[t]; e < bin_start_[t + 1]; ++e) {
+                        const std::uint32_t i = bin_index_[e];
+                        if (stamp[i] == generation) continue;
+                        stamp[i] = generation;
+                        // (a Gaussian reaching a near segment [0, t0] is not behind either)
+                        if (g_[i].dist - g_[i].radius < far_hi) gauss.push_back(i);
+                    }
+                    continue;
+                }
+            }
             medium_.for_each_near(eye_, d, double(far[k]), [&](std::size_t i) {
                 if (stamp[i] != generation) {
                     stamp[i] = generation;
@@ -684,8 +1100,16 @@ RbfPreviewFactors rbf_preview_factors(const RbfMedium& medium, const Vec3& eye, 
             v.resize(n_new);
             for (std::size_t j = 0; j < n_new; ++j) v[j] = float(medium.centre(n_old + j)[c] - from_of(row)[c]);
         }
+    // Only the new Gaussians whose cull sphere the segment reaches (the full computation's
+    // culling, for_each_near): a vectorised distance test, then the integrals of those.
+    std::vector<float> R2(n_new);
+    for (std::size_t j = 0; j < n_new; ++j) {
+        const double R = medium.cull_radius(n_old + j);
+        R2[j] = float(R * R);
+    }
     parallel_chunks(rows * n_old, threads, 64, [&](std::size_t b, std::size_t e) {
-        std::vector<float> out(n_new);
+        std::vector<float> out(n_new), keep(n_new), crx(n_new), cry(n_new), crz(n_new), ca(n_new), ck0(n_new);
+        std::vector<std::uint32_t> idx(n_new + 1);
         for (std::size_t k = b; k < e; ++k) {
             const std::size_t row = k / n_old, i = k % n_old;
             const Vec3 from = from_of(row);
@@ -694,9 +1118,27 @@ RbfPreviewFactors rbf_preview_factors(const RbfMedium& medium, const Vec3& eye, 
             double add = 0.0;
             if (D > 0.0 && n_new > 0) {
                 const Vec3 r = d / D;
-                segment_integrals(int(n_new), rel[row * 3].data(), rel[row * 3 + 1].data(), rel[row * 3 + 2].data(),
-                                  a.data(), k0.data(), float(r.x), float(r.y), float(r.z), float(D), out.data());
-                for (std::size_t j = 0; j < n_new; ++j) add += double(out[j]);
+                const float* rx = rel[row * 3].data();
+                const float* ry = rel[row * 3 + 1].data();
+                const float* rz = rel[row * 3 + 2].data();
+                segment_reaches(int(n_new), rx, ry, rz, R2.data(), float(r.x), float(r.y), float(r.z), float(D),
+                                keep.data());
+                std::size_t m = 0;
+                for (std::size_t j = 0; j < n_new; ++j) {
+                    idx[m] = std::uint32_t(j);
+                    m += keep[j] != 0.0f ? 1 : 0;
+                }
+                for (std::size_t q = 0; q < m; ++q) {
+                    const std::uint32_t j = idx[q];
+                    crx[q] = rx[j];
+                    cry[q] = ry[j];
+                    crz[q] = rz[j];
+                    ca[q] = a[j];
+                    ck0[q] = k0[j];
+                }
+                segment_integrals(int(m), crx.data(), cry.data(), crz.data(), ca.data(), ck0.data(), float(r.x),
+                                  float(r.y), float(r.z), float(D), out.data());
+                for (std::size_t q = 0; q < m; ++q) add += double(out[q]);
             }
             const double prev_T = row == 0 ? previous->T_vb[i] : previous->T_sb[(row - 1) * n_old + i];
             const double prev_own = row == 0 ? previous->own_vb[i] : previous->own_sb[(row - 1) * n_old + i];

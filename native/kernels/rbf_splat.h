@@ -27,6 +27,7 @@
 // as in the paper. It perturbs both the screen optical depth and the airlight.
 #pragma once
 
+#include <atomic>
 #include <cstddef>
 #include <cstdint>
 #include <memory>
@@ -64,7 +65,11 @@ class RbfSplat {
     // Bins the Gaussians into tiles for the image W x H whose pixel (px, py) (film
     // position, pixel centres at +0.5) looks along D0 + px Dx + py Dy from the eye;
     // _forward_ the unit view axis, _clip_start_ the near clip depth along it (0: none).
-    void bin(const Vec3& D0, const Vec3& Dx, const Vec3& Dy, const Vec3& forward, int W, int H, double clip_start);
+    // _step_ (1, 2 or 4) is the resolution of the Gaussian terms' evaluation, see
+    // splat_tile; 1 (full) is the plain splat. Throws std::invalid_argument otherwise.
+    void bin(const Vec3& D0, const Vec3& Dx, const Vec3& Dy, const Vec3& forward, int W, int H, double clip_start,
+             int step = 1);
+    int step() const { return step_; }
     int num_tiles() const { return tiles_x_ * tiles_y_; }
     // Pairs (tile, Gaussian) binned: the work of the splat.
     std::size_t num_pairs() const { return bin_index_.size(); }
@@ -72,7 +77,34 @@ class RbfSplat {
     // Evaluates tile _t_ (after bin()): reads depth[W H] (distance from the eye, inf: no
     // hit), writes transmittance (3 equal floats per pixel) and airlight (RGB) of the
     // tile's pixels into the W x H images. Thread safe for distinct tiles.
+    //
+    // Reduced resolution (step s = 2 or 4; Fogshop also evaluated its airlight at reduced
+    // resolution), in a depth-independent form: with the tile's pixel depths in [Dmin,
+    // Dmax] and Gaussian i at distance d_i from the eye with cull radius R_i,
+    //  - d_i - R_i >= Dmax ("behind"): every pixel's segment [0, Dvp] stays outside the
+    //    cull sphere, so the term is < cull_eps (the per-ray cull's bound): skipped;
+    //  - d_i + R_i <= Dmin ("in front"): beyond every pixel's Dvp the ray is outside the
+    //    sphere, so the term equals the one with Dvp = inf to < cull_eps (and b^r is the
+    //    same): a smooth function of the direction alone. These are evaluated with Dvp =
+    //    inf on a lattice of rays every s pixels (film corners x0 + s u, y0 + s v of the
+    //    tile, (16/s + 1)^2 rays) and interpolated bilinearly to the pixel centres;
+    //  - otherwise (the surface cuts the sphere somewhere in the tile): evaluated exactly,
+    //    on the tile's 4x4 pixel blocks whose segments the sphere does not wholly miss or
+    //    lie in front of (or, when cheaper, on the lattice with the exact value replacing
+    //    the interpolated one on the cut blocks).
+    //  A Gaussian reaching the near clip plane has its near segment [0, t0] (t0 = clip /
+    //  cos, smooth) on the lattice too. Tiles within 64 pixels of a light's image (where
+    //  the light terms peak) are evaluated exactly.
+    // So depth edges cost no accuracy (a pixel's depth only selects which Gaussians are
+    // exact); the error is the bilinear interpolation of smooth terms (measured in
+    // rbf_splat_test.cpp and benchmarks/bench_rbf.py).
     void splat_tile(int t, const float* depth, float* transmittance, float* airlight) const;
+    // Pair counts of the last splat at step > 1 (all tiles; reset by bin()): lattice
+    // (interpolated), exact per pixel, skipped behind the surface.
+    struct ReducedCounts {
+        std::size_t lattice = 0, exact = 0, behind = 0;
+    };
+    ReducedCounts reduced_counts() const;
 
     // Rays from the eye with unit directions dirs[k], segment [t0[k], Dvp[k]] (t0 null: 0):
     // the same quantities as splat_tile (Tr, RGB airlight), for edge supersampling. Rays go
@@ -93,6 +125,7 @@ class RbfSplat {
         float a, a2, k0;       // scale, a^2, c sqrt(pi) / (2 a)
         float nscale;          // noise: amplitude R / |b - eye|
         bool near;             // the cull sphere reaches the near clip ball
+        double dist, radius;   // |b - eye| and the cull radius R
     };
     // Per (Gaussian, light): b - s and the RGB weight albedo I0 f1' / (4 pi).
     struct GaussLightF {
@@ -105,9 +138,15 @@ class RbfSplat {
 
   private:
     // Accumulates Gaussian g's optical depth over [0, tend[k]] into accT and its airlight
-    // (all lights) into accR/G/B for the n rays (dx, dy, dz).
+    // (all lights) into accR/G/B for the n rays (dx, dy, dz). At step_ > 1, tend =
+    // nullptr means +inf for every ray (the lattice).
     void splat_gaussian(std::size_t g, int n, const float* dx, const float* dy, const float* dz, const float* tend,
                         float* accT, float* accR, float* accG, float* accB) const;
+    // The Gaussian terms of tile (x0, y0, w x h, n pixels) at step_ > 1 (see splat_tile)
+    // into the accumulators: far segment (tend = far) and near segment (t0).
+    void splat_tile_reduced(int t, int x0, int y0, int w, int h, const float* dx, const float* dy, const float* dz,
+                            const float* far, const float* t0, float* Tf, float* Rf, float* Gf, float* Bf, float* Tn,
+                            float* Rn, float* Gn, float* Bn) const;
     // Homogeneous term of light l for n rays: segment [t0, Dvp] attenuated from t0.
     void homogeneous(const double* cos_gamma, std::size_t l, const float* Dvp, const float* t0, int n,
                      float* out) const;
@@ -132,6 +171,10 @@ class RbfSplat {
     int W_ = 0, H_ = 0, tiles_x_ = 0, tiles_y_ = 0;
     Vec3 D0_{0.0}, Dx_{0.0}, Dy_{0.0}, forward_{0.0, 0.0, -1.0};
     double clip_start_ = 0.0;
+    int step_ = 1;
+    Vec3 q0_{0.0}, q1_{0.0}, q2_{0.0};  // film coordinates of a direction d: (q1.d, q2.d) / q0.d
+    std::vector<unsigned char> exact_tile_;  // step_ > 1: tiles evaluated exactly (next to a light)
+    mutable std::atomic<std::size_t> n_lattice_{0}, n_exact_{0}, n_behind_{0};
     std::vector<std::uint32_t> bin_start_;  // per tile, into bin_index_ (size tiles + 1)
     std::vector<std::uint32_t> bin_index_;
 };

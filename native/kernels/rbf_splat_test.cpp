@@ -10,6 +10,7 @@
 #include <ctime>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <random>
 
 #include "fast_erf.h"
@@ -305,18 +306,20 @@ TEST(RbfSplat, NoiseOffIdenticalOnBounded) {
 namespace airlight {
 namespace {
 // Profiling aid (not a timed test; run with --gtest_also_run_disabled_tests): the
-// 3000-Gaussian benchmark cloud of bench_rbf.py at 480 x 270, one light, one thread.
+// 3000-Gaussian benchmark cloud of bench_rbf.py (AIRLIGHT_PROFILE_34 set: its 34 broad
+// Gaussians) at 1920 x 1080, one light, one thread; full, half and quarter resolution.
 TEST(RbfSplat, DISABLED_Profile3000) {
     std::mt19937 rng(2);
     std::uniform_real_distribution<double> U(0.0, 1.0);
     std::vector<double> b, a, c;
-    for (int i = 0; i < 3000; ++i) {
+    const bool broad = std::getenv("AIRLIGHT_PROFILE_34") != nullptr;  // the 34 broad Gaussians instead
+    for (int i = 0; i < (broad ? 34 : 3000); ++i) {
         b.insert(b.end(), {-30.0 + 60.0 * U(rng), -2.0 + 8.0 * U(rng), 10.0 + 70.0 * U(rng)});
-        a.push_back(1.0 / (1.0 + 2.0 * U(rng)));
-        c.push_back(0.01 + 0.04 * U(rng));
+        a.push_back(broad ? 1.0 / (3.0 + 7.0 * U(rng)) : 1.0 / (1.0 + 2.0 * U(rng)));
+        c.push_back(broad ? 0.005 + 0.015 * U(rng) : 0.01 + 0.04 * U(rng));
     }
     const RbfMedium m(b, a, c, 0.002);
-    SmallCamera cam(480, 270);
+    SmallCamera cam(1920, 1080);
     const SpecialFTable table(256, 256);
     RbfSplat s(m, Vec3(0.0), {Vec3(-8.0, 4.0, 30.0)}, {RGB(40.0)}, RGB(0.9), {}, &table, RbfNoise{}, 1);
     s.bin(cam.D0, cam.Dx, cam.Dy, cam.forward, cam.W, cam.H, 0.1);
@@ -327,12 +330,29 @@ TEST(RbfSplat, DISABLED_Profile3000) {
             depth[size_t(j) * cam.W + i] = d.y < -1e-6 ? float(-2.0 / d.y) : std::numeric_limits<float>::infinity();
         }
     std::vector<float> T(3 * depth.size()), A(3 * depth.size());
+    // AIRLIGHT_PROFILE_STEP=s: only that step (for perf).
+    const char* only = std::getenv("AIRLIGHT_PROFILE_STEP");
+    if (only) {
+        s.bin(cam.D0, cam.Dx, cam.Dy, cam.forward, cam.W, cam.H, 0.1, std::atoi(only));
+        for (int rep = 0; rep < 3; ++rep)
+            for (int t = 0; t < s.num_tiles(); ++t) s.splat_tile(t, depth.data(), T.data(), A.data());
+        return;
+    }
     const std::clock_t t0 = std::clock();  // CPU time: the machine may be shared
     for (int t = 0; t < s.num_tiles(); ++t) s.splat_tile(t, depth.data(), T.data(), A.data());
     const double sec = double(std::clock() - t0) / CLOCKS_PER_SEC;
-    std::printf("splat 480x270: %.3f s CPU, %zu (tile, Gaussian) pairs = %.1f per pixel, %.2f ns per pixel-Gaussian\n",
+    std::printf("splat 1920x1080: %.3f s CPU, %zu (tile, Gaussian) pairs = %.1f per pixel, %.2f ns per pixel-Gaussian\n",
                 sec, s.num_pairs(), double(s.num_pairs()) * RbfSplat::kTile * RbfSplat::kTile / depth.size(),
                 sec * 1e9 / (double(s.num_pairs()) * RbfSplat::kTile * RbfSplat::kTile));
+    for (int step : {2, 4}) {
+        s.bin(cam.D0, cam.Dx, cam.Dy, cam.forward, cam.W, cam.H, 0.1, step);
+        const std::clock_t c0 = std::clock();
+        for (int t = 0; t < s.num_tiles(); ++t) s.splat_tile(t, depth.data(), T.data(), A.data());
+        const double sec_s = double(std::clock() - c0) / CLOCKS_PER_SEC;
+        const RbfSplat::ReducedCounts rc = s.reduced_counts();
+        std::printf("step %d: %.3f s CPU (x%.2f), pairs lattice %zu, exact %zu, behind %zu\n", step, sec_s,
+                    sec / sec_s, rc.lattice, rc.exact, rc.behind);
+    }
 }
 }  // namespace
 }  // namespace airlight

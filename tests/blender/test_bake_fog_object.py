@@ -143,3 +143,30 @@ def test05_fog_colours_are_exported_when_gathered(tmp_path, monkeypatch):
                                                               amplitudes=AMPLITUDES, colors=bad))
     with pytest.raises(scene_export.ExportError, match="colours"):
         scene_export.export_scene(scene, depsgraph)
+
+
+@needs_real_native
+def test06_fog_object_resolution_reaches_the_bake(tmp_path):
+    """scene.airlight.gaussian_resolution: Full is the per-pixel splat (Transmittance as
+    exact as test01's), Quarter differs from it but stays within its interpolation error."""
+    scene = build_plane_scene(tmp_path, size=(W, H))
+    fog_object.new_fog_object("Fog", scene.collection, CENTRES, SCALES, AMPLITUDES)
+    scene.airlight.model = 'SUN05'
+    passes = {}
+    for res in ('FULL', 'QUARTER'):
+        scene.airlight.gaussian_resolution = res
+        path = _bake(tmp_path / f"fog_{res}.exr")
+        passes[res] = {name: exr_pass(path, name) for name in ("Airlight", "Transmittance")}
+    eye, d, t0, t1 = _pixel_rays(scene)
+    medium = native.get().RbfMedium(CENTRES, SCALES, AMPLITUDES, beta0=scene.airlight.density)
+    inner = (slice(1, H - 1), slice(1, W - 1))
+    dirs = d[inner].reshape(-1, 3)
+    p = eye + t0[inner].reshape(-1, 1) * dirs
+    q = eye + t1[inner].reshape(-1, 1) * dirs
+    expected = np.exp(-medium.optical_depth(p, q, culled=False)).reshape(H - 2, W - 2)
+    np.testing.assert_allclose(passes['FULL']["Transmittance"][inner][..., 0], expected, rtol=2e-5, atol=1e-6)
+    quarter = passes['QUARTER']["Transmittance"][inner][..., 0]
+    assert not np.array_equal(quarter, passes['FULL']["Transmittance"][inner][..., 0])
+    np.testing.assert_allclose(quarter, expected, rtol=5e-2, atol=1e-4)
+    full_a, quarter_a = passes['FULL']["Airlight"], passes['QUARTER']["Airlight"]
+    np.testing.assert_allclose(quarter_a, full_a, rtol=5e-2, atol=1e-3 * full_a.max())

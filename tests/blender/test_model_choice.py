@@ -114,3 +114,44 @@ def test08_bake_refuses_sun05_with_anisotropic_phase(tmp_path):
     scene.airlight.model = 'BIRI06'
     description, settings = bake.prepare(scene, bpy.context.evaluated_depsgraph_get())
     stats, _ = bake.run(description, settings, str(tmp_path / "fog.exr"))
+
+
+def test20_gaussian_resolution_default_meets_default_accuracy():
+    """Fog objects: Quarter by default, and its measured error meets the default 1 % target,
+    so Automatic keeps it; stricter targets step to Half, then Full; never coarser than the
+    user's choice; explicit models keep the choice."""
+    settings = bpy.context.scene.airlight
+    prop = settings.bl_rna.properties["gaussian_resolution"]
+    assert prop.default == 'QUARTER'
+    assert model_choice.GAUSSIAN_RESOLUTION_ERROR['QUARTER'] * 100.0 <= prop_default(settings, "accuracy")
+    old = settings.model, settings.accuracy, settings.gaussian_resolution
+    try:
+        settings.model = 'AUTO'
+        settings.gaussian_resolution = 'QUARTER'
+        cases = ((1.0, "quarter"), (0.3, "half"), (0.1, "half"), (0.05, "full"), (0.01, "full"))
+        for accuracy, expected in cases:
+            settings.accuracy = accuracy
+            assert model_choice.gaussian_resolution(settings) == expected, accuracy
+            assert bake.bake_settings(bpy.context.scene)["gaussian_resolution"] == expected
+        settings.accuracy = 1.0
+        settings.gaussian_resolution = 'HALF'
+        assert model_choice.gaussian_resolution(settings) == "half"
+        settings.gaussian_resolution = 'FULL'
+        assert model_choice.gaussian_resolution(settings) == "full"
+        settings.model = 'SUN05'
+        settings.accuracy = 0.01
+        settings.gaussian_resolution = 'QUARTER'
+        assert model_choice.gaussian_resolution(settings) == "quarter"
+        # Fog noise is interpolated too, with its own (larger) measured error.
+        settings.model = 'AUTO'
+        settings.noise_amplitude = 0.4
+        for accuracy, expected in ((1.0, "full"), (2.0, "half"), (6.0, "quarter")):
+            settings.accuracy = accuracy
+            assert model_choice.gaussian_resolution(settings) == expected, accuracy
+    finally:
+        settings.model, settings.accuracy, settings.gaussian_resolution = old
+        settings.noise_amplitude = 0.0
+
+
+def prop_default(settings, name):
+    return settings.bl_rna.properties[name].default

@@ -181,3 +181,31 @@ def test05_preview_factors_incremental_equals_full():
         _native.rbf_preview_factors(b, a, c, SIGMA_T, eye, LIGHTS, previous=old, first_new=29)
     with pytest.raises(ValueError):
         _native.rbf_preview_factors(b, a, c, SIGMA_T, eye, LIGHTS[:1], previous=old, first_new=30)
+
+
+def test08_incremental_stroke_in_a_spread_cloud():
+    """A stroke of 40 small Gaussians added to 400 spread over a large volume: most new
+    Gaussians' cull spheres miss most old segments (the incremental call skips those, as
+    the full call's culling does). Incremental = from scratch to float rounding, and both
+    within the culling bound (cull_eps per skipped Gaussian) of numpy's unculled sum."""
+    rng = np.random.default_rng(21)
+
+    def spread(n):
+        b = np.column_stack([rng.uniform(-40, 40, n), rng.uniform(-3, 6, n), rng.uniform(-90, -8, n)])
+        return b, 1.0 / rng.uniform(0.5, 1.5, n), rng.uniform(0.05, 0.3, n)
+
+    (b0, a0, c0), (b1, a1, c1) = spread(400), spread(40)
+    b, a, c = np.concatenate([b0, b1]), np.concatenate([a0, a1]), np.concatenate([c0, c1])
+    eye = np.array([0.0, 1.0, 0.0])
+    old = _native.rbf_preview_factors(b0, a0, c0, SIGMA_T, eye, LIGHTS)
+    full = _native.rbf_preview_factors(b, a, c, SIGMA_T, eye, LIGHTS)
+    inc = _native.rbf_preview_factors(b, a, c, SIGMA_T, eye, LIGHTS, previous=old, first_new=400)
+    for key in ("T_vb", "own_vb", "T_sb", "own_sb", "C_sv", "D_sv", "cull_radius"):
+        np.testing.assert_allclose(inc[key], full[key], rtol=2e-5, atol=1e-7, err_msg=key)
+    bound = 1e-7 * len(a) + 2e-5
+    for i in range(0, 440, 7):
+        T, _ = segment_depth(b, a, c, eye, b[i])
+        assert abs(inc["T_vb"][i] - T) <= bound * max(1.0, T)
+        for l in range(len(LIGHTS)):
+            T, _ = segment_depth(b, a, c, LIGHTS[l], b[i])
+            assert abs(inc["T_sb"][l, i] - T) <= bound * max(1.0, T)
