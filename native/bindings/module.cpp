@@ -31,4 +31,5 @@ PYBIND11_MODULE(_native, m) {
     airlight::bindings::bind_models(m);
     airlight::bindings::bind_pegoraro(m);
     airlight::bindings::bind_env(m);
+    airlight::bindings::bind_surface(m);
 }

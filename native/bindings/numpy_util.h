@@ -75,5 +75,6 @@ void bind_rbf(py::module_& m);
 void bind_models(py::module_& m);
 void bind_pegoraro(py::module_& m);
 void bind_env(py::module_& m);
+void bind_surface(py::module_& m);
 
 }  // namespace airlight::bindings

@@ -17,7 +17,10 @@
 #include <sys/mman.h>
 #endif
 
+#include "biri06_surface.h"
 #include "rbf_medium.h"
+#include "spot_light.h"
+#include "spot_surface.h"
 #include "sun05_surface.h"
 
 namespace airlight {
@@ -74,16 +77,13 @@ void bake_surface_pass(const SceneDescription& scene, const BakeSettings& settin
     if (n_phong > 0.0) allocate_filled(result.surface_gloss_glow, 3 * n_pixels, 0.0f);
     allocate_filled(result.surface_normals, 3 * n_pixels, 0.0f);
 
-    // Light positions (point lights first, then spots) and the point lights' glow scale.
+    // Light positions (point lights first, then spots), the spots' cones.
     std::vector<Vec3> positions;
+    std::vector<SpotCone> cones;
     for (const PointLight& l : scene.point_lights) positions.push_back(l.position);
-    for (const SpotLight& l : scene.spot_lights) positions.push_back(l.position);
-    std::shared_ptr<const SurfaceGTable> table;
-    std::shared_ptr<const SurfaceGTable> phong;
-    if (sigma_t > 0.0 && n_point > 0) {
-        table = shared_surface_G_table(settings.surface_table_nT, settings.surface_table_ntheta);
-        if (n_phong > 0.0)
-            phong = shared_surface_G_table(settings.surface_phong_table_n, settings.surface_phong_table_n, n_phong);
+    for (const SpotLight& l : scene.spot_lights) {
+        positions.push_back(l.position);
+        cones.push_back(make_spot_cone(l.axis, l.spot_size, l.spot_blend));
     }
     std::unique_ptr<RbfMedium> rbf;
     if (!scene.gaussians.empty())
@@ -91,6 +91,36 @@ void bake_surface_pass(const SceneDescription& scene, const BakeSettings& settin
                                           scene.gaussians.amplitudes, sigma_t);
     // No fog: attenuation 1, glow 0 (normals are still written below: they do not depend on it).
     const bool fog = sigma_t > 0.0 || rbf;
+    // The glow's G tables (see bake_surface.h): Sun's isotropic ones, the phase-aware G_p of
+    // biri06_surface.h for an anisotropic phase, and for model biri06 Biri's own Lambert model
+    // (eq. 10, Gamma_L x cos, clamped at 0) with eq. 12 (= G_p, m = n) for the gloss.
+    const PhaseFunction& phase = scene.medium.phase;
+    const bool isotropic = phase_is_isotropic(phase);
+    std::shared_ptr<const SurfaceGTable> table;
+    std::shared_ptr<const SurfaceGTable> phong;
+    std::shared_ptr<const PhaseSurfaceGTable> phase_table, phase_phong;
+    std::shared_ptr<const Biri06LambertTable> biri_lambert;
+    if (fog && n_positional > 0) {
+        if (isotropic) {
+            table = shared_surface_G_table(settings.surface_table_nT, settings.surface_table_ntheta);
+            if (n_phong > 0.0)
+                phong = shared_surface_G_table(settings.surface_phong_table_n, settings.surface_phong_table_n, n_phong);
+        } else {
+            if (settings.model == ModelId::Biri06)
+                biri_lambert = shared_biri06_lambert_table(phase);
+            else
+                phase_table = shared_phase_surface_G_table(phase, settings.surface_table_nT,
+                                                           settings.surface_table_ntheta);
+            if (n_phong > 0.0)
+                phase_phong = shared_phase_surface_G_table(phase, settings.surface_phong_table_n,
+                                                           settings.surface_phong_table_n, n_phong);
+        }
+    }
+    const bool glow_on = table || phase_table || biri_lambert;
+    // Spots: the point-light glow times SpotGlowModel's factor (spot_surface.h), per spot.
+    std::vector<SpotGlowModel> spot_models;
+    if (glow_on)
+        for (const SpotCone& cone : cones) spot_models.emplace_back(cone, phase);
 
     // Rows interleaved over the threads; each row casts its centre rays with normals.
     auto work = [&](int first) {
@@ -131,19 +161,30 @@ void bake_surface_pass(const SceneDescription& scene, const BakeSettings& settin
                     const float att = float(att_d);
                     float* a = &result.surface_attenuation[(l * n_pixels + px) * 3];
                     a[0] = a[1] = a[2] = att;
-                    if (l >= n_point || !table || !(D > 0.0)) continue;
-                    // Lambert glow of point light l (homogeneous part of the fog).
+                    if (!glow_on || !(D > 0.0)) continue;
+                    // A spot's glow: the point-light glow times its model factor (spot_surface.h).
+                    RGB I0 = l < n_point ? scene.point_lights[l].I0 : scene.spot_lights[l - n_point].I0;
+                    if (l >= n_point) {
+                        const double factor = spot_models[l - n_point].factor(T, positions[l], p);
+                        if (!(factor > 0.0)) continue;
+                        I0 *= factor;
+                    }
+                    // Lambert glow of light l. Homogeneous fog: T = sigma_t D. With fog objects,
+                    // Fogshop eq. 25: the exact optical depth T(s, p) in place of sigma_t D and the
+                    // mean extinction T / D in place of sigma_t.
+                    const double beta_bar = rbf ? T / D : sigma_t;
                     const double cos_s = std::clamp(glm::dot(n, v) / D, -1.0, 1.0);
-                    // e^{-T} G from the scaled table (T is sigma_t D here: no Gaussians in it).
-                    const double Ts = sigma_t * D;
-                    const double G = (rbf ? std::exp(-Ts) : att_d) * table->eval_scaled(Ts, std::acos(cos_s));
-                    glow += scene.point_lights[l].I0 * (sigma_t * G / (2.0 * kPi * D * kPi));
-                    if (phong) {
+                    // e^{-T} G from the scaled table.
+                    double G;
+                    if (table) G = att_d * table->eval_scaled(T, std::acos(cos_s));
+                    else if (phase_table) G = att_d * phase_table->eval_scaled(T, std::acos(cos_s));
+                    else G = att_d * std::max(0.0, biri_lambert->eval_G_scaled(T, cos_s));
+                    glow += I0 * (beta_bar * G / (2.0 * kPi * D * kPi));
+                    if (phong || phase_phong) {
                         // Glossy: angles from the mirrored view direction (Ramamoorthi-Hanrahan).
                         const double cos_r = std::clamp(glm::dot(mirror, v) / D, -1.0, 1.0);
-                        const double Gn = phong->eval(sigma_t * D, std::acos(cos_r));
-                        gloss += scene.point_lights[l].I0 *
-                                 ((n_phong + 2.0) / (2.0 * kPi) * sigma_t * Gn / (2.0 * kPi * D));
+                        const double Gn = phong ? phong->eval(T, std::acos(cos_r)) : phase_phong->eval(T, std::acos(cos_r));
+                        gloss += I0 * ((n_phong + 2.0) / (2.0 * kPi) * beta_bar * Gn / (2.0 * kPi * D));
                     }
                 }
                 for (int c = 0; c < 3; ++c) result.surface_glow[3 * px + c] = float(albedo[c] * glow[c]);
