@@ -116,6 +116,29 @@ py::array_t<double> spot_glow_factor_py(const py::object& T, const py::object& c
     return out;
 }
 
+double spot_reference_py(const py::object& s, const py::object& axis, double spot_size, double spot_blend,
+                         const py::object& p, const py::object& n, double sigma_t, const std::string& phase, double g,
+                         double rel_tol) {
+    const PhaseFunction ph = parse(phase, g);
+    auto vec = [](const py::object& o, const char* name) {
+        auto a = as_array<double>(o, name);
+        if (a.size() != 3) throw py::value_error(std::string(name) + ": expected 3 numbers");
+        const glm::dvec3 v(a.data()[0], a.data()[1], a.data()[2]);
+        if (!std::isfinite(v.x + v.y + v.z)) throw py::value_error(std::string(name) + ": must be finite");
+        return v;
+    };
+    const glm::dvec3 vs = vec(s, "s"), va = vec(axis, "axis"), vp = vec(p, "p"), vn = vec(n, "n");
+    if (!(spot_size > 0.0 && spot_size <= kPi) || !(spot_blend >= 0.0 && spot_blend <= 1.0))
+        throw py::value_error("spot_surface_glow_reference: spot_size in (0, pi], spot_blend in [0, 1]");
+    if (!(sigma_t > 0.0 && std::isfinite(sigma_t))) throw py::value_error("spot_surface_glow_reference: sigma_t > 0");
+    if (!(glm::length(va) > 0.0 && glm::length(vn) > 0.0 && glm::length(vs - vp) > 0.0))
+        throw py::value_error("spot_surface_glow_reference: need a non-zero axis and normal, p != s");
+    if (!(rel_tol > 0.0 && rel_tol < 1.0)) throw py::value_error("spot_surface_glow_reference: rel_tol in (0, 1)");
+    py::gil_scoped_release release;
+    return spot_surface_glow_reference(make_spot_cone(va, spot_size, spot_blend), vs, ph, sigma_t, vp,
+                                       glm::normalize(vn), 1.0, rel_tol);
+}
+
 }  // namespace
 
 void bind_surface(py::module_& m) {
@@ -138,6 +161,12 @@ beta H_p / (2 pi D) (biri06_surface.h). Isotropic: Sun 2005's H.)doc");
 point at optical depth T from it, with cos_psi the cosine between the spot axis and the
 direction light -> point, is this factor times the glow of a point light of the same I0.
 Exact for a surface facing the light.)doc");
+    m.def("spot_surface_glow_reference", &spot_reference_py, "s"_a, "axis"_a, "spot_size"_a, "spot_blend"_a, "p"_a,
+          "n"_a, "sigma_t"_a, "phase"_a = "isotropic", "g"_a = 0.0, "rel_tol"_a = 1e-4,
+          R"doc(Brute-force Lambert glow (irradiance, I0 = 1, albedo 1) at p with normal n from a spot at s
+(Cycles profile about axis, spot_size, spot_blend) in fog sigma_t: incident directions by
+composite Gauss-Legendre, the spot's single scattering along each by adaptive quadrature
+(spot_surface.h). Compare with factor x sigma_t G / (2 pi D). Seconds.)doc");
     m.def("biri06_gamma_L", &gamma_L_py, "lam"_a, "phase"_a = "isotropic", "g"_a = 0.0, "exact"_a = true,
           R"doc(Biri 2006 eq. 11 Gamma_L(lambda) (exponent corrected: (cos(alpha - phi) + sin phi)/cos alpha;
 p normalised to 1 over the sphere). Biri's Lambert glow (eq. 10, the unclamped cosine) is

@@ -45,6 +45,17 @@ void allocate_filled(std::vector<float>& v, size_t n, float value) {
 }
 }  // namespace
 
+std::shared_ptr<const SpotGlowModel> shared_spot_glow_model(const SpotCone& cone, const PhaseFunction& phase) {
+    // The table depends on the cone's angle and blend and on the phase, not on the axis.
+    static std::mutex mutex;
+    static std::map<std::tuple<double, double, int, double>, std::shared_ptr<const SpotGlowModel>> cache;
+    std::lock_guard<std::mutex> lock(mutex);
+    const double g = phase.kind == PhaseKind::HenyeyGreenstein ? phase.g : 0.0;
+    auto& slot = cache[{cone.cos_half_angle, cone.smooth, int(phase.kind), g}];
+    if (!slot) slot = std::make_shared<const SpotGlowModel>(cone, phase);
+    return slot;
+}
+
 std::shared_ptr<const SurfaceGTable> shared_surface_G_table(int nT, int ntheta, double m) {
     static std::mutex mutex;
     static std::map<std::tuple<int, int, double>, std::shared_ptr<const SurfaceGTable>> cache;
@@ -118,9 +129,9 @@ void bake_surface_pass(const SceneDescription& scene, const BakeSettings& settin
     }
     const bool glow_on = table || phase_table || biri_lambert;
     // Spots: the point-light glow times SpotGlowModel's factor (spot_surface.h), per spot.
-    std::vector<SpotGlowModel> spot_models;
+    std::vector<std::shared_ptr<const SpotGlowModel>> spot_models;
     if (glow_on)
-        for (const SpotCone& cone : cones) spot_models.emplace_back(cone, phase);
+        for (const SpotCone& cone : cones) spot_models.push_back(shared_spot_glow_model(cone, phase));
 
     // Rows interleaved over the threads; each row casts its centre rays with normals.
     auto work = [&](int first) {
@@ -162,10 +173,14 @@ void bake_surface_pass(const SceneDescription& scene, const BakeSettings& settin
                     float* a = &result.surface_attenuation[(l * n_pixels + px) * 3];
                     a[0] = a[1] = a[2] = att;
                     if (!glow_on || !(D > 0.0)) continue;
+                    // Beyond the tables (T > 64) the glow is below e^{-64} of the light's: skip it on
+                    // the new paths (the exact evaluators cost ~ms a pixel; fog objects reach such T
+                    // often). Sun's isotropic homogeneous path keeps its exact fallback (unchanged).
+                    if ((rbf || !table) && T > 64.0) continue;
                     // A spot's glow: the point-light glow times its model factor (spot_surface.h).
                     RGB I0 = l < n_point ? scene.point_lights[l].I0 : scene.spot_lights[l - n_point].I0;
                     if (l >= n_point) {
-                        const double factor = spot_models[l - n_point].factor(T, positions[l], p);
+                        const double factor = spot_models[l - n_point]->factor(T, glm::dot(cones[l - n_point].axis, -v) / D);
                         if (!(factor > 0.0)) continue;
                         I0 *= factor;
                     }

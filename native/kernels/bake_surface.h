@@ -35,6 +35,7 @@
 #include "bake.h"
 #include "camera.h"
 #include "raycast.h"
+#include "spot_surface.h"
 
 namespace airlight {
 
@@ -46,5 +47,10 @@ void bake_surface_pass(const SceneDescription& scene, const BakeSettings& settin
 // The G table of exponent _m_ (1: Lambert) the bake uses, built once per (m, size) for the
 // process.
 std::shared_ptr<const class SurfaceGTable> shared_surface_G_table(int nT, int ntheta, double m = 1.0);
+
+// The spot glow model for a cone's angle and blend (the axis does not enter its table) and a
+// phase, built once per process and shared (thread safe; ~50-100 ms to build).
+std::shared_ptr<const SpotGlowModel> shared_spot_glow_model(const SpotCone& cone,
+                                                                  const PhaseFunction& phase);
 
 }  // namespace airlight
