@@ -19,6 +19,13 @@ without it their light reaches surfaces unattenuated, as Hoffman-Preetham assume
 their glow is the sunlight the fog (layer) scatters onto the surface
 (native/kernels/sun_layer_glow.h). Eevee and Workbench have no light groups: there the composite stays
 render x Transmittance + Airlight; the Hoffman-Preetham model has no surface pass.
+
+The glow's model depends on the phase function and the fog model (bake_surface.h;
+`glow_model_text` says which for the panel): Sun 2005's G0/Gn for the isotropic phase; the
+phase-aware G_p (Biri 2006 eq. 8-13 with the hemisphere clamped) for any other phase; with
+model biri06 and an anisotropic phase, Biri's own Lambert model (eq. 10, the unclamped cosine,
+clamped at 0). Spot lights glow as a point light times a cone factor (exact for surfaces facing
+the light); with fog objects the glow takes the exact optical depth T(s, p) (Fogshop eq. 25).
 """
 
 import re
@@ -43,6 +50,26 @@ def active(scene):
     settings = scene.airlight
     return (bool(settings.surface_shading) and scene.render.engine == 'CYCLES'
             and settings.model != 'HOFFMAN02')
+
+
+# Measured errors of the glow models (native/kernels/biri06_surface_test.cpp,
+# spot_surface_test.cpp), for the panel.
+GLOW_G_P_TABLE_ERROR = 0.011  # phase-aware G_p table, max over the tested phases (HG 0.9)
+BIRI06_LAMBERT_ERROR = 0.86   # eq. 10 vs the clamped G_p facing the light, worst (HG -0.9)
+
+
+def glow_model_text(settings, model_name):
+    """One line for the Surface Shading panel: which glow model the bake uses for these fog
+    settings and the resolved fog model _model_name_ (native name, e.g. "biri06")."""
+    from . import model_choice
+    if model_choice.is_isotropic(settings):
+        text = "Glow: Sun 2005 G0 (isotropic phase)"
+    elif model_name == "biri06":
+        text = (f"Glow: Biri 2006 eq. 10 (coarse: up to {100 * BIRI06_LAMBERT_ERROR:.0f} % low, "
+                "none facing away)")
+    else:
+        text = f"Glow: phase-aware G (Biri 2006 eq. 8-13), table ≤ {100 * GLOW_G_P_TABLE_ERROR:.2g} %"
+    return text
 
 
 def group_name(object_name):

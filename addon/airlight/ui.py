@@ -4,7 +4,7 @@ import math
 
 import bpy
 
-from . import compositor, model_choice, native
+from . import compositor, model_choice, native, surface
 from .properties import SUPPORTED_LIGHT_TYPES
 
 
@@ -73,6 +73,8 @@ class AIRLIGHT_PT_scene(bpy.types.Panel):
         sub = col.column()
         sub.active = settings.surface_shading
         sub.prop(settings, "surface_gloss")
+        if settings.surface_shading and not problem and settings.model != 'HOFFMAN02':
+            sub.label(text=surface.glow_model_text(settings, model_choice.choose(settings)[0]), icon='LIGHT')
         if settings.surface_shading and context.scene.render.engine != 'CYCLES':
             col.label(text="Surface shading needs Cycles (light groups): "
                            "plain fog composite here", icon='INFO')

@@ -373,15 +373,17 @@ table_size: samples per axis of the model's 2D table (sun05's F table, biri06's 
 surface: also bake surface shading through the fog (Sun 2005 eq. 13-19, bake_surface.h):
   adds surface_attenuation=(L, H, W, 3) float32, e^{-T(light, first hit)} per light (the
   point lights, then the spot lights, in argument order; 1 where no hit), and
-  surface_glow=(H, W, 3) float32, the point lights' scattered light on a Lambert surface
-  per unit diffuse colour (multiply by Cycles' DiffCol pass), surface_normals=(H, W, 3)
+  surface_glow=(H, W, 3) float32, the point and spot lights' scattered light on a Lambert
+  surface per unit diffuse colour (multiply by Cycles' DiffCol pass; G by phase and model as
+  bake_surface.h: Sun's G0 for the isotropic phase, the phase-aware G_p otherwise, Biri's
+  eq. 10 for model biri06 with an anisotropic phase), surface_normals=(H, W, 3)
   float32, the first hit's geometric normal facing the camera (0 where no hit), and stats
   seconds_surface.
 rayleigh_density: Rayleigh scattering coefficient at 550 nm in 1/m for model "hoffman02"
   (Hoffman & Preetham 2002: beta_R ~ 1/lambda^4 per channel, sigma_t is the Mie part with the
   HG g; sun lamps only, per-channel transmittance; bake_hoffman02.h). Ignored by other models.
 surface_phong_exponent: with surface, n in [1, 10000] also adds surface_gloss_glow=(H, W, 3):
-  the point lights' scattered light on a normalised Phong lobe (n + 2)/(2 pi) cos^n about the
+  the point and spot lights' scattered light on a normalised Phong lobe (n + 2)/(2 pi) cos^n about the
   mirrored view direction (Sun 2005 eq. 18, Gn), per unit glossy colour. 0: off.
 
 Returns dict(airlight=(H, W, 3) float32, transmittance=(H, W, 3) float32,

@@ -33,4 +33,5 @@ PYBIND11_MODULE(_native, m) {
     airlight::bindings::bind_env(m);
     airlight::bindings::bind_preview(m);
     airlight::bindings::bind_rbf_environment(m);
+    airlight::bindings::bind_surface(m);
 }

@@ -77,5 +77,6 @@ void bind_pegoraro(py::module_& m);
 void bind_env(py::module_& m);
 void bind_preview(py::module_& m);
 void bind_rbf_environment(py::module_& m);
+void bind_surface(py::module_& m);
 
 }  // namespace airlight::bindings

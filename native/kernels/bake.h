@@ -65,13 +65,13 @@ struct BakeResult {
     // Surface shading (settings.surface only; empty otherwise), at pixel centres, RGB:
     // surface_attenuation = e^{-T(light l, first hit)}, image after image for the fogged
     // lights l (point lights, then spot lights, in SceneDescription order; 1 where no hit):
-    // 3 * width * height floats per light; surface_glow = the Lambert glow of all point
+    // 3 * width * height floats per light; surface_glow = the Lambert glow of all point and spot
     // lights per unit diffuse colour (bake_surface.h).
     int surface_lights = 0;
     std::vector<float> surface_attenuation;
     std::vector<float> surface_glow;
-    // settings.surface_phong_exponent > 0 only: the point lights' glossy glow per unit
-    // glossy colour, (n + 2) / (2 pi) sum_l albedo I0 sigma_t Gn(T, theta'_s) / (2 pi D).
+    // settings.surface_phong_exponent > 0 only: the point and spot lights' glossy glow per
+    // unit glossy colour, (n + 2) / (2 pi) sum_l albedo I0 sigma_t Gn(T, theta'_s) / (2 pi D).
     std::vector<float> surface_gloss_glow;
     // settings.surface only: the geometric normal of the first hit at each pixel centre,
     // turned towards the camera (3 floats per pixel, 0 where the ray hits nothing), for

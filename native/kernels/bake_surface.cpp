@@ -17,7 +17,10 @@
 #include <sys/mman.h>
 #endif
 
+#include "biri06_surface.h"
 #include "rbf_medium.h"
+#include "spot_light.h"
+#include "spot_surface.h"
 #include "sun05_surface.h"
 #include "sun_layer_glow.h"
 
@@ -42,6 +45,17 @@ void allocate_filled(std::vector<float>& v, size_t n, float value) {
     v.resize(n, value);
 }
 }  // namespace
+
+std::shared_ptr<const SpotGlowModel> shared_spot_glow_model(const SpotCone& cone, const PhaseFunction& phase) {
+    // The table depends on the cone's angle and blend and on the phase, not on the axis.
+    static std::mutex mutex;
+    static std::map<std::tuple<double, double, int, double>, std::shared_ptr<const SpotGlowModel>> cache;
+    std::lock_guard<std::mutex> lock(mutex);
+    const double g = phase.kind == PhaseKind::HenyeyGreenstein ? phase.g : 0.0;
+    auto& slot = cache[{cone.cos_half_angle, cone.smooth, int(phase.kind), g}];
+    if (!slot) slot = std::make_shared<const SpotGlowModel>(cone, phase);
+    return slot;
+}
 
 std::shared_ptr<const SurfaceGTable> shared_surface_G_table(int nT, int ntheta, double m) {
     static std::mutex mutex;
@@ -100,16 +114,13 @@ void bake_surface_pass(const SceneDescription& scene, const BakeSettings& settin
         }
     allocate_filled(result.surface_normals, 3 * n_pixels, 0.0f);
 
-    // Light positions (point lights first, then spots) and the point lights' glow scale.
+    // Light positions (point lights first, then spots), the spots' cones.
     std::vector<Vec3> positions;
+    std::vector<SpotCone> cones;
     for (const PointLight& l : scene.point_lights) positions.push_back(l.position);
-    for (const SpotLight& l : scene.spot_lights) positions.push_back(l.position);
-    std::shared_ptr<const SurfaceGTable> table;
-    std::shared_ptr<const SurfaceGTable> phong;
-    if (sigma_t > 0.0 && n_point > 0) {
-        table = shared_surface_G_table(settings.surface_table_nT, settings.surface_table_ntheta);
-        if (n_phong > 0.0)
-            phong = shared_surface_G_table(settings.surface_phong_table_n, settings.surface_phong_table_n, n_phong);
+    for (const SpotLight& l : scene.spot_lights) {
+        positions.push_back(l.position);
+        cones.push_back(make_spot_cone(l.axis, l.spot_size, l.spot_blend));
     }
     std::unique_ptr<RbfMedium> rbf;
     if (!scene.gaussians.empty())
@@ -117,6 +128,36 @@ void bake_surface_pass(const SceneDescription& scene, const BakeSettings& settin
                                           scene.gaussians.amplitudes, sigma_t);
     // No fog: attenuation 1, glow 0 (normals are still written below: they do not depend on it).
     const bool fog = sigma_t > 0.0 || rbf;
+    // The glow's G tables (see bake_surface.h): Sun's isotropic ones, the phase-aware G_p of
+    // biri06_surface.h for an anisotropic phase, and for model biri06 Biri's own Lambert model
+    // (eq. 10, Gamma_L x cos, clamped at 0) with eq. 12 (= G_p, m = n) for the gloss.
+    const PhaseFunction& phase = scene.medium.phase;
+    const bool isotropic = phase_is_isotropic(phase);
+    std::shared_ptr<const SurfaceGTable> table;
+    std::shared_ptr<const SurfaceGTable> phong;
+    std::shared_ptr<const PhaseSurfaceGTable> phase_table, phase_phong;
+    std::shared_ptr<const Biri06LambertTable> biri_lambert;
+    if (fog && n_positional > 0) {
+        if (isotropic) {
+            table = shared_surface_G_table(settings.surface_table_nT, settings.surface_table_ntheta);
+            if (n_phong > 0.0)
+                phong = shared_surface_G_table(settings.surface_phong_table_n, settings.surface_phong_table_n, n_phong);
+        } else {
+            if (settings.model == ModelId::Biri06)
+                biri_lambert = shared_biri06_lambert_table(phase);
+            else
+                phase_table = shared_phase_surface_G_table(phase, settings.surface_table_nT,
+                                                           settings.surface_table_ntheta);
+            if (n_phong > 0.0)
+                phase_phong = shared_phase_surface_G_table(phase, settings.surface_phong_table_n,
+                                                           settings.surface_phong_table_n, n_phong);
+        }
+    }
+    const bool glow_on = table || phase_table || biri_lambert;
+    // Spots: the point-light glow times SpotGlowModel's factor (spot_surface.h), per spot.
+    std::vector<std::shared_ptr<const SpotGlowModel>> spot_models;
+    if (glow_on)
+        for (const SpotCone& cone : cones) spot_models.push_back(shared_spot_glow_model(cone, phase));
 
     // Rows interleaved over the threads; each row casts its centre rays with normals.
     auto work = [&](int first) {
@@ -162,19 +203,34 @@ void bake_surface_pass(const SceneDescription& scene, const BakeSettings& settin
                     const float att = float(att_d);
                     float* a = &result.surface_attenuation[(l * n_pixels + px) * 3];
                     a[0] = a[1] = a[2] = att;
-                    if (l >= n_point || !table || !(D > 0.0)) continue;
-                    // Lambert glow of point light l (homogeneous part of the fog).
+                    if (!glow_on || !(D > 0.0)) continue;
+                    // Beyond the tables (T > 64) the glow is below e^{-64} of the light's: skip it on
+                    // the new paths (the exact evaluators cost ~ms a pixel; fog objects reach such T
+                    // often). Sun's isotropic homogeneous path keeps its exact fallback (unchanged).
+                    if ((rbf || !table) && T > 64.0) continue;
+                    // A spot's glow: the point-light glow times its model factor (spot_surface.h).
+                    RGB I0 = l < n_point ? scene.point_lights[l].I0 : scene.spot_lights[l - n_point].I0;
+                    if (l >= n_point) {
+                        const double factor = spot_models[l - n_point]->factor(T, glm::dot(cones[l - n_point].axis, -v) / D);
+                        if (!(factor > 0.0)) continue;
+                        I0 *= factor;
+                    }
+                    // Lambert glow of light l. Homogeneous fog: T = sigma_t D. With fog objects,
+                    // Fogshop eq. 25: the exact optical depth T(s, p) in place of sigma_t D and the
+                    // mean extinction T / D in place of sigma_t.
+                    const double beta_bar = rbf ? T / D : sigma_t;
                     const double cos_s = std::clamp(glm::dot(n, v) / D, -1.0, 1.0);
-                    // e^{-T} G from the scaled table (T is sigma_t D here: no Gaussians in it).
-                    const double Ts = sigma_t * D;
-                    const double G = (rbf ? std::exp(-Ts) : att_d) * table->eval_scaled(Ts, std::acos(cos_s));
-                    glow += scene.point_lights[l].I0 * (sigma_t * G / (2.0 * kPi * D * kPi));
-                    if (phong) {
+                    // e^{-T} G from the scaled table.
+                    double G;
+                    if (table) G = att_d * table->eval_scaled(T, std::acos(cos_s));
+                    else if (phase_table) G = att_d * phase_table->eval_scaled(T, std::acos(cos_s));
+                    else G = att_d * std::max(0.0, biri_lambert->eval_G_scaled(T, cos_s));
+                    glow += I0 * (beta_bar * G / (2.0 * kPi * D * kPi));
+                    if (phong || phase_phong) {
                         // Glossy: angles from the mirrored view direction (Ramamoorthi-Hanrahan).
                         const double cos_r = std::clamp(glm::dot(mirror, v) / D, -1.0, 1.0);
-                        const double Gn = phong->eval(sigma_t * D, std::acos(cos_r));
-                        gloss += scene.point_lights[l].I0 *
-                                 ((n_phong + 2.0) / (2.0 * kPi) * sigma_t * Gn / (2.0 * kPi * D));
+                        const double Gn = phong ? phong->eval(T, std::acos(cos_r)) : phase_phong->eval(T, std::acos(cos_r));
+                        gloss += I0 * ((n_phong + 2.0) / (2.0 * kPi) * beta_bar * Gn / (2.0 * kPi * D));
                     }
                 }
                 for (int c = 0; c < 3; ++c) result.surface_glow[3 * px + c] = float(albedo[c] * glow[c]);

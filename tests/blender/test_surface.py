@@ -211,3 +211,54 @@ def test07_sun_light_on_surfaces_is_dimmed_by_the_fog_layer(tmp_path):
     scene.airlight.use_fog_top = False
     assert bpy.ops.airlight.bake('EXEC_DEFAULT', filepath=path) == {'FINISHED'}
     np.testing.assert_array_equal(exr_pass(path, "Surface_fog_Sun"), 0.0)
+
+
+def _centre_pixel_glow(scene, G):
+    """The Lambert glow the bake should write at pixel (32, 24) of build_plane_scene's view
+    (camera at z = 2 looking down -Z, 35 mm lens on a 36 mm sensor): albedo I0 sigma_t G(T,
+    theta_s) / (2 pi^2 D) for the scene's one point light, G given as G(T, theta_s)."""
+    W, H = scene.render.resolution_x, scene.render.resolution_y
+    i, j = 32, 24
+    half = 18.0 / 35.0
+    x = ((i + 0.5) / W * 2.0 - 1.0) * half
+    y = (1.0 - (j + 0.5) / H * 2.0) * half * H / W
+    p = np.array([2.0 * x, 2.0 * y, 0.0])
+    lamp = scene.objects["Lamp"]
+    v = np.array(lamp.location) - p
+    D = float(np.linalg.norm(v))
+    sigma = scene.airlight.density
+    I0 = np.array(lamp.data.color) * lamp.data.energy / (4.0 * math.pi)
+    albedo = np.array(scene.airlight.color)
+    return albedo * I0 * sigma * G(sigma * D, math.acos(v[2] / D)) / (2.0 * math.pi ** 2 * D)
+
+
+@needs_native
+def test08_anisotropic_phase_glow(tmp_path):
+    """An anisotropic phase changes the glow: the phase-aware G_p (Biri 2006 eq. 8-13) for the
+    phase-aware models, Biri's own eq. 10 (Gamma_L x cos, clamped) for biri06; each equals the
+    native exact kernel at a pixel (the kernels are held to scipy in tests/native/test16). The
+    panel line says which glow model is used."""
+    from airlight import native
+    _native = native.get()
+    scene = build_plane_scene(tmp_path)
+    scene.render.engine = 'CYCLES'
+    path = str(tmp_path / "fog.exr")
+    scene.airlight.model = 'QUADRATURE'
+    assert bpy.ops.airlight.bake('EXEC_DEFAULT', filepath=path) == {'FINISHED'}
+    iso = exr_pass(path, surface.PASS_GLOW)
+    assert surface.glow_model_text(scene.airlight, "quadrature").startswith("Glow: Sun 2005 G0")
+    scene.airlight.phase = 'HENYEY_GREENSTEIN'
+    scene.airlight.anisotropy = 0.6
+    assert bpy.ops.airlight.bake('EXEC_DEFAULT', filepath=path) == {'FINISHED'}
+    hg = exr_pass(path, surface.PASS_GLOW)
+    assert np.max(np.abs(hg / iso - 1.0)) > 0.05
+    expected = _centre_pixel_glow(scene, lambda T, th: _native.surface_G(T, th, phase="hg", g=0.6)[()])
+    np.testing.assert_allclose(hg[24, 32], expected, rtol=5e-3)
+    assert "phase-aware" in surface.glow_model_text(scene.airlight, "quadrature")
+    # biri06: Biri's Lambert model eq. 10.
+    scene.airlight.model = 'BIRI06'
+    assert bpy.ops.airlight.bake('EXEC_DEFAULT', filepath=path) == {'FINISHED'}
+    biri = exr_pass(path, surface.PASS_GLOW)
+    G_B = lambda T, th: max(0.0, 4 * math.pi ** 2 * math.cos(th) * _native.biri06_gamma_L(T, phase="hg", g=0.6)[()])
+    np.testing.assert_allclose(biri[24, 32], _centre_pixel_glow(scene, G_B), rtol=5e-3)
+    assert "eq. 10" in surface.glow_model_text(scene.airlight, "biri06")
