@@ -52,6 +52,8 @@ def prepare(scene, depsgraph):
         settings["surface"] = True
         if surface.gloss_exponent(scene) > 0.0:
             settings["surface_phong_exponent"] = max(1.0, surface.gloss_exponent(scene))
+        if scene.airlight.surface_glow_model == 'BIRI06_EQ10':
+            settings["surface_glow_model"] = "biri06_eq10"
         # (Interactive renders call this from the render thread: there nothing is written.)
         main = threading.current_thread() is threading.main_thread()
         groups = (surface.ensure_passes(scene, depsgraph) if main

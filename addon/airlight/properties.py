@@ -257,6 +257,22 @@ class AirlightSceneSettings(bpy.types.PropertyGroup):
         default=0.0, min=0.0, max=10000.0, soft_max=200.0, step=100, precision=0,
         update=_on_surface_changed,
     )
+    surface_glow_model: EnumProperty(
+        name="Glow Model",
+        description="Cycles surface shading: how the light the fog scatters onto diffuse surfaces "
+                    "is computed",
+        items=[
+            ('EXACT', "Exact", "Hemisphere-clamped glow integral: Sun 2005 G0 for the isotropic "
+                               "phase, its phase-aware generalisation (Biri 2006 eq. 8-13) otherwise; "
+                               "table error <= 1 %"),
+            ('BIRI06_EQ10', "Biri 2006 eq. 10", "The paper's own Lambert model (Gamma_L x cos, no "
+                                                "hemisphere clamp): measured 15 % (isotropic) to 83 % "
+                                                "(HG g = -0.9) low facing the light, no glow facing "
+                                                "away. For comparison"),
+        ],
+        default='EXACT',
+        update=_on_surface_changed,
+    )
     environment_glow: BoolProperty(
         name="Environment Glow",
         description="Show the World through the fog (Sun 2005, eq. 25-27): bright parts of the "

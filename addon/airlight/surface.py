@@ -62,11 +62,11 @@ def glow_model_text(settings, model_name):
     """One line for the Surface Shading panel: which glow model the bake uses for these fog
     settings and the resolved fog model _model_name_ (native name, e.g. "biri06")."""
     from . import model_choice
-    if model_choice.is_isotropic(settings):
-        text = "Glow: Sun 2005 G0 (isotropic phase)"
-    elif model_name == "biri06":
+    if getattr(settings, "surface_glow_model", 'EXACT') == 'BIRI06_EQ10':
         text = (f"Glow: Biri 2006 eq. 10 (coarse: up to {100 * BIRI06_LAMBERT_ERROR:.0f} % low, "
                 "none facing away)")
+    elif model_choice.is_isotropic(settings):
+        text = "Glow: Sun 2005 G0 (isotropic phase)"
     else:
         text = f"Glow: phase-aware G (Biri 2006 eq. 8-13), table ≤ {100 * GLOW_G_P_TABLE_ERROR:.2g} %"
     return text

@@ -73,6 +73,7 @@ class AIRLIGHT_PT_scene(bpy.types.Panel):
         sub = col.column()
         sub.active = settings.surface_shading
         sub.prop(settings, "surface_gloss")
+        sub.prop(settings, "surface_glow_model")
         if settings.surface_shading and not problem and settings.model != 'HOFFMAN02':
             sub.label(text=surface.glow_model_text(settings, model_choice.choose(settings)[0]), icon='LIGHT')
         if settings.surface_shading and context.scene.render.engine != 'CYCLES':

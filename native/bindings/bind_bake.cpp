@@ -80,7 +80,8 @@ py::dict bake_py(int width, int height, const py::object& cam_to_world, const py
                  const py::object& sun_irradiances, double fog_top, int table_size,
                  const std::string& table_interpolation, const py::object& rbf_albedo,
                  double noise_amplitude, double noise_scale, const py::object& noise_offset, bool surface,
-                 double surface_phong_exponent, double rayleigh_density, const std::string& gaussian_resolution) {
+                 double surface_phong_exponent, double rayleigh_density, const std::string& gaussian_resolution,
+                 const std::string& surface_glow_model) {
     // Gather the scene description from the arrays (shapes checked here, values in bake()).
     SceneDescription scene;
     scene.camera.width = width;
@@ -210,6 +211,9 @@ py::dict bake_py(int width, int height, const py::object& cam_to_world, const py
     settings.filter_width = filter_width;
     settings.surface = surface;
     settings.surface_phong_exponent = surface_phong_exponent;
+    if (surface_glow_model == "biri06_eq10") settings.surface_glow_biri_eq10 = true;
+    else if (surface_glow_model != "exact")
+        throw py::value_error("surface_glow_model must be \"exact\" or \"biri06_eq10\", got \"" + surface_glow_model + "\"");
     if (table_size < 8 || table_size > 4096)
         throw py::value_error("table_size must be in [8, 4096], got " + std::to_string(table_size));
     settings.table_nu = settings.table_nT = table_size;
@@ -310,7 +314,7 @@ void bind_bake(py::module_& m) {
           "table_size"_a = 256, "table_interpolation"_a = "bilinear", "rbf_albedo"_a = py::none(),
           "noise_amplitude"_a = 0.0, "noise_scale"_a = 1.0, "noise_offset"_a = py::make_tuple(0.0, 0.0, 0.0),
           "surface"_a = false, "surface_phong_exponent"_a = 0.0, "rayleigh_density"_a = 0.0,
-          "gaussian_resolution"_a = "full",
+          "gaussian_resolution"_a = "full", "surface_glow_model"_a = "exact",
           R"doc(Bake fog passes for one camera view (all arguments keyword-only).
 
 width, height: render resolution in pixels.
@@ -385,6 +389,9 @@ rayleigh_density: Rayleigh scattering coefficient at 550 nm in 1/m for model "ho
 surface_phong_exponent: with surface, n in [1, 10000] also adds surface_gloss_glow=(H, W, 3):
   the point and spot lights' scattered light on a normalised Phong lobe (n + 2)/(2 pi) cos^n about the
   mirrored view direction (Sun 2005 eq. 18, Gn), per unit glossy colour. 0: off.
+surface_glow_model: with surface, "exact" (default: Sun 2005's G0 for the isotropic phase, the
+  hemisphere-clamped phase-aware G_p of Biri 2006 eq. 8-13 otherwise) or "biri06_eq10" (Biri's
+  own Lambert model, Gamma_L(T) cos theta_s clamped at 0: coarse, for comparison).
 
 Returns dict(airlight=(H, W, 3) float32, transmittance=(H, W, 3) float32,
 depth=(H, W) float32 (distance from the eye, or from the near plane for

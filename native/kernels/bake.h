@@ -37,6 +37,11 @@ struct BakeSettings {
     // the mirrored view direction; 0: none. Its G table is _surface_phong_table_n_ squared.
     double surface_phong_exponent = 0.0;
     int surface_phong_table_n = 64;
+    // Lambert glow by Biri 2006's own eq. 10 (Gamma_L(T) x cos theta_s, clamped at 0; any
+    // phase) instead of the hemisphere-clamped G (Sun's G0, or the phase-aware G_p): the
+    // paper's model, kept selectable for comparison; it is 15-83 % low facing the light and
+    // gives no glow facing away (biri06_surface.h), so it is off by default.
+    bool surface_glow_biri_eq10 = false;
     // Gaussian fog (perspective, Fogshop models): the Gaussian terms are evaluated every
     // _gaussian_resolution_ pixels (1 full, 2 half, 4 quarter) and interpolated where the
     // surface does not cut a Gaussian, exactly per pixel where it does (rbf_splat.h).

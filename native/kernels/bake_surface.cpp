@@ -129,7 +129,7 @@ void bake_surface_pass(const SceneDescription& scene, const BakeSettings& settin
     // No fog: attenuation 1, glow 0 (normals are still written below: they do not depend on it).
     const bool fog = sigma_t > 0.0 || rbf;
     // The glow's G tables (see bake_surface.h): Sun's isotropic ones, the phase-aware G_p of
-    // biri06_surface.h for an anisotropic phase, and for model biri06 Biri's own Lambert model
+    // biri06_surface.h for an anisotropic phase, and with settings.surface_glow_biri_eq10 Biri's own Lambert model
     // (eq. 10, Gamma_L x cos, clamped at 0) with eq. 12 (= G_p, m = n) for the gloss.
     const PhaseFunction& phase = scene.medium.phase;
     const bool isotropic = phase_is_isotropic(phase);
@@ -139,11 +139,12 @@ void bake_surface_pass(const SceneDescription& scene, const BakeSettings& settin
     std::shared_ptr<const Biri06LambertTable> biri_lambert;
     if (fog && n_positional > 0) {
         if (isotropic) {
-            table = shared_surface_G_table(settings.surface_table_nT, settings.surface_table_ntheta);
+            if (settings.surface_glow_biri_eq10) biri_lambert = shared_biri06_lambert_table(phase);
+            else table = shared_surface_G_table(settings.surface_table_nT, settings.surface_table_ntheta);
             if (n_phong > 0.0)
                 phong = shared_surface_G_table(settings.surface_phong_table_n, settings.surface_phong_table_n, n_phong);
         } else {
-            if (settings.model == ModelId::Biri06)
+            if (settings.surface_glow_biri_eq10)
                 biri_lambert = shared_biri06_lambert_table(phase);
             else
                 phase_table = shared_phase_surface_G_table(phase, settings.surface_table_nT,

@@ -49,12 +49,16 @@ def test01_scene_panels_draw(tmp_path, model):
     seen = _draw("AIRLIGHT_PT_scene")
     assert {"density", "color", "model", "accuracy", "surface_shading", "airlight.bake"} <= set(seen)
     # The Surface Shading line names the glow model: Sun's G0 for the isotropic phase, the
-    # phase-aware G or Biri's eq. 10 (biri06) for an anisotropic one.
+    # phase-aware G for an anisotropic one, or Biri's eq. 10 when the Glow Model asks for it.
     assert any(text.startswith("Glow: Sun 2005 G0") for text in seen), seen
     scene.airlight.anisotropy = 0.5
     seen = _draw("AIRLIGHT_PT_scene")
-    glow = "eq. 10" if model in ('AUTO', 'BIRI06') else "phase-aware"
-    assert any(text.startswith("Glow:") and glow in text for text in seen), seen
+    assert "surface_glow_model" in seen
+    assert any(text.startswith("Glow:") and "phase-aware" in text for text in seen), seen
+    scene.airlight.surface_glow_model = 'BIRI06_EQ10'
+    seen = _draw("AIRLIGHT_PT_scene")
+    assert any(text.startswith("Glow:") and "eq. 10" in text for text in seen), seen
+    scene.airlight.surface_glow_model = 'EXACT'
     scene.airlight.anisotropy = 0.0
     seen = _draw("AIRLIGHT_PT_fog_objects")
     assert {"noise_amplitude", "noise_scale", "noise_offset"} <= set(seen)

@@ -235,7 +235,8 @@ def _centre_pixel_glow(scene, G):
 @needs_native
 def test08_anisotropic_phase_glow(tmp_path):
     """An anisotropic phase changes the glow: the phase-aware G_p (Biri 2006 eq. 8-13) for the
-    phase-aware models, Biri's own eq. 10 (Gamma_L x cos, clamped) for biri06; each equals the
+    default glow model (every fog model), Biri's own eq. 10 (Gamma_L x cos, clamped) with Glow
+    Model 'Biri 2006 eq. 10'; each equals the
     native exact kernel at a pixel (the kernels are held to scipy in tests/native/test16). The
     panel line says which glow model is used."""
     from airlight import native
@@ -255,8 +256,10 @@ def test08_anisotropic_phase_glow(tmp_path):
     expected = _centre_pixel_glow(scene, lambda T, th: _native.surface_G(T, th, phase="hg", g=0.6)[()])
     np.testing.assert_allclose(hg[24, 32], expected, rtol=5e-3)
     assert "phase-aware" in surface.glow_model_text(scene.airlight, "quadrature")
-    # biri06: Biri's Lambert model eq. 10.
+    # biri06 keeps the exact glow; Biri's Lambert model eq. 10 on request.
     scene.airlight.model = 'BIRI06'
+    assert "phase-aware" in surface.glow_model_text(scene.airlight, "biri06")
+    scene.airlight.surface_glow_model = 'BIRI06_EQ10'
     assert bpy.ops.airlight.bake('EXEC_DEFAULT', filepath=path) == {'FINISHED'}
     biri = exr_pass(path, surface.PASS_GLOW)
     G_B = lambda T, th: max(0.0, 4 * math.pi ** 2 * math.cos(th) * _native.biri06_gamma_L(T, phase="hg", g=0.6)[()])

@@ -117,15 +117,22 @@ def test04_bake_anisotropic_phase_uses_G_p():
                                    glow_at(hg, R, j, i, lambda T, th: Gp_ref("hg", 0.6, T, th)), rtol=5e-3)
 
 
-def test05_bake_biri06_uses_eq10_clamped():
+def test05_bake_biri06_eq10_on_request():
+    """surface_glow_model="biri06_eq10": Biri's eq. 10 clamped at 0 (the default, "exact", is the
+    hemisphere-clamped G_p for every model, biri06 included)."""
     kw, R = scene()
-    out = _native.bake(**kw, phase="hg", g=0.6, model="biri06")
+    out = _native.bake(**kw, phase="hg", g=0.6, model="biri06", surface_glow_model="biri06_eq10")
     G_B = lambda T, th: max(0.0, 4 * math.pi ** 2 * math.cos(th) * _native.biri06_gamma_L(T, phase="hg", g=0.6)[()])
     for j, i in pixels(out):
         np.testing.assert_allclose(out["surface_glow"][j, i], glow_at(out, R, j, i, G_B), rtol=1e-3)
-    # The same scene with the phase-aware G_p (another model) differs: eq. 10 drops the clamp.
+    # The same scene with the phase-aware G_p differs: eq. 10 drops the clamp. The default
+    # glow of model biri06 is G_p (the same as another model's).
     other = _native.bake(**kw, phase="hg", g=0.6, model="quadrature")
     assert not np.allclose(out["surface_glow"], other["surface_glow"], rtol=1e-2)
+    default = _native.bake(**kw, phase="hg", g=0.6, model="biri06")
+    np.testing.assert_allclose(default["surface_glow"], other["surface_glow"], rtol=1e-6, atol=1e-12)
+    with pytest.raises(ValueError, match="surface_glow_model"):
+        _native.bake(**kw, surface_glow_model="sun")
 
 
 def test06_isotropic_keeps_sun_path():
