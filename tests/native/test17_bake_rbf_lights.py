@@ -171,6 +171,8 @@ CASES = {
     "point_hg_0.5": (dict(phase="hg", g=0.5), "biri06"),
     "point_hg_-0.7": (dict(phase="hg", g=-0.7), "biri06"),
     "point_rayleigh": (dict(phase="rayleigh"), "pegoraro10"),
+    "point_hazy_mie": (dict(phase="hazy_mie"), "biri06"),
+    "point_murky_mie": (dict(phase="murky_mie"), "biri06"),
     "point_iso_biri06": (dict(), "biri06"),
     "sun_no_top": (dict(**SUN, **NO_POINTS), "sun05"),
     "sun_top": (dict(**SUN, **NO_POINTS, fog_top=5.0), "sun05_exact"),
