@@ -14,6 +14,7 @@
 #include <limits>
 #include <sstream>
 #include <stdexcept>
+#include <type_traits>
 
 #include "fast_erf.h"
 #include "noise.h"
@@ -693,7 +694,11 @@ void RbfSplat::splat_gaussian(std::size_t i, int n, const float* dx, const float
         else
             view_terms<false, true>(g, eye_f_, 0.0f, 0.0f, 0.0f, 0.0f, n, dx, dy, dz, tend, Tvp, Tvr, tr);
         add_to(Tvp, n, accT);
-        light_loop(i, n, dx, dy, dz, Tvp, Tvr, tr, accR, accG, accB);
+        const std::size_t L = lights_.size();
+        if (!plain_) light_loop(i, n, dx, dy, dz, Tvp, Tvr, tr, accR, accG, accB);
+        else
+            for (std::size_t l = 0; l < L; ++l)
+                light_terms(g, gl_[i * L + l], lf_[l], n, dx, dy, dz, Tvp, Tvr, tr, accR, accG, accB);
         return;
     }
     if (noise_.on()) {
@@ -704,18 +709,17 @@ void RbfSplat::splat_gaussian(std::size_t i, int n, const float* dx, const float
         view_terms<false>(g, eye_f_, 0.0f, 0.0f, 0.0f, 0.0f, n, dx, dy, dz, tend, Tvp, Tvr, tr);
     }
     add_to(Tvp, n, accT);
-    light_loop(i, n, dx, dy, dz, Tvp, Tvr, tr, accR, accG, accB);
+    const std::size_t L = lights_.size();
+    if (!plain_) light_loop(i, n, dx, dy, dz, Tvp, Tvr, tr, accR, accG, accB);
+    else
+        for (std::size_t l = 0; l < L; ++l)
+            light_terms(g, gl_[i * L + l], lf_[l], n, dx, dy, dz, Tvp, Tvr, tr, accR, accG, accB);
 }
 
 void RbfSplat::light_loop(std::size_t i, int n, const float* dx, const float* dy, const float* dz, const float* Tvp,
                           const float* Tvr, const float* tr, float* accR, float* accG, float* accB) const {
     const GaussF& g = g_[i];
     const std::size_t L = lights_.size();
-    if (plain_) {
-        for (std::size_t l = 0; l < L; ++l)
-            light_terms(g, gl_[i * L + l], lf_[l], n, dx, dy, dz, Tvp, Tvr, tr, accR, accG, accB);
-        return;
-    }
     const double gd = extra_.phase.kind == PhaseKind::HenyeyGreenstein ? extra_.phase.g : 0.0;
     const float g1 = float(gd), g2 = float(1.0 - gd * gd), g3 = float(1.0 + gd * gd);
     const int kind = int(extra_.phase.kind);

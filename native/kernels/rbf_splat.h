@@ -191,7 +191,8 @@ class RbfSplat {
     // Homogeneous term of light l for n rays: segment [t0, Dvp] attenuated from t0.
     void homogeneous(const double* cos_gamma, std::size_t l, const float* Dvp, const float* t0, int n,
                      float* out) const;
-    // The light terms of Gaussian i (all lights, suns included) from its view terms.
+    // The light terms of Gaussian i (all lights, suns included) from its view terms, when
+    // !plain_ (the plain path calls light_terms directly).
     void light_loop(std::size_t i, int n, const float* dx, const float* dy, const float* dz, const float* Tvp,
                     const float* Tvr, const float* tr, float* accR, float* accG, float* accB) const;
     // Adds the background terms of the lights with a custom background (RbfSplatLights) and
