@@ -35,7 +35,7 @@ from conftest import needs_real_native  # noqa: E402
 ARTIFACTS = os.path.join(REPO, "out", "test_artifacts", "cycles_gaussians_sun")
 SEEDS = (1, 2)
 SAMPLES = 128
-G = float(os.environ.get("TEST_G", "0.5"))
+G = 0.5
 SUN_STRENGTH = 3.0
 SUN_COLOR = (1.0, 0.8, 0.6)
 SUN_DIR = np.array([0.2, -0.6, -0.8]) / np.linalg.norm([0.2, -0.6, -0.8])  # propagation
