@@ -289,7 +289,11 @@ def light_plan(scene, depsgraph=None, view_layer=None):
         uppers[~sun], lowers[~sun] = light_bounds.point_bounds(
             frame, positions[~sun], weights[~sun], sigma, albedo, p_min, p_max, spot=kinds[~sun] == 'SPOT')
     skip = np.zeros(len(fogged), dtype=bool)
-    if settings.model == 'AUTO' and frame is not None and sigma > 0.0:
+    # The bounds are those of the homogeneous fog: a light they rate faint can still light a
+    # dense fog object (Gaussians) brightly, so Automatic skips no light when there is one.
+    fog_objects = any(getattr(getattr(obj, "airlight_fog", None), "is_fog", False)
+                      and visibility.is_render_visible(obj, hidden) for obj in scene.objects)
+    if settings.model == 'AUTO' and frame is not None and sigma > 0.0 and not fog_objects:
         skip = light_bounds.skip_faint(uppers, lowers, settings.accuracy / 100.0)
     total_lower = lowers.sum(axis=0)
     with np.errstate(divide='ignore', invalid='ignore'):

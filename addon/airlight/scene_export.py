@@ -308,14 +308,9 @@ def export_scene(scene, depsgraph):
         if not np.all(np.isfinite(array)):
             raise ExportError(f"The scene's {name} contain NaN or infinite values.")
     gaussians = export_fog_objects(depsgraph)
+    # (Fog objects take point, spot and sun lamps and any phase: rbf_splat.h RbfSplatLights.)
     spots = {} if daylight else export_spot_lights(depsgraph, skip)
-    if spots and gaussians:
-        raise ExportError("Spot lights are not supported together with fog objects yet: "
-                          "turn off the spots' fog participation or remove the fog objects.")
     suns = export_sun_lights(scene, depsgraph, skip)
-    if suns and gaussians:
-        raise ExportError("Sun lights are not supported together with fog objects yet: "
-                          "turn off the suns' fog participation or remove the fog objects.")
     return dict(
         width=width, height=height,
         cam_to_world=cam_to_world, projection=projection,

@@ -85,8 +85,6 @@ void validate_suns(const SceneDescription& scene) {
     }
     require(!std::isnan(scene.fog_top) && scene.fog_top != -std::numeric_limits<double>::infinity(),
             "fog_top must be a finite height or +inf (no top), got " + std::to_string(scene.fog_top));
-    require(scene.sun_lights.empty() || scene.gaussians.empty(),
-            "sun lights are not supported with Gaussian fog (rbf_*): bake them in homogeneous fog only");
 }
 
 // Validate the scene and settings once, before any work starts.
@@ -139,8 +137,9 @@ void validate(const SceneDescription& scene, const BakeSettings& settings) {
             "model 'pegoraro10': Henyey-Greenstein g = " + std::to_string(medium.phase.g) +
                 " needs a Legendre order above " + std::to_string(kPegoraroMaxOrder) +
                 " (|g| <= 0.78 works); use 'biri06' or 'quadrature'");
-    // Gaussian fog (Fogshop): isotropic only, through the Fogshop approximation (sun05,
-    // sun05_exact: F table or exact F for the background term) or its quadrature reference.
+    // Gaussian fog (Fogshop): the Fogshop approximation (sun05, sun05_exact: F table or exact
+    // F for the background term; biri06, pegoraro10: their model for it, any phase) or its
+    // quadrature reference; point, spot and sun lamps (rbf_splat.h RbfSplatLights).
     const GaussianMedium& gauss = scene.gaussians;
     if (!gauss.empty()) {
         const size_t n = gauss.scales.size();
@@ -169,13 +168,11 @@ void validate(const SceneDescription& scene, const BakeSettings& settings) {
         require(gauss.noise_amplitude == 0.0 || settings.model != ModelId::Quadrature,
                 "fog noise is not supported by the 'quadrature' reference model; set the noise amplitude to 0 or "
                 "use 'sun05'");
-        require(phase_is_isotropic(medium.phase),
-                std::string("Gaussian fog supports only the isotropic phase, got '") + phase_name(medium.phase.kind) +
-                    "' (g = " + std::to_string(medium.phase.g) + ")");
         require(settings.model == ModelId::Sun05Table || settings.model == ModelId::Sun05Exact ||
+                    settings.model == ModelId::Biri06 || settings.model == ModelId::Pegoraro10 ||
                     settings.model == ModelId::Quadrature || settings.model == ModelId::Baseline,
-                "Gaussian fog supports the models 'sun05', 'sun05_exact' (Fogshop approximation), "
-                "'quadrature' (reference) and 'baseline'");
+                "Gaussian fog supports the models 'sun05', 'sun05_exact', 'biri06', 'pegoraro10' (Fogshop "
+                "approximation), 'quadrature' (reference) and 'baseline'");
     }
     for (size_t i = 0; i < scene.point_lights.size(); ++i) {
         const PointLight& light = scene.point_lights[i];
@@ -195,8 +192,6 @@ void validate(const SceneDescription& scene, const BakeSettings& settings) {
         require(std::isfinite(spot.spot_blend) && spot.spot_blend >= 0.0 && spot.spot_blend <= 1.0,
                 name + ": spot_blend must be in [0, 1], got " + std::to_string(spot.spot_blend));
     }
-    require(scene.spot_lights.empty() || scene.gaussians.empty(),
-            "spot lights are not supported with Gaussian fog (rbf_*): bake them in homogeneous fog only");
     const TriangleMesh& mesh = scene.geometry;
     require(mesh.vertices.size() % 3 == 0, "vertices must hold 3 floats per vertex");
     require(mesh.triangles.size() % 3 == 0, "triangles must hold 3 indices per triangle");
@@ -427,12 +422,86 @@ class FogModel {
             if (noise.on() && !shared_origin_)
                 throw std::invalid_argument("fog noise needs a perspective camera (orthographic cameras bake "
                                             "Gaussian fog without noise only)");
+            // Spots and suns with Gaussians (after the point lights in rbf_lights_ / rbf_I0_).
+            n_rbf_points_ = rbf_lights_.size();
+            for (const SpotLight& spot : scene.spot_lights) {
+                if (spot.I0.x == 0.0 && spot.I0.y == 0.0 && spot.I0.z == 0.0) continue;
+                rbf_lights_.push_back(spot.position);
+                rbf_I0_.push_back(spot.I0);
+                rbf_spots_.push_back({make_spot_cone(spot.axis, spot.spot_size, spot.spot_blend), spot.position,
+                                      spot.I0});
+            }
+            for (const SunLight& sun : scene.sun_lights) {
+                if (sun.E.x == 0.0 && sun.E.y == 0.0 && sun.E.z == 0.0) continue;
+                const Vec3 w = glm::normalize(sun.direction);
+                rbf_suns_.push_back({w, -w.z, sun.E});
+            }
+            const bool fogshop = model_ == ModelId::Sun05Table || model_ == ModelId::Sun05Exact ||
+                                 model_ == ModelId::Biri06 || model_ == ModelId::Pegoraro10;
+            const bool extended = !rbf_spots_.empty() || !rbf_suns_.empty() || !isotropic_ ||
+                                  model_ == ModelId::Biri06 || model_ == ModelId::Pegoraro10;
+            if (fogshop && extended && !shared_origin_)
+                throw std::invalid_argument("fog objects with spot or sun lamps, an anisotropic phase or model "
+                                            "'biri06' / 'pegoraro10' need a perspective camera (or model "
+                                            "'quadrature')");
             // Fogshop's per-(light, Gaussian) precomputation, once for the shared viewpoint,
             // and the tiled splatting (rbf_splat.h) that evaluates it.
-            if ((model_ == ModelId::Sun05Table || model_ == ModelId::Sun05Exact) && shared_origin_)
+            if (fogshop && shared_origin_) {
+                RbfSplatLights extra;
+                if (extended) {
+                    extra.phase = phase_;
+                    const size_t L = rbf_lights_.size();
+                    extra.spot.assign(L, 0);
+                    extra.cone.assign(L, SpotCone{});
+                    extra.custom_background.assign(L, 0);
+                    for (size_t l = 0; l < L; ++l) {
+                        const bool is_spot = l >= n_rbf_points_;
+                        extra.spot[l] = is_spot;
+                        if (is_spot) extra.cone[l] = rbf_spots_[l - n_rbf_points_].cone;
+                        // The sun05 term of the splat is isotropic: other models and phases
+                        // (and spots) use the bake's own model for the background.
+                        extra.custom_background[l] = is_spot || !isotropic_ || model_ == ModelId::Biri06 ||
+                                                     model_ == ModelId::Pegoraro10;
+                    }
+                    for (const RbfSunData& sun : rbf_suns_) {
+                        extra.sun_w.push_back(sun.w);
+                        extra.sun_E.push_back(sun.E);
+                    }
+                    extra.fog_top = fog_top_;
+                    extra.background = [this](size_t l, const Vec3& d, double t0, double Dvp) {
+                        return rbf_background(l, d, t0, Dvp);
+                    };
+                }
                 splat_ = std::make_unique<RbfSplat>(*rbf_, origin_, rbf_lights_, rbf_I0_, scene.medium.albedo,
-                                                    g.albedo, table_.get(), noise, std::max(0, settings.threads));
+                                                    g.albedo, table_.get(), noise, std::max(0, settings.threads),
+                                                    extended ? &extra : nullptr);
+            }
         }
+    }
+
+    // Background (beta0) term of the splat's light l (RbfSplatLights::background): point
+    // lights n_rbf_points_ first, then spots, then suns; per unit albedo I0 (suns: albedo E)
+    // along origin_ + t d over [t0, Dvp], attenuated from t0, with the bake's model.
+    double rbf_background(size_t l, const Vec3& d, double t0, double Dvp) const {
+        if (sigma_t_ == 0.0 || !(Dvp > t0)) return 0.0;
+        const size_t L = rbf_lights_.size();
+        const Vec3 start = t0 > 0.0 ? origin_ + t0 * d : origin_;
+        const double seg = Dvp - t0;  // inf stays inf
+        if (l < n_rbf_points_) {
+            const Vec3 sv = rbf_lights_[l] - start;
+            const double Dsv = glm::length(sv);
+            const double cos_gamma = Dsv > 0.0 ? std::clamp(glm::dot(d, sv) / Dsv, -1.0, 1.0) : 1.0;
+            return airlight(Dsv, cos_gamma, seg);
+        }
+        if (l < L) {
+            const RbfSpotData& spot = rbf_spots_[l - n_rbf_points_];
+            return spot_closed_form_
+                       ? pegoraro10_spot_airlight(pegoraro_phase_, spot.cone, spot.s, sigma_t_, start, d, seg)
+                       : spot_airlight_quadrature(spot.cone, spot.s, phase_, sigma_t_, start, d, seg, kSpotRelTol);
+        }
+        const RbfSunData& sun = rbf_suns_[l - L];
+        return sigma_t_ * phase_.eval(-glm::dot(sun.w, d)) *
+               sun_layer_factor(sigma_t_, fog_top_, sun.mu_s, origin_.z, d.z, t0, Dvp);
     }
 
     // Transmittance of the ray _r_ from t0 to _depth_ (inf: none), as eval_many computes it.
@@ -627,11 +696,27 @@ class FogModel {
             const Vec3 o = near > 0.0 ? ray.o + near * ray.d : ray.o;
             Tr[k] = std::exp(-rbf_->optical_depth_ray(o, ray.d, seg));
             La[k] = RGB(0.0);
-            if (!(seg > 0.0) || L == 0) continue;
+            if (!(seg > 0.0) || (L == 0 && rbf_spots_.empty() && rbf_suns_.empty())) continue;
             if (model_ == ModelId::Quadrature) {
                 for (size_t l = 0; l < L; ++l)
                     La[k] += lights_[l].weight *
-                             rbf_airlight_quadrature(*rbf_, lights_[l].s, o, ray.d, seg, kQuadratureRelTol);
+                             (isotropic_ ? rbf_airlight_quadrature(*rbf_, lights_[l].s, o, ray.d, seg, kQuadratureRelTol)
+                                         : rbf_airlight_quadrature(*rbf_, RbfRefLight{RbfRefLight::Kind::Point,
+                                                                                      lights_[l].s},
+                                                                   phase_, o, ray.d, seg, kQuadratureRelTol));
+                for (const RbfSpotData& spot : rbf_spots_) {
+                    RbfRefLight ref{RbfRefLight::Kind::Spot, spot.s, spot.cone};
+                    La[k] += medium_albedo_ * spot.I0 *
+                             rbf_airlight_quadrature(*rbf_, ref, phase_, o, ray.d, seg, kQuadratureRelTol);
+                }
+                for (const RbfSunData& sun : rbf_suns_) {
+                    RbfRefLight ref;
+                    ref.kind = RbfRefLight::Kind::Sun;
+                    ref.w = sun.w;
+                    ref.fog_top = fog_top_;
+                    La[k] += medium_albedo_ * sun.E *
+                             rbf_airlight_quadrature(*rbf_, ref, phase_, o, ray.d, seg, kQuadratureRelTol);
+                }
                 continue;
             }
             const RbfAirlightFogshop local(*rbf_, o, rbf_lights_, table_.get(), 1);
@@ -691,6 +776,19 @@ class FogModel {
     std::vector<RGB> rbf_I0_;         // I0 of the lights in lights_' order
     std::vector<double> rbf_albedo_;  // 3 per Gaussian (the medium's if none given)
     RGB medium_albedo_{1.0};
+    size_t n_rbf_points_ = 0;  // point lights at the front of rbf_lights_ (spots follow)
+    struct RbfSpotData {
+        SpotCone cone;
+        Vec3 s;
+        RGB I0;
+    };
+    struct RbfSunData {
+        Vec3 w;       // unit propagation direction
+        double mu_s;  // -w.z
+        RGB E;
+    };
+    std::vector<RbfSpotData> rbf_spots_;
+    std::vector<RbfSunData> rbf_suns_;
     std::unique_ptr<RbfSplat> splat_;
 };
 

@@ -139,6 +139,18 @@ RGB RbfAirlightFogshop::eval_rgb(const Vec3& r, double Dvp, const double* albedo
 
 double rbf_airlight_quadrature(const RbfMedium& medium, const Vec3& s, const Vec3& v, const Vec3& r, double Dvp,
                                double rel_tol) {
+    RbfRefLight light;
+    light.s = s;
+    return rbf_airlight_quadrature(medium, light, PhaseFunction{}, v, r, Dvp, rel_tol);
+}
+
+double rbf_airlight_quadrature(const RbfMedium& medium, const RbfRefLight& light, const PhaseFunction& phase,
+                               const Vec3& v, const Vec3& r, double Dvp, double rel_tol) {
+    const bool sun = light.kind == RbfRefLight::Kind::Sun, spot = light.kind == RbfRefLight::Kind::Spot;
+    const bool isotropic = phase.kind == PhaseKind::Isotropic;
+    const Vec3 s = sun ? v : light.s;  // (suns: only for the breakpoint layout below)
+    const Vec3 u_sun = -light.w;        // towards the sun
+    const double top = light.fog_top, mu_s = u_sun.z;
     const std::size_t n = medium.size();
     const double beta0 = medium.beta0();
     // Per-Gaussian view-line data: t*, a, c sqrt(pi)/(2a) e^{-a^2 h^2}, c e^{-a^2 h^2}.
@@ -167,11 +179,30 @@ double rbf_airlight_quadrature(const RbfMedium& medium, const Vec3& s, const Vec
             beta += g.ch * std::exp(-u * u);
             Tv += g.k * erf_diff(-g.a * g.ts, u);
         }
+        if (sun) {
+            // Scattering: Gaussians, and beta0 inside the layer only.
+            const bool in_layer = std::isinf(top) || x.z <= top;
+            if (!in_layer) beta -= beta0;
+            if (!(beta > 0.0)) return 0.0;
+            double Ts = 0.0;
+            for (std::size_t i = 0; i < n; ++i)
+                Ts += medium.gaussian_optical_depth(i, x, u_sun, 0.0, std::numeric_limits<double>::infinity());
+            if (beta0 > 0.0 && !std::isinf(top)) {
+                if (mu_s > 0.0) Ts += beta0 * std::max(0.0, top - x.z) / mu_s;
+                else if (!(mu_s == 0.0 && x.z > top)) return 0.0;  // no sunlight
+            }
+            return beta * phase.eval(-glm::dot(light.w, r)) * std::exp(-Ts - Tv);
+        }
         if (beta == 0.0) return 0.0;
         const Vec3 sx = x - s;
         const double d2 = glm::dot(sx, sx);
+        double f = isotropic ? kInv4Pi : phase.eval(-glm::dot(sx, r) / std::sqrt(d2));
+        if (spot) {
+            f *= spot_profile(light.cone, glm::dot(light.cone.axis, sx) / std::sqrt(d2));
+            if (f == 0.0) return 0.0;
+        }
         const double Ts = medium.optical_depth_all(s, x);
-        return beta * kInv4Pi / d2 * std::exp(-Ts - Tv);
+        return beta * f / d2 * std::exp(-Ts - Tv);
     };
     // Breakpoints: each Gaussian's projection and +-1, 2, 4 widths, and a geometric
     // ladder around the light's closest approach (width h, the 1/d^2 peak).
@@ -187,10 +218,19 @@ double rbf_airlight_quadrature(const RbfMedium& medium, const Vec3& s, const Vec
     const double Dsv = glm::length(rs);
     const double as = glm::dot(rs, r);
     const double hs = glm::length(glm::cross(rs, r));
-    add(as);
-    for (double w = std::max(hs, 1e-12 * Dsv); w < 4.0 * Dsv; w *= 8.0) {
-        add(as - w);
-        add(as + w);
+    if (!sun) {
+        add(as);
+        for (double w = std::max(hs, 1e-12 * Dsv); w < 4.0 * Dsv; w *= 8.0) {
+            add(as - w);
+            add(as + w);
+        }
+    } else if (!std::isinf(top) && r.z != 0.0) {
+        add((top - v.z) / r.z);  // the layer's top
+    }
+    if (spot) {  // the cone and the inner (blend) cone
+        for (double c : {light.cone.cos_half_angle, light.cone.cos_half_angle + light.cone.smooth})
+            if (c < 1.0)
+                for (double t : ray_cone_crossings(v, r, s, light.cone.axis, c, 0.0, end)) add(t);
     }
     std::sort(cuts.begin(), cuts.end());
     cuts.erase(std::unique(cuts.begin(), cuts.end()), cuts.end());

@@ -18,9 +18,13 @@
 #include <cstddef>
 #include <vector>
 
+#include <limits>
+
+#include "phase.h"
 #include "rbf_medium.h"
 #include "scene.h"
 #include "special_f.h"
+#include "spot_light.h"
 
 namespace airlight {
 
@@ -67,6 +71,31 @@ class RbfAirlightFogshop {
 // around the light's closest approach. ~1e-8 relative.
 double rbf_airlight_quadrature(const RbfMedium& medium, const Vec3& light, const Vec3& origin, const Vec3& r,
                                double Dvp, double rel_tol = 1e-8);
+
+// A light of the generalised reference below: point, spot (Cycles profile, spot_light.h,
+// per unit on-axis I0) or sun (per unit irradiance E, propagation direction w; fog_top: the
+// homogeneous medium's layer top of sun_layer.h, +inf: none).
+struct RbfRefLight {
+    enum class Kind { Point, Spot, Sun };
+    Kind kind = Kind::Point;
+    Vec3 s{0.0};
+    SpotCone cone;
+    Vec3 w{0.0, 0.0, -1.0};
+    double fog_top = std::numeric_limits<double>::infinity();
+};
+
+// The reference for any light and phase: adaptive quadrature of
+//   La = int_0^Dvp beta_s(x) p(cos theta(x)) F(x) exp(-T_light(x) - T(v, x)) dt
+// with exact, unculled optical depths. Point / spot: F = profile / |x - s|^2 (profile 1 for
+// points), T_light = T(s, x), beta_s = beta. Sun: F = 1, T_light = the Gaussians' half-line
+// depth from x towards the sun (to infinity) plus beta0 (fog_top - z) / mu_s below a finite
+// top (0 above it, or without a top: Hoffman-Preetham's unattenuated sun; infinite for mu_s
+// <= 0 in the layer), and beta_s = Gaussians + beta0 inside the layer only (all z without a
+// top): sun_layer.h's medium; the view side T(v, x) is beta0 t + Gaussians, as the bake's
+// Gaussian path (camera inside the layer for the two to agree). Isotropic point lights: the
+// same as rbf_airlight_quadrature above.
+double rbf_airlight_quadrature(const RbfMedium& medium, const RbfRefLight& light, const PhaseFunction& phase,
+                               const Vec3& origin, const Vec3& r, double Dvp, double rel_tol = 1e-8);
 
 // Batch over rays: out[j * L + l] for ray j (unit dirs[j], Dvp[j] > 0 or inf) and light l.
 // Validates all inputs first (std::invalid_argument), then runs on _threads_ threads.

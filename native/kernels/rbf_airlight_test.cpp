@@ -10,7 +10,10 @@
 #include <random>
 #include <stdexcept>
 
+#include "biri06.h"
+#include "spot_light.h"
 #include "sun05.h"
+#include "sun_layer.h"
 
 namespace airlight {
 namespace {
@@ -86,6 +89,42 @@ TEST(RbfAirlight, QuadratureThinLimit) {
     const Vec3 v(0, 0, 0), s(D, 0, 5), r(0, 0, 1);
     const double expect = c * std::sqrt(kPi) / a / (4.0 * kPi * D * D);
     EXPECT_NEAR(rbf_airlight_quadrature(m, s, v, r, INFINITY) / expect, 1.0, 1e-6);
+}
+
+// The generalised reference (RbfRefLight, any phase) on a homogeneous medium against the
+// homogeneous models' own references: HG point light (phase_airlight_quadrature), spot
+// (spot_airlight_quadrature), sun with and without a fog top (sun_layer_factor, closed form).
+TEST(RbfAirlight, GeneralQuadratureHomogeneousLimits) {
+    const double beta0 = 0.05;
+    const RbfMedium m({}, {}, {}, beta0);
+    const Vec3 v(0.5, -0.2, 1.0), s(3.0, 4.0, 2.0);
+    const PhaseFunction hg{PhaseKind::HenyeyGreenstein, 0.6};
+    RbfRefLight sun;
+    sun.kind = RbfRefLight::Kind::Sun;
+    sun.w = glm::normalize(Vec3(0.3, -0.4, -0.8));
+    RbfRefLight spot{RbfRefLight::Kind::Spot, s, make_spot_cone(Vec3(-0.3, -0.8, -0.2), 1.0, 0.3)};
+    int lit = 0;  // rays the spot lights
+    for (Vec3 r : {Vec3(1, 0, 0), Vec3(0, 1, 0), Vec3(-1, -1, 0), Vec3(3, 4, 0.5), Vec3(0.2, 0.1, -1)}) {
+        r = glm::normalize(r);
+        for (double Dvp : {0.5, 7.0, 100.0, double(INFINITY)}) {
+            const double Dsv = glm::length(s - v), cg = glm::dot(r, s - v) / Dsv;
+            const double point_ref = phase_airlight_quadrature(hg, beta0, Dsv, cg, Dvp, 1e-10);
+            RbfRefLight point{RbfRefLight::Kind::Point, s};
+            EXPECT_NEAR(rbf_airlight_quadrature(m, point, hg, v, r, Dvp) / point_ref, 1.0, 1e-6);
+            const double spot_ref = spot_airlight_quadrature(spot.cone, s, hg, beta0, v, r, Dvp, 1e-10);
+            const double spot_q = rbf_airlight_quadrature(m, spot, hg, v, r, Dvp);
+            EXPECT_NEAR(spot_q, spot_ref, 1e-6 * spot_ref + 1e-15);
+            lit += spot_ref > 0.0;
+            for (double top : {double(INFINITY), 4.0}) {
+                sun.fog_top = top;
+                const double sun_ref = beta0 * hg.eval(-glm::dot(sun.w, r)) *
+                                       sun_layer_factor(beta0, top, -sun.w.z, v.z, r.z, 0.0, Dvp);
+                EXPECT_NEAR(rbf_airlight_quadrature(m, sun, hg, v, r, Dvp) / sun_ref, 1.0, 1e-6)
+                    << "top " << top << " Dvp " << Dvp;
+            }
+        }
+    }
+    EXPECT_GE(lit, 6);
 }
 
 // No Gaussians: the Fogshop model is exactly Sun 2005 with beta0 (table and exact F).

@@ -14,6 +14,7 @@
 #include <limits>
 #include <sstream>
 #include <stdexcept>
+#include <type_traits>
 
 #include "fast_erf.h"
 #include "noise.h"
@@ -129,6 +130,95 @@ AIRLIGHT_SPLAT_CLONES void light_terms(const RbfSplat::GaussF g, const RbfSplat:
         const float diff = x1 >= 0.0f ? E1 - E2 : (x2 <= 0.0f ? E2 - E1 : 2.0f - E1 - E2);
         const float Tsr = e * diff;
         const float f = fast_expf(-Tsr - Tvr[k]) * Tvp[k] / d2;
+        R[k] += gl.wr * f;
+        G[k] += gl.wg * f;
+        B[k] += gl.wb * f;
+    }
+}
+
+// 4 pi p(mu) in float for the phase kind K (phase.h; mu clamped to [-1, 1]); g1 = g,
+// g2 = 1 - g^2, g3 = 1 + g^2 for Henyey-Greenstein.
+template <int K>
+inline float phase4pi_f(float mu, float g1, float g2, float g3) {
+    mu = mu < -1.0f ? -1.0f : (mu > 1.0f ? 1.0f : mu);
+    if constexpr (K == int(PhaseKind::HenyeyGreenstein)) {
+        const float d = g3 - 2.0f * g1 * mu;
+        return g2 / (d * std::sqrt(d));
+    } else if constexpr (K == int(PhaseKind::Rayleigh)) {
+        return 0.75f * (1.0f + mu * mu);
+    } else if constexpr (K == int(PhaseKind::HazyMie)) {
+        const float h = 0.5f * (1.0f + mu), h2 = h * h, h4 = h2 * h2;
+        return 0.5f * (1.0f + 9.0f * h4 * h4);
+    } else if constexpr (K == int(PhaseKind::MurkyMie)) {
+        const float h = 0.5f * (1.0f + mu), h2 = h * h, h4 = h2 * h2, h8 = h4 * h4, h16 = h8 * h8;
+        return (33.0f / 83.0f) * (1.0f + 50.0f * h16 * h16);
+    } else {
+        return 1.0f;
+    }
+}
+
+// light_terms with a phase function (K) and, if kSpot, the spot profile of light lf:
+// adds w 4 pi p(cos theta) profile exp(-T_i(s, b^r) - Tvr) Tvp / |b^r - s|^2.
+template <int K, bool kSpot>
+AIRLIGHT_SPLAT_CLONES void light_terms_ext(const RbfSplat::GaussF g, const RbfSplat::GaussLightF gl,
+                                           const RbfSplat::LightF lf, float g1, float g2, float g3, int n,
+                                           const float* __restrict dx, const float* __restrict dy,
+                                           const float* __restrict dz, const float* __restrict Tvp,
+                                           const float* __restrict Tvr, const float* __restrict tr,
+                                           float* __restrict R, float* __restrict G, float* __restrict B) {
+    for (int k = 0; k < n; ++k) {
+        const float t = tr[k];
+        const float sx = lf.vx + t * dx[k], sy = lf.vy + t * dy[k], sz = lf.vz + t * dz[k];
+        const float d2 = std::max(sx * sx + sy * sy + sz * sz, kMinD2f);
+        const float inv = 1.0f / std::sqrt(d2);
+        const float ux = sx * inv, uy = sy * inv, uz = sz * inv;
+        const float Ds = d2 * inv;
+        const float ts = gl.sx * ux + gl.sy * uy + gl.sz * uz;
+        const float cx = gl.sy * uz - gl.sz * uy, cy = gl.sz * ux - gl.sx * uz, cz = gl.sx * uy - gl.sy * ux;
+        const float e = g.k0 * fast_expf(-g.a2 * (cx * cx + cy * cy + cz * cz));
+        const float x1 = -g.a * ts, x2 = g.a * (Ds - ts);
+        const float E1 = fast_erfc_pos(x1 < 0.0f ? -x1 : x1);
+        const float E2 = fast_erfc_pos(x2 < 0.0f ? -x2 : x2);
+        const float diff = x1 >= 0.0f ? E1 - E2 : (x2 <= 0.0f ? E2 - E1 : 2.0f - E1 - E2);
+        const float Tsr = e * diff;
+        // cos theta: propagation light -> b^r (u) against the direction to the eye (-d).
+        float f = fast_expf(-Tsr - Tvr[k]) * Tvp[k] / d2 *
+                  phase4pi_f<K>(-(ux * dx[k] + uy * dy[k] + uz * dz[k]), g1, g2, g3);
+        if constexpr (kSpot) {
+            const float c = lf.ax * ux + lf.ay * uy + lf.az * uz;
+            const float x = c - lf.cos_half;
+            float u = lf.smooth > 0.0f ? x / lf.smooth : 1.0f;
+            u = u < 0.0f ? 0.0f : (u > 1.0f ? 1.0f : u);
+            f *= x > 0.0f ? c * u * u * (3.0f - 2.0f * u) : 0.0f;
+        }
+        R[k] += gl.wr * f;
+        G[k] += gl.wg * f;
+        B[k] += gl.wb * f;
+    }
+}
+
+// Sun lamp term: w 4 pi p(cos theta) exp(-T_i(b^r -> sun) - Tvr) Tvp, with Gaussian i's
+// half-line depth from b^r = eye + tr d towards the sun (unit (ux, uy, uz) = -w):
+// k0 e^{-a^2 |(b - b^r) x u|^2} erfc(-a (b - b^r).u).
+template <int K>
+AIRLIGHT_SPLAT_CLONES void sun_terms(const RbfSplat::GaussF g, const RbfSplat::GaussLightF gl, float ux, float uy,
+                                     float uz, float g1, float g2, float g3, int n, const float* __restrict dx,
+                                     const float* __restrict dy, const float* __restrict dz,
+                                     const float* __restrict Tvp, const float* __restrict Tvr,
+                                     const float* __restrict tr, float* __restrict R, float* __restrict G,
+                                     float* __restrict B) {
+    for (int k = 0; k < n; ++k) {
+        const float t = tr[k];
+        const float bx = g.rx - t * dx[k], by = g.ry - t * dy[k], bz = g.rz - t * dz[k];
+        const float ts = bx * ux + by * uy + bz * uz;
+        const float cx = by * uz - bz * uy, cy = bz * ux - bx * uz, cz = bx * uy - by * ux;
+        const float e = g.k0 * fast_expf(-g.a2 * (cx * cx + cy * cy + cz * cz));
+        const float x1 = -g.a * ts;
+        const float E1 = fast_erfc_pos(x1 < 0.0f ? -x1 : x1);
+        const float Tsr = e * (x1 >= 0.0f ? E1 : 2.0f - E1);
+        // cos theta = w . (-d) = u . d
+        const float f = fast_expf(-Tsr - Tvr[k]) * Tvp[k] *
+                        phase4pi_f<K>(ux * dx[k] + uy * dy[k] + uz * dz[k], g1, g2, g3);
         R[k] += gl.wr * f;
         G[k] += gl.wg * f;
         B[k] += gl.wb * f;
@@ -314,7 +404,7 @@ void validate_noise(const RbfNoise& noise) {
 
 RbfSplat::RbfSplat(const RbfMedium& medium, const Vec3& eye, const std::vector<Vec3>& lights,
                    const std::vector<RGB>& I0, const RGB& medium_albedo, const std::vector<double>& albedo,
-                   const SpecialFTable* table, const RbfNoise& noise, int threads)
+                   const SpecialFTable* table, const RbfNoise& noise, int threads, const RbfSplatLights* extra)
     : medium_(medium),
       table_(table),
       eye_(eye),
@@ -348,7 +438,29 @@ RbfSplat::RbfSplat(const RbfMedium& medium, const Vec3& eye, const std::vector<V
         Dsv_.push_back(D);
         Csv_.push_back(D > 0.0 ? std::exp(-medium.optical_depth_ray(s, d / D, D, RbfMedium::npos, false)) : 1.0);
     }
-    const std::vector<double> depth = L > 0 ? depths_to_centres(medium, eye, lights, threads) : std::vector<double>();
+    const std::size_t S = extra ? extra->sun_w.size() : 0;
+    if (extra) {
+        if ((!extra->spot.empty() && (extra->spot.size() != L || extra->cone.size() != L)) ||
+            (!extra->custom_background.empty() && extra->custom_background.size() != L) ||
+            extra->sun_E.size() != S)
+            throw std::invalid_argument("RbfSplat: spot, cone and custom_background need one entry per point light, "
+                                        "sun_E one per sun");
+        for (const Vec3& w : extra->sun_w)
+            if (!std::isfinite(w.x) || !std::isfinite(w.y) || !std::isfinite(w.z) ||
+                std::abs(glm::length(w) - 1.0) > 1e-6)
+                throw std::invalid_argument("RbfSplat: sun directions must be finite unit vectors");
+        const bool any_custom = std::find(extra->custom_background.begin(), extra->custom_background.end(), 1) !=
+                                extra->custom_background.end();
+        if ((S > 0 || any_custom) && !extra->background)
+            throw std::invalid_argument("RbfSplat: suns and custom backgrounds need a background function");
+        extra_ = *extra;
+        plain_ = phase_is_isotropic(extra->phase) && S == 0 &&
+                 std::find(extra->spot.begin(), extra->spot.end(), 1) == extra->spot.end();
+        if (!phase_is_isotropic(extra->phase) && !any_custom && L > 0)
+            throw std::invalid_argument("RbfSplat: a non-isotropic phase needs a custom background for every light");
+    }
+    const std::vector<double> depth =
+        L + S > 0 ? depths_to_centres(medium, eye, lights, threads) : std::vector<double>();
     g_.resize(n);
     gl_.resize(n * L);
     for (std::size_t i = 0; i < n; ++i) {
@@ -381,7 +493,46 @@ RbfSplat::RbfSplat(const RbfMedium& medium, const Vec3& eye, const std::vector<V
     for (std::size_t l = 0; l < L; ++l) {
         const Vec3 vs = eye - lights[l];
         lf_.push_back({float(vs.x), float(vs.y), float(vs.z)});
+        if (extra && !extra->spot.empty() && extra->spot[l]) {
+            const SpotCone& c = extra->cone[l];
+            lf_[l].ax = float(c.axis.x);
+            lf_[l].ay = float(c.axis.y);
+            lf_[l].az = float(c.axis.z);
+            lf_[l].cos_half = float(c.cos_half_angle);
+            lf_[l].smooth = float(c.smooth);
+        }
     }
+    // Suns: f1 = exp(-T_sun(b_i) - T(v, b_i)) without Gaussian i (exact half-line depths,
+    // culled) and C = the Gaussians' transmittance from the eye towards the sun.
+    gs_.resize(n * S);
+    for (std::size_t j = 0; j < S; ++j) {
+        const Vec3 u = -extra->sun_w[j];  // towards the sun
+        const double mu_s = u.z;
+        Csun_.push_back(std::exp(-medium.optical_depth_ray(eye, u, std::numeric_limits<double>::infinity(),
+                                                           RbfMedium::npos, false)));
+        const RGB E = extra->sun_E[j];
+        parallel_chunks(n, threads, 64, [&](std::size_t b, std::size_t e) {
+            for (std::size_t i = b; i < e; ++i) {
+                const Vec3 c = medium.centre(i);
+                const double Tsun =
+                    medium.optical_depth_ray(c, u, std::numeric_limits<double>::infinity(), i, false) +
+                    sun_layer_depth(medium.beta0(), extra->fog_top, mu_s, c.z);
+                const double f1 = std::isinf(Tsun) ? 0.0 : std::exp(-depth[i] - Tsun) * kInv4Pi;
+                GaussLightF& q = gs_[i * S + j];
+                q.sx = q.sy = q.sz = 0.0f;
+                q.wr = float(albedo_[3 * i] * E.x * f1);
+                q.wg = float(albedo_[3 * i + 1] * E.y * f1);
+                q.wb = float(albedo_[3 * i + 2] * E.z * f1);
+            }
+        });
+    }
+}
+
+double sun_layer_depth(double beta0, double h_top, double mu_s, double z) {
+    if (!(beta0 > 0.0) || std::isinf(h_top)) return 0.0;
+    if (mu_s > 0.0) return beta0 * std::max(0.0, h_top - z) / mu_s;
+    if (mu_s == 0.0 && z > h_top) return 0.0;  // horizontal above the layer
+    return std::numeric_limits<double>::infinity();
 }
 
 void RbfSplat::bin(const Vec3& D0, const Vec3& Dx, const Vec3& Dy, const Vec3& forward, int W, int H,
@@ -570,8 +721,10 @@ void RbfSplat::splat_gaussian(std::size_t i, int n, const float* dx, const float
             view_terms<false, true>(g, eye_f_, 0.0f, 0.0f, 0.0f, 0.0f, n, dx, dy, dz, tend, Tvp, Tvr, tr);
         add_to(Tvp, n, accT);
         const std::size_t L = lights_.size();
-        for (std::size_t l = 0; l < L; ++l)
-            light_terms(g, gl_[i * L + l], lf_[l], n, dx, dy, dz, Tvp, Tvr, tr, accR, accG, accB);
+        if (!plain_) light_loop(i, n, dx, dy, dz, Tvp, Tvr, tr, accR, accG, accB);
+        else
+            for (std::size_t l = 0; l < L; ++l)
+                light_terms(g, gl_[i * L + l], lf_[l], n, dx, dy, dz, Tvp, Tvr, tr, accR, accG, accB);
         return;
     }
     if (noise_.on()) {
@@ -583,8 +736,67 @@ void RbfSplat::splat_gaussian(std::size_t i, int n, const float* dx, const float
     }
     add_to(Tvp, n, accT);
     const std::size_t L = lights_.size();
-    for (std::size_t l = 0; l < L; ++l)
-        light_terms(g, gl_[i * L + l], lf_[l], n, dx, dy, dz, Tvp, Tvr, tr, accR, accG, accB);
+    if (!plain_) light_loop(i, n, dx, dy, dz, Tvp, Tvr, tr, accR, accG, accB);
+    else
+        for (std::size_t l = 0; l < L; ++l)
+            light_terms(g, gl_[i * L + l], lf_[l], n, dx, dy, dz, Tvp, Tvr, tr, accR, accG, accB);
+}
+
+void RbfSplat::light_loop(std::size_t i, int n, const float* dx, const float* dy, const float* dz, const float* Tvp,
+                          const float* Tvr, const float* tr, float* accR, float* accG, float* accB) const {
+    const GaussF& g = g_[i];
+    const std::size_t L = lights_.size();
+    const double gd = extra_.phase.kind == PhaseKind::HenyeyGreenstein ? extra_.phase.g : 0.0;
+    const float g1 = float(gd), g2 = float(1.0 - gd * gd), g3 = float(1.0 + gd * gd);
+    const int kind = int(extra_.phase.kind);
+    auto point = [&](auto K, std::size_t l) {
+        constexpr int k = decltype(K)::value;
+        if (!extra_.spot.empty() && extra_.spot[l])
+            light_terms_ext<k, true>(g, gl_[i * L + l], lf_[l], g1, g2, g3, n, dx, dy, dz, Tvp, Tvr, tr, accR,
+                                     accG, accB);
+        else
+            light_terms_ext<k, false>(g, gl_[i * L + l], lf_[l], g1, g2, g3, n, dx, dy, dz, Tvp, Tvr, tr, accR,
+                                      accG, accB);
+    };
+    const std::size_t S = extra_.sun_w.size();
+    auto sun = [&](auto K, std::size_t j) {
+        constexpr int k = decltype(K)::value;
+        const Vec3& w = extra_.sun_w[j];
+        sun_terms<k>(g, gs_[i * S + j], float(-w.x), float(-w.y), float(-w.z), g1, g2, g3, n, dx, dy, dz, Tvp, Tvr,
+                     tr, accR, accG, accB);
+    };
+    auto dispatch = [&](auto&& fn, std::size_t l) {
+        switch (kind) {
+            case int(PhaseKind::HenyeyGreenstein):
+                fn(std::integral_constant<int, int(PhaseKind::HenyeyGreenstein)>(), l);
+                break;
+            case int(PhaseKind::Rayleigh): fn(std::integral_constant<int, int(PhaseKind::Rayleigh)>(), l); break;
+            case int(PhaseKind::HazyMie): fn(std::integral_constant<int, int(PhaseKind::HazyMie)>(), l); break;
+            case int(PhaseKind::MurkyMie): fn(std::integral_constant<int, int(PhaseKind::MurkyMie)>(), l); break;
+            default: fn(std::integral_constant<int, int(PhaseKind::Isotropic)>(), l); break;
+        }
+    };
+    for (std::size_t l = 0; l < L; ++l) dispatch(point, l);
+    for (std::size_t j = 0; j < S; ++j) dispatch(sun, j);
+}
+
+void RbfSplat::background_extra(const double* ddx, const double* ddy, const double* ddz, const float* far,
+                                const float* t0, int n, float (*L0)[3]) const {
+    if (plain_ && extra_.custom_background.empty()) return;
+    if (!extra_.background) return;
+    const std::size_t L = lights_.size(), S = extra_.sun_w.size();
+    for (std::size_t l = 0; l < L + S; ++l) {
+        if (l < L && (extra_.custom_background.empty() || !extra_.custom_background[l])) continue;
+        const RGB w = l < L ? weight0_[l] * Csv_[l] : medium_albedo_ * extra_.sun_E[l - L] * Csun_[l - L];
+        if (w.x == 0.0 && w.y == 0.0 && w.z == 0.0) continue;
+        for (int k = 0; k < n; ++k) {
+            const double near = t0 ? double(t0[k]) : 0.0;
+            const double v = double(far[k]) > near
+                                 ? extra_.background(l, Vec3(ddx[k], ddy[k], ddz[k]), near, double(far[k]))
+                                 : 0.0;
+            for (int c = 0; c < 3; ++c) L0[k][c] += float(w[c] * v);
+        }
+    }
 }
 
 void RbfSplat::homogeneous(const double* cos_gamma, std::size_t l, const float* Dvp, const float* t0, int n,
@@ -663,11 +875,13 @@ void RbfSplat::splat_tile(int t, const float* depth, float* transmittance, float
             const Vec3 sv = D > 0.0 ? (lights_[l] - eye_) / D : Vec3(0.0);
             for (int k = 0; k < n; ++k)
                 cos_gamma[k] = D > 0.0 ? std::clamp(ddx[k] * sv.x + ddy[k] * sv.y + ddz[k] * sv.z, -1.0, 1.0) : 1.0;
+            if (!extra_.custom_background.empty() && extra_.custom_background[l]) continue;
             homogeneous(cos_gamma, l, far, near_clip ? t0 : nullptr, n, value);
             const RGB w = weight0_[l] * Csv_[l];
             for (int k = 0; k < n; ++k)
                 for (int c = 0; c < 3; ++c) L0[k][c] += float(w[c]) * value[k];
         }
+        background_extra(ddx, ddy, ddz, far, near_clip ? t0 : nullptr, n, L0);
     }
     const double beta0 = medium_.beta0();
     if (step_ > 1) {
@@ -1012,11 +1226,13 @@ void RbfSplat::eval_rays(const Vec3* dirs, const float* Dvp, const float* t0, in
                 for (int k = 0; k < m; ++k)
                     cos_gamma[k] =
                         D > 0.0 ? std::clamp(ddx[k] * sv.x + ddy[k] * sv.y + ddz[k] * sv.z, -1.0, 1.0) : 1.0;
+                if (!extra_.custom_background.empty() && extra_.custom_background[l]) continue;
                 homogeneous(cos_gamma, l, far, any_near ? tn : nullptr, m, value);
                 const RGB w = weight0_[l] * Csv_[l];
                 for (int k = 0; k < m; ++k)
                     for (int c = 0; c < 3; ++c) L0[k][c] += float(w[c]) * value[k];
             }
+            background_extra(ddx, ddy, ddz, far, any_near ? tn : nullptr, m, L0);
         }
         for (int k = 0; k < m; ++k) {
             const double seg = double(far[k]) - double(tn[k]);

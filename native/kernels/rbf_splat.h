@@ -30,13 +30,17 @@
 #include <atomic>
 #include <cstddef>
 #include <cstdint>
+#include <functional>
+#include <limits>
 #include <memory>
 #include <vector>
 
+#include "phase.h"
 #include "rbf_airlight.h"
 #include "rbf_medium.h"
 #include "scene.h"
 #include "special_f.h"
+#include "spot_light.h"
 
 namespace airlight {
 
@@ -50,6 +54,41 @@ struct RbfNoise {
 // Throws std::invalid_argument unless amplitude >= 0, scale > 0 and all are finite.
 void validate_noise(const RbfNoise& noise);
 
+// Lights and phases beyond isotropic point lights (the Fogshop terms generalised; all
+// optional, the defaults keep the plain path bit-identical). Per (pixel, Gaussian i, light):
+//  - phase: the term is multiplied by 4 pi p(cos theta) at b_i^r, theta between the light's
+//    propagation direction there and the direction towards the eye (phase.h convention);
+//  - spot (spot[l] set): times the Cycles profile spot_profile(cone[l], .) of the direction
+//    light -> b_i^r (spot_light.h), I0 being the spot's on-axis intensity;
+//  - sun j (propagation direction sun_w[j], irradiance sun_E[j]): f0 = E p(cos theta) (no
+//    1/d^2, theta fixed along the ray), Gaussian i's own light-side depth the exact half-line
+//    integral from b_i^r towards the sun (erfc form, to infinity), f1 = exp(-T_sun(b_i) -
+//    T(v, b_i)) with T_sun(b_i) the other Gaussians' half-line depths from b_i plus the
+//    homogeneous part of sun_layer.h: beta0 (fog_top - z)/mu_s below a finite top (0 above
+//    it; no sunlight for mu_s <= 0), nothing without a top (Hoffman-Preetham's unattenuated
+//    sun). The Gaussians are not cut at the top (the view side does not see the top either).
+//  - background (beta0) term of light l (l < L: point / spot, l = L + j: sun j), per unit
+//    weight (albedo I0, or albedo E for suns) along the unit direction d from the eye over
+//    [t0, Dvp], attenuated from t0: _background_ (the bake's homogeneous model for that light
+//    and phase). It is scaled like Fogshop's C_sv: by the Gaussians' transmittance from the
+//    light to the eye (suns: along the half-line from the eye towards the sun). Used for the
+//    lights with custom_background[l] set (and every sun); the others keep the sun05 term.
+struct RbfSplatLights {
+    PhaseFunction phase;
+    std::vector<char> spot;          // per point light (size L or empty: none is a spot)
+    std::vector<SpotCone> cone;      // per point light (read where spot[l])
+    std::vector<Vec3> sun_w;         // unit propagation directions of the sun lamps
+    std::vector<RGB> sun_E;          // their irradiance (W/m^2 per channel)
+    double fog_top = std::numeric_limits<double>::infinity();
+    std::vector<char> custom_background;  // per point light (size L or empty: none)
+    std::function<double(std::size_t l, const Vec3& d, double t0, double Dvp)> background;
+};
+
+// Light-side homogeneous optical depth of a sun lamp at height z (sun_layer.h's layer):
+// beta0 (h_top - z) / mu_s below a finite top, 0 above it or without a top; +inf where
+// the path to the sun crosses infinitely much fog (mu_s <= 0 inside the layer, mu_s < 0).
+double sun_layer_depth(double beta0, double h_top, double mu_s, double z);
+
 class RbfSplat {
   public:
     static constexpr int kTile = 16;
@@ -60,7 +99,7 @@ class RbfSplat {
     // must outlive this object. Does Fogshop's per-(light, Gaussian) precomputation.
     RbfSplat(const RbfMedium& medium, const Vec3& eye, const std::vector<Vec3>& lights, const std::vector<RGB>& I0,
              const RGB& medium_albedo, const std::vector<double>& albedo, const SpecialFTable* table,
-             const RbfNoise& noise, int threads = 0);
+             const RbfNoise& noise, int threads = 0, const RbfSplatLights* extra = nullptr);
 
     // Bins the Gaussians into tiles for the image W x H whose pixel (px, py) (film
     // position, pixel centres at +0.5) looks along D0 + px Dx + py Dy from the eye;
@@ -134,6 +173,8 @@ class RbfSplat {
     };
     struct LightF {
         float vx, vy, vz;  // eye - s
+        // Spots (RbfSplatLights): unit axis, cos(size / 2) and the smoothstep width.
+        float ax = 0.0f, ay = 0.0f, az = 0.0f, cos_half = 0.0f, smooth = 0.0f;
     };
 
   private:
@@ -150,6 +191,14 @@ class RbfSplat {
     // Homogeneous term of light l for n rays: segment [t0, Dvp] attenuated from t0.
     void homogeneous(const double* cos_gamma, std::size_t l, const float* Dvp, const float* t0, int n,
                      float* out) const;
+    // The light terms of Gaussian i (all lights, suns included) from its view terms, when
+    // !plain_ (the plain path calls light_terms directly).
+    void light_loop(std::size_t i, int n, const float* dx, const float* dy, const float* dz, const float* Tvp,
+                    const float* Tvr, const float* tr, float* accR, float* accG, float* accB) const;
+    // Adds the background terms of the lights with a custom background (RbfSplatLights) and
+    // of the suns, scaled by their C factors, to L0 for n rays.
+    void background_extra(const double* ddx, const double* ddy, const double* ddz, const float* far,
+                          const float* t0, int n, float (*L0)[3]) const;
 
     const RbfMedium& medium_;
     const SpecialFTable* table_;
@@ -167,6 +216,11 @@ class RbfSplat {
     std::vector<GaussLightF> gl_;  // [i * L + l]
     std::vector<LightF> lf_;
     float eye_f_[3];
+    // Extensions (RbfSplatLights): plain_ = isotropic point lights only (the original kernels).
+    bool plain_ = true;
+    RbfSplatLights extra_;
+    std::vector<GaussLightF> gs_;  // [i * S + j] per sun: sx, sy, sz unused
+    std::vector<double> Csun_;     // per sun: Gaussians' transmittance from the eye towards it
     // Binning.
     int W_ = 0, H_ = 0, tiles_x_ = 0, tiles_y_ = 0;
     Vec3 D0_{0.0}, Dx_{0.0}, Dy_{0.0}, forward_{0.0, 0.0, -1.0};

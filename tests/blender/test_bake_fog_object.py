@@ -170,3 +170,63 @@ def test06_fog_object_resolution_reaches_the_bake(tmp_path):
     np.testing.assert_allclose(quarter, expected, rtol=5e-2, atol=1e-4)
     full_a, quarter_a = passes['FULL']["Airlight"], passes['QUARTER']["Airlight"]
     np.testing.assert_allclose(quarter_a, full_a, rtol=5e-2, atol=1e-3 * full_a.max())
+
+
+def _fog_pixels(scene):
+    """Interior pixels whose centre ray passes within 0.3 m of a Gaussian centre."""
+    eye, d, _, _ = _pixel_rays(scene)
+    rel = CENTRES[None, None, :, :] - eye
+    ts = np.einsum("hwk,hwnk->hwn", d, np.broadcast_to(rel, d.shape[:2] + rel.shape[2:]))
+    dist = np.linalg.norm(rel - ts[..., None] * d[:, :, None, :], axis=-1)
+    return np.any(dist < 0.3, axis=-1)
+
+
+@needs_real_native
+def test07_fog_object_with_sun_spot_and_anisotropic_phase(tmp_path):
+    """Fog objects lit by a sun lamp (with and without a fog top), then + a spot light and
+    Henyey-Greenstein anisotropy: bpy.ops.airlight.bake exports and bakes them (Automatic
+    picks a model that takes Gaussians with that light and phase) and the Airlight pass is
+    finite and brighter where the Gaussians are than the same bake without them."""
+    import math
+    from airlight import model_choice
+    scene = build_plane_scene(tmp_path, size=(W, H), light=False)
+    sun = bpy.data.objects.new("Sun", bpy.data.lights.new("Sun", 'SUN'))
+    sun.data.energy = 3.0
+    sun.rotation_euler = (math.radians(30.0), 0.0, math.radians(20.0))
+    scene.collection.objects.link(sun)
+    fog = fog_object.new_fog_object("Fog", scene.collection, CENTRES, SCALES, AMPLITUDES)
+    where = _fog_pixels(scene)
+    assert 20 < where.sum() < W * H - 20
+
+    def bake_pair(name):
+        fog.hide_render = True
+        without = exr_pass(_bake(tmp_path / f"{name}_without.exr"), "Airlight")
+        fog.hide_render = False
+        depsgraph = bpy.context.evaluated_depsgraph_get()
+        description = scene_export.export_scene(scene, depsgraph)
+        assert len(description["rbf_scales"]) == len(CENTRES) and len(description["sun_directions"]) == 1
+        with_fog = exr_pass(_bake(tmp_path / f"{name}.exr"), "Airlight")
+        assert np.all(np.isfinite(with_fog)) and with_fog.max() > 0.0
+        gain = (with_fog - without)[..., 0]
+        assert np.median(gain[where]) > 0.05 * np.median(without[..., 0][where]), name
+        assert np.median(np.abs(gain[~where])) < np.median(gain[where]), name
+        return with_fog
+
+    assert model_choice.choose(scene.airlight)[0] == "sun05"
+    sun_only = bake_pair("sun")
+    scene.airlight.use_fog_top = True
+    scene.airlight.fog_top = 3.0
+    topped = bake_pair("sun_top")
+    assert not np.array_equal(sun_only, topped)  # the top attenuates the sunlight
+    spot = bpy.data.objects.new("Spot", bpy.data.lights.new("Spot", 'SPOT'))
+    spot.data.energy = 200.0
+    spot.data.spot_size = math.radians(70.0)
+    spot.location = (0.2, 0.1, 1.8)
+    scene.collection.objects.link(spot)
+    scene.airlight.phase = 'HENYEY_GREENSTEIN'
+    scene.airlight.anisotropy = 0.5
+    name = model_choice.choose(scene.airlight)[0]
+    assert name in ("biri06", "pegoraro10", "quadrature")
+    description = scene_export.export_scene(scene, bpy.context.evaluated_depsgraph_get())
+    assert len(description["spot_positions"]) == 1 and description["phase"] == "hg"
+    bake_pair("sun_spot_hg")

@@ -66,7 +66,7 @@ def test01_scene_panels_draw(tmp_path, model):
     fog_object.new_fog_object("Fog", scene.collection, np.zeros((3, 3)), 1.0, 0.1)
     seen = _draw("AIRLIGHT_PT_fog_objects")
     assert "1 fog object" in seen
-    note = {'AUTO': "Fogshop 2007", 'QUADRATURE': "Exact", 'BIRI06': "does not take fog objects"}[model]
+    note = {'AUTO': "Fogshop 2007", 'QUADRATURE': "Exact", 'BIRI06': "Fogshop 2007"}[model]
     assert any(note in text for text in seen), seen
     scene.airlight.environment_glow = True
     seen = _draw("AIRLIGHT_PT_environment")
@@ -76,3 +76,6 @@ def test01_scene_panels_draw(tmp_path, model):
 def test02_fog_object_note_matches_what_the_bake_does():
     assert "Fogshop" in ui.fog_object_note("sun05") and "Fogshop" in ui.fog_object_note("sun05_exact")
     assert "Exact" in ui.fog_object_note("quadrature")
+    for name in ("biri06", "pegoraro10"):  # any phase, spots and suns too
+        assert "sun lamps, any phase" in ui.fog_object_note(name)
+    assert "does not take fog objects" in ui.fog_object_note("hoffman02")

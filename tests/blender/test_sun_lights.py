@@ -92,6 +92,18 @@ def test02_faint_far_light_is_skipped_bright_one_never(tmp_path):
     assert plan(scene)["Far"].status == 'fog'
 
 
+def test02b_no_light_is_skipped_with_a_fog_object(tmp_path):
+    """The faint-light bounds are the homogeneous fog's: with a (render-visible) fog object
+    in the scene, which a faint light may still light brightly, Automatic skips nothing."""
+    from airlight import fog_object
+    scene = build_scene(tmp_path)
+    assert plan(scene)["Far"].status == 'skipped'
+    fog = fog_object.new_fog_object("Fog", scene.collection, np.array([[0.0, -30.0, 3.0]]), 0.5, 0.2)
+    assert plan(scene)["Far"].status == 'fog'
+    fog.hide_render = True
+    assert plan(scene)["Far"].status == 'skipped'
+
+
 def _bake(scene, model=None):
     if model is not None:
         scene.airlight.model = model

@@ -150,9 +150,7 @@ def test_bad_sun_input():
         _native.bake(**base, sun_directions=SUN_DIR[:1], sun_irradiances=-np.ones((1, 3)))
     with pytest.raises(ValueError, match="fog_top"):
         _native.bake(**base, sun_directions=SUN_DIR[:1], sun_irradiances=np.ones((1, 3)), fog_top=math.nan)
-    with pytest.raises(ValueError, match="Gaussian"):
-        _native.bake(**base, sun_directions=SUN_DIR[:1], sun_irradiances=np.ones((1, 3)),
-                     rbf_centres=np.zeros((1, 3)), rbf_scales=np.ones(1), rbf_amplitudes=np.ones(1))
+    # (suns with Gaussians are baked now: test17_bake_rbf_lights.py)
 
 
 def test_orthographic_camera():
