@@ -15,17 +15,6 @@ using namespace pybind11::literals;
 
 namespace {
 
-// A (4, 4) float64 array (numpy row-major) as a glm (column-major) matrix.
-glm::dmat4 to_mat4(const py::object& obj, const char* name) {
-    auto a = as_array<double>(obj, name);
-    if (a.ndim() != 2 || a.shape(0) != 4 || a.shape(1) != 4)
-        throw py::value_error(std::string(name) + ": expected shape (4, 4), got " + shape_str(a));
-    glm::dmat4 m;
-    for (int r = 0; r < 4; ++r)
-        for (int c = 0; c < 4; ++c) m[c][r] = a.at(r, c);
-    return m;
-}
-
 // Triangle indices: any integer array of shape (M, 3) with values in [0, 2^32).
 std::vector<uint32_t> to_triangles(const py::object& obj) {
     py::array raw = py::array::ensure(obj);

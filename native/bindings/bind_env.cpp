@@ -35,16 +35,6 @@ py::array_t<float> map_to_numpy(EnvironmentMap&& map) {
     return to_numpy(std::move(map.rgb), {h, w, 3});
 }
 
-glm::dmat4 to_mat4(const py::object& obj, const char* name) {
-    auto a = as_array<double>(obj, name);
-    if (a.ndim() != 2 || a.shape(0) != 4 || a.shape(1) != 4)
-        throw py::value_error(std::string(name) + ": expected shape (4, 4), got " + shape_str(a));
-    glm::dmat4 m;
-    for (int r = 0; r < 4; ++r)
-        for (int c = 0; c < 4; ++c) m[c][r] = a.at(r, c);
-    return m;
-}
-
 }  // namespace
 
 void bind_env(py::module_& m) {

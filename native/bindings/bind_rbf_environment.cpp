@@ -33,16 +33,6 @@ RbfMedium medium_of(const py::object& centres, const py::object& scales, const p
     }
 }
 
-glm::dmat4 mat4_of(const py::object& obj, const char* name) {
-    auto a = as_array<double>(obj, name);
-    if (a.ndim() != 2 || a.shape(0) != 4 || a.shape(1) != 4)
-        throw py::value_error(std::string(name) + ": expected shape (4, 4), got " + shape_str(a));
-    glm::dmat4 m;
-    for (int r = 0; r < 4; ++r)
-        for (int c = 0; c < 4; ++c) m[c][r] = a.at(r, c);
-    return m;
-}
-
 RGB albedo_of(const py::object& obj) {
     auto alb = as_array<double>(obj, "albedo");
     if (alb.size() != 3) throw py::value_error("albedo: expected 3 values");
@@ -178,8 +168,8 @@ void bind_rbf_environment(py::module_& m) {
            int threads) {
             if (width <= 0 || height <= 0) throw py::value_error("width and height must be > 0");
             Camera cam;
-            cam.cam_to_world = mat4_of(cam_to_world, "cam_to_world");
-            cam.projection = mat4_of(projection, "projection");
+            cam.cam_to_world = to_mat4(cam_to_world, "cam_to_world");
+            cam.projection = to_mat4(projection, "projection");
             cam.width = width;
             cam.height = height;
             cam.clip_start = clip_start;

@@ -1,6 +1,7 @@
 // numpy_util.h: argument checking and array conversion shared by the binding files.
 #pragma once
 
+#include <glm/glm.hpp>
 #include <pybind11/numpy.h>
 #include <pybind11/pybind11.h>
 
@@ -43,6 +44,17 @@ inline py::ssize_t require_rows_of(const py::array& a, py::ssize_t cols, const c
         throw py::value_error(std::string(name) + ": expected " + std::to_string(rows) +
                               " rows, got " + std::to_string(n));
     return n;
+}
+
+// A (4, 4) float64 array (numpy row-major) as a glm (column-major) matrix.
+inline glm::dmat4 to_mat4(const py::object& obj, const char* name) {
+    auto a = as_array<double>(obj, name);
+    if (a.ndim() != 2 || a.shape(0) != 4 || a.shape(1) != 4)
+        throw py::value_error(std::string(name) + ": expected shape (4, 4), got " + shape_str(a));
+    glm::dmat4 m;
+    for (int r = 0; r < 4; ++r)
+        for (int c = 0; c < 4; ++c) m[c][r] = a.at(r, c);
+    return m;
 }
 
 // A numpy array that owns _data_ (moved, no copy) with the given shape.

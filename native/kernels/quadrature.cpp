@@ -112,6 +112,19 @@ double integrate_adaptive(const std::function<double(double)>& f, double a, doub
     return sum;
 }
 
+double integrate_cut(const std::function<double(double)>& f, double lo, double hi, std::vector<double> cuts,
+                     double rel_tol) {
+    cuts.push_back(lo);
+    cuts.push_back(hi);
+    std::sort(cuts.begin(), cuts.end());
+    double sum = 0.0;
+    for (size_t k = 0; k + 1 < cuts.size(); ++k) {
+        const double a = std::max(lo, cuts[k]), b = std::min(hi, cuts[k + 1]);
+        if (b > a) sum += integrate_adaptive(f, a, b, rel_tol, 0.0, 60);
+    }
+    return sum;
+}
+
 double integrate_piecewise(const std::function<double(double)>& f, const std::vector<double>& cuts,
                            double end, double tail_scale, double rel_tol) {
     double sum = 0.0;

@@ -21,6 +21,11 @@ double integrate_adaptive(const std::function<double(double)>& f, double a, doub
 double integrate_piecewise(const std::function<double(double)>& f, const std::vector<double>& cuts,
                            double end, double tail_scale, double rel_tol);
 
+// Integrates f over [lo, hi] by integrate_adaptive between the breakpoints _cuts_ that fall
+// inside it (any order; those outside are ignored), each piece to _rel_tol_.
+double integrate_cut(const std::function<double(double)>& f, double lo, double hi, std::vector<double> cuts,
+                     double rel_tol);
+
 // Reference airlight: adaptive quadrature of Sun 2005 eq. 5 with I0 = 1, omega = 1,
 //   La = sigma_t/(4 pi) int_0^Dvp exp(-sigma_t d(x)) / d(x)^2 * exp(-sigma_t x) dx,
 //   d(x)^2 = Dsv^2 + x^2 - 2 x Dsv cos_gamma.

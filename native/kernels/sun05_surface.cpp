@@ -56,20 +56,6 @@ void require_args(double T, double theta_s, double m) {
                                     ", m = " + std::to_string(m) + ")");
 }
 
-// Integrates f over [lo, hi] split at the sorted cuts inside it.
-double integrate_cut(const std::function<double(double)>& f, double lo, double hi, std::vector<double> cuts,
-                     double rel_tol) {
-    cuts.push_back(lo);
-    cuts.push_back(hi);
-    std::sort(cuts.begin(), cuts.end());
-    double sum = 0.0;
-    for (size_t k = 0; k + 1 < cuts.size(); ++k) {
-        const double a = std::max(lo, cuts[k]), b = std::min(hi, cuts[k + 1]);
-        if (b > a) sum += integrate_adaptive(f, a, b, rel_tol, 0.0, 60);
-    }
-    return sum;
-}
-
 }  // namespace
 
 double sun05_surface_H_scaled(double T, double gamma) {

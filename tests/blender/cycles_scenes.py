@@ -240,6 +240,48 @@ def build(desc: FogScene):
     return scene
 
 
+def add_fog_slab(scene, top, sigma_t, anisotropy=0.0, half_size=1000.0):
+    """A homogeneous Volume Scatter box "RefFogBox" (albedo 1) whose top face is at world
+    height _top_ and whose sides and bottom lie _half_size_ away: a fog layer for sun lamps
+    (an unbounded world volume would dim a sun to nothing). bake_inputs leaves it out."""
+    import bpy
+    L = half_size
+    mesh = bpy.data.meshes.new("RefFogBox")
+    verts = [(sx * L, sy * L, top if sz > 0 else -L) for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)]
+    faces = [(0, 1, 3, 2), (4, 6, 7, 5), (0, 4, 5, 1), (2, 3, 7, 6), (0, 2, 6, 4), (1, 5, 7, 3)]
+    mesh.from_pydata(verts, [], faces)
+    mesh.validate()
+    mesh.update()
+    mat = bpy.data.materials.new("RefFog")
+    mat.use_nodes = True
+    nodes, links = mat.node_tree.nodes, mat.node_tree.links
+    for node in list(nodes):
+        nodes.remove(node)
+    out = nodes.new("ShaderNodeOutputMaterial")
+    vs = nodes.new("ShaderNodeVolumeScatter")
+    vs.inputs["Color"].default_value = (1.0, 1.0, 1.0, 1.0)
+    vs.inputs["Density"].default_value = sigma_t
+    vs.inputs["Anisotropy"].default_value = anisotropy
+    links.new(vs.outputs["Volume"], out.inputs["Volume"])
+    mesh.materials.append(mat)
+    mat.cycles.homogeneous_volume = True
+    box = bpy.data.objects.new("RefFogBox", mesh)
+    scene.collection.objects.link(box)
+    return box
+
+
+def make_sun_lamp(light, direction, strength, color=(1.0, 1.0, 1.0)):
+    """Turns the light object into a sun lamp of angle 0 shining along the unit vector
+    _direction_ (its -Z), of strength (irradiance, W/m^2) _strength_."""
+    from mathutils import Vector
+    light.data.type = 'SUN'
+    light.data.energy = strength
+    light.data.color = color
+    light.data.angle = 0.0
+    light.rotation_mode = 'QUATERNION'
+    light.rotation_quaternion = Vector((0.0, 0.0, -1.0)).rotation_difference(Vector(tuple(float(x) for x in direction)))
+
+
 def _black_material():
     import bpy
     mat = bpy.data.materials.new("RefBlack")

@@ -78,11 +78,7 @@ def refs(request):
     light = next(ob for ob in scene.objects if ob.type == 'LIGHT')
     light.rotation_mode = 'QUATERNION'
     if kind == "sun":
-        light.data.type = 'SUN'
-        light.data.energy = SUN_STRENGTH
-        light.data.color = SUN_COLOR
-        light.data.angle = 0.0
-        light.rotation_quaternion = Vector((0.0, 0.0, -1.0)).rotation_difference(Vector(SUN_DIR.tolist()))
+        cs.make_sun_lamp(light, SUN_DIR, SUN_STRENGTH, SUN_COLOR)
     elif kind == "spot":  # a spot at the point light's place aimed at the Gaussians (soft edge)
         light.data.type = 'SPOT'
         light.data.energy = SPOT_POWER

@@ -98,41 +98,13 @@ def sun_reference(o, d, g, n=4000, t_max=250.0):
 
 def _build(view, g):
     import bpy
-    from mathutils import Vector
     # clip_end far beyond the box: Cycles 3.4 drops the whole object-volume segment of a
     # camera ray that ends at clip_end inside the volume (measured: pixels exactly 0).
     desc = cs.FogScene(width=96, height=72, floor=False, fog=False, clip_end=1.0e5, **VIEWS[view])
     scene = cs.build(desc)
-    # The slab: a Volume Scatter box with its top at FOG_TOP.
-    L = 1000.0
-    mesh = bpy.data.meshes.new("RefFogBox")
-    verts = [(sx * L, sy * L, FOG_TOP if sz > 0 else -L) for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)]
-    faces = [(0, 1, 3, 2), (4, 6, 7, 5), (0, 4, 5, 1), (2, 3, 7, 6), (0, 2, 6, 4), (1, 5, 7, 3)]
-    mesh.from_pydata(verts, [], faces)
-    mesh.validate()
-    mesh.update()
-    mat = bpy.data.materials.new("RefFog")
-    mat.use_nodes = True
-    nodes, links = mat.node_tree.nodes, mat.node_tree.links
-    for node in list(nodes):
-        nodes.remove(node)
-    out = nodes.new("ShaderNodeOutputMaterial")
-    vs = nodes.new("ShaderNodeVolumeScatter")
-    vs.inputs["Color"].default_value = (1.0, 1.0, 1.0, 1.0)
-    vs.inputs["Density"].default_value = SIGMA_T
-    vs.inputs["Anisotropy"].default_value = g
-    links.new(vs.outputs["Volume"], out.inputs["Volume"])
-    mesh.materials.append(mat)
-    mat.cycles.homogeneous_volume = True
-    scene.collection.objects.link(bpy.data.objects.new("RefFogBox", mesh))
-    # The point light becomes a sun of angle 0.
-    light = bpy.data.objects["RefLight"]
-    light.data.type = 'SUN'
-    light.data.energy = SUN_STRENGTH
-    light.data.color = SUN_COLOR
-    light.data.angle = 0.0
-    light.rotation_mode = 'QUATERNION'
-    light.rotation_quaternion = Vector((0.0, 0.0, -1.0)).rotation_difference(Vector(SUN_DIR.tolist()))
+    # The slab: a Volume Scatter box with its top at FOG_TOP; the point light becomes a sun.
+    cs.add_fog_slab(scene, FOG_TOP, SIGMA_T, g)
+    cs.make_sun_lamp(bpy.data.objects["RefLight"], SUN_DIR, SUN_STRENGTH, SUN_COLOR)
     bpy.context.view_layer.update()
     return desc, scene
 

@@ -20,7 +20,6 @@ Figures go to out/test_artifacts/cycles_sun_surface/summary.json and stdout.
 """
 
 import json
-import math
 import os
 import sys
 
@@ -57,7 +56,6 @@ def _report(name, **figures):
 
 def _build(slab, diffuse_bounces):
     import bpy
-    from mathutils import Vector
     desc = cs.FogScene(**{**SCENE, "fog": False})
     scene = cs.build(desc)
     floor = scene.objects["RefFloor"]
@@ -66,34 +64,8 @@ def _build(slab, diffuse_bounces):
     scene.cycles.max_bounces = diffuse_bounces
     scene.cycles.diffuse_bounces = diffuse_bounces
     if slab:
-        L = 1000.0
-        mesh = bpy.data.meshes.new("RefFogBox")
-        verts = [(sx * L, sy * L, FOG_TOP if sz > 0 else -L) for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)]
-        faces = [(0, 1, 3, 2), (4, 6, 7, 5), (0, 4, 5, 1), (2, 3, 7, 6), (0, 2, 6, 4), (1, 5, 7, 3)]
-        mesh.from_pydata(verts, [], faces)
-        mesh.validate()
-        mesh.update()
-        mat = bpy.data.materials.new("RefFog")
-        mat.use_nodes = True
-        nodes, links = mat.node_tree.nodes, mat.node_tree.links
-        for node in list(nodes):
-            nodes.remove(node)
-        out = nodes.new("ShaderNodeOutputMaterial")
-        vs = nodes.new("ShaderNodeVolumeScatter")
-        vs.inputs["Color"].default_value = (1.0, 1.0, 1.0, 1.0)
-        vs.inputs["Density"].default_value = SIGMA_T
-        vs.inputs["Anisotropy"].default_value = 0.0
-        links.new(vs.outputs["Volume"], out.inputs["Volume"])
-        mesh.materials.append(mat)
-        mat.cycles.homogeneous_volume = True
-        scene.collection.objects.link(bpy.data.objects.new("RefFogBox", mesh))
-    light = scene.objects["RefLight"]
-    light.data.type = 'SUN'
-    light.data.energy = SUN_STRENGTH
-    light.data.color = (1.0, 1.0, 1.0)
-    light.data.angle = 0.0
-    light.rotation_mode = 'QUATERNION'
-    light.rotation_quaternion = Vector((0.0, 0.0, -1.0)).rotation_difference(Vector(SUN_DIR.tolist()))
+        cs.add_fog_slab(scene, FOG_TOP, SIGMA_T)
+    cs.make_sun_lamp(scene.objects["RefLight"], SUN_DIR, SUN_STRENGTH)
     bpy.context.view_layer.update()
     return scene, desc
 
