@@ -39,6 +39,7 @@
 #include <string>
 #include <thread>
 
+#include "biri06_surface.h"
 #include "quadrature.h"
 
 namespace airlight {
@@ -199,43 +200,9 @@ double SurfaceGTable::eval_scaled(double T, double theta_s) const {
 }
 
 double sun05_surface_glow_reference(double beta, double D, double theta_s, double m, double rel_tol) {
-    // Radiance arriving along an incident direction at angle gamma from the light: the
-    // single-scattering line integral to infinity, split at the closest approach to the light.
-    auto L = [=](double gamma) {
-        const double cg = std::cos(gamma), sg = std::sin(gamma);
-        auto f = [=](double t) {
-            // r^2 = D^2 + t^2 - 2 D t cos(gamma), written without cancellation near the light.
-            const double r2 = (t - D * cg) * (t - D * cg) + D * sg * D * sg;
-            const double r = std::sqrt(r2);
-            return beta / (4.0 * kPi) * std::exp(-beta * (r + t)) / r2;
-        };
-        const double tc = std::max(0.0, D * cg), w = std::max(D * sg, 1e-300);
-        std::vector<double> cuts{tc};
-        for (double s = w; s < 64.0 * D; s *= 4.0) {
-            cuts.push_back(tc + s);
-            if (tc - s > 0.0) cuts.push_back(tc - s);
-        }
-        const double last = tc + 64.0 * D;
-        cuts.push_back(last);
-        return integrate_cut(f, 0.0, last, cuts, rel_tol * 1e-3) + integrate_adaptive(f, last, INFINITY, rel_tol * 1e-3);
-    };
-    // Azimuth about the light direction: cos(theta_i)^m over the hemisphere, numerically with
-    // the horizon crossing as a breakpoint (no closed form used).
-    auto azimuth = [=](double gamma) {
-        const double a = std::cos(gamma) * std::cos(theta_s), b = std::sin(gamma) * std::sin(theta_s);
-        auto g = [=](double psi) {
-            const double c = a + b * std::cos(psi);
-            return c > 0.0 ? std::pow(c, m) : 0.0;
-        };
-        std::vector<double> cuts;
-        if (std::abs(b) > std::abs(a)) cuts.push_back(std::acos(-a / b));
-        return 2.0 * integrate_cut(g, 0.0, kPi, cuts, rel_tol * 1e-3);
-    };
-    auto integrand = [=](double gamma) { return std::sin(gamma) * L(gamma) * azimuth(gamma); };
-    const double edge = std::abs(kHalfPi - theta_s);
-    std::vector<double> cuts{edge, kPi - edge};
-    for (double c = 1e-6; c < 0.5; c *= 4.0) cuts.push_back(c);
-    return integrate_cut(integrand, 0.0, kPi, cuts, rel_tol);
+    // The brute-force reference for any phase function (biri06_surface.h: the line integral
+    // to infinity along each incident direction, the azimuth numerically), isotropic here.
+    return biri06_surface_glow_reference(PhaseFunction{}, beta, D, theta_s, m, rel_tol);
 }
 
 }  // namespace airlight
