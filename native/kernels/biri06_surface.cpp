@@ -84,31 +84,6 @@ std::vector<double> gamma_cuts(const PhaseFunction& phase, double T, double thet
     return cuts;
 }
 
-// W_m by a fixed Gauss-Legendre rule in the azimuth (table build; as sun05_surface.cpp).
-double W_fixed(double gamma, double theta_s, double m, const std::vector<double>& x, const std::vector<double>& w) {
-    if (m == 1.0) return sun05_surface_W(gamma, theta_s, m);
-    const double a = std::cos(gamma) * std::cos(theta_s);
-    const double b = std::abs(std::sin(gamma) * std::sin(theta_s));
-    if (a <= -b) return 0.0;
-    const double psi0 = a >= b ? kPi : std::acos(-a / b);
-    double sum = 0.0;
-    for (size_t k = 0; k < x.size(); ++k) {
-        const double c = a + b * std::cos(0.5 * psi0 * (x[k] + 1.0));
-        if (c > 0.0) sum += w[k] * std::pow(c, m);
-    }
-    return psi0 * sum;
-}
-
-// The T of table row i (the SurfaceGTable axis).
-double row_T(int i, int n) {
-    const double x = double(i) / (n - 1);
-    return i == n - 1 ? kTableTMax : std::expm1(x * x * std::log1p(kTableTMax));
-}
-
-double row_position(double T, int n) {
-    return std::min(std::sqrt(std::log1p(T) / std::log1p(kTableTMax)), 1.0) * (n - 1);
-}
-
 // Panel ends of a table row at _T_ (besides the table's own): the 1/T layer of H near gamma = 0
 // and the phase-lobe ladders at both ends.
 void add_row_cuts(const PhaseFunction& phase, double T, std::vector<double>& cuts) {
@@ -176,47 +151,12 @@ double biri06_surface_G_exact(const PhaseFunction& phase, double T, double theta
 }
 
 PhaseSurfaceGTable::PhaseSurfaceGTable(const PhaseFunction& phase, double m, int nT, int ntheta, int threads)
-    : phase_(phase), m_(m), nT_(nT), ntheta_(ntheta) {
-    require_args(0.0, 0.0, m);
-    if (nT < 2 || ntheta < 2) throw std::invalid_argument("PhaseSurfaceGTable: need at least 2 x 2 samples");
-    data_.assign(size_t(nT) * size_t(ntheta), 0.0);
-    std::vector<double> glx, glw, psx, psw;
-    gauss_legendre(8, glx, glw);
-    gauss_legendre(48, psx, psw);
-    int n_threads = threads > 0 ? threads : int(std::thread::hardware_concurrency());
-    n_threads = std::max(1, std::min(n_threads, nT));
-    auto work = [&](int first) {
-        for (int i = first; i < nT; i += n_threads) {
-            const double T = row_T(i, nT);
-            // Kinks of W_m(., theta_j) for every column, the 1/T layer, the phase lobes.
-            std::vector<double> cuts{0.0, kPi};
-            for (int k = 0; k < ntheta - 1; ++k) cuts.push_back((2 * k + 1) * kPi / (2.0 * (ntheta - 1)));
-            add_row_cuts(phase_, T, cuts);
-            std::sort(cuts.begin(), cuts.end());
-            std::vector<double> nodes, weights, H;
-            for (size_t k = 0; k + 1 < cuts.size(); ++k) {
-                const double a = cuts[k], b = cuts[k + 1];
-                if (!(b > a)) continue;
-                for (size_t q = 0; q < glx.size(); ++q) {
-                    const double g = 0.5 * (a + b) + 0.5 * (b - a) * glx[q];
-                    nodes.push_back(g);
-                    weights.push_back(0.5 * (b - a) * glw[q]);
-                    H.push_back(H_scaled(phase_, T, g, kTableHTol));
-                }
-            }
-            for (int j = 0; j < ntheta; ++j) {
-                const double theta = kPi * j / (ntheta - 1);
-                double sum = 0.0;
-                for (size_t q = 0; q < nodes.size(); ++q) sum += weights[q] * H[q] * W_fixed(nodes[q], theta, m_, psx, psw);
-                data_[size_t(i) * ntheta + j] = sum;
-            }
-        }
-    };
-    std::vector<std::thread> pool;
-    for (int t = 1; t < n_threads; ++t) pool.emplace_back(work, t);
-    work(0);
-    for (auto& th : pool) th.join();
-}
+    : phase_(phase),
+      m_((require_args(0.0, 0.0, m), m)),
+      grid_(nT, ntheta, m, threads,
+            // The 1/T layer of H near gamma = 0 and the phase lobes.
+            [this](double T, std::vector<double>& cuts) { add_row_cuts(phase_, T, cuts); },
+            [this](double T, double gamma) { return H_scaled(phase_, T, gamma, kTableHTol); }) {}
 
 double PhaseSurfaceGTable::eval(double T, double theta_s) const {
     if (!(T >= 0.0) || !(theta_s >= 0.0)) require_args(T, theta_s, m_);
@@ -227,13 +167,7 @@ double PhaseSurfaceGTable::eval(double T, double theta_s) const {
 double PhaseSurfaceGTable::eval_scaled(double T, double theta_s) const {
     if (!(T >= 0.0) || !(theta_s >= 0.0)) require_args(T, theta_s, m_);
     if (T > kTableTMax) return biri06_surface_G_scaled_exact(phase_, T, std::min(theta_s, kPi), m_);
-    const double fi = row_position(T, nT_);
-    const double fj = std::min(theta_s / kPi, 1.0) * (ntheta_ - 1);
-    const int i = std::min(int(fi), nT_ - 2), j = std::min(int(fj), ntheta_ - 2);
-    const double di = fi - i, dj = fj - j;
-    const double* r0 = &data_[size_t(i) * ntheta_ + j];
-    const double* r1 = r0 + ntheta_;
-    return (1.0 - di) * ((1.0 - dj) * r0[0] + dj * r0[1]) + di * ((1.0 - dj) * r1[0] + dj * r1[1]);
+    return grid_.lookup(T, theta_s);
 }
 
 std::shared_ptr<const PhaseSurfaceGTable> shared_phase_surface_G_table(const PhaseFunction& phase, int nT, int ntheta,
@@ -296,7 +230,7 @@ Biri06LambertTable::Biri06LambertTable(const PhaseFunction& phase, int n) : phas
     const int n_threads = std::max(1, std::min(int(std::thread::hardware_concurrency()), n));
     auto work = [&](int first) {
         for (int i = first; i < n; i += n_threads) {
-            const double T = row_T(i, n);
+            const double T = SurfaceGGrid::row_T(i, n);
             std::vector<double> cuts;
             for (int k = 0; k <= 48; ++k) cuts.push_back(kPi * k / 48.0);
             add_row_cuts(phase_, T, cuts);
@@ -322,7 +256,7 @@ Biri06LambertTable::Biri06LambertTable(const PhaseFunction& phase, int n) : phas
 double Biri06LambertTable::eval_scaled(double lambda) const {
     if (!(lambda >= 0.0)) throw std::invalid_argument("Biri06LambertTable: lambda must be >= 0");
     if (lambda > kTableTMax) return biri06_Gamma_L_scaled_exact(phase_, lambda);
-    const double f = row_position(lambda, n_);
+    const double f = SurfaceGGrid::row_position(lambda, n_);
     const int i = std::min(int(f), n_ - 2);
     const double d = f - i;
     return (1.0 - d) * data_[size_t(i)] + d * data_[size_t(i) + 1];

@@ -45,6 +45,7 @@
 #include <vector>
 
 #include "phase.h"
+#include "sun05_surface.h"
 
 namespace airlight {
 
@@ -71,8 +72,7 @@ class PhaseSurfaceGTable {
   private:
     PhaseFunction phase_;
     double m_;
-    int nT_, ntheta_;
-    std::vector<double> data_;  // row-major [iT][itheta], e^{T} G_p
+    SurfaceGGrid grid_;  // e^{T} G_p (sun05_surface.h's layout)
 };
 
 // The table for (phase, m, nT, ntheta), built once per process and shared (thread safe).

@@ -28,7 +28,7 @@
 //                   angle between the spot axis and u_p,
 // both tabulated per bake. For other orientations the bake uses the same factor (the
 // azimuthal weighting of a tilted surface is left out: measured).
-#pragma once#pragma once
+#pragma once
 
 #include <vector>
 

@@ -133,14 +133,16 @@ double W_fixed(double gamma, double theta_s, double m, const std::vector<double>
 
 }  // namespace
 
-SurfaceGTable::SurfaceGTable(double m, int nT, int ntheta, int threads) : m_(m), nT_(nT), ntheta_(ntheta) {
-    require_args(0.0, 0.0, m);
-    if (nT < 2 || ntheta < 2) throw std::invalid_argument("SurfaceGTable: need at least 2 x 2 samples");
+SurfaceGGrid::SurfaceGGrid(int nT, int ntheta, double m, int threads,
+                           const std::function<void(double, std::vector<double>&)>& row_cuts,
+                           const std::function<double(double, double)>& H_scaled)
+    : nT_(nT), ntheta_(ntheta) {
+    if (nT < 2 || ntheta < 2) throw std::invalid_argument("surface G table: need at least 2 x 2 samples");
     data_.assign(size_t(nT) * size_t(ntheta), 0.0);
     // The kinks of W_m(., theta_j) for every column theta_j = pi j / (ntheta - 1) lie on the
-    // grid gamma = (2 k + 1) pi / (2 (ntheta - 1)): panels between them (plus cuts at the
-    // 1/T layer near gamma = 0) with 8 Gauss-Legendre nodes each integrate every column, and
-    // H is evaluated once per node for the whole row.
+    // grid gamma = (2 k + 1) pi / (2 (ntheta - 1)): panels between them (plus the row's cuts)
+    // with 8 Gauss-Legendre nodes each integrate every column, and H is evaluated once per
+    // node for the whole row.
     std::vector<double> glx, glw, psx, psw;
     gauss_legendre(8, glx, glw);
     gauss_legendre(48, psx, psw);
@@ -148,12 +150,10 @@ SurfaceGTable::SurfaceGTable(double m, int nT, int ntheta, int threads) : m_(m),
     n_threads = std::max(1, std::min(n_threads, nT));
     auto work = [&](int first) {
         for (int i = first; i < nT; i += n_threads) {
-            const double x = double(i) / (nT - 1);
-            const double T = i == nT - 1 ? kTableTMax : std::expm1(x * x * std::log1p(kTableTMax));
+            const double T = row_T(i, nT);
             std::vector<double> cuts{0.0, kPi};
             for (int k = 0; k < ntheta - 1; ++k) cuts.push_back((2 * k + 1) * kPi / (2.0 * (ntheta - 1)));
-            if (T > 1.0)
-                for (double c = 0.0625 / T; c < 0.5; c *= 2.0) cuts.push_back(c);
+            row_cuts(T, cuts);
             std::sort(cuts.begin(), cuts.end());
             std::vector<double> nodes, weights, H;
             for (size_t k = 0; k + 1 < cuts.size(); ++k) {
@@ -163,7 +163,7 @@ SurfaceGTable::SurfaceGTable(double m, int nT, int ntheta, int threads) : m_(m),
                     const double g = 0.5 * (a + b) + 0.5 * (b - a) * glx[q];
                     nodes.push_back(g);
                     weights.push_back(0.5 * (b - a) * glw[q]);
-                    H.push_back(sun05_surface_H_scaled(T, g));
+                    H.push_back(H_scaled(T, g));
                 }
             }
             for (int j = 0; j < ntheta; ++j) {
@@ -180,6 +180,39 @@ SurfaceGTable::SurfaceGTable(double m, int nT, int ntheta, int threads) : m_(m),
     for (auto& th : pool) th.join();
 }
 
+double SurfaceGGrid::row_T(int i, int nT) {
+    const double x = double(i) / (nT - 1);
+    return i == nT - 1 ? kTMax : std::expm1(x * x * std::log1p(kTMax));
+}
+
+double SurfaceGGrid::row_position(double T, int nT) {
+    return std::min(std::sqrt(std::log1p(T) / std::log1p(kTMax)), 1.0) * (nT - 1);
+}
+
+double SurfaceGGrid::lookup(double T, double theta_s) const {
+    const double fi = row_position(T, nT_);
+    const double fj = std::min(theta_s / kPi, 1.0) * (ntheta_ - 1);
+    const int i = std::min(int(fi), nT_ - 2), j = std::min(int(fj), ntheta_ - 2);
+    const double di = fi - i, dj = fj - j;
+    const double* r0 = &data_[size_t(i) * ntheta_ + j];
+    const double* r1 = r0 + ntheta_;
+    return (1.0 - di) * ((1.0 - dj) * r0[0] + dj * r0[1]) + di * ((1.0 - dj) * r1[0] + dj * r1[1]);
+}
+
+namespace {
+void check_table_exponent(double m) { require_args(0.0, 0.0, m); }
+}  // namespace
+
+SurfaceGTable::SurfaceGTable(double m, int nT, int ntheta, int threads)
+    : m_((check_table_exponent(m), m)),
+      grid_(nT, ntheta, m, threads,
+            [](double T, std::vector<double>& cuts) {
+                // The 1/T layer of H near gamma = 0.
+                if (T > 1.0)
+                    for (double c = 0.0625 / T; c < 0.5; c *= 2.0) cuts.push_back(c);
+            },
+            [](double T, double gamma) { return sun05_surface_H_scaled(T, gamma); }) {}
+
 double SurfaceGTable::eval(double T, double theta_s) const {
     if (!(T >= 0.0) || !(theta_s >= 0.0)) require_args(T, theta_s, m_);
     if (T > kTableTMax) return sun05_surface_G_exact(T, std::min(theta_s, kPi), m_);
@@ -189,14 +222,7 @@ double SurfaceGTable::eval(double T, double theta_s) const {
 double SurfaceGTable::eval_scaled(double T, double theta_s) const {
     if (!(T >= 0.0) || !(theta_s >= 0.0)) require_args(T, theta_s, m_);
     if (T > kTableTMax) return sun05_surface_G_scaled_exact(T, std::min(theta_s, kPi), m_);
-    const double fi = std::min(std::sqrt(std::log1p(T) / std::log1p(kTableTMax)), 1.0) * (nT_ - 1);
-    const double fj = std::min(theta_s / kPi, 1.0) * (ntheta_ - 1);
-    const int i = std::min(int(fi), nT_ - 2), j = std::min(int(fj), ntheta_ - 2);
-    const double di = fi - i, dj = fj - j;
-    const double* r0 = &data_[size_t(i) * ntheta_ + j];
-    const double* r1 = r0 + ntheta_;
-    const double q = (1.0 - di) * ((1.0 - dj) * r0[0] + dj * r0[1]) + di * ((1.0 - dj) * r1[0] + dj * r1[1]);
-    return q;
+    return grid_.lookup(T, theta_s);
 }
 
 double sun05_surface_glow_reference(double beta, double D, double theta_s, double m, double rel_tol) {

@@ -22,6 +22,7 @@
 // (the paper's assumption): Tvp = inf along every incident direction.
 #pragma once
 
+#include <functional>
 #include <vector>
 
 namespace airlight {
@@ -39,6 +40,29 @@ double sun05_surface_H_scaled(double T, double gamma);
 // W_m(gamma, theta_s) (see above): closed form for m = 1, Gauss-Legendre otherwise.
 double sun05_surface_W(double gamma, double theta_s, double m);
 
+// The grid of the G tables, shared by SurfaceGTable and the phase-aware PhaseSurfaceGTable
+// (biri06_surface.h): rows T_i = expm1((i / (nT - 1))^2 ln(1 + kTMax)) (0 ... kTMax), columns
+// theta_j = pi j / (ntheta - 1), entries e^{T} G(T_i, theta_j, m) = int_0^pi H(T_i, g) e^{T_i}
+// W_m(g, theta_j) dg by 8-point Gauss-Legendre panels between the kinks of every column's W_m
+// and the row's extra breakpoints; bilinear lookup.
+class SurfaceGGrid {
+  public:
+    static constexpr double kTMax = 64.0;
+    // _row_cuts_(T, cuts) appends a row's extra gamma breakpoints; _H_scaled_(T, gamma) is
+    // e^{T} H(T, gamma). Rows go to _threads_ worker threads (0: all).
+    SurfaceGGrid(int nT, int ntheta, double m, int threads,
+                 const std::function<void(double, std::vector<double>&)>& row_cuts,
+                 const std::function<double(double, double)>& H_scaled);
+    // e^{T} G(T, theta_s) for 0 <= T <= kTMax.
+    double lookup(double T, double theta_s) const;
+    static double row_T(int i, int nT);
+    static double row_position(double T, int nT);
+
+  private:
+    int nT_, ntheta_;
+    std::vector<double> data_;  // row-major [iT][itheta]
+};
+
 // Tabulated G for one exponent m (layout and measured error in sun05_surface.cpp).
 class SurfaceGTable {
   public:
@@ -52,8 +76,7 @@ class SurfaceGTable {
 
   private:
     double m_;
-    int nT_, ntheta_;
-    std::vector<double> data_;  // row-major [iT][itheta], stored Q (see .cpp)
+    SurfaceGGrid grid_;
 };
 
 // Reference for tests: the surface single-scattering integral (eq. 15) by brute force,
