@@ -240,6 +240,50 @@ def build(desc: FogScene):
     return scene
 
 
+def addon_ready():
+    """Skips the calling test unless the add-on is registered with the compiled _native."""
+    import bpy
+    import pytest
+    if not (hasattr(bpy.types.Scene, "airlight") and hasattr(bpy.ops.airlight, "bake")):
+        pytest.skip("the add-on is not registered")
+    from airlight import native
+    if not native.available() or native.get().__name__.endswith("fake_native"):
+        pytest.skip("needs the compiled _native module")
+
+
+class Summary:
+    """Figures of one test module: printed as "<prefix> <name>: k=v, ..." and kept in
+    <artifacts>/summary.json."""
+
+    def __init__(self, artifacts, prefix):
+        self.artifacts, self.prefix, self.figures = artifacts, prefix, {}
+
+    def report(self, name, **figures):
+        import json
+        self.figures[name] = figures
+        os.makedirs(self.artifacts, exist_ok=True)
+        with open(os.path.join(self.artifacts, "summary.json"), "w") as f:
+            json.dump(self.figures, f, indent=2)
+        print(f"{self.prefix} {name}: " + ", ".join(
+            f"{k}={v:.5g}" if isinstance(v, float) else f"{k}={v}" for k, v in figures.items()), flush=True)
+
+
+def diffuse_floor(scene, albedo, diffuse_bounces):
+    """Makes the reference floor a grey Lambert surface of _albedo_ and sets the bounce limits
+    (max and diffuse) to _diffuse_bounces_."""
+    floor = scene.objects["RefFloor"]
+    bsdf = next(n for n in floor.active_material.node_tree.nodes if n.type == 'BSDF_DIFFUSE')
+    bsdf.inputs["Color"].default_value = (albedo, albedo, albedo, 1.0)
+    scene.cycles.max_bounces = diffuse_bounces
+    scene.cycles.diffuse_bounces = diffuse_bounces
+
+
+def block_means(img, n=8):
+    """Means over n x n pixel blocks (rows and columns beyond a whole block dropped)."""
+    H, W = img.shape
+    return img[:H - H % n, :W - W % n].reshape(H // n, n, W // n, n).mean(axis=(1, 3))
+
+
 def add_fog_slab(scene, top, sigma_t, anisotropy=0.0, half_size=1000.0):
     """A homogeneous Volume Scatter box "RefFogBox" (albedo 1) whose top face is at world
     height _top_ and whose sides and bottom lie _half_size_ away: a fog layer for sun lamps

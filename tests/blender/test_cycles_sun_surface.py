@@ -19,7 +19,6 @@ Ours, through the add-on as a user runs it: the same scene WITHOUT the slab, sce
 Figures go to out/test_artifacts/cycles_sun_surface/summary.json and stdout.
 """
 
-import json
 import os
 import sys
 
@@ -42,41 +41,19 @@ SCENE = dict(width=64, height=48, samples=1024, sigma_t=SIGMA_T, camera_location
              camera_pitch_deg=-35.0, floor_x=(-400.0, 400.0), floor_y=(-400.0, 400.0), clip_start=0.1,
              clip_end=1.0e5)
 NOFOG_SAMPLES = 64
-SUMMARY = {}
-
-
-def _report(name, **figures):
-    SUMMARY[name] = figures
-    os.makedirs(ARTIFACTS, exist_ok=True)
-    with open(os.path.join(ARTIFACTS, "summary.json"), "w") as f:
-        json.dump(SUMMARY, f, indent=2)
-    print(f"cycles_sun_surface {name}: " + ", ".join(
-        f"{k}={v:.5g}" if isinstance(v, float) else f"{k}={v}" for k, v in figures.items()), flush=True)
+SUMMARY = cs.Summary(ARTIFACTS, "cycles_sun_surface")
 
 
 def _build(slab, diffuse_bounces):
     import bpy
     desc = cs.FogScene(**{**SCENE, "fog": False})
     scene = cs.build(desc)
-    floor = scene.objects["RefFloor"]
-    bsdf = next(n for n in floor.active_material.node_tree.nodes if n.type == 'BSDF_DIFFUSE')
-    bsdf.inputs["Color"].default_value = (FLOOR_ALBEDO, FLOOR_ALBEDO, FLOOR_ALBEDO, 1.0)
-    scene.cycles.max_bounces = diffuse_bounces
-    scene.cycles.diffuse_bounces = diffuse_bounces
+    cs.diffuse_floor(scene, FLOOR_ALBEDO, diffuse_bounces)
     if slab:
         cs.add_fog_slab(scene, FOG_TOP, SIGMA_T)
     cs.make_sun_lamp(scene.objects["RefLight"], SUN_DIR, SUN_STRENGTH)
     bpy.context.view_layer.update()
     return scene, desc
-
-
-def _addon_ready():
-    import bpy
-    if not (hasattr(bpy.types.Scene, "airlight") and hasattr(bpy.ops.airlight, "bake")):
-        pytest.skip("the add-on is not registered")
-    from airlight import native
-    if not native.available() or native.get().__name__.endswith("fake_native"):
-        pytest.skip("needs the compiled _native module")
 
 
 def _composite():
@@ -107,7 +84,7 @@ def _composite():
 
 @pytest.fixture(scope="module")
 def renders():
-    _addon_ready()
+    cs.addon_ready()
     os.makedirs(ARTIFACTS, exist_ok=True)
     scene, desc = _build(slab=True, diffuse_bounces=1)
     cycles, seconds = [], 0.0
@@ -116,13 +93,8 @@ def renders():
         seconds += cs.render(scene, path, seed=seed)
         cycles.append(cs.read_exr_rgb(path)[..., 0].astype(np.float64))
     surface, groups = _composite()
-    _report("cycles", samples=desc.samples, seconds=seconds)
+    SUMMARY.report("cycles", samples=desc.samples, seconds=seconds)
     return dict(cycles=cycles, ref=0.5 * (cycles[0] + cycles[1]), surface=surface, groups=groups)
-
-
-def _blocks(img):
-    H, W = img.shape
-    return img[:H - H % 8, :W - W % 8].reshape(H // 8, 8, W // 8, 8).mean(axis=(1, 3))
 
 
 def test01_sun_light_group(renders):
@@ -134,9 +106,9 @@ def test02_sun_surface_composite_matches_cycles(renders):
     composite without the sun's glow term is clearly off."""
     ref, surface = renders["ref"], renders["surface"]
     c1, c2 = renders["cycles"]
-    bref = _blocks(ref)
-    block_noise = np.abs(_blocks(c1) - _blocks(c2)) / (_blocks(c1) + _blocks(c2))
-    bmean = float(np.mean(np.abs(_blocks(surface) - bref) / bref))
+    bref = cs.block_means(ref)
+    block_noise = np.abs(cs.block_means(c1) - cs.block_means(c2)) / (cs.block_means(c1) + cs.block_means(c2))
+    bmean = float(np.mean(np.abs(cs.block_means(surface) - bref) / bref))
     bias = float(surface.sum() / ref.sum() - 1.0)
     nbias = float(abs(c1.sum() - c2.sum()) / (c1.sum() + c2.sum()))
     from conftest import exr_pass
@@ -144,10 +116,10 @@ def test02_sun_surface_composite_matches_cycles(renders):
     glow = exr_pass(baked, "SurfaceGlow")[..., 0]
     glow_term = FLOOR_ALBEDO * glow * exr_pass(baked, "Transmittance")[..., 0]
     no_glow = surface - glow_term
-    gbmean = float(np.mean(np.abs(_blocks(no_glow) - bref) / bref))
+    gbmean = float(np.mean(np.abs(cs.block_means(no_glow) - bref) / bref))
     gbias = float(no_glow.sum() / ref.sum() - 1.0)
-    _report("blocks_8x8", surface_mean=bmean, no_glow_mean=gbmean, cycles_noise_mean=float(block_noise.mean()))
-    _report("floor_total", surface_bias=bias, no_glow_bias=gbias, cycles_noise=nbias)
+    SUMMARY.report("blocks_8x8", surface_mean=bmean, no_glow_mean=gbmean, cycles_noise_mean=float(block_noise.mean()))
+    SUMMARY.report("floor_total", surface_bias=bias, no_glow_bias=gbias, cycles_noise=nbias)
     assert np.all(np.isfinite(glow)) and glow.max() > 0.0
     assert abs(bias) < 0.01 + 2.0 * nbias, (bias, nbias)
     assert bmean < 0.01 + 2.0 * float(block_noise.mean()), (bmean, float(block_noise.mean()))

@@ -20,8 +20,6 @@ Figures (mean / p99 relative difference over floor pixels) go to
 out/test_artifacts/cycles_surface/summary.json and stdout.
 """
 
-import json
-import math
 import os
 import sys
 import time
@@ -43,38 +41,16 @@ SCENE = dict(width=64, height=48, samples=1024, sigma_t=SIGMA_T, light_power=100
              camera_pitch_deg=-45.0, floor_x=(-40.0, 40.0), floor_y=(-40.0, 40.0),
              clip_start=0.1, clip_end=1000.0)
 NOFOG_SAMPLES = 64
-SUMMARY = {}
-
-
-def _report(name, **figures):
-    SUMMARY[name] = figures
-    os.makedirs(ARTIFACTS, exist_ok=True)
-    with open(os.path.join(ARTIFACTS, "summary.json"), "w") as f:
-        json.dump(SUMMARY, f, indent=2)
-    print(f"cycles_surface {name}: " + ", ".join(
-        f"{k}={v:.5g}" if isinstance(v, float) else f"{k}={v}" for k, v in figures.items()), flush=True)
+SUMMARY = cs.Summary(ARTIFACTS, "cycles_surface")
 
 
 def _build(fog, diffuse_bounces):
     import bpy
     desc = cs.FogScene(**{**SCENE, "fog": fog})
     scene = cs.build(desc)
-    floor = scene.objects["RefFloor"]
-    bsdf = next(n for n in floor.active_material.node_tree.nodes if n.type == 'BSDF_DIFFUSE')
-    bsdf.inputs["Color"].default_value = (FLOOR_ALBEDO, FLOOR_ALBEDO, FLOOR_ALBEDO, 1.0)
-    scene.cycles.max_bounces = diffuse_bounces
-    scene.cycles.diffuse_bounces = diffuse_bounces
+    cs.diffuse_floor(scene, FLOOR_ALBEDO, diffuse_bounces)
     bpy.context.view_layer.update()
     return scene, desc
-
-
-def _addon_ready():
-    import bpy
-    if not (hasattr(bpy.types.Scene, "airlight") and hasattr(bpy.ops.airlight, "bake")):
-        pytest.skip("the add-on is not registered")
-    from airlight import native
-    if not native.available() or native.get().__name__.endswith("fake_native"):
-        pytest.skip("needs the compiled _native module")
 
 
 def _composite(surface_shading, name):
@@ -104,7 +80,7 @@ def _composite(surface_shading, name):
 
 @pytest.fixture(scope="module")
 def renders():
-    _addon_ready()
+    cs.addon_ready()
     os.makedirs(ARTIFACTS, exist_ok=True)
     scene, desc = _build(fog=True, diffuse_bounces=1)
     cycles, seconds = [], 0.0
@@ -123,7 +99,7 @@ def renders():
     t0 = time.perf_counter()
     surface, groups, _ = _composite(True, "surface")
     plain, _, _ = _composite(False, "plain")
-    _report("cycles", samples=desc.samples, seconds=seconds, floor_pixels=int(floor.sum()),
+    SUMMARY.report("cycles", samples=desc.samples, seconds=seconds, floor_pixels=int(floor.sum()),
             noise_mean=float(noise[floor].mean()), noise_p99=float(np.percentile(noise[floor], 99)))
     return dict(ref=ref, cycles=cycles, noise=noise, floor=floor, surface=surface, plain=plain, groups=groups,
                 composite_seconds=time.perf_counter() - t0)
@@ -142,13 +118,11 @@ def test02_surface_composite_matches_cycles(renders):
     floor, ref, noise = renders["floor"], renders["ref"], renders["noise"]
     mean, p99 = cs.rel_stats(renders["surface"], ref, floor)
     pmean, pp99 = cs.rel_stats(renders["plain"], ref, floor)
-    _report("surface_vs_cycles", mean=mean, p99=p99)
-    _report("plain_vs_cycles", mean=pmean, p99=pp99)
+    SUMMARY.report("surface_vs_cycles", mean=mean, p99=p99)
+    SUMMARY.report("plain_vs_cycles", mean=pmean, p99=pp99)
     # Per-pixel figures are dominated by Cycles' noise (diffuse bounce + volume scattering);
     # 8x8-pixel block means and the floor-wide ratio average it away and show the bias.
-    def blocks(img):
-        H, W = img.shape
-        return img[:H - H % 8, :W - W % 8].reshape(H // 8, 8, W // 8, 8).mean(axis=(1, 3))
+    blocks = cs.block_means
     assert floor.all()  # the whole frame is floor (so blocks are floor only)
     c1, c2 = renders["cycles"]
     block_noise = np.abs(blocks(c1) - blocks(c2)) / (blocks(c1) + blocks(c2))
@@ -159,9 +133,9 @@ def test02_surface_composite_matches_cycles(renders):
     bias = float(renders["surface"].sum() / ref.sum() - 1.0)
     pbias = float(renders["plain"].sum() / ref.sum() - 1.0)
     nbias = float(abs(c1.sum() - c2.sum()) / (c1.sum() + c2.sum()))
-    _report("blocks_8x8", surface_mean=bmean, surface_max=bmax, plain_mean=pbmean,
+    SUMMARY.report("blocks_8x8", surface_mean=bmean, surface_max=bmax, plain_mean=pbmean,
             cycles_noise_mean=float(block_noise.mean()), cycles_noise_max=float(block_noise.max()))
-    _report("floor_total", surface_bias=bias, plain_bias=pbias, cycles_noise=nbias)
+    SUMMARY.report("floor_total", surface_bias=bias, plain_bias=pbias, cycles_noise=nbias)
     assert abs(bias) < 0.01 + 2.0 * nbias, (bias, nbias)
     assert bmean < 0.01 + 2.0 * float(block_noise.mean()), (bmean, float(block_noise.mean()))
     # Without the glow term (Sun 2005 eq. 17's G0 part): the surface composite minus
@@ -172,7 +146,7 @@ def test02_surface_composite_matches_cycles(renders):
     no_glow = renders["surface"] - glow_term
     gbias = float(no_glow.sum() / ref.sum() - 1.0)
     gbmean = float(np.mean(np.abs(blocks(no_glow) - bref) / bref))
-    _report("attenuation_only", block_mean=gbmean, floor_bias=gbias)
+    SUMMARY.report("attenuation_only", block_mean=gbmean, floor_bias=gbias)
     assert gbmean > 3.0 * bmean, (gbmean, bmean)
     nmean = float(noise[floor].mean())
     # The composite's own Monte Carlo noise (64 spp without fog) and the table error are
