@@ -4,7 +4,7 @@ import math
 
 import bpy
 
-from . import compositor, model_choice, native, surface
+from . import compositor, fog_object, model_choice, native, surface
 from .properties import SUPPORTED_LIGHT_TYPES
 
 
@@ -110,6 +110,9 @@ def light_lines(scene, view_layer=None):
         rows = model_choice.light_plan(scene, view_layer=view_layer)
     except ValueError as ex:   # e.g. a degenerate camera: say so instead of failing the panel
         return [(f"Cannot plan the lights: {ex}", 'ERROR')]
+    # With fog objects the row's error is that of the uniform fog's model; the Gaussians'
+    # error (Fogshop's approximation) is on the Fog Objects panel (fog_object_note).
+    where = " in the uniform fog" if any(fog_object.is_fog_object(obj) for obj in scene.objects) else ""
     lines = []
     for row in rows:
         icon = _LIGHT_ICONS.get(row.type, 'LIGHT')
@@ -123,7 +126,7 @@ def light_lines(scene, view_layer=None):
             text = f"{row.name}: skipped: below {_percent(row.share)} of the fog"
         else:
             error = "unbounded" if math.isinf(row.error) else f"\u2264 {_percent(row.error)}"
-            text = f"{row.name}: {row.label}, error {error}"
+            text = f"{row.name}: {row.label}, error {error}{where}"
         lines.append((text, icon))
     return lines
 

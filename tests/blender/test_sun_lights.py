@@ -7,7 +7,7 @@ import bpy
 import numpy as np
 import pytest
 
-from airlight import bake, light_bounds, model_choice, native, scene_export, ui
+from airlight import bake, fog_object, light_bounds, model_choice, native, scene_export, ui
 from conftest import needs_real_native
 
 SIGMA = 0.1
@@ -175,3 +175,9 @@ def test05_panel_lines(tmp_path):
     scene.airlight.model = 'BASELINE'
     lines = dict((text.split(":")[0], text) for text, _ in ui.light_lines(scene))
     assert lines["Near"].endswith("error unbounded")
+    # With a fog object the rows say their error is the uniform fog's (the Gaussians' is on
+    # the Fog Objects panel).
+    fog_object.new_fog_object("Fog", scene.collection, centres=[(0.0, 0.0, 1.0)])
+    lines = dict((text.split(":")[0], text) for text, _ in ui.light_lines(scene))
+    assert lines["Near"].endswith("error unbounded in the uniform fog")
+    assert "in the uniform fog" not in lines["Panel"]
