@@ -301,6 +301,9 @@ class GaussianFog:
         self.tile_pairs = 0      # (tile, Gaussian) entries of the last tile lists
         self.tiles_ms = None     # duration of the last tile-list build (CPU + upload)
         self.tiles_batch = None
+        self.light_tex = None    # output of the light-fit pass (preview._fit_lights)
+        self.light_tex_count = -1
+        self.fit_batch = None
 
     def update(self, native, shader, gaussians, beta0, eye, lights):
         """Makes textures/batch/factors current; _gaussians_ = dict(centres, scales,
