@@ -14,7 +14,8 @@
 //      built on the CPU once per configuration (native/bindings/preview_tiles.h; not in
 //      the frame times, printed); with shaders that have rbf_light_fit_frag.glsl (v4)
 //      tiles_* and gauss_* run the light-fit pass first and read its output (the add-on's
-//      default preview.LIGHT_FIT), tilesexact_* is the tile pass without it; scales
+//      default preview.LIGHT_FIT), tilesexact_* is the tile pass without it,
+//      tilescompute_* (an experiment) the tile pass's GLSL as a compute shader; scales
 //      full, half, quarter, eighth; or (standin_*) the
 //      harness's own splat pass (standin_splat.cpp) after the homogeneous fog;
 //      compute_full: the FULL fog pass's GLSL run as a compute shader (an experiment:
@@ -74,8 +75,9 @@ void usage()
       "  [--gaussians N] [--cull-eps E] [--sigma-t X] [--out DIR] [--npy-step N]\n"
       "  [--noise-amplitude A] [--noise-scale S] [--fit-near K.K]\n"
       "  [--platform auto|device|surfaceless|default] [--device I]\n"
-      "configs: {homog,gauss,tiles,tilesexact,standin}_{full,half,quarter,eighth}, compute_full\n"
-      "  (tiles, gauss: with the light fit where the shaders have it; tilesexact: without)");
+      "configs: {homog,gauss,tiles,tilesexact,tilescompute,standin}_{full,half,quarter,eighth},\n"
+      "  compute_full (tiles, gauss: with the light fit where the shaders have it; tilesexact:\n"
+      "  without; tilescompute: the tile pass's GLSL as a compute shader, an experiment)");
 }
 
 std::vector<std::string> split(const std::string &s, char sep)
@@ -154,7 +156,8 @@ Config parse_config(const std::string &s)
   c.name = s;
   auto parts = split(s, '_');
   if (parts.size() != 2 || (parts[0] != "homog" && parts[0] != "gauss" && parts[0] != "standin" &&
-                            parts[0] != "compute" && parts[0] != "tiles" && parts[0] != "tilesexact"))
+                            parts[0] != "compute" && parts[0] != "tiles" && parts[0] != "tilesexact" &&
+                            parts[0] != "tilescompute"))
     throw std::invalid_argument("bad config " + s);
   c.kind = parts[0];
   if (c.kind == "compute" && parts[1] != "full")
@@ -247,7 +250,7 @@ int run(const Args &a)
 
   for (const std::string &cs : a.configs) {
     const Config c = parse_config(cs);
-    const bool tile_kind = c.kind == "tiles" || c.kind == "tilesexact";
+    const bool tile_kind = c.kind == "tiles" || c.kind == "tilesexact" || c.kind == "tilescompute";
     const bool addon_gauss = c.kind == "gauss" || tile_kind;
     if (addon_gauss && !p.v2) {
       rep.line(fmt("%-15s skipped: these shaders have no Gaussian splat pass (interface v1)",
@@ -317,7 +320,7 @@ int run(const Args &a)
       p.count_samples = count;
       if (c.kind == "compute") p.draw_fog_compute(view, vp, a.sigma_t);
       else p.draw_fog(view, vp, a.sigma_t, c.kind == "standin" ? 1 : c.scale, addon_gauss,
-                      tile_kind, c.kind == "tilesexact");
+                      tile_kind, c.kind == "tilesexact", c.kind == "tilescompute");
       p.count_samples = false;
       if (c.kind == "standin") {
         standin_fragments = standin.draw(vp.fbo, vp.w, vp.h, view.persp, view.inv_persp,

@@ -340,6 +340,10 @@ void Preview::build_gaussians(const GaussianSet &g)
       return t;
     };
     tiles = create_info_program(tiles_info(s, v4), target);
+    // Experiment (tilescompute_*): the same GLSL as a compute shader (create_info_compute_glsl:
+    // outputs -> image units 0, 1), as compute_full does for the fog pass. Not what Blender
+    // 3.4 can run (no compute from Python before 4.1).
+    tiles_compute = create_info_compute_program(tiles_info(s, v4), target);
     if (v4) {
       tiles_exact = create_info_program(tiles_info(s_exact, false), target);
       // gpu_shaders.create_rbf_light_fit_shader
@@ -589,10 +593,29 @@ void Preview::draw_light_fit(const View &v, int w, int h, float sigma_t)
 }
 
 // preview._draw_gaussians with gauss_pass 'TILES' (v3): every splat-target texel once.
-void Preview::draw_tiles(const View &v, int w, int h, float sigma_t, int S, bool exact)
+void Preview::draw_tiles(const View &v, int w, int h, float sigma_t, int S, bool exact, bool compute)
 {
   const bool fit = v4 && !exact;
   if (fit) draw_light_fit(v, w, h, sigma_t);
+  if (compute) {
+    const int lw = (w + S - 1) / S, lh = (h + S - 1) / S;
+    if (gauss_target.w != lw || gauss_target.h != lh) {
+      if (gauss_target.fbo) free_target(gauss_target);
+      gauss_target = make_target(lw, lh, GL_RGBA32F, false, 2);
+    }
+    bind_inputs(tiles_compute, v, glm::vec4(0, 0, float(w), float(h)), sigma_t, S, 0, lights_csv, nullptr);
+    glBindTextureUnit(3, gauss_tex);
+    glBindTextureUnit(4, f1_tex);
+    glBindTextureUnit(5, tile_index_tex);
+    glBindTextureUnit(6, tile_list_tex);
+    if (fit) glBindTextureUnit(7, light_target.colour[0]);
+    glBindImageTexture(0, gauss_target.colour[0], 0, GL_FALSE, 0, GL_WRITE_ONLY, GL_RGBA32F);
+    glBindImageTexture(1, gauss_target.colour[1], 0, GL_FALSE, 0, GL_WRITE_ONLY, GL_RGBA32F);
+    glDispatchCompute(GLuint((lw + 7) / 8), GLuint((lh + 7) / 8), 1);
+    glMemoryBarrier(GL_TEXTURE_FETCH_BARRIER_BIT);
+    stamp("tiles_compute");
+    return;
+  }
   const int lw = (w + S - 1) / S, lh = (h + S - 1) / S;
   if (gauss_target.w != lw || gauss_target.h != lh) {
     if (gauss_target.fbo) free_target(gauss_target);
@@ -613,7 +636,7 @@ void Preview::draw_tiles(const View &v, int w, int h, float sigma_t, int S, bool
 }
 
 void Preview::draw_fog(const View &v, const Target &viewport, float sigma_t, int scale, bool gaussians,
-                       bool tile_pass, bool exact)
+                       bool tile_pass, bool exact, bool compute)
 {
   const int w = viewport.w, h = viewport.h;
   const glm::vec4 region(0.0f, 0.0f, float(w), float(h));
@@ -621,7 +644,7 @@ void Preview::draw_fog(const View &v, const Target &viewport, float sigma_t, int
   glDepthMask(GL_FALSE);
   if (gaussians) {
     // Splat (or the tile pass) at 1/scale, then the fog pass at full resolution with the sums.
-    if (tile_pass) draw_tiles(v, w, h, sigma_t, scale, exact);
+    if (tile_pass) draw_tiles(v, w, h, sigma_t, scale, exact, compute);
     else draw_splat(v, w, h, sigma_t, scale);
     GLuint prog = fog_gauss_program(scale);
     glBindFramebuffer(GL_FRAMEBUFFER, viewport.fbo);

@@ -82,6 +82,7 @@ struct Preview {
   GLuint tiles = 0, tile_index_tex = 0, tile_list_tex = 0;
   // v4: tile pass without the fit, the light-fit pass and its target (gauss_light).
   GLuint tiles_exact = 0, light_fit = 0;
+  GLuint tiles_compute = 0;  // experiment: the tile pass as a compute shader (tilescompute_*)
   Target light_target;
   int tiles_scale = 0;
   unsigned long long tile_entries = 0;
@@ -106,8 +107,9 @@ struct Preview {
   // (v2) the splat pass at 1/scale and the fog pass at full resolution.
   // _tiles_ (v3): the Gaussian sums by the tile pass instead of the splat.
   // _exact_ (v4): the tile pass with the exact light terms (no light-fit pass).
+  // _compute_: the tile pass's GLSL as a compute shader (experiment).
   void draw_fog(const View &v, const Target &viewport, float sigma_t, int scale, bool gaussians,
-                bool tiles = false, bool exact = false);
+                bool tiles = false, bool exact = false, bool compute = false);
   // v3: the tile lists for _scale_ (rebuilt when the scale changes; preview_gaussians.
   // GaussianFog.update_tiles).
   void build_tiles(const View &v, int w, int h, int scale);
@@ -126,6 +128,6 @@ struct Preview {
   void bind_inputs(GLuint prog, const View &v, glm::vec4 viewport, float sigma_t, int scale,
                    GLuint fog_lo_tex, GLuint lights_tex, const Target *gauss) const;
   void draw_splat(const View &v, int w, int h, float sigma_t, int gauss_scale);
-  void draw_tiles(const View &v, int w, int h, float sigma_t, int gauss_scale, bool exact);
+  void draw_tiles(const View &v, int w, int h, float sigma_t, int gauss_scale, bool exact, bool compute);
   void draw_light_fit(const View &v, int w, int h, float sigma_t);
 };
