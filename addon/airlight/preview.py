@@ -721,6 +721,7 @@ def draw_fog(*, depth_tex, perspective_matrix, view_origin, is_perspective, view
                                   light_fit=light_fit)
         Csv = splat[1].Csv
     _state["last_scale"] = scale
+    _state["last_gauss_scale"] = gauss_scale if splat is not None else None
     lights = _lights_texture(light_positions, light_intensities, Csv, splat_I0)
     fog = _shader('fog', window_depth, ('gauss', gauss_scale) if splat is not None else False,
                   **flags)
@@ -841,6 +842,19 @@ def _should_draw(context):
     return _native_for_preview() is not None
 
 
+def auto_preview_scale(gaussians, perspective_matrix, size):
+    """The scale of the preview's 'AUTO' resolution: with Gaussian fog, the coarsest whose
+    texels stay within half the smallest visible Gaussian's projected sigma
+    (preview_gaussians.auto_scale, up to EIGHTH); without, HALF."""
+    import numpy as np
+    from . import preview_gaussians as pg
+    if not len(gaussians["scales"]):
+        return SCALES['HALF']
+    radii = pg.cull_radii(gaussians["scales"], gaussians["amplitudes"])
+    return pg.auto_scale(gaussians["centres"], gaussians["scales"], radii,
+                         np.array(perspective_matrix), size)
+
+
 def _draw_callback():
     """POST_VIEW handler: never raises; an error is kept and shown in the panel."""
     context = bpy.context
@@ -853,7 +867,8 @@ def _draw_callback():
         if rv3d is None:
             return
         wm = context.window_manager
-        scale = SCALES.get(getattr(wm, "airlight_preview_scale", 'HALF'), 2)
+        scale_name = getattr(wm, "airlight_preview_scale", 'HALF')
+        scale = SCALES.get(scale_name, 2)
         readback = getattr(wm, "airlight_preview_depth", 'DRAWN') == 'READBACK'
         t0 = time.perf_counter()
         x, y, w, h = gpu.state.viewport_get()
@@ -875,6 +890,8 @@ def _draw_callback():
         light_I0 = None
         if len(gaussians["scales"]) and gaussians.get("colors") is not None:
             light_I0 = scene_lights(scene, context.view_layer, with_albedo=False)[1]
+        if scale_name == 'AUTO':
+            scale = auto_preview_scale(gaussians, persp, (w, h))
         settings = scene.airlight
         noise = (float(settings.noise_amplitude), float(settings.noise_scale),
                  tuple(float(v) for v in settings.noise_offset))
@@ -1019,7 +1036,11 @@ def register():
                     "Evaluate the fog at a quarter of the viewport resolution"),
                    ('EIGHTH', "Eighth",
                     "Evaluate the fog at an eighth of the viewport resolution (Gaussian "
-                    "fog is smooth: its sums lose little there)")),
+                    "fog is smooth: its sums lose little there)"),
+                   ('AUTO', "Automatic",
+                    "Fog objects: the coarsest scale (up to Eighth) whose texels stay within "
+                    "half the smallest visible fog blob's projected width (sigma); "
+                    "homogeneous fog alone: Half")),
             default='HALF', update=_on_setting_changed)
         bpy.types.WindowManager.airlight_preview_depth = EnumProperty(
             name="Depth",

@@ -15,6 +15,8 @@ rbf_splat_pixel.glsl with RBF_LIGHT_FIT 1, the preview's default preview.LIGHT_F
 - test03: 26 point lights (f1 over several texel rows, lights past the 4 loaded once per
   pixel, mask bits >= 4, a light >= 24 near a Gaussian: exact whole): flags and
   coefficients vs numpy, preview with and without the fit vs the bake.
+- test04: the 'AUTO' preview scale (preview_gaussians.auto_scale) against projected
+  sigmas measured through the view matrix, and the draw handler with 'AUTO'.
 """
 
 import math
@@ -324,4 +326,73 @@ def test03_many_lights(addon, native, gs, fit_scene):
             data = obj.data
             bpy.data.objects.remove(obj)
             bpy.data.lights.remove(data)
+        bpy.context.view_layer.update()
+
+
+def test04_auto_scale(addon, fit_scene):
+    """preview_gaussians.auto_scale: Gaussians whose projected sigma (measured by
+    projecting b and b + sigma * camera-up through the view) is 20 / 12 / 5 / 1.5 pixels
+    get EIGHTH / QUARTER / HALF / FULL; one behind the camera or off screen does not
+    count; the draw handler with 'AUTO' draws the Gaussian sums at that scale."""
+    from airlight import fog_object
+    from airlight import preview_gaussians as pg
+    from airlight import scene_export
+    from mathutils import Matrix
+    scene = fit_scene
+    cam = scene.camera
+    desc = scene_export.export_scene(scene, bpy.context.evaluated_depsgraph_get())
+    persp = np.array(Matrix(desc["projection"].tolist()) @ cam.matrix_world.inverted())
+    eye = np.array(cam.matrix_world.translation)
+    forward = -np.array(cam.matrix_world.to_3x3().col[2])
+    up = np.array(cam.matrix_world.to_3x3().col[1])
+
+    def pixel(p):
+        c = persp @ np.append(p, 1.0)
+        return (c[:2] / c[3] + 1.0) * 0.5 * np.array([W, H])
+
+    def scale_for(sigma_px, extra=()):
+        b = eye + 12.0 * forward
+        px_per_m = np.linalg.norm(pixel(b + 0.01 * up) - pixel(b)) / 0.01
+        a = 1.0 / (math.sqrt(2.0) * sigma_px / px_per_m)  # sigma = 1 / (a sqrt 2)
+        centres = np.array([b, *[e[0] for e in extra]])
+        scales = np.array([a, *[e[1] for e in extra]])
+        amplitudes = np.full(len(scales), 0.05)
+        return pg.auto_scale(centres, scales, pg.cull_radii(scales, amplitudes), persp, (W, H))
+
+    for sigma_px, want in ((20.0, 8), (12.0, 4), (5.0, 2), (1.5, 1)):
+        assert scale_for(sigma_px) == want, (sigma_px, want)
+    # A tiny Gaussian behind the camera, and one far off to the side: neither limits.
+    behind = (eye - 5.0 * forward, 50.0)
+    aside = (eye + 12.0 * forward + 200.0 * np.cross(forward, up), 50.0)
+    assert scale_for(20.0, (behind, aside)) == 8
+    assert pg.auto_scale(np.array([eye - 5.0 * forward]), np.array([1.0]), np.array([1.0]),
+                         persp, (W, H)) == 8  # nothing visible
+
+    # The handler with 'AUTO' and a fog object of faint Gaussians.
+    centres, scales, amplitudes = _faint_gaussians(_lamp(scene, "LampA"))
+    obj = fog_object.new_fog_object("AutoFog", scene.collection, centres, scales, amplitudes)
+    bpy.context.view_layer.update()
+    wm = bpy.context.window_manager
+    addon._state["error"] = None
+    wm.airlight_preview = True
+    wm.airlight_preview_scale = 'AUTO'
+    for area in wm.windows[0].screen.areas:
+        if area.type == 'VIEW_3D':
+            area.spaces.active.region_3d.view_perspective = 'CAMERA'
+    try:
+        addon._state["capture"] = cap = {}
+        window = wm.windows[0]
+        with bpy.context.temp_override(window=window, screen=window.screen):
+            bpy.ops.wm.redraw_timer(type='DRAW_WIN_SWAP', iterations=1)
+        assert addon._state["error"] is None, addon._state["error"]
+        x, y, w, h = cap["viewport"]
+        want = addon.auto_preview_scale(cap["gaussians"], cap["perspective_matrix"], (w, h))
+        print(f"\nhandler, 'AUTO' with {len(cap['gaussians']['scales'])} Gaussians at {w}x{h}: "
+              f"scale {addon._state['last_gauss_scale']}")
+        assert addon._state["last_gauss_scale"] == want
+    finally:
+        wm.airlight_preview = False
+        wm.airlight_preview_scale = 'HALF'
+        addon._state["capture"] = None
+        bpy.data.objects.remove(obj)
         bpy.context.view_layer.update()
