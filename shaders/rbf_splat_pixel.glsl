@@ -10,6 +10,9 @@
 // for the view ray origin + t dir with [t0, Dvp] the pixel's clipped segment. Gaussians
 // whose cull sphere the segment [0, Dvp] misses add nothing (the bake's per-ray cull);
 // the near segment [0, t0] is evaluated only where the cull sphere reaches it.
+// With RBF_LIGHT_FIT 1 (the preview's default) the light side sum_l ... of L_il comes
+// from the per-Gaussian quadratic fit of rbf_light_fit_frag.glsl instead (rbf_light);
+// the view terms and the optical depths stay the bake's.
 //
 // Noise (Fogshop section 5.5, pv_noise_amp > 0; rbf_splat.h): the optical depths T_i(0, D)
 // of the view segments (D = Dvp, t0) are taken along the perturbed direction
