@@ -256,7 +256,8 @@ def test02_fit_vs_exact_vs_bake(addon, native, gs, fit_scene, monkeypatch):
         assert res[scale, "on"][0] <= 0.05
 
 
-def test03_many_lights(addon, native, gs, fit_scene):
+@pytest.mark.parametrize("gauss_pass", ["TILES", "SPLAT"])
+def test03_many_lights(addon, native, gs, fit_scene, gauss_pass):
     """26 point lights: f1 over 7 texel rows per block, the lights beyond the 4 loaded
     once per pixel, near lights with mask bits >= 4, and a Gaussian near light 24 or
     later flagged exact whole; flags vs numpy, preview with and without the fit vs bake."""
@@ -286,9 +287,10 @@ def test03_many_lights(addon, native, gs, fit_scene):
         amplitudes = np.append(amplitudes, [0.02, 0.02])
         desc = scene_export.export_scene(scene, bpy.context.evaluated_depsgraph_get())
         gaussians = dict(centres=centres, scales=scales, amplitudes=amplitudes, key="test13c")
-        fit, fit_T = _render(addon, gs, scene, desc, gaussians, light_fit=True)
+        fit, fit_T = _render(addon, gs, scene, desc, gaussians, light_fit=True, gauss_pass=gauss_pass)
         tex = _read_fit(gs, addon._state["gpu"]["gaussian_fog"])
-        exact, exact_T = _render(addon, gs, scene, desc, gaussians, light_fit=False)
+        exact, exact_T = _render(addon, gs, scene, desc, gaussians, light_fit=False,
+                                 gauss_pass=gauss_pass)
         I0 = np.asarray(intensities, np.float64)
         eye = np.array(scene.camera.matrix_world.translation)
         f1, _Csv = pg.fogshop_factors(native, centres, scales, amplitudes, SIGMA_T, eye, lights)
@@ -313,7 +315,7 @@ def test03_many_lights(addon, native, gs, fit_scene):
         rel_exact = (np.abs(exact - ref) / np.maximum(ref, floor)).mean()
         rel_fit = (np.abs(fit - ref) / np.maximum(ref, floor)).mean()
         fit_vs_exact = np.abs(fit - exact).mean() / part
-        print(f"\n26 lights, {len(scales)} Gaussians: coefficient error / constant term max "
+        print(f"\n26 lights, {len(scales)} Gaussians ({gauss_pass}): coefficient error / constant term max "
               f"{np.max(errs):.2e}; airlight mean rel vs bake: exact {rel_exact:.3e}, fit "
               f"{rel_fit:.3e}; fit vs exact / Gaussian part {fit_vs_exact:.3e}")
         assert np.max(errs) <= 1e-4
