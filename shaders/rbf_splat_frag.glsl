@@ -15,6 +15,7 @@
 
 void main()
 {
+  rbf_load_lights();
   ivec2 px = min(ivec2(gl_FragCoord.xy) * pv_scale + pv_scale / 2, ivec2(viewport.zw) - 1);
   vec2 ndc;
   vec3 origin, dir;

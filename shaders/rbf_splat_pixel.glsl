@@ -10,6 +10,9 @@
 // for the view ray origin + t dir with [t0, Dvp] the pixel's clipped segment. Gaussians
 // whose cull sphere the segment [0, Dvp] misses add nothing (the bake's per-ray cull);
 // the near segment [0, t0] is evaluated only where the cull sphere reaches it.
+// With RBF_LIGHT_FIT 1 (the preview's default) the light side sum_l ... of L_il comes
+// from the per-Gaussian quadratic fit of rbf_light_fit_frag.glsl instead (rbf_light);
+// the view terms and the optical depths stay the bake's.
 //
 // Noise (Fogshop section 5.5, pv_noise_amp > 0; rbf_splat.h): the optical depths T_i(0, D)
 // of the view segments (D = Dvp, t0) are taken along the perturbed direction
@@ -25,8 +28,16 @@
 //               (i % W, 3 (i / W) + k): k = 0 (b.xyz, a), k = 1 (c, R, R_bake / |b - v|, 0)
 //               with R the preview's cull radius (preview_gaussians.CULL_EPS; 0: never
 //               reaches a ray by > eps) and R_bake the bake's, k = 2 (albedo_i rgb, 0)
-//   gauss_f1    R32F, RBF_TEX_WIDTH wide: texel (i % W, (i / W) L + l) = f1 of light l
-//               and Gaussian i with Gaussian i's own terms removed
+//   gauss_f1    RGBA32F, RBF_TEX_WIDTH wide, ceil(L / 4) rows per block: component l % 4
+//               of texel (i % W, (i / W) ceil(L / 4) + l / 4) = f1 of light l and Gaussian
+//               i with Gaussian i's own terms removed (one fetch per 4 lights)
+// and the caller's main calls rbf_load_lights() first: the first RBF_HOIST lights'
+// position and I0 are read once per pixel, not per (pixel, Gaussian).
+//   gauss_light (RBF_LIGHT_FIT 1 only) RGBA32F, the quadratic fits of each Gaussian's
+//               light factor F_i written by rbf_light_fit_frag.glsl (layout there): the
+//               pixel evaluates the fit instead of the L exact light terms, except for
+//               the Gaussians that pass flags exact (a light within RBF_FIT_NEAR R_i,
+//               or dense ones).
 
 ivec2 rbf_texel(int i, int row)
 {
@@ -63,30 +74,127 @@ void rbf_view_terms(vec3 rel, float a, float k0, vec3 o, vec3 d, float te, float
 }
 
 // Light part (light_terms): sum_l I0_l f1_l / (4 pi) exp(-T_i(s_l, b^r) - Tvr) Tvp / |b^r - s_l|^2
-// for the point p = b^r on the view ray.
+// for the point p = b^r on the view ray; rbf_light_one is one light's term.
+vec3 rbf_light_one(vec3 s, vec3 I0, float f1, vec3 b, float a, float k0, vec3 p, float Tvp, float Tvr)
+{
+  vec3 sx = p - s;
+  float d2 = max(dot(sx, sx), kRbfMinD2);
+  float inv = 1.0 / sqrt(d2);
+  vec3 u = sx * inv;
+  float Ds = d2 * inv;
+  vec3 bs = b - s;
+  float ts = dot(bs, u);
+  vec3 c = cross(bs, u);
+  float e = k0 * exp(-a * a * dot(c, c));
+  float x1 = -a * ts, x2 = a * (Ds - ts);
+  float Tsr = e * rbf_fast_erf_diff(x1, x2);
+  return I0 * (f1 * kRbfInv4Pi * exp(-Tsr - Tvr) * Tvp / d2);
+}
+
+// The first RBF_HOIST lights (position, I0), loaded once per pixel by rbf_load_lights.
+#define RBF_HOIST 4
+vec3 rbf_ls[RBF_HOIST];
+vec3 rbf_lI0[RBF_HOIST];
+
+void rbf_load_lights()
+{
+  for (int l = 0; l < RBF_HOIST; l++) {
+    rbf_ls[l] = vec3(0.0);
+    rbf_lI0[l] = vec3(0.0);
+    if (l < light_count) {
+      rbf_ls[l] = texelFetch(lights, ivec2(l, 0), 0).xyz;
+      rbf_lI0[l] = texelFetch(lights, ivec2(l, 2), 0).rgb;
+    }
+  }
+}
+
+// f1 of light l for Gaussian gi (gauss_f1's layout above).
+float rbf_f1(int gi, int l)
+{
+  int rows = (light_count + 3) / 4;
+  return texelFetch(gauss_f1, ivec2(gi % RBF_TEX_WIDTH, (gi / RBF_TEX_WIDTH) * rows + l / 4), 0)[l % 4];
+}
+
+// Light l's term, its inputs fetched (the rare paths: lights the fit leaves out).
+vec3 rbf_light_term(int gi, int l, vec3 b, float a, float k0, vec3 p, float Tvp, float Tvr)
+{
+  vec3 s = texelFetch(lights, ivec2(l, 0), 0).xyz;
+  vec3 I0 = texelFetch(lights, ivec2(l, 2), 0).rgb;
+  return rbf_light_one(s, I0, rbf_f1(gi, l), b, a, k0, p, Tvp, Tvr);
+}
+
 vec3 rbf_light_terms(int gi, vec3 b, float a, float k0, vec3 p, float Tvp, float Tvr)
 {
-  int row = (gi / RBF_TEX_WIDTH) * light_count;
+  int rows = (light_count + 3) / 4;
+  ivec2 t = ivec2(gi % RBF_TEX_WIDTH, (gi / RBF_TEX_WIDTH) * rows);
+  vec4 f1v = texelFetch(gauss_f1, t, 0);
   vec3 acc = vec3(0.0);
-  for (int l = 0; l < light_count; l++) {
-    vec3 s = texelFetch(lights, ivec2(l, 0), 0).xyz;
-    vec3 I0 = texelFetch(lights, ivec2(l, 2), 0).rgb;
-    float f1 = texelFetch(gauss_f1, ivec2(gi % RBF_TEX_WIDTH, row + l), 0).r;
-    vec3 sx = p - s;
-    float d2 = max(dot(sx, sx), kRbfMinD2);
-    float inv = 1.0 / sqrt(d2);
-    vec3 u = sx * inv;
-    float Ds = d2 * inv;
-    vec3 bs = b - s;
-    float ts = dot(bs, u);
-    vec3 c = cross(bs, u);
-    float e = k0 * exp(-a * a * dot(c, c));
-    float x1 = -a * ts, x2 = a * (Ds - ts);
-    float Tsr = e * rbf_fast_erf_diff(x1, x2);
-    acc += I0 * (f1 * kRbfInv4Pi * exp(-Tsr - Tvr) * Tvp / d2);
+  // Constant bound: unrolled, the hoisted lights stay in registers.
+  for (int l = 0; l < RBF_HOIST; l++) {
+    if (l < light_count) {
+      acc += rbf_light_one(rbf_ls[l], rbf_lI0[l], f1v[l], b, a, k0, p, Tvp, Tvr);
+    }
+  }
+  for (int l = RBF_HOIST; l < light_count; l++) {
+    acc += rbf_light_term(gi, l, b, a, k0, p, Tvp, Tvr);
   }
   return acc;
 }
+
+// Gaussian i's albedo (texel 2 of gauss).
+vec3 rbf_albedo(int gi)
+{
+  return texelFetch(gauss, rbf_texel(gi, 2), 0).rgb;
+}
+
+#if RBF_LIGHT_FIT
+// albedo_i rbf_light_terms from the fit of rbf_light_fit_frag.glsl (which includes the
+// albedo): Tvp exp(-Tvr) F_i(p), F_i the
+// quadratic in u = a (p - b) of the lights the fit covers (clamped at 0; one channel's fit
+// for all three where those lights are grey: 3 fetches instead of 9), plus the exact
+// terms of the lights it leaves out (bit l of the mask: a light near the Gaussian), or
+// all exact terms where the fit pass flagged the whole Gaussian.
+vec3 rbf_light(int gi, vec3 b, float a, float k0, vec3 p, float Tvp, float Tvr)
+{
+  ivec2 t = ivec2(gi % RBF_TEX_WIDTH, 9 * (gi / RBF_TEX_WIDTH));
+  vec4 r2 = texelFetch(gauss_light, t + ivec2(0, 2), 0);
+  if (r2.z == 1.0) {
+    return rbf_albedo(gi) * rbf_light_terms(gi, b, a, k0, p, Tvp, Tvr);
+  }
+  vec3 u = a * (p - b);
+  vec4 phi0 = vec4(1.0, u);
+  vec4 phi1 = vec4(u.x * u.y, u.x * u.z, u.y * u.z, u.x * u.x - 0.5);
+  vec2 phi2 = vec2(u.y * u.y - 0.5, u.z * u.z - 0.5);
+  vec3 F = vec3(dot(texelFetch(gauss_light, t, 0), phi0) +
+                dot(texelFetch(gauss_light, t + ivec2(0, 1), 0), phi1) + dot(r2.xy, phi2));
+  if (r2.z == 0.0) {  // colours differ between the fitted lights: fits for g and b too
+    F.g = dot(texelFetch(gauss_light, t + ivec2(0, 3), 0), phi0) +
+          dot(texelFetch(gauss_light, t + ivec2(0, 4), 0), phi1) +
+          dot(texelFetch(gauss_light, t + ivec2(0, 5), 0).xy, phi2);
+    F.b = dot(texelFetch(gauss_light, t + ivec2(0, 6), 0), phi0) +
+          dot(texelFetch(gauss_light, t + ivec2(0, 7), 0), phi1) +
+          dot(texelFetch(gauss_light, t + ivec2(0, 8), 0).xy, phi2);
+  }
+  vec3 L = max(F, vec3(0.0)) * (exp(-Tvr) * Tvp);
+  int mask = int(r2.w);
+  if (mask != 0) {
+    vec3 Ln = vec3(0.0);
+    for (int l = 0; mask != 0; l++, mask >>= 1) {
+      if ((mask & 1) != 0) {
+        Ln += rbf_light_term(gi, l, b, a, k0, p, Tvp, Tvr);
+      }
+    }
+    L += rbf_albedo(gi) * Ln;
+  }
+  return L;
+}
+#else
+// albedo_i rbf_light_terms.
+vec3 rbf_light(int gi, vec3 b, float a, float k0, vec3 p, float Tvp, float Tvr)
+{
+  return rbf_albedo(gi) * rbf_light_terms(gi, b, a, k0, p, Tvp, Tvr);
+}
+#endif
 
 void rbf_splat_pixel(int gi, vec3 origin, vec3 dir, float t0, float Dvp, inout vec3 La,
                      inout float T_seg_sum, inout float T_near_sum)
@@ -104,18 +212,17 @@ void rbf_splat_pixel(int gi, vec3 origin, vec3 dir, float t0, float Dvp, inout v
   }
   float k0 = c * kRbfSqrtPi / (2.0 * a);
   float nscale = pv_noise_amp * cr.z;
-  vec3 albedo = texelFetch(gauss, rbf_texel(gi, 2), 0).rgb;
   float Tf, Tvr, tr;
   rbf_view_terms(rel, a, k0, origin, dir, Dvp, nscale, Tf, Tvr, tr);
-  vec3 L = rbf_light_terms(gi, b, a, k0, origin + tr * dir, Tf, Tvr);
+  vec3 L = rbf_light(gi, b, a, k0, origin + tr * dir, Tf, Tvr);
   float Tn = 0.0;
   // The near segment [0, t0] meets the cull sphere only if |b - o| < R + t0.
   if (t0 > 0.0 && dot(rel, rel) < (R + t0) * (R + t0)) {
     float Tvr0, tr0;
     rbf_view_terms(rel, a, k0, origin, dir, t0, nscale, Tn, Tvr0, tr0);
-    L -= rbf_light_terms(gi, b, a, k0, origin + tr0 * dir, Tn, Tvr0);
+    L -= rbf_light(gi, b, a, k0, origin + tr0 * dir, Tn, Tvr0);
   }
-  La += albedo * L;
+  La += L;
   T_seg_sum += Tf - Tn;
   T_near_sum += Tn;
 }

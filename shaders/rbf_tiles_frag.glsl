@@ -14,6 +14,7 @@
 
 void main()
 {
+  rbf_load_lights();
   ivec2 q = ivec2(gl_FragCoord.xy);
   ivec2 px = min(q * pv_scale + pv_scale / 2, ivec2(viewport.zw) - 1);
   vec2 ndc;

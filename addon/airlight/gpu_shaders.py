@@ -299,15 +299,28 @@ RBF_SPLAT_SOURCES = ("sun05_airlight.glsl", "preview_common.glsl", "rbf_gaussian
 # list texture.
 RBF_TILE = 8
 RBF_LIST_WIDTH = 4096
+# Light fit (rbf_light_fit_frag.glsl): rows of gauss_light per block of RBF_TEX_WIDTH
+# Gaussians, and when a Gaussian keeps the exact per-pixel light terms: a light closer
+# than RBF_FIT_NEAR cull radii, or a peak optical depth c sqrt(pi) / a above
+# RBF_FIT_MAX_T (tests/gpu/test_09 measures the fit's error against the bake).
+RBF_FIT_ROWS = 9
+RBF_FIT_NEAR = 2.0
+RBF_FIT_MAX_T = 0.1
 
 
-def _rbf_create_info(window_depth, samplers):
-    """Create-info parts the splat and tile passes share (see create_rbf_splat_shader)."""
+def _rbf_create_info(window_depth, samplers, light_fit=False):
+    """Create-info parts the splat and tile passes share (see create_rbf_splat_shader);
+    _light_fit_ adds the sampler gauss_light after _samplers_ and RBF_LIGHT_FIT 1."""
     info = gpu.types.GPUShaderCreateInfo()
     _add_ubo(info, *PREVIEW_UBO)
+    if light_fit:
+        samplers = tuple(samplers) + ("gauss_light",)
     for slot, sname in enumerate(samplers):
         info.sampler(slot, 'FLOAT_2D', sname)
     info.define("RBF_TEX_WIDTH", str(RBF_TEX_WIDTH))
+    info.define("RBF_LIGHT_FIT", "1" if light_fit else "0")
+    info.define("RBF_FIT_NEAR", repr(float(RBF_FIT_NEAR)))
+    info.define("RBF_FIT_MAX_T", repr(float(RBF_FIT_MAX_T)))
     info.define("PREVIEW_WINDOW_DEPTH", str(int(bool(window_depth))))
     info.define("PREVIEW_PHASE", "0")
     info.define("PREVIEW_SPOTS", "0")
@@ -317,7 +330,7 @@ def _rbf_create_info(window_depth, samplers):
     return info
 
 
-def create_rbf_splat_shader(window_depth=False):
+def create_rbf_splat_shader(window_depth=False, light_fit=False):
     """The Gaussian splat pass (Fogshop section 5).
 
     Sources: vertex = rbf_splat_vert.glsl; fragment = RBF_SPLAT_SOURCES (sun05_airlight.glsl,
@@ -338,10 +351,15 @@ def create_rbf_splat_shader(window_depth=False):
     Fragment outputs: 0 VEC4 "frag_color" (rgb airlight, a optical depth [t0, Dvp]),
     1 VEC4 "frag_near" (r = optical depth [0, t0]); blend ADDITIVE_PREMULT into two
     RGBA32F targets cleared to 0.
+    Light fit (_light_fit_ True): defines RBF_LIGHT_FIT 1, RBF_FIT_NEAR, RBF_FIT_MAX_T
+    (floats; also given, unused, with RBF_LIGHT_FIT 0) and one more sampler after the
+    others, "gauss_light" (the output of create_rbf_light_fit_shader's pass): the pixels
+    evaluate each Gaussian's fitted light factor instead of the exact light terms.
     """
     iface = gpu.types.GPUStageInterfaceInfo("airlight_rbf_splat_iface")
     iface.flat('INT', "gi")
-    info = _rbf_create_info(window_depth, ("Ftab", "depth_tex", "lights", "gauss", "gauss_f1"))
+    info = _rbf_create_info(window_depth, ("Ftab", "depth_tex", "lights", "gauss", "gauss_f1"),
+                            light_fit)
     info.vertex_in(0, 'VEC2', "corner")
     info.vertex_in(1, 'FLOAT', "gid")
     info.vertex_out(iface)
@@ -351,7 +369,7 @@ def create_rbf_splat_shader(window_depth=False):
     return gpu.shader.create_from_info(info)
 
 
-def create_rbf_tiles_shader(window_depth=False):
+def create_rbf_tiles_shader(window_depth=False, light_fit=False):
     """The Gaussian tile pass: the splat pass's sums in one full-screen draw per target
     (rbf_tiles_frag.glsl), no blending.
 
@@ -360,12 +378,13 @@ def create_rbf_tiles_shader(window_depth=False):
     rbf_tiles_frag.glsl. Defines: those of create_rbf_splat_shader plus RBF_TILE and
     RBF_LIST_WIDTH. Uniform buffer: as create_rbf_splat_shader. Samplers (FLOAT_2D, slots
     in order): 0 Ftab, 1 depth_tex, 2 lights, 3 gauss, 4 gauss_f1, 5 tile_index, 6
-    tile_list. Fragment outputs as create_rbf_splat_shader; drawn with blending NONE over
-    the two RGBA32F targets (no clear needed)."""
+    tile_list (then 7 gauss_light with _light_fit_, as create_rbf_splat_shader). Fragment
+    outputs as create_rbf_splat_shader; drawn with blending NONE over the two RGBA32F
+    targets (no clear needed)."""
     iface = gpu.types.GPUStageInterfaceInfo("airlight_rbf_tiles_iface")
     iface.smooth('VEC2', "uv")
     info = _rbf_create_info(window_depth, ("Ftab", "depth_tex", "lights", "gauss", "gauss_f1",
-                                           "tile_index", "tile_list"))
+                                           "tile_index", "tile_list"), light_fit)
     info.define("RBF_TILE", str(RBF_TILE))
     info.define("RBF_LIST_WIDTH", str(RBF_LIST_WIDTH))
     info.vertex_in(0, 'VEC2', "pos")
@@ -374,6 +393,33 @@ def create_rbf_tiles_shader(window_depth=False):
     info.fragment_source("".join(load_source(name) + "\n" for name in
                                  RBF_SPLAT_SOURCES + ("rbf_tiles_frag.glsl",)))
     return gpu.shader.create_from_info(info)
+
+
+def create_rbf_light_fit_shader():
+    """The light-fit pass (rbf_light_fit_frag.glsl): one texel of gauss_light per
+    (Gaussian, row), drawn as a full-screen quad over an RGBA32F texture of RBF_TEX_WIDTH x
+    RBF_FIT_ROWS * blocks texels (`rbf_light_fit_texture`), no blending.
+
+    Sources: vertex = fullscreen_vert.glsl (interface "airlight_rbf_light_fit_iface",
+    smooth VEC2 "uv"); fragment = RBF_SPLAT_SOURCES + rbf_light_fit_frag.glsl. Defines,
+    uniform buffer and samplers (0 Ftab, 1 depth_tex, 2 lights, 3 gauss, 4 gauss_f1) as
+    create_rbf_splat_shader with RBF_LIGHT_FIT 0; outputs 0 "frag_color" (the texture),
+    1 "frag_near" (unused: 0)."""
+    iface = gpu.types.GPUStageInterfaceInfo("airlight_rbf_light_fit_iface")
+    iface.smooth('VEC2', "uv")
+    info = _rbf_create_info(False, ("Ftab", "depth_tex", "lights", "gauss", "gauss_f1"))
+    info.vertex_in(0, 'VEC2', "pos")
+    info.vertex_out(iface)
+    info.vertex_source(load_source("fullscreen_vert.glsl"))
+    info.fragment_source("".join(load_source(name) + "\n" for name in
+                                 RBF_SPLAT_SOURCES + ("rbf_light_fit_frag.glsl",)))
+    return gpu.shader.create_from_info(info)
+
+
+def rbf_light_fit_texture(count):
+    """The (uninitialised) RGBA32F target of the light-fit pass for _count_ Gaussians."""
+    blocks = max(1, -(-int(count) // RBF_TEX_WIDTH))
+    return gpu.types.GPUTexture((RBF_TEX_WIDTH, RBF_FIT_ROWS * blocks), format='RGBA32F')
 
 
 def rbf_tile_textures(first, count, entries):
@@ -404,8 +450,9 @@ def rbf_splat_batch(shader, count):
 
 def rbf_data_textures(centres, scales, amplitudes, radii, f1, albedo=None, noise_radii=None):
     """The splat pass's per-Gaussian textures (layout in rbf_splat_pixel.glsl): gauss
-    (RGBA32F, RBF_TEX_WIDTH x 3 rows per block of W Gaussians) and gauss_f1 (R32F,
-    RBF_TEX_WIDTH x L rows per block), f1 of shape (L, n); _albedo_ (n, 3) per-Gaussian
+    (RGBA32F, RBF_TEX_WIDTH x 3 rows per block of W Gaussians) and gauss_f1 (RGBA32F,
+    RBF_TEX_WIDTH x ceil(L / 4) rows per block, light l in component l % 4 of row l // 4),
+    f1 of shape (L, n); _albedo_ (n, 3) per-Gaussian
     colours (None: 1, the lights' intensities then carry the fog's albedo); _noise_radii_
     (n,) R_bake / |b - eye| for the noise (None: 0)."""
     import numpy as np
@@ -423,12 +470,12 @@ def rbf_data_textures(centres, scales, amplitudes, radii, f1, albedo=None, noise
         flat[blk, 1, col, 2] = noise_radii
     flat[blk, 2, col, :3] = 1.0 if albedo is None else np.asarray(albedo, np.float64).reshape(-1, 3)
     f1 = np.asarray(f1, np.float64).reshape(-1, n)
-    L = max(1, f1.shape[0])
-    f1_tex = np.zeros((blocks, L, W), np.float32)
+    rows = max(1, -(-f1.shape[0] // 4))
+    f1_tex = np.zeros((blocks, rows, W, 4), np.float32)
     for l in range(f1.shape[0]):
-        f1_tex[blk, l, col] = f1[l]
+        f1_tex[blk, l // 4, col, l % 4] = f1[l]
     return (float_texture(flat.reshape(blocks * 3, W, 4)),
-            float_texture(f1_tex.reshape(blocks * L, W)))
+            float_texture(f1_tex.reshape(blocks * rows, W, 4)))
 
 
 def create_rbf_test_shader():

@@ -63,7 +63,7 @@ _state = {
 MAX_LIGHTS = 256
 
 # Resolution scales of the fog pass: enum identifier -> full-resolution pixels per texel.
-SCALES = {'FULL': 1, 'HALF': 2, 'QUARTER': 4}
+SCALES = {'FULL': 1, 'HALF': 2, 'QUARTER': 4, 'EIGHTH': 8}
 # Upsampling modes of preview_upsample_frag.glsl.
 UPSAMPLE_BILINEAR, UPSAMPLE_BILATERAL, UPSAMPLE_BILATERAL_EXACT = 0, 1, 2
 # Format of the reduced fog target: rgb = airlight (can exceed 1), a = surface distance
@@ -516,19 +516,26 @@ def _lights_texture(positions, intensities, Csv=None, splat_I0=None):
 # Gaussian, rbf_splat_*.glsl). Both give the same sums (tests/gpu/test_09).
 GAUSS_PASSES = ('TILES', 'SPLAT')
 GAUSS_PASS = 'TILES'
+# Whether the Gaussian passes evaluate each Gaussian's fitted light factor per pixel
+# (rbf_light_fit_frag.glsl, one GPU pass per draw before the sums) instead of the exact
+# per-light terms: issue 5's speed-up; Gaussians with a light within
+# gpu_shaders.RBF_FIT_NEAR cull radii or denser than RBF_FIT_MAX_T stay exact.
+LIGHT_FIT = True
 
 
 def _gaussian_fog(res, *, gaussians, window_depth, sigma_t, view_origin, light_positions,
-                  gauss_pass):
+                  gauss_pass, light_fit=False):
     """The splat or tile shader and the current GaussianFog (textures, batch, factors)
     for these inputs (preview_gaussians.py; rebuilt only when one changes)."""
     from . import gpu_shaders as gs
     from . import preview_gaussians as pg
-    key = (gauss_pass.lower(), bool(window_depth))
+    key = (gauss_pass.lower(), bool(window_depth), bool(light_fit))
     shader = res["shaders"].get(key)
     if shader is None:
         create = gs.create_rbf_tiles_shader if gauss_pass == 'TILES' else gs.create_rbf_splat_shader
-        shader = res["shaders"][key] = create(window_depth)
+        shader = res["shaders"][key] = create(window_depth, light_fit=bool(light_fit))
+    if light_fit and res["shaders"].get("rbf_light_fit") is None:
+        res["shaders"]["rbf_light_fit"] = gs.create_rbf_light_fit_shader()
     fog = res.get("gaussian_fog")
     if fog is None:
         fog = res["gaussian_fog"] = pg.GaussianFog()
@@ -536,16 +543,42 @@ def _gaussian_fog(res, *, gaussians, window_depth, sigma_t, view_origin, light_p
                sigma_t, view_origin, light_positions)
     if gauss_pass == 'TILES' and fog.tiles_batch is None:
         fog.tiles_batch = gs.fullscreen_batch(shader)
-    return shader, fog, gauss_pass
+    fit = res["shaders"].get("rbf_light_fit") if light_fit else None
+    if fit is not None and fog.fit_batch is None:
+        fog.fit_batch = gs.fullscreen_batch(fit)
+    return shader, fog, gauss_pass, fit
 
 
-def _draw_gaussians(shader, fog, gauss_pass, size, scale, bind):
+def _fit_lights(fit, fog, size, bind):
+    """The light-fit pass (rbf_light_fit_frag.glsl) into fog.light_tex: per Gaussian the
+    fitted light factor the Gaussian passes read as gauss_light. Run every draw: it depends
+    on f1 and the lights' intensities, and costs one fragment per (Gaussian, row)."""
+    import gpu
+    from . import gpu_shaders as gs
+    w, h = size
+    if fog.light_tex is None or fog.light_tex_count != fog.count:
+        fog.light_tex = gs.rbf_light_fit_texture(fog.count)
+        fog.light_tex_count = fog.count
+    fb = gpu.types.GPUFrameBuffer(color_slots=(fog.light_tex,))
+    with fb.bind():
+        gpu.state.viewport_set(0, 0, fog.light_tex.width, fog.light_tex.height)
+        gpu.state.blend_set('NONE')
+        bind(fit, (0, 0, w, h), None, pass_scale=1)
+        fit.uniform_sampler("gauss", fog.gauss_tex)
+        fit.uniform_sampler("gauss_f1", fog.f1_tex)
+        fog.fit_batch.draw(fit)
+
+
+def _draw_gaussians(shader, fog, gauss_pass, fit, size, scale, bind):
     """The Gaussian fog's sums into two RGBA32F targets of 1/_scale_ the region: 'SPLAT'
     clears them and adds one quad per Gaussian (ADDITIVE_PREMULT); 'TILES' writes every
     texel once from its tile's Gaussian list (no blending; the lists made current by
-    fog.update_tiles). Returns (acc, near) textures. The caller restores gpu.state."""
+    fog.update_tiles). With _fit_ (the light-fit shader) its pass runs first and the
+    passes read its output. Returns (acc, near) textures. The caller restores gpu.state."""
     import gpu
     w, h = size
+    if fit is not None:
+        _fit_lights(fit, fog, size, bind)
     lw, lh = -(-w // scale), -(-h // scale)
     acc = _target("gauss_acc", lw, lh, 'RGBA32F')
     near = _target("gauss_near", lw, lh, 'RGBA32F')
@@ -555,6 +588,8 @@ def _draw_gaussians(shader, fog, gauss_pass, size, scale, bind):
         bind(shader, (0, 0, w, h), None, pass_scale=scale)
         shader.uniform_sampler("gauss", fog.gauss_tex)
         shader.uniform_sampler("gauss_f1", fog.f1_tex)
+        if fit is not None:
+            shader.uniform_sampler("gauss_light", fog.light_tex)
         if gauss_pass == 'TILES':
             gpu.state.blend_set('NONE')
             shader.uniform_sampler("tile_index", fog.tile_tex[0])
@@ -599,7 +634,8 @@ def view_clip_range(context):
 def draw_fog(*, depth_tex, perspective_matrix, view_origin, is_perspective, viewport,
              sigma_t, light_positions, light_intensities, clip_start=0.0, window_depth=True,
              scale=1, mode=UPSAMPLE_BILATERAL_EXACT, gaussians=None, phase=("isotropic", 0.0),
-             spots=None, suns=None, environment=None, light_I0=None, noise=None, gauss_pass=None):
+             spots=None, suns=None, environment=None, light_I0=None, noise=None, gauss_pass=None,
+             light_fit=None):
     """Draws the fog over the bound framebuffer with premultiplied blending.
 
     depth_tex: full-resolution R32F texture of the region (viewport[2] x viewport[3]):
@@ -615,7 +651,9 @@ def draw_fog(*, depth_tex, perspective_matrix, view_origin, is_perspective, view
     optionally colors: None or (n, 3) per-Gaussian albedo) of the fog objects'
     world-space Gaussians (key: any hashable that changes with the arrays); with n > 0
     the Gaussian fog's sums are drawn first (preview_gaussians.py; _gauss_pass_ 'TILES'
-    or 'SPLAT', default GAUSS_PASS) at 1/scale of the resolution, and the fog pass runs
+    or 'SPLAT', default GAUSS_PASS; _light_fit_ None = LIGHT_FIT: per-Gaussian fitted
+    light factors instead of the exact light terms per pixel) at 1/scale of the resolution
+    (scale 1, 2, 4 or 8), and the fog pass runs
     at full resolution, upsampling the Gaussian sums depth-aware (fog_preview_frag.glsl
     preview_gauss_fetch).
     light_I0: the point lights' I0 without the fog's albedo (`scene_lights(...,
@@ -668,18 +706,22 @@ def draw_fog(*, depth_tex, perspective_matrix, view_origin, is_perspective, view
                 raise ValueError("Gaussians with colours need light_I0 (one I0 per light, "
                                  "without the fog's albedo)")
             splat_I0 = light_I0
+        light_fit = LIGHT_FIT if light_fit is None else bool(light_fit)
         splat = _gaussian_fog(res, gaussians=gaussians, window_depth=window_depth,
                               sigma_t=sigma_t, view_origin=view_origin,
-                              light_positions=light_positions, gauss_pass=gauss_pass)
+                              light_positions=light_positions, gauss_pass=gauss_pass,
+                              light_fit=light_fit)
         gauss_scale, scale = int(scale), 1
         if gauss_pass == 'TILES' and not splat[1].update_tiles(
                 _native_for_preview(), perspective_matrix, (w, h), gauss_scale):
             # More list entries than the shader's float indices hold: draw the splat.
             splat = _gaussian_fog(res, gaussians=gaussians, window_depth=window_depth,
                                   sigma_t=sigma_t, view_origin=view_origin,
-                                  light_positions=light_positions, gauss_pass='SPLAT')
+                                  light_positions=light_positions, gauss_pass='SPLAT',
+                                  light_fit=light_fit)
         Csv = splat[1].Csv
     _state["last_scale"] = scale
+    _state["last_gauss_scale"] = gauss_scale if splat is not None else None
     lights = _lights_texture(light_positions, light_intensities, Csv, splat_I0)
     fog = _shader('fog', window_depth, ('gauss', gauss_scale) if splat is not None else False,
                   **flags)
@@ -800,6 +842,19 @@ def _should_draw(context):
     return _native_for_preview() is not None
 
 
+def auto_preview_scale(gaussians, perspective_matrix, size):
+    """The scale of the preview's 'AUTO' resolution: with Gaussian fog, the coarsest whose
+    texels stay within half the smallest visible Gaussian's projected sigma
+    (preview_gaussians.auto_scale, up to EIGHTH); without, HALF."""
+    import numpy as np
+    from . import preview_gaussians as pg
+    if not len(gaussians["scales"]):
+        return SCALES['HALF']
+    radii = pg.cull_radii(gaussians["scales"], gaussians["amplitudes"])
+    return pg.auto_scale(gaussians["centres"], gaussians["scales"], radii,
+                         np.array(perspective_matrix), size)
+
+
 def _draw_callback():
     """POST_VIEW handler: never raises; an error is kept and shown in the panel."""
     context = bpy.context
@@ -812,7 +867,8 @@ def _draw_callback():
         if rv3d is None:
             return
         wm = context.window_manager
-        scale = SCALES.get(getattr(wm, "airlight_preview_scale", 'HALF'), 2)
+        scale_name = getattr(wm, "airlight_preview_scale", 'HALF')
+        scale = SCALES.get(scale_name, 2)
         readback = getattr(wm, "airlight_preview_depth", 'DRAWN') == 'READBACK'
         t0 = time.perf_counter()
         x, y, w, h = gpu.state.viewport_get()
@@ -834,6 +890,8 @@ def _draw_callback():
         light_I0 = None
         if len(gaussians["scales"]) and gaussians.get("colors") is not None:
             light_I0 = scene_lights(scene, context.view_layer, with_albedo=False)[1]
+        if scale_name == 'AUTO':
+            scale = auto_preview_scale(gaussians, persp, (w, h))
         settings = scene.airlight
         noise = (float(settings.noise_amplitude), float(settings.noise_scale),
                  tuple(float(v) for v in settings.noise_offset))
@@ -975,7 +1033,14 @@ def register():
             items=(('FULL', "Full", "Evaluate the fog for every viewport pixel"),
                    ('HALF', "Half", "Evaluate the fog at half the viewport resolution"),
                    ('QUARTER', "Quarter",
-                    "Evaluate the fog at a quarter of the viewport resolution")),
+                    "Evaluate the fog at a quarter of the viewport resolution"),
+                   ('EIGHTH', "Eighth",
+                    "Evaluate the fog at an eighth of the viewport resolution (Gaussian "
+                    "fog is smooth: its sums lose little there)"),
+                   ('AUTO', "Automatic",
+                    "Fog objects: the coarsest scale (up to Eighth) whose texels stay within "
+                    "half the smallest visible fog blob's projected width (sigma); "
+                    "homogeneous fog alone: Half")),
             default='HALF', update=_on_setting_changed)
         bpy.types.WindowManager.airlight_preview_depth = EnumProperty(
             name="Depth",

@@ -185,6 +185,40 @@ def ndc_bounds(centres, radii, persp):
     return lo, hi, visible
 
 
+# Preview scale 'AUTO' (`auto_scale`): the Gaussian sums' texel may be up to sigma_px /
+# AUTO_SIGMA_TEXELS wide, sigma_px the projected standard deviation 1 / (a sqrt 2) of the
+# smallest visible Gaussian. Measured (benchmarks/gpu_preview, 960x540, 3000 Gaussians of
+# the issue-5 scene, smallest sigma_px 15.5): texel = sigma_px / 2 (EIGHTH) differs from the
+# bake by 0.65 % of what the Gaussians add, QUARTER by 0.50 %.
+AUTO_SIGMA_TEXELS = 2.0
+AUTO_SCALES = (8, 4, 2, 1)
+
+
+def auto_scale(centres, scales, radii, persp, size):
+    """The coarsest of AUTO_SCALES whose texel (scale pixels) is at most sigma_px /
+    AUTO_SIGMA_TEXELS for every Gaussian visible through the 4x4 _persp_ (projection @
+    view) at _size_ (W, H): sigma_px = sigma f / w with sigma = 1 / (a sqrt 2), f the
+    pixels per unit of x / w (rows 0 and 1 of _persp_) and w the clip w of the centre
+    (1 in orthographic views). Centres at or behind the eye plane do not limit it.
+    Nothing visible: the coarsest."""
+    P = np.asarray(persp, np.float64).reshape(4, 4)
+    _lo, _hi, vis = ndc_bounds(centres, radii, P)
+    if not vis.any():
+        return AUTO_SCALES[0]
+    b = np.asarray(centres, np.float64).reshape(-1, 3)[vis]
+    sigma = 1.0 / (np.asarray(scales, np.float64)[vis] * math.sqrt(2.0))
+    W, H = size
+    f = min(np.linalg.norm(P[0, :3]) * 0.5 * W, np.linalg.norm(P[1, :3]) * 0.5 * H)
+    w = b @ P[3, :3] + P[3, 3]
+    with np.errstate(divide='ignore'):
+        sigma_px = np.where(w > 0.0, sigma * f / w, np.inf)
+    smallest = float(sigma_px.min())
+    for S in AUTO_SCALES:
+        if S * AUTO_SIGMA_TEXELS <= smallest:
+            return S
+    return AUTO_SCALES[-1]
+
+
 def _tile_cones(inv_persp, eye, size, scale, tile, tx_n, ty_n):
     """Per tile (perspective views): unit axis (ty, tx, 3) of the cone of its texels'
     view rays and the cosine and sine of the largest angle to its corner rays (a rounding
@@ -301,6 +335,9 @@ class GaussianFog:
         self.tile_pairs = 0      # (tile, Gaussian) entries of the last tile lists
         self.tiles_ms = None     # duration of the last tile-list build (CPU + upload)
         self.tiles_batch = None
+        self.light_tex = None    # output of the light-fit pass (preview._fit_lights)
+        self.light_tex_count = -1
+        self.fit_batch = None
 
     def update(self, native, shader, gaussians, beta0, eye, lights):
         """Makes textures/batch/factors current; _gaussians_ = dict(centres, scales,

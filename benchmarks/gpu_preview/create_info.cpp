@@ -168,7 +168,10 @@ std::string create_info_compute_glsl(const CreateInfo &info, const GLSLTarget &t
   ss << "#version 430\n" << standard_defines(t) << "#define GPU_COMPUTE_SHADER\n"
      << defines_declare(info) << info.typedef_source << resources_declare(info);
   ss << "layout(local_size_x = 8, local_size_y = 8) in;\n";
-  ss << "layout(binding = 0, rgba32f) writeonly uniform image2D bench_out;\n";
+  // Fragment output i -> image unit i (bench_out, bench_out1, ...).
+  for (size_t i = 0; i < info.fragment_out.size(); ++i)
+    ss << "layout(binding = " << i << ", rgba32f) writeonly uniform image2D bench_out"
+       << (i ? std::to_string(i) : std::string()) << ";\n";
   ss << "vec4 bench_FragCoord;\n";
   for (const auto &o : info.fragment_out) ss << o.first << " " << o.second << ";\n";
   ss << "#define main bench_fragment_main\n" << body << "\n#undef main\n";
@@ -176,8 +179,11 @@ std::string create_info_compute_glsl(const CreateInfo &info, const GLSLTarget &t
         "  ivec2 p = ivec2(gl_GlobalInvocationID.xy);\n"
         "  if (any(greaterThanEqual(p, imageSize(bench_out)))) return;\n"
         "  bench_FragCoord = vec4(vec2(p) + 0.5, 0.5, 1.0);\n"
-        "  bench_fragment_main();\n"
-        "  imageStore(bench_out, p, " << info.fragment_out[0].second << ");\n}\n";
+        "  bench_fragment_main();\n";
+  for (size_t i = 0; i < info.fragment_out.size(); ++i)
+    ss << "  imageStore(bench_out" << (i ? std::to_string(i) : std::string()) << ", p, "
+       << info.fragment_out[i].second << ");\n";
+  ss << "}\n";
   return ss.str();
 }
 

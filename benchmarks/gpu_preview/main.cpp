@@ -12,7 +12,11 @@
 //      then the fog pass at full resolution with the Gaussian sums; (tiles_*, shaders
 //      with rbf_splat_pixel.glsl) the add-on's tile pass instead of the splat, its lists
 //      built on the CPU once per configuration (native/bindings/preview_tiles.h; not in
-//      the frame times, printed); or (standin_*) the
+//      the frame times, printed); with shaders that have rbf_light_fit_frag.glsl (v4)
+//      tiles_* and gauss_* run the light-fit pass first and read its output (the add-on's
+//      default preview.LIGHT_FIT), tilesexact_* is the tile pass without it,
+//      tilescompute_* (an experiment) the tile pass's GLSL as a compute shader; scales
+//      full, half, quarter, eighth; or (standin_*) the
 //      harness's own splat pass (standin_splat.cpp) after the homogeneous fog;
 //      compute_full: the FULL fog pass's GLSL run as a compute shader (an experiment:
 //      how much of the cost is the fragment pipeline's on this GPU).
@@ -56,6 +60,7 @@ struct Args {
   int gaussians = 3000;
   double cull_eps = 1e-4;  // preview_gaussians.CULL_EPS
   float noise_amplitude = 0.0f, noise_scale = 1.0f;  // scene.airlight.noise_* (tiles/gauss, v3)
+  std::string fit_near = "2.0";  // gpu_shaders.RBF_FIT_NEAR (v4), --fit-near
   float sigma_t = 0.08f;
   int npy_step = 4;
   std::vector<std::string> configs = {"homog_full", "homog_half", "homog_quarter",
@@ -68,9 +73,11 @@ void usage()
       "gpu_preview_bench --ftable FILE [--shaders DIR] [--bench-shaders DIR] [--size WxH]\n"
       "  [--frames N] [--warmup N] [--budget-s S] [--configs a,b,...] [--lights N]\n"
       "  [--gaussians N] [--cull-eps E] [--sigma-t X] [--out DIR] [--npy-step N]\n"
-      "  [--noise-amplitude A] [--noise-scale S]\n"
+      "  [--noise-amplitude A] [--noise-scale S] [--fit-near K.K]\n"
       "  [--platform auto|device|surfaceless|default] [--device I]\n"
-      "configs: {homog,gauss,tiles,standin}_{full,half,quarter}, compute_full");
+      "configs: {homog,gauss,tiles,tilesexact,tilescompute,standin}_{full,half,quarter,eighth},\n"
+      "  compute_full (tiles, gauss: with the light fit where the shaders have it; tilesexact:\n"
+      "  without; tilescompute: the tile pass's GLSL as a compute shader, an experiment)");
 }
 
 std::vector<std::string> split(const std::string &s, char sep)
@@ -115,6 +122,11 @@ Args parse(int argc, char **argv)
     else if (k == "--cull-eps") a.cull_eps = std::stod(next());
     else if (k == "--noise-amplitude") a.noise_amplitude = std::stof(next());
     else if (k == "--noise-scale") a.noise_scale = std::stof(next());
+    else if (k == "--fit-near") {
+      a.fit_near = next();
+      if (!(std::stof(a.fit_near) >= 0.0f) || a.fit_near.find('.') == std::string::npos)
+        throw std::invalid_argument("--fit-near: a float >= 0 with a decimal point (a GLSL float)");
+    }
     else if (k == "--sigma-t") a.sigma_t = std::stof(next());
     else if (k == "--configs") a.configs = split(next(), ',');
     else if (k == "--npy-step") a.npy_step = std::stoi(next());
@@ -134,7 +146,7 @@ Args parse(int argc, char **argv)
 }
 
 struct Config {
-  std::string name, kind;  // kind: homog, gauss (the add-on's splat), tiles (its tile pass), standin
+  std::string name, kind;  // kind: homog, gauss (the add-on's splat), tiles (its tile pass), tilesexact (v4: without the light fit), standin
   int scale = 1;
 };
 
@@ -144,7 +156,8 @@ Config parse_config(const std::string &s)
   c.name = s;
   auto parts = split(s, '_');
   if (parts.size() != 2 || (parts[0] != "homog" && parts[0] != "gauss" && parts[0] != "standin" &&
-                            parts[0] != "compute" && parts[0] != "tiles"))
+                            parts[0] != "compute" && parts[0] != "tiles" && parts[0] != "tilesexact" &&
+                            parts[0] != "tilescompute"))
     throw std::invalid_argument("bad config " + s);
   c.kind = parts[0];
   if (c.kind == "compute" && parts[1] != "full")
@@ -152,6 +165,7 @@ Config parse_config(const std::string &s)
   if (parts[1] == "full") c.scale = 1;
   else if (parts[1] == "half") c.scale = 2;
   else if (parts[1] == "quarter") c.scale = 4;
+  else if (parts[1] == "eighth") c.scale = 8;
   else throw std::invalid_argument("bad config scale " + s);
   return c;
 }
@@ -218,7 +232,8 @@ int run(const Args &a)
                "%d warm-up, budget %g s per configuration",
                a.width, a.height, a.lights, a.sigma_t, a.shaders.c_str(),
                (std::string(p.v2 ? "v2" : "v1") + (p.spots ? " +spots" : "") + (p.suns ? " +suns" : "") +
-                (p.ubo ? " +UBO" : " push constants") + (p.v3 ? " +v3 (colours, noise, tile pass)" : "")).c_str(),
+                (p.ubo ? " +UBO" : " push constants") + (p.v3 ? " +v3 (colours, noise, tile pass)" : "") +
+                (p.v4 ? " +v4 (light fit, f1 4 lights per texel)" : "")).c_str(),
                a.frames, a.warmup, a.budget_s));
   const View view = make_view(a.width, a.height);
 
@@ -235,13 +250,19 @@ int run(const Args &a)
 
   for (const std::string &cs : a.configs) {
     const Config c = parse_config(cs);
-    const bool addon_gauss = c.kind == "gauss" || c.kind == "tiles";
+    const bool tile_kind = c.kind == "tiles" || c.kind == "tilesexact" || c.kind == "tilescompute";
+    const bool addon_gauss = c.kind == "gauss" || tile_kind;
     if (addon_gauss && !p.v2) {
       rep.line(fmt("%-15s skipped: these shaders have no Gaussian splat pass (interface v1)",
                    c.name.c_str()));
       continue;
     }
-    if (c.kind == "tiles" && !p.v3) {
+    if (c.kind == "tilesexact" && !p.v4) {
+      rep.line(fmt("%-15s skipped: these shaders have no light fit (before rbf_light_fit_frag.glsl)",
+                   c.name.c_str()));
+      continue;
+    }
+    if (tile_kind && !p.v3) {
       rep.line(fmt("%-15s skipped: these shaders have no tile pass (before rbf_splat_pixel.glsl)",
                    c.name.c_str()));
       continue;
@@ -269,11 +290,12 @@ int run(const Args &a)
     if (addon_gauss && !have_addon) {
       p.noise_amplitude = a.noise_amplitude;
       p.noise_scale = a.noise_scale;
+      p.fit_near = a.fit_near;
       p.build_gaussians(gset);
       have_addon = true;
       check_gl("Gaussian build");
     }
-    if (c.kind == "tiles") {
+    if (tile_kind) {
       p.build_tiles(view, a.width, a.height, c.scale);
       check_gl("tile lists");
       const int lw = (a.width + c.scale - 1) / c.scale, lh = (a.height + c.scale - 1) / c.scale;
@@ -298,7 +320,7 @@ int run(const Args &a)
       p.count_samples = count;
       if (c.kind == "compute") p.draw_fog_compute(view, vp, a.sigma_t);
       else p.draw_fog(view, vp, a.sigma_t, c.kind == "standin" ? 1 : c.scale, addon_gauss,
-                      c.kind == "tiles");
+                      tile_kind, c.kind == "tilesexact", c.kind == "tilescompute");
       p.count_samples = false;
       if (c.kind == "standin") {
         standin_fragments = standin.draw(vp.fbo, vp.w, vp.h, view.persp, view.inv_persp,

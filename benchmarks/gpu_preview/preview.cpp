@@ -20,6 +20,8 @@ constexpr int kUpsampleBilateralExact = 2;  // preview.UPSAMPLE_BILATERAL_EXACT 
 constexpr int kRbfTexWidth = 1024;          // gpu_shaders.RBF_TEX_WIDTH
 constexpr int kRbfTile = 8;                 // gpu_shaders.RBF_TILE (v3)
 constexpr int kRbfListWidth = 4096;         // gpu_shaders.RBF_LIST_WIDTH (v3)
+constexpr int kRbfFitRows = 9;              // gpu_shaders.RBF_FIT_ROWS (v4)
+const char *const kRbfFitMaxT = "0.1";      // repr(gpu_shaders.RBF_FIT_MAX_T) (v4)
 
 bool file_exists(const std::string &path)
 {
@@ -183,6 +185,7 @@ void Preview::build(const std::string &shader_dir, const std::string &ftable_pat
   v2 = file_exists(dir + "/rbf_splat_vert.glsl");
   ubo = v2 && file_exists(dir + "/preview_params.glsl");
   v3 = ubo && file_exists(dir + "/rbf_splat_pixel.glsl");
+  v4 = v3 && file_exists(dir + "/rbf_light_fit_frag.glsl");
   spots = v2 && file_exists(dir + "/spot_airlight.glsl");
   suns = v2 && file_exists(dir + "/sun_airlight.glsl");
   // gpu_shaders.create_distance_shader
@@ -299,7 +302,18 @@ void Preview::build_gaussians(const GaussianSet &g)
                                      {"PREVIEW_PHASE", "0"}});
   if (spots) s.defines.push_back({"PREVIEW_SPOTS", "0"});
   if (suns) s.defines.push_back({"PREVIEW_SUNS", "0"});
+  // v4: gpu_shaders._rbf_create_info(..., light_fit): the fit's defines, gauss_light last.
+  CreateInfo s_exact;
+  if (v4) {
+    s.defines.insert(s.defines.end(), {{"RBF_LIGHT_FIT", "0"}, {"RBF_FIT_NEAR", fit_near},
+                                       {"RBF_FIT_MAX_T", kRbfFitMaxT}});
+    s_exact = s;
+    for (auto &d : s.defines)
+      if (d.first == "RBF_LIGHT_FIT") d.second = "1";
+    s.samplers.push_back("gauss_light");
+  }
   s.fragment_out = {{"vec4", "frag_color"}, {"vec4", "frag_near"}};
+  s_exact.fragment_out = s.fragment_out;
   s.vertex_source = src("rbf_splat_vert.glsl");
   // gpu_shaders.RBF_SPLAT_SOURCES (v3 adds rbf_noise.glsl and rbf_splat_pixel.glsl).
   std::string libs = src("sun05_airlight.glsl") + "\n" + src("preview_common.glsl") + "\n" +
@@ -311,17 +325,37 @@ void Preview::build_gaussians(const GaussianSet &g)
   if (v3) {
     // gpu_shaders.create_rbf_tiles_shader: the fullscreen quad's interface, the splat's
     // defines and outputs, two more samplers.
-    CreateInfo t = s;
-    t.name = "rbf_tiles";
-    t.vertex_in = {{"vec2", "pos"}};
-    t.iface_name = "airlight_rbf_tiles_iface";
-    t.iface = {{"smooth", "vec2", "uv"}};
-    t.samplers.insert(t.samplers.end(), {"tile_index", "tile_list"});
-    t.defines.insert(t.defines.end(), {{"RBF_TILE", std::to_string(kRbfTile)},
-                                       {"RBF_LIST_WIDTH", std::to_string(kRbfListWidth)}});
-    t.vertex_source = src("fullscreen_vert.glsl");
-    t.fragment_source = libs + src("rbf_tiles_frag.glsl") + "\n";
-    tiles = create_info_program(t, target);
+    auto tiles_info = [&](CreateInfo t, bool fit) {
+      t.name = "rbf_tiles";
+      t.vertex_in = {{"vec2", "pos"}};
+      t.iface_name = "airlight_rbf_tiles_iface";
+      t.iface = {{"smooth", "vec2", "uv"}};
+      if (fit) t.samplers.pop_back();  // gauss_light goes after the tile samplers
+      t.samplers.insert(t.samplers.end(), {"tile_index", "tile_list"});
+      if (fit) t.samplers.push_back("gauss_light");
+      t.defines.insert(t.defines.end(), {{"RBF_TILE", std::to_string(kRbfTile)},
+                                         {"RBF_LIST_WIDTH", std::to_string(kRbfListWidth)}});
+      t.vertex_source = src("fullscreen_vert.glsl");
+      t.fragment_source = libs + src("rbf_tiles_frag.glsl") + "\n";
+      return t;
+    };
+    tiles = create_info_program(tiles_info(s, v4), target);
+    // Experiment (tilescompute_*): the same GLSL as a compute shader (create_info_compute_glsl:
+    // outputs -> image units 0, 1), as compute_full does for the fog pass. Not what Blender
+    // 3.4 can run (no compute from Python before 4.1).
+    tiles_compute = create_info_compute_program(tiles_info(s, v4), target);
+    if (v4) {
+      tiles_exact = create_info_program(tiles_info(s_exact, false), target);
+      // gpu_shaders.create_rbf_light_fit_shader
+      CreateInfo f = s_exact;
+      f.name = "rbf_light_fit";
+      f.vertex_in = {{"vec2", "pos"}};
+      f.iface_name = "airlight_rbf_light_fit_iface";
+      f.iface = {{"smooth", "vec2", "uv"}};
+      f.vertex_source = src("fullscreen_vert.glsl");
+      f.fragment_source = libs + src("rbf_light_fit_frag.glsl") + "\n";
+      light_fit = create_info_program(f, target);
+    }
   }
 
   // gpu_shaders.rbf_splat_batch: 4 vertices and 2 triangles per Gaussian.
@@ -343,7 +377,10 @@ void Preview::build_gaussians(const GaussianSet &g)
   const int L = std::max(1, light_count);
   const int rows = v3 ? 3 : 2;
   const glm::dvec3 eye(make_view(16, 16).eye);  // the view's eye (independent of the size)
-  std::vector<float> gauss(size_t(blocks) * rows * W * 4, 0.0f), f1(size_t(blocks) * L * W, 0.0f);
+  // v4: gauss_f1 RGBA32F, light l in component l % 4 of row l / 4 of each block.
+  const int f1_rows = v4 ? (L + 3) / 4 : L, f1_comp = v4 ? 4 : 1;
+  std::vector<float> gauss(size_t(blocks) * rows * W * 4, 0.0f),
+      f1(size_t(blocks) * f1_rows * W * f1_comp, 0.0f);
   for (int i = 0; i < n; ++i) {
     const int blk = i / W, col = i % W;
     float *r0 = &gauss[(size_t(blk * rows) * W + col) * 4];
@@ -356,11 +393,18 @@ void Preview::build_gaussians(const GaussianSet &g)
       float *r2 = &gauss[(size_t(blk * rows + 2) * W + col) * 4];
       r2[0] = r2[1] = r2[2] = 1.0f;
     }
-    for (int l = 0; l < light_count; ++l)
-      f1[size_t(blk * L + l) * W + col] = float(g.f1[size_t(l) * n + i]);
+    for (int l = 0; l < light_count; ++l) {
+      if (v4)
+        f1[(size_t(blk * f1_rows + l / 4) * W + col) * 4 + l % 4] = float(g.f1[size_t(l) * n + i]);
+      else
+        f1[size_t(blk * L + l) * W + col] = float(g.f1[size_t(l) * n + i]);
+    }
   }
   gauss_tex = gl_texture(W, blocks * rows, GL_RGBA32F, gauss.data());
-  f1_tex = gl_texture(W, blocks * L, GL_R32F, f1.data(), GL_RED);
+  // gpu_shaders.rbf_light_fit_texture (v4)
+  if (v4) light_target = make_target(W, blocks * kRbfFitRows, GL_RGBA32F, false);
+  f1_tex = v4 ? gl_texture(W, blocks * f1_rows, GL_RGBA32F, f1.data())
+              : gl_texture(W, blocks * L, GL_R32F, f1.data(), GL_RED);
 
   // preview._lights_texture(..., Csv)
   const int nl = std::max(1, light_count);
@@ -496,6 +540,7 @@ void Preview::draw_distance(const View &v)
 // preview._draw_gaussians
 void Preview::draw_splat(const View &v, int w, int h, float sigma_t, int S)
 {
+  if (v4) draw_light_fit(v, w, h, sigma_t);  // RBF_LIGHT_FIT 1 (preview.LIGHT_FIT)
   const int lw = (w + S - 1) / S, lh = (h + S - 1) / S;
   if (gauss_target.w != lw || gauss_target.h != lh) {
     if (gauss_target.fbo) free_target(gauss_target);
@@ -511,7 +556,8 @@ void Preview::draw_splat(const View &v, int w, int h, float sigma_t, int S)
   bind_inputs(splat, v, glm::vec4(0, 0, float(w), float(h)), sigma_t, S, 0, lights_csv, nullptr);
   glBindTextureUnit(3, gauss_tex);
   glBindTextureUnit(4, f1_tex);
-  glBindTextureUnit(5, 0);  // no stale binding of the target being drawn
+  // No stale binding of the target being drawn; v4: gauss_light.
+  glBindTextureUnit(5, v4 ? light_target.colour[0] : 0);
   GLuint q[2] = {0, 0};
   if (count_samples) {
     glGenQueries(2, q);
@@ -532,9 +578,44 @@ void Preview::draw_splat(const View &v, int w, int h, float sigma_t, int S)
   stamp("splat");
 }
 
-// preview._draw_gaussians with gauss_pass 'TILES' (v3): every splat-target texel once.
-void Preview::draw_tiles(const View &v, int w, int h, float sigma_t, int S)
+// preview._fit_lights (v4): the light-fit pass into light_target, every draw.
+void Preview::draw_light_fit(const View &v, int w, int h, float sigma_t)
 {
+  glBindFramebuffer(GL_FRAMEBUFFER, light_target.fbo);
+  glViewport(0, 0, light_target.w, light_target.h);
+  glDisable(GL_BLEND);
+  bind_inputs(light_fit, v, glm::vec4(0, 0, float(w), float(h)), sigma_t, 1, 0, lights_csv, nullptr);
+  glBindTextureUnit(3, gauss_tex);
+  glBindTextureUnit(4, f1_tex);
+  glBindTextureUnit(5, 0);
+  ::draw(quad);
+  stamp("light_fit");
+}
+
+// preview._draw_gaussians with gauss_pass 'TILES' (v3): every splat-target texel once.
+void Preview::draw_tiles(const View &v, int w, int h, float sigma_t, int S, bool exact, bool compute)
+{
+  const bool fit = v4 && !exact;
+  if (fit) draw_light_fit(v, w, h, sigma_t);
+  if (compute) {
+    const int lw = (w + S - 1) / S, lh = (h + S - 1) / S;
+    if (gauss_target.w != lw || gauss_target.h != lh) {
+      if (gauss_target.fbo) free_target(gauss_target);
+      gauss_target = make_target(lw, lh, GL_RGBA32F, false, 2);
+    }
+    bind_inputs(tiles_compute, v, glm::vec4(0, 0, float(w), float(h)), sigma_t, S, 0, lights_csv, nullptr);
+    glBindTextureUnit(3, gauss_tex);
+    glBindTextureUnit(4, f1_tex);
+    glBindTextureUnit(5, tile_index_tex);
+    glBindTextureUnit(6, tile_list_tex);
+    if (fit) glBindTextureUnit(7, light_target.colour[0]);
+    glBindImageTexture(0, gauss_target.colour[0], 0, GL_FALSE, 0, GL_WRITE_ONLY, GL_RGBA32F);
+    glBindImageTexture(1, gauss_target.colour[1], 0, GL_FALSE, 0, GL_WRITE_ONLY, GL_RGBA32F);
+    glDispatchCompute(GLuint((lw + 7) / 8), GLuint((lh + 7) / 8), 1);
+    glMemoryBarrier(GL_TEXTURE_FETCH_BARRIER_BIT);
+    stamp("tiles_compute");
+    return;
+  }
   const int lw = (w + S - 1) / S, lh = (h + S - 1) / S;
   if (gauss_target.w != lw || gauss_target.h != lh) {
     if (gauss_target.fbo) free_target(gauss_target);
@@ -543,17 +624,19 @@ void Preview::draw_tiles(const View &v, int w, int h, float sigma_t, int S)
   glBindFramebuffer(GL_FRAMEBUFFER, gauss_target.fbo);
   glViewport(0, 0, lw, lh);
   glDisable(GL_BLEND);
-  bind_inputs(tiles, v, glm::vec4(0, 0, float(w), float(h)), sigma_t, S, 0, lights_csv, nullptr);
+  const GLuint prog = (v4 && exact) ? tiles_exact : tiles;
+  bind_inputs(prog, v, glm::vec4(0, 0, float(w), float(h)), sigma_t, S, 0, lights_csv, nullptr);
   glBindTextureUnit(3, gauss_tex);
   glBindTextureUnit(4, f1_tex);
   glBindTextureUnit(5, tile_index_tex);
   glBindTextureUnit(6, tile_list_tex);
+  if (fit) glBindTextureUnit(7, light_target.colour[0]);
   ::draw(quad);
   stamp("tiles");
 }
 
 void Preview::draw_fog(const View &v, const Target &viewport, float sigma_t, int scale, bool gaussians,
-                       bool tile_pass)
+                       bool tile_pass, bool exact, bool compute)
 {
   const int w = viewport.w, h = viewport.h;
   const glm::vec4 region(0.0f, 0.0f, float(w), float(h));
@@ -561,7 +644,7 @@ void Preview::draw_fog(const View &v, const Target &viewport, float sigma_t, int
   glDepthMask(GL_FALSE);
   if (gaussians) {
     // Splat (or the tile pass) at 1/scale, then the fog pass at full resolution with the sums.
-    if (tile_pass) draw_tiles(v, w, h, sigma_t, scale);
+    if (tile_pass) draw_tiles(v, w, h, sigma_t, scale, exact, compute);
     else draw_splat(v, w, h, sigma_t, scale);
     GLuint prog = fog_gauss_program(scale);
     glBindFramebuffer(GL_FRAMEBUFFER, viewport.fbo);

@@ -49,6 +49,13 @@ struct Preview {
   GLSLTarget target;
   std::string dir;
   bool v2 = false, spots = false, suns = false, ubo = false, v3 = false;
+  // v4 (rbf_light_fit_frag.glsl): the light-fit pass; the splat and tile passes read its
+  // output (RBF_LIGHT_FIT 1, as the add-on's default preview.LIGHT_FIT); tiles_exact the
+  // tile pass with the exact per-pixel light terms (RBF_LIGHT_FIT 0).
+  bool v4 = false;
+  // RBF_FIT_NEAR of the v4 passes (a GLSL float): the add-on's gpu_shaders.RBF_FIT_NEAR
+  // unless --fit-near says otherwise (to measure the fit's share).
+  std::string fit_near = "2.0";
   // v3: the Gaussian fog's noise (amplitude 0 = off), scene.airlight.noise_*.
   float noise_amplitude = 0.0f, noise_scale = 1.0f;
   glm::vec3 noise_offset{0.0f};
@@ -73,6 +80,10 @@ struct Preview {
   const GaussianSet *gauss_set = nullptr;
   // v3 tile pass: program, lists for (scale), their textures and size.
   GLuint tiles = 0, tile_index_tex = 0, tile_list_tex = 0;
+  // v4: tile pass without the fit, the light-fit pass and its target (gauss_light).
+  GLuint tiles_exact = 0, light_fit = 0;
+  GLuint tiles_compute = 0;  // experiment: the tile pass as a compute shader (tilescompute_*)
+  Target light_target;
   int tiles_scale = 0;
   unsigned long long tile_entries = 0;
   double tiles_build_ms = 0.0;  // CPU time of the last list build + upload (not in the frame times)
@@ -95,8 +106,10 @@ struct Preview {
   // preview.draw_fog onto _viewport_ (mode UPSAMPLE_BILATERAL_EXACT); with _gaussians_
   // (v2) the splat pass at 1/scale and the fog pass at full resolution.
   // _tiles_ (v3): the Gaussian sums by the tile pass instead of the splat.
+  // _exact_ (v4): the tile pass with the exact light terms (no light-fit pass).
+  // _compute_: the tile pass's GLSL as a compute shader (experiment).
   void draw_fog(const View &v, const Target &viewport, float sigma_t, int scale, bool gaussians,
-                bool tiles = false);
+                bool tiles = false, bool exact = false, bool compute = false);
   // v3: the tile lists for _scale_ (rebuilt when the scale changes; preview_gaussians.
   // GaussianFog.update_tiles).
   void build_tiles(const View &v, int w, int h, int scale);
@@ -115,5 +128,6 @@ struct Preview {
   void bind_inputs(GLuint prog, const View &v, glm::vec4 viewport, float sigma_t, int scale,
                    GLuint fog_lo_tex, GLuint lights_tex, const Target *gauss) const;
   void draw_splat(const View &v, int w, int h, float sigma_t, int gauss_scale);
-  void draw_tiles(const View &v, int w, int h, float sigma_t, int gauss_scale);
+  void draw_tiles(const View &v, int w, int h, float sigma_t, int gauss_scale, bool exact, bool compute);
+  void draw_light_fit(const View &v, int w, int h, float sigma_t);
 };

@@ -21,7 +21,7 @@ vendor=/usr/local/nvidia/share/glvnd/egl_vendor.d/10_nvidia.json
 [ -f "$vendor" ] && export __EGL_VENDOR_LIBRARY_FILENAMES=$vendor
 { nvidia-smi --query-gpu=name,driver_version,clocks.max.sm,clocks.sm,power.limit --format=csv; nvidia-smi; } > "$OUT/nvidia_smi.txt" 2>&1
 rm -rf /tmp/gpb_1080_* /tmp/gpb_small  # images of an earlier run on this machine
-all=homog_full,homog_half,homog_quarter,compute_full,gauss_full,gauss_half,gauss_quarter,tiles_full,tiles_half,tiles_quarter
+all=homog_full,homog_half,homog_quarter,compute_full,gauss_full,gauss_half,gauss_quarter,tiles_full,tiles_half,tiles_quarter,tiles_eighth,tilesexact_half,tilesexact_quarter,tilesexact_eighth
 bench=("$here/gpu_preview_bench" --ftable "$here/ftable.bin" --bench-shaders "$here/bench_shaders"
        --platform "${PLATFORM:-device}")
 for d in "$here"/shaders "$here"/shaders_*; do

@@ -3,12 +3,13 @@ and cache invalidation (addon/airlight/preview.py).
 
 - test01: the preview's own distance pass (mesh batches of the evaluated scene) against
   the bake's ray-traced depth of the same camera.
-- test02: the fog at HALF and QUARTER scale, upsampled by plain bilinear, joint bilateral
-  with nearest-depth fallback, and joint bilateral with exact re-evaluation (the
+- test02: the fog at HALF, QUARTER and EIGHTH scale, upsampled by plain bilinear, joint
+  bilateral with nearest-depth fallback, and joint bilateral with exact re-evaluation (the
   default), against the full-resolution preview and `_native.bake`: mean relative
   difference overall and at depth-discontinuity pixels. The default must stay within the
-  issue's 2 % of the bake overall, add at most 2 % to the full-resolution preview at
-  silhouettes, and there beat plain bilinear by 2x (the depth-aware pass matters).
+  issue's 2 % of the bake overall, add at most 2 % (EIGHTH: 3 %) to the full-resolution
+  preview at silhouettes, and there beat plain bilinear by 2x (the depth-aware pass
+  matters).
 - test03: the draw handler follows edits: moving a light, changing the density, moving
   geometry and changing the frame (animated light) all change the next drawn preview.
 """
@@ -121,7 +122,7 @@ def test02_reduced_scale_accuracy(addon, view, fog_scene, artifacts):  # noqa: F
     print(f"{'FULL':>7} {'-':>16} {full_rel.mean():>9.2e} {np.percentile(full_rel, 99):>8.2e} "
           f"{_rel(full, ref, sil).mean():>10.2e} {0.0:>9.2e} {0.0:>12.2e}")
     results = {}
-    for scale_name, scale in (("HALF", 2), ("QUARTER", 4)):
+    for scale_name, scale in (("HALF", 2), ("QUARTER", 4), ("EIGHTH", 8)):
         for mode_name, mode in MODES.items():
             got = _fog(addon, view, fog_scene, scale, mode)[..., :3]
             assert np.isfinite(got).all()
@@ -137,7 +138,7 @@ def test02_reduced_scale_accuracy(addon, view, fog_scene, artifacts):  # noqa: F
                           np.clip(got * scale_png, 0, 1))
     # FULL: the bake's clip range, float32 (measured 1.5e-5).
     assert full_rel.mean() <= 1e-4
-    for scale_name in ("HALF", "QUARTER"):
+    for scale_name in ("HALF", "QUARTER", "EIGHTH"):
         mean, sil_mean = results[scale_name, "bilateral+exact"]
         _, sil_bilinear = results[scale_name, "bilinear"]
         # The issue's tolerance for homogeneous fog against the bake, overall; at
@@ -145,7 +146,9 @@ def test02_reduced_scale_accuracy(addon, view, fog_scene, artifacts):  # noqa: F
         # GLSL-vs-C++ difference is not counted twice) may add no more than that either:
         # exact re-evaluation leaves only interpolation along one surface there.
         assert mean <= 0.02
-        assert sil_mean <= 0.02
+        # EIGHTH is 40 x 30 texels here: its silhouettes interpolate along a surface over
+        # 8 pixels (measured 2.2e-2 at 320x240).
+        assert sil_mean <= (0.03 if scale_name == "EIGHTH" else 0.02)
         # Depth-aware upsampling must matter: bilinear smears fog across edges.
         assert sil_mean < 0.5 * sil_bilinear
 

@@ -13,7 +13,7 @@ shaders/rbf_*.glsl).
   (preview.GAUSS_PASSES: TILES, the full-screen loop over per-tile lists, and SPLAT, one
   blended quad per Gaussian). Images are saved under out/test_artifacts/ (or
   $AIRLIGHT_TEST_ARTIFACTS).
-- test04: the same at HALF / QUARTER (splat targets at 1/2, 1/4).
+- test04: the same at HALF / QUARTER / EIGHTH (splat targets at 1/2, 1/4, 1/8).
 - test06: Gaussians with their own colours (fog objects' "airlight_color", the bake's
   rbf_albedo) vs the bake at FULL, both passes; the colours change the image.
 - test07: the tile lists hold every Gaussian whose cull sphere a texel's ray meets
@@ -293,10 +293,10 @@ def test02_preview_matches_bake(addon, native, gs, gauss_scene, artifacts, gauss
 
 
 @pytest.mark.parametrize("gauss_pass", ["TILES", "SPLAT"])
-@pytest.mark.parametrize("scale", [2, 4])
+@pytest.mark.parametrize("scale", [2, 4, 8])
 def test04_reduced_scale_splat(addon, native, gs, gauss_scene, scale, gauss_pass):
-    """HALF / QUARTER: the Gaussians are splatted at 1/scale and upsampled depth-aware in
-    the full-resolution fog pass; vs the bake (figures printed)."""
+    """HALF / QUARTER / EIGHTH: the Gaussians are splatted at 1/scale and upsampled
+    depth-aware in the full-resolution fog pass; vs the bake (figures printed)."""
     from airlight import scene_export
     scene = gauss_scene
     desc = scene_export.export_scene(scene, bpy.context.evaluated_depsgraph_get())
@@ -309,8 +309,9 @@ def test04_reduced_scale_splat(addon, native, gs, gauss_scene, scale, gauss_pass
     got, got_T = render_preview(addon, gs, scene, desc, gaussians, scale=scale, gauss_pass=gauss_pass)
     rel, dT = _compare(f"Gaussian preview ({gauss_pass}) at 1/{scale} vs bake", got, got_T, ref, ref_T)
     assert np.isfinite(got).all()
-    assert rel.mean() <= 0.02
-    assert dT.mean() <= 2e-3
+    # EIGHTH is 20 x 15 texels here (measured 3.9e-2, 5.7e-3): held to the issue's 5 %.
+    assert rel.mean() <= (0.05 if scale == 8 else 0.02)
+    assert dT.mean() <= (1e-2 if scale == 8 else 2e-3)
 
 
 # ---- the draw handler with a fog object ----------------------------------------------------
