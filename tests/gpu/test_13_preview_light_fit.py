@@ -394,7 +394,7 @@ def test04_auto_scale(addon, fit_scene):
         assert addon._state["last_gauss_scale"] == want
     finally:
         wm.airlight_preview = False
-        wm.airlight_preview_scale = 'HALF'
+        wm.airlight_preview_scale = 'AUTO'  # the default
         addon._state["capture"] = None
         bpy.data.objects.remove(obj)
         bpy.context.view_layer.update()
