@@ -57,6 +57,18 @@ PhaseFunction bake_phase(std::string name, double g) {
     return phase_from_name(name, g);
 }
 
+// A bake output image as a numpy array that owns it (no copy); when numpy frees it, its
+// memory goes back to the bake's pool (bake.h recycle_image_buffer: warm pages for the next bake).
+py::array_t<float> image_to_numpy(std::vector<float>&& data, std::vector<py::ssize_t> shape) {
+    auto* owner = new std::vector<float>(std::move(data));
+    py::capsule recycle(owner, [](void* p) {
+        auto* v = static_cast<std::vector<float>*>(p);
+        recycle_image_buffer(std::move(*v));
+        delete v;
+    });
+    return py::array_t<float>(shape, owner->data(), recycle);
+}
+
 py::dict bake_py(int width, int height, const py::object& cam_to_world, const py::object& projection,
                  const py::object& vertices, const py::object& triangles,
                  const py::object& light_positions, const py::object& light_intensities, double sigma_t,
@@ -247,15 +259,15 @@ py::dict bake_py(int width, int height, const py::object& cam_to_world, const py
         throw std::logic_error("bake: surface pass missing from the result");
     if (surface) {
         const py::ssize_t L = result.surface_lights;
-        extra["surface_attenuation"] = to_numpy(std::move(result.surface_attenuation), {L, H, W, 3});
-        extra["surface_glow"] = to_numpy(std::move(result.surface_glow), {H, W, 3});
-        extra["surface_normals"] = to_numpy(std::move(result.surface_normals), {H, W, 3});
+        extra["surface_attenuation"] = image_to_numpy(std::move(result.surface_attenuation), {L, H, W, 3});
+        extra["surface_glow"] = image_to_numpy(std::move(result.surface_glow), {H, W, 3});
+        extra["surface_normals"] = image_to_numpy(std::move(result.surface_normals), {H, W, 3});
         if (surface_phong_exponent > 0.0)
-            extra["surface_gloss_glow"] = to_numpy(std::move(result.surface_gloss_glow), {H, W, 3});
+            extra["surface_gloss_glow"] = image_to_numpy(std::move(result.surface_gloss_glow), {H, W, 3});
     }
-    py::dict out("airlight"_a = to_numpy(std::move(result.airlight), {H, W, 3}),
-                    "transmittance"_a = to_numpy(std::move(result.transmittance), {H, W, 3}),
-                    "depth"_a = to_numpy(std::move(result.depth), {H, W}), "stats"_a = stats);
+    py::dict out("airlight"_a = image_to_numpy(std::move(result.airlight), {H, W, 3}),
+                    "transmittance"_a = image_to_numpy(std::move(result.transmittance), {H, W, 3}),
+                    "depth"_a = image_to_numpy(std::move(result.depth), {H, W}), "stats"_a = stats);
     for (const auto& item : extra) out[item.first] = item.second;
     return out;
 }

@@ -852,20 +852,8 @@ void run_parallel(int n, int n_threads, const std::function<void(int)>& work,
     if (error) std::rethrow_exception(error);
 }
 
-// Sizes _v_ to _n_ zeros. Large images ask the kernel for transparent huge pages first:
-// touching 4 KiB pages one fault at a time cost ~10 us per page here, about as much as
-// the whole airlight pass at 1080p.
-void allocate_image(std::vector<float>& v, size_t n) {
-    v.clear();
-    v.reserve(n);  // allocates without touching the pages
-#ifdef __linux__
-    const uintptr_t huge = uintptr_t(2) << 20;
-    const uintptr_t begin = (reinterpret_cast<uintptr_t>(v.data()) + huge - 1) & ~(huge - 1);
-    const uintptr_t end = (reinterpret_cast<uintptr_t>(v.data() + n)) & ~(huge - 1);
-    if (end > begin) madvise(reinterpret_cast<void*>(begin), end - begin, MADV_HUGEPAGE);
-#endif
-    v.resize(n, 0.0f);
-}
+// Sizes _v_ to _n_ zeros (acquire_image_buffer).
+void allocate_image(std::vector<float>& v, size_t n) { acquire_image_buffer(v, n, 0.0f); }
 
 using Clock = std::chrono::steady_clock;
 
@@ -909,6 +897,70 @@ std::shared_ptr<const SpecialFTable> shared_special_F_table(int nu, int nT, Inte
     auto& slot = cache[{nu, nT, interp}];
     if (!slot) slot = std::make_shared<const SpecialFTable>(nu, nT, interp);
     return slot;
+}
+
+// The pool of recycled image buffers (acquire_image_buffer / recycle_image_buffer).
+namespace {
+constexpr size_t kImagePoolBytes = size_t(256) << 20;  // at most this much kept idle
+constexpr size_t kImagePoolMinBytes = size_t(1) << 20;  // smaller buffers are not worth keeping
+struct ImagePool {
+    std::mutex mutex;
+    std::vector<std::vector<float>> buffers;  // oldest first
+    size_t bytes = 0;
+};
+ImagePool& image_pool() {
+    static ImagePool* pool = new ImagePool;  // never destroyed: numpy may free arrays at exit
+    return *pool;
+}
+}  // namespace
+
+void acquire_image_buffer(std::vector<float>& v, size_t n, float value) {
+    std::vector<float> taken;
+    {
+        ImagePool& pool = image_pool();
+        std::lock_guard<std::mutex> lock(pool.mutex);
+        // The smallest buffer that holds n floats, if it is not more than twice that.
+        size_t best = pool.buffers.size();
+        for (size_t i = 0; i < pool.buffers.size(); ++i) {
+            const size_t c = pool.buffers[i].capacity();
+            if (c >= n && c / 2 <= n && (best == pool.buffers.size() || c < pool.buffers[best].capacity())) best = i;
+        }
+        if (best < pool.buffers.size()) {
+            taken = std::move(pool.buffers[best]);
+            pool.buffers.erase(pool.buffers.begin() + std::ptrdiff_t(best));
+            pool.bytes -= taken.capacity() * sizeof(float);
+        }
+    }
+    if (taken.capacity() >= n) {
+        v = std::move(taken);
+        v.assign(n, value);  // within capacity: no reallocation, the pages are warm
+        return;
+    }
+    v.clear();
+    v.shrink_to_fit();
+    v.reserve(n);  // allocates without touching the pages
+#ifdef __linux__
+    const uintptr_t huge = uintptr_t(2) << 20;
+    const uintptr_t begin = (reinterpret_cast<uintptr_t>(v.data()) + huge - 1) & ~(huge - 1);
+    const uintptr_t end = (reinterpret_cast<uintptr_t>(v.data() + n)) & ~(huge - 1);
+    if (end > begin) madvise(reinterpret_cast<void*>(begin), end - begin, MADV_HUGEPAGE);
+#endif
+    v.resize(n, value);
+}
+
+void recycle_image_buffer(std::vector<float>&& buffer) {
+    const size_t bytes = buffer.capacity() * sizeof(float);
+    if (bytes < kImagePoolMinBytes || bytes > kImagePoolBytes) return;  // freed by the caller's vector
+    std::vector<std::vector<float>> evicted;  // freed outside the lock
+    ImagePool& pool = image_pool();
+    std::lock_guard<std::mutex> lock(pool.mutex);
+    while (!pool.buffers.empty() && pool.bytes + bytes > kImagePoolBytes) {
+        pool.bytes -= pool.buffers.front().capacity() * sizeof(float);
+        evicted.push_back(std::move(pool.buffers.front()));
+        pool.buffers.erase(pool.buffers.begin());
+    }
+    pool.bytes += bytes;
+    pool.buffers.push_back(std::move(buffer));
 }
 
 BakeResult bake(const SceneDescription& scene, const BakeSettings& settings, const ProgressFn& progress) {
