@@ -793,8 +793,10 @@ class FogModel {
 };
 
 // Runs _work(i)_ for i in [0, n) on _n_threads_ workers that take items from an atomic
-// counter. The calling thread waits and calls _on_progress(done)_ after completions; if
-// that throws (cancel) or a worker throws, the workers stop and the exception propagates.
+// counter. The calling thread waits and calls _on_progress(done)_ after completions (woken
+// every n / 128 items and at the end: a wake-up per item cost ~5 % of a Gaussian bake's CPU
+// in futex calls with thousands of splat tiles); if that throws (cancel) or a worker throws,
+// the workers stop and the exception propagates.
 void run_parallel(int n, int n_threads, const std::function<void(int)>& work,
                   const std::function<void(int)>& on_progress) {
     if (n <= 0) return;
@@ -802,7 +804,8 @@ void run_parallel(int n, int n_threads, const std::function<void(int)>& work,
     std::atomic<bool> stop{false};
     std::mutex mutex;
     std::condition_variable cv;
-    int done = 0;
+    std::atomic<int> done{0};
+    const int wake_every = std::max(1, n / 128);
     std::exception_ptr error;
 
     auto worker = [&]() {
@@ -818,9 +821,11 @@ void run_parallel(int n, int n_threads, const std::function<void(int)>& work,
                 cv.notify_all();
                 return;
             }
-            std::lock_guard<std::mutex> lock(mutex);
-            ++done;
-            cv.notify_all();
+            const int d = done.fetch_add(1) + 1;
+            if (d == n || d % wake_every == 0) {
+                std::lock_guard<std::mutex> lock(mutex);  // the waiter checks done under it: no lost wake-up
+                cv.notify_all();
+            }
         }
     };
     std::vector<std::thread> threads;
@@ -836,9 +841,9 @@ void run_parallel(int n, int n_threads, const std::function<void(int)>& work,
         int reported = 0;
         std::unique_lock<std::mutex> lock(mutex);
         while (reported < n) {
-            cv.wait(lock, [&] { return done != reported || error; });
+            cv.wait(lock, [&] { return done.load() != reported || error; });
             if (error) break;
-            reported = done;
+            reported = done.load();
             lock.unlock();
             on_progress(reported);
             lock.lock();
