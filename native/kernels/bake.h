@@ -46,6 +46,11 @@ struct BakeSettings {
     // _gaussian_resolution_ pixels (1 full, 2 half, 4 quarter) and interpolated where the
     // surface does not cut a Gaussian, exactly per pixel where it does (rbf_splat.h).
     int gaussian_resolution = 1;
+    // Homogeneous airlight on a lattice of 1 (every pixel, exact), 2 or 4 pixels, interpolated
+    // where smooth and exact at depth edges, near point lights' images and where a cell's
+    // centre disagrees with its interpolation by more than 5e-4 (bake.cpp lattice_band); the
+    // model sun05 with a perspective camera and no spots or Gaussians only (else exact).
+    int homogeneous_resolution = 1;
 };
 
 struct BakeStats {
