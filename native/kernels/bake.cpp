@@ -808,6 +808,39 @@ class FogModel {
     std::unique_ptr<RbfSplat> splat_;
 };
 
+// Scratch objects kept between bands and between bakes, one per concurrent user: fresh
+// pages cost ~10-20 us per 4 KiB fault here (acquire_image_buffer), more than a band's work
+// when its scratch runs to megabytes. A Lease takes one (or a new one) and gives it back.
+template <typename T>
+class ScratchPool {
+  public:
+    class Lease {
+      public:
+        explicit Lease(ScratchPool& pool) : pool_(pool) {
+            {
+                std::lock_guard<std::mutex> lock(pool_.mutex_);
+                if (!pool_.free_.empty()) item_ = std::move(pool_.free_.back()), pool_.free_.pop_back();
+            }
+            if (!item_) item_ = std::make_unique<T>();
+        }
+        ~Lease() {
+            std::lock_guard<std::mutex> lock(pool_.mutex_);
+            pool_.free_.push_back(std::move(item_));
+        }
+        Lease(const Lease&) = delete;
+        Lease& operator=(const Lease&) = delete;
+        T& operator*() { return *item_; }
+
+      private:
+        ScratchPool& pool_;
+        std::unique_ptr<T> item_;
+    };
+
+  private:
+    std::mutex mutex_;
+    std::vector<std::unique_ptr<T>> free_;
+};
+
 // Runs _work(i)_ for i in [0, n) on _n_threads_ workers that take items from an atomic
 // counter. The calling thread waits and calls _on_progress(done)_ after completions (woken
 // every n / 128 items and at the end: a wake-up per item cost ~5 % of a Gaussian bake's CPU
@@ -1405,39 +1438,46 @@ BakeResult bake(const SceneDescription& scene, const BakeSettings& settings, con
     run_parallel(
         n_bands, n_threads,
         [&](int band) {
+            // Scratch from a pool (ScratchPool): a band through the horizon supersamples ~2 rows
+            // of edge pixels, ~3 MB of sub-pixel rays and results.
+            struct BandScratch {
+                std::vector<Ray> sub, row;
+                std::vector<float> sub_t, sub_t0, t0, row_Tr;
+                std::vector<double> sub_Tr, row_Tr_d;
+                std::vector<RGB> sub_La, row_La;
+                std::vector<int> edge_px;
+                CastScratch cast_scratch;
+                std::vector<unsigned char> kink, edge;
+                RowRays r;
+            };
+            static ScratchPool<BandScratch> band_pool;
+            ScratchPool<BandScratch>::Lease lease(band_pool);
+            BandScratch& bs = *lease;
             const size_t n_sub = pattern.size();
-            std::vector<Ray> sub;
-            std::vector<float> sub_t, sub_t0, t0(W);
-            std::vector<double> sub_Tr;
-            std::vector<RGB> sub_La;
-            std::vector<int> edge_px;
-            CastScratch cast_scratch;
+            std::vector<Ray>& sub = bs.sub;
+            std::vector<float>&sub_t = bs.sub_t, &sub_t0 = bs.sub_t0, &t0 = bs.t0;
+            t0.resize(W);
+            std::vector<double>& sub_Tr = bs.sub_Tr;
+            std::vector<RGB>& sub_La = bs.sub_La;
+            std::vector<int>& edge_px = bs.edge_px;
+            CastScratch& cast_scratch = bs.cast_scratch;
             FogScratch fog_scratch;
-            std::vector<unsigned char> kink, edge;
+            std::vector<unsigned char>&kink = bs.kink, &edge = bs.edge;
             const int j0 = band * kBandRows, j1 = std::min(H, (band + 1) * kBandRows);
             if (supersample || use_lattice) edge_rows(j0, j1, kink, edge);
-            if (use_lattice) {
-                // Scratch kept between bands and bakes (~1.5 MB: fresh pages would cost more
-                // than the band's work, see acquire_image_buffer).
-                static std::mutex scratch_mutex;
-                static std::vector<std::unique_ptr<LatticeScratch>> scratch_pool;
-                std::unique_ptr<LatticeScratch> ls;
-                {
-                    std::lock_guard<std::mutex> lock(scratch_mutex);
-                    if (!scratch_pool.empty()) ls = std::move(scratch_pool.back()), scratch_pool.pop_back();
-                }
-                if (!ls) ls = std::make_unique<LatticeScratch>();
-                lattice_band(j0, j1, kink, *ls);
-                std::lock_guard<std::mutex> lock(scratch_mutex);
-                scratch_pool.push_back(std::move(ls));
+            if (use_lattice) {  // ~1.5 MB of scratch per band
+                static ScratchPool<LatticeScratch> lattice_pool;
+                ScratchPool<LatticeScratch>::Lease lease(lattice_pool);
+                lattice_band(j0, j1, kink, *lease);
             }
             long long band_supersampled = 0, band_samples = 0;
             const bool fast = affine && fog.soa();
-            RowRays r;
-            std::vector<Ray> row;
-            std::vector<double> row_Tr_d;
-            std::vector<RGB> row_La;
-            std::vector<float> row_Tr(W);
+            RowRays& r = bs.r;
+            std::vector<Ray>& row = bs.row;
+            std::vector<double>& row_Tr_d = bs.row_Tr_d;
+            std::vector<RGB>& row_La = bs.row_La;
+            std::vector<float>& row_Tr = bs.row_Tr;
+            row_Tr.resize(W);
             if (fast) {
                 r.resize(W);
             } else {
