@@ -1386,26 +1386,31 @@ BakeResult bake(const SceneDescription& scene, const BakeSettings& settings, con
             for (int i = (j < j0 + ny * s ? nx * s : 0); i < W; ++i) ls.pi.push_back(i), ls.pj.push_back(j);
         eval_listed();
         for (size_t k = 0; k < ls.pi.size(); ++k) put(ls.pi[k], ls.pj[k], &ls.rgb[3 * k]);
-        // Corners and centres, and the interpolated cells.
+        // The interpolated cells, a row at a time (the row's values on the cell's left and
+        // right edges, then along the row), then every cell's corner and centre.
         const float inv_s = 1.0f / float(s);
+        for (int b = 0; b < ny; ++b)
+            for (int y = 0; y < s; ++y) {
+                const int j = j0 + b * s + y;
+                const float fy = float(y) * inv_s;
+                float* A = &result.airlight[3 * size_t(j) * W];
+                for (int a = 0; a < nx; ++a) {
+                    if (ls.exact[size_t(b) * nx + a]) continue;
+                    const float *n00 = node(a, b), *n10 = node(a + 1, b), *n01 = node(a, b + 1), *n11 = node(a + 1, b + 1);
+                    float left[3], step[3];
+                    for (int c = 0; c < 3; ++c) {
+                        left[c] = (1.0f - fy) * n00[c] + fy * n01[c];
+                        step[c] = ((1.0f - fy) * n10[c] + fy * n11[c] - left[c]) * inv_s;
+                    }
+                    float* out = A + 3 * size_t(a * s);
+                    for (int x = 0; x < s; ++x)
+                        for (int c = 0; c < 3; ++c) out[3 * x + c] = left[c] + float(x) * step[c];
+                }
+            }
         for (int b = 0; b < ny; ++b)
             for (int a = 0; a < nx; ++a) {
                 const int i0 = a * s, c0 = j0 + b * s;
-                const float* n00 = node(a, b), *n10 = node(a + 1, b), *n01 = node(a, b + 1), *n11 = node(a + 1, b + 1);
-                if (!ls.exact[size_t(b) * nx + a]) {
-                    for (int j = c0; j < c0 + s; ++j) {
-                        const float fy = float(j - c0) * inv_s;
-                        for (int i = i0; i < i0 + s; ++i) {
-                            const float fx = float(i - i0) * inv_s;
-                            float v[3];
-                            for (int c = 0; c < 3; ++c)
-                                v[c] = (1.0f - fy) * ((1.0f - fx) * n00[c] + fx * n10[c]) +
-                                       fy * ((1.0f - fx) * n01[c] + fx * n11[c]);
-                            put(i, j, v);
-                        }
-                    }
-                }
-                put(i0, c0, n00);
+                put(i0, c0, node(a, b));
                 put(i0 + half, c0 + half, &ls.centres[3 * (size_t(b) * nx + a)]);
             }
     };
