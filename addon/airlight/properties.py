@@ -215,10 +215,11 @@ class AirlightSceneSettings(bpy.types.PropertyGroup):
                     "the transmittance is always exact. Not with spot lights or fog objects",
         items=(
             ('FULL', "Full", "Every pixel (default; the reference)"),
-            ('HALF', "Half", "Every 2nd pixel. Measured against Full at 1080p (six scenes): max 0.08 %, "
-                             "mean below 0.001 %"),
-            ('QUARTER', "Quarter", "Every 4th pixel. Measured against Full at 1080p (six scenes): max 0.15 %, "
-                                   "mean below 0.004 %; the airlight phase ~1.5-2x cheaper with 3 lights"),
+            ('HALF', "Half", "Every 2nd pixel. Measured against Full at 1080p (five scenes): max 0.08 %, "
+                             "mean below 0.002 %; about as costly as Full on 2 cores (the lattice's own work "
+                             "eats the saving)"),
+            ('QUARTER', "Quarter", "Every 4th pixel. Measured against Full at 1080p (five scenes): max 0.15 %, "
+                                   "mean below 0.004 %; the airlight phase 1.4-2.3x cheaper with 3-4 lights"),
         ),
         default='FULL',
     )
