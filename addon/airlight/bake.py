@@ -31,6 +31,7 @@ def bake_settings(scene):
     extra = dict(rayleigh_density=float(settings.rayleigh_density)) if model == "hoffman02" else {}
     return dict(model=model, threads=settings.threads, aa_samples=settings.aa_samples,
                 gaussian_resolution=model_choice.gaussian_resolution(settings),
+                homogeneous_resolution=getattr(settings, "homogeneous_resolution", 'FULL').lower(),
                 **model_choice.table_settings(settings), **extra)
 
 

@@ -206,6 +206,23 @@ class AirlightSceneSettings(bpy.types.PropertyGroup):
         ),
         default='QUARTER',
     )
+    homogeneous_resolution: EnumProperty(
+        name="Airlight Resolution",
+        description="Where the Sun 2005 bake (model Sun 2005 table, or Automatic choosing it) evaluates "
+                    "the homogeneous fog's airlight: every pixel, or every 2nd / 4th pixel blended in "
+                    "between where it is smooth. Depth edges, the surroundings of each light's image and "
+                    "cells whose centre disagrees with the blend by more than 0.05 % stay exact per pixel; "
+                    "the transmittance is always exact. Not with spot lights or fog objects",
+        items=(
+            ('FULL', "Full", "Every pixel (default; the reference)"),
+            ('HALF', "Half", "Every 2nd pixel. Measured against Full at 1080p (five scenes): max 0.08 %, "
+                             "mean below 0.002 %; about as costly as Full on 2 cores (the lattice's own work "
+                             "eats the saving)"),
+            ('QUARTER', "Quarter", "Every 4th pixel. Measured against Full at 1080p (five scenes): max 0.15 %, "
+                                   "mean below 0.004 %; the airlight phase 1.4-2.3x cheaper with 3-4 lights"),
+        ),
+        default='FULL',
+    )
     aa_samples: IntProperty(
         name="Edge Samples",
         description="Antialiasing at depth edges: pixels there are supersampled with "

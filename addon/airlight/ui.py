@@ -65,6 +65,7 @@ class AIRLIGHT_PT_scene(bpy.types.Panel):
                 row = col.row(align=True)
                 row.prop(settings, "table_resolution", text="Table")
                 row.prop(settings, "table_interpolation", text="")
+                col.prop(settings, "homogeneous_resolution", text="Resolution")
         col.prop(settings, "aa_samples")
         col.prop(settings, "threads")
         col.prop(settings, "cache_dir")

@@ -57,6 +57,18 @@ PhaseFunction bake_phase(std::string name, double g) {
     return phase_from_name(name, g);
 }
 
+// A bake output image as a numpy array that owns it (no copy); when numpy frees it, its
+// memory goes back to the bake's pool (bake.h recycle_image_buffer: warm pages for the next bake).
+py::array_t<float> image_to_numpy(std::vector<float>&& data, std::vector<py::ssize_t> shape) {
+    auto* owner = new std::vector<float>(std::move(data));
+    py::capsule recycle(owner, [](void* p) {
+        auto* v = static_cast<std::vector<float>*>(p);
+        recycle_image_buffer(std::move(*v));
+        delete v;
+    });
+    return py::array_t<float>(shape, owner->data(), recycle);
+}
+
 py::dict bake_py(int width, int height, const py::object& cam_to_world, const py::object& projection,
                  const py::object& vertices, const py::object& triangles,
                  const py::object& light_positions, const py::object& light_intensities, double sigma_t,
@@ -70,7 +82,7 @@ py::dict bake_py(int width, int height, const py::object& cam_to_world, const py
                  const std::string& table_interpolation, const py::object& rbf_albedo,
                  double noise_amplitude, double noise_scale, const py::object& noise_offset, bool surface,
                  double surface_phong_exponent, double rayleigh_density, const std::string& gaussian_resolution,
-                 const std::string& surface_glow_model) {
+                 const std::string& surface_glow_model, const std::string& homogeneous_resolution) {
     // Gather the scene description from the arrays (shapes checked here, values in bake()).
     SceneDescription scene;
     scene.camera.width = width;
@@ -215,6 +227,11 @@ py::dict bake_py(int width, int height, const py::object& cam_to_world, const py
     else if (gaussian_resolution == "quarter") settings.gaussian_resolution = 4;
     else throw py::value_error("gaussian_resolution must be \"full\", \"half\" or \"quarter\", got \"" +
                                gaussian_resolution + "\"");
+    if (homogeneous_resolution == "full") settings.homogeneous_resolution = 1;
+    else if (homogeneous_resolution == "half") settings.homogeneous_resolution = 2;
+    else if (homogeneous_resolution == "quarter") settings.homogeneous_resolution = 4;
+    else throw py::value_error("homogeneous_resolution must be \"full\", \"half\" or \"quarter\", got \"" +
+                               homogeneous_resolution + "\"");
 
     // The callback runs on this (the calling) thread between bands: take the GIL for it.
     ProgressFn progress_fn;
@@ -247,15 +264,15 @@ py::dict bake_py(int width, int height, const py::object& cam_to_world, const py
         throw std::logic_error("bake: surface pass missing from the result");
     if (surface) {
         const py::ssize_t L = result.surface_lights;
-        extra["surface_attenuation"] = to_numpy(std::move(result.surface_attenuation), {L, H, W, 3});
-        extra["surface_glow"] = to_numpy(std::move(result.surface_glow), {H, W, 3});
-        extra["surface_normals"] = to_numpy(std::move(result.surface_normals), {H, W, 3});
+        extra["surface_attenuation"] = image_to_numpy(std::move(result.surface_attenuation), {L, H, W, 3});
+        extra["surface_glow"] = image_to_numpy(std::move(result.surface_glow), {H, W, 3});
+        extra["surface_normals"] = image_to_numpy(std::move(result.surface_normals), {H, W, 3});
         if (surface_phong_exponent > 0.0)
-            extra["surface_gloss_glow"] = to_numpy(std::move(result.surface_gloss_glow), {H, W, 3});
+            extra["surface_gloss_glow"] = image_to_numpy(std::move(result.surface_gloss_glow), {H, W, 3});
     }
-    py::dict out("airlight"_a = to_numpy(std::move(result.airlight), {H, W, 3}),
-                    "transmittance"_a = to_numpy(std::move(result.transmittance), {H, W, 3}),
-                    "depth"_a = to_numpy(std::move(result.depth), {H, W}), "stats"_a = stats);
+    py::dict out("airlight"_a = image_to_numpy(std::move(result.airlight), {H, W, 3}),
+                    "transmittance"_a = image_to_numpy(std::move(result.transmittance), {H, W, 3}),
+                    "depth"_a = image_to_numpy(std::move(result.depth), {H, W}), "stats"_a = stats);
     for (const auto& item : extra) out[item.first] = item.second;
     return out;
 }
@@ -303,7 +320,7 @@ void bind_bake(py::module_& m) {
           "table_size"_a = 256, "table_interpolation"_a = "bilinear", "rbf_albedo"_a = py::none(),
           "noise_amplitude"_a = 0.0, "noise_scale"_a = 1.0, "noise_offset"_a = py::make_tuple(0.0, 0.0, 0.0),
           "surface"_a = false, "surface_phong_exponent"_a = 0.0, "rayleigh_density"_a = 0.0,
-          "gaussian_resolution"_a = "full", "surface_glow_model"_a = "exact",
+          "gaussian_resolution"_a = "full", "surface_glow_model"_a = "exact", "homogeneous_resolution"_a = "full",
           R"doc(Bake fog passes for one camera view (all arguments keyword-only).
 
 width, height: render resolution in pixels.
@@ -343,6 +360,12 @@ gaussian_resolution: "full" (default), "half" or "quarter": perspective cameras 
   pixels and interpolate them bilinearly (they do not depend on the depth there); the
   Gaussians a surface cuts, and depth-edge pixels (supersampled), stay exact per pixel
   (rbf_splat.h). "full" is the plain per-pixel splat.
+homogeneous_resolution: "full" (default: every pixel exact), "half" or "quarter": model "sun05"
+  with a perspective camera and no spots or Gaussians evaluates the homogeneous airlight on a
+  lattice every 2 / 4 pixels and interpolates it bilinearly where it is smooth; depth-edge
+  cells, cells near a point light's image and cells whose centre pixel disagrees with the
+  interpolation by more than 5e-4 of its value are exact per pixel (bake.cpp). The
+  transmittance is always exact. Other cases ignore it (exact).
 noise_amplitude >= 0 (0: off), noise_scale > 0 (m), noise_offset (3,): Fogshop section 5.5
   noise: each Gaussian's optical depth along a view ray is taken along the ray direction
   perturbed by world-space gradient noise (cell size noise_scale, lookup point / scale +

@@ -518,6 +518,22 @@ class FogModel {
     // distance t0 costs nothing extra (one evaluation of the segment, sun05_batch.h).
     bool soa() const { return shared_origin_ && model_ == ModelId::Sun05Table && sigma_t_ > 0.0 && !rbf_; }
 
+    // The transmittance part of _eval_soa_ alone (soa() only), the same values.
+    void transmittance_soa(const float* Dvp, const float* t0, int n, float* Tr) const {
+        constexpr int kChunk = 256;
+        float seg[kChunk];
+        for (int k0 = 0; k0 < n; k0 += kChunk) {
+            const int m = std::min(kChunk, n - k0);
+            if (t0) {
+                for (int k = 0; k < m; ++k) seg[k] = Dvp[k0 + k] - t0[k0 + k];
+                transmittance_batch(float(sigma_t_), seg, m, Tr + k0);
+            } else {
+                transmittance_batch(float(sigma_t_), Dvp + k0, m, Tr + k0);
+            }
+        }
+    }
+    bool has_spots() const { return !spots_.empty(); }
+
     // Hot path (soa() only): _n_ rays from the shared origin with unit directions (dx,
     // dy, dz)[k] (structure of arrays, so the per-light dot products and accumulations
     // vectorise), segment [t0[k], Dvp[k]] (t0 null: 0). Writes Tr[k] = exp(-sigma_t (Dvp -
@@ -792,9 +808,44 @@ class FogModel {
     std::unique_ptr<RbfSplat> splat_;
 };
 
+// Scratch objects kept between bands and between bakes, one per concurrent user: fresh
+// pages cost ~10-20 us per 4 KiB fault here (acquire_image_buffer), more than a band's work
+// when its scratch runs to megabytes. A Lease takes one (or a new one) and gives it back.
+template <typename T>
+class ScratchPool {
+  public:
+    class Lease {
+      public:
+        explicit Lease(ScratchPool& pool) : pool_(pool) {
+            {
+                std::lock_guard<std::mutex> lock(pool_.mutex_);
+                if (!pool_.free_.empty()) item_ = std::move(pool_.free_.back()), pool_.free_.pop_back();
+            }
+            if (!item_) item_ = std::make_unique<T>();
+        }
+        ~Lease() {
+            std::lock_guard<std::mutex> lock(pool_.mutex_);
+            pool_.free_.push_back(std::move(item_));
+        }
+        Lease(const Lease&) = delete;
+        Lease& operator=(const Lease&) = delete;
+        T& operator*() { return *item_; }
+
+      private:
+        ScratchPool& pool_;
+        std::unique_ptr<T> item_;
+    };
+
+  private:
+    std::mutex mutex_;
+    std::vector<std::unique_ptr<T>> free_;
+};
+
 // Runs _work(i)_ for i in [0, n) on _n_threads_ workers that take items from an atomic
-// counter. The calling thread waits and calls _on_progress(done)_ after completions; if
-// that throws (cancel) or a worker throws, the workers stop and the exception propagates.
+// counter. The calling thread waits and calls _on_progress(done)_ after completions (woken
+// every n / 128 items and at the end: a wake-up per item cost ~5 % of a Gaussian bake's CPU
+// in futex calls with thousands of splat tiles); if that throws (cancel) or a worker throws,
+// the workers stop and the exception propagates.
 void run_parallel(int n, int n_threads, const std::function<void(int)>& work,
                   const std::function<void(int)>& on_progress) {
     if (n <= 0) return;
@@ -802,7 +853,8 @@ void run_parallel(int n, int n_threads, const std::function<void(int)>& work,
     std::atomic<bool> stop{false};
     std::mutex mutex;
     std::condition_variable cv;
-    int done = 0;
+    std::atomic<int> done{0};
+    const int wake_every = std::max(1, n / 128);
     std::exception_ptr error;
 
     auto worker = [&]() {
@@ -818,9 +870,11 @@ void run_parallel(int n, int n_threads, const std::function<void(int)>& work,
                 cv.notify_all();
                 return;
             }
-            std::lock_guard<std::mutex> lock(mutex);
-            ++done;
-            cv.notify_all();
+            const int d = done.fetch_add(1) + 1;
+            if (d == n || d % wake_every == 0) {
+                std::lock_guard<std::mutex> lock(mutex);  // the waiter checks done under it: no lost wake-up
+                cv.notify_all();
+            }
         }
     };
     std::vector<std::thread> threads;
@@ -836,9 +890,9 @@ void run_parallel(int n, int n_threads, const std::function<void(int)>& work,
         int reported = 0;
         std::unique_lock<std::mutex> lock(mutex);
         while (reported < n) {
-            cv.wait(lock, [&] { return done != reported || error; });
+            cv.wait(lock, [&] { return done.load() != reported || error; });
             if (error) break;
-            reported = done;
+            reported = done.load();
             lock.unlock();
             on_progress(reported);
             lock.lock();
@@ -852,20 +906,8 @@ void run_parallel(int n, int n_threads, const std::function<void(int)>& work,
     if (error) std::rethrow_exception(error);
 }
 
-// Sizes _v_ to _n_ zeros. Large images ask the kernel for transparent huge pages first:
-// touching 4 KiB pages one fault at a time cost ~10 us per page here, about as much as
-// the whole airlight pass at 1080p.
-void allocate_image(std::vector<float>& v, size_t n) {
-    v.clear();
-    v.reserve(n);  // allocates without touching the pages
-#ifdef __linux__
-    const uintptr_t huge = uintptr_t(2) << 20;
-    const uintptr_t begin = (reinterpret_cast<uintptr_t>(v.data()) + huge - 1) & ~(huge - 1);
-    const uintptr_t end = (reinterpret_cast<uintptr_t>(v.data() + n)) & ~(huge - 1);
-    if (end > begin) madvise(reinterpret_cast<void*>(begin), end - begin, MADV_HUGEPAGE);
-#endif
-    v.resize(n, 0.0f);
-}
+// Sizes _v_ to _n_ zeros (acquire_image_buffer).
+void allocate_image(std::vector<float>& v, size_t n) { acquire_image_buffer(v, n, 0.0f); }
 
 using Clock = std::chrono::steady_clock;
 
@@ -909,6 +951,70 @@ std::shared_ptr<const SpecialFTable> shared_special_F_table(int nu, int nT, Inte
     auto& slot = cache[{nu, nT, interp}];
     if (!slot) slot = std::make_shared<const SpecialFTable>(nu, nT, interp);
     return slot;
+}
+
+// The pool of recycled image buffers (acquire_image_buffer / recycle_image_buffer).
+namespace {
+constexpr size_t kImagePoolBytes = size_t(256) << 20;  // at most this much kept idle
+constexpr size_t kImagePoolMinBytes = size_t(1) << 20;  // smaller buffers are not worth keeping
+struct ImagePool {
+    std::mutex mutex;
+    std::vector<std::vector<float>> buffers;  // oldest first
+    size_t bytes = 0;
+};
+ImagePool& image_pool() {
+    static ImagePool* pool = new ImagePool;  // never destroyed: numpy may free arrays at exit
+    return *pool;
+}
+}  // namespace
+
+void acquire_image_buffer(std::vector<float>& v, size_t n, float value) {
+    std::vector<float> taken;
+    {
+        ImagePool& pool = image_pool();
+        std::lock_guard<std::mutex> lock(pool.mutex);
+        // The smallest buffer that holds n floats, if it is not more than twice that.
+        size_t best = pool.buffers.size();
+        for (size_t i = 0; i < pool.buffers.size(); ++i) {
+            const size_t c = pool.buffers[i].capacity();
+            if (c >= n && c / 2 <= n && (best == pool.buffers.size() || c < pool.buffers[best].capacity())) best = i;
+        }
+        if (best < pool.buffers.size()) {
+            taken = std::move(pool.buffers[best]);
+            pool.buffers.erase(pool.buffers.begin() + std::ptrdiff_t(best));
+            pool.bytes -= taken.capacity() * sizeof(float);
+        }
+    }
+    if (taken.capacity() >= n) {
+        v = std::move(taken);
+        v.assign(n, value);  // within capacity: no reallocation, the pages are warm
+        return;
+    }
+    v.clear();
+    v.shrink_to_fit();
+    v.reserve(n);  // allocates without touching the pages
+#ifdef __linux__
+    const uintptr_t huge = uintptr_t(2) << 20;
+    const uintptr_t begin = (reinterpret_cast<uintptr_t>(v.data()) + huge - 1) & ~(huge - 1);
+    const uintptr_t end = (reinterpret_cast<uintptr_t>(v.data() + n)) & ~(huge - 1);
+    if (end > begin) madvise(reinterpret_cast<void*>(begin), end - begin, MADV_HUGEPAGE);
+#endif
+    v.resize(n, value);
+}
+
+void recycle_image_buffer(std::vector<float>&& buffer) {
+    const size_t bytes = buffer.capacity() * sizeof(float);
+    if (bytes < kImagePoolMinBytes || bytes > kImagePoolBytes) return;  // freed by the caller's vector
+    std::vector<std::vector<float>> evicted;  // freed outside the lock
+    ImagePool& pool = image_pool();
+    std::lock_guard<std::mutex> lock(pool.mutex);
+    while (!pool.buffers.empty() && pool.bytes + bytes > kImagePoolBytes) {
+        pool.bytes -= pool.buffers.front().capacity() * sizeof(float);
+        evicted.push_back(std::move(pool.buffers.front()));
+        pool.buffers.erase(pool.buffers.begin());
+    }
+    pool.bytes += bytes;
+    pool.buffers.push_back(std::move(buffer));
 }
 
 BakeResult bake(const SceneDescription& scene, const BakeSettings& settings, const ProgressFn& progress) {
@@ -1144,6 +1250,170 @@ BakeResult bake(const SceneDescription& scene, const BakeSettings& settings, con
     struct FogScratch {};
     auto fog_eval = [&](const Ray* r, const float* depth, const float* t0, int n, double* Tr, RGB* La,
                         FogScratch&) { fog.eval_many(r, depth, near_clip ? t0 : nullptr, n, Tr, La); };
+    // Homogeneous airlight on a lattice (settings.homogeneous_resolution = s > 1, the SIMD
+    // table path only: perspective camera, model sun05, point and sun lights, no spots, no
+    // Gaussians). Cells of s x s pixels whose corner pixels (lattice nodes) are evaluated
+    // exactly; a cell's airlight is interpolated bilinearly from its corners when (1) no
+    // pixel of the closed cell has a depth kink (the edge test above: no silhouette, crease
+    // or hit/miss boundary), (2) its centre is not within gamma_ex of a point light's
+    // direction and (3) the exact value at its centre pixel agrees with the interpolation to
+    // kLatticeTol of the largest channel. Otherwise, and for the partial cells at the right
+    // and bottom borders, every pixel is exact. The transmittance is always exact.
+    // (2): near a light's image the airlight grows as 1 / gamma (the ray's closest approach
+    // h = Dsv sin gamma; the in-scattering integral is ~pi / h), whose bilinear interpolation
+    // over a cell of angular size Delta errs by ~Delta^2 / (4 gamma^2) relative: below
+    // kLatticeTol for gamma >= Delta / (2 sqrt(kLatticeTol)) (+ one cell).
+    const int lattice = settings.homogeneous_resolution;
+    const bool use_lattice = lattice > 1 && affine && fog.soa() && !fog.has_spots();
+    constexpr double kLatticeTol = 5e-4;
+    std::vector<Vec3> light_dirs;
+    double cos_ex = 1.0;
+    if (use_lattice) {
+        for (const PointLight& light : scene.point_lights) {
+            const Vec3 v = light.position - eye;
+            const double len = glm::length(v);
+            if (len > 0.0) light_dirs.push_back(v / len);  // a light at the eye has no image
+        }
+        // Angle of one pixel step: |Dx| / |D| <= |Dx| / (D . forward), the view-axis
+        // component being the least |D| can be (the same for every pixel of Blender's cameras;
+        // the least over the corners otherwise).
+        double fwd = std::numeric_limits<double>::infinity();
+        for (double px : {0.0, double(W)})
+            for (double py : {0.0, double(H)}) fwd = std::min(fwd, glm::dot(D0 + px * Dx + py * Dy, forward));
+        const double pixel_angle = fwd > 0.0 ? std::max(glm::length(Dx), glm::length(Dy)) / fwd : kPi;
+        const double gamma_ex = lattice * pixel_angle * (0.5 / std::sqrt(kLatticeTol) + 1.5);
+        cos_ex = gamma_ex >= kPi ? -2.0 : std::cos(gamma_ex);
+    }
+    struct LatticeScratch {
+        std::vector<RowRays> rows;  // rays of rows j0 .. min(j1, H - 1)
+        std::vector<double> dx, dy, dz;
+        std::vector<float> Dvp, t0, Tr, rgb, nodes, centres;
+        std::vector<int> pi, pj;
+        std::vector<unsigned char> exact;
+    };
+    // Airlight and transmittance of rows [j0, j1) of a band; _kink_ as edge_rows left it.
+    auto lattice_band = [&](int j0, int j1, const std::vector<unsigned char>& kink, LatticeScratch& ls) {
+        const int s = lattice;
+        const int j_last = std::min(H - 1, j1);  // the node row below the band is needed too
+        const int n_rows = j_last - j0 + 1;
+        if (int(ls.rows.size()) < n_rows) ls.rows.resize(size_t(n_rows));
+        for (int r = 0; r < n_rows; ++r) {
+            if (ls.rows[r].dx.size() != size_t(W)) ls.rows[r].resize(size_t(W));
+            row_rays(j0 + r, ls.rows[r], false);
+        }
+        ls.Tr.resize(size_t(W));
+        for (int j = j0; j < j1; ++j) {  // the transmittance: exact everywhere
+            fog.transmittance_soa(&result.depth[size_t(j) * W], near_clip ? ls.rows[j - j0].t_near.data() : nullptr,
+                                  W, ls.Tr.data());
+            float* T = &result.transmittance[3 * size_t(j) * W];
+            for (int i = 0; i < W; ++i) T[3 * i] = T[3 * i + 1] = T[3 * i + 2] = ls.Tr[i];
+        }
+        // Evaluates the listed pixels (pi, pj) exactly into ls.rgb (3 per pixel).
+        auto eval_listed = [&]() {
+            const size_t m = ls.pi.size();
+            ls.dx.resize(m), ls.dy.resize(m), ls.dz.resize(m), ls.Dvp.resize(m), ls.t0.resize(m);
+            for (size_t k = 0; k < m; ++k) {
+                const RowRays& rr = ls.rows[ls.pj[k] - j0];
+                const int i = ls.pi[k];
+                ls.dx[k] = rr.dx[i], ls.dy[k] = rr.dy[i], ls.dz[k] = rr.dz[i];
+                ls.t0[k] = rr.t_near[i];
+                ls.Dvp[k] = result.depth[size_t(ls.pj[k]) * W + i];
+            }
+            ls.rgb.resize(3 * m);
+            if (ls.Tr.size() < m) ls.Tr.resize(m);
+            fog.eval_soa(ls.dx.data(), ls.dy.data(), ls.dz.data(), ls.Dvp.data(), near_clip ? ls.t0.data() : nullptr,
+                         int(m), ls.Tr.data(), ls.rgb.data());
+        };
+        auto put = [&](int i, int j, const float* v) {
+            float* A = &result.airlight[3 * (size_t(j) * W + i)];
+            A[0] = v[0], A[1] = v[1], A[2] = v[2];
+        };
+        // Full cells: corners (a s, j0 + b s), a < nx, b < ny, inside the image.
+        const int nx = (W - 1) / s;
+        int ny = 0;
+        while (j0 + ny * s < j1 && j0 + (ny + 1) * s <= H - 1) ++ny;
+        const int half = s / 2;
+        ls.pi.clear(), ls.pj.clear();
+        if (nx > 0 && ny > 0) {
+            for (int b = 0; b <= ny; ++b)
+                for (int a = 0; a <= nx; ++a) ls.pi.push_back(a * s), ls.pj.push_back(j0 + b * s);
+            for (int b = 0; b < ny; ++b)
+                for (int a = 0; a < nx; ++a) ls.pi.push_back(a * s + half), ls.pj.push_back(j0 + b * s + half);
+        }
+        eval_listed();
+        const size_t n_nodes = size_t(nx + 1) * size_t(ny + 1);
+        ls.nodes.assign(ls.rgb.begin(), ls.rgb.begin() + 3 * std::ptrdiff_t(nx > 0 && ny > 0 ? n_nodes : 0));
+        ls.centres.assign(ls.rgb.begin() + std::ptrdiff_t(ls.nodes.size()), ls.rgb.end());
+        auto node = [&](int a, int b) { return &ls.nodes[3 * (size_t(b) * (nx + 1) + a)]; };
+        // Classify the cells.
+        const int k0 = std::max(0, j0 - 1);
+        const size_t stride = size_t(W) + 2;
+        ls.exact.assign(size_t(nx) * ny, 0);
+        for (int b = 0; b < ny; ++b)
+            for (int a = 0; a < nx; ++a) {
+                const int i0 = a * s, c0 = j0 + b * s;
+                bool exact = false;
+                for (int j = c0; j <= c0 + s && !exact; ++j) {
+                    const unsigned char* kr = &kink[size_t(j - k0 + 1) * stride + 1];
+                    for (int i = i0; i <= i0 + s; ++i) exact |= kr[i] != 0;
+                }
+                const RowRays& rc = ls.rows[c0 + half - j0];
+                const Vec3 dc(rc.dx[i0 + half], rc.dy[i0 + half], rc.dz[i0 + half]);
+                for (const Vec3& l : light_dirs) exact |= glm::dot(dc, l) > cos_ex;
+                if (!exact) {
+                    const float* e = &ls.centres[3 * (size_t(b) * nx + a)];
+                    const float* n00 = node(a, b), *n10 = node(a + 1, b), *n01 = node(a, b + 1), *n11 = node(a + 1, b + 1);
+                    const float peak = std::max(e[0], std::max(e[1], e[2]));
+                    for (int c = 0; c < 3; ++c) {
+                        const float interp = 0.25f * ((n00[c] + n10[c]) + (n01[c] + n11[c]));
+                        exact |= !(std::abs(interp - e[c]) <= float(kLatticeTol) * peak);
+                    }
+                }
+                ls.exact[size_t(b) * nx + a] = exact;
+            }
+        // The pixels still to evaluate: exact cells (but their corner and centre) and the
+        // partial cells at the right and bottom borders.
+        ls.pi.clear(), ls.pj.clear();
+        for (int b = 0; b < ny; ++b)
+            for (int a = 0; a < nx; ++a) {
+                if (!ls.exact[size_t(b) * nx + a]) continue;
+                const int i0 = a * s, c0 = j0 + b * s;
+                for (int j = c0; j < c0 + s; ++j)
+                    for (int i = i0; i < i0 + s; ++i)
+                        if (!((i == i0 && j == c0) || (i == i0 + half && j == c0 + half))) ls.pi.push_back(i), ls.pj.push_back(j);
+            }
+        for (int j = j0; j < j1; ++j)
+            for (int i = (j < j0 + ny * s ? nx * s : 0); i < W; ++i) ls.pi.push_back(i), ls.pj.push_back(j);
+        eval_listed();
+        for (size_t k = 0; k < ls.pi.size(); ++k) put(ls.pi[k], ls.pj[k], &ls.rgb[3 * k]);
+        // The interpolated cells, a row at a time (the row's values on the cell's left and
+        // right edges, then along the row), then every cell's corner and centre.
+        const float inv_s = 1.0f / float(s);
+        for (int b = 0; b < ny; ++b)
+            for (int y = 0; y < s; ++y) {
+                const int j = j0 + b * s + y;
+                const float fy = float(y) * inv_s;
+                float* A = &result.airlight[3 * size_t(j) * W];
+                for (int a = 0; a < nx; ++a) {
+                    if (ls.exact[size_t(b) * nx + a]) continue;
+                    const float *n00 = node(a, b), *n10 = node(a + 1, b), *n01 = node(a, b + 1), *n11 = node(a + 1, b + 1);
+                    float left[3], step[3];
+                    for (int c = 0; c < 3; ++c) {
+                        left[c] = (1.0f - fy) * n00[c] + fy * n01[c];
+                        step[c] = ((1.0f - fy) * n10[c] + fy * n11[c] - left[c]) * inv_s;
+                    }
+                    float* out = A + 3 * size_t(a * s);
+                    for (int x = 0; x < s; ++x)
+                        for (int c = 0; c < 3; ++c) out[3 * x + c] = left[c] + float(x) * step[c];
+                }
+            }
+        for (int b = 0; b < ny; ++b)
+            for (int a = 0; a < nx; ++a) {
+                const int i0 = a * s, c0 = j0 + b * s;
+                put(i0, c0, node(a, b));
+                put(i0 + half, c0 + half, &ls.centres[3 * (size_t(b) * nx + a)]);
+            }
+    };
     std::atomic<long long> supersampled{0}, samples{0};
     start = Clock::now();
     // Gaussian fog with a perspective camera: the centre samples of every pixel come from
@@ -1173,24 +1443,46 @@ BakeResult bake(const SceneDescription& scene, const BakeSettings& settings, con
     run_parallel(
         n_bands, n_threads,
         [&](int band) {
+            // Scratch from a pool (ScratchPool): a band through the horizon supersamples ~2 rows
+            // of edge pixels, ~3 MB of sub-pixel rays and results.
+            struct BandScratch {
+                std::vector<Ray> sub, row;
+                std::vector<float> sub_t, sub_t0, t0, row_Tr;
+                std::vector<double> sub_Tr, row_Tr_d;
+                std::vector<RGB> sub_La, row_La;
+                std::vector<int> edge_px;
+                CastScratch cast_scratch;
+                std::vector<unsigned char> kink, edge;
+                RowRays r;
+            };
+            static ScratchPool<BandScratch> band_pool;
+            ScratchPool<BandScratch>::Lease lease(band_pool);
+            BandScratch& bs = *lease;
             const size_t n_sub = pattern.size();
-            std::vector<Ray> sub;
-            std::vector<float> sub_t, sub_t0, t0(W);
-            std::vector<double> sub_Tr;
-            std::vector<RGB> sub_La;
-            std::vector<int> edge_px;
-            CastScratch cast_scratch;
+            std::vector<Ray>& sub = bs.sub;
+            std::vector<float>&sub_t = bs.sub_t, &sub_t0 = bs.sub_t0, &t0 = bs.t0;
+            t0.resize(W);
+            std::vector<double>& sub_Tr = bs.sub_Tr;
+            std::vector<RGB>& sub_La = bs.sub_La;
+            std::vector<int>& edge_px = bs.edge_px;
+            CastScratch& cast_scratch = bs.cast_scratch;
             FogScratch fog_scratch;
-            std::vector<unsigned char> kink, edge;
+            std::vector<unsigned char>&kink = bs.kink, &edge = bs.edge;
             const int j0 = band * kBandRows, j1 = std::min(H, (band + 1) * kBandRows);
-            if (supersample) edge_rows(j0, j1, kink, edge);
+            if (supersample || use_lattice) edge_rows(j0, j1, kink, edge);
+            if (use_lattice) {  // ~1.5 MB of scratch per band
+                static ScratchPool<LatticeScratch> lattice_pool;
+                ScratchPool<LatticeScratch>::Lease lease(lattice_pool);
+                lattice_band(j0, j1, kink, *lease);
+            }
             long long band_supersampled = 0, band_samples = 0;
             const bool fast = affine && fog.soa();
-            RowRays r;
-            std::vector<Ray> row;
-            std::vector<double> row_Tr_d;
-            std::vector<RGB> row_La;
-            std::vector<float> row_Tr(W);
+            RowRays& r = bs.r;
+            std::vector<Ray>& row = bs.row;
+            std::vector<double>& row_Tr_d = bs.row_Tr_d;
+            std::vector<RGB>& row_La = bs.row_La;
+            std::vector<float>& row_Tr = bs.row_Tr;
+            row_Tr.resize(W);
             if (fast) {
                 r.resize(W);
             } else {
@@ -1204,8 +1496,8 @@ BakeResult bake(const SceneDescription& scene, const BakeSettings& settings, con
                 const float* depth = &result.depth[p0];
                 float* A = &result.airlight[3 * p0];
                 float* T = &result.transmittance[3 * p0];
-                if (splatted) {
-                    // Already written by the splat.
+                if (splatted || use_lattice) {
+                    // Already written by the splat or the lattice.
                 } else if (fast) {
                     row_rays(j, r, false);
                     fog.eval_soa(r.dx.data(), r.dy.data(), r.dz.data(), depth, near_clip ? r.t_near.data() : nullptr,
@@ -1223,7 +1515,7 @@ BakeResult bake(const SceneDescription& scene, const BakeSettings& settings, con
                         for (int c = 0; c < 3; ++c) A[3 * i + c] = float(row_La[i][c]);
                     }
                 }
-                if (!splatted)
+                if (!splatted && !use_lattice)
                     for (int i = 0; i < W; ++i) T[3 * i] = T[3 * i + 1] = T[3 * i + 2] = row_Tr[i];
                 band_samples += W;
                 if (!supersample) continue;

@@ -46,6 +46,11 @@ struct BakeSettings {
     // _gaussian_resolution_ pixels (1 full, 2 half, 4 quarter) and interpolated where the
     // surface does not cut a Gaussian, exactly per pixel where it does (rbf_splat.h).
     int gaussian_resolution = 1;
+    // Homogeneous airlight on a lattice of 1 (every pixel, exact), 2 or 4 pixels, interpolated
+    // where smooth and exact at depth edges, near point lights' images and where a cell's
+    // centre disagrees with its interpolation by more than 5e-4 (bake.cpp lattice_band); the
+    // model sun05 with a perspective camera and no spots or Gaussians only (else exact).
+    int homogeneous_resolution = 1;
 };
 
 struct BakeStats {
@@ -101,5 +106,15 @@ BakeResult bake(const SceneDescription& scene, const BakeSettings& settings,
 // The F table the bake uses for ModelId::Sun05Table, built once per (nu, nT, interp) and
 // shared for the life of the process (thread safe).
 std::shared_ptr<const SpecialFTable> shared_special_F_table(int nu, int nT, Interp interp = Interp::Bilinear);
+
+// Output images on recycled memory. Fresh pages cost ~10-20 us per 4 KiB page fault on
+// the development machine (a 1080p bake's 60 MB of passes: ~100-200 ms, more than the bake
+// itself), so the bindings hand an output buffer back with recycle_image_buffer when numpy
+// frees it, and acquire_image_buffer gives the next bake's passes those warm pages (a held
+// buffer of 1 to 2 times the size asked for; else new memory, on transparent huge pages where
+// the kernel allows). At most 256 MB are kept, oldest dropped first. Thread safe.
+// acquire_image_buffer: _v_ = _n_ copies of _value_.
+void acquire_image_buffer(std::vector<float>& v, size_t n, float value);
+void recycle_image_buffer(std::vector<float>&& buffer);
 
 }  // namespace airlight

@@ -13,10 +13,6 @@
 #include <tuple>
 #include <vector>
 
-#ifdef __linux__
-#include <sys/mman.h>
-#endif
-
 #include "biri06_surface.h"
 #include "rbf_medium.h"
 #include "spot_light.h"
@@ -29,21 +25,10 @@ namespace airlight {
 namespace {
 constexpr double kPi = 3.14159265358979323846;
 
-// An image of _n_ floats set to _value_, on transparent huge pages where the kernel allows
-// (as bake.cpp's allocate_image: 4 KiB page faults one at a time cost ~10 us each here,
-// more than the whole pass at 1080p with several lights).
-void allocate_filled(std::vector<float>& v, size_t n, float value) {
-    v.clear();
-    v.shrink_to_fit();
-    v.reserve(n);
-#ifdef __linux__
-    const uintptr_t huge = uintptr_t(2) << 20;
-    const uintptr_t begin = (reinterpret_cast<uintptr_t>(v.data()) + huge - 1) & ~(huge - 1);
-    const uintptr_t end = (reinterpret_cast<uintptr_t>(v.data() + n)) & ~(huge - 1);
-    if (end > begin) madvise(reinterpret_cast<void*>(begin), end - begin, MADV_HUGEPAGE);
-#endif
-    v.resize(n, value);
-}
+// An image of _n_ floats set to _value_, on recycled warm pages where the pool has some
+// (bake.h acquire_image_buffer: 4 KiB page faults cost ~10 us each here, more than the whole
+// pass at 1080p with several lights).
+void allocate_filled(std::vector<float>& v, size_t n, float value) { acquire_image_buffer(v, n, value); }
 }  // namespace
 
 std::shared_ptr<const SpotGlowModel> shared_spot_glow_model(const SpotCone& cone, const PhaseFunction& phase) {

@@ -3,6 +3,7 @@
 
 #include <embree3/rtcore.h>
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <mutex>
@@ -187,23 +188,52 @@ void RayCaster::first_hits(const Vec3& o, const float* dx, const float* dy, cons
         for (int i = 0; i < n; ++i) t[i] = kInf;
         return;
     }
-    // Coherent rays from the shared origin (the bake's pixel rows).
+    // Coherent rays from the shared origin (the bake's pixel rows). The packet is filled
+    // with straight loops over its 16 lanes (trace_packets' per-lane callback stayed scalar:
+    // ~8 ms CPU of a 1080p bake in setting up and reading back packets).
+    RTCIntersectContext context;
+    rtcInitIntersectContext(&context);
+    context.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
     const float ox = float(o.x), oy = float(o.y), oz = float(o.z);
-    trace_packets(
-        impl_->scene, n,
-        [&](int i, float* org, float* dir, float& tn, float& tf) {
-            org[0] = ox;
-            org[1] = oy;
-            org[2] = oz;
-            dir[0] = dx[i];
-            dir[1] = dy[i];
-            dir[2] = dz[i];
-            tn = t_near[i];
-            tf = t_far[i];
-        },
-        [&](int k, int i, const RTCRayHit16& rh) {
-            t[i] = rh.hit.geomID[k] == RTC_INVALID_GEOMETRY_ID ? kInf : rh.ray.tfar[k];
-        });
+    alignas(64) RTCRayHit16 rh;
+    alignas(64) int valid[16];
+    for (int base = 0; base < n; base += 16) {
+        const int m = std::min(16, n - base);
+        if (m == 16) {
+            for (int k = 0; k < 16; ++k) {
+                rh.ray.dir_x[k] = dx[base + k];
+                rh.ray.dir_y[k] = dy[base + k];
+                rh.ray.dir_z[k] = dz[base + k];
+                rh.ray.tnear[k] = t_near[base + k];
+                rh.ray.tfar[k] = t_far[base + k];
+            }
+        } else {  // the tail: unused lanes repeat the last ray, masked off
+            for (int k = 0; k < 16; ++k) {
+                const int i = base + std::min(k, m - 1);
+                rh.ray.dir_x[k] = dx[i];
+                rh.ray.dir_y[k] = dy[i];
+                rh.ray.dir_z[k] = dz[i];
+                rh.ray.tnear[k] = t_near[i];
+                rh.ray.tfar[k] = t_far[i];
+            }
+        }
+        for (int k = 0; k < 16; ++k) {
+            valid[k] = k < m ? -1 : 0;
+            rh.ray.org_x[k] = ox;
+            rh.ray.org_y[k] = oy;
+            rh.ray.org_z[k] = oz;
+            rh.ray.time[k] = 0.0f;
+            rh.ray.mask[k] = 0xFFFFFFFFu;
+            rh.ray.id[k] = unsigned(k);
+            rh.ray.flags[k] = 0;
+            rh.hit.geomID[k] = RTC_INVALID_GEOMETRY_ID;
+            rh.hit.instID[0][k] = RTC_INVALID_GEOMETRY_ID;
+        }
+        rtcIntersect16(valid, impl_->scene, &context, &rh);
+        float hit_t[16];
+        for (int k = 0; k < 16; ++k) hit_t[k] = rh.hit.geomID[k] == RTC_INVALID_GEOMETRY_ID ? kInf : rh.ray.tfar[k];
+        for (int k = 0; k < m; ++k) t[base + k] = hit_t[k];
+    }
 }
 
 void RayCaster::first_hits_normals(const Ray* rays, const float* t_near, const float* t_far, int n, float* t,

@@ -38,8 +38,11 @@
 //   (The uniform 64 x 64 layout over u in [0, 10], v in [0, pi/2] had 9 %.)
 #include "special_f.h"
 
+#include <algorithm>
 #include <cmath>
 #include <stdexcept>
+#include <thread>
+#include <vector>
 
 #include "quadrature.h"
 #include "sun05_inline.h"
@@ -86,24 +89,34 @@ double special_F_exact(double u, double v) {
 SpecialFTable::SpecialFTable(int nu, int nT, Interp interp) : nu_(nu), nT_(nT), interp_(interp) {
     if (nu < 2 || nT < 2) throw std::invalid_argument("SpecialFTable: need at least 2 x 2 samples");
     data_.resize(static_cast<size_t>(nu) * nT);
-    for (int i = 0; i < nu; ++i) {
-        const double s = static_cast<double>(i) / (nu - 1);
-        for (int j = 0; j < nT; ++j) {
-            const double w = static_cast<double>(j) / (nT - 1);
-            double Q;
-            if (j == 0) {
-                Q = 1.0;  // F ~ T as T -> 0
-            } else if (i == nu - 1) {
-                // u = inf at fixed tau: F (1 + u) -> 1 - e^{-tau}
-                Q = (j == nT - 1) ? 1.0 : -std::expm1(-w / (1.0 - w)) / w;
-            } else {
-                const double u = kSpecialFTableK * s * s / (1.0 - s * s);
-                const double T = (j == nT - 1) ? INFINITY : w / ((1.0 - w) * (1.0 + u));
-                Q = special_F_exact_tan(u, T) * (1.0 + u) / w;
+    // Rows are independent: built on up to 8 threads (256 x 256 costs ~90 ms on one core,
+    // paid by the first bake of a process; the values do not depend on the split).
+    auto build_rows = [this, nu, nT](int first, int stride) {  // rows first, first + stride, ...
+        for (int i = first; i < nu; i += stride) {
+            const double s = static_cast<double>(i) / (nu - 1);
+            for (int j = 0; j < nT; ++j) {
+                const double w = static_cast<double>(j) / (nT - 1);
+                double Q;
+                if (j == 0) {
+                    Q = 1.0;  // F ~ T as T -> 0
+                } else if (i == nu - 1) {
+                    // u = inf at fixed tau: F (1 + u) -> 1 - e^{-tau}
+                    Q = (j == nT - 1) ? 1.0 : -std::expm1(-w / (1.0 - w)) / w;
+                } else {
+                    const double u = kSpecialFTableK * s * s / (1.0 - s * s);
+                    const double T = (j == nT - 1) ? INFINITY : w / ((1.0 - w) * (1.0 + u));
+                    Q = special_F_exact_tan(u, T) * (1.0 + u) / w;
+                }
+                data_[static_cast<size_t>(i) * nT + j] = static_cast<float>(Q);
             }
-            data_[static_cast<size_t>(i) * nT + j] = static_cast<float>(Q);
         }
-    }
+    };
+    const long long work = static_cast<long long>(nu) * nT;
+    const int n_threads = work < 4096 ? 1 : std::clamp(int(std::thread::hardware_concurrency()), 1, std::min(8, nu));
+    std::vector<std::thread> threads;
+    for (int t = 1; t < n_threads; ++t) threads.emplace_back(build_rows, t, n_threads);
+    build_rows(0, n_threads);
+    for (std::thread& t : threads) t.join();
 }
 
 double SpecialFTable::eval_tan(double u, double T) const {
