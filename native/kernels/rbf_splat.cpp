@@ -309,82 +309,396 @@ AIRLIGHT_SPLAT_CLONES void segment_integrals(int n, const float* __restrict rx, 
 }
 
 // keep[k] = 1 if the segment from + t d, t in [0, D], passes within sqrt(R2[k]) of the
-// Gaussian at rel[k] (relative to from; the test of RbfMedium::for_each_near, inflated by
-// 1e-4 for float rounding), else 0.
+// Gaussian at rel[k] (relative to from; the test of RbfMedium::for_each_near, R2 inflated
+// by the caller for float rounding) and id[k] != skip, else 0.
 AIRLIGHT_SPLAT_CLONES void segment_reaches(int n, const float* __restrict rx, const float* __restrict ry,
-                                           const float* __restrict rz, const float* __restrict R2, float dx,
+                                           const float* __restrict rz, const float* __restrict R2,
+                                           const std::uint32_t* __restrict id, std::uint32_t skip, float dx,
                                            float dy, float dz, float D, float* __restrict keep) {
     for (int k = 0; k < n; ++k) {
         const float ts = rx[k] * dx + ry[k] * dy + rz[k] * dz;
         const float tc = ts < 0.0f ? 0.0f : (ts > D ? D : ts);
         const float qx = rx[k] - tc * dx, qy = ry[k] - tc * dy, qz = rz[k] - tc * dz;
-        keep[k] = qx * qx + qy * qy + qz * qz < R2[k] * 1.0002f ? 1.0f : 0.0f;
+        keep[k] = (qx * qx + qy * qy + qz * qz < R2[k]) & (id[k] != skip) ? 1.0f : 0.0f;
     }
 }
 
-// Culled optical depth of the medium on the segment from -> to, Gaussian _skip_ left out,
-// beta0 included, in float (fast_erf.h); _scratch_ is reused between calls, _a_ and _k0_
-// are the per-Gaussian scale and c sqrt(pi) / (2 a) in float.
-struct SegmentScratch {
-    std::vector<float> rx, ry, rz, a, k0, out;
+// out[k] = the line integral of segment_integrals where segment_reaches keeps k, else 0
+// (one pass, for candidate lists that mostly reach: no compaction).
+AIRLIGHT_SPLAT_CLONES void segment_integrals_culled(int n, const float* __restrict rx, const float* __restrict ry,
+                                                    const float* __restrict rz, const float* __restrict R2,
+                                                    const std::uint32_t* __restrict id, std::uint32_t skip,
+                                                    const float* __restrict a, const float* __restrict k0, float dx,
+                                                    float dy, float dz, float D, float* __restrict out) {
+    for (int k = 0; k < n; ++k) {
+        const float ts = rx[k] * dx + ry[k] * dy + rz[k] * dz;
+        const float tc = ts < 0.0f ? 0.0f : (ts > D ? D : ts);
+        const float qx = rx[k] - tc * dx, qy = ry[k] - tc * dy, qz = rz[k] - tc * dz;
+        const bool keep = (qx * qx + qy * qy + qz * qz < R2[k]) & (id[k] != skip);
+        const float cx = ry[k] * dz - rz[k] * dy, cy = rz[k] * dx - rx[k] * dz, cz = rx[k] * dy - ry[k] * dx;
+        const float e = k0[k] * fast_expf(-a[k] * a[k] * (cx * cx + cy * cy + cz * cz));
+        const float x1 = -a[k] * ts, x2 = a[k] * (D - ts);
+        const float E1 = fast_erfc_pos(x1 < 0.0f ? -x1 : x1);
+        const float E2 = fast_erfc_pos(x2 < 0.0f ? -x2 : x2);
+        const float T = e * (x1 >= 0.0f ? E1 - E2 : (x2 <= 0.0f ? E2 - E1 : 2.0f - E1 - E2));
+        out[k] = keep ? T : 0.0f;
+    }
+}
+
+// ---- Optical depths from one point to many Gaussian centres (the per-(light, Gaussian)
+// factors f1 and T(v, b_i)). The segments from a source s (the eye or a light) to the
+// centres b_i form a star, so instead of walking the medium's hierarchy once per segment
+// the Gaussians are binned once per source by direction, like the screen splat bins them
+// into tiles: a cube map around s (6 faces of K x K cells, gnomonic: a direction u on face
+// (axis m, sign) has face coordinates u_p / |u_m|, u_q / |u_m| in [-1, 1]) lists in each
+// cell every Gaussian whose cull sphere's cone of directions from s touches it (exact
+// bounds of the cone's projections on the planes (m, p) and (m, q), padded). A segment
+// s -> b_i that reaches the sphere of Gaussian j has its direction inside that cone, so
+// the cell of b_i's direction lists j: the candidates are a superset of the culled set.
+// Each cell's list is in ascending key_j = |b_j - s| - R_j (the distance from s to the
+// sphere), so a segment of length D only looks at the prefix key_j < D. Per target the
+// float kernels then run the cull test of for_each_near (segment_reaches) and the line
+// integrals (segment_integrals) on the candidates, vectorised. Spheres holding s (or
+// covering more than a face's worth of cells) are in a list every target looks at. Few
+// targets (a brush stroke's new Gaussians): one list of all candidates, no binning.
+struct StarCands {
+    std::vector<float> rx, ry, rz, a, k0, R2, key;  // b_j - s, a_j, c_j sqrt(pi) / (2 a_j), R_j^2, key_j
+    std::vector<std::uint32_t> id;                  // Gaussian index j
     std::size_t n = 0;
+    void resize(std::size_t m) {
+        for (auto* v : {&rx, &ry, &rz, &a, &k0, &R2, &key}) v->resize(m);
+        id.resize(m);
+        n = m;
+    }
+    void set(std::size_t k, const StarCands& from, std::size_t j) {
+        rx[k] = from.rx[j];
+        ry[k] = from.ry[j];
+        rz[k] = from.rz[j];
+        a[k] = from.a[j];
+        k0[k] = from.k0[j];
+        R2[k] = from.R2[j];
+        key[k] = from.key[j];
+        id[k] = from.id[j];
+    }
 };
-double fast_depth_excluding(const RbfMedium& m, const float* a, const float* k0, const Vec3& from, const Vec3& to,
-                            std::size_t skip, SegmentScratch& g) {
-    const Vec3 d = to - from;
-    const double D = glm::length(d);
-    if (!(D > 0.0)) return 0.0;
-    const Vec3 r = d / D;
-    if (g.rx.size() < m.size()) {
-        for (auto* v : {&g.rx, &g.ry, &g.rz, &g.a, &g.k0, &g.out}) v->resize(m.size());
+
+struct StarScratch {
+    std::vector<float> keep, rx, ry, rz, a, k0, out;
+    std::vector<std::uint32_t> idx;
+    void reserve(std::size_t m) {
+        if (keep.size() >= m) return;
+        for (auto* v : {&keep, &rx, &ry, &rz, &a, &k0, &out}) v->resize(m);
+        idx.resize(m);
     }
-    std::size_t n = 0;
-    float* rx = g.rx.data();
-    float* ry = g.ry.data();
-    float* rz = g.rz.data();
-    float* ga = g.a.data();
-    float* gk = g.k0.data();
-    m.for_each_near(from, r, D, [&](std::size_t j) {
-        if (j == skip) return;
-        const Vec3 rel = m.centre(j) - from;
-        rx[n] = float(rel.x);
-        ry[n] = float(rel.y);
-        rz[n] = float(rel.z);
-        ga[n] = a[j];
-        gk[n] = k0[j];
-        ++n;
-    });
-    segment_integrals(int(n), rx, ry, rz, ga, gk, float(r.x), float(r.y), float(r.z), float(D), g.out.data());
+};
+
+// Sum of the culled line integrals of the candidates c[0 .. n) except Gaussian _skip_ on
+// s + t d, t in [0, D] (d unit, relative coordinates from s), in float, summed in double.
+// _dense_: most candidates reach (a cell's list): one fused pass, no compaction.
+double star_sum(const StarCands& c, std::size_t n, std::uint32_t skip, float dx, float dy, float dz, float D,
+                bool dense, StarScratch& w) {
+    // The prefix that can reach: key < D (keys are rounded down, see build_star).
+    const std::size_t P = std::size_t(std::upper_bound(c.key.begin(), c.key.begin() + n, D) - c.key.begin());
+    if (P == 0) return 0.0;
+    w.reserve(P);
+    if (dense) {
+        segment_integrals_culled(int(P), c.rx.data(), c.ry.data(), c.rz.data(), c.R2.data(), c.id.data(), skip,
+                                 c.a.data(), c.k0.data(), dx, dy, dz, D, w.out.data());
+        double T = 0.0;
+        for (std::size_t k = 0; k < P; ++k) T += double(w.out[k]);
+        return T;
+    }
+    segment_reaches(int(P), c.rx.data(), c.ry.data(), c.rz.data(), c.R2.data(), c.id.data(), skip, dx, dy, dz, D,
+                    w.keep.data());
+    std::size_t m = 0;
+    for (std::size_t k = 0; k < P; ++k) {
+        w.idx[m] = std::uint32_t(k);
+        m += w.keep[k] != 0.0f ? 1 : 0;
+    }
+    for (std::size_t q = 0; q < m; ++q) {
+        const std::uint32_t k = w.idx[q];
+        w.rx[q] = c.rx[k];
+        w.ry[q] = c.ry[k];
+        w.rz[q] = c.rz[k];
+        w.a[q] = c.a[k];
+        w.k0[q] = c.k0[k];
+    }
+    segment_integrals(int(m), w.rx.data(), w.ry.data(), w.rz.data(), w.a.data(), w.k0.data(), dx, dy, dz, D,
+                      w.out.data());
     double T = 0.0;
-    for (std::size_t k = 0; k < n; ++k) T += double(g.out[k]);
-    return T + background_depth(m.beta0(), D);
+    for (std::size_t q = 0; q < m; ++q) T += double(w.out[q]);
+    return T;
 }
 
-void scale_arrays(const RbfMedium& m, std::vector<float>& a, std::vector<float>& k0) {
-    a.resize(m.size());
-    k0.resize(m.size());
-    for (std::size_t j = 0; j < m.size(); ++j) {
+constexpr double kQuarterPi = 0.78539816339744830962;
+
+// Face-coordinate range [lo, hi] (clamped to [-1, 1]) of the rays from the origin through
+// the sphere of radius R around a centre whose components along the face axis and along
+// the face's axis p are (cm, cp): the rays' projections on that plane pass through the
+// projected disc, so their angles from the axis lie within asin(R / rho) of the centre's
+// (rho = |(cm, cp)|; every angle if the disc holds the origin). False if that range misses
+// the face's [-pi/4, pi/4]. Padded by 1e-6 rad against rounding.
+bool face_range(double cm, double cp, double R, double& lo, double& hi) {
+    const double rho = std::hypot(cm, cp);
+    if (!(rho > R)) {
+        lo = -1.0;
+        hi = 1.0;
+        return true;
+    }
+    const double phi = std::atan2(cp, cm), beta = std::asin(R / rho);
+    // |phi| <= pi and beta < pi/2: a range wrapping past +-pi stays below -pi/2 or above
+    // pi/2 there, so it cannot reach the face by the wrapped side.
+    const double a0 = phi - beta - 1e-6, a1 = phi + beta + 1e-6;
+    if (a1 < -kQuarterPi || a0 > kQuarterPi) return false;
+    lo = a0 <= -kQuarterPi ? -1.0 : std::max(-1.0, std::tan(a0));
+    hi = a1 >= kQuarterPi ? 1.0 : std::min(1.0, std::tan(a1));
+    return true;
+}
+
+// Cube-map cell of a face coordinate (K cells per side).
+inline int face_cell(double t, int K) { return std::min(K - 1, std::max(0, int(std::floor((t + 1.0) * 0.5 * K)))); }
+
+// Cell of the direction u != 0 (finite): face 2 m + (u_m < 0) for the dominant axis m.
+inline std::size_t cube_cell(const Vec3& u, int K) {
+    const double ax = std::abs(u.x), ay = std::abs(u.y), az = std::abs(u.z);
+    const int m = ax >= ay && ax >= az ? 0 : (ay >= az ? 1 : 2);
+    const int p = (m + 1) % 3, q = (m + 2) % 3;
+    const double um = std::abs(u[m]);
+    const int face = 2 * m + (u[m] < 0.0 ? 1 : 0);
+    return (std::size_t(face) * K + face_cell(u[q] / um, K)) * K + face_cell(u[p] / um, K);
+}
+
+// Binning of one source's candidates (see above). K = 0: no cells, every candidate is in
+// _everywhere_ (the brute-force form for few targets).
+struct StarGrid {
+    Vec3 s{0.0};
+    StarCands cands;                       // in ascending key
+    int K = 0;
+    std::vector<std::uint32_t> start;      // per cell (6 K^2 + 1), into entries
+    std::vector<std::uint32_t> entries;    // positions in cands, ascending within a cell
+    StarCands everywhere;                  // looked at by every target, ascending key
+};
+
+void build_star(const RbfMedium& m, const float* a, const float* k0, const Vec3& s, std::size_t c0, std::size_t c1,
+                bool binned, StarGrid& g) {
+    g.s = s;
+    // Candidates with a cull sphere (R = 0: never reaches cull_eps, as in for_each_near).
+    std::vector<std::uint32_t> js;
+    std::vector<double> dist;
+    js.reserve(c1 - c0);
+    for (std::size_t j = c0; j < c1; ++j)
+        if (m.cull_radius(j) > 0.0) js.push_back(std::uint32_t(j));
+    dist.resize(m.size() > 0 ? c1 : 0);
+    for (std::uint32_t j : js) dist[j] = glm::length(m.centre(j) - s);
+    // key_j = d_j - R_j, with R inflated by 2e-4 (float rounding of the reach test) and
+    // rounded down to float so that key < D never misses a reaching segment.
+    auto inflated = [&](std::uint32_t j) { return m.cull_radius(j) * 1.0002; };
+    std::vector<std::pair<float, std::uint32_t>> keyed(js.size());
+    for (std::size_t k = 0; k < js.size(); ++k)
+        keyed[k] = {std::nextafter(float(dist[js[k]] - inflated(js[k])), -INFINITY), js[k]};
+    std::sort(keyed.begin(), keyed.end());
+    StarCands& c = g.cands;
+    c.resize(keyed.size());
+    for (std::size_t k = 0; k < keyed.size(); ++k) {
+        const std::uint32_t j = keyed[k].second;
+        const Vec3 rel = m.centre(j) - s;
+        const double R = inflated(j);
+        c.rx[k] = float(rel.x);
+        c.ry[k] = float(rel.y);
+        c.rz[k] = float(rel.z);
+        c.a[k] = a[j];
+        c.k0[k] = k0[j];
+        c.R2[k] = float(R * R);
+        c.key[k] = keyed[k].first;
+        c.id[k] = j;
+    }
+    g.K = 0;
+    g.start.clear();
+    g.entries.clear();
+    if (!binned) {
+        g.everywhere = c;
+        return;
+    }
+    // Per candidate: the rectangles (face, p range, q range) its cone covers, in face
+    // coordinates; spheres holding s are everywhere.
+    struct Rect {
+        std::uint32_t k;
+        int face;
+        double p0, p1, q0, q1;
+    };
+    std::vector<Rect> rects;
+    std::vector<char> all(c.n, 0);
+    std::vector<double> rho;
+    rects.reserve(c.n * 2);
+    rho.reserve(c.n);
+    for (std::size_t k = 0; k < c.n; ++k) {
+        const std::uint32_t j = c.id[k];
+        const Vec3 rel = m.centre(j) - s;
+        const double R = inflated(j), d = dist[j];
+        if (!(d > R)) {
+            all[k] = 1;
+            continue;
+        }
+        rho.push_back(R / d);
+        for (int face = 0; face < 6; ++face) {
+            const int mm = face / 2, p = (mm + 1) % 3, q = (mm + 2) % 3;
+            const double cm = (face & 1) ? -rel[mm] : rel[mm];
+            // The sphere's bounding box must reach the face's pyramid |x_p|, |x_q| <= x_m.
+            if (cm + R <= 0.0 || cm + R < std::max(std::abs(rel[p]), std::abs(rel[q])) - R) continue;
+            Rect r{std::uint32_t(k), face, 0, 0, 0, 0};
+            if (face_range(cm, rel[p], R, r.p0, r.p1) && face_range(cm, rel[q], R, r.q0, r.q1)) rects.push_back(r);
+        }
+    }
+    // K: cells about half the median cone radius wide (2 / K in face coordinates ~ radians
+    // at the face centre), fewer while the lists would exceed ~48 entries per candidate.
+    double rho_med = 0.1;
+    if (!rho.empty()) {
+        std::nth_element(rho.begin(), rho.begin() + rho.size() / 2, rho.end());
+        rho_med = rho[rho.size() / 2];
+    }
+    int K = int(std::clamp(4.0 / rho_med, 1.0, 256.0));
+    auto count = [&](int KK, std::vector<char>* flag) {
+        std::size_t total = 0;
+        for (std::size_t r0 = 0; r0 < rects.size();) {
+            std::size_t r1 = r0, cells = 0;
+            for (; r1 < rects.size() && rects[r1].k == rects[r0].k; ++r1) {
+                const Rect& r = rects[r1];
+                cells += std::size_t(face_cell(r.p1, KK) - face_cell(r.p0, KK) + 1) *
+                         std::size_t(face_cell(r.q1, KK) - face_cell(r.q0, KK) + 1);
+            }
+            if (cells > std::size_t(KK) * KK) {
+                if (flag) (*flag)[rects[r0].k] = 1;
+            } else {
+                total += cells;
+            }
+            r0 = r1;
+        }
+        return total;
+    };
+    while (K > 1 && count(K, nullptr) > 48 * c.n + 65536) K = std::max(1, K * 2 / 3);
+    count(K, &all);
+    g.K = K;
+    const std::size_t cells = 6 * std::size_t(K) * K;
+    g.start.assign(cells + 1, 0);
+    for (int pass = 0; pass < 2; ++pass) {
+        for (const Rect& r : rects) {
+            if (all[r.k]) continue;
+            const int p0 = face_cell(r.p0, K), p1 = face_cell(r.p1, K), q0 = face_cell(r.q0, K), q1 = face_cell(r.q1, K);
+            for (int qq = q0; qq <= q1; ++qq)
+                for (int pp = p0; pp <= p1; ++pp) {
+                    const std::size_t cell = (std::size_t(r.face) * K + qq) * K + pp;
+                    if (pass == 0)
+                        ++g.start[cell + 1];
+                    else
+                        g.entries[g.start[cell]++] = r.k;
+                }
+        }
+        if (pass == 0) {
+            for (std::size_t q = 0; q < cells; ++q) g.start[q + 1] += g.start[q];
+            g.entries.resize(g.start[cells]);
+        } else {
+            // start[q] now holds the end of cell q: shift back.
+            for (std::size_t q = cells; q > 0; --q) g.start[q] = g.start[q - 1];
+            g.start[0] = 0;
+        }
+    }
+    std::size_t ne = 0;
+    for (std::size_t k = 0; k < c.n; ++k) ne += all[k];
+    g.everywhere.resize(ne);
+    ne = 0;
+    for (std::size_t k = 0; k < c.n; ++k)
+        if (all[k]) g.everywhere.set(ne++, c, k);
+}
+
+// out[r (t1 - t0) + k] = sum over the Gaussians j in [c0, c1), j != i, of the culled line
+// integral T_j(src[r], b_i) (float kernels, each skipped Gaussian < cull_eps as in
+// for_each_near) for the targets i = t0 + k in [t0, t1). No beta0. Throws
+// std::invalid_argument on a non-finite source.
+std::vector<double> star_depths(const RbfMedium& m, const std::vector<Vec3>& src, std::size_t t0, std::size_t t1,
+                                std::size_t c0, std::size_t c1, int threads, int force_binned = -1) {
+    for (const Vec3& s : src)
+        if (!std::isfinite(s.x) || !std::isfinite(s.y) || !std::isfinite(s.z))
+            throw std::invalid_argument("Gaussian fog: a light or eye position is not finite");
+    const std::size_t nt = t1 - t0, rows = src.size();
+    std::vector<double> out(rows * nt, 0.0);
+    if (nt == 0 || c1 <= c0 || rows == 0) return out;
+    std::vector<float> a(m.size()), k0(m.size());
+    for (std::size_t j = c0; j < c1; ++j) {
         a[j] = float(m.scale(j));
         k0[j] = float(m.amplitude(j) * kSqrtPi / (2.0 * m.scale(j)));
     }
+    // Binning pays off once there are enough targets to share it.
+    const bool binned = force_binned >= 0 ? force_binned == 1 : (nt >= 256 && c1 - c0 >= 64);
+    std::vector<StarGrid> grids(rows);
+    parallel_chunks(rows, threads, 1, [&](std::size_t b, std::size_t e) {
+        for (std::size_t r = b; r < e; ++r) build_star(m, a.data(), k0.data(), src[r], c0, c1, binned, grids[r]);
+    });
+    // Work units: (row, cell, a run of <= 32 of the cell's targets).
+    struct Unit {
+        std::uint32_t row, cell, b, e;
+    };
+    std::vector<std::vector<std::uint32_t>> order(rows);  // targets by cell
+    std::vector<std::vector<std::uint32_t>> tcell(rows);
+    std::vector<Unit> units;
+    for (std::size_t r = 0; r < rows; ++r) {
+        const StarGrid& g = grids[r];
+        const std::size_t cells = g.K > 0 ? 6 * std::size_t(g.K) * g.K : 1;
+        std::vector<std::uint32_t> cell_of(nt), tstart(cells + 1, 0);
+        for (std::size_t k = 0; k < nt; ++k) {
+            const Vec3 u = m.centre(t0 + k) - g.s;
+            cell_of[k] = g.K > 0 && (u.x != 0.0 || u.y != 0.0 || u.z != 0.0) ? std::uint32_t(cube_cell(u, g.K)) : 0;
+            ++tstart[cell_of[k] + 1];
+        }
+        for (std::size_t q = 0; q < cells; ++q) tstart[q + 1] += tstart[q];
+        order[r].resize(nt);
+        {
+            std::vector<std::uint32_t> fill(tstart.begin(), tstart.end() - 1);
+            for (std::size_t k = 0; k < nt; ++k) order[r][fill[cell_of[k]]++] = std::uint32_t(k);
+        }
+        for (std::size_t q = 0; q < cells; ++q)
+            for (std::uint32_t b = tstart[q]; b < tstart[q + 1]; b += 32)
+                units.push_back({std::uint32_t(r), std::uint32_t(q), b, std::min<std::uint32_t>(b + 32, tstart[q + 1])});
+    }
+    parallel_chunks(units.size(), threads, 1, [&](std::size_t ub, std::size_t ue) {
+        StarScratch w;
+        StarCands local;
+        for (std::size_t u = ub; u < ue; ++u) {
+            const Unit& unit = units[u];
+            const StarGrid& g = grids[unit.row];
+            const StarCands* cell = nullptr;
+            if (g.K > 0) {
+                const std::uint32_t e0 = g.start[unit.cell], e1 = g.start[unit.cell + 1];
+                local.resize(e1 - e0);
+                for (std::uint32_t e = e0; e < e1; ++e) local.set(e - e0, g.cands, g.entries[e]);
+                cell = &local;
+            }
+            for (std::uint32_t x = unit.b; x < unit.e; ++x) {
+                const std::uint32_t k = order[unit.row][x];
+                const std::size_t i = t0 + k;
+                const Vec3 d = m.centre(i) - g.s;
+                const double D = glm::length(d);
+                if (!(D > 0.0)) continue;
+                const Vec3 r = d / D;
+                const float dx = float(r.x), dy = float(r.y), dz = float(r.z), Df = float(D);
+                double T = star_sum(g.everywhere, g.everywhere.n, std::uint32_t(i), dx, dy, dz, Df, false, w);
+                if (cell) T += star_sum(*cell, cell->n, std::uint32_t(i), dx, dy, dz, Df, true, w);
+                out[unit.row * nt + k] = T;
+            }
+        }
+    });
+    return out;
 }
 
 // T(from_row, b_i) without Gaussian i (beta0 included) for row 0 = the eye and rows 1..L
 // = the lights, all Gaussians: out[row n + i].
 std::vector<double> depths_to_centres(const RbfMedium& m, const Vec3& eye, const std::vector<Vec3>& lights,
                                       int threads) {
-    const std::size_t n = m.size(), rows = lights.size() + 1;
-    std::vector<float> a, k0;
-    scale_arrays(m, a, k0);
-    std::vector<double> out(rows * n);
-    parallel_chunks(rows * n, threads, 64, [&](std::size_t b, std::size_t e) {
-        SegmentScratch scratch;
-        for (std::size_t k = b; k < e; ++k) {
-            const std::size_t row = k / n, i = k % n;
-            out[k] = fast_depth_excluding(m, a.data(), k0.data(), row == 0 ? eye : lights[row - 1], m.centre(i), i,
-                                          scratch);
-        }
-    });
+    const std::size_t n = m.size();
+    std::vector<Vec3> src{eye};
+    src.insert(src.end(), lights.begin(), lights.end());
+    std::vector<double> out = star_depths(m, src, 0, n, 0, n, threads);
+    for (std::size_t row = 0; row < src.size(); ++row)
+        for (std::size_t i = 0; i < n; ++i) out[row * n + i] += background_depth(m.beta0(), glm::length(m.centre(i) - src[row]));
     return out;
 }
 
@@ -1289,82 +1603,30 @@ RbfPreviewFactors rbf_preview_factors(const RbfMedium& medium, const Vec3& eye, 
     // Gaussians [n_old, n): everything (the others in float, fast_erf.h: ~1e-5 relative
     // per Gaussian; the own half exactly).
     const std::size_t n_new = n - n_old;
-    std::vector<float> fa, fk0;
-    scale_arrays(medium, fa, fk0);
-    parallel_chunks(rows * n_new, threads, 16, [&](std::size_t b, std::size_t e) {
-        SegmentScratch scratch;
-        for (std::size_t k = b; k < e; ++k) {
-            const std::size_t row = k / n_new, i = n_old + k % n_new;
+    std::vector<Vec3> src{eye};
+    src.insert(src.end(), lights.begin(), lights.end());
+    const std::vector<double> others = star_depths(medium, src, n_old, n, 0, n, threads);
+    for (std::size_t row = 0; row < rows; ++row)
+        for (std::size_t k = 0; k < n_new; ++k) {
+            const std::size_t i = n_old + k;
             const Vec3 from = from_of(row);
             const Vec3 d = medium.centre(i) - from;
             const double D = glm::length(d);
             const double own = D > 0.0 ? medium.gaussian_optical_depth(i, from, d / D, 0.0, D) : 0.0;
-            T_at(row, i) =
-                fast_depth_excluding(medium, fa.data(), fk0.data(), from, medium.centre(i), i, scratch) + own;
+            T_at(row, i) = others[row * n_new + k] + (D > 0.0 ? background_depth(medium.beta0(), D) : 0.0) + own;
             own_at(row, i) = own;
         }
-    });
     if (n_old == 0) return f;
     // Gaussians [0, n_old): the previous factors plus the new Gaussians' line integrals
-    // (T is a sum over Gaussians), all new ones at once in one vectorised loop.
-    std::vector<std::vector<float>> rel(rows * 3);
-    std::vector<float> a(n_new), k0(n_new);
-    for (std::size_t j = 0; j < n_new; ++j) {
-        a[j] = float(medium.scale(n_old + j));
-        k0[j] = float(medium.amplitude(n_old + j) * kSqrtPi / (2.0 * medium.scale(n_old + j)));
-    }
+    // (T is a sum over Gaussians), with the same culling as the full computation.
+    const std::vector<double> add = star_depths(medium, src, 0, n_old, n_old, n, threads);
     for (std::size_t row = 0; row < rows; ++row)
-        for (int c = 0; c < 3; ++c) {
-            std::vector<float>& v = rel[row * 3 + c];
-            v.resize(n_new);
-            for (std::size_t j = 0; j < n_new; ++j) v[j] = float(medium.centre(n_old + j)[c] - from_of(row)[c]);
-        }
-    // Only the new Gaussians whose cull sphere the segment reaches (the full computation's
-    // culling, for_each_near): a vectorised distance test, then the integrals of those.
-    std::vector<float> R2(n_new);
-    for (std::size_t j = 0; j < n_new; ++j) {
-        const double R = medium.cull_radius(n_old + j);
-        R2[j] = float(R * R);
-    }
-    parallel_chunks(rows * n_old, threads, 64, [&](std::size_t b, std::size_t e) {
-        std::vector<float> out(n_new), keep(n_new), crx(n_new), cry(n_new), crz(n_new), ca(n_new), ck0(n_new);
-        std::vector<std::uint32_t> idx(n_new + 1);
-        for (std::size_t k = b; k < e; ++k) {
-            const std::size_t row = k / n_old, i = k % n_old;
-            const Vec3 from = from_of(row);
-            const Vec3 d = medium.centre(i) - from;
-            const double D = glm::length(d);
-            double add = 0.0;
-            if (D > 0.0 && n_new > 0) {
-                const Vec3 r = d / D;
-                const float* rx = rel[row * 3].data();
-                const float* ry = rel[row * 3 + 1].data();
-                const float* rz = rel[row * 3 + 2].data();
-                segment_reaches(int(n_new), rx, ry, rz, R2.data(), float(r.x), float(r.y), float(r.z), float(D),
-                                keep.data());
-                std::size_t m = 0;
-                for (std::size_t j = 0; j < n_new; ++j) {
-                    idx[m] = std::uint32_t(j);
-                    m += keep[j] != 0.0f ? 1 : 0;
-                }
-                for (std::size_t q = 0; q < m; ++q) {
-                    const std::uint32_t j = idx[q];
-                    crx[q] = rx[j];
-                    cry[q] = ry[j];
-                    crz[q] = rz[j];
-                    ca[q] = a[j];
-                    ck0[q] = k0[j];
-                }
-                segment_integrals(int(m), crx.data(), cry.data(), crz.data(), ca.data(), ck0.data(), float(r.x),
-                                  float(r.y), float(r.z), float(D), out.data());
-                for (std::size_t q = 0; q < m; ++q) add += double(out[q]);
-            }
+        for (std::size_t i = 0; i < n_old; ++i) {
             const double prev_T = row == 0 ? previous->T_vb[i] : previous->T_sb[(row - 1) * n_old + i];
             const double prev_own = row == 0 ? previous->own_vb[i] : previous->own_sb[(row - 1) * n_old + i];
-            T_at(row, i) = prev_T + add;
+            T_at(row, i) = prev_T + add[row * n_old + i];
             own_at(row, i) = prev_own;
         }
-    });
     return f;
 }
 
