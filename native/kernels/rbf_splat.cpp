@@ -943,6 +943,13 @@ std::vector<double> depths_to_centres(const RbfMedium& m, const Vec3& eye, const
 
 }  // namespace
 
+std::vector<double> rbf_depths_to_centres(const RbfMedium& medium, const std::vector<Vec3>& sources,
+                                          std::size_t first, std::size_t last, std::size_t cand_first,
+                                          std::size_t cand_last, int threads, int method) {
+    if (method < 0 || method > 3) throw std::invalid_argument("rbf_depths_to_centres: method must be 0..3");
+    return star_depths(medium, sources, first, last, cand_first, cand_last, threads, method);
+}
+
 void validate_noise(const RbfNoise& noise) {
     if (!std::isfinite(noise.amplitude) || noise.amplitude < 0.0) {
         std::ostringstream os;
