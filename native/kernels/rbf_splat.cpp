@@ -601,6 +601,10 @@ struct StarGrid {
     std::vector<std::uint32_t> start;      // per cell (6 K^2 + 1), into entries
     std::vector<std::uint32_t> entries;    // positions in cands, ascending within a cell
     StarCands everywhere;                  // looked at by every target, ascending key
+    // build_star's scratch, kept for the next source.
+    std::vector<std::uint32_t> js;
+    std::vector<double> dist;
+    std::vector<std::pair<float, std::uint32_t>> keyed;
 };
 
 void build_star(const RbfMedium& m, const float* a, const float* k0, const Vec3& s, std::size_t c0, std::size_t c1,
@@ -608,8 +612,9 @@ void build_star(const RbfMedium& m, const float* a, const float* k0, const Vec3&
     g.s = s;
     // Candidates with a cull sphere (R = 0: never reaches cull_eps, as in for_each_near).
     // Unbinned: in the hierarchy's leaf order, for the block test.
-    std::vector<std::uint32_t> js;
-    std::vector<double> dist;
+    std::vector<std::uint32_t>& js = g.js;
+    std::vector<double>& dist = g.dist;
+    js.clear();
     js.reserve(c1 - c0);
     if (binned) {
         for (std::size_t j = c0; j < c1; ++j)
@@ -624,7 +629,8 @@ void build_star(const RbfMedium& m, const float* a, const float* k0, const Vec3&
     // rounded down to float so that key < D never misses a reaching segment.
     auto inflated = [&](std::uint32_t j) { return m.cull_radius(j) * 1.0002; };
     // Unbinned (few targets): no order, every key -inf (the whole list is the prefix).
-    std::vector<std::pair<float, std::uint32_t>> keyed(js.size());
+    std::vector<std::pair<float, std::uint32_t>>& keyed = g.keyed;
+    keyed.resize(js.size());
     for (std::size_t k = 0; k < js.size(); ++k)
         keyed[k] = {binned ? std::nextafter(float(dist[js[k]] - inflated(js[k])), -INFINITY)
                            : -std::numeric_limits<float>::infinity(),
@@ -676,7 +682,7 @@ void build_star(const RbfMedium& m, const float* a, const float* k0, const Vec3&
             c.bR2[b] = float(rad * rad);
         }
         c.block_test = true;
-        g.everywhere = c;
+        std::swap(g.everywhere, c);  // (g.cands keeps the other buffer for the next source)
         return;
     }
     // Per candidate: the rectangles (face, p range, q range) its cone covers, in face
@@ -802,129 +808,132 @@ std::vector<double> star_depths(const RbfMedium& m, const std::vector<Vec3>& src
         const double pairs = 0.15 * double(nt) * double(nc), binning = 700.0 * double(nc) + 150.0 * double(nt);
         method = nt < 256 ? 1 : (pairs < binning ? 2 : 3);
     }
+    // Small work (a brush stroke's update) stays on the calling thread: starting threads
+    // costs more than it saves there.
+    if (double(nt) * double(nc) * double(rows) < 4e6) threads = 1;
     if (method == 2) {
         // Per candidate: the targets of each row in float SoA, padded to whole vectors with
         // D = 0 (integral 0), in blocks of 1024 (the threads' units).
         const std::size_t nt16 = lanes_up(nt), block = 1024;
-        std::vector<std::vector<float>> tdx(rows), tdy(rows), tdz(rows), tD(rows);
+        std::vector<float> tdx(nt16), tdy(nt16), tdz(nt16), tD(nt16);
         std::vector<std::uint32_t> tid(nt16), slot(nt16);
         for (std::size_t k = 0; k < nt16; ++k) {
             tid[k] = k < nt ? std::uint32_t(t0 + k) : std::numeric_limits<std::uint32_t>::max();
             slot[k] = std::uint32_t(k);
         }
-        for (std::size_t r = 0; r < rows; ++r) {
-            for (auto* v : {&tdx[r], &tdy[r], &tdz[r], &tD[r]}) v->assign(nt16, 0.0f);
-            for (std::size_t k = 0; k < nt; ++k) {
-                const Vec3 d = m.centre(t0 + k) - src[r];
-                const double D = glm::length(d);
-                if (!(D > 0.0)) continue;
-                tdx[r][k] = float(d.x / D);
-                tdy[r][k] = float(d.y / D);
-                tdz[r][k] = float(d.z / D);
-                tD[r][k] = float(D);
-            }
-        }
         struct Cand {
             float rx, ry, rz, R2, a, k0;
             std::uint32_t j;
         };
-        std::vector<std::vector<Cand>> cands(rows);
-        for (std::size_t r = 0; r < rows; ++r)
+        std::vector<Cand> cands;
+        const std::size_t blocks = (nt16 + block - 1) / block;
+        for (std::size_t r = 0; r < rows; ++r) {
+            std::fill(tdx.begin(), tdx.end(), 0.0f);
+            std::fill(tdy.begin(), tdy.end(), 0.0f);
+            std::fill(tdz.begin(), tdz.end(), 0.0f);
+            std::fill(tD.begin(), tD.end(), 0.0f);
+            for (std::size_t k = 0; k < nt; ++k) {
+                const Vec3 d = m.centre(t0 + k) - src[r];
+                const double D = glm::length(d);
+                if (!(D > 0.0)) continue;
+                tdx[k] = float(d.x / D);
+                tdy[k] = float(d.y / D);
+                tdz[k] = float(d.z / D);
+                tD[k] = float(D);
+            }
+            cands.clear();
             for (std::size_t j = c0; j < c1; ++j) {
                 const double R = m.cull_radius(j) * 1.0002;
                 if (!(R > 0.0)) continue;
                 const Vec3 rel = m.centre(j) - src[r];
-                cands[r].push_back({float(rel.x), float(rel.y), float(rel.z), float(R * R), a[j], k0[j],
-                                    std::uint32_t(j)});
+                cands.push_back({float(rel.x), float(rel.y), float(rel.z), float(R * R), a[j], k0[j], std::uint32_t(j)});
             }
-        const std::size_t blocks = (nt16 + block - 1) / block;
-        parallel_chunks(rows * blocks, threads, 1, [&](std::size_t ub, std::size_t ue) {
-            std::vector<float> keep(block), hx(block + kStarLanes), hy(block + kStarLanes), hz(block + kStarLanes),
-                hD(block + kStarLanes), val(block + kStarLanes);
-            std::vector<std::uint32_t> hs(block + kStarLanes), idx(block);
-            std::vector<double> acc(block);
-            for (std::size_t u = ub; u < ue; ++u) {
-                const std::size_t r = u / blocks, b = (u % blocks) * block, e = std::min(nt16, b + block), n = e - b;
-                std::fill(acc.begin(), acc.end(), 0.0);
-                const void* in[5] = {tdx[r].data() + b, tdy[r].data() + b, tdz[r].data() + b, tD[r].data() + b,
-                                     slot.data() + b};
-                void* hit[5] = {hx.data(), hy.data(), hz.data(), hD.data(), hs.data()};
-                for (const Cand& c : cands[r]) {
-                    targets_reached(int(n), tdx[r].data() + b, tdy[r].data() + b, tdz[r].data() + b, tD[r].data() + b,
-                                    tid.data() + b, c.j, c.rx, c.ry, c.rz, c.R2, keep.data());
-                    const std::size_t h = compact(keep.data(), n, 5, in, hit, idx.data());
-                    if (h == 0) continue;
-                    const std::size_t h16 = lanes_up(h);
-                    for (std::size_t q = h; q < h16; ++q) {
-                        hx[q] = hy[q] = hz[q] = hD[q] = 0.0f;  // D = 0: integral 0
-                        hs[q] = std::uint32_t(b);
+            parallel_chunks(blocks, threads, 1, [&](std::size_t ub, std::size_t ue) {
+                thread_local std::vector<float> keep, hx, hy, hz, hD, val;
+                thread_local std::vector<std::uint32_t> hs, idx;
+                thread_local std::vector<double> acc;
+                for (auto* v : {&keep, &hx, &hy, &hz, &hD, &val}) v->resize(block + kStarLanes);
+                hs.resize(block + kStarLanes);
+                idx.resize(block);
+                acc.resize(block);
+                for (std::size_t u = ub; u < ue; ++u) {
+                    const std::size_t b = u * block, e = std::min(nt16, b + block), n = e - b;
+                    std::fill(acc.begin(), acc.end(), 0.0);
+                    const void* in[5] = {tdx.data() + b, tdy.data() + b, tdz.data() + b, tD.data() + b, slot.data() + b};
+                    void* hit[5] = {hx.data(), hy.data(), hz.data(), hD.data(), hs.data()};
+                    for (const Cand& c : cands) {
+                        targets_reached(int(n), tdx.data() + b, tdy.data() + b, tdz.data() + b, tD.data() + b,
+                                        tid.data() + b, c.j, c.rx, c.ry, c.rz, c.R2, keep.data());
+                        const std::size_t h = compact(keep.data(), n, 5, in, hit, idx.data());
+                        if (h == 0) continue;
+                        const std::size_t h16 = lanes_up(h);
+                        for (std::size_t q = h; q < h16; ++q) {
+                            hx[q] = hy[q] = hz[q] = hD[q] = 0.0f;  // D = 0: integral 0
+                            hs[q] = std::uint32_t(b);
+                        }
+                        target_integrals(int(h16), hx.data(), hy.data(), hz.data(), hD.data(), c.rx, c.ry, c.rz,
+                                         c.a, c.k0, val.data());
+                        for (std::size_t q = 0; q < h; ++q) acc[hs[q] - b] += double(val[q]);
                     }
-                    target_integrals(int(h16), hx.data(), hy.data(), hz.data(), hD.data(), c.rx, c.ry, c.rz, c.a,
-                                     c.k0, val.data());
-                    for (std::size_t q = 0; q < h; ++q) acc[hs[q] - b] += double(val[q]);
+                    for (std::size_t k = b; k < std::min(e, nt); ++k) out[r * nt + k] = acc[k - b];
                 }
-                for (std::size_t k = b; k < std::min(e, nt); ++k) out[r * nt + k] = acc[k - b];
-            }
-        });
+            });
+        }
         return out;
     }
+    // One source at a time, reusing the per-source structures (a call then allocates about
+    // one source's worth: the preview runs this per edit, and fresh memory costs page faults).
     const bool binned = method == 3;
-    std::vector<StarGrid> grids(rows);
-    parallel_chunks(rows, threads, 1, [&](std::size_t b, std::size_t e) {
-        for (std::size_t r = b; r < e; ++r) build_star(m, a.data(), k0.data(), src[r], c0, c1, binned, grids[r]);
-    });
-    // Work units: (row, cell, a run of <= 32 of the cell's targets).
+    StarGrid g;
+    std::vector<std::uint32_t> order(nt), cell_of(nt), tstart, fill;
+    // Work units: (cell, a run of <= 32 of the cell's targets).
     struct Unit {
-        std::uint32_t row, cell, b, e;
+        std::uint32_t cell, b, e;
     };
-    std::vector<std::vector<std::uint32_t>> order(rows);  // targets by cell
     std::vector<Unit> units;
     for (std::size_t r = 0; r < rows; ++r) {
-        const StarGrid& g = grids[r];
+        build_star(m, a.data(), k0.data(), src[r], c0, c1, binned, g);
         const std::size_t cells = g.K > 0 ? 6 * std::size_t(g.K) * g.K : 1;
-        std::vector<std::uint32_t> cell_of(nt), tstart(cells + 1, 0);
+        tstart.assign(cells + 1, 0);
         for (std::size_t k = 0; k < nt; ++k) {
             const Vec3 u = m.centre(t0 + k) - g.s;
             cell_of[k] = g.K > 0 && (u.x != 0.0 || u.y != 0.0 || u.z != 0.0) ? std::uint32_t(cube_cell(u, g.K)) : 0;
             ++tstart[cell_of[k] + 1];
         }
         for (std::size_t q = 0; q < cells; ++q) tstart[q + 1] += tstart[q];
-        order[r].resize(nt);
-        {
-            std::vector<std::uint32_t> fill(tstart.begin(), tstart.end() - 1);
-            for (std::size_t k = 0; k < nt; ++k) order[r][fill[cell_of[k]]++] = std::uint32_t(k);
-        }
+        fill.assign(tstart.begin(), tstart.end() - 1);
+        for (std::size_t k = 0; k < nt; ++k) order[fill[cell_of[k]]++] = std::uint32_t(k);
+        units.clear();
         for (std::size_t q = 0; q < cells; ++q)
             for (std::uint32_t b = tstart[q]; b < tstart[q + 1]; b += 32)
-                units.push_back({std::uint32_t(r), std::uint32_t(q), b, std::min<std::uint32_t>(b + 32, tstart[q + 1])});
+                units.push_back({std::uint32_t(q), b, std::min<std::uint32_t>(b + 32, tstart[q + 1])});
+        parallel_chunks(units.size(), threads, 8, [&](std::size_t ub, std::size_t ue) {
+            thread_local StarScratch w;
+            thread_local StarCands local;
+            for (std::size_t u = ub; u < ue; ++u) {
+                const Unit& unit = units[u];
+                const StarCands* cell = nullptr;
+                if (g.K > 0) {
+                    const std::uint32_t e0 = g.start[unit.cell], e1 = g.start[unit.cell + 1];
+                    local.resize(e1 - e0);
+                    for (std::uint32_t e = e0; e < e1; ++e) local.set(e - e0, g.cands, g.entries[e]);
+                    cell = &local;
+                }
+                for (std::uint32_t x = unit.b; x < unit.e; ++x) {
+                    const std::uint32_t k = order[x];
+                    const std::size_t i = t0 + k;
+                    const Vec3 d = m.centre(i) - g.s;
+                    const double D = glm::length(d);
+                    if (!(D > 0.0)) continue;
+                    const Vec3 dir = d / D;
+                    const float dx = float(dir.x), dy = float(dir.y), dz = float(dir.z), Df = float(D);
+                    double T = star_sum(g.everywhere, g.everywhere.n, std::uint32_t(i), dx, dy, dz, Df, false, w);
+                    if (cell) T += star_sum(*cell, cell->n, std::uint32_t(i), dx, dy, dz, Df, true, w);
+                    out[r * nt + k] = T;
+                }
+            }
+        });
     }
-    parallel_chunks(units.size(), threads, 8, [&](std::size_t ub, std::size_t ue) {
-        thread_local StarScratch w;
-        thread_local StarCands local;
-        for (std::size_t u = ub; u < ue; ++u) {
-            const Unit& unit = units[u];
-            const StarGrid& g = grids[unit.row];
-            const StarCands* cell = nullptr;
-            if (g.K > 0) {
-                const std::uint32_t e0 = g.start[unit.cell], e1 = g.start[unit.cell + 1];
-                local.resize(e1 - e0);
-                for (std::uint32_t e = e0; e < e1; ++e) local.set(e - e0, g.cands, g.entries[e]);
-                cell = &local;
-            }
-            for (std::uint32_t x = unit.b; x < unit.e; ++x) {
-                const std::uint32_t k = order[unit.row][x];
-                const std::size_t i = t0 + k;
-                const Vec3 d = m.centre(i) - g.s;
-                const double D = glm::length(d);
-                if (!(D > 0.0)) continue;
-                const Vec3 r = d / D;
-                const float dx = float(r.x), dy = float(r.y), dz = float(r.z), Df = float(D);
-                double T = star_sum(g.everywhere, g.everywhere.n, std::uint32_t(i), dx, dy, dz, Df, false, w);
-                if (cell) T += star_sum(*cell, cell->n, std::uint32_t(i), dx, dy, dz, Df, true, w);
-                out[unit.row * nt + k] = T;
-            }
-        }
-    });
     return out;
 }
 
