@@ -328,25 +328,35 @@ AIRLIGHT_SPLAT_CLONES void segment_reaches(int n, const float* __restrict rx, co
     }
 }
 
-// out[k] = the line integral of segment_integrals where segment_reaches keeps k, else 0
-// (one pass, for candidate lists that mostly reach: no compaction).
-AIRLIGHT_SPLAT_CLONES void segment_integrals_culled(int n, const float* __restrict rx, const float* __restrict ry,
-                                                    const float* __restrict rz, const float* __restrict R2,
-                                                    const std::uint32_t* __restrict id, std::uint32_t skip,
-                                                    const float* __restrict a, const float* __restrict k0, float dx,
-                                                    float dy, float dz, float D, float* __restrict out) {
+// segment_reaches that also sorts the reaching Gaussians: keep[k] = 2 where the segment
+// covers the Gaussian with 4.5 / a to spare at both ends (a ts >= 4.5 and a (D - ts) >=
+// 4.5: both erfc terms of eq. 31 are below 2e-10, so T = 2 e to float precision, one exp
+// instead of three), 1 for the other reaching ones, 0 for the rest.
+constexpr float kInteriorX = 4.5f;
+AIRLIGHT_SPLAT_CLONES void segment_reaches_split(int n, const float* __restrict rx, const float* __restrict ry,
+                                                 const float* __restrict rz, const float* __restrict R2,
+                                                 const float* __restrict a, const std::uint32_t* __restrict id,
+                                                 std::uint32_t skip, float dx, float dy, float dz, float D,
+                                                 float* __restrict keep) {
     for (int k = 0; k < n; ++k) {
         const float ts = rx[k] * dx + ry[k] * dy + rz[k] * dz;
         const float tc = ts < 0.0f ? 0.0f : (ts > D ? D : ts);
         const float qx = rx[k] - tc * dx, qy = ry[k] - tc * dy, qz = rz[k] - tc * dz;
-        const bool keep = (qx * qx + qy * qy + qz * qz < R2[k]) & (id[k] != skip);
+        const bool reach = (qx * qx + qy * qy + qz * qz < R2[k]) & (id[k] != skip);
+        const bool inside = (a[k] * ts >= kInteriorX) & (a[k] * (D - ts) >= kInteriorX);
+        keep[k] = reach ? (inside ? 2.0f : 1.0f) : 0.0f;
+    }
+}
+
+// The whole-line integral 2 e = c sqrt(pi) / a exp(-a^2 h^2) of the gathered Gaussians
+// (those segment_reaches_split marks 2).
+AIRLIGHT_SPLAT_CLONES void line_integrals_whole(int n, const float* __restrict rx, const float* __restrict ry,
+                                                const float* __restrict rz, const float* __restrict a,
+                                                const float* __restrict k0, float dx, float dy, float dz,
+                                                float* __restrict out) {
+    for (int k = 0; k < n; ++k) {
         const float cx = ry[k] * dz - rz[k] * dy, cy = rz[k] * dx - rx[k] * dz, cz = rx[k] * dy - ry[k] * dx;
-        const float e = k0[k] * fast_expf(-a[k] * a[k] * (cx * cx + cy * cy + cz * cz));
-        const float x1 = -a[k] * ts, x2 = a[k] * (D - ts);
-        const float E1 = fast_erfc_pos(x1 < 0.0f ? -x1 : x1);
-        const float E2 = fast_erfc_pos(x2 < 0.0f ? -x2 : x2);
-        const float T = e * (x1 >= 0.0f ? E1 - E2 : (x2 <= 0.0f ? E2 - E1 : 2.0f - E1 - E2));
-        out[k] = keep ? T : 0.0f;
+        out[k] = 2.0f * k0[k] * fast_expf(-a[k] * a[k] * (cx * cx + cy * cy + cz * cz));
     }
 }
 
@@ -437,12 +447,12 @@ struct StarCands {
 };
 
 struct StarScratch {
-    std::vector<float> keep, rx, ry, rz, a, k0, out, bkeep;
+    std::vector<float> keep, rx, ry, rz, a, k0, wx, wy, wz, wa, wk0, out, bkeep;
     std::vector<std::uint32_t> idx;
     void reserve(std::size_t m) {
         m += kStarLanes;  // compact() stores whole vectors past the last hit
         if (keep.size() >= m) return;
-        for (auto* v : {&keep, &rx, &ry, &rz, &a, &k0, &out}) v->resize(m);
+        for (auto* v : {&keep, &rx, &ry, &rz, &a, &k0, &wx, &wy, &wz, &wa, &wk0, &out}) v->resize(m);
         idx.resize(m);
     }
 };
@@ -456,16 +466,16 @@ AIRLIGHT_SPLAT_CLONES double sum_double(const float* __restrict x, std::size_t n
     return ((acc[0] + acc[1]) + (acc[2] + acc[3])) + ((acc[4] + acc[5]) + (acc[6] + acc[7]));
 }
 
-// Copies the entries k < n (a multiple of 16) with keep[k] != 0 of the nv arrays of 32-bit
+// Copies the entries k < n (a multiple of 16) with keep[k] == want of the nv arrays of 32-bit
 // words in[] to out[] (each with room for n + 16), in order; returns their number
 // (idx: scratch of n). AVX-512: compress in registers and store whole vectors (a
 // compressing store to memory is slow on some cores).
-std::size_t compact_scalar(const float* keep, std::size_t n, int nv, const void* const* in, void* const* out,
-                           std::uint32_t* idx) {
+std::size_t compact_scalar(const float* keep, float want, std::size_t n, int nv, const void* const* in,
+                           void* const* out, std::uint32_t* idx) {
     std::size_t m = 0;
     for (std::size_t k = 0; k < n; ++k) {
         idx[m] = std::uint32_t(k);
-        m += keep[k] != 0.0f ? 1 : 0;
+        m += keep[k] == want ? 1 : 0;
     }
     for (int v = 0; v < nv; ++v) {
         const unsigned char* src = static_cast<const unsigned char*>(in[v]);
@@ -475,11 +485,12 @@ std::size_t compact_scalar(const float* keep, std::size_t n, int nv, const void*
     return m;
 }
 #if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__)
-__attribute__((target("avx512f"))) std::size_t compact_avx512(const float* keep, std::size_t n, int nv,
+__attribute__((target("avx512f"))) std::size_t compact_avx512(const float* keep, float want, std::size_t n, int nv,
                                                                 const void* const* in, void* const* out) {
     std::size_t m = 0;
+    const __m512 w = _mm512_set1_ps(want);
     for (std::size_t k = 0; k < n; k += 16) {
-        const __mmask16 mk = _mm512_cmp_ps_mask(_mm512_loadu_ps(keep + k), _mm512_setzero_ps(), _CMP_NEQ_OQ);
+        const __mmask16 mk = _mm512_cmp_ps_mask(_mm512_loadu_ps(keep + k), w, _CMP_EQ_OQ);
         if (mk == 0) continue;
         for (int v = 0; v < nv; ++v) {
             const __m512i x = _mm512_loadu_si512(static_cast<const std::uint32_t*>(in[v]) + k);
@@ -490,41 +501,38 @@ __attribute__((target("avx512f"))) std::size_t compact_avx512(const float* keep,
     return m;
 }
 #endif
-std::size_t compact(const float* keep, std::size_t n, int nv, const void* const* in, void* const* out,
+std::size_t compact(const float* keep, float want, std::size_t n, int nv, const void* const* in, void* const* out,
                     std::uint32_t* idx) {
 #if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__)
     static const bool avx512 = __builtin_cpu_supports("avx512f");
-    if (avx512) return compact_avx512(keep, n, nv, in, out);
+    if (avx512) return compact_avx512(keep, want, n, nv, in, out);
 #endif
-    return compact_scalar(keep, n, nv, in, out, idx);
+    return compact_scalar(keep, want, n, nv, in, out, idx);
 }
 
 // Sum of the culled line integrals of the candidates c[0 .. n) except Gaussian _skip_ on
-// s + t d, t in [0, D] (d unit, relative coordinates from s), in float, summed in double.
-// _dense_: most candidates reach (a cell's list): one fused pass, no compaction.
+// s + t d, t in [0, D] (d unit, relative coordinates from s), in float, summed in double:
+// the cull test (on the list's blocks first if it has them), the reaching ones gathered
+// in two groups (segment_reaches_split), and each group's integrals.
 double star_sum(const StarCands& c, std::size_t n, std::uint32_t skip, float dx, float dy, float dz, float D,
-                bool dense, StarScratch& w) {
+                StarScratch& w) {
     // The prefix that can reach: key < D (keys are rounded down, see build_star), run to a
     // whole number of vectors (the entries past the prefix or the padding do not reach).
     const std::size_t P = std::size_t(std::upper_bound(c.key.begin(), c.key.begin() + n, D) - c.key.begin());
     if (P == 0) return 0.0;
     const std::size_t P16 = lanes_up(P);
     w.reserve(P16);
-    if (dense) {
-        segment_integrals_culled(int(P16), c.rx.data(), c.ry.data(), c.rz.data(), c.R2.data(), c.id.data(), skip,
-                                 c.a.data(), c.k0.data(), dx, dy, dz, D, w.out.data());
-        return sum_double(w.out.data(), P16);
-    }
-    // Cull test (on the blocks first if the list has them) and compaction of the reaching.
-    std::size_t m = 0;
+    std::size_t m1 = 0, m2 = 0;  // edge and whole-line groups
     auto run = [&](std::size_t k0_, std::size_t k1_) {
         const std::size_t len = k1_ - k0_;
-        segment_reaches(int(len), c.rx.data() + k0_, c.ry.data() + k0_, c.rz.data() + k0_, c.R2.data() + k0_,
-                        c.id.data() + k0_, skip, dx, dy, dz, D, w.keep.data());
+        segment_reaches_split(int(len), c.rx.data() + k0_, c.ry.data() + k0_, c.rz.data() + k0_, c.R2.data() + k0_,
+                              c.a.data() + k0_, c.id.data() + k0_, skip, dx, dy, dz, D, w.keep.data());
         const void* in[5] = {c.rx.data() + k0_, c.ry.data() + k0_, c.rz.data() + k0_, c.a.data() + k0_,
                              c.k0.data() + k0_};
-        void* out[5] = {w.rx.data() + m, w.ry.data() + m, w.rz.data() + m, w.a.data() + m, w.k0.data() + m};
-        m += compact(w.keep.data(), len, 5, in, out, w.idx.data());
+        void* edge[5] = {w.rx.data() + m1, w.ry.data() + m1, w.rz.data() + m1, w.a.data() + m1, w.k0.data() + m1};
+        m1 += compact(w.keep.data(), 1.0f, len, 5, in, edge, w.idx.data());
+        void* whole[5] = {w.wx.data() + m2, w.wy.data() + m2, w.wz.data() + m2, w.wa.data() + m2, w.wk0.data() + m2};
+        m2 += compact(w.keep.data(), 2.0f, len, 5, in, whole, w.idx.data());
     };
     if (c.block_test) {
         const std::size_t nb = P16 / kStarLanes, nb16 = lanes_up(nb);
@@ -544,14 +552,21 @@ double star_sum(const StarCands& c, std::size_t n, std::uint32_t skip, float dx,
     } else {
         run(0, P16);
     }
-    const std::size_t m16 = lanes_up(m);
-    for (std::size_t q = m; q < m16; ++q) {
+    const std::size_t e16 = lanes_up(m1), w16 = lanes_up(m2);
+    for (std::size_t q = m1; q < e16; ++q) {
         w.rx[q] = w.ry[q] = w.rz[q] = w.k0[q] = 0.0f;
         w.a[q] = 1.0f;
     }
-    segment_integrals(int(m16), w.rx.data(), w.ry.data(), w.rz.data(), w.a.data(), w.k0.data(), dx, dy, dz, D,
+    for (std::size_t q = m2; q < w16; ++q) {
+        w.wx[q] = w.wy[q] = w.wz[q] = w.wk0[q] = 0.0f;
+        w.wa[q] = 1.0f;
+    }
+    segment_integrals(int(e16), w.rx.data(), w.ry.data(), w.rz.data(), w.a.data(), w.k0.data(), dx, dy, dz, D,
                       w.out.data());
-    return sum_double(w.out.data(), m16);
+    double T = sum_double(w.out.data(), e16);
+    line_integrals_whole(int(w16), w.wx.data(), w.wy.data(), w.wz.data(), w.wa.data(), w.wk0.data(), dx, dy, dz,
+                         w.out.data());
+    return T + sum_double(w.out.data(), w16);
 }
 
 constexpr double kQuarterPi = 0.78539816339744830962;
@@ -864,7 +879,7 @@ std::vector<double> star_depths(const RbfMedium& m, const std::vector<Vec3>& src
                     for (const Cand& c : cands) {
                         targets_reached(int(n), tdx.data() + b, tdy.data() + b, tdz.data() + b, tD.data() + b,
                                         tid.data() + b, c.j, c.rx, c.ry, c.rz, c.R2, keep.data());
-                        const std::size_t h = compact(keep.data(), n, 5, in, hit, idx.data());
+                        const std::size_t h = compact(keep.data(), 1.0f, n, 5, in, hit, idx.data());
                         if (h == 0) continue;
                         const std::size_t h16 = lanes_up(h);
                         for (std::size_t q = h; q < h16; ++q) {
@@ -927,8 +942,8 @@ std::vector<double> star_depths(const RbfMedium& m, const std::vector<Vec3>& src
                     if (!(D > 0.0)) continue;
                     const Vec3 dir = d / D;
                     const float dx = float(dir.x), dy = float(dir.y), dz = float(dir.z), Df = float(D);
-                    double T = star_sum(g.everywhere, g.everywhere.n, std::uint32_t(i), dx, dy, dz, Df, false, w);
-                    if (cell) T += star_sum(*cell, cell->n, std::uint32_t(i), dx, dy, dz, Df, true, w);
+                    double T = star_sum(g.everywhere, g.everywhere.n, std::uint32_t(i), dx, dy, dz, Df, w);
+                    if (cell) T += star_sum(*cell, cell->n, std::uint32_t(i), dx, dy, dz, Df, w);
                     out[r * nt + k] = T;
                 }
             }
