@@ -403,7 +403,9 @@ AIRLIGHT_SPLAT_CLONES void target_integrals(int n, const float* __restrict dx, c
 // float kernels then run the cull test of for_each_near (segment_reaches) and the line
 // integrals (segment_integrals) on the candidates, vectorised. Spheres holding s (or
 // covering more than a face's worth of cells) are in a list every target looks at. Few
-// targets (a brush stroke's new Gaussians): one list of all candidates, no binning.
+// targets (a brush stroke's new Gaussians): one list of all candidates in the medium's
+// leaf order, no binning, with a cull test per block of 16 first. Few candidates (the old
+// Gaussians' update by a stroke's new ones): per candidate over all targets (star_depths).
 constexpr std::size_t kStarLanes = 16;  // lists are padded to whole AVX-512 vectors
 inline std::size_t lanes_up(std::size_t n) { return (n + kStarLanes - 1) / kStarLanes * kStarLanes; }
 
@@ -952,6 +954,133 @@ std::vector<double> star_depths(const RbfMedium& m, const std::vector<Vec3>& src
     return out;
 }
 
+// Sun lamps: T_sun[i] = sum over j != i of the culled line integral of Gaussian j on the
+// half-line b_i + t u, t >= 0 (u towards the sun), in float. Parallel half-lines instead
+// of a star: the Gaussians are binned on a grid over the plane normal to u (Gaussian j
+// covers the square of half-side R_j around its projection), each cell's list in
+// descending z_j + R_j (z = b . u: the half-line from b_i reaches sphere j only if
+// z_j + R_j > z_i); per target its cell's prefix is gathered relative to b_i (double
+// differences, then float) and summed by star_sum with D = inf. No beta0.
+std::vector<double> sun_depths(const RbfMedium& m, const Vec3& u, int threads) {
+    const std::size_t n = m.size();
+    std::vector<double> out(n, 0.0);
+    if (n == 0) return out;
+    // Frame (e1, e2, u).
+    const Vec3 e1 = glm::normalize(std::abs(u.x) < 0.9 ? glm::cross(u, Vec3(1.0, 0.0, 0.0))
+                                                         : glm::cross(u, Vec3(0.0, 1.0, 0.0)));
+    const Vec3 e2 = glm::cross(u, e1);
+    std::vector<double> P(n), Q(n), R(n);
+    std::vector<std::pair<float, std::uint32_t>> keyed;
+    double p0 = std::numeric_limits<double>::infinity(), p1 = -p0, q0 = p0, q1 = -p0;
+    std::vector<double> radii;
+    for (std::size_t j = 0; j < n; ++j) {
+        const Vec3 b = m.centre(j);
+        P[j] = glm::dot(b, e1);
+        Q[j] = glm::dot(b, e2);
+        R[j] = m.cull_radius(j) * 1.0002;
+        p0 = std::min(p0, P[j]);
+        p1 = std::max(p1, P[j]);
+        q0 = std::min(q0, Q[j]);
+        q1 = std::max(q1, Q[j]);
+        if (m.cull_radius(j) > 0.0) {
+            // Descending z + R as an ascending key, rounded down: key <= -z_i never misses.
+            keyed.push_back({std::nextafter(float(-(glm::dot(b, u) + R[j])), -INFINITY), std::uint32_t(j)});
+            radii.push_back(R[j]);
+        }
+    }
+    std::sort(keyed.begin(), keyed.end());
+    // Cells about half the median cull radius wide, at most 1024 per side.
+    double h = 1.0;
+    if (!radii.empty()) {
+        std::nth_element(radii.begin(), radii.begin() + radii.size() / 2, radii.end());
+        h = std::max(0.5 * radii[radii.size() / 2], 1e-6);
+    }
+    const int KP = int(std::clamp(std::ceil((p1 - p0) / h), 1.0, 1024.0));
+    const int KQ = int(std::clamp(std::ceil((q1 - q0) / h), 1.0, 1024.0));
+    const double hp = std::max((p1 - p0) / KP, 1e-300), hq = std::max((q1 - q0) / KQ, 1e-300);
+    auto cp = [&](double p) { return std::min(KP - 1, std::max(0, int(std::floor((p - p0) / hp)))); };
+    auto cq = [&](double q) { return std::min(KQ - 1, std::max(0, int(std::floor((q - q0) / hq)))); };
+    const std::size_t cells = std::size_t(KP) * KQ;
+    std::vector<std::uint32_t> start(cells + 1, 0), entries;
+    for (int pass = 0; pass < 2; ++pass) {
+        for (std::size_t k = 0; k < keyed.size(); ++k) {
+            const std::uint32_t j = keyed[k].second;
+            for (int y = cq(Q[j] - R[j]); y <= cq(Q[j] + R[j]); ++y)
+                for (int x = cp(P[j] - R[j]); x <= cp(P[j] + R[j]); ++x) {
+                    const std::size_t cell = std::size_t(y) * KP + x;
+                    if (pass == 0)
+                        ++start[cell + 1];
+                    else
+                        entries[start[cell]++] = std::uint32_t(k);
+                }
+        }
+        if (pass == 0) {
+            for (std::size_t c = 0; c < cells; ++c) start[c + 1] += start[c];
+            entries.resize(start[cells]);
+        } else {
+            for (std::size_t c = cells; c > 0; --c) start[c] = start[c - 1];
+            start[0] = 0;
+        }
+    }
+    // Targets by cell, in units of <= 32.
+    std::vector<std::uint32_t> tcell(n), tstart(cells + 1, 0), order(n);
+    for (std::size_t i = 0; i < n; ++i) {
+        tcell[i] = std::uint32_t(std::size_t(cq(Q[i])) * KP + cp(P[i]));
+        ++tstart[tcell[i] + 1];
+    }
+    for (std::size_t c = 0; c < cells; ++c) tstart[c + 1] += tstart[c];
+    {
+        std::vector<std::uint32_t> fill(tstart.begin(), tstart.end() - 1);
+        for (std::size_t i = 0; i < n; ++i) order[fill[tcell[i]]++] = std::uint32_t(i);
+    }
+    struct Unit {
+        std::uint32_t cell, b, e;
+    };
+    std::vector<Unit> units;
+    for (std::size_t c = 0; c < cells; ++c)
+        for (std::uint32_t b = tstart[c]; b < tstart[c + 1]; b += 32)
+            units.push_back({std::uint32_t(c), b, std::min<std::uint32_t>(b + 32, tstart[c + 1])});
+    std::vector<float> fa(n), fk0(n), fR2(n);
+    for (std::size_t j = 0; j < n; ++j) {
+        fa[j] = float(m.scale(j));
+        fk0[j] = float(m.amplitude(j) * kSqrtPi / (2.0 * m.scale(j)));
+        fR2[j] = float(R[j] * R[j]);
+    }
+    const float ux = float(u.x), uy = float(u.y), uz = float(u.z), inf = std::numeric_limits<float>::infinity();
+    parallel_chunks(units.size(), threads, 8, [&](std::size_t ub, std::size_t ue) {
+        thread_local StarScratch w;
+        thread_local StarCands local;
+        for (std::size_t un = ub; un < ue; ++un) {
+            const Unit& unit = units[un];
+            const std::uint32_t e0 = start[unit.cell], e1_ = start[unit.cell + 1];
+            for (std::uint32_t x = unit.b; x < unit.e; ++x) {
+                const std::uint32_t i = order[x];
+                const Vec3 bi = m.centre(i);
+                // The prefix z_j + R_j > z_i (ascending key = -(z_j + R_j) below -z_i).
+                const float zkey = float(-glm::dot(bi, u));
+                std::uint32_t e = e0;
+                while (e < e1_ && keyed[entries[e]].first <= zkey) ++e;
+                local.resize(e - e0);
+                for (std::uint32_t q = e0; q < e; ++q) {
+                    const std::uint32_t j = keyed[entries[q]].second;
+                    const std::size_t k = q - e0;
+                    const Vec3 rel = m.centre(j) - bi;
+                    local.rx[k] = float(rel.x);
+                    local.ry[k] = float(rel.y);
+                    local.rz[k] = float(rel.z);
+                    local.a[k] = fa[j];
+                    local.k0[k] = fk0[j];
+                    local.R2[k] = fR2[j];
+                    local.key[k] = -inf;
+                    local.id[k] = j;
+                }
+                out[i] = star_sum(local, local.n, i, ux, uy, uz, inf, w);
+            }
+        }
+    });
+    return out;
+}
+
 // T(from_row, b_i) without Gaussian i (beta0 included) for row 0 = the eye and rows 1..L
 // = the lights, all Gaussians: out[row n + i].
 std::vector<double> depths_to_centres(const RbfMedium& m, const Vec3& eye, const std::vector<Vec3>& lights,
@@ -972,6 +1101,12 @@ std::vector<double> rbf_depths_to_centres(const RbfMedium& medium, const std::ve
                                           std::size_t cand_last, int threads, int method) {
     if (method < 0 || method > 3) throw std::invalid_argument("rbf_depths_to_centres: method must be 0..3");
     return star_depths(medium, sources, first, last, cand_first, cand_last, threads, method);
+}
+
+std::vector<double> rbf_sun_depths(const RbfMedium& medium, const Vec3& u, int threads) {
+    if (!std::isfinite(u.x) || !std::isfinite(u.y) || !std::isfinite(u.z) || std::abs(glm::length(u) - 1.0) > 1e-6)
+        throw std::invalid_argument("rbf_sun_depths: the sun direction must be a finite unit vector");
+    return sun_depths(medium, u, threads);
 }
 
 void validate_noise(const RbfNoise& noise) {
@@ -1089,8 +1224,8 @@ RbfSplat::RbfSplat(const RbfMedium& medium, const Vec3& eye, const std::vector<V
             lf_[l].smooth = float(c.smooth);
         }
     }
-    // Suns: f1 = exp(-T_sun(b_i) - T(v, b_i)) without Gaussian i (exact half-line depths,
-    // culled) and C = the Gaussians' transmittance from the eye towards the sun.
+    // Suns: f1 = exp(-T_sun(b_i) - T(v, b_i)) without Gaussian i (culled half-line depths in
+    // float, sun_depths) and C = the Gaussians' transmittance from the eye towards the sun.
     gs_.resize(n * S);
     for (std::size_t j = 0; j < S; ++j) {
         const Vec3 u = -extra->sun_w[j];  // towards the sun
@@ -1098,12 +1233,11 @@ RbfSplat::RbfSplat(const RbfMedium& medium, const Vec3& eye, const std::vector<V
         Csun_.push_back(std::exp(-medium.optical_depth_ray(eye, u, std::numeric_limits<double>::infinity(),
                                                            RbfMedium::npos, false)));
         const RGB E = extra->sun_E[j];
+        const std::vector<double> Tg = sun_depths(medium, u, threads);
         parallel_chunks(n, threads, 64, [&](std::size_t b, std::size_t e) {
             for (std::size_t i = b; i < e; ++i) {
                 const Vec3 c = medium.centre(i);
-                const double Tsun =
-                    medium.optical_depth_ray(c, u, std::numeric_limits<double>::infinity(), i, false) +
-                    sun_layer_depth(medium.beta0(), extra->fog_top, mu_s, c.z);
+                const double Tsun = Tg[i] + sun_layer_depth(medium.beta0(), extra->fog_top, mu_s, c.z);
                 const double f1 = std::isinf(Tsun) ? 0.0 : std::exp(-depth[i] - Tsun) * kInv4Pi;
                 GaussLightF& q = gs_[i * S + j];
                 q.sx = q.sy = q.sz = 0.0f;

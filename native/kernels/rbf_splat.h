@@ -268,5 +268,10 @@ RbfPreviewFactors rbf_preview_factors(const RbfMedium& medium, const Vec3& eye, 
 std::vector<double> rbf_depths_to_centres(const RbfMedium& medium, const std::vector<Vec3>& sources,
                                           std::size_t first, std::size_t last, std::size_t cand_first,
                                           std::size_t cand_last, int threads = 0, int method = 0);
+// The same towards a sun lamp (RbfSplatLights): out[i] = sum over j != i of T_j on the
+// half-line b_i + t u, t >= 0 (u unit, towards the sun), culled, in float, no beta0 (binned
+// on a grid over the plane normal to u). Throws std::invalid_argument unless u is a finite
+// unit vector.
+std::vector<double> rbf_sun_depths(const RbfMedium& medium, const Vec3& u, int threads = 0);
 
 }  // namespace airlight

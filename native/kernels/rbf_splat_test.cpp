@@ -460,6 +460,33 @@ TEST(RbfFactors, EveryMethodMatchesExactSums) {
     EXPECT_EQ(T[0], 0.0);
 }
 
+// Sun lamps' half-line depths (rbf_sun_depths) against the exact double ones: the culled
+// per-ray walk of the hierarchy (optical_depth_ray, the previous path) and every Gaussian.
+TEST(RbfFactors, SunDepthsMatchExact) {
+    const RbfMedium m = star_cloud(1500, 23);
+    const double inf = std::numeric_limits<double>::infinity();
+    for (const Vec3& u : {glm::normalize(Vec3(0.3, 0.8, -0.5)), Vec3(0.0, 1.0, 0.0), Vec3(0.0, 0.0, -1.0)}) {
+        const std::vector<double> T = rbf_sun_depths(m, u, 2);
+        ASSERT_EQ(T.size(), m.size());
+        double worst = 0.0, worst_all = 0.0, biggest = 0.0;
+        for (std::size_t i = 0; i < m.size(); ++i) {
+            const double ref = m.optical_depth_ray(m.centre(i), u, inf, i, false);
+            double all = 0.0;
+            for (std::size_t j = 0; j < m.size(); ++j)
+                if (j != i) all += m.gaussian_optical_depth(j, m.centre(i), u, 0.0, inf);
+            worst = std::max(worst, std::abs(T[i] - ref) / (2e-5 * ref + 20.0 * m.cull_eps()));
+            worst_all = std::max(worst_all, std::abs(T[i] - all) / (2e-5 * all + m.cull_eps() * double(m.size())));
+            biggest = std::max(biggest, ref);
+        }
+        std::printf("sun (%.2f, %.2f, %.2f): worst error / bound %.3f (culled reference), %.3f (all); T up to %.2f\n",
+                    u.x, u.y, u.z, worst, worst_all, biggest);
+        EXPECT_GT(biggest, 1.0);
+        EXPECT_LE(worst, 1.0);
+        EXPECT_LE(worst_all, 1.0);
+    }
+    EXPECT_THROW(rbf_sun_depths(m, Vec3(0.0, 2.0, 0.0)), std::invalid_argument);
+}
+
 TEST(RbfFactors, BadInput) {
     const RbfMedium m = star_cloud(20, 3);
     const double nan = std::numeric_limits<double>::quiet_NaN();
