@@ -11,10 +11,15 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <limits>
 #include <sstream>
 #include <stdexcept>
 #include <type_traits>
+
+#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__)
+#include <immintrin.h>
+#endif
 
 #include "fast_erf.h"
 #include "noise.h"
@@ -309,86 +314,800 @@ AIRLIGHT_SPLAT_CLONES void segment_integrals(int n, const float* __restrict rx, 
 }
 
 // keep[k] = 1 if the segment from + t d, t in [0, D], passes within sqrt(R2[k]) of the
-// Gaussian at rel[k] (relative to from; the test of RbfMedium::for_each_near, inflated by
-// 1e-4 for float rounding), else 0.
+// Gaussian at rel[k] (relative to from; the test of RbfMedium::for_each_near, R2 inflated
+// by the caller for float rounding) and id[k] != skip, else 0.
 AIRLIGHT_SPLAT_CLONES void segment_reaches(int n, const float* __restrict rx, const float* __restrict ry,
-                                           const float* __restrict rz, const float* __restrict R2, float dx,
+                                           const float* __restrict rz, const float* __restrict R2,
+                                           const std::uint32_t* __restrict id, std::uint32_t skip, float dx,
                                            float dy, float dz, float D, float* __restrict keep) {
     for (int k = 0; k < n; ++k) {
         const float ts = rx[k] * dx + ry[k] * dy + rz[k] * dz;
         const float tc = ts < 0.0f ? 0.0f : (ts > D ? D : ts);
         const float qx = rx[k] - tc * dx, qy = ry[k] - tc * dy, qz = rz[k] - tc * dz;
-        keep[k] = qx * qx + qy * qy + qz * qz < R2[k] * 1.0002f ? 1.0f : 0.0f;
+        keep[k] = (qx * qx + qy * qy + qz * qz < R2[k]) & (id[k] != skip) ? 1.0f : 0.0f;
     }
 }
 
-// Culled optical depth of the medium on the segment from -> to, Gaussian _skip_ left out,
-// beta0 included, in float (fast_erf.h); _scratch_ is reused between calls, _a_ and _k0_
-// are the per-Gaussian scale and c sqrt(pi) / (2 a) in float.
-struct SegmentScratch {
-    std::vector<float> rx, ry, rz, a, k0, out;
+// segment_reaches that also sorts the reaching Gaussians: keep[k] = 2 where the segment
+// covers the Gaussian with 4.5 / a to spare at both ends (a ts >= 4.5 and a (D - ts) >=
+// 4.5: both erfc terms of eq. 31 are below 2e-10, so T = 2 e to float precision, one exp
+// instead of three), 1 for the other reaching ones, 0 for the rest.
+constexpr float kInteriorX = 4.5f;
+AIRLIGHT_SPLAT_CLONES void segment_reaches_split(int n, const float* __restrict rx, const float* __restrict ry,
+                                                 const float* __restrict rz, const float* __restrict R2,
+                                                 const float* __restrict a, const std::uint32_t* __restrict id,
+                                                 std::uint32_t skip, float dx, float dy, float dz, float D,
+                                                 float* __restrict keep) {
+    for (int k = 0; k < n; ++k) {
+        const float ts = rx[k] * dx + ry[k] * dy + rz[k] * dz;
+        const float tc = ts < 0.0f ? 0.0f : (ts > D ? D : ts);
+        const float qx = rx[k] - tc * dx, qy = ry[k] - tc * dy, qz = rz[k] - tc * dz;
+        const bool reach = (qx * qx + qy * qy + qz * qz < R2[k]) & (id[k] != skip);
+        const bool inside = (a[k] * ts >= kInteriorX) & (a[k] * (D - ts) >= kInteriorX);
+        keep[k] = reach ? (inside ? 2.0f : 1.0f) : 0.0f;
+    }
+}
+
+// The whole-line integral 2 e = c sqrt(pi) / a exp(-a^2 h^2) of the gathered Gaussians
+// (those segment_reaches_split marks 2).
+AIRLIGHT_SPLAT_CLONES void line_integrals_whole(int n, const float* __restrict rx, const float* __restrict ry,
+                                                const float* __restrict rz, const float* __restrict a,
+                                                const float* __restrict k0, float dx, float dy, float dz,
+                                                float* __restrict out) {
+    for (int k = 0; k < n; ++k) {
+        const float cx = ry[k] * dz - rz[k] * dy, cy = rz[k] * dx - rx[k] * dz, cz = rx[k] * dy - ry[k] * dx;
+        out[k] = 2.0f * k0[k] * fast_expf(-a[k] * a[k] * (cx * cx + cy * cy + cz * cz));
+    }
+}
+
+// Per candidate Gaussian (rel = b - s, R2, a, k0; index _skip_) over n targets' segments
+// s + t d_k, t in [0, D_k]: keep[k] = the cull test of segment_reaches (and tid[k] !=
+// skip); out[k] = the line integral (segment_integrals with the roles swapped).
+AIRLIGHT_SPLAT_CLONES void targets_reached(int n, const float* __restrict dx, const float* __restrict dy,
+                                           const float* __restrict dz, const float* __restrict D,
+                                           const std::uint32_t* __restrict tid, std::uint32_t skip, float rx,
+                                           float ry, float rz, float R2, float* __restrict keep) {
+    for (int k = 0; k < n; ++k) {
+        const float ts = rx * dx[k] + ry * dy[k] + rz * dz[k];
+        const float tc = ts < 0.0f ? 0.0f : (ts > D[k] ? D[k] : ts);
+        const float qx = rx - tc * dx[k], qy = ry - tc * dy[k], qz = rz - tc * dz[k];
+        keep[k] = (qx * qx + qy * qy + qz * qz < R2) & (tid[k] != skip) ? 1.0f : 0.0f;
+    }
+}
+AIRLIGHT_SPLAT_CLONES void target_integrals(int n, const float* __restrict dx, const float* __restrict dy,
+                                            const float* __restrict dz, const float* __restrict D, float rx, float ry,
+                                            float rz, float a, float k0, float* __restrict out) {
+    for (int k = 0; k < n; ++k) {
+        const float ts = rx * dx[k] + ry * dy[k] + rz * dz[k];
+        const float cx = ry * dz[k] - rz * dy[k], cy = rz * dx[k] - rx * dz[k], cz = rx * dy[k] - ry * dx[k];
+        const float e = k0 * fast_expf(-a * a * (cx * cx + cy * cy + cz * cz));
+        const float x1 = -a * ts, x2 = a * (D[k] - ts);
+        const float E1 = fast_erfc_pos(x1 < 0.0f ? -x1 : x1);
+        const float E2 = fast_erfc_pos(x2 < 0.0f ? -x2 : x2);
+        out[k] = e * (x1 >= 0.0f ? E1 - E2 : (x2 <= 0.0f ? E2 - E1 : 2.0f - E1 - E2));
+    }
+}
+
+// ---- Optical depths from one point to many Gaussian centres (the per-(light, Gaussian)
+// factors f1 and T(v, b_i)). The segments from a source s (the eye or a light) to the
+// centres b_i form a star, so instead of walking the medium's hierarchy once per segment
+// the Gaussians are binned once per source by direction, like the screen splat bins them
+// into tiles: a cube map around s (6 faces of K x K cells, gnomonic: a direction u on face
+// (axis m, sign) has face coordinates u_p / |u_m|, u_q / |u_m| in [-1, 1]) lists in each
+// cell every Gaussian whose cull sphere's cone of directions from s touches it (exact
+// bounds of the cone's projections on the planes (m, p) and (m, q), padded). A segment
+// s -> b_i that reaches the sphere of Gaussian j has its direction inside that cone, so
+// the cell of b_i's direction lists j: the candidates are a superset of the culled set.
+// Each cell's list is in ascending key_j = |b_j - s| - R_j (the distance from s to the
+// sphere), so a segment of length D only looks at the prefix key_j < D. Per target the
+// float kernels then run the cull test of for_each_near (segment_reaches) and the line
+// integrals (segment_integrals) on the candidates, vectorised. Spheres holding s (or
+// covering more than a face's worth of cells) are in a list every target looks at. Few
+// targets (a brush stroke's new Gaussians): one list of all candidates in the medium's
+// leaf order, no binning, with a cull test per block of 16 first. Few candidates (the old
+// Gaussians' update by a stroke's new ones): per candidate over all targets (star_depths).
+constexpr std::size_t kStarLanes = 16;  // lists are padded to whole AVX-512 vectors
+inline std::size_t lanes_up(std::size_t n) { return (n + kStarLanes - 1) / kStarLanes * kStarLanes; }
+
+// Candidates in float structure-of-arrays form, storage padded to a multiple of
+// kStarLanes with entries that never reach (R2 < 0) and integrate to 0 (k0 = 0), so the
+// kernels run whole vectors (their scalar remainder loops cost more than the vectors on
+// the short lists here).
+struct StarCands {
+    std::vector<float> rx, ry, rz, a, k0, R2, key;  // b_j - s, a_j, c_j sqrt(pi) / (2 a_j), R_j^2, key_j
+    std::vector<std::uint32_t> id;                  // Gaussian index j
     std::size_t n = 0;
+    // Optional (block_test): per run of kStarLanes entries a sphere holding all of their
+    // cull spheres (centre relative to s, radius^2), for lists in a spatially coherent order.
+    std::vector<float> bx, by, bz, bR2;
+    std::vector<std::uint32_t> bid;  // all "none" (segment_reaches' skip never matches)
+    bool block_test = false;
+    void resize(std::size_t m) {
+        block_test = false;
+        const std::size_t size = lanes_up(m);
+        for (auto* v : {&rx, &ry, &rz, &a, &k0, &R2, &key}) v->resize(size);
+        id.resize(size);
+        n = m;
+        for (std::size_t k = m; k < size; ++k) {
+            rx[k] = ry[k] = rz[k] = k0[k] = 0.0f;
+            a[k] = 1.0f;
+            R2[k] = -1.0f;
+            key[k] = std::numeric_limits<float>::infinity();
+            id[k] = std::numeric_limits<std::uint32_t>::max();
+        }
+    }
+    void set(std::size_t k, const StarCands& from, std::size_t j) {
+        rx[k] = from.rx[j];
+        ry[k] = from.ry[j];
+        rz[k] = from.rz[j];
+        a[k] = from.a[j];
+        k0[k] = from.k0[j];
+        R2[k] = from.R2[j];
+        key[k] = from.key[j];
+        id[k] = from.id[j];
+    }
 };
-double fast_depth_excluding(const RbfMedium& m, const float* a, const float* k0, const Vec3& from, const Vec3& to,
-                            std::size_t skip, SegmentScratch& g) {
-    const Vec3 d = to - from;
-    const double D = glm::length(d);
-    if (!(D > 0.0)) return 0.0;
-    const Vec3 r = d / D;
-    if (g.rx.size() < m.size()) {
-        for (auto* v : {&g.rx, &g.ry, &g.rz, &g.a, &g.k0, &g.out}) v->resize(m.size());
+
+struct StarScratch {
+    std::vector<float> keep, rx, ry, rz, a, k0, wx, wy, wz, wa, wk0, out, bkeep;
+    std::vector<std::uint32_t> idx;
+    void reserve(std::size_t m) {
+        m += kStarLanes;  // compact() stores whole vectors past the last hit
+        if (keep.size() >= m) return;
+        for (auto* v : {&keep, &rx, &ry, &rz, &a, &k0, &wx, &wy, &wz, &wa, &wk0, &out}) v->resize(m);
+        idx.resize(m);
     }
-    std::size_t n = 0;
-    float* rx = g.rx.data();
-    float* ry = g.ry.data();
-    float* rz = g.rz.data();
-    float* ga = g.a.data();
-    float* gk = g.k0.data();
-    m.for_each_near(from, r, D, [&](std::size_t j) {
-        if (j == skip) return;
-        const Vec3 rel = m.centre(j) - from;
-        rx[n] = float(rel.x);
-        ry[n] = float(rel.y);
-        rz[n] = float(rel.z);
-        ga[n] = a[j];
-        gk[n] = k0[j];
-        ++n;
-    });
-    segment_integrals(int(n), rx, ry, rz, ga, gk, float(r.x), float(r.y), float(r.z), float(D), g.out.data());
-    double T = 0.0;
-    for (std::size_t k = 0; k < n; ++k) T += double(g.out[k]);
-    return T + background_depth(m.beta0(), D);
+};
+
+// sum_k x[k] in double over n (a multiple of 8): eight accumulators, so GCC vectorises it
+// without reassociating (the same order in every clone).
+AIRLIGHT_SPLAT_CLONES double sum_double(const float* __restrict x, std::size_t n) {
+    double acc[8] = {0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0};
+    for (std::size_t k = 0; k < n; k += 8)
+        for (int l = 0; l < 8; ++l) acc[l] += double(x[k + l]);
+    return ((acc[0] + acc[1]) + (acc[2] + acc[3])) + ((acc[4] + acc[5]) + (acc[6] + acc[7]));
 }
 
-void scale_arrays(const RbfMedium& m, std::vector<float>& a, std::vector<float>& k0) {
-    a.resize(m.size());
-    k0.resize(m.size());
-    for (std::size_t j = 0; j < m.size(); ++j) {
+// Copies the entries k < n (a multiple of 16) with keep[k] == want of the nv arrays of 32-bit
+// words in[] to out[] (each with room for n + 16), in order; returns their number
+// (idx: scratch of n). AVX-512: compress in registers and store whole vectors (a
+// compressing store to memory is slow on some cores).
+std::size_t compact_scalar(const float* keep, float want, std::size_t n, int nv, const void* const* in,
+                           void* const* out, std::uint32_t* idx) {
+    std::size_t m = 0;
+    for (std::size_t k = 0; k < n; ++k) {
+        idx[m] = std::uint32_t(k);
+        m += keep[k] == want ? 1 : 0;
+    }
+    for (int v = 0; v < nv; ++v) {
+        const unsigned char* src = static_cast<const unsigned char*>(in[v]);
+        unsigned char* dst = static_cast<unsigned char*>(out[v]);
+        for (std::size_t q = 0; q < m; ++q) std::memcpy(dst + 4 * q, src + 4 * std::size_t(idx[q]), 4);
+    }
+    return m;
+}
+#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__)
+__attribute__((target("avx512f"))) std::size_t compact_avx512(const float* keep, float want, std::size_t n, int nv,
+                                                                const void* const* in, void* const* out) {
+    std::size_t m = 0;
+    const __m512 w = _mm512_set1_ps(want);
+    for (std::size_t k = 0; k < n; k += 16) {
+        const __mmask16 mk = _mm512_cmp_ps_mask(_mm512_loadu_ps(keep + k), w, _CMP_EQ_OQ);
+        if (mk == 0) continue;
+        for (int v = 0; v < nv; ++v) {
+            const __m512i x = _mm512_loadu_si512(static_cast<const std::uint32_t*>(in[v]) + k);
+            _mm512_storeu_si512(static_cast<std::uint32_t*>(out[v]) + m, _mm512_maskz_compress_epi32(mk, x));
+        }
+        m += std::size_t(__builtin_popcount(mk));
+    }
+    return m;
+}
+#endif
+std::size_t compact(const float* keep, float want, std::size_t n, int nv, const void* const* in, void* const* out,
+                    std::uint32_t* idx) {
+#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__)
+    static const bool avx512 = __builtin_cpu_supports("avx512f");
+    if (avx512) return compact_avx512(keep, want, n, nv, in, out);
+#endif
+    return compact_scalar(keep, want, n, nv, in, out, idx);
+}
+
+// Sum of the culled line integrals of the candidates c[0 .. n) except Gaussian _skip_ on
+// s + t d, t in [0, D] (d unit, relative coordinates from s), in float, summed in double:
+// the cull test (on the list's blocks first if it has them), the reaching ones gathered
+// in two groups (segment_reaches_split), and each group's integrals.
+double star_sum(const StarCands& c, std::size_t n, std::uint32_t skip, float dx, float dy, float dz, float D,
+                StarScratch& w) {
+    // The prefix that can reach: key < D (keys are rounded down, see build_star), run to a
+    // whole number of vectors (the entries past the prefix or the padding do not reach).
+    const std::size_t P = std::size_t(std::upper_bound(c.key.begin(), c.key.begin() + n, D) - c.key.begin());
+    if (P == 0) return 0.0;
+    const std::size_t P16 = lanes_up(P);
+    w.reserve(P16);
+    std::size_t m1 = 0, m2 = 0;  // edge and whole-line groups
+    auto run = [&](std::size_t k0_, std::size_t k1_) {
+        const std::size_t len = k1_ - k0_;
+        segment_reaches_split(int(len), c.rx.data() + k0_, c.ry.data() + k0_, c.rz.data() + k0_, c.R2.data() + k0_,
+                              c.a.data() + k0_, c.id.data() + k0_, skip, dx, dy, dz, D, w.keep.data());
+        const void* in[5] = {c.rx.data() + k0_, c.ry.data() + k0_, c.rz.data() + k0_, c.a.data() + k0_,
+                             c.k0.data() + k0_};
+        void* edge[5] = {w.rx.data() + m1, w.ry.data() + m1, w.rz.data() + m1, w.a.data() + m1, w.k0.data() + m1};
+        m1 += compact(w.keep.data(), 1.0f, len, 5, in, edge, w.idx.data());
+        void* whole[5] = {w.wx.data() + m2, w.wy.data() + m2, w.wz.data() + m2, w.wa.data() + m2, w.wk0.data() + m2};
+        m2 += compact(w.keep.data(), 2.0f, len, 5, in, whole, w.idx.data());
+    };
+    if (c.block_test) {
+        const std::size_t nb = P16 / kStarLanes, nb16 = lanes_up(nb);
+        w.bkeep.resize(nb16);
+        segment_reaches(int(nb16), c.bx.data(), c.by.data(), c.bz.data(), c.bR2.data(), c.bid.data(), skip, dx, dy,
+                        dz, D, w.bkeep.data());
+        for (std::size_t b = 0; b < nb;) {
+            if (w.bkeep[b] == 0.0f) {
+                ++b;
+                continue;
+            }
+            std::size_t e = b + 1;
+            while (e < nb && w.bkeep[e] != 0.0f) ++e;
+            run(b * kStarLanes, e * kStarLanes);
+            b = e;
+        }
+    } else {
+        run(0, P16);
+    }
+    const std::size_t e16 = lanes_up(m1), w16 = lanes_up(m2);
+    for (std::size_t q = m1; q < e16; ++q) {
+        w.rx[q] = w.ry[q] = w.rz[q] = w.k0[q] = 0.0f;
+        w.a[q] = 1.0f;
+    }
+    for (std::size_t q = m2; q < w16; ++q) {
+        w.wx[q] = w.wy[q] = w.wz[q] = w.wk0[q] = 0.0f;
+        w.wa[q] = 1.0f;
+    }
+    segment_integrals(int(e16), w.rx.data(), w.ry.data(), w.rz.data(), w.a.data(), w.k0.data(), dx, dy, dz, D,
+                      w.out.data());
+    double T = sum_double(w.out.data(), e16);
+    line_integrals_whole(int(w16), w.wx.data(), w.wy.data(), w.wz.data(), w.wa.data(), w.wk0.data(), dx, dy, dz,
+                         w.out.data());
+    return T + sum_double(w.out.data(), w16);
+}
+
+constexpr double kQuarterPi = 0.78539816339744830962;
+
+// Face-coordinate range [lo, hi] (clamped to [-1, 1]) of the rays from the origin through
+// the sphere of radius R around a centre whose components along the face axis and along
+// the face's axis p are (cm, cp): the rays' projections on that plane pass through the
+// projected disc, so their angles from the axis lie within asin(R / rho) of the centre's
+// (rho = |(cm, cp)|; every angle if the disc holds the origin). False if that range misses
+// the face's [-pi/4, pi/4]. Padded by 1e-6 rad against rounding.
+bool face_range(double cm, double cp, double R, double& lo, double& hi) {
+    const double rho = std::hypot(cm, cp);
+    if (!(rho > R)) {
+        lo = -1.0;
+        hi = 1.0;
+        return true;
+    }
+    const double phi = std::atan2(cp, cm), beta = std::asin(R / rho);
+    // |phi| <= pi and beta < pi/2: a range wrapping past +-pi stays below -pi/2 or above
+    // pi/2 there, so it cannot reach the face by the wrapped side.
+    const double a0 = phi - beta - 1e-6, a1 = phi + beta + 1e-6;
+    if (a1 < -kQuarterPi || a0 > kQuarterPi) return false;
+    lo = a0 <= -kQuarterPi ? -1.0 : std::max(-1.0, std::tan(a0));
+    hi = a1 >= kQuarterPi ? 1.0 : std::min(1.0, std::tan(a1));
+    return true;
+}
+
+// Cube-map cell of a face coordinate (K cells per side).
+inline int face_cell(double t, int K) { return std::min(K - 1, std::max(0, int(std::floor((t + 1.0) * 0.5 * K)))); }
+
+// Cell of the direction u != 0 (finite): face 2 m + (u_m < 0) for the dominant axis m.
+inline std::size_t cube_cell(const Vec3& u, int K) {
+    const double ax = std::abs(u.x), ay = std::abs(u.y), az = std::abs(u.z);
+    const int m = ax >= ay && ax >= az ? 0 : (ay >= az ? 1 : 2);
+    const int p = (m + 1) % 3, q = (m + 2) % 3;
+    const double um = std::abs(u[m]);
+    const int face = 2 * m + (u[m] < 0.0 ? 1 : 0);
+    return (std::size_t(face) * K + face_cell(u[q] / um, K)) * K + face_cell(u[p] / um, K);
+}
+
+// Binning of one source's candidates (see above). K = 0: no cells, every candidate is in
+// _everywhere_ (the brute-force form for few targets).
+struct StarGrid {
+    Vec3 s{0.0};
+    StarCands cands;                       // in ascending key
+    int K = 0;
+    std::vector<std::uint32_t> start;      // per cell (6 K^2 + 1), into entries
+    std::vector<std::uint32_t> entries;    // positions in cands, ascending within a cell
+    StarCands everywhere;                  // looked at by every target, ascending key
+    // build_star's scratch, kept for the next source.
+    std::vector<std::uint32_t> js;
+    std::vector<double> dist;
+    std::vector<std::pair<float, std::uint32_t>> keyed;
+};
+
+void build_star(const RbfMedium& m, const float* a, const float* k0, const Vec3& s, std::size_t c0, std::size_t c1,
+                bool binned, StarGrid& g) {
+    g.s = s;
+    // Candidates with a cull sphere (R = 0: never reaches cull_eps, as in for_each_near).
+    // Unbinned: in the hierarchy's leaf order, for the block test.
+    std::vector<std::uint32_t>& js = g.js;
+    std::vector<double>& dist = g.dist;
+    js.clear();
+    js.reserve(c1 - c0);
+    if (binned) {
+        for (std::size_t j = c0; j < c1; ++j)
+            if (m.cull_radius(j) > 0.0) js.push_back(std::uint32_t(j));
+    } else {
+        for (std::uint32_t j : m.leaf_order())
+            if (j >= c0 && j < c1) js.push_back(j);
+    }
+    dist.resize(m.size() > 0 ? c1 : 0);
+    for (std::uint32_t j : js) dist[j] = glm::length(m.centre(j) - s);
+    // key_j = d_j - R_j, with R inflated by 2e-4 (float rounding of the reach test) and
+    // rounded down to float so that key < D never misses a reaching segment.
+    auto inflated = [&](std::uint32_t j) { return m.cull_radius(j) * 1.0002; };
+    // Unbinned (few targets): no order, every key -inf (the whole list is the prefix).
+    std::vector<std::pair<float, std::uint32_t>>& keyed = g.keyed;
+    keyed.resize(js.size());
+    for (std::size_t k = 0; k < js.size(); ++k)
+        keyed[k] = {binned ? std::nextafter(float(dist[js[k]] - inflated(js[k])), -INFINITY)
+                           : -std::numeric_limits<float>::infinity(),
+                    js[k]};
+    if (binned) std::sort(keyed.begin(), keyed.end());
+    StarCands& c = g.cands;
+    c.resize(keyed.size());
+    for (std::size_t k = 0; k < keyed.size(); ++k) {
+        const std::uint32_t j = keyed[k].second;
+        const Vec3 rel = m.centre(j) - s;
+        const double R = inflated(j);
+        c.rx[k] = float(rel.x);
+        c.ry[k] = float(rel.y);
+        c.rz[k] = float(rel.z);
+        c.a[k] = a[j];
+        c.k0[k] = k0[j];
+        c.R2[k] = float(R * R);
+        c.key[k] = keyed[k].first;
+        c.id[k] = j;
+    }
+    g.K = 0;
+    g.start.clear();
+    g.entries.clear();
+    if (!binned) {
+        // Blocks: the sphere around the box of the block's cull spheres, radius inflated
+        // by 1e-3 against float rounding (a segment reaching one of the spheres passes
+        // within the block's radius of its centre).
+        const std::size_t nb = c.rx.size() / kStarLanes, nb16 = lanes_up(nb);
+        for (auto* v : {&c.bx, &c.by, &c.bz, &c.bR2}) v->assign(nb16, 0.0f);
+        c.bid.assign(nb16, std::numeric_limits<std::uint32_t>::max());
+        for (std::size_t b = nb; b < nb16; ++b) c.bR2[b] = -1.0f;
+        for (std::size_t b = 0; b < nb; ++b) {
+            Vec3 lo(std::numeric_limits<double>::infinity()), hi(-std::numeric_limits<double>::infinity());
+            const std::size_t k1 = std::min(c.n, (b + 1) * kStarLanes);
+            for (std::size_t k = b * kStarLanes; k < k1; ++k) {
+                const Vec3 rel = m.centre(c.id[k]) - s;
+                const double R = inflated(c.id[k]);
+                lo = glm::min(lo, rel - Vec3(R));
+                hi = glm::max(hi, rel + Vec3(R));
+            }
+            const Vec3 mid = 0.5 * (lo + hi);
+            double rad = 0.0;
+            for (std::size_t k = b * kStarLanes; k < k1; ++k)
+                rad = std::max(rad, glm::length(m.centre(c.id[k]) - s - mid) + inflated(c.id[k]));
+            rad *= 1.001;
+            c.bx[b] = float(mid.x);
+            c.by[b] = float(mid.y);
+            c.bz[b] = float(mid.z);
+            c.bR2[b] = float(rad * rad);
+        }
+        c.block_test = true;
+        std::swap(g.everywhere, c);  // (g.cands keeps the other buffer for the next source)
+        return;
+    }
+    // Per candidate: the rectangles (face, p range, q range) its cone covers, in face
+    // coordinates; spheres holding s are everywhere.
+    struct Rect {
+        std::uint32_t k;
+        int face;
+        double p0, p1, q0, q1;
+    };
+    std::vector<Rect> rects;
+    std::vector<char> all(c.n, 0);
+    std::vector<double> rho;
+    rects.reserve(c.n * 2);
+    rho.reserve(c.n);
+    for (std::size_t k = 0; k < c.n; ++k) {
+        const std::uint32_t j = c.id[k];
+        const Vec3 rel = m.centre(j) - s;
+        const double R = inflated(j), d = dist[j];
+        if (!(d > R)) {
+            all[k] = 1;
+            continue;
+        }
+        rho.push_back(R / d);
+        for (int face = 0; face < 6; ++face) {
+            const int mm = face / 2, p = (mm + 1) % 3, q = (mm + 2) % 3;
+            const double cm = (face & 1) ? -rel[mm] : rel[mm];
+            // The sphere's bounding box must reach the face's pyramid |x_p|, |x_q| <= x_m.
+            if (cm + R <= 0.0 || cm + R < std::max(std::abs(rel[p]), std::abs(rel[q])) - R) continue;
+            Rect r{std::uint32_t(k), face, 0, 0, 0, 0};
+            if (face_range(cm, rel[p], R, r.p0, r.p1) && face_range(cm, rel[q], R, r.q0, r.q1)) rects.push_back(r);
+        }
+    }
+    // K: cells about half the median cone radius wide (2 / K in face coordinates ~ radians
+    // at the face centre), fewer while the lists would exceed ~48 entries per candidate.
+    double rho_med = 0.1;
+    if (!rho.empty()) {
+        std::nth_element(rho.begin(), rho.begin() + rho.size() / 2, rho.end());
+        rho_med = rho[rho.size() / 2];
+    }
+    int K = int(std::clamp(4.0 / rho_med, 1.0, 256.0));
+    auto count = [&](int KK, std::vector<char>* flag) {
+        std::size_t total = 0;
+        for (std::size_t r0 = 0; r0 < rects.size();) {
+            std::size_t r1 = r0, cells = 0;
+            for (; r1 < rects.size() && rects[r1].k == rects[r0].k; ++r1) {
+                const Rect& r = rects[r1];
+                cells += std::size_t(face_cell(r.p1, KK) - face_cell(r.p0, KK) + 1) *
+                         std::size_t(face_cell(r.q1, KK) - face_cell(r.q0, KK) + 1);
+            }
+            if (cells > std::size_t(KK) * KK) {
+                if (flag) (*flag)[rects[r0].k] = 1;
+            } else {
+                total += cells;
+            }
+            r0 = r1;
+        }
+        return total;
+    };
+    while (K > 1 && count(K, nullptr) > 48 * c.n + 65536) K = std::max(1, K * 2 / 3);
+    count(K, &all);
+    g.K = K;
+    const std::size_t cells = 6 * std::size_t(K) * K;
+    g.start.assign(cells + 1, 0);
+    for (int pass = 0; pass < 2; ++pass) {
+        for (const Rect& r : rects) {
+            if (all[r.k]) continue;
+            const int p0 = face_cell(r.p0, K), p1 = face_cell(r.p1, K), q0 = face_cell(r.q0, K), q1 = face_cell(r.q1, K);
+            for (int qq = q0; qq <= q1; ++qq)
+                for (int pp = p0; pp <= p1; ++pp) {
+                    const std::size_t cell = (std::size_t(r.face) * K + qq) * K + pp;
+                    if (pass == 0)
+                        ++g.start[cell + 1];
+                    else
+                        g.entries[g.start[cell]++] = r.k;
+                }
+        }
+        if (pass == 0) {
+            for (std::size_t q = 0; q < cells; ++q) g.start[q + 1] += g.start[q];
+            g.entries.resize(g.start[cells]);
+        } else {
+            // start[q] now holds the end of cell q: shift back.
+            for (std::size_t q = cells; q > 0; --q) g.start[q] = g.start[q - 1];
+            g.start[0] = 0;
+        }
+    }
+    std::size_t ne = 0;
+    for (std::size_t k = 0; k < c.n; ++k) ne += all[k];
+    g.everywhere.resize(ne);
+    ne = 0;
+    for (std::size_t k = 0; k < c.n; ++k)
+        if (all[k]) g.everywhere.set(ne++, c, k);
+}
+
+// out[r (t1 - t0) + k] = sum over the Gaussians j in [c0, c1), j != i, of the culled line
+// integral T_j(src[r], b_i) (float kernels, each skipped Gaussian < cull_eps as in
+// for_each_near) for the targets i = t0 + k in [t0, t1). No beta0. Three ways to the same
+// sums (rbf_depths_to_centres in rbf_splat.h), by the cost of the work:
+//  - per target (few targets, a brush stroke's new Gaussians): each target's cull test
+//    runs over every candidate, vectorised, then the integrals of those that reach;
+//  - per candidate (few candidates, the old Gaussians' update by a stroke's new ones):
+//    each candidate's cull test runs over every target, vectorised (no binning, no
+//    per-target overhead);
+//  - binned (many of both): the cube map of build_star, per target only its cell's list.
+// Throws std::invalid_argument on a non-finite source.
+std::vector<double> star_depths(const RbfMedium& m, const std::vector<Vec3>& src, std::size_t t0, std::size_t t1,
+                                std::size_t c0, std::size_t c1, int threads, int method = 0) {
+    for (const Vec3& s : src)
+        if (!std::isfinite(s.x) || !std::isfinite(s.y) || !std::isfinite(s.z))
+            throw std::invalid_argument("Gaussian fog: a light or eye position is not finite");
+    if (t0 > t1 || t1 > m.size() || c0 > c1 || c1 > m.size())
+        throw std::invalid_argument("Gaussian fog: target or candidate range outside the Gaussians");
+    const std::size_t nt = t1 - t0, nc = c1 - c0, rows = src.size();
+    std::vector<double> out(rows * nt, 0.0);
+    if (nt == 0 || nc == 0 || rows == 0) return out;
+    std::vector<float> a(m.size()), k0(m.size());
+    for (std::size_t j = c0; j < c1; ++j) {
         a[j] = float(m.scale(j));
         k0[j] = float(m.amplitude(j) * kSqrtPi / (2.0 * m.scale(j)));
     }
+    if (method == 0) {
+        // Rough costs in ns (measured on the brush stroke and 1e5 benchmarks): a cull test
+        // ~0.15 per (target, candidate) pair; binning ~700 per candidate and ~150 per target.
+        const double pairs = 0.15 * double(nt) * double(nc), binning = 700.0 * double(nc) + 150.0 * double(nt);
+        method = nt < 256 ? 1 : (pairs < binning ? 2 : 3);
+    }
+    // Small work (a brush stroke's update) stays on the calling thread: starting threads
+    // costs more than it saves there.
+    if (double(nt) * double(nc) * double(rows) < 4e6) threads = 1;
+    if (method == 2) {
+        // Per candidate: the targets of each row in float SoA, padded to whole vectors with
+        // D = 0 (integral 0), in blocks of 1024 (the threads' units).
+        const std::size_t nt16 = lanes_up(nt), block = 1024;
+        std::vector<float> tdx(nt16), tdy(nt16), tdz(nt16), tD(nt16);
+        std::vector<std::uint32_t> tid(nt16), slot(nt16);
+        for (std::size_t k = 0; k < nt16; ++k) {
+            tid[k] = k < nt ? std::uint32_t(t0 + k) : std::numeric_limits<std::uint32_t>::max();
+            slot[k] = std::uint32_t(k);
+        }
+        struct Cand {
+            float rx, ry, rz, R2, a, k0;
+            std::uint32_t j;
+        };
+        std::vector<Cand> cands;
+        const std::size_t blocks = (nt16 + block - 1) / block;
+        for (std::size_t r = 0; r < rows; ++r) {
+            std::fill(tdx.begin(), tdx.end(), 0.0f);
+            std::fill(tdy.begin(), tdy.end(), 0.0f);
+            std::fill(tdz.begin(), tdz.end(), 0.0f);
+            std::fill(tD.begin(), tD.end(), 0.0f);
+            for (std::size_t k = 0; k < nt; ++k) {
+                const Vec3 d = m.centre(t0 + k) - src[r];
+                const double D = glm::length(d);
+                if (!(D > 0.0)) continue;
+                tdx[k] = float(d.x / D);
+                tdy[k] = float(d.y / D);
+                tdz[k] = float(d.z / D);
+                tD[k] = float(D);
+            }
+            cands.clear();
+            for (std::size_t j = c0; j < c1; ++j) {
+                const double R = m.cull_radius(j) * 1.0002;
+                if (!(R > 0.0)) continue;
+                const Vec3 rel = m.centre(j) - src[r];
+                cands.push_back({float(rel.x), float(rel.y), float(rel.z), float(R * R), a[j], k0[j], std::uint32_t(j)});
+            }
+            parallel_chunks(blocks, threads, 1, [&](std::size_t ub, std::size_t ue) {
+                thread_local std::vector<float> keep, hx, hy, hz, hD, val;
+                thread_local std::vector<std::uint32_t> hs, idx;
+                thread_local std::vector<double> acc;
+                for (auto* v : {&keep, &hx, &hy, &hz, &hD, &val}) v->resize(block + kStarLanes);
+                hs.resize(block + kStarLanes);
+                idx.resize(block);
+                acc.resize(block);
+                for (std::size_t u = ub; u < ue; ++u) {
+                    const std::size_t b = u * block, e = std::min(nt16, b + block), n = e - b;
+                    std::fill(acc.begin(), acc.end(), 0.0);
+                    const void* in[5] = {tdx.data() + b, tdy.data() + b, tdz.data() + b, tD.data() + b, slot.data() + b};
+                    void* hit[5] = {hx.data(), hy.data(), hz.data(), hD.data(), hs.data()};
+                    for (const Cand& c : cands) {
+                        targets_reached(int(n), tdx.data() + b, tdy.data() + b, tdz.data() + b, tD.data() + b,
+                                        tid.data() + b, c.j, c.rx, c.ry, c.rz, c.R2, keep.data());
+                        const std::size_t h = compact(keep.data(), 1.0f, n, 5, in, hit, idx.data());
+                        if (h == 0) continue;
+                        const std::size_t h16 = lanes_up(h);
+                        for (std::size_t q = h; q < h16; ++q) {
+                            hx[q] = hy[q] = hz[q] = hD[q] = 0.0f;  // D = 0: integral 0
+                            hs[q] = std::uint32_t(b);
+                        }
+                        target_integrals(int(h16), hx.data(), hy.data(), hz.data(), hD.data(), c.rx, c.ry, c.rz,
+                                         c.a, c.k0, val.data());
+                        for (std::size_t q = 0; q < h; ++q) acc[hs[q] - b] += double(val[q]);
+                    }
+                    for (std::size_t k = b; k < std::min(e, nt); ++k) out[r * nt + k] = acc[k - b];
+                }
+            });
+        }
+        return out;
+    }
+    // One source at a time, reusing the per-source structures (a call then allocates about
+    // one source's worth: the preview runs this per edit, and fresh memory costs page faults).
+    const bool binned = method == 3;
+    StarGrid g;
+    std::vector<std::uint32_t> order(nt), cell_of(nt), tstart, fill;
+    // Work units: (cell, a run of <= 32 of the cell's targets).
+    struct Unit {
+        std::uint32_t cell, b, e;
+    };
+    std::vector<Unit> units;
+    for (std::size_t r = 0; r < rows; ++r) {
+        build_star(m, a.data(), k0.data(), src[r], c0, c1, binned, g);
+        const std::size_t cells = g.K > 0 ? 6 * std::size_t(g.K) * g.K : 1;
+        tstart.assign(cells + 1, 0);
+        for (std::size_t k = 0; k < nt; ++k) {
+            const Vec3 u = m.centre(t0 + k) - g.s;
+            cell_of[k] = g.K > 0 && (u.x != 0.0 || u.y != 0.0 || u.z != 0.0) ? std::uint32_t(cube_cell(u, g.K)) : 0;
+            ++tstart[cell_of[k] + 1];
+        }
+        for (std::size_t q = 0; q < cells; ++q) tstart[q + 1] += tstart[q];
+        fill.assign(tstart.begin(), tstart.end() - 1);
+        for (std::size_t k = 0; k < nt; ++k) order[fill[cell_of[k]]++] = std::uint32_t(k);
+        units.clear();
+        for (std::size_t q = 0; q < cells; ++q)
+            for (std::uint32_t b = tstart[q]; b < tstart[q + 1]; b += 32)
+                units.push_back({std::uint32_t(q), b, std::min<std::uint32_t>(b + 32, tstart[q + 1])});
+        parallel_chunks(units.size(), threads, 8, [&](std::size_t ub, std::size_t ue) {
+            thread_local StarScratch w;
+            thread_local StarCands local;
+            for (std::size_t u = ub; u < ue; ++u) {
+                const Unit& unit = units[u];
+                const StarCands* cell = nullptr;
+                if (g.K > 0) {
+                    const std::uint32_t e0 = g.start[unit.cell], e1 = g.start[unit.cell + 1];
+                    local.resize(e1 - e0);
+                    for (std::uint32_t e = e0; e < e1; ++e) local.set(e - e0, g.cands, g.entries[e]);
+                    cell = &local;
+                }
+                for (std::uint32_t x = unit.b; x < unit.e; ++x) {
+                    const std::uint32_t k = order[x];
+                    const std::size_t i = t0 + k;
+                    const Vec3 d = m.centre(i) - g.s;
+                    const double D = glm::length(d);
+                    if (!(D > 0.0)) continue;
+                    const Vec3 dir = d / D;
+                    const float dx = float(dir.x), dy = float(dir.y), dz = float(dir.z), Df = float(D);
+                    double T = star_sum(g.everywhere, g.everywhere.n, std::uint32_t(i), dx, dy, dz, Df, w);
+                    if (cell) T += star_sum(*cell, cell->n, std::uint32_t(i), dx, dy, dz, Df, w);
+                    out[r * nt + k] = T;
+                }
+            }
+        });
+    }
+    return out;
+}
+
+// Sun lamps: T_sun[i] = sum over j != i of the culled line integral of Gaussian j on the
+// half-line b_i + t u, t >= 0 (u towards the sun), in float. Parallel half-lines instead
+// of a star: the Gaussians are binned on a grid over the plane normal to u (Gaussian j
+// covers the square of half-side R_j around its projection), each cell's list in
+// descending z_j + R_j (z = b . u: the half-line from b_i reaches sphere j only if
+// z_j + R_j > z_i); per target its cell's prefix is gathered relative to b_i (double
+// differences, then float) and summed by star_sum with D = inf. No beta0.
+std::vector<double> sun_depths(const RbfMedium& m, const Vec3& u, int threads) {
+    const std::size_t n = m.size();
+    std::vector<double> out(n, 0.0);
+    if (n == 0) return out;
+    // Frame (e1, e2, u).
+    const Vec3 e1 = glm::normalize(std::abs(u.x) < 0.9 ? glm::cross(u, Vec3(1.0, 0.0, 0.0))
+                                                         : glm::cross(u, Vec3(0.0, 1.0, 0.0)));
+    const Vec3 e2 = glm::cross(u, e1);
+    std::vector<double> P(n), Q(n), R(n);
+    std::vector<std::pair<float, std::uint32_t>> keyed;
+    double p0 = std::numeric_limits<double>::infinity(), p1 = -p0, q0 = p0, q1 = -p0;
+    std::vector<double> radii;
+    for (std::size_t j = 0; j < n; ++j) {
+        const Vec3 b = m.centre(j);
+        P[j] = glm::dot(b, e1);
+        Q[j] = glm::dot(b, e2);
+        R[j] = m.cull_radius(j) * 1.0002;
+        p0 = std::min(p0, P[j]);
+        p1 = std::max(p1, P[j]);
+        q0 = std::min(q0, Q[j]);
+        q1 = std::max(q1, Q[j]);
+        if (m.cull_radius(j) > 0.0) {
+            // Descending z + R as an ascending key, rounded down: key <= -z_i never misses.
+            keyed.push_back({std::nextafter(float(-(glm::dot(b, u) + R[j])), -INFINITY), std::uint32_t(j)});
+            radii.push_back(R[j]);
+        }
+    }
+    std::sort(keyed.begin(), keyed.end());
+    // Cells about half the median cull radius wide, at most 1024 per side.
+    double h = 1.0;
+    if (!radii.empty()) {
+        std::nth_element(radii.begin(), radii.begin() + radii.size() / 2, radii.end());
+        h = std::max(0.5 * radii[radii.size() / 2], 1e-6);
+    }
+    const int KP = int(std::clamp(std::ceil((p1 - p0) / h), 1.0, 1024.0));
+    const int KQ = int(std::clamp(std::ceil((q1 - q0) / h), 1.0, 1024.0));
+    const double hp = std::max((p1 - p0) / KP, 1e-300), hq = std::max((q1 - q0) / KQ, 1e-300);
+    auto cp = [&](double p) { return std::min(KP - 1, std::max(0, int(std::floor((p - p0) / hp)))); };
+    auto cq = [&](double q) { return std::min(KQ - 1, std::max(0, int(std::floor((q - q0) / hq)))); };
+    const std::size_t cells = std::size_t(KP) * KQ;
+    std::vector<std::uint32_t> start(cells + 1, 0), entries;
+    for (int pass = 0; pass < 2; ++pass) {
+        for (std::size_t k = 0; k < keyed.size(); ++k) {
+            const std::uint32_t j = keyed[k].second;
+            for (int y = cq(Q[j] - R[j]); y <= cq(Q[j] + R[j]); ++y)
+                for (int x = cp(P[j] - R[j]); x <= cp(P[j] + R[j]); ++x) {
+                    const std::size_t cell = std::size_t(y) * KP + x;
+                    if (pass == 0)
+                        ++start[cell + 1];
+                    else
+                        entries[start[cell]++] = std::uint32_t(k);
+                }
+        }
+        if (pass == 0) {
+            for (std::size_t c = 0; c < cells; ++c) start[c + 1] += start[c];
+            entries.resize(start[cells]);
+        } else {
+            for (std::size_t c = cells; c > 0; --c) start[c] = start[c - 1];
+            start[0] = 0;
+        }
+    }
+    // Targets by cell, in units of <= 32.
+    std::vector<std::uint32_t> tcell(n), tstart(cells + 1, 0), order(n);
+    for (std::size_t i = 0; i < n; ++i) {
+        tcell[i] = std::uint32_t(std::size_t(cq(Q[i])) * KP + cp(P[i]));
+        ++tstart[tcell[i] + 1];
+    }
+    for (std::size_t c = 0; c < cells; ++c) tstart[c + 1] += tstart[c];
+    {
+        std::vector<std::uint32_t> fill(tstart.begin(), tstart.end() - 1);
+        for (std::size_t i = 0; i < n; ++i) order[fill[tcell[i]]++] = std::uint32_t(i);
+    }
+    struct Unit {
+        std::uint32_t cell, b, e;
+    };
+    std::vector<Unit> units;
+    for (std::size_t c = 0; c < cells; ++c)
+        for (std::uint32_t b = tstart[c]; b < tstart[c + 1]; b += 32)
+            units.push_back({std::uint32_t(c), b, std::min<std::uint32_t>(b + 32, tstart[c + 1])});
+    std::vector<float> fa(n), fk0(n), fR2(n);
+    for (std::size_t j = 0; j < n; ++j) {
+        fa[j] = float(m.scale(j));
+        fk0[j] = float(m.amplitude(j) * kSqrtPi / (2.0 * m.scale(j)));
+        fR2[j] = float(R[j] * R[j]);
+    }
+    const float ux = float(u.x), uy = float(u.y), uz = float(u.z), inf = std::numeric_limits<float>::infinity();
+    parallel_chunks(units.size(), threads, 8, [&](std::size_t ub, std::size_t ue) {
+        thread_local StarScratch w;
+        thread_local StarCands local;
+        for (std::size_t un = ub; un < ue; ++un) {
+            const Unit& unit = units[un];
+            const std::uint32_t e0 = start[unit.cell], e1_ = start[unit.cell + 1];
+            for (std::uint32_t x = unit.b; x < unit.e; ++x) {
+                const std::uint32_t i = order[x];
+                const Vec3 bi = m.centre(i);
+                // The prefix z_j + R_j > z_i (ascending key = -(z_j + R_j) below -z_i).
+                const float zkey = float(-glm::dot(bi, u));
+                std::uint32_t e = e0;
+                while (e < e1_ && keyed[entries[e]].first <= zkey) ++e;
+                local.resize(e - e0);
+                for (std::uint32_t q = e0; q < e; ++q) {
+                    const std::uint32_t j = keyed[entries[q]].second;
+                    const std::size_t k = q - e0;
+                    const Vec3 rel = m.centre(j) - bi;
+                    local.rx[k] = float(rel.x);
+                    local.ry[k] = float(rel.y);
+                    local.rz[k] = float(rel.z);
+                    local.a[k] = fa[j];
+                    local.k0[k] = fk0[j];
+                    local.R2[k] = fR2[j];
+                    local.key[k] = -inf;
+                    local.id[k] = j;
+                }
+                out[i] = star_sum(local, local.n, i, ux, uy, uz, inf, w);
+            }
+        }
+    });
+    return out;
 }
 
 // T(from_row, b_i) without Gaussian i (beta0 included) for row 0 = the eye and rows 1..L
 // = the lights, all Gaussians: out[row n + i].
 std::vector<double> depths_to_centres(const RbfMedium& m, const Vec3& eye, const std::vector<Vec3>& lights,
                                       int threads) {
-    const std::size_t n = m.size(), rows = lights.size() + 1;
-    std::vector<float> a, k0;
-    scale_arrays(m, a, k0);
-    std::vector<double> out(rows * n);
-    parallel_chunks(rows * n, threads, 64, [&](std::size_t b, std::size_t e) {
-        SegmentScratch scratch;
-        for (std::size_t k = b; k < e; ++k) {
-            const std::size_t row = k / n, i = k % n;
-            out[k] = fast_depth_excluding(m, a.data(), k0.data(), row == 0 ? eye : lights[row - 1], m.centre(i), i,
-                                          scratch);
-        }
-    });
+    const std::size_t n = m.size();
+    std::vector<Vec3> src{eye};
+    src.insert(src.end(), lights.begin(), lights.end());
+    std::vector<double> out = star_depths(m, src, 0, n, 0, n, threads);
+    for (std::size_t row = 0; row < src.size(); ++row)
+        for (std::size_t i = 0; i < n; ++i) out[row * n + i] += background_depth(m.beta0(), glm::length(m.centre(i) - src[row]));
     return out;
 }
 
 }  // namespace
+
+std::vector<double> rbf_depths_to_centres(const RbfMedium& medium, const std::vector<Vec3>& sources,
+                                          std::size_t first, std::size_t last, std::size_t cand_first,
+                                          std::size_t cand_last, int threads, int method) {
+    if (method < 0 || method > 3) throw std::invalid_argument("rbf_depths_to_centres: method must be 0..3");
+    return star_depths(medium, sources, first, last, cand_first, cand_last, threads, method);
+}
+
+std::vector<double> rbf_sun_depths(const RbfMedium& medium, const Vec3& u, int threads) {
+    if (!std::isfinite(u.x) || !std::isfinite(u.y) || !std::isfinite(u.z) || std::abs(glm::length(u) - 1.0) > 1e-6)
+        throw std::invalid_argument("rbf_sun_depths: the sun direction must be a finite unit vector");
+    return sun_depths(medium, u, threads);
+}
 
 void validate_noise(const RbfNoise& noise) {
     if (!std::isfinite(noise.amplitude) || noise.amplitude < 0.0) {
@@ -505,8 +1224,8 @@ RbfSplat::RbfSplat(const RbfMedium& medium, const Vec3& eye, const std::vector<V
             lf_[l].smooth = float(c.smooth);
         }
     }
-    // Suns: f1 = exp(-T_sun(b_i) - T(v, b_i)) without Gaussian i (exact half-line depths,
-    // culled) and C = the Gaussians' transmittance from the eye towards the sun.
+    // Suns: f1 = exp(-T_sun(b_i) - T(v, b_i)) without Gaussian i (culled half-line depths in
+    // float, sun_depths) and C = the Gaussians' transmittance from the eye towards the sun.
     gs_.resize(n * S);
     for (std::size_t j = 0; j < S; ++j) {
         const Vec3 u = -extra->sun_w[j];  // towards the sun
@@ -514,12 +1233,11 @@ RbfSplat::RbfSplat(const RbfMedium& medium, const Vec3& eye, const std::vector<V
         Csun_.push_back(std::exp(-medium.optical_depth_ray(eye, u, std::numeric_limits<double>::infinity(),
                                                            RbfMedium::npos, false)));
         const RGB E = extra->sun_E[j];
+        const std::vector<double> Tg = sun_depths(medium, u, threads);
         parallel_chunks(n, threads, 64, [&](std::size_t b, std::size_t e) {
             for (std::size_t i = b; i < e; ++i) {
                 const Vec3 c = medium.centre(i);
-                const double Tsun =
-                    medium.optical_depth_ray(c, u, std::numeric_limits<double>::infinity(), i, false) +
-                    sun_layer_depth(medium.beta0(), extra->fog_top, mu_s, c.z);
+                const double Tsun = Tg[i] + sun_layer_depth(medium.beta0(), extra->fog_top, mu_s, c.z);
                 const double f1 = std::isinf(Tsun) ? 0.0 : std::exp(-depth[i] - Tsun) * kInv4Pi;
                 GaussLightF& q = gs_[i * S + j];
                 q.sx = q.sy = q.sz = 0.0f;
@@ -1289,82 +2007,30 @@ RbfPreviewFactors rbf_preview_factors(const RbfMedium& medium, const Vec3& eye, 
     // Gaussians [n_old, n): everything (the others in float, fast_erf.h: ~1e-5 relative
     // per Gaussian; the own half exactly).
     const std::size_t n_new = n - n_old;
-    std::vector<float> fa, fk0;
-    scale_arrays(medium, fa, fk0);
-    parallel_chunks(rows * n_new, threads, 16, [&](std::size_t b, std::size_t e) {
-        SegmentScratch scratch;
-        for (std::size_t k = b; k < e; ++k) {
-            const std::size_t row = k / n_new, i = n_old + k % n_new;
+    std::vector<Vec3> src{eye};
+    src.insert(src.end(), lights.begin(), lights.end());
+    const std::vector<double> others = star_depths(medium, src, n_old, n, 0, n, threads);
+    for (std::size_t row = 0; row < rows; ++row)
+        for (std::size_t k = 0; k < n_new; ++k) {
+            const std::size_t i = n_old + k;
             const Vec3 from = from_of(row);
             const Vec3 d = medium.centre(i) - from;
             const double D = glm::length(d);
             const double own = D > 0.0 ? medium.gaussian_optical_depth(i, from, d / D, 0.0, D) : 0.0;
-            T_at(row, i) =
-                fast_depth_excluding(medium, fa.data(), fk0.data(), from, medium.centre(i), i, scratch) + own;
+            T_at(row, i) = others[row * n_new + k] + (D > 0.0 ? background_depth(medium.beta0(), D) : 0.0) + own;
             own_at(row, i) = own;
         }
-    });
     if (n_old == 0) return f;
     // Gaussians [0, n_old): the previous factors plus the new Gaussians' line integrals
-    // (T is a sum over Gaussians), all new ones at once in one vectorised loop.
-    std::vector<std::vector<float>> rel(rows * 3);
-    std::vector<float> a(n_new), k0(n_new);
-    for (std::size_t j = 0; j < n_new; ++j) {
-        a[j] = float(medium.scale(n_old + j));
-        k0[j] = float(medium.amplitude(n_old + j) * kSqrtPi / (2.0 * medium.scale(n_old + j)));
-    }
+    // (T is a sum over Gaussians), with the same culling as the full computation.
+    const std::vector<double> add = star_depths(medium, src, 0, n_old, n_old, n, threads);
     for (std::size_t row = 0; row < rows; ++row)
-        for (int c = 0; c < 3; ++c) {
-            std::vector<float>& v = rel[row * 3 + c];
-            v.resize(n_new);
-            for (std::size_t j = 0; j < n_new; ++j) v[j] = float(medium.centre(n_old + j)[c] - from_of(row)[c]);
-        }
-    // Only the new Gaussians whose cull sphere the segment reaches (the full computation's
-    // culling, for_each_near): a vectorised distance test, then the integrals of those.
-    std::vector<float> R2(n_new);
-    for (std::size_t j = 0; j < n_new; ++j) {
-        const double R = medium.cull_radius(n_old + j);
-        R2[j] = float(R * R);
-    }
-    parallel_chunks(rows * n_old, threads, 64, [&](std::size_t b, std::size_t e) {
-        std::vector<float> out(n_new), keep(n_new), crx(n_new), cry(n_new), crz(n_new), ca(n_new), ck0(n_new);
-        std::vector<std::uint32_t> idx(n_new + 1);
-        for (std::size_t k = b; k < e; ++k) {
-            const std::size_t row = k / n_old, i = k % n_old;
-            const Vec3 from = from_of(row);
-            const Vec3 d = medium.centre(i) - from;
-            const double D = glm::length(d);
-            double add = 0.0;
-            if (D > 0.0 && n_new > 0) {
-                const Vec3 r = d / D;
-                const float* rx = rel[row * 3].data();
-                const float* ry = rel[row * 3 + 1].data();
-                const float* rz = rel[row * 3 + 2].data();
-                segment_reaches(int(n_new), rx, ry, rz, R2.data(), float(r.x), float(r.y), float(r.z), float(D),
-                                keep.data());
-                std::size_t m = 0;
-                for (std::size_t j = 0; j < n_new; ++j) {
-                    idx[m] = std::uint32_t(j);
-                    m += keep[j] != 0.0f ? 1 : 0;
-                }
-                for (std::size_t q = 0; q < m; ++q) {
-                    const std::uint32_t j = idx[q];
-                    crx[q] = rx[j];
-                    cry[q] = ry[j];
-                    crz[q] = rz[j];
-                    ca[q] = a[j];
-                    ck0[q] = k0[j];
-                }
-                segment_integrals(int(m), crx.data(), cry.data(), crz.data(), ca.data(), ck0.data(), float(r.x),
-                                  float(r.y), float(r.z), float(D), out.data());
-                for (std::size_t q = 0; q < m; ++q) add += double(out[q]);
-            }
+        for (std::size_t i = 0; i < n_old; ++i) {
             const double prev_T = row == 0 ? previous->T_vb[i] : previous->T_sb[(row - 1) * n_old + i];
             const double prev_own = row == 0 ? previous->own_vb[i] : previous->own_sb[(row - 1) * n_old + i];
-            T_at(row, i) = prev_T + add;
+            T_at(row, i) = prev_T + add[row * n_old + i];
             own_at(row, i) = prev_own;
         }
-    });
     return f;
 }
 

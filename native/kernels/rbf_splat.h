@@ -257,4 +257,21 @@ RbfPreviewFactors rbf_preview_factors(const RbfMedium& medium, const Vec3& eye, 
                                       int threads = 0, const RbfPreviewFactors* previous = nullptr,
                                       std::size_t first_new = 0);
 
+// The optical depths behind the factors (RbfSplat's f1 and rbf_preview_factors): for each
+// source s_r in _sources_ and target Gaussian i in [first, last),
+//   out[r (last - first) + i - first] = sum over j in [cand_first, cand_last), j != i, of T_j(s_r, b_i),
+// no beta0, culled as RbfMedium::for_each_near (each skipped Gaussian < cull_eps), in float
+// (fast_erf.h). The segments from one source form a star; _method_ picks how the work is
+// organised (rbf_splat.cpp): 0 by cost, 1 per target, 2 per candidate, 3 binned by
+// direction around the source. All give the same sums to float rounding (tested).
+// Throws std::invalid_argument on a non-finite source or ranges outside the medium.
+std::vector<double> rbf_depths_to_centres(const RbfMedium& medium, const std::vector<Vec3>& sources,
+                                          std::size_t first, std::size_t last, std::size_t cand_first,
+                                          std::size_t cand_last, int threads = 0, int method = 0);
+// The same towards a sun lamp (RbfSplatLights): out[i] = sum over j != i of T_j on the
+// half-line b_i + t u, t >= 0 (u unit, towards the sun), culled, in float, no beta0 (binned
+// on a grid over the plane normal to u). Throws std::invalid_argument unless u is a finite
+// unit vector.
+std::vector<double> rbf_sun_depths(const RbfMedium& medium, const Vec3& u, int threads = 0);
+
 }  // namespace airlight

@@ -209,3 +209,40 @@ def test08_incremental_stroke_in_a_spread_cloud():
         for l in range(len(LIGHTS)):
             T, _ = segment_depth(b, a, c, LIGHTS[l], b[i])
             assert abs(inc["T_sb"][l, i] - T) <= bound * max(1.0, T)
+
+
+def test09_preview_factors_many_gaussians_lights_inside():
+    """6000 small Gaussians with the lights and the eye inside the cloud: enough of both
+    targets and candidates that rbf_preview_factors bins the Gaussians by direction around
+    each source (rbf_splat.h, rbf_depths_to_centres); a stroke of 300 more updates the old
+    Gaussians per new candidate. Against numpy's unculled sums (eq. 31 with scipy's erf) on
+    a sample of centres, within float rounding and the culling bound; incremental equals
+    the call from scratch."""
+    rng = np.random.default_rng(5)
+
+    def cloud_box(n):
+        b = np.column_stack([rng.uniform(-15, 15, n), rng.uniform(-3, 9, n), rng.uniform(-40, 2, n)])
+        return b, 1.0 / rng.uniform(0.3, 1.0, n), rng.uniform(0.05, 0.3, n)
+
+    (b0, a0, c0), (b1, a1, c1) = cloud_box(6000), cloud_box(300)
+    b, a, c = np.concatenate([b0, b1]), np.concatenate([a0, a1]), np.concatenate([c0, c1])
+    eye = np.array([0.5, 1.0, -3.0])
+    lights = np.array([[4.0, 2.0, -12.0], [-6.0, 3.0, -25.0], [20.0, 1.0, -20.0]])  # two inside, one outside
+    full = _native.rbf_preview_factors(b, a, c, SIGMA_T, eye, lights, threads=2)
+    old = _native.rbf_preview_factors(b0, a0, c0, SIGMA_T, eye, lights, threads=2)
+    inc = _native.rbf_preview_factors(b, a, c, SIGMA_T, eye, lights, threads=2, previous=old, first_new=6000)
+    bound = 1e-7 * len(a)
+    worst, biggest = 0.0, 0.0
+    for i in list(range(0, 6300, 97)) + [6001, 6299]:
+        for l, p in enumerate([eye] + list(lights)):
+            T, Ti = segment_depth(b, a, c, p, b[i])
+            for f in (full, inc):
+                got = f["T_vb"][i] if l == 0 else f["T_sb"][l - 1, i]
+                own = f["own_vb"][i] if l == 0 else f["own_sb"][l - 1, i]
+                worst = max(worst, abs(got - T) / (2e-5 * T + bound))
+                np.testing.assert_allclose(own, Ti[i], rtol=1e-9)
+            biggest = max(biggest, T)
+    assert biggest > 2.0  # the Gaussians matter
+    assert worst <= 1.0, worst
+    for key in ("T_vb", "own_vb", "T_sb", "own_sb", "C_sv", "D_sv", "cull_radius"):
+        np.testing.assert_allclose(inc[key], full[key], rtol=2e-5, atol=1e-7, err_msg=key)
