@@ -188,6 +188,10 @@ class RbfSplat {
     void splat_tile_reduced(int t, int x0, int y0, int w, int h, const float* dx, const float* dy, const float* dz,
                             const float* far, const float* t0, float* Tf, float* Rf, float* Gf, float* Bf, float* Tn,
                             float* Rn, float* Gn, float* Bn) const;
+    // The Dvp = inf terms of Gaussians idx[0..n) (wholly in front; plain path, no noise) on
+    // the m lattice rays (lx, ly, lz), added to T, R, G, B (lattice_gaussian_major).
+    void lattice_batch(const std::uint32_t* idx, int n, int m, const float* lx, const float* ly, const float* lz,
+                       float* T, float* R, float* G, float* B) const;
     // Homogeneous term of light l for n rays: segment [t0, Dvp] attenuated from t0.
     void homogeneous(const double* cos_gamma, std::size_t l, const float* Dvp, const float* t0, int n,
                      float* out) const;
