@@ -697,6 +697,7 @@ void RbfSplat::bin(const Vec3& D0, const Vec3& Dx, const Vec3& Dy, const Vec3& f
     }
     step_ = step;
     n_lattice_ = 0;
+    n_coarse_ = 0;
     n_exact_ = 0;
     n_behind_ = 0;
     W_ = W;
@@ -862,6 +863,22 @@ void RbfSplat::bin(const Vec3& D0, const Vec3& Dx, const Vec3& Dy, const Vec3& f
         });
     };
     rows(false, nullptr);
+    // Coarse-lattice Gaussians (see splat_tile): H = 2 step pixels, tau = 1e-3; pix = the
+    // largest angle of a pixel (at the film point nearest the eye: |Dx| / (D0 . forward)).
+    smooth_.assign(step > 1 ? n : 0, 0);
+    if (step > 1) {
+        const double f = glm::dot(D0, forward);
+        const double pix = f > 0.0 ? std::max(glm::length(Dx), glm::length(Dy)) / f : 0.0;
+        const double H = 2.0 * step, tau = 1e-3;
+        const double sigma_min = H / (2.0 * std::sqrt(tau)) * pix;      // angle
+        const double light_min = H * std::sqrt(6.0 / (8.0 * tau)) * pix;  // |b - s| - R per unit d
+        for (std::size_t i = 0; i < n && pix > 0.0; ++i) {
+            const double dist = std::max(g_[i].dist, 1e-12), a = medium_.scale(i);
+            bool ok = 1.0 / (std::sqrt(2.0) * a * dist) >= sigma_min;
+            for (const Vec3& s : lights_) ok = ok && glm::length(medium_.centre(i) - s) - g_[i].radius >= light_min * dist;
+            smooth_[i] = ok ? 1 : 0;
+        }
+    }
     for (int t = 0; t < n_tiles; ++t) count[t + 1] += count[t];
     bin_start_ = count;
     bin_index_.resize(count[n_tiles]);
@@ -1175,8 +1192,14 @@ void RbfSplat::splat_tile_reduced(int t, int x0, int y0, int w, int h, const flo
     // The Gaussians wholly in front go to the lattice in one Gaussian-major pass
     // (lattice_batch) on the plain path without noise.
     const bool batch = plain_ && !noise_.on();
-    thread_local std::vector<std::uint32_t> batch_list;
+    thread_local std::vector<std::uint32_t> batch_list, coarse_list;
     batch_list.clear();
+    coarse_list.clear();
+    // The coarse lattice: every other node (needs an odd number of nodes per row, column).
+    const bool coarse_ok = batch && (nu - 1) % 2 == 0 && (nv - 1) % 2 == 0;
+    auto to_lattice = [&](std::size_t i) {
+        (coarse_ok && smooth_[i] ? coarse_list : batch_list).push_back(std::uint32_t(i));
+    };
     for (std::uint32_t e = bin_start_[t]; e < bin_start_[t + 1]; ++e) {
         const std::size_t i = bin_index_[e];
         const GaussF& g = g_[i];
@@ -1205,7 +1228,7 @@ void RbfSplat::splat_tile_reduced(int t, int x0, int y0, int w, int h, const flo
             continue;
         }
         if (front) {
-            if (batch) batch_list.push_back(std::uint32_t(i));
+            if (batch) to_lattice(i);
             else splat_gaussian(i, m_pad, lx, ly, lz, nullptr, cT, cR, cG, cB);
             ++lattice;
             continue;
@@ -1226,7 +1249,7 @@ void RbfSplat::splat_tile_reduced(int t, int x0, int y0, int w, int h, const flo
             else if (not_behind > 0) cut |= 1u << b;
         }
         if (all_front) {
-            if (batch) batch_list.push_back(std::uint32_t(i));
+            if (batch) to_lattice(i);
             else splat_gaussian(i, m_pad, lx, ly, lz, nullptr, cT, cR, cG, cB);
             ++lattice;
             continue;
@@ -1286,6 +1309,36 @@ void RbfSplat::splat_tile_reduced(int t, int x0, int y0, int w, int h, const flo
         Bf[q] += eB[k];
     }
     if (!batch_list.empty()) lattice_batch(batch_list.data(), int(batch_list.size()), m, lx, ly, lz, cT, cR, cG, cB);
+    if (!coarse_list.empty()) {
+        // Every other node, then its bilinear interpolant spread onto the lattice (the
+        // same function as interpolating the coarse nodes at the pixels).
+        const int nuc = (nu + 1) / 2, nvc = (nv + 1) / 2, mc = nuc * nvc;
+        float qx[kMaxLattice], qy[kMaxLattice], qz[kMaxLattice];
+        float qT[kMaxLattice] = {}, qR[kMaxLattice] = {}, qG[kMaxLattice] = {}, qB[kMaxLattice] = {};
+        for (int v = 0; v < nvc; ++v)
+            for (int u = 0; u < nuc; ++u) {
+                const int k = 2 * v * nu + 2 * u;
+                qx[v * nuc + u] = lx[k];
+                qy[v * nuc + u] = ly[k];
+                qz[v * nuc + u] = lz[k];
+            }
+        lattice_batch(coarse_list.data(), int(coarse_list.size()), mc, qx, qy, qz, qT, qR, qG, qB);
+        for (int v = 0; v < nv; ++v)
+            for (int u = 0; u < nu; ++u) {
+                const int uc = u / 2, vc = v / 2;
+                const float fu = (u & 1) ? 0.5f : 0.0f, fv = (v & 1) ? 0.5f : 0.0f;
+                const int a = vc * nuc + uc, b = (u & 1) ? a + 1 : a, c = (v & 1) ? a + nuc : a,
+                          d = (v & 1) ? b + nuc : b;
+                const float w00 = (1.0f - fu) * (1.0f - fv), w10 = fu * (1.0f - fv), w01 = (1.0f - fu) * fv,
+                            w11 = fu * fv;
+                const int k = v * nu + u;
+                cT[k] += w00 * qT[a] + w10 * qT[b] + w01 * qT[c] + w11 * qT[d];
+                cR[k] += w00 * qR[a] + w10 * qR[b] + w01 * qR[c] + w11 * qR[d];
+                cG[k] += w00 * qG[a] + w10 * qG[b] + w01 * qG[c] + w11 * qG[d];
+                cB[k] += w00 * qB[a] + w10 * qB[b] + w01 * qB[c] + w11 * qB[d];
+            }
+        n_coarse_.fetch_add(coarse_list.size(), std::memory_order_relaxed);
+    }
     if (lattice == 0 && !near_lattice) return;
     // Bilinear interpolation of the lattice sums to the pixel centres.
     const float inv_s = 1.0f / float(s);
@@ -1348,7 +1401,7 @@ void RbfSplat::lattice_batch(const std::uint32_t* idx, int n, int m, const float
 }
 
 RbfSplat::ReducedCounts RbfSplat::reduced_counts() const {
-    return {n_lattice_.load(), n_exact_.load(), n_behind_.load()};
+    return {n_lattice_.load(), n_exact_.load(), n_behind_.load(), n_coarse_.load()};
 }
 
 void RbfSplat::eval_rays(const Vec3* dirs, const float* Dvp, const float* t0, int n, double* Tr, RGB* La) const {

@@ -134,14 +134,25 @@ class RbfSplat {
     //  A Gaussian reaching the near clip plane has its near segment [0, t0] (t0 = clip /
     //  cos, smooth) on the lattice too. Tiles within 64 pixels of a light's image (where
     //  the light terms peak) are evaluated exactly.
+    //  Coarse lattice (plain path, no noise): an in-front Gaussian whose term is smooth on
+    //  the scale of H = 2 s pixels goes on every other lattice node (spacing H), whose
+    //  bilinear interpolant is spread onto the lattice: its angular scale 1 / (sqrt 2 a d)
+    //  (d its distance) at least H / (2 sqrt(tau)) pixels, tau = 1e-3 (bilinear error of a
+    //  Gaussian bump < H^2 / (4 sigma^2) = tau of its peak), and for every point light
+    //  |b - s| - R >= 27 H pixels' angle times d (the light factor ~ 1/|b^r - s|^2: error
+    //  < (H d pix)^2 6 / (8 |b^r - s|^2) = tau). The quarter lattice itself allows up to
+    //  ~2 % per Gaussian for the smallest ones (sigma 15 px at 80 m in bench_rbf.py).
+    //  Edge supersamples (eval_rays) use the (fine) lattice for the Gaussians in front of
+    //  all the samples of their chunk.
     // So depth edges cost no accuracy (a pixel's depth only selects which Gaussians are
     // exact); the error is the bilinear interpolation of smooth terms (measured in
     // rbf_splat_test.cpp and benchmarks/bench_rbf.py).
     void splat_tile(int t, const float* depth, float* transmittance, float* airlight) const;
     // Pair counts of the last splat at step > 1 (all tiles; reset by bin()): lattice
-    // (interpolated), exact per pixel, skipped behind the surface.
+    // (interpolated), exact per pixel, skipped behind the surface; coarse: of the lattice
+    // pairs, those on the coarse lattice (every other node, see splat_tile).
     struct ReducedCounts {
-        std::size_t lattice = 0, exact = 0, behind = 0;
+        std::size_t lattice = 0, exact = 0, behind = 0, coarse = 0;
     };
     ReducedCounts reduced_counts() const;
 
@@ -232,7 +243,8 @@ class RbfSplat {
     int step_ = 1;
     Vec3 q0_{0.0}, q1_{0.0}, q2_{0.0};  // film coordinates of a direction d: (q1.d, q2.d) / q0.d
     std::vector<unsigned char> exact_tile_;  // step_ > 1: tiles evaluated exactly (next to a light)
-    mutable std::atomic<std::size_t> n_lattice_{0}, n_exact_{0}, n_behind_{0};
+    mutable std::atomic<std::size_t> n_lattice_{0}, n_exact_{0}, n_behind_{0}, n_coarse_{0};
+    std::vector<unsigned char> smooth_;  // step_ > 1: per Gaussian, coarse lattice allowed
     std::vector<std::uint32_t> bin_start_;  // per tile, into bin_index_ (size tiles + 1)
     std::vector<std::uint32_t> bin_index_;
 };
