@@ -137,7 +137,8 @@ class RbfSplat {
     //  Coarse lattice (plain path, no noise): an in-front Gaussian whose term is smooth on
     //  the scale of H = 2 s pixels goes on every other lattice node (spacing H), whose
     //  bilinear interpolant is spread onto the lattice: its angular scale 1 / (sqrt 2 a d)
-    //  (d its distance) at least H / (2 sqrt(tau)) pixels, tau = 1e-3 (bilinear error of a
+    //  (d its distance) at least H / (2 sqrt(tau)) pixels, tau = 1e-3 at quarter resolution,
+    //  1e-3 / 4 at half (so half keeps erring ~4x less than quarter) (bilinear error of a
     //  Gaussian bump < H^2 / (4 sigma^2) = tau of its peak), and for every point light
     //  |b - s| - R >= 27 H pixels' angle times d (the light factor ~ 1/|b^r - s|^2: error
     //  < (H d pix)^2 6 / (8 |b^r - s|^2) = tau). The quarter lattice itself allows up to
