@@ -1450,6 +1450,7 @@ void RbfSplat::eval_rays(const Vec3* dirs, const float* Dvp, const float* t0, in
         float fpx[kChunk], fpy[kChunk];
         float far_min = std::numeric_limits<float>::infinity();
         for (int k = 0; k < m; ++k) far_min = std::min(far_min, far[k]);
+        int last_tile = -1;
         for (int k = 0; k < m; ++k) {
             const Vec3& d = dirs[k0 + k];
             ddx[k] = d.x;
@@ -1468,6 +1469,9 @@ void RbfSplat::eval_rays(const Vec3* dirs, const float* Dvp, const float* t0, in
                     fpx[k] = float(px);
                     fpy[k] = float(py);
                     if (exact_tile_[t]) lattice_ok = false;
+                    // (the chunk's rays mostly share a tile: its list is gathered once)
+                    if (t == last_tile) continue;
+                    last_tile = t;
                     for (std::uint32_t e = bin_start_[t]; e < bin_start_[t + 1]; ++e) {
                         const std::uint32_t i = bin_index_[e];
                         if (stamp[i] == generation) continue;
