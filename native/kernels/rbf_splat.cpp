@@ -1309,7 +1309,17 @@ void RbfSplat::splat_tile_reduced(int t, int x0, int y0, int w, int h, const flo
         Gf[q] += eG[k];
         Bf[q] += eB[k];
     }
-    if (!batch_list.empty()) lattice_batch(batch_list.data(), int(batch_list.size()), m, lx, ly, lz, cT, cR, cG, cB);
+    // Gaussian-major (lattice_batch: lanes over the Gaussians, padded to 16, plus a call per
+    // node) or ray-major (splat_gaussian per Gaussian on the nodes padded to 16), whichever
+    // evaluates fewer terms: few Gaussians in a tile (e.g. 34 broad ones) go ray-major.
+    auto lattice_sum = [&](const std::vector<std::uint32_t>& list, int mm, const float* x, const float* y,
+                           const float* z, float* T, float* R, float* G, float* B) {
+        const int nl = int(list.size()), nl_pad = (nl + 15) / 16 * 16, mm_pad = (mm + 15) / 16 * 16;
+        if (mm * (nl_pad + 8) < nl * mm_pad) lattice_batch(list.data(), nl, mm, x, y, z, T, R, G, B);
+        else
+            for (std::uint32_t i : list) splat_gaussian(i, mm_pad, x, y, z, nullptr, T, R, G, B);
+    };
+    if (!batch_list.empty()) lattice_sum(batch_list, m, lx, ly, lz, cT, cR, cG, cB);
     if (!coarse_list.empty()) {
         // Every other node, then its bilinear interpolant spread onto the lattice (the
         // same function as interpolating the coarse nodes at the pixels).
@@ -1323,7 +1333,12 @@ void RbfSplat::splat_tile_reduced(int t, int x0, int y0, int w, int h, const flo
                 qy[v * nuc + u] = ly[k];
                 qz[v * nuc + u] = lz[k];
             }
-        lattice_batch(coarse_list.data(), int(coarse_list.size()), mc, qx, qy, qz, qT, qR, qG, qB);
+        for (int k = mc; k < (mc + 15) / 16 * 16; ++k) {  // padding for the ray-major form
+            qx[k] = qx[mc - 1];
+            qy[k] = qy[mc - 1];
+            qz[k] = qz[mc - 1];
+        }
+        lattice_sum(coarse_list, mc, qx, qy, qz, qT, qR, qG, qB);
         for (int v = 0; v < nv; ++v)
             for (int u = 0; u < nu; ++u) {
                 const int uc = u / 2, vc = v / 2;

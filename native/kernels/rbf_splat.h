@@ -161,7 +161,10 @@ class RbfSplat {
     // the same quantities as splat_tile (Tr, RGB airlight), for edge supersampling. Rays go
     // in chunks of 16 (pass neighbouring rays together, e.g. one pixel's sub-samples); each
     // chunk evaluates the union of the Gaussians whose cull spheres its segments reach
-    // (from the medium's hierarchy) with the splat's kernels. Thread safe.
+    // (from the medium's hierarchy) with the splat's kernels. At step > 1 (after bin()) the
+    // union comes from the tile bins, and on the plain path without noise the Gaussians in
+    // front of every segment of a chunk come from the lattice (nodes around the chunk's film
+    // positions, interpolated at each ray), as for the centre samples. Thread safe.
     void eval_rays(const Vec3* dirs, const float* Dvp, const float* t0, int n, double* Tr, RGB* La) const;
 
     // Exact double reference for one ray (no noise support; RbfAirlightFogshop::eval with
