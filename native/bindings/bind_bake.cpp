@@ -341,8 +341,8 @@ rbf_albedo (n, 3) >= 0: optional per-Gaussian colour (scattering albedo) used in
 gaussian_resolution: "full" (default), "half" or "quarter": perspective cameras evaluate the
   Gaussians that lie wholly in front of a 16x16 tile's surfaces on a ray lattice every 2 / 4
   pixels and interpolate them bilinearly (they do not depend on the depth there); the
-  Gaussians a surface cuts, and depth-edge pixels (supersampled), stay exact per pixel
-  (rbf_splat.h). "full" is the plain per-pixel splat.
+  Gaussians a surface cuts stay exact per pixel (per sub-sample on supersampled depth-edge
+  pixels; rbf_splat.h). "full" is the plain per-pixel splat.
 noise_amplitude >= 0 (0: off), noise_scale > 0 (m), noise_offset (3,): Fogshop section 5.5
   noise: each Gaussian's optical depth along a view ray is taken along the ray direction
   perturbed by world-space gradient noise (cell size noise_scale, lookup point / scale +
