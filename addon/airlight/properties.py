@@ -190,7 +190,7 @@ class AirlightSceneSettings(bpy.types.PropertyGroup):
         name="Fog Object Resolution",
         description="Where the bake evaluates fog objects (Gaussian fog): blobs wholly in front "
                     "of the surfaces are computed every 1, 2 or 4 pixels and blended in between; "
-                    "blobs a surface cuts, and depth edges, stay exact per pixel. With Automatic "
+                    "blobs a surface cuts stay exact per pixel (per sub-sample on depth edges). With Automatic "
                     "a finer setting is used when the accuracy target asks for it. Noise is "
                     "blended too: with Noise Amplitude 0.4 (scale 1 m) the error grows to 1.2 % "
                     "(Half) and 5.8 % (Quarter) max, so Automatic at 1 % then bakes Full",

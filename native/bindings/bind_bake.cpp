@@ -358,8 +358,8 @@ rbf_albedo (n, 3) >= 0: optional per-Gaussian colour (scattering albedo) used in
 gaussian_resolution: "full" (default), "half" or "quarter": perspective cameras evaluate the
   Gaussians that lie wholly in front of a 16x16 tile's surfaces on a ray lattice every 2 / 4
   pixels and interpolate them bilinearly (they do not depend on the depth there); the
-  Gaussians a surface cuts, and depth-edge pixels (supersampled), stay exact per pixel
-  (rbf_splat.h). "full" is the plain per-pixel splat.
+  Gaussians a surface cuts stay exact per pixel (per sub-sample on supersampled depth-edge
+  pixels; rbf_splat.h). "full" is the plain per-pixel splat.
 homogeneous_resolution: "full" (default: every pixel exact), "half" or "quarter": model "sun05"
   with a perspective camera and no spots or Gaussians evaluates the homogeneous airlight on a
   lattice every 2 / 4 pixels and interpolates it bilinearly where it is smooth; depth-edge

@@ -257,15 +257,165 @@ AIRLIGHT_SPLAT_CLONES void depth_classes(const RbfSplat::GaussF g, float R2, int
     not_behind = nb;
 }
 
+// The lattice of a tile at reduced resolution in Gaussian-major order (plain path: isotropic
+// point lights, no noise): for each of the m lattice rays (lx, ly, lz), the Dvp = inf terms
+// of the n Gaussians gathered in structure-of-arrays form (n a multiple of 16, padded with
+// k0 = 0 and zero weights), summed over the Gaussians into T, R, G, B. The same arithmetic
+// as view_terms<false, true> and light_terms, one SIMD lane per Gaussian instead of per ray:
+// long loops, no padding of the (16/s + 1)^2 rays, one call per tile instead of per pair.
+// Per-(Gaussian, light) data at [l n + k]; scratch: 6 n floats.
+struct LatticeSoA {
+    std::vector<float> rx, ry, rz, a, a2, k0, sx, sy, sz, wr, wg, wb, scratch;
+    int n = 0;
+};
+
+// View side of lattice_gaussian_major for one ray (x, y, z): Tvp, Tvr, tr per Gaussian.
+AIRLIGHT_SPLAT_CLONES void lattice_view_gm(int n, const float* __restrict rx, const float* __restrict ry,
+                                           const float* __restrict rz, const float* __restrict ga,
+                                           const float* __restrict ga2, const float* __restrict gk0, float x, float y,
+                                           float z, float* __restrict Tvp, float* __restrict Tvr,
+                                           float* __restrict tr) {
+    for (int k = 0; k < n; ++k) {
+        const float ts = rx[k] * x + ry[k] * y + rz[k] * z;
+        const float cx = ry[k] * z - rz[k] * y, cy = rz[k] * x - rx[k] * z, cz = rx[k] * y - ry[k] * x;
+        const float e = gk0[k] * fast_expf(-ga2[k] * (cx * cx + cy * cy + cz * cz));
+        const float x1 = -ga[k] * ts;
+        const float E1 = fast_erfc_pos(x1 < 0.0f ? -x1 : x1);
+        Tvp[k] = e * (x1 >= 0.0f ? E1 : 2.0f - E1);
+        tr[k] = ts < 0.0f ? 0.0f : ts;
+        Tvr[k] = ts <= 0.0f ? 0.0f : e * (1.0f - E1);
+    }
+}
+
+// Light side of lattice_gaussian_major for one ray and light (v = eye - s): sets (first)
+// or adds the RGB terms per Gaussian.
+template <bool kFirst>
+AIRLIGHT_SPLAT_CLONES void lattice_light_gm(int n, const float* __restrict ga, const float* __restrict ga2,
+                                            const float* __restrict gk0, const float* __restrict gsx,
+                                            const float* __restrict gsy, const float* __restrict gsz,
+                                            const float* __restrict gwr, const float* __restrict gwg,
+                                            const float* __restrict gwb, float vx, float vy, float vz, float x,
+                                            float y, float z, const float* __restrict Tvp,
+                                            const float* __restrict Tvr, const float* __restrict tr,
+                                            float* __restrict aR, float* __restrict aG, float* __restrict aB) {
+    for (int k = 0; k < n; ++k) {
+        const float t = tr[k];
+        const float sx = vx + t * x, sy = vy + t * y, sz = vz + t * z;
+        const float d2 = std::max(sx * sx + sy * sy + sz * sz, kMinD2f);
+        const float inv = 1.0f / std::sqrt(d2);
+        const float ux = sx * inv, uy = sy * inv, uz = sz * inv;
+        const float Ds = d2 * inv;
+        const float ts = gsx[k] * ux + gsy[k] * uy + gsz[k] * uz;
+        const float cx = gsy[k] * uz - gsz[k] * uy, cy = gsz[k] * ux - gsx[k] * uz, cz = gsx[k] * uy - gsy[k] * ux;
+        const float e = gk0[k] * fast_expf(-ga2[k] * (cx * cx + cy * cy + cz * cz));
+        const float x1 = -ga[k] * ts, x2 = ga[k] * (Ds - ts);
+        const float E1 = fast_erfc_pos(x1 < 0.0f ? -x1 : x1);
+        const float E2 = fast_erfc_pos(x2 < 0.0f ? -x2 : x2);
+        const float diff = x1 >= 0.0f ? E1 - E2 : (x2 <= 0.0f ? E2 - E1 : 2.0f - E1 - E2);
+        const float Tsr = e * diff;
+        const float f = fast_expf(-Tsr - Tvr[k]) * Tvp[k] / d2;
+        if constexpr (kFirst) {
+            aR[k] = gwr[k] * f;
+            aG[k] = gwg[k] * f;
+            aB[k] = gwb[k] * f;
+        } else {
+            aR[k] += gwr[k] * f;
+            aG[k] += gwg[k] * f;
+            aB[k] += gwb[k] * f;
+        }
+    }
+}
+
+// Sums of four arrays of n values (n a multiple of 16) in 16 lanes (vectorised without
+// reassociation flags), added to *T, *R, *G, *B.
+AIRLIGHT_SPLAT_CLONES void sum4_16(int n, const float* __restrict a, const float* __restrict b,
+                                   const float* __restrict c, const float* __restrict d, float* T, float* R, float* G,
+                                   float* B) {
+    float pT[16] = {}, pR[16] = {}, pG[16] = {}, pB[16] = {};
+    for (int k = 0; k < n; k += 16)
+        for (int u = 0; u < 16; ++u) {
+            pT[u] += a[k + u];
+            pR[u] += b[k + u];
+            pG[u] += c[k + u];
+            pB[u] += d[k + u];
+        }
+    float sT = 0.0f, sR = 0.0f, sG = 0.0f, sB = 0.0f;
+    for (int u = 0; u < 16; ++u) {
+        sT += pT[u];
+        sR += pR[u];
+        sG += pG[u];
+        sB += pB[u];
+    }
+    *T += sT;
+    *R += sR;
+    *G += sG;
+    *B += sB;
+}
+
+void lattice_gaussian_major(LatticeSoA& q, int L, const RbfSplat::LightF* lf, int m, const float* lx,
+                            const float* ly, const float* lz, float* T, float* R, float* G, float* B) {
+    const int n = q.n;
+    float* Tvp = q.scratch.data();
+    float* Tvr = Tvp + n;
+    float* tr = Tvr + n;
+    float* aR = tr + n;
+    float* aG = aR + n;
+    float* aB = aG + n;
+    for (int j = 0; j < m; ++j) {
+        lattice_view_gm(n, q.rx.data(), q.ry.data(), q.rz.data(), q.a.data(), q.a2.data(), q.k0.data(), lx[j], ly[j],
+                        lz[j], Tvp, Tvr, tr);
+        if (L == 0) {
+            std::fill(aR, aR + n, 0.0f);
+            std::fill(aG, aG + n, 0.0f);
+            std::fill(aB, aB + n, 0.0f);
+        }
+        for (int l = 0; l < L; ++l) {
+            const std::size_t o = std::size_t(l) * n;
+            if (l == 0)
+                lattice_light_gm<true>(n, q.a.data(), q.a2.data(), q.k0.data(), q.sx.data() + o, q.sy.data() + o,
+                                       q.sz.data() + o, q.wr.data() + o, q.wg.data() + o, q.wb.data() + o, lf[l].vx,
+                                       lf[l].vy, lf[l].vz, lx[j], ly[j], lz[j], Tvp, Tvr, tr, aR, aG, aB);
+            else
+                lattice_light_gm<false>(n, q.a.data(), q.a2.data(), q.k0.data(), q.sx.data() + o, q.sy.data() + o,
+                                        q.sz.data() + o, q.wr.data() + o, q.wg.data() + o, q.wb.data() + o, lf[l].vx,
+                                        lf[l].vy, lf[l].vz, lx[j], ly[j], lz[j], Tvp, Tvr, tr, aR, aG, aB);
+        }
+        sum4_16(n, Tvp, aR, aG, aB, T + j, R + j, G + j, B + j);
+    }
+}
+
+// sub_interp for n pixels inside one lattice cell (top-left index a).
+AIRLIGHT_SPLAT_CLONES void sub_interp_cell(int n, int a, const float* __restrict wgt, int nu,
+                                           const float* __restrict T, const float* __restrict R,
+                                           const float* __restrict G, const float* __restrict B,
+                                           float* __restrict aT, float* __restrict aR, float* __restrict aG,
+                                           float* __restrict aB) {
+    const int b = a + 1, c = a + nu, d = c + 1;
+    const float t0 = T[a], t1 = T[b], t2 = T[c], t3 = T[d];
+    const float r0 = R[a], r1 = R[b], r2 = R[c], r3 = R[d];
+    const float g0 = G[a], g1 = G[b], g2 = G[c], g3 = G[d];
+    const float b0 = B[a], b1 = B[b], b2 = B[c], b3 = B[d];
+    for (int k = 0; k < n; ++k) {
+        const float w0 = wgt[k], w1 = wgt[kTilePixels + k], w2 = wgt[2 * kTilePixels + k],
+                    w3 = wgt[3 * kTilePixels + k];
+        aT[k] -= w0 * t0 + w1 * t1 + w2 * t2 + w3 * t3;
+        aR[k] -= w0 * r0 + w1 * r1 + w2 * r2 + w3 * r3;
+        aG[k] -= w0 * g0 + w1 * g1 + w2 * g2 + w3 * g3;
+        aB[k] -= w0 * b0 + w1 * b1 + w2 * b2 + w3 * b3;
+    }
+}
+
 // Subtracts the bilinear interpolation of the lattice values (T, R, G, B; lattice rows of
-// nu) at n pixels (top-left lattice index lat[k], weights wgt[4 k ..]) from the accumulators.
+// nu) at n pixels (top-left lattice index lat[k], weights wgt[j kTilePixels + k], j = 0..3)
+// from the accumulators.
 AIRLIGHT_SPLAT_CLONES void sub_interp(int n, const int* __restrict lat, const float* __restrict wgt, int nu,
                                       const float* __restrict T, const float* __restrict R,
                                       const float* __restrict G, const float* __restrict B, float* __restrict aT,
                                       float* __restrict aR, float* __restrict aG, float* __restrict aB) {
     for (int k = 0; k < n; ++k) {
         const int a = lat[k], b = a + 1, c = a + nu, d = c + 1;
-        const float w0 = wgt[4 * k], w1 = wgt[4 * k + 1], w2 = wgt[4 * k + 2], w3 = wgt[4 * k + 3];
+        const float w0 = wgt[k], w1 = wgt[kTilePixels + k], w2 = wgt[2 * kTilePixels + k],
+                    w3 = wgt[3 * kTilePixels + k];
         aT[k] -= w0 * T[a] + w1 * T[b] + w2 * T[c] + w3 * T[d];
         aR[k] -= w0 * R[a] + w1 * R[b] + w2 * R[c] + w3 * R[d];
         aG[k] -= w0 * G[a] + w1 * G[b] + w2 * G[c] + w3 * G[d];
@@ -1265,6 +1415,7 @@ void RbfSplat::bin(const Vec3& D0, const Vec3& Dx, const Vec3& Dy, const Vec3& f
     }
     step_ = step;
     n_lattice_ = 0;
+    n_coarse_ = 0;
     n_exact_ = 0;
     n_behind_ = 0;
     W_ = W;
@@ -1305,8 +1456,10 @@ void RbfSplat::bin(const Vec3& D0, const Vec3& Dx, const Vec3& Dy, const Vec3& f
         double cos_t, sin_t;
     };
     std::vector<Cone> cones(n_tiles);
-    for (int ty = 0; ty < tiles_y_; ++ty)
-        for (int tx = 0; tx < tiles_x_; ++tx) {
+    // (the per-tile and per-Gaussian work below runs on threads_ threads: parallel_chunks)
+    parallel_chunks(std::size_t(n_tiles), threads_, 256, [&](std::size_t tb, std::size_t te) {
+        for (std::size_t tt = tb; tt < te; ++tt) {
+            const int tx = int(tt) % tiles_x_, ty = int(tt) / tiles_x_;
             const double x0 = tx * kTile, x1 = std::min(W, (tx + 1) * kTile);
             const double y0 = ty * kTile, y1 = std::min(H, (ty + 1) * kTile);
             Cone& c = cones[ty * tiles_x_ + tx];
@@ -1319,6 +1472,7 @@ void RbfSplat::bin(const Vec3& D0, const Vec3& Dx, const Vec3& Dy, const Vec3& f
             c.cos_t = cmin;
             c.sin_t = std::sqrt(std::max(0.0, 1.0 - cmin * cmin));
         }
+    });
     // Reduced resolution: tiles within kLightMarginPx pixels (angle at the tile) of a
     // light's direction stay exact (splat_tile_reduced).
     exact_tile_.assign(step > 1 ? n_tiles : 0, 0);
@@ -1362,63 +1516,93 @@ void RbfSplat::bin(const Vec3& D0, const Vec3& Dx, const Vec3& Dy, const Vec3& f
         hi = (beta + s) / alpha;
         return std::isfinite(lo) && std::isfinite(hi);
     };
-    for (std::size_t i = 0; i < n; ++i) {
-        int* r = &rect[4 * i];
-        r[0] = 0;
-        r[1] = -1;
-        r[2] = 0;
-        r[3] = -1;
-        const double R = medium_.cull_radius(i);
-        if (!(R > 0.0) || medium_.amplitude(i) == 0.0) continue;
-        const Vec3 c = medium_.centre(i) - eye_;
-        const double dist = glm::length(c);
-        g_[i].near = clip_start > 0.0 && dist < R + t0_max;
-        // Entirely behind the eye: no ray from the eye meets it.
-        if (glm::dot(q0, c) + R * glm::length(q0) < 0.0) continue;
-        double x_lo, x_hi, y_lo, y_hi;
-        int tx0 = 0, tx1 = tiles_x_ - 1, ty0 = 0, ty1 = tiles_y_ - 1;
-        if (interval(c, R, q1, x_lo, x_hi) && interval(c, R, q2, y_lo, y_hi)) {
-            // Pixels whose centres (i + 0.5) lie in the interval, one pixel of margin.
-            const double px0 = std::floor(x_lo - 0.5) - 1.0, px1 = std::ceil(x_hi - 0.5) + 1.0;
-            const double py0 = std::floor(y_lo - 0.5) - 1.0, py1 = std::ceil(y_hi - 0.5) + 1.0;
-            if (px1 < 0.0 || py1 < 0.0 || px0 > W - 1 || py0 > H - 1) continue;
-            tx0 = int(std::max(0.0, px0)) / kTile;
-            tx1 = int(std::min(double(W - 1), px1)) / kTile;
-            ty0 = int(std::max(0.0, py0)) / kTile;
-            ty1 = int(std::min(double(H - 1), py1)) / kTile;
-        }
-        r[0] = tx0;
-        r[1] = tx1;
-        r[2] = ty0;
-        r[3] = ty1;
-        // Cone test inside the rectangle (all tiles if the eye is inside the ball).
-        const bool inside = dist <= R * (1.0 + 1e-9);
-        const Vec3 u = inside ? Vec3(0.0) : c / dist;
-        const double sin_r = inside ? 1.0 : R / dist, cos_r = inside ? 0.0 : std::sqrt(1.0 - sin_r * sin_r);
-        for (int ty = ty0; ty <= ty1; ++ty)
-            for (int tx = tx0; tx <= tx1; ++tx) {
-                const int t = ty * tiles_x_ + tx;
-                if (inside || meets(t, u, sin_r, cos_r)) ++count[t + 1];
+    // Per Gaussian: its tile rectangle and cone-test ball (direction u, sin and cos of its
+    // angular radius; inside: the eye is in the ball, every tile of the rectangle).
+    struct Ball {
+        Vec3 u{0.0};
+        double sin_r = 1.0, cos_r = 0.0;
+        bool inside = true;
+    };
+    std::vector<Ball> balls(n);
+    parallel_chunks(n, threads_, 256, [&](std::size_t ib, std::size_t ie) {
+        for (std::size_t i = ib; i < ie; ++i) {
+            int* r = &rect[4 * i];
+            r[0] = 0;
+            r[1] = -1;
+            r[2] = 0;
+            r[3] = -1;
+            const double R = medium_.cull_radius(i);
+            if (!(R > 0.0) || medium_.amplitude(i) == 0.0) continue;
+            const Vec3 c = medium_.centre(i) - eye_;
+            const double dist = glm::length(c);
+            g_[i].near = clip_start > 0.0 && dist < R + t0_max;
+            // Entirely behind the eye: no ray from the eye meets it.
+            if (glm::dot(q0, c) + R * glm::length(q0) < 0.0) continue;
+            double x_lo, x_hi, y_lo, y_hi;
+            int tx0 = 0, tx1 = tiles_x_ - 1, ty0 = 0, ty1 = tiles_y_ - 1;
+            if (interval(c, R, q1, x_lo, x_hi) && interval(c, R, q2, y_lo, y_hi)) {
+                // Pixels whose centres (i + 0.5) lie in the interval, one pixel of margin.
+                const double px0 = std::floor(x_lo - 0.5) - 1.0, px1 = std::ceil(x_hi - 0.5) + 1.0;
+                const double py0 = std::floor(y_lo - 0.5) - 1.0, py1 = std::ceil(y_hi - 0.5) + 1.0;
+                if (px1 < 0.0 || py1 < 0.0 || px0 > W - 1 || py0 > H - 1) continue;
+                tx0 = int(std::max(0.0, px0)) / kTile;
+                tx1 = int(std::min(double(W - 1), px1)) / kTile;
+                ty0 = int(std::max(0.0, py0)) / kTile;
+                ty1 = int(std::min(double(H - 1), py1)) / kTile;
             }
+            r[0] = tx0;
+            r[1] = tx1;
+            r[2] = ty0;
+            r[3] = ty1;
+            // Cone test inside the rectangle (all tiles if the eye is inside the ball).
+            Ball& ball = balls[i];
+            ball.inside = dist <= R * (1.0 + 1e-9);
+            ball.u = ball.inside ? Vec3(0.0) : c / dist;
+            ball.sin_r = ball.inside ? 1.0 : R / dist;
+            ball.cos_r = ball.inside ? 0.0 : std::sqrt(1.0 - ball.sin_r * ball.sin_r);
+        }
+    });
+    // Counts per tile, then the lists, by tile rows in parallel (each row's tiles list their
+    // Gaussians in index order, as a serial pass over the Gaussians would).
+    auto rows = [&](bool fill_lists, std::uint32_t* fill) {
+        parallel_chunks(std::size_t(tiles_y_), threads_, 1, [&](std::size_t yb, std::size_t ye) {
+            for (int ty = int(yb); ty < int(ye); ++ty)
+                for (std::size_t i = 0; i < n; ++i) {
+                    const int* r = &rect[4 * i];
+                    if (r[1] < r[0] || ty < r[2] || ty > r[3]) continue;
+                    const Ball& ball = balls[i];
+                    for (int tx = r[0]; tx <= r[1]; ++tx) {
+                        const int t = ty * tiles_x_ + tx;
+                        if (!(ball.inside || meets(t, ball.u, ball.sin_r, ball.cos_r))) continue;
+                        if (fill_lists) bin_index_[fill[t]++] = std::uint32_t(i);
+                        else ++count[t + 1];
+                    }
+                }
+        });
+    };
+    rows(false, nullptr);
+    // Coarse-lattice Gaussians (see splat_tile): H = 2 step pixels, tau = 1e-3 at quarter
+    // resolution and 1e-3 / 4 at half (which errs ~4x less than quarter: keeps that); pix =
+    // the largest angle of a pixel (at the film point nearest the eye: |Dx| / (D0 . forward)).
+    smooth_.assign(step > 1 ? n : 0, 0);
+    if (step > 1) {
+        const double f = glm::dot(D0, forward);
+        const double pix = f > 0.0 ? std::max(glm::length(Dx), glm::length(Dy)) / f : 0.0;
+        const double H = 2.0 * step, tau = 1e-3 * (step / 4.0) * (step / 4.0);
+        const double sigma_min = H / (2.0 * std::sqrt(tau)) * pix;      // angle
+        const double light_min = H * std::sqrt(6.0 / (8.0 * tau)) * pix;  // |b - s| - R per unit d
+        for (std::size_t i = 0; i < n && pix > 0.0; ++i) {
+            const double dist = std::max(g_[i].dist, 1e-12), a = medium_.scale(i);
+            bool ok = 1.0 / (std::sqrt(2.0) * a * dist) >= sigma_min;
+            for (const Vec3& s : lights_) ok = ok && glm::length(medium_.centre(i) - s) - g_[i].radius >= light_min * dist;
+            smooth_[i] = ok ? 1 : 0;
+        }
     }
     for (int t = 0; t < n_tiles; ++t) count[t + 1] += count[t];
     bin_start_ = count;
     bin_index_.resize(count[n_tiles]);
     std::vector<std::uint32_t> fill(count.begin(), count.end() - 1);
-    for (std::size_t i = 0; i < n; ++i) {
-        const int* r = &rect[4 * i];
-        if (r[1] < r[0]) continue;
-        const Vec3 c = medium_.centre(i) - eye_;
-        const double dist = glm::length(c), R = medium_.cull_radius(i);
-        const bool inside = dist <= R * (1.0 + 1e-9);
-        const Vec3 u = inside ? Vec3(0.0) : c / dist;
-        const double sin_r = inside ? 1.0 : R / dist, cos_r = inside ? 0.0 : std::sqrt(1.0 - sin_r * sin_r);
-        for (int ty = r[2]; ty <= r[3]; ++ty)
-            for (int tx = r[0]; tx <= r[1]; ++tx) {
-                const int t = ty * tiles_x_ + tx;
-                if (inside || meets(t, u, sin_r, cos_r)) bin_index_[fill[t]++] = std::uint32_t(i);
-            }
-    }
+    rows(true, fill.data());
 }
 
 void RbfSplat::splat_gaussian(std::size_t i, int n, const float* dx, const float* dy, const float* dz,
@@ -1713,10 +1897,10 @@ void RbfSplat::splat_tile_reduced(int t, int x0, int y0, int w, int h, const flo
         const int u = int(fx), v = int(fy);
         const float wx = fx - float(u), wy = fy - float(v);
         lat[k] = v * nu + u;
-        wgt[4 * k] = (1.0f - wx) * (1.0f - wy);
-        wgt[4 * k + 1] = wx * (1.0f - wy);
-        wgt[4 * k + 2] = (1.0f - wx) * wy;
-        wgt[4 * k + 3] = wx * wy;
+        wgt[k] = (1.0f - wx) * (1.0f - wy);
+        wgt[kTilePixels + k] = wx * (1.0f - wy);
+        wgt[2 * kTilePixels + k] = (1.0f - wx) * wy;
+        wgt[3 * kTilePixels + k] = wx * wy;
     }
     float eT[kTilePixels] = {}, eR[kTilePixels] = {}, eG[kTilePixels] = {}, eB[kTilePixels] = {};
     // Conservative margins for the float depths (relative 1e-6).
@@ -1724,6 +1908,17 @@ void RbfSplat::splat_tile_reduced(int t, int x0, int y0, int w, int h, const flo
     // Next to a light's image the light terms peak (1 / |b^r - s|^2 along rays passing
     // close to the light): no interpolation there.
     const bool exact_tile = exact_tile_[t] != 0;
+    // The Gaussians wholly in front go to the lattice in one Gaussian-major pass
+    // (lattice_batch) on the plain path without noise.
+    const bool batch = plain_ && !noise_.on();
+    thread_local std::vector<std::uint32_t> batch_list, coarse_list;
+    batch_list.clear();
+    coarse_list.clear();
+    // The coarse lattice: every other node (needs an odd number of nodes per row, column).
+    const bool coarse_ok = batch && (nu - 1) % 2 == 0 && (nv - 1) % 2 == 0;
+    auto to_lattice = [&](std::size_t i) {
+        (coarse_ok && smooth_[i] ? coarse_list : batch_list).push_back(std::uint32_t(i));
+    };
     for (std::uint32_t e = bin_start_[t]; e < bin_start_[t + 1]; ++e) {
         const std::size_t i = bin_index_[e];
         const GaussF& g = g_[i];
@@ -1752,7 +1947,8 @@ void RbfSplat::splat_tile_reduced(int t, int x0, int y0, int w, int h, const flo
             continue;
         }
         if (front) {
-            splat_gaussian(i, m_pad, lx, ly, lz, nullptr, cT, cR, cG, cB);
+            if (batch) to_lattice(i);
+            else splat_gaussian(i, m_pad, lx, ly, lz, nullptr, cT, cR, cG, cB);
             ++lattice;
             continue;
         }
@@ -1772,7 +1968,8 @@ void RbfSplat::splat_tile_reduced(int t, int x0, int y0, int w, int h, const flo
             else if (not_behind > 0) cut |= 1u << b;
         }
         if (all_front) {
-            splat_gaussian(i, m_pad, lx, ly, lz, nullptr, cT, cR, cG, cB);
+            if (batch) to_lattice(i);
+            else splat_gaussian(i, m_pad, lx, ly, lz, nullptr, cT, cR, cG, cB);
             ++lattice;
             continue;
         }
@@ -1799,7 +1996,10 @@ void RbfSplat::splat_tile_reduced(int t, int x0, int y0, int w, int h, const flo
                 if (cut >> b & 1u) {
                     splat_gaussian(i, nb, bx + k0, by + k0, bz + k0, bfar + k0, eT + k0, eR + k0, eG + k0, eB + k0);
                 }
-                sub_interp(nb, lat + k0, wgt + 4 * k0, nu, gT, gR, gG, gB, eT + k0, eR + k0, eG + k0, eB + k0);
+                if (lat[k0] == lat[k0 + nb - 1])  // the block inside one cell (quarter resolution)
+                    sub_interp_cell(nb, lat[k0], wgt + k0, nu, gT, gR, gG, gB, eT + k0, eR + k0, eG + k0, eB + k0);
+                else
+                    sub_interp(nb, lat + k0, wgt + k0, nu, gT, gR, gG, gB, eT + k0, eR + k0, eG + k0, eB + k0);
             }
             ++lattice;
             continue;
@@ -1826,6 +2026,52 @@ void RbfSplat::splat_tile_reduced(int t, int x0, int y0, int w, int h, const flo
         Rf[q] += eR[k];
         Gf[q] += eG[k];
         Bf[q] += eB[k];
+    }
+    // Gaussian-major (lattice_batch: lanes over the Gaussians, padded to 16, plus a call per
+    // node) or ray-major (splat_gaussian per Gaussian on the nodes padded to 16), whichever
+    // evaluates fewer terms: few Gaussians in a tile (e.g. 34 broad ones) go ray-major.
+    auto lattice_sum = [&](const std::vector<std::uint32_t>& list, int mm, const float* x, const float* y,
+                           const float* z, float* T, float* R, float* G, float* B) {
+        const int nl = int(list.size()), nl_pad = (nl + 15) / 16 * 16, mm_pad = (mm + 15) / 16 * 16;
+        if (mm * (nl_pad + 8) < nl * mm_pad) lattice_batch(list.data(), nl, mm, x, y, z, T, R, G, B);
+        else
+            for (std::uint32_t i : list) splat_gaussian(i, mm_pad, x, y, z, nullptr, T, R, G, B);
+    };
+    if (!batch_list.empty()) lattice_sum(batch_list, m, lx, ly, lz, cT, cR, cG, cB);
+    if (!coarse_list.empty()) {
+        // Every other node, then its bilinear interpolant spread onto the lattice (the
+        // same function as interpolating the coarse nodes at the pixels).
+        const int nuc = (nu + 1) / 2, nvc = (nv + 1) / 2, mc = nuc * nvc;
+        float qx[kMaxLattice], qy[kMaxLattice], qz[kMaxLattice];
+        float qT[kMaxLattice] = {}, qR[kMaxLattice] = {}, qG[kMaxLattice] = {}, qB[kMaxLattice] = {};
+        for (int v = 0; v < nvc; ++v)
+            for (int u = 0; u < nuc; ++u) {
+                const int k = 2 * v * nu + 2 * u;
+                qx[v * nuc + u] = lx[k];
+                qy[v * nuc + u] = ly[k];
+                qz[v * nuc + u] = lz[k];
+            }
+        for (int k = mc; k < (mc + 15) / 16 * 16; ++k) {  // padding for the ray-major form
+            qx[k] = qx[mc - 1];
+            qy[k] = qy[mc - 1];
+            qz[k] = qz[mc - 1];
+        }
+        lattice_sum(coarse_list, mc, qx, qy, qz, qT, qR, qG, qB);
+        for (int v = 0; v < nv; ++v)
+            for (int u = 0; u < nu; ++u) {
+                const int uc = u / 2, vc = v / 2;
+                const float fu = (u & 1) ? 0.5f : 0.0f, fv = (v & 1) ? 0.5f : 0.0f;
+                const int a = vc * nuc + uc, b = (u & 1) ? a + 1 : a, c = (v & 1) ? a + nuc : a,
+                          d = (v & 1) ? b + nuc : b;
+                const float w00 = (1.0f - fu) * (1.0f - fv), w10 = fu * (1.0f - fv), w01 = (1.0f - fu) * fv,
+                            w11 = fu * fv;
+                const int k = v * nu + u;
+                cT[k] += w00 * qT[a] + w10 * qT[b] + w01 * qT[c] + w11 * qT[d];
+                cR[k] += w00 * qR[a] + w10 * qR[b] + w01 * qR[c] + w11 * qR[d];
+                cG[k] += w00 * qG[a] + w10 * qG[b] + w01 * qG[c] + w11 * qG[d];
+                cB[k] += w00 * qB[a] + w10 * qB[b] + w01 * qB[c] + w11 * qB[d];
+            }
+        n_coarse_.fetch_add(coarse_list.size(), std::memory_order_relaxed);
     }
     if (lattice == 0 && !near_lattice) return;
     // Bilinear interpolation of the lattice sums to the pixel centres.
@@ -1855,8 +2101,41 @@ void RbfSplat::splat_tile_reduced(int t, int x0, int y0, int w, int h, const flo
     }
 }
 
+void RbfSplat::lattice_batch(const std::uint32_t* idx, int n, int m, const float* lx, const float* ly,
+                             const float* lz, float* T, float* R, float* G, float* B) const {
+    thread_local LatticeSoA q;
+    const int L = int(lights_.size());
+    const int n_pad = (n + 15) / 16 * 16;
+    for (auto* v : {&q.rx, &q.ry, &q.rz, &q.a, &q.a2, &q.k0}) v->resize(n_pad);
+    for (auto* v : {&q.sx, &q.sy, &q.sz, &q.wr, &q.wg, &q.wb}) v->resize(std::size_t(n_pad) * L);
+    q.scratch.resize(6 * std::size_t(n_pad));
+    q.n = n_pad;
+    for (int k = 0; k < n_pad; ++k) {
+        // Padding: k0 = 0 and zero weights (terms 0), a = 1 (finite arithmetic).
+        const bool pad = k >= n;
+        const GaussF& g = g_[pad ? idx[0] : idx[k]];
+        q.rx[k] = g.rx;
+        q.ry[k] = g.ry;
+        q.rz[k] = g.rz;
+        q.a[k] = pad ? 1.0f : g.a;
+        q.a2[k] = pad ? 1.0f : g.a2;
+        q.k0[k] = pad ? 0.0f : g.k0;
+        for (int l = 0; l < L; ++l) {
+            const GaussLightF& w = gl_[std::size_t(pad ? idx[0] : idx[k]) * L + l];
+            const std::size_t o = std::size_t(l) * n_pad + k;
+            q.sx[o] = w.sx;
+            q.sy[o] = w.sy;
+            q.sz[o] = w.sz;
+            q.wr[o] = pad ? 0.0f : w.wr;
+            q.wg[o] = pad ? 0.0f : w.wg;
+            q.wb[o] = pad ? 0.0f : w.wb;
+        }
+    }
+    lattice_gaussian_major(q, L, lf_.data(), m, lx, ly, lz, T, R, G, B);
+}
+
 RbfSplat::ReducedCounts RbfSplat::reduced_counts() const {
-    return {n_lattice_.load(), n_exact_.load(), n_behind_.load()};
+    return {n_lattice_.load(), n_exact_.load(), n_behind_.load(), n_coarse_.load()};
 }
 
 void RbfSplat::eval_rays(const Vec3* dirs, const float* Dvp, const float* t0, int n, double* Tr, RGB* La) const {
@@ -1897,6 +2176,14 @@ void RbfSplat::eval_rays(const Vec3* dirs, const float* Dvp, const float* t0, in
             far_max = std::max(far_max, far[k]);
         }
         const double far_hi = double(far_max) * (1.0 + 1e-6);
+        // Reduced resolution, plain path: the Gaussians wholly in front of every segment of
+        // the chunk come from the lattice as in splat_tile (interpolated at the rays' film
+        // positions), unless a ray lies outside the image or in a tile kept exact.
+        bool lattice_ok = from_bins && plain_ && !noise_.on();
+        float fpx[kChunk], fpy[kChunk];
+        float far_min = std::numeric_limits<float>::infinity();
+        for (int k = 0; k < m; ++k) far_min = std::min(far_min, far[k]);
+        int last_tile = -1;
         for (int k = 0; k < m; ++k) {
             const Vec3& d = dirs[k0 + k];
             ddx[k] = d.x;
@@ -1912,6 +2199,12 @@ void RbfSplat::eval_rays(const Vec3* dirs, const float* Dvp, const float* t0, in
                 if (px >= 0.0 && py >= 0.0 && px <= double(W_) && py <= double(H_)) {
                     const int tx = std::min(tiles_x_ - 1, int(px) / kTile), ty = std::min(tiles_y_ - 1, int(py) / kTile);
                     const int t = ty * tiles_x_ + tx;
+                    fpx[k] = float(px);
+                    fpy[k] = float(py);
+                    if (exact_tile_[t]) lattice_ok = false;
+                    // (the chunk's rays mostly share a tile: its list is gathered once)
+                    if (t == last_tile) continue;
+                    last_tile = t;
                     for (std::uint32_t e = bin_start_[t]; e < bin_start_[t + 1]; ++e) {
                         const std::uint32_t i = bin_index_[e];
                         if (stamp[i] == generation) continue;
@@ -1922,6 +2215,7 @@ void RbfSplat::eval_rays(const Vec3* dirs, const float* Dvp, const float* t0, in
                     continue;
                 }
             }
+            lattice_ok = false;
             medium_.for_each_near(eye_, d, double(far[k]), [&](std::size_t i) {
                 if (stamp[i] != generation) {
                     stamp[i] = generation;
@@ -1931,6 +2225,58 @@ void RbfSplat::eval_rays(const Vec3* dirs, const float* Dvp, const float* t0, in
         }
         float Tf[kChunk] = {}, Rf[kChunk] = {}, Gf[kChunk] = {}, Bf[kChunk] = {};
         float Tn[kChunk] = {}, Rn[kChunk] = {}, Gn[kChunk] = {}, Bn[kChunk] = {};
+        if (lattice_ok) {
+            // The lattice nodes (film s u, s v, as splat_tile_reduced's) around the rays.
+            const int s = step_;
+            float xmin = fpx[0], xmax = fpx[0], ymin = fpy[0], ymax = fpy[0];
+            for (int k = 1; k < m; ++k) {
+                xmin = std::min(xmin, fpx[k]);
+                xmax = std::max(xmax, fpx[k]);
+                ymin = std::min(ymin, fpy[k]);
+                ymax = std::max(ymax, fpy[k]);
+            }
+            const int u0 = int(xmin) / s, v0 = int(ymin) / s;
+            const int nu = int(xmax) / s - u0 + 2, nv = int(ymax) / s - v0 + 2;
+            constexpr int kMaxNodes = 64;
+            const double far_lo = double(far_min) * (1.0 - 1e-6);
+            if (nu * nv <= kMaxNodes) {
+                thread_local std::vector<std::uint32_t> front, rest;
+                front.clear();
+                rest.clear();
+                // (those reaching a near segment [0, t0] stay per ray: their near terms)
+                const double tn_max = any_near ? double(*std::max_element(tn, tn + m)) : 0.0;
+                for (std::uint32_t i : gauss) {
+                    const bool near = any_near && g_[i].dist < g_[i].radius + tn_max;
+                    (!near && g_[i].dist + g_[i].radius <= far_lo ? front : rest).push_back(i);
+                }
+                if (!front.empty()) {
+                    float lx[kMaxNodes], ly[kMaxNodes], lz[kMaxNodes];
+                    float cT[kMaxNodes] = {}, cR[kMaxNodes] = {}, cG[kMaxNodes] = {}, cB[kMaxNodes] = {};
+                    for (int v = 0; v < nv; ++v)
+                        for (int u = 0; u < nu; ++u) {
+                            const Vec3 d = glm::normalize(D0_ + double(s * (u0 + u)) * Dx_ + double(s * (v0 + v)) * Dy_);
+                            lx[v * nu + u] = float(d.x);
+                            ly[v * nu + u] = float(d.y);
+                            lz[v * nu + u] = float(d.z);
+                        }
+                    lattice_batch(front.data(), int(front.size()), nu * nv, lx, ly, lz, cT, cR, cG, cB);
+                    const float inv_s = 1.0f / float(s);
+                    for (int k = 0; k < m; ++k) {
+                        const float fx = fpx[k] * inv_s - float(u0), fy = fpy[k] * inv_s - float(v0);
+                        const int u = std::min(nu - 2, int(fx)), v = std::min(nv - 2, int(fy));
+                        const float wx = fx - float(u), wy = fy - float(v);
+                        const int a = v * nu + u, b = a + 1, c = a + nu, d = c + 1;
+                        const float w00 = (1.0f - wx) * (1.0f - wy), w10 = wx * (1.0f - wy), w01 = (1.0f - wx) * wy,
+                                    w11 = wx * wy;
+                        Tf[k] += w00 * cT[a] + w10 * cT[b] + w01 * cT[c] + w11 * cT[d];
+                        Rf[k] += w00 * cR[a] + w10 * cR[b] + w01 * cR[c] + w11 * cR[d];
+                        Gf[k] += w00 * cG[a] + w10 * cG[b] + w01 * cG[c] + w11 * cG[d];
+                        Bf[k] += w00 * cB[a] + w10 * cB[b] + w01 * cB[c] + w11 * cB[d];
+                    }
+                    gauss.swap(rest);
+                }
+            }
+        }
         for (std::uint32_t i : gauss) {
             splat_gaussian(i, m, dx, dy, dz, far, Tf, Rf, Gf, Bf);
             // The near segment [0, t0] only meets Gaussians near the eye (as in bin()).

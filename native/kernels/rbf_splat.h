@@ -134,14 +134,26 @@ class RbfSplat {
     //  A Gaussian reaching the near clip plane has its near segment [0, t0] (t0 = clip /
     //  cos, smooth) on the lattice too. Tiles within 64 pixels of a light's image (where
     //  the light terms peak) are evaluated exactly.
+    //  Coarse lattice (plain path, no noise): an in-front Gaussian whose term is smooth on
+    //  the scale of H = 2 s pixels goes on every other lattice node (spacing H), whose
+    //  bilinear interpolant is spread onto the lattice: its angular scale 1 / (sqrt 2 a d)
+    //  (d its distance) at least H / (2 sqrt(tau)) pixels, tau = 1e-3 at quarter resolution,
+    //  1e-3 / 4 at half (so half keeps erring ~4x less than quarter) (bilinear error of a
+    //  Gaussian bump < H^2 / (4 sigma^2) = tau of its peak), and for every point light
+    //  |b - s| - R >= 27 H pixels' angle times d (the light factor ~ 1/|b^r - s|^2: error
+    //  < (H d pix)^2 6 / (8 |b^r - s|^2) = tau). The quarter lattice itself allows up to
+    //  ~2 % per Gaussian for the smallest ones (sigma 15 px at 80 m in bench_rbf.py).
+    //  Edge supersamples (eval_rays) use the (fine) lattice for the Gaussians in front of
+    //  all the samples of their chunk.
     // So depth edges cost no accuracy (a pixel's depth only selects which Gaussians are
     // exact); the error is the bilinear interpolation of smooth terms (measured in
     // rbf_splat_test.cpp and benchmarks/bench_rbf.py).
     void splat_tile(int t, const float* depth, float* transmittance, float* airlight) const;
     // Pair counts of the last splat at step > 1 (all tiles; reset by bin()): lattice
-    // (interpolated), exact per pixel, skipped behind the surface.
+    // (interpolated), exact per pixel, skipped behind the surface; coarse: of the lattice
+    // pairs, those on the coarse lattice (every other node, see splat_tile).
     struct ReducedCounts {
-        std::size_t lattice = 0, exact = 0, behind = 0;
+        std::size_t lattice = 0, exact = 0, behind = 0, coarse = 0;
     };
     ReducedCounts reduced_counts() const;
 
@@ -149,7 +161,10 @@ class RbfSplat {
     // the same quantities as splat_tile (Tr, RGB airlight), for edge supersampling. Rays go
     // in chunks of 16 (pass neighbouring rays together, e.g. one pixel's sub-samples); each
     // chunk evaluates the union of the Gaussians whose cull spheres its segments reach
-    // (from the medium's hierarchy) with the splat's kernels. Thread safe.
+    // (from the medium's hierarchy) with the splat's kernels. At step > 1 (after bin()) the
+    // union comes from the tile bins, and on the plain path without noise the Gaussians in
+    // front of every segment of a chunk come from the lattice (nodes around the chunk's film
+    // positions, interpolated at each ray), as for the centre samples. Thread safe.
     void eval_rays(const Vec3* dirs, const float* Dvp, const float* t0, int n, double* Tr, RGB* La) const;
 
     // Exact double reference for one ray (no noise support; RbfAirlightFogshop::eval with
@@ -188,6 +203,10 @@ class RbfSplat {
     void splat_tile_reduced(int t, int x0, int y0, int w, int h, const float* dx, const float* dy, const float* dz,
                             const float* far, const float* t0, float* Tf, float* Rf, float* Gf, float* Bf, float* Tn,
                             float* Rn, float* Gn, float* Bn) const;
+    // The Dvp = inf terms of Gaussians idx[0..n) (wholly in front; plain path, no noise) on
+    // the m lattice rays (lx, ly, lz), added to T, R, G, B (lattice_gaussian_major).
+    void lattice_batch(const std::uint32_t* idx, int n, int m, const float* lx, const float* ly, const float* lz,
+                       float* T, float* R, float* G, float* B) const;
     // Homogeneous term of light l for n rays: segment [t0, Dvp] attenuated from t0.
     void homogeneous(const double* cos_gamma, std::size_t l, const float* Dvp, const float* t0, int n,
                      float* out) const;
@@ -228,7 +247,8 @@ class RbfSplat {
     int step_ = 1;
     Vec3 q0_{0.0}, q1_{0.0}, q2_{0.0};  // film coordinates of a direction d: (q1.d, q2.d) / q0.d
     std::vector<unsigned char> exact_tile_;  // step_ > 1: tiles evaluated exactly (next to a light)
-    mutable std::atomic<std::size_t> n_lattice_{0}, n_exact_{0}, n_behind_{0};
+    mutable std::atomic<std::size_t> n_lattice_{0}, n_exact_{0}, n_behind_{0}, n_coarse_{0};
+    std::vector<unsigned char> smooth_;  // step_ > 1: per Gaussian, coarse lattice allowed
     std::vector<std::uint32_t> bin_start_;  // per tile, into bin_index_ (size tiles + 1)
     std::vector<std::uint32_t> bin_index_;
 };

@@ -129,18 +129,27 @@ def wall_silhouettes(depth):
     return any_wall & any_other & above_base
 
 
-@pytest.mark.parametrize("res", ["half", "quarter"])
-def test03_depth_edge_pixels_equal_full_resolution(full, res):
-    """Pixels straddling a wall's silhouette are supersampled exactly at every resolution:
-    they equal the full bake's to float rounding (the Gaussians are gathered from the tile
-    bins instead of per ray: other summation order, terms < cull_eps more)."""
+@pytest.mark.parametrize("res, tol", [("half", 8e-4), ("quarter", 4e-3)])
+def test03_depth_edge_pixels_against_full_resolution(full, res, tol):
+    """Pixels straddling a wall's silhouette are supersampled at every resolution: per
+    sub-sample, the Gaussians a sub-sample's segment cuts exactly, those wholly in front
+    of every sub-sample of a chunk from the lattice as for the centre samples (rbf_splat.h).
+    Their error against the full bake stays within the interpolation's elsewhere (test02's
+    p99 bound): no depth-edge artefact (without supersampling, aa = 1, these pixels err by
+    tens of percent: checked below so that the test can tell)."""
     r = bake(res)
     edges = wall_silhouettes(full["depth"])
     assert edges.sum() > 100
     for key in ("airlight", "transmittance"):
         x = r[key][edges][:, 0].astype(np.float64)
         y = full[key][edges][:, 0].astype(np.float64)
-        np.testing.assert_allclose(x, y, rtol=2e-5, atol=1e-7 * np.abs(y).max())
+        rel = np.abs(x - y) / np.maximum(np.abs(y), 1e-7 * np.abs(y).max())
+        print(f"{res} edge pixels {key}: mean {rel.mean():.2e} max {rel.max():.2e} ({rel.size} px)")
+        assert rel.max() <= tol, key
+    no_aa = bake(res, aa=1)
+    x = no_aa["transmittance"][edges][:, 0].astype(np.float64)
+    y = full["transmittance"][edges][:, 0].astype(np.float64)
+    assert np.max(np.abs(x - y) / np.maximum(np.abs(y), 1e-7)) > 10 * tol
 
 
 @pytest.mark.parametrize("res, tol, median_tol", [("full", 2e-4, 1e-5), ("half", 1e-2, 1e-4), ("quarter", 3e-2, 5e-4)])
