@@ -714,14 +714,18 @@ class FogModel {
             La[k] = RGB(0.0);
             if (!(seg > 0.0) || (L == 0 && rbf_spots_.empty() && rbf_suns_.empty())) continue;
             if (model_ == ModelId::Quadrature) {
-                for (size_t l = 0; l < L; ++l)
+                for (size_t l = 0; l < L; ++l) {
+                    RbfRefLight ref;  // a point light
+                    ref.s = lights_[l].s;
                     La[k] += lights_[l].weight *
                              (isotropic_ ? rbf_airlight_quadrature(*rbf_, lights_[l].s, o, ray.d, seg, kQuadratureRelTol)
-                                         : rbf_airlight_quadrature(*rbf_, RbfRefLight{RbfRefLight::Kind::Point,
-                                                                                      lights_[l].s},
-                                                                   phase_, o, ray.d, seg, kQuadratureRelTol));
+                                         : rbf_airlight_quadrature(*rbf_, ref, phase_, o, ray.d, seg, kQuadratureRelTol));
+                }
                 for (const RbfSpotData& spot : rbf_spots_) {
-                    RbfRefLight ref{RbfRefLight::Kind::Spot, spot.s, spot.cone};
+                    RbfRefLight ref;
+                    ref.kind = RbfRefLight::Kind::Spot;
+                    ref.s = spot.s;
+                    ref.cone = spot.cone;
                     La[k] += medium_albedo_ * spot.I0 *
                              rbf_airlight_quadrature(*rbf_, ref, phase_, o, ray.d, seg, kQuadratureRelTol);
                 }
