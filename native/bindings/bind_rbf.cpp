@@ -127,7 +127,7 @@ py::array_t<double> airlight(const RbfMedium& m, const py::object& light_positio
 
 py::dict preview_factors(const py::object& centres, const py::object& scales, const py::object& amplitudes,
                          double beta0, const py::object& eye, const py::object& light_positions, double cull_eps,
-                         int threads, const py::object& previous, py::ssize_t first_new) {
+                         int threads, const py::object& previous, py::ssize_t first_new, bool eye_only) {
     RbfMedium medium = make_medium(centres, scales, amplitudes, beta0, cull_eps);
     const Vec3 v = to_point(eye, "eye");
     auto lp = as_array<double>(light_positions, "lights");
@@ -135,6 +135,10 @@ py::dict preview_factors(const py::object& centres, const py::object& scales, co
     if (!(lp.ndim() == 2 && lp.shape(0) == 0)) lights = to_vec3(lp, "lights");
     RbfPreviewFactors prev;
     const bool incremental = !previous.is_none();
+    if (eye_only && !incremental)
+        throw py::value_error("eye_only=True needs previous= (the factors of the same Gaussians and lights)");
+    // eye_only: the previous light rows must cover all the Gaussians.
+    if (eye_only) first_new = static_cast<py::ssize_t>(medium.size());
     if (incremental) {
         const py::ssize_t m = static_cast<py::ssize_t>(lights.size());
         if (first_new < 0 || first_new > static_cast<py::ssize_t>(medium.size()))
@@ -150,8 +154,10 @@ py::dict preview_factors(const py::object& centres, const py::object& scales, co
                                       shape_str(a));
             return std::vector<double>(a.data(), a.data() + a.size());
         };
-        prev.T_vb = take("T_vb", -1);
-        prev.own_vb = take("own_vb", -1);
+        if (!eye_only) {  // (eye_only: the previous eye row is not needed)
+            prev.T_vb = take("T_vb", -1);
+            prev.own_vb = take("own_vb", -1);
+        }
         prev.T_sb = take("T_sb", m);
         prev.own_sb = take("own_sb", m);
     }
@@ -160,7 +166,7 @@ py::dict preview_factors(const py::object& centres, const py::object& scales, co
         py::gil_scoped_release release;
         try {
             f = rbf_preview_factors(medium, v, lights, threads, incremental ? &prev : nullptr,
-                                    static_cast<std::size_t>(first_new));
+                                    static_cast<std::size_t>(first_new), eye_only);
         } catch (const std::invalid_argument& e) {
             py::gil_scoped_acquire acquire;
             throw py::value_error(e.what());
@@ -216,7 +222,7 @@ Multiply by albedo * I0 (W/sr). The GIL is released during the work.)doc");
 
     m.def("rbf_preview_factors", &preview_factors, "centres"_a, "scales"_a, "amplitudes"_a, "beta0"_a, "eye"_a,
           "lights"_a, "cull_eps"_a = RbfMedium::kDefaultCullEps, "threads"_a = 0, "previous"_a = py::none(),
-          "first_new"_a = 0,
+          "first_new"_a = 0, "eye_only"_a = false,
           R"doc(Per-edit Fogshop factors for a viewport preview that splats the Gaussians (section 5.1).
 
 centres (n, 3), scales (n,) a > 0 (1/m), amplitudes (n,) c >= 0 (1/m), beta0 >= 0 (1/m,
@@ -237,6 +243,10 @@ float (fast_erf.h: ~1e-5 relative), the own halves exactly.
 Incremental use after a brush stroke appended Gaussians: previous = the dict of an earlier
 call whose Gaussians are the first first_new of these (unchanged, same eye, lights, beta0):
 only the new ones are computed in full, the others add the new Gaussians' integrals.
+View change (the viewport orbiting): eye_only=True with previous = the dict of an earlier
+call with the same Gaussians, lights and beta0 (any eye; its T_sb, own_sb are used, first_new
+is ignored): only T_vb, own_vb, C_sv and D_sv are computed (one segment per Gaussian instead
+of 1 + m), T_sb and own_sb are copied; the same values as the full call.
 Raises ValueError on bad input. The GIL is released during the work.)doc");
 
     m.def(

@@ -2315,14 +2315,24 @@ void RbfSplat::eval_rays(const Vec3* dirs, const float* Dvp, const float* t0, in
 }
 
 RbfPreviewFactors rbf_preview_factors(const RbfMedium& medium, const Vec3& eye, const std::vector<Vec3>& lights,
-                                      int threads, const RbfPreviewFactors* previous, std::size_t first_new) {
+                                      int threads, const RbfPreviewFactors* previous, std::size_t first_new,
+                                      bool eye_only) {
     auto finite = [](const Vec3& p) { return std::isfinite(p.x) && std::isfinite(p.y) && std::isfinite(p.z); };
     if (!finite(eye)) throw std::invalid_argument("rbf_preview_factors: eye is not finite");
     for (const Vec3& s : lights)
         if (!finite(s)) throw std::invalid_argument("rbf_preview_factors: a light position is not finite");
     const std::size_t n = medium.size(), m = lights.size();
+    if (eye_only) {
+        if (!previous) throw std::invalid_argument("rbf_preview_factors: eye_only needs the previous factors");
+        if (previous->T_sb.size() != m * n || previous->own_sb.size() != m * n) {
+            std::ostringstream os;
+            os << "rbf_preview_factors: eye_only: previous factors must hold the light rows of all " << n
+               << " Gaussians and the same " << m << " lights";
+            throw std::invalid_argument(os.str());
+        }
+    }
     const std::size_t n_old = previous ? first_new : 0;
-    if (previous) {
+    if (previous && !eye_only) {
         if (first_new > n || previous->T_vb.size() != n_old || previous->own_vb.size() != n_old ||
             previous->T_sb.size() != m * n_old || previous->own_sb.size() != m * n_old) {
             std::ostringstream os;
@@ -2343,6 +2353,21 @@ RbfPreviewFactors rbf_preview_factors(const RbfMedium& medium, const Vec3& eye, 
         const double D = glm::length(d);
         f.Dsv.push_back(D);
         f.Csv.push_back(D > 0.0 ? std::exp(-medium.optical_depth_ray(s, d / D, D, RbfMedium::npos, false)) : 1.0);
+    }
+    if (eye_only) {
+        // The eye row as in the full call (the same star, row 0 alone); the light rows
+        // do not depend on the eye.
+        const std::vector<double> others = star_depths(medium, {eye}, 0, n, 0, n, threads);
+        for (std::size_t i = 0; i < n; ++i) {
+            const Vec3 d = medium.centre(i) - eye;
+            const double D = glm::length(d);
+            const double own = D > 0.0 ? medium.gaussian_optical_depth(i, eye, d / D, 0.0, D) : 0.0;
+            f.T_vb[i] = others[i] + (D > 0.0 ? background_depth(medium.beta0(), D) : 0.0) + own;
+            f.own_vb[i] = own;
+        }
+        f.T_sb = previous->T_sb;
+        f.own_sb = previous->own_sb;
+        return f;
     }
     const std::size_t rows = m + 1;  // row 0: the eye; rows 1..m: the lights
     auto from_of = [&](std::size_t row) { return row == 0 ? eye : lights[row - 1]; };

@@ -271,11 +271,17 @@ struct RbfPreviewFactors {
 // the first _first_new_ Gaussians (same positions, scales, amplitudes, eye, lights and
 // beta0), only Gaussians [first_new, n) get the full computation; the others add the new
 // Gaussians' line integrals to their previous T (optical depth is a sum over Gaussians).
-// Eq. to the full call to float rounding (tested). Throws std::invalid_argument on
-// mismatched sizes or non-finite points.
+// Eq. to the full call to float rounding (tested).
+// View-change form (_eye_only_, the viewport orbiting): the light rows T_sb, own_sb depend
+// only on the Gaussians, beta0 and the lights, not on the eye. With _previous_ = the
+// factors of the same Gaussians, lights and beta0 (at any eye; its T_sb, own_sb of all n
+// Gaussians), only the eye row (T_vb, own_vb), C_sv and D_sv are computed, the light rows
+// copied: 1 segment per Gaussian instead of 1 + m, the same sums as the full call
+// (first_new is ignored). Throws std::invalid_argument on mismatched sizes or non-finite
+// points.
 RbfPreviewFactors rbf_preview_factors(const RbfMedium& medium, const Vec3& eye, const std::vector<Vec3>& lights,
                                       int threads = 0, const RbfPreviewFactors* previous = nullptr,
-                                      std::size_t first_new = 0);
+                                      std::size_t first_new = 0, bool eye_only = false);
 
 // The optical depths behind the factors (RbfSplat's f1 and rbf_preview_factors): for each
 // source s_r in _sources_ and target Gaussian i in [first, last),

@@ -246,3 +246,42 @@ def test09_preview_factors_many_gaussians_lights_inside():
     assert worst <= 1.0, worst
     for key in ("T_vb", "own_vb", "T_sb", "own_sb", "C_sv", "D_sv", "cull_radius"):
         np.testing.assert_allclose(inc[key], full[key], rtol=2e-5, atol=1e-7, err_msg=key)
+
+
+def test10_preview_factors_eye_only_equals_full():
+    """The view-change form (eye_only=True, the viewport orbiting): with the light rows of
+    a call at another eye, the eye row, C_sv and D_sv at the new eye equal the full call's
+    (the same star of segments; a light row that depended on the eye would differ: the old
+    eye's rows are given) and numpy's unculled sums; the light rows are the previous ones.
+    Both small (one thread, per-target sums) and 6000 Gaussians (threaded, binned)."""
+    rng = np.random.default_rng(11)
+    for n, eyes in ((40, ([0.3, 0.1, 0.5], [5.0, 2.0, -3.0])), (6000, ([0.5, 1.0, -3.0], [-8.0, 4.0, -30.0]))):
+        b = np.column_stack([rng.uniform(-15, 15, n), rng.uniform(-3, 9, n), rng.uniform(-40, 2, n)])
+        a, c = 1.0 / rng.uniform(0.3, 1.0, n), rng.uniform(0.05, 0.3, n)
+        eye0, eye1 = np.array(eyes[0]), np.array(eyes[1])
+        old = _native.rbf_preview_factors(b, a, c, SIGMA_T, eye0, LIGHTS, threads=2)
+        full = _native.rbf_preview_factors(b, a, c, SIGMA_T, eye1, LIGHTS, threads=2)
+        moved = _native.rbf_preview_factors(b, a, c, SIGMA_T, eye1, LIGHTS, threads=2, previous=old, eye_only=True)
+        for key in ("T_vb", "own_vb", "T_sb", "own_sb", "C_sv", "D_sv", "cull_radius"):
+            np.testing.assert_allclose(moved[key], full[key], rtol=1e-12, atol=0.0, err_msg=key)
+        # The eye row really moved (the test would catch a copied eye row).
+        assert np.max(np.abs(old["T_vb"] - full["T_vb"])) > 0.1
+        bound = 1e-7 * n
+        for i in range(0, n, max(1, n // 40)):
+            T, Ti = segment_depth(b, a, c, eye1, b[i])
+            assert abs(moved["T_vb"][i] - T) <= 2e-5 * T + bound
+            np.testing.assert_allclose(moved["own_vb"][i], Ti[i], rtol=1e-9)
+        for l in range(len(LIGHTS)):
+            T, _ = segment_depth(b, a, c, LIGHTS[l], eye1)
+            D = np.linalg.norm(LIGHTS[l] - eye1)
+            np.testing.assert_allclose(moved["C_sv"][l], math.exp(-(T - SIGMA_T * D)), rtol=1e-6 + bound)
+    # The previous factors must hold all the Gaussians' light rows for the same lights.
+    with pytest.raises(ValueError):
+        _native.rbf_preview_factors(b, a, c, SIGMA_T, eye1, LIGHTS, eye_only=True)
+    with pytest.raises(ValueError):
+        _native.rbf_preview_factors(b, a, c, SIGMA_T, eye1, LIGHTS[:1], previous=old, eye_only=True)
+    with pytest.raises(ValueError):
+        _native.rbf_preview_factors(b[:-1], a[:-1], c[:-1], SIGMA_T, eye1, LIGHTS, previous=old, eye_only=True)
+    with pytest.raises(ValueError):
+        _native.rbf_preview_factors(b, a, c, SIGMA_T, np.array([np.nan, 0.0, 0.0]), LIGHTS, previous=old,
+                                    eye_only=True)
