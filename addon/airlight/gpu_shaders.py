@@ -454,7 +454,14 @@ def rbf_data_textures(centres, scales, amplitudes, radii, f1, albedo=None, noise
     RBF_TEX_WIDTH x ceil(L / 4) rows per block, light l in component l % 4 of row l // 4),
     f1 of shape (L, n); _albedo_ (n, 3) per-Gaussian
     colours (None: 1, the lights' intensities then carry the fog's albedo); _noise_radii_
-    (n,) R_bake / |b - eye| for the noise (None: 0)."""
+    (n,) R_bake / |b - eye| for the noise (None: 0). (`rbf_gauss_texture`, `rbf_f1_texture`.)"""
+    return (rbf_gauss_texture(centres, scales, amplitudes, radii, albedo, noise_radii),
+            rbf_f1_texture(f1, len(scales)))
+
+
+def rbf_gauss_texture(centres, scales, amplitudes, radii, albedo=None, noise_radii=None):
+    """The gauss texture of `rbf_data_textures` alone (it depends on the eye only through
+    _noise_radii_: the preview keeps it across view changes while the noise is off)."""
     import numpy as np
     n = len(scales)
     W = RBF_TEX_WIDTH
@@ -469,13 +476,22 @@ def rbf_data_textures(centres, scales, amplitudes, radii, f1, albedo=None, noise
     if noise_radii is not None:
         flat[blk, 1, col, 2] = noise_radii
     flat[blk, 2, col, :3] = 1.0 if albedo is None else np.asarray(albedo, np.float64).reshape(-1, 3)
+    return float_texture(flat.reshape(blocks * 3, W, 4))
+
+
+def rbf_f1_texture(f1, n):
+    """The gauss_f1 texture of `rbf_data_textures` alone, f1 of shape (L, n)."""
+    import numpy as np
+    W = RBF_TEX_WIDTH
+    blocks = max(1, -(-n // W))
+    idx = np.arange(n)
+    blk, col = idx // W, idx % W
     f1 = np.asarray(f1, np.float64).reshape(-1, n)
     rows = max(1, -(-f1.shape[0] // 4))
     f1_tex = np.zeros((blocks, rows, W, 4), np.float32)
     for l in range(f1.shape[0]):
         f1_tex[blk, l // 4, col, l % 4] = f1[l]
-    return (float_texture(flat.reshape(blocks * 3, W, 4)),
-            float_texture(f1_tex.reshape(blocks * rows, W, 4)))
+    return float_texture(f1_tex.reshape(blocks * rows, W, 4))
 
 
 def create_rbf_test_shader():

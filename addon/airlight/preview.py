@@ -524,9 +524,10 @@ LIGHT_FIT = True
 
 
 def _gaussian_fog(res, *, gaussians, window_depth, sigma_t, view_origin, light_positions,
-                  gauss_pass, light_fit=False):
+                  gauss_pass, light_fit=False, noise=True):
     """The splat or tile shader and the current GaussianFog (textures, batch, factors)
-    for these inputs (preview_gaussians.py; rebuilt only when one changes)."""
+    for these inputs (preview_gaussians.py; rebuilt only when one changes; _noise_:
+    whether the draw uses the noise, see GaussianFog.update)."""
     from . import gpu_shaders as gs
     from . import preview_gaussians as pg
     key = (gauss_pass.lower(), bool(window_depth), bool(light_fit))
@@ -540,7 +541,7 @@ def _gaussian_fog(res, *, gaussians, window_depth, sigma_t, view_origin, light_p
     if fog is None:
         fog = res["gaussian_fog"] = pg.GaussianFog()
     fog.update(_native_for_preview(), shader if gauss_pass == 'SPLAT' else None, gaussians,
-               sigma_t, view_origin, light_positions)
+               sigma_t, view_origin, light_positions, noise=bool(noise))
     if gauss_pass == 'TILES' and fog.tiles_batch is None:
         fog.tiles_batch = gs.fullscreen_batch(shader)
     fit = res["shaders"].get("rbf_light_fit") if light_fit else None
@@ -710,7 +711,7 @@ def draw_fog(*, depth_tex, perspective_matrix, view_origin, is_perspective, view
         splat = _gaussian_fog(res, gaussians=gaussians, window_depth=window_depth,
                               sigma_t=sigma_t, view_origin=view_origin,
                               light_positions=light_positions, gauss_pass=gauss_pass,
-                              light_fit=light_fit)
+                              light_fit=light_fit, noise=noise is not None)
         gauss_scale, scale = int(scale), 1
         if gauss_pass == 'TILES' and not splat[1].update_tiles(
                 _native_for_preview(), perspective_matrix, (w, h), gauss_scale):
@@ -718,7 +719,7 @@ def draw_fog(*, depth_tex, perspective_matrix, view_origin, is_perspective, view
             splat = _gaussian_fog(res, gaussians=gaussians, window_depth=window_depth,
                                   sigma_t=sigma_t, view_origin=view_origin,
                                   light_positions=light_positions, gauss_pass='SPLAT',
-                                  light_fit=light_fit)
+                                  light_fit=light_fit, noise=noise is not None)
         Csv = splat[1].Csv
     _state["last_scale"] = scale
     _state["last_gauss_scale"] = gauss_scale if splat is not None else None

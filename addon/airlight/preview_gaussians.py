@@ -62,13 +62,17 @@ def cull_radii(scales, amplitudes, eps=CULL_EPS):
 
 # The light-side optical depths T(s, b_i) of the last call, kept while the Gaussians,
 # beta0 and the lights stay the same: moving the view then recomputes only T(v, b_i)
-# and C_sv (one segment per Gaussian instead of 1 + L).
-_light_side = {"key": None, "Ts": None, "medium": None}
+# and C_sv (one segment per Gaussian instead of 1 + L; natively rbf_preview_factors'
+# eye_only=True with _previous_ = the light rows of the last full call).
+_light_side = {"key": None, "Ts": None, "medium": None, "previous": None}
+# How often the factors were computed with their light rows ("full") and from the cached
+# light rows after a view change ("eye_only"): for tests and benchmarks.
+factor_stats = {"full": 0, "eye_only": 0}
 
 
 def clear_cache():
     """Drops the cached light side (on file load / unregister)."""
-    _light_side.update(key=None, Ts=None, medium=None)
+    _light_side.update(key=None, Ts=None, medium=None, previous=None)
 
 
 def _factors_from_optical_depth(native, centres, scales, amplitudes, beta0, eye, lights, data_key=None):
@@ -96,6 +100,7 @@ def _factors_from_optical_depth(native, centres, scales, amplitudes, beta0, eye,
     Tv = depth_to_centres(eye)
     L = len(lights)
     Ts = _light_side["Ts"] if reuse else [depth_to_centres(s) for s in lights]
+    factor_stats["eye_only" if reuse else "full"] += 1
     if key is not None:
         _light_side.update(key=key, Ts=Ts, medium=medium)
     f1 = np.empty((L, n))
@@ -114,28 +119,26 @@ def _factors_from_native(native, fast, centres, scales, amplitudes, beta0, eye, 
     """Branch wt-rbf's `rbf_preview_factors`: optical depths T(v, b_i), T(s, b_i) (beta0
     included) and Gaussian i's own parts, and C_sv; f1 leaves the own parts out (as the
     bake's constructor). After a view change with the same Gaussians and lights only the
-    eye side is asked for (no lights) and C_sv comes from L segments of a cached medium."""
+    eye row and C_sv are computed (eye_only=True, the light rows of the last full call
+    passed as previous=): the same values as a full call at the new eye."""
     a = np.asarray(scales, np.float64)
     c = np.asarray(amplitudes, np.float64)
     eye = np.asarray(eye, np.float64).reshape(3)
     key = None if data_key is None else ("native", data_key, float(beta0), tuple(map(tuple, lights.tolist())))
-    if key is not None and _light_side["key"] == key:
-        out = fast(centres, a, c, float(beta0), eye, np.zeros((0, 3)))
+    if key is not None and _light_side["key"] == key and _light_side["previous"] is not None:
+        out = fast(centres, a, c, float(beta0), eye, lights, previous=_light_side["previous"], eye_only=True)
         Ts = _light_side["Ts"]
-        medium = _light_side["medium"]
-        if medium is None:
-            medium = _light_side["medium"] = native.RbfMedium(centres, a, c, beta0=float(beta0))
-        D = np.linalg.norm(lights - eye, axis=1)
-        T = medium.optical_depth(lights, np.broadcast_to(eye, lights.shape).copy())
-        Csv = np.where(D > 0.0, np.exp(-np.maximum(T - beta0 * D, 0.0)), 1.0)
+        factor_stats["eye_only"] += 1
     else:
         out = fast(centres, a, c, float(beta0), eye, lights)
-        Ts = np.asarray(out["T_sb"], np.float64) - np.asarray(out["own_sb"], np.float64)
-        Csv = np.asarray(out["C_sv"], np.float64)
+        Ts = np.maximum(np.asarray(out["T_sb"], np.float64) - np.asarray(out["own_sb"], np.float64), 0.0)
+        factor_stats["full"] += 1
         if key is not None:
-            _light_side.update(key=key, Ts=Ts, medium=None)
+            _light_side.update(key=key, Ts=Ts, medium=None,
+                               previous=dict(T_sb=out["T_sb"], own_sb=out["own_sb"]))
+    Csv = np.asarray(out["C_sv"], np.float64)
     Tv = np.asarray(out["T_vb"], np.float64) - np.asarray(out["own_vb"], np.float64)
-    f1 = np.exp(-(np.maximum(Ts, 0.0) + np.maximum(Tv, 0.0)[None, :]))
+    f1 = np.exp(-(Ts + np.maximum(Tv, 0.0)[None, :]))
     return f1.reshape(len(lights), -1), Csv
 
 
@@ -316,11 +319,18 @@ def tile_lists(centres, radii, persp, size, scale, tile, cone_test=True):
 class GaussianFog:
     """GPU side of the Gaussian fog for one set of Gaussians: the data textures, the
     batch, the factors and the tile lists, rebuilt only when an input changes (`update`,
-    `update_tiles`)."""
+    `update_tiles`). A view change (the user orbiting) recomputes only what depends on
+    the eye: f1's eye row (`fogshop_factors` reuses the light rows) and the f1 texture,
+    the gauss texture only while the noise (which reads R_bake / |b - eye| there) is on;
+    the cull radii and the rest of the gauss texture stay."""
 
     def __init__(self):
         self.key = None          # (data id, beta0, eye, lights) the factors belong to
         self.data_key = None     # id of the Gaussian arrays the textures hold
+        self.gauss_key = None    # (data id, eye of its noise radii) of gauss_tex
+        self.bake_radii = None
+        self.factor_updates = 0  # factor computations (f1 texture uploads)
+        self.gauss_uploads = 0   # gauss texture uploads
         self.count = 0
         self.batch = None
         self.batch_count = -1
@@ -339,35 +349,49 @@ class GaussianFog:
         self.light_tex_count = -1
         self.fit_batch = None
 
-    def update(self, native, shader, gaussians, beta0, eye, lights):
+    def update(self, native, shader, gaussians, beta0, eye, lights, noise=True):
         """Makes textures/batch/factors current; _gaussians_ = dict(centres, scales,
         amplitudes, key, optionally colors (n, 3) per-Gaussian albedo or None) where
-        _key_ changes whenever the arrays do."""
+        _key_ changes whenever the arrays do. _noise_: whether the draw uses the noise
+        (its per-Gaussian scale R_bake / |b - eye| in the gauss texture then follows the
+        eye; without, the gauss texture does not depend on the eye)."""
         import time
         from . import gpu_shaders as gs
         n = len(gaussians["scales"])
         lights = [tuple(float(x) for x in s) for s in lights]
-        key = (gaussians["key"], float(beta0), tuple(float(x) for x in eye), tuple(lights))
-        if key != self.key:
+        eye = tuple(float(x) for x in eye)
+        key = (gaussians["key"], float(beta0), eye, tuple(lights))
+        # The gauss texture holds the noise radii of the eye in gauss_key[1]: stale only
+        # for other Gaussians, or for another eye while the noise is on.
+        gauss_stale = self.gauss_key is None or self.gauss_key[0] != gaussians["key"] or \
+            (noise and self.gauss_key[1] != eye)
+        if key != self.key or gauss_stale:
             t0 = time.perf_counter()
-            f1, self.Csv = fogshop_factors(native, gaussians["centres"], gaussians["scales"],
-                                           gaussians["amplitudes"], beta0, eye, lights,
-                                           data_key=gaussians["key"])
-            centres = np.asarray(gaussians["centres"], np.float64).reshape(-1, 3)
-            radii = cull_radii(gaussians["scales"], gaussians["amplitudes"])
-            # The noise's per-Gaussian scale R_bake / |b - eye| (rbf_splat.h), as the bake.
-            dist = np.linalg.norm(centres - np.asarray(eye, np.float64), axis=1)
-            bake_radii = cull_radii(gaussians["scales"], gaussians["amplitudes"], BAKE_CULL_EPS)
-            with np.errstate(divide='ignore', invalid='ignore'):
-                noise_radii = np.where(dist > 0.0, bake_radii / dist, 0.0)
-            self.gauss_tex, self.f1_tex = gs.rbf_data_textures(
-                centres, gaussians["scales"], gaussians["amplitudes"], radii, f1,
-                albedo=gaussians.get("colors"), noise_radii=noise_radii)
-            self.radii = radii
-            self.centres = centres
-            self.key = key
-            self.tiles_key = None
-            self.count = n
+            if gaussians["key"] != self.data_key:
+                # View-independent: positions and the cull radii (preview's and bake's).
+                self.centres = np.asarray(gaussians["centres"], np.float64).reshape(-1, 3)
+                self.radii = cull_radii(gaussians["scales"], gaussians["amplitudes"])
+                self.bake_radii = cull_radii(gaussians["scales"], gaussians["amplitudes"], BAKE_CULL_EPS)
+                self.data_key = gaussians["key"]
+                self.tiles_key = None
+                self.count = n
+            if gauss_stale:
+                # The noise's per-Gaussian scale R_bake / |b - eye| (rbf_splat.h), as the bake.
+                dist = np.linalg.norm(self.centres - np.asarray(eye, np.float64), axis=1)
+                with np.errstate(divide='ignore', invalid='ignore'):
+                    noise_radii = np.where(dist > 0.0, self.bake_radii / dist, 0.0)
+                self.gauss_tex = gs.rbf_gauss_texture(
+                    self.centres, gaussians["scales"], gaussians["amplitudes"], self.radii,
+                    albedo=gaussians.get("colors"), noise_radii=noise_radii)
+                self.gauss_key = (gaussians["key"], eye)
+                self.gauss_uploads += 1
+            if key != self.key:
+                f1, self.Csv = fogshop_factors(native, gaussians["centres"], gaussians["scales"],
+                                               gaussians["amplitudes"], beta0, eye, lights,
+                                               data_key=gaussians["key"])
+                self.f1_tex = gs.rbf_f1_texture(f1, n)
+                self.key = key
+                self.factor_updates += 1
             self.factor_ms = (time.perf_counter() - t0) * 1e3
         if shader is not None and self.batch_count != n:
             self.batch = gs.rbf_splat_batch(shader, n)
@@ -381,7 +405,8 @@ class GaussianFog:
         import time
         from . import gpu_shaders as gs
         P = np.asarray(persp, np.float64).reshape(4, 4)
-        key = (self.key, tuple(P.ravel().tolist()), tuple(size), int(scale))
+        # The lists depend on the Gaussians (centres, radii) and the view, not on f1.
+        key = (self.data_key, tuple(P.ravel().tolist()), tuple(size), int(scale))
         if key != self.tiles_key:
             t0 = time.perf_counter()
             fast = getattr(native, "rbf_tile_lists", None)

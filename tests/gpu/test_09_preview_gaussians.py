@@ -540,3 +540,60 @@ def test08_handler_draws_coloured_fog_objects(addon, gauss_scene):
         wm.airlight_preview = False
         addon._state["capture"] = None
         bpy.data.objects.remove(obj)
+
+
+# ---- orbiting: a view change recomputes only the eye side -----------------------------------
+
+@pytest.mark.parametrize("noise", [None, (0.5, 2.0, (0.1, 0.2, 0.3))])
+def test10_orbit_reuses_light_rows_and_equals_a_fresh_cache(addon, native, gs, gauss_scene, noise):
+    """The view orbits around the scene (the camera rotated about z through the origin):
+    each new view computes the factors' eye row only (preview_gaussians.factor_stats: no
+    new light rows), keeps the gauss texture while the noise is off (it holds the eye only
+    through the noise radii; with the noise on it follows the eye), and draws the same
+    image as a fresh cache (new GaussianFog, light side dropped) at that view, which
+    differs from the previous view's image."""
+    from airlight import preview_gaussians as pg
+    from airlight import scene_export
+    scene = gauss_scene
+    cam = scene.camera
+    saved = cam.matrix_world.copy()
+    centres, scales, amplitudes = _gaussians(tuple(saved.translation))
+    gaussians = dict(centres=centres, scales=scales, amplitudes=amplitudes, key=f"test10-{noise is not None}")
+
+    def draw():
+        bpy.context.view_layer.update()
+        desc = scene_export.export_scene(scene, bpy.context.evaluated_depsgraph_get())
+        return render_preview(addon, gs, scene, desc, gaussians, noise=noise)
+
+    def fresh():
+        if addon._state["gpu"] is not None:
+            addon._state["gpu"].pop("gaussian_fog", None)
+        pg.clear_cache()
+
+    try:
+        fresh()
+        prev, _ = draw()
+        for angle in (0.08, 0.2, 0.35):
+            cam.matrix_world = Matrix.Rotation(angle, 4, 'Z') @ saved
+            fog = addon._state["gpu"]["gaussian_fog"]
+            stats, uploads, updates = dict(pg.factor_stats), fog.gauss_uploads, fog.factor_updates
+            got, got_T = draw()
+            assert addon._state["gpu"]["gaussian_fog"] is fog
+            assert pg.factor_stats["full"] == stats["full"], "a view change recomputed the light rows"
+            assert pg.factor_stats["eye_only"] == stats["eye_only"] + 1
+            assert fog.factor_updates == updates + 1
+            assert fog.gauss_uploads == uploads + (1 if noise is not None else 0)
+            fresh()
+            ref, ref_T = draw()
+            assert pg.factor_stats["full"] == stats["full"] + 1
+            diff = np.abs(got - ref).max()
+            print(f"\norbit {angle:.2f} rad, noise {noise is not None}: cached vs fresh max |diff| {diff:.3g}, "
+                  f"vs previous view {np.abs(got - prev).max():.3g} (of max {ref.max():.3g})")
+            np.testing.assert_allclose(got, ref, rtol=1e-6, atol=1e-7 * ref.max())
+            np.testing.assert_allclose(got_T, ref_T, rtol=0, atol=1e-6)
+            assert np.abs(got - prev).max() > 1e-2 * ref.max()  # the view really changed
+            prev = got
+    finally:
+        cam.matrix_world = saved
+        bpy.context.view_layer.update()
+        fresh()
