@@ -249,6 +249,23 @@ def main():
               f"(median of {runs}); target < {TARGET_BRUSH_MS:.0f} ms: wall {verdict(ms < TARGET_BRUSH_MS)}, "
               f"CPU {verdict(statistics.median(cpu) * 1e3 < TARGET_BRUSH_MS)}")
 
+    # View change (the user orbiting the viewport): the same 3000 Gaussians seen from a new
+    # eye; the light rows do not depend on the eye, rbf_preview_factors(eye_only=True)
+    # computes the eye row and C_sv on the previous call's light rows.
+    b, a, c = b[:3000], a[:3000], c[:3000]
+    lights4 = np.vstack([LIGHTS, [[-20.0, 5.0, 40.0]]])
+    eye0, eye1 = np.array([0.0, 2.0, 0.0]), np.array([3.0, 2.5, -1.0])
+    for L in (1, 3, 4):
+        runs = max(5, args.runs)
+        t_full, _ = timed(lambda: _native.rbf_preview_factors(b, a, c, BETA0, eye1, lights4[:L],
+                                                              threads=args.threads), runs)
+        prev = _native.rbf_preview_factors(b, a, c, BETA0, eye0, lights4[:L], threads=args.threads)
+        t_eye, _ = timed(lambda: _native.rbf_preview_factors(b, a, c, BETA0, eye1, lights4[:L],
+                                                             threads=args.threads, previous=prev, eye_only=True), runs)
+        print(f"[view change] 3000 Gaussians, {L} light(s): rbf_preview_factors full {t_full * 1e3:.1f} ms, "
+              f"eye-only factors (eye_only=True, previous=) {t_eye * 1e3:.1f} ms (x{t_full / t_eye:.1f}; "
+              f"median of {runs})")
+
     if not args.skip_1e5:
         w5, h5 = (int(x) for x in args.size_1e5.split("x"))
         wall, air, res, cpu = bake(w5, h5, 1, cloud(100000, (0.3, 1.0), (0.01, 0.05), 3), args.threads, 1,
