@@ -21,7 +21,9 @@ percentile) and the speed-up over full in the same run. Prints medians over --ru
 the whole bake (wall clock around _native.bake) and of its airlight pass (stats seconds_airlight: the splat plus edge supersampling), the same
 scene without Gaussians (homogeneous bake) for reference, the per-edit native time of a
 brush stroke adding 100 Gaussians to 3000 (rbf_preview_factors: rebuilding the medium and
-its cull hierarchy, and the per-(light, Gaussian) factors), and PASS/FAIL lines:
+its cull hierarchy, and the per-(light, Gaussian) factors), the per-view-change time of
+those factors for 3000 Gaussians and 1, 3, 4 lights (full call vs eye_only=True: the viewport
+orbiting), and PASS/FAIL lines:
   3000 Gaussians, 1 light, 1080p bake <= 200 ms; 34 Gaussians, 3 lights <= 30 ms;
   brush stroke < 5 ms; 1e5 Gaussians baked (time reported).
 Also the bake's Gaussian airlight against the model "sun05_exact" + quadrature is in the
