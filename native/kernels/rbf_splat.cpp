@@ -441,6 +441,85 @@ AIRLIGHT_SPLAT_CLONES void finish_float(int n, float beta0, bool near_clip, cons
     }
 }
 
+// Reduced resolution, a Gaussian the surface cuts (cut_light_factor): adds Tvp times the
+// bilinear interpolation of the lattice light factor (FR, FG, FB) at n pixels whose
+// projection b^r lies before their surface (tr < far), nothing at the others.
+AIRLIGHT_SPLAT_CLONES void add_interp_factor(int n, const int* __restrict lat, const float* __restrict wgt, int nu,
+                                             const float* __restrict FR, const float* __restrict FG,
+                                             const float* __restrict FB, const float* __restrict Tvp,
+                                             const float* __restrict tr, const float* __restrict far,
+                                             float* __restrict aR, float* __restrict aG, float* __restrict aB) {
+    for (int k = 0; k < n; ++k) {
+        const int a = lat[k], b = a + 1, c = a + nu, d = c + 1;
+        const float w0 = wgt[k], w1 = wgt[kTilePixels + k], w2 = wgt[2 * kTilePixels + k],
+                    w3 = wgt[3 * kTilePixels + k];
+        const float t = tr[k] < far[k] ? Tvp[k] : 0.0f;
+        aR[k] += t * (w0 * FR[a] + w1 * FR[b] + w2 * FR[c] + w3 * FR[d]);
+        aG[k] += t * (w0 * FG[a] + w1 * FG[b] + w2 * FG[c] + w3 * FG[d]);
+        aB[k] += t * (w0 * FB[a] + w1 * FB[b] + w2 * FB[c] + w3 * FB[d]);
+    }
+}
+
+// add_interp_factor for n pixels inside one lattice cell (top-left index a).
+AIRLIGHT_SPLAT_CLONES void add_interp_factor_cell(int n, int a, const float* __restrict wgt, int nu,
+                                                  const float* __restrict FR, const float* __restrict FG,
+                                                  const float* __restrict FB, const float* __restrict Tvp,
+                                                  const float* __restrict tr, const float* __restrict far,
+                                                  float* __restrict aR, float* __restrict aG, float* __restrict aB) {
+    const int b = a + 1, c = a + nu, d = c + 1;
+    const float r0 = FR[a], r1 = FR[b], r2 = FR[c], r3 = FR[d];
+    const float g0 = FG[a], g1 = FG[b], g2 = FG[c], g3 = FG[d];
+    const float b0 = FB[a], b1 = FB[b], b2 = FB[c], b3 = FB[d];
+    for (int k = 0; k < n; ++k) {
+        const float w0 = wgt[k], w1 = wgt[kTilePixels + k], w2 = wgt[2 * kTilePixels + k],
+                    w3 = wgt[3 * kTilePixels + k];
+        const float t = tr[k] < far[k] ? Tvp[k] : 0.0f;
+        aR[k] += t * (w0 * r0 + w1 * r1 + w2 * r2 + w3 * r3);
+        aG[k] += t * (w0 * g0 + w1 * g1 + w2 * g2 + w3 * g3);
+        aB[k] += t * (w0 * b0 + w1 * b1 + w2 * b2 + w3 * b3);
+    }
+}
+
+// Reduced resolution, a Gaussian the surface cuts (cut_light_factor): t = Tvp exp(-Tvr)
+// for the n pixels whose surface lies before b^r (tr >= far), else 0.
+AIRLIGHT_SPLAT_CLONES void surface_weight(int n, const float* __restrict Tvp, const float* __restrict Tvr,
+                                          const float* __restrict tr, const float* __restrict far,
+                                          float* __restrict t) {
+    for (int k = 0; k < n; ++k) {
+        const float v = Tvp[k] * fast_expf(-Tvr[k]);
+        t[k] = tr[k] < far[k] ? 0.0f : v;
+    }
+}
+
+// The number of the n pixels whose b^r lies before the surface (tr < far).
+AIRLIGHT_SPLAT_CLONES int count_before(int n, const float* __restrict tr, const float* __restrict far) {
+    int c = 0;
+    for (int k = 0; k < n; ++k) c += tr[k] < far[k] ? 1 : 0;
+    return c;
+}
+
+// On one 4x4 block (16 pixels, row-major): adds t times the bilinear interpolation of the
+// corner pixels' light factors (R4, G4, B4: corners (0,0), (3,0), (0,3), (3,3)).
+AIRLIGHT_SPLAT_CLONES void add_surface_factor16(const float* __restrict t, const float* __restrict R4,
+                                                const float* __restrict G4, const float* __restrict B4,
+                                                float* __restrict aR, float* __restrict aG, float* __restrict aB) {
+    static constexpr float kU[16] = {0.0f, 1.0f / 3.0f, 2.0f / 3.0f, 1.0f, 0.0f, 1.0f / 3.0f, 2.0f / 3.0f, 1.0f,
+                                     0.0f, 1.0f / 3.0f, 2.0f / 3.0f, 1.0f, 0.0f, 1.0f / 3.0f, 2.0f / 3.0f, 1.0f};
+    static constexpr float kV[16] = {0.0f,        0.0f,        0.0f,        0.0f,        1.0f / 3.0f, 1.0f / 3.0f,
+                                     1.0f / 3.0f, 1.0f / 3.0f, 2.0f / 3.0f, 2.0f / 3.0f, 2.0f / 3.0f, 2.0f / 3.0f,
+                                     1.0f,        1.0f,        1.0f,        1.0f};
+    const float r0 = R4[0], r1 = R4[1], r2 = R4[2], r3 = R4[3];
+    const float g0 = G4[0], g1 = G4[1], g2 = G4[2], g3 = G4[3];
+    const float b0 = B4[0], b1 = B4[1], b2 = B4[2], b3 = B4[3];
+    for (int k = 0; k < 16; ++k) {
+        const float u = kU[k], v = kV[k];
+        const float w0 = (1.0f - u) * (1.0f - v), w1 = u * (1.0f - v), w2 = (1.0f - u) * v, w3 = u * v;
+        aR[k] += t[k] * (w0 * r0 + w1 * r1 + w2 * r2 + w3 * r3);
+        aG[k] += t[k] * (w0 * g0 + w1 * g1 + w2 * g2 + w3 * g3);
+        aB[k] += t[k] * (w0 * b0 + w1 * b1 + w2 * b2 + w3 * b3);
+    }
+}
+
 AIRLIGHT_SPLAT_CLONES void add_to(const float* __restrict x, int n, float* __restrict acc) {
     for (int k = 0; k < n; ++k) acc[k] += x[k];
 }
@@ -1903,6 +1982,43 @@ void RbfSplat::splat_tile_reduced(int t, int x0, int y0, int w, int h, const flo
         wgt[3 * kTilePixels + k] = wx * wy;
     }
     float eT[kTilePixels] = {}, eR[kTilePixels] = {}, eG[kTilePixels] = {}, eB[kTilePixels] = {};
+    // Per 4x4 block (cut_light_factor): the size blk_h of its surface patch (corner pixels'
+    // surface points, the larger diagonal) and the largest deviation blk_err of a pixel's
+    // surface point from the bilinear patch of the corners'; inf where the block is not
+    // 4x4, has no hit at a corner, or lies near a light (h > 0.05 |p - s|, err > 0.01 |p - s|).
+    float blk_h[kMaxBlocks], blk_err[kMaxBlocks];
+    for (int b = 0; b < n_blocks; ++b) {
+        constexpr float kInfF = std::numeric_limits<float>::infinity();
+        blk_h[b] = blk_err[b] = kInfF;
+        const int k0 = block_start[b];
+        if (block_start[b + 1] - k0 != 16) continue;
+        float px[16], py[16], pz[16];
+        bool finite = true;
+        for (int k = 0; k < 16; ++k) {
+            px[k] = bfar[k0 + k] * bx[k0 + k];
+            py[k] = bfar[k0 + k] * by[k0 + k];
+            pz[k] = bfar[k0 + k] * bz[k0 + k];
+            finite = finite && std::isfinite(bfar[k0 + k]);
+        }
+        if (!finite) continue;
+        auto dist = [](float x, float y, float z) { return std::sqrt(x * x + y * y + z * z); };
+        const float hb = std::max(dist(px[15] - px[0], py[15] - py[0], pz[15] - pz[0]),
+                                  dist(px[12] - px[3], py[12] - py[3], pz[12] - pz[3]));
+        float err = 0.0f;
+        for (int k = 0; k < 16; ++k) {
+            const float u = float(k & 3) * (1.0f / 3.0f), v = float(k >> 2) * (1.0f / 3.0f);
+            const float w0 = (1.0f - u) * (1.0f - v), w1 = u * (1.0f - v), w2 = (1.0f - u) * v, w3 = u * v;
+            err = std::max(err, dist(px[k] - (w0 * px[0] + w1 * px[3] + w2 * px[12] + w3 * px[15]),
+                                     py[k] - (w0 * py[0] + w1 * py[3] + w2 * py[12] + w3 * py[15]),
+                                     pz[k] - (w0 * pz[0] + w1 * pz[3] + w2 * pz[12] + w3 * pz[15])));
+        }
+        float dl = kInfF;
+        for (const LightF& lf : lf_) dl = std::min(dl, dist(px[0] + lf.vx, py[0] + lf.vy, pz[0] + lf.vz));
+        if (hb <= 0.05f * dl && err <= 0.01f * dl) {
+            blk_h[b] = hb;
+            blk_err[b] = err;
+        }
+    }
     // Conservative margins for the float depths (relative 1e-6).
     const double far_lo = double(dmin) * (1.0 - 1e-6), far_hi = double(dmax) * (1.0 + 1e-6);
     // Next to a light's image the light terms peak (1 / |b^r - s|^2 along rays passing
@@ -1990,10 +2106,13 @@ void RbfSplat::splat_tile_reduced(int t, int x0, int y0, int w, int h, const flo
             add_to(gR, m_pad, cR);
             add_to(gG, m_pad, cG);
             add_to(gB, m_pad, cB);
+            if (batch && cut != 0)
+                cut_light_factor(i, n_blocks, block_start, cut, m_pad, lx, ly, lz, nu, lat, wgt, blk_h, blk_err, bx,
+                                 by, bz, bfar, eT, eR, eG, eB);
             for (int b = 0; b < n_blocks; ++b) {
                 if (front_blocks >> b & 1u) continue;
                 const int k0 = block_start[b], nb = block_start[b + 1] - k0;
-                if (cut >> b & 1u) {
+                if (!batch && (cut >> b & 1u)) {
                     splat_gaussian(i, nb, bx + k0, by + k0, bz + k0, bfar + k0, eT + k0, eR + k0, eG + k0, eB + k0);
                 }
                 if (lat[k0] == lat[k0 + nb - 1])  // the block inside one cell (quarter resolution)
@@ -2002,6 +2121,12 @@ void RbfSplat::splat_tile_reduced(int t, int x0, int y0, int w, int h, const flo
                     sub_interp(nb, lat + k0, wgt + k0, nu, gT, gR, gG, gB, eT + k0, eR + k0, eG + k0, eB + k0);
             }
             ++lattice;
+            continue;
+        }
+        if (batch && live_px > 0) {
+            cut_light_factor(i, n_blocks, block_start, live, m_pad, lx, ly, lz, nu, lat, wgt, blk_h, blk_err, bx, by,
+                             bz, bfar, eT, eR, eG, eB);
+            ++exact;
             continue;
         }
         for (int b = 0; b < n_blocks; ++b) {
@@ -2098,6 +2223,121 @@ void RbfSplat::splat_tile_reduced(int t, int x0, int y0, int w, int h, const flo
                 Bn[k] += w00 * nB[a] + w10 * nB[b] + w01 * nB[c] + w11 * nB[d];
             }
         }
+    }
+}
+
+void RbfSplat::cut_light_factor(std::size_t i, int n_blocks, const int* block_start, unsigned live, int m_pad,
+                                const float* lx, const float* ly, const float* lz, int nu, const int* lat,
+                                const float* wgt, const float* blk_h, const float* blk_err, const float* bx,
+                                const float* by, const float* bz, const float* bfar, float* eT, float* eR, float* eG,
+                                float* eB) const {
+    constexpr int kMaxBlocks = kTilePixels / 16;
+    const GaussF& g = g_[i];
+    const std::size_t L = lights_.size();
+    float Tvp[kTilePixels], Tvr[kTilePixels], tr[kTilePixels];
+    // The view terms on the live blocks (runs of consecutive ones), as splat_gaussian.
+    for (int b = 0; b < n_blocks; ++b) {
+        if (!(live >> b & 1u)) continue;
+        int e = b;
+        while (e + 1 < n_blocks && (live >> (e + 1) & 1u)) ++e;
+        const int k0 = block_start[b], nr = block_start[e + 1] - k0;
+        view_terms<false, false>(g, eye_f_, 0.0f, 0.0f, 0.0f, 0.0f, nr, bx + k0, by + k0, bz + k0, bfar + k0,
+                                 Tvp + k0, Tvr + k0, tr + k0);
+        add_to(Tvp + k0, nr, eT + k0);
+        b = e;
+    }
+    // The light terms block by block (no per-pixel gathering), each block one of:
+    //  1: b^r = eye + max(ts, 0) d lies before the surface (ts < Dvp) at every pixel: the
+    //     light side exp(-T_i(s, b^r) - T_i(v, b^r)) / |b^r - s|^2 does not depend on the
+    //     depth; it is the lattice's (Dvp = inf), interpolated like it, times Tvp(Dvp);
+    //  2: a 4x4 block whose surface points deviate little from the bilinear patch of its
+    //     corner pixels' (blk_h, blk_err: splat_tile_reduced): where the surface lies before
+    //     b^r (b^r = the surface point p) the light side is exp(-Tvp) G(p), G(p) = sum_l w
+    //     exp(-T_i(s_l, p)) / |p - s_l|^2 smooth in p (scale 1/a, and |p - s_l|), evaluated
+    //     at the 4 corner pixels and interpolated; the other pixels as in 1;
+    //  0: exact.
+    // The lattice (m_pad rays, view and light terms) only where it saves more light terms.
+    int mode[kMaxBlocks], n_before[kMaxBlocks];
+    int lattice_px = 0;
+    for (int b = 0; b < n_blocks; ++b) {
+        mode[b] = 0;
+        if (!(live >> b & 1u)) continue;
+        const int k0 = block_start[b], nb = block_start[b + 1] - k0;
+        n_before[b] = count_before(nb, tr + k0, bfar + k0);
+        if (n_before[b] == nb) mode[b] = 1;
+        else if (nb == 16 && 16 - n_before[b] >= 4 && blk_h[b] * g.a <= 0.5f && blk_err[b] * g.a <= 0.05f)
+            mode[b] = 2;
+        if (mode[b] != 0) lattice_px += n_before[b];
+    }
+    const bool use_lattice = std::size_t(lattice_px) * L > std::size_t(m_pad) * (L + 1);
+    for (int b = 0; b < n_blocks; ++b)
+        if (!use_lattice && (mode[b] == 1 || (mode[b] == 2 && n_before[b] > 0))) mode[b] = 0;
+    // Exact blocks, in runs.
+    for (int b = 0; b < n_blocks; ++b) {
+        if (!(live >> b & 1u) || mode[b] != 0) continue;
+        int e = b;
+        while (e + 1 < n_blocks && (live >> (e + 1) & 1u) && mode[e + 1] == 0) ++e;
+        const int k0 = block_start[b], nr = block_start[e + 1] - k0;
+        for (std::size_t l = 0; l < L; ++l)
+            light_terms(g, gl_[i * L + l], lf_[l], nr, bx + k0, by + k0, bz + k0, Tvp + k0, Tvr + k0, tr + k0,
+                        eR + k0, eG + k0, eB + k0);
+        b = e;
+    }
+    if (use_lattice) {
+        constexpr int kMaxLattice = 96;
+        float lTvp[kMaxLattice], lTvr[kMaxLattice], ltr[kMaxLattice], ones[kMaxLattice];
+        float FR[kMaxLattice] = {}, FG[kMaxLattice] = {}, FB[kMaxLattice] = {};
+        view_terms<false, true>(g, eye_f_, 0.0f, 0.0f, 0.0f, 0.0f, m_pad, lx, ly, lz, nullptr, lTvp, lTvr, ltr);
+        std::fill(ones, ones + m_pad, 1.0f);
+        for (std::size_t l = 0; l < L; ++l)
+            light_terms(g, gl_[i * L + l], lf_[l], m_pad, lx, ly, lz, ones, lTvr, ltr, FR, FG, FB);
+        for (int b = 0; b < n_blocks; ++b) {
+            if (mode[b] == 0 || n_before[b] == 0) continue;
+            const int k0 = block_start[b], nb = block_start[b + 1] - k0;
+            if (lat[k0] == lat[k0 + nb - 1])  // the block inside one cell (quarter resolution)
+                add_interp_factor_cell(nb, lat[k0], wgt + k0, nu, FR, FG, FB, Tvp + k0, tr + k0, bfar + k0, eR + k0,
+                                       eG + k0, eB + k0);
+            else
+                add_interp_factor(nb, lat + k0, wgt + k0, nu, FR, FG, FB, Tvp + k0, tr + k0, bfar + k0, eR + k0,
+                                  eG + k0, eB + k0);
+        }
+    }
+    // Surface blocks: G at the corner pixels (0,0), (3,0), (0,3), (3,3), in one batch.
+    float gx[4 * kMaxBlocks], gy[4 * kMaxBlocks], gz[4 * kMaxBlocks], gtr[4 * kMaxBlocks], gone[4 * kMaxBlocks],
+        gzero[4 * kMaxBlocks];
+    int sblk[kMaxBlocks], n_sblk = 0;
+    for (int b = 0; b < n_blocks; ++b) {
+        if (mode[b] != 2) continue;
+        static constexpr int kCorner[4] = {0, 3, 12, 15};
+        for (int c = 0; c < 4; ++c) {
+            const int q = block_start[b] + kCorner[c], o = 4 * n_sblk + c;
+            gx[o] = bx[q];
+            gy[o] = by[q];
+            gz[o] = bz[q];
+            gtr[o] = bfar[q];
+            gone[o] = 1.0f;
+            gzero[o] = 0.0f;
+        }
+        sblk[n_sblk++] = b;
+    }
+    if (n_sblk == 0) return;
+    float GR[4 * kMaxBlocks] = {}, GG[4 * kMaxBlocks] = {}, GB[4 * kMaxBlocks] = {};
+    int nc = 4 * n_sblk;
+    for (; nc % 16 != 0; ++nc) {  // whole SIMD vectors: copies of the first corner
+        gx[nc] = gx[0];
+        gy[nc] = gy[0];
+        gz[nc] = gz[0];
+        gtr[nc] = gtr[0];
+        gone[nc] = 1.0f;
+        gzero[nc] = 0.0f;
+    }
+    for (std::size_t l = 0; l < L; ++l)
+        light_terms(g, gl_[i * L + l], lf_[l], nc, gx, gy, gz, gone, gzero, gtr, GR, GG, GB);
+    for (int s = 0; s < n_sblk; ++s) {
+        const int k0 = block_start[sblk[s]];
+        float t[16];
+        surface_weight(16, Tvp + k0, Tvr + k0, tr + k0, bfar + k0, t);
+        add_surface_factor16(t, GR + 4 * s, GG + 4 * s, GB + 4 * s, eR + k0, eG + k0, eB + k0);
     }
 }
 

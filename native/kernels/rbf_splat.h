@@ -130,7 +130,15 @@ class RbfSplat {
     //  - otherwise (the surface cuts the sphere somewhere in the tile): evaluated exactly,
     //    on the tile's 4x4 pixel blocks whose segments the sphere does not wholly miss or
     //    lie in front of (or, when cheaper, on the lattice with the exact value replacing
-    //    the interpolated one on the cut blocks).
+    //    the interpolated one on the cut blocks). On the plain path without noise only the
+    //    view terms (Tvp, Tvr) are exact there; the light side of such a pixel depends on
+    //    Dvp only through b^r: where b^r = eye + max(ts, 0) r lies before the surface it is
+    //    the lattice's (Dvp = inf) light factor, interpolated; where the surface lies before
+    //    b^r (b^r = the surface point p) it is exp(-Tvp) G(p), G(p) = sum_l w_l exp(-T_i(s_l,
+    //    p)) / |p - s_l|^2, interpolated bilinearly from the block's 4 corner pixels when
+    //    the block's surface points lie within 0.01 |p - s_l| and 0.05 / a of the corners'
+    //    bilinear patch and the patch spans at most 0.05 |p - s_l| and 0.5 / a (no depth
+    //    edge, not next to a light; cut_light_factor); else exact.
     //  A Gaussian reaching the near clip plane has its near segment [0, t0] (t0 = clip /
     //  cos, smooth) on the lattice too. Tiles within 64 pixels of a light's image (where
     //  the light terms peak) are evaluated exactly.
@@ -207,6 +215,17 @@ class RbfSplat {
     // the m lattice rays (lx, ly, lz), added to T, R, G, B (lattice_gaussian_major).
     void lattice_batch(const std::uint32_t* idx, int n, int m, const float* lx, const float* ly, const float* lz,
                        float* T, float* R, float* G, float* B) const;
+    // A Gaussian the surface cuts in a tile at step_ > 1 (plain path, no noise): exact view
+    // terms on the live 4x4 blocks (bit mask _live_ over the regrouped pixels of
+    // splat_tile_reduced), and the light side per block: from the lattice (m_pad rays, when
+    // that saves light terms) where b^r lies before the surface, from the block's 4 corner
+    // pixels where the surface lies before b^r on a smooth surface patch (blk_h, blk_err:
+    // its size and the pixels' deviation from the corners' bilinear patch, inf: none),
+    // else exact; into eT, eR, eG, eB (see splat_tile).
+    void cut_light_factor(std::size_t i, int n_blocks, const int* block_start, unsigned live, int m_pad,
+                          const float* lx, const float* ly, const float* lz, int nu, const int* lat, const float* wgt,
+                          const float* blk_h, const float* blk_err, const float* bx, const float* by, const float* bz,
+                          const float* bfar, float* eT, float* eR, float* eG, float* eB) const;
     // Homogeneous term of light l for n rays: segment [t0, Dvp] attenuated from t0.
     void homogeneous(const double* cos_gamma, std::size_t l, const float* Dvp, const float* t0, int n,
                      float* out) const;

@@ -217,3 +217,24 @@ def test05_noise_at_reduced_resolution():
 def test06_bad_resolution_raises():
     with pytest.raises(ValueError, match="gaussian_resolution"):
         bake("eighth")
+
+
+def test08_broad_gaussians_cut_by_the_surface():
+    """Broad Gaussians (1/a 4..10 m, bench_rbf.py's 34-Gaussian scene) that the ground and
+    the walls cut: at reduced resolution their light side is interpolated where it does not
+    depend on the depth (from the lattice where b^r lies before the surface, from a 4x4
+    block's corner pixels where the surface lies before b^r and the block's surface is a
+    smooth patch, RbfSplat::cut_light_factor); against the full-resolution bake."""
+    rng = np.random.default_rng(5)
+    n = 20
+    gauss = (np.column_stack([rng.uniform(-18, 18, n), rng.uniform(-2, 5, n), rng.uniform(-45, -8, n)]),
+             1.0 / rng.uniform(4.0, 10.0, n), rng.uniform(0.005, 0.02, n))
+    full_b = bake("full", gauss=gauss)
+    for res, mean_tol, p99_tol, max_tol in (("half", 5e-5, 5e-4, 5e-3), ("quarter", 1e-4, 1e-3, 5e-3)):
+        r = bake(res, gauss=gauss)
+        for key in ("airlight", "transmittance"):
+            rel = rel_errors(r[key], full_b[key])
+            print(f"broad Gaussians, {res} {key}: mean {rel.mean():.2e} p99 {np.percentile(rel, 99):.2e} "
+                  f"max {rel.max():.2e}")
+            assert rel.mean() <= mean_tol and np.percentile(rel, 99) <= p99_tol and rel.max() <= max_tol, key
+        assert not np.array_equal(r["airlight"], full_b["airlight"])
