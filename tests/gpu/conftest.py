@@ -1,4 +1,4 @@
-"""Shared fixtures of the GPU tests: the add-on package, the native module, a place for
+"""Shared fixtures of the GPU tests: the add-on's preview module, the native module, a place for
 artifacts. Runs inside Blender (see run_gpu_tests.py)."""
 
 import os
@@ -18,6 +18,18 @@ def pytest_configure(config):
 def gs():
     from airlight import gpu_shaders
     return gpu_shaders
+
+
+@pytest.fixture(scope="module")
+def addon():
+    """The add-on's preview module, with the add-on registered (tools/blender.sh enables it;
+    else register here)."""
+    import bpy
+    import airlight
+    if not hasattr(bpy.types.Scene, "airlight"):
+        airlight.register()
+    from airlight import preview
+    return preview
 
 
 @pytest.fixture(scope="session")

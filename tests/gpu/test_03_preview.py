@@ -28,16 +28,6 @@ ALBEDO = (1.0, 0.8, 0.6)
 
 
 @pytest.fixture(scope="module")
-def addon():
-    """The add-on package, registered (tools/blender.sh enables it; else register here)."""
-    import airlight
-    if not hasattr(bpy.types.Scene, "airlight"):
-        airlight.register()
-    from airlight import preview
-    return preview
-
-
-@pytest.fixture(scope="module")
 def fog_scene(addon, native):
     """Floor, cube, two point lights, a camera; fog on. Built from scratch (no .blend)."""
     scene = bpy.context.scene

@@ -20,7 +20,7 @@ import numpy as np
 import pytest
 from mathutils import Matrix
 
-from test_03_preview import _redraw, _view3d, addon, fog_scene  # noqa: F401 (fixtures)
+from test_03_preview import _redraw, _view3d, fog_scene  # noqa: F401 (fixture)
 
 W, H = 320, 240
 MODES = {"bilinear": 0, "bilateral": 1, "bilateral+exact": 2}

@@ -21,7 +21,7 @@ import numpy as np
 import pytest
 from mathutils import Matrix, Vector
 
-from test_03_preview import _redraw, _view3d, addon, fog_scene  # noqa: F401 (fixtures)
+from test_03_preview import _redraw, _view3d, fog_scene  # noqa: F401 (fixture)
 
 W, H = 160, 120
 

@@ -38,15 +38,6 @@ SIGMA_T = 0.03
 ALBEDO = (1.0, 0.8, 0.6)
 
 
-@pytest.fixture(scope="module")
-def addon():
-    import airlight
-    if not hasattr(bpy.types.Scene, "airlight"):
-        airlight.register()
-    from airlight import preview
-    return preview
-
-
 def _texture(gs, q):
     return gs.float_texture(np.ascontiguousarray(q, np.float32))
 

@@ -23,15 +23,6 @@ N = 64
 G = 0.6
 
 
-@pytest.fixture(scope="module")
-def addon():
-    import airlight
-    if not hasattr(bpy.types.Scene, "airlight"):
-        airlight.register()
-    from airlight import preview
-    return preview
-
-
 @pytest.mark.parametrize("phase,g", [("hg", G), ("hg", -0.5), ("rayleigh", 0.0), ("murky_mie", 0.0)])
 def test01_biri_glsl_matches_cpp(gs, native, phase, g):
     rng = np.random.default_rng(10)

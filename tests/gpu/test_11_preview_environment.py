@@ -13,15 +13,6 @@ import pytest
 from test_09_preview_gaussians import H, W, _compare, _save_png, build_scene, render_preview
 
 
-@pytest.fixture(scope="module")
-def addon():
-    import airlight
-    if not hasattr(bpy.types.Scene, "airlight"):
-        airlight.register()
-    from airlight import preview
-    return preview
-
-
 def _sky_world():
     h, w = 32, 64
     v = 1.0 - (np.arange(h) + 0.5) / h

@@ -27,15 +27,6 @@ NOISE = (0.6, 1.5, (0.3, -1.2, 2.5))  # amplitude, scale (m), offset (cells)
 
 
 @pytest.fixture(scope="module")
-def addon():
-    import airlight
-    if not hasattr(bpy.types.Scene, "airlight"):
-        airlight.register()
-    from airlight import preview
-    return preview
-
-
-@pytest.fixture(scope="module")
 def noise_scene(addon, native):
     return build_scene(SIGMA_T)
 

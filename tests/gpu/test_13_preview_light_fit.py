@@ -32,15 +32,6 @@ _NODE = math.sqrt(1.5)
 
 
 @pytest.fixture(scope="module")
-def addon():
-    import airlight
-    if not hasattr(bpy.types.Scene, "airlight"):
-        airlight.register()
-    from airlight import preview
-    return preview
-
-
-@pytest.fixture(scope="module")
 def fit_scene(addon, native):
     return build_scene(SIGMA_T)
 
