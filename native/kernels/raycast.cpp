@@ -122,6 +122,18 @@ double RayCaster::first_hit(const Ray& ray) const {
 
 namespace {
 
+// The lanes' fields every packet sets the same way (no motion blur, every geometry, no hit yet).
+inline void reset_packet_lanes(RTCRayHit16& rh) {
+    for (int k = 0; k < 16; ++k) {
+        rh.ray.time[k] = 0.0f;
+        rh.ray.mask[k] = 0xFFFFFFFFu;
+        rh.ray.id[k] = unsigned(k);
+        rh.ray.flags[k] = 0;
+        rh.hit.geomID[k] = RTC_INVALID_GEOMETRY_ID;
+        rh.hit.instID[0][k] = RTC_INVALID_GEOMETRY_ID;
+    }
+}
+
 // Traces _n_ rays in coherent packets of 16 (the tail's unused lanes masked off):
 // set(i, org, dir, tnear, tfar) fills in ray i (tnear 0 and tfar inf unless set), done(k, i,
 // rayhit) reads lane k, ray i's hit.
@@ -133,6 +145,7 @@ void trace_packets(RTCScene scene, int n, Set&& set, Done&& done) {
     for (int base = 0; base < n; base += 16) {
         alignas(64) int valid[16];
         alignas(64) RTCRayHit16 rh;
+        reset_packet_lanes(rh);
         for (int k = 0; k < 16; ++k) {
             const bool live = base + k < n;
             const int i = live ? base + k : n - 1;
@@ -147,12 +160,6 @@ void trace_packets(RTCScene scene, int n, Set&& set, Done&& done) {
             rh.ray.dir_z[k] = dir[2];
             rh.ray.tnear[k] = tnear;
             rh.ray.tfar[k] = tfar;
-            rh.ray.time[k] = 0.0f;
-            rh.ray.mask[k] = 0xFFFFFFFFu;
-            rh.ray.id[k] = unsigned(k);
-            rh.ray.flags[k] = 0;
-            rh.hit.geomID[k] = RTC_INVALID_GEOMETRY_ID;
-            rh.hit.instID[0][k] = RTC_INVALID_GEOMETRY_ID;
         }
         rtcIntersect16(valid, scene, &context, &rh);
         for (int k = 0; k < 16 && base + k < n; ++k) done(k, base + k, rh);
@@ -217,17 +224,12 @@ void RayCaster::first_hits(const Vec3& o, const float* dx, const float* dy, cons
                 rh.ray.tfar[k] = t_far[i];
             }
         }
+        reset_packet_lanes(rh);
         for (int k = 0; k < 16; ++k) {
             valid[k] = k < m ? -1 : 0;
             rh.ray.org_x[k] = ox;
             rh.ray.org_y[k] = oy;
             rh.ray.org_z[k] = oz;
-            rh.ray.time[k] = 0.0f;
-            rh.ray.mask[k] = 0xFFFFFFFFu;
-            rh.ray.id[k] = unsigned(k);
-            rh.ray.flags[k] = 0;
-            rh.hit.geomID[k] = RTC_INVALID_GEOMETRY_ID;
-            rh.hit.instID[0][k] = RTC_INVALID_GEOMETRY_ID;
         }
         rtcIntersect16(valid, impl_->scene, &context, &rh);
         float hit_t[16];
