@@ -1664,6 +1664,7 @@ void RbfSplat::bin(const Vec3& D0, const Vec3& Dx, const Vec3& Dy, const Vec3& f
     // resolution and 1e-3 / 4 at half (which errs ~4x less than quarter: keeps that); pix =
     // the largest angle of a pixel (at the film point nearest the eye: |Dx| / (D0 . forward)).
     smooth_.assign(step > 1 ? n : 0, 0);
+    light_far_.assign(step > 1 ? n : 0, 0);
     if (step > 1) {
         const double f = glm::dot(D0, forward);
         const double pix = f > 0.0 ? std::max(glm::length(Dx), glm::length(Dy)) / f : 0.0;
@@ -1672,9 +1673,13 @@ void RbfSplat::bin(const Vec3& D0, const Vec3& Dx, const Vec3& Dy, const Vec3& f
         const double light_min = H * std::sqrt(6.0 / (8.0 * tau)) * pix;  // |b - s| - R per unit d
         for (std::size_t i = 0; i < n && pix > 0.0; ++i) {
             const double dist = std::max(g_[i].dist, 1e-12), a = medium_.scale(i);
-            bool ok = 1.0 / (std::sqrt(2.0) * a * dist) >= sigma_min;
-            for (const Vec3& s : lights_) ok = ok && glm::length(medium_.centre(i) - s) - g_[i].radius >= light_min * dist;
-            smooth_[i] = ok ? 1 : 0;
+            double clearance = std::numeric_limits<double>::infinity();  // least |b - s| - R over the lights
+            for (const Vec3& s : lights_) clearance = std::min(clearance, glm::length(medium_.centre(i) - s) - g_[i].radius);
+            smooth_[i] = 1.0 / (std::sqrt(2.0) * a * dist) >= sigma_min && clearance >= light_min * dist;
+            // The same light criterion on the lattice itself (step s, half of H): every
+            // b^r of the Gaussian's rays stays that far from every light, so its light
+            // factor 1 / |b^r - s|^2 interpolates to tau over a lattice cell.
+            light_far_[i] = clearance >= 0.5 * light_min * dist;
         }
     }
     for (int t = 0; t < n_tiles; ++t) count[t + 1] += count[t];
@@ -2038,8 +2043,11 @@ void RbfSplat::splat_tile_reduced(int t, int x0, int y0, int w, int h, const flo
     for (std::uint32_t e = bin_start_[t]; e < bin_start_[t + 1]; ++e) {
         const std::size_t i = bin_index_[e];
         const GaussF& g = g_[i];
+        // A Gaussian far from every light (light_far_: the lattice's light-factor criterion)
+        // has no peak in its light terms even next to a light's image: classified as anywhere.
+        const bool exact_here = exact_tile && !light_far_[i];
         if (near_clip && g.near) {
-            if (exact_tile) {
+            if (exact_here) {
                 splat_gaussian(i, n, dx, dy, dz, far, Tf, Rf, Gf, Bf);
                 splat_gaussian(i, n, dx, dy, dz, t0, Tn, Rn, Gn, Bn);
                 ++exact;
@@ -2050,7 +2058,7 @@ void RbfSplat::splat_tile_reduced(int t, int x0, int y0, int w, int h, const flo
             splat_gaussian(i, m_pad, lx, ly, lz, lt0, nT, nR, nG, nB);
             near_lattice = true;
         }
-        if (exact_tile) {
+        if (exact_here) {
             splat_gaussian(i, n, dx, dy, dz, far, Tf, Rf, Gf, Bf);
             ++exact;
             continue;

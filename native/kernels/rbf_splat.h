@@ -112,6 +112,8 @@ class RbfSplat {
     int num_tiles() const { return tiles_x_ * tiles_y_; }
     // Pairs (tile, Gaussian) binned: the work of the splat.
     std::size_t num_pairs() const { return bin_index_.size(); }
+    // Pairs binned to tile t (after bin()): a cost estimate for scheduling.
+    std::size_t tile_pairs(int t) const { return bin_start_[std::size_t(t) + 1] - bin_start_[std::size_t(t)]; }
 
     // Evaluates tile _t_ (after bin()): reads depth[W H] (distance from the eye, inf: no
     // hit), writes transmittance (3 equal floats per pixel) and airlight (RGB) of the
@@ -140,8 +142,10 @@ class RbfSplat {
     //    bilinear patch and the patch spans at most 0.05 |p - s_l| and 0.5 / a (no depth
     //    edge, not next to a light; cut_light_factor); else exact.
     //  A Gaussian reaching the near clip plane has its near segment [0, t0] (t0 = clip /
-    //  cos, smooth) on the lattice too. Tiles within 64 pixels of a light's image (where
-    //  the light terms peak) are evaluated exactly.
+    //  cos, smooth) on the lattice too. In tiles within 64 pixels of a light's image (where
+    //  the light terms peak) the Gaussians are evaluated exactly, but those far from every
+    //  light (|b - s| - R >= 27 s pixels' angle times d, the coarse lattice's criterion
+    //  below at spacing s: their b^r never comes near a light) are classified as anywhere.
     //  Coarse lattice (plain path, no noise): an in-front Gaussian whose term is smooth on
     //  the scale of H = 2 s pixels goes on every other lattice node (spacing H), whose
     //  bilinear interpolant is spread onto the lattice: its angular scale 1 / (sqrt 2 a d)
@@ -268,6 +272,9 @@ class RbfSplat {
     std::vector<unsigned char> exact_tile_;  // step_ > 1: tiles evaluated exactly (next to a light)
     mutable std::atomic<std::size_t> n_lattice_{0}, n_exact_{0}, n_behind_{0}, n_coarse_{0};
     std::vector<unsigned char> smooth_;  // step_ > 1: per Gaussian, coarse lattice allowed
+    // step_ > 1: per Gaussian, far enough from every light for the lattice even in tiles
+    // next to a light's image (exact_tile_)
+    std::vector<unsigned char> light_far_;
     std::vector<std::uint32_t> bin_start_;  // per tile, into bin_index_ (size tiles + 1)
     std::vector<std::uint32_t> bin_index_;
 };
