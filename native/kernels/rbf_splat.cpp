@@ -1552,22 +1552,42 @@ void RbfSplat::bin(const Vec3& D0, const Vec3& Dx, const Vec3& Dy, const Vec3& f
             c.sin_t = std::sqrt(std::max(0.0, 1.0 - cmin * cmin));
         }
     });
-    // Reduced resolution: tiles within kLightMarginPx pixels (angle at the tile) of a
-    // light's direction stay exact (splat_tile_reduced).
+    // Reduced resolution: per (tile, light), bounds on the light factor's distance |b^r - s|
+    // over the tile's rays (light_clear); tiles where some Gaussian could come closer to a
+    // light than the lattice allows are flagged (exact_tile_: their Gaussians are checked
+    // one by one in splat_tile_reduced, and their edge samples skip the lattice).
     exact_tile_.assign(step > 1 ? n_tiles : 0, 0);
+    const std::size_t L = lights_.size();
+    tile_light_.assign(step > 1 ? std::size_t(n_tiles) * L : 0, TileLight{});
+    light_min_ = 0.0;
     if (step > 1) {
-        constexpr double kLightMarginPx = 64.0;
+        // The lattice's light-factor criterion at spacing s (see bin()'s smooth_): |b^r - s|
+        // >= light_min_ d_i, d_i the Gaussian's distance from the eye.
+        const double f = glm::dot(D0, forward);
+        const double pix = f > 0.0 ? std::max(glm::length(Dx), glm::length(Dy)) / f : 0.0;
+        const double tau = 1e-3 * (step / 4.0) * (step / 4.0);
+        light_min_ = step * std::sqrt(6.0 / (8.0 * tau)) * pix;
+        double dist_max = 0.0;
+        for (const GaussF& g : g_) dist_max = std::max(dist_max, g.dist);
+        constexpr double kPi = 3.14159265358979323846;
         for (int t = 0; t < n_tiles; ++t) {
-            const int tx = t % tiles_x_, ty = t / tiles_x_;
-            const Vec3 Dc = D0 + (tx + 0.5) * kTile * Dx + (ty + 0.5) * kTile * Dy;
-            const double margin = kLightMarginPx * std::max(glm::length(Dx), glm::length(Dy)) / glm::length(Dc);
-            const double theta = std::acos(std::clamp(cones[t].cos_t, -1.0, 1.0)) + margin;
-            for (const Vec3& s : lights_) {
-                const Vec3 u = s - eye_;
-                const double len = glm::length(u);
-                if (!(len > 0.0) || theta >= 3.14159265358979323846 ||
-                    glm::dot(cones[t].axis, u / len) >= std::cos(theta))
+            const double half = std::acos(std::clamp(cones[t].cos_t, -1.0, 1.0));
+            for (std::size_t l = 0; l < L; ++l) {
+                TileLight& tl = tile_light_[std::size_t(t) * L + l];
+                const Vec3 u = lights_[l] - eye_;
+                const double D = glm::length(u);
+                if (!(D > 0.0)) {  // a light at the eye: no bound
+                    tl = TileLight{0.0f, 0.0f, 1.0f};
                     exact_tile_[t] = 1;
+                    continue;
+                }
+                const double c = std::acos(std::clamp(glm::dot(cones[t].axis, u / D), -1.0, 1.0));
+                const double a_min = std::max(0.0, c - half - 1e-9), a_max = c + half + 1e-9;
+                // The ray's closest approach to s: D sin(angle), or D (the eye) past 90 degrees.
+                tl.h_min = float((a_min >= 0.5 * kPi ? D : D * std::sin(a_min)) * (1.0 - 1e-6));
+                if (a_max < 0.5 * kPi) tl.cos_max = float(std::cos(a_max)), tl.sin_max = float(std::sin(a_max));
+                else tl.cos_max = 0.0f, tl.sin_max = 1.0f;
+                if (double(tl.h_min) < light_min_ * dist_max) exact_tile_[t] = 1;
             }
         }
     }
@@ -1687,6 +1707,26 @@ void RbfSplat::bin(const Vec3& D0, const Vec3& Dx, const Vec3& Dy, const Vec3& f
     bin_index_.resize(count[n_tiles]);
     std::vector<std::uint32_t> fill(count.begin(), count.end() - 1);
     rows(true, fill.data());
+}
+
+bool RbfSplat::light_clear(std::size_t i, int t) const {
+    // For a ray of unit direction d, b^r = eye + ((b - eye) . d) d (unclamped) and
+    // |b^r - s|^2 = ((b - s) . d)^2 + h^2, h the ray's closest approach to s: so |b^r - s| is
+    // at least h >= h_min and at least |(b - s) . d| >= |(b - s) . u| cos a - |b - s| sin a
+    // for the tile's rays within angle a <= 90 degrees of the light's direction u. b^r
+    // clamped at the eye is D >= h_min away. The lattice needs |b^r - s| >= light_min_ d_i.
+    const std::size_t L = lights_.size();
+    const Vec3 b = medium_.centre(i);
+    const double need = light_min_ * g_[i].dist;
+    for (std::size_t l = 0; l < L; ++l) {
+        const TileLight& tl = tile_light_[std::size_t(t) * L + l];
+        if (double(tl.h_min) >= need) continue;
+        const Vec3 u = glm::normalize(lights_[l] - eye_);
+        const Vec3 bs = b - lights_[l];
+        if (!(std::abs(glm::dot(bs, u)) * double(tl.cos_max) - glm::length(bs) * double(tl.sin_max) >= need))
+            return false;
+    }
+    return true;
 }
 
 void RbfSplat::splat_gaussian(std::size_t i, int n, const float* dx, const float* dy, const float* dz,
@@ -2044,8 +2084,9 @@ void RbfSplat::splat_tile_reduced(int t, int x0, int y0, int w, int h, const flo
         const std::size_t i = bin_index_[e];
         const GaussF& g = g_[i];
         // A Gaussian far from every light (light_far_: the lattice's light-factor criterion)
-        // has no peak in its light terms even next to a light's image: classified as anywhere.
-        const bool exact_here = exact_tile && !light_far_[i];
+        // or far from the lights whose image is next to the tile along their line of sight
+        // (light_clear_) has no peak in its light terms here: classified as anywhere.
+        const bool exact_here = exact_tile && !light_far_[i] && !light_clear(i, t);
         if (near_clip && g.near) {
             if (exact_here) {
                 splat_gaussian(i, n, dx, dy, dz, far, Tf, Rf, Gf, Bf);

@@ -142,10 +142,13 @@ class RbfSplat {
     //    bilinear patch and the patch spans at most 0.05 |p - s_l| and 0.5 / a (no depth
     //    edge, not next to a light; cut_light_factor); else exact.
     //  A Gaussian reaching the near clip plane has its near segment [0, t0] (t0 = clip /
-    //  cos, smooth) on the lattice too. In tiles within 64 pixels of a light's image (where
-    //  the light terms peak) the Gaussians are evaluated exactly, but those far from every
-    //  light (|b - s| - R >= 27 s pixels' angle times d, the coarse lattice's criterion
-    //  below at spacing s: their b^r never comes near a light) are classified as anywhere.
+    //  cos, smooth) on the lattice too. Near a light the light factor 1 / |b^r - s|^2 peaks:
+    //  the lattice interpolates it to tau = 1e-3 (quarter; 2.5e-4 half) while |b^r - s| >=
+    //  27 s pixels' angle times d (d the Gaussian's distance; the coarse lattice's criterion
+    //  below at spacing s); a Gaussian for which a tile's rays cannot guarantee that is
+    //  evaluated exactly there. Guarantees: |b - s| - R (b^r lies within the cull radius of
+    //  b), the rays' closest approach to s, and |(b - s) . u| cos a - |b - s| sin a (b^r stays
+    //  before or beyond the light along its line of sight u; a the rays' largest angle to u).
     //  Coarse lattice (plain path, no noise): an in-front Gaussian whose term is smooth on
     //  the scale of H = 2 s pixels goes on every other lattice node (spacing H), whose
     //  bilinear interpolant is spread onto the lattice: its angular scale 1 / (sqrt 2 a d)
@@ -275,6 +278,17 @@ class RbfSplat {
     // step_ > 1: per Gaussian, far enough from every light for the lattice even in tiles
     // next to a light's image (exact_tile_)
     std::vector<unsigned char> light_far_;
+    // step_ > 1: per (tile, light): the least closest approach of the tile's rays to the
+    // light (h_min), cos and sin of their largest angle to its direction (0 and 1 past 90
+    // degrees); light_min_: the lattice's light-factor distance per unit distance from the eye.
+    struct TileLight {
+        float h_min = 0.0f, cos_max = 0.0f, sin_max = 1.0f;
+    };
+    std::vector<TileLight> tile_light_;
+    double light_min_ = 0.0;
+    // Whether Gaussian i's b^r stays light_min_ d_i away from every light whose image is next
+    // to tile t, for all of the tile's rays (see rbf_splat.cpp).
+    bool light_clear(std::size_t i, int t) const;
     std::vector<std::uint32_t> bin_start_;  // per tile, into bin_index_ (size tiles + 1)
     std::vector<std::uint32_t> bin_index_;
 };

@@ -90,8 +90,12 @@ def test01_full_is_the_default_bit_for_bit(full):
         assert np.array_equal(plain[key], full[key])
 
 
+# Near the lights the lattice's own light-factor criterion decides (rbf_splat.h: a
+# Gaussian whose b^r stays 27 s pixels' angle x d from every light, per-Gaussian error
+# tau = 2.5e-4 / 1e-3) instead of a 64-pixel exact margin, which at 320 x 180 covered
+# much of the view: airlight mean 6.1e-5 / 2.1e-4 (was 2.9e-5 / 8.9e-5), max 8.9e-4 / 3.4e-3.
 @pytest.mark.parametrize("res, mean_tol, p99_tol, max_tol",
-                         [("half", 5e-5, 8e-4, 1e-2), ("quarter", 2e-4, 4e-3, 4e-2)])
+                         [("half", 1e-4, 8e-4, 1e-2), ("quarter", 3e-4, 4e-3, 4e-2)])
 def test02_reduced_against_full_with_depth_edges(full, res, mean_tol, p99_tol, max_tol):
     r = bake(res)
     assert np.all(np.isfinite(r["airlight"])) and np.all(np.isfinite(r["transmittance"]))
