@@ -51,6 +51,12 @@ struct BakeSettings {
     // centre disagrees with its interpolation by more than 5e-4 (bake.cpp lattice_band); the
     // model sun05 with a perspective camera and no spots or Gaussians only (else exact).
     int homogeneous_resolution = 1;
+    // Edge supersampling (aa_samples > 1): one fog evaluation per cluster of an edge pixel's
+    // sub-samples (all misses; hits whose farthest depth is at most 1 + _edge_cluster_tol_
+    // times their nearest) at the cluster's mean ray and depth, each sample's transmittance
+    // rescaled to its own depth (bake.cpp edge_sample_clusters); 0: every sub-sample
+    // evaluated (the reference).
+    double edge_cluster_tol = 0.1;
 };
 
 struct BakeStats {
