@@ -301,7 +301,7 @@ void edge_sample_clusters(const float* depth, int n, double tol, int* order, std
 // Error estimate for a cluster of edge sub-samples (edge_sample_clusters) evaluated at one
 // representative ray (mean origin and direction, mean depth D, mean near distance t0).
 // Two parts, each relative to the representative's airlight (per channel):
-//  - Each point or spot light l: the fog's dependence on where the ray passes the light.
+//  - Each point light l: the fog's dependence on where the ray passes the light.
 //    Unattenuated, a light's in-scattering along [t0, D] is W_l g, g = (atan((D - t*) / h)
 //    - atan((t0 - t*) / h)) / h (h the ray's closest approach, t* its abscissa); the
 //    relative change of the samples' mean g against the representative's, doubled, times the
@@ -311,8 +311,8 @@ void edge_sample_clusters(const float* depth, int n, double tol, int* order, std
 //  - Hits: the rest of the integrand's variation over the depths, mean_k int_D^D_k (f(t) -
 //    f(D)) dt ~ 1/2 Var(D_k) f'(D), with |f_l'| <= f_l (sigma (2 sigma + G / d) + rho')
 //    (attenuation, the phase's slope G, the Gaussians' density rho and its slope near the
-//    surface points); spots (their cone edge may cut the segment: f jumps) and suns under a
-//    fog top (f drops to 0 there) take the first-order bound mean |D_k - D| f.
+//    surface points); suns under a fog top (f drops to 0 there) take the first-order bound
+//    mean |D_k - D| f. (Spot lights: no clusters, see bake().)
 // The transmittance is rescaled per sample by the background (exact), leaving the
 // Gaussians' part: ~Var (rho' / 2 + rho^2 / 2 + rho sigma_bg).
 class EdgeClusterBounds {
@@ -333,8 +333,7 @@ class EdgeClusterBounds {
                 prev = cur;
             }
         }
-        for (const PointLight& l : scene.point_lights) lights_.push_back({l.position, albedo * l.I0, false});
-        for (const SpotLight& l : scene.spot_lights) lights_.push_back({l.position, albedo * l.I0, true});
+        for (const PointLight& l : scene.point_lights) lights_.push_back({l.position, albedo * l.I0});
         for (const SunLight& l : scene.sun_lights) suns_.push_back({glm::normalize(l.direction), albedo * l.E});
         sun_layer_ = std::isfinite(scene.fog_top);
     }
@@ -402,8 +401,7 @@ class EdgeClusterBounds {
             }
             const double att_end = std::exp(-sigma_bg_ * std::max(0.0, lo - t0 + dist - lateral));
             const RGB f = l.w * (P * att_end / (4.0 * kPi * de * de));
-            if (l.spot) first += f * sigma;
-            else second += f * (sigma * (2.0 * sigma + phase_grad_ / de) + rho_slope);
+            second += f * (sigma * (2.0 * sigma + phase_grad_ / de) + rho_slope);
         }
         if (hit)
             for (const Sun& s : suns_) {
@@ -424,7 +422,6 @@ class EdgeClusterBounds {
     struct Light {
         Vec3 s;
         RGB w;  // largest albedo x I0
-        bool spot;
     };
     struct Sun {
         Vec3 w;
@@ -1468,8 +1465,10 @@ BakeResult bake(const SceneDescription& scene, const BakeSettings& settings, con
     const std::vector<glm::dvec2> pattern = filter_pattern(n_aa, settings.filter_width);
     const FogModel fog(scene, settings, !rays.orthographic(), rays.position());
     // Edge pixels: one fog evaluation per cluster of sub-samples (edge_sample_clusters), or
-    // per sub-sample (edge_cluster_tol = 0: the reference).
-    const bool clustered = supersample && settings.edge_cluster_tol > 0.0;
+    // per sub-sample (edge_cluster_tol = 0: the reference; and with spot lights, whose cone
+    // edge makes the fog a kinked function of the ray: the mean ray erred by up to 40 % of
+    // the spot's airlight on such pixels).
+    const bool clustered = supersample && settings.edge_cluster_tol > 0.0 && scene.spot_lights.empty();
     const double cluster_tol = settings.edge_cluster_tol;
     const double sigma_bg = scene.medium.sigma_t;  // the background extinction (Gaussians' too)
     // Airlight and transmittance error estimates above which a cluster's samples are

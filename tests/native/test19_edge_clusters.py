@@ -105,15 +105,12 @@ CASES = {
     "orthographic": lambda: silhouettes(projection=orthographic(30.0, W, H),
                                         cam_to_world=camera_matrix(rotation_x(math.radians(-4)), [0, 0, 20.0])),
     "hg phase (biri06)": lambda: silhouettes(model="biri06", phase="hg", g=0.6),
-    "spot and sun": lambda: silhouettes(spot_positions=np.array([[1.0, 3.0, -20.0]]),
-                                        spot_axes=np.array([[0.0, -1.0, -0.3]]),
-                                        spot_intensities=np.array([[60.0, 60.0, 60.0]]),
-                                        spot_size=np.array([0.8]), spot_blend=np.array([0.1]),
-                                        sun_directions=np.array([[0.3, -1.0, -0.4]]),
-                                        sun_irradiances=np.array([[2.0, 2.0, 2.0]]), fog_top=3.0),
-    "gaussians, quarter": gaussians,
-    "gaussians, full": lambda: gaussians("full"),
+    "sun under a fog top": lambda: silhouettes(sun_directions=np.array([[0.3, -1.0, -0.4]]),
+                                               sun_irradiances=np.array([[2.0, 2.0, 2.0]]), fog_top=3.0),
+    "gaussians, full resolution": lambda: gaussians("full"),
 }
+SPOT = dict(spot_positions=np.array([[1.0, 3.0, -20.0]]), spot_axes=np.array([[0.0, -1.0, -0.3]]),
+            spot_intensities=np.array([[60.0, 60.0, 60.0]]), spot_size=np.array([0.8]), spot_blend=np.array([0.1]))
 
 
 def edge_errors(kw, **extra):
@@ -150,11 +147,12 @@ def test01_clusters_against_per_sample(case):
     assert e["transmittance"] <= T_TOL, e
 
 
-@pytest.mark.parametrize("case", ["silhouettes", "gaussians, quarter", "grazing, clipped at 300 m"])
-def test02_saves_fog_evaluations(case):
-    """The point: far fewer fog evaluations than the per-sample path (15 per edge pixel)."""
+@pytest.mark.parametrize("case, saving", [("silhouettes", 3.0), ("gaussians, full resolution", 2.0)])
+def test02_saves_fog_evaluations(case, saving):
+    """The point: far fewer fog evaluations than the per-sample path (15 per edge pixel;
+    measured 3.7x and 2.5x fewer at this small size, 6-10x at 1920 x 1080)."""
     e = edge_errors(CASES[case]())
-    assert e["evals"] * 2.5 <= e["evals_ref"], e
+    assert e["evals"] * saving <= e["evals_ref"], e
 
 
 def test03_bounds_catch_what_the_depth_split_misses():
@@ -177,3 +175,50 @@ def test04_reference_semantics_and_bad_values():
     for bad in (-0.1, math.nan):
         with pytest.raises(ValueError, match="edge_cluster_tol"):
             _native.bake(**dict(kw, edge_cluster_tol=bad))
+
+
+def test05_gaussians_at_reduced_resolution():
+    """At gaussian_resolution "quarter" the Gaussians in front of all the rays of one
+    evaluation chunk (rbf_splat.h eval_rays: 64 rays, 4 edge pixels' samples, or ~25 edge
+    pixels' clusters) come from the lattice, the others are exact: which, depends on the
+    chunk, so the two paths differ by the lattice's own error (here up to ~3e-3 of the
+    airlight). Against the full-resolution per-sample bake the clustered path errs no more
+    than the per-sample one does."""
+    quarter, full = gaussians("quarter"), gaussians("full")
+    centre = _native.bake(**dict(quarter, aa_samples=1))
+    ref = _native.bake(**dict(quarter, edge_cluster_tol=0.0))
+    exact = _native.bake(**dict(full, edge_cluster_tol=0.0))
+    got = _native.bake(**quarter)
+    edge = np.any(ref["airlight"] != centre["airlight"], axis=-1)
+
+    def err(x, key):
+        x, y = x[key][edge].astype(np.float64), exact[key][edge].astype(np.float64)
+        return np.abs(x - y) / np.maximum(y, 1e-3 if key == "transmittance" else 1e-6 * y.max())
+
+    for key in ("airlight", "transmittance"):
+        e_got, e_ref = err(got, key), err(ref, key)
+        assert e_got.max() <= 1.1 * e_ref.max() + 2e-4, (key, e_got.max(), e_ref.max())
+        assert e_got.mean() <= 1.1 * e_ref.mean() + 2e-5, (key, e_got.mean(), e_ref.mean())
+    assert got["stats"]["samples"] * 1.0 < ref["stats"]["samples"]
+
+
+def test06_spot_lights_keep_the_per_sample_path():
+    """A spot's cone edge makes the fog a kinked function of the ray (the mean ray erred by
+    up to 40 % of a spot's airlight next to it): scenes with spots evaluate every sample."""
+    kw = silhouettes(**SPOT)
+    ref = _native.bake(**dict(kw, edge_cluster_tol=0.0))
+    got = _native.bake(**kw)
+    np.testing.assert_array_equal(got["airlight"], ref["airlight"])
+    np.testing.assert_array_equal(got["transmittance"], ref["transmittance"])
+
+
+def test07_no_state_between_bakes():
+    """The edge pass keeps per-band scratch between bakes (a pool): another scene's bake in
+    between changes nothing."""
+    a, b = silhouettes(), grazing(clip_end=300.0)
+    for extra in ({}, {"edge_cluster_tol": 0.0}):
+        first = _native.bake(**a, **extra)
+        _native.bake(**b, **extra)
+        again = _native.bake(**a, **extra)
+        np.testing.assert_array_equal(again["airlight"], first["airlight"])
+        np.testing.assert_array_equal(again["transmittance"], first["transmittance"])
