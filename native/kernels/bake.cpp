@@ -299,20 +299,22 @@ void edge_sample_clusters(const float* depth, int n, double tol, int* order, std
 }
 
 // Error estimate for a cluster of edge sub-samples (edge_sample_clusters) evaluated at one
-// representative ray (mean origin and direction, mean depth D, mean near distance t0).
-// Two parts, each relative to the representative's airlight (per channel):
-//  - Each point light l: the fog's dependence on where the ray passes the light.
-//    Unattenuated, a light's in-scattering along [t0, D] is W_l g, g = (atan((D - t*) / h)
-//    - atan((t0 - t*) / h)) / h (h the ray's closest approach, t* its abscissa); the
-//    relative change of the samples' mean g against the representative's, doubled, times the
-//    light's share of La (at most 1, at most W_l g / La with W_l <= sigma_s I_l P
-//    exp(-sigma_bg (|s - o| - t0)) / (4 pi)) covers both the 1 / h peak at the light's image
-//    (the mean direction errs by ~Var / h^2 there) and a surface next to the light.
-//  - Hits: the rest of the integrand's variation over the depths, mean_k int_D^D_k (f(t) -
-//    f(D)) dt ~ 1/2 Var(D_k) f'(D), with |f_l'| <= f_l (sigma (2 sigma + G / d) + rho')
-//    (attenuation, the phase's slope G, the Gaussians' density rho and its slope near the
-//    surface points); suns under a fog top (f drops to 0 there) take the first-order bound
-//    mean |D_k - D| f. (Spot lights: no clusters, see bake().)
+// representative ray (mean origin and direction, mean depth D, mean near distance t0),
+// relative to the representative's airlight La (per channel), in O(samples + lights):
+//  - Each point light l: unattenuated, its in-scattering along [t0, D] is W_l g with
+//    g = int_t0^D dt / d(t)^2 = (atan((D - t*) / h) - atan((t0 - t*) / h)) / h (h the
+//    ray's closest approach, t* its abscissa). The samples' mean g differs from the
+//    representative's by second order: ~g E|delta|^2 / (h - L)^2 in the direction (g ~ 1/h;
+//    delta the samples' lateral offsets from the representative at t*, L the largest: the
+//    light's image within ~L / h of the pixel) plus Var(D_k) / d_end^3 in the depth (a
+//    surface next to the light). Times 2 (a weight non-uniform along the ray, ~1/d^2 against g ~ 1/h)
+//    and the light's share of La: at most 1, and at most W_l g / La with W_l <= sigma_s
+//    I_l P exp(-sigma_bg (|s - o| - t0)) / (4 pi) (homogeneous fog).
+//  - Hits: the attenuation's and the density's share of the integrand's variation over
+//    the depths, mean_k int_D^D_k (f(t) - f(D)) dt ~ 1/2 Var(D_k) f'(D), |f_l'| <= f_l
+//    (sigma (2 sigma + G / d) + rho') (the phase's slope G, the Gaussians' density rho and
+//    its slope near the surface points); suns under a fog top (f drops to 0 there) take
+//    the first-order bound mean |D_k - D| f. (Spot lights: no clusters, see bake().)
 // The transmittance is rescaled per sample by the background (exact), leaving the
 // Gaussians' part: ~Var (rho' / 2 + rho^2 / 2 + rho sigma_bg).
 class EdgeClusterBounds {
@@ -341,23 +343,32 @@ class EdgeClusterBounds {
     // Relative error estimates (airlight: the largest over the channels of _La_, the
     // representative's; transmittance) of the cluster of the _n_ samples rays[idx[q]],
     // depth[idx[q]] (all hits or all misses) represented by the ray _rep_ with near distance
-    // _t0_ (near[idx[q]] the samples'; null and 0 without a near clip) and depth _D_.
-    void errors(const Ray* rays, const float* depth, const float* near, const int* idx, int n, const Ray& rep,
-                double t0, double D, const RGB& La, double& err_La, double& err_Tr) const {
+    // _t0_ (0 without a near clip) and depth _D_.
+    void errors(const Ray* rays, const float* depth, const int* idx, int n, const Ray& rep, double t0, double D,
+                const RGB& La, double& err_La, double& err_Tr) const {
         const bool hit = std::isfinite(D);
-        double var = 0.0, mad = 0.0, lateral = 0.0, lo = D, hi = D;
+        double var = 0.0, mad = 0.0, lateral = 0.0, lo = D, hi = D, o_spread = 0.0, d_spread = 0.0;
+        double o_var = 0.0, d_var = 0.0;  // mean squared offsets of the samples' origins, directions
+        for (int q = 0; q < n; ++q) {
+            const Ray& r = rays[idx[q]];
+            const double o2 = glm::dot(r.o - rep.o, r.o - rep.o), d2 = glm::dot(r.d - rep.d, r.d - rep.d);
+            o_var += o2;
+            d_var += d2;
+            o_spread = std::max(o_spread, std::sqrt(o2));
+            d_spread = std::max(d_spread, std::sqrt(d2));
+            if (!hit) continue;
+            const double Dk = depth[idx[q]], dk = Dk - D;
+            var += dk * dk;
+            mad += std::abs(dk);
+            lo = std::min(lo, Dk);
+            hi = std::max(hi, Dk);
+        }
+        o_var /= n;
+        d_var /= n;
         if (hit) {
-            for (int q = 0; q < n; ++q) {
-                const double Dk = depth[idx[q]], dk = Dk - D;
-                const Ray& r = rays[idx[q]];
-                var += dk * dk;
-                mad += std::abs(dk);
-                lateral = std::max(lateral, glm::length(r.o + Dk * r.d - (rep.o + Dk * rep.d)));
-                lo = std::min(lo, Dk);
-                hi = std::max(hi, Dk);
-            }
             var /= n;
             mad /= n;
+            lateral = o_spread + hi * d_spread;  // of the surface points from the representative ray
         }
         // The Gaussians' extinction (rho) and its slope along the ray near the hits' segment.
         double rho = 0.0, rho_slope = 0.0;
@@ -373,35 +384,39 @@ class EdgeClusterBounds {
             });
         }
         const double sigma = sigma_bg_ + rho;
+        constexpr double kInf = std::numeric_limits<double>::infinity();
         RGB first(0.0), second(0.0), profile(0.0);
         for (const Light& l : lights_) {
-            // The light's profile g: the samples' mean against the representative's.
-            double g_mean = 0.0;
-            for (int q = 0; q < n; ++q)
-                g_mean += light_profile(rays[idx[q]], near ? near[idx[q]] : 0.0, depth[idx[q]], l.s);
-            g_mean /= n;
-            const double g_rep = light_profile(rep, t0, D, l.s);
-            const double P = phase_bound(rep, t0, D, l.s);
-            // (the densest point the ray passes near the light bounds sigma_s there)
-            double sigma_l = sigma_bg_;
-            if (rbf_) sigma_l += density_near_light(rep, t0, D, l.s);
-            const double att = std::exp(-sigma_bg_ * std::max(0.0, glm::length(l.s - rep.o) - t0));
-            // (at most the light's whole share of La varies as g: its relative change,
-            // doubled for a non-uniform weight along the ray: ~1 / d^2 against g ~ 1 / h)
-            const double rel = g_rep > 0.0 ? 2.0 * std::abs(g_mean - g_rep) / g_rep : 0.0;
-            for (int c = 0; c < 3; ++c)
-                profile[c] += std::min(La[c], l.w[c] * sigma_l * P * att / (4.0 * kPi) * g_rep) * rel;
-            if (!hit) continue;
-            const double ts = std::clamp(glm::dot(l.s - rep.o, rep.d), lo, hi);
-            const double dist = glm::length(l.s - (rep.o + ts * rep.d));
-            const double de = dist - lateral;
-            if (!(de > 1e-6 * dist) || !(de > 0.0)) {  // the light next to a surface point
-                err_La = err_Tr = std::numeric_limits<double>::infinity();
+            const Vec3 v = l.s - rep.o;
+            const double ts = glm::dot(v, rep.d);
+            const double h = glm::length(v - ts * rep.d);
+            const double L = o_spread + std::abs(ts) * d_spread;
+            if (!(h > 2.0 * L)) {  // the light's image among the samples
+                err_La = err_Tr = kInf;
                 return;
             }
-            const double att_end = std::exp(-sigma_bg_ * std::max(0.0, lo - t0 + dist - lateral));
-            const RGB f = l.w * (P * att_end / (4.0 * kPi * de * de));
-            second += f * (sigma * (2.0 * sigma + phase_grad_ / de) + rho_slope);
+            const double g = (hit ? std::atan((D - ts) / h) : 0.5 * kPi) - std::atan((t0 - ts) / h);
+            // (E 1/|h - delta| <= (1 + E |delta|^2 / h^2) / h for the lateral offsets delta)
+            const double lat_var = o_var + 2.0 * std::abs(ts) * std::sqrt(o_var * d_var) + ts * ts * d_var;
+            double rel = lat_var / ((h - L) * (h - L));
+            double de = kInf;  // the surface points' least distance to the light
+            if (hit) {
+                const double te = std::clamp(ts, lo, hi);
+                de = glm::length(l.s - (rep.o + te * rep.d)) - lateral;
+                if (!(de > 0.0)) {  // the light next to a surface point
+                    err_La = err_Tr = kInf;
+                    return;
+                }
+                rel += g > 0.0 ? var * h / (de * de * de * g) : kInf;
+            }
+            const double P = phase_bound(rep, t0, D, l.s);
+            const double share = rbf_ ? kInf  // (the Gaussians' density along the ray: unbounded here)
+                                      : sigma_bg_ * P * std::exp(-sigma_bg_ * std::max(0.0, glm::length(v) - t0)) /
+                                            (4.0 * kPi) * g / h;
+            for (int c = 0; c < 3; ++c) profile[c] += std::min(La[c], l.w[c] * share) * 2.0 * rel;
+            if (!hit) continue;
+            const double att_end = std::exp(-sigma_bg_ * std::max(0.0, lo - t0 + de));
+            second += l.w * (P * att_end / (4.0 * kPi * de * de) * (sigma * (2.0 * sigma + phase_grad_ / de) + rho_slope));
         }
         if (hit)
             for (const Sun& s : suns_) {
@@ -413,7 +428,7 @@ class EdgeClusterBounds {
         err_La = 0.0;
         for (int c = 0; c < 3; ++c) {
             const double e = profile[c] + mad * first[c] + 0.5 * var * second[c];
-            if (e > 0.0) err_La = std::max(err_La, La[c] > 0.0 ? e / La[c] : std::numeric_limits<double>::infinity());
+            if (e > 0.0) err_La = std::max(err_La, La[c] > 0.0 ? e / La[c] : kInf);
         }
         err_Tr = var * (0.5 * rho_slope + 0.5 * rho * rho + rho * sigma_bg_);
     }
@@ -428,14 +443,6 @@ class EdgeClusterBounds {
         RGB w_E;  // largest albedo x E
     };
 
-    // int_t0^D dt / |s - (o + t d)|^2 (D inf: to infinity) in closed form.
-    static double light_profile(const Ray& r, double t0, double D, const Vec3& s) {
-        const Vec3 v = s - r.o;
-        const double ts = glm::dot(v, r.d);
-        const double h = std::max(glm::length(v - ts * r.d), 1e-9 * (glm::length(v) + 1e-300));
-        const double b = std::isinf(D) ? 0.5 * kPi : std::atan((D - ts) / h);
-        return (b - std::atan((t0 - ts) / h)) / h;
-    }
     // 4 pi p over the scattering angles along [t0, D] towards _s_: 1 (isotropic) or the
     // largest of p at the closest approach and the ends.
     double phase_bound(const Ray& r, double t0, double D, const Vec3& s) const {
@@ -449,23 +456,6 @@ class EdgeClusterBounds {
             P = std::max(P, 4.0 * kPi * std::max(phase_.eval(mu), phase_.eval(-mu)));
         }
         return P;
-    }
-    // The Gaussians' density bound where the ray passes the light: within 3 closest-approach
-    // distances of it.
-    double density_near_light(const Ray& r, double t0, double D, const Vec3& s) const {
-        const Vec3 v = s - r.o;
-        const double ts = glm::dot(v, r.d), h = glm::length(v - ts * r.d);
-        const double a = std::max(t0, ts - 3.0 * h), b = std::min(D, ts + 3.0 * h);
-        if (!(b > a)) return 0.0;
-        double rho = 0.0;
-        const Vec3 p = r.o + a * r.d;
-        rbf_->for_each_near(p, r.d, b - a, [&](std::size_t i) {
-            const Vec3 c = rbf_->centre(i);
-            const double t = std::clamp(glm::dot(c - p, r.d), 0.0, b - a);
-            const double dist = glm::length(p + t * r.d - c), sc = rbf_->scale(i);
-            rho += rbf_->amplitude(i) * std::exp(-sc * sc * dist * dist);
-        });
-        return rho;
     }
 
     double sigma_bg_;
@@ -1473,7 +1463,7 @@ BakeResult bake(const SceneDescription& scene, const BakeSettings& settings, con
     const double sigma_bg = scene.medium.sigma_t;  // the background extinction (Gaussians' too)
     // Airlight and transmittance error estimates above which a cluster's samples are
     // evaluated one by one (EdgeClusterBounds).
-    constexpr double kEdgeAirlightTol = 2.5e-4, kEdgeTransmittanceTol = 5e-4;
+    constexpr double kEdgeAirlightTol = 5e-4, kEdgeTransmittanceTol = 5e-4;
     const EdgeClusterBounds bounds(scene, clustered ? fog.rbf_medium() : nullptr);
     // Fog of _n_ rays from the near plane (t0, from _cast_) to _depth_ (from the origin,
     // inf: none), as Cycles integrates it: La over [t0, depth] with attenuation measured
@@ -1849,9 +1839,9 @@ BakeResult bake(const SceneDescription& scene, const BakeSettings& settings, con
                             const int end = bs.cl_ends[c];
                             if (end - b == 1) continue;
                             double err_La, err_Tr;
-                            bounds.errors(&sub[e * n_sub], &sub_t[e * n_sub], near_clip ? &sub_t0[e * n_sub] : nullptr,
-                                          order + b, end - b, bs.cl_ray[c], near_clip ? double(bs.cl_t0[c]) : 0.0,
-                                          double(bs.cl_t[c]), bs.cl_La[c], err_La, err_Tr);
+                            bounds.errors(&sub[e * n_sub], &sub_t[e * n_sub], order + b, end - b, bs.cl_ray[c],
+                                          near_clip ? double(bs.cl_t0[c]) : 0.0, double(bs.cl_t[c]), bs.cl_La[c],
+                                          err_La, err_Tr);
                             if (err_La <= kEdgeAirlightTol && err_Tr <= kEdgeTransmittanceTol) continue;
                             bs.cl_refined[c] = 1;
                             for (int q = b; q < end; ++q) bs.ref_k.push_back(int(e * n_sub + size_t(order[q])));
