@@ -369,9 +369,11 @@ homogeneous_resolution: "full" (default: every pixel exact), "half" or "quarter"
   cells, cells near a point light's image and cells whose centre pixel disagrees with the
   interpolation by more than 5e-4 of its value are exact per pixel (bake.cpp). The
   transmittance is always exact. Other cases ignore it (exact).
-edge_cluster_tol >= 0: edge pixels (aa_samples > 1) evaluate the fog once per cluster of
-  their sub-samples (all misses; hits within a depth ratio of 1 + edge_cluster_tol), at the
-  cluster's mean ray and depth; 0 evaluates every sub-sample (the reference).
+edge_cluster_tol >= 0 (default 0.1): edge pixels (aa_samples > 1) evaluate the fog once per
+  cluster of their sub-samples (all misses; hits within a depth ratio of 1 + edge_cluster_tol),
+  at the cluster's mean ray and depth, and per sample where a cluster's error estimate exceeds
+  5e-4 of its airlight; 0 (and scenes with spot lights) evaluates every sub-sample (the
+  reference). stats samples counts the fog evaluations.
 noise_amplitude >= 0 (0: off), noise_scale > 0 (m), noise_offset (3,): Fogshop section 5.5
   noise: each Gaussian's optical depth along a view ray is taken along the ray direction
   perturbed by world-space gradient noise (cell size noise_scale, lookup point / scale +

@@ -1454,17 +1454,6 @@ BakeResult bake(const SceneDescription& scene, const BakeSettings& settings, con
     const int n_aa = supersample ? settings.aa_samples : 1;
     const std::vector<glm::dvec2> pattern = filter_pattern(n_aa, settings.filter_width);
     const FogModel fog(scene, settings, !rays.orthographic(), rays.position());
-    // Edge pixels: one fog evaluation per cluster of sub-samples (edge_sample_clusters), or
-    // per sub-sample (edge_cluster_tol = 0: the reference; and with spot lights, whose cone
-    // edge makes the fog a kinked function of the ray: the mean ray erred by up to 40 % of
-    // the spot's airlight on such pixels).
-    const bool clustered = supersample && settings.edge_cluster_tol > 0.0 && scene.spot_lights.empty();
-    const double cluster_tol = settings.edge_cluster_tol;
-    const double sigma_bg = scene.medium.sigma_t;  // the background extinction (Gaussians' too)
-    // Airlight and transmittance error estimates above which a cluster's samples are
-    // evaluated one by one (EdgeClusterBounds).
-    constexpr double kEdgeAirlightTol = 5e-4, kEdgeTransmittanceTol = 5e-4;
-    const EdgeClusterBounds bounds(scene, clustered ? fog.rbf_medium() : nullptr);
     // Fog of _n_ rays from the near plane (t0, from _cast_) to _depth_ (from the origin,
     // inf: none), as Cycles integrates it: La over [t0, depth] with attenuation measured
     // from the near plane, Tr = exp(-sigma_t (depth - t0)) (FogModel::eval_many).
@@ -1662,6 +1651,17 @@ BakeResult bake(const SceneDescription& scene, const BakeSettings& settings, con
             });
         band_progress_begin = end;
     }
+    // Edge pixels: one fog evaluation per cluster of sub-samples (edge_sample_clusters), or
+    // per sub-sample (edge_cluster_tol = 0: the reference; and with spot lights, whose cone
+    // edge makes the fog a kinked function of the ray: the mean ray erred by up to 40 % of
+    // the spot's airlight on such pixels).
+    const bool clustered = supersample && settings.edge_cluster_tol > 0.0 && scene.spot_lights.empty();
+    const double cluster_tol = settings.edge_cluster_tol;
+    const double sigma_bg = scene.medium.sigma_t;  // the background extinction (Gaussians' too)
+    // Airlight and transmittance error estimates above which a cluster's samples are
+    // evaluated one by one (EdgeClusterBounds).
+    constexpr double kEdgeAirlightTol = 5e-4, kEdgeTransmittanceTol = 5e-4;
+    const EdgeClusterBounds bounds(scene, clustered ? fog.rbf_medium() : nullptr);
     run_parallel(
         n_bands, n_threads,
         [&](int band) {

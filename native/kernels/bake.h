@@ -54,8 +54,10 @@ struct BakeSettings {
     // Edge supersampling (aa_samples > 1): one fog evaluation per cluster of an edge pixel's
     // sub-samples (all misses; hits whose farthest depth is at most 1 + _edge_cluster_tol_
     // times their nearest) at the cluster's mean ray and depth, each sample's transmittance
-    // rescaled to its own depth (bake.cpp edge_sample_clusters); 0: every sub-sample
-    // evaluated (the reference).
+    // rescaled to its own depth; clusters whose error estimate exceeds 5e-4 of the airlight
+    // (a light's image or a light next to the surface, a dense Gaussian there) are evaluated
+    // per sample (bake.cpp edge_sample_clusters, EdgeClusterBounds). 0, and scenes with spot
+    // lights: every sub-sample evaluated (the reference).
     double edge_cluster_tol = 0.1;
 };
 
