@@ -354,8 +354,8 @@ class EdgeClusterBounds {
             const double o2 = glm::dot(r.o - rep.o, r.o - rep.o), d2 = glm::dot(r.d - rep.d, r.d - rep.d);
             o_var += o2;
             d_var += d2;
-            o_spread = std::max(o_spread, std::sqrt(o2));
-            d_spread = std::max(d_spread, std::sqrt(d2));
+            o_spread = std::max(o_spread, o2);  // (squared until after the loop)
+            d_spread = std::max(d_spread, d2);
             if (!hit) continue;
             const double Dk = depth[idx[q]], dk = Dk - D;
             var += dk * dk;
@@ -365,6 +365,8 @@ class EdgeClusterBounds {
         }
         o_var /= n;
         d_var /= n;
+        o_spread = std::sqrt(o_spread);
+        d_spread = std::sqrt(d_spread);
         if (hit) {
             var /= n;
             mad /= n;
@@ -395,7 +397,9 @@ class EdgeClusterBounds {
                 err_La = err_Tr = kInf;
                 return;
             }
-            const double g = (hit ? std::atan((D - ts) / h) : 0.5 * kPi) - std::atan((t0 - ts) / h);
+            // (g: needed for the depth term and the homogeneous share only)
+            const double g = !hit && rbf_ ? 0.0
+                                          : (hit ? std::atan((D - ts) / h) : 0.5 * kPi) - std::atan((t0 - ts) / h);
             // (E 1/|h - delta| <= (1 + E |delta|^2 / h^2) / h for the lateral offsets delta)
             const double lat_var = o_var + 2.0 * std::abs(ts) * std::sqrt(o_var * d_var) + ts * ts * d_var;
             double rel = lat_var / ((h - L) * (h - L));
