@@ -9,7 +9,9 @@ gaussian_resolution --resolution. Per scene, medians over --runs runs (interleav
 whole bake's wall clock, its process CPU time and its airlight pass (stats seconds_airlight)
 for: aa_samples=1 (no supersampling), the per-sample supersampling (edge_cluster_tol=0: every
 sub-sample's fog evaluated) and the default (one fog evaluation per cluster of sub-samples).
-The supersampling's cost is each one's excess over aa_samples=1. Also the fog evaluations on
+The supersampling's cost is each one's excess over aa_samples=1 and, less noisy, the edge
+pass's own time (stats seconds_edges: summed over the threads; median and least). Also the
+fog evaluations on
 edge pixels (stats samples beyond one per pixel) and the clustered bake's relative error
 against the per-sample one on the edge pixels (pixels whose per-sample value differs from
 aa_samples=1; Airlight: all channels of pixels above 1e-6 of the largest; Transmittance:
@@ -85,6 +87,7 @@ def main():
         wall = {c: [] for c, _ in configs}
         cpu = {c: [] for c, _ in configs}
         air = {c: [] for c, _ in configs}
+        edges = {c: [] for c, _ in configs}
         out = {}
         for _ in range(args.runs):
             for c, extra in configs:
@@ -93,6 +96,7 @@ def main():
                 wall[c].append(time.perf_counter() - t0)
                 cpu[c].append(time.process_time() - c0)
                 air[c].append(out[c]["stats"]["seconds_airlight"])
+                edges[c].append(out[c]["stats"].get("seconds_edges", float("nan")))
         med = {c: (statistics.median(wall[c]) * 1e3, statistics.median(cpu[c]) * 1e3,
                    statistics.median(air[c]) * 1e3) for c, _ in configs}
         base = out["aa_samples=1"]["stats"]["samples"]
@@ -104,7 +108,9 @@ def main():
             line = f"  {c:>13}: wall {w:6.1f} ms  CPU {p:6.1f} ms  airlight {a:6.1f} ms"
             if c != "aa_samples=1":
                 w1, p1, a1 = med["aa_samples=1"]
-                line += (f"  | supersampling: wall +{w - w1:5.1f} ms, CPU +{p - p1:5.1f} ms; "
+                e = statistics.median(edges[c]) * 1e3
+                line += (f"  | supersampling: wall +{w - w1:5.1f} ms, CPU +{p - p1:5.1f} ms, edge pass {e:5.1f} ms "
+                         f"(threads' sum, min {min(edges[c]) * 1e3:5.1f}); "
                          f"{out[c]['stats']['samples'] - base} fog evaluations on edge pixels")
             print(line)
         if clusters:

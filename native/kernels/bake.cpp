@@ -1629,7 +1629,7 @@ BakeResult bake(const SceneDescription& scene, const BakeSettings& settings, con
                 put(i0 + half, c0 + half, &ls.centres[3 * (size_t(b) * nx + a)]);
             }
     };
-    std::atomic<long long> supersampled{0}, samples{0};
+    std::atomic<long long> supersampled{0}, samples{0}, edge_ns{0};
     start = Clock::now();
     // Gaussian fog with a perspective camera: the centre samples of every pixel come from
     // the tiled splat (rbf_splat.h) in one pass over tiles; the band loop below then only
@@ -1770,6 +1770,7 @@ BakeResult bake(const SceneDescription& scene, const BakeSettings& settings, con
                 for (int i = 0; i < W; ++i)
                     if (edge_row[i]) edge_px.push_back(i);
                 if (edge_px.empty()) continue;
+                const auto edge_start = Clock::now();
                 if (!fb_reset) {  // (the pooled scratch may hold another bake's rows)
                     bs.fb_row.assign(3 * size_t(W), -1);
                     bs.fb_Tr.resize(3 * size_t(W));
@@ -1968,6 +1969,7 @@ BakeResult bake(const SceneDescription& scene, const BakeSettings& settings, con
                     ++band_supersampled;
                     if (!clustered) band_samples += (long long)n_sub - 1;
                 }
+                edge_ns += std::chrono::duration_cast<std::chrono::nanoseconds>(Clock::now() - edge_start).count();
             }
             supersampled += band_supersampled;
             samples += band_samples;
@@ -1975,6 +1977,7 @@ BakeResult bake(const SceneDescription& scene, const BakeSettings& settings, con
         reporter(band_progress_begin, 1.0));
     result.stats.seconds_airlight = seconds_since(start);
     result.stats.supersampled_pixels = supersampled;
+    result.stats.seconds_edges = 1e-9 * double(edge_ns);
     result.stats.samples = samples;
     // Surface shading pass (bake_surface.cpp), only when asked for.
     if (settings.surface) {

@@ -67,6 +67,9 @@ struct BakeStats {
     long long supersampled_pixels = 0;
     long long samples = 0;
     double seconds_surface = 0.0;  // the surface-shading pass (0 when off)
+    // The edge supersampling inside seconds_airlight (sub-pixel rays, their fog, the
+    // averages), summed over the worker threads.
+    double seconds_edges = 0.0;
 };
 
 // Output images are row-major, top row first, 3 floats (RGB) per pixel.

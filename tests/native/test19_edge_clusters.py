@@ -173,6 +173,7 @@ def test04_reference_semantics_and_bad_values():
     a = _native.bake(**dict(kw, aa_samples=1))
     b = _native.bake(**dict(kw, aa_samples=1, edge_cluster_tol=0.0))
     np.testing.assert_array_equal(a["airlight"], b["airlight"])
+    assert a["stats"]["seconds_edges"] == 0.0 and ref["stats"]["seconds_edges"] > 0.0
     for bad in (-0.1, math.nan):
         with pytest.raises(ValueError, match="edge_cluster_tol"):
             _native.bake(**dict(kw, edge_cluster_tol=bad))
