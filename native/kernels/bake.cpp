@@ -291,7 +291,7 @@ void edge_sample_clusters(const float* depth, int n, double tol, int* order, std
             while (e < n && std::isinf(depth[order[e]])) ++e;
         } else if (!std::isnan(first)) {
             const double limit = double(first) * (1.0 + tol);
-            while (e < n && double(depth[order[e]]) <= limit) ++e;  // inf, NaN: false
+            while (e < n && std::isfinite(depth[order[e]]) && double(depth[order[e]]) <= limit) ++e;
         }
         ends.push_back(e);
         b = e;
