@@ -82,7 +82,8 @@ py::dict bake_py(int width, int height, const py::object& cam_to_world, const py
                  const std::string& table_interpolation, const py::object& rbf_albedo,
                  double noise_amplitude, double noise_scale, const py::object& noise_offset, bool surface,
                  double surface_phong_exponent, double rayleigh_density, const std::string& gaussian_resolution,
-                 const std::string& surface_glow_model, const std::string& homogeneous_resolution) {
+                 const std::string& surface_glow_model, const std::string& homogeneous_resolution,
+                 double edge_cluster_tol) {
     // Gather the scene description from the arrays (shapes checked here, values in bake()).
     SceneDescription scene;
     scene.camera.width = width;
@@ -210,6 +211,7 @@ py::dict bake_py(int width, int height, const py::object& cam_to_world, const py
     settings.threads = threads;
     settings.aa_samples = aa_samples;
     settings.filter_width = filter_width;
+    settings.edge_cluster_tol = edge_cluster_tol;
     settings.surface = surface;
     settings.surface_phong_exponent = surface_phong_exponent;
     if (surface_glow_model == "biri06_eq10") settings.surface_glow_biri_eq10 = true;
@@ -254,7 +256,8 @@ py::dict bake_py(int width, int height, const py::object& cam_to_world, const py
     py::dict stats("seconds_raycast"_a = result.stats.seconds_raycast,
                    "seconds_airlight"_a = result.stats.seconds_airlight,
                    "supersampled_pixels"_a = result.stats.supersampled_pixels,
-                   "samples"_a = result.stats.samples, "seconds_surface"_a = result.stats.seconds_surface);
+                   "samples"_a = result.stats.samples, "seconds_surface"_a = result.stats.seconds_surface,
+                   "seconds_edges"_a = result.stats.seconds_edges);
     // Surface shading: (L, H, W, 3) attenuation per light and (H, W, 3) glow, when asked for.
     py::dict extra;
     // The surface arrays exist only where the bake ran its surface pass (bake() refuses
@@ -321,6 +324,7 @@ void bind_bake(py::module_& m) {
           "noise_amplitude"_a = 0.0, "noise_scale"_a = 1.0, "noise_offset"_a = py::make_tuple(0.0, 0.0, 0.0),
           "surface"_a = false, "surface_phong_exponent"_a = 0.0, "rayleigh_density"_a = 0.0,
           "gaussian_resolution"_a = "full", "surface_glow_model"_a = "exact", "homogeneous_resolution"_a = "full",
+          "edge_cluster_tol"_a = BakeSettings().edge_cluster_tol,
           R"doc(Bake fog passes for one camera view (all arguments keyword-only).
 
 width, height: render resolution in pixels.
@@ -366,6 +370,11 @@ homogeneous_resolution: "full" (default: every pixel exact), "half" or "quarter"
   cells, cells near a point light's image and cells whose centre pixel disagrees with the
   interpolation by more than 5e-4 of its value are exact per pixel (bake.cpp). The
   transmittance is always exact. Other cases ignore it (exact).
+edge_cluster_tol >= 0 (default 0.1): edge pixels (aa_samples > 1) evaluate the fog once per
+  cluster of their sub-samples (all misses; hits within a depth ratio of 1 + edge_cluster_tol),
+  at the cluster's mean ray and depth, and per sample where a cluster's error estimate exceeds
+  5e-4 of its airlight; 0 (and scenes with spot lights) evaluates every sub-sample (the
+  reference). stats samples counts the fog evaluations.
 noise_amplitude >= 0 (0: off), noise_scale > 0 (m), noise_offset (3,): Fogshop section 5.5
   noise: each Gaussian's optical depth along a view ray is taken along the ray direction
   perturbed by world-space gradient noise (cell size noise_scale, lookup point / scale +
@@ -408,7 +417,8 @@ surface_glow_model: with surface, "exact" (default: Sun 2005's G0 for the isotro
 Returns dict(airlight=(H, W, 3) float32, transmittance=(H, W, 3) float32,
 depth=(H, W) float32 (distance from the eye, or from the near plane for
 orthographic cameras, to the first hit inside the clip range; inf where none), stats=dict(seconds_raycast,
-seconds_airlight, supersampled_pixels, samples)); rows top first. Raises
+seconds_airlight, supersampled_pixels, samples, seconds_surface, seconds_edges: the edge
+supersampling's time summed over the worker threads)); rows top first. Raises
 ValueError on invalid input. The GIL is released while baking.)doc");
 
     m.def("write_exr", &write_exr_py, "path"_a, "passes"_a, "layer_prefix"_a = "",

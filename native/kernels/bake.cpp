@@ -204,6 +204,9 @@ void validate(const SceneDescription& scene, const BakeSettings& settings) {
     require(settings.aa_samples >= 1 && settings.aa_samples <= 64, "aa_samples must be in [1, 64]");
     require(std::isfinite(settings.filter_width) && settings.filter_width >= 0.0,
             "filter_width must be finite and >= 0");
+    require(settings.edge_cluster_tol >= 0.0 && !std::isnan(settings.edge_cluster_tol),
+            "edge_cluster_tol must be >= 0 (0: every sub-sample evaluated), got " +
+                std::to_string(settings.edge_cluster_tol));
     require(settings.table_nu >= 2 && settings.table_nT >= 2 && settings.table_nu <= 16384 &&
                 settings.table_nT <= 16384,
             "table size must be in [2, 16384] per axis");
@@ -261,6 +264,212 @@ std::vector<glm::dvec2> filter_pattern(int n, double w) {
         points[k] = {inverse_cdf((k + 0.5) / N), inverse_cdf((double((long long)best_a * k % N) + 0.5) / N)};
     return points;
 }
+
+// Clusters of one edge pixel's _n_ sub-samples for the supersampling in bake() (pass 2):
+// the fog of a sub-sample is a smooth function of its ray and its segment [t0, depth], and
+// within one pixel's filter footprint the rays differ by ~1 pixel, so what sets samples apart
+// is the surface they hit (or that they hit none). Writes the sample indices 0 .. n-1 sorted
+// by _depth_ (misses, inf, last) to _order_ and appends to _ends_ the end (index into
+// _order_) of each cluster: all misses in one; the hits split greedily, nearest first, into
+// runs whose farthest depth is at most (1 + _tol_) times their nearest. A NaN depth (never
+// cast) is a cluster of its own.
+void edge_sample_clusters(const float* depth, int n, double tol, int* order, std::vector<int>& ends) {
+    // Insertion sort (n is small: aa_samples^2) on depth, NaN after inf.
+    auto before = [&](int a, int b) {
+        const float ka = depth[a], kb = depth[b];
+        return std::isnan(kb) ? !std::isnan(ka) : ka < kb;
+    };
+    for (int k = 0; k < n; ++k) {
+        int q = k;
+        for (; q > 0 && before(k, order[q - 1]); --q) order[q] = order[q - 1];
+        order[q] = k;
+    }
+    for (int b = 0; b < n;) {
+        const float first = depth[order[b]];
+        int e = b + 1;
+        if (std::isinf(first)) {
+            while (e < n && std::isinf(depth[order[e]])) ++e;
+        } else if (!std::isnan(first)) {
+            const double limit = double(first) * (1.0 + tol);
+            while (e < n && std::isfinite(depth[order[e]]) && double(depth[order[e]]) <= limit) ++e;
+        }
+        ends.push_back(e);
+        b = e;
+    }
+}
+
+// Error estimate for a cluster of edge sub-samples (edge_sample_clusters) evaluated at one
+// representative ray (mean origin and direction, mean depth D, mean near distance t0),
+// relative to the representative's airlight La (per channel), in O(samples + lights):
+//  - Each point light l: unattenuated, its in-scattering along [t0, D] is W_l g with
+//    g = int_t0^D dt / d(t)^2 = (atan((D - t*) / h) - atan((t0 - t*) / h)) / h (h the
+//    ray's closest approach, t* its abscissa). The samples' mean g differs from the
+//    representative's by second order: ~g E|delta|^2 / (h - L)^2 in the direction (g ~ 1/h;
+//    delta the samples' lateral offsets from the representative at t*, L the largest: the
+//    light's image within ~L / h of the pixel) plus Var(D_k) / d_end^3 in the depth (a
+//    surface next to the light). Times 2 (a weight non-uniform along the ray, ~1/d^2 against g ~ 1/h)
+//    and the light's share of La: at most 1, and at most W_l g / La with W_l <= sigma_s
+//    I_l P exp(-sigma_bg (|s - o| - t0)) / (4 pi) (homogeneous fog).
+//  - Hits: the attenuation's and the density's share of the integrand's variation over
+//    the depths, mean_k int_D^D_k (f(t) - f(D)) dt ~ 1/2 Var(D_k) f'(D), |f_l'| <= f_l
+//    (sigma (2 sigma + G / d) + rho') (the phase's slope G, the Gaussians' density rho and
+//    its slope near the surface points); suns under a fog top (f drops to 0 there) take
+//    the first-order bound mean |D_k - D| f. (Spot lights: no clusters, see bake().)
+// The transmittance is rescaled per sample by the background (exact), leaving the
+// Gaussians' part: ~Var (rho' / 2 + rho^2 / 2 + rho sigma_bg).
+class EdgeClusterBounds {
+  public:
+    EdgeClusterBounds(const SceneDescription& scene, const RbfMedium* rbf)
+        : sigma_bg_(scene.medium.sigma_t), phase_(scene.medium.phase), rbf_(rbf) {
+        RGB albedo = scene.medium.albedo;
+        for (size_t i = 0; i + 2 < scene.gaussians.albedo.size(); i += 3)
+            for (int c = 0; c < 3; ++c) albedo[c] = std::max(albedo[c], scene.gaussians.albedo[i + c]);
+        isotropic_ = phase_is_isotropic(phase_);
+        // G = max |d ln p / d theta| (the phase's share of f'/f is G |d theta / dt| <= G / d).
+        if (!isotropic_) {
+            constexpr int n = 2048;
+            double prev = std::log(phase_.eval(1.0));
+            for (int k = 1; k <= n; ++k) {
+                const double theta = kPi * k / n, cur = std::log(phase_.eval(std::cos(theta)));
+                phase_grad_ = std::max(phase_grad_, std::abs(cur - prev) / (kPi / n));
+                prev = cur;
+            }
+        }
+        for (const PointLight& l : scene.point_lights) lights_.push_back({l.position, albedo * l.I0});
+        for (const SunLight& l : scene.sun_lights) suns_.push_back({glm::normalize(l.direction), albedo * l.E});
+        sun_layer_ = std::isfinite(scene.fog_top);
+    }
+
+    // Relative error estimates (airlight: the largest over the channels of _La_, the
+    // representative's; transmittance) of the cluster of the _n_ samples rays[idx[q]],
+    // depth[idx[q]] (all hits or all misses) represented by the ray _rep_ with near distance
+    // _t0_ (0 without a near clip) and depth _D_.
+    void errors(const Ray* rays, const float* depth, const int* idx, int n, const Ray& rep, double t0, double D,
+                const RGB& La, double& err_La, double& err_Tr) const {
+        const bool hit = std::isfinite(D);
+        double var = 0.0, mad = 0.0, lateral = 0.0, lo = D, hi = D, o_spread = 0.0, d_spread = 0.0;
+        double o_var = 0.0, d_var = 0.0;  // mean squared offsets of the samples' origins, directions
+        for (int q = 0; q < n; ++q) {
+            const Ray& r = rays[idx[q]];
+            const double o2 = glm::dot(r.o - rep.o, r.o - rep.o), d2 = glm::dot(r.d - rep.d, r.d - rep.d);
+            o_var += o2;
+            d_var += d2;
+            o_spread = std::max(o_spread, o2);  // (squared until after the loop)
+            d_spread = std::max(d_spread, d2);
+            if (!hit) continue;
+            const double Dk = depth[idx[q]], dk = Dk - D;
+            var += dk * dk;
+            mad += std::abs(dk);
+            lo = std::min(lo, Dk);
+            hi = std::max(hi, Dk);
+        }
+        o_var /= n;
+        d_var /= n;
+        o_spread = std::sqrt(o_spread);
+        d_spread = std::sqrt(d_spread);
+        if (hit) {
+            var /= n;
+            mad /= n;
+            lateral = o_spread + hi * d_spread;  // of the surface points from the representative ray
+        }
+        // The Gaussians' extinction (rho) and its slope along the ray near the hits' segment.
+        double rho = 0.0, rho_slope = 0.0;
+        if (rbf_ && hit) {
+            const Vec3 p = rep.o + lo * rep.d;
+            rbf_->for_each_near(p, rep.d, hi - lo, [&](std::size_t i) {
+                const Vec3 b = rbf_->centre(i);
+                const double t = std::clamp(glm::dot(b - p, rep.d), 0.0, hi - lo);
+                const double r = std::max(0.0, glm::length(p + t * rep.d - b) - lateral);
+                const double a = rbf_->scale(i), c = rbf_->amplitude(i);
+                rho += c * std::exp(-a * a * r * r);
+                rho_slope += c * a * 0.8578;  // max of |d/dt c exp(-a^2 r^2)| = sqrt(2 / e) a c
+            });
+        }
+        const double sigma = sigma_bg_ + rho;
+        constexpr double kInf = std::numeric_limits<double>::infinity();
+        RGB first(0.0), second(0.0), profile(0.0);
+        for (const Light& l : lights_) {
+            const Vec3 v = l.s - rep.o;
+            const double ts = glm::dot(v, rep.d);
+            const double h = glm::length(v - ts * rep.d);
+            const double L = o_spread + std::abs(ts) * d_spread;
+            if (!(h > 2.0 * L)) {  // the light's image among the samples
+                err_La = err_Tr = kInf;
+                return;
+            }
+            // (g: needed for the depth term and the homogeneous share only)
+            const double g = !hit && rbf_ ? 0.0
+                                          : (hit ? std::atan((D - ts) / h) : 0.5 * kPi) - std::atan((t0 - ts) / h);
+            // (E 1/|h - delta| <= (1 + E |delta|^2 / h^2) / h for the lateral offsets delta)
+            const double lat_var = o_var + 2.0 * std::abs(ts) * std::sqrt(o_var * d_var) + ts * ts * d_var;
+            double rel = lat_var / ((h - L) * (h - L));
+            double de = kInf;  // the surface points' least distance to the light
+            if (hit) {
+                const double te = std::clamp(ts, lo, hi);
+                de = glm::length(l.s - (rep.o + te * rep.d)) - lateral;
+                if (!(de > 0.0)) {  // the light next to a surface point
+                    err_La = err_Tr = kInf;
+                    return;
+                }
+                rel += g > 0.0 ? var * h / (de * de * de * g) : kInf;
+            }
+            const double P = phase_bound(rep, t0, D, l.s);
+            const double share = rbf_ ? kInf  // (the Gaussians' density along the ray: unbounded here)
+                                      : sigma_bg_ * P * std::exp(-sigma_bg_ * std::max(0.0, glm::length(v) - t0)) /
+                                            (4.0 * kPi) * g / h;
+            for (int c = 0; c < 3; ++c) profile[c] += std::min(La[c], l.w[c] * share) * 2.0 * rel;
+            if (!hit) continue;
+            const double att_end = std::exp(-sigma_bg_ * std::max(0.0, lo - t0 + de));
+            second += l.w * (P * att_end / (4.0 * kPi * de * de) * (sigma * (2.0 * sigma + phase_grad_ / de) + rho_slope));
+        }
+        if (hit)
+            for (const Sun& s : suns_) {
+                const double p = phase_.eval(-glm::dot(s.w, rep.d));
+                const RGB f = s.w_E * (p * std::exp(-sigma_bg_ * std::max(0.0, lo - t0)));
+                if (sun_layer_) first += f * sigma;
+                else second += f * (sigma * 2.0 * sigma + rho_slope);
+            }
+        err_La = 0.0;
+        for (int c = 0; c < 3; ++c) {
+            const double e = profile[c] + mad * first[c] + 0.5 * var * second[c];
+            if (e > 0.0) err_La = std::max(err_La, La[c] > 0.0 ? e / La[c] : kInf);
+        }
+        err_Tr = var * (0.5 * rho_slope + 0.5 * rho * rho + rho * sigma_bg_);
+    }
+
+  private:
+    struct Light {
+        Vec3 s;
+        RGB w;  // largest albedo x I0
+    };
+    struct Sun {
+        Vec3 w;
+        RGB w_E;  // largest albedo x E
+    };
+
+    // 4 pi p over the scattering angles along [t0, D] towards _s_: 1 (isotropic) or the
+    // largest of p at the closest approach and the ends.
+    double phase_bound(const Ray& r, double t0, double D, const Vec3& s) const {
+        if (isotropic_) return 1.0;
+        double P = 0.0;
+        const double ts = glm::dot(s - r.o, r.d);
+        for (double t : {t0, std::clamp(ts, t0, std::isinf(D) ? std::max(ts, t0) : D), std::isinf(D) ? 1e30 : D}) {
+            const Vec3 v = r.o + t * r.d - s;
+            const double len = glm::length(v);
+            const double mu = len > 0.0 ? glm::dot(v / len, r.d) : 1.0;
+            P = std::max(P, 4.0 * kPi * std::max(phase_.eval(mu), phase_.eval(-mu)));
+        }
+        return P;
+    }
+
+    double sigma_bg_;
+    PhaseFunction phase_;
+    const RbfMedium* rbf_;
+    bool isotropic_ = true, sun_layer_ = false;
+    double phase_grad_ = 0.0;
+    std::vector<Light> lights_;
+    std::vector<Sun> suns_;
+};
 
 #if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__)
 // AVX-512 / AVX2 / baseline versions of the per-row loops, picked at load time.
@@ -513,6 +722,8 @@ class FogModel {
 
     // Gaussian fog through the tiled splat (perspective, Fogshop models): null otherwise.
     RbfSplat* splat() const { return splat_.get(); }
+    // The Gaussian medium (null for homogeneous fog).
+    const RbfMedium* rbf_medium() const { return rbf_.get(); }
 
     // True if _eval_soa_ applies (perspective camera, table model, fog): then a near
     // distance t0 costs nothing extra (one evaluation of the segment, sun05_batch.h).
@@ -1418,7 +1629,7 @@ BakeResult bake(const SceneDescription& scene, const BakeSettings& settings, con
                 put(i0 + half, c0 + half, &ls.centres[3 * (size_t(b) * nx + a)]);
             }
     };
-    std::atomic<long long> supersampled{0}, samples{0};
+    std::atomic<long long> supersampled{0}, samples{0}, edge_ns{0};
     start = Clock::now();
     // Gaussian fog with a perspective camera: the centre samples of every pixel come from
     // the tiled splat (rbf_splat.h) in one pass over tiles; the band loop below then only
@@ -1444,6 +1655,17 @@ BakeResult bake(const SceneDescription& scene, const BakeSettings& settings, con
             });
         band_progress_begin = end;
     }
+    // Edge pixels: one fog evaluation per cluster of sub-samples (edge_sample_clusters), or
+    // per sub-sample (edge_cluster_tol = 0: the reference; and with spot lights, whose cone
+    // edge makes the fog a kinked function of the ray: the mean ray erred by up to 40 % of
+    // the spot's airlight on such pixels).
+    const bool clustered = supersample && settings.edge_cluster_tol > 0.0 && scene.spot_lights.empty();
+    const double cluster_tol = settings.edge_cluster_tol;
+    const double sigma_bg = scene.medium.sigma_t;  // the background extinction (Gaussians' too)
+    // Airlight and transmittance error estimates above which a cluster's samples are
+    // evaluated one by one (EdgeClusterBounds).
+    constexpr double kEdgeAirlightTol = 5e-4, kEdgeTransmittanceTol = 5e-4;
+    const EdgeClusterBounds bounds(scene, clustered ? fog.rbf_medium() : nullptr);
     run_parallel(
         n_bands, n_threads,
         [&](int band) {
@@ -1455,6 +1677,23 @@ BakeResult bake(const SceneDescription& scene, const BakeSettings& settings, con
                 std::vector<double> sub_Tr, row_Tr_d;
                 std::vector<RGB> sub_La, row_La;
                 std::vector<int> edge_px;
+                // Edge clusters (edge_sample_clusters): per row, sample order and cluster ends
+                // per pixel, and one representative ray per cluster.
+                std::vector<int> cl_order, cl_ends, cl_first;
+                std::vector<Ray> cl_ray;
+                std::vector<float> cl_t, cl_t0;
+                std::vector<double> cl_Tr;
+                std::vector<RGB> cl_La;
+                std::vector<unsigned char> cl_refined;
+                std::vector<int> ref_k;  // samples of refined clusters (into sub)
+                std::vector<Ray> ref_ray;
+                std::vector<float> ref_t, ref_t0;
+                std::vector<double> ref_Tr;
+                std::vector<RGB> ref_La;
+                // The hits == 0 fallback's neighbour transmittances of rows j - 1 .. j + 1,
+                // slot (dj + 1) W + i, valid where fb_row holds j.
+                std::vector<double> fb_Tr;
+                std::vector<int> fb_row;
                 CastScratch cast_scratch;
                 std::vector<unsigned char> kink, edge;
                 RowRays r;
@@ -1480,6 +1719,7 @@ BakeResult bake(const SceneDescription& scene, const BakeSettings& settings, con
                 lattice_band(j0, j1, kink, *lease);
             }
             long long band_supersampled = 0, band_samples = 0;
+            bool fb_reset = false;
             const bool fast = affine && fog.soa();
             RowRays& r = bs.r;
             std::vector<Ray>& row = bs.row;
@@ -1530,6 +1770,12 @@ BakeResult bake(const SceneDescription& scene, const BakeSettings& settings, con
                 for (int i = 0; i < W; ++i)
                     if (edge_row[i]) edge_px.push_back(i);
                 if (edge_px.empty()) continue;
+                const auto edge_start = Clock::now();
+                if (!fb_reset) {  // (the pooled scratch may hold another bake's rows)
+                    bs.fb_row.assign(3 * size_t(W), -1);
+                    bs.fb_Tr.resize(3 * size_t(W));
+                    fb_reset = true;
+                }
                 const size_t m = edge_px.size() * n_sub;
                 sub.resize(m);
                 sub_t.resize(m);
@@ -1540,7 +1786,96 @@ BakeResult bake(const SceneDescription& scene, const BakeSettings& settings, con
                     for (size_t k = 0; k < n_sub; ++k)
                         sub[e * n_sub + k] = rays(edge_px[e] + 0.5 + pattern[k].x, j + 0.5 + pattern[k].y);
                 cast(sub.data(), int(m), sub_t.data(), sub_t0.data(), cast_scratch);
-                fog_eval(sub.data(), sub_t.data(), sub_t0.data(), int(m), sub_Tr.data(), sub_La.data(), fog_scratch);
+                if (clustered) {
+                    // One fog evaluation per cluster of sub-samples (edge_sample_clusters): the
+                    // normalised mean direction (and mean origin), mean depth and mean t0 of its
+                    // samples, exact up to second order in their spread; a cluster of one is
+                    // its sample.
+                    bs.cl_order.resize(m);
+                    bs.cl_ends.clear();
+                    bs.cl_first.resize(edge_px.size() + 1);
+                    for (size_t e = 0; e < edge_px.size(); ++e) {
+                        bs.cl_first[e] = int(bs.cl_ends.size());
+                        edge_sample_clusters(&sub_t[e * n_sub], int(n_sub), cluster_tol, &bs.cl_order[e * n_sub],
+                                             bs.cl_ends);
+                    }
+                    bs.cl_first[edge_px.size()] = int(bs.cl_ends.size());
+                    const size_t n_cl = bs.cl_ends.size();
+                    bs.cl_ray.resize(n_cl);
+                    bs.cl_t.resize(n_cl);
+                    bs.cl_t0.resize(n_cl);
+                    bs.cl_Tr.resize(n_cl);
+                    bs.cl_La.resize(n_cl);
+                    bs.cl_refined.assign(n_cl, 0);
+                    for (size_t e = 0; e < edge_px.size(); ++e) {
+                        const int* order = &bs.cl_order[e * n_sub];
+                        for (int c = bs.cl_first[e], b = 0; c < bs.cl_first[e + 1]; b = bs.cl_ends[c++]) {
+                            const int end = bs.cl_ends[c];
+                            const size_t k0 = e * n_sub + size_t(order[b]);
+                            if (end - b == 1) {
+                                bs.cl_ray[c] = sub[k0];
+                                bs.cl_t[c] = sub_t[k0];
+                                bs.cl_t0[c] = sub_t0[k0];
+                                continue;
+                            }
+                            Vec3 o(0.0), d(0.0);
+                            double t = 0.0, t_near = 0.0;
+                            for (int q = b; q < end; ++q) {
+                                const size_t k = e * n_sub + size_t(order[q]);
+                                o += sub[k].o;
+                                d += sub[k].d;
+                                t += double(sub_t[k]);
+                                t_near += double(sub_t0[k]);
+                            }
+                            const double inv = 1.0 / double(end - b);
+                            bs.cl_ray[c] = {o * inv, glm::normalize(d)};
+                            bs.cl_t[c] = std::isinf(sub_t[k0]) ? sub_t[k0] : float(t * inv);
+                            bs.cl_t0[c] = float(t_near * inv);
+                        }
+                    }
+                    fog_eval(bs.cl_ray.data(), bs.cl_t.data(), bs.cl_t0.data(), int(n_cl), bs.cl_Tr.data(),
+                             bs.cl_La.data(), fog_scratch);
+                    // Clusters whose error estimate (EdgeClusterBounds) exceeds the tolerance:
+                    // every sample evaluated instead, into sub_Tr, sub_La.
+                    bs.ref_k.clear();
+                    for (size_t e = 0; e < edge_px.size(); ++e) {
+                        const int* order = &bs.cl_order[e * n_sub];
+                        for (int c = bs.cl_first[e], b = 0; c < bs.cl_first[e + 1]; b = bs.cl_ends[c++]) {
+                            const int end = bs.cl_ends[c];
+                            if (end - b == 1) continue;
+                            double err_La, err_Tr;
+                            bounds.errors(&sub[e * n_sub], &sub_t[e * n_sub], order + b, end - b, bs.cl_ray[c],
+                                          near_clip ? double(bs.cl_t0[c]) : 0.0, double(bs.cl_t[c]), bs.cl_La[c],
+                                          err_La, err_Tr);
+                            if (err_La <= kEdgeAirlightTol && err_Tr <= kEdgeTransmittanceTol) continue;
+                            bs.cl_refined[c] = 1;
+                            for (int q = b; q < end; ++q) bs.ref_k.push_back(int(e * n_sub + size_t(order[q])));
+                        }
+                    }
+                    if (!bs.ref_k.empty()) {
+                        const size_t n_ref = bs.ref_k.size();
+                        bs.ref_ray.resize(n_ref);
+                        bs.ref_t.resize(n_ref);
+                        bs.ref_t0.resize(n_ref);
+                        bs.ref_Tr.resize(n_ref);
+                        bs.ref_La.resize(n_ref);
+                        for (size_t q = 0; q < n_ref; ++q) {
+                            bs.ref_ray[q] = sub[bs.ref_k[q]];
+                            bs.ref_t[q] = sub_t[bs.ref_k[q]];
+                            bs.ref_t0[q] = sub_t0[bs.ref_k[q]];
+                        }
+                        fog_eval(bs.ref_ray.data(), bs.ref_t.data(), bs.ref_t0.data(), int(n_ref), bs.ref_Tr.data(),
+                                 bs.ref_La.data(), fog_scratch);
+                        for (size_t q = 0; q < n_ref; ++q) {
+                            sub_Tr[bs.ref_k[q]] = bs.ref_Tr[q];
+                            sub_La[bs.ref_k[q]] = bs.ref_La[q];
+                        }
+                    }
+                    band_samples += (long long)(n_cl + bs.ref_k.size()) - (long long)edge_px.size();
+                } else {
+                    fog_eval(sub.data(), sub_t.data(), sub_t0.data(), int(m), sub_Tr.data(), sub_La.data(),
+                             fog_scratch);
+                }
                 for (size_t e = 0; e < edge_px.size(); ++e) {
                     const int i = edge_px[e];
                     const size_t s0 = e * n_sub;
@@ -1562,10 +1897,43 @@ BakeResult bake(const SceneDescription& scene, const BakeSettings& settings, con
                     double Tr_hits = 0.0, Tr_all = 0.0;
                     int hits = 0;
                     RGB La(0.0);
-                    for (size_t k = s0; k < s0 + n_sub; ++k) {
-                        Tr_all += sub_Tr[k];
-                        La += sub_La[k];
-                        if (!std::isinf(sub_t[k])) Tr_hits += sub_Tr[k], ++hits;
+                    if (!clustered) {
+                        for (size_t k = s0; k < s0 + n_sub; ++k) {
+                            Tr_all += sub_Tr[k];
+                            La += sub_La[k];
+                            if (!std::isinf(sub_t[k])) Tr_hits += sub_Tr[k], ++hits;
+                        }
+                    } else {
+                        // Each sample takes its cluster's fog, the transmittance scaled by the
+                        // background extinction over its own segment: exact for the homogeneous
+                        // medium's part (on a grazing surface the depth spread is wide).
+                        const int* order = &bs.cl_order[s0];
+                        for (int c = bs.cl_first[e], b = 0; c < bs.cl_first[e + 1]; b = bs.cl_ends[c++]) {
+                            const int end = bs.cl_ends[c];
+                            if (bs.cl_refined[c]) {
+                                for (int q = b; q < end; ++q) {
+                                    const size_t k = s0 + size_t(order[q]);
+                                    Tr_all += sub_Tr[k];
+                                    La += sub_La[k];
+                                    if (!std::isinf(sub_t[k])) Tr_hits += sub_Tr[k], ++hits;
+                                }
+                                continue;
+                            }
+                            La += double(end - b) * bs.cl_La[c];
+                            if (std::isinf(bs.cl_t[c])) {
+                                Tr_all += double(end - b) * bs.cl_Tr[c];
+                                continue;
+                            }
+                            const double seg_c = double(bs.cl_t[c]) - (near_clip ? double(bs.cl_t0[c]) : 0.0);
+                            for (int q = b; q < end; ++q) {
+                                const size_t k = s0 + size_t(order[q]);
+                                const double seg = double(sub_t[k]) - (near_clip ? double(sub_t0[k]) : 0.0);
+                                const double Tr_k = end - b == 1 ? bs.cl_Tr[c]
+                                                                 : bs.cl_Tr[c] * std::exp(-sigma_bg * (seg - seg_c));
+                                Tr_all += Tr_k;
+                                if (!std::isinf(sub_t[k])) Tr_hits += Tr_k, ++hits;
+                            }
+                        }
                     }
                     // No sample hit, yet the pixel was flagged: a surface lies in the
                     // filter's tail (coverage < 1/(2N), e.g. 2 % of an emitter showing
@@ -1580,9 +1948,15 @@ BakeResult bake(const SceneDescription& scene, const BakeSettings& settings, con
                                 if (ni < 0 || ni >= W || nj < 0 || nj >= H) continue;
                                 const float depth_n = result.depth[size_t(nj) * W + ni];
                                 if (std::isinf(depth_n)) continue;
-                                double t_near = 0.0, t_far;
-                                if (near_clip) rays.clip_range(rays(ni + 0.5, nj + 0.5), t_near, t_far);
-                                Tr_hits += fog.transmittance(rays(ni + 0.5, nj + 0.5), t_near, double(depth_n));
+                                // (cached per row: neighbouring pixels without hits share neighbours)
+                                const size_t slot = size_t(dj + 1) * W + size_t(ni);
+                                if (bs.fb_row[slot] != j) {
+                                    double t_near = 0.0, t_far;
+                                    if (near_clip) rays.clip_range(rays(ni + 0.5, nj + 0.5), t_near, t_far);
+                                    bs.fb_Tr[slot] = fog.transmittance(rays(ni + 0.5, nj + 0.5), t_near, double(depth_n));
+                                    bs.fb_row[slot] = j;
+                                }
+                                Tr_hits += bs.fb_Tr[slot];
                                 ++hits;
                             }
                     }
@@ -1593,8 +1967,9 @@ BakeResult bake(const SceneDescription& scene, const BakeSettings& settings, con
                         T[3 * i + c] = float(Tr);
                     }
                     ++band_supersampled;
-                    band_samples += (long long)n_sub - 1;
+                    if (!clustered) band_samples += (long long)n_sub - 1;
                 }
+                edge_ns += std::chrono::duration_cast<std::chrono::nanoseconds>(Clock::now() - edge_start).count();
             }
             supersampled += band_supersampled;
             samples += band_samples;
@@ -1602,6 +1977,7 @@ BakeResult bake(const SceneDescription& scene, const BakeSettings& settings, con
         reporter(band_progress_begin, 1.0));
     result.stats.seconds_airlight = seconds_since(start);
     result.stats.supersampled_pixels = supersampled;
+    result.stats.seconds_edges = 1e-9 * double(edge_ns);
     result.stats.samples = samples;
     // Surface shading pass (bake_surface.cpp), only when asked for.
     if (settings.surface) {

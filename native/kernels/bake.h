@@ -51,6 +51,14 @@ struct BakeSettings {
     // centre disagrees with its interpolation by more than 5e-4 (bake.cpp lattice_band); the
     // model sun05 with a perspective camera and no spots or Gaussians only (else exact).
     int homogeneous_resolution = 1;
+    // Edge supersampling (aa_samples > 1): one fog evaluation per cluster of an edge pixel's
+    // sub-samples (all misses; hits whose farthest depth is at most 1 + _edge_cluster_tol_
+    // times their nearest) at the cluster's mean ray and depth, each sample's transmittance
+    // rescaled to its own depth; clusters whose error estimate exceeds 5e-4 of the airlight
+    // (a light's image or a light next to the surface, a dense Gaussian there) are evaluated
+    // per sample (bake.cpp edge_sample_clusters, EdgeClusterBounds). 0, and scenes with spot
+    // lights: every sub-sample evaluated (the reference).
+    double edge_cluster_tol = 0.1;
 };
 
 struct BakeStats {
@@ -59,6 +67,9 @@ struct BakeStats {
     long long supersampled_pixels = 0;
     long long samples = 0;
     double seconds_surface = 0.0;  // the surface-shading pass (0 when off)
+    // The edge supersampling inside seconds_airlight (sub-pixel rays, their fog, the
+    // averages), summed over the worker threads.
+    double seconds_edges = 0.0;
 };
 
 // Output images are row-major, top row first, 3 floats (RGB) per pixel.
