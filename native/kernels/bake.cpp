@@ -1640,11 +1640,20 @@ BakeResult bake(const SceneDescription& scene, const BakeSettings& settings, con
         RbfSplat& splat = *fog.splat();
         splat.bin(D0, Dx, Dy, forward, W, H, near_clip ? clip_start : 0.0, settings.gaussian_resolution);
         const int n_tiles = splat.num_tiles();
+        // Costliest tiles first (by binned pairs), so that the last tiles taken are cheap and
+        // the threads finish together (in order, the tiles next to a light's image or the
+        // cloud's core could leave one thread working alone at the end).
+        std::vector<int> order(static_cast<size_t>(n_tiles));
+        std::iota(order.begin(), order.end(), 0);
+        std::stable_sort(order.begin(), order.end(),
+                         [&](int a, int b) { return splat.tile_pairs(a) > splat.tile_pairs(b); });
         constexpr double kSplatShare = 0.6;  // of the progress bar, after pass 1
         const double end = kRaycastProgressShare + kSplatShare;
         run_parallel(
             n_tiles, n_threads,
-            [&](int t) { splat.splat_tile(t, result.depth.data(), result.transmittance.data(), result.airlight.data()); },
+            [&](int k) {
+                splat.splat_tile(order[k], result.depth.data(), result.transmittance.data(), result.airlight.data());
+            },
             [&, last = -1](int done) mutable {
                 // Thousands of tiles: report (and check for cancel) once per percent.
                 const int percent = int(100LL * done / n_tiles);
@@ -1666,49 +1675,46 @@ BakeResult bake(const SceneDescription& scene, const BakeSettings& settings, con
     // evaluated one by one (EdgeClusterBounds).
     constexpr double kEdgeAirlightTol = 5e-4, kEdgeTransmittanceTol = 5e-4;
     const EdgeClusterBounds bounds(scene, clustered ? fog.rbf_medium() : nullptr);
+    // Scratch from a pool (ScratchPool): a band's rows, and the sub-pixel rays and results
+    // of a run of edge pixels (~3 MB for two rows of them).
+    struct BandScratch {
+        std::vector<Ray> sub, row;
+        std::vector<float> sub_t, sub_t0, t0, row_Tr;
+        std::vector<double> sub_Tr, row_Tr_d;
+        std::vector<RGB> sub_La, row_La;
+        std::vector<int> edge_px;
+        // Edge clusters (edge_sample_clusters): per row, sample order and cluster ends
+        // per pixel, and one representative ray per cluster.
+        std::vector<int> cl_order, cl_ends, cl_first;
+        std::vector<Ray> cl_ray;
+        std::vector<float> cl_t, cl_t0;
+        std::vector<double> cl_Tr;
+        std::vector<RGB> cl_La;
+        std::vector<unsigned char> cl_refined;
+        std::vector<int> ref_k;  // samples of refined clusters (into sub)
+        std::vector<Ray> ref_ray;
+        std::vector<float> ref_t, ref_t0;
+        std::vector<double> ref_Tr;
+        std::vector<RGB> ref_La;
+        // The hits == 0 fallback's neighbour transmittances of rows j - 1 .. j + 1,
+        // slot (dj + 1) W + i, valid where fb_row holds j.
+        std::vector<double> fb_Tr;
+        std::vector<int> fb_row;
+        CastScratch cast_scratch;
+        std::vector<unsigned char> kink, edge;
+        RowRays r;
+    };
+    // Per band, its edge pixels (row, column) for the edge pass.
+    std::vector<std::vector<std::pair<int, int>>> band_edges(static_cast<size_t>(n_bands));
+    const double edges_begin = band_progress_begin + 0.5 * (1.0 - band_progress_begin);
     run_parallel(
         n_bands, n_threads,
         [&](int band) {
-            // Scratch from a pool (ScratchPool): a band through the horizon supersamples ~2 rows
-            // of edge pixels, ~3 MB of sub-pixel rays and results.
-            struct BandScratch {
-                std::vector<Ray> sub, row;
-                std::vector<float> sub_t, sub_t0, t0, row_Tr;
-                std::vector<double> sub_Tr, row_Tr_d;
-                std::vector<RGB> sub_La, row_La;
-                std::vector<int> edge_px;
-                // Edge clusters (edge_sample_clusters): per row, sample order and cluster ends
-                // per pixel, and one representative ray per cluster.
-                std::vector<int> cl_order, cl_ends, cl_first;
-                std::vector<Ray> cl_ray;
-                std::vector<float> cl_t, cl_t0;
-                std::vector<double> cl_Tr;
-                std::vector<RGB> cl_La;
-                std::vector<unsigned char> cl_refined;
-                std::vector<int> ref_k;  // samples of refined clusters (into sub)
-                std::vector<Ray> ref_ray;
-                std::vector<float> ref_t, ref_t0;
-                std::vector<double> ref_Tr;
-                std::vector<RGB> ref_La;
-                // The hits == 0 fallback's neighbour transmittances of rows j - 1 .. j + 1,
-                // slot (dj + 1) W + i, valid where fb_row holds j.
-                std::vector<double> fb_Tr;
-                std::vector<int> fb_row;
-                CastScratch cast_scratch;
-                std::vector<unsigned char> kink, edge;
-                RowRays r;
-            };
             static ScratchPool<BandScratch> band_pool;
             ScratchPool<BandScratch>::Lease lease(band_pool);
             BandScratch& bs = *lease;
-            const size_t n_sub = pattern.size();
-            std::vector<Ray>& sub = bs.sub;
-            std::vector<float>&sub_t = bs.sub_t, &sub_t0 = bs.sub_t0, &t0 = bs.t0;
+            std::vector<float>& t0 = bs.t0;
             t0.resize(W);
-            std::vector<double>& sub_Tr = bs.sub_Tr;
-            std::vector<RGB>& sub_La = bs.sub_La;
-            std::vector<int>& edge_px = bs.edge_px;
-            CastScratch& cast_scratch = bs.cast_scratch;
             FogScratch fog_scratch;
             std::vector<unsigned char>&kink = bs.kink, &edge = bs.edge;
             const int j0 = band * kBandRows, j1 = std::min(H, (band + 1) * kBandRows);
@@ -1718,8 +1724,7 @@ BakeResult bake(const SceneDescription& scene, const BakeSettings& settings, con
                 ScratchPool<LatticeScratch>::Lease lease(lattice_pool);
                 lattice_band(j0, j1, kink, *lease);
             }
-            long long band_supersampled = 0, band_samples = 0;
-            bool fb_reset = false;
+            long long band_samples = 0;
             const bool fast = affine && fog.soa();
             RowRays& r = bs.r;
             std::vector<Ray>& row = bs.row;
@@ -1763,218 +1768,262 @@ BakeResult bake(const SceneDescription& scene, const BakeSettings& settings, con
                     for (int i = 0; i < W; ++i) T[3 * i] = T[3 * i + 1] = T[3 * i + 2] = row_Tr[i];
                 band_samples += W;
                 if (!supersample) continue;
-                // The sub-pixel rays of all the row's edge pixels at once: cast as
-                // packets and evaluated in full SIMD chunks, then averaged per pixel.
+                // The row's edge pixels, supersampled in the next pass (in runs spread over
+                // the threads: a horizon puts them all in one or two bands).
                 const unsigned char* edge_row = &edge[size_t(j - j0) * W];
-                edge_px.clear();
                 for (int i = 0; i < W; ++i)
-                    if (edge_row[i]) edge_px.push_back(i);
-                if (edge_px.empty()) continue;
-                const auto edge_start = Clock::now();
-                if (!fb_reset) {  // (the pooled scratch may hold another bake's rows)
-                    bs.fb_row.assign(3 * size_t(W), -1);
-                    bs.fb_Tr.resize(3 * size_t(W));
-                    fb_reset = true;
-                }
-                const size_t m = edge_px.size() * n_sub;
-                sub.resize(m);
-                sub_t.resize(m);
-                sub_t0.resize(m);
-                sub_Tr.resize(m);
-                sub_La.resize(m);
-                for (size_t e = 0; e < edge_px.size(); ++e)
-                    for (size_t k = 0; k < n_sub; ++k)
-                        sub[e * n_sub + k] = rays(edge_px[e] + 0.5 + pattern[k].x, j + 0.5 + pattern[k].y);
-                cast(sub.data(), int(m), sub_t.data(), sub_t0.data(), cast_scratch);
-                if (clustered) {
-                    // One fog evaluation per cluster of sub-samples (edge_sample_clusters): the
-                    // normalised mean direction (and mean origin), mean depth and mean t0 of its
-                    // samples, exact up to second order in their spread; a cluster of one is
-                    // its sample.
-                    bs.cl_order.resize(m);
-                    bs.cl_ends.clear();
-                    bs.cl_first.resize(edge_px.size() + 1);
-                    for (size_t e = 0; e < edge_px.size(); ++e) {
-                        bs.cl_first[e] = int(bs.cl_ends.size());
-                        edge_sample_clusters(&sub_t[e * n_sub], int(n_sub), cluster_tol, &bs.cl_order[e * n_sub],
-                                             bs.cl_ends);
-                    }
-                    bs.cl_first[edge_px.size()] = int(bs.cl_ends.size());
-                    const size_t n_cl = bs.cl_ends.size();
-                    bs.cl_ray.resize(n_cl);
-                    bs.cl_t.resize(n_cl);
-                    bs.cl_t0.resize(n_cl);
-                    bs.cl_Tr.resize(n_cl);
-                    bs.cl_La.resize(n_cl);
-                    bs.cl_refined.assign(n_cl, 0);
-                    for (size_t e = 0; e < edge_px.size(); ++e) {
-                        const int* order = &bs.cl_order[e * n_sub];
-                        for (int c = bs.cl_first[e], b = 0; c < bs.cl_first[e + 1]; b = bs.cl_ends[c++]) {
-                            const int end = bs.cl_ends[c];
-                            const size_t k0 = e * n_sub + size_t(order[b]);
-                            if (end - b == 1) {
-                                bs.cl_ray[c] = sub[k0];
-                                bs.cl_t[c] = sub_t[k0];
-                                bs.cl_t0[c] = sub_t0[k0];
-                                continue;
-                            }
-                            Vec3 o(0.0), d(0.0);
-                            double t = 0.0, t_near = 0.0;
-                            for (int q = b; q < end; ++q) {
-                                const size_t k = e * n_sub + size_t(order[q]);
-                                o += sub[k].o;
-                                d += sub[k].d;
-                                t += double(sub_t[k]);
-                                t_near += double(sub_t0[k]);
-                            }
-                            const double inv = 1.0 / double(end - b);
-                            bs.cl_ray[c] = {o * inv, glm::normalize(d)};
-                            bs.cl_t[c] = std::isinf(sub_t[k0]) ? sub_t[k0] : float(t * inv);
-                            bs.cl_t0[c] = float(t_near * inv);
-                        }
-                    }
-                    fog_eval(bs.cl_ray.data(), bs.cl_t.data(), bs.cl_t0.data(), int(n_cl), bs.cl_Tr.data(),
-                             bs.cl_La.data(), fog_scratch);
-                    // Clusters whose error estimate (EdgeClusterBounds) exceeds the tolerance:
-                    // every sample evaluated instead, into sub_Tr, sub_La.
-                    bs.ref_k.clear();
-                    for (size_t e = 0; e < edge_px.size(); ++e) {
-                        const int* order = &bs.cl_order[e * n_sub];
-                        for (int c = bs.cl_first[e], b = 0; c < bs.cl_first[e + 1]; b = bs.cl_ends[c++]) {
-                            const int end = bs.cl_ends[c];
-                            if (end - b == 1) continue;
-                            double err_La, err_Tr;
-                            bounds.errors(&sub[e * n_sub], &sub_t[e * n_sub], order + b, end - b, bs.cl_ray[c],
-                                          near_clip ? double(bs.cl_t0[c]) : 0.0, double(bs.cl_t[c]), bs.cl_La[c],
-                                          err_La, err_Tr);
-                            if (err_La <= kEdgeAirlightTol && err_Tr <= kEdgeTransmittanceTol) continue;
-                            bs.cl_refined[c] = 1;
-                            for (int q = b; q < end; ++q) bs.ref_k.push_back(int(e * n_sub + size_t(order[q])));
-                        }
-                    }
-                    if (!bs.ref_k.empty()) {
-                        const size_t n_ref = bs.ref_k.size();
-                        bs.ref_ray.resize(n_ref);
-                        bs.ref_t.resize(n_ref);
-                        bs.ref_t0.resize(n_ref);
-                        bs.ref_Tr.resize(n_ref);
-                        bs.ref_La.resize(n_ref);
-                        for (size_t q = 0; q < n_ref; ++q) {
-                            bs.ref_ray[q] = sub[bs.ref_k[q]];
-                            bs.ref_t[q] = sub_t[bs.ref_k[q]];
-                            bs.ref_t0[q] = sub_t0[bs.ref_k[q]];
-                        }
-                        fog_eval(bs.ref_ray.data(), bs.ref_t.data(), bs.ref_t0.data(), int(n_ref), bs.ref_Tr.data(),
-                                 bs.ref_La.data(), fog_scratch);
-                        for (size_t q = 0; q < n_ref; ++q) {
-                            sub_Tr[bs.ref_k[q]] = bs.ref_Tr[q];
-                            sub_La[bs.ref_k[q]] = bs.ref_La[q];
-                        }
-                    }
-                    band_samples += (long long)(n_cl + bs.ref_k.size()) - (long long)edge_px.size();
-                } else {
-                    fog_eval(sub.data(), sub_t.data(), sub_t0.data(), int(m), sub_Tr.data(), sub_La.data(),
-                             fog_scratch);
-                }
+                    if (edge_row[i]) band_edges[size_t(band)].push_back({j, i});
+            }
+            samples += band_samples;
+        },
+        reporter(band_progress_begin, edges_begin));
+    // The edge pixels in runs of at most kEdgeRun of one row, spread over the threads.
+    struct EdgeRun {
+        int j, first, count;  // row, into edge_i
+    };
+    std::vector<int> edge_i;
+    std::vector<EdgeRun> edge_runs;
+    for (const auto& list : band_edges)
+        for (size_t k = 0; k < list.size(); ++k) {
+            constexpr int kEdgeRun = 64;
+            const int j = list[k].first;
+            if (edge_runs.empty() || edge_runs.back().j != j || edge_runs.back().count == kEdgeRun)
+                edge_runs.push_back({j, int(edge_i.size()), 0});
+            edge_i.push_back(list[k].second);
+            ++edge_runs.back().count;
+        }
+    run_parallel(
+        int(edge_runs.size()), n_threads,
+        [&](int run) {
+            static ScratchPool<BandScratch> edge_pool;
+            ScratchPool<BandScratch>::Lease lease(edge_pool);
+            BandScratch& bs = *lease;
+            const EdgeRun& er = edge_runs[size_t(run)];
+            const int j = er.j;
+            const size_t n_sub = pattern.size();
+            std::vector<Ray>& sub = bs.sub;
+            std::vector<float>&sub_t = bs.sub_t, &sub_t0 = bs.sub_t0;
+            std::vector<double>& sub_Tr = bs.sub_Tr;
+            std::vector<RGB>& sub_La = bs.sub_La;
+            std::vector<int>& edge_px = bs.edge_px;
+            edge_px.assign(edge_i.begin() + er.first, edge_i.begin() + er.first + er.count);
+            CastScratch& cast_scratch = bs.cast_scratch;
+            FogScratch fog_scratch;
+            bool fb_reset = false;
+            long long band_supersampled = 0, band_samples = 0;
+            const size_t p0 = size_t(j) * W;
+            float* A = &result.airlight[3 * p0];
+            float* T = &result.transmittance[3 * p0];
+            // The sub-pixel rays of all the run's pixels at once: cast as packets and
+            // evaluated in full SIMD chunks, then averaged per pixel.
+            const auto edge_start = Clock::now();
+            if (!fb_reset) {  // (the pooled scratch may hold another bake's rows)
+                bs.fb_row.assign(3 * size_t(W), -1);
+                bs.fb_Tr.resize(3 * size_t(W));
+                fb_reset = true;
+            }
+            const size_t m = edge_px.size() * n_sub;
+            sub.resize(m);
+            sub_t.resize(m);
+            sub_t0.resize(m);
+            sub_Tr.resize(m);
+            sub_La.resize(m);
+            for (size_t e = 0; e < edge_px.size(); ++e)
+                for (size_t k = 0; k < n_sub; ++k)
+                    sub[e * n_sub + k] = rays(edge_px[e] + 0.5 + pattern[k].x, j + 0.5 + pattern[k].y);
+            cast(sub.data(), int(m), sub_t.data(), sub_t0.data(), cast_scratch);
+            if (clustered) {
+                // One fog evaluation per cluster of sub-samples (edge_sample_clusters): the
+                // normalised mean direction (and mean origin), mean depth and mean t0 of its
+                // samples, exact up to second order in their spread; a cluster of one is
+                // its sample.
+                bs.cl_order.resize(m);
+                bs.cl_ends.clear();
+                bs.cl_first.resize(edge_px.size() + 1);
                 for (size_t e = 0; e < edge_px.size(); ++e) {
-                    const int i = edge_px[e];
-                    const size_t s0 = e * n_sub;
-                    // Airlight: the filtered mean over all samples. Transmittance: the
-                    // mean over the samples that hit a surface. The composite is
-                    // render * T + A, and at a silhouette the render mixes surface
-                    // (coverage alpha) and background: R = alpha R_s + (1 - alpha) R_b.
-                    // The fogged truth is alpha R_s T_s + (1 - alpha) R_b T_b + A, with
-                    // T_b = 0 behind a miss (fog out to infinity). T = mean of all
-                    // samples = alpha T_s errs by -alpha (1 - alpha) (R_s - R_b) T_s: a
-                    // dark outline up to (1 - alpha) of the surface's own fogged radiance
-                    // where a lit object meets a dark sky. T = T_s errs by
-                    // (1 - alpha) R_b T_s: exact for a black world or a transparent film
-                    // (the renders in which infinite fog is consistent: whatever the
-                    // world shows is hidden by it), and never darker than the truth.
-                    // Behind a bright world it leaves a fringe of the world's colour,
-                    // 1 / alpha times the all-sample mean's error. Between two surfaces
-                    // (all samples hit) both are the same coverage-weighted mean.
-                    double Tr_hits = 0.0, Tr_all = 0.0;
-                    int hits = 0;
-                    RGB La(0.0);
-                    if (!clustered) {
-                        for (size_t k = s0; k < s0 + n_sub; ++k) {
-                            Tr_all += sub_Tr[k];
-                            La += sub_La[k];
-                            if (!std::isinf(sub_t[k])) Tr_hits += sub_Tr[k], ++hits;
+                    bs.cl_first[e] = int(bs.cl_ends.size());
+                    edge_sample_clusters(&sub_t[e * n_sub], int(n_sub), cluster_tol, &bs.cl_order[e * n_sub],
+                                         bs.cl_ends);
+                }
+                bs.cl_first[edge_px.size()] = int(bs.cl_ends.size());
+                const size_t n_cl = bs.cl_ends.size();
+                bs.cl_ray.resize(n_cl);
+                bs.cl_t.resize(n_cl);
+                bs.cl_t0.resize(n_cl);
+                bs.cl_Tr.resize(n_cl);
+                bs.cl_La.resize(n_cl);
+                bs.cl_refined.assign(n_cl, 0);
+                for (size_t e = 0; e < edge_px.size(); ++e) {
+                    const int* order = &bs.cl_order[e * n_sub];
+                    for (int c = bs.cl_first[e], b = 0; c < bs.cl_first[e + 1]; b = bs.cl_ends[c++]) {
+                        const int end = bs.cl_ends[c];
+                        const size_t k0 = e * n_sub + size_t(order[b]);
+                        if (end - b == 1) {
+                            bs.cl_ray[c] = sub[k0];
+                            bs.cl_t[c] = sub_t[k0];
+                            bs.cl_t0[c] = sub_t0[k0];
+                            continue;
                         }
-                    } else {
-                        // Each sample takes its cluster's fog, the transmittance scaled by the
-                        // background extinction over its own segment: exact for the homogeneous
-                        // medium's part (on a grazing surface the depth spread is wide).
-                        const int* order = &bs.cl_order[s0];
-                        for (int c = bs.cl_first[e], b = 0; c < bs.cl_first[e + 1]; b = bs.cl_ends[c++]) {
-                            const int end = bs.cl_ends[c];
-                            if (bs.cl_refined[c]) {
-                                for (int q = b; q < end; ++q) {
-                                    const size_t k = s0 + size_t(order[q]);
-                                    Tr_all += sub_Tr[k];
-                                    La += sub_La[k];
-                                    if (!std::isinf(sub_t[k])) Tr_hits += sub_Tr[k], ++hits;
-                                }
-                                continue;
-                            }
-                            La += double(end - b) * bs.cl_La[c];
-                            if (std::isinf(bs.cl_t[c])) {
-                                Tr_all += double(end - b) * bs.cl_Tr[c];
-                                continue;
-                            }
-                            const double seg_c = double(bs.cl_t[c]) - (near_clip ? double(bs.cl_t0[c]) : 0.0);
+                        Vec3 o(0.0), d(0.0);
+                        double t = 0.0, t_near = 0.0;
+                        for (int q = b; q < end; ++q) {
+                            const size_t k = e * n_sub + size_t(order[q]);
+                            o += sub[k].o;
+                            d += sub[k].d;
+                            t += double(sub_t[k]);
+                            t_near += double(sub_t0[k]);
+                        }
+                        const double inv = 1.0 / double(end - b);
+                        bs.cl_ray[c] = {o * inv, glm::normalize(d)};
+                        bs.cl_t[c] = std::isinf(sub_t[k0]) ? sub_t[k0] : float(t * inv);
+                        bs.cl_t0[c] = float(t_near * inv);
+                    }
+                }
+                fog_eval(bs.cl_ray.data(), bs.cl_t.data(), bs.cl_t0.data(), int(n_cl), bs.cl_Tr.data(),
+                         bs.cl_La.data(), fog_scratch);
+                // Clusters whose error estimate (EdgeClusterBounds) exceeds the tolerance:
+                // every sample evaluated instead, into sub_Tr, sub_La.
+                bs.ref_k.clear();
+                for (size_t e = 0; e < edge_px.size(); ++e) {
+                    const int* order = &bs.cl_order[e * n_sub];
+                    for (int c = bs.cl_first[e], b = 0; c < bs.cl_first[e + 1]; b = bs.cl_ends[c++]) {
+                        const int end = bs.cl_ends[c];
+                        if (end - b == 1) continue;
+                        double err_La, err_Tr;
+                        bounds.errors(&sub[e * n_sub], &sub_t[e * n_sub], order + b, end - b, bs.cl_ray[c],
+                                      near_clip ? double(bs.cl_t0[c]) : 0.0, double(bs.cl_t[c]), bs.cl_La[c],
+                                      err_La, err_Tr);
+                        if (err_La <= kEdgeAirlightTol && err_Tr <= kEdgeTransmittanceTol) continue;
+                        bs.cl_refined[c] = 1;
+                        for (int q = b; q < end; ++q) bs.ref_k.push_back(int(e * n_sub + size_t(order[q])));
+                    }
+                }
+                if (!bs.ref_k.empty()) {
+                    const size_t n_ref = bs.ref_k.size();
+                    bs.ref_ray.resize(n_ref);
+                    bs.ref_t.resize(n_ref);
+                    bs.ref_t0.resize(n_ref);
+                    bs.ref_Tr.resize(n_ref);
+                    bs.ref_La.resize(n_ref);
+                    for (size_t q = 0; q < n_ref; ++q) {
+                        bs.ref_ray[q] = sub[bs.ref_k[q]];
+                        bs.ref_t[q] = sub_t[bs.ref_k[q]];
+                        bs.ref_t0[q] = sub_t0[bs.ref_k[q]];
+                    }
+                    fog_eval(bs.ref_ray.data(), bs.ref_t.data(), bs.ref_t0.data(), int(n_ref), bs.ref_Tr.data(),
+                             bs.ref_La.data(), fog_scratch);
+                    for (size_t q = 0; q < n_ref; ++q) {
+                        sub_Tr[bs.ref_k[q]] = bs.ref_Tr[q];
+                        sub_La[bs.ref_k[q]] = bs.ref_La[q];
+                    }
+                }
+                band_samples += (long long)(n_cl + bs.ref_k.size()) - (long long)edge_px.size();
+            } else {
+                fog_eval(sub.data(), sub_t.data(), sub_t0.data(), int(m), sub_Tr.data(), sub_La.data(),
+                         fog_scratch);
+            }
+            for (size_t e = 0; e < edge_px.size(); ++e) {
+                const int i = edge_px[e];
+                const size_t s0 = e * n_sub;
+                // Airlight: the filtered mean over all samples. Transmittance: the
+                // mean over the samples that hit a surface. The composite is
+                // render * T + A, and at a silhouette the render mixes surface
+                // (coverage alpha) and background: R = alpha R_s + (1 - alpha) R_b.
+                // The fogged truth is alpha R_s T_s + (1 - alpha) R_b T_b + A, with
+                // T_b = 0 behind a miss (fog out to infinity). T = mean of all
+                // samples = alpha T_s errs by -alpha (1 - alpha) (R_s - R_b) T_s: a
+                // dark outline up to (1 - alpha) of the surface's own fogged radiance
+                // where a lit object meets a dark sky. T = T_s errs by
+                // (1 - alpha) R_b T_s: exact for a black world or a transparent film
+                // (the renders in which infinite fog is consistent: whatever the
+                // world shows is hidden by it), and never darker than the truth.
+                // Behind a bright world it leaves a fringe of the world's colour,
+                // 1 / alpha times the all-sample mean's error. Between two surfaces
+                // (all samples hit) both are the same coverage-weighted mean.
+                double Tr_hits = 0.0, Tr_all = 0.0;
+                int hits = 0;
+                RGB La(0.0);
+                if (!clustered) {
+                    for (size_t k = s0; k < s0 + n_sub; ++k) {
+                        Tr_all += sub_Tr[k];
+                        La += sub_La[k];
+                        if (!std::isinf(sub_t[k])) Tr_hits += sub_Tr[k], ++hits;
+                    }
+                } else {
+                    // Each sample takes its cluster's fog, the transmittance scaled by the
+                    // background extinction over its own segment: exact for the homogeneous
+                    // medium's part (on a grazing surface the depth spread is wide).
+                    const int* order = &bs.cl_order[s0];
+                    for (int c = bs.cl_first[e], b = 0; c < bs.cl_first[e + 1]; b = bs.cl_ends[c++]) {
+                        const int end = bs.cl_ends[c];
+                        if (bs.cl_refined[c]) {
                             for (int q = b; q < end; ++q) {
                                 const size_t k = s0 + size_t(order[q]);
-                                const double seg = double(sub_t[k]) - (near_clip ? double(sub_t0[k]) : 0.0);
-                                const double Tr_k = end - b == 1 ? bs.cl_Tr[c]
-                                                                 : bs.cl_Tr[c] * std::exp(-sigma_bg * (seg - seg_c));
-                                Tr_all += Tr_k;
-                                if (!std::isinf(sub_t[k])) Tr_hits += Tr_k, ++hits;
+                                Tr_all += sub_Tr[k];
+                                La += sub_La[k];
+                                if (!std::isinf(sub_t[k])) Tr_hits += sub_Tr[k], ++hits;
                             }
+                            continue;
+                        }
+                        La += double(end - b) * bs.cl_La[c];
+                        if (std::isinf(bs.cl_t[c])) {
+                            Tr_all += double(end - b) * bs.cl_Tr[c];
+                            continue;
+                        }
+                        const double seg_c = double(bs.cl_t[c]) - (near_clip ? double(bs.cl_t0[c]) : 0.0);
+                        for (int q = b; q < end; ++q) {
+                            const size_t k = s0 + size_t(order[q]);
+                            const double seg = double(sub_t[k]) - (near_clip ? double(sub_t0[k]) : 0.0);
+                            const double Tr_k = end - b == 1 ? bs.cl_Tr[c]
+                                                             : bs.cl_Tr[c] * std::exp(-sigma_bg * (seg - seg_c));
+                            Tr_all += Tr_k;
+                            if (!std::isinf(sub_t[k])) Tr_hits += Tr_k, ++hits;
                         }
                     }
-                    // No sample hit, yet the pixel was flagged: a surface lies in the
-                    // filter's tail (coverage < 1/(2N), e.g. 2 % of an emitter showing
-                    // in the render). The render there is that surface's light, so use
-                    // the transmittance of the neighbouring hits' centre samples (with
-                    // the all-sample mean, 0, that light would vanish: measured -20 %
-                    // on such pixels of the halo scene).
-                    if (hits == 0) {
-                        for (int dj = -1; dj <= 1; ++dj)
-                            for (int di = -1; di <= 1; ++di) {
-                                const int ni = i + di, nj = j + dj;
-                                if (ni < 0 || ni >= W || nj < 0 || nj >= H) continue;
-                                const float depth_n = result.depth[size_t(nj) * W + ni];
-                                if (std::isinf(depth_n)) continue;
-                                // (cached per row: neighbouring pixels without hits share neighbours)
-                                const size_t slot = size_t(dj + 1) * W + size_t(ni);
-                                if (bs.fb_row[slot] != j) {
-                                    double t_near = 0.0, t_far;
-                                    if (near_clip) rays.clip_range(rays(ni + 0.5, nj + 0.5), t_near, t_far);
-                                    bs.fb_Tr[slot] = fog.transmittance(rays(ni + 0.5, nj + 0.5), t_near, double(depth_n));
-                                    bs.fb_row[slot] = j;
-                                }
-                                Tr_hits += bs.fb_Tr[slot];
-                                ++hits;
-                            }
-                    }
-                    const double Tr = hits > 0 ? Tr_hits / hits : Tr_all / double(n_sub);
-                    La /= double(n_sub);
-                    for (int c = 0; c < 3; ++c) {
-                        A[3 * i + c] = float(La[c]);
-                        T[3 * i + c] = float(Tr);
-                    }
-                    ++band_supersampled;
-                    if (!clustered) band_samples += (long long)n_sub - 1;
                 }
-                edge_ns += std::chrono::duration_cast<std::chrono::nanoseconds>(Clock::now() - edge_start).count();
+                // No sample hit, yet the pixel was flagged: a surface lies in the
+                // filter's tail (coverage < 1/(2N), e.g. 2 % of an emitter showing
+                // in the render). The render there is that surface's light, so use
+                // the transmittance of the neighbouring hits' centre samples (with
+                // the all-sample mean, 0, that light would vanish: measured -20 %
+                // on such pixels of the halo scene).
+                if (hits == 0) {
+                    for (int dj = -1; dj <= 1; ++dj)
+                        for (int di = -1; di <= 1; ++di) {
+                            const int ni = i + di, nj = j + dj;
+                            if (ni < 0 || ni >= W || nj < 0 || nj >= H) continue;
+                            const float depth_n = result.depth[size_t(nj) * W + ni];
+                            if (std::isinf(depth_n)) continue;
+                            // (cached per row: neighbouring pixels without hits share neighbours)
+                            const size_t slot = size_t(dj + 1) * W + size_t(ni);
+                            if (bs.fb_row[slot] != j) {
+                                double t_near = 0.0, t_far;
+                                if (near_clip) rays.clip_range(rays(ni + 0.5, nj + 0.5), t_near, t_far);
+                                bs.fb_Tr[slot] = fog.transmittance(rays(ni + 0.5, nj + 0.5), t_near, double(depth_n));
+                                bs.fb_row[slot] = j;
+                            }
+                            Tr_hits += bs.fb_Tr[slot];
+                            ++hits;
+                        }
+                }
+                const double Tr = hits > 0 ? Tr_hits / hits : Tr_all / double(n_sub);
+                La /= double(n_sub);
+                for (int c = 0; c < 3; ++c) {
+                    A[3 * i + c] = float(La[c]);
+                    T[3 * i + c] = float(Tr);
+                }
+                ++band_supersampled;
+                if (!clustered) band_samples += (long long)n_sub - 1;
             }
+            edge_ns += std::chrono::duration_cast<std::chrono::nanoseconds>(Clock::now() - edge_start).count();
             supersampled += band_supersampled;
             samples += band_samples;
         },
-        reporter(band_progress_begin, 1.0));
+        [&, n_runs = int(edge_runs.size())](int done) {
+            if (!progress) return;
+            if (!progress(done == n_runs ? 1.0 : edges_begin + (1.0 - edges_begin) * done / n_runs)) throw Cancelled();
+        });
+    if (progress && edge_runs.empty() && !progress(1.0)) throw Cancelled();
     result.stats.seconds_airlight = seconds_since(start);
     result.stats.supersampled_pixels = supersampled;
     result.stats.seconds_edges = 1e-9 * double(edge_ns);

@@ -200,8 +200,11 @@ def test05_gaussians_at_reduced_resolution():
 
     for key in ("airlight", "transmittance"):
         e_got, e_ref = err(got, key), err(ref, key)
-        assert e_got.max() <= 1.1 * e_ref.max() + 2e-4, (key, e_got.max(), e_ref.max())
-        assert e_got.mean() <= 1.1 * e_ref.mean() + 2e-5, (key, e_got.mean(), e_ref.mean())
+        # (+ the clusters' own error, <= 1e-3 as in the other tests: near the lights the
+        # per-sample path is now nearly exact, rbf_splat.h's light criterion keeping the
+        # Gaussians there off the lattice, so the slack must hold it)
+        assert e_got.max() <= 1.1 * e_ref.max() + 1e-3, (key, e_got.max(), e_ref.max())
+        assert e_got.mean() <= 1.1 * e_ref.mean() + 1e-4, (key, e_got.mean(), e_ref.mean())
     assert got["stats"]["samples"] * 1.0 < ref["stats"]["samples"]
 
 
