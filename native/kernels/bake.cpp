@@ -1696,10 +1696,6 @@ BakeResult bake(const SceneDescription& scene, const BakeSettings& settings, con
         std::vector<float> ref_t, ref_t0;
         std::vector<double> ref_Tr;
         std::vector<RGB> ref_La;
-        // The hits == 0 fallback's neighbour transmittances of rows j - 1 .. j + 1,
-        // slot (dj + 1) W + i, valid where fb_row holds j.
-        std::vector<double> fb_Tr;
-        std::vector<int> fb_row;
         CastScratch cast_scratch;
         std::vector<unsigned char> kink, edge;
         RowRays r;
@@ -1792,6 +1788,7 @@ BakeResult bake(const SceneDescription& scene, const BakeSettings& settings, con
             edge_i.push_back(list[k].second);
             ++edge_runs.back().count;
         }
+    std::vector<float> edge_out(4 * edge_i.size());
     run_parallel(
         int(edge_runs.size()), n_threads,
         [&](int run) {
@@ -1809,19 +1806,14 @@ BakeResult bake(const SceneDescription& scene, const BakeSettings& settings, con
             edge_px.assign(edge_i.begin() + er.first, edge_i.begin() + er.first + er.count);
             CastScratch& cast_scratch = bs.cast_scratch;
             FogScratch fog_scratch;
-            bool fb_reset = false;
             long long band_supersampled = 0, band_samples = 0;
-            const size_t p0 = size_t(j) * W;
-            float* A = &result.airlight[3 * p0];
-            float* T = &result.transmittance[3 * p0];
+            // Results go to edge_out (4 floats per edge pixel: airlight, transmittance) and
+            // into the images after the pass: the images keep the centre samples meanwhile,
+            // which the hits == 0 fallback below reads.
+            float* out = &edge_out[4 * size_t(er.first)];
             // The sub-pixel rays of all the run's pixels at once: cast as packets and
             // evaluated in full SIMD chunks, then averaged per pixel.
             const auto edge_start = Clock::now();
-            if (!fb_reset) {  // (the pooled scratch may hold another bake's rows)
-                bs.fb_row.assign(3 * size_t(W), -1);
-                bs.fb_Tr.resize(3 * size_t(W));
-                fb_reset = true;
-            }
             const size_t m = edge_px.size() * n_sub;
             sub.resize(m);
             sub_t.resize(m);
@@ -1992,26 +1984,16 @@ BakeResult bake(const SceneDescription& scene, const BakeSettings& settings, con
                         for (int di = -1; di <= 1; ++di) {
                             const int ni = i + di, nj = j + dj;
                             if (ni < 0 || ni >= W || nj < 0 || nj >= H) continue;
-                            const float depth_n = result.depth[size_t(nj) * W + ni];
-                            if (std::isinf(depth_n)) continue;
-                            // (cached per row: neighbouring pixels without hits share neighbours)
-                            const size_t slot = size_t(dj + 1) * W + size_t(ni);
-                            if (bs.fb_row[slot] != j) {
-                                double t_near = 0.0, t_far;
-                                if (near_clip) rays.clip_range(rays(ni + 0.5, nj + 0.5), t_near, t_far);
-                                bs.fb_Tr[slot] = fog.transmittance(rays(ni + 0.5, nj + 0.5), t_near, double(depth_n));
-                                bs.fb_row[slot] = j;
-                            }
-                            Tr_hits += bs.fb_Tr[slot];
+                            const size_t q = size_t(nj) * W + size_t(ni);
+                            if (std::isinf(result.depth[q])) continue;
+                            Tr_hits += double(result.transmittance[3 * q]);  // its centre sample
                             ++hits;
                         }
                 }
                 const double Tr = hits > 0 ? Tr_hits / hits : Tr_all / double(n_sub);
                 La /= double(n_sub);
-                for (int c = 0; c < 3; ++c) {
-                    A[3 * i + c] = float(La[c]);
-                    T[3 * i + c] = float(Tr);
-                }
+                for (int c = 0; c < 3; ++c) out[4 * e + c] = float(La[c]);
+                out[4 * e + 3] = float(Tr);
                 ++band_supersampled;
                 if (!clustered) band_samples += (long long)n_sub - 1;
             }
@@ -2024,6 +2006,15 @@ BakeResult bake(const SceneDescription& scene, const BakeSettings& settings, con
             if (!progress(done == n_runs ? 1.0 : edges_begin + (1.0 - edges_begin) * done / n_runs)) throw Cancelled();
         });
     if (progress && edge_runs.empty() && !progress(1.0)) throw Cancelled();
+    for (const EdgeRun& er : edge_runs)
+        for (int e = 0; e < er.count; ++e) {
+            const size_t p = size_t(er.j) * W + size_t(edge_i[size_t(er.first + e)]);
+            const float* v = &edge_out[4 * size_t(er.first + e)];
+            for (int c = 0; c < 3; ++c) {
+                result.airlight[3 * p + c] = v[c];
+                result.transmittance[3 * p + c] = v[3];
+            }
+        }
     result.stats.seconds_airlight = seconds_since(start);
     result.stats.supersampled_pixels = supersampled;
     result.stats.seconds_edges = 1e-9 * double(edge_ns);
