@@ -44,7 +44,7 @@ RGB albedo_of(const py::object& obj) {
 
 py::dict stats_dict(const AverageDepthStats& s) {
     return py::dict("points"_a = s.points, "near_terms"_a = s.near_terms, "far_terms"_a = s.far_terms,
-                    "linear_terms"_a = s.linear_terms);
+                    "linear_terms"_a = s.linear_terms, "far_linear_terms"_a = s.far_linear_terms);
 }
 
 }  // namespace

@@ -342,14 +342,21 @@ std::uint32_t RbfAverageDepth::build(std::uint32_t begin, std::uint32_t end) {
     return ni;
 }
 
+struct RbfAverageDepth::Scratch {
+    std::vector<std::uint32_t> far, near;           // accepted nodes, near Gaussians
+    std::vector<std::pair<double, std::uint32_t>> cand;  // (linearisation error, far / near index)
+    std::vector<double> soa[6];
+};
+
 void RbfAverageDepth::evaluate_group(const Vec3* p, const std::uint32_t* idx, std::size_t m, double* out, double tol,
-                                     std::vector<std::uint32_t>& far, std::vector<std::uint32_t>& near,
-                                     std::vector<double> (&soa)[6], AverageDepthStats& stats) const {
+                                     Scratch& scratch, AverageDepthStats& stats) const {
     const double* table = phi_table().v.data();
+    std::vector<std::uint32_t>& far = scratch.far;
+    std::vector<std::uint32_t>& near = scratch.near;
     far.clear();
     near.clear();
     Vec3 group_C(0.0);
-    double group_rho = 0.0, group_LB = 0.0;
+    double group_rho = 0.0, group_LB = 0.0, spent = 0.0;  // spent: the accepted nodes' error bounds
     if (!nodes_.empty()) {
         // The group's bounding sphere (centre _C_, radius _rho_).
         Vec3 lo(INFINITY), hi(-INFINITY);
@@ -370,7 +377,7 @@ void RbfAverageDepth::evaluate_group(const Vec3* p, const std::uint32_t* idx, st
                 const double u = n.a_max * (glm::length(n.B2 - C) + rho + n.R2);
                 LB += n.C * average_depth_fast(table, u);
             }
-            budget = 0.5 * tol * LB / W_all_;  // half for the far field, half for linear near terms
+            budget = 0.5 * tol * LB / W_all_;  // half for the expansions; the rest for linear models
         }
         group_C = C;
         group_rho = rho;
@@ -393,6 +400,7 @@ void RbfAverageDepth::evaluate_group(const Vec3* p, const std::uint32_t* idx, st
                                          kRhoBound * n.X / (dr5 * dr);
                         if (e <= budget * n.W) {
                             far.push_back(std::uint32_t(&n - nodes_.data()));
+                            spent += e;
                             continue;
                         }
                     }
@@ -409,34 +417,80 @@ void RbfAverageDepth::evaluate_group(const Vec3* p, const std::uint32_t* idx, st
             }
         }
     }
-    // Near Gaussians whose Tbar_i is linear over the group to within their share of the other
-    // half of the budget, |Tbar_i(p) - Tbar_i(C) - grad . (p - C)| <= c a K(u_min) rho^2 / 2 <=
-    // tol LB / 2 (c_i / a_i) / sum_j c_j / a_j, go into one linear model V + G . (p - C); the
-    // rest are evaluated at every point.
+    // Linear models. What the expansions left of the budget tol LB (>= tol LB / 2) goes to terms
+    // taken through one linear model V + G . (p - C) of the group (value and gradient at C),
+    // smallest linearisation error first:
+    //  - an accepted node's expansion E: |E(p) - E(C) - grad E(C) . (p - C)| <= H rho^2 / 2 with
+    //    H >= the norm of E's Hessian on the ball |p - C| <= rho (rbf_environment.h);
+    //  - a near Gaussian: |Tbar_i(p) - Tbar_i(C) - grad . (p - C)| <= c a K(u_min) rho^2 / 2.
+    // The rest are evaluated at every point.
     double V = 0.0;
     Vec3 G(0.0);
-    std::size_t linear = 0;
-    if (tol > 0.0 && group_LB > 0.0 && !nodes_.empty() && nodes_[0].C > 0.0) {
-        const CurvatureEnvelope& K = curvature_envelope();
-        const double share = 0.5 * tol * group_LB / nodes_[0].C;
-        std::size_t kept = 0;
-        for (std::uint32_t i : near) {
-            const double a = a_[i], ca = c_[i] / a;
-            const Vec3 d = group_C - b_[i];
-            const double dist = glm::length(d);
-            const double u_min = a * std::max(0.0, dist - group_rho);
-            if (0.5 * c_[i] * a * K(u_min) * group_rho * group_rho <= share * ca) {
-                const double u = a * dist;
-                V += ca * average_depth_fast(table, u);
-                if (dist > 0.0) G += (c_[i] * average_depth_fast_derivative(table, u) / dist) * d;
-                ++linear;
-            } else {
-                near[kept++] = i;
+    std::size_t linear = 0, far_linear = 0;
+    constexpr std::uint32_t kFarTag = 0x80000000u, kTaken = 0xffffffffu;
+    if (tol > 0.0 && group_LB > 0.0 && !nodes_.empty()) {
+        const double half_rho2 = 0.5 * group_rho * group_rho;
+        auto& cand = scratch.cand;
+        cand.clear();
+        double total = 0.0;
+        for (std::size_t j = 0; j < far.size(); ++j) {
+            const Node& n = nodes_[far[j]];
+            const double r = glm::length(group_C - n.B2) - group_rho, r4 = glm::length(group_C - n.B4) - group_rho;
+            const double ir2 = 1.0 / (r * r), ir4_2 = 1.0 / (r4 * r4);
+            const double H = (6.0 * n.W + 60.0 * (n.Q[0] + n.Q[1] + n.Q[2]) * ir2) * ir2 * ir2 +
+                             20.0 * n.V * ir4_2 * ir4_2 * ir4_2;
+            const double e = H * half_rho2;
+            total += e;
+            cand.emplace_back(e, std::uint32_t(j) | kFarTag);
+        }
+        if (nodes_[0].C > 0.0) {
+            const CurvatureEnvelope& K = curvature_envelope();
+            for (std::size_t j = 0; j < near.size(); ++j) {
+                const std::uint32_t i = near[j];
+                const double a = a_[i];
+                const double u_min = a * std::max(0.0, glm::length(group_C - b_[i]) - group_rho);
+                const double e = c_[i] * a * K(u_min) * half_rho2;
+                total += e;
+                cand.emplace_back(e, std::uint32_t(j));
             }
         }
-        near.resize(kept);
+        double left = tol * group_LB - spent;
+        if (total > left) std::sort(cand.begin(), cand.end());
+        for (const auto& ce : cand) {
+            if (ce.first > left) break;
+            left -= ce.first;
+            const std::uint32_t j = ce.second & ~kFarTag;
+            if (ce.second & kFarTag) {
+                // E and its gradient at C (monopole + quadrupole about B2, monopole about B4).
+                const Node& n = nodes_[far[j]];
+                const Vec3 d = group_C - n.B2;
+                const double inv = 1.0 / glm::dot(d, d);
+                const Vec3 Qd(n.Q[0] * d.x + n.Q[3] * d.y + n.Q[4] * d.z, n.Q[3] * d.x + n.Q[1] * d.y + n.Q[5] * d.z,
+                              n.Q[4] * d.x + n.Q[5] * d.y + n.Q[2] * d.z);
+                const double dQd = glm::dot(d, Qd), trQ = n.Q[0] + n.Q[1] + n.Q[2];
+                const Vec3 d4 = group_C - n.B4;
+                const double is4 = 1.0 / glm::dot(d4, d4);
+                V += n.W * inv + (4.0 * dQd * inv - trQ) * inv * inv + n.V * is4 * is4;
+                G += (-2.0 * n.W * inv * inv + (4.0 * trQ - 24.0 * dQd * inv) * inv * inv * inv) * d +
+                     (8.0 * inv * inv * inv) * Qd - (4.0 * n.V * is4 * is4 * is4) * d4;
+                far[j] = kTaken;
+                ++far_linear;
+            } else {
+                const std::uint32_t i = near[j];
+                const double ca = c_[i] / a_[i];
+                const Vec3 d = group_C - b_[i];
+                const double dist = glm::length(d), u = a_[i] * dist;
+                V += ca * average_depth_fast(table, u);
+                if (dist > 0.0) G += (c_[i] * average_depth_fast_derivative(table, u) / dist) * d;
+                near[j] = kTaken;
+                ++linear;
+            }
+        }
+        far.erase(std::remove(far.begin(), far.end(), kTaken), far.end());
+        near.erase(std::remove(near.begin(), near.end(), kTaken), near.end());
     }
     // The near Gaussians as arrays (b, a, c / a; soa[5] is scratch).
+    auto& soa = scratch.soa;
     for (auto& v : soa) v.resize(near.size());
     for (std::size_t j = 0; j < near.size(); ++j) {
         const std::uint32_t i = near[j];
@@ -468,6 +522,7 @@ void RbfAverageDepth::evaluate_group(const Vec3* p, const std::uint32_t* idx, st
     stats.far_terms += m * far.size();
     stats.near_terms += m * near.size();
     stats.linear_terms += m * linear;
+    stats.far_linear_terms += m * far_linear;
 }
 
 AverageDepthStats RbfAverageDepth::evaluate(const Vec3* p, std::size_t n, double* out, double tol, int threads) const {
@@ -499,18 +554,18 @@ AverageDepthStats RbfAverageDepth::evaluate(const Vec3* p, std::size_t n, double
     const std::size_t groups = (n + kGroup - 1) / kGroup;
     std::mutex mutex;
     parallel_chunks(groups, threads, 16, [&](std::size_t begin, std::size_t end) {
-        std::vector<std::uint32_t> far, near;
-        std::vector<double> soa[6];
+        Scratch scratch;
         AverageDepthStats stats;
         for (std::size_t g = begin; g < end; ++g) {
             const std::size_t first = g * kGroup, m = std::min(kGroup, n - first);
-            evaluate_group(p, idx.data() + first, m, out, tol, far, near, soa, stats);
+            evaluate_group(p, idx.data() + first, m, out, tol, scratch, stats);
         }
         std::lock_guard<std::mutex> lock(mutex);
         total.points += stats.points;
         total.near_terms += stats.near_terms;
         total.far_terms += stats.far_terms;
         total.linear_terms += stats.linear_terms;
+        total.far_linear_terms += stats.far_linear_terms;
     });
     return total;
 }

@@ -75,6 +75,7 @@ struct AverageDepthStats {
     std::size_t near_terms = 0;  // exact per-Gaussian evaluations
     std::size_t far_terms = 0;     // node expansions evaluated
     std::size_t linear_terms = 0;  // Gaussians taken through a group's linear model (no per-point cost)
+    std::size_t far_linear_terms = 0;  // node expansions taken through a group's linear model (once per group)
 };
 
 // Tbar(p) over the Gaussians of an RbfMedium (its beta0 times _distance_ D for the
@@ -103,10 +104,10 @@ class RbfAverageDepth {
         std::uint32_t left = 0, right = 0;   // children (leaf: count <= kLeaf and left == 0)
         bool leaf = true;
     };
+    struct Scratch;  // per-thread work arrays of evaluate_group
     std::uint32_t build(std::uint32_t begin, std::uint32_t end);
     void evaluate_group(const Vec3* p, const std::uint32_t* idx, std::size_t m, double* out, double tol,
-                        std::vector<std::uint32_t>& far, std::vector<std::uint32_t>& near,
-                        std::vector<double> (&soa)[6], AverageDepthStats& stats) const;
+                        Scratch& scratch, AverageDepthStats& stats) const;
 
     std::vector<Vec3> b_;
     std::vector<double> a_, c_;
