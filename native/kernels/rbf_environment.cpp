@@ -253,7 +253,9 @@ double average_depth_unit_fast(double u) {
 
 namespace {
 constexpr std::uint32_t kLeaf = 8;
-constexpr std::size_t kGroup = 16;  // points evaluated together (Morton order)
+constexpr std::size_t kBlock = 256;  // points that share a traversal and a linear model (Morton order) ...
+constexpr std::size_t kGroup = 16;   // ... and groups of them, with their own linear model
+constexpr double kBlockShare = 0.75;  // the block's part of the budget the expansions leave
 
 inline std::uint64_t spread_bits(std::uint64_t v) {  // 21 bits -> every third bit
     v &= 0x1fffff;
@@ -343,10 +345,25 @@ std::uint32_t RbfAverageDepth::build(std::uint32_t begin, std::uint32_t end) {
 }
 
 struct RbfAverageDepth::Scratch {
-    std::vector<std::uint32_t> far, near;           // accepted nodes, near Gaussians
+    std::vector<std::uint32_t> far, near;          // the block's accepted nodes and near Gaussians
+    std::vector<std::uint32_t> far_g, near_g;      // what a group of the block has left of them
+    std::vector<std::uint32_t> pending;            // nodes the block leaves to its groups to traverse
     std::vector<std::pair<double, std::uint32_t>> cand;  // (linearisation error, far / near index)
     std::vector<double> soa[6];
 };
+
+namespace {
+// The bounding sphere (centre C, radius rho) of points p[idx[0..m)].
+void bounding_sphere(const Vec3* p, const std::uint32_t* idx, std::size_t m, Vec3& C, double& rho) {
+    Vec3 lo(INFINITY), hi(-INFINITY);
+    for (std::size_t k = 0; k < m; ++k) {
+        lo = glm::min(lo, p[idx[k]]);
+        hi = glm::max(hi, p[idx[k]]);
+    }
+    C = 0.5 * (lo + hi);
+    rho = 0.5 * glm::length(hi - lo);
+}
+}  // namespace
 
 void RbfAverageDepth::evaluate_group(const Vec3* p, const std::uint32_t* idx, std::size_t m, double* out, double tol,
                                      Scratch& scratch, AverageDepthStats& stats) const {
@@ -355,20 +372,67 @@ void RbfAverageDepth::evaluate_group(const Vec3* p, const std::uint32_t* idx, st
     std::vector<std::uint32_t>& near = scratch.near;
     far.clear();
     near.clear();
-    Vec3 group_C(0.0);
-    double group_rho = 0.0, group_LB = 0.0, spent = 0.0;  // spent: the accepted nodes' error bounds
-    if (!nodes_.empty()) {
-        // The group's bounding sphere (centre _C_, radius _rho_).
-        Vec3 lo(INFINITY), hi(-INFINITY);
-        for (std::size_t k = 0; k < m; ++k) {
-            lo = glm::min(lo, p[idx[k]]);
-            hi = glm::max(hi, p[idx[k]]);
+    // Traversal from node _root_ for the sphere (C, rho): a node is accepted (into _fl_) when its
+    // expansion's error bound e fits its share budget W of tol LB / 2; the Gaussians of leaves
+    // not accepted go into _nl_. With _pending_, a node not accepted that would be for the
+    // smaller radius _route_rho_ goes there instead, for the block's groups to traverse.
+    // Returns the sum of the accepted nodes' e.
+    auto accept_error = [&](const Node& n, const Vec3& C, double rho) -> double {
+        const double dr = glm::length(n.B2 - C) - rho - n.R2;
+        if (!(dr > 0.0 && n.a_min * dr >= kUFar)) return INFINITY;
+        const double dr4 = glm::length(n.B4 - C) - rho - n.R4;
+        if (!(dr4 > 0.0)) return INFINITY;
+        const double dr2 = dr * dr, dr5 = dr2 * dr2 * dr, dr4_2 = dr4 * dr4;
+        return 4.0 * n.W * n.R2 * n.R2 * n.R2 / dr5 + 10.0 * n.V * n.R4 * n.R4 / (dr4_2 * dr4_2 * dr4_2) +
+               kRhoBound * n.X / (dr5 * dr);
+    };
+    auto traverse = [&](const Vec3& C, double rho, std::uint32_t root, double budget, double route_rho,
+                        std::vector<std::uint32_t>& fl, std::vector<std::uint32_t>& nl,
+                        std::vector<std::uint32_t>* pending) {
+        double sum = 0.0;
+        std::uint32_t stack[128];
+        int sp = 0;
+        stack[sp++] = root;
+        while (sp > 0) {
+            const std::uint32_t ni = stack[--sp];
+            const Node& n = nodes_[ni];
+            if (n.W <= 0.0) continue;  // every c_i = 0
+            if (budget > 0.0) {
+                const double e = accept_error(n, C, rho);
+                if (e <= budget * n.W) {
+                    fl.push_back(ni);
+                    sum += e;
+                    continue;
+                }
+                if (pending && accept_error(n, C, route_rho) <= budget * n.W) {
+                    pending->push_back(ni);
+                    continue;
+                }
+            }
+            if (n.leaf) {
+                for (std::uint32_t k = 0; k < n.count; ++k) {
+                    const std::uint32_t i = order_[n.first + k];
+                    if (c_[i] > 0.0) nl.push_back(i);
+                }
+            } else {
+                stack[sp++] = n.right;
+                stack[sp++] = n.left;
+            }
         }
-        const Vec3 C = 0.5 * (lo + hi);
-        const double rho = 0.5 * glm::length(hi - lo);
-        // Lower bound LB of Tbar over the group (T decreasing, a_i r_i <= a_max (|B2 - C| + rho + R2)),
+        return sum;
+    };
+    // The block (m <= kBlock points): its bounding sphere, the lower bound LB of Tbar over it and
+    // the traversal; the expansions' error bounds add up to _spent_ <= tol LB / 2.
+    Vec3 block_C(0.0);
+    double block_rho = 0.0, LB = 0.0, spent = 0.0, block_budget = 0.0;
+    scratch.pending.clear();
+    bounding_sphere(p, idx, m, block_C, block_rho);
+    if (!nodes_.empty()) {
+        const Vec3 C = block_C;
+        const double rho = block_rho;
+        // Lower bound LB of Tbar over the block (T decreasing, a_i r_i <= a_max (|B2 - C| + rho + R2)),
         // then the error budget per unit node weight.
-        double budget = 0.0, LB = 0.0;
+        double budget = 0.0;
         if (tol > 0.0 && W_all_ > 0.0) {
             LB = base_;
             for (std::uint32_t li : leaves_) {
@@ -379,150 +443,167 @@ void RbfAverageDepth::evaluate_group(const Vec3* p, const std::uint32_t* idx, st
             }
             budget = 0.5 * tol * LB / W_all_;  // half for the expansions; the rest for linear models
         }
-        group_C = C;
-        group_rho = rho;
-        group_LB = LB;
-        // Traverse: accept a node when its error bound fits its share of the budget.
-        std::uint32_t stack[128];
-        int sp = 0;
-        stack[sp++] = 0;
-        while (sp > 0) {
-            const Node& n = nodes_[stack[--sp]];
-            if (n.W <= 0.0) continue;  // every c_i = 0
-            if (budget > 0.0) {
-                const double dr = glm::length(n.B2 - C) - rho - n.R2;
-                if (dr > 0.0 && n.a_min * dr >= kUFar) {
-                    const double dr4 = glm::length(n.B4 - C) - rho - n.R4;
-                    if (dr4 > 0.0) {
-                        const double dr2 = dr * dr, dr5 = dr2 * dr2 * dr, dr4_2 = dr4 * dr4;
-                        const double e = 4.0 * n.W * n.R2 * n.R2 * n.R2 / dr5 +
-                                         10.0 * n.V * n.R4 * n.R4 / (dr4_2 * dr4_2 * dr4_2) +
-                                         kRhoBound * n.X / (dr5 * dr);
-                        if (e <= budget * n.W) {
-                            far.push_back(std::uint32_t(&n - nodes_.data()));
-                            spent += e;
-                            continue;
-                        }
-                    }
-                }
-            }
-            if (n.leaf) {
-                for (std::uint32_t k = 0; k < n.count; ++k) {
-                    const std::uint32_t i = order_[n.first + k];
-                    if (c_[i] > 0.0) near.push_back(i);
-                }
-            } else {
-                stack[sp++] = n.right;
-                stack[sp++] = n.left;
-            }
-        }
+        block_budget = budget;
+        spent = traverse(C, rho, 0, block_budget, 0.125 * rho, far, near, &scratch.pending);
     }
-    // Linear models. What the expansions left of the budget tol LB (>= tol LB / 2) goes to terms
-    // taken through one linear model V + G . (p - C) of the group (value and gradient at C),
-    // smallest linearisation error first:
+    // Linear models. Terms go into a linear model V + G . (p - C) over a sphere (C, rho) (value
+    // and gradient at C), smallest linearisation error first, while the errors fit _left_:
     //  - an accepted node's expansion E: |E(p) - E(C) - grad E(C) . (p - C)| <= H rho^2 / 2 with
     //    H >= the norm of E's Hessian on the ball |p - C| <= rho (rbf_environment.h);
     //  - a near Gaussian: |Tbar_i(p) - Tbar_i(C) - grad . (p - C)| <= c a K(u_min) rho^2 / 2.
-    // The rest are evaluated at every point.
-    double V = 0.0;
-    Vec3 G(0.0);
-    std::size_t linear = 0, far_linear = 0;
+    // Taken entries of far / near are removed; returns the errors spent.
+    const bool linearise = tol > 0.0 && LB > 0.0 && !nodes_.empty();
     constexpr std::uint32_t kFarTag = 0x80000000u, kTaken = 0xffffffffu;
-    if (tol > 0.0 && group_LB > 0.0 && !nodes_.empty()) {
-        const double half_rho2 = 0.5 * group_rho * group_rho;
+    auto linear_model = [&](const Vec3& C, double rho, double left, std::vector<std::uint32_t>& fl,
+                            std::vector<std::uint32_t>& nl, double& V, Vec3& G, std::size_t& far_linear,
+                            std::size_t& linear) {
+        V = 0.0;
+        G = Vec3(0.0);
+        far_linear = linear = 0;
+        if (!linearise || left <= 0.0) return 0.0;
+        const double half_rho2 = 0.5 * rho * rho;
         auto& cand = scratch.cand;
         cand.clear();
         double total = 0.0;
-        for (std::size_t j = 0; j < far.size(); ++j) {
-            const Node& n = nodes_[far[j]];
-            const double r = glm::length(group_C - n.B2) - group_rho, r4 = glm::length(group_C - n.B4) - group_rho;
+        for (std::size_t j = 0; j < fl.size(); ++j) {
+            const Node& n = nodes_[fl[j]];
+            // r, r4: lower bounds of |p - B2|, |p - B4| on the sphere (a group's sphere need not
+            // lie inside its block's, for which the node was accepted).
+            const double r = glm::length(C - n.B2) - rho, r4 = glm::length(C - n.B4) - rho;
             const double ir2 = 1.0 / (r * r), ir4_2 = 1.0 / (r4 * r4);
             const double H = (6.0 * n.W + 60.0 * (n.Q[0] + n.Q[1] + n.Q[2]) * ir2) * ir2 * ir2 +
                              20.0 * n.V * ir4_2 * ir4_2 * ir4_2;
-            const double e = H * half_rho2;
+            const double e = r > 0.0 && r4 > 0.0 ? H * half_rho2 : INFINITY;
             total += e;
             cand.emplace_back(e, std::uint32_t(j) | kFarTag);
         }
         if (nodes_[0].C > 0.0) {
             const CurvatureEnvelope& K = curvature_envelope();
-            for (std::size_t j = 0; j < near.size(); ++j) {
-                const std::uint32_t i = near[j];
+            for (std::size_t j = 0; j < nl.size(); ++j) {
+                const std::uint32_t i = nl[j];
                 const double a = a_[i];
-                const double u_min = a * std::max(0.0, glm::length(group_C - b_[i]) - group_rho);
+                const double u_min = a * std::max(0.0, glm::length(C - b_[i]) - rho);
                 const double e = c_[i] * a * K(u_min) * half_rho2;
                 total += e;
                 cand.emplace_back(e, std::uint32_t(j));
             }
         }
-        double left = tol * group_LB - spent;
-        if (total > left) std::sort(cand.begin(), cand.end());
-        for (const auto& ce : cand) {
-            if (ce.first > left) break;
-            left -= ce.first;
-            const std::uint32_t j = ce.second & ~kFarTag;
-            if (ce.second & kFarTag) {
+        auto take = [&](std::uint32_t tag) {
+            const std::uint32_t j = tag & ~kFarTag;
+            if (tag & kFarTag) {
                 // E and its gradient at C (monopole + quadrupole about B2, monopole about B4).
-                const Node& n = nodes_[far[j]];
-                const Vec3 d = group_C - n.B2;
+                const Node& n = nodes_[fl[j]];
+                const Vec3 d = C - n.B2;
                 const double inv = 1.0 / glm::dot(d, d);
                 const Vec3 Qd(n.Q[0] * d.x + n.Q[3] * d.y + n.Q[4] * d.z, n.Q[3] * d.x + n.Q[1] * d.y + n.Q[5] * d.z,
                               n.Q[4] * d.x + n.Q[5] * d.y + n.Q[2] * d.z);
                 const double dQd = glm::dot(d, Qd), trQ = n.Q[0] + n.Q[1] + n.Q[2];
-                const Vec3 d4 = group_C - n.B4;
+                const Vec3 d4 = C - n.B4;
                 const double is4 = 1.0 / glm::dot(d4, d4);
                 V += n.W * inv + (4.0 * dQd * inv - trQ) * inv * inv + n.V * is4 * is4;
                 G += (-2.0 * n.W * inv * inv + (4.0 * trQ - 24.0 * dQd * inv) * inv * inv * inv) * d +
                      (8.0 * inv * inv * inv) * Qd - (4.0 * n.V * is4 * is4 * is4) * d4;
-                far[j] = kTaken;
+                fl[j] = kTaken;
                 ++far_linear;
             } else {
-                const std::uint32_t i = near[j];
+                const std::uint32_t i = nl[j];
                 const double ca = c_[i] / a_[i];
-                const Vec3 d = group_C - b_[i];
+                const Vec3 d = C - b_[i];
                 const double dist = glm::length(d), u = a_[i] * dist;
                 V += ca * average_depth_fast(table, u);
                 if (dist > 0.0) G += (c_[i] * average_depth_fast_derivative(table, u) / dist) * d;
-                near[j] = kTaken;
+                nl[j] = kTaken;
                 ++linear;
             }
+        };
+        // Everything when it fits; else rounds that take every term with error <= (what is
+        // left) / (terms left): each round's errors add up to at most what was left.
+        double used = 0.0;
+        if (total <= left) {
+            for (const auto& ce : cand) take(ce.second);
+            used = total;
+        } else {
+            std::size_t n_left = cand.size();
+            for (int round = 0; round < 8 && n_left > 0; ++round) {
+                const double t = (left - used) / double(n_left);
+                double sum = 0.0;
+                std::size_t kept = 0;
+                for (std::size_t k = 0; k < n_left; ++k) {
+                    if (cand[k].first <= t) {
+                        sum += cand[k].first;
+                        take(cand[k].second);
+                    } else {
+                        cand[kept++] = cand[k];
+                    }
+                }
+                used += sum;
+                if (kept == n_left) break;
+                n_left = kept;
+            }
         }
-        far.erase(std::remove(far.begin(), far.end(), kTaken), far.end());
-        near.erase(std::remove(near.begin(), near.end(), kTaken), near.end());
-    }
-    // The near Gaussians as arrays (b, a, c / a; soa[5] is scratch).
+        if (far_linear > 0) fl.erase(std::remove(fl.begin(), fl.end(), kTaken), fl.end());
+        if (linear > 0) nl.erase(std::remove(nl.begin(), nl.end(), kTaken), nl.end());
+        return used;
+    };
+    // The block's linear model takes up to half of what the expansions left of tol LB ...
+    double block_V, group_V;
+    Vec3 block_G, group_G;
+    std::size_t block_far_linear, block_linear, far_linear, linear;
+    const double block_spent = linear_model(block_C, block_rho, kBlockShare * (tol * LB - spent), far, near, block_V,
+                                            block_G, block_far_linear, block_linear);
+    stats.far_linear_terms += m * block_far_linear;
+    stats.linear_terms += m * block_linear;
+    // ... and each group of kGroup points the rest, for the terms the block kept.
     auto& soa = scratch.soa;
-    for (auto& v : soa) v.resize(near.size());
-    for (std::size_t j = 0; j < near.size(); ++j) {
-        const std::uint32_t i = near[j];
-        soa[0][j] = b_[i].x;
-        soa[1][j] = b_[i].y;
-        soa[2][j] = b_[i].z;
-        soa[3][j] = a_[i];
-        soa[4][j] = c_[i] / a_[i];
-    }
-    for (std::size_t k = 0; k < m; ++k) {
-        const Vec3 x = p[idx[k]];
-        double sum = V + glm::dot(G, x - group_C);
-        for (std::uint32_t ni : far) {
-            const Node& n = nodes_[ni];
-            const Vec3 d = x - n.B2;
-            const double r2 = glm::dot(d, d), inv = 1.0 / r2;
-            const double dQd = n.Q[0] * d.x * d.x + n.Q[1] * d.y * d.y + n.Q[2] * d.z * d.z +
-                               2.0 * (n.Q[3] * d.x * d.y + n.Q[4] * d.x * d.z + n.Q[5] * d.y * d.z);
-            const double trQ = n.Q[0] + n.Q[1] + n.Q[2];
-            const Vec3 d4 = x - n.B4;
-            const double s4 = glm::dot(d4, d4);
-            sum += n.W * inv + (4.0 * dQd * inv - trQ) * inv * inv + n.V / (s4 * s4);
+    for (std::size_t first = 0; first < m; first += kGroup) {
+        const std::size_t mg = std::min(kGroup, m - first);
+        const std::uint32_t* gidx = idx + first;
+        Vec3 group_C;
+        double group_rho;
+        bounding_sphere(p, gidx, mg, group_C, group_rho);
+        std::vector<std::uint32_t>& far_g = scratch.far_g;
+        std::vector<std::uint32_t>& near_g = scratch.near_g;
+        far_g.assign(far.begin(), far.end());
+        near_g.assign(near.begin(), near.end());
+        double group_spent = 0.0;  // (the block's and the groups' accepted nodes are disjoint)
+        for (std::uint32_t ni : scratch.pending)
+            group_spent += traverse(group_C, group_rho, ni, block_budget, 0.0, far_g, near_g, nullptr);
+        linear_model(group_C, group_rho, tol * LB - spent - block_spent - group_spent, far_g, near_g, group_V, group_G,
+                     far_linear, linear);
+        // The near Gaussians as arrays (b, a, c / a; soa[5] is scratch).
+        for (auto& v : soa) v.resize(near_g.size());
+        for (std::size_t j = 0; j < near_g.size(); ++j) {
+            const std::uint32_t i = near_g[j];
+            soa[0][j] = b_[i].x;
+            soa[1][j] = b_[i].y;
+            soa[2][j] = b_[i].z;
+            soa[3][j] = a_[i];
+            soa[4][j] = c_[i] / a_[i];
         }
-        sum += near_sum(soa[0].data(), soa[1].data(), soa[2].data(), soa[3].data(), soa[4].data(), near.size(), x.x,
-                        x.y, x.z, table, soa[5].data());
-        out[idx[k]] = base_ + sum;
+        for (std::size_t k = 0; k < mg; ++k) {
+            const Vec3 x = p[gidx[k]];
+            double sum = block_V + glm::dot(block_G, x - block_C) + group_V + glm::dot(group_G, x - group_C);
+            for (std::uint32_t ni : far_g) {
+                const Node& n = nodes_[ni];
+                const Vec3 d = x - n.B2;
+                const double r2 = glm::dot(d, d), inv = 1.0 / r2;
+                const double dQd = n.Q[0] * d.x * d.x + n.Q[1] * d.y * d.y + n.Q[2] * d.z * d.z +
+                                   2.0 * (n.Q[3] * d.x * d.y + n.Q[4] * d.x * d.z + n.Q[5] * d.y * d.z);
+                const double trQ = n.Q[0] + n.Q[1] + n.Q[2];
+                const Vec3 d4 = x - n.B4;
+                const double s4 = glm::dot(d4, d4);
+                sum += n.W * inv + (4.0 * dQd * inv - trQ) * inv * inv + n.V / (s4 * s4);
+            }
+            sum += near_sum(soa[0].data(), soa[1].data(), soa[2].data(), soa[3].data(), soa[4].data(), near_g.size(),
+                            x.x, x.y, x.z, table, soa[5].data());
+            out[gidx[k]] = base_ + sum;
+        }
+        stats.far_terms += mg * far_g.size();
+        stats.near_terms += mg * near_g.size();
+        stats.linear_terms += mg * linear;
+        stats.far_linear_terms += mg * far_linear;
     }
     stats.points += m;
-    stats.far_terms += m * far.size();
-    stats.near_terms += m * near.size();
-    stats.linear_terms += m * linear;
-    stats.far_linear_terms += m * far_linear;
 }
 
 AverageDepthStats RbfAverageDepth::evaluate(const Vec3* p, std::size_t n, double* out, double tol, int threads) const {
@@ -536,7 +617,7 @@ AverageDepthStats RbfAverageDepth::evaluate(const Vec3* p, std::size_t n, double
     }
     AverageDepthStats total;
     if (n == 0) return total;
-    // Morton order, so that groups of kGroup consecutive points are compact.
+    // Morton order, so that blocks of kBlock consecutive points are compact.
     const Vec3 ext = glm::max(hi - lo, Vec3(1e-300));
     std::vector<std::uint64_t> key(n);
     parallel_chunks(n, threads, 65536, [&](std::size_t begin, std::size_t end) {
@@ -551,13 +632,13 @@ AverageDepthStats RbfAverageDepth::evaluate(const Vec3* p, std::size_t n, double
     std::vector<std::uint32_t> idx(n);
     for (std::size_t k = 0; k < n; ++k) idx[k] = std::uint32_t(key[k] & 0xffffffffu);
     key = {};
-    const std::size_t groups = (n + kGroup - 1) / kGroup;
+    const std::size_t blocks = (n + kBlock - 1) / kBlock;
     std::mutex mutex;
-    parallel_chunks(groups, threads, 16, [&](std::size_t begin, std::size_t end) {
+    parallel_chunks(blocks, threads, 1, [&](std::size_t begin, std::size_t end) {
         Scratch scratch;
         AverageDepthStats stats;
         for (std::size_t g = begin; g < end; ++g) {
-            const std::size_t first = g * kGroup, m = std::min(kGroup, n - first);
+            const std::size_t first = g * kBlock, m = std::min(kBlock, n - first);
             evaluate_group(p, idx.data() + first, m, out, tol, scratch, stats);
         }
         std::lock_guard<std::mutex> lock(mutex);
