@@ -106,6 +106,25 @@ inline double average_depth_fast_derivative(const double* table, double u) {
     return 0.5 * kSqrtPi * dphi;
 }
 
+// T(u) and T'(u) of the same model with one table lookup (the linear models' near Gaussians).
+inline void average_depth_fast_with_derivative(const double* table, double u, double& T, double& dT) {
+    if (u >= kTableMax) {
+        T = average_depth_fast(table, u);
+        dT = average_depth_fast_derivative(table, u);
+        return;
+    }
+    const double x = u * kTablePerUnit;
+    const int k = int(x);
+    const double s = x - k, s2 = s * s, s3 = s2 * s, h = 1.0 / kTablePerUnit;
+    const double* t = table + 2 * k;
+    T = 0.5 * kSqrtPi *
+        ((2.0 * s3 - 3.0 * s2 + 1.0) * t[0] + (s3 - 2.0 * s2 + s) * h * t[1] + (3.0 * s2 - 2.0 * s3) * t[2] +
+         (s3 - s2) * h * t[3]);
+    dT = 0.5 * kSqrtPi *
+         ((6.0 * s2 - 6.0 * s) * t[0] + (3.0 * s2 - 4.0 * s + 1.0) * h * t[1] + (6.0 * s - 6.0 * s2) * t[2] +
+          (3.0 * s2 - 2.0 * s) * h * t[3]) / h;
+}
+
 // phi'(u) and phi''(u) of phi = F / u (exact: series below 1, the asymptotic series from 16).
 void phi_derivatives(double u, double& d1, double& d2) {
     if (u < 1.0) {
@@ -510,8 +529,10 @@ void RbfAverageDepth::evaluate_group(const Vec3* p, const std::uint32_t* idx, st
                 const double ca = c_[i] / a_[i];
                 const Vec3 d = C - b_[i];
                 const double dist = glm::length(d), u = a_[i] * dist;
-                V += ca * average_depth_fast(table, u);
-                if (dist > 0.0) G += (c_[i] * average_depth_fast_derivative(table, u) / dist) * d;
+                double T, dT;
+                average_depth_fast_with_derivative(table, u, T, dT);
+                V += ca * T;
+                if (dist > 0.0) G += (c_[i] * dT / dist) * d;
                 nl[j] = kTaken;
                 ++linear;
             }
