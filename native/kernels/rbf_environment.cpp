@@ -363,7 +363,7 @@ std::uint32_t RbfAverageDepth::build(std::uint32_t begin, std::uint32_t end) {
     return ni;
 }
 
-struct RbfAverageDepth::Scratch {
+struct RbfAverageDepth::Scratch {  // (per thread)
     std::vector<std::uint32_t> far, near;          // the block's accepted nodes and near Gaussians
     std::vector<std::uint32_t> far_g, near_g;      // what a group of the block has left of them
     std::vector<std::uint32_t> pending;            // nodes the block leaves to its groups to traverse
@@ -384,7 +384,7 @@ void bounding_sphere(const Vec3* p, const std::uint32_t* idx, std::size_t m, Vec
 }
 }  // namespace
 
-void RbfAverageDepth::evaluate_group(const Vec3* p, const std::uint32_t* idx, std::size_t m, double* out, double tol,
+void RbfAverageDepth::evaluate_block(const Vec3* p, const std::uint32_t* idx, std::size_t m, double* out, double tol,
                                      Scratch& scratch, AverageDepthStats& stats) const {
     const double* table = phi_table().v.data();
     std::vector<std::uint32_t>& far = scratch.far;
@@ -396,6 +396,7 @@ void RbfAverageDepth::evaluate_group(const Vec3* p, const std::uint32_t* idx, st
     // not accepted go into _nl_. With _pending_, a node not accepted that would be for the
     // smaller radius _route_rho_ goes there instead, for the block's groups to traverse.
     // Returns the sum of the accepted nodes' e.
+    double W_pending = 0.0;  // weight of the nodes left pending (their groups' e <= budget W_pending)
     auto accept_error = [&](const Node& n, const Vec3& C, double rho) -> double {
         const double dr = glm::length(n.B2 - C) - rho - n.R2;
         if (!(dr > 0.0 && n.a_min * dr >= kUFar)) return INFINITY;
@@ -425,6 +426,7 @@ void RbfAverageDepth::evaluate_group(const Vec3* p, const std::uint32_t* idx, st
                 }
                 if (pending && accept_error(n, C, route_rho) <= budget * n.W) {
                     pending->push_back(ni);
+                    W_pending += n.W;
                     continue;
                 }
             }
@@ -466,11 +468,11 @@ void RbfAverageDepth::evaluate_group(const Vec3* p, const std::uint32_t* idx, st
         spent = traverse(C, rho, 0, block_budget, 0.125 * rho, far, near, &scratch.pending);
     }
     // Linear models. Terms go into a linear model V + G . (p - C) over a sphere (C, rho) (value
-    // and gradient at C), smallest linearisation error first, while the errors fit _left_:
+    // and gradient at C), smaller linearisation errors first, while the errors fit _left_:
     //  - an accepted node's expansion E: |E(p) - E(C) - grad E(C) . (p - C)| <= H rho^2 / 2 with
     //    H >= the norm of E's Hessian on the ball |p - C| <= rho (rbf_environment.h);
     //  - a near Gaussian: |Tbar_i(p) - Tbar_i(C) - grad . (p - C)| <= c a K(u_min) rho^2 / 2.
-    // Taken entries of far / near are removed; returns the errors spent.
+    // Taken entries of _fl_ / _nl_ are removed; returns the errors spent.
     const bool linearise = tol > 0.0 && LB > 0.0 && !nodes_.empty();
     constexpr std::uint32_t kFarTag = 0x80000000u, kTaken = 0xffffffffu;
     auto linear_model = [&](const Vec3& C, double rho, double left, std::vector<std::uint32_t>& fl,
@@ -566,11 +568,14 @@ void RbfAverageDepth::evaluate_group(const Vec3* p, const std::uint32_t* idx, st
         if (linear > 0) nl.erase(std::remove(nl.begin(), nl.end(), kTaken), nl.end());
         return used;
     };
-    // The block's linear model takes up to half of what the expansions left of tol LB ...
+    // The block's linear model takes up to kBlockShare of what the expansions left of tol LB
+    // (keeping back what the groups may spend on the pending nodes' expansions, <= budget
+    // W_pending: the block's and the groups' accepted nodes are disjoint) ...
     double block_V, group_V;
     Vec3 block_G, group_G;
     std::size_t block_far_linear, block_linear, far_linear, linear;
-    const double block_spent = linear_model(block_C, block_rho, kBlockShare * (tol * LB - spent), far, near, block_V,
+    const double block_left = kBlockShare * (tol * LB - spent - block_budget * W_pending);
+    const double block_spent = linear_model(block_C, block_rho, block_left, far, near, block_V,
                                             block_G, block_far_linear, block_linear);
     stats.far_linear_terms += m * block_far_linear;
     stats.linear_terms += m * block_linear;
@@ -586,7 +591,7 @@ void RbfAverageDepth::evaluate_group(const Vec3* p, const std::uint32_t* idx, st
         std::vector<std::uint32_t>& near_g = scratch.near_g;
         far_g.assign(far.begin(), far.end());
         near_g.assign(near.begin(), near.end());
-        double group_spent = 0.0;  // (the block's and the groups' accepted nodes are disjoint)
+        double group_spent = 0.0;
         for (std::uint32_t ni : scratch.pending)
             group_spent += traverse(group_C, group_rho, ni, block_budget, 0.0, far_g, near_g, nullptr);
         linear_model(group_C, group_rho, tol * LB - spent - block_spent - group_spent, far_g, near_g, group_V, group_G,
@@ -660,7 +665,7 @@ AverageDepthStats RbfAverageDepth::evaluate(const Vec3* p, std::size_t n, double
         AverageDepthStats stats;
         for (std::size_t g = begin; g < end; ++g) {
             const std::size_t first = g * kBlock, m = std::min(kBlock, n - first);
-            evaluate_group(p, idx.data() + first, m, out, tol, scratch, stats);
+            evaluate_block(p, idx.data() + first, m, out, tol, scratch, stats);
         }
         std::lock_guard<std::mutex> lock(mutex);
         total.points += stats.points;

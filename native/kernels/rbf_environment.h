@@ -54,8 +54,9 @@
 //    instead of one per point.
 //  - Tbar_i: its Hessian has norm <= c_i a_i K(u) with K(u) >= sup_{v >= u} max(|T''(v)|,
 //    |T'(v) / v|) (a sampled envelope), u = a_i (|C - b_i| - rho).
-// The block's model takes terms while their remainders add up to at most 3/4 (tol LB - S_block)
-// (S_block: its accepted nodes' e); each group's model then takes, of the terms the block kept
+// The block's model takes terms while their remainders add up to at most 3/4 (tol LB - S_block
+// - (tol / 2) LB W_pending / W_all) (S_block: its accepted nodes' e; the last term bounds what its
+// groups may accept among the pending nodes, of weight W_pending); each group's model then takes, of the terms the block kept
 // and the group's own, while the remainders fit tol LB - S - (the block's); smallest remainder
 // first (in rounds: every term <= what is left / terms left). The others are summed exactly
 // (near Gaussians) or through E (nodes) at every point. So
@@ -127,9 +128,9 @@ class RbfAverageDepth {
         std::uint32_t left = 0, right = 0;   // children (leaf: count <= kLeaf and left == 0)
         bool leaf = true;
     };
-    struct Scratch;  // per-thread work arrays of evaluate_group
+    struct Scratch;  // per-thread work arrays of evaluate_block
     std::uint32_t build(std::uint32_t begin, std::uint32_t end);
-    void evaluate_group(const Vec3* p, const std::uint32_t* idx, std::size_t m, double* out, double tol,
+    void evaluate_block(const Vec3* p, const std::uint32_t* idx, std::size_t m, double* out, double tol,
                         Scratch& scratch, AverageDepthStats& stats) const;
 
     std::vector<Vec3> b_;
