@@ -273,7 +273,8 @@ double average_depth_unit_fast(double u) {
 namespace {
 constexpr std::uint32_t kLeaf = 8;
 constexpr std::size_t kBlock = 256;  // points that share a traversal and a linear model (Morton order) ...
-constexpr std::size_t kGroup = 16;   // ... and groups of them, with their own linear model
+constexpr std::size_t kMid = 64;     // ... parts of them, with their own linear model ...
+constexpr std::size_t kGroup = 16;   // ... and groups of those, with their own linear model
 constexpr double kBlockShare = 0.75;  // the block's part of the budget the expansions leave
 
 inline std::uint64_t spread_bits(std::uint64_t v) {  // 21 bits -> every third bit
@@ -365,6 +366,7 @@ std::uint32_t RbfAverageDepth::build(std::uint32_t begin, std::uint32_t end) {
 
 struct RbfAverageDepth::Scratch {  // (per thread)
     std::vector<std::uint32_t> far, near;          // the block's accepted nodes and near Gaussians
+    std::vector<std::uint32_t> far_m, near_m;      // what a middle level of the block has left of them
     std::vector<std::uint32_t> far_g, near_g;      // what a group of the block has left of them
     std::vector<std::uint32_t> pending;            // nodes the block leaves to its groups to traverse
     std::vector<std::pair<double, std::uint32_t>> cand;  // (linearisation error, far / near index)
@@ -579,55 +581,75 @@ void RbfAverageDepth::evaluate_block(const Vec3* p, const std::uint32_t* idx, st
                                             block_G, block_far_linear, block_linear);
     stats.far_linear_terms += m * block_far_linear;
     stats.linear_terms += m * block_linear;
-    // ... and each group of kGroup points the rest, for the terms the block kept.
+    // ... each part of kMid points kBlockShare of what then remains, for the terms the block
+    // kept, and each group of kGroup points of the part the rest, for the terms the part kept
+    // and those it finds below the pending nodes.
     auto& soa = scratch.soa;
-    for (std::size_t first = 0; first < m; first += kGroup) {
-        const std::size_t mg = std::min(kGroup, m - first);
-        const std::uint32_t* gidx = idx + first;
-        Vec3 group_C;
-        double group_rho;
-        bounding_sphere(p, gidx, mg, group_C, group_rho);
-        std::vector<std::uint32_t>& far_g = scratch.far_g;
-        std::vector<std::uint32_t>& near_g = scratch.near_g;
-        far_g.assign(far.begin(), far.end());
-        near_g.assign(near.begin(), near.end());
-        double group_spent = 0.0;
-        for (std::uint32_t ni : scratch.pending)
-            group_spent += traverse(group_C, group_rho, ni, block_budget, 0.0, far_g, near_g, nullptr);
-        linear_model(group_C, group_rho, tol * LB - spent - block_spent - group_spent, far_g, near_g, group_V, group_G,
-                     far_linear, linear);
-        // The near Gaussians as arrays (b, a, c / a; soa[5] is scratch).
-        for (auto& v : soa) v.resize(near_g.size());
-        for (std::size_t j = 0; j < near_g.size(); ++j) {
-            const std::uint32_t i = near_g[j];
-            soa[0][j] = b_[i].x;
-            soa[1][j] = b_[i].y;
-            soa[2][j] = b_[i].z;
-            soa[3][j] = a_[i];
-            soa[4][j] = c_[i] / a_[i];
-        }
-        for (std::size_t k = 0; k < mg; ++k) {
-            const Vec3 x = p[gidx[k]];
-            double sum = block_V + glm::dot(block_G, x - block_C) + group_V + glm::dot(group_G, x - group_C);
-            for (std::uint32_t ni : far_g) {
-                const Node& n = nodes_[ni];
-                const Vec3 d = x - n.B2;
-                const double r2 = glm::dot(d, d), inv = 1.0 / r2;
-                const double dQd = n.Q[0] * d.x * d.x + n.Q[1] * d.y * d.y + n.Q[2] * d.z * d.z +
-                                   2.0 * (n.Q[3] * d.x * d.y + n.Q[4] * d.x * d.z + n.Q[5] * d.y * d.z);
-                const double trQ = n.Q[0] + n.Q[1] + n.Q[2];
-                const Vec3 d4 = x - n.B4;
-                const double s4 = glm::dot(d4, d4);
-                sum += n.W * inv + (4.0 * dQd * inv - trQ) * inv * inv + n.V / (s4 * s4);
+    for (std::size_t mid_first = 0; mid_first < m; mid_first += kMid) {
+        const std::size_t mm = std::min(kMid, m - mid_first);
+        Vec3 mid_C;
+        double mid_rho, mid_V;
+        Vec3 mid_G;
+        std::size_t mid_far_linear, mid_linear;
+        bounding_sphere(p, idx + mid_first, mm, mid_C, mid_rho);
+        std::vector<std::uint32_t>& far_m = scratch.far_m;
+        std::vector<std::uint32_t>& near_m = scratch.near_m;
+        far_m.assign(far.begin(), far.end());
+        near_m.assign(near.begin(), near.end());
+        const double mid_left = kBlockShare * (tol * LB - spent - block_budget * W_pending - block_spent);
+        const double mid_spent =
+            linear_model(mid_C, mid_rho, mid_left, far_m, near_m, mid_V, mid_G, mid_far_linear, mid_linear);
+        stats.far_linear_terms += mm * mid_far_linear;
+        stats.linear_terms += mm * mid_linear;
+        for (std::size_t first = mid_first; first < mid_first + mm; first += kGroup) {
+            const std::size_t mg = std::min(kGroup, mid_first + mm - first);
+            const std::uint32_t* gidx = idx + first;
+            Vec3 group_C;
+            double group_rho;
+            bounding_sphere(p, gidx, mg, group_C, group_rho);
+            std::vector<std::uint32_t>& far_g = scratch.far_g;
+            std::vector<std::uint32_t>& near_g = scratch.near_g;
+            far_g.assign(far_m.begin(), far_m.end());
+            near_g.assign(near_m.begin(), near_m.end());
+            double group_spent = 0.0;
+            for (std::uint32_t ni : scratch.pending)
+                group_spent += traverse(group_C, group_rho, ni, block_budget, 0.0, far_g, near_g, nullptr);
+            linear_model(group_C, group_rho, tol * LB - spent - block_spent - mid_spent - group_spent, far_g, near_g,
+                         group_V, group_G, far_linear, linear);
+            // The near Gaussians as arrays (b, a, c / a; soa[5] is scratch).
+            for (auto& v : soa) v.resize(near_g.size());
+            for (std::size_t j = 0; j < near_g.size(); ++j) {
+                const std::uint32_t i = near_g[j];
+                soa[0][j] = b_[i].x;
+                soa[1][j] = b_[i].y;
+                soa[2][j] = b_[i].z;
+                soa[3][j] = a_[i];
+                soa[4][j] = c_[i] / a_[i];
             }
-            sum += near_sum(soa[0].data(), soa[1].data(), soa[2].data(), soa[3].data(), soa[4].data(), near_g.size(),
-                            x.x, x.y, x.z, table, soa[5].data());
-            out[gidx[k]] = base_ + sum;
+            for (std::size_t k = 0; k < mg; ++k) {
+                const Vec3 x = p[gidx[k]];
+                double sum = block_V + glm::dot(block_G, x - block_C) + mid_V + glm::dot(mid_G, x - mid_C) + group_V +
+                             glm::dot(group_G, x - group_C);
+                for (std::uint32_t ni : far_g) {
+                    const Node& n = nodes_[ni];
+                    const Vec3 d = x - n.B2;
+                    const double r2 = glm::dot(d, d), inv = 1.0 / r2;
+                    const double dQd = n.Q[0] * d.x * d.x + n.Q[1] * d.y * d.y + n.Q[2] * d.z * d.z +
+                                       2.0 * (n.Q[3] * d.x * d.y + n.Q[4] * d.x * d.z + n.Q[5] * d.y * d.z);
+                    const double trQ = n.Q[0] + n.Q[1] + n.Q[2];
+                    const Vec3 d4 = x - n.B4;
+                    const double s4 = glm::dot(d4, d4);
+                    sum += n.W * inv + (4.0 * dQd * inv - trQ) * inv * inv + n.V / (s4 * s4);
+                }
+                sum += near_sum(soa[0].data(), soa[1].data(), soa[2].data(), soa[3].data(), soa[4].data(),
+                                near_g.size(), x.x, x.y, x.z, table, soa[5].data());
+                out[gidx[k]] = base_ + sum;
+            }
+            stats.far_terms += mg * far_g.size();
+            stats.near_terms += mg * near_g.size();
+            stats.linear_terms += mg * linear;
+            stats.far_linear_terms += mg * far_linear;
         }
-        stats.far_terms += mg * far_g.size();
-        stats.near_terms += mg * near_g.size();
-        stats.linear_terms += mg * linear;
-        stats.far_linear_terms += mg * far_linear;
     }
     stats.points += m;
 }

@@ -30,10 +30,10 @@
 // with R2, R4 the node's radii about B2, B4 and d, d4 lower bounds of |p - B2|, |p - B4|
 // (valid when every u_i >= 3).
 //
-// Points are evaluated in blocks of 256 (Morton order), each split into groups of 16; a block
-// or group is held as its bounding sphere (centre C, radius rho). A block first computes a lower
-// bound LB <= Tbar(p) of all its points (T is decreasing: per leaf, sum c_i / a_i T(a_max
-// (distance + R2))), then traverses the tree: a node is accepted when e <= (tol / 2) LB W_node
+// Points are evaluated in blocks of 256 (Morton order), split into parts of 64 and those into
+// groups of 16; each is held as its bounding sphere (centre C, radius rho). A block first
+// computes a lower bound LB <= Tbar(p) of all its points (T is decreasing: per leaf, sum c_i /
+// a_i T(a_max (distance + R2))), then traverses the tree: a node is accepted when e <= (tol / 2) LB W_node
 // / W_all for the block's sphere; a node not accepted that would be for radius rho / 8 is left
 // pending, and each group traverses the pending nodes with its own sphere and the same test.
 // The block's and its groups' accepted nodes are disjoint: their e add up to S <= tol LB / 2.
@@ -50,17 +50,18 @@
 //    its sup on the diagonal), times tr Q / 2:
 //      ||Hess E|| <= 6 W / r^4 + 60 tr Q / r^6 + 20 V / r4^6,  r = |C - B2| - rho, r4 = |C - B4| - rho
 //    (both > 0, else E is not linearised). Adjacent pixels' hit points lie within a fraction of
-//    a metre, so most accepted nodes cost one evaluation (value and gradient) per block or group
-//    instead of one per point.
+//    a metre, so most accepted nodes cost one evaluation (value and gradient) per block, part
+//    or group instead of one per point.
 //  - Tbar_i: its Hessian has norm <= c_i a_i K(u) with K(u) >= sup_{v >= u} max(|T''(v)|,
 //    |T'(v) / v|) (a sampled envelope), u = a_i (|C - b_i| - rho).
 // The block's model takes terms while their remainders add up to at most 3/4 (tol LB - S_block
 // - (tol / 2) LB W_pending / W_all) (S_block: its accepted nodes' e; the last term bounds what its
-// groups may accept among the pending nodes, of weight W_pending); each group's model then takes, of the terms the block kept
-// and the group's own, while the remainders fit tol LB - S - (the block's); smallest remainder
-// first (in rounds: every term <= what is left / terms left). The others are summed exactly
-// (near Gaussians) or through E (nodes) at every point. So
-//   |Tbar_approx(p) - Tbar(p)| <= S + (block's remainders) + (group's) <= tol LB <= tol Tbar(p)
+// groups may accept among the pending nodes, of weight W_pending); each part's model, of the
+// terms the block kept, 3/4 of what then remains; each group's model, of the terms its part
+// kept and the group's own, while the remainders fit tol LB - S - (the block's and the part's);
+// smaller remainders first (in rounds: every term <= what is left / terms left). The others
+// are summed exactly (near Gaussians) or through E (nodes) at every point. So
+//   |Tbar_approx(p) - Tbar(p)| <= S + (block's, part's and group's remainders) <= tol LB <= tol Tbar(p)
 // (plus the T(u) table's 1e-10 relative), which rbf_environment_test.cpp checks against the
 // brute-force sum on random clouds, on dense surfaces and on patches whose blocks would break
 // it if E's remainder were dropped; the measured errors are 5-10x below the bound
@@ -98,8 +99,8 @@ struct AverageDepthStats {
     std::size_t points = 0;
     std::size_t near_terms = 0;  // exact per-Gaussian evaluations
     std::size_t far_terms = 0;     // node expansions evaluated at every point
-    std::size_t linear_terms = 0;  // Gaussians taken through a group's linear model (no per-point cost)
-    std::size_t far_linear_terms = 0;  // node expansions taken through a group's linear model (once per group)
+    std::size_t linear_terms = 0;  // Gaussians taken through a linear model (no per-point cost)
+    std::size_t far_linear_terms = 0;  // node expansions taken through a linear model (once per block, part or group)
 };
 
 // Tbar(p) over the Gaussians of an RbfMedium (its beta0 times _distance_ D for the
