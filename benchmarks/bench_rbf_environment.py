@@ -72,7 +72,8 @@ def main():
 
     p = hit_points(1920, 1080)
     print(f"\n## Tbar(p) on {len(p)} hit points (1920x1080), {args.threads} threads, median of {args.runs}\n")
-    print("| Gaussians | method | wall ms | CPU ms (all threads) | terms / point (far nodes, linearised) | "
+    print("| Gaussians | method | wall ms | CPU ms (all threads) | terms / point (far nodes; linearised nodes, "
+          "Gaussians) | "
           "max rel. error vs brute force | max error of the Gaussians' part |")
     print("|---|---|---|---|---|---|---|")
     for name, (b, a, c), step in (("34", cloud(34, (3.0, 10.0), (0.005, 0.02), 1), 64),
@@ -105,9 +106,10 @@ def main():
             if not full:
                 label += f" (every {step}th point, scaled)"
             lin = st["linear_terms"] / st["points"]
+            far_lin = st["far_linear_terms"] / st["points"]
             print(f"| {name} | {label} | {statistics.median(times) * k * 1e3:.0f} | "
-                  f"{statistics.median(cpus) * k * 1e3:.0f} | {terms:.1f} ({st['far_terms'] / st['points']:.1f} far, "
-                  f"{lin:.0f} linear) | "
+                  f"{statistics.median(cpus) * k * 1e3:.0f} | {terms:.1f} ({st['far_terms'] / st['points']:.1f} far; "
+                  f"{far_lin:.0f}, {lin:.0f} linear) | "
                   f"{rel:.2e} | {part:.2e} |")
 
     print("\n## Per-pixel irradiance (environment_irradiance_varying) at 1080p\n")

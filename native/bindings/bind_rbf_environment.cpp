@@ -44,7 +44,7 @@ RGB albedo_of(const py::object& obj) {
 
 py::dict stats_dict(const AverageDepthStats& s) {
     return py::dict("points"_a = s.points, "near_terms"_a = s.near_terms, "far_terms"_a = s.far_terms,
-                    "linear_terms"_a = s.linear_terms);
+                    "linear_terms"_a = s.linear_terms, "far_linear_terms"_a = s.far_linear_terms);
 }
 
 }  // namespace
@@ -102,7 +102,7 @@ void bind_rbf_environment(py::module_& m) {
         "Fogshop eq. 26: the average optical depth Tbar(p) = beta0 distance + sum_i c_i T(a_i |p - b_i|) / a_i "
         "at points (N, 3). The far field uses a Barnes-Hut expansion whose error is at most tolerance x Tbar(p) "
         "(rbf_environment.h); exact=True sums every Gaussian through Dawson's function. Returns dict("
-        "average_depth=(N,), stats=dict(points, near_terms, far_terms)).");
+        "average_depth=(N,), stats=dict(points, near_terms, far_terms, linear_terms, far_linear_terms)).");
     m.def(
         "psf_band_eigenvalues",
         [](const py::object& T) {

@@ -106,6 +106,25 @@ inline double average_depth_fast_derivative(const double* table, double u) {
     return 0.5 * kSqrtPi * dphi;
 }
 
+// T(u) and T'(u) of the same model with one table lookup (the linear models' near Gaussians).
+inline void average_depth_fast_with_derivative(const double* table, double u, double& T, double& dT) {
+    if (u >= kTableMax) {
+        T = average_depth_fast(table, u);
+        dT = average_depth_fast_derivative(table, u);
+        return;
+    }
+    const double x = u * kTablePerUnit;
+    const int k = int(x);
+    const double s = x - k, s2 = s * s, s3 = s2 * s, h = 1.0 / kTablePerUnit;
+    const double* t = table + 2 * k;
+    T = 0.5 * kSqrtPi *
+        ((2.0 * s3 - 3.0 * s2 + 1.0) * t[0] + (s3 - 2.0 * s2 + s) * h * t[1] + (3.0 * s2 - 2.0 * s3) * t[2] +
+         (s3 - s2) * h * t[3]);
+    dT = 0.5 * kSqrtPi *
+         ((6.0 * s2 - 6.0 * s) * t[0] + (3.0 * s2 - 4.0 * s + 1.0) * h * t[1] + (6.0 * s - 6.0 * s2) * t[2] +
+          (3.0 * s2 - 2.0 * s) * h * t[3]) / h;
+}
+
 // phi'(u) and phi''(u) of phi = F / u (exact: series below 1, the asymptotic series from 16).
 void phi_derivatives(double u, double& d1, double& d2) {
     if (u < 1.0) {
@@ -253,7 +272,10 @@ double average_depth_unit_fast(double u) {
 
 namespace {
 constexpr std::uint32_t kLeaf = 8;
-constexpr std::size_t kGroup = 16;  // points evaluated together (Morton order)
+constexpr std::size_t kBlock = 256;  // points that share a traversal and a linear model (Morton order) ...
+constexpr std::size_t kMid = 64;     // ... parts of them, with their own linear model ...
+constexpr std::size_t kGroup = 16;   // ... and groups of those, with their own linear model
+constexpr double kBlockShare = 0.75;  // the block's part of the budget the expansions leave
 
 inline std::uint64_t spread_bits(std::uint64_t v) {  // 21 bits -> every third bit
     v &= 0x1fffff;
@@ -342,26 +364,98 @@ std::uint32_t RbfAverageDepth::build(std::uint32_t begin, std::uint32_t end) {
     return ni;
 }
 
-void RbfAverageDepth::evaluate_group(const Vec3* p, const std::uint32_t* idx, std::size_t m, double* out, double tol,
-                                     std::vector<std::uint32_t>& far, std::vector<std::uint32_t>& near,
-                                     std::vector<double> (&soa)[6], AverageDepthStats& stats) const {
+struct RbfAverageDepth::Scratch {  // (per thread)
+    std::vector<std::uint32_t> far, near;          // the block's accepted nodes and near Gaussians
+    std::vector<std::uint32_t> far_m, near_m;      // what a middle level of the block has left of them
+    std::vector<std::uint32_t> far_g, near_g;      // what a group of the block has left of them
+    std::vector<std::uint32_t> pending;            // nodes the block leaves to its groups to traverse
+    std::vector<std::pair<double, std::uint32_t>> cand;  // (linearisation error, far / near index)
+    std::vector<double> soa[6];
+};
+
+namespace {
+// The bounding sphere (centre C, radius rho) of points p[idx[0..m)].
+void bounding_sphere(const Vec3* p, const std::uint32_t* idx, std::size_t m, Vec3& C, double& rho) {
+    Vec3 lo(INFINITY), hi(-INFINITY);
+    for (std::size_t k = 0; k < m; ++k) {
+        lo = glm::min(lo, p[idx[k]]);
+        hi = glm::max(hi, p[idx[k]]);
+    }
+    C = 0.5 * (lo + hi);
+    rho = 0.5 * glm::length(hi - lo);
+}
+}  // namespace
+
+void RbfAverageDepth::evaluate_block(const Vec3* p, const std::uint32_t* idx, std::size_t m, double* out, double tol,
+                                     Scratch& scratch, AverageDepthStats& stats) const {
     const double* table = phi_table().v.data();
+    std::vector<std::uint32_t>& far = scratch.far;
+    std::vector<std::uint32_t>& near = scratch.near;
     far.clear();
     near.clear();
-    Vec3 group_C(0.0);
-    double group_rho = 0.0, group_LB = 0.0;
-    if (!nodes_.empty()) {
-        // The group's bounding sphere (centre _C_, radius _rho_).
-        Vec3 lo(INFINITY), hi(-INFINITY);
-        for (std::size_t k = 0; k < m; ++k) {
-            lo = glm::min(lo, p[idx[k]]);
-            hi = glm::max(hi, p[idx[k]]);
+    // Traversal from node _root_ for the sphere (C, rho): a node is accepted (into _fl_) when its
+    // expansion's error bound e fits its share budget W of tol LB / 2; the Gaussians of leaves
+    // not accepted go into _nl_. With _pending_, a node not accepted that would be for the
+    // smaller radius _route_rho_ goes there instead, for the block's groups to traverse.
+    // Returns the sum of the accepted nodes' e.
+    double W_pending = 0.0;  // weight of the nodes left pending (their groups' e <= budget W_pending)
+    auto accept_error = [&](const Node& n, const Vec3& C, double rho) -> double {
+        const double dr = glm::length(n.B2 - C) - rho - n.R2;
+        if (!(dr > 0.0 && n.a_min * dr >= kUFar)) return INFINITY;
+        const double dr4 = glm::length(n.B4 - C) - rho - n.R4;
+        if (!(dr4 > 0.0)) return INFINITY;
+        const double dr2 = dr * dr, dr5 = dr2 * dr2 * dr, dr4_2 = dr4 * dr4;
+        return 4.0 * n.W * n.R2 * n.R2 * n.R2 / dr5 + 10.0 * n.V * n.R4 * n.R4 / (dr4_2 * dr4_2 * dr4_2) +
+               kRhoBound * n.X / (dr5 * dr);
+    };
+    auto traverse = [&](const Vec3& C, double rho, std::uint32_t root, double budget, double route_rho,
+                        std::vector<std::uint32_t>& fl, std::vector<std::uint32_t>& nl,
+                        std::vector<std::uint32_t>* pending) {
+        double sum = 0.0;
+        std::uint32_t stack[128];
+        int sp = 0;
+        stack[sp++] = root;
+        while (sp > 0) {
+            const std::uint32_t ni = stack[--sp];
+            const Node& n = nodes_[ni];
+            if (n.W <= 0.0) continue;  // every c_i = 0
+            if (budget > 0.0) {
+                const double e = accept_error(n, C, rho);
+                if (e <= budget * n.W) {
+                    fl.push_back(ni);
+                    sum += e;
+                    continue;
+                }
+                if (pending && accept_error(n, C, route_rho) <= budget * n.W) {
+                    pending->push_back(ni);
+                    W_pending += n.W;
+                    continue;
+                }
+            }
+            if (n.leaf) {
+                for (std::uint32_t k = 0; k < n.count; ++k) {
+                    const std::uint32_t i = order_[n.first + k];
+                    if (c_[i] > 0.0) nl.push_back(i);
+                }
+            } else {
+                stack[sp++] = n.right;
+                stack[sp++] = n.left;
+            }
         }
-        const Vec3 C = 0.5 * (lo + hi);
-        const double rho = 0.5 * glm::length(hi - lo);
-        // Lower bound LB of Tbar over the group (T decreasing, a_i r_i <= a_max (|B2 - C| + rho + R2)),
+        return sum;
+    };
+    // The block (m <= kBlock points): its bounding sphere, the lower bound LB of Tbar over it and
+    // the traversal; the expansions' error bounds add up to _spent_ <= tol LB / 2.
+    Vec3 block_C(0.0);
+    double block_rho = 0.0, LB = 0.0, spent = 0.0, block_budget = 0.0;
+    scratch.pending.clear();
+    bounding_sphere(p, idx, m, block_C, block_rho);
+    if (!nodes_.empty()) {
+        const Vec3 C = block_C;
+        const double rho = block_rho;
+        // Lower bound LB of Tbar over the block (T decreasing, a_i r_i <= a_max (|B2 - C| + rho + R2)),
         // then the error budget per unit node weight.
-        double budget = 0.0, LB = 0.0;
+        double budget = 0.0;
         if (tol > 0.0 && W_all_ > 0.0) {
             LB = base_;
             for (std::uint32_t li : leaves_) {
@@ -370,104 +464,194 @@ void RbfAverageDepth::evaluate_group(const Vec3* p, const std::uint32_t* idx, st
                 const double u = n.a_max * (glm::length(n.B2 - C) + rho + n.R2);
                 LB += n.C * average_depth_fast(table, u);
             }
-            budget = 0.5 * tol * LB / W_all_;  // half for the far field, half for linear near terms
+            budget = 0.5 * tol * LB / W_all_;  // half for the expansions; the rest for linear models
         }
-        group_C = C;
-        group_rho = rho;
-        group_LB = LB;
-        // Traverse: accept a node when its error bound fits its share of the budget.
-        std::uint32_t stack[128];
-        int sp = 0;
-        stack[sp++] = 0;
-        while (sp > 0) {
-            const Node& n = nodes_[stack[--sp]];
-            if (n.W <= 0.0) continue;  // every c_i = 0
-            if (budget > 0.0) {
-                const double dr = glm::length(n.B2 - C) - rho - n.R2;
-                if (dr > 0.0 && n.a_min * dr >= kUFar) {
-                    const double dr4 = glm::length(n.B4 - C) - rho - n.R4;
-                    if (dr4 > 0.0) {
-                        const double dr2 = dr * dr, dr5 = dr2 * dr2 * dr, dr4_2 = dr4 * dr4;
-                        const double e = 4.0 * n.W * n.R2 * n.R2 * n.R2 / dr5 +
-                                         10.0 * n.V * n.R4 * n.R4 / (dr4_2 * dr4_2 * dr4_2) +
-                                         kRhoBound * n.X / (dr5 * dr);
-                        if (e <= budget * n.W) {
-                            far.push_back(std::uint32_t(&n - nodes_.data()));
-                            continue;
-                        }
+        block_budget = budget;
+        spent = traverse(C, rho, 0, block_budget, 0.125 * rho, far, near, &scratch.pending);
+    }
+    // Linear models. Terms go into a linear model V + G . (p - C) over a sphere (C, rho) (value
+    // and gradient at C), smaller linearisation errors first, while the errors fit _left_:
+    //  - an accepted node's expansion E: |E(p) - E(C) - grad E(C) . (p - C)| <= H rho^2 / 2 with
+    //    H >= the norm of E's Hessian on the ball |p - C| <= rho (rbf_environment.h);
+    //  - a near Gaussian: |Tbar_i(p) - Tbar_i(C) - grad . (p - C)| <= c a K(u_min) rho^2 / 2.
+    // Taken entries of _fl_ / _nl_ are removed; returns the errors spent.
+    const bool linearise = tol > 0.0 && LB > 0.0 && !nodes_.empty();
+    constexpr std::uint32_t kFarTag = 0x80000000u, kTaken = 0xffffffffu;
+    auto linear_model = [&](const Vec3& C, double rho, double left, std::vector<std::uint32_t>& fl,
+                            std::vector<std::uint32_t>& nl, double& V, Vec3& G, std::size_t& far_linear,
+                            std::size_t& linear) {
+        V = 0.0;
+        G = Vec3(0.0);
+        far_linear = linear = 0;
+        if (!linearise || left <= 0.0) return 0.0;
+        const double half_rho2 = 0.5 * rho * rho;
+        auto& cand = scratch.cand;
+        cand.clear();
+        double total = 0.0;
+        for (std::size_t j = 0; j < fl.size(); ++j) {
+            const Node& n = nodes_[fl[j]];
+            // r, r4: lower bounds of |p - B2|, |p - B4| on the sphere (a group's sphere need not
+            // lie inside its block's, for which the node was accepted).
+            const double r = glm::length(C - n.B2) - rho, r4 = glm::length(C - n.B4) - rho;
+            const double ir2 = 1.0 / (r * r), ir4_2 = 1.0 / (r4 * r4);
+            const double H = (6.0 * n.W + 60.0 * (n.Q[0] + n.Q[1] + n.Q[2]) * ir2) * ir2 * ir2 +
+                             20.0 * n.V * ir4_2 * ir4_2 * ir4_2;
+            const double e = r > 0.0 && r4 > 0.0 ? H * half_rho2 : INFINITY;
+            total += e;
+            cand.emplace_back(e, std::uint32_t(j) | kFarTag);
+        }
+        if (nodes_[0].C > 0.0) {
+            const CurvatureEnvelope& K = curvature_envelope();
+            for (std::size_t j = 0; j < nl.size(); ++j) {
+                const std::uint32_t i = nl[j];
+                const double a = a_[i];
+                const double u_min = a * std::max(0.0, glm::length(C - b_[i]) - rho);
+                const double e = c_[i] * a * K(u_min) * half_rho2;
+                total += e;
+                cand.emplace_back(e, std::uint32_t(j));
+            }
+        }
+        auto take = [&](std::uint32_t tag) {
+            const std::uint32_t j = tag & ~kFarTag;
+            if (tag & kFarTag) {
+                // E and its gradient at C (monopole + quadrupole about B2, monopole about B4).
+                const Node& n = nodes_[fl[j]];
+                const Vec3 d = C - n.B2;
+                const double inv = 1.0 / glm::dot(d, d);
+                const Vec3 Qd(n.Q[0] * d.x + n.Q[3] * d.y + n.Q[4] * d.z, n.Q[3] * d.x + n.Q[1] * d.y + n.Q[5] * d.z,
+                              n.Q[4] * d.x + n.Q[5] * d.y + n.Q[2] * d.z);
+                const double dQd = glm::dot(d, Qd), trQ = n.Q[0] + n.Q[1] + n.Q[2];
+                const Vec3 d4 = C - n.B4;
+                const double is4 = 1.0 / glm::dot(d4, d4);
+                V += n.W * inv + (4.0 * dQd * inv - trQ) * inv * inv + n.V * is4 * is4;
+                G += (-2.0 * n.W * inv * inv + (4.0 * trQ - 24.0 * dQd * inv) * inv * inv * inv) * d +
+                     (8.0 * inv * inv * inv) * Qd - (4.0 * n.V * is4 * is4 * is4) * d4;
+                fl[j] = kTaken;
+                ++far_linear;
+            } else {
+                const std::uint32_t i = nl[j];
+                const double ca = c_[i] / a_[i];
+                const Vec3 d = C - b_[i];
+                const double dist = glm::length(d), u = a_[i] * dist;
+                double T, dT;
+                average_depth_fast_with_derivative(table, u, T, dT);
+                V += ca * T;
+                if (dist > 0.0) G += (c_[i] * dT / dist) * d;
+                nl[j] = kTaken;
+                ++linear;
+            }
+        };
+        // Everything when it fits; else rounds that take every term with error <= (what is
+        // left) / (terms left): each round's errors add up to at most what was left.
+        double used = 0.0;
+        if (total <= left) {
+            for (const auto& ce : cand) take(ce.second);
+            used = total;
+        } else {
+            std::size_t n_left = cand.size();
+            for (int round = 0; round < 8 && n_left > 0; ++round) {
+                const double t = (left - used) / double(n_left);
+                double sum = 0.0;
+                std::size_t kept = 0;
+                for (std::size_t k = 0; k < n_left; ++k) {
+                    if (cand[k].first <= t) {
+                        sum += cand[k].first;
+                        take(cand[k].second);
+                    } else {
+                        cand[kept++] = cand[k];
                     }
                 }
+                used += sum;
+                if (kept == n_left) break;
+                n_left = kept;
             }
-            if (n.leaf) {
-                for (std::uint32_t k = 0; k < n.count; ++k) {
-                    const std::uint32_t i = order_[n.first + k];
-                    if (c_[i] > 0.0) near.push_back(i);
+        }
+        if (far_linear > 0) fl.erase(std::remove(fl.begin(), fl.end(), kTaken), fl.end());
+        if (linear > 0) nl.erase(std::remove(nl.begin(), nl.end(), kTaken), nl.end());
+        return used;
+    };
+    // The block's linear model takes up to kBlockShare of what the expansions left of tol LB
+    // (keeping back what the groups may spend on the pending nodes' expansions, <= budget
+    // W_pending: the block's and the groups' accepted nodes are disjoint) ...
+    double block_V, group_V;
+    Vec3 block_G, group_G;
+    std::size_t block_far_linear, block_linear, far_linear, linear;
+    const double block_left = kBlockShare * (tol * LB - spent - block_budget * W_pending);
+    const double block_spent = linear_model(block_C, block_rho, block_left, far, near, block_V,
+                                            block_G, block_far_linear, block_linear);
+    stats.far_linear_terms += m * block_far_linear;
+    stats.linear_terms += m * block_linear;
+    // ... each part of kMid points kBlockShare of what then remains, for the terms the block
+    // kept, and each group of kGroup points of the part the rest, for the terms the part kept
+    // and those it finds below the pending nodes.
+    auto& soa = scratch.soa;
+    for (std::size_t mid_first = 0; mid_first < m; mid_first += kMid) {
+        const std::size_t mm = std::min(kMid, m - mid_first);
+        Vec3 mid_C;
+        double mid_rho, mid_V;
+        Vec3 mid_G;
+        std::size_t mid_far_linear, mid_linear;
+        bounding_sphere(p, idx + mid_first, mm, mid_C, mid_rho);
+        std::vector<std::uint32_t>& far_m = scratch.far_m;
+        std::vector<std::uint32_t>& near_m = scratch.near_m;
+        far_m.assign(far.begin(), far.end());
+        near_m.assign(near.begin(), near.end());
+        const double mid_left = kBlockShare * (tol * LB - spent - block_budget * W_pending - block_spent);
+        const double mid_spent =
+            linear_model(mid_C, mid_rho, mid_left, far_m, near_m, mid_V, mid_G, mid_far_linear, mid_linear);
+        stats.far_linear_terms += mm * mid_far_linear;
+        stats.linear_terms += mm * mid_linear;
+        for (std::size_t first = mid_first; first < mid_first + mm; first += kGroup) {
+            const std::size_t mg = std::min(kGroup, mid_first + mm - first);
+            const std::uint32_t* gidx = idx + first;
+            Vec3 group_C;
+            double group_rho;
+            bounding_sphere(p, gidx, mg, group_C, group_rho);
+            std::vector<std::uint32_t>& far_g = scratch.far_g;
+            std::vector<std::uint32_t>& near_g = scratch.near_g;
+            far_g.assign(far_m.begin(), far_m.end());
+            near_g.assign(near_m.begin(), near_m.end());
+            double group_spent = 0.0;
+            for (std::uint32_t ni : scratch.pending)
+                group_spent += traverse(group_C, group_rho, ni, block_budget, 0.0, far_g, near_g, nullptr);
+            linear_model(group_C, group_rho, tol * LB - spent - block_spent - mid_spent - group_spent, far_g, near_g,
+                         group_V, group_G, far_linear, linear);
+            // The near Gaussians as arrays (b, a, c / a; soa[5] is scratch).
+            for (auto& v : soa) v.resize(near_g.size());
+            for (std::size_t j = 0; j < near_g.size(); ++j) {
+                const std::uint32_t i = near_g[j];
+                soa[0][j] = b_[i].x;
+                soa[1][j] = b_[i].y;
+                soa[2][j] = b_[i].z;
+                soa[3][j] = a_[i];
+                soa[4][j] = c_[i] / a_[i];
+            }
+            for (std::size_t k = 0; k < mg; ++k) {
+                const Vec3 x = p[gidx[k]];
+                double sum = block_V + glm::dot(block_G, x - block_C) + mid_V + glm::dot(mid_G, x - mid_C) + group_V +
+                             glm::dot(group_G, x - group_C);
+                for (std::uint32_t ni : far_g) {
+                    const Node& n = nodes_[ni];
+                    const Vec3 d = x - n.B2;
+                    const double r2 = glm::dot(d, d), inv = 1.0 / r2;
+                    const double dQd = n.Q[0] * d.x * d.x + n.Q[1] * d.y * d.y + n.Q[2] * d.z * d.z +
+                                       2.0 * (n.Q[3] * d.x * d.y + n.Q[4] * d.x * d.z + n.Q[5] * d.y * d.z);
+                    const double trQ = n.Q[0] + n.Q[1] + n.Q[2];
+                    const Vec3 d4 = x - n.B4;
+                    const double s4 = glm::dot(d4, d4);
+                    sum += n.W * inv + (4.0 * dQd * inv - trQ) * inv * inv + n.V / (s4 * s4);
                 }
-            } else {
-                stack[sp++] = n.right;
-                stack[sp++] = n.left;
+                sum += near_sum(soa[0].data(), soa[1].data(), soa[2].data(), soa[3].data(), soa[4].data(),
+                                near_g.size(), x.x, x.y, x.z, table, soa[5].data());
+                out[gidx[k]] = base_ + sum;
             }
+            stats.far_terms += mg * far_g.size();
+            stats.near_terms += mg * near_g.size();
+            stats.linear_terms += mg * linear;
+            stats.far_linear_terms += mg * far_linear;
         }
-    }
-    // Near Gaussians whose Tbar_i is linear over the group to within their share of the other
-    // half of the budget, |Tbar_i(p) - Tbar_i(C) - grad . (p - C)| <= c a K(u_min) rho^2 / 2 <=
-    // tol LB / 2 (c_i / a_i) / sum_j c_j / a_j, go into one linear model V + G . (p - C); the
-    // rest are evaluated at every point.
-    double V = 0.0;
-    Vec3 G(0.0);
-    std::size_t linear = 0;
-    if (tol > 0.0 && group_LB > 0.0 && !nodes_.empty() && nodes_[0].C > 0.0) {
-        const CurvatureEnvelope& K = curvature_envelope();
-        const double share = 0.5 * tol * group_LB / nodes_[0].C;
-        std::size_t kept = 0;
-        for (std::uint32_t i : near) {
-            const double a = a_[i], ca = c_[i] / a;
-            const Vec3 d = group_C - b_[i];
-            const double dist = glm::length(d);
-            const double u_min = a * std::max(0.0, dist - group_rho);
-            if (0.5 * c_[i] * a * K(u_min) * group_rho * group_rho <= share * ca) {
-                const double u = a * dist;
-                V += ca * average_depth_fast(table, u);
-                if (dist > 0.0) G += (c_[i] * average_depth_fast_derivative(table, u) / dist) * d;
-                ++linear;
-            } else {
-                near[kept++] = i;
-            }
-        }
-        near.resize(kept);
-    }
-    // The near Gaussians as arrays (b, a, c / a; soa[5] is scratch).
-    for (auto& v : soa) v.resize(near.size());
-    for (std::size_t j = 0; j < near.size(); ++j) {
-        const std::uint32_t i = near[j];
-        soa[0][j] = b_[i].x;
-        soa[1][j] = b_[i].y;
-        soa[2][j] = b_[i].z;
-        soa[3][j] = a_[i];
-        soa[4][j] = c_[i] / a_[i];
-    }
-    for (std::size_t k = 0; k < m; ++k) {
-        const Vec3 x = p[idx[k]];
-        double sum = V + glm::dot(G, x - group_C);
-        for (std::uint32_t ni : far) {
-            const Node& n = nodes_[ni];
-            const Vec3 d = x - n.B2;
-            const double r2 = glm::dot(d, d), inv = 1.0 / r2;
-            const double dQd = n.Q[0] * d.x * d.x + n.Q[1] * d.y * d.y + n.Q[2] * d.z * d.z +
-                               2.0 * (n.Q[3] * d.x * d.y + n.Q[4] * d.x * d.z + n.Q[5] * d.y * d.z);
-            const double trQ = n.Q[0] + n.Q[1] + n.Q[2];
-            const Vec3 d4 = x - n.B4;
-            const double s4 = glm::dot(d4, d4);
-            sum += n.W * inv + (4.0 * dQd * inv - trQ) * inv * inv + n.V / (s4 * s4);
-        }
-        sum += near_sum(soa[0].data(), soa[1].data(), soa[2].data(), soa[3].data(), soa[4].data(), near.size(), x.x,
-                        x.y, x.z, table, soa[5].data());
-        out[idx[k]] = base_ + sum;
     }
     stats.points += m;
-    stats.far_terms += m * far.size();
-    stats.near_terms += m * near.size();
-    stats.linear_terms += m * linear;
 }
 
 AverageDepthStats RbfAverageDepth::evaluate(const Vec3* p, std::size_t n, double* out, double tol, int threads) const {
@@ -481,7 +665,7 @@ AverageDepthStats RbfAverageDepth::evaluate(const Vec3* p, std::size_t n, double
     }
     AverageDepthStats total;
     if (n == 0) return total;
-    // Morton order, so that groups of kGroup consecutive points are compact.
+    // Morton order, so that blocks of kBlock consecutive points are compact.
     const Vec3 ext = glm::max(hi - lo, Vec3(1e-300));
     std::vector<std::uint64_t> key(n);
     parallel_chunks(n, threads, 65536, [&](std::size_t begin, std::size_t end) {
@@ -496,21 +680,21 @@ AverageDepthStats RbfAverageDepth::evaluate(const Vec3* p, std::size_t n, double
     std::vector<std::uint32_t> idx(n);
     for (std::size_t k = 0; k < n; ++k) idx[k] = std::uint32_t(key[k] & 0xffffffffu);
     key = {};
-    const std::size_t groups = (n + kGroup - 1) / kGroup;
+    const std::size_t blocks = (n + kBlock - 1) / kBlock;
     std::mutex mutex;
-    parallel_chunks(groups, threads, 16, [&](std::size_t begin, std::size_t end) {
-        std::vector<std::uint32_t> far, near;
-        std::vector<double> soa[6];
+    parallel_chunks(blocks, threads, 1, [&](std::size_t begin, std::size_t end) {
+        Scratch scratch;
         AverageDepthStats stats;
         for (std::size_t g = begin; g < end; ++g) {
-            const std::size_t first = g * kGroup, m = std::min(kGroup, n - first);
-            evaluate_group(p, idx.data() + first, m, out, tol, far, near, soa, stats);
+            const std::size_t first = g * kBlock, m = std::min(kBlock, n - first);
+            evaluate_block(p, idx.data() + first, m, out, tol, scratch, stats);
         }
         std::lock_guard<std::mutex> lock(mutex);
         total.points += stats.points;
         total.near_terms += stats.near_terms;
         total.far_terms += stats.far_terms;
         total.linear_terms += stats.linear_terms;
+        total.far_linear_terms += stats.far_linear_terms;
     });
     return total;
 }

@@ -28,19 +28,44 @@
 // norm <= 20 / |x|^6) bound its error by
 //   e = 4 W R2^3 / (d - R2)^5 + 10 V R4^2 / (d4 - R4)^6 + 1.2 X / (d - R2)^6,  X = sum w_i / a_i^4,
 // with R2, R4 the node's radii about B2, B4 and d, d4 lower bounds of |p - B2|, |p - B4|
-// (valid when every u_i >= 3). Points are evaluated in groups of 16 (Morton order; centre C,
-// radius rho); a group first computes a lower bound LB <= Tbar(p) of all its points (T is
-// decreasing: per leaf, sum c_i / a_i T(a_max (distance + R2))), then accepts a node when
-// e <= (tol / 2) LB W_node / W_all. Accepted nodes are disjoint: their error is <= tol LB / 2.
+// (valid when every u_i >= 3).
 //
-// Near field, linear over a group. The Hessian of Tbar_i = c_i / a_i T(a_i r) has norm
-// <= c_i a_i K(u) with K(u) >= sup_{v >= u} max(|T''(v)|, |T'(v) / v|) (a sampled envelope),
-// so a near Gaussian with 0.5 c_i a_i K(a_i (|C - b_i| - rho)) rho^2 <= (tol / 2) LB (c_i / a_i)
-// / sum_j c_j / a_j enters one linear model V + G . (p - C) of the group (value and gradient at
-// C); the others are summed exactly at every point. The two halves give
-//   |Tbar_approx(p) - Tbar(p)| <= tol Tbar(p)       (plus the T(u) table's 1e-10 relative),
-// which rbf_environment_test.cpp checks against the brute-force sum on random clouds and on
-// dense surfaces (the measured errors are 20-150x below the bound: bench_rbf_environment.py).
+// Points are evaluated in blocks of 256 (Morton order), split into parts of 64 and those into
+// groups of 16; each is held as its bounding sphere (centre C, radius rho). A block first
+// computes a lower bound LB <= Tbar(p) of all its points (T is decreasing: per leaf, sum c_i /
+// a_i T(a_max (distance + R2))), then traverses the tree: a node is accepted when e <= (tol / 2) LB W_node
+// / W_all for the block's sphere; a node not accepted that would be for radius rho / 8 is left
+// pending, and each group traverses the pending nodes with its own sphere and the same test.
+// The block's and its groups' accepted nodes are disjoint: their e add up to S <= tol LB / 2.
+//
+// Linear models (a local expansion of order 1). A term f, an accepted node's expansion E or a
+// near Gaussian's Tbar_i, enters a sphere's linear model V + G . (p - C) (f and grad f at C)
+// with the Taylor remainder |f(p) - f(C) - grad f(C) . (p - C)| <= (rho^2 / 2) sup ||Hess f||
+// over the ball |p - C| <= rho:
+//  - E: along a unit direction the n-th derivative of |x|^-2 is n! U_n(cos) / |x|^(n+2) and
+//    that of |x|^-4 is n! C_n^(2)(cos) / |x|^(n+4) (Chebyshev and Gegenbauer polynomials,
+//    |U_n| <= n + 1, |C_n^(2)| <= (n+1)(n+2)(n+3)/6: the 6 / |x|^4, 24 / |x|^5, 20 / |x|^6
+//    above). The quadrupole term is (1/2) sum w_i s_i^T Hess(|x|^-2)(d) s_i (s_i = b_i - B2),
+//    so its Hessian is bounded by the fourth derivative, 120 / |x|^6 (a symmetric form's norm is
+//    its sup on the diagonal), times tr Q / 2:
+//      ||Hess E|| <= 6 W / r^4 + 60 tr Q / r^6 + 20 V / r4^6,  r = |C - B2| - rho, r4 = |C - B4| - rho
+//    (both > 0, else E is not linearised). Adjacent pixels' hit points lie within a fraction of
+//    a metre, so most accepted nodes cost one evaluation (value and gradient) per block, part
+//    or group instead of one per point.
+//  - Tbar_i: its Hessian has norm <= c_i a_i K(u) with K(u) >= sup_{v >= u} max(|T''(v)|,
+//    |T'(v) / v|) (a sampled envelope), u = a_i (|C - b_i| - rho).
+// The block's model takes terms while their remainders add up to at most 3/4 (tol LB - S_block
+// - (tol / 2) LB W_pending / W_all) (S_block: its accepted nodes' e; the last term bounds what its
+// groups may accept among the pending nodes, of weight W_pending); each part's model, of the
+// terms the block kept, 3/4 of what then remains; each group's model, of the terms its part
+// kept and the group's own, while the remainders fit tol LB - S - (the block's and the part's);
+// smaller remainders first (in rounds: every term <= what is left / terms left). The others
+// are summed exactly (near Gaussians) or through E (nodes) at every point. So
+//   |Tbar_approx(p) - Tbar(p)| <= S + (block's, part's and group's remainders) <= tol LB <= tol Tbar(p)
+// (plus the T(u) table's 1e-10 relative), which rbf_environment_test.cpp checks against the
+// brute-force sum on random clouds, on dense surfaces and on patches whose blocks would break
+// it if E's remainder were dropped; the measured errors are 5-10x below the bound
+// (bench_rbf_environment.py).
 //
 // The irradiance a surface of normal n gets from the World through the fog (sun05_psf.h's
 // environment_irradiance) needs the PSF's eigenvalues lambda_l(T), l <= 2, for every pixel's
@@ -73,8 +98,9 @@ double average_depth_unit_fast(double u);
 struct AverageDepthStats {
     std::size_t points = 0;
     std::size_t near_terms = 0;  // exact per-Gaussian evaluations
-    std::size_t far_terms = 0;     // node expansions evaluated
-    std::size_t linear_terms = 0;  // Gaussians taken through a group's linear model (no per-point cost)
+    std::size_t far_terms = 0;     // node expansions evaluated at every point
+    std::size_t linear_terms = 0;  // Gaussians taken through a linear model (no per-point cost)
+    std::size_t far_linear_terms = 0;  // node expansions taken through a linear model (once per block, part or group)
 };
 
 // Tbar(p) over the Gaussians of an RbfMedium (its beta0 times _distance_ D for the
@@ -103,10 +129,10 @@ class RbfAverageDepth {
         std::uint32_t left = 0, right = 0;   // children (leaf: count <= kLeaf and left == 0)
         bool leaf = true;
     };
+    struct Scratch;  // per-thread work arrays of evaluate_block
     std::uint32_t build(std::uint32_t begin, std::uint32_t end);
-    void evaluate_group(const Vec3* p, const std::uint32_t* idx, std::size_t m, double* out, double tol,
-                        std::vector<std::uint32_t>& far, std::vector<std::uint32_t>& near,
-                        std::vector<double> (&soa)[6], AverageDepthStats& stats) const;
+    void evaluate_block(const Vec3* p, const std::uint32_t* idx, std::size_t m, double* out, double tol,
+                        Scratch& scratch, AverageDepthStats& stats) const;
 
     std::vector<Vec3> b_;
     std::vector<double> a_, c_;

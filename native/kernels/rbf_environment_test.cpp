@@ -158,6 +158,40 @@ TEST(RbfEnvironment, LinearNearFieldWithinItsBound) {
     }
 }
 
+TEST(RbfEnvironment, LinearisedFarFieldWithinItsBound) {
+    // A compact cloud seen from dense patches in a plane through it (displacements along the
+    // line of sight, where the Hessian of 1/r^2 is largest: 6 / r^4): far nodes go through the
+    // blocks' and groups' linear models only where the Taylor remainder H rho^2 / 2 of their
+    // expansion fits. Patches of coarse spacing have blocks whose linearisation would be off by
+    // several percent (3 (rho / r)^2 of the node), far beyond tol.
+    std::mt19937 rng(5);
+    std::uniform_real_distribution<double> U(-1.0, 1.0), A(2.0, 4.0), Cc(0.1, 0.5);
+    std::vector<double> centres, scales, amps;
+    for (int i = 0; i < 600; ++i) {
+        centres.insert(centres.end(), {U(rng), 0.5 * U(rng), U(rng)});
+        scales.push_back(A(rng));
+        amps.push_back(Cc(rng));
+    }
+    const RbfMedium m(centres, scales, amps, 0.0);
+    const RbfAverageDepth avg(m, 50.0);
+    std::vector<Vec3> p;
+    for (double D : {9.0, 14.0, 22.0})
+        for (double spacing : {0.01, 0.06, 0.25})
+            for (int j = 0; j < 48; ++j)
+                for (int i = 0; i < 48; ++i)
+                    p.emplace_back(D + spacing * (i - 23.5), 0.0, (D - 12.0) + spacing * (j - 23.5));
+    std::vector<double> ref(p.size()), got(p.size());
+    avg.evaluate_brute(p.data(), p.size(), ref.data());
+    for (double tol : {1e-2, 1e-3}) {
+        const AverageDepthStats stats = avg.evaluate(p.data(), p.size(), got.data(), tol);
+        EXPECT_GT(stats.far_linear_terms, stats.points) << "far nodes were hardly linearised, tol " << tol;
+        EXPECT_GT(stats.far_terms, 0u) << "every far node was linearised, tol " << tol;
+        double worst = 0.0;
+        for (std::size_t k = 0; k < p.size(); ++k) worst = std::max(worst, std::abs(got[k] / ref[k] - 1.0));
+        EXPECT_LE(worst, tol + 1e-9) << "tol " << tol;
+    }
+}
+
 TEST(RbfEnvironment, BadInput) {
     const RbfMedium m({0.0, 0.0, 0.0}, {1.0}, {1.0}, 0.0);
     EXPECT_THROW(RbfAverageDepth(m, -1.0), std::invalid_argument);

@@ -90,6 +90,30 @@ def test04_far_field_within_bound(tol):
     assert stats["near_terms"] + stats["far_terms"] < len(p) * len(a)
 
 
+@pytest.mark.parametrize("tol", [1e-2, 1e-3])
+def test04b_linearised_far_field_within_bound(tol):
+    # Dense patches (as a rendered surface's hit points) in a plane through a compact cloud, some
+    # coarse enough that linearising every far node over a block would be off by percents: the
+    # linear models take far nodes only where their Taylor remainder fits, the error stays <= tol.
+    rng = np.random.default_rng(8)
+    b = rng.uniform(-1, 1, (500, 3)) * np.array([1.0, 0.5, 1.0])
+    a = rng.uniform(2.0, 4.0, 500)
+    c = rng.uniform(0.1, 0.5, 500)
+    patches = []
+    for D in (8.0, 15.0, 25.0):
+        for spacing in (0.01, 0.08, 0.3):
+            s = spacing * (np.arange(40) - 19.5)
+            X, Z = np.meshgrid(D + s, D - 12.0 + s)
+            patches.append(np.stack([X.ravel(), np.zeros(X.size), Z.ravel()], -1))
+    p = np.concatenate(patches)
+    ref = _native.rbf_average_depth(centres=b, scales=a, amplitudes=c, points=p, exact=True)["average_depth"]
+    out = _native.rbf_average_depth(centres=b, scales=a, amplitudes=c, points=p, tolerance=tol)
+    assert np.max(np.abs(out["average_depth"] / ref - 1.0)) <= tol
+    stats = out["stats"]
+    assert stats["far_linear_terms"] > stats["points"]  # far nodes went through the linear models
+    assert stats["far_terms"] > 0  # ... but not all of them
+
+
 def test05_band_table_vs_exact_eigenvalues():
     T = np.array([1e-3, 0.05, 0.3, 1.0, 3.0, 7.5, 30.0])
     got = _native.psf_band_eigenvalues(T)
