@@ -1675,6 +1675,16 @@ BakeResult bake(const SceneDescription& scene, const BakeSettings& settings, con
     // evaluated one by one (EdgeClusterBounds).
     constexpr double kEdgeAirlightTol = 5e-4, kEdgeTransmittanceTol = 5e-4;
     const EdgeClusterBounds bounds(scene, clustered ? fog.rbf_medium() : nullptr);
+    // Rays to evaluate (segments [t0, t]) and their fog.
+    struct RayBatch {
+        std::vector<Ray> ray;
+        std::vector<float> t, t0;
+        std::vector<double> Tr;
+        std::vector<RGB> La;
+        void resize(size_t n) {
+            ray.resize(n), t.resize(n), t0.resize(n), Tr.resize(n), La.resize(n);
+        }
+    };
     // Scratch from a pool (ScratchPool): a band's rows, and the sub-pixel rays and results
     // of a run of edge pixels (~3 MB for two rows of them).
     struct BandScratch {
@@ -1686,16 +1696,10 @@ BakeResult bake(const SceneDescription& scene, const BakeSettings& settings, con
         // Edge clusters (edge_sample_clusters): per row, sample order and cluster ends
         // per pixel, and one representative ray per cluster.
         std::vector<int> cl_order, cl_ends, cl_first;
-        std::vector<Ray> cl_ray;
-        std::vector<float> cl_t, cl_t0;
-        std::vector<double> cl_Tr;
-        std::vector<RGB> cl_La;
+        RayBatch cl;
         std::vector<unsigned char> cl_refined;
         std::vector<int> ref_k;  // samples of refined clusters (into sub)
-        std::vector<Ray> ref_ray;
-        std::vector<float> ref_t, ref_t0;
-        std::vector<double> ref_Tr;
-        std::vector<RGB> ref_La;
+        RayBatch ref;
         CastScratch cast_scratch;
         std::vector<unsigned char> kink, edge;
         RowRays r;
@@ -1839,11 +1843,7 @@ BakeResult bake(const SceneDescription& scene, const BakeSettings& settings, con
                 }
                 bs.cl_first[edge_px.size()] = int(bs.cl_ends.size());
                 const size_t n_cl = bs.cl_ends.size();
-                bs.cl_ray.resize(n_cl);
-                bs.cl_t.resize(n_cl);
-                bs.cl_t0.resize(n_cl);
-                bs.cl_Tr.resize(n_cl);
-                bs.cl_La.resize(n_cl);
+                bs.cl.resize(n_cl);
                 bs.cl_refined.assign(n_cl, 0);
                 for (size_t e = 0; e < edge_px.size(); ++e) {
                     const int* order = &bs.cl_order[e * n_sub];
@@ -1851,9 +1851,9 @@ BakeResult bake(const SceneDescription& scene, const BakeSettings& settings, con
                         const int end = bs.cl_ends[c];
                         const size_t k0 = e * n_sub + size_t(order[b]);
                         if (end - b == 1) {
-                            bs.cl_ray[c] = sub[k0];
-                            bs.cl_t[c] = sub_t[k0];
-                            bs.cl_t0[c] = sub_t0[k0];
+                            bs.cl.ray[c] = sub[k0];
+                            bs.cl.t[c] = sub_t[k0];
+                            bs.cl.t0[c] = sub_t0[k0];
                             continue;
                         }
                         Vec3 o(0.0), d(0.0);
@@ -1866,13 +1866,13 @@ BakeResult bake(const SceneDescription& scene, const BakeSettings& settings, con
                             t_near += double(sub_t0[k]);
                         }
                         const double inv = 1.0 / double(end - b);
-                        bs.cl_ray[c] = {o * inv, glm::normalize(d)};
-                        bs.cl_t[c] = std::isinf(sub_t[k0]) ? sub_t[k0] : float(t * inv);
-                        bs.cl_t0[c] = float(t_near * inv);
+                        bs.cl.ray[c] = {o * inv, glm::normalize(d)};
+                        bs.cl.t[c] = std::isinf(sub_t[k0]) ? sub_t[k0] : float(t * inv);
+                        bs.cl.t0[c] = float(t_near * inv);
                     }
                 }
-                fog_eval(bs.cl_ray.data(), bs.cl_t.data(), bs.cl_t0.data(), int(n_cl), bs.cl_Tr.data(),
-                         bs.cl_La.data(), fog_scratch);
+                fog_eval(bs.cl.ray.data(), bs.cl.t.data(), bs.cl.t0.data(), int(n_cl), bs.cl.Tr.data(),
+                         bs.cl.La.data(), fog_scratch);
                 // Clusters whose error estimate (EdgeClusterBounds) exceeds the tolerance:
                 // every sample evaluated instead, into sub_Tr, sub_La.
                 bs.ref_k.clear();
@@ -1882,8 +1882,8 @@ BakeResult bake(const SceneDescription& scene, const BakeSettings& settings, con
                         const int end = bs.cl_ends[c];
                         if (end - b == 1) continue;
                         double err_La, err_Tr;
-                        bounds.errors(&sub[e * n_sub], &sub_t[e * n_sub], order + b, end - b, bs.cl_ray[c],
-                                      near_clip ? double(bs.cl_t0[c]) : 0.0, double(bs.cl_t[c]), bs.cl_La[c],
+                        bounds.errors(&sub[e * n_sub], &sub_t[e * n_sub], order + b, end - b, bs.cl.ray[c],
+                                      near_clip ? double(bs.cl.t0[c]) : 0.0, double(bs.cl.t[c]), bs.cl.La[c],
                                       err_La, err_Tr);
                         if (err_La <= kEdgeAirlightTol && err_Tr <= kEdgeTransmittanceTol) continue;
                         bs.cl_refined[c] = 1;
@@ -1892,21 +1892,17 @@ BakeResult bake(const SceneDescription& scene, const BakeSettings& settings, con
                 }
                 if (!bs.ref_k.empty()) {
                     const size_t n_ref = bs.ref_k.size();
-                    bs.ref_ray.resize(n_ref);
-                    bs.ref_t.resize(n_ref);
-                    bs.ref_t0.resize(n_ref);
-                    bs.ref_Tr.resize(n_ref);
-                    bs.ref_La.resize(n_ref);
+                    bs.ref.resize(n_ref);
                     for (size_t q = 0; q < n_ref; ++q) {
-                        bs.ref_ray[q] = sub[bs.ref_k[q]];
-                        bs.ref_t[q] = sub_t[bs.ref_k[q]];
-                        bs.ref_t0[q] = sub_t0[bs.ref_k[q]];
+                        bs.ref.ray[q] = sub[bs.ref_k[q]];
+                        bs.ref.t[q] = sub_t[bs.ref_k[q]];
+                        bs.ref.t0[q] = sub_t0[bs.ref_k[q]];
                     }
-                    fog_eval(bs.ref_ray.data(), bs.ref_t.data(), bs.ref_t0.data(), int(n_ref), bs.ref_Tr.data(),
-                             bs.ref_La.data(), fog_scratch);
+                    fog_eval(bs.ref.ray.data(), bs.ref.t.data(), bs.ref.t0.data(), int(n_ref), bs.ref.Tr.data(),
+                             bs.ref.La.data(), fog_scratch);
                     for (size_t q = 0; q < n_ref; ++q) {
-                        sub_Tr[bs.ref_k[q]] = bs.ref_Tr[q];
-                        sub_La[bs.ref_k[q]] = bs.ref_La[q];
+                        sub_Tr[bs.ref_k[q]] = bs.ref.Tr[q];
+                        sub_La[bs.ref_k[q]] = bs.ref.La[q];
                     }
                 }
                 band_samples += (long long)(n_cl + bs.ref_k.size()) - (long long)edge_px.size();
@@ -1957,17 +1953,17 @@ BakeResult bake(const SceneDescription& scene, const BakeSettings& settings, con
                             }
                             continue;
                         }
-                        La += double(end - b) * bs.cl_La[c];
-                        if (std::isinf(bs.cl_t[c])) {
-                            Tr_all += double(end - b) * bs.cl_Tr[c];
+                        La += double(end - b) * bs.cl.La[c];
+                        if (std::isinf(bs.cl.t[c])) {
+                            Tr_all += double(end - b) * bs.cl.Tr[c];
                             continue;
                         }
-                        const double seg_c = double(bs.cl_t[c]) - (near_clip ? double(bs.cl_t0[c]) : 0.0);
+                        const double seg_c = double(bs.cl.t[c]) - (near_clip ? double(bs.cl.t0[c]) : 0.0);
                         for (int q = b; q < end; ++q) {
                             const size_t k = s0 + size_t(order[q]);
                             const double seg = double(sub_t[k]) - (near_clip ? double(sub_t0[k]) : 0.0);
-                            const double Tr_k = end - b == 1 ? bs.cl_Tr[c]
-                                                             : bs.cl_Tr[c] * std::exp(-sigma_bg * (seg - seg_c));
+                            const double Tr_k = end - b == 1 ? bs.cl.Tr[c]
+                                                             : bs.cl.Tr[c] * std::exp(-sigma_bg * (seg - seg_c));
                             Tr_all += Tr_k;
                             if (!std::isinf(sub_t[k])) Tr_hits += Tr_k, ++hits;
                         }
