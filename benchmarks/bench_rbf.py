@@ -3,7 +3,7 @@
 
     /usr/bin/python3 benchmarks/bench_rbf.py [--runs 3] [--threads 2] [--width 1920 --height 1080]
                                              [--skip-1e5] [--size-1e5 960x540] [--skip-exact]
-                                             [--resolutions full,half,quarter]
+                                             [--resolutions full,half,quarter] [--noise 0.4]
 
 No Blender needed: `_native.bake` with a 1920x1080 pinhole camera at the origin looking
 down +z (60 degree horizontal field of view, clip 0.1 .. 1000 m as the add-on passes
@@ -121,6 +121,9 @@ def timed(fn, runs):
     return statistics.median(times), out
 
 
+NOISE = 0.0  # --noise: Fogshop 5.5 noise amplitude of the Gaussian scenes (scale 1 m)
+
+
 def bake(width, height, lights, gaussians, threads, runs, resolution="full", walls=False):
     cam_to_world, proj = camera(width, height)
     v, t = ground(walls)
@@ -131,6 +134,8 @@ def bake(width, height, lights, gaussians, threads, runs, resolution="full", wal
     if gaussians is not None:
         b, a, c = gaussians
         kw.update(rbf_centres=b, rbf_scales=a, rbf_amplitudes=c, gaussian_resolution=resolution)
+        if NOISE > 0.0:
+            kw.update(noise_amplitude=NOISE, noise_scale=1.0)
     airlight, cpu = [], []
 
     def run():
@@ -177,10 +182,13 @@ def main():
     ap.add_argument("--resolutions", default="full,half,quarter",
                     help="gaussian_resolution values to time, comma-separated (the first is the reference)")
     ap.add_argument("--size-1e5", default="1920x1080", help="image size of the 1e5-Gaussian bake, WxH")
+    ap.add_argument("--noise", type=float, default=0.0,
+                    help="noise amplitude of the Gaussian scenes (noise_scale 1 m; 0: off)")
     args = ap.parse_args()
     W, H = args.width, args.height
-    global RESOLUTIONS
+    global RESOLUTIONS, NOISE
     RESOLUTIONS = args.resolutions.split(",")
+    NOISE = args.noise
     scale = 1920 * 1080 / (W * H)
     print(f"_native {_native.__version__}, bake {W}x{H}, {args.threads} threads, median of {args.runs} runs")
     if scale != 1.0:
