@@ -41,12 +41,12 @@ constexpr double kSqrtPi = 1.77245385090551602729;
 constexpr float kMinD2f = 1e-12f;
 constexpr int kTilePixels = RbfSplat::kTile * RbfSplat::kTile;
 
-// View-ray part of one Gaussian for n rays: optical depth over [0, tend] (Tvp, perturbed
-// by noise if on), over [0, b^r] (Tvr) and the clamped projection tr.
+// View-ray part of one Gaussian for n rays: optical depth over [0, tend] (Tvp), over
+// [0, b^r] (Tvr) and the clamped projection tr. Noise (splat_gaussian): the same on the
+// perturbed directions of noise_dirs gives the perturbed Tvp.
 // kInf (reduced resolution's lattice rays): every tend is +inf, the far erfc term is 0.
-template <bool kNoise, bool kInf = false>
-AIRLIGHT_SPLAT_CLONES void view_terms(const RbfSplat::GaussF g, const float* eye, float ninv_scale, float nox,
-                                      float noy, float noz, int n, const float* __restrict dx,
+template <bool kInf = false>
+AIRLIGHT_SPLAT_CLONES void view_terms(const RbfSplat::GaussF g, int n, const float* __restrict dx,
                                       const float* __restrict dy, const float* __restrict dz,
                                       const float* __restrict tend, float* __restrict Tvp_out,
                                       float* __restrict Tvr_out, float* __restrict tr_out) {
@@ -60,39 +60,16 @@ AIRLIGHT_SPLAT_CLONES void view_terms(const RbfSplat::GaussF g, const float* eye
         const float E1 = fast_erfc_pos(x1 < 0.0f ? -x1 : x1);
         const float E2 = kInf ? 0.0f : fast_erfc_pos(x2 < 0.0f ? -x2 : x2);
         const float diff = x1 >= 0.0f ? E1 - E2 : (x2 <= 0.0f ? E2 - E1 : 2.0f - E1 - E2);
-        const float Tvp0 = e * diff;
-        const float tr = ts < 0.0f ? 0.0f : (ts > te ? te : ts);
-        Tvr_out[k] = ts <= 0.0f ? 0.0f : (ts >= te ? Tvp0 : e * (1.0f - E1));
-        tr_out[k] = tr;
-        if constexpr (kNoise) {
-            // Perturbed direction (lookup at b^r in world space), same distance.
-            const float px = (eye[0] + tr * x) * ninv_scale + nox;
-            const float py = (eye[1] + tr * y) * ninv_scale + noy;
-            const float pz = (eye[2] + tr * z) * ninv_scale + noz;
-            float nx, ny, nz;
-            gradient_noise3(px, py, pz, nx, ny, nz);
-            float qx = x + g.nscale * nx, qy = y + g.nscale * ny, qz = z + g.nscale * nz;
-            const float inv = 1.0f / std::sqrt(std::max(qx * qx + qy * qy + qz * qz, 1e-30f));
-            qx *= inv;
-            qy *= inv;
-            qz *= inv;
-            const float ts2 = g.rx * qx + g.ry * qy + g.rz * qz;
-            const float c2x = g.ry * qz - g.rz * qy, c2y = g.rz * qx - g.rx * qz, c2z = g.rx * qy - g.ry * qx;
-            const float e2 = g.k0 * fast_expf(-g.a2 * (c2x * c2x + c2y * c2y + c2z * c2z));
-            const float y1 = -g.a * ts2, y2 = g.a * (te - ts2);
-            const float F1 = fast_erfc_pos(y1 < 0.0f ? -y1 : y1);
-            const float F2 = kInf ? 0.0f : fast_erfc_pos(y2 < 0.0f ? -y2 : y2);
-            const float d2 = y1 >= 0.0f ? F1 - F2 : (y2 <= 0.0f ? F2 - F1 : 2.0f - F1 - F2);
-            Tvp_out[k] = e2 * d2;
-        } else {
-            Tvp_out[k] = Tvp0;
-        }
+        const float Tvp = e * diff;
+        Tvr_out[k] = ts <= 0.0f ? 0.0f : (ts >= te ? Tvp : e * (1.0f - E1));
+        tr_out[k] = ts < 0.0f ? 0.0f : (ts > te ? te : ts);
+        Tvp_out[k] = Tvp;
     }
 }
 
-// The noise-perturbed view directions of view_terms<true> for n rays (lookup at b^r = eye +
-// tr d in world space), in a loop of its own so that it vectorises (the reduced-resolution
-// path: view_terms<false> on these directions then gives the perturbed Tvp).
+// The noise-perturbed view directions for n rays (Fogshop 5.5: lookup at b^r = eye + tr d
+// in world space, the unperturbed ray's), in a loop of its own so that it vectorises;
+// view_terms on these directions then gives the perturbed Tvp.
 AIRLIGHT_SPLAT_CLONES void noise_dirs(float nscale, const float* eye, float ninv_scale, float nox, float noy,
                                       float noz, int n, const float* __restrict dx, const float* __restrict dy,
                                       const float* __restrict dz, const float* __restrict tr, float* __restrict qx_out,
@@ -261,7 +238,7 @@ AIRLIGHT_SPLAT_CLONES void depth_classes(const RbfSplat::GaussF g, float R2, int
 // point lights, no noise): for each of the m lattice rays (lx, ly, lz), the Dvp = inf terms
 // of the n Gaussians gathered in structure-of-arrays form (n a multiple of 16, padded with
 // k0 = 0 and zero weights), summed over the Gaussians into T, R, G, B. The same arithmetic
-// as view_terms<false, true> and light_terms, one SIMD lane per Gaussian instead of per ray:
+// as view_terms<true> and light_terms, one SIMD lane per Gaussian instead of per ray:
 // long loops, no padding of the (16/s + 1)^2 rays, one call per tile instead of per pair.
 // Per-(Gaussian, light) data at [l n + k]; scratch: 6 n floats.
 struct LatticeSoA {
@@ -1735,21 +1712,20 @@ void RbfSplat::splat_gaussian(std::size_t i, int n, const float* dx, const float
     const GaussF& g = g_[i];
     // (tend null: all inf, the reduced resolution's lattice)
     if (noise_.on()) {
-        // view_terms<true> in three vectorised passes: the unperturbed terms, the perturbed
-        // directions, the optical depth along those (the same arithmetic; the fused loop,
-        // which the full resolution used, does not vectorise: 3000 Gaussians with noise at
-        // 1080p took 122 s CPU).
+        // Three vectorised passes: the unperturbed terms, the perturbed directions, the
+        // optical depth along those (a fused loop, which the full resolution used, did not
+        // vectorise: 3000 Gaussians with noise at 1080p took 122 s CPU).
         float qx[kTilePixels], qy[kTilePixels], qz[kTilePixels], s1[kTilePixels], s2[kTilePixels];
-        if (tend) view_terms<false, false>(g, eye_f_, 0.0f, 0.0f, 0.0f, 0.0f, n, dx, dy, dz, tend, s1, Tvr, tr);
-        else view_terms<false, true>(g, eye_f_, 0.0f, 0.0f, 0.0f, 0.0f, n, dx, dy, dz, tend, s1, Tvr, tr);
+        if (tend) view_terms<false>(g, n, dx, dy, dz, tend, s1, Tvr, tr);
+        else view_terms<true>(g, n, dx, dy, dz, tend, s1, Tvr, tr);
         noise_dirs(g.nscale, eye_f_, float(1.0 / noise_.scale), float(noise_.offset.x), float(noise_.offset.y),
                    float(noise_.offset.z), n, dx, dy, dz, tr, qx, qy, qz);
-        if (tend) view_terms<false, false>(g, eye_f_, 0.0f, 0.0f, 0.0f, 0.0f, n, qx, qy, qz, tend, Tvp, s1, s2);
-        else view_terms<false, true>(g, eye_f_, 0.0f, 0.0f, 0.0f, 0.0f, n, qx, qy, qz, tend, Tvp, s1, s2);
+        if (tend) view_terms<false>(g, n, qx, qy, qz, tend, Tvp, s1, s2);
+        else view_terms<true>(g, n, qx, qy, qz, tend, Tvp, s1, s2);
     } else if (tend) {
-        view_terms<false, false>(g, eye_f_, 0.0f, 0.0f, 0.0f, 0.0f, n, dx, dy, dz, tend, Tvp, Tvr, tr);
+        view_terms<false>(g, n, dx, dy, dz, tend, Tvp, Tvr, tr);
     } else {
-        view_terms<false, true>(g, eye_f_, 0.0f, 0.0f, 0.0f, 0.0f, n, dx, dy, dz, tend, Tvp, Tvr, tr);
+        view_terms<true>(g, n, dx, dy, dz, tend, Tvp, Tvr, tr);
     }
     add_to(Tvp, n, accT);
     const std::size_t L = lights_.size();
@@ -2278,8 +2254,7 @@ void RbfSplat::cut_light_factor(std::size_t i, int n_blocks, const int* block_st
         int e = b;
         while (e + 1 < n_blocks && (live >> (e + 1) & 1u)) ++e;
         const int k0 = block_start[b], nr = block_start[e + 1] - k0;
-        view_terms<false, false>(g, eye_f_, 0.0f, 0.0f, 0.0f, 0.0f, nr, bx + k0, by + k0, bz + k0, bfar + k0,
-                                 Tvp + k0, Tvr + k0, tr + k0);
+        view_terms<false>(g, nr, bx + k0, by + k0, bz + k0, bfar + k0, Tvp + k0, Tvr + k0, tr + k0);
         add_to(Tvp + k0, nr, eT + k0);
         b = e;
     }
@@ -2324,7 +2299,7 @@ void RbfSplat::cut_light_factor(std::size_t i, int n_blocks, const int* block_st
         constexpr int kMaxLattice = 96;
         float lTvp[kMaxLattice], lTvr[kMaxLattice], ltr[kMaxLattice], ones[kMaxLattice];
         float FR[kMaxLattice] = {}, FG[kMaxLattice] = {}, FB[kMaxLattice] = {};
-        view_terms<false, true>(g, eye_f_, 0.0f, 0.0f, 0.0f, 0.0f, m_pad, lx, ly, lz, nullptr, lTvp, lTvr, ltr);
+        view_terms<true>(g, m_pad, lx, ly, lz, nullptr, lTvp, lTvr, ltr);
         std::fill(ones, ones + m_pad, 1.0f);
         for (std::size_t l = 0; l < L; ++l)
             light_terms(g, gl_[i * L + l], lf_[l], m_pad, lx, ly, lz, ones, lTvr, ltr, FR, FG, FB);
