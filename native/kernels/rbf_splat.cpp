@@ -1673,10 +1673,10 @@ void RbfSplat::bin(const Vec3& D0, const Vec3& Dx, const Vec3& Dy, const Vec3& f
             double clearance = std::numeric_limits<double>::infinity();  // least |b - s| - R over the lights
             for (const Vec3& s : lights_) clearance = std::min(clearance, glm::length(medium_.centre(i) - s) - g_[i].radius);
             smooth_[i] = 1.0 / (std::sqrt(2.0) * a * dist) >= sigma_min && clearance >= light_min * dist;
-            // The same light criterion on the lattice itself (step s, half of H): every
-            // b^r of the Gaussian's rays stays that far from every light, so its light
+            // The same light criterion on the lattice itself (step s, half of H: light_min_):
+            // every b^r of the Gaussian's rays stays that far from every light, so its light
             // factor 1 / |b^r - s|^2 interpolates to tau over a lattice cell.
-            light_far_[i] = clearance >= 0.5 * light_min * dist;
+            light_far_[i] = clearance >= light_min_ * dist;
         }
     }
     for (int t = 0; t < n_tiles; ++t) count[t + 1] += count[t];

@@ -272,7 +272,10 @@ class RbfSplat {
     double clip_start_ = 0.0;
     int step_ = 1;
     Vec3 q0_{0.0}, q1_{0.0}, q2_{0.0};  // film coordinates of a direction d: (q1.d, q2.d) / q0.d
-    std::vector<unsigned char> exact_tile_;  // step_ > 1: tiles evaluated exactly (next to a light)
+    // step_ > 1: tiles where a Gaussian's b^r may come closer to a light than the lattice
+    // allows: their Gaussians are checked one by one (light_far_, light_clear), their edge
+    // samples skip the lattice
+    std::vector<unsigned char> exact_tile_;
     mutable std::atomic<std::size_t> n_lattice_{0}, n_exact_{0}, n_behind_{0}, n_coarse_{0};
     std::vector<unsigned char> smooth_;  // step_ > 1: per Gaussian, coarse lattice allowed
     // step_ > 1: per Gaussian, far enough from every light for the lattice even in tiles
