@@ -400,6 +400,62 @@ AIRLIGHT_SPLAT_CLONES void sub_interp(int n, const int* __restrict lat, const fl
     }
 }
 
+// One row of a tile's rays: pixel i looks along A + i B (A, B film vectors, the row's first
+// pixel centre and the pixel step), unit direction in double (dd*, the homogeneous term's
+// angle to the light needs it near the light's image) and float (d*); t0 = clip / (d . f)
+// (0 without near clip) and far = max(Dvp, t0). A loop of its own so that it vectorises
+// (it was a fifth of a Gaussian bake's fixed cost as scalar glm code).
+AIRLIGHT_SPLAT_CLONES void tile_row_rays(int n, double Ax, double Ay, double Az, double Bx, double By, double Bz,
+                                         double fx, double fy, double fz, double clip, const float* __restrict depth,
+                                         double* __restrict ddx, double* __restrict ddy, double* __restrict ddz,
+                                         float* __restrict dx, float* __restrict dy, float* __restrict dz,
+                                         float* __restrict t0, float* __restrict far) {
+    for (int i = 0; i < n; ++i) {
+        const double X = Ax + double(i) * Bx, Y = Ay + double(i) * By, Z = Az + double(i) * Bz;
+        const double inv = 1.0 / std::sqrt(X * X + Y * Y + Z * Z);
+        const double x = X * inv, y = Y * inv, z = Z * inv;
+        ddx[i] = x;
+        ddy[i] = y;
+        ddz[i] = z;
+        dx[i] = float(x);
+        dy[i] = float(y);
+        dz[i] = float(z);
+        const float tn = clip > 0.0 ? float(clip / (x * fx + y * fy + z * fz)) : 0.0f;
+        t0[i] = tn;
+        far[i] = std::max(depth[i], tn);
+    }
+}
+
+// L0 (3 floats per pixel) += w value, for n pixels.
+AIRLIGHT_SPLAT_CLONES void add_weighted3(int n, float w0, float w1, float w2, const float* __restrict value,
+                                         float* __restrict L0) {
+    for (int k = 0; k < n; ++k) {
+        L0[3 * k] += w0 * value[k];
+        L0[3 * k + 1] += w1 * value[k];
+        L0[3 * k + 2] += w2 * value[k];
+    }
+}
+
+// One row of a tile at reduced resolution into the passes (3 floats per pixel each):
+// transmittance Tr, airlight sc max(0, Gaussians) + sg L0 where the segment is not empty.
+AIRLIGHT_SPLAT_CLONES void write_row_reduced(int n, const float* __restrict far, const float* __restrict t0,
+                                             const float* __restrict Tr, const float* __restrict sc,
+                                             const float* __restrict sg, const float* __restrict Rf,
+                                             const float* __restrict Gf, const float* __restrict Bf,
+                                             const float* __restrict Rn, const float* __restrict Gn,
+                                             const float* __restrict Bn, const float* __restrict L0,
+                                             float* __restrict transmittance, float* __restrict airlight) {
+    for (int k = 0; k < n; ++k) {
+        const bool seg = far[k] > t0[k];
+        transmittance[3 * k] = Tr[k];
+        transmittance[3 * k + 1] = Tr[k];
+        transmittance[3 * k + 2] = Tr[k];
+        airlight[3 * k] = seg ? sc[k] * std::max(0.0f, Rf[k] - Rn[k]) + sg[k] * L0[3 * k] : 0.0f;
+        airlight[3 * k + 1] = seg ? sc[k] * std::max(0.0f, Gf[k] - Gn[k]) + sg[k] * L0[3 * k + 1] : 0.0f;
+        airlight[3 * k + 2] = seg ? sc[k] * std::max(0.0f, Bf[k] - Bn[k]) + sg[k] * L0[3 * k + 2] : 0.0f;
+    }
+}
+
 // Per pixel of a tile at reduced resolution: transmittance exp(-(beta0 (far - t0) +
 // max(0, Tf - Tn))), the near-point attenuation scale_g = exp(Tn) and scale = scale_g
 // exp(beta0 t0) (both 1 without near clip), as splat_tile's double loop, in float.
@@ -1829,23 +1885,13 @@ void RbfSplat::splat_tile(int t, const float* depth, float* transmittance, float
     float dx[kTilePixels], dy[kTilePixels], dz[kTilePixels], far[kTilePixels], t0[kTilePixels];
     double ddx[kTilePixels], ddy[kTilePixels], ddz[kTilePixels];
     const bool near_clip = clip_start_ > 0.0;
-    for (int j = y0; j < y1; ++j)
-        for (int i = x0; i < x1; ++i) {
-            const int k = (j - y0) * w + (i - x0);
-            const Vec3 D = D0_ + (i + 0.5) * Dx_ + (j + 0.5) * Dy_;
-            const double len = glm::length(D);
-            const Vec3 d = D / len;
-            ddx[k] = d.x;
-            ddy[k] = d.y;
-            ddz[k] = d.z;
-            dx[k] = float(d.x);
-            dy[k] = float(d.y);
-            dz[k] = float(d.z);
-            const double tn = near_clip ? clip_start_ / glm::dot(d, forward_) : 0.0;
-            t0[k] = float(tn);
-            const float Dvp = depth[size_t(j) * W_ + i];
-            far[k] = std::max(Dvp, t0[k]);
-        }
+    for (int j = y0; j < y1; ++j) {
+        const int k = (j - y0) * w;
+        const Vec3 A = D0_ + (x0 + 0.5) * Dx_ + (j + 0.5) * Dy_;
+        tile_row_rays(w, A.x, A.y, A.z, Dx_.x, Dx_.y, Dx_.z, forward_.x, forward_.y, forward_.z,
+                      near_clip ? clip_start_ : 0.0, depth + size_t(j) * W_ + x0, ddx + k, ddy + k, ddz + k, dx + k,
+                      dy + k, dz + k, t0 + k, far + k);
+    }
     float Tf[kTilePixels] = {}, Rf[kTilePixels] = {}, Gf[kTilePixels] = {}, Bf[kTilePixels] = {};
     float Tn[kTilePixels] = {}, Rn[kTilePixels] = {}, Gn[kTilePixels] = {}, Bn[kTilePixels] = {};
     if (step_ == 1) {
@@ -1871,8 +1917,7 @@ void RbfSplat::splat_tile(int t, const float* depth, float* transmittance, float
             if (!extra_.custom_background.empty() && extra_.custom_background[l]) continue;
             homogeneous(cos_gamma, l, far, near_clip ? t0 : nullptr, n, value);
             const RGB w = weight0_[l] * Csv_[l];
-            for (int k = 0; k < n; ++k)
-                for (int c = 0; c < 3; ++c) L0[k][c] += float(w[c]) * value[k];
+            add_weighted3(n, float(w[0]), float(w[1]), float(w[2]), value, &L0[0][0]);
         }
         background_extra(ddx, ddy, ddz, far, near_clip ? t0 : nullptr, n, L0);
     }
@@ -1881,17 +1926,12 @@ void RbfSplat::splat_tile(int t, const float* depth, float* transmittance, float
         // Reduced resolution: the same combination in float (fast_expf, vectorised).
         float Tr[kTilePixels], sg[kTilePixels], sc[kTilePixels];
         finish_float(n, float(beta0), near_clip, far, t0, Tf, Tn, Tr, sg, sc);
-        for (int j = y0; j < y1; ++j)
-            for (int i = x0; i < x1; ++i) {
-                const int k = (j - y0) * w + (i - x0);
-                const size_t p = size_t(j) * W_ + i;
-                const bool seg = far[k] > t0[k];
-                const float gauss[3] = {Rf[k] - Rn[k], Gf[k] - Gn[k], Bf[k] - Bn[k]};
-                for (int c = 0; c < 3; ++c) {
-                    transmittance[3 * p + c] = Tr[k];
-                    airlight[3 * p + c] = seg ? sc[k] * std::max(0.0f, gauss[c]) + sg[k] * L0[k][c] : 0.0f;
-                }
-            }
+        for (int j = y0; j < y1; ++j) {
+            const int k = (j - y0) * w;
+            const size_t p = size_t(j) * W_ + x0;
+            write_row_reduced(w, far + k, t0 + k, Tr + k, sc + k, sg + k, Rf + k, Gf + k, Bf + k, Rn + k, Gn + k,
+                              Bn + k, L0[k], transmittance + 3 * p, airlight + 3 * p);
+        }
         return;
     }
     for (int j = y0; j < y1; ++j)
@@ -1955,79 +1995,90 @@ void RbfSplat::splat_tile_reduced(int t, int x0, int y0, int w, int h, const flo
     // The tile's pixels regrouped into 4x4 blocks (one SIMD vector each), so that a
     // Gaussian the surface cuts is evaluated exactly only on the blocks it reaches.
     constexpr int kBlock = 4, kMaxBlocks = (RbfSplat::kTile / kBlock) * (RbfSplat::kTile / kBlock);
+    // Set up on the first Gaussian that needs them (prepare_blocks): a tile whose Gaussians
+    // all lie wholly in front of or behind its surface never does.
     int perm[kTilePixels], block_start[kMaxBlocks + 1];
     float bx[kTilePixels], by[kTilePixels], bz[kTilePixels], bfar[kTilePixels];
     int n_blocks = 0;
-    {
-        int k = 0;
-        for (int by0 = 0; by0 < h; by0 += kBlock)
-            for (int bx0 = 0; bx0 < w; bx0 += kBlock) {
-                block_start[n_blocks++] = k;
-                for (int j = by0; j < std::min(h, by0 + kBlock); ++j)
-                    for (int i = bx0; i < std::min(w, bx0 + kBlock); ++i) {
-                        const int q = j * w + i;
-                        perm[k] = q;
-                        bx[k] = dx[q];
-                        by[k] = dy[q];
-                        bz[k] = dz[q];
-                        bfar[k] = far[q];
-                        ++k;
-                    }
-            }
-        block_start[n_blocks] = k;
-    }
     // Per regrouped pixel: its lattice cell (top-left lattice index) and bilinear weights.
     int lat[kTilePixels];
     float wgt[4 * kTilePixels];
-    for (int k = 0; k < n; ++k) {
-        const int q = perm[k], j = q / w, i = q % w;
-        const float fx = (float(i) + 0.5f) / float(s), fy = (float(j) + 0.5f) / float(s);
-        const int u = int(fx), v = int(fy);
-        const float wx = fx - float(u), wy = fy - float(v);
-        lat[k] = v * nu + u;
-        wgt[k] = (1.0f - wx) * (1.0f - wy);
-        wgt[kTilePixels + k] = wx * (1.0f - wy);
-        wgt[2 * kTilePixels + k] = (1.0f - wx) * wy;
-        wgt[3 * kTilePixels + k] = wx * wy;
-    }
-    float eT[kTilePixels] = {}, eR[kTilePixels] = {}, eG[kTilePixels] = {}, eB[kTilePixels] = {};
+    float eT[kTilePixels], eR[kTilePixels], eG[kTilePixels], eB[kTilePixels];
     // Per 4x4 block (cut_light_factor): the size blk_h of its surface patch (corner pixels'
     // surface points, the larger diagonal) and the largest deviation blk_err of a pixel's
     // surface point from the bilinear patch of the corners'; inf where the block is not
     // 4x4, has no hit at a corner, or lies near a light (h > 0.05 |p - s|, err > 0.01 |p - s|).
     float blk_h[kMaxBlocks], blk_err[kMaxBlocks];
-    for (int b = 0; b < n_blocks; ++b) {
-        constexpr float kInfF = std::numeric_limits<float>::infinity();
-        blk_h[b] = blk_err[b] = kInfF;
-        const int k0 = block_start[b];
-        if (block_start[b + 1] - k0 != 16) continue;
-        float px[16], py[16], pz[16];
-        bool finite = true;
-        for (int k = 0; k < 16; ++k) {
-            px[k] = bfar[k0 + k] * bx[k0 + k];
-            py[k] = bfar[k0 + k] * by[k0 + k];
-            pz[k] = bfar[k0 + k] * bz[k0 + k];
-            finite = finite && std::isfinite(bfar[k0 + k]);
+    bool blocks_ready = false;
+    auto prepare_blocks = [&]() {
+        if (blocks_ready) return;
+        blocks_ready = true;
+        {
+            int k = 0;
+            for (int by0 = 0; by0 < h; by0 += kBlock)
+                for (int bx0 = 0; bx0 < w; bx0 += kBlock) {
+                    block_start[n_blocks++] = k;
+                    for (int j = by0; j < std::min(h, by0 + kBlock); ++j)
+                        for (int i = bx0; i < std::min(w, bx0 + kBlock); ++i) {
+                            const int q = j * w + i;
+                            perm[k] = q;
+                            bx[k] = dx[q];
+                            by[k] = dy[q];
+                            bz[k] = dz[q];
+                            bfar[k] = far[q];
+                            ++k;
+                        }
+                }
+            block_start[n_blocks] = k;
         }
-        if (!finite) continue;
-        auto dist = [](float x, float y, float z) { return std::sqrt(x * x + y * y + z * z); };
-        const float hb = std::max(dist(px[15] - px[0], py[15] - py[0], pz[15] - pz[0]),
-                                  dist(px[12] - px[3], py[12] - py[3], pz[12] - pz[3]));
-        float err = 0.0f;
-        for (int k = 0; k < 16; ++k) {
-            const float u = float(k & 3) * (1.0f / 3.0f), v = float(k >> 2) * (1.0f / 3.0f);
-            const float w0 = (1.0f - u) * (1.0f - v), w1 = u * (1.0f - v), w2 = (1.0f - u) * v, w3 = u * v;
-            err = std::max(err, dist(px[k] - (w0 * px[0] + w1 * px[3] + w2 * px[12] + w3 * px[15]),
-                                     py[k] - (w0 * py[0] + w1 * py[3] + w2 * py[12] + w3 * py[15]),
-                                     pz[k] - (w0 * pz[0] + w1 * pz[3] + w2 * pz[12] + w3 * pz[15])));
+        for (int k = 0; k < n; ++k) {
+            const int q = perm[k], j = q / w, i = q % w;
+            const float fx = (float(i) + 0.5f) / float(s), fy = (float(j) + 0.5f) / float(s);
+            const int u = int(fx), v = int(fy);
+            const float wx = fx - float(u), wy = fy - float(v);
+            lat[k] = v * nu + u;
+            wgt[k] = (1.0f - wx) * (1.0f - wy);
+            wgt[kTilePixels + k] = wx * (1.0f - wy);
+            wgt[2 * kTilePixels + k] = (1.0f - wx) * wy;
+            wgt[3 * kTilePixels + k] = wx * wy;
         }
-        float dl = kInfF;
-        for (const LightF& lf : lf_) dl = std::min(dl, dist(px[0] + lf.vx, py[0] + lf.vy, pz[0] + lf.vz));
-        if (hb <= 0.05f * dl && err <= 0.01f * dl) {
-            blk_h[b] = hb;
-            blk_err[b] = err;
+        std::fill(eT, eT + n, 0.0f);
+        std::fill(eR, eR + n, 0.0f);
+        std::fill(eG, eG + n, 0.0f);
+        std::fill(eB, eB + n, 0.0f);
+        for (int b = 0; b < n_blocks; ++b) {
+            constexpr float kInfF = std::numeric_limits<float>::infinity();
+            blk_h[b] = blk_err[b] = kInfF;
+            const int k0 = block_start[b];
+            if (block_start[b + 1] - k0 != 16) continue;
+            float px[16], py[16], pz[16];
+            bool finite = true;
+            for (int k = 0; k < 16; ++k) {
+                px[k] = bfar[k0 + k] * bx[k0 + k];
+                py[k] = bfar[k0 + k] * by[k0 + k];
+                pz[k] = bfar[k0 + k] * bz[k0 + k];
+                finite = finite && std::isfinite(bfar[k0 + k]);
+            }
+            if (!finite) continue;
+            auto dist = [](float x, float y, float z) { return std::sqrt(x * x + y * y + z * z); };
+            const float hb = std::max(dist(px[15] - px[0], py[15] - py[0], pz[15] - pz[0]),
+                                      dist(px[12] - px[3], py[12] - py[3], pz[12] - pz[3]));
+            float err = 0.0f;
+            for (int k = 0; k < 16; ++k) {
+                const float u = float(k & 3) * (1.0f / 3.0f), v = float(k >> 2) * (1.0f / 3.0f);
+                const float w0 = (1.0f - u) * (1.0f - v), w1 = u * (1.0f - v), w2 = (1.0f - u) * v, w3 = u * v;
+                err = std::max(err, dist(px[k] - (w0 * px[0] + w1 * px[3] + w2 * px[12] + w3 * px[15]),
+                                         py[k] - (w0 * py[0] + w1 * py[3] + w2 * py[12] + w3 * py[15]),
+                                         pz[k] - (w0 * pz[0] + w1 * pz[3] + w2 * pz[12] + w3 * pz[15])));
+            }
+            float dl = kInfF;
+            for (const LightF& lf : lf_) dl = std::min(dl, dist(px[0] + lf.vx, py[0] + lf.vy, pz[0] + lf.vz));
+            if (hb <= 0.05f * dl && err <= 0.01f * dl) {
+                blk_h[b] = hb;
+                blk_err[b] = err;
+            }
         }
-    }
+    };
     // Conservative margins for the float depths (relative 1e-6).
     const double far_lo = double(dmin) * (1.0 - 1e-6), far_hi = double(dmax) * (1.0 + 1e-6);
     // Next to a light's image the light terms peak (1 / |b^r - s|^2 along rays passing
@@ -2083,6 +2134,7 @@ void RbfSplat::splat_tile_reduced(int t, int x0, int y0, int w, int h, const flo
         }
         // Block by block: blocks wholly behind are skipped; if every block is in front the
         // Gaussian goes to the lattice, else the blocks not behind are evaluated exactly.
+        prepare_blocks();
         const float R = float(g.radius * (1.0 + 1e-4));
         bool all_front = true, any_exact = false;
         unsigned live = 0, front_blocks = 0, cut = 0;  // blocks not wholly behind; in front; cut
@@ -2158,7 +2210,7 @@ void RbfSplat::splat_tile_reduced(int t, int x0, int y0, int w, int h, const flo
     n_lattice_.fetch_add(lattice, std::memory_order_relaxed);
     n_exact_.fetch_add(exact, std::memory_order_relaxed);
     n_behind_.fetch_add(behind, std::memory_order_relaxed);
-    for (int k = 0; k < n; ++k) {
+    for (int k = 0; blocks_ready && k < n; ++k) {
         const int q = perm[k];
         Tf[q] += eT[k];
         Rf[q] += eR[k];
