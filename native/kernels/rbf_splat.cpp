@@ -1728,7 +1728,10 @@ void RbfSplat::bin(const Vec3& D0, const Vec3& Dx, const Vec3& Dy, const Vec3& f
             const double dist = std::max(g_[i].dist, 1e-12), a = medium_.scale(i);
             double clearance = std::numeric_limits<double>::infinity();  // least |b - s| - R over the lights
             for (const Vec3& s : lights_) clearance = std::min(clearance, glm::length(medium_.centre(i) - s) - g_[i].radius);
-            smooth_[i] = 1.0 / (std::sqrt(2.0) * a * dist) >= sigma_min && clearance >= light_min * dist;
+            // 2: everywhere; 1: where the tile's rays keep b^r far enough from the lights
+            // (light_clear with factor H / s = 2: a light's image far from the tile).
+            const bool wide = 1.0 / (std::sqrt(2.0) * a * dist) >= sigma_min;
+            smooth_[i] = !wide ? 0 : (clearance >= light_min * dist ? 2 : 1);
             // The same light criterion on the lattice itself (step s, half of H: light_min_):
             // every b^r of the Gaussian's rays stays that far from every light, so its light
             // factor 1 / |b^r - s|^2 interpolates to tau over a lattice cell.
@@ -1742,7 +1745,7 @@ void RbfSplat::bin(const Vec3& D0, const Vec3& Dx, const Vec3& Dy, const Vec3& f
     rows(true, fill.data());
 }
 
-bool RbfSplat::light_clear(std::size_t i, int t) const {
+bool RbfSplat::light_clear(std::size_t i, int t, double factor) const {
     // For a ray of unit direction d, b^r = eye + ((b - eye) . d) d (unclamped) and
     // |b^r - s|^2 = ((b - s) . d)^2 + h^2, h the ray's closest approach to s: so |b^r - s| is
     // at least h >= h_min and at least |(b - s) . d| >= |(b - s) . u| cos a - |b - s| sin a
@@ -1750,7 +1753,7 @@ bool RbfSplat::light_clear(std::size_t i, int t) const {
     // clamped at the eye is D >= h_min away. The lattice needs |b^r - s| >= light_min_ d_i.
     const std::size_t L = lights_.size();
     const Vec3 b = medium_.centre(i);
-    const double need = light_min_ * g_[i].dist;
+    const double need = factor * light_min_ * g_[i].dist;
     for (std::size_t l = 0; l < L; ++l) {
         const TileLight& tl = tile_light_[std::size_t(t) * L + l];
         if (double(tl.h_min) >= need) continue;
@@ -2093,7 +2096,8 @@ void RbfSplat::splat_tile_reduced(int t, int x0, int y0, int w, int h, const flo
     // The coarse lattice: every other node (needs an odd number of nodes per row, column).
     const bool coarse_ok = batch && (nu - 1) % 2 == 0 && (nv - 1) % 2 == 0;
     auto to_lattice = [&](std::size_t i) {
-        (coarse_ok && smooth_[i] ? coarse_list : batch_list).push_back(std::uint32_t(i));
+        const bool coarse = coarse_ok && (smooth_[i] == 2 || (smooth_[i] == 1 && light_clear(i, t, 2.0)));
+        (coarse ? coarse_list : batch_list).push_back(std::uint32_t(i));
     };
     for (std::uint32_t e = bin_start_[t]; e < bin_start_[t + 1]; ++e) {
         const std::size_t i = bin_index_[e];

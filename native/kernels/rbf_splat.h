@@ -277,7 +277,9 @@ class RbfSplat {
     // samples skip the lattice
     std::vector<unsigned char> exact_tile_;
     mutable std::atomic<std::size_t> n_lattice_{0}, n_exact_{0}, n_behind_{0}, n_coarse_{0};
-    std::vector<unsigned char> smooth_;  // step_ > 1: per Gaussian, coarse lattice allowed
+    // step_ > 1: per Gaussian, coarse lattice allowed: 2 everywhere, 1 in tiles whose rays keep
+    // its b^r far enough from the lights (light_clear), 0 nowhere (too narrow)
+    std::vector<unsigned char> smooth_;
     // step_ > 1: per Gaussian, far enough from every light for the lattice even in tiles
     // next to a light's image (exact_tile_)
     std::vector<unsigned char> light_far_;
@@ -289,9 +291,10 @@ class RbfSplat {
     };
     std::vector<TileLight> tile_light_;
     double light_min_ = 0.0;
-    // Whether Gaussian i's b^r stays light_min_ d_i away from every light whose image is next
-    // to tile t, for all of the tile's rays (see rbf_splat.cpp).
-    bool light_clear(std::size_t i, int t) const;
+    // Whether Gaussian i's b^r stays factor light_min_ d_i away from every light whose image is
+    // next to tile t, for all of the tile's rays (see rbf_splat.cpp): factor 1 is the lattice's
+    // criterion at spacing s, 2 the coarse lattice's (2 s), 1/2 a lattice at spacing s / 2.
+    bool light_clear(std::size_t i, int t, double factor = 1.0) const;
     std::vector<std::uint32_t> bin_start_;  // per tile, into bin_index_ (size tiles + 1)
     std::vector<std::uint32_t> bin_index_;
 };
