@@ -225,10 +225,11 @@ AIRLIGHT_SPLAT_CLONES void depth_classes(const RbfSplat::GaussF g, float R2, int
         const float cx = g.ry * z - g.rz * y, cy = g.rz * x - g.rx * z, cz = g.rx * y - g.ry * x;
         const float h2 = cx * cx + cy * cy + cz * cz;
         const float half = std::sqrt(std::max(R2 - h2, 0.0f));
-        const bool cross = h2 < R2;
+        // Bitwise &: a short-circuit && is control flow, which kept the loop scalar.
+        const int cross = h2 < R2 ? 1 : 0;
         const float te = far[k];
-        nf += (cross && !(te >= ts + half)) ? 1 : 0;
-        nb += (cross && !(te <= ts - half)) ? 1 : 0;
+        nf += cross & (te >= ts + half ? 0 : 1);
+        nb += cross & (te <= ts - half ? 0 : 1);
     }
     not_front = nf;
     not_behind = nb;
@@ -405,6 +406,9 @@ AIRLIGHT_SPLAT_CLONES void sub_interp(int n, const int* __restrict lat, const fl
 // angle to the light needs it near the light's image) and float (d*); t0 = clip / (d . f)
 // (0 without near clip) and far = max(Dvp, t0). A loop of its own so that it vectorises
 // (it was a fifth of a Gaussian bake's fixed cost as scalar glm code).
+// kClip: near clip on (else t0 = 0); a template argument so that the loop has no branch
+// and vectorises.
+template <bool kClip>
 AIRLIGHT_SPLAT_CLONES void tile_row_rays(int n, double Ax, double Ay, double Az, double Bx, double By, double Bz,
                                          double fx, double fy, double fz, double clip, const float* __restrict depth,
                                          double* __restrict ddx, double* __restrict ddy, double* __restrict ddz,
@@ -420,7 +424,7 @@ AIRLIGHT_SPLAT_CLONES void tile_row_rays(int n, double Ax, double Ay, double Az,
         dx[i] = float(x);
         dy[i] = float(y);
         dz[i] = float(z);
-        const float tn = clip > 0.0 ? float(clip / (x * fx + y * fy + z * fz)) : 0.0f;
+        const float tn = kClip ? float(clip / (x * fx + y * fy + z * fz)) : 0.0f;
         t0[i] = tn;
         far[i] = std::max(depth[i], tn);
     }
@@ -445,33 +449,46 @@ AIRLIGHT_SPLAT_CLONES void write_row_reduced(int n, const float* __restrict far,
                                              const float* __restrict Rn, const float* __restrict Gn,
                                              const float* __restrict Bn, const float* __restrict L0,
                                              float* __restrict transmittance, float* __restrict airlight) {
+    // The empty segment's 0 as a factor: GCC 12 leaves the loop scalar with a select there
+    // (the terms are finite and >= 0, so the factor gives the same values).
     for (int k = 0; k < n; ++k) {
-        const bool seg = far[k] > t0[k];
+        const float seg = far[k] > t0[k] ? 1.0f : 0.0f;
+        airlight[3 * k] = seg * (sc[k] * std::max(0.0f, Rf[k] - Rn[k]) + sg[k] * L0[3 * k]);
+        airlight[3 * k + 1] = seg * (sc[k] * std::max(0.0f, Gf[k] - Gn[k]) + sg[k] * L0[3 * k + 1]);
+        airlight[3 * k + 2] = seg * (sc[k] * std::max(0.0f, Bf[k] - Bn[k]) + sg[k] * L0[3 * k + 2]);
         transmittance[3 * k] = Tr[k];
         transmittance[3 * k + 1] = Tr[k];
         transmittance[3 * k + 2] = Tr[k];
-        airlight[3 * k] = seg ? sc[k] * std::max(0.0f, Rf[k] - Rn[k]) + sg[k] * L0[3 * k] : 0.0f;
-        airlight[3 * k + 1] = seg ? sc[k] * std::max(0.0f, Gf[k] - Gn[k]) + sg[k] * L0[3 * k + 1] : 0.0f;
-        airlight[3 * k + 2] = seg ? sc[k] * std::max(0.0f, Bf[k] - Bn[k]) + sg[k] * L0[3 * k + 2] : 0.0f;
     }
 }
 
 // Per pixel of a tile at reduced resolution: transmittance exp(-(beta0 (far - t0) +
 // max(0, Tf - Tn))), the near-point attenuation scale_g = exp(Tn) and scale = scale_g
 // exp(beta0 t0) (both 1 without near clip), as splat_tile's double loop, in float.
-AIRLIGHT_SPLAT_CLONES void finish_float(int n, float beta0, bool near_clip, const float* __restrict far,
-                                        const float* __restrict t0, const float* __restrict Tf,
-                                        const float* __restrict Tn, float* __restrict Tr, float* __restrict sg,
-                                        float* __restrict sc) {
+// The branches are template arguments (a conditional call left the loop scalar).
+template <bool kNearClip, bool kBackground>
+AIRLIGHT_SPLAT_CLONES void finish_float_impl(int n, float beta0, const float* __restrict far,
+                                             const float* __restrict t0, const float* __restrict Tf,
+                                             const float* __restrict Tn, float* __restrict Tr, float* __restrict sg,
+                                             float* __restrict sc) {
     for (int k = 0; k < n; ++k) {
-        const float seg = far[k] - t0[k];
         // beta0 seg: 0 for beta0 = 0 even when seg = inf (background_depth)
-        const float bg = beta0 > 0.0f ? beta0 * seg : 0.0f;
+        const float bg = kBackground ? beta0 * (far[k] - t0[k]) : 0.0f;
         Tr[k] = fast_expf(-(bg + std::max(0.0f, Tf[k] - Tn[k])));
-        const float g = near_clip ? fast_expf(Tn[k]) : 1.0f;
+        const float g = kNearClip ? fast_expf(Tn[k]) : 1.0f;
         sg[k] = g;
-        sc[k] = near_clip ? g * fast_expf(beta0 * t0[k]) : 1.0f;
+        sc[k] = kNearClip ? g * fast_expf(beta0 * t0[k]) : 1.0f;
     }
+}
+
+void finish_float(int n, float beta0, bool near_clip, const float* far, const float* t0, const float* Tf,
+                  const float* Tn, float* Tr, float* sg, float* sc) {
+    const bool bg = beta0 > 0.0f;
+    if (near_clip)
+        (bg ? finish_float_impl<true, true> : finish_float_impl<true, false>)(n, beta0, far, t0, Tf, Tn, Tr, sg, sc);
+    else
+        (bg ? finish_float_impl<false, true> : finish_float_impl<false, false>)(n, beta0, far, t0, Tf, Tn, Tr, sg,
+                                                                                 sc);
 }
 
 // Reduced resolution, a Gaussian the surface cuts (cut_light_factor): adds Tvp times the
@@ -1891,9 +1908,9 @@ void RbfSplat::splat_tile(int t, const float* depth, float* transmittance, float
     for (int j = y0; j < y1; ++j) {
         const int k = (j - y0) * w;
         const Vec3 A = D0_ + (x0 + 0.5) * Dx_ + (j + 0.5) * Dy_;
-        tile_row_rays(w, A.x, A.y, A.z, Dx_.x, Dx_.y, Dx_.z, forward_.x, forward_.y, forward_.z,
-                      near_clip ? clip_start_ : 0.0, depth + size_t(j) * W_ + x0, ddx + k, ddy + k, ddz + k, dx + k,
-                      dy + k, dz + k, t0 + k, far + k);
+        (near_clip ? tile_row_rays<true> : tile_row_rays<false>)(
+            w, A.x, A.y, A.z, Dx_.x, Dx_.y, Dx_.z, forward_.x, forward_.y, forward_.z, clip_start_,
+            depth + size_t(j) * W_ + x0, ddx + k, ddy + k, ddz + k, dx + k, dy + k, dz + k, t0 + k, far + k);
     }
     float Tf[kTilePixels] = {}, Rf[kTilePixels] = {}, Gf[kTilePixels] = {}, Bf[kTilePixels] = {};
     float Tn[kTilePixels] = {}, Rn[kTilePixels] = {}, Gn[kTilePixels] = {}, Bn[kTilePixels] = {};
