@@ -1543,6 +1543,19 @@ void RbfSplat::bin(const Vec3& D0, const Vec3& Dx, const Vec3& Dy, const Vec3& f
         throw std::invalid_argument(os.str());
     }
     step_ = step;
+    // Cull spheres (rbf_medium.h: outside R_i a ray's T_i < eps): the medium's cull_eps at full
+    // resolution (the reference path); at reduced resolution eps = kReducedCullEps (at least
+    // the medium's), tied to the lattice's own error: with the default 1e-7, a quarter of the
+    // tile-Gaussian pairs held terms below 1e-5 (see rbf_splat.h).
+    const double eps_cull = step == 1 ? medium_.cull_eps() : std::max(medium_.cull_eps(), kReducedCullEps[step / 2 - 1]);
+    for (std::size_t i = 0; i < g_.size(); ++i) {
+        double R = medium_.cull_radius(i);
+        if (step > 1) {
+            const double lg = std::log(medium_.amplitude(i) * kSqrtPi / (medium_.scale(i) * eps_cull));
+            R = lg > 0.0 ? std::sqrt(lg) / medium_.scale(i) : 0.0;
+        }
+        g_[i].radius = R;
+    }
     n_lattice_ = 0;
     n_coarse_ = 0;
     n_exact_ = 0;
@@ -1680,7 +1693,7 @@ void RbfSplat::bin(const Vec3& D0, const Vec3& Dx, const Vec3& Dy, const Vec3& f
             r[1] = -1;
             r[2] = 0;
             r[3] = -1;
-            const double R = medium_.cull_radius(i);
+            const double R = g_[i].radius;
             if (!(R > 0.0) || medium_.amplitude(i) == 0.0) continue;
             const Vec3 c = medium_.centre(i) - eye_;
             const double dist = glm::length(c);
@@ -2605,7 +2618,7 @@ void RbfSplat::eval_rays(const Vec3* dirs, const float* Dvp, const float* t0, in
         for (std::uint32_t i : gauss) {
             splat_gaussian(i, m, dx, dy, dz, far, Tf, Rf, Gf, Bf);
             // The near segment [0, t0] only meets Gaussians near the eye (as in bin()).
-            if (any_near && glm::length(medium_.centre(i) - eye_) < medium_.cull_radius(i) + double(*std::max_element(tn, tn + m)))
+            if (any_near && glm::length(medium_.centre(i) - eye_) < g_[i].radius + double(*std::max_element(tn, tn + m)))
                 splat_gaussian(i, m, dx, dy, dz, tn, Tn, Rn, Gn, Bn);
         }
         float L0[kChunk][3] = {};

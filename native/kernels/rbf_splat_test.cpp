@@ -227,6 +227,54 @@ TEST(RbfSplat, CoarseLatticeAgainstFull) {
     }
 }
 
+// The cull spheres at reduced resolution (RbfSplat::kReducedCullEps), Gaussian by Gaussian:
+// one Gaussian beside the view whose tail alone reaches in (1e-7 .. 3e-3 of optical depth
+// per ray), binned at full, half and quarter resolution. Every pixel of a tile it is not
+// binned to must see less than eps of it (the exact line integral in double): culling never
+// drops more than eps per Gaussian and ray. And the smaller spheres must bin fewer tiles
+// (the point of them). With the radius 20 % short, 23 checks fail (up to 2.3e-4 dropped at
+// quarter).
+TEST(RbfSplat, ReducedCullWithinItsBound) {
+    const SmallCamera cam(320, 180);
+    const std::vector<float> depth = ground_depth(cam);
+    double tail_max = 0.0;
+    for (int i = 0; i < 16; ++i) {
+        const double z = 6.0 + 3.0 * (i / 2), side = i % 2 ? 1.0 : -1.0, inv_a = 0.6 + 0.1 * (i % 5);
+        // The centre 2.2 .. 3.6 scale lengths beside the frustum's edge (x = 0.577 z).
+        const Vec3 centre(side * (0.577 * z + (2.2 + 0.2 * (i % 8)) * inv_a * 1.155), 0.3 * (i % 3), z);
+        const RbfMedium m({centre.x, centre.y, centre.z}, {1.0 / inv_a}, {0.3}, 0.0);
+        RbfSplat s(m, Vec3(0.0), {Vec3(0.0, 6.0, 12.0)}, {RGB(100.0)}, RGB(0.9), {}, nullptr, RbfNoise{}, 1);
+        std::vector<double> tail(depth.size());
+        for (int j = 0; j < cam.H; ++j)
+            for (int k = 0; k < cam.W; ++k) {
+                const size_t p = size_t(j) * cam.W + k;
+                tail[p] = m.gaussian_optical_depth(0, Vec3(0.0), cam.dir(k, j), 0.0, double(depth[p]));
+                tail_max = std::max(tail_max, tail[p]);
+            }
+        int binned[3] = {0, 0, 0};
+        for (const int step : {1, 2, 4}) {
+            const double eps = step == 1 ? m.cull_eps() : RbfSplat::kReducedCullEps[step / 2 - 1];
+            s.bin(cam.D0, cam.Dx, cam.Dy, cam.forward, cam.W, cam.H, 0.0, step);
+            double dropped = 0.0;
+            for (int t = 0; t < s.num_tiles(); ++t) {
+                if (s.tile_pairs(t) > 0) {
+                    ++binned[step / 2];
+                    continue;
+                }
+                const int x0 = (t % ((cam.W + 15) / 16)) * 16, y0 = (t / ((cam.W + 15) / 16)) * 16;
+                for (int j = y0; j < std::min(cam.H, y0 + 16); ++j)
+                    for (int k = x0; k < std::min(cam.W, x0 + 16); ++k)
+                        dropped = std::max(dropped, tail[size_t(j) * cam.W + k]);
+            }
+            EXPECT_LT(dropped, eps) << "Gaussian " << i << " step " << step;
+        }
+        EXPECT_LT(binned[2], binned[0]) << "Gaussian " << i;  // quarter bins fewer tiles than full
+        EXPECT_LE(binned[2], binned[1]);
+    }
+    EXPECT_GT(tail_max, 1e-4);  // tails above the quarter's eps reach the view
+    EXPECT_LT(tail_max, 1e-2);
+}
+
 // Noise (rbf_splat.h, Fogshop 5.5) against its definition, per Gaussian in double: the
 // optical depth of Gaussian i along r'_i = normalize(r + amplitude R_i / |b_i - v|
 // N(b_i^r / scale + offset)) over [0, Dvp] (b_i^r from the unperturbed ray, clamped to
