@@ -197,12 +197,12 @@ class AirlightSceneSettings(bpy.types.PropertyGroup):
         items=(
             ('FULL', "Full", "Every pixel (the reference; slowest)"),
             ('HALF', "Half", "Every 2nd pixel. Measured at 1080p against Full (benchmarks/bench_rbf.py): "
-                             "transmittance error 0.002 % mean, 0.05 % p99, 0.1 % max (airlight ~10x less); "
-                             "~2.8x less CPU time with 3000 blobs, ~1.8x with a few broad ones"),
+                             "transmittance error 0.003 % mean, 0.05 % p99, 0.1 % max (airlight ~4x less); "
+                             "~3.4x less CPU time with 3000 blobs, ~2.4x with a few broad ones"),
             ('QUARTER', "Quarter", "Every 4th pixel (default). Measured at 1080p against Full "
-                                   "(benchmarks/bench_rbf.py): transmittance error 0.008 % mean, 0.2 % p99, "
-                                   "0.5 % max (airlight ~10x less); ~4.2x less CPU time with 3000 blobs, "
-                                   "~2.4x with a few broad ones. Larger errors at low render resolutions"),
+                                   "(benchmarks/bench_rbf.py): transmittance error 0.013 % mean, 0.2 % p99, "
+                                   "0.5 % max (airlight ~4x less); ~7.3x less CPU time with 3000 blobs, "
+                                   "~3.5x with a few broad ones. Larger errors at low render resolutions"),
         ),
         default='QUARTER',
     )
