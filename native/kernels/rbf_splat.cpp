@@ -45,7 +45,9 @@ constexpr int kTilePixels = RbfSplat::kTile * RbfSplat::kTile;
 // [0, b^r] (Tvr) and the clamped projection tr. Noise (splat_gaussian): the same on the
 // perturbed directions of noise_dirs gives the perturbed Tvp.
 // kInf (reduced resolution's lattice rays): every tend is +inf, the far erfc term is 0.
-template <bool kInf = false>
+// kFar (RbfSplat::GaussF::far_eye): the ray's start lies >= kFarStart / a before the
+// Gaussian, so its erfc E1 = erfc(a ts) < 2e-10 is left out (one erfc fewer per lane).
+template <bool kInf = false, bool kFar = false>
 AIRLIGHT_SPLAT_CLONES void view_terms(const RbfSplat::GaussF g, int n, const float* __restrict dx,
                                       const float* __restrict dy, const float* __restrict dz,
                                       const float* __restrict tend, float* __restrict Tvp_out,
@@ -57,7 +59,7 @@ AIRLIGHT_SPLAT_CLONES void view_terms(const RbfSplat::GaussF g, int n, const flo
         const float e = g.k0 * fast_expf(-g.a2 * (cx * cx + cy * cy + cz * cz));
         const float te = kInf ? std::numeric_limits<float>::infinity() : tend[k];
         const float x1 = -g.a * ts, x2 = g.a * (te - ts);
-        const float E1 = fast_erfc_pos(x1 < 0.0f ? -x1 : x1);
+        const float E1 = kFar ? 0.0f : fast_erfc_pos(x1 < 0.0f ? -x1 : x1);
         const float E2 = kInf ? 0.0f : fast_erfc_pos(x2 < 0.0f ? -x2 : x2);
         const float diff = x1 >= 0.0f ? E1 - E2 : (x2 <= 0.0f ? E2 - E1 : 2.0f - E1 - E2);
         const float Tvp = e * diff;
@@ -90,6 +92,9 @@ AIRLIGHT_SPLAT_CLONES void noise_dirs(float nscale, const float* eye, float ninv
 }
 
 // Light part: adds w exp(-T_i(s, b^r) - Tvr) Tvp / |b^r - s|^2 to the RGB accumulators.
+// kFar (RbfSplat::GaussF::far_lights): the light lies >= kFarStart / a before the Gaussian
+// along every path s -> b^r with b^r in the cull sphere, so the erfc at s is left out.
+template <bool kFar = false>
 AIRLIGHT_SPLAT_CLONES void light_terms(const RbfSplat::GaussF g, const RbfSplat::GaussLightF gl,
                                        const RbfSplat::LightF lf, int n, const float* __restrict dx,
                                        const float* __restrict dy, const float* __restrict dz,
@@ -107,7 +112,7 @@ AIRLIGHT_SPLAT_CLONES void light_terms(const RbfSplat::GaussF g, const RbfSplat:
         const float cx = gl.sy * uz - gl.sz * uy, cy = gl.sz * ux - gl.sx * uz, cz = gl.sx * uy - gl.sy * ux;
         const float e = g.k0 * fast_expf(-g.a2 * (cx * cx + cy * cy + cz * cz));
         const float x1 = -g.a * ts, x2 = g.a * (Ds - ts);
-        const float E1 = fast_erfc_pos(x1 < 0.0f ? -x1 : x1);
+        const float E1 = kFar ? 0.0f : fast_erfc_pos(x1 < 0.0f ? -x1 : x1);
         const float E2 = fast_erfc_pos(x2 < 0.0f ? -x2 : x2);
         const float diff = x1 >= 0.0f ? E1 - E2 : (x2 <= 0.0f ? E2 - E1 : 2.0f - E1 - E2);
         const float Tsr = e * diff;
@@ -248,6 +253,7 @@ struct LatticeSoA {
 };
 
 // View side of lattice_gaussian_major for one ray (x, y, z): Tvp, Tvr, tr per Gaussian.
+template <bool kFar>
 AIRLIGHT_SPLAT_CLONES void lattice_view_gm(int n, const float* __restrict rx, const float* __restrict ry,
                                            const float* __restrict rz, const float* __restrict ga,
                                            const float* __restrict ga2, const float* __restrict gk0, float x, float y,
@@ -258,7 +264,7 @@ AIRLIGHT_SPLAT_CLONES void lattice_view_gm(int n, const float* __restrict rx, co
         const float cx = ry[k] * z - rz[k] * y, cy = rz[k] * x - rx[k] * z, cz = rx[k] * y - ry[k] * x;
         const float e = gk0[k] * fast_expf(-ga2[k] * (cx * cx + cy * cy + cz * cz));
         const float x1 = -ga[k] * ts;
-        const float E1 = fast_erfc_pos(x1 < 0.0f ? -x1 : x1);
+        const float E1 = kFar ? 0.0f : fast_erfc_pos(x1 < 0.0f ? -x1 : x1);
         Tvp[k] = e * (x1 >= 0.0f ? E1 : 2.0f - E1);
         tr[k] = ts < 0.0f ? 0.0f : ts;
         Tvr[k] = ts <= 0.0f ? 0.0f : e * (1.0f - E1);
@@ -267,7 +273,7 @@ AIRLIGHT_SPLAT_CLONES void lattice_view_gm(int n, const float* __restrict rx, co
 
 // Light side of lattice_gaussian_major for one ray and light (v = eye - s): sets (first)
 // or adds the RGB terms per Gaussian.
-template <bool kFirst>
+template <bool kFirst, bool kFar>
 AIRLIGHT_SPLAT_CLONES void lattice_light_gm(int n, const float* __restrict ga, const float* __restrict ga2,
                                             const float* __restrict gk0, const float* __restrict gsx,
                                             const float* __restrict gsy, const float* __restrict gsz,
@@ -287,7 +293,7 @@ AIRLIGHT_SPLAT_CLONES void lattice_light_gm(int n, const float* __restrict ga, c
         const float cx = gsy[k] * uz - gsz[k] * uy, cy = gsz[k] * ux - gsx[k] * uz, cz = gsx[k] * uy - gsy[k] * ux;
         const float e = gk0[k] * fast_expf(-ga2[k] * (cx * cx + cy * cy + cz * cz));
         const float x1 = -ga[k] * ts, x2 = ga[k] * (Ds - ts);
-        const float E1 = fast_erfc_pos(x1 < 0.0f ? -x1 : x1);
+        const float E1 = kFar ? 0.0f : fast_erfc_pos(x1 < 0.0f ? -x1 : x1);
         const float E2 = fast_erfc_pos(x2 < 0.0f ? -x2 : x2);
         const float diff = x1 >= 0.0f ? E1 - E2 : (x2 <= 0.0f ? E2 - E1 : 2.0f - E1 - E2);
         const float Tsr = e * diff;
@@ -330,6 +336,8 @@ AIRLIGHT_SPLAT_CLONES void sum4_16(int n, const float* __restrict a, const float
     *B += sB;
 }
 
+// kFar: every Gaussian of q is far from the eye and the lights (GaussF::far_eye, far_lights).
+template <bool kFar>
 void lattice_gaussian_major(LatticeSoA& q, int L, const RbfSplat::LightF* lf, int m, const float* lx,
                             const float* ly, const float* lz, float* T, float* R, float* G, float* B) {
     const int n = q.n;
@@ -340,8 +348,8 @@ void lattice_gaussian_major(LatticeSoA& q, int L, const RbfSplat::LightF* lf, in
     float* aG = aR + n;
     float* aB = aG + n;
     for (int j = 0; j < m; ++j) {
-        lattice_view_gm(n, q.rx.data(), q.ry.data(), q.rz.data(), q.a.data(), q.a2.data(), q.k0.data(), lx[j], ly[j],
-                        lz[j], Tvp, Tvr, tr);
+        lattice_view_gm<kFar>(n, q.rx.data(), q.ry.data(), q.rz.data(), q.a.data(), q.a2.data(), q.k0.data(), lx[j],
+                              ly[j], lz[j], Tvp, Tvr, tr);
         if (L == 0) {
             std::fill(aR, aR + n, 0.0f);
             std::fill(aG, aG + n, 0.0f);
@@ -349,14 +357,10 @@ void lattice_gaussian_major(LatticeSoA& q, int L, const RbfSplat::LightF* lf, in
         }
         for (int l = 0; l < L; ++l) {
             const std::size_t o = std::size_t(l) * n;
-            if (l == 0)
-                lattice_light_gm<true>(n, q.a.data(), q.a2.data(), q.k0.data(), q.sx.data() + o, q.sy.data() + o,
-                                       q.sz.data() + o, q.wr.data() + o, q.wg.data() + o, q.wb.data() + o, lf[l].vx,
-                                       lf[l].vy, lf[l].vz, lx[j], ly[j], lz[j], Tvp, Tvr, tr, aR, aG, aB);
-            else
-                lattice_light_gm<false>(n, q.a.data(), q.a2.data(), q.k0.data(), q.sx.data() + o, q.sy.data() + o,
-                                        q.sz.data() + o, q.wr.data() + o, q.wg.data() + o, q.wb.data() + o, lf[l].vx,
-                                        lf[l].vy, lf[l].vz, lx[j], ly[j], lz[j], Tvp, Tvr, tr, aR, aG, aB);
+            (l == 0 ? lattice_light_gm<true, kFar> : lattice_light_gm<false, kFar>)(
+                n, q.a.data(), q.a2.data(), q.k0.data(), q.sx.data() + o, q.sy.data() + o, q.sz.data() + o,
+                q.wr.data() + o, q.wg.data() + o, q.wb.data() + o, lf[l].vx, lf[l].vy, lf[l].vz, lx[j], ly[j], lz[j],
+                Tvp, Tvr, tr, aR, aG, aB);
         }
         sum4_16(n, Tvp, aR, aG, aB, T + j, R + j, G + j, B + j);
     }
@@ -1547,7 +1551,8 @@ void RbfSplat::bin(const Vec3& D0, const Vec3& Dx, const Vec3& Dy, const Vec3& f
     // resolution (the reference path); at reduced resolution eps = kReducedCullEps (at least
     // the medium's), tied to the lattice's own error: with the default 1e-7, a quarter of the
     // tile-Gaussian pairs held terms below 1e-5 (see rbf_splat.h).
-    const double eps_cull = step == 1 ? medium_.cull_eps() : std::max(medium_.cull_eps(), kReducedCullEps[step / 2 - 1]);
+    const double eps_cull =
+        step == 1 ? medium_.cull_eps() : std::max(medium_.cull_eps(), kReducedCullEps[step / 2 - 1]);
     for (std::size_t i = 0; i < g_.size(); ++i) {
         double R = medium_.cull_radius(i);
         if (step > 1) {
@@ -1555,6 +1560,17 @@ void RbfSplat::bin(const Vec3& D0, const Vec3& Dx, const Vec3& Dy, const Vec3& f
             R = lg > 0.0 ? std::sqrt(lg) / medium_.scale(i) : 0.0;
         }
         g_[i].radius = R;
+        // far_eye, far_lights (GaussF): a sqrt(D^2 - R^2) >= kFarStart for the eye and every
+        // point light (plain path only: the extended light kernels keep both erfc terms).
+        const double a = medium_.scale(i);
+        auto far_from = [&](const Vec3& p) {
+            const double D = glm::length(medium_.centre(i) - p);
+            return D > R && a * std::sqrt(D * D - R * R) >= kFarStart;
+        };
+        g_[i].far_eye = far_from(eye_);
+        bool lights_far = plain_;
+        for (const Vec3& s : lights_) lights_far = lights_far && far_from(s);
+        g_[i].far_lights = lights_far;
     }
     n_lattice_ = 0;
     n_coarse_ = 0;
@@ -1812,16 +1828,19 @@ void RbfSplat::splat_gaussian(std::size_t i, int n, const float* dx, const float
         if (tend) view_terms<false>(g, n, qx, qy, qz, tend, Tvp, s1, s2);
         else view_terms<true>(g, n, qx, qy, qz, tend, Tvp, s1, s2);
     } else if (tend) {
-        view_terms<false>(g, n, dx, dy, dz, tend, Tvp, Tvr, tr);
+        if (g.far_eye) view_terms<false, true>(g, n, dx, dy, dz, tend, Tvp, Tvr, tr);
+        else view_terms<false>(g, n, dx, dy, dz, tend, Tvp, Tvr, tr);
     } else {
-        view_terms<true>(g, n, dx, dy, dz, tend, Tvp, Tvr, tr);
+        if (g.far_eye) view_terms<true, true>(g, n, dx, dy, dz, tend, Tvp, Tvr, tr);
+        else view_terms<true>(g, n, dx, dy, dz, tend, Tvp, Tvr, tr);
     }
     add_to(Tvp, n, accT);
     const std::size_t L = lights_.size();
     if (!plain_) light_loop(i, n, dx, dy, dz, Tvp, Tvr, tr, accR, accG, accB);
     else
         for (std::size_t l = 0; l < L; ++l)
-            light_terms(g, gl_[i * L + l], lf_[l], n, dx, dy, dz, Tvp, Tvr, tr, accR, accG, accB);
+            (g.far_lights ? light_terms<true> : light_terms<false>)(g, gl_[i * L + l], lf_[l], n, dx, dy, dz, Tvp,
+                                                                   Tvr, tr, accR, accG, accB);
 }
 
 void RbfSplat::light_loop(std::size_t i, int n, const float* dx, const float* dy, const float* dz, const float* Tvp,
@@ -2340,7 +2359,8 @@ void RbfSplat::cut_light_factor(std::size_t i, int n_blocks, const int* block_st
         int e = b;
         while (e + 1 < n_blocks && (live >> (e + 1) & 1u)) ++e;
         const int k0 = block_start[b], nr = block_start[e + 1] - k0;
-        view_terms<false>(g, nr, bx + k0, by + k0, bz + k0, bfar + k0, Tvp + k0, Tvr + k0, tr + k0);
+        (g.far_eye ? view_terms<false, true> : view_terms<false, false>)(g, nr, bx + k0, by + k0, bz + k0,
+                                                                          bfar + k0, Tvp + k0, Tvr + k0, tr + k0);
         add_to(Tvp + k0, nr, eT + k0);
         b = e;
     }
@@ -2377,18 +2397,21 @@ void RbfSplat::cut_light_factor(std::size_t i, int n_blocks, const int* block_st
         while (e + 1 < n_blocks && (live >> (e + 1) & 1u) && mode[e + 1] == 0) ++e;
         const int k0 = block_start[b], nr = block_start[e + 1] - k0;
         for (std::size_t l = 0; l < L; ++l)
-            light_terms(g, gl_[i * L + l], lf_[l], nr, bx + k0, by + k0, bz + k0, Tvp + k0, Tvr + k0, tr + k0,
-                        eR + k0, eG + k0, eB + k0);
+            (g.far_lights ? light_terms<true> : light_terms<false>)(g, gl_[i * L + l], lf_[l], nr, bx + k0, by + k0,
+                                                                   bz + k0, Tvp + k0, Tvr + k0, tr + k0, eR + k0,
+                                                                   eG + k0, eB + k0);
         b = e;
     }
     if (use_lattice) {
         constexpr int kMaxLattice = 96;
         float lTvp[kMaxLattice], lTvr[kMaxLattice], ltr[kMaxLattice], ones[kMaxLattice];
         float FR[kMaxLattice] = {}, FG[kMaxLattice] = {}, FB[kMaxLattice] = {};
-        view_terms<true>(g, m_pad, lx, ly, lz, nullptr, lTvp, lTvr, ltr);
+        (g.far_eye ? view_terms<true, true> : view_terms<true, false>)(g, m_pad, lx, ly, lz, nullptr, lTvp, lTvr,
+                                                                        ltr);
         std::fill(ones, ones + m_pad, 1.0f);
         for (std::size_t l = 0; l < L; ++l)
-            light_terms(g, gl_[i * L + l], lf_[l], m_pad, lx, ly, lz, ones, lTvr, ltr, FR, FG, FB);
+            (g.far_lights ? light_terms<true> : light_terms<false>)(g, gl_[i * L + l], lf_[l], m_pad, lx, ly, lz, ones,
+                                                                   lTvr, ltr, FR, FG, FB);
         for (int b = 0; b < n_blocks; ++b) {
             if (mode[b] == 0 || n_before[b] == 0) continue;
             const int k0 = block_start[b], nb = block_start[b + 1] - k0;
@@ -2429,6 +2452,8 @@ void RbfSplat::cut_light_factor(std::size_t i, int n_blocks, const int* block_st
         gone[nc] = 1.0f;
         gzero[nc] = 0.0f;
     }
+    // (both erfc terms: a corner's surface point may lie outside the cull sphere, where
+    // far_lights does not hold)
     for (std::size_t l = 0; l < L; ++l)
         light_terms(g, gl_[i * L + l], lf_[l], nc, gx, gy, gz, gone, gzero, gtr, GR, GG, GB);
     for (int s = 0; s < n_sblk; ++s) {
@@ -2441,35 +2466,48 @@ void RbfSplat::cut_light_factor(std::size_t i, int n_blocks, const int* block_st
 
 void RbfSplat::lattice_batch(const std::uint32_t* idx, int n, int m, const float* lx, const float* ly,
                              const float* lz, float* T, float* R, float* G, float* B) const {
+    // The Gaussians far from the eye and the lights (GaussF::far_eye, far_lights: one erfc
+    // fewer per lane and light) in a batch of their own.
+    thread_local std::vector<std::uint32_t> far, other;
+    far.clear();
+    other.clear();
+    for (int k = 0; k < n; ++k) (g_[idx[k]].far_eye && g_[idx[k]].far_lights ? far : other).push_back(idx[k]);
     thread_local LatticeSoA q;
     const int L = int(lights_.size());
-    const int n_pad = (n + 15) / 16 * 16;
-    for (auto* v : {&q.rx, &q.ry, &q.rz, &q.a, &q.a2, &q.k0}) v->resize(n_pad);
-    for (auto* v : {&q.sx, &q.sy, &q.sz, &q.wr, &q.wg, &q.wb}) v->resize(std::size_t(n_pad) * L);
-    q.scratch.resize(6 * std::size_t(n_pad));
-    q.n = n_pad;
-    for (int k = 0; k < n_pad; ++k) {
-        // Padding: k0 = 0 and zero weights (terms 0), a = 1 (finite arithmetic).
-        const bool pad = k >= n;
-        const GaussF& g = g_[pad ? idx[0] : idx[k]];
-        q.rx[k] = g.rx;
-        q.ry[k] = g.ry;
-        q.rz[k] = g.rz;
-        q.a[k] = pad ? 1.0f : g.a;
-        q.a2[k] = pad ? 1.0f : g.a2;
-        q.k0[k] = pad ? 0.0f : g.k0;
-        for (int l = 0; l < L; ++l) {
-            const GaussLightF& w = gl_[std::size_t(pad ? idx[0] : idx[k]) * L + l];
-            const std::size_t o = std::size_t(l) * n_pad + k;
-            q.sx[o] = w.sx;
-            q.sy[o] = w.sy;
-            q.sz[o] = w.sz;
-            q.wr[o] = pad ? 0.0f : w.wr;
-            q.wg[o] = pad ? 0.0f : w.wg;
-            q.wb[o] = pad ? 0.0f : w.wb;
+    for (const bool kfar : {true, false}) {
+        const std::vector<std::uint32_t>& list = kfar ? far : other;
+        const int nl = int(list.size());
+        if (nl == 0) continue;
+        const int n_pad = (nl + 15) / 16 * 16;
+        for (auto* v : {&q.rx, &q.ry, &q.rz, &q.a, &q.a2, &q.k0}) v->resize(n_pad);
+        for (auto* v : {&q.sx, &q.sy, &q.sz, &q.wr, &q.wg, &q.wb}) v->resize(std::size_t(n_pad) * L);
+        q.scratch.resize(6 * std::size_t(n_pad));
+        q.n = n_pad;
+        for (int k = 0; k < n_pad; ++k) {
+            // Padding: k0 = 0 and zero weights (terms 0), a = 1 (finite arithmetic).
+            const bool pad = k >= nl;
+            const std::uint32_t i = pad ? list[0] : list[k];
+            const GaussF& g = g_[i];
+            q.rx[k] = g.rx;
+            q.ry[k] = g.ry;
+            q.rz[k] = g.rz;
+            q.a[k] = pad ? 1.0f : g.a;
+            q.a2[k] = pad ? 1.0f : g.a2;
+            q.k0[k] = pad ? 0.0f : g.k0;
+            for (int l = 0; l < L; ++l) {
+                const GaussLightF& w = gl_[std::size_t(i) * L + l];
+                const std::size_t o = std::size_t(l) * n_pad + k;
+                q.sx[o] = w.sx;
+                q.sy[o] = w.sy;
+                q.sz[o] = w.sz;
+                q.wr[o] = pad ? 0.0f : w.wr;
+                q.wg[o] = pad ? 0.0f : w.wg;
+                q.wb[o] = pad ? 0.0f : w.wb;
+            }
         }
+        if (kfar) lattice_gaussian_major<true>(q, L, lf_.data(), m, lx, ly, lz, T, R, G, B);
+        else lattice_gaussian_major<false>(q, L, lf_.data(), m, lx, ly, lz, T, R, G, B);
     }
-    lattice_gaussian_major(q, L, lf_.data(), m, lx, ly, lz, T, R, G, B);
 }
 
 RbfSplat::ReducedCounts RbfSplat::reduced_counts() const {

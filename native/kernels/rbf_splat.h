@@ -100,6 +100,10 @@ class RbfSplat {
     // 0.03 % to 0.14 % at most (transmittance 0.49 -> 0.50 %), half at 1e-6 14 % less for
     // no measurable change (benchmarks/bench_rbf.py).
     static constexpr double kReducedCullEps[2] = {1e-6, 1e-5};  // half, quarter
+    // a sqrt(D^2 - R^2) >= kFarStart (D the distance of the eye or a light from a Gaussian's
+    // centre, R its cull radius): every point of the cull sphere lies at least that far (in
+    // units of 1 / a) along the path from there, so erfc(a t) <= erfc(4.5) = 2e-10 there.
+    static constexpr double kFarStart = 4.5;
 
     // _lights_ and _I0_ (W/sr per channel) of the point lights; _medium_albedo_ the
     // homogeneous medium's albedo; _albedo_ 3 per Gaussian or empty (use medium_albedo);
@@ -202,6 +206,10 @@ class RbfSplat {
         float a, a2, k0;       // scale, a^2, c sqrt(pi) / (2 a)
         float nscale;          // noise: amplitude R / |b - eye|
         bool near;             // the cull sphere reaches the near clip ball
+        // (bin()) the eye, and every point light, lies >= kFarStart / a before the cull
+        // sphere along any path to a point in it: the erfc at that end is < 2e-10 and left
+        // out of the view (far_eye) and light-side (far_lights) optical depths
+        bool far_eye = false, far_lights = false;
         double dist, radius;   // |b - eye| and the cull radius R
     };
     // Per (Gaussian, light): b - s and the RGB weight albedo I0 f1' / (4 pi).
