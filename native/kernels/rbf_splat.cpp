@@ -405,6 +405,32 @@ AIRLIGHT_SPLAT_CLONES void sub_interp(int n, const int* __restrict lat, const fl
     }
 }
 
+// Bilinear interpolation of a tile's lattice sums (nodes every s pixels, nu per row) to its
+// w x h pixel centres, added to T, R, G, B (a free function so that the SIMD clones apply).
+AIRLIGHT_SPLAT_CLONES void interp_lattice(int w, int h, int s, int nu, const float* __restrict cT,
+                                          const float* __restrict cR, const float* __restrict cG,
+                                          const float* __restrict cB, float* __restrict T, float* __restrict R,
+                                          float* __restrict G, float* __restrict B) {
+    const float inv_s = 1.0f / float(s);
+    for (int j = 0; j < h; ++j) {
+        const float fy = (float(j) + 0.5f) * inv_s;
+        const int v = int(fy);
+        const float wy = fy - float(v);
+        for (int i = 0; i < w; ++i) {
+            const float fx = (float(i) + 0.5f) * inv_s;
+            const int u = int(fx);
+            const float wx = fx - float(u);
+            const int a = v * nu + u, b = a + 1, c = a + nu, d = c + 1;
+            const float w00 = (1.0f - wx) * (1.0f - wy), w10 = wx * (1.0f - wy), w01 = (1.0f - wx) * wy, w11 = wx * wy;
+            const int k = j * w + i;
+            T[k] += w00 * cT[a] + w10 * cT[b] + w01 * cT[c] + w11 * cT[d];
+            R[k] += w00 * cR[a] + w10 * cR[b] + w01 * cR[c] + w11 * cR[d];
+            G[k] += w00 * cG[a] + w10 * cG[b] + w01 * cG[c] + w11 * cG[d];
+            B[k] += w00 * cB[a] + w10 * cB[b] + w01 * cB[c] + w11 * cB[d];
+        }
+    }
+}
+
 // One row of a tile's rays: pixel i looks along A + i B (A, B film vectors, the row's first
 // pixel centre and the pixel step), unit direction in double (dd*, the homogeneous term's
 // angle to the light needs it near the light's image) and float (d*); t0 = clip / (d . f)
@@ -2318,30 +2344,8 @@ void RbfSplat::splat_tile_reduced(int t, int x0, int y0, int w, int h, const flo
     }
     if (lattice == 0 && !near_lattice) return;
     // Bilinear interpolation of the lattice sums to the pixel centres.
-    const float inv_s = 1.0f / float(s);
-    for (int j = 0; j < h; ++j) {
-        const float fy = (float(j) + 0.5f) * inv_s;
-        const int v = int(fy);
-        const float wy = fy - float(v);
-        for (int i = 0; i < w; ++i) {
-            const float fx = (float(i) + 0.5f) * inv_s;
-            const int u = int(fx);
-            const float wx = fx - float(u);
-            const int a = v * nu + u, b = a + 1, c = a + nu, d = c + 1;
-            const float w00 = (1.0f - wx) * (1.0f - wy), w10 = wx * (1.0f - wy), w01 = (1.0f - wx) * wy, w11 = wx * wy;
-            const int k = j * w + i;
-            Tf[k] += w00 * cT[a] + w10 * cT[b] + w01 * cT[c] + w11 * cT[d];
-            Rf[k] += w00 * cR[a] + w10 * cR[b] + w01 * cR[c] + w11 * cR[d];
-            Gf[k] += w00 * cG[a] + w10 * cG[b] + w01 * cG[c] + w11 * cG[d];
-            Bf[k] += w00 * cB[a] + w10 * cB[b] + w01 * cB[c] + w11 * cB[d];
-            if (near_lattice) {
-                Tn[k] += w00 * nT[a] + w10 * nT[b] + w01 * nT[c] + w11 * nT[d];
-                Rn[k] += w00 * nR[a] + w10 * nR[b] + w01 * nR[c] + w11 * nR[d];
-                Gn[k] += w00 * nG[a] + w10 * nG[b] + w01 * nG[c] + w11 * nG[d];
-                Bn[k] += w00 * nB[a] + w10 * nB[b] + w01 * nB[c] + w11 * nB[d];
-            }
-        }
-    }
+    if (lattice > 0) interp_lattice(w, h, s, nu, cT, cR, cG, cB, Tf, Rf, Gf, Bf);
+    if (near_lattice) interp_lattice(w, h, s, nu, nT, nR, nG, nB, Tn, Rn, Gn, Bn);
 }
 
 void RbfSplat::cut_light_factor(std::size_t i, int n_blocks, const int* block_start, unsigned live, int m_pad,
