@@ -406,27 +406,39 @@ AIRLIGHT_SPLAT_CLONES void sub_interp(int n, const int* __restrict lat, const fl
 }
 
 // Bilinear interpolation of a tile's lattice sums (nodes every s pixels, nu per row) to its
-// w x h pixel centres, added to T, R, G, B (a free function so that the SIMD clones apply).
+// w x h pixel centres, added to T, R, G, B: per row, the sums interpolated along y at each
+// node column, spread to the pixels' left and right nodes, then one vectorised blend along x
+// (a free function so that the SIMD clones apply; the direct 4-tap form needed gathers).
 AIRLIGHT_SPLAT_CLONES void interp_lattice(int w, int h, int s, int nu, const float* __restrict cT,
                                           const float* __restrict cR, const float* __restrict cG,
                                           const float* __restrict cB, float* __restrict T, float* __restrict R,
                                           float* __restrict G, float* __restrict B) {
+    constexpr int kMaxNodes = RbfSplat::kTile + 1;
     const float inv_s = 1.0f / float(s);
+    int ui[RbfSplat::kTile];
+    float wx[RbfSplat::kTile];
+    for (int i = 0; i < w; ++i) {
+        const float fx = (float(i) + 0.5f) * inv_s;
+        ui[i] = int(fx);
+        wx[i] = fx - float(ui[i]);
+    }
+    const float* c[4] = {cT, cR, cG, cB};
+    float* out[4] = {T, R, G, B};
     for (int j = 0; j < h; ++j) {
         const float fy = (float(j) + 0.5f) * inv_s;
         const int v = int(fy);
         const float wy = fy - float(v);
-        for (int i = 0; i < w; ++i) {
-            const float fx = (float(i) + 0.5f) * inv_s;
-            const int u = int(fx);
-            const float wx = fx - float(u);
-            const int a = v * nu + u, b = a + 1, c = a + nu, d = c + 1;
-            const float w00 = (1.0f - wx) * (1.0f - wy), w10 = wx * (1.0f - wy), w01 = (1.0f - wx) * wy, w11 = wx * wy;
-            const int k = j * w + i;
-            T[k] += w00 * cT[a] + w10 * cT[b] + w01 * cT[c] + w11 * cT[d];
-            R[k] += w00 * cR[a] + w10 * cR[b] + w01 * cR[c] + w11 * cR[d];
-            G[k] += w00 * cG[a] + w10 * cG[b] + w01 * cG[c] + w11 * cG[d];
-            B[k] += w00 * cB[a] + w10 * cB[b] + w01 * cB[c] + w11 * cB[d];
+        for (int q = 0; q < 4; ++q) {
+            float col[kMaxNodes], lo[RbfSplat::kTile], hi[RbfSplat::kTile];
+            const float* top = c[q] + v * nu;
+            const float* bot = top + nu;
+            for (int u = 0; u < nu; ++u) col[u] = (1.0f - wy) * top[u] + wy * bot[u];
+            for (int i = 0; i < w; ++i) {
+                lo[i] = col[ui[i]];
+                hi[i] = col[ui[i] + 1];
+            }
+            float* o = out[q] + j * w;
+            for (int i = 0; i < w; ++i) o[i] += (1.0f - wx[i]) * lo[i] + wx[i] * hi[i];
         }
     }
 }
