@@ -16,7 +16,8 @@
 // Differences to the exact path: float arithmetic with fast_erf.h (error bound there;
 // rbf_splat_test.cpp measures the whole image against the exact path), and every Gaussian
 // whose cull sphere's screen bounds cover a pixel is evaluated there (a superset of the
-// per-ray cull, whose skipped terms are < cull_eps each).
+// per-ray cull, whose skipped terms are < cull_eps each; at half and quarter resolution the
+// spheres are sized for kReducedCullEps instead).
 //
 // Noise (§5.5; off when amplitude = 0, then the code path is the one without noise): per
 // (pixel, Gaussian) the view direction used for T_i(v, Dvp) and T_i(v, t0) is perturbed,
