@@ -207,6 +207,11 @@ void RbfMedium::optical_depth_ray_batch(const Vec3* o, const Vec3* r, const doub
     });
 }
 
+double RbfMedium::cull_radius_for(double c, double a, double eps) {
+    const double lg = std::log(c * kSqrtPi / (a * eps));
+    return lg > 0.0 ? std::sqrt(lg) / a : 0.0;
+}
+
 // Hierarchy: cull spheres (Gaussians with R_i = 0 never reach eps and are left out),
 // median split on the widest centre axis, leaves of <= 4.
 void RbfMedium::build() {
@@ -215,8 +220,7 @@ void RbfMedium::build() {
     order_.clear();
     nodes_.clear();
     for (std::size_t i = 0; i < n; ++i) {
-        const double lg = std::log(c_[i] * kSqrtPi / (a_[i] * eps_));
-        radius_[i] = lg > 0.0 ? std::sqrt(lg) / a_[i] : 0.0;
+        radius_[i] = cull_radius_for(c_[i], a_[i], eps_);
         if (radius_[i] > 0.0) order_.push_back(static_cast<std::uint32_t>(i));
     }
     if (order_.empty()) return;

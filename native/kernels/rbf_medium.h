@@ -72,6 +72,9 @@ class RbfMedium {
     double amplitude(std::size_t i) const { return c_[i]; }
     // Radius of Gaussian i's cull sphere (R_i above).
     double cull_radius(std::size_t i) const { return radius_[i]; }
+    // R for amplitude c, scale a and tolerance eps (the formula above; 0 where c sqrt(pi) /
+    // a <= eps): the medium's own spheres use eps = cull_eps(), rbf_splat.cpp larger ones.
+    static double cull_radius_for(double c, double a, double eps);
     // The Gaussians with a cull sphere (R_i > 0) in the hierarchy's leaf order: runs of it
     // are spatially compact (rbf_splat.cpp blocks them for its cull tests).
     const std::vector<std::uint32_t>& leaf_order() const { return order_; }

@@ -1592,11 +1592,8 @@ void RbfSplat::bin(const Vec3& D0, const Vec3& Dx, const Vec3& Dy, const Vec3& f
     const double eps_cull =
         step == 1 ? medium_.cull_eps() : std::max(medium_.cull_eps(), kReducedCullEps[step / 2 - 1]);
     for (std::size_t i = 0; i < g_.size(); ++i) {
-        double R = medium_.cull_radius(i);
-        if (step > 1) {
-            const double lg = std::log(medium_.amplitude(i) * kSqrtPi / (medium_.scale(i) * eps_cull));
-            R = lg > 0.0 ? std::sqrt(lg) / medium_.scale(i) : 0.0;
-        }
+        const double R = step == 1 ? medium_.cull_radius(i)
+                                   : RbfMedium::cull_radius_for(medium_.amplitude(i), medium_.scale(i), eps_cull);
         g_[i].radius = R;
         // far_eye, far_lights (GaussF): a sqrt(D^2 - R^2) >= kFarStart for the eye and every
         // point light (plain path only: the extended light kernels keep both erfc terms).
