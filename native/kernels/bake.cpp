@@ -1638,15 +1638,18 @@ BakeResult bake(const SceneDescription& scene, const BakeSettings& settings, con
     double band_progress_begin = kRaycastProgressShare;
     if (splatted) {
         RbfSplat& splat = *fog.splat();
-        splat.bin(D0, Dx, Dy, forward, W, H, near_clip ? clip_start : 0.0, settings.gaussian_resolution);
+        const auto bin_start = Clock::now();
+        splat.bin(D0, Dx, Dy, forward, W, H, near_clip ? clip_start : 0.0, settings.gaussian_resolution,
+                  result.depth.data());
+        result.stats.seconds_bin = seconds_since(bin_start);
         const int n_tiles = splat.num_tiles();
-        // Costliest tiles first (by binned pairs), so that the last tiles taken are cheap and
+        // Costliest tiles first (RbfSplat::tile_cost: binned pairs), so that the last tiles taken are cheap and
         // the threads finish together (in order, the tiles next to a light's image or the
         // cloud's core could leave one thread working alone at the end).
         std::vector<int> order(static_cast<size_t>(n_tiles));
         std::iota(order.begin(), order.end(), 0);
         std::stable_sort(order.begin(), order.end(),
-                         [&](int a, int b) { return splat.tile_pairs(a) > splat.tile_pairs(b); });
+                         [&](int a, int b) { return splat.tile_cost(a) > splat.tile_cost(b); });
         constexpr double kSplatShare = 0.6;  // of the progress bar, after pass 1
         const double end = kRaycastProgressShare + kSplatShare;
         run_parallel(

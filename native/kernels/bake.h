@@ -70,6 +70,9 @@ struct BakeStats {
     // The edge supersampling inside seconds_airlight (sub-pixel rays, their fog, the
     // averages), summed over the worker threads.
     double seconds_edges = 0.0;
+    // Fog objects through the tiled splat: binning the Gaussians into tiles and building
+    // the far-field grids (RbfSplat::bin), inside seconds_airlight.
+    double seconds_bin = 0.0;
 };
 
 // Output images are row-major, top row first, 3 floats (RGB) per pixel.

@@ -119,14 +119,21 @@ class RbfSplat {
     // _forward_ the unit view axis, _clip_start_ the near clip depth along it (0: none).
     // _step_ (1, 2 or 4) is the resolution of the Gaussian terms' evaluation, see
     // splat_tile; 1 (full) is the plain splat. Throws std::invalid_argument otherwise.
+    // _depth_ (optional; W x H, as splat_tile will read it): at step > 1 on the plain path
+    // without noise it lets bin() put broad Gaussians on the far-field grids (splat_tile).
     void bin(const Vec3& D0, const Vec3& Dx, const Vec3& Dy, const Vec3& forward, int W, int H, double clip_start,
-             int step = 1);
+             int step = 1, const float* depth = nullptr);
     int step() const { return step_; }
     int num_tiles() const { return tiles_x_ * tiles_y_; }
     // Pairs (tile, Gaussian) binned: the work of the splat.
     std::size_t num_pairs() const { return bin_index_.size(); }
-    // Pairs binned to tile t (after bin()): a cost estimate for scheduling.
+    // Pairs binned to tile t (after bin()).
     std::size_t tile_pairs(int t) const { return bin_start_[std::size_t(t) + 1] - bin_start_[std::size_t(t)]; }
+    // A cost estimate of tile t for scheduling: its pairs, those on far-field grids (a
+    // grid share read, or cancelled) counted a quarter.
+    std::size_t tile_cost(int t) const {
+        return tile_far_pairs_.empty() ? 4 * tile_pairs(t) : 4 * tile_pairs(t) - 3 * tile_far_pairs_[std::size_t(t)];
+    }
 
     // Evaluates tile _t_ (after bin()): reads depth[W H] (distance from the eye, inf: no
     // hit), writes transmittance (3 equal floats per pixel) and airlight (RGB) of the
@@ -171,6 +178,28 @@ class RbfSplat {
     //  |b - s| - R >= 27 H pixels' angle times d (the light factor ~ 1/|b^r - s|^2: error
     //  < (H d pix)^2 6 / (8 |b^r - s|^2) = tau). The quarter lattice itself allows up to
     //  ~2 % per Gaussian for the smallest ones (sigma 15 px at 80 m in bench_rbf.py).
+    //  Far-field grids (plain path, no noise, bin() given the depth): the Dvp = inf terms of
+    //  a broad Gaussian are a smooth function of the film position alone, the same in every
+    //  tile; evaluating them once on an image-wide grid of spacing h >= 2 s pixels (blocks of
+    //  8 x 8 nodes, each with the Gaussians whose cull cones meet it, Gaussian-major as the
+    //  lattice) instead of on the lattice of each tile it lies in front of costs ~(8 sigma /
+    //  h)^2 evaluations per Gaussian instead of ~25 per tile. The grids' sums are interpolated
+    //  to each tile's lattice nodes with tensor cubic Lagrange weights (error < 8e-4 of a
+    //  Gaussian bump's peak for h <= 0.28 sigma, sigma its angular standard deviation
+    //  1 / (sqrt 2 a d) in pixels, shrunk by 1 + k0 (half its peak optical depth) for the
+    //  narrower bump exp(-T_i(v, b^r)) adds; < 7e-4 of 1 / |b^r - s|^2 for |b^r - s| >= 6 h
+    //  pixels' angle times d), scaled to tau as the 4th power of h: 0.28 (tau / 1e-3)^(1/4)
+    //  and 6 (1e-3 / tau)^(1/4); the Gaussian must also pass the lattice's own light
+    //  criterion (light_far_) and lie wholly before the eye's plane and the near clip ball.
+    //  A tile reads a level's grid only when that saves evaluations (its Gaussians of that
+    //  level in front against those it must cancel); there a Gaussian not wholly in front has
+    //  its own grid share (far_share: its terms on the grid nodes the tile's stencils reach,
+    //  interpolated the same way) subtracted, exactly, on the blocks behind, and replaced by
+    //  its exact terms on the blocks it cuts. bin() moves a Gaussian to the coarsest level
+    //  passing both criteria (spacings 2 s .. 32 s in steps of ~1.41) where that costs fewer
+    //  evaluations than its tiles' lattices would, counted from the tiles' depth ranges, and
+    //  builds no grids when they would save fewer than ~1e5 evaluations.
+    //  (tests: RbfSplat.FarFieldGridsAgainstFull; bench_rbf.py's errors against full.)
     //  Edge supersamples (eval_rays) use the (fine) lattice for the Gaussians in front of
     //  all the samples of their chunk.
     // So depth edges cost no accuracy (a pixel's depth only selects which Gaussians are
@@ -180,8 +209,12 @@ class RbfSplat {
     // Pair counts of the last splat at step > 1 (all tiles; reset by bin()): lattice
     // (interpolated), exact per pixel, skipped behind the surface; coarse: of the lattice
     // pairs, those on the coarse lattice (every other node, see splat_tile).
+    // far: of the lattice pairs, those served by the far-field grids; far_cancelled: of the
+    // pairs behind, those whose grid share was cancelled; far_gaussians and far_nodes: the
+    // Gaussians on the grids and their (grid node, Gaussian) evaluations.
     struct ReducedCounts {
-        std::size_t lattice = 0, exact = 0, behind = 0, coarse = 0;
+        std::size_t lattice = 0, exact = 0, behind = 0, coarse = 0, far = 0, far_cancelled = 0, far_gaussians = 0,
+                    far_nodes = 0;
     };
     ReducedCounts reduced_counts() const;
 
@@ -312,6 +345,29 @@ class RbfSplat {
     // next to tile t, for all of the tile's rays (see rbf_splat.cpp): factor 1 is the lattice's
     // criterion at spacing s, 2 the coarse lattice's (2 s), 1/2 a lattice at spacing s / 2.
     bool light_clear(std::size_t i, int t, double factor = 1.0) const;
+    // Far-field grids (see splat_tile), built by bin() from the depth: level k (1..) has
+    // spacing h = step_ kFarSpacing[k - 1] pixels, node (P, Q) at film (h (P - 1), h (Q - 1)),
+    // sums of the Dvp = inf terms of the Gaussians with level_[i] = k (0: on the tile lattices).
+    struct FarGrid {
+        int h = 0, nx = 0, ny = 0;
+        std::vector<float> T, R, G, B;  // [Q nx + P]
+        std::vector<float> dx, dy, dz;  // the nodes' unit ray directions
+    };
+    std::vector<FarGrid> far_grids_;       // [k - 1]; empty: no far field
+    std::vector<unsigned char> level_;     // per Gaussian
+    std::vector<std::uint16_t> tile_far_;  // per tile: bit k - 1 set when a level-k Gaussian is binned there
+    std::vector<std::uint32_t> tile_far_pairs_;  // per tile: its pairs with a far-field Gaussian
+    mutable std::atomic<std::size_t> n_far_{0}, n_cancelled_{0};
+    std::size_t far_gaussians_ = 0, far_nodes_ = 0;
+    // Levels 1..9: spacings step_ times 2, 3, 4, 6, 8, 12, 16, 24, 32 pixels (a ratio of ~1.41
+    // between levels: with powers of 2 a Gaussian's grid had ~1.4x the nodes on average).
+    static constexpr int kMaxFarLevel = 9;
+    static constexpr int kFarSpacing[kMaxFarLevel] = {2, 3, 4, 6, 8, 12, 16, 24, 32};
+    void build_far_field(const float* depth, const std::vector<int>& rect);
+    // Gaussian i's share of its far-field grid at tile lattice nodes (film x0 + s u, y0 + s v,
+    // nu x nv): its terms on the grid nodes the tile's stencils reach, then interpolated as
+    // the grid is; into out[4] (zeroed first).
+    void far_share(std::size_t i, int x0, int y0, int s, int nu, int nv, float* const* out) const;
     std::vector<std::uint32_t> bin_start_;  // per tile, into bin_index_ (size tiles + 1)
     std::vector<std::uint32_t> bin_index_;
 };
