@@ -189,8 +189,10 @@ class RbfSplat {
     //  1 / (sqrt 2 a d) in pixels, shrunk by 1 + k0 (half its peak optical depth) for the
     //  narrower bump exp(-T_i(v, b^r)) adds; < 7e-4 of 1 / |b^r - s|^2 for |b^r - s| >= 6 h
     //  pixels' angle times d), scaled to tau as the 4th power of h: 0.28 (tau / 1e-3)^(1/4)
-    //  and 6 (1e-3 / tau)^(1/4); the Gaussian must also pass the lattice's own light
-    //  criterion (light_far_) and lie wholly before the eye's plane and the near clip ball.
+    //  and 6 (1e-3 / tau)^(1/4), tau = 1e-3 at quarter and 1e-3 / 16 at half (a quarter of
+    //  its lattice's: half keeps erring < 0.1 %); the Gaussian must also pass the lattice's
+    //  own light criterion (light_far_) and lie wholly before the eye's plane and the near
+    //  clip ball.
     //  A tile reads a level's grid only when that saves evaluations (its Gaussians of that
     //  level in front against those it must cancel); there a Gaussian not wholly in front has
     //  its own grid share (far_share: its terms on the grid nodes the tile's stencils reach,

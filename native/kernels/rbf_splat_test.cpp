@@ -296,11 +296,11 @@ TEST(RbfSplat, FarFieldGridsAgainstFull) {
                     step, rc.far_gaussians, rc.far_nodes, rc.far, rc.lattice, rc.behind, rc.far_cancelled, A1, A0, T1,
                     T0);
         EXPECT_GT(rc.far_gaussians, 20u);
-        EXPECT_GT(rc.far_cancelled, step == 4 ? 50u : 0u);
+        if (step == 4) EXPECT_GT(rc.far_cancelled, 50u);  // (at half, with its finer grids, none pays here)
         EXPECT_GT(rc.far, rc.lattice / 3);
-        // The grids' own error (cubic interpolation; measured 7e-5 / 1.3e-4 at quarter,
-        // 1.4e-5 / 4.4e-5 at half). Linear instead of cubic weights: 2.4e-3 / 1.0e-2;
-        // without the cancellation: 2.7e-2 / 0.32.
+        // The grids' own error (cubic interpolation; measured 8.6e-5 / 1.7e-4 at quarter,
+        // 1.3e-5 / 1.4e-5 at half). Linear instead of cubic weights: 2.4e-3 / 1.0e-2 at
+        // quarter; without the cancellation: 2.7e-2 / 0.32.
         EXPECT_LT(dA, 5e-4);
         EXPECT_LT(dT, 1e-3);
         EXPECT_LT(A1, A0 + 1e-4);
