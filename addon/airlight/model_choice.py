@@ -114,8 +114,9 @@ def table_settings(settings):
 # smooth terms over 2 or 4 pixels: it grows at lower render resolutions (at 320x180,
 # tests/native/test16_rbf_resolution.py measures up to ~4x these) and with fog noise.
 # (Quarter: 0.502 % on the transmittance since its cull spheres are sized for 1e-5,
-# RbfSplat::kReducedCullEps.)
-GAUSSIAN_RESOLUTION_ERROR = {'FULL': 0.0, 'HALF': 1.0e-3, 'QUARTER': 5.1e-3}
+# RbfSplat::kReducedCullEps; 0.526 % since broad blobs are interpolated from the far-field
+# grids, rbf_splat.h, whose tolerance at Half is tighter to keep Half at 0.099 %.)
+GAUSSIAN_RESOLUTION_ERROR = {'FULL': 0.0, 'HALF': 1.0e-3, 'QUARTER': 5.3e-3}
 # The same with fog noise (noise_amplitude 0.4, noise_scale 1 m, the 34 and 3000 scenes;
 # the noise is interpolated too): max 1.2 % (Half) and 5.8 % (Quarter) on the transmittance.
 # More noise (larger amplitude, smaller scale) errs more.
