@@ -444,6 +444,23 @@ AIRLIGHT_SPLAT_CLONES void interp_lattice(int w, int h, int s, int nu, const flo
     }
 }
 
+// bin()'s cone test for m consecutive tiles of a row (their cones: unit axes ax, ay, az, cos
+// and sin of the half-angles) against one ball (unit direction u, sin and cos of its angular
+// radius): hit[k] = 1 where the ball can meet tile k's rays. A loop of its own so that it
+// vectorises; the count and the fill pass both call it (the same clone: the same answers).
+AIRLIGHT_SPLAT_CLONES void cone_hits(int m, const double* __restrict ax, const double* __restrict ay,
+                                     const double* __restrict az, const double* __restrict ct,
+                                     const double* __restrict st, double ux, double uy, double uz, double sin_r,
+                                     double cos_r, unsigned char* __restrict hit) {
+    for (int k = 0; k < m; ++k) {
+        const double cos_sum = ct[k] * cos_r - st[k] * sin_r;  // cos(theta + rho)
+        // theta + rho >= pi: every direction qualifies (sin of the sum < 0 with cos < 0)
+        const bool wide = st[k] * cos_r + ct[k] * sin_r < 0.0;
+        const bool close = ax[k] * ux + ay[k] * uy + az[k] * uz >= cos_sum;
+        hit[k] = (unsigned char)(wide | close);
+    }
+}
+
 // Cubic Lagrange weights of the nodes -1, 0, 1, 2 at f in [0, 1).
 inline void cubic_weights(float f, float* w) {
     w[0] = -f * (f - 1.0f) * (f - 2.0f) * (1.0f / 6.0f);
@@ -1757,13 +1774,15 @@ void RbfSplat::bin(const Vec3& D0, const Vec3& Dx, const Vec3& Dy, const Vec3& f
         }
     }
     // Ball i (centre direction u, sin and cos of its angular radius) against tile t.
-    auto meets = [&](int t, const Vec3& u, double sin_r, double cos_r) {
-        const Cone& c = cones[t];
-        const double cos_sum = c.cos_t * cos_r - c.sin_t * sin_r;  // cos(theta + rho)
-        // theta + rho >= pi: every direction qualifies (sin of the sum < 0 with cos < 0).
-        if (c.sin_t * cos_r + c.cos_t * sin_r < 0.0) return true;
-        return glm::dot(c.axis, u) >= cos_sum;
-    };
+    // The tiles' cones in structure-of-arrays form for cone_hits (ball i against tile t).
+    std::vector<double> cone_x(n_tiles), cone_y(n_tiles), cone_z(n_tiles), cone_c(n_tiles), cone_s(n_tiles);
+    for (int t = 0; t < n_tiles; ++t) {
+        cone_x[t] = cones[t].axis.x;
+        cone_y[t] = cones[t].axis.y;
+        cone_z[t] = cones[t].axis.z;
+        cone_c[t] = cones[t].cos_t;
+        cone_s[t] = cones[t].sin_t;
+    }
     // Film-coordinate interval of the ball (c, R) along axis q: the two planes through
     // the eye with normal q - p q0 tangent to the ball. False: the ball reaches the plane
     // lambda = 0 (no finite bounds).
@@ -1830,16 +1849,22 @@ void RbfSplat::bin(const Vec3& D0, const Vec3& Dx, const Vec3& Dy, const Vec3& f
     // Gaussians in index order, as a serial pass over the Gaussians would).
     auto rows = [&](bool fill_lists, std::uint32_t* fill) {
         parallel_chunks(std::size_t(tiles_y_), threads_, 1, [&](std::size_t yb, std::size_t ye) {
+            std::vector<unsigned char> hit(std::size_t(tiles_x_), 1);
             for (int ty = int(yb); ty < int(ye); ++ty)
                 for (std::size_t i = 0; i < n; ++i) {
                     const int* r = &rect[4 * i];
                     if (r[1] < r[0] || ty < r[2] || ty > r[3]) continue;
                     const Ball& ball = balls[i];
-                    for (int tx = r[0]; tx <= r[1]; ++tx) {
-                        const int t = ty * tiles_x_ + tx;
-                        if (!(ball.inside || meets(t, ball.u, ball.sin_r, ball.cos_r))) continue;
-                        if (fill_lists) bin_index_[fill[t]++] = std::uint32_t(i);
-                        else ++count[t + 1];
+                    const int t0 = ty * tiles_x_ + r[0], m = r[1] - r[0] + 1;
+                    if (ball.inside) std::fill(hit.begin(), hit.begin() + m, 1);
+                    else
+                        cone_hits(m, &cone_x[t0], &cone_y[t0], &cone_z[t0], &cone_c[t0], &cone_s[t0], ball.u.x,
+                                  ball.u.y, ball.u.z, ball.sin_r, ball.cos_r, hit.data());
+                    if (fill_lists) {
+                        for (int k = 0; k < m; ++k)
+                            if (hit[k]) bin_index_[fill[t0 + k]++] = std::uint32_t(i);
+                    } else {
+                        for (int k = 0; k < m; ++k) count[t0 + k + 1] += hit[k];
                     }
                 }
         });
