@@ -2029,7 +2029,7 @@ void RbfSplat::build_far_field(const float* depth, const std::vector<int>& rect)
         // share where tiles using the grid cancel it (behind) or replace it (cut), against
         // the lattice (or coarse lattice) of each tile it lies in front of.
         const double global = 0.8 * double(P1 - P0 + 1) * double(Q1 - Q0 + 1) + 8.0 * double(behind + cut);
-        const double local = double(front) * (smooth_[i] == 2 ? 9.0 : (smooth_[i] == 1 ? 17.0 : 25.0));
+        const double local = double(front) * double(lattice_evals(i));
         if (global < local) {
             level_[i] = cand[i];
             used |= 1u << (cand[i] - 1);
@@ -2561,7 +2561,7 @@ void RbfSplat::splat_tile_reduced(int t, int x0, int y0, int w, int h, const flo
             if (!level_[i]) continue;
             const GaussF& g = g_[i];
             if (g.dist + g.radius <= far_lo)
-                save[level_[i] - 1] += smooth_[i] == 2 ? 9.0f : (smooth_[i] == 1 ? 17.0f : 25.0f);
+                save[level_[i] - 1] += lattice_evals(i);
             else spend[level_[i] - 1] += 36.0f;
         }
         for (int k = 0; k < kMaxFarLevel; ++k)

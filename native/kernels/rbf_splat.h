@@ -366,6 +366,9 @@ class RbfSplat {
     static constexpr int kMaxFarLevel = 9;
     static constexpr int kFarSpacing[kMaxFarLevel] = {2, 3, 4, 6, 8, 12, 16, 24, 32};
     void build_far_field(const float* depth, const std::vector<int>& rect);
+    // Evaluations Gaussian i costs on a quarter tile's lattice when in front (the far-field
+    // cost models): 25 nodes, 9 on the coarse lattice, ~17 where that depends on the tile.
+    float lattice_evals(std::size_t i) const { return smooth_[i] == 2 ? 9.0f : (smooth_[i] == 1 ? 17.0f : 25.0f); }
     // Gaussian i's share of its far-field grid at tile lattice nodes (film x0 + s u, y0 + s v,
     // nu x nv): its terms on the grid nodes the tile's stencils reach, then interpolated as
     // the grid is; into out[4] (zeroed first).
