@@ -1910,6 +1910,7 @@ void RbfSplat::build_far_field(const float* depth, const std::vector<int>& rect)
     level_.assign(step_ > 1 ? n : 0, 0);
     tile_far_.assign(step_ > 1 ? std::size_t(n_tiles) : 0, 0);
     tile_far_pairs_.clear();
+    splat_end_.clear();
     far_gaussians_ = far_nodes_ = 0;
     if (step_ == 1 || !depth || !plain_ || noise_.on() || n == 0) return;
     const double f = glm::dot(D0_, forward_);
@@ -2151,19 +2152,47 @@ void RbfSplat::build_far_field(const float* depth, const std::vector<int>& rect)
         }
     });
     far_nodes_ = evals.load();
+    // Per tile: which grids it reads (they save more evaluations than cancelling costs: its
+    // Gaussians of that level wholly in front, by the depth range, cost nothing there; each
+    // one wholly behind costs its share, ~36 nodes at quarter, to cancel, as does each one
+    // the surface cuts, to replace it by its exact terms on the blocks it cuts). The pairs
+    // wholly in front on a grid the tile reads then move to the end of its list, past
+    // splat_end_: the splat does not walk them (at 3000 x 1, ~1.3 M of its ~2.1 M pairs).
+    // eval_rays still gathers from the whole list: an edge sub-sample may end nearer.
     tile_far_pairs_.assign(std::size_t(n_tiles), 0);
-    std::vector<std::uint16_t> level_bit(n, 0);
-    for (std::size_t i = 0; i < n; ++i) level_bit[i] = level_[i] ? std::uint16_t(1u << (level_[i] - 1)) : 0;
+    splat_end_.assign(bin_start_.begin() + 1, bin_start_.end());
     parallel_chunks(std::size_t(n_tiles), threads_, 256, [&](std::size_t tb, std::size_t te) {
+        std::vector<std::uint32_t> moved;
         for (std::size_t t = tb; t < te; ++t) {
+            const std::uint32_t e0 = bin_start_[t], e1 = bin_start_[t + 1];
+            const double far_lo = double(tmin[t]) * (1.0 - 1e-6);  // as splat_tile_reduced's
+            float save[kMaxFarLevel] = {}, spend[kMaxFarLevel] = {};
             unsigned bits = 0, pairs = 0;
-            for (std::uint32_t e = bin_start_[t]; e < bin_start_[t + 1]; ++e) {
-                const unsigned b = level_bit[bin_index_[e]];
-                bits |= b;
-                pairs += b != 0;
+            for (std::uint32_t e = e0; e < e1; ++e) {
+                const std::size_t i = bin_index_[e];
+                if (!level_[i]) continue;
+                const int k = level_[i] - 1;
+                bits |= 1u << k;
+                ++pairs;
+                if (g_[i].dist + g_[i].radius <= far_lo) save[k] += lattice_evals(i);
+                else spend[k] += 36.0f;
             }
-            tile_far_[t] = std::uint16_t(bits);
+            unsigned use = 0;
+            for (int k = 0; k < kMaxFarLevel; ++k)
+                if ((bits >> k & 1u) && save[k] > spend[k] + 25.0f) use |= 1u << k;
+            tile_far_[t] = std::uint16_t(use);
             tile_far_pairs_[t] = pairs;
+            if (use == 0) continue;
+            moved.clear();
+            std::uint32_t w = e0;
+            for (std::uint32_t e = e0; e < e1; ++e) {
+                const std::uint32_t i = bin_index_[e];
+                if (level_[i] && (use >> (level_[i] - 1) & 1u) && g_[i].dist + g_[i].radius <= far_lo)
+                    moved.push_back(i);
+                else bin_index_[w++] = i;
+            }
+            std::copy(moved.begin(), moved.end(), bin_index_.begin() + w);
+            splat_end_[t] = w;
         }
     });
 }
@@ -2548,25 +2577,11 @@ void RbfSplat::splat_tile_reduced(int t, int x0, int y0, int w, int h, const flo
     batch_list.clear();
     coarse_list.clear();
     cancel_list.clear();
-    // Far-field grids (build_far_field): a tile reads the grid of a level when that saves
-    // evaluations: its Gaussians of that level wholly in front (by the depth range) cost
-    // nothing here, each one wholly behind costs its share (far_share: ~36 nodes at
-    // quarter) to cancel, as does each one the surface cuts (to replace it by its exact
-    // terms on the blocks it cuts).
-    unsigned use_far = 0;
-    if (!far_grids_.empty() && tile_far_[t] != 0) {
-        float save[kMaxFarLevel] = {}, spend[kMaxFarLevel] = {};
-        for (std::uint32_t e = bin_start_[t]; e < bin_start_[t + 1]; ++e) {
-            const std::size_t i = bin_index_[e];
-            if (!level_[i]) continue;
-            const GaussF& g = g_[i];
-            if (g.dist + g.radius <= far_lo)
-                save[level_[i] - 1] += lattice_evals(i);
-            else spend[level_[i] - 1] += 36.0f;
-        }
-        for (int k = 0; k < kMaxFarLevel; ++k)
-            if ((tile_far_[t] >> k & 1u) && save[k] > spend[k] + 25.0f) use_far |= 1u << k;
-    }
+    // Far-field grids (build_far_field): the levels whose grids the tile reads; its pairs
+    // wholly in front on those lie past splat_end_ (they only count here).
+    const unsigned use_far = far_grids_.empty() ? 0u : tile_far_[t];
+    const std::uint32_t walk_end = splat_end_.empty() ? bin_start_[t + 1] : splat_end_[t];
+    far_front = bin_start_[t + 1] - walk_end;
     const bool far_field = use_far != 0;
     // The coarse lattice: every other node (needs an odd number of nodes per row, column).
     const bool coarse_ok = batch && (nu - 1) % 2 == 0 && (nv - 1) % 2 == 0;
@@ -2574,7 +2589,7 @@ void RbfSplat::splat_tile_reduced(int t, int x0, int y0, int w, int h, const flo
         const bool coarse = coarse_ok && (smooth_[i] == 2 || (smooth_[i] == 1 && light_clear(i, t, 2.0)));
         (coarse ? coarse_list : batch_list).push_back(std::uint32_t(i));
     };
-    for (std::uint32_t e = bin_start_[t]; e < bin_start_[t + 1]; ++e) {
+    for (std::uint32_t e = bin_start_[t]; e < walk_end; ++e) {
         const std::size_t i = bin_index_[e];
         const GaussF& g = g_[i];
         // A Gaussian far from every light (light_far_: the lattice's light-factor criterion)

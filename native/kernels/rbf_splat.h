@@ -357,8 +357,11 @@ class RbfSplat {
     };
     std::vector<FarGrid> far_grids_;       // [k - 1]; empty: no far field
     std::vector<unsigned char> level_;     // per Gaussian
-    std::vector<std::uint16_t> tile_far_;  // per tile: bit k - 1 set when a level-k Gaussian is binned there
+    std::vector<std::uint16_t> tile_far_;  // per tile: bit k - 1 set when it reads the level-k grid
     std::vector<std::uint32_t> tile_far_pairs_;  // per tile: its pairs with a far-field Gaussian
+    // Per tile (empty: no grids): the end of the pairs splat_tile_reduced walks; those after
+    // it, up to the list's end, lie wholly in front on a grid the tile reads.
+    std::vector<std::uint32_t> splat_end_;
     mutable std::atomic<std::size_t> n_far_{0}, n_cancelled_{0};
     std::size_t far_gaussians_ = 0, far_nodes_ = 0;
     // Levels 1..9: spacings step_ times 2, 3, 4, 6, 8, 12, 16, 24, 32 pixels (a ratio of ~1.41
