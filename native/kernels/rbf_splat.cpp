@@ -217,28 +217,28 @@ AIRLIGHT_SPLAT_CLONES void sun_terms(const RbfSplat::GaussF g, const RbfSplat::G
 }
 
 // Reduced resolution (splat_tile_reduced): which of the n rays (segments [0, far[k]])
-// Gaussian g's cull sphere (radius^2 R2) makes depth-dependent. A ray that misses the
-// sphere is neither; one that crosses it is "not in front" unless the sphere's exit lies
-// before far[k], and "not behind" unless its entry lies beyond far[k]. Returns the two
-// counts as not_front and not_behind.
+// Gaussian g's cull sphere (radius^2 R2) against the rays of a tile's pixels (dx, dy, dz,
+// n of them, ending at far). A ray that misses the sphere is neither; one that crosses it
+// is "not in front" unless the sphere's exit lies before far[k], and "not behind" unless
+// its entry lies beyond far[k]. Per pixel into nf, nb (1: not in front, not behind); one
+// loop over the tile (a call per 4x4 block spent ~40 % in its set-up), and without the
+// square root: te >= ts + half as te - ts >= 0 and (te - ts)^2 >= R2 - h2.
 AIRLIGHT_SPLAT_CLONES void depth_classes(const RbfSplat::GaussF g, float R2, int n, const float* __restrict dx,
                                          const float* __restrict dy, const float* __restrict dz,
-                                         const float* __restrict far, int& not_front, int& not_behind) {
-    int nf = 0, nb = 0;
+                                         const float* __restrict far, unsigned char* __restrict nf,
+                                         unsigned char* __restrict nb) {
     for (int k = 0; k < n; ++k) {
         const float x = dx[k], y = dy[k], z = dz[k];
         const float ts = g.rx * x + g.ry * y + g.rz * z;
         const float cx = g.ry * z - g.rz * y, cy = g.rz * x - g.rx * z, cz = g.rx * y - g.ry * x;
-        const float h2 = cx * cx + cy * cy + cz * cz;
-        const float half = std::sqrt(std::max(R2 - h2, 0.0f));
-        // Bitwise &: a short-circuit && is control flow, which kept the loop scalar.
-        const int cross = h2 < R2 ? 1 : 0;
-        const float te = far[k];
-        nf += cross & (te >= ts + half ? 0 : 1);
-        nb += cross & (te <= ts - half ? 0 : 1);
+        const float q = R2 - (cx * cx + cy * cy + cz * cz);  // half^2, > 0 where the ray crosses
+        const float u = far[k] - ts, u2 = u * u;
+        // (inf - inf: far = inf with ts = inf does not occur, ts is finite)
+        const bool cross = q > 0.0f;
+        const bool front = u >= 0.0f && u2 >= q, behind = u <= 0.0f && u2 >= q;
+        nf[k] = (cross && !front) ? 1 : 0;
+        nb[k] = (cross && !behind) ? 1 : 0;
     }
-    not_front = nf;
-    not_behind = nb;
 }
 
 // The lattice of a tile at reduced resolution in Gaussian-major order (plain path: isotropic
@@ -2638,15 +2638,18 @@ void RbfSplat::splat_tile_reduced(int t, int x0, int y0, int w, int h, const flo
         const float R = float(g.radius * (1.0 + 1e-4));
         bool all_front = true, any_exact = false;
         unsigned live = 0, front_blocks = 0, cut = 0;  // blocks not wholly behind; in front; cut
+        unsigned char nf[kTilePixels], nb[kTilePixels];
+        depth_classes(g, R * R, n, bx, by, bz, bfar, nf, nb);
         for (int b = 0; b < n_blocks; ++b) {
-            int not_front = 0, not_behind = 0;
-            const int k0 = block_start[b];
-            depth_classes(g, R * R, block_start[b + 1] - k0, bx + k0, by + k0, bz + k0, bfar + k0, not_front,
-                          not_behind);
+            unsigned char not_front = 0, not_behind = 0;
+            for (int k = block_start[b]; k < block_start[b + 1]; ++k) {
+                not_front |= nf[k];
+                not_behind |= nb[k];
+            }
             all_front = all_front && not_front == 0;
-            if (not_behind > 0) live |= 1u << b;
-            if (not_front == 0) front_blocks |= 1u << b;
-            else if (not_behind > 0) cut |= 1u << b;
+            if (not_behind) live |= 1u << b;
+            if (!not_front) front_blocks |= 1u << b;
+            else if (not_behind) cut |= 1u << b;
         }
         if (all_front && on_grid) {
             ++far_front;
