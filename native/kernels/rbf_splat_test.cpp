@@ -614,7 +614,10 @@ TEST(RbfSplat, DISABLED_Profile3000) {
     const RbfMedium m(b, a, c, 0.002);
     SmallCamera cam(1920, 1080);
     const SpecialFTable table(256, 256);
-    RbfSplat s(m, Vec3(0.0), {Vec3(-8.0, 4.0, 30.0)}, {RGB(40.0)}, RGB(0.9), {}, &table, RbfNoise{}, 1);
+    // (the 34 with bench_rbf.py's 3 lights)
+    const std::vector<Vec3> lights = broad ? std::vector<Vec3>{Vec3(-8.0, 4.0, 30.0), Vec3(6.0, 3.0, 45.0), Vec3(0.0, 8.0, 60.0)}
+                                           : std::vector<Vec3>{Vec3(-8.0, 4.0, 30.0)};
+    RbfSplat s(m, Vec3(0.0), lights, std::vector<RGB>(lights.size(), RGB(40.0)), RGB(0.9), {}, &table, RbfNoise{}, 1);
     s.bin(cam.D0, cam.Dx, cam.Dy, cam.forward, cam.W, cam.H, 0.1);
     std::vector<float> depth(size_t(cam.W) * cam.H);
     for (int j = 0; j < cam.H; ++j)
