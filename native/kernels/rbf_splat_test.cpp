@@ -617,7 +617,10 @@ TEST(RbfSplat, DISABLED_Profile3000) {
     // (the 34 with bench_rbf.py's 3 lights)
     const std::vector<Vec3> lights = broad ? std::vector<Vec3>{Vec3(-8.0, 4.0, 30.0), Vec3(6.0, 3.0, 45.0), Vec3(0.0, 8.0, 60.0)}
                                            : std::vector<Vec3>{Vec3(-8.0, 4.0, 30.0)};
-    RbfSplat s(m, Vec3(0.0), lights, std::vector<RGB>(lights.size(), RGB(40.0)), RGB(0.9), {}, &table, RbfNoise{}, 1);
+    // (AIRLIGHT_PROFILE_THREADS=k: bin() and the splat's set-up on k threads; the tiles stay on one)
+    const char* threads = std::getenv("AIRLIGHT_PROFILE_THREADS");
+    RbfSplat s(m, Vec3(0.0), lights, std::vector<RGB>(lights.size(), RGB(40.0)), RGB(0.9), {}, &table, RbfNoise{},
+               threads ? std::atoi(threads) : 1);
     s.bin(cam.D0, cam.Dx, cam.Dy, cam.forward, cam.W, cam.H, 0.1);
     std::vector<float> depth(size_t(cam.W) * cam.H);
     for (int j = 0; j < cam.H; ++j)
