@@ -2648,12 +2648,21 @@ void RbfSplat::splat_tile_reduced(int t, int x0, int y0, int w, int h, const flo
         unsigned live = 0, front_blocks = 0, cut = 0;  // blocks not wholly behind; in front; cut
         unsigned char nf[kTilePixels], nb[kTilePixels];
         depth_classes(g, R * R, n, bx, by, bz, bfar, nf, nb);
-        for (int b = 0; b < n_blocks; ++b) {
-            unsigned char not_front = 0, not_behind = 0;
-            for (int k = block_start[b]; k < block_start[b + 1]; ++k) {
-                not_front |= nf[k];
-                not_behind |= nb[k];
+        // (any flag set in a block: a 4x4 block's 16 bytes as two 64-bit words)
+        auto any = [](const unsigned char* p, int len) {
+            if (len == 16) {
+                std::uint64_t lo, hi;
+                std::memcpy(&lo, p, 8);
+                std::memcpy(&hi, p + 8, 8);
+                return (lo | hi) != 0;
             }
+            unsigned char r = 0;
+            for (int k = 0; k < len; ++k) r |= p[k];
+            return r != 0;
+        };
+        for (int b = 0; b < n_blocks; ++b) {
+            const int k0 = block_start[b], len = block_start[b + 1] - k0;
+            const bool not_front = any(nf + k0, len), not_behind = any(nb + k0, len);
             all_front = all_front && not_front == 0;
             if (not_behind) live |= 1u << b;
             if (!not_front) front_blocks |= 1u << b;
