@@ -113,6 +113,8 @@ class RbfSplat {
     RbfSplat(const RbfMedium& medium, const Vec3& eye, const std::vector<Vec3>& lights, const std::vector<RGB>& I0,
              const RGB& medium_albedo, const std::vector<double>& albedo, const SpecialFTable* table,
              const RbfNoise& noise, int threads = 0, const RbfSplatLights* extra = nullptr);
+    // Hands the pair list's memory to the next RbfSplat's bin() (rbf_splat.cpp, pair_pool).
+    ~RbfSplat();
 
     // Bins the Gaussians into tiles for the image W x H whose pixel (px, py) (film
     // position, pixel centres at +0.5) looks along D0 + px Dx + py Dy from the eye;
