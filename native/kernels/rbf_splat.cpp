@@ -2206,6 +2206,7 @@ void RbfSplat::build_far_field(const float* depth, const std::vector<int>& rect)
         for (std::size_t t = tb; t < te; ++t) {
             const std::uint32_t e0 = bin_start_[t], e1 = bin_start_[t + 1];
             const double far_lo = double(tmin[t]) * (1.0 - 1e-6);  // as splat_tile_reduced's
+            auto front = [&](std::size_t i) { return g_[i].dist + g_[i].radius <= far_lo; };
             float save[kMaxFarLevel] = {}, spend[kMaxFarLevel] = {};
             unsigned bits = 0, pairs = 0;
             for (std::uint32_t e = e0; e < e1; ++e) {
@@ -2214,7 +2215,7 @@ void RbfSplat::build_far_field(const float* depth, const std::vector<int>& rect)
                 const int k = level_[i] - 1;
                 bits |= 1u << k;
                 ++pairs;
-                if (g_[i].dist + g_[i].radius <= far_lo) save[k] += lattice_evals(i);
+                if (front(i)) save[k] += lattice_evals(i);
                 else spend[k] += 36.0f;
             }
             unsigned use = 0;
@@ -2227,7 +2228,7 @@ void RbfSplat::build_far_field(const float* depth, const std::vector<int>& rect)
             std::uint32_t w = e0;
             for (std::uint32_t e = e0; e < e1; ++e) {
                 const std::uint32_t i = bin_index_[e];
-                if (level_[i] && (use >> (level_[i] - 1) & 1u) && g_[i].dist + g_[i].radius <= far_lo)
+                if (level_[i] && (use >> (level_[i] - 1) & 1u) && front(i))
                     moved.push_back(i);
                 else bin_index_[w++] = i;
             }
@@ -2695,7 +2696,7 @@ void RbfSplat::splat_tile_reduced(int t, int x0, int y0, int w, int h, const flo
         for (int b = 0; b < n_blocks; ++b) {
             const int k0 = block_start[b], len = block_start[b + 1] - k0;
             const bool not_front = any(nf + k0, len), not_behind = any(nb + k0, len);
-            all_front = all_front && not_front == 0;
+            all_front = all_front && !not_front;
             if (not_behind) live |= 1u << b;
             if (!not_front) front_blocks |= 1u << b;
             else if (not_behind) cut |= 1u << b;
