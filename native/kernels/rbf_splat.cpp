@@ -1878,7 +1878,10 @@ void RbfSplat::bin(const Vec3& D0, const Vec3& Dx, const Vec3& Dy, const Vec3& f
         }
     });
     // Counts per tile, then the lists, by tile rows in parallel (each row's tiles list their
-    // Gaussians in index order, as a serial pass over the Gaussians would).
+    // Gaussians in index order, as a serial pass over the Gaussians would). The fill also
+    // counts each far-field candidate's tiles in front / behind / cut (far_candidates).
+    FarScratch far;
+    bool far_any = false;
     auto rows = [&](bool fill_lists, std::uint32_t* fill) {
         parallel_chunks(std::size_t(tiles_y_), threads_, 1, [&](std::size_t yb, std::size_t ye) {
             std::vector<unsigned char> hit(std::size_t(tiles_x_), 1);
@@ -1895,6 +1898,15 @@ void RbfSplat::bin(const Vec3& D0, const Vec3& Dx, const Vec3& Dy, const Vec3& f
                     if (fill_lists) {
                         for (int k = 0; k < m; ++k)
                             if (hit[k]) bin_index_[fill[t0 + k]++] = std::uint32_t(i);
+                        if (far_any && far.cand[i]) {
+                            const float lo = far.span[2 * i], hi = far.span[2 * i + 1];
+                            std::uint32_t c[3] = {0, 0, 0};
+                            for (int k = 0; k < m; ++k)
+                                if (hit[k])
+                                    ++c[hi <= far.tmin[t0 + k] ? 0 : (lo >= far.tmax[t0 + k] ? 1 : 2)];
+                            for (int q = 0; q < 3; ++q)
+                                if (c[q]) far.counts[3 * i + q].fetch_add(c[q], std::memory_order_relaxed);
+                        }
                     } else {
                         for (int k = 0; k < m; ++k) count[t0 + k + 1] += hit[k];
                     }
@@ -1939,11 +1951,12 @@ void RbfSplat::bin(const Vec3& D0, const Vec3& Dx, const Vec3& Dy, const Vec3& f
     }
     bin_index_.resize(count[n_tiles]);
     std::vector<std::uint32_t> fill(count.begin(), count.end() - 1);
+    far_any = far_candidates(depth, rect, far);
     rows(true, fill.data());
-    build_far_field(depth, rect);
+    if (far_any) build_far_field(rect, far);
 }
 
-void RbfSplat::build_far_field(const float* depth, const std::vector<int>& rect) {
+bool RbfSplat::far_candidates(const float* depth, const std::vector<int>& rect, FarScratch& far) {
     const std::size_t n = g_.size();
     const int n_tiles = num_tiles();
     far_grids_.clear();
@@ -1952,10 +1965,10 @@ void RbfSplat::build_far_field(const float* depth, const std::vector<int>& rect)
     tile_far_pairs_.clear();
     splat_end_.clear();
     far_gaussians_ = far_nodes_ = 0;
-    if (step_ == 1 || !depth || !plain_ || noise_.on() || n == 0) return;
+    if (step_ == 1 || !depth || !plain_ || noise_.on() || n == 0) return false;
     const double f = glm::dot(D0_, forward_);
     const double pix = f > 0.0 ? std::max(glm::length(Dx_), glm::length(Dy_)) / f : 0.0;
-    if (!(pix > 0.0)) return;
+    if (!(pix > 0.0)) return false;
     // The level criteria (rbf_splat.h): the cubic's error at the lattice's tau at quarter
     // resolution; at half a quarter of the lattice's (1e-3 / 16), so that half keeps its max
     // error against full at 0.1 % (bench_rbf.py's transmittance: 0.099 %; 0.101 % at 1e-3 / 8,
@@ -1963,7 +1976,8 @@ void RbfSplat::build_far_field(const float* depth, const std::vector<int>& rect)
     const double tau = step_ == 4 ? 1e-3 : 1e-3 / 16.0;
     const double cv = 0.28 * std::pow(tau / 1e-3, 0.25), cl = 6.0 * std::pow(1e-3 / tau, 0.25);
     const double q0_len = glm::length(q0_);
-    std::vector<unsigned char> cand(n, 0);
+    std::vector<unsigned char>& cand = far.cand;
+    cand.assign(n, 0);
     bool any = false;
     for (std::size_t i = 0; i < n; ++i) {
         const GaussF& g = g_[i];
@@ -1986,10 +2000,13 @@ void RbfSplat::build_far_field(const float* depth, const std::vector<int>& rect)
             }
         }
     }
-    if (!any) return;
-    // Each tile's depth range, and per candidate its tiles in front / behind / cut by it
-    // (splat_tile_reduced's test by depth range; a cost estimate only).
-    std::vector<float> tmin(n_tiles), tmax(n_tiles);
+    if (!any) return false;
+    // Each tile's depth range, and per candidate its depth interval, for the fill's counts of
+    // its tiles in front / behind / cut (splat_tile_reduced's test by depth range; a cost
+    // estimate only).
+    std::vector<float>&tmin = far.tmin, &tmax = far.tmax;
+    tmin.resize(n_tiles);
+    tmax.resize(n_tiles);
     parallel_chunks(std::size_t(n_tiles), threads_, 64, [&](std::size_t tb, std::size_t te) {
         for (std::size_t t = tb; t < te; ++t) {
             const int x0 = int(t) % tiles_x_ * kTile, y0 = int(t) / tiles_x_ * kTile;
@@ -2005,36 +2022,21 @@ void RbfSplat::build_far_field(const float* depth, const std::vector<int>& rect)
             tmax[t] = hi;
         }
     });
-    // Per-worker state (parallel_chunks over the worker indices; each pulls work from a
-    // shared counter, so the threads balance and no two share a buffer).
-    const int workers = threads_ > 0 ? threads_ : int(std::max(1u, std::thread::hardware_concurrency()));
-    std::vector<std::vector<std::uint32_t>> counts(workers);
-    std::atomic<int> next{0};
-    // (the candidates' depth intervals in one compact array: the pass reads ~2 M pairs)
-    std::vector<float> span(2 * n, 0.0f);
+    far.span.assign(2 * n, 0.0f);
     for (std::size_t i = 0; i < n; ++i)
         if (cand[i]) {
-            span[2 * i] = float(g_[i].dist - g_[i].radius);
-            span[2 * i + 1] = float(g_[i].dist + g_[i].radius);
+            far.span[2 * i] = float(g_[i].dist - g_[i].radius);
+            far.span[2 * i + 1] = float(g_[i].dist + g_[i].radius);
         }
-    parallel_chunks(std::size_t(workers), workers, 1, [&](std::size_t wb, std::size_t we) {
-        for (std::size_t w = wb; w < we; ++w) {
-            std::vector<std::uint32_t>& c = counts[w];
-            c.assign(3 * n + 1, 0);
-            for (;;) {
-                const int t0 = next.fetch_add(64);
-                if (t0 >= n_tiles) break;
-                // (branch-free: the other Gaussians count in a slot of their own, 3 n)
-                for (int t = t0; t < std::min(n_tiles, t0 + 64); ++t)
-                    for (std::uint32_t e = bin_start_[t]; e < bin_start_[t + 1]; ++e) {
-                        const std::uint32_t i = bin_index_[e];
-                        const float lo = span[2 * i], hi = span[2 * i + 1];
-                        const std::size_t slot = 3 * std::size_t(i) + (hi <= tmin[t] ? 0 : (lo >= tmax[t] ? 1 : 2));
-                        ++c[cand[i] ? slot : 3 * n];
-                    }
-            }
-        }
-    });
+    far.counts.reset(new std::atomic<std::uint32_t>[3 * n]());
+    return true;
+}
+
+void RbfSplat::build_far_field(const std::vector<int>& rect, FarScratch& far) {
+    const std::size_t n = g_.size();
+    const int n_tiles = num_tiles();
+    const std::vector<unsigned char>& cand = far.cand;
+    const std::vector<float>& tmin = far.tmin;
     // Grid sizes: the tile lattices' nodes lie at film x in [0, kTile tiles_x_], whose cubic
     // stencils reach nodes P = x / h .. x / h + 3.
     auto grid_dims = [&](int k, int& h, int& nx, int& ny) {
@@ -2058,12 +2060,7 @@ void RbfSplat::build_far_field(const float* depth, const std::vector<int>& rect)
     double saved = 0.0;
     for (std::size_t i = 0; i < n; ++i) {
         if (!cand[i]) continue;
-        std::size_t front = 0, behind = 0, cut = 0;
-        for (int w = 0; w < workers; ++w) {
-            front += counts[w][3 * i];
-            behind += counts[w][3 * i + 1];
-            cut += counts[w][3 * i + 2];
-        }
+        const std::size_t front = far.counts[3 * i], behind = far.counts[3 * i + 1], cut = far.counts[3 * i + 2];
         int P0, P1, Q0, Q1;
         node_range(i, cand[i], P0, P1, Q0, Q1);
         // Evaluations: the grid's nodes near the cone (~0.8 of the rectangle), and a
@@ -2199,15 +2196,23 @@ void RbfSplat::build_far_field(const float* depth, const std::vector<int>& rect)
     // wholly in front on a grid the tile reads then move to the end of its list, past
     // splat_end_: the splat does not walk them (at 3000 x 1, ~1.3 M of its ~2.1 M pairs).
     // eval_rays still gathers from the whole list: an edge sub-sample may end nearer.
+    // (the pass reads ~3 M pairs: per Gaussian its far reach and evaluations in compact
+    // arrays, integer sums)
     tile_far_pairs_.assign(std::size_t(n_tiles), 0);
     splat_end_.assign(bin_start_.begin() + 1, bin_start_.end());
+    std::vector<double> reach(n, 0.0);
+    std::vector<std::uint32_t> lattice_cost(n, 0);
+    for (std::uint32_t i : far_list) {
+        reach[i] = g_[i].dist + g_[i].radius;
+        lattice_cost[i] = std::uint32_t(lattice_evals(i));
+    }
     parallel_chunks(std::size_t(n_tiles), threads_, 256, [&](std::size_t tb, std::size_t te) {
         std::vector<std::uint32_t> moved;
         for (std::size_t t = tb; t < te; ++t) {
             const std::uint32_t e0 = bin_start_[t], e1 = bin_start_[t + 1];
             const double far_lo = double(tmin[t]) * (1.0 - 1e-6);  // as splat_tile_reduced's
-            auto front = [&](std::size_t i) { return g_[i].dist + g_[i].radius <= far_lo; };
-            float save[kMaxFarLevel] = {}, spend[kMaxFarLevel] = {};
+            auto front = [&](std::size_t i) { return reach[i] <= far_lo; };
+            std::uint32_t save[kMaxFarLevel] = {}, spend[kMaxFarLevel] = {};
             unsigned bits = 0, pairs = 0;
             for (std::uint32_t e = e0; e < e1; ++e) {
                 const std::size_t i = bin_index_[e];
@@ -2215,12 +2220,12 @@ void RbfSplat::build_far_field(const float* depth, const std::vector<int>& rect)
                 const int k = level_[i] - 1;
                 bits |= 1u << k;
                 ++pairs;
-                if (front(i)) save[k] += lattice_evals(i);
-                else spend[k] += 36.0f;
+                if (front(i)) save[k] += lattice_cost[i];
+                else spend[k] += 36;
             }
             unsigned use = 0;
             for (int k = 0; k < kMaxFarLevel; ++k)
-                if ((bits >> k & 1u) && save[k] > spend[k] + 25.0f) use |= 1u << k;
+                if ((bits >> k & 1u) && save[k] > spend[k] + 25) use |= 1u << k;
             tile_far_[t] = std::uint16_t(use);
             tile_far_pairs_[t] = pairs;
             if (use == 0) continue;

@@ -370,7 +370,19 @@ class RbfSplat {
     // between levels: with powers of 2 a Gaussian's grid had ~1.4x the nodes on average).
     static constexpr int kMaxFarLevel = 9;
     static constexpr int kFarSpacing[kMaxFarLevel] = {2, 3, 4, 6, 8, 12, 16, 24, 32};
-    void build_far_field(const float* depth, const std::vector<int>& rect);
+    // bin()'s far-field pass in two halves around its list fill: far_candidates picks each
+    // Gaussian's candidate level and the tiles' depth ranges (false: none, no grids); the
+    // fill then counts per candidate the tiles it lies wholly in front of / behind / cuts
+    // (by depth range; counts[3 i + 0, 1, 2]), and build_far_field chooses the Gaussians
+    // that go on grids and builds those.
+    struct FarScratch {
+        std::vector<unsigned char> cand;  // per Gaussian: candidate level (0: none)
+        std::vector<float> span;          // per candidate: dist -/+ radius
+        std::vector<float> tmin, tmax;    // per tile: depth range
+        std::unique_ptr<std::atomic<std::uint32_t>[]> counts;
+    };
+    bool far_candidates(const float* depth, const std::vector<int>& rect, FarScratch& far);
+    void build_far_field(const std::vector<int>& rect, FarScratch& far);
     // Evaluations Gaussian i costs on a quarter tile's lattice when in front (the far-field
     // cost models): 25 nodes, 9 on the coarse lattice, ~17 where that depends on the tile.
     float lattice_evals(std::size_t i) const { return smooth_[i] == 2 ? 9.0f : (smooth_[i] == 1 ? 17.0f : 25.0f); }
