@@ -2196,8 +2196,8 @@ void RbfSplat::build_far_field(const std::vector<int>& rect, FarScratch& far) {
     // wholly in front on a grid the tile reads then move to the end of its list, past
     // splat_end_: the splat does not walk them (at 3000 x 1, ~1.3 M of its ~2.1 M pairs).
     // eval_rays still gathers from the whole list: an edge sub-sample may end nearer.
-    // (the pass reads ~3 M pairs: per Gaussian its far reach and evaluations in compact
-    // arrays, integer sums)
+    // (the pass reads all the pairs, ~2.1 M at 3000 x 1: per Gaussian its far reach and
+    // evaluations in compact arrays, integer sums)
     tile_far_pairs_.assign(std::size_t(n_tiles), 0);
     splat_end_.assign(bin_start_.begin() + 1, bin_start_.end());
     std::vector<double> reach(n, 0.0);
