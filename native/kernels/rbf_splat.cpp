@@ -1880,8 +1880,7 @@ void RbfSplat::bin(const Vec3& D0, const Vec3& Dx, const Vec3& Dy, const Vec3& f
     // Counts per tile, then the lists, by tile rows in parallel (each row's tiles list their
     // Gaussians in index order, as a serial pass over the Gaussians would). The fill also
     // counts each far-field candidate's tiles in front / behind / cut (far_candidates).
-    FarScratch far;
-    bool far_any = false;
+    FarScratch far;  // far.counts allocated: there are far-field candidates
     auto rows = [&](bool fill_lists, std::uint32_t* fill) {
         parallel_chunks(std::size_t(tiles_y_), threads_, 1, [&](std::size_t yb, std::size_t ye) {
             std::vector<unsigned char> hit(std::size_t(tiles_x_), 1);
@@ -1898,7 +1897,7 @@ void RbfSplat::bin(const Vec3& D0, const Vec3& Dx, const Vec3& Dy, const Vec3& f
                     if (fill_lists) {
                         for (int k = 0; k < m; ++k)
                             if (hit[k]) bin_index_[fill[t0 + k]++] = std::uint32_t(i);
-                        if (far_any && far.cand[i]) {
+                        if (far.counts && far.cand[i]) {
                             const float lo = far.span[2 * i], hi = far.span[2 * i + 1];
                             std::uint32_t c[3] = {0, 0, 0};
                             for (int k = 0; k < m; ++k)
@@ -1951,9 +1950,9 @@ void RbfSplat::bin(const Vec3& D0, const Vec3& Dx, const Vec3& Dy, const Vec3& f
     }
     bin_index_.resize(count[n_tiles]);
     std::vector<std::uint32_t> fill(count.begin(), count.end() - 1);
-    far_any = far_candidates(depth, rect, far);
+    const bool far_field = far_candidates(depth, rect, far);
     rows(true, fill.data());
-    if (far_any) build_far_field(rect, far);
+    if (far_field) build_far_field(rect, far);
 }
 
 bool RbfSplat::far_candidates(const float* depth, const std::vector<int>& rect, FarScratch& far) {
