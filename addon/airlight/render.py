@@ -1,10 +1,19 @@
 """Render handlers: bake each frame's fog just before it renders.
 
-With `scene.airlight.enabled`, `blender -b file.blend -f N`, `-a` and F12 render foggy:
-`render_pre` runs once per frame (for -a after the frame has been set and the scene
-evaluated there), bakes that frame into <cache_dir>/fog_####.exr and points the
-compositor's Image node at it. Errors are printed and the frame renders without new fog
-passes; they never abort the render.
+With `scene.airlight.enabled`, `blender -b file.blend -f N`, `-a`, F12 and Ctrl+F12 render
+foggy: each frame is baked into <cache_dir>/fog_####.exr and the compositor's Image node
+pointed at it, before the render engine starts on the frame. Errors are printed and the
+frame renders without new fog passes; they never abort the render.
+
+Where the bake happens (checked in Blender 3.4):
+  - Background renders (-f, -a) call `render_pre` in the main thread: the bake runs
+    there, after frame_set evaluates the scene at the frame.
+  - Interactive renders (F12, Ctrl+F12) run in the render job's thread, where frame_set
+    is unsafe and the UI's depsgraph stays at the frame shown in the UI. There
+    `render_pre` only marks the frame; the render pipeline then evaluates its own
+    depsgraph at the frame and calls `frame_change_post` with it (mode 'RENDER'), and the
+    bake runs there, with that depsgraph. Data written by frame handlers (the emitters'
+    smoke) is evaluated first (Depsgraph.update), as the pipeline's own second pass would.
 """
 
 import threading
@@ -12,24 +21,30 @@ import threading
 import bpy
 from bpy.app.handlers import persistent
 
-from . import bake, compositor, native
+from . import bake, compositor, emitter, native
 
 
-def _depsgraph(scene):
-    """The scene's depsgraph evaluated at the frame about to render.
+def _in_main_thread():
+    return threading.current_thread() is threading.main_thread()
+
+
+def _main_thread_depsgraph(scene):
+    """The scene's depsgraph evaluated at the frame about to render (main thread only).
 
     At render_pre the render engine has not evaluated anything yet, and for `-a` the
-    view layer's depsgraph still holds the previous frame (checked in Blender 3.4), so
-    in the main thread (background renders) the frame is set again, which evaluates
-    it. Interactive renders call render_pre from the render thread, where frame_set is
-    unsafe: there the depsgraph the UI keeps up to date for the current frame is used.
+    view layer's depsgraph still holds the previous frame, so the frame is set again,
+    which evaluates it.
     """
-    if threading.current_thread() is threading.main_thread():
-        scene.frame_set(scene.frame_current, subframe=scene.frame_subframe)
+    scene.frame_set(scene.frame_current, subframe=scene.frame_subframe)
     view_layer = bpy.context.view_layer
     if view_layer is None or bpy.context.scene != scene:
         view_layer = scene.view_layers[0]
     return view_layer.depsgraph
+
+
+# Interactive renders: the scene whose frame render_pre marked for baking in the render
+# thread's frame_change_post (see the module's docstring); None when nothing is pending.
+_pending = {"scene": None}
 
 
 @persistent
@@ -41,13 +56,46 @@ def on_render_pre(scene, *_):
         if compositor.is_set_up(scene):
             compositor.sync(scene)  # mute: the render passes through unchanged
         return
-    frame = scene.frame_current
     if not native.available():
-        print(f"Airlight: frame {frame} rendered without fog: {native.error()}", flush=True)
+        print(f"Airlight: frame {scene.frame_current} rendered without fog: {native.error()}", flush=True)
         return
+    if _in_main_thread():
+        _bake_for_render(scene, lambda: _main_thread_depsgraph(scene))
+    else:
+        _pending["scene"] = scene.name
+
+
+@persistent
+def on_render_frame_evaluated(scene, depsgraph=None):
+    """The render thread's bake (interactive renders), with the render's own depsgraph."""
+    if (_pending["scene"] is None or _pending["scene"] != scene.name or depsgraph is None
+            or depsgraph.mode != 'RENDER' or _in_main_thread()):
+        return
+    _pending["scene"] = None
     try:
-        depsgraph = _depsgraph(scene)
-        filepath, stats, seconds = bake.bake_frame(scene, depsgraph, bake.cache_path(scene, frame))
+        # The emitters write their smoke into the fog objects in their own frame handler,
+        # which may run after this one; either way the render's depsgraph evaluated the
+        # frame before the handlers ran, so write it here and evaluate it.
+        emitter.on_frame_change_post(scene)
+        depsgraph.update()
+    except Exception as ex:
+        print(f"Airlight: frame {scene.frame_current}: the scene could not be re-evaluated for the fog "
+              f"bake: {type(ex).__name__}: {ex}", flush=True)
+    _bake_for_render(scene, lambda: depsgraph)
+
+
+@persistent
+def on_render_end(*_):
+    _pending["scene"] = None
+
+
+def _bake_for_render(scene, get_depsgraph):
+    """Bakes the frame about to render with the depsgraph get_depsgraph() returns and points
+    the compositor at it; on failure prints why and composites neutral passes."""
+    settings = scene.airlight
+    frame = scene.frame_current
+    try:
+        filepath, stats, seconds = bake.bake_frame(scene, get_depsgraph(), bake.cache_path(scene, frame))
     except Exception as ex:  # a handler must never take the render down
         reason = str(ex) if isinstance(ex, bake.BakeError) else f"{type(ex).__name__}: {ex}"
         print(f"Airlight: frame {frame} rendered without fog: {reason}", flush=True)
@@ -80,6 +128,9 @@ def on_load_post(*_):
 
 _HANDLERS = (
     (bpy.app.handlers.render_pre, on_render_pre),
+    (bpy.app.handlers.frame_change_post, on_render_frame_evaluated),
+    (bpy.app.handlers.render_cancel, on_render_end),
+    (bpy.app.handlers.render_complete, on_render_end),
     (bpy.app.handlers.load_post, on_load_post),
 )
 
