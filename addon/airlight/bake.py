@@ -35,13 +35,14 @@ def bake_settings(scene):
                 **model_choice.table_settings(settings), **extra)
 
 
-def prepare(scene, depsgraph):
-    """Everything the bake needs, gathered in the main thread (touches bpy).
+def prepare(scene, depsgraph, mesh_overrides=None):
+    """Everything the bake needs, gathered in the main thread (touches bpy); in a render
+    thread nothing is written (_mesh_overrides_: see fog_object.gather).
 
     The World for the environment glow travels in the settings under "environment"
     (environment.prepare(); absent when off), which `run` takes out before the native bake."""
     try:
-        description = scene_export.export_scene(scene, depsgraph)
+        description = scene_export.export_scene(scene, depsgraph, mesh_overrides)
         settings = bake_settings(scene)
         world = environment.prepare(scene)
         if world is not None:
@@ -104,11 +105,11 @@ def run(description, settings, filepath, progress=None):
     return stats, time.perf_counter() - start
 
 
-def bake_frame(scene, depsgraph, filepath=None, progress=None):
+def bake_frame(scene, depsgraph, filepath=None, progress=None, mesh_overrides=None):
     """Synchronous bake of the depsgraph's current frame; returns (filepath, stats, seconds)."""
     if filepath is None:
         filepath = cache_path(scene, scene.frame_current)
-    description, settings = prepare(scene, depsgraph)
+    description, settings = prepare(scene, depsgraph, mesh_overrides)
     stats, seconds = run(description, settings, filepath, progress)
     return filepath, stats, seconds
 

@@ -21,7 +21,9 @@ A frame_change_post handler writes each emitter's particles at the current frame
 target fog object (bulk foreach_set), with the "airlight_color" attribute. The bake reads
 the fog object after frame_set (render.py's render_pre calls frame_set, which runs this
 handler first, then evaluates the depsgraph again), so `blender -b file -a` renders the
-smoke. "Bake to Frames" stores every frame in hidden meshes that save with the .blend
+smoke. In the render thread of interactive renders (F12, Ctrl+F12) the handler writes
+nothing, as the UI may be drawing the meshes: the bake there takes the smoke from
+targets_at_frame instead. "Bake to Frames" stores every frame in hidden meshes that save with the .blend
 (one per frame, fake user); the handler then copies the stored frame instead of
 simulating. When no particle is alive the target holds one Gaussian of amplitude 0 (the
 bake refuses an empty fog object).
@@ -34,6 +36,7 @@ now, not from where it was: bake it with a static parent or keyframe the emitter
 """
 
 import math
+import threading
 
 import bpy
 import numpy as np
@@ -334,11 +337,12 @@ def _active(obj):
             and fog_object.is_fog_object(settings.target))
 
 
-def update_target(target, scene):
-    """Rewrites fog object _target_ with the Gaussians of every enabled emitter of the
-    scene that writes into it (several emitters can share one smoke object). When none
-    is alive it holds one Gaussian of amplitude 0 (the bake refuses an empty fog object).
-    Returns {emitter name: live particles}."""
+def target_frame(target, scene):
+    """What fog object _target_ holds at the scene's current frame: the Gaussians of every
+    enabled emitter of the scene that writes into it (several emitters can share one smoke
+    object), in its object space, as (centres, scales, amplitudes, colors), or None when no
+    emitter writes into it; one Gaussian of amplitude 0 when none is alive (the bake
+    refuses an empty fog object). Also returns {emitter name: live particles}."""
     blocks, counts = [], {}
     for obj in emitters(scene):
         if _active(obj) and obj.airlight_emitter.target == target:
@@ -346,13 +350,35 @@ def update_target(target, scene):
             counts[obj.name] = int((block[2] > 0.0).sum())
             blocks.append(block)
     if not blocks:
-        return counts
+        return None, counts
     centres, scales, amplitudes, colors = (np.concatenate([b[i] for b in blocks]) for i in range(4))
     if len(centres) == 0:
         centres, scales, amplitudes = np.zeros((1, 3)), np.ones(1), np.zeros(1)
         colors = np.ones((1, 3), dtype=np.float32)
-    fog_object.write_mesh(target.data, centres, scales, amplitudes, colors)
+    return (centres, scales, amplitudes, colors), counts
+
+
+def update_target(target, scene):
+    """Rewrites fog object _target_ with target_frame(); returns {emitter name: live particles}."""
+    frame, counts = target_frame(target, scene)
+    if frame is not None:
+        fog_object.write_mesh(target.data, *frame)
     return counts
+
+
+def _targets(scene):
+    """The fog objects the scene's enabled emitters write into, each once."""
+    found = {}
+    for obj in emitters(scene):
+        if _active(obj):
+            found.setdefault(obj.airlight_emitter.target.name, obj.airlight_emitter.target)
+    return list(found.values())
+
+
+def targets_at_frame(scene):
+    """{fog object name: target_frame()} for the scene's current frame, written nowhere:
+    what a render thread's bake reads instead of the meshes (fog_object.gather)."""
+    return {target.name: target_frame(target, scene)[0] for target in _targets(scene)}
 
 
 def update_emitter(obj, scene):
@@ -366,12 +392,12 @@ def update_emitter(obj, scene):
 
 @persistent
 def on_frame_change_post(scene, *_):
-    done = set()
-    for obj in emitters(scene):
-        if not _active(obj) or obj.airlight_emitter.target.name in done:
-            continue
-        target = obj.airlight_emitter.target
-        done.add(target.name)
+    # Interactive renders run the frame handlers in the render thread, while the UI may be
+    # drawing these meshes: nothing is written there (the render's bake computes the smoke
+    # itself, targets_at_frame; the render engines do not draw fog objects).
+    if threading.current_thread() is not threading.main_thread():
+        return
+    for target in _targets(scene):
         try:
             update_target(target, scene)
         except Exception as ex:  # a handler must never break playback or a render

@@ -229,7 +229,7 @@ class GatheredFog(tuple):
         return self.KEYS + (("colors",) if self.colors is not None else ())
 
 
-def gather(depsgraph):
+def gather(depsgraph, mesh_overrides=None):
     """World-space Gaussians of all render-visible fog objects (and their instances):
     (centres (n,3) float64, scales (n,) float64, amplitudes (n,) float64), a GatheredFog
     that also holds 'colors' (n,3) float32 when any of them has the "airlight_color"
@@ -241,6 +241,10 @@ def gather(depsgraph):
     a NON-uniform scale the centres spread anisotropically but each blob stays a sphere
     whose width follows the geometric mean of the three axis scales (s above), not an
     ellipsoid. Invalid data raises FogObjectError (a ValueError) naming the object.
+
+    _mesh_overrides_ ({object name: (centres, scales, amplitudes, colors)} in object space)
+    stands in for those objects' mesh data: the emitters' smoke at the frame a render
+    thread bakes, which must not write the meshes (render.py).
     """
     hidden = visibility.render_hidden_collections(depsgraph.view_layer)
     blocks = []
@@ -253,14 +257,18 @@ def gather(depsgraph):
         if source is None or not visibility.is_render_visible(source, hidden):
             continue
         name = obj.original.name
-        centres, scales, amplitudes = read_mesh(obj.data, name)
+        override = (mesh_overrides or {}).get(name)
+        if override is None:
+            centres, scales, amplitudes = read_mesh(obj.data, name)
+            rgb = read_colors(obj.data)
+        else:
+            centres, scales, amplitudes, rgb = override
         validate(name, centres, scales, amplitudes)
         matrix = np.array(instance.matrix_world, dtype=np.float64)
         s = uniform_scale(matrix[:3, :3])
         if not s > 0.0 or not np.isfinite(s):
             raise FogObjectError(name, "has a zero (degenerate) object scale")
         blocks.append((centres @ matrix[:3, :3].T + matrix[:3, 3], scales / s, amplitudes))
-        rgb = read_colors(obj.data)
         if rgb is not None and (not np.isfinite(rgb).all() or (rgb < 0.0).any()):
             raise FogObjectError(name, f"'{COLOR_ATTR}' has negative or non-finite values")
         colors.append(rgb)

@@ -12,8 +12,9 @@ Where the bake happens (checked in Blender 3.4):
     is unsafe and the UI's depsgraph stays at the frame shown in the UI. There
     `render_pre` only marks the frame; the render pipeline then evaluates its own
     depsgraph at the frame and calls `frame_change_post` with it (mode 'RENDER'), and the
-    bake runs there, with that depsgraph. Data written by frame handlers (the emitters'
-    smoke) is evaluated first (Depsgraph.update), as the pipeline's own second pass would.
+    bake runs there, with that depsgraph. Nothing is written in that thread (the UI may
+    be drawing the same data): the emitters' smoke at the frame is computed for the bake
+    (emitter.targets_at_frame) instead of being written into their fog objects.
 """
 
 import threading
@@ -72,16 +73,7 @@ def on_render_frame_evaluated(scene, depsgraph=None):
             or depsgraph.mode != 'RENDER' or _in_main_thread()):
         return
     _pending["scene"] = None
-    try:
-        # The emitters write their smoke into the fog objects in their own frame handler,
-        # which may run after this one; either way the render's depsgraph evaluated the
-        # frame before the handlers ran, so write it here and evaluate it.
-        emitter.on_frame_change_post(scene)
-        depsgraph.update()
-    except Exception as ex:
-        print(f"Airlight: frame {scene.frame_current}: the scene could not be re-evaluated for the fog "
-              f"bake: {type(ex).__name__}: {ex}", flush=True)
-    _bake_for_render(scene, lambda: depsgraph)
+    _bake_for_render(scene, lambda: depsgraph, lambda: emitter.targets_at_frame(scene))
 
 
 @persistent
@@ -89,13 +81,15 @@ def on_render_end(*_):
     _pending["scene"] = None
 
 
-def _bake_for_render(scene, get_depsgraph):
-    """Bakes the frame about to render with the depsgraph get_depsgraph() returns and points
-    the compositor at it; on failure prints why and composites neutral passes."""
+def _bake_for_render(scene, get_depsgraph, get_mesh_overrides=lambda: None):
+    """Bakes the frame about to render with the depsgraph get_depsgraph() returns (and the
+    fog objects' data get_mesh_overrides() returns, fog_object.gather) and points the
+    compositor at it; on failure prints why and composites neutral passes."""
     settings = scene.airlight
     frame = scene.frame_current
     try:
-        filepath, stats, seconds = bake.bake_frame(scene, get_depsgraph(), bake.cache_path(scene, frame))
+        filepath, stats, seconds = bake.bake_frame(scene, get_depsgraph(), bake.cache_path(scene, frame),
+                                                   mesh_overrides=get_mesh_overrides())
     except Exception as ex:  # a handler must never take the render down
         reason = str(ex) if isinstance(ex, bake.BakeError) else f"{type(ex).__name__}: {ex}"
         print(f"Airlight: frame {frame} rendered without fog: {reason}", flush=True)

@@ -242,14 +242,15 @@ def export_phase(scene):
     return model_choice.native_phase(settings)
 
 
-def export_fog_objects(depsgraph):
+def export_fog_objects(depsgraph, mesh_overrides=None):
     """World-space Gaussians of the render-visible fog objects (`fog_object.gather`) as
     `_native.bake`'s rbf_* keyword arguments, or {} when there are none (then the bake is
     the homogeneous one, unchanged). Invalid fog objects raise ExportError. Per-Gaussian
     colours go to rbf_albedo when the gathered data has them: gather() returning a dict
-    with key 'colors' ((n, 3) floats), or a 4-tuple (centres, scales, amplitudes, colors)."""
+    with key 'colors' ((n, 3) floats), or a 4-tuple (centres, scales, amplitudes, colors).
+    _mesh_overrides_: see fog_object.gather."""
     try:
-        gathered = fog_object.gather(depsgraph)
+        gathered = fog_object.gather(depsgraph, mesh_overrides)
     except ValueError as ex:
         raise ExportError(str(ex)) from None
     colors = None
@@ -291,8 +292,9 @@ def export_noise(scene):
     return dict(noise_amplitude=amplitude, noise_scale=scale, noise_offset=offset)
 
 
-def export_scene(scene, depsgraph):
-    """The scene description for `_native.bake(**description, ...)` at the depsgraph's frame."""
+def export_scene(scene, depsgraph, mesh_overrides=None):
+    """The scene description for `_native.bake(**description, ...)` at the depsgraph's frame
+    (_mesh_overrides_: see fog_object.gather)."""
     sigma_t, albedo = export_medium(scene)
     phase, g = export_phase(scene)
     width, height, cam_to_world, projection = export_camera(scene, depsgraph)
@@ -307,7 +309,7 @@ def export_scene(scene, depsgraph):
                         ("light intensities", light_intensities)):
         if not np.all(np.isfinite(array)):
             raise ExportError(f"The scene's {name} contain NaN or infinite values.")
-    gaussians = export_fog_objects(depsgraph)
+    gaussians = export_fog_objects(depsgraph, mesh_overrides)
     # (Fog objects take point, spot and sun lamps and any phase: rbf_splat.h RbfSplatLights.)
     spots = {} if daylight else export_spot_lights(depsgraph, skip)
     suns = export_sun_lights(scene, depsgraph, skip)

@@ -133,13 +133,13 @@ def test05_fog_colours_are_exported_when_gathered(tmp_path, monkeypatch):
     depsgraph = bpy.context.evaluated_depsgraph_get()
     assert "rbf_albedo" not in scene_export.export_scene(scene, depsgraph)
     colours = np.tile([[1.0, 0.5, 0.25]], (len(CENTRES), 1))
-    monkeypatch.setattr(fog_object, "gather", lambda dg: dict(centres=CENTRES, scales=SCALES,
+    monkeypatch.setattr(fog_object, "gather", lambda dg, mesh_overrides=None: dict(centres=CENTRES, scales=SCALES,
                                                               amplitudes=AMPLITUDES, colors=colours))
     description = scene_export.export_scene(scene, depsgraph)
     np.testing.assert_array_equal(description["rbf_albedo"], colours)
     bad = colours.copy()
     bad[0, 0] = -1.0
-    monkeypatch.setattr(fog_object, "gather", lambda dg: dict(centres=CENTRES, scales=SCALES,
+    monkeypatch.setattr(fog_object, "gather", lambda dg, mesh_overrides=None: dict(centres=CENTRES, scales=SCALES,
                                                               amplitudes=AMPLITUDES, colors=bad))
     with pytest.raises(scene_export.ExportError, match="colours"):
         scene_export.export_scene(scene, depsgraph)
