@@ -15,6 +15,7 @@ import os
 import threading
 
 import bpy
+from bpy.app.handlers import persistent
 
 from . import cache, native, surface
 from .cache import PASS_AIRLIGHT, PASS_TRANSMITTANCE
@@ -242,8 +243,10 @@ def _setup_surface(scene, tree, frame, image_node, multiply):
     tree.links.new(accumulated, multiply.inputs[1])
 
 
-def neutral_passes(scene):
-    """Path of pass-through passes at the render size, or None if they cannot be written."""
+def neutral_passes(scene, depsgraph=None):
+    """Path of pass-through passes at the render size, or None if they cannot be written.
+    With surface shading (main thread) it first sets up the light groups for the scene as
+    _depsgraph_ (default: the context's) has it."""
     from .scene_export import render_size
     if not native.available():
         return None
@@ -252,7 +255,7 @@ def neutral_passes(scene):
     if surface.active(scene) and threading.current_thread() is threading.main_thread():
         # Enable the light groups now (before any render starts) and expose their passes.
         try:
-            groups = surface.ensure_passes(scene, bpy.context.evaluated_depsgraph_get())
+            groups = surface.ensure_passes(scene, depsgraph or bpy.context.evaluated_depsgraph_get())
             names = [surface.PASS_PREFIX + g for g in groups if g is not None] + [surface.PASS_GLOW]
             if surface.gloss_exponent(scene) > 0.0:
                 names.append(surface.PASS_GLOSS)
@@ -288,9 +291,56 @@ def sync(scene, filepath=None):
         _mute(scene, scene.node_tree)
 
 
+def surface_ready(scene, depsgraph):
+    """The surface shading's light groups are in place for the scene as it is now, and the
+    Image node exposes each one's pass (the chain is built from those outputs)."""
+    groups, ready = surface.groups_in_place(scene, depsgraph)
+    image_node = _fog_nodes(scene.node_tree)[0]
+    return ready and all(image_node.outputs.get(surface.PASS_PREFIX + g) is not None for g in groups)
+
+
+def complete_surface(scene, depsgraph):
+    """Sets up the surface shading's light groups and the chain's passes (neutral until the
+    next bake) where the scene as _depsgraph_ has it needs more; main thread only."""
+    if not surface_ready(scene, depsgraph):
+        setup(scene, neutral_passes(scene, depsgraph))
+
+
+def _touches_lights(depsgraph):
+    """Whether an update can change the surface shading's light groups: a light, a World,
+    the scene (its World, Environment Glow), a collection (objects added or hidden)."""
+    for update in depsgraph.updates:
+        data = update.id
+        if isinstance(data, (bpy.types.Light, bpy.types.World, bpy.types.Scene, bpy.types.Collection)):
+            return True
+        if isinstance(data, bpy.types.Object) and data.type == 'LIGHT':
+            return True
+    return False
+
+
+@persistent
+def on_depsgraph_update_post(scene, depsgraph):
+    """Keeps the surface-shading passes in step with the user's edits (a new light, a World,
+    Environment Glow on): a render composites with the node links it starts with, and an
+    interactive render's thread cannot add light groups (render.py), so they are set up
+    here, in the main thread, when an edit needs them."""
+    if threading.current_thread() is not threading.main_thread() or bpy.app.is_job_running('RENDER'):
+        return
+    settings = getattr(scene, "airlight", None)
+    if (settings is None or not (settings.enabled and settings.auto_composite) or not surface.active(scene)
+            or not is_set_up(scene) or not _touches_lights(depsgraph)):
+        return
+    try:
+        complete_surface(scene, depsgraph)
+    except Exception as ex:  # a handler must never break editing
+        print(f"Airlight: cannot update the surface shading passes: {ex}", flush=True)
+
+
 def register():
-    pass
+    if on_depsgraph_update_post not in bpy.app.handlers.depsgraph_update_post:
+        bpy.app.handlers.depsgraph_update_post.append(on_depsgraph_update_post)
 
 
 def unregister():
-    pass
+    while on_depsgraph_update_post in bpy.app.handlers.depsgraph_update_post:
+        bpy.app.handlers.depsgraph_update_post.remove(on_depsgraph_update_post)

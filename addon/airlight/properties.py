@@ -37,9 +37,10 @@ def _on_fog_changed(self, context):
 
 
 def _on_surface_changed(self, context):
-    """Rebuilds the compositor's surface-shading chain (and its passes) when switched, so the
-    next render composites with it (a render reads the node links as they are when it starts);
-    the Image node gets neutral passes with the right names until the next bake."""
+    """Rebuilds the compositor's surface-shading chain (and its passes) when Surface Shading
+    or Environment Glow (the World's light group) is switched, so the next render composites
+    with it (a render reads the node links as they are when it starts); the Image node gets
+    neutral passes with the right names until the next bake."""
     from . import compositor
     scene = context.scene if context else None
     if scene is not None and getattr(scene, "airlight", None) is not None and compositor.is_set_up(scene):
@@ -296,6 +297,7 @@ class AirlightSceneSettings(bpy.types.PropertyGroup):
                     "World's colour or Environment Texture glow, and the World is dimmed by the fog "
                     "up to the Environment Distance instead of hidden",
         default=False,
+        update=_on_surface_changed,
     )
     environment_distance: FloatProperty(
         name="Environment Distance",

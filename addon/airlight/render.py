@@ -22,7 +22,7 @@ import threading
 import bpy
 from bpy.app.handlers import persistent
 
-from . import bake, compositor, emitter, native
+from . import bake, compositor, emitter, native, surface
 
 
 def _in_main_thread():
@@ -104,7 +104,9 @@ def _bake_for_render(scene, get_depsgraph, get_mesh_overrides=lambda: None):
 
 @persistent
 def on_load_post(*_):
-    """Completes the fog nodes of loaded scenes before anything renders.
+    """Completes the fog nodes of loaded scenes before anything renders, and for the
+    window's scene the surface shading's light groups (a file saved before a light was
+    added, or without the add-on).
 
     A render composites with the node links as they were when it started (before
     render_pre), so the pass links must already exist then (checked in Blender 3.4).
@@ -113,11 +115,13 @@ def on_load_post(*_):
         settings = getattr(scene, "airlight", None)
         if settings is None or not (settings.enabled and settings.auto_composite):
             continue
-        if not compositor.is_complete(scene):
-            try:
+        try:
+            if not compositor.is_complete(scene):
                 compositor.setup(scene)
-            except Exception as ex:
-                print(f"Airlight: cannot set up the compositor of scene '{scene.name}': {ex}", flush=True)
+            if surface.active(scene) and scene == bpy.context.scene:
+                compositor.complete_surface(scene, bpy.context.evaluated_depsgraph_get())
+        except Exception as ex:
+            print(f"Airlight: cannot set up the compositor of scene '{scene.name}': {ex}", flush=True)
 
 
 _HANDLERS = (

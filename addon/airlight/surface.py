@@ -154,6 +154,23 @@ def current_groups(depsgraph):
             for obj, group in fogged_lights(depsgraph)]
 
 
+def groups_in_place(scene, depsgraph):
+    """(groups, ready): the light groups the surface passes use for the scene as it is now
+    (ensure_passes' per light, then ensure_world_group's), and whether those two would
+    change nothing. Reads only."""
+    rows = fogged_lights(depsgraph)
+    groups = [group for _, group in rows if group is not None]
+    ready = all(obj.lightgroup == group for obj, group in rows if group is not None)
+    if world_group_wanted(scene) and scene.world.lightgroup in ("", WORLD_GROUP):
+        groups.append(WORLD_GROUP)
+        ready = ready and scene.world.lightgroup == WORLD_GROUP
+    for view_layer in scene.view_layers:
+        ready = (ready and set(groups) <= {lg.name for lg in view_layer.lightgroups}
+                 and view_layer.use_pass_diffuse_color
+                 and (gloss_exponent(scene) <= 0.0 or view_layer.use_pass_glossy_color))
+    return groups, ready
+
+
 def ensure_passes(scene, depsgraph):
     """Enables the light groups and DiffCol pass the composite needs; returns the group name
     per bake light (None: no surface pass for that light). Writes bpy data: main thread only."""

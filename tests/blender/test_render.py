@@ -32,6 +32,9 @@ def _render_scene(tmp_path):
     settings.color_depth = '32'
     scene.render.use_compositing = True
     scene.airlight.density = 0.1
+    # The plain composite render x T + A (surface shading, on by default with Cycles, adds
+    # the light groups' corrections: test_cycles_surface.py).
+    scene.airlight.surface_shading = False
     bpy.ops.airlight.setup_compositor()
     path = str(tmp_path / "scene.blend")
     bpy.ops.wm.save_as_mainfile(filepath=path)

@@ -8,7 +8,7 @@ import bpy
 import numpy as np
 
 from airlight import compositor, scene_export, surface
-from conftest import build_plane_scene, exr_pass, needs_native
+from conftest import build_plane_scene, exr_pass, needs_native, run_blender
 
 
 def _surface_nodes(tree):
@@ -265,3 +265,51 @@ def test08_anisotropic_phase_glow(tmp_path):
     G_B = lambda T, th: max(0.0, 4 * math.pi ** 2 * math.cos(th) * _native.biri06_gamma_L(T, phase="hg", g=0.6)[()])
     np.testing.assert_allclose(biri[24, 32], _centre_pixel_glow(scene, G_B), rtol=5e-3)
     assert "eq. 10" in surface.glow_model_text(scene.airlight, "biri06")
+
+
+@needs_native
+def test09_lights_added_later_get_their_groups_before_a_render(tmp_path):
+    """A render composites with the node links it starts with, and an interactive render's
+    thread cannot add light groups: a light added after the fog nodes exist gets its group
+    and its pass in the chain at the next depsgraph update (compositor's
+    on_depsgraph_update_post; tests/gpu/test_14 renders such a scene with Ctrl+F12), and a
+    file saved without that (an older add-on) gets it when loaded (render.on_load_post)."""
+    scene = build_plane_scene(tmp_path)
+    scene.render.engine = 'CYCLES'
+    bpy.ops.airlight.setup_compositor()
+    view_layer = bpy.context.view_layer
+    tree = scene.node_tree
+    assert scene.objects["Lamp"].lightgroup == "fog_Lamp"
+    assert len(_surface_nodes(tree)) == 4  # Lamp and the glow
+    key = _add_light(scene, "Key", 'POINT', (-1.0, 0.5, 1.5))
+    assert key.lightgroup == ""
+    view_layer.update()
+    assert key.lightgroup == "fog_Key"
+    assert {"fog_Lamp", "fog_Key"} <= {lg.name for lg in view_layer.lightgroups}
+    assert tree.nodes[compositor.NODE_IMAGE].outputs.get("Surface_fog_Key") is not None
+    assert len(_surface_nodes(tree)) == 6
+    # Moving a light (no new group needed) changes nothing.
+    before = (len(tree.nodes), len(tree.links), tree.nodes[compositor.NODE_IMAGE].image.filepath)
+    key.location.x += 1.0
+    view_layer.update()
+    assert (len(tree.nodes), len(tree.links), tree.nodes[compositor.NODE_IMAGE].image.filepath) == before
+
+    bpy.app.handlers.depsgraph_update_post.remove(compositor.on_depsgraph_update_post)
+    try:
+        fill = _add_light(scene, "Fill", 'SPOT', (1.0, -0.5, 1.5))
+        view_layer.update()
+        assert fill.lightgroup == ""
+        blend = str(tmp_path / "later.blend")
+        bpy.ops.wm.save_as_mainfile(filepath=blend)
+    finally:
+        bpy.app.handlers.depsgraph_update_post.append(compositor.on_depsgraph_update_post)
+    script = tmp_path / "groups.py"
+    script.write_text(
+        "import bpy\n"
+        "scene = bpy.context.scene\n"
+        "node = scene.node_tree.nodes['" + compositor.NODE_IMAGE + "']\n"
+        "print('GROUP', scene.objects['Fill'].lightgroup, node.outputs.get('Surface_fog_Fill') is not None,\n"
+        "      'fog_Fill' in {lg.name for lg in scene.view_layers[0].lightgroups})\n")
+    proc = run_blender(blend, "--python", str(script))
+    assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
+    assert "GROUP fog_Fill True True" in proc.stdout, proc.stdout[-3000:]

@@ -21,7 +21,8 @@ REPO = os.path.normpath(os.path.join(HERE, "..", ".."))
 DRIVER = os.path.join(HERE, "support", "interactive_render.py")
 
 
-def _exr_pass(path, name):
+def _read_exr(path):
+    """{channel name: (H, W) float32} via OpenImageIO (independent of Blender)."""
     import OpenImageIO as oiio
     inp = oiio.ImageInput.open(path)
     assert inp is not None, oiio.geterror()
@@ -29,10 +30,10 @@ def _exr_pass(path, name):
     pixels = np.asarray(inp.read_image(oiio.FLOAT)).reshape(spec.height, spec.width, spec.nchannels)
     names = list(spec.channelnames)
     inp.close()
-    return pixels[..., [names.index(f"Fog.{name}.{c}") for c in "RGB"]]
+    return {name: pixels[..., k] for k, name in enumerate(names)}
 
 
-def _scene(tmp_path, ui_frame):
+def _scene(tmp_path, ui_frame, surface):
     """Ground plane, point lamp, a camera moving over frames 1-3 and an emitter's smoke;
     Cycles at 1 sample (the fog passes do not depend on it), EXR output."""
     bpy.ops.wm.read_homefile(use_factory_startup=True, use_empty=True)
@@ -68,40 +69,62 @@ def _scene(tmp_path, ui_frame):
     scene.airlight.enabled = True
     scene.airlight.density = 0.02
     scene.airlight.cache_dir = str(tmp_path / "cache") + os.sep
+    scene.airlight.surface_shading = surface
     scene.cursor.location = (0.0, 0.0, 0.4)
     assert bpy.ops.airlight.add_emitter() == {'FINISHED'}
     emitter = next(o for o in scene.objects if o.airlight_emitter.is_emitter).airlight_emitter
     emitter.rate, emitter.lifetime, emitter.velocity = 16.0, 2.0, (0.6, 0.0, 0.4)
     emitter.scale, emitter.amplitude, emitter.frame_start, emitter.frame_end = 3.0, 3.0, 1, 3
     bpy.ops.airlight.setup_compositor()
+    if surface:
+        # Edits after the fog nodes exist, as a user makes them: Environment Glow, a World
+        # and a second lamp. Their light groups must be set up before the render starts (its
+        # thread cannot add them, and it composites with the links it started with): the
+        # glow's property update and the depsgraph update after each edit (the main loop's;
+        # view_layer.update here) do.
+        scene.airlight.environment_glow = True
+        scene.world = bpy.data.worlds.new("Grey")
+        scene.world.color = (0.2, 0.2, 0.2)
+        bpy.context.view_layer.update()
+        lamp2 = bpy.data.objects.new("Lamp2", bpy.data.lights.new("Lamp2", 'POINT'))
+        lamp2.data.energy = 200.0
+        lamp2.location = (-1.0, 1.0, 1.0)
+        scene.collection.objects.link(lamp2)
+        bpy.context.view_layer.update()
     scene.frame_set(ui_frame)
     blend = str(tmp_path / "interactive.blend")
     bpy.ops.wm.save_as_mainfile(filepath=blend)
     return scene, blend
 
 
-@pytest.mark.parametrize("mode", ["animation", "still"])
-def test01_f12_and_ctrl_f12_bake_each_frame_at_that_frame(tmp_path, addon, mode):
+@pytest.mark.parametrize("mode,surface", [("animation", False), ("still", False), ("animation", True)])
+def test01_f12_and_ctrl_f12_bake_each_frame_at_that_frame(tmp_path, addon, mode, surface):
+    """With surface shading and the World's glow too (their passes in the same file)."""
     frames = (1, 2, 3) if mode == "animation" else (2,)
-    scene, blend = _scene(tmp_path, ui_frame=frames[0] if mode == "animation" else 2)
+    scene, blend = _scene(tmp_path, ui_frame=frames[0] if mode == "animation" else 2, surface=surface)
     proc = subprocess.run([os.path.join(REPO, "tools", "blender.sh"), blend, "--python", DRIVER, "--", mode],
                           capture_output=True, text=True, timeout=300)
     log = proc.stdout[-4000:] + proc.stderr[-2000:]
     assert proc.returncode == 0, log
+    assert "rendered without fog" not in proc.stdout, log
     for f in frames:
         assert f"Airlight: fog of frame {f} baked" in proc.stdout, log
         out = tmp_path / (f"out_{f:04d}.exr" if mode == "animation" else "out_.exr")
         assert os.path.exists(out), log
     airlight = {}
     for f in frames:
-        baked = str(tmp_path / "cache" / f"fog_{f:04d}.exr")
+        baked = _read_exr(str(tmp_path / "cache" / f"fog_{f:04d}.exr"))
         reference = str(tmp_path / f"ref_{f}.exr")
         assert bpy.ops.airlight.bake(frame=f, filepath=reference) == {'FINISHED'}
-        airlight[f] = _exr_pass(baked, "Airlight")
-        assert airlight[f].max() > 1e-3
-        for name in ("Airlight", "Transmittance"):
-            np.testing.assert_allclose(_exr_pass(baked, name), _exr_pass(reference, name), rtol=1e-5, atol=1e-7,
+        reference = _read_exr(reference)
+        # Every pass (with surface shading: Surface_<group> per light, SurfaceGlow, World).
+        assert sorted(baked) == sorted(reference)
+        assert any(n.startswith("Fog.Surface") for n in baked) == surface, sorted(baked)
+        for name in baked:
+            np.testing.assert_allclose(baked[name], reference[name], rtol=1e-5, atol=1e-7,
                                        err_msg=f"frame {f} {name}")
+        airlight[f] = np.stack([baked[f"Fog.Airlight.{c}"] for c in "RGB"], axis=-1)
+        assert airlight[f].max() > 1e-3
     if mode == "still":
         return
     # The fog moves: each frame's differs from the previous one.
