@@ -246,7 +246,7 @@ def gather(depsgraph, mesh_overrides=None):
     stands in for those objects' mesh data: the emitters' smoke at the frame a render
     thread bakes, which must not write the meshes (render.py).
     """
-    hidden = visibility.render_hidden_collections(depsgraph.view_layer)
+    visible = visibility.RenderVisibility(depsgraph.view_layer)
     blocks = []
     colors = []
     for instance in depsgraph.object_instances:
@@ -254,7 +254,7 @@ def gather(depsgraph, mesh_overrides=None):
         if not is_fog_object(obj):
             continue
         source = instance.parent if instance.is_instance else obj
-        if source is None or not visibility.is_render_visible(source, hidden):
+        if source is None or not visible(source):
             continue
         name = obj.original.name
         override = (mesh_overrides or {}).get(name)

@@ -242,7 +242,7 @@ def light_plan(scene, depsgraph=None, view_layer=None):
     settings = scene.airlight
     if view_layer is None:
         view_layer = depsgraph.view_layer if depsgraph is not None else scene.view_layers[0]
-    hidden = visibility.render_hidden_collections(view_layer)
+    visible = visibility.RenderVisibility(view_layer)
     name, point_label, point_error = choose(settings)
     sigma = float(settings.density)
     albedo = np.array(settings.color, dtype=np.float64)
@@ -252,7 +252,7 @@ def light_plan(scene, depsgraph=None, view_layer=None):
     rows, fogged = [], []
     kinds, weights, positions = [], [], []   # per fogged light: type, I0 or E (RGB), position
     for obj in scene.objects:
-        if obj.type != 'LIGHT' or not visibility.is_render_visible(obj, hidden):
+        if obj.type != 'LIGHT' or not visible(obj):
             continue
         light = obj.data
         if light.type not in SUPPORTED_LIGHT_TYPES:
@@ -295,7 +295,7 @@ def light_plan(scene, depsgraph=None, view_layer=None):
     # The bounds are those of the homogeneous fog: a light they rate faint can still light a
     # dense fog object (Gaussians) brightly, so Automatic skips no light when there is one.
     fog_objects = any(getattr(getattr(obj, "airlight_fog", None), "is_fog", False)
-                      and visibility.is_render_visible(obj, hidden) for obj in scene.objects)
+                      and visible(obj) for obj in scene.objects)
     if settings.model == 'AUTO' and frame is not None and sigma > 0.0 and not fog_objects:
         skip = light_bounds.skip_faint(uppers, lowers, settings.accuracy / 100.0)
     total_lower = lowers.sum(axis=0)

@@ -93,7 +93,7 @@ def export_geometry_and_lights(scene, depsgraph, skip=frozenset()):
     Returns (vertices (N,3) float32, triangles (M,3) uint32, light_positions (L,3),
     light_intensities (L,3), skipped_lights [(name, type)]).
     """
-    hidden = visibility.render_hidden_collections(depsgraph.view_layer)
+    visible = visibility.RenderVisibility(depsgraph.view_layer)
     vertex_blocks, triangle_blocks = [], []
     n_vertices = 0
     positions, intensities, skipped = [], [], []
@@ -102,7 +102,7 @@ def export_geometry_and_lights(scene, depsgraph, skip=frozenset()):
         # An instance is visible when whatever instances it renders (the instanced
         # object itself is often hidden, e.g. in a particle collection).
         source = instance.parent if instance.is_instance else obj
-        if source is None or not visibility.is_render_visible(source, hidden):
+        if source is None or not visible(source):
             continue
         matrix = np.array(instance.matrix_world, dtype=np.float64)
         if obj.type == 'LIGHT':
@@ -144,13 +144,13 @@ def _directed_lights(depsgraph, light_type, skip):
     participating light instance of _light_type_ ('SPOT', 'SUN'); lights named in _skip_
     (Automatic's skipped lights) are left out unless instanced. A degenerate transform
     raises ExportError."""
-    hidden = visibility.render_hidden_collections(depsgraph.view_layer)
+    visible = visibility.RenderVisibility(depsgraph.view_layer)
     for instance in depsgraph.object_instances:
         obj = instance.object
         if obj.type != 'LIGHT' or obj.data.type != light_type:
             continue
         source = instance.parent if instance.is_instance else obj
-        if source is None or not visibility.is_render_visible(source, hidden):
+        if source is None or not visible(source):
             continue
         light = obj.data
         if not light.original.airlight.participate or (not instance.is_instance and obj.name in skip):

@@ -82,14 +82,14 @@ def fogged_lights(depsgraph):
     """[(light object, group name or None)] in the bake's light order: the point lights, the
     spot lights, then the sun lamps, as scene_export exports them (tests/blender/test_surface.py
     holds them to the same order). The group is None where surface shading cannot apply."""
-    hidden = visibility.render_hidden_collections(depsgraph.view_layer)
+    visible = visibility.RenderVisibility(depsgraph.view_layer)
     points, spots, suns, counts = [], [], [], {}
     for instance in depsgraph.object_instances:
         obj = instance.object
-        source = instance.parent if instance.is_instance else obj
-        if source is None or not visibility.is_render_visible(source, hidden):
-            continue
         if obj.type != 'LIGHT':
+            continue
+        source = instance.parent if instance.is_instance else obj
+        if source is None or not visible(source):
             continue
         light = obj.data
         # Point, spot and sun lights: the bake's surface pass covers no other type.

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from mathutils import Matrix
 
-from airlight import scene_export
+from airlight import scene_export, visibility
 from conftest import build_plane_scene
 
 
@@ -67,6 +67,55 @@ def test02_geometry_counts_instances_and_skips_hidden(tmp_path):
     tri_centres = vertices[triangles].mean(axis=1)
     inst = tri_centres[(tri_centres[:, 1] > 0.0) & (tri_centres[:, 1] < 2.1) & (tri_centres[:, 2] > 0.0)]
     assert inst[:, 0].min() >= 4.0 - 1e-5 and inst[:, 0].max() <= 8.0 + 1e-5
+
+
+def test02b_render_visibility_follows_collections(tmp_path):
+    """visibility.RenderVisibility (collections' members listed once) against the rule asked
+    object by object (users_collection): hide_render, excluded and render-hidden
+    collections (nested too), an object in a hidden and a shown collection, one only in the
+    scene's master collection, one in a collection of another scene."""
+    scene = build_plane_scene(tmp_path)
+    view_layer = bpy.context.view_layer
+    parent = bpy.data.collections.new("Parent")
+    child = bpy.data.collections.new("Child")
+    shown = bpy.data.collections.new("Shown")
+    excluded = bpy.data.collections.new("Excluded")
+    scene.collection.children.link(parent)
+    parent.children.link(child)
+    scene.collection.children.link(shown)
+    scene.collection.children.link(excluded)
+    parent.hide_render = True  # and so its child
+    view_layer.layer_collection.children["Excluded"].exclude = True
+    other = bpy.data.scenes.new("Other")
+    elsewhere = bpy.data.collections.new("Elsewhere")
+    other.collection.children.link(elsewhere)
+    cases = {
+        "Master": ([scene.collection], False, True),
+        "MasterHidden": ([scene.collection], True, False),
+        "InChild": ([child], False, False),
+        "InParent": ([parent], False, False),
+        "ChildAndShown": ([child, shown], False, True),
+        "Excluded": ([excluded], False, False),
+        "ExcludedAndMaster": ([excluded, scene.collection], False, True),
+        "Elsewhere": ([elsewhere], False, True),  # outside this view layer's tree
+    }
+    objects = {}
+    for name, (collections, hide, _) in cases.items():
+        obj = bpy.data.objects.new(name, None)
+        obj.hide_render = hide
+        for collection in collections:
+            collection.objects.link(obj)
+        objects[name] = obj
+    hidden = {"Parent", "Child", "Excluded"}
+
+    def per_object(obj):
+        return not obj.hide_render and (not obj.users_collection
+                                        or any(c.name not in hidden for c in obj.users_collection))
+
+    visible = visibility.RenderVisibility(view_layer)
+    for name, (_, _, expected) in cases.items():
+        assert visible(objects[name]) == expected == per_object(objects[name]), name
+    assert visible(scene.objects["Lamp"]) and visible(scene.objects["Ground"])
 
 
 def test03_light_intensity_is_colour_times_power_over_4pi(tmp_path):
