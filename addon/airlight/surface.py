@@ -173,7 +173,8 @@ def groups_in_place(scene, depsgraph):
 
 def ensure_passes(scene, depsgraph):
     """Enables the light groups and DiffCol pass the composite needs; returns the group name
-    per bake light (None: no surface pass for that light). Writes bpy data: main thread only."""
+    per bake light (None: no surface pass for that light). Writes bpy data: main thread only.
+    (groups_in_place checks the same conditions without writing: keep the two in step.)"""
     rows = fogged_lights(depsgraph)
     groups = [group for _, group in rows]
     for obj, group in rows:

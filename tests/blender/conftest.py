@@ -9,7 +9,6 @@ import subprocess
 import sys
 
 import bpy
-import numpy as np
 import pytest
 
 HERE = os.path.dirname(os.path.abspath(__file__))
@@ -18,6 +17,7 @@ BLENDER_SH = os.path.join(REPO, "tools", "blender.sh")
 sys.path.insert(0, os.path.join(HERE, "support"))
 
 import airlight  # noqa: E402
+from exr_files import exr_pass, read_exr  # noqa: E402,F401  (the tests import them from here)
 from airlight import native  # noqa: E402
 
 USING_FAKE = False
@@ -58,24 +58,6 @@ def fresh_blender_per_module():
     own module-scoped fixtures, e.g. the Cycles reference scene, survive its tests)."""
     reset_blender()
     yield
-
-
-def read_exr(path):
-    """(H, W, C) float32 pixels and channel names, via OpenImageIO (independent of Blender)."""
-    import OpenImageIO as oiio
-    inp = oiio.ImageInput.open(path)
-    assert inp is not None, oiio.geterror()
-    spec = inp.spec()
-    pixels = np.asarray(inp.read_image(oiio.FLOAT)).reshape(spec.height, spec.width, spec.nchannels)
-    names = list(spec.channelnames)
-    inp.close()
-    return pixels, names
-
-
-def exr_pass(path, name):
-    pixels, names = read_exr(path)
-    index = [names.index(f"Fog.{name}.{c}") for c in "RGB"]
-    return pixels[..., index]
 
 
 def run_blender(*args, timeout=120):

@@ -11,6 +11,7 @@ of the UI's frame instead fails the animation.
 
 import os
 import subprocess
+import sys
 
 import bpy
 import numpy as np
@@ -19,17 +20,13 @@ import pytest
 HERE = os.path.dirname(os.path.abspath(__file__))
 REPO = os.path.normpath(os.path.join(HERE, "..", ".."))
 DRIVER = os.path.join(HERE, "support", "interactive_render.py")
+sys.path.insert(0, os.path.join(REPO, "tests", "blender", "support"))
+from exr_files import read_exr  # noqa: E402
 
 
-def _read_exr(path):
-    """{channel name: (H, W) float32} via OpenImageIO (independent of Blender)."""
-    import OpenImageIO as oiio
-    inp = oiio.ImageInput.open(path)
-    assert inp is not None, oiio.geterror()
-    spec = inp.spec()
-    pixels = np.asarray(inp.read_image(oiio.FLOAT)).reshape(spec.height, spec.width, spec.nchannels)
-    names = list(spec.channelnames)
-    inp.close()
+def _channels(path):
+    """{channel name: (H, W) float32} of an EXR file."""
+    pixels, names = read_exr(path)
     return {name: pixels[..., k] for k, name in enumerate(names)}
 
 
@@ -113,10 +110,10 @@ def test01_f12_and_ctrl_f12_bake_each_frame_at_that_frame(tmp_path, addon, mode,
         assert os.path.exists(out), log
     airlight = {}
     for f in frames:
-        baked = _read_exr(str(tmp_path / "cache" / f"fog_{f:04d}.exr"))
+        baked = _channels(str(tmp_path / "cache" / f"fog_{f:04d}.exr"))
         reference = str(tmp_path / f"ref_{f}.exr")
         assert bpy.ops.airlight.bake(frame=f, filepath=reference) == {'FINISHED'}
-        reference = _read_exr(reference)
+        reference = _channels(reference)
         # Every pass (with surface shading: Surface_<group> per light, SurfaceGlow, World).
         assert sorted(baked) == sorted(reference)
         assert any(n.startswith("Fog.Surface") for n in baked) == surface, sorted(baked)
