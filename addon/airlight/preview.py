@@ -34,6 +34,7 @@ the benchmark with depth they render themselves.
 """
 
 import math
+import threading
 import time
 
 import bpy
@@ -312,7 +313,14 @@ def _on_depsgraph_update(scene, depsgraph):
 
 @persistent
 def _on_frame_change(*_args):
-    """Animated geometry (modifiers, shape keys) may differ on the new frame."""
+    """Animated geometry (modifiers, shape keys) may differ on the new frame.
+
+    Interactive renders call the frame handlers from the render thread for the render's
+    own depsgraph: nothing of the viewport changed then, and the cached batches (GPU
+    objects) must not be released from that thread. Blender sets the UI's frame again in
+    the main thread when the render ends, which comes here."""
+    if threading.current_thread() is not threading.main_thread():
+        return
     _state["generation"] += 1
     _state["instances"] = None
     _state["meshes"] = {}

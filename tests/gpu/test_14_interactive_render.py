@@ -127,3 +127,20 @@ def test01_f12_and_ctrl_f12_bake_each_frame_at_that_frame(tmp_path, addon, mode,
     # The fog moves: each frame's differs from the previous one.
     assert np.abs(airlight[1] - airlight[2]).max() > 1e-3
     assert np.abs(airlight[2] - airlight[3]).max() > 1e-3
+
+
+def test02_render_thread_frame_changes_leave_the_preview_cache(addon):
+    """The render thread's frame handlers (its own depsgraph) must not release the
+    viewport preview's cached batches (GPU objects) there; the main thread's frame change
+    (Blender's, when the render ends) does."""
+    import threading
+    state = addon._state
+    sentinel = {("Ground", "Ground"): object()}
+    state["meshes"] = dict(sentinel)
+    generation = state["generation"]
+    worker = threading.Thread(target=addon._on_frame_change, args=(bpy.context.scene,))
+    worker.start()
+    worker.join()
+    assert state["meshes"] == sentinel and state["generation"] == generation
+    addon._on_frame_change(bpy.context.scene)
+    assert state["meshes"] == {} and state["generation"] == generation + 1
