@@ -3,10 +3,10 @@
 They run in the render job's thread, where the add-on cannot set the frame: the bake
 takes the render's own depsgraph (render.py's on_render_frame_evaluated, a
 frame_change_post handler). A windowed Blender (support/interactive_render.py) renders an
-animation with Ctrl+F12 while the UI stays on frame 1, or a still with F12; the camera
-and an emitter's smoke move over the frames. Each frame's baked fog must equal a bake of
-that frame made here (bpy.ops.airlight.bake sets the frame in the main thread), so a bake
-of the UI's frame instead fails the animation.
+animation with Ctrl+F12 while the UI stays on frame 1, or a still with F12 (Cycles, and
+Eevee once); the camera and an emitter's smoke move over the frames. Each frame's baked
+fog must equal a bake of that frame made here (bpy.ops.airlight.bake sets the frame in the
+main thread), so a bake of the UI's frame instead fails the animation.
 """
 
 import os
@@ -30,7 +30,7 @@ def _channels(path):
     return {name: pixels[..., k] for k, name in enumerate(names)}
 
 
-def _scene(tmp_path, ui_frame, surface):
+def _scene(tmp_path, ui_frame, surface, engine='CYCLES'):
     """Ground plane, point lamp, a camera moving over frames 1-3 and an emitter's smoke;
     Cycles at 1 sample (the fog passes do not depend on it), EXR output."""
     bpy.ops.wm.read_homefile(use_factory_startup=True, use_empty=True)
@@ -54,7 +54,8 @@ def _scene(tmp_path, ui_frame, surface):
     scene.render.resolution_percentage = 100
     scene.render.fps = 4  # a quarter second per frame: the smoke moves a lot
     scene.frame_start, scene.frame_end = 1, 3
-    scene.render.engine = 'CYCLES'
+    scene.render.engine = engine
+    scene.eevee.taa_render_samples = 1
     scene.cycles.samples = 1
     scene.cycles.use_denoising = False
     scene.cycles.device = 'CPU'
@@ -94,11 +95,14 @@ def _scene(tmp_path, ui_frame, surface):
     return scene, blend
 
 
-@pytest.mark.parametrize("mode,surface", [("animation", False), ("still", False), ("animation", True)])
-def test01_f12_and_ctrl_f12_bake_each_frame_at_that_frame(tmp_path, addon, mode, surface):
+@pytest.mark.parametrize("mode,surface,engine", [("animation", False, 'CYCLES'), ("still", False, 'CYCLES'),
+                                                ("animation", True, 'CYCLES'),
+                                                ("animation", False, 'BLENDER_EEVEE')])
+def test01_f12_and_ctrl_f12_bake_each_frame_at_that_frame(tmp_path, addon, mode, surface, engine):
     """With surface shading and the World's glow too (their passes in the same file)."""
     frames = (1, 2, 3) if mode == "animation" else (2,)
-    scene, blend = _scene(tmp_path, ui_frame=frames[0] if mode == "animation" else 2, surface=surface)
+    scene, blend = _scene(tmp_path, ui_frame=frames[0] if mode == "animation" else 2, surface=surface,
+                          engine=engine)
     proc = subprocess.run([os.path.join(REPO, "tools", "blender.sh"), blend, "--python", DRIVER, "--", mode],
                           capture_output=True, text=True, timeout=300)
     log = proc.stdout[-4000:] + proc.stderr[-2000:]
