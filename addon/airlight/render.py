@@ -46,6 +46,15 @@ def _main_thread_depsgraph(scene):
 # Interactive renders: the scene whose frame render_pre marked for baking in the render
 # thread's frame_change_post (see the module's docstring); None when nothing is pending.
 _pending = {"scene": None}
+# Per scene name, (frame, reason) of the last render-time bake that failed, until one
+# succeeds: the Airlight Fog panel shows it (an interactive render's messages go to a
+# console the artist may not have open).
+_failed = {}
+
+
+def render_problem(scene):
+    """(frame, reason) of the last render-time bake of _scene_ that failed, or None."""
+    return _failed.get(scene.name)
 
 
 @persistent
@@ -93,10 +102,12 @@ def _bake_for_render(scene, get_depsgraph, get_mesh_overrides=lambda: None):
     except Exception as ex:  # a handler must never take the render down
         reason = str(ex) if isinstance(ex, bake.BakeError) else f"{type(ex).__name__}: {ex}"
         print(f"Airlight: frame {frame} rendered without fog: {reason}", flush=True)
+        _failed[scene.name] = (frame, reason)
         if settings.auto_composite and compositor.is_set_up(scene):
             # Don't composite a stale bake of another frame.
             compositor.sync(scene, compositor.neutral_passes(scene))
         return
+    _failed.pop(scene.name, None)
     print(f"Airlight: fog of frame {frame} baked in {seconds * 1000.0:.0f} ms -> {filepath}", flush=True)
     if settings.auto_composite:
         compositor.sync(scene, filepath)

@@ -4,7 +4,7 @@ import math
 
 import bpy
 
-from . import compositor, fog_object, model_choice, native, surface
+from . import compositor, fog_object, model_choice, native, render, surface
 from .properties import SUPPORTED_LIGHT_TYPES
 
 
@@ -33,6 +33,12 @@ class AIRLIGHT_PT_scene(bpy.types.Panel):
             box.alert = True
             box.label(text="Native module not available", icon='ERROR')
             box.label(text=native.error()[:120])
+        failed = render.render_problem(context.scene)
+        if failed is not None:
+            box = layout.box()
+            box.alert = True
+            box.label(text=f"Frame {failed[0]} rendered without fog:", icon='ERROR')
+            box.label(text=failed[1][:120])
 
         col = layout.column()
         col.active = settings.enabled

@@ -98,3 +98,41 @@ def build_plane_scene(tmp_path, fog=True, light=True, camera=True, size=(64, 48)
     scene.airlight.cache_dir = str(tmp_path / "cache") + os.sep
     scene.airlight.enabled = fog
     return scene
+
+
+class RecordingLayout:
+    """A stand-in for a panel's layout: records what the panel draws (property names,
+    operator ids, label texts) and checks that each property exists and has a tooltip and
+    each operator exists."""
+
+    def __init__(self, seen):
+        self.seen = seen
+        self.use_property_split = self.use_property_decorate = self.alert = self.active = False
+        self.scale_y = 1.0
+
+    def _child(self, *args, **kwargs):
+        return RecordingLayout(self.seen)
+    row = column = box = _child
+
+    def prop(self, data, name, **kwargs):
+        assert name in data.bl_rna.properties, name
+        assert data.bl_rna.properties[name].description, name
+        self.seen.append(name)
+
+    def operator(self, idname, **kwargs):
+        module, name = idname.split(".")
+        assert hasattr(getattr(bpy.ops, module), name), idname
+        self.seen.append(idname)
+
+    def label(self, **kwargs):
+        self.seen.append(kwargs.get("text", ""))
+
+
+def draw_panel(panel):
+    """What the panel class bpy.types.<panel> draws in the current context (RecordingLayout)."""
+    seen = []
+
+    class Fake:
+        layout = RecordingLayout(seen)
+    getattr(bpy.types, panel).draw(Fake(), bpy.context)
+    return seen

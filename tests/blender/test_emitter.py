@@ -11,7 +11,7 @@ import pytest
 from mathutils import Euler, Matrix
 
 from airlight import emitter, fog_object as fo
-from conftest import build_plane_scene, exr_pass, needs_real_native, read_exr, run_blender
+from conftest import build_plane_scene, draw_panel, exr_pass, needs_real_native, read_exr, run_blender
 
 
 @pytest.fixture
@@ -301,44 +301,13 @@ def test09_background_animation_render_has_moving_smoke(tmp_path, baked):
     assert np.abs(images[0] - images[1]).max() > 1e-3 and np.abs(images[1] - images[2]).max() > 1e-3
 
 
-class _Layout:
-    """Records what a panel draws and checks each property and operator exists."""
-
-    def __init__(self, seen):
-        self.seen = seen
-        self.use_property_split = self.use_property_decorate = self.alert = False
-        self.scale_y = 1.0
-
-    def _child(self, *args, **kwargs):
-        return _Layout(self.seen)
-    row = column = box = _child
-
-    def prop(self, data, name, **kwargs):
-        assert name in data.bl_rna.properties, name
-        assert data.bl_rna.properties[name].description, name
-        self.seen.append(name)
-
-    def operator(self, idname, **kwargs):
-        module, name = idname.split(".")
-        assert hasattr(getattr(bpy.ops, module), name), idname
-        self.seen.append(idname)
-
-    def label(self, **kwargs):
-        self.seen.append(kwargs.get("text", ""))
-
-
 @pytest.mark.parametrize("panel", ["AIRLIGHT_PT_fog_tools", "AIRLIGHT_PT_emitter"])
 def test10_panels_draw_every_setting(scene, panel):
     """The Fog Tools panel (N panel) and the emitter's Object properties panel draw without
     errors and show the airbrush / emitter settings and operators."""
     obj = _add(scene)
-    seen = []
-    cls = getattr(bpy.types, panel)
-
-    class Fake:
-        layout = _Layout(seen)
     with bpy.context.temp_override(object=obj, active_object=obj):
-        cls.draw(Fake(), bpy.context)
+        seen = draw_panel(panel)
     if panel == "AIRLIGHT_PT_emitter":
         expected = {"rate", "velocity", "spread", "acceleration", "color", "lifetime", "scale",
                     "amplitude", "scale_end", "amplitude_end", "seed", "frame_start", "frame_end",

@@ -5,41 +5,7 @@ import numpy as np
 import pytest
 
 from airlight import fog_object, ui
-from conftest import build_plane_scene
-
-
-class _Layout:
-    """Records what a panel draws; checks that each property exists and has a tooltip."""
-
-    def __init__(self, seen):
-        self.seen = seen
-        self.use_property_split = self.use_property_decorate = self.alert = self.active = False
-
-    def _child(self, *args, **kwargs):
-        return _Layout(self.seen)
-    row = column = box = _child
-
-    def prop(self, data, name, **kwargs):
-        assert name in data.bl_rna.properties, name
-        assert data.bl_rna.properties[name].description, name
-        self.seen.append(name)
-
-    def operator(self, idname, **kwargs):
-        module, name = idname.split(".")
-        assert hasattr(getattr(bpy.ops, module), name), idname
-        self.seen.append(idname)
-
-    def label(self, **kwargs):
-        self.seen.append(kwargs.get("text", ""))
-
-
-def _draw(panel):
-    seen = []
-
-    class Fake:
-        layout = _Layout(seen)
-    getattr(bpy.types, panel).draw(Fake(), bpy.context)
-    return seen
+from conftest import build_plane_scene, draw_panel as _draw
 
 
 @pytest.mark.parametrize("model", ['AUTO', 'QUADRATURE', 'BIRI06'])

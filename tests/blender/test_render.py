@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from airlight import render
-from conftest import build_plane_scene, exr_pass, needs_native, read_exr, run_blender
+from conftest import build_plane_scene, draw_panel, exr_pass, needs_native, read_exr, run_blender
 
 
 def _render_scene(tmp_path):
@@ -87,10 +87,24 @@ def test02_single_frame_render_uses_that_frames_camera(tmp_path):
 
 
 def test03_handler_without_camera_prints_instead_of_raising(tmp_path, capsys):
+    """The render goes on without fog; the console and the Airlight Fog panel say why, until
+    a bake at render time succeeds."""
     scene = build_plane_scene(tmp_path, camera=False)
     render.on_render_pre(scene)
     out = capsys.readouterr().out
     assert "rendered without fog" in out
+    frame, reason = render.render_problem(scene)
+    assert frame == scene.frame_current and "camera" in reason.lower(), reason
+    seen = draw_panel("AIRLIGHT_PT_scene")
+    assert f"Frame {frame} rendered without fog:" in seen and reason[:120] in seen
+    cam = bpy.data.objects.new("Cam", bpy.data.cameras.new("Cam"))
+    cam.location = (0.0, 0.0, 2.0)
+    scene.collection.objects.link(cam)
+    scene.camera = cam
+    render.on_render_pre(scene)
+    assert "baked" in capsys.readouterr().out
+    assert render.render_problem(scene) is None
+    assert not any(str(text).startswith(f"Frame {frame} rendered without fog") for text in draw_panel("AIRLIGHT_PT_scene"))
 
 
 def test04_settings_persist_through_save_and_reload(tmp_path):
