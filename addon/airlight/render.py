@@ -2,8 +2,9 @@
 
 With `scene.airlight.enabled`, `blender -b file.blend -f N`, `-a`, F12 and Ctrl+F12 render
 foggy: each frame is baked into <cache_dir>/fog_####.exr and the compositor's Image node
-pointed at it, before the render engine starts on the frame. Errors are printed and the
-frame renders without new fog passes; they never abort the render.
+pointed at it, before the render engine starts on the frame. Errors are printed (and shown
+in the Airlight Fog panel, render_problem) and the frame renders without new fog passes;
+they never abort the render.
 
 Where the bake happens (checked in Blender 3.4):
   - Background renders (-f, -a) call `render_pre` in the main thread: the bake runs
@@ -12,8 +13,9 @@ Where the bake happens (checked in Blender 3.4):
     is unsafe and the UI's depsgraph stays at the frame shown in the UI. There
     `render_pre` only marks the frame; the render pipeline then evaluates its own
     depsgraph at the frame and calls `frame_change_post` with it (mode 'RENDER'), and the
-    bake runs there, with that depsgraph. Nothing is written in that thread (the UI may
-    be drawing the same data): the emitters' smoke at the frame is computed for the bake
+    bake runs there, with that depsgraph. The scene's data is not written in that thread
+    (the UI may be drawing it; only the compositor's Image node is pointed at the new
+    file, as before): the emitters' smoke at the frame is computed for the bake
     (emitter.targets_at_frame) instead of being written into their fog objects.
 """
 
