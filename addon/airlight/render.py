@@ -80,8 +80,7 @@ def on_render_pre(scene, *_):
 @persistent
 def on_render_frame_evaluated(scene, depsgraph=None):
     """The render thread's bake (interactive renders), with the render's own depsgraph."""
-    if (_pending["scene"] is None or _pending["scene"] != scene.name or depsgraph is None
-            or depsgraph.mode != 'RENDER' or _in_main_thread()):
+    if _pending["scene"] != scene.name or depsgraph is None or depsgraph.mode != 'RENDER' or _in_main_thread():
         return
     _pending["scene"] = None
     _bake_for_render(scene, lambda: depsgraph, lambda: emitter.targets_at_frame(scene))
