@@ -32,7 +32,7 @@ def _channels(path):
 
 def _scene(tmp_path, ui_frame, surface, engine='CYCLES'):
     """Ground plane, point lamp, a camera moving over frames 1-3 and an emitter's smoke;
-    Cycles at 1 sample (the fog passes do not depend on it), EXR output."""
+    _engine_ (Cycles or Eevee) at 1 sample (the fog passes do not depend on it), EXR output."""
     bpy.ops.wm.read_homefile(use_factory_startup=True, use_empty=True)
     scene = bpy.context.scene
     mesh = bpy.data.meshes.new("Ground")
