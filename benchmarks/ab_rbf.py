@@ -41,7 +41,7 @@ else:
     gauss, lights, walls = B.cloud(3000, (1.0, 3.0), (0.01, 0.05), 2), 1, scene == "walls"
 if warmup > 0:
     B.bake(1920, 1080, lights, gauss, threads, warmup, resolution, walls)
-wall, airlight, res, cpu = B.bake(1920, 1080, lights, gauss, threads, bakes, resolution, walls)
+wall, airlight, res, cpu, _ = B.bake(1920, 1080, lights, gauss, threads, bakes, resolution, walls)
 print(json.dumps({{"wall": wall, "cpu": cpu}}))
 """
 

@@ -18,8 +18,9 @@ Each Gaussian scene is baked at every --resolutions value (gaussian_resolution: 
 quarter, rbf_splat.h), with the relative error of the Airlight and Transmittance passes
 against the full-resolution bake (mean, p99, max over pixels above 1e-6 of the 99.9th
 percentile) and the speed-up over full in the same run. Prints medians over --runs runs of
-the whole bake (wall clock around _native.bake) and of its airlight pass (stats seconds_airlight: the splat plus edge supersampling), the same
-scene without Gaussians (homogeneous bake) for reference, the per-edit native time of a
+the whole bake (wall clock around _native.bake) and of its airlight pass (stats seconds_airlight: the splat plus edge supersampling),
+its phases (raycast, the fog model's set-up, the Gaussians' binning: stats seconds_raycast,
+seconds_fog_setup, seconds_bin), the same scene without Gaussians (homogeneous bake) for reference, the per-edit native time of a
 brush stroke adding 100 Gaussians to 3000 (rbf_preview_factors: rebuilding the medium and
 its cull hierarchy, and the per-(light, Gaussian) factors), the per-view-change time of
 those factors for 3000 Gaussians and 1, 3, 4 lights (full call vs eye_only=True: the viewport
@@ -137,16 +138,26 @@ def bake(width, height, lights, gaussians, threads, runs, resolution="full", wal
         if NOISE > 0.0:
             kw.update(noise_amplitude=NOISE, noise_scale=1.0)
     airlight, cpu = [], []
+    phases = {key: [] for key in PHASES}
 
     def run():
         c0 = time.process_time()
         res = _native.bake(**kw)
         cpu.append(time.process_time() - c0)
         airlight.append(res["stats"]["seconds_airlight"])
+        for key in PHASES:
+            phases[key].append(res["stats"][key])
         return res
 
     wall, res = timed(run, runs)
-    return wall, statistics.median(airlight), res, statistics.median(cpu)
+    return (wall, statistics.median(airlight), res, statistics.median(cpu),
+            {key: statistics.median(v) for key, v in phases.items()})
+
+
+# The bake's phases whose medians bake() also returns (stats keys, seconds): the raycast,
+# the fog model's set-up between it and the airlight pass, the Gaussians' binning (inside
+# the airlight pass).
+PHASES = ("seconds_raycast", "seconds_fog_setup", "seconds_bin")
 
 
 def verdict(ok):
@@ -202,12 +213,12 @@ def main():
     # the first scene's homogeneous figure.
     bake(W, H, 3, None, args.threads, 1)
     for name, gauss, L, target, walls in scenes:
-        wall0, air0, _, cpu0 = bake(W, H, L, None, args.threads, args.runs, walls=walls)
+        wall0, air0, _, cpu0, _ = bake(W, H, L, None, args.threads, args.runs, walls=walls)
         print(f"[{name:>12} Gaussians, {L} light(s)] homogeneous bake {wall0 * 1e3:6.1f} ms "
               f"(airlight {air0 * 1e3:5.1f} ms, CPU {cpu0 * 1e3:.0f} ms)")
         full = None
         for resolution in RESOLUTIONS:
-            wall, air, res, cpu = bake(W, H, L, gauss, args.threads, args.runs, resolution, walls)
+            wall, air, res, cpu, ph = bake(W, H, L, gauss, args.threads, args.runs, resolution, walls)
             T = res["transmittance"][..., 0]
             if full is None:
                 full, wall_full = res, wall
@@ -216,6 +227,8 @@ def main():
                   f"pass {air * 1e3:7.1f} ms, {res['stats']['supersampled_pixels']} edge px), CPU {cpu * 1e3:.0f} ms; "
                   f"Gaussian work {(wall - wall0) * 1e3:8.1f} ms; mean La {res['airlight'].mean():.3e}, "
                   f"mean Tr {T.mean():.3f}")
+            print(f"           phases: raycast {ph['seconds_raycast'] * 1e3:.1f} ms, fog set-up "
+                  f"{ph['seconds_fog_setup'] * 1e3:.1f} ms, binning {ph['seconds_bin'] * 1e3:.1f} ms (in the airlight pass)")
             print(f"           {err}")
             if target is not None:
                 print(f"           target: {name} Gaussians, {L} light(s), 1080p bake <= {target:.0f} ms: "
@@ -282,11 +295,11 @@ def main():
 
     if not args.skip_1e5:
         w5, h5 = (int(x) for x in args.size_1e5.split("x"))
-        wall, air, res, cpu = bake(w5, h5, 1, cloud(100000, (0.3, 1.0), (0.01, 0.05), 3), args.threads, 1,
-                                   RESOLUTIONS[-1])
+        wall, air, res, cpu, ph = bake(w5, h5, 1, cloud(100000, (0.3, 1.0), (0.01, 0.05), 3), args.threads, 1,
+                                       RESOLUTIONS[-1])
         ok = bool(np.all(np.isfinite(res["airlight"])) and np.all(np.isfinite(res["transmittance"])))
         print(f"[100000 Gaussians, 1 light] bake at {w5}x{h5}, {RESOLUTIONS[-1]} resolution: {wall:.2f} s "
-              f"(airlight pass {air:.2f} s, "
+              f"(airlight pass {air:.2f} s, fog set-up {ph['seconds_fog_setup']:.2f} s, "
               f"CPU {cpu:.2f} s), "
               f"finite output: {verdict(ok)}")
 

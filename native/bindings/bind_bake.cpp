@@ -257,7 +257,8 @@ py::dict bake_py(int width, int height, const py::object& cam_to_world, const py
                    "seconds_airlight"_a = result.stats.seconds_airlight,
                    "supersampled_pixels"_a = result.stats.supersampled_pixels,
                    "samples"_a = result.stats.samples, "seconds_surface"_a = result.stats.seconds_surface,
-                   "seconds_edges"_a = result.stats.seconds_edges, "seconds_bin"_a = result.stats.seconds_bin);
+                   "seconds_edges"_a = result.stats.seconds_edges, "seconds_bin"_a = result.stats.seconds_bin,
+                   "seconds_fog_setup"_a = result.stats.seconds_fog_setup);
     // Surface shading: (L, H, W, 3) attenuation per light and (H, W, 3) glow, when asked for.
     py::dict extra;
     // The surface arrays exist only where the bake ran its surface pass (bake() refuses
@@ -419,7 +420,8 @@ depth=(H, W) float32 (distance from the eye, or from the near plane for
 orthographic cameras, to the first hit inside the clip range; inf where none), stats=dict(seconds_raycast,
 seconds_airlight, supersampled_pixels, samples, seconds_surface, seconds_edges: the edge
 supersampling's time summed over the worker threads, seconds_bin: fog objects' binning into
-tiles and far-field grids)); rows top first. Raises
+tiles and far-field grids, seconds_fog_setup: building the fog model between the raycast
+and the airlight pass)); rows top first. Raises
 ValueError on invalid input. The GIL is released while baking.)doc");
 
     m.def("write_exr", &write_exr_py, "path"_a, "passes"_a, "layer_prefix"_a = "",

@@ -1458,7 +1458,9 @@ BakeResult bake(const SceneDescription& scene, const BakeSettings& settings, con
     const bool supersample = settings.aa_samples > 1 && settings.filter_width > 0.0;
     const int n_aa = supersample ? settings.aa_samples : 1;
     const std::vector<glm::dvec2> pattern = filter_pattern(n_aa, settings.filter_width);
+    const auto fog_setup_start = Clock::now();
     const FogModel fog(scene, settings, !rays.orthographic(), rays.position());
+    result.stats.seconds_fog_setup = seconds_since(fog_setup_start);
     // Fog of _n_ rays from the near plane (t0, from _cast_) to _depth_ (from the origin,
     // inf: none), as Cycles integrates it: La over [t0, depth] with attenuation measured
     // from the near plane, Tr = exp(-sigma_t (depth - t0)) (FogModel::eval_many).

@@ -73,6 +73,10 @@ struct BakeStats {
     // Fog objects through the tiled splat: binning the Gaussians into tiles and building
     // the far-field grids (RbfSplat::bin), inside seconds_airlight.
     double seconds_bin = 0.0;
+    // Building the fog model between the raycast and the airlight pass (FogModel: the
+    // fog objects' medium and cull hierarchy, the splat's per-(light, Gaussian) optical
+    // depths, the model's tables on first use), outside both.
+    double seconds_fog_setup = 0.0;
 };
 
 // Output images are row-major, top row first, 3 floats (RGB) per pixel.

@@ -103,6 +103,31 @@ def test03_progress_and_cancel_with_gaussians():
         bake(rbf_centres=b, rbf_scales=a, rbf_amplitudes=c, progress=lambda f: f < 0.5)
 
 
+def test03b_stats_phases_are_disjoint_parts_of_the_bake():
+    """stats' phase times: the raycast, the fog model's set-up and the airlight pass are
+    successive parts of one bake, so their sum stays within the wall time around the call;
+    binning and the edge pass lie inside the airlight pass (binning on the calling thread's
+    clock; the edge pass summed over 2 threads: at most twice it). 3000 Gaussians, so that
+    the set-up (their medium and per-light depths) takes a measurable time."""
+    import time
+    rng = np.random.default_rng(3)
+    n = 3000
+    b = np.column_stack([40 * rng.random(n) - 20, 6 * rng.random(n) - 3, -(10 + 40 * rng.random(n))])
+    a = 1.0 / (1.0 + 2.0 * rng.random(n))
+    c = 0.01 + 0.04 * rng.random(n)
+    for resolution in ("full", "quarter"):
+        t0 = time.perf_counter()
+        st = bake(rbf_centres=b, rbf_scales=a, rbf_amplitudes=c, gaussian_resolution=resolution)["stats"]
+        wall = time.perf_counter() - t0
+        assert st["seconds_fog_setup"] > 0.0 and st["seconds_raycast"] > 0.0 and st["seconds_bin"] > 0.0
+        assert st["seconds_raycast"] + st["seconds_fog_setup"] + st["seconds_airlight"] <= wall
+        assert st["seconds_bin"] <= st["seconds_airlight"]
+        assert st["seconds_edges"] <= 2.0 * st["seconds_airlight"]
+    # Without fog objects nothing is binned.
+    st = bake()["stats"]
+    assert st["seconds_bin"] == 0.0 and st["seconds_fog_setup"] >= 0.0
+
+
 def test04_bad_input():
     b, a, c = gaussians()
     bad = [
