@@ -125,7 +125,15 @@ def timed(fn, runs):
 NOISE = 0.0  # --noise: Fogshop 5.5 noise amplitude of the Gaussian scenes (scale 1 m)
 
 
+# The bake's phases whose medians bake() also returns (stats keys, seconds): the raycast,
+# the fog model's set-up between it and the airlight pass, the Gaussians' binning (inside
+# the airlight pass).
+PHASES = ("seconds_raycast", "seconds_fog_setup", "seconds_bin")
+
+
 def bake(width, height, lights, gaussians, threads, runs, resolution="full", walls=False):
+    """Bakes the scene _runs_ times: (median wall s, median airlight pass s, the last result,
+    median CPU s, {PHASES key: median s})."""
     cam_to_world, proj = camera(width, height)
     v, t = ground(walls)
     kw = dict(width=width, height=height, cam_to_world=cam_to_world, projection=proj,
@@ -153,11 +161,6 @@ def bake(width, height, lights, gaussians, threads, runs, resolution="full", wal
     return (wall, statistics.median(airlight), res, statistics.median(cpu),
             {key: statistics.median(v) for key, v in phases.items()})
 
-
-# The bake's phases whose medians bake() also returns (stats keys, seconds): the raycast,
-# the fog model's set-up between it and the airlight pass, the Gaussians' binning (inside
-# the airlight pass).
-PHASES = ("seconds_raycast", "seconds_fog_setup", "seconds_bin")
 
 
 def verdict(ok):
