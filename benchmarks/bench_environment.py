@@ -14,7 +14,6 @@ No Blender needed. `_native` from addon/airlight (or $AIRLIGHT_NATIVE_DIR). Prin
 """
 import argparse
 import os
-import statistics
 import sys
 import time
 
@@ -23,15 +22,9 @@ import numpy as np
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, os.environ.get("AIRLIGHT_NATIVE_DIR") or os.path.join(REPO, "addon", "airlight"))
 import _native  # noqa: E402
+from timing import median_seconds  # noqa: E402
 
 
-def median_time(fn, runs):
-    times = []
-    for _ in range(runs):
-        t = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - t)
-    return statistics.median(times)
 
 
 def sky(width, height, sun_width):
@@ -65,16 +58,16 @@ def main():
     print("| SH order | environment_fog exact (ms) | factorised (ms) |")
     print("|---|---|---|")
     for L in (8, 16, 24, 48):
-        t_ex = median_time(lambda: _native.environment_fog(world=world, sigma_t=0.02, distance=60.0,
+        t_ex = median_seconds(lambda: _native.environment_fog(world=world, sigma_t=0.02, distance=60.0,
                                                            albedo=[1, 1, 1], sh_order=L, kind="exact"), args.runs)
-        t_fa = median_time(lambda: _native.environment_fog(world=world, sigma_t=0.02, distance=60.0,
+        t_fa = median_seconds(lambda: _native.environment_fog(world=world, sigma_t=0.02, distance=60.0,
                                                            albedo=[1, 1, 1], sh_order=L, kind="factorised"),
                            args.runs)
         print(f"| {L} | {1e3 * t_ex:.1f} | {1e3 * t_fa:.1f} |")
     glow = _native.environment_fog(world=world, sigma_t=0.02, distance=60.0, albedo=[1, 1, 1], sh_order=24)["glow"]
     cam = np.eye(4)
     proj = np.array([[1.0, 0, 0, 0], [0, 16 / 9, 0, 0], [0, 0, -1.0002, -0.2], [0, 0, -1, 0]])
-    t_view = median_time(lambda: _native.environment_view(cam_to_world=cam, projection=proj, width=1920,
+    t_view = median_seconds(lambda: _native.environment_view(cam_to_world=cam, projection=proj, width=1920,
                                                           height=1080, glow=glow), args.runs)
     print(f"\nenvironment_view (glow along every camera ray) at 1920x1080: {1e3 * t_view:.1f} ms")
 

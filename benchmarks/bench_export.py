@@ -15,13 +15,15 @@ Each object is asked whether it renders (visibility.RenderVisibility).
 """
 
 import argparse
-import statistics
+import os
 import sys
-import time
 
 import bpy
 
 from airlight import bake, compositor, scene_export, surface
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))  # Blender does not add it
+from timing import median_ms  # noqa: E402
 
 
 def _args():
@@ -64,13 +66,6 @@ def _scene(n_objects, n_lights):
     return scene, lights
 
 
-def _median_ms(fn, repeats):
-    times = []
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - t0)
-    return statistics.median(times) * 1e3
 
 
 def main():
@@ -83,17 +78,17 @@ def main():
     for label, fn in (("scene_export.export_scene", lambda: scene_export.export_scene(scene, depsgraph)),
                       ("surface.fogged_lights", lambda: surface.fogged_lights(depsgraph)),
                       ("bake.prepare", lambda: bake.prepare(scene, depsgraph))):
-        print(f"  {label:28s} {_median_ms(fn, args.repeats):8.1f} ms")
+        print(f"  {label:28s} {median_ms(fn, args.repeats):8.1f} ms")
     energy = iter(range(10**6))
 
     def edit():
         lights[0].data.energy = 100.0 + next(energy)
         view_layer.update()
 
-    with_handler = _median_ms(edit, args.repeats)
+    with_handler = median_ms(edit, args.repeats)
     bpy.app.handlers.depsgraph_update_post.remove(compositor.on_depsgraph_update_post)
     try:
-        without = _median_ms(edit, args.repeats)
+        without = median_ms(edit, args.repeats)
     finally:
         bpy.app.handlers.depsgraph_update_post.append(compositor.on_depsgraph_update_post)
     print(f"  {'light edit + update':28s} {with_handler:8.1f} ms (without the surface-pass handler "

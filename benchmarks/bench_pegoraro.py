@@ -29,7 +29,6 @@ import math
 import os
 import statistics
 import sys
-import time
 
 import numpy as np
 
@@ -39,15 +38,9 @@ sys.path.insert(0, os.path.join(REPO, "tests", "native"))
 
 import _native  # noqa: E402
 from scene_util import camera_matrix, perspective, quad, rotation_x  # noqa: E402
+from timing import median_seconds  # noqa: E402
 
 
-def median_time(fn, runs):
-    ts = []
-    for _ in range(runs):
-        t = time.perf_counter()
-        fn()
-        ts.append(time.perf_counter() - t)
-    return statistics.median(ts)
 
 
 def random_rays(n, seed=1):
@@ -71,19 +64,19 @@ def cost_vs_order(runs):
         row = [N]
         for m in (slice(None), low, ~low):
             args = (s[m], D[m], c[m], V[m])
-            t = median_time(lambda: _native.pegoraro10_airlight(*args, "hg", 0.6, N), runs)
+            t = median_seconds(lambda: _native.pegoraro10_airlight(*args, "hg", 0.6, N), runs)
             row.append(1e9 * t / len(args[0]))
         print(f"| {row[0]} | {row[1]:.0f} | {row[2]:.0f} | {row[3]:.0f} |")
-    t = median_time(lambda: _native.sun05_airlight(s, D, c, V), runs)
+    t = median_seconds(lambda: _native.sun05_airlight(s, D, c, V), runs)
     print(f"\nsame rays, sun05 (table) through its binding: {1e9 * t / len(s):.0f} ns/eval")
-    t = median_time(lambda: _native.sun05_airlight(s, D, c, V, "sun05_exact"), runs)
+    t = median_seconds(lambda: _native.sun05_airlight(s, D, c, V, "sun05_exact"), runs)
     print(f"same rays, sun05_exact: {1e9 * t / len(s):.0f} ns/eval")
-    t = median_time(lambda: _native.pegoraro10_airlight(s, D, c, V, "isotropic", 0.0), runs)
+    t = median_seconds(lambda: _native.pegoraro10_airlight(s, D, c, V, "isotropic", 0.0), runs)
     print(f"same rays, pegoraro10 isotropic (order 0): {1e9 * t / len(s):.0f} ns/eval")
-    t = median_time(lambda: _native.pegoraro10_airlight(s, D, c, V, "murky_mie", 0.0), runs)
+    t = median_seconds(lambda: _native.pegoraro10_airlight(s, D, c, V, "murky_mie", 0.0), runs)
     print(f"same rays, pegoraro10 murky Mie (exact order 32): {1e9 * t / len(s):.0f} ns/eval")
     sub = slice(0, 2000)
-    t = median_time(lambda: _native.airlight_quadrature(s[sub], D[sub], c[sub], V[sub], "hg", 0.6), 1)
+    t = median_seconds(lambda: _native.airlight_quadrature(s[sub], D[sub], c[sub], V[sub], "hg", 0.6), 1)
     print(f"same rays (first 2000), phase-aware quadrature HG 0.6: {1e9 * t / 2000:.0f} ns/eval\n")
 
 

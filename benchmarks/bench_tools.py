@@ -13,12 +13,14 @@ Prints medians (ms) of:
 """
 
 import argparse
-import statistics
+import os
 import sys
-import time
 
 import bpy
 import numpy as np
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))  # Blender does not add it
+from timing import median_ms  # noqa: E402
 
 
 def _args():
@@ -28,13 +30,6 @@ def _args():
     return p.parse_args(argv)
 
 
-def _median_ms(fn, repeats):
-    times = []
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        fn()
-        times.append((time.perf_counter() - t0) * 1000.0)
-    return statistics.median(times)
 
 
 def _box(name, lo, hi, flip=False):
@@ -57,7 +52,7 @@ def main():
     _box("Room", (-2, -2, 0), (2, 2, 3), flip=True)
     _box("Solid", (-0.5, -0.5, 0), (0.5, 0.5, 1))
     depsgraph = bpy.context.evaluated_depsgraph_get()
-    print(f"airbrush BVH build (2 boxes): {_median_ms(lambda: airbrush.scene_bvh(depsgraph), args.repeats):.3f} ms")
+    print(f"airbrush BVH build (2 boxes): {median_ms(lambda: airbrush.scene_bvh(depsgraph), args.repeats):.3f} ms")
     bvh = airbrush.scene_bvh(depsgraph)
     rng = np.random.default_rng(0)
     p, v = airbrush.spawn((1.2, 1.2, 1.5), None, 500, 4.0, rng)
@@ -68,8 +63,8 @@ def main():
     def one_step(surfaces):
         state[0], state[1] = airbrush.step(state[0], state[1], 1 / 30, 0.3, 2.0,
                                            surfaces, rng)
-    print(f"airbrush step, 500 particles, room + box: {_median_ms(lambda: one_step(bvh), args.repeats):.2f} ms")
-    print(f"airbrush step, 500 particles, no surfaces: {_median_ms(lambda: one_step(None), args.repeats):.3f} ms")
+    print(f"airbrush step, 500 particles, room + box: {median_ms(lambda: one_step(bvh), args.repeats):.2f} ms")
+    print(f"airbrush step, 500 particles, no surfaces: {median_ms(lambda: one_step(None), args.repeats):.3f} ms")
 
     bpy.ops.wm.read_homefile(use_factory_startup=True, use_empty=True)
     scene = bpy.context.scene
@@ -81,12 +76,12 @@ def main():
     scene.frame_set(100)
     n = len(emitter.evaluate(obj, scene)[0])
     print(f"emitter live particles at frame 100: {n}")
-    print(f"emitter evaluate, {n} particles, static: {_median_ms(lambda: emitter.evaluate(obj, scene), args.repeats):.3f} ms")
+    print(f"emitter evaluate, {n} particles, static: {median_ms(lambda: emitter.evaluate(obj, scene), args.repeats):.3f} ms")
     print(f"emitter update_emitter (evaluate + write mesh), {n} particles: "
-          f"{_median_ms(lambda: emitter.update_emitter(obj, scene), args.repeats):.3f} ms")
+          f"{median_ms(lambda: emitter.update_emitter(obj, scene), args.repeats):.3f} ms")
     frames = iter(range(10 ** 6))
     print(f"scene.frame_set with the handler, {n} particles: "
-          f"{_median_ms(lambda: scene.frame_set(100 + next(frames) % 2), args.repeats):.3f} ms")
+          f"{median_ms(lambda: scene.frame_set(100 + next(frames) % 2), args.repeats):.3f} ms")
     obj.keyframe_insert("location", frame=1)
     obj.location = (3.0, 0.0, 1.0)
     obj.rotation_euler = (0.0, 0.0, 1.0)
@@ -97,16 +92,16 @@ def main():
         emitter._track_cache.clear()
         emitter.evaluate(obj, scene)
     print(f"emitter evaluate, {n} particles, keyframed, cold (every birth's F-curves evaluated): "
-          f"{_median_ms(cold, args.repeats):.3f} ms")
+          f"{median_ms(cold, args.repeats):.3f} ms")
     eval_frames = iter(range(101, 10 ** 6))
     print(f"emitter evaluate, {n} particles, keyframed, playing forward one frame per call: "
-          f"{_median_ms(lambda: emitter.evaluate(obj, scene, float(next(eval_frames))), args.repeats):.3f} ms")
+          f"{median_ms(lambda: emitter.evaluate(obj, scene, float(next(eval_frames))), args.repeats):.3f} ms")
     step_frames = iter(range(101, 10 ** 6))
 
     def forward():
         scene.frame_set(next(step_frames))  # runs the handler, which evaluates
     print(f"scene.frame_set with the handler, {n} particles, keyframed, playing forward: "
-          f"{_median_ms(forward, args.repeats):.3f} ms")
+          f"{median_ms(forward, args.repeats):.3f} ms")
 
     bpy.ops.wm.read_homefile(use_factory_startup=True, use_empty=True)
     scene = bpy.context.scene
@@ -114,7 +109,7 @@ def main():
     bvh = airbrush.scene_bvh(bpy.context.evaluated_depsgraph_get())
     h = 0.75 / 8.0
     counts = []
-    ms = _median_ms(lambda: counts.append(len(airbrush.fill_points(bvh, (-1, -1, -1), (1, 1, 1), h))),
+    ms = median_ms(lambda: counts.append(len(airbrush.fill_points(bvh, (-1, -1, -1), (1, 1, 1), h))),
                     max(3, args.repeats // 10))
     print(f"fill sphere r=1 at spacing {h:.4f} m: {counts[0]} Gaussians in {ms:.1f} ms "
           f"({int(np.floor(2 / h) + 1) ** 3} grid points tested)")
