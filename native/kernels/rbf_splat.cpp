@@ -58,14 +58,15 @@ AIRLIGHT_SPLAT_CLONES void view_terms(const RbfSplat::GaussF g, int n, const flo
         const float x = dx[k], y = dy[k], z = dz[k];
         const float ts = g.rx * x + g.ry * y + g.rz * z;
         const float cx = g.ry * z - g.rz * y, cy = g.rz * x - g.rx * z, cz = g.rx * y - g.ry * x;
-        const float e = g.k0 * fast_expf(-g.a2 * (cx * cx + cy * cy + cz * cz));
+        const float h2 = g.a2 * (cx * cx + cy * cy + cz * cz);
+        const float e = g.k0 * fast_expf(-h2);
         const float te = kInf ? std::numeric_limits<float>::infinity() : tend[k];
         const float x1 = -g.a * ts, x2 = g.a * (te - ts);
-        const float E1 = kFar ? 0.0f : fast_erfc_pos(x1 < 0.0f ? -x1 : x1);
-        const float E2 = kInf ? 0.0f : fast_erfc_pos(x2 < 0.0f ? -x2 : x2);
-        const float diff = x1 >= 0.0f ? E1 - E2 : (x2 <= 0.0f ? E2 - E1 : 2.0f - E1 - E2);
-        const float Tvp = e * diff;
-        Tvr_out[k] = ts <= 0.0f ? 0.0f : (ts >= te ? Tvp : e * (1.0f - E1));
+        // e erfc(|x1|), e erfc(|x2|) (erfcx form, fast_erf.h; x2 = inf gives 0 * 0)
+        const float eE1 = kFar ? 0.0f : g.ke * fast_erfcx_pos(x1 < 0.0f ? -x1 : x1);
+        const float eE2 = kInf ? 0.0f : g.k0 * fast_erfcx_pos(x2 < 0.0f ? -x2 : x2) * fast_expf(-h2 - x2 * x2);
+        const float Tvp = x1 >= 0.0f ? eE1 - eE2 : (x2 <= 0.0f ? eE2 - eE1 : 2.0f * e - eE1 - eE2);
+        Tvr_out[k] = ts <= 0.0f ? 0.0f : (ts >= te ? Tvp : e - eE1);
         tr_out[k] = ts < 0.0f ? 0.0f : (ts > te ? te : ts);
         Tvp_out[k] = Tvp;
     }
@@ -112,12 +113,12 @@ AIRLIGHT_SPLAT_CLONES void light_terms(const RbfSplat::GaussF g, const RbfSplat:
         const float Ds = d2 * inv;
         const float ts = gl.sx * ux + gl.sy * uy + gl.sz * uz;
         const float cx = gl.sy * uz - gl.sz * uy, cy = gl.sz * ux - gl.sx * uz, cz = gl.sx * uy - gl.sy * ux;
-        const float e = g.k0 * fast_expf(-g.a2 * (cx * cx + cy * cy + cz * cz));
+        const float h2 = g.a2 * (cx * cx + cy * cy + cz * cz);
+        const float e = g.k0 * fast_expf(-h2);
         const float x1 = -g.a * ts, x2 = g.a * (Ds - ts);
-        const float E1 = kFar ? 0.0f : fast_erfc_pos(x1 < 0.0f ? -x1 : x1);
-        const float E2 = fast_erfc_pos(x2 < 0.0f ? -x2 : x2);
-        const float diff = x1 >= 0.0f ? E1 - E2 : (x2 <= 0.0f ? E2 - E1 : 2.0f - E1 - E2);
-        const float Tsr = e * diff;
+        const float eE1 = kFar ? 0.0f : gl.ke * fast_erfcx_pos(x1 < 0.0f ? -x1 : x1);
+        const float eE2 = g.k0 * fast_erfcx_pos(x2 < 0.0f ? -x2 : x2) * fast_expf(-h2 - x2 * x2);
+        const float Tsr = x1 >= 0.0f ? eE1 - eE2 : (x2 <= 0.0f ? eE2 - eE1 : 2.0f * e - eE1 - eE2);
         const float f = fast_expf(-Tsr - Tvr[k]) * Tvp[k] / d2;
         R[k] += gl.wr * f;
         G[k] += gl.wg * f;
@@ -167,12 +168,12 @@ AIRLIGHT_SPLAT_CLONES void light_terms_ext(const RbfSplat::GaussF g, const RbfSp
         const float Ds = d2 * inv;
         const float ts = gl.sx * ux + gl.sy * uy + gl.sz * uz;
         const float cx = gl.sy * uz - gl.sz * uy, cy = gl.sz * ux - gl.sx * uz, cz = gl.sx * uy - gl.sy * ux;
-        const float e = g.k0 * fast_expf(-g.a2 * (cx * cx + cy * cy + cz * cz));
+        const float h2 = g.a2 * (cx * cx + cy * cy + cz * cz);
+        const float e = g.k0 * fast_expf(-h2);
         const float x1 = -g.a * ts, x2 = g.a * (Ds - ts);
-        const float E1 = fast_erfc_pos(x1 < 0.0f ? -x1 : x1);
-        const float E2 = fast_erfc_pos(x2 < 0.0f ? -x2 : x2);
-        const float diff = x1 >= 0.0f ? E1 - E2 : (x2 <= 0.0f ? E2 - E1 : 2.0f - E1 - E2);
-        const float Tsr = e * diff;
+        const float eE1 = gl.ke * fast_erfcx_pos(x1 < 0.0f ? -x1 : x1);
+        const float eE2 = g.k0 * fast_erfcx_pos(x2 < 0.0f ? -x2 : x2) * fast_expf(-h2 - x2 * x2);
+        const float Tsr = x1 >= 0.0f ? eE1 - eE2 : (x2 <= 0.0f ? eE2 - eE1 : 2.0f * e - eE1 - eE2);
         // cos theta: propagation light -> b^r (u) against the direction to the eye (-d).
         float f = fast_expf(-Tsr - Tvr[k]) * Tvp[k] / d2 *
                   phase4pi_f<K>(-(ux * dx[k] + uy * dy[k] + uz * dz[k]), g1, g2, g3);
@@ -250,7 +251,7 @@ AIRLIGHT_SPLAT_CLONES void depth_classes(const RbfSplat::GaussF g, float R2, int
 // long loops, no padding of the (16/s + 1)^2 rays, one call per tile instead of per pair.
 // Per-(Gaussian, light) data at [l n + k]; scratch: 6 n floats.
 struct LatticeSoA {
-    std::vector<float> rx, ry, rz, a, a2, k0, sx, sy, sz, wr, wg, wb, scratch;
+    std::vector<float> rx, ry, rz, a, a2, k0, ke, sx, sy, sz, wr, wg, wb, ske, scratch;
     int n = 0;
 };
 
@@ -258,18 +259,18 @@ struct LatticeSoA {
 template <bool kFar>
 AIRLIGHT_SPLAT_CLONES void lattice_view_gm(int n, const float* __restrict rx, const float* __restrict ry,
                                            const float* __restrict rz, const float* __restrict ga,
-                                           const float* __restrict ga2, const float* __restrict gk0, float x, float y,
-                                           float z, float* __restrict Tvp, float* __restrict Tvr,
-                                           float* __restrict tr) {
+                                           const float* __restrict ga2, const float* __restrict gk0,
+                                           const float* __restrict gke, float x, float y, float z,
+                                           float* __restrict Tvp, float* __restrict Tvr, float* __restrict tr) {
     for (int k = 0; k < n; ++k) {
         const float ts = rx[k] * x + ry[k] * y + rz[k] * z;
         const float cx = ry[k] * z - rz[k] * y, cy = rz[k] * x - rx[k] * z, cz = rx[k] * y - ry[k] * x;
         const float e = gk0[k] * fast_expf(-ga2[k] * (cx * cx + cy * cy + cz * cz));
         const float x1 = -ga[k] * ts;
-        const float E1 = kFar ? 0.0f : fast_erfc_pos(x1 < 0.0f ? -x1 : x1);
-        Tvp[k] = e * (x1 >= 0.0f ? E1 : 2.0f - E1);
+        const float eE1 = kFar ? 0.0f : gke[k] * fast_erfcx_pos(x1 < 0.0f ? -x1 : x1);
+        Tvp[k] = x1 >= 0.0f ? eE1 : 2.0f * e - eE1;
         tr[k] = ts < 0.0f ? 0.0f : ts;
-        Tvr[k] = ts <= 0.0f ? 0.0f : e * (1.0f - E1);
+        Tvr[k] = ts <= 0.0f ? 0.0f : e - eE1;
     }
 }
 
@@ -280,8 +281,8 @@ AIRLIGHT_SPLAT_CLONES void lattice_light_gm(int n, const float* __restrict ga, c
                                             const float* __restrict gk0, const float* __restrict gsx,
                                             const float* __restrict gsy, const float* __restrict gsz,
                                             const float* __restrict gwr, const float* __restrict gwg,
-                                            const float* __restrict gwb, float vx, float vy, float vz, float x,
-                                            float y, float z, const float* __restrict Tvp,
+                                            const float* __restrict gwb, const float* __restrict gke, float vx,
+                                            float vy, float vz, float x, float y, float z, const float* __restrict Tvp,
                                             const float* __restrict Tvr, const float* __restrict tr,
                                             float* __restrict aR, float* __restrict aG, float* __restrict aB) {
     for (int k = 0; k < n; ++k) {
@@ -293,12 +294,12 @@ AIRLIGHT_SPLAT_CLONES void lattice_light_gm(int n, const float* __restrict ga, c
         const float Ds = d2 * inv;
         const float ts = gsx[k] * ux + gsy[k] * uy + gsz[k] * uz;
         const float cx = gsy[k] * uz - gsz[k] * uy, cy = gsz[k] * ux - gsx[k] * uz, cz = gsx[k] * uy - gsy[k] * ux;
-        const float e = gk0[k] * fast_expf(-ga2[k] * (cx * cx + cy * cy + cz * cz));
+        const float h2 = ga2[k] * (cx * cx + cy * cy + cz * cz);
+        const float e = gk0[k] * fast_expf(-h2);
         const float x1 = -ga[k] * ts, x2 = ga[k] * (Ds - ts);
-        const float E1 = kFar ? 0.0f : fast_erfc_pos(x1 < 0.0f ? -x1 : x1);
-        const float E2 = fast_erfc_pos(x2 < 0.0f ? -x2 : x2);
-        const float diff = x1 >= 0.0f ? E1 - E2 : (x2 <= 0.0f ? E2 - E1 : 2.0f - E1 - E2);
-        const float Tsr = e * diff;
+        const float eE1 = kFar ? 0.0f : gke[k] * fast_erfcx_pos(x1 < 0.0f ? -x1 : x1);
+        const float eE2 = gk0[k] * fast_erfcx_pos(x2 < 0.0f ? -x2 : x2) * fast_expf(-h2 - x2 * x2);
+        const float Tsr = x1 >= 0.0f ? eE1 - eE2 : (x2 <= 0.0f ? eE2 - eE1 : 2.0f * e - eE1 - eE2);
         const float f = fast_expf(-Tsr - Tvr[k]) * Tvp[k] / d2;
         if constexpr (kFirst) {
             aR[k] = gwr[k] * f;
@@ -350,8 +351,8 @@ void lattice_gaussian_major(LatticeSoA& q, int L, const RbfSplat::LightF* lf, in
     float* aG = aR + n;
     float* aB = aG + n;
     for (int j = 0; j < m; ++j) {
-        lattice_view_gm<kFar>(n, q.rx.data(), q.ry.data(), q.rz.data(), q.a.data(), q.a2.data(), q.k0.data(), lx[j],
-                              ly[j], lz[j], Tvp, Tvr, tr);
+        lattice_view_gm<kFar>(n, q.rx.data(), q.ry.data(), q.rz.data(), q.a.data(), q.a2.data(), q.k0.data(),
+                              q.ke.data(), lx[j], ly[j], lz[j], Tvp, Tvr, tr);
         if (L == 0) {
             std::fill(aR, aR + n, 0.0f);
             std::fill(aG, aG + n, 0.0f);
@@ -361,8 +362,8 @@ void lattice_gaussian_major(LatticeSoA& q, int L, const RbfSplat::LightF* lf, in
             const std::size_t o = std::size_t(l) * n;
             (l == 0 ? lattice_light_gm<true, kFar> : lattice_light_gm<false, kFar>)(
                 n, q.a.data(), q.a2.data(), q.k0.data(), q.sx.data() + o, q.sy.data() + o, q.sz.data() + o,
-                q.wr.data() + o, q.wg.data() + o, q.wb.data() + o, lf[l].vx, lf[l].vy, lf[l].vz, lx[j], ly[j], lz[j],
-                Tvp, Tvr, tr, aR, aG, aB);
+                q.wr.data() + o, q.wg.data() + o, q.wb.data() + o, q.ske.data() + o, lf[l].vx, lf[l].vy, lf[l].vz,
+                lx[j], ly[j], lz[j], Tvp, Tvr, tr, aR, aG, aB);
         }
         sum4_16(n, Tvp, aR, aG, aB, T + j, R + j, G + j, B + j);
     }
@@ -1615,6 +1616,7 @@ RbfSplat::RbfSplat(const RbfMedium& medium, const Vec3& eye, const std::vector<V
         g.a = float(a);
         g.a2 = float(a * a);
         g.k0 = float(c * kSqrtPi / (2.0 * a));
+        g.ke = float(c * kSqrtPi / (2.0 * a) * std::exp(-a * a * dist * dist));
         g.nscale = dist > 0.0 ? float(noise.amplitude * medium.cull_radius(i) / dist) : 0.0f;
         g.near = false;
         g.dist = dist;
@@ -1629,6 +1631,7 @@ RbfSplat::RbfSplat(const RbfMedium& medium, const Vec3& eye, const std::vector<V
             q.wr = float(albedo_[3 * i] * I0[l].x * f1);
             q.wg = float(albedo_[3 * i + 1] * I0[l].y * f1);
             q.wb = float(albedo_[3 * i + 2] * I0[l].z * f1);
+            q.ke = float(c * kSqrtPi / (2.0 * a) * std::exp(-a * a * glm::dot(bs, bs)));
         }
     }
     for (std::size_t l = 0; l < L; ++l) {
@@ -1663,6 +1666,7 @@ RbfSplat::RbfSplat(const RbfMedium& medium, const Vec3& eye, const std::vector<V
                 q.wr = float(albedo_[3 * i] * E.x * f1);
                 q.wg = float(albedo_[3 * i + 1] * E.y * f1);
                 q.wb = float(albedo_[3 * i + 2] * E.z * f1);
+                q.ke = 0.0f;
             }
         });
     }
@@ -3003,8 +3007,8 @@ void RbfSplat::lattice_batch(const std::uint32_t* idx, int n, int m, const float
         const int nl = int(list.size());
         if (nl == 0) continue;
         const int n_pad = (nl + 15) / 16 * 16;
-        for (auto* v : {&q.rx, &q.ry, &q.rz, &q.a, &q.a2, &q.k0}) v->resize(n_pad);
-        for (auto* v : {&q.sx, &q.sy, &q.sz, &q.wr, &q.wg, &q.wb}) v->resize(std::size_t(n_pad) * L);
+        for (auto* v : {&q.rx, &q.ry, &q.rz, &q.a, &q.a2, &q.k0, &q.ke}) v->resize(n_pad);
+        for (auto* v : {&q.sx, &q.sy, &q.sz, &q.wr, &q.wg, &q.wb, &q.ske}) v->resize(std::size_t(n_pad) * L);
         q.scratch.resize(6 * std::size_t(n_pad));
         q.n = n_pad;
         for (int k = 0; k < n_pad; ++k) {
@@ -3018,6 +3022,7 @@ void RbfSplat::lattice_batch(const std::uint32_t* idx, int n, int m, const float
             q.a[k] = pad ? 1.0f : g.a;
             q.a2[k] = pad ? 1.0f : g.a2;
             q.k0[k] = pad ? 0.0f : g.k0;
+            q.ke[k] = pad ? 0.0f : g.ke;
             for (int l = 0; l < L; ++l) {
                 const GaussLightF& w = gl_[std::size_t(i) * L + l];
                 const std::size_t o = std::size_t(l) * n_pad + k;
@@ -3027,6 +3032,7 @@ void RbfSplat::lattice_batch(const std::uint32_t* idx, int n, int m, const float
                 q.wr[o] = pad ? 0.0f : w.wr;
                 q.wg[o] = pad ? 0.0f : w.wg;
                 q.wb[o] = pad ? 0.0f : w.wb;
+                q.ske[o] = pad ? 0.0f : w.ke;
             }
         }
         if (kfar) lattice_gaussian_major<true>(q, L, lf_.data(), m, lx, ly, lz, T, R, G, B);

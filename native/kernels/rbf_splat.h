@@ -242,6 +242,9 @@ class RbfSplat {
     struct GaussF {
         float rx, ry, rz;      // b - eye
         float a, a2, k0;       // scale, a^2, c sqrt(pi) / (2 a)
+        // k0 exp(-a^2 |b - eye|^2): the eye-side term k0 e^{-a^2 h^2} erfc(a |ts|) of a ray
+        // from the eye equals ke erfcx(a |ts|) (h^2 + ts^2 = |b - eye|^2; fast_erf.h)
+        float ke;
         float nscale;          // noise: amplitude R / |b - eye|
         bool near;             // the cull sphere reaches the near clip ball
         // (bin()) the eye, and every point light, lies >= kFarStart / a before the cull
@@ -250,10 +253,12 @@ class RbfSplat {
         bool far_eye = false, far_lights = false;
         double dist, radius;   // |b - eye| and the cull radius R
     };
-    // Per (Gaussian, light): b - s and the RGB weight albedo I0 f1' / (4 pi).
+    // Per (Gaussian, light): b - s, the RGB weight albedo I0 f1' / (4 pi) and k0 exp(-a^2
+    // |b - s|^2) (the light-side ke, as GaussF's).
     struct GaussLightF {
         float sx, sy, sz;
         float wr, wg, wb;
+        float ke;
     };
     struct LightF {
         float vx, vy, vz;  // eye - s

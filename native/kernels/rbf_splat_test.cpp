@@ -39,6 +39,37 @@ TEST(FastErf, ExpAndErfcRelativeError) {
     std::printf("fast_expf max rel %.2g, fast_erfc_pos max rel (x <= 9) %.2g\n", worst_exp, worst_erfc);
 }
 
+TEST(FastErf, ErfcxRelativeError) {
+    // exp(x^2) erfc(x) in long double (erfcl underflows only beyond x ~ 106, where the
+    // asymptotic series 1 / (x sqrt(pi)) (1 - 1 / (2 x^2) + 3 / (4 x^4)) is exact to 1e-12).
+    const auto erfcx_ref = [](float xf) {
+        const long double x = xf;
+        if (x > 50.0L) {
+            const long double r = 1.0L / (x * x);
+            return double((1.0L - 0.5L * r + 0.75L * r * r) / (x * std::sqrt(3.14159265358979323846L)));
+        }
+        return double(std::exp(x * x) * std::erfc(x));
+    };
+    double worst = 0.0;
+    for (double x = 0.0; x <= 1e6; x = x < 20.0 ? x + 0.000977 : x * 1.001) {
+        const float xf = float(x);
+        const double ref = erfcx_ref(xf);
+        const double rel = std::abs(double(fast_erfcx_pos(xf)) - ref) / ref;
+        worst = std::max(worst, rel);
+        ASSERT_LE(rel, 1e-6) << "erfcx at x = " << x;
+    }
+    EXPECT_EQ(fast_erfcx_pos(std::numeric_limits<float>::infinity()), 0.0f);
+    // The kernels' product form against erfc itself: k0 e^{-h} erfc(x) as k0 erfcx(x) e^{-(h + x^2)}.
+    for (double x = 0.0; x <= 9.0; x += 0.0131)
+        for (double h : {0.0, 0.3, 4.0, 30.0}) {
+            const float xf = float(x), hf = float(h);
+            const double ref = std::exp(-double(hf)) * std::erfc(double(xf));
+            const double got = double(fast_erfcx_pos(xf) * fast_expf(-hf - xf * xf));
+            ASSERT_LE(std::abs(got - ref), (2e-6 + 1.2e-7 * (x * x + h)) * ref + 1e-37) << "x " << x << " h " << h;
+        }
+    std::printf("fast_erfcx_pos max rel (x <= 1e6) %.2g\n", worst);
+}
+
 TEST(FastErf, ErfDiffBoundAgainstDouble) {
     // |fast - exact| <= 1e-5 exact + (4e-6 + 2.4e-7 m^2) max(erfc|x1|, erfc|x2|) + 1e-37, m the
     // larger finite one of |x1|, |x2| (fast_erf.h), on x1 < x2
