@@ -59,12 +59,12 @@ AIRLIGHT_SPLAT_CLONES void view_terms(const RbfSplat::GaussF g, int n, const flo
         const float ts = g.rx * x + g.ry * y + g.rz * z;
         const float cx = g.ry * z - g.rz * y, cy = g.rz * x - g.rx * z, cz = g.rx * y - g.ry * x;
         const float h2 = g.a2 * (cx * cx + cy * cy + cz * cz);
-        const float e = g.k0 * fast_expf(-h2);
+        const float e = g.k0 * fast_expf_le88(-h2);
         const float te = kInf ? std::numeric_limits<float>::infinity() : tend[k];
         const float x1 = -g.a * ts, x2 = g.a * (te - ts);
         // e erfc(|x1|), e erfc(|x2|) (erfcx form, fast_erf.h; x2 = inf gives 0 * 0)
         const float eE1 = kFar ? 0.0f : g.ke * fast_erfcx_pos(x1 < 0.0f ? -x1 : x1);
-        const float eE2 = kInf ? 0.0f : g.k0 * fast_erfcx_pos(x2 < 0.0f ? -x2 : x2) * fast_expf(-h2 - x2 * x2);
+        const float eE2 = kInf ? 0.0f : g.k0 * fast_erfcx_pos(x2 < 0.0f ? -x2 : x2) * fast_expf_le88(-h2 - x2 * x2);
         const float Tvp = x1 >= 0.0f ? eE1 - eE2 : (x2 <= 0.0f ? eE2 - eE1 : 2.0f * e - eE1 - eE2);
         Tvr_out[k] = ts <= 0.0f ? 0.0f : (ts >= te ? Tvp : e - eE1);
         tr_out[k] = ts < 0.0f ? 0.0f : (ts > te ? te : ts);
@@ -114,12 +114,12 @@ AIRLIGHT_SPLAT_CLONES void light_terms(const RbfSplat::GaussF g, const RbfSplat:
         const float ts = gl.sx * ux + gl.sy * uy + gl.sz * uz;
         const float cx = gl.sy * uz - gl.sz * uy, cy = gl.sz * ux - gl.sx * uz, cz = gl.sx * uy - gl.sy * ux;
         const float h2 = g.a2 * (cx * cx + cy * cy + cz * cz);
-        const float e = g.k0 * fast_expf(-h2);
+        const float e = g.k0 * fast_expf_le88(-h2);
         const float x1 = -g.a * ts, x2 = g.a * (Ds - ts);
         const float eE1 = kFar ? 0.0f : gl.ke * fast_erfcx_pos(x1 < 0.0f ? -x1 : x1);
-        const float eE2 = g.k0 * fast_erfcx_pos(x2 < 0.0f ? -x2 : x2) * fast_expf(-h2 - x2 * x2);
+        const float eE2 = g.k0 * fast_erfcx_pos(x2 < 0.0f ? -x2 : x2) * fast_expf_le88(-h2 - x2 * x2);
         const float Tsr = x1 >= 0.0f ? eE1 - eE2 : (x2 <= 0.0f ? eE2 - eE1 : 2.0f * e - eE1 - eE2);
-        const float f = fast_expf(-Tsr - Tvr[k]) * Tvp[k] / d2;
+        const float f = fast_expf_le88(-Tsr - Tvr[k]) * Tvp[k] / d2;
         R[k] += gl.wr * f;
         G[k] += gl.wg * f;
         B[k] += gl.wb * f;
@@ -169,13 +169,13 @@ AIRLIGHT_SPLAT_CLONES void light_terms_ext(const RbfSplat::GaussF g, const RbfSp
         const float ts = gl.sx * ux + gl.sy * uy + gl.sz * uz;
         const float cx = gl.sy * uz - gl.sz * uy, cy = gl.sz * ux - gl.sx * uz, cz = gl.sx * uy - gl.sy * ux;
         const float h2 = g.a2 * (cx * cx + cy * cy + cz * cz);
-        const float e = g.k0 * fast_expf(-h2);
+        const float e = g.k0 * fast_expf_le88(-h2);
         const float x1 = -g.a * ts, x2 = g.a * (Ds - ts);
         const float eE1 = gl.ke * fast_erfcx_pos(x1 < 0.0f ? -x1 : x1);
-        const float eE2 = g.k0 * fast_erfcx_pos(x2 < 0.0f ? -x2 : x2) * fast_expf(-h2 - x2 * x2);
+        const float eE2 = g.k0 * fast_erfcx_pos(x2 < 0.0f ? -x2 : x2) * fast_expf_le88(-h2 - x2 * x2);
         const float Tsr = x1 >= 0.0f ? eE1 - eE2 : (x2 <= 0.0f ? eE2 - eE1 : 2.0f * e - eE1 - eE2);
         // cos theta: propagation light -> b^r (u) against the direction to the eye (-d).
-        float f = fast_expf(-Tsr - Tvr[k]) * Tvp[k] / d2 *
+        float f = fast_expf_le88(-Tsr - Tvr[k]) * Tvp[k] / d2 *
                   phase4pi_f<K>(-(ux * dx[k] + uy * dy[k] + uz * dz[k]), g1, g2, g3);
         if constexpr (kSpot) {
             const float c = lf.ax * ux + lf.ay * uy + lf.az * uz;
@@ -205,12 +205,12 @@ AIRLIGHT_SPLAT_CLONES void sun_terms(const RbfSplat::GaussF g, const RbfSplat::G
         const float bx = g.rx - t * dx[k], by = g.ry - t * dy[k], bz = g.rz - t * dz[k];
         const float ts = bx * ux + by * uy + bz * uz;
         const float cx = by * uz - bz * uy, cy = bz * ux - bx * uz, cz = bx * uy - by * ux;
-        const float e = g.k0 * fast_expf(-g.a2 * (cx * cx + cy * cy + cz * cz));
+        const float e = g.k0 * fast_expf_le88(-g.a2 * (cx * cx + cy * cy + cz * cz));
         const float x1 = -g.a * ts;
         const float E1 = fast_erfc_pos(x1 < 0.0f ? -x1 : x1);
         const float Tsr = e * (x1 >= 0.0f ? E1 : 2.0f - E1);
         // cos theta = w . (-d) = u . d
-        const float f = fast_expf(-Tsr - Tvr[k]) * Tvp[k] *
+        const float f = fast_expf_le88(-Tsr - Tvr[k]) * Tvp[k] *
                         phase4pi_f<K>(ux * dx[k] + uy * dy[k] + uz * dz[k], g1, g2, g3);
         R[k] += gl.wr * f;
         G[k] += gl.wg * f;
@@ -265,7 +265,7 @@ AIRLIGHT_SPLAT_CLONES void lattice_view_gm(int n, const float* __restrict rx, co
     for (int k = 0; k < n; ++k) {
         const float ts = rx[k] * x + ry[k] * y + rz[k] * z;
         const float cx = ry[k] * z - rz[k] * y, cy = rz[k] * x - rx[k] * z, cz = rx[k] * y - ry[k] * x;
-        const float e = gk0[k] * fast_expf(-ga2[k] * (cx * cx + cy * cy + cz * cz));
+        const float e = gk0[k] * fast_expf_le88(-ga2[k] * (cx * cx + cy * cy + cz * cz));
         const float x1 = -ga[k] * ts;
         const float eE1 = kFar ? 0.0f : gke[k] * fast_erfcx_pos(x1 < 0.0f ? -x1 : x1);
         Tvp[k] = x1 >= 0.0f ? eE1 : 2.0f * e - eE1;
@@ -295,12 +295,12 @@ AIRLIGHT_SPLAT_CLONES void lattice_light_gm(int n, const float* __restrict ga, c
         const float ts = gsx[k] * ux + gsy[k] * uy + gsz[k] * uz;
         const float cx = gsy[k] * uz - gsz[k] * uy, cy = gsz[k] * ux - gsx[k] * uz, cz = gsx[k] * uy - gsy[k] * ux;
         const float h2 = ga2[k] * (cx * cx + cy * cy + cz * cz);
-        const float e = gk0[k] * fast_expf(-h2);
+        const float e = gk0[k] * fast_expf_le88(-h2);
         const float x1 = -ga[k] * ts, x2 = ga[k] * (Ds - ts);
         const float eE1 = kFar ? 0.0f : gke[k] * fast_erfcx_pos(x1 < 0.0f ? -x1 : x1);
-        const float eE2 = gk0[k] * fast_erfcx_pos(x2 < 0.0f ? -x2 : x2) * fast_expf(-h2 - x2 * x2);
+        const float eE2 = gk0[k] * fast_erfcx_pos(x2 < 0.0f ? -x2 : x2) * fast_expf_le88(-h2 - x2 * x2);
         const float Tsr = x1 >= 0.0f ? eE1 - eE2 : (x2 <= 0.0f ? eE2 - eE1 : 2.0f * e - eE1 - eE2);
-        const float f = fast_expf(-Tsr - Tvr[k]) * Tvp[k] / d2;
+        const float f = fast_expf_le88(-Tsr - Tvr[k]) * Tvp[k] / d2;
         if constexpr (kFirst) {
             aR[k] = gwr[k] * f;
             aG[k] = gwg[k] * f;
