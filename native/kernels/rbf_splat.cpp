@@ -584,7 +584,7 @@ AIRLIGHT_SPLAT_CLONES void finish_float_impl(int n, float beta0, const float* __
     for (int k = 0; k < n; ++k) {
         // beta0 seg: 0 for beta0 = 0 even when seg = inf (background_depth)
         const float bg = kBackground ? beta0 * (far[k] - t0[k]) : 0.0f;
-        Tr[k] = fast_expf(-(bg + std::max(0.0f, Tf[k] - Tn[k])));
+        Tr[k] = fast_expf_le88(-(bg + std::max(0.0f, Tf[k] - Tn[k])));
         const float g = kNearClip ? fast_expf(Tn[k]) : 1.0f;
         sg[k] = g;
         sc[k] = kNearClip ? g * fast_expf(beta0 * t0[k]) : 1.0f;
@@ -646,7 +646,7 @@ AIRLIGHT_SPLAT_CLONES void surface_weight(int n, const float* __restrict Tvp, co
                                           const float* __restrict tr, const float* __restrict far,
                                           float* __restrict t) {
     for (int k = 0; k < n; ++k) {
-        const float v = Tvp[k] * fast_expf(-Tvr[k]);
+        const float v = Tvp[k] * fast_expf_le88(-Tvr[k]);
         t[k] = tr[k] < far[k] ? 0.0f : v;
     }
 }
@@ -694,7 +694,7 @@ AIRLIGHT_SPLAT_CLONES void segment_integrals(int n, const float* __restrict rx, 
     for (int k = 0; k < n; ++k) {
         const float ts = rx[k] * dx + ry[k] * dy + rz[k] * dz;
         const float cx = ry[k] * dz - rz[k] * dy, cy = rz[k] * dx - rx[k] * dz, cz = rx[k] * dy - ry[k] * dx;
-        const float e = k0[k] * fast_expf(-a[k] * a[k] * (cx * cx + cy * cy + cz * cz));
+        const float e = k0[k] * fast_expf_le88(-a[k] * a[k] * (cx * cx + cy * cy + cz * cz));
         const float x1 = -a[k] * ts, x2 = a[k] * (D - ts);
         const float E1 = fast_erfc_pos(x1 < 0.0f ? -x1 : x1);
         const float E2 = fast_erfc_pos(x2 < 0.0f ? -x2 : x2);
@@ -745,7 +745,7 @@ AIRLIGHT_SPLAT_CLONES void line_integrals_whole(int n, const float* __restrict r
                                                 float* __restrict out) {
     for (int k = 0; k < n; ++k) {
         const float cx = ry[k] * dz - rz[k] * dy, cy = rz[k] * dx - rx[k] * dz, cz = rx[k] * dy - ry[k] * dx;
-        out[k] = 2.0f * k0[k] * fast_expf(-a[k] * a[k] * (cx * cx + cy * cy + cz * cz));
+        out[k] = 2.0f * k0[k] * fast_expf_le88(-a[k] * a[k] * (cx * cx + cy * cy + cz * cz));
     }
 }
 
@@ -769,7 +769,7 @@ AIRLIGHT_SPLAT_CLONES void target_integrals(int n, const float* __restrict dx, c
     for (int k = 0; k < n; ++k) {
         const float ts = rx * dx[k] + ry * dy[k] + rz * dz[k];
         const float cx = ry * dz[k] - rz * dy[k], cy = rz * dx[k] - rx * dz[k], cz = rx * dy[k] - ry * dx[k];
-        const float e = k0 * fast_expf(-a * a * (cx * cx + cy * cy + cz * cz));
+        const float e = k0 * fast_expf_le88(-a * a * (cx * cx + cy * cy + cz * cz));
         const float x1 = -a * ts, x2 = a * (D[k] - ts);
         const float E1 = fast_erfc_pos(x1 < 0.0f ? -x1 : x1);
         const float E2 = fast_erfc_pos(x2 < 0.0f ? -x2 : x2);
@@ -2253,7 +2253,7 @@ void RbfSplat::far_share(std::size_t i, int x0, int y0, int s, int nu, int nv, f
     const int wx = P1 - P0 + 1, wy = Q1 - Q0 + 1, m = wx * wy;
     constexpr int kMaxWindow = 96;  // (16 / h + 4)^2 <= 64 at h >= s 2
     float lx[kMaxWindow], ly[kMaxWindow], lz[kMaxWindow];
-    float T[kMaxWindow] = {}, R[kMaxWindow] = {}, G[kMaxWindow] = {}, B[kMaxWindow] = {};
+    float T[kMaxWindow], R[kMaxWindow], G[kMaxWindow], B[kMaxWindow];
     for (int Q = Q0; Q <= Q1; ++Q)
         for (int P = P0; P <= P1; ++P) {
             const std::size_t o = std::size_t(Q) * grid.nx + P;
@@ -2268,6 +2268,7 @@ void RbfSplat::far_share(std::size_t i, int x0, int y0, int s, int nu, int nv, f
         ly[k] = ly[m - 1];
         lz[k] = lz[m - 1];
     }
+    for (float* v : {T, R, G, B}) std::fill(v, v + m_pad, 0.0f);  // (not the whole arrays: a call per pair)
     splat_gaussian(i, m_pad, lx, ly, lz, nullptr, T, R, G, B);
     for (int q = 0; q < 4; ++q) std::fill(out[q], out[q] + nu * nv, 0.0f);
     const float* g[4] = {T, R, G, B};
@@ -2732,7 +2733,8 @@ void RbfSplat::splat_tile_reduced(int t, int x0, int y0, int w, int h, const flo
         // (a far-field Gaussian's lattice share is its grid's: always this form, without the
         // lattice terms' own addition)
         if (on_grid || m_pad + cut_px + other_px / 8 < live_px) {
-            float gT[kMaxLattice] = {}, gR[kMaxLattice] = {}, gG[kMaxLattice] = {}, gB[kMaxLattice] = {};
+            float gT[kMaxLattice], gR[kMaxLattice], gG[kMaxLattice], gB[kMaxLattice];
+            for (float* v : {gT, gR, gG, gB}) std::fill(v, v + m_pad, 0.0f);  // (a call per pair)
             if (on_grid) {  // its grid share (cancels it exactly where subtracted)
                 float* share[4] = {gT, gR, gG, gB};
                 far_share(i, x0, y0, s, nu, nv, share);
@@ -2927,7 +2929,10 @@ void RbfSplat::cut_light_factor(std::size_t i, int n_blocks, const int* block_st
     if (use_lattice) {
         constexpr int kMaxLattice = 96;
         float lTvp[kMaxLattice], lTvr[kMaxLattice], ltr[kMaxLattice], ones[kMaxLattice];
-        float FR[kMaxLattice] = {}, FG[kMaxLattice] = {}, FB[kMaxLattice] = {};
+        float FR[kMaxLattice], FG[kMaxLattice], FB[kMaxLattice];  // (zeroed to m_pad: a call per pair)
+        std::fill(FR, FR + m_pad, 0.0f);
+        std::fill(FG, FG + m_pad, 0.0f);
+        std::fill(FB, FB + m_pad, 0.0f);
         (g.far_eye ? view_terms<true, true> : view_terms<true, false>)(g, m_pad, lx, ly, lz, nullptr, lTvp, lTvr,
                                                                         ltr);
         std::fill(ones, ones + m_pad, 1.0f);
@@ -2964,7 +2969,6 @@ void RbfSplat::cut_light_factor(std::size_t i, int n_blocks, const int* block_st
         sblk[n_sblk++] = b;
     }
     if (n_sblk == 0) return;
-    float GR[4 * kMaxBlocks] = {}, GG[4 * kMaxBlocks] = {}, GB[4 * kMaxBlocks] = {};
     int nc = 4 * n_sblk;
     for (; nc % 16 != 0; ++nc) {  // whole SIMD vectors: copies of the first corner
         gx[nc] = gx[0];
@@ -2974,6 +2978,10 @@ void RbfSplat::cut_light_factor(std::size_t i, int n_blocks, const int* block_st
         gone[nc] = 1.0f;
         gzero[nc] = 0.0f;
     }
+    float GR[4 * kMaxBlocks], GG[4 * kMaxBlocks], GB[4 * kMaxBlocks];  // (zeroed to nc only)
+    std::fill(GR, GR + nc, 0.0f);
+    std::fill(GG, GG + nc, 0.0f);
+    std::fill(GB, GB + nc, 0.0f);
     // (both erfc terms: a corner's surface point may lie outside the cull sphere, where
     // far_lights does not hold)
     for (std::size_t l = 0; l < L; ++l)
