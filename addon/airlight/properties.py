@@ -199,11 +199,11 @@ class AirlightSceneSettings(bpy.types.PropertyGroup):
             ('FULL', "Full", "Every pixel (the reference; slowest)"),
             ('HALF', "Half", "Every 2nd pixel. Measured at 1080p against Full (benchmarks/bench_rbf.py): "
                              "transmittance error 0.003 % mean, 0.05 % p99, 0.1 % max (airlight ~4x less); "
-                             "~4.4x less CPU time with 3000 blobs, ~2.7x with a few broad ones"),
+                             "~3.9x less CPU time with 3000 blobs, ~2.1x with a few broad ones"),
             ('QUARTER', "Quarter", "Every 4th pixel (default). Measured at 1080p against Full "
                                    "(benchmarks/bench_rbf.py): transmittance error 0.012 % mean, 0.2 % p99, "
-                                   "0.53 % max (airlight ~4x less); ~7.8x less CPU time with 3000 blobs, "
-                                   "~3.4x with a few broad ones. Larger errors at low render resolutions"),
+                                   "0.53 % max (airlight ~4x less); ~6.9x less CPU time with 3000 blobs, "
+                                   "~3.0x with a few broad ones. Larger errors at low render resolutions"),
         ),
         default='QUARTER',
     )
