@@ -15,7 +15,7 @@
 //   where erfc ~ 4e-37; above ~9.3 the result is 0. x = +inf gives 0.
 // - fast_erfcx_pos: the scaled erfcx(x) = exp(x^2) erfc(x) for x >= 0 as t Q(t), t = 1 / (1 +
 //   x/2), Q of degree 8 fitted for relative error (a Lawson-weighted least-squares fit in
-//   double: 4.3e-7; in float, <= 6.4e-7 up to x = 1e6, tested in rbf_splat_test.cpp). No exp:
+//   double: 4.3e-7; in float, <= 6.6e-7 up to x = 1e6, tested in rbf_splat_test.cpp). No exp:
 //   the kernels fold exp(-x^2) into the exponent of the Gaussian factor that multiplies it,
 //   k0 e^{-a^2 h^2} erfc(x) = k0 e^{-(a^2 h^2 + x^2)} erfcx(x), and where a^2 h^2 + x^2 is
 //   a constant of the Gaussian and the ray's origin (a^2 |b - o|^2, |d| = 1) the exp goes

@@ -249,7 +249,8 @@ AIRLIGHT_SPLAT_CLONES void depth_classes(const RbfSplat::GaussF g, float R2, int
 // k0 = 0 and zero weights), summed over the Gaussians into T, R, G, B. The same arithmetic
 // as view_terms<true> and light_terms, one SIMD lane per Gaussian instead of per ray:
 // long loops, no padding of the (16/s + 1)^2 rays, one call per tile instead of per pair.
-// Per-(Gaussian, light) data at [l n + k]; scratch: 6 n floats.
+// Per-(Gaussian, light) data at [l n + k]; ke is GaussF::ke, ske GaussLightF::ke; scratch: 6 n
+// floats.
 struct LatticeSoA {
     std::vector<float> rx, ry, rz, a, a2, k0, ke, sx, sy, sz, wr, wg, wb, ske, scratch;
     int n = 0;
