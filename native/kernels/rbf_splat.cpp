@@ -428,21 +428,28 @@ AIRLIGHT_SPLAT_CLONES void interp_lattice(int w, int h, int s, int nu, const flo
     }
     const float* c[4] = {cT, cR, cG, cB};
     float* out[4] = {T, R, G, B};
-    for (int j = 0; j < h; ++j) {
-        const float fy = (float(j) + 0.5f) * inv_s;
-        const int v = int(fy);
-        const float wy = fy - float(v);
-        for (int q = 0; q < 4; ++q) {
-            float col[kMaxNodes], lo[RbfSplat::kTile], hi[RbfSplat::kTile];
-            const float* top = c[q] + v * nu;
-            const float* bot = top + nu;
-            for (int u = 0; u < nu; ++u) col[u] = (1.0f - wy) * top[u] + wy * bot[u];
+    // Along x once per lattice row (the rows a pixel row needs: v and v + 1), then each
+    // pixel row between two of those: the gathers run per lattice row, not per pixel row.
+    const int nv = int((float(h) - 0.5f) * inv_s) + 2;
+    for (int q = 0; q < 4; ++q) {
+        float rows[kMaxNodes][RbfSplat::kTile];
+        for (int v = 0; v < nv; ++v) {
+            const float* node = c[q] + v * nu;
+            float lo[RbfSplat::kTile], hi[RbfSplat::kTile];
             for (int i = 0; i < w; ++i) {
-                lo[i] = col[ui[i]];
-                hi[i] = col[ui[i] + 1];
+                lo[i] = node[ui[i]];
+                hi[i] = node[ui[i] + 1];
             }
+            for (int i = 0; i < w; ++i) rows[v][i] = (1.0f - wx[i]) * lo[i] + wx[i] * hi[i];
+        }
+        for (int j = 0; j < h; ++j) {
+            const float fy = (float(j) + 0.5f) * inv_s;
+            const int v = int(fy);
+            const float wy = fy - float(v);
+            const float* top = rows[v];
+            const float* bot = rows[v + 1];
             float* o = out[q] + j * w;
-            for (int i = 0; i < w; ++i) o[i] += (1.0f - wx[i]) * lo[i] + wx[i] * hi[i];
+            for (int i = 0; i < w; ++i) o[i] += (1.0f - wy) * top[i] + wy * bot[i];
         }
     }
 }
