@@ -2938,9 +2938,7 @@ void RbfSplat::cut_light_factor(std::size_t i, int n_blocks, const int* block_st
         constexpr int kMaxLattice = 96;
         float lTvp[kMaxLattice], lTvr[kMaxLattice], ltr[kMaxLattice], ones[kMaxLattice];
         float FR[kMaxLattice], FG[kMaxLattice], FB[kMaxLattice];  // (zeroed to m_pad: a call per pair)
-        std::fill(FR, FR + m_pad, 0.0f);
-        std::fill(FG, FG + m_pad, 0.0f);
-        std::fill(FB, FB + m_pad, 0.0f);
+        for (float* v : {FR, FG, FB}) std::fill(v, v + m_pad, 0.0f);
         (g.far_eye ? view_terms<true, true> : view_terms<true, false>)(g, m_pad, lx, ly, lz, nullptr, lTvp, lTvr,
                                                                         ltr);
         std::fill(ones, ones + m_pad, 1.0f);
@@ -2987,9 +2985,7 @@ void RbfSplat::cut_light_factor(std::size_t i, int n_blocks, const int* block_st
         gzero[nc] = 0.0f;
     }
     float GR[4 * kMaxBlocks], GG[4 * kMaxBlocks], GB[4 * kMaxBlocks];  // (zeroed to nc only)
-    std::fill(GR, GR + nc, 0.0f);
-    std::fill(GG, GG + nc, 0.0f);
-    std::fill(GB, GB + nc, 0.0f);
+    for (float* v : {GR, GG, GB}) std::fill(v, v + nc, 0.0f);
     // (both erfc terms: a corner's surface point may lie outside the cull sphere, where
     // far_lights does not hold)
     for (std::size_t l = 0; l < L; ++l)
