@@ -111,6 +111,9 @@ def main():
     scene.cycles.device = 'CPU'
     scene.cycles.samples = 32
     scene.cycles.use_denoising = False  # Debian's Blender has no OpenImageDenoise
+    # Without a denoiser, diffuse bounces that hit the small bright lamp globes leave white
+    # fireflies across the walls and road at 32 samples: clamp indirect light (default 10).
+    scene.cycles.sample_clamp_indirect = 1.0
     scene.cycles.max_bounces = 4
     scene.cycles.diffuse_bounces = 2
     scene.cycles.glossy_bounces = 2
