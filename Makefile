@@ -20,13 +20,9 @@ build: deps
 
 # An installable add-on zip (Preferences > Add-ons > Install): the package, its compiled
 # module and the GLSL sources (searched in airlight/shaders/ when installed).
+# (tools/package.py; tests/blender/test_package.py installs it into a clean Blender.)
 package: build
-	rm -rf $(BUILD)/package && mkdir -p $(BUILD)/package
-	cp -rL addon/airlight $(BUILD)/package/airlight
-	rm -rf $(BUILD)/package/airlight/__pycache__
-	mkdir -p $(BUILD)/package/airlight/shaders && cp shaders/*.glsl $(BUILD)/package/airlight/shaders/
-	cd $(BUILD)/package && rm -f ../airlight.zip && $(PYTHON) -m zipfile -c ../airlight.zip airlight
-	@echo "add-on package: $(BUILD)/airlight.zip"
+	$(PYTHON) tools/package.py $(BUILD)/airlight.zip
 
 # Builds everything, installs the add-on into an isolated Blender user directory and
 # renders the example street headless with fog baked into compositing passes -> out/.
