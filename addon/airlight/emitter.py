@@ -579,6 +579,10 @@ class AIRLIGHT_OT_emitter_bake(bpy.types.Operator):
         if _active_emitter(context) is None:
             cls.poll_message_set("Make a fog emitter active")
             return False
+        problem = fog_object.edit_problem(context.active_object)
+        if problem:
+            cls.poll_message_set(problem)
+            return False
         return True
 
     def execute(self, context):
@@ -608,7 +612,8 @@ class AIRLIGHT_OT_emitter_free_bake(bpy.types.Operator):
     @classmethod
     def poll(cls, context):
         obj = _active_emitter(context)
-        return obj is not None and len(obj.airlight_emitter.baked) > 0
+        return (obj is not None and len(obj.airlight_emitter.baked) > 0
+                and fog_object.edit_problem(obj) is None)
 
     def execute(self, context):
         obj = _active_emitter(context)

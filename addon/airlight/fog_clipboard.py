@@ -134,7 +134,9 @@ def _to_local(obj, centres_world, scales_world):
     return local, np.asarray(scales_world) * s
 
 
-def _object_poll(cls, context, need_view3d):
+def _object_poll(cls, context, need_view3d, edits=True):
+    """The clipboard operators' poll; _edits_: the operator writes the active fog object
+    (selection, paste, move), which linked data cannot keep (fog_object.edit_problem)."""
     if need_view3d and (context.area is None or context.area.type != 'VIEW_3D'):
         cls.poll_message_set("Run from a 3D viewport")
         return False
@@ -143,6 +145,10 @@ def _object_poll(cls, context, need_view3d):
         return False
     if not fog_object.is_fog_object(context.active_object):
         cls.poll_message_set("Make a fog object active (Add > Airlight Fog Object)")
+        return False
+    problem = fog_object.edit_problem(context.active_object) if edits else None
+    if problem:
+        cls.poll_message_set(problem)
         return False
     return True
 
@@ -301,7 +307,7 @@ class AIRLIGHT_OT_fog_copy(bpy.types.Operator):
 
     @classmethod
     def poll(cls, context):
-        return _object_poll(cls, context, need_view3d=False)
+        return _object_poll(cls, context, need_view3d=False, edits=False)
 
     def execute(self, context):
         obj = context.active_object

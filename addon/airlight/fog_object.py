@@ -51,6 +51,24 @@ def is_fog_object(obj):
             and getattr(getattr(obj, "airlight_fog", None), "is_fog", False))
 
 
+def edit_problem(obj):
+    """Why the fog tools cannot change _obj_'s own data (its Gaussians, or an emitter's
+    stored frames), or None when they can. Blender saves no edit of data linked from a
+    library, nor of a mesh a library override leaves in its library: a stroke there would
+    vanish on save, so the tools refuse it (as Blender's own edit tools do) and say how to
+    edit it. Baking and copying linked fog work as for any object."""
+    data = obj.data if obj.type == 'MESH' else None
+    for block in (obj, data):
+        if block is not None and block.library is not None:
+            return (f"'{obj.name}' is linked from {bpy.path.basename(block.library.filepath)}: edit it "
+                    "there, or make it local (Object > Relations > Make Local) to edit it here")
+    for block in (obj, data):
+        if block is not None and block.override_library is not None:
+            return (f"'{obj.name}' is a library override: its fog data stays in the library file "
+                    "(edit it there, or make it local: Object > Relations > Make Local)")
+    return None
+
+
 def _point_attribute(mesh, name):
     attr = mesh.attributes.get(name)
     if attr is not None and (attr.data_type != 'FLOAT' or attr.domain != 'POINT'):

@@ -284,3 +284,87 @@ def test16_unregister_removes_fog_types():
         addon_utils.enable("airlight", default_set=True)
     assert hasattr(bpy.types.Object, "airlight_fog") and hasattr(bpy.types.Scene, "airlight_brush")
     assert hasattr(bpy.types, "AIRLIGHT_OT_fog_erase") and hasattr(bpy.types, "AIRLIGHT_PT_fog_tools")
+
+
+def test17_linked_fog_bakes_and_copies_but_the_tools_refuse_to_edit_it(scene, tmp_path):
+    """A fog object linked from a library (or overridden) renders like any object, but
+    Blender saves no edit of its data: the tools that write it refuse it with a message
+    saying how to edit it, so that no stroke is lost on save; made local, it edits."""
+    from types import SimpleNamespace
+    from airlight import airbrush, brush_ops, fog_clipboard
+
+    c, a, amp = _cloud(5, seed=3)
+    lib_obj = fo.new_fog_object("LibFog", scene.collection, centres=c, scales=a, amplitudes=amp,
+                                location=(1.0, 0.0, 0.0))
+    assert bpy.ops.airlight.add_emitter() == {'FINISHED'}
+    lib_emitter = bpy.context.view_layer.objects.active
+    lib_emitter.name = "LibEmitter"
+    lib = str(tmp_path / "fog_library.blend")
+    bpy.data.libraries.write(lib, {lib_obj, lib_emitter})
+    bpy.ops.wm.read_homefile(use_factory_startup=True, use_empty=True)
+    scene = bpy.context.scene
+    with bpy.data.libraries.load(lib, link=True) as (_, into):
+        into.objects = ["LibFog", "LibEmitter"]
+    linked = bpy.data.objects["LibFog"]
+    scene.collection.objects.link(linked)
+    assert linked.library is not None
+
+    # It renders: gather() sees its Gaussians where the library put them.
+    gathered = fo.gather(bpy.context.evaluated_depsgraph_get())
+    np.testing.assert_allclose(gathered[0], c + [1.0, 0.0, 0.0], atol=1e-5)
+
+    problem = fo.edit_problem(linked)
+    assert "linked from fog_library.blend" in problem and "Make Local" in problem
+
+    # The clipboard: copying from it works, writing into it (select, paste, move) does not.
+    local = fo.new_fog_object("Local", scene.collection, centres=[(0.0, 0.0, 0.0)])
+    fog_clipboard.write_selection(local, np.ones(1, bool))
+    bpy.context.view_layer.objects.active = local
+    assert bpy.ops.airlight.fog_copy() == {'FINISHED'}
+    bpy.context.view_layer.objects.active = linked
+    assert bpy.ops.airlight.fog_copy.poll()
+    assert not bpy.ops.airlight.fog_paste.poll()
+    with pytest.raises(RuntimeError, match="linked from fog_library.blend"):
+        bpy.ops.airlight.fog_paste()
+    assert len(linked.data.vertices) == 5
+
+    # Paint, erase, airbrush and the fill (their polls, as the viewport calls them).
+    view3d = SimpleNamespace(area=SimpleNamespace(type='VIEW_3D'), mode='OBJECT', active_object=linked)
+    for cls in (brush_ops.AIRLIGHT_OT_fog_paint, brush_ops.AIRLIGHT_OT_fog_erase, airbrush.AIRLIGHT_OT_airbrush,
+                fog_clipboard.AIRLIGHT_OT_fog_select_rect, fog_clipboard.AIRLIGHT_OT_fog_move):
+        assert not cls.poll(view3d), cls.__name__
+    box = bpy.data.objects.new("Box", bpy.data.meshes.new("Box"))
+    scene.collection.objects.link(box)
+    box.select_set(True)
+    assert not bpy.ops.airlight.fill_mesh.poll()
+    with pytest.raises(RuntimeError, match="linked from"):
+        bpy.ops.airlight.fill_mesh()
+
+    # A library override keeps its mesh in the library: refused too.
+    override = linked.override_create(remap_local_usages=True)
+    assert fo.edit_problem(override) is not None
+    bpy.context.view_layer.objects.active = override
+    assert not bpy.ops.airlight.fog_paste.poll()
+
+    # Made local as the message says (Object > Relations > Make Local, object and data), it
+    # is the user's to edit.
+    for obj in scene.objects:
+        obj.select_set(obj == override)
+    assert bpy.ops.object.make_local(type='SELECT_OBDATA') == {'FINISHED'}
+    override = bpy.context.view_layer.objects.active
+    assert fo.edit_problem(override) is None
+    assert bpy.ops.airlight.fog_paste.poll()
+    assert bpy.ops.airlight.fog_paste() == {'FINISHED'}
+    assert len(override.data.vertices) == 6
+    assert all(cls.poll(SimpleNamespace(area=SimpleNamespace(type='VIEW_3D'), mode='OBJECT',
+                                        active_object=override))
+               for cls in (brush_ops.AIRLIGHT_OT_fog_paint, brush_ops.AIRLIGHT_OT_fog_erase))
+
+    # A linked emitter cannot store baked frames in this file either.
+    linked_emitter = bpy.data.objects["LibEmitter"]
+    scene.collection.objects.link(linked_emitter)
+    bpy.context.view_layer.objects.active = linked_emitter
+    assert linked_emitter.airlight_emitter.is_emitter
+    assert not bpy.ops.airlight.emitter_bake.poll()
+    with pytest.raises(RuntimeError, match="linked from fog_library.blend"):
+        bpy.ops.airlight.emitter_bake()
