@@ -10,6 +10,7 @@ import threading
 import time
 
 import bpy
+import numpy as np
 from bpy.props import IntProperty, StringProperty
 
 from . import cache, compositor, environment, model_choice, native, scene_export, surface
@@ -22,6 +23,13 @@ cache_path = cache.cache_path
 # Key of the settings dict (not a `_native.bake` argument; run() takes it out): the light
 # group name per bake light when surface shading is on (surface.ensure_passes).
 SURFACE_GROUPS = "surface_groups"
+# Another such key, with a render region (scene_export.render_region): the bake covers
+# the region and a margin around it (scene_export.bake_window); ((left, top, width,
+# height) of the region in the baked image, rows top first; (left, top, width, height) of
+# the region in the whole frame when the render is not cropped to the region, else None).
+# run() cuts the region out of the passes and, uncropped, puts it back into a whole frame
+# of neutral passes (outside the region the render is empty).
+REGION = "render_region"
 
 
 def bake_settings(scene):
@@ -49,6 +57,13 @@ def prepare(scene, depsgraph, mesh_overrides=None):
             settings["environment"] = world
     except (scene_export.ExportError, environment.WorldMapError) as ex:
         raise BakeError(str(ex)) from None
+    region, window = scene_export.render_region(scene), scene_export.bake_window(scene)
+    if region is not None:
+        width, height = scene_export.render_size(scene)
+        x0, y0, x1, y1 = region
+        cut = (x0 - window[0], window[3] - y1, x1 - x0, y1 - y0)
+        whole = None if scene.render.use_crop_to_border else (x0, height - y1, width, height)
+        settings[REGION] = (cut, whole)
     if surface.active(scene):
         # Surface shading: the light groups and DiffCol pass the composite reads (surface.py).
         settings["surface"] = True
@@ -86,6 +101,7 @@ def run(description, settings, filepath, progress=None):
     start = time.perf_counter()
     settings = dict(settings)
     groups = settings.pop(SURFACE_GROUPS, None)
+    region = settings.pop(REGION, None)
     world = settings.pop("environment", None)
     try:
         result = module.bake(**description, **settings, progress=progress)
@@ -98,11 +114,30 @@ def run(description, settings, filepath, progress=None):
     if extra is not None and "environment_surface" in result:
         name, ratio = result["environment_surface"]
         extra[surface.PASS_PREFIX + name] = ratio
+    airlight, transmittance = result["airlight"], result["transmittance"]
+    if region is not None:
+        airlight = _fit_region(airlight, region, 0.0)
+        transmittance = _fit_region(transmittance, region, 1.0)
+        extra = {name: _fit_region(p, region, 0.0) for name, p in (extra or {}).items()} or None
     try:
-        cache.write_passes(filepath, result["airlight"], result["transmittance"], extra)
+        cache.write_passes(filepath, airlight, transmittance, extra)
     except cache.CacheError as ex:
         raise BakeError(str(ex)) from None
     return stats, time.perf_counter() - start
+
+
+def _fit_region(baked, region, fill):
+    """A pass of the baked window made the size the render gives (see REGION): the render
+    region cut out, and uncropped placed into a whole frame filled with _fill_ (0: no
+    airlight or correction, 1: transmittance)."""
+    (left, top, w, h), whole = region
+    cut = baked[top:top + h, left:left + w]
+    if whole is None:
+        return np.ascontiguousarray(cut)
+    left, top, width, height = whole
+    frame = np.full((height, width) + baked.shape[2:], fill, dtype=np.float32)
+    frame[top:top + h, left:left + w] = cut
+    return frame
 
 
 def bake_frame(scene, depsgraph, filepath=None, progress=None, mesh_overrides=None):

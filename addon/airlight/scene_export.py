@@ -33,9 +33,62 @@ def render_size(scene):
     return width, height
 
 
+def render_region(scene):
+    """The render region (Render > Format > Render Region) in pixels as Blender renders it:
+    (x0, y0, x1, y1) within render_size(), y counted from the bottom, or None without one.
+    Blender truncates border x render size in single precision (render pipeline,
+    R_BORDER); a region of no pixels is left to the render to refuse ("Image too small")
+    and is ignored here, as is one covering the whole frame."""
+    render = scene.render
+    if not render.use_border:
+        return None
+    width, height = render_size(scene)
+    f32 = np.float32
+    x0, x1 = (int(f32(v) * f32(width)) for v in (render.border_min_x, render.border_max_x))
+    y0, y1 = (int(f32(v) * f32(height)) for v in (render.border_min_y, render.border_max_y))
+    if x1 <= x0 or y1 <= y0 or (x0, y0, x1, y1) == (0, 0, width, height):
+        return None
+    return x0, y0, x1, y1
+
+
+# Pixels baked around a render region on each side (within the frame) and dropped after:
+# the bake's edge test looks two pixels away (a pixel is an edge when a neighbour's depth
+# has a kink), so with this margin the region's pixels bake as in the whole frame's bake.
+REGION_MARGIN = 2
+
+
+def bake_window(scene):
+    """The pixels the bake covers, (x0, y0, x1, y1) as render_region (y from the bottom):
+    the render region grown by REGION_MARGIN within the frame, or None (the whole frame)."""
+    region = render_region(scene)
+    if region is None:
+        return None
+    width, height = render_size(scene)
+    x0, y0, x1, y1 = region
+    m = REGION_MARGIN
+    return max(0, x0 - m), max(0, y0 - m), min(width, x1 + m), min(height, y1 + m)
+
+
+def region_projection(projection, width, height, region):
+    """The projection of the pixels of _region_ ((x0, y0, x1, y1) of a width x height
+    frame, y from the bottom) as a frame of their own: the clip-space x, y of the whole
+    frame's _projection_ scaled and shifted so that the region spans the new frame's
+    [-1, 1] (pixel centres stay on the whole frame's; perspective and orthographic)."""
+    x0, y0, x1, y1 = region
+    sx, sy = width / (x1 - x0), height / (y1 - y0)
+    cx, cy = (x0 + x1) / width - 1.0, (y0 + y1) / height - 1.0
+    window = np.array([[sx, 0.0, 0.0, -sx * cx],
+                       [0.0, sy, 0.0, -sy * cy],
+                       [0.0, 0.0, 1.0, 0.0],
+                       [0.0, 0.0, 0.0, 1.0]])
+    return window @ projection
+
+
 def export_camera(scene, depsgraph):
-    """Returns (width, height, cam_to_world (4,4), projection (4,4)) of the scene camera.
-    Its clip range is `export_clip_range`."""
+    """Returns (width, height, cam_to_world (4,4), projection (4,4)) of the scene camera,
+    for the pixels of bake_window() only when a render region is set (width and height are
+    then the window's; bake.run cuts the region out and, when the render is not cropped to
+    it, puts it back into the whole frame). Its clip range is `export_clip_range`."""
     camera = scene.camera
     if camera is None:
         raise ExportError(f"Scene '{scene.name}' has no active camera: set one in the Scene properties.")
@@ -53,7 +106,12 @@ def export_camera(scene, depsgraph):
         depsgraph, x=width, y=height,
         scale_x=render.pixel_aspect_x, scale_y=render.pixel_aspect_y)
     cam_to_world = np.array(camera_eval.matrix_world, dtype=np.float64)
-    return width, height, cam_to_world, np.array(projection, dtype=np.float64)
+    projection = np.array(projection, dtype=np.float64)
+    window = bake_window(scene)
+    if window is not None:
+        projection = region_projection(projection, width, height, window)
+        width, height = window[2] - window[0], window[3] - window[1]
+    return width, height, cam_to_world, projection
 
 
 def export_clip_range(scene, depsgraph):

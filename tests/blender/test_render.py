@@ -124,3 +124,44 @@ def test04_settings_persist_through_save_and_reload(tmp_path):
     assert tuple(s.color) == pytest.approx((0.5, 0.6, 0.7))
     assert s.model == 'QUADRATURE' and s.aa_samples == 3
     assert bpy.data.lights["Lamp"].airlight.participate is False
+
+
+@needs_native
+def test05_render_region_bakes_the_region_and_composites_in_place(tmp_path):
+    """Render > Format > Render Region: the bake covers the region only (and a margin for
+    its edge test), and its passes equal the whole frame's bake there to float rounding;
+    cropped to the region the passes are the region's size, else they are placed in a
+    whole frame of neutral passes. Either way the composite is render x T + A."""
+    from airlight import scene_export
+    scene, blend = _render_scene(tmp_path)
+    whole_ref = str(tmp_path / "whole.exr")
+    assert bpy.ops.airlight.bake(frame=1, filepath=whole_ref) == {'FINISHED'}
+    r = scene.render
+    r.use_border = True
+    r.border_min_x, r.border_max_x, r.border_min_y, r.border_max_y = 0.21, 0.67, 0.33, 0.9
+    x0, y0, x1, y1 = scene_export.render_region(scene)
+    W, H = scene_export.render_size(scene)
+    assert (x0, y0, x1, y1) == (13, 15, 42, 43)  # Blender truncates border x size
+    rows, cols = slice(H - y1, H - y0), slice(x0, x1)  # EXR rows are top first
+    off_script = tmp_path / "fog_off.py"
+    off_script.write_text("import bpy\nbpy.context.scene.airlight.enabled = False\n")
+    for crop in (True, False):
+        r.use_crop_to_border = crop
+        path = str(tmp_path / f"region_{crop}.blend")
+        bpy.ops.wm.save_as_mainfile(filepath=path, copy=True)
+        _run(path, "-o", str(tmp_path / f"on_{crop}_####"), "-f", "1")
+        _run(path, "--python", str(off_script), "-o", str(tmp_path / f"off_{crop}_####"), "-f", "1")
+        on, _ = read_exr(str(tmp_path / f"on_{crop}_0001.exr"))
+        off, _ = read_exr(str(tmp_path / f"off_{crop}_0001.exr"))
+        fog = str(tmp_path / "cache" / "fog_0001.exr")
+        A, T = exr_pass(fog, "Airlight"), exr_pass(fog, "Transmittance")
+        assert A.shape == on[..., :3].shape == ((y1 - y0, x1 - x0, 3) if crop else (H, W, 3))
+        np.testing.assert_allclose(on[..., :3], off[..., :3] * T + A, rtol=1e-4, atol=1e-5)
+        inside = (slice(None), slice(None)) if crop else (rows, cols)
+        for name, baked in (("Airlight", A), ("Transmittance", T)):
+            np.testing.assert_allclose(baked[inside], exr_pass(whole_ref, name)[rows, cols], rtol=1e-5, atol=1e-7)
+        assert A[inside].max() > 0.01 and T[inside].min() < 0.99
+        if not crop:
+            outside = np.ones((H, W), bool)
+            outside[rows, cols] = False
+            assert (A[outside] == 0.0).all() and (T[outside] == 1.0).all()
