@@ -3,7 +3,10 @@
 `setup(scene)` adds (idempotently, never removing the user's nodes) a frame
 "Airlight Fog" holding an Image node on the baked multilayer EXR, a MixRGB Multiply and
 a MixRGB Add, inserted between whatever fed the Composite node (or the Render Layers
-node) and the Composite/Viewer nodes. `sync(scene, filepath)` points the Image node at a
+node) and the Composite/Viewer nodes. A Set Alpha node after them gives the composite the
+fog's coverage as Cycles' transparent film does for a volume: alpha = 1 - (1 - alpha) T,
+T the mean of the Transmittance pass's channels (opaque pixels stay opaque; with
+Film > Transparent the fog in front of the empty background covers 1 - T of it). `sync(scene, filepath)` points the Image node at a
 baked file and mutes the fog nodes when the fog is disabled, so the image passes through.
 
 With surface shading (surface.py; Cycles only) a chain in the same frame first corrects the
@@ -24,6 +27,9 @@ FRAME = "Airlight Fog"
 NODE_IMAGE = "Airlight Passes"
 NODE_MULTIPLY = "Airlight Multiply"
 NODE_ADD = "Airlight Add"
+# The alpha nodes (see the module docstring): NODE_ALPHA sets it, the others compute it.
+NODE_ALPHA = "Airlight Alpha"
+ALPHA_NODE_PREFIX = "Airlight Alpha "
 IMAGE_NAME = "Airlight Passes"
 # Surface-shading chain (surface.py), rebuilt by every setup(); its first Add node takes
 # the render's Image.
@@ -34,6 +40,58 @@ SURFACE_SIGNATURE = "airlight_surface_chain"  # node tree ID property: the chain
 
 def _fog_nodes(tree):
     return [tree.nodes.get(name) for name in (NODE_IMAGE, NODE_MULTIPLY, NODE_ADD)]
+
+
+def _alpha_nodes(tree):
+    return [node for node in tree.nodes if node.name == NODE_ALPHA or node.name.startswith(ALPHA_NODE_PREFIX)]
+
+
+def _link(tree, from_socket, to_socket):
+    """Links unless already so (a new link re-evaluates the compositor)."""
+    if not (to_socket.is_linked and to_socket.links[0].from_socket == from_socket):
+        tree.links.new(from_socket, to_socket)
+
+
+def _setup_alpha(tree, frame, image_node, add):
+    """The Set Alpha node after the Add node and its alpha, 1 - (1 - alpha) mean(T), as
+    MULTIPLY_ADD((alpha - 1) / 3, T_r + T_g + T_b, 1); returns the Set Alpha node."""
+    x, y = add.location.x, add.location.y - 420  # a row below the fog nodes
+    color = _node(tree, ALPHA_NODE_PREFIX + "Image", "CompositorNodeSeparateColor", "Fog: image alpha",
+                  (x - 900, y), frame)
+    trans = _node(tree, ALPHA_NODE_PREFIX + "Transmittance", "CompositorNodeSeparateColor",
+                  "Fog: transmittance channels", (x - 900, y - 160), frame)
+    ops = {}
+    for k, (name, op, value) in enumerate((("Sum RG", 'ADD', None), ("Sum RGB", 'ADD', None),
+                                           ("Minus 1", 'SUBTRACT', 1.0), ("Third", 'MULTIPLY', 1.0 / 3.0),
+                                           ("Value", 'MULTIPLY_ADD', 1.0))):
+        node = _node(tree, ALPHA_NODE_PREFIX + name, "CompositorNodeMath", f"Fog alpha: {name.lower()}",
+                     (x - 720 + 160 * k, y - 80), frame)
+        node.operation = op
+        node.use_clamp = False
+        if value is not None:
+            node.inputs[1 if op != 'MULTIPLY_ADD' else 2].default_value = value
+        ops[name] = node
+    alpha = _node(tree, NODE_ALPHA, "CompositorNodeSetAlpha", "Fog: coverage alpha", (x + 80, y - 80), frame)
+    alpha.mode = 'REPLACE_ALPHA'
+    for sep in (color, trans):
+        sep.mode = 'RGB'
+    transmittance = image_node.outputs.get(PASS_TRANSMITTANCE)
+    if transmittance is not None:
+        _link(tree, transmittance, trans.inputs[0])
+    else:  # no passes yet: T = 1 keeps the alpha
+        trans.inputs[0].default_value = (1.0, 1.0, 1.0, 1.0)
+    _link(tree, add.outputs[0], color.inputs[0])
+    _link(tree, trans.outputs["Red"], ops["Sum RG"].inputs[0])
+    _link(tree, trans.outputs["Green"], ops["Sum RG"].inputs[1])
+    _link(tree, ops["Sum RG"].outputs[0], ops["Sum RGB"].inputs[0])
+    _link(tree, trans.outputs["Blue"], ops["Sum RGB"].inputs[1])
+    _link(tree, color.outputs["Alpha"], ops["Minus 1"].inputs[0])
+    _link(tree, ops["Minus 1"].outputs[0], ops["Third"].inputs[0])
+    _link(tree, ops["Third"].outputs[0], ops["Value"].inputs[0])
+    _link(tree, ops["Sum RGB"].outputs[0], ops["Value"].inputs[1])
+    _link(tree, add.outputs[0], alpha.inputs["Image"])
+    _link(tree, ops["Value"].outputs[0], alpha.inputs["Alpha"])
+    return alpha
 
 
 def is_set_up(scene):
@@ -130,10 +188,12 @@ def setup(scene, filepath=None):
     if image is not None:
         image_node.image = image
 
-    # Insert between the Composite node's current source and the Composite node.
+    # Insert between the Composite node's current source and the Composite node (a tree
+    # set up before the alpha nodes existed feeds it from the Add node).
+    alpha = _setup_alpha(tree, frame, image_node, add)
     target = composite.inputs["Image"]
     source = target.links[0].from_socket if target.is_linked else None
-    if source is None or source.node != add:
+    if source is None or source.node not in (add, alpha):
         if source is None:
             render_layers = _first_of_type(tree, 'R_LAYERS')
             if render_layers is None:
@@ -143,16 +203,14 @@ def setup(scene, filepath=None):
         for link in list(multiply.inputs[1].links):
             tree.links.remove(link)
         tree.links.new(source, multiply.inputs[1])
-        tree.links.new(add.outputs[0], target)
+    _link(tree, alpha.outputs[0], target)
     if not add.inputs[1].is_linked:
         tree.links.new(multiply.outputs[0], add.inputs[1])
     viewer = _first_of_type(tree, 'VIEWER')
     if viewer is None:
         viewer = tree.nodes.new("CompositorNodeViewer")
         viewer.location = (x, y - 250)
-    if not (viewer.inputs["Image"].is_linked
-            and viewer.inputs["Image"].links[0].from_node == add):
-        tree.links.new(add.outputs[0], viewer.inputs["Image"])
+    _link(tree, alpha.outputs[0], viewer.inputs["Image"])
 
     _link_passes(tree, image_node, multiply, add)
     _setup_surface(scene, tree, frame, image_node, multiply)
@@ -273,7 +331,7 @@ def neutral_passes(scene, depsgraph=None):
 
 def _mute(scene, tree):
     muted = not scene.airlight.enabled
-    for node in _fog_nodes(tree)[1:] + _surface_nodes(tree):
+    for node in _fog_nodes(tree)[1:] + _surface_nodes(tree) + _alpha_nodes(tree):
         if node is not None and node.mute != muted:
             node.mute = muted
 
