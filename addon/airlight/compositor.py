@@ -100,8 +100,9 @@ def is_set_up(scene):
 
 
 def is_complete(scene):
-    """Set up, and the Image node's pass outputs are linked into the fog nodes."""
-    if not is_set_up(scene):
+    """Set up, with the alpha node (a tree from an earlier version may lack it), and the
+    Image node's pass outputs linked into the fog nodes."""
+    if not is_set_up(scene) or scene.node_tree.nodes.get(NODE_ALPHA) is None:
         return False
     image_node, multiply, add = _fog_nodes(scene.node_tree)
     return multiply.inputs[2].is_linked and add.inputs[2].is_linked

@@ -45,6 +45,11 @@ def _main_thread_depsgraph(scene):
     return view_layer.depsgraph
 
 
+# The fog reaches the image through the compositor, which a render skips with
+# Output > Post Processing > Compositing off (the bake still writes its passes).
+COMPOSITING_OFF = ("Compositing is off (Output > Post Processing): renders are saved without "
+                   "the fog (its passes are still baked)")
+
 # Interactive renders: the scene whose frame render_pre marked for baking in the render
 # thread's frame_change_post (see the module's docstring); None when nothing is pending.
 _pending = {"scene": None}
@@ -110,6 +115,8 @@ def _bake_for_render(scene, get_depsgraph, get_mesh_overrides=lambda: None):
         return
     _failed.pop(scene.name, None)
     print(f"Airlight: fog of frame {frame} baked in {seconds * 1000.0:.0f} ms -> {filepath}", flush=True)
+    if not scene.render.use_compositing:
+        print(f"Airlight: frame {frame}: {COMPOSITING_OFF}", flush=True)
     if settings.auto_composite:
         compositor.sync(scene, filepath)
 

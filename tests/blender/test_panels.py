@@ -45,3 +45,21 @@ def test02_fog_object_note_matches_what_the_bake_does():
     for name in ("biri06", "pegoraro10"):  # any phase, spots and suns too
         assert "sun lamps, any phase" in ui.fog_object_note(name)
     assert "does not take fog objects" in ui.fog_object_note("hoffman02")
+
+
+@pytest.mark.skipif(not __import__("airlight").native.available(), reason="needs _native")
+def test03_compositing_off_is_said_in_the_panel_and_the_console(tmp_path, capsys):
+    """With Output > Post Processing > Compositing off a render skips the compositor, so the
+    fog never reaches the image: the panel and each render's console line say so."""
+    from airlight import render
+    scene = build_plane_scene(tmp_path, size=(16, 12))
+    assert render.COMPOSITING_OFF not in _draw("AIRLIGHT_PT_scene")
+    render.on_render_pre(scene)
+    assert "Compositing is off" not in capsys.readouterr().out
+    scene.render.use_compositing = False
+    assert render.COMPOSITING_OFF in _draw("AIRLIGHT_PT_scene")
+    render.on_render_pre(scene)
+    out = capsys.readouterr().out
+    assert "baked" in out and f"frame {scene.frame_current}: {render.COMPOSITING_OFF}" in out
+    scene.airlight.enabled = False
+    assert render.COMPOSITING_OFF not in _draw("AIRLIGHT_PT_scene")
