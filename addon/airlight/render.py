@@ -49,6 +49,10 @@ def _main_thread_depsgraph(scene):
 # Output > Post Processing > Compositing off (the bake still writes its passes).
 COMPOSITING_OFF = ("Compositing is off (Output > Post Processing): renders are saved without "
                    "the fog (its passes are still baked)")
+# Stereoscopy / multi-view renders: one bake, from the scene camera, composited into every
+# view (a view's own camera sees the fog from a few centimetres away: silhouettes shift).
+MULTIVIEW = ("Stereoscopy is on: every view gets the fog baked for the scene camera "
+             "(not per view)")
 
 # Interactive renders: the scene whose frame render_pre marked for baking in the render
 # thread's frame_change_post (see the module's docstring); None when nothing is pending.
@@ -117,6 +121,8 @@ def _bake_for_render(scene, get_depsgraph, get_mesh_overrides=lambda: None):
     print(f"Airlight: fog of frame {frame} baked in {seconds * 1000.0:.0f} ms -> {filepath}", flush=True)
     if not scene.render.use_compositing:
         print(f"Airlight: frame {frame}: {COMPOSITING_OFF}", flush=True)
+    if scene.render.use_multiview:
+        print(f"Airlight: frame {frame}: {MULTIVIEW}", flush=True)
     if settings.auto_composite:
         compositor.sync(scene, filepath)
 

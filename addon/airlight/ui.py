@@ -94,6 +94,8 @@ class AIRLIGHT_PT_scene(bpy.types.Panel):
             layout.label(text="Compositor fog nodes are missing.", icon='INFO')
         if settings.enabled and not context.scene.render.use_compositing:
             layout.label(text=render.COMPOSITING_OFF, icon='ERROR')
+        if settings.enabled and context.scene.render.use_multiview:
+            layout.label(text=render.MULTIVIEW, icon='INFO')
 
         box = layout.box()
         box.label(text="Lights in the Fog")

@@ -48,9 +48,10 @@ def test02_fog_object_note_matches_what_the_bake_does():
 
 
 @pytest.mark.skipif(not __import__("airlight").native.available(), reason="needs _native")
-def test03_compositing_off_is_said_in_the_panel_and_the_console(tmp_path, capsys):
+def test03_compositing_off_and_stereoscopy_are_said_in_the_panel_and_the_console(tmp_path, capsys):
     """With Output > Post Processing > Compositing off a render skips the compositor, so the
-    fog never reaches the image: the panel and each render's console line say so."""
+    fog never reaches the image; with Stereoscopy every view gets the scene camera's bake:
+    the panel and each render's console line say so."""
     from airlight import render
     scene = build_plane_scene(tmp_path, size=(16, 12))
     assert render.COMPOSITING_OFF not in _draw("AIRLIGHT_PT_scene")
@@ -61,5 +62,12 @@ def test03_compositing_off_is_said_in_the_panel_and_the_console(tmp_path, capsys
     render.on_render_pre(scene)
     out = capsys.readouterr().out
     assert "baked" in out and f"frame {scene.frame_current}: {render.COMPOSITING_OFF}" in out
+    scene.render.use_compositing = True
+    # Stereoscopy: one bake for every view, said the same way.
+    scene.render.use_multiview = True
+    assert render.MULTIVIEW in _draw("AIRLIGHT_PT_scene")
+    render.on_render_pre(scene)
+    assert f"frame {scene.frame_current}: {render.MULTIVIEW}" in capsys.readouterr().out
     scene.airlight.enabled = False
-    assert render.COMPOSITING_OFF not in _draw("AIRLIGHT_PT_scene")
+    seen = _draw("AIRLIGHT_PT_scene")
+    assert render.COMPOSITING_OFF not in seen and render.MULTIVIEW not in seen
