@@ -94,6 +94,21 @@ def _setup_alpha(tree, frame, image_node, add):
     return alpha
 
 
+def _feeds(tree, node, socket):
+    """Whether _node_ lies upstream of the input _socket_ (through any links)."""
+    seen = set()
+    stack = [link.from_node for link in socket.links]
+    while stack:
+        current = stack.pop()
+        if current == node:
+            return True
+        if current.name in seen:
+            continue
+        seen.add(current.name)
+        stack.extend(link.from_node for socket in current.inputs for link in socket.links)
+    return False
+
+
 def is_set_up(scene):
     tree = scene.node_tree if scene.use_nodes else None
     return tree is not None and all(n is not None for n in _fog_nodes(tree))
@@ -189,12 +204,18 @@ def setup(scene, filepath=None):
     if image is not None:
         image_node.image = image
 
-    # Insert between the Composite node's current source and the Composite node (a tree
-    # set up before the alpha nodes existed feeds it from the Add node).
     alpha = _setup_alpha(tree, frame, image_node, add)
+    # A tree set up before the alpha nodes existed: what the Add node fed (the Composite,
+    # the Viewer, a user's node after the fog) now takes the alpha node's output.
+    for link in list(add.outputs[0].links):
+        if link.to_node != alpha and not link.to_node.name.startswith(ALPHA_NODE_PREFIX):
+            tree.links.new(alpha.outputs[0], link.to_socket)
+    # Insert between the Composite node's current source and the Composite node, unless
+    # the fog already feeds it, directly or through the user's nodes after it (re-inserting
+    # there would close a loop through them).
     target = composite.inputs["Image"]
-    source = target.links[0].from_socket if target.is_linked else None
-    if source is None or source.node not in (add, alpha):
+    if not _feeds(tree, alpha, target):
+        source = target.links[0].from_socket if target.is_linked else None
         if source is None:
             render_layers = _first_of_type(tree, 'R_LAYERS')
             if render_layers is None:
@@ -204,14 +225,17 @@ def setup(scene, filepath=None):
         for link in list(multiply.inputs[1].links):
             tree.links.remove(link)
         tree.links.new(source, multiply.inputs[1])
-    _link(tree, alpha.outputs[0], target)
+        tree.links.new(alpha.outputs[0], target)
     if not add.inputs[1].is_linked:
         tree.links.new(multiply.outputs[0], add.inputs[1])
+    # The Viewer shows the fogged image when it shows nothing else (a user's Viewer link
+    # elsewhere is theirs).
     viewer = _first_of_type(tree, 'VIEWER')
     if viewer is None:
         viewer = tree.nodes.new("CompositorNodeViewer")
         viewer.location = (x, y - 250)
-    _link(tree, alpha.outputs[0], viewer.inputs["Image"])
+    if not viewer.inputs["Image"].is_linked:
+        tree.links.new(alpha.outputs[0], viewer.inputs["Image"])
 
     _link_passes(tree, image_node, multiply, add)
     _setup_surface(scene, tree, frame, image_node, multiply)

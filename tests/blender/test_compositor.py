@@ -85,6 +85,40 @@ def test04_tree_set_up_before_the_alpha_nodes_gets_them_once(tmp_path):
     assert tree.nodes["Airlight Multiply"].inputs[1].links[0].from_node.type == 'R_LAYERS'
 
 
+def test06_users_nodes_after_the_fog_stay_after_it(tmp_path):
+    """A grade added between the fog and the Composite node stays there through later
+    setups (each render runs one): the fog is not inserted again after it (that closed a
+    loop through the grade and broke the composite); the user's Viewer link is theirs. An
+    earlier version's tree (Add -> grade -> Composite) gets the alpha node before the grade."""
+    scene = build_plane_scene(tmp_path)
+    compositor.setup(scene)
+    tree = scene.node_tree
+    composite = next(n for n in tree.nodes if n.type == 'COMPOSITE')
+    viewer = next(n for n in tree.nodes if n.type == 'VIEWER')
+    render_layers = next(n for n in tree.nodes if n.type == 'R_LAYERS')
+    grade = tree.nodes.new("CompositorNodeGamma")
+    grade.name = "User Grade"
+    tree.links.new(tree.nodes["Airlight Alpha"].outputs[0], grade.inputs["Image"])
+    tree.links.new(grade.outputs["Image"], composite.inputs["Image"])
+    tree.links.new(render_layers.outputs["Image"], viewer.inputs["Image"])
+    for _ in range(2):
+        compositor.setup(scene)
+        assert all(link.is_valid for link in tree.links)
+        assert composite.inputs["Image"].links[0].from_node == grade
+        assert grade.inputs["Image"].links[0].from_node.name == "Airlight Alpha"
+        assert tree.nodes["Airlight Multiply"].inputs[1].links[0].from_node == render_layers
+        assert viewer.inputs["Image"].links[0].from_node == render_layers
+
+    for node in [n for n in tree.nodes if n.name.startswith("Airlight Alpha")]:
+        tree.nodes.remove(node)
+    tree.links.new(tree.nodes["Airlight Add"].outputs[0], grade.inputs["Image"])
+    compositor.setup(scene)
+    assert all(link.is_valid for link in tree.links)
+    assert grade.inputs["Image"].links[0].from_node.name == "Airlight Alpha"
+    assert tree.nodes["Airlight Alpha"].inputs["Image"].links[0].from_node.name == "Airlight Add"
+    assert composite.inputs["Image"].links[0].from_node == grade
+
+
 @needs_native
 def test05_transparent_film_alpha_is_the_fogs_coverage(tmp_path):
     """Film > Transparent: as Cycles does for a volume, the composite's alpha is
