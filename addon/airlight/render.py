@@ -53,6 +53,27 @@ COMPOSITING_OFF = ("Compositing is off (Output > Post Processing): renders are s
 # view (a view's own camera sees the fog from a few centimetres away: silhouettes shift).
 MULTIVIEW = ("Stereoscopy is on: every view gets the fog baked for the scene camera "
              "(not per view)")
+# The bake traces one pinhole camera at the frame's instant: a render's depth of field
+# and motion blur smear silhouettes that the fog passes keep sharp (a fringe at the edge).
+DEPTH_OF_FIELD = ("Depth of field: the fog passes stay sharp, so out-of-focus silhouettes get "
+                  "a fringe (for clean edges, defocus after the fog with the Defocus node)")
+MOTION_BLUR = "Motion blur: the fog is baked at the frame's instant, sharp at moving silhouettes"
+
+
+def render_notes(scene):
+    """What the fog composite of _scene_'s renders cannot do as the render asks (the
+    messages above), for the panel and each render's console line."""
+    notes = []
+    if not scene.render.use_compositing:
+        notes.append(COMPOSITING_OFF)
+    if scene.render.use_multiview:
+        notes.append(MULTIVIEW)
+    camera = scene.camera
+    if camera is not None and camera.type == 'CAMERA' and camera.data.dof.use_dof:
+        notes.append(DEPTH_OF_FIELD)
+    if scene.render.use_motion_blur:
+        notes.append(MOTION_BLUR)
+    return notes
 
 # Interactive renders: the scene whose frame render_pre marked for baking in the render
 # thread's frame_change_post (see the module's docstring); None when nothing is pending.
@@ -119,10 +140,8 @@ def _bake_for_render(scene, get_depsgraph, get_mesh_overrides=lambda: None):
         return
     _failed.pop(scene.name, None)
     print(f"Airlight: fog of frame {frame} baked in {seconds * 1000.0:.0f} ms -> {filepath}", flush=True)
-    if not scene.render.use_compositing:
-        print(f"Airlight: frame {frame}: {COMPOSITING_OFF}", flush=True)
-    if scene.render.use_multiview:
-        print(f"Airlight: frame {frame}: {MULTIVIEW}", flush=True)
+    for note in render_notes(scene):
+        print(f"Airlight: frame {frame}: {note}", flush=True)
     if settings.auto_composite:
         compositor.sync(scene, filepath)
 

@@ -92,10 +92,8 @@ class AIRLIGHT_PT_scene(bpy.types.Panel):
         row.operator("airlight.setup_compositor", icon='NODETREE')
         if settings.enabled and not compositor.is_set_up(context.scene) and not settings.auto_composite:
             layout.label(text="Compositor fog nodes are missing.", icon='INFO')
-        if settings.enabled and not context.scene.render.use_compositing:
-            layout.label(text=render.COMPOSITING_OFF, icon='ERROR')
-        if settings.enabled and context.scene.render.use_multiview:
-            layout.label(text=render.MULTIVIEW, icon='INFO')
+        for note in render.render_notes(context.scene) if settings.enabled else ():
+            layout.label(text=note, icon='ERROR' if note == render.COMPOSITING_OFF else 'INFO')
 
         box = layout.box()
         box.label(text="Lights in the Fog")

@@ -48,10 +48,11 @@ def test02_fog_object_note_matches_what_the_bake_does():
 
 
 @pytest.mark.skipif(not __import__("airlight").native.available(), reason="needs _native")
-def test03_compositing_off_and_stereoscopy_are_said_in_the_panel_and_the_console(tmp_path, capsys):
+def test03_what_the_fog_composite_cannot_do_is_said_in_the_panel_and_the_console(tmp_path, capsys):
     """With Output > Post Processing > Compositing off a render skips the compositor, so the
-    fog never reaches the image; with Stereoscopy every view gets the scene camera's bake:
-    the panel and each render's console line say so."""
+    fog never reaches the image; with Stereoscopy every view gets the scene camera's bake;
+    depth of field and motion blur leave the fog passes sharp: the panel and each render's
+    console line say so."""
     from airlight import render
     scene = build_plane_scene(tmp_path, size=(16, 12))
     assert render.COMPOSITING_OFF not in _draw("AIRLIGHT_PT_scene")
@@ -68,6 +69,15 @@ def test03_compositing_off_and_stereoscopy_are_said_in_the_panel_and_the_console
     assert render.MULTIVIEW in _draw("AIRLIGHT_PT_scene")
     render.on_render_pre(scene)
     assert f"frame {scene.frame_current}: {render.MULTIVIEW}" in capsys.readouterr().out
+    scene.render.use_multiview = False
+    # Depth of field and motion blur: the passes stay sharp.
+    scene.camera.data.dof.use_dof = True
+    scene.render.use_motion_blur = True
+    seen = _draw("AIRLIGHT_PT_scene")
+    assert render.DEPTH_OF_FIELD in seen and render.MOTION_BLUR in seen and render.MULTIVIEW not in seen
+    render.on_render_pre(scene)
+    out = capsys.readouterr().out
+    assert render.DEPTH_OF_FIELD in out and render.MOTION_BLUR in out
     scene.airlight.enabled = False
     seen = _draw("AIRLIGHT_PT_scene")
-    assert render.COMPOSITING_OFF not in seen and render.MULTIVIEW not in seen
+    assert not {render.COMPOSITING_OFF, render.MULTIVIEW, render.DEPTH_OF_FIELD, render.MOTION_BLUR} & set(seen)
