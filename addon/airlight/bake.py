@@ -32,13 +32,17 @@ SURFACE_GROUPS = "surface_groups"
 REGION = "render_region"
 
 
-def bake_settings(scene):
-    """Keyword arguments of `_native.bake` that are not part of the scene description."""
+def bake_settings(scene, description=None):
+    """Keyword arguments of `_native.bake` that are not part of the scene description
+    (_description_, scene_export's, gives Automatic the render's pixel size for the fog
+    objects' resolution; without it the 1080p reference is assumed)."""
     settings = scene.airlight
     model = model_choice.choose(settings)[0]
     extra = dict(rayleigh_density=float(settings.rayleigh_density)) if model == "hoffman02" else {}
+    pixel = (model_choice.pixel_angle(description["projection"], description["width"])
+             if description is not None else None)
     return dict(model=model, threads=settings.threads, aa_samples=settings.aa_samples,
-                gaussian_resolution=model_choice.gaussian_resolution(settings),
+                gaussian_resolution=model_choice.gaussian_resolution(settings, pixel),
                 homogeneous_resolution=getattr(settings, "homogeneous_resolution", 'FULL').lower(),
                 **model_choice.table_settings(settings), **extra)
 
@@ -51,7 +55,7 @@ def prepare(scene, depsgraph, mesh_overrides=None):
     (environment.prepare(); absent when off), which `run` takes out before the native bake."""
     try:
         description = scene_export.export_scene(scene, depsgraph, mesh_overrides)
-        settings = bake_settings(scene)
+        settings = bake_settings(scene, description)
         world = environment.prepare(scene)
         if world is not None:
             settings["environment"] = world

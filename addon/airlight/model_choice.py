@@ -111,8 +111,8 @@ def table_settings(settings):
 # relative error of the Airlight and Transmittance passes against the full-resolution bake
 # at 1920x1080, the worst over benchmarks/bench_rbf.py's scenes (34 broad blobs x 3 lights,
 # 3000 blobs x 1 light, walls cutting the cloud). The error is the bilinear interpolation of
-# smooth terms over 2 or 4 pixels: it grows at lower render resolutions (at 320x180,
-# tests/native/test16_rbf_resolution.py measures up to ~4x these) and with fog noise.
+# smooth terms over 2 or 4 pixels: it grows with a pixel's size (REFERENCE_PIXEL_ANGLE
+# below) and with fog noise.
 # (Quarter: 0.502 % on the transmittance since its cull spheres are sized for 1e-5,
 # RbfSplat::kReducedCullEps; 0.526 % since broad blobs are interpolated from the far-field
 # grids, rbf_splat.h, whose tolerance at Half is tighter to keep Half at 0.099 %.)
@@ -122,23 +122,47 @@ GAUSSIAN_RESOLUTION_ERROR = {'FULL': 0.0, 'HALF': 1.0e-3, 'QUARTER': 5.3e-3}
 # More noise (larger amplitude, smaller scale) errs more.
 GAUSSIAN_RESOLUTION_ERROR_NOISE = {'FULL': 0.0, 'HALF': 1.2e-2, 'QUARTER': 5.8e-2}
 _RESOLUTIONS = ('QUARTER', 'HALF', 'FULL')  # coarse to fine
+# Those errors are the bilinear interpolation's over 2 or 4 pixels, measured at 1920x1080
+# with a 60-degree horizontal field of view (a pixel at the centre spans this angle). They
+# grow as the square of a pixel's angle: the same scenes at lower render resolutions
+# (bench_rbf.py --width W --height H --resolutions full,half,quarter; max over the scenes of
+# the max transmittance error, which dominates) erred 3.75x (Quarter; Half 3.9x) at
+# 960x540, 13.3x (14x) at 480x270 and 28.9x (32x) at 320x180, against (angle ratio)^2 =
+# 4, 16 and 36 (the largest: Quarter 15.2 %, Half 3.16 % at 320x180, against 19.1 % and
+# 3.6 % so scaled). Larger pixels (lower resolutions, wider lenses) scale the table by that
+# square; smaller ones keep it.
+REFERENCE_PIXEL_ANGLE = 2.0 * math.tan(math.radians(30.0)) / 1920.0
 
 
-def gaussian_resolution_error(name, settings):
-    """Measured max relative error of fog objects at resolution _name_ (against Full)."""
+def pixel_angle(projection, width):
+    """Angle of a pixel at the image centre for a perspective _projection_ (4x4, OpenGL
+    convention, as scene_export exports it) _width_ pixels wide; None for orthographic ones
+    (fog objects are not baked at reduced resolution there)."""
+    if projection[3][2] == 0.0 or projection[0][0] == 0.0 or width < 1:
+        return None
+    return 2.0 / (abs(projection[0][0]) * width)
+
+
+def gaussian_resolution_error(name, settings, pixel_angle=None):
+    """Max relative error of fog objects at resolution _name_ against Full: the measured
+    1080p figure, scaled by the square of _pixel_angle_ (radians at the image centre; None:
+    the reference) over REFERENCE_PIXEL_ANGLE when that is larger."""
     noisy = getattr(settings, "noise_amplitude", 0.0) > 0.0
-    return (GAUSSIAN_RESOLUTION_ERROR_NOISE if noisy else GAUSSIAN_RESOLUTION_ERROR)[name]
+    error = (GAUSSIAN_RESOLUTION_ERROR_NOISE if noisy else GAUSSIAN_RESOLUTION_ERROR)[name]
+    if pixel_angle is not None:
+        error *= max(1.0, (pixel_angle / REFERENCE_PIXEL_ANGLE) ** 2)
+    return error
 
 
-def gaussian_resolution(settings):
+def gaussian_resolution(settings, pixel_angle=None):
     """`_native.bake`'s gaussian_resolution ("full", "half", "quarter"): the user's choice;
-    with the Automatic model the coarsest one, no coarser than that choice, whose measured
-    error (gaussian_resolution_error) meets the accuracy target."""
+    with the Automatic model the coarsest one, no coarser than that choice, whose error
+    (gaussian_resolution_error at the render's _pixel_angle_) meets the accuracy target."""
     choice = getattr(settings, "gaussian_resolution", 'FULL')
     if settings.model == 'AUTO':
         target = settings.accuracy / 100.0
         for name in _RESOLUTIONS[_RESOLUTIONS.index(choice):]:
-            if gaussian_resolution_error(name, settings) <= target:
+            if gaussian_resolution_error(name, settings, pixel_angle) <= target:
                 choice = name
                 break
     return choice.lower()
