@@ -48,6 +48,9 @@ namespace {
 constexpr int kBandRows = 16;
 constexpr int kMaxResolution = 32768;
 constexpr double kPi = 3.14159265358979323846;
+// A fog-object Gaussian's largest optical depth through its centre for the Fogshop models'
+// float kernels (FogModel).
+constexpr double kMaxCentreDepth = 1e4;
 // Relative tolerance of the quadrature model inside a bake (reference, not speed).
 constexpr double kQuadratureRelTol = 1e-8;
 // Relative tolerance of the spot-light quadrature (every model: spots have no closed form);
@@ -655,6 +658,32 @@ class FogModel {
             // Fogshop's per-(light, Gaussian) precomputation, once for the shared viewpoint,
             // and the tiled splatting (rbf_splat.h) that evaluates it.
             if (fogshop && shared_origin_) {
+                // The splat's float kernels take a Gaussian's optical depth on a segment as
+                // (c sqrt(pi) / 2a) times a difference of erfc values, which cancels (both near
+                // 1) on a segment that starts inside the Gaussian's core (the eye or a light
+                // within ~1 / a of its centre) and is short against 1 / a: that loses c
+                // sqrt(pi) / 2a times float's 1.2e-7. Such a Gaussian whose optical depth
+                // through its centre, c sqrt(pi) / a, exceeds kMaxCentreDepth (1e4: <= ~1e-3
+                // of transmittance; measured 2.9e-3 at 1.8e4, garbage and an infinite airlight
+                // at 1.8e8) is refused with what to do. Elsewhere its segments' erfc values are
+                // not both near 1 (a dense blob seen from outside: no loss).
+                for (size_t i = 0; i < g.scales.size(); ++i) {
+                    const double a = g.scales[i];
+                    const double depth = g.amplitudes[i] * std::sqrt(kPi) / a;
+                    if (!(depth > kMaxCentreDepth)) continue;
+                    const Vec3 b(g.centres[3 * i], g.centres[3 * i + 1], g.centres[3 * i + 2]);
+                    bool inside = a * glm::length(b - origin_) < 2.0;
+                    for (const Vec3& s : rbf_lights_) inside = inside || a * glm::length(b - s) < 2.0;
+                    if (inside) {
+                        std::ostringstream os;
+                        os << "fog objects: Gaussian " << i << " (amplitude " << g.amplitudes[i] << " /m, scale " << a
+                           << " /m) holds the camera or a light in its core and has an optical depth of " << depth
+                           << " through its centre, beyond the " << kMaxCentreDepth
+                           << " the Fogshop models compute accurately there: give fog this wide and dense to "
+                              "the scene's uniform Density, or use model 'quadrature'";
+                        throw std::invalid_argument(os.str());
+                    }
+                }
                 RbfSplatLights extra;
                 if (extended) {
                     extra.phase = phase_;
@@ -1965,11 +1994,16 @@ BakeResult bake(const SceneDescription& scene, const BakeSettings& settings, con
                             continue;
                         }
                         const double seg_c = double(bs.cl.t[c]) - (near_clip ? double(bs.cl.t0[c]) : 0.0);
+                        // (in optical depth: in dense fog the factor alone overflows where the
+                        // cluster's transmittance has underflowed to 0, and their product was NaN;
+                        // the sample's own optical depth is >= 0, its transmittance <= 1)
+                        const double log_Tr_c = bs.cl.Tr[c] > 0.0 ? std::log(double(bs.cl.Tr[c]))
+                                                                  : -std::numeric_limits<double>::infinity();
                         for (int q = b; q < end; ++q) {
                             const size_t k = s0 + size_t(order[q]);
                             const double seg = double(sub_t[k]) - (near_clip ? double(sub_t0[k]) : 0.0);
                             const double Tr_k = end - b == 1 ? bs.cl.Tr[c]
-                                                             : bs.cl.Tr[c] * std::exp(-sigma_bg * (seg - seg_c));
+                                                             : std::exp(std::min(0.0, log_Tr_c - sigma_bg * (seg - seg_c)));
                             Tr_all += Tr_k;
                             if (!std::isinf(sub_t[k])) Tr_hits += Tr_k, ++hits;
                         }
