@@ -101,6 +101,12 @@ def export_camera(scene, depsgraph):
     if width < 1 or height < 1:
         raise ExportError(f"The render resolution {width}x{height} is empty.")
     camera_eval = camera.evaluated_get(depsgraph)
+    world = np.array(camera_eval.matrix_world, dtype=np.float64)
+    if not np.isfinite(world).all():
+        raise ExportError(f"Camera '{camera.name}' has a NaN or infinite transform (a driver or constraint?).")
+    if not abs(float(np.linalg.det(world[:3, :3]))) > 1e-30:
+        raise ExportError(f"Camera '{camera.name}' has a zero scale: it sees nothing (set its Scale "
+                          "to 1 in the Object properties).")
     render = scene.render
     projection = camera_eval.calc_matrix_camera(
         depsgraph, x=width, y=height,
@@ -118,7 +124,11 @@ def export_clip_range(scene, depsgraph):
     """(clip_start, clip_end) of the scene camera: Cycles starts camera rays on the near
     plane (the fog begins there) and does not see surfaces beyond the far plane."""
     data = scene.camera.evaluated_get(depsgraph).data
-    return float(data.clip_start), float(data.clip_end)
+    start, end = float(data.clip_start), float(data.clip_end)
+    if not start < end:
+        raise ExportError(f"Camera '{scene.camera.name}': Clip Start ({start:g}) must be less than "
+                          f"Clip End ({end:g}).")
+    return start, end
 
 
 def _mesh_arrays(obj_eval):
@@ -176,7 +186,10 @@ def export_geometry_and_lights(scene, depsgraph, skip=frozenset()):
                 continue
             # Cycles point light: radiant intensity I0 = C * P / (4 pi) W/sr (NOTES.md).
             positions.append(matrix[:3, 3])
-            intensities.append(np.array(light.color, dtype=np.float64) * light.energy / (4.0 * math.pi))
+            intensities.append(_emission(obj, light) / (4.0 * math.pi))
+            if not (np.isfinite(positions[-1]).all() and np.isfinite(intensities[-1]).all()):
+                raise ExportError(f"Light '{obj.name}' has a NaN or infinite location, colour or power "
+                                  "(a driver or constraint?).")
             continue
         # Geometry the camera cannot see does not stop view rays.
         if obj.type not in _GEOMETRY_TYPES or not getattr(obj, "visible_camera", True):
@@ -186,6 +199,9 @@ def export_geometry_and_lights(scene, depsgraph, skip=frozenset()):
             continue
         local, tris = arrays
         world = local.astype(np.float64) @ matrix[:3, :3].T + matrix[:3, 3]
+        if not np.isfinite(world).all():
+            raise ExportError(f"Object '{obj.name}' has NaN or infinite vertices or transform "
+                              "(a driver, constraint or modifier?).")
         vertex_blocks.append(world.astype(np.float32))
         triangle_blocks.append(tris.astype(np.uint32) + np.uint32(n_vertices))
         n_vertices += len(local)
@@ -197,8 +213,18 @@ def export_geometry_and_lights(scene, depsgraph, skip=frozenset()):
     return vertices, triangles, light_positions, light_intensities, skipped
 
 
+def _emission(obj, light):
+    """Colour x power of a light (W, or W/m^2 for suns), RGB float64. Blender allows a
+    negative power (Cycles then subtracts light); the fog bake takes none: ExportError
+    naming the light and how to keep it out of the fog."""
+    if light.energy < 0.0:
+        raise ExportError(f"Light '{obj.name}' has a negative power ({light.energy:g}): the fog takes lights "
+                          "of power >= 0 (untick its Scatter in Fog to keep it out of the fog).")
+    return np.array(light.color, dtype=np.float64) * light.energy
+
+
 def _directed_lights(depsgraph, light_type, skip):
-    """(light data, world matrix (4, 4), unit -Z direction) of every render-visible,
+    """(object, light data, world matrix (4, 4), unit -Z direction) of every render-visible,
     participating light instance of _light_type_ ('SPOT', 'SUN'); lights named in _skip_
     (Automatic's skipped lights) are left out unless instanced. A degenerate transform
     raises ExportError."""
@@ -214,12 +240,15 @@ def _directed_lights(depsgraph, light_type, skip):
         if not light.original.airlight.participate or (not instance.is_instance and obj.name in skip):
             continue
         matrix = np.array(instance.matrix_world, dtype=np.float64)
+        if not (np.isfinite(matrix).all() and np.isfinite(_emission(obj, light)).all()):
+            raise ExportError(f"{light_type.title()} light '{obj.name}' has a NaN or infinite transform, "
+                              "colour or power (a driver or constraint?).")
         direction = -matrix[:3, 2]
         norm = float(np.linalg.norm(direction))
         if not (norm > 0.0 and math.isfinite(norm)):
             raise ExportError(f"{light_type.title()} light '{obj.name}' has a degenerate transform "
                               "(no direction).")
-        yield light, matrix, direction / norm
+        yield obj, light, matrix, direction / norm
 
 
 def export_spot_lights(depsgraph, skip=frozenset()):
@@ -231,10 +260,10 @@ def export_spot_lights(depsgraph, skip=frozenset()):
     intensity is the point light's formula and the profile is applied by the bake.
     """
     positions, axes, intensities, sizes, blends = [], [], [], [], []
-    for light, matrix, axis in _directed_lights(depsgraph, 'SPOT', skip):
+    for obj, light, matrix, axis in _directed_lights(depsgraph, 'SPOT', skip):
         positions.append(matrix[:3, 3])
         axes.append(axis)
-        intensities.append(np.array(light.color, dtype=np.float64) * light.energy / (4.0 * math.pi))
+        intensities.append(_emission(obj, light) / (4.0 * math.pi))
         sizes.append(float(light.spot_size))
         blends.append(float(light.spot_blend))
     if not positions:
@@ -260,9 +289,9 @@ def export_sun_lights(scene, depsgraph, skip=frozenset()):
     else +inf (Hoffman-Preetham: unattenuated sunlight), see native/kernels/sun_layer.h.
     """
     directions, irradiances = [], []
-    for light, _matrix, direction in _directed_lights(depsgraph, 'SUN', skip):
+    for obj, light, _matrix, direction in _directed_lights(depsgraph, 'SUN', skip):
         directions.append(direction)
-        irradiances.append(np.array(light.color, dtype=np.float64) * light.energy)
+        irradiances.append(_emission(obj, light))
     if not directions:
         return {}
     settings = scene.airlight

@@ -165,3 +165,31 @@ def test05_errors_are_clear(tmp_path):
     scene.camera.data.type = 'PANO'
     with pytest.raises(scene_export.ExportError, match="panoramic"):
         scene_export.export_scene(scene, bpy.context.evaluated_depsgraph_get())
+
+
+@pytest.mark.parametrize("label, mutate, message", [
+    ("negative power", lambda s: setattr(bpy.data.lights["Lamp"], "energy", -100.0),
+     r"Light 'Lamp' has a negative power \(-100\).*Scatter in Fog"),
+    ("NaN power", lambda s: setattr(bpy.data.lights["Lamp"], "energy", float("nan")),
+     "Light 'Lamp' has a NaN or infinite location, colour or power"),
+    ("NaN lamp location", lambda s: setattr(bpy.data.objects["Lamp"], "location", (float("nan"), 0.0, 1.0)),
+     "Light 'Lamp' has a NaN or infinite location"),
+    ("zero camera scale", lambda s: setattr(s.camera, "scale", (0.0, 0.0, 0.0)), "Camera 'Cam' has a zero scale"),
+    ("NaN camera rotation", lambda s: setattr(s.camera, "rotation_euler", (float("nan"), 0.0, 0.0)),
+     "Camera 'Cam' has a NaN or infinite transform"),
+    ("NaN vertex", lambda s: setattr(bpy.data.objects["Ground"].data.vertices[0], "co", (float("nan"), 0.0, 0.0)),
+     "Object 'Ground' has NaN or infinite vertices"),
+    ("clip range", lambda s: (setattr(s.camera.data, "clip_start", 5.0), setattr(s.camera.data, "clip_end", 5.0)),
+     r"Camera 'Cam': Clip Start \(5\) must be less than Clip End \(5\)"),
+])
+def test06_bad_objects_are_named(tmp_path, label, mutate, message):
+    """Bad values in the scene (a negative or NaN light, a degenerate camera, NaN geometry
+    from a driver) name the object and what to change, before the native bake sees them."""
+    scene = build_plane_scene(tmp_path)
+    mutate(scene)
+    with pytest.raises(scene_export.ExportError, match=message):
+        scene_export.export_scene(scene, bpy.context.evaluated_depsgraph_get())
+    # The negative light kept out of the fog (Scatter in Fog off) no longer stops the bake.
+    if label == "negative power":
+        bpy.data.lights["Lamp"].airlight.participate = False
+        scene_export.export_scene(scene, bpy.context.evaluated_depsgraph_get())
