@@ -4,7 +4,7 @@ import math
 
 import bpy
 
-from . import compositor, fog_object, model_choice, native, render, surface
+from . import compositor, fog_object, model_choice, native, render, scene_export, surface
 from .properties import SUPPORTED_LIGHT_TYPES
 
 
@@ -198,11 +198,35 @@ class AIRLIGHT_PT_fog_objects(bpy.types.Panel):
             col.label(text=f"{count} fog object{'s' if count != 1 else ''}", icon='OUTLINER_OB_POINTCLOUD')
             col.label(text=fog_object_note(model_choice.choose(settings)[0]), icon='INFO')
         col.prop(settings, "gaussian_resolution", text="Resolution")
+        chosen = resolution_note(context) if count else None
+        if chosen:
+            col.label(text=chosen, icon='INFO')
         col.prop(settings, "noise_amplitude")
         sub = col.column()
         sub.active = settings.noise_amplitude > 0.0
         sub.prop(settings, "noise_scale")
         sub.prop(settings, "noise_offset")
+
+
+def resolution_note(context):
+    """What Automatic bakes fog objects at for this render when that is finer than the
+    Resolution setting (the error grows as the square of a pixel's angle: model_choice),
+    else None."""
+    scene = context.scene
+    settings = scene.airlight
+    if settings.model != 'AUTO':
+        return None
+    try:
+        width, _height, _to_world, projection = scene_export.export_camera(scene, context.evaluated_depsgraph_get())
+    except scene_export.ExportError:
+        return None
+    angle = model_choice.pixel_angle(projection, width)
+    chosen = model_choice.gaussian_resolution(settings, angle)
+    if chosen == settings.gaussian_resolution.lower():
+        return None
+    factor = (angle / model_choice.REFERENCE_PIXEL_ANGLE) ** 2
+    return (f"Automatic bakes {chosen.title()} here: at this render size the error is {factor:.1f}x "
+            f"the 1080p figure, above the {settings.accuracy:g} % target")
 
 
 class AIRLIGHT_PT_environment(bpy.types.Panel):

@@ -188,3 +188,24 @@ def test21_gaussian_resolution_follows_the_render_pixel_size(tmp_path):
 
 def prop_default(settings, name):
     return settings.bl_rna.properties[name].default
+
+
+def test22_fog_objects_panel_says_when_automatic_goes_finer(tmp_path):
+    """The Fog Objects panel says which resolution Automatic bakes when the render's pixels
+    make it finer than the setting, and nothing when the setting stands."""
+    import math
+    from airlight import fog_object, ui
+    from conftest import build_plane_scene, draw_panel
+    scene = build_plane_scene(tmp_path, size=(1920, 1080))
+    scene.camera.data.sensor_fit = 'HORIZONTAL'
+    scene.camera.data.angle = math.radians(60.0)
+    fog_object.new_fog_object("Fog", scene.collection, np.zeros((1, 3)), 1.0, 0.1)
+    settings = scene.airlight
+    settings.model, settings.accuracy, settings.gaussian_resolution = 'AUTO', 1.0, 'QUARTER'
+    assert ui.resolution_note(bpy.context) is None
+    scene.render.resolution_x, scene.render.resolution_y = 960, 540
+    note = ui.resolution_note(bpy.context)
+    assert note.startswith("Automatic bakes Half here") and "4.0x" in note
+    assert note in draw_panel("AIRLIGHT_PT_fog_objects")
+    settings.model = 'SUN05'  # an explicit model keeps the setting
+    assert ui.resolution_note(bpy.context) is None
