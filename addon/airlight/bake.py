@@ -32,6 +32,15 @@ SURFACE_GROUPS = "surface_groups"
 REGION = "render_region"
 
 
+def film_filter_width(scene):
+    """The render's pixel filter width in pixels, which the bake's edge sub-samples follow
+    (Blackman-Harris, importance-sampled): Cycles' Film > Pixel Filter width, else
+    Render > Film > Filter Size (EEVEE, Workbench). Cycles' Box and Gaussian filters get
+    the Blackman-Harris one of their width."""
+    cycles = getattr(scene, "cycles", None) if scene.render.engine == 'CYCLES' else None
+    return float(cycles.filter_width) if cycles is not None else float(scene.render.filter_size)
+
+
 def bake_settings(scene, description=None):
     """Keyword arguments of `_native.bake` that are not part of the scene description
     (_description_, scene_export's, gives Automatic the render's pixel size for the fog
@@ -42,6 +51,7 @@ def bake_settings(scene, description=None):
     pixel = (model_choice.pixel_angle(description["projection"], description["width"])
              if description is not None else None)
     return dict(model=model, threads=settings.threads, aa_samples=settings.aa_samples,
+                filter_width=film_filter_width(scene),
                 gaussian_resolution=model_choice.gaussian_resolution(settings, pixel),
                 homogeneous_resolution=getattr(settings, "homogeneous_resolution", 'FULL').lower(),
                 **model_choice.table_settings(settings), **extra)

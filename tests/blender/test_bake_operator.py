@@ -110,3 +110,29 @@ def test08_progress_returning_false_cancels_without_writing(tmp_path):
     with pytest.raises(native.get().BakeCancelled):
         bake.run(description, settings, str(path), progress)
     assert calls and not path.exists()
+
+
+@needs_real_native
+def test09_edge_samples_follow_the_render_pixel_filter(tmp_path):
+    """The bake's edge sub-samples use the render's pixel filter width (Cycles' Film >
+    Pixel Filter; EEVEE's Filter Size), so that its silhouette pixels average the fog as
+    the render averages the surfaces behind it: the operator's passes equal the native bake
+    at that width, and differ from the default 1.5 px on edge pixels only."""
+    scene = build_plane_scene(tmp_path, size=(64, 48))
+    scene.camera.location = (0.0, -6.0, 1.5)
+    scene.camera.rotation_euler = (1.35, 0.0, 0.0)  # the horizon: edge pixels
+    scene.render.engine = 'CYCLES'
+    scene.cycles.filter_width = 3.0
+    assert bake.bake_settings(scene)["filter_width"] == 3.0
+    scene.render.engine = 'BLENDER_EEVEE'
+    scene.render.filter_size = 2.25
+    assert bake.bake_settings(scene)["filter_width"] == 2.25
+    scene.render.engine = 'CYCLES'
+    path = _bake(tmp_path / "fog.exr")
+    description = scene_export.export_scene(scene, bpy.context.evaluated_depsgraph_get())
+    settings = bake.bake_settings(scene)
+    wide = native.get().bake(**description, **settings)
+    default = native.get().bake(**description, **dict(settings, filter_width=1.5))
+    np.testing.assert_array_equal(exr_pass(path, "Transmittance"), wide["transmittance"])
+    differs = np.any(wide["transmittance"] != default["transmittance"], axis=2)
+    assert 0 < differs.sum() <= wide["stats"]["supersampled_pixels"]
