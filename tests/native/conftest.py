@@ -21,6 +21,6 @@ def pytest_collect_file(parent, file_path):
     if file_path.suffix != ".py" or not fnmatch.fnmatch(file_path.name, "test[0-9]*.py"):
         return None
     patterns = parent.config.getini("python_files")
-    if any(fnmatch.fnmatch(file_path.name, p) for p in patterns):
-        return None  # pytest collects it already
+    if any(fnmatch.fnmatch(file_path.name, p) for p in patterns) or parent.session.isinitpath(file_path):
+        return None  # pytest collects it already (a file named on the command line too)
     return pytest.Module.from_parent(parent, path=file_path)
