@@ -250,7 +250,6 @@ class AIRLIGHT_OT_airbrush(brush_ops._FogBrush, bpy.types.Operator):
     def _source(self, context, xy):
         """(start point, surface normal or None) of new particles under pixel _xy_."""
         from bpy_extras import view3d_utils
-        from mathutils import Vector
         settings = context.scene.airlight_airbrush
         rv3d = self._area.spaces.active.region_3d
         origin = view3d_utils.region_2d_to_origin_3d(self._region, rv3d, xy)

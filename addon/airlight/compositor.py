@@ -6,8 +6,10 @@ a MixRGB Add, inserted between whatever fed the Composite node (or the Render La
 node) and the Composite/Viewer nodes. A Set Alpha node after them gives the composite the
 fog's coverage as Cycles' transparent film does for a volume: alpha = 1 - (1 - alpha) T,
 T the mean of the Transmittance pass's channels (opaque pixels stay opaque; with
-Film > Transparent the fog in front of the empty background covers 1 - T of it). `sync(scene, filepath)` points the Image node at a
-baked file and mutes the fog nodes when the fog is disabled, so the image passes through.
+Film > Transparent the fog in front of the empty background covers 1 - T of it). Nodes
+the user adds after the fog stay after it. `sync(scene, filepath)` points the Image node
+at a baked file and mutes the fog nodes when the fog is disabled, so the image passes
+through.
 
 With surface shading (surface.py; Cycles only) a chain in the same frame first corrects the
 render's surfaces for the fog: Image + sum_g Combined_<g> x Surface_<g> + DiffCol x

@@ -75,6 +75,7 @@ def render_notes(scene):
         notes.append(MOTION_BLUR)
     return notes
 
+
 # Interactive renders: the scene whose frame render_pre marked for baking in the render
 # thread's frame_change_post (see the module's docstring); None when nothing is pending.
 _pending = {"scene": None}

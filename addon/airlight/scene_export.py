@@ -111,7 +111,7 @@ def export_camera(scene, depsgraph):
     projection = camera_eval.calc_matrix_camera(
         depsgraph, x=width, y=height,
         scale_x=render.pixel_aspect_x, scale_y=render.pixel_aspect_y)
-    cam_to_world = np.array(camera_eval.matrix_world, dtype=np.float64)
+    cam_to_world = world
     projection = np.array(projection, dtype=np.float64)
     window = bake_window(scene)
     if window is not None:

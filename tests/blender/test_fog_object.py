@@ -7,7 +7,6 @@ import time
 import bpy
 import numpy as np
 import pytest
-from mathutils import Matrix
 
 from airlight import fog_object as fo
 

@@ -1,6 +1,5 @@
 """The Scene > Airlight Fog panels draw without errors, show only properties that exist
 and have tooltips, and say what the model does with fog objects."""
-import bpy
 import numpy as np
 import pytest
 

@@ -1,5 +1,4 @@
 """Renders through `blender -b file -f/-a` with the add-on: fog is baked and composited."""
-import os
 
 import bpy
 import numpy as np

@@ -4,7 +4,6 @@ import math
 import bpy
 import numpy as np
 import pytest
-from mathutils import Matrix
 
 from airlight import scene_export, visibility
 from conftest import build_plane_scene
