@@ -65,7 +65,9 @@ def _scene(tmp_path, ui_frame, surface, engine='CYCLES'):
     scene.render.use_compositing = True
     scene.render.filepath = str(tmp_path / "out_")
     scene.airlight.enabled = True
-    scene.airlight.density = 0.02
+    for frame, density in ((1, 0.02), (3, 0.06)):  # keyframed fog settings follow the frame too
+        scene.airlight.density = density
+        scene.airlight.keyframe_insert("density", frame=frame)
     scene.airlight.cache_dir = str(tmp_path / "cache") + os.sep
     scene.airlight.surface_shading = surface
     scene.cursor.location = (0.0, 0.0, 0.4)
