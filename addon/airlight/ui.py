@@ -75,6 +75,7 @@ class AIRLIGHT_PT_scene(bpy.types.Panel):
         col.prop(settings, "aa_samples")
         col.prop(settings, "threads")
         col.prop(settings, "cache_dir")
+        col.prop(settings, "pass_precision")
         col.prop(settings, "auto_composite")
         col.prop(settings, "surface_shading")
         sub = col.column()

@@ -281,7 +281,7 @@ py::dict bake_py(int width, int height, const py::object& cam_to_world, const py
     return out;
 }
 
-void write_exr_py(const std::string& path, const py::dict& passes, const std::string& layer_prefix) {
+void write_exr_py(const std::string& path, const py::dict& passes, const std::string& layer_prefix, bool half) {
     // Convert every pass to contiguous float32 (H, W, 3), all of one size.
     if (passes.size() == 0) throw py::value_error("write_exr: passes is empty");
     std::vector<std::string> names;
@@ -306,7 +306,7 @@ void write_exr_py(const std::string& path, const py::dict& passes, const std::st
     std::vector<ExrPass> exr_passes;
     for (size_t i = 0; i < names.size(); ++i) exr_passes.push_back({names[i], arrays[i].data()});
     py::gil_scoped_release release;
-    write_multilayer_exr(path, int(W), int(H), exr_passes, layer_prefix);
+    write_multilayer_exr(path, int(W), int(H), exr_passes, layer_prefix, half);
 }
 
 }  // namespace
@@ -424,8 +424,9 @@ tiles and far-field grids, seconds_fog_setup: building the fog model between the
 and the airlight pass)); rows top first. Raises
 ValueError on invalid input. The GIL is released while baking.)doc");
 
-    m.def("write_exr", &write_exr_py, "path"_a, "passes"_a, "layer_prefix"_a = "",
-          R"doc(Write one multilayer float EXR.
+    m.def("write_exr", &write_exr_py, "path"_a, "passes"_a, "layer_prefix"_a = "", "half"_a = false,
+          R"doc(Write one multilayer EXR (32-bit float; half=True: 16-bit half floats, rounded
+to nearest, relative error <= 2^-11 from 6.1e-5 up, a quarter to a third of the file).
 
 passes: dict name -> (H, W, 3) float32 array (top row first); channels are named
 "<layer_prefix><name>.R/G/B" in dict order. Raises RuntimeError on I/O failure.)doc");

@@ -1,4 +1,5 @@
-// exr_io.cpp: one multilayer float EXR with an RGB triple per pass, via OpenImageIO.
+// exr_io.cpp: one multilayer float (or half) EXR with an RGB triple per pass, via
+// OpenImageIO (which converts the float buffer to half on writing).
 #include "exr_io.h"
 
 #include <OpenImageIO/imageio.h>
@@ -8,7 +9,7 @@
 namespace airlight {
 
 void write_multilayer_exr(const std::string& path, int width, int height,
-                          const std::vector<ExrPass>& passes, const std::string& layer_prefix) {
+                          const std::vector<ExrPass>& passes, const std::string& layer_prefix, bool half) {
     // Check the arguments; OIIO would otherwise fail with a less helpful message.
     if (width <= 0 || height <= 0) throw std::invalid_argument("EXR size must be positive");
     if (passes.empty()) throw std::invalid_argument("write_multilayer_exr: no passes given");
@@ -18,7 +19,7 @@ void write_multilayer_exr(const std::string& path, int width, int height,
 
     // Describe one part with channels "<prefix><name>.R/G/B" per pass.
     const int nchannels = 3 * int(passes.size());
-    OIIO::ImageSpec spec(width, height, nchannels, OIIO::TypeDesc::FLOAT);
+    OIIO::ImageSpec spec(width, height, nchannels, half ? OIIO::TypeDesc::HALF : OIIO::TypeDesc::FLOAT);
     spec.channelnames.clear();
     for (const ExrPass& pass : passes)
         for (const char* c : {".R", ".G", ".B"}) spec.channelnames.push_back(layer_prefix + pass.name + c);

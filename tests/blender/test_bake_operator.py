@@ -136,3 +136,19 @@ def test09_edge_samples_follow_the_render_pixel_filter(tmp_path):
     np.testing.assert_array_equal(exr_pass(path, "Transmittance"), wide["transmittance"])
     differs = np.any(wide["transmittance"] != default["transmittance"], axis=2)
     assert 0 < differs.sum() <= wide["stats"]["supersampled_pixels"]
+
+
+@needs_real_native
+def test10_half_precision_passes(tmp_path):
+    """Pass Precision Half: the cache file holds the bake's passes rounded to 16-bit floats
+    (numpy's float16 rounding of the native bake), in a much smaller file."""
+    scene = build_plane_scene(tmp_path, size=(64, 48))
+    full = _bake(tmp_path / "full.exr")
+    scene.airlight.pass_precision = 'HALF'
+    half = _bake(tmp_path / "half.exr")
+    description = scene_export.export_scene(scene, bpy.context.evaluated_depsgraph_get())
+    reference = native.get().bake(**description, **bake.bake_settings(scene))
+    for name, key in (("Airlight", "airlight"), ("Transmittance", "transmittance")):
+        np.testing.assert_array_equal(exr_pass(half, name), reference[key].astype(np.float16).astype(np.float32))
+        np.testing.assert_array_equal(exr_pass(full, name), reference[key])
+    assert os.path.getsize(half) < 0.5 * os.path.getsize(full)

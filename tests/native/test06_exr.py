@@ -40,3 +40,32 @@ def test02_bake_output_writes(tmp_path):
     _native.write_exr(path, out)
     _, pixels = read(path)
     assert np.all(pixels == 0.25)
+
+
+def test03_half_precision(tmp_path):
+    """half=True stores 16-bit floats: each value is numpy's float16 rounding of the input
+    (round to nearest even, as OpenEXR's half), relative error <= 2^-11 from 6.1e-5 up;
+    smooth passes (a bake's) compress to a fraction of the float file."""
+    rng = np.random.default_rng(3)
+    H, W = 48, 64
+    y, x = np.mgrid[0:H, 0:W]
+    smooth = (np.exp(-((x - 30.0) ** 2 + (y - 20.0) ** 2) / 300.0)[..., None] * [3.0, 2.0, 1.0]).astype(np.float32)
+    passes = {"Airlight": smooth, "Transmittance": rng.random((H, W, 3), dtype=np.float32),
+              "Tiny": (rng.random((H, W, 3)) * 1e-6).astype(np.float32)}
+    half_path, float_path = str(tmp_path / "half.exr"), str(tmp_path / "float.exr")
+    _native.write_exr(half_path, passes, half=True)
+    _native.write_exr(float_path, passes)
+    spec, pixels = read(half_path)
+    assert spec.format == oiio.HALF
+    names = list(spec.channelnames)
+    for name, a in passes.items():
+        got = np.stack([pixels[..., names.index(f"{name}.{c}")] for c in "RGB"], axis=-1)
+        np.testing.assert_array_equal(got, a.astype(np.float16).astype(np.float32))
+        big = np.abs(a) >= 6.1e-5
+        assert (np.abs(got - a)[big] <= 2.0 ** -11 * np.abs(a)[big]).all()
+        assert (np.abs(got - a)[~big] <= 3e-8).all()
+    smooth_only = {"Airlight": smooth}
+    _native.write_exr(half_path, smooth_only, half=True)
+    _native.write_exr(float_path, smooth_only)
+    import os
+    assert os.path.getsize(half_path) < 0.5 * os.path.getsize(float_path)
