@@ -73,7 +73,8 @@ def prepare(scene, depsgraph, mesh_overrides=None):
             settings["environment"] = world
     except (scene_export.ExportError, environment.WorldMapError) as ex:
         raise BakeError(str(ex)) from None
-    settings[HALF_PASSES] = getattr(scene.airlight, "pass_precision", 'FULL') == 'HALF'
+    if getattr(scene.airlight, "pass_precision", 'FULL') == 'HALF':
+        settings[HALF_PASSES] = True
     region, window = scene_export.render_region(scene), scene_export.bake_window(scene)
     if region is not None:
         width, height = scene_export.render_size(scene)
