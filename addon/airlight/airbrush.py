@@ -352,9 +352,7 @@ class AIRLIGHT_OT_fill_mesh(bpy.types.Operator):
         if not fog_object.is_fog_object(context.active_object):
             cls.poll_message_set("Make the fog object to fill active")
             return False
-        problem = fog_object.edit_problem(context.active_object)
-        if problem:
-            cls.poll_message_set(problem)
+        if not fog_object.poll_editable(cls, context.active_object):
             return False
         if not _fill_sources(context):
             cls.poll_message_set("Select a closed mesh to fill (besides the active fog object)")

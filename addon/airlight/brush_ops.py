@@ -277,9 +277,7 @@ class _FogBrush:
         if not fog_object.is_fog_object(context.active_object):
             cls.poll_message_set("Make a fog object active (Add > Airlight Fog Object)")
             return False
-        problem = fog_object.edit_problem(context.active_object)
-        if problem:
-            cls.poll_message_set(problem)
+        if not fog_object.poll_editable(cls, context.active_object):
             return False
         return True
 

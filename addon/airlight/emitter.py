@@ -579,9 +579,7 @@ class AIRLIGHT_OT_emitter_bake(bpy.types.Operator):
         if _active_emitter(context) is None:
             cls.poll_message_set("Make a fog emitter active")
             return False
-        problem = fog_object.edit_problem(context.active_object)
-        if problem:
-            cls.poll_message_set(problem)
+        if not fog_object.poll_editable(cls, context.active_object):
             return False
         return True
 

@@ -146,11 +146,7 @@ def _object_poll(cls, context, need_view3d, edits=True):
     if not fog_object.is_fog_object(context.active_object):
         cls.poll_message_set("Make a fog object active (Add > Airlight Fog Object)")
         return False
-    problem = fog_object.edit_problem(context.active_object) if edits else None
-    if problem:
-        cls.poll_message_set(problem)
-        return False
-    return True
+    return not edits or fog_object.poll_editable(cls, context.active_object)
 
 
 # ---- drawing ----------------------------------------------------------------------------

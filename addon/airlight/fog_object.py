@@ -69,6 +69,16 @@ def edit_problem(obj):
     return None
 
 
+def poll_editable(cls, obj):
+    """An operator poll's check that _obj_'s data can be edited (edit_problem): False with
+    the reason as the poll message when it cannot."""
+    problem = edit_problem(obj)
+    if problem:
+        cls.poll_message_set(problem)
+        return False
+    return True
+
+
 def _point_attribute(mesh, name):
     attr = mesh.attributes.get(name)
     if attr is not None and (attr.data_type != 'FLOAT' or attr.domain != 'POINT'):

@@ -185,11 +185,10 @@ def export_geometry_and_lights(scene, depsgraph, skip=frozenset()):
             if not instance.is_instance and obj.name in skip:
                 continue
             # Cycles point light: radiant intensity I0 = C * P / (4 pi) W/sr (NOTES.md).
+            if not np.isfinite(matrix).all():
+                raise ExportError(f"Light '{obj.name}' has a NaN or infinite location (a driver or constraint?).")
             positions.append(matrix[:3, 3])
             intensities.append(_emission(obj, light) / (4.0 * math.pi))
-            if not (np.isfinite(positions[-1]).all() and np.isfinite(intensities[-1]).all()):
-                raise ExportError(f"Light '{obj.name}' has a NaN or infinite location, colour or power "
-                                  "(a driver or constraint?).")
             continue
         # Geometry the camera cannot see does not stop view rays.
         if obj.type not in _GEOMETRY_TYPES or not getattr(obj, "visible_camera", True):
@@ -215,19 +214,22 @@ def export_geometry_and_lights(scene, depsgraph, skip=frozenset()):
 
 def _emission(obj, light):
     """Colour x power of a light (W, or W/m^2 for suns), RGB float64. Blender allows a
-    negative power (Cycles then subtracts light); the fog bake takes none: ExportError
-    naming the light and how to keep it out of the fog."""
+    negative power (Cycles then subtracts light); the fog bake takes none. ExportError,
+    naming the light, for that (with how to keep it out of the fog) and for NaN or inf."""
     if light.energy < 0.0:
         raise ExportError(f"Light '{obj.name}' has a negative power ({light.energy:g}): the fog takes lights "
                           "of power >= 0 (untick its Scatter in Fog to keep it out of the fog).")
-    return np.array(light.color, dtype=np.float64) * light.energy
+    emission = np.array(light.color, dtype=np.float64) * light.energy
+    if not np.isfinite(emission).all():
+        raise ExportError(f"Light '{obj.name}' has a NaN or infinite colour or power (a driver?).")
+    return emission
 
 
 def _directed_lights(depsgraph, light_type, skip):
-    """(object, light data, world matrix (4, 4), unit -Z direction) of every render-visible,
-    participating light instance of _light_type_ ('SPOT', 'SUN'); lights named in _skip_
-    (Automatic's skipped lights) are left out unless instanced. A degenerate transform
-    raises ExportError."""
+    """(light data, its emission (_emission), world matrix (4, 4), unit -Z direction) of
+    every render-visible, participating light instance of _light_type_ ('SPOT', 'SUN');
+    lights named in _skip_ (Automatic's skipped lights) are left out unless instanced. A
+    degenerate transform raises ExportError."""
     visible = visibility.RenderVisibility(depsgraph.view_layer)
     for instance in depsgraph.object_instances:
         obj = instance.object
@@ -240,15 +242,16 @@ def _directed_lights(depsgraph, light_type, skip):
         if not light.original.airlight.participate or (not instance.is_instance and obj.name in skip):
             continue
         matrix = np.array(instance.matrix_world, dtype=np.float64)
-        if not (np.isfinite(matrix).all() and np.isfinite(_emission(obj, light)).all()):
-            raise ExportError(f"{light_type.title()} light '{obj.name}' has a NaN or infinite transform, "
-                              "colour or power (a driver or constraint?).")
+        if not np.isfinite(matrix).all():
+            raise ExportError(f"{light_type.title()} light '{obj.name}' has a NaN or infinite transform "
+                              "(a driver or constraint?).")
+        emission = _emission(obj, light)
         direction = -matrix[:3, 2]
         norm = float(np.linalg.norm(direction))
         if not (norm > 0.0 and math.isfinite(norm)):
             raise ExportError(f"{light_type.title()} light '{obj.name}' has a degenerate transform "
                               "(no direction).")
-        yield obj, light, matrix, direction / norm
+        yield light, emission, matrix, direction / norm
 
 
 def export_spot_lights(depsgraph, skip=frozenset()):
@@ -260,10 +263,10 @@ def export_spot_lights(depsgraph, skip=frozenset()):
     intensity is the point light's formula and the profile is applied by the bake.
     """
     positions, axes, intensities, sizes, blends = [], [], [], [], []
-    for obj, light, matrix, axis in _directed_lights(depsgraph, 'SPOT', skip):
+    for light, emission, matrix, axis in _directed_lights(depsgraph, 'SPOT', skip):
         positions.append(matrix[:3, 3])
         axes.append(axis)
-        intensities.append(_emission(obj, light) / (4.0 * math.pi))
+        intensities.append(emission / (4.0 * math.pi))
         sizes.append(float(light.spot_size))
         blends.append(float(light.spot_blend))
     if not positions:
@@ -289,9 +292,9 @@ def export_sun_lights(scene, depsgraph, skip=frozenset()):
     else +inf (Hoffman-Preetham: unattenuated sunlight), see native/kernels/sun_layer.h.
     """
     directions, irradiances = [], []
-    for obj, light, _matrix, direction in _directed_lights(depsgraph, 'SUN', skip):
+    for _light, emission, _matrix, direction in _directed_lights(depsgraph, 'SUN', skip):
         directions.append(direction)
-        irradiances.append(_emission(obj, light))
+        irradiances.append(emission)
     if not directions:
         return {}
     settings = scene.airlight

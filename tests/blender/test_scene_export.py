@@ -170,7 +170,7 @@ def test05_errors_are_clear(tmp_path):
     ("negative power", lambda s: setattr(bpy.data.lights["Lamp"], "energy", -100.0),
      r"Light 'Lamp' has a negative power \(-100\).*Scatter in Fog"),
     ("NaN power", lambda s: setattr(bpy.data.lights["Lamp"], "energy", float("nan")),
-     "Light 'Lamp' has a NaN or infinite location, colour or power"),
+     "Light 'Lamp' has a NaN or infinite colour or power"),
     ("NaN lamp location", lambda s: setattr(bpy.data.objects["Lamp"], "location", (float("nan"), 0.0, 1.0)),
      "Light 'Lamp' has a NaN or infinite location"),
     ("zero camera scale", lambda s: setattr(s.camera, "scale", (0.0, 0.0, 0.0)), "Camera 'Cam' has a zero scale"),
