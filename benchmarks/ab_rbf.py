@@ -4,6 +4,7 @@
     /usr/bin/python3 benchmarks/ab_rbf.py --a DIR_A --b DIR_B [--scenes 3000,34,walls]
                                           [--rounds 3] [--warmup 3] [--bakes 9]
                                           [--resolution quarter] [--threads 2]
+                                          [--width 1920 --height 1080]
 
 DIR_A and DIR_B each hold a `_native*.so` (e.g. one built from an older commit with
 `cmake -S <worktree> -B <build> -DAIRLIGHT_MODULE_DIR=DIR_A -DAIRLIGHT_BUILD_TESTS=OFF
@@ -11,7 +12,7 @@ DIR_A and DIR_B each hold a `_native*.so` (e.g. one built from an older commit w
 speed drifts by 10-15 % within minutes, so figures from separate runs do not compare: this
 script alternates the two builds scene by scene for --rounds rounds, each measurement a
 fresh process (AIRLIGHT_NATIVE_DIR) that bakes the scene --warmup times untimed, then
---bakes times at 1920x1080, and reports the median wall and CPU time of the timed bakes.
+--bakes times at --width x --height (1920x1080 by default), and reports the median wall and CPU time of the timed bakes.
 The warm-up matters: a process's first bakes build tables and fault in fresh pages (the
 first always; the second too where a large buffer was freed and allocated again, until
 glibc raises its mmap threshold), so medians over a process's first 3 bakes mix that in.
@@ -35,21 +36,23 @@ import json, sys
 sys.path.insert(0, {here!r})
 import bench_rbf as B
 scene, warmup, bakes, resolution, threads = {scene!r}, {warmup}, {bakes}, {resolution!r}, {threads}
+W, H = {width}, {height}
 if scene == "34":
     gauss, lights, walls = B.cloud(34, (3.0, 10.0), (0.005, 0.02), 1), 3, False
 else:
     gauss, lights, walls = B.cloud(3000, (1.0, 3.0), (0.01, 0.05), 2), 1, scene == "walls"
 if warmup > 0:
-    B.bake(1920, 1080, lights, gauss, threads, warmup, resolution, walls)
-wall, airlight, res, cpu, _ = B.bake(1920, 1080, lights, gauss, threads, bakes, resolution, walls)
+    B.bake(W, H, lights, gauss, threads, warmup, resolution, walls)
+wall, airlight, res, cpu, _ = B.bake(W, H, lights, gauss, threads, bakes, resolution, walls)
 print(json.dumps({{"wall": wall, "cpu": cpu}}))
 """
 
 SCENES = ("3000", "34", "walls")
 
 
-def measure(native_dir, scene, warmup, bakes, resolution, threads):
-    code = CHILD.format(here=HERE, scene=scene, warmup=warmup, bakes=bakes, resolution=resolution, threads=threads)
+def measure(native_dir, scene, warmup, bakes, resolution, threads, width, height):
+    code = CHILD.format(here=HERE, scene=scene, warmup=warmup, bakes=bakes, resolution=resolution, threads=threads,
+                        width=width, height=height)
     env = dict(os.environ, AIRLIGHT_NATIVE_DIR=native_dir)
     out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True)
     if out.returncode != 0:
@@ -67,6 +70,8 @@ def main():
     ap.add_argument("--bakes", type=int, default=9, help="timed bakes per process (their median is one measurement)")
     ap.add_argument("--resolution", default="quarter", choices=("full", "half", "quarter"))
     ap.add_argument("--threads", type=int, default=2)
+    ap.add_argument("--width", type=int, default=1920)
+    ap.add_argument("--height", type=int, default=1080)
     args = ap.parse_args()
     scenes = args.scenes.split(",")
     for s in scenes:
@@ -77,12 +82,13 @@ def main():
         if not os.path.isdir(d) or not any(f.startswith("_native") for f in os.listdir(d)):
             raise SystemExit(f"build {name}: no _native module in {d}")
     print(f"A = {builds['A']}\nB = {builds['B']}\n{args.rounds} rounds x ({args.warmup} untimed + {args.bakes} timed) "
-          f"bakes per process, 1920x1080, {args.resolution}, {args.threads} threads")
+          f"bakes per process, {args.width}x{args.height}, {args.resolution}, {args.threads} threads")
     runs = {(b, s): [] for b in builds for s in scenes}
     for _ in range(args.rounds):
         for s in scenes:
             for b, d in builds.items():
-                runs[(b, s)].append(measure(d, s, args.warmup, args.bakes, args.resolution, args.threads))
+                runs[(b, s)].append(measure(d, s, args.warmup, args.bakes, args.resolution, args.threads,
+                                             args.width, args.height))
     for s in scenes:
         med = {}
         for b in builds:

@@ -1719,6 +1719,7 @@ void RbfSplat::bin(const Vec3& D0, const Vec3& Dx, const Vec3& Dy, const Vec3& f
     }
     n_lattice_ = 0;
     n_coarse_ = 0;
+    n_fine_ = 0;
     n_far_ = 0;
     n_cancelled_ = 0;
     n_exact_ = 0;
@@ -2631,7 +2632,9 @@ void RbfSplat::splat_tile_reduced(int t, int x0, int y0, int w, int h, const flo
     // The Gaussians wholly in front go to the lattice in one Gaussian-major pass
     // (lattice_batch) on the plain path without noise.
     const bool batch = plain_ && !noise_.on();
-    thread_local std::vector<std::uint32_t> batch_list, coarse_list, cancel_list;
+    thread_local std::vector<std::uint32_t> batch_list, coarse_list, cancel_list, fine_list;
+    fine_list.clear();
+    const bool fine_ok = batch && exact_tile && s == 4;
     batch_list.clear();
     coarse_list.clear();
     cancel_list.clear();
@@ -2667,6 +2670,17 @@ void RbfSplat::splat_tile_reduced(int t, int x0, int y0, int w, int h, const flo
             near_lattice = true;
         }
         if (exact_here) {
+            // Wholly behind the tile's surface: below the cull bound, as anywhere else.
+            if (g.dist - g.radius >= far_hi) {
+                ++behind;
+                continue;
+            }
+            // Wholly in front and clear of the lights at half the lattice's spacing: on the
+            // fine lattice (spacing s / 2, the same light-factor bound tau; quarter only).
+            if (fine_ok && g.dist + g.radius <= far_lo && light_clear(i, t, 0.5)) {
+                fine_list.push_back(std::uint32_t(i));
+                continue;
+            }
             splat_gaussian(i, n, dx, dy, dz, far, Tf, Rf, Gf, Bf);
             ++exact;
             continue;
@@ -2789,7 +2803,8 @@ void RbfSplat::splat_tile_reduced(int t, int x0, int y0, int w, int h, const flo
         if (any_exact) ++exact;
         else ++behind;
     }
-    n_lattice_.fetch_add(lattice + far_front, std::memory_order_relaxed);
+    n_lattice_.fetch_add(lattice + far_front + fine_list.size(), std::memory_order_relaxed);
+    n_fine_.fetch_add(fine_list.size(), std::memory_order_relaxed);
     n_far_.fetch_add(far_front, std::memory_order_relaxed);
     n_cancelled_.fetch_add(cancel_list.size(), std::memory_order_relaxed);
     n_exact_.fetch_add(exact, std::memory_order_relaxed);
@@ -2869,6 +2884,28 @@ void RbfSplat::splat_tile_reduced(int t, int x0, int y0, int w, int h, const flo
                 cB[k] -= mB[k];
             }
         }
+    }
+    if (!fine_list.empty()) {
+        // The fine lattice of an exact tile (spacing s / 2), interpolated to the pixels.
+        const int sf = s / 2, nuf = int((w - 0.5) / sf) + 2, nvf = int((h - 0.5) / sf) + 2, mf = nuf * nvf;
+        const int mf_pad = (mf + 15) / 16 * 16;
+        float qx[kMaxLattice], qy[kMaxLattice], qz[kMaxLattice];
+        float qT[kMaxLattice] = {}, qR[kMaxLattice] = {}, qG[kMaxLattice] = {}, qB[kMaxLattice] = {};
+        for (int v = 0; v < nvf; ++v)
+            for (int u = 0; u < nuf; ++u) {
+                const Vec3 d = glm::normalize(D0_ + double(x0 + sf * u) * Dx_ + double(y0 + sf * v) * Dy_);
+                const int k = v * nuf + u;
+                qx[k] = float(d.x);
+                qy[k] = float(d.y);
+                qz[k] = float(d.z);
+            }
+        for (int k = mf; k < mf_pad; ++k) {
+            qx[k] = qx[mf - 1];
+            qy[k] = qy[mf - 1];
+            qz[k] = qz[mf - 1];
+        }
+        lattice_sum(fine_list, mf, qx, qy, qz, qT, qR, qG, qB);
+        interp_lattice(w, h, sf, nuf, qT, qR, qG, qB, Tf, Rf, Gf, Bf);
     }
     if (lattice == 0 && !near_lattice && !far_field) return;
     // Bilinear interpolation of the lattice sums to the pixel centres.
@@ -3054,7 +3091,7 @@ void RbfSplat::lattice_batch(const std::uint32_t* idx, int n, int m, const float
 
 RbfSplat::ReducedCounts RbfSplat::reduced_counts() const {
     return {n_lattice_.load(), n_exact_.load(), n_behind_.load(), n_coarse_.load(),
-            n_far_.load(),     n_cancelled_.load(), far_gaussians_, far_nodes_};
+            n_far_.load(),     n_cancelled_.load(), far_gaussians_, far_nodes_, n_fine_.load()};
 }
 
 void RbfSplat::eval_rays(const Vec3* dirs, const float* Dvp, const float* t0, int n, double* Tr, RGB* La) const {

@@ -171,6 +171,11 @@ class RbfSplat {
     //  evaluated exactly there. Guarantees: |b - s| - R (b^r lies within the cull radius of
     //  b), the rays' closest approach to s, and |(b - s) . u| cos a - |b - s| sin a (b^r stays
     //  before or beyond the light along its line of sight u; a the rays' largest angle to u).
+    //  In such a tile at quarter resolution a Gaussian wholly behind the surface is skipped
+    //  as anywhere, and one wholly in front whose rays keep |b^r - s| >= 27 (s / 2) pixels'
+    //  angle times d goes on a fine lattice of spacing s / 2 (9 x 9 rays instead of 256
+    //  pixels; the same bound tau, the light factor's error scaling as the spacing squared
+    //  over |b^r - s|^2), interpolated bilinearly like the lattice.
     //  Coarse lattice (plain path, no noise): an in-front Gaussian whose term is smooth on
     //  the scale of H = 2 s pixels goes on every other lattice node (spacing H), whose
     //  bilinear interpolant is spread onto the lattice: its angular scale 1 / (sqrt 2 a d)
@@ -215,10 +220,11 @@ class RbfSplat {
     // pairs, those on the coarse lattice (every other node, see splat_tile).
     // far: of the lattice pairs, those served by the far-field grids; far_cancelled: of the
     // pairs behind, those whose grid share was cancelled; far_gaussians and far_nodes: the
-    // Gaussians on the grids and their (grid node, Gaussian) evaluations.
+    // Gaussians on the grids and their (grid node, Gaussian) evaluations. fine: of the lattice
+    // pairs, those on the fine lattice of a tile next to a light's image (splat_tile).
     struct ReducedCounts {
         std::size_t lattice = 0, exact = 0, behind = 0, coarse = 0, far = 0, far_cancelled = 0, far_gaussians = 0,
-                    far_nodes = 0;
+                    far_nodes = 0, fine = 0;
     };
     ReducedCounts reduced_counts() const;
 
@@ -335,7 +341,7 @@ class RbfSplat {
     // allows: their Gaussians are checked one by one (light_far_, light_clear), their edge
     // samples skip the lattice
     std::vector<unsigned char> exact_tile_;
-    mutable std::atomic<std::size_t> n_lattice_{0}, n_exact_{0}, n_behind_{0}, n_coarse_{0};
+    mutable std::atomic<std::size_t> n_lattice_{0}, n_exact_{0}, n_behind_{0}, n_coarse_{0}, n_fine_{0};
     // step_ > 1: per Gaussian, coarse lattice allowed: 2 everywhere, 1 in tiles whose rays keep
     // its b^r far enough from the lights (light_clear), 0 nowhere (too narrow)
     std::vector<unsigned char> smooth_;

@@ -482,10 +482,11 @@ TEST(RbfSplat, LightImageTilesAgainstFull) {
             worst_A = std::max(worst_A, std::abs(double(quarter.A[3 * p]) - double(full.A[3 * p])) / double(full.A[3 * p]));
             worst_T = std::max(worst_T, std::abs(double(quarter.T[3 * p]) - double(full.T[3 * p])) / double(full.T[3 * p]));
         }
-    std::printf("next to the light's image: %zu lattice, %zu exact pairs; quarter vs full: airlight max rel %.3g, "
-                "transmittance max rel %.3g\n", rc.lattice, rc.exact, worst_A, worst_T);
+    std::printf("next to the light's image: %zu lattice (%zu fine), %zu exact pairs; quarter vs full: airlight max "
+                "rel %.3g, transmittance max rel %.3g\n", rc.lattice, rc.fine, rc.exact, worst_A, worst_T);
     EXPECT_GT(rc.lattice, 0u);  // the far ones take the lattice
     EXPECT_GT(rc.exact, 0u);    // the ones around the light do not
+    EXPECT_GT(rc.fine, 0u);     // those clear of it at half the spacing take the fine lattice
     // measured 8.0e-4 and 9.2e-3 (the quarter lattice's own error on the Gaussians of ~20 px
     // 30-40 m away, as anywhere in the image); with every Gaussian on the lattice (light_clear
     // always true, those around and beside the light included): airlight 0.215
