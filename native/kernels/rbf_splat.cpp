@@ -2093,114 +2093,6 @@ void RbfSplat::build_far_field(const std::vector<int>& rect, FarScratch& far) {
         std::fill(level_.begin(), level_.end(), 0);
         return;
     }
-    far_grids_.resize(kMaxFarLevel);
-    for (int k = 1; k <= kMaxFarLevel; ++k) {
-        if (!(used >> (k - 1) & 1u)) continue;
-        FarGrid& grid = far_grids_[k - 1];
-        grid_dims(k, grid.h, grid.nx, grid.ny);
-        const std::size_t m = std::size_t(grid.nx) * grid.ny;
-        for (auto* v : {&grid.T, &grid.R, &grid.G, &grid.B, &grid.dx, &grid.dy, &grid.dz}) v->assign(m, 0.0f);
-        for (int Q = 0; Q < grid.ny; ++Q)
-            for (int P = 0; P < grid.nx; ++P) {
-                const Vec3 r = glm::normalize(D0_ + double(grid.h * (P - 1)) * Dx_ + double(grid.h * (Q - 1)) * Dy_);
-                const std::size_t o = std::size_t(Q) * grid.nx + P;
-                grid.dx[o] = float(r.x);
-                grid.dy[o] = float(r.y);
-                grid.dz[o] = float(r.z);
-            }
-    }
-    // The grids in blocks of kBlock x kBlock nodes, each with the list of its level's
-    // Gaussians whose cull cones meet its rays (the cone test of bin(), on the block's
-    // corner nodes), evaluated Gaussian-major like the tile lattices (lattice_batch). A
-    // Gaussian is on every node of its blocks: elsewhere its terms are < the cull eps.
-    constexpr int kBlock = 8;
-    struct Unit {
-        int k, P0, Q0, P1, Q1;
-        std::vector<std::uint32_t> list;
-    };
-    std::vector<Unit> units;
-    std::vector<int> unit_base(kMaxFarLevel + 1, 0);
-    for (int k = 1; k <= kMaxFarLevel; ++k) {
-        unit_base[k - 1] = int(units.size());
-        const FarGrid& grid = far_grids_[k - 1];
-        if (grid.T.empty()) continue;
-        for (int Q = 0; Q < grid.ny; Q += kBlock)
-            for (int P = 0; P < grid.nx; P += kBlock)
-                units.push_back({k, P, Q, std::min(grid.nx, P + kBlock) - 1, std::min(grid.ny, Q + kBlock) - 1, {}});
-    }
-    unit_base[kMaxFarLevel] = int(units.size());
-    // Each block's cone: axis through its centre node, cos and sin of its largest angle to
-    // a corner node (the nodes' directions are those of a convex film quadrilateral).
-    struct BlockCone {
-        Vec3 axis;
-        double cos_t, sin_t;
-    };
-    std::vector<BlockCone> block_cone(units.size());
-    for (std::size_t u = 0; u < units.size(); ++u) {
-        const Unit& un = units[u];
-        const FarGrid& grid = far_grids_[un.k - 1];
-        auto film = [&](int P, int Q) { return D0_ + double(grid.h * (P - 1)) * Dx_ + double(grid.h * (Q - 1)) * Dy_; };
-        const Vec3 axis = glm::normalize(film(un.P0, un.Q0) + film(un.P1, un.Q1));
-        double cmin = 1.0;
-        for (int P : {un.P0, un.P1})
-            for (int Q : {un.Q0, un.Q1}) cmin = std::min(cmin, glm::dot(axis, glm::normalize(film(P, Q))));
-        cmin = std::clamp(cmin - 1e-9, -1.0, 1.0);
-        block_cone[u] = {axis, cmin, std::sqrt(std::max(0.0, 1.0 - cmin * cmin))};
-    }
-    for (std::uint32_t i : far_list) {
-        const int k = level_[i];
-        const FarGrid& grid = far_grids_[k - 1];
-        const int bx = (grid.nx + kBlock - 1) / kBlock;
-        int P0, P1, Q0, Q1;
-        node_range(i, k, P0, P1, Q0, Q1);
-        const Vec3 u = Vec3(g_[i].rx, g_[i].ry, g_[i].rz) / g_[i].dist;
-        const double sin_r = std::min(1.0, g_[i].radius / g_[i].dist), cos_r = std::sqrt(1.0 - sin_r * sin_r);
-        for (int by = Q0 / kBlock; by <= Q1 / kBlock; ++by)
-            for (int bxx = P0 / kBlock; bxx <= P1 / kBlock; ++bxx) {
-                const std::size_t un = std::size_t(unit_base[k - 1] + by * bx + bxx);
-                const BlockCone& c = block_cone[un];
-                const double cos_sum = c.cos_t * cos_r - c.sin_t * sin_r;
-                if (c.sin_t * cos_r + c.cos_t * sin_r >= 0.0 && glm::dot(c.axis, u) < cos_sum) continue;
-                units[un].list.push_back(i);
-            }
-    }
-    far_gaussians_ = far_list.size();
-    std::vector<std::size_t> order;
-    for (std::size_t u = 0; u < units.size(); ++u)
-        if (!units[u].list.empty()) order.push_back(u);
-    // (costliest first)
-    std::stable_sort(order.begin(), order.end(),
-                     [&](std::size_t a, std::size_t b) { return units[a].list.size() > units[b].list.size(); });
-    std::atomic<std::size_t> evals{0};
-    parallel_chunks(order.size(), threads_, 1, [&](std::size_t ub, std::size_t ue) {
-        for (std::size_t e = ub; e < ue; ++e) {
-            const Unit& un = units[order[e]];
-            FarGrid& grid = far_grids_[un.k - 1];
-            const int wx = un.P1 - un.P0 + 1, m = wx * (un.Q1 - un.Q0 + 1);
-            float lx[kBlock * kBlock], ly[kBlock * kBlock], lz[kBlock * kBlock];
-            float T[kBlock * kBlock] = {}, R[kBlock * kBlock] = {}, G[kBlock * kBlock] = {}, B[kBlock * kBlock] = {};
-            for (int Q = un.Q0; Q <= un.Q1; ++Q)
-                for (int P = un.P0; P <= un.P1; ++P) {
-                    const std::size_t o = std::size_t(Q) * grid.nx + P;
-                    const int j = (Q - un.Q0) * wx + (P - un.P0);
-                    lx[j] = grid.dx[o];
-                    ly[j] = grid.dy[o];
-                    lz[j] = grid.dz[o];
-                }
-            lattice_batch(un.list.data(), int(un.list.size()), m, lx, ly, lz, T, R, G, B);
-            for (int Q = un.Q0; Q <= un.Q1; ++Q)
-                for (int P = un.P0; P <= un.P1; ++P) {
-                    const std::size_t o = std::size_t(Q) * grid.nx + P;
-                    const int j = (Q - un.Q0) * wx + (P - un.P0);
-                    grid.T[o] = T[j];
-                    grid.R[o] = R[j];
-                    grid.G[o] = G[j];
-                    grid.B[o] = B[j];
-                }
-            evals.fetch_add(std::size_t(m) * un.list.size(), std::memory_order_relaxed);
-        }
-    });
-    far_nodes_ = evals.load();
     // Per tile: which grids it reads (they save more evaluations than cancelling costs: its
     // Gaussians of that level wholly in front, by the depth range, cost nothing there; each
     // one wholly behind costs its share, ~36 nodes at quarter, to cancel, as does each one
@@ -2253,6 +2145,137 @@ void RbfSplat::build_far_field(const std::vector<int>& rect, FarScratch& far) {
             splat_end_[t] = w;
         }
     });
+    // The grid blocks (kBlock x kBlock nodes, below) that some tile reading their level
+    // reaches with its lattice's cubic stencils (add_far_grid): only those are evaluated
+    // (the others' nodes stay 0 and are never read; far_share reads only the directions).
+    constexpr int kBlock = 8;
+    std::vector<std::vector<char>> block_needed(kMaxFarLevel);
+    for (int k = 1; k <= kMaxFarLevel; ++k) {
+        if (!(used >> (k - 1) & 1u)) continue;
+        int h, nx, ny;
+        grid_dims(k, h, nx, ny);
+        const int bx = (nx + kBlock - 1) / kBlock, by = (ny + kBlock - 1) / kBlock;
+        std::vector<char>& needed = block_needed[k - 1];
+        needed.assign(std::size_t(bx) * by, 0);
+        for (int t = 0; t < n_tiles; ++t) {
+            if (!(tile_far_[t] >> (k - 1) & 1u)) continue;
+            const int x0 = (t % tiles_x_) * kTile, y0 = (t / tiles_x_) * kTile;
+            const int w = std::min(W_, x0 + kTile) - x0, ht = std::min(H_, y0 + kTile) - y0;
+            const int nu = int((w - 0.5) / step_) + 2, nv = int((ht - 0.5) / step_) + 2;
+            const int P0 = x0 / h, P1 = std::min(nx - 1, (x0 + step_ * (nu - 1)) / h + 3);
+            const int Q0 = y0 / h, Q1 = std::min(ny - 1, (y0 + step_ * (nv - 1)) / h + 3);
+            for (int q = Q0 / kBlock; q <= Q1 / kBlock; ++q)
+                for (int p = P0 / kBlock; p <= P1 / kBlock; ++p) needed[std::size_t(q) * bx + p] = 1;
+        }
+    }
+    far_grids_.resize(kMaxFarLevel);
+    for (int k = 1; k <= kMaxFarLevel; ++k) {
+        if (!(used >> (k - 1) & 1u)) continue;
+        FarGrid& grid = far_grids_[k - 1];
+        grid_dims(k, grid.h, grid.nx, grid.ny);
+        const std::size_t m = std::size_t(grid.nx) * grid.ny;
+        for (auto* v : {&grid.T, &grid.R, &grid.G, &grid.B, &grid.dx, &grid.dy, &grid.dz}) v->assign(m, 0.0f);
+        for (int Q = 0; Q < grid.ny; ++Q)
+            for (int P = 0; P < grid.nx; ++P) {
+                const Vec3 r = glm::normalize(D0_ + double(grid.h * (P - 1)) * Dx_ + double(grid.h * (Q - 1)) * Dy_);
+                const std::size_t o = std::size_t(Q) * grid.nx + P;
+                grid.dx[o] = float(r.x);
+                grid.dy[o] = float(r.y);
+                grid.dz[o] = float(r.z);
+            }
+    }
+    // The grids in blocks of kBlock x kBlock nodes, each with the list of its level's
+    // Gaussians whose cull cones meet its rays (the cone test of bin(), on the block's
+    // corner nodes), evaluated Gaussian-major like the tile lattices (lattice_batch). A
+    // Gaussian is on every node of its blocks: elsewhere its terms are < the cull eps.
+    struct Unit {
+        int k, P0, Q0, P1, Q1;
+        std::vector<std::uint32_t> list;
+    };
+    std::vector<Unit> units;
+    std::vector<int> unit_base(kMaxFarLevel + 1, 0);
+    for (int k = 1; k <= kMaxFarLevel; ++k) {
+        unit_base[k - 1] = int(units.size());
+        const FarGrid& grid = far_grids_[k - 1];
+        if (grid.T.empty()) continue;
+        for (int Q = 0; Q < grid.ny; Q += kBlock)
+            for (int P = 0; P < grid.nx; P += kBlock)
+                units.push_back({k, P, Q, std::min(grid.nx, P + kBlock) - 1, std::min(grid.ny, Q + kBlock) - 1, {}});
+    }
+    unit_base[kMaxFarLevel] = int(units.size());
+    // Each block's cone: axis through its centre node, cos and sin of its largest angle to
+    // a corner node (the nodes' directions are those of a convex film quadrilateral).
+    struct BlockCone {
+        Vec3 axis;
+        double cos_t, sin_t;
+    };
+    std::vector<BlockCone> block_cone(units.size());
+    for (std::size_t u = 0; u < units.size(); ++u) {
+        const Unit& un = units[u];
+        const FarGrid& grid = far_grids_[un.k - 1];
+        auto film = [&](int P, int Q) { return D0_ + double(grid.h * (P - 1)) * Dx_ + double(grid.h * (Q - 1)) * Dy_; };
+        const Vec3 axis = glm::normalize(film(un.P0, un.Q0) + film(un.P1, un.Q1));
+        double cmin = 1.0;
+        for (int P : {un.P0, un.P1})
+            for (int Q : {un.Q0, un.Q1}) cmin = std::min(cmin, glm::dot(axis, glm::normalize(film(P, Q))));
+        cmin = std::clamp(cmin - 1e-9, -1.0, 1.0);
+        block_cone[u] = {axis, cmin, std::sqrt(std::max(0.0, 1.0 - cmin * cmin))};
+    }
+    for (std::uint32_t i : far_list) {
+        const int k = level_[i];
+        const FarGrid& grid = far_grids_[k - 1];
+        const int bx = (grid.nx + kBlock - 1) / kBlock;
+        int P0, P1, Q0, Q1;
+        node_range(i, k, P0, P1, Q0, Q1);
+        const Vec3 u = Vec3(g_[i].rx, g_[i].ry, g_[i].rz) / g_[i].dist;
+        const double sin_r = std::min(1.0, g_[i].radius / g_[i].dist), cos_r = std::sqrt(1.0 - sin_r * sin_r);
+        for (int by = Q0 / kBlock; by <= Q1 / kBlock; ++by)
+            for (int bxx = P0 / kBlock; bxx <= P1 / kBlock; ++bxx) {
+                if (!block_needed[k - 1][std::size_t(by) * bx + bxx]) continue;
+                const std::size_t un = std::size_t(unit_base[k - 1] + by * bx + bxx);
+                const BlockCone& c = block_cone[un];
+                const double cos_sum = c.cos_t * cos_r - c.sin_t * sin_r;
+                if (c.sin_t * cos_r + c.cos_t * sin_r >= 0.0 && glm::dot(c.axis, u) < cos_sum) continue;
+                units[un].list.push_back(i);
+            }
+    }
+    far_gaussians_ = far_list.size();
+    std::vector<std::size_t> order;
+    for (std::size_t u = 0; u < units.size(); ++u)
+        if (!units[u].list.empty()) order.push_back(u);
+    // (costliest first)
+    std::stable_sort(order.begin(), order.end(),
+                     [&](std::size_t a, std::size_t b) { return units[a].list.size() > units[b].list.size(); });
+    std::atomic<std::size_t> evals{0};
+    parallel_chunks(order.size(), threads_, 1, [&](std::size_t ub, std::size_t ue) {
+        for (std::size_t e = ub; e < ue; ++e) {
+            const Unit& un = units[order[e]];
+            FarGrid& grid = far_grids_[un.k - 1];
+            const int wx = un.P1 - un.P0 + 1, m = wx * (un.Q1 - un.Q0 + 1);
+            float lx[kBlock * kBlock], ly[kBlock * kBlock], lz[kBlock * kBlock];
+            float T[kBlock * kBlock] = {}, R[kBlock * kBlock] = {}, G[kBlock * kBlock] = {}, B[kBlock * kBlock] = {};
+            for (int Q = un.Q0; Q <= un.Q1; ++Q)
+                for (int P = un.P0; P <= un.P1; ++P) {
+                    const std::size_t o = std::size_t(Q) * grid.nx + P;
+                    const int j = (Q - un.Q0) * wx + (P - un.P0);
+                    lx[j] = grid.dx[o];
+                    ly[j] = grid.dy[o];
+                    lz[j] = grid.dz[o];
+                }
+            lattice_batch(un.list.data(), int(un.list.size()), m, lx, ly, lz, T, R, G, B);
+            for (int Q = un.Q0; Q <= un.Q1; ++Q)
+                for (int P = un.P0; P <= un.P1; ++P) {
+                    const std::size_t o = std::size_t(Q) * grid.nx + P;
+                    const int j = (Q - un.Q0) * wx + (P - un.P0);
+                    grid.T[o] = T[j];
+                    grid.R[o] = R[j];
+                    grid.G[o] = G[j];
+                    grid.B[o] = B[j];
+                }
+            evals.fetch_add(std::size_t(m) * un.list.size(), std::memory_order_relaxed);
+        }
+    });
+    far_nodes_ = evals.load();
 }
 
 void RbfSplat::far_share(std::size_t i, int x0, int y0, int s, int nu, int nv, float* const* out) const {
