@@ -2631,14 +2631,17 @@ void RbfSplat::splat_tile_reduced(int t, int x0, int y0, int w, int h, const flo
             auto dist = [](float x, float y, float z) { return std::sqrt(x * x + y * y + z * z); };
             const float hb = std::max(dist(px[15] - px[0], py[15] - py[0], pz[15] - pz[0]),
                                       dist(px[12] - px[3], py[12] - py[3], pz[12] - pz[3]));
-            float err = 0.0f;
+            // (the largest squared deviation, one square root per block)
+            float err2 = 0.0f;
             for (int k = 0; k < 16; ++k) {
                 const float u = float(k & 3) * (1.0f / 3.0f), v = float(k >> 2) * (1.0f / 3.0f);
                 const float w0 = (1.0f - u) * (1.0f - v), w1 = u * (1.0f - v), w2 = (1.0f - u) * v, w3 = u * v;
-                err = std::max(err, dist(px[k] - (w0 * px[0] + w1 * px[3] + w2 * px[12] + w3 * px[15]),
-                                         py[k] - (w0 * py[0] + w1 * py[3] + w2 * py[12] + w3 * py[15]),
-                                         pz[k] - (w0 * pz[0] + w1 * pz[3] + w2 * pz[12] + w3 * pz[15])));
+                const float ex = px[k] - (w0 * px[0] + w1 * px[3] + w2 * px[12] + w3 * px[15]);
+                const float ey = py[k] - (w0 * py[0] + w1 * py[3] + w2 * py[12] + w3 * py[15]);
+                const float ez = pz[k] - (w0 * pz[0] + w1 * pz[3] + w2 * pz[12] + w3 * pz[15]);
+                err2 = std::max(err2, ex * ex + ey * ey + ez * ez);
             }
+            const float err = std::sqrt(err2);
             float dl = kInfF;
             for (const LightF& lf : lf_) dl = std::min(dl, dist(px[0] + lf.vx, py[0] + lf.vy, pz[0] + lf.vz));
             if (hb <= 0.05f * dl && err <= 0.01f * dl) {
