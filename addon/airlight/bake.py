@@ -59,14 +59,15 @@ def bake_settings(scene, description=None):
                 **model_choice.table_settings(settings), **extra)
 
 
-def prepare(scene, depsgraph, mesh_overrides=None):
+def prepare(scene, depsgraph, mesh_overrides=None, view=None):
     """Everything the bake needs, gathered in the main thread (touches bpy); in a render
-    thread nothing is written (_mesh_overrides_: see fog_object.gather).
+    thread nothing is written (_mesh_overrides_: see fog_object.gather). _view_: the
+    render view whose camera sees it (scene_export.render_views; None: the scene camera).
 
     The World for the environment glow travels in the settings under "environment"
     (environment.prepare(); absent when off), which `run` takes out before the native bake."""
     try:
-        description = scene_export.export_scene(scene, depsgraph, mesh_overrides)
+        description = scene_export.export_scene(scene, depsgraph, mesh_overrides, view)
         settings = bake_settings(scene, description)
         world = environment.prepare(scene)
         if world is not None:
@@ -159,13 +160,47 @@ def _fit_region(baked, region, fill):
     return frame
 
 
+def view_paths(scene, filepath):
+    """[(view, path)]: the passes' file of each view a render makes (render_views): with
+    Stereoscopy on, _filepath_ with the view's suffix before the extension (fog_0001_L.exr,
+    fog_0001_R.exr: one multi-view image to the compositor, which takes each view's own),
+    else [(None, filepath)]."""
+    views = scene_export.render_views(scene)
+    if views[0][0] is None:
+        return [(None, filepath)]
+    root, ext = os.path.splitext(filepath)
+    return [(name, root + suffix + ext) for name, suffix in views]
+
+
+def prepare_views(scene, depsgraph, filepath, mesh_overrides=None):
+    """[(description, settings, path)] per view (view_paths): prepare() with each view's
+    camera. The first path is the one the compositor is pointed at."""
+    return [prepare(scene, depsgraph, mesh_overrides, view) + (path,) for view, path in view_paths(scene, filepath)]
+
+
+def run_views(jobs, progress=None):
+    """run() for each of prepare_views' jobs, _progress_ spread over them; returns (the
+    first view's stats, seconds for all)."""
+    first, total = None, 0.0
+    for k, (description, settings, path) in enumerate(jobs):
+        step = None
+        if progress is not None:
+            def step(fraction, k=k):
+                return progress((k + fraction) / len(jobs))
+        stats, seconds = run(description, settings, path, step)
+        first = stats if first is None else first
+        total += seconds
+    return first, total
+
+
 def bake_frame(scene, depsgraph, filepath=None, progress=None, mesh_overrides=None):
-    """Synchronous bake of the depsgraph's current frame; returns (filepath, stats, seconds)."""
+    """Synchronous bake of the depsgraph's current frame (every view of a stereo render,
+    view_paths); returns (filepath, stats, seconds), filepath the first view's."""
     if filepath is None:
         filepath = cache_path(scene, scene.frame_current)
-    description, settings = prepare(scene, depsgraph, mesh_overrides)
-    stats, seconds = run(description, settings, filepath, progress)
-    return filepath, stats, seconds
+    jobs = prepare_views(scene, depsgraph, filepath, mesh_overrides)
+    stats, seconds = run_views(jobs, progress)
+    return jobs[0][2], stats, seconds
 
 
 def _printing_progress(label):
@@ -226,7 +261,7 @@ class AIRLIGHT_OT_bake(bpy.types.Operator):
         original = scene.frame_current, scene.frame_subframe
         scene.frame_set(frame)
         try:
-            return prepare(scene, context.evaluated_depsgraph_get())
+            return prepare_views(scene, context.evaluated_depsgraph_get(), self._target(context)[2])
         finally:
             if frame != original[0]:
                 scene.frame_set(original[0], subframe=original[1])
@@ -242,9 +277,10 @@ class AIRLIGHT_OT_bake(bpy.types.Operator):
     def execute(self, context):
         scene, frame, filepath = self._target(context)
         try:
-            description, settings = self._prepare_at(context, scene, frame)
+            jobs = self._prepare_at(context, scene, frame)
+            filepath = jobs[0][2]
             progress = _printing_progress(f"baking frame {frame}") if bpy.app.background else None
-            stats, seconds = run(description, settings, filepath, progress)
+            stats, seconds = run_views(jobs, progress)
         except BakeError as ex:
             self.report({'ERROR'}, str(ex))
             return {'CANCELLED'}
@@ -259,12 +295,12 @@ class AIRLIGHT_OT_bake(bpy.types.Operator):
             return self.execute(context)
         scene, frame, filepath = self._target(context)
         try:
-            description, settings = self._prepare_at(context, scene, frame)
+            jobs = self._prepare_at(context, scene, frame)
         except BakeError as ex:
             self.report({'ERROR'}, str(ex))
             return {'CANCELLED'}
         self._scene_name = scene.name
-        self._filepath = filepath
+        self._filepath = jobs[0][2]
         self._fraction = 0.0
         self._cancel = False
         self._outcome = None  # ('ok', stats, seconds) | ('cancelled',) | ('error', message)
@@ -275,7 +311,7 @@ class AIRLIGHT_OT_bake(bpy.types.Operator):
 
         def work():
             try:
-                stats, seconds = run(description, settings, filepath, progress)
+                stats, seconds = run_views(jobs, progress)
                 self._outcome = ('ok', stats, seconds)
             except BakeError as ex:
                 self._outcome = ('error', str(ex))
@@ -350,7 +386,7 @@ class AIRLIGHT_OT_setup_compositor(bpy.types.Operator):
 
     def execute(self, context):
         scene = context.scene
-        path = cache_path(scene, scene.frame_current)
+        path = view_paths(scene, cache_path(scene, scene.frame_current))[0][1]
         compositor.setup(scene, path if os.path.exists(path) else None)
         self.report({'INFO'}, "Compositor fog nodes set up")
         return {'FINISHED'}

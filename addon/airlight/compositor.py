@@ -33,6 +33,9 @@ NODE_ADD = "Airlight Add"
 NODE_ALPHA = "Airlight Alpha"
 ALPHA_NODE_PREFIX = "Airlight Alpha "
 IMAGE_NAME = "Airlight Passes"
+# Stereoscopy (_setup_views): an Image node per view after the first, a Switch View node per pass.
+VIEW_IMAGE_PREFIX = "Airlight View Image "
+VIEW_SWITCH_PREFIX = "Airlight View Switch "
 # Surface-shading chain (surface.py), rebuilt by every setup(); its first Add node takes
 # the render's Image.
 SURFACE_NODE_PREFIX = "Airlight Surface "
@@ -144,20 +147,29 @@ def _first_of_type(tree, node_type):
     return None
 
 
-def _image(filepath):
-    """The image datablock of the baked passes, loaded from `filepath` (or None)."""
-    image = bpy.data.images.get(IMAGE_NAME)
+def _image(filepath, name=IMAGE_NAME):
+    """The image datablock _name_ of baked passes, loaded from `filepath` (or None)."""
+    image = bpy.data.images.get(name)
     if filepath is None:
         return image
     if image is None:
         image = bpy.data.images.load(filepath, check_existing=False)
-        image.name = IMAGE_NAME
+        image.name = name
     elif bpy.path.abspath(image.filepath) != filepath:
         image.filepath = filepath
     image.source = 'FILE'
     if os.path.exists(filepath):
         image.reload()
     return image
+
+
+def _is_view_file(scene, filepath):
+    """_filepath_ is the first view's file of a stereo bake of _scene_ (bake.view_paths)."""
+    from .scene_export import render_views
+    if filepath is None:
+        return False
+    view, suffix = render_views(scene)[0]
+    return view is not None and bool(suffix) and os.path.splitext(filepath)[0].endswith(suffix)
 
 
 def _link_passes(tree, image_node, multiply, add):
@@ -241,8 +253,100 @@ def setup(scene, filepath=None):
 
     _link_passes(tree, image_node, multiply, add)
     _setup_surface(scene, tree, frame, image_node, multiply)
+    _setup_views(scene, tree, frame, image_node, filepath)
     _mute(scene, tree)
     return image_node, multiply, add
+
+
+def _setup_views(scene, tree, frame, image_node, filepath):
+    """Stereoscopy: each view composites its own bake (bake.view_paths). When the render
+    makes several views, an Image node per view after the first loads that view's file, and
+    each pass the fog nodes read goes through a Switch View node (an input per view), which
+    feeds what the Image node's output fed. The nodes are there as soon as the compositor
+    is set up with Stereoscopy on: a background render (-f, -a) composites with the tree as
+    it was before its render_pre handler, which then only points the images at the frame's
+    files. _filepath_: the first view's file of a stereo bake (the others are derived), or
+    passes for every view (a plain bake, neutral passes), or None (the views' images stay).
+    Without Stereoscopy the switches and the views' Image nodes go and their targets read
+    the Image node again. (Blender's multi-view images do not take multilayer EXR passes
+    per view file, hence the switches.)"""
+    from .scene_export import render_views
+    views = render_views(scene)
+    switches = {node.name[len(VIEW_SWITCH_PREFIX):]: node for node in tree.nodes
+                if node.name.startswith(VIEW_SWITCH_PREFIX)}
+    if len(views) < 2:
+        for name, switch in switches.items():
+            source = image_node.outputs.get(name)
+            for link in list(switch.outputs[0].links):
+                if source is not None:
+                    tree.links.new(source, link.to_socket)
+        for node in _view_nodes(tree):
+            tree.nodes.remove(node)
+        return
+    per_view = _is_view_file(scene, filepath)
+    if per_view:
+        root, ext = os.path.splitext(filepath)
+        root = root[:len(root) - len(views[0][1])]
+    images = {views[0][0]: image_node}
+    x, y = image_node.location.x, image_node.location.y
+    for k, (view, suffix) in enumerate(views[1:], start=1):
+        node = _node(tree, VIEW_IMAGE_PREFIX + view, "CompositorNodeImage", f"Airlight Passes ({view})",
+                     (x, y - 220 * k), frame)
+        name = f"{IMAGE_NAME} ({view})"
+        if per_view:
+            node.image = _image(root + suffix + ext, name)
+        elif filepath is not None or node.image is None:
+            main = image_node.image
+            node.image = _image(bpy.path.abspath(main.filepath), name) if main is not None else None
+        images[view] = node
+    for node in _view_nodes(tree):
+        if node.name.startswith(VIEW_IMAGE_PREFIX) and node.name[len(VIEW_IMAGE_PREFIX):] not in images:
+            tree.nodes.remove(node)
+    for k, socket in enumerate(image_node.outputs):
+        targets = [link.to_socket for link in socket.links if not link.to_node.name.startswith(VIEW_SWITCH_PREFIX)]
+        switch = switches.pop(socket.name, None)
+        if not targets and switch is None:
+            continue
+        if switch is None:
+            switch = _node(tree, VIEW_SWITCH_PREFIX + socket.name, "CompositorNodeSwitchView",
+                           f"Fog: {socket.name} per view", (x + 180, y - 60 * k), frame)
+        for view, node in images.items():
+            source = node.outputs.get(socket.name)
+            if source is not None and view in switch.inputs:
+                _link(tree, source, switch.inputs[view])
+        for target in targets:
+            tree.links.new(switch.outputs[0], target)
+    for switch in switches.values():  # passes the new bake does not have
+        tree.nodes.remove(switch)
+
+
+def views_ready(scene):
+    """The fog nodes take each view's passes as the render's views need (_setup_views): a
+    Switch View node on the Transmittance pass and an Image node per view after the first
+    with Stereoscopy, neither without."""
+    from .scene_export import render_views
+    tree = scene.node_tree
+    if tree is None:
+        return False
+    views = render_views(scene)
+    nodes = _view_nodes(tree)
+    if len(views) < 2:
+        return not nodes
+    names = {node.name for node in nodes}
+    return (VIEW_SWITCH_PREFIX + PASS_TRANSMITTANCE in names
+            and all(VIEW_IMAGE_PREFIX + view in names for view, _ in views[1:]))
+
+
+def ensure_views(scene):
+    """Main thread: sets the fog nodes up for the render's views when they are not
+    (views_ready); a render composites with the nodes it starts with."""
+    if is_set_up(scene) and not views_ready(scene):
+        setup(scene)
+
+
+def _view_nodes(tree):
+    return [node for node in tree.nodes
+            if node.name.startswith(VIEW_IMAGE_PREFIX) or node.name.startswith(VIEW_SWITCH_PREFIX)]
 
 
 def _surface_nodes(tree):
@@ -405,20 +509,22 @@ def _touches_lights(depsgraph):
 
 @persistent
 def on_depsgraph_update_post(scene, depsgraph):
-    """Keeps the surface-shading passes in step with the user's edits (a new light, a World,
-    Environment Glow on): a render composites with the node links it starts with, and an
+    """Keeps the surface-shading passes and the per-view nodes (Stereoscopy) in step with the
+    user's edits (a new light, a World, Environment Glow on, stereo on): a render composites with the node links it starts with, and an
     interactive render's thread cannot add light groups (render.py), so they are set up
     here, in the main thread, when an edit needs them."""
     if threading.current_thread() is not threading.main_thread() or bpy.app.is_job_running('RENDER'):
         return
     settings = getattr(scene, "airlight", None)
-    if (settings is None or not (settings.enabled and settings.auto_composite) or not surface.active(scene)
-            or not is_set_up(scene) or not _touches_lights(depsgraph)):
+    if settings is None or not (settings.enabled and settings.auto_composite) or not is_set_up(scene):
         return
     try:
-        complete_surface(scene, depsgraph)
+        # Stereoscopy switched on or off (or a view added): the per-view nodes.
+        ensure_views(scene)
+        if surface.active(scene) and _touches_lights(depsgraph):
+            complete_surface(scene, depsgraph)
     except Exception as ex:  # a handler must never break editing
-        print(f"Airlight: cannot update the surface shading passes: {ex}", flush=True)
+        print(f"Airlight: cannot update the compositor's fog nodes: {ex}", flush=True)
 
 
 def register():

@@ -49,10 +49,7 @@ def _main_thread_depsgraph(scene):
 # Output > Post Processing > Compositing off (the bake still writes its passes).
 COMPOSITING_OFF = ("Compositing is off (Output > Post Processing): renders are saved without "
                    "the fog (its passes are still baked)")
-# Stereoscopy / multi-view renders: one bake, from the scene camera, composited into every
-# view (a view's own camera sees the fog from a few centimetres away: silhouettes shift).
-MULTIVIEW = ("Stereoscopy is on: every view gets the fog baked for the scene camera "
-             "(not per view)")
+# (Stereoscopy / multi-view renders bake every view from its own camera: bake.view_paths.)
 # The bake traces one pinhole camera at the frame's instant: a render's depth of field
 # and motion blur smear silhouettes that the fog passes keep sharp (a fringe at the edge).
 DEPTH_OF_FIELD = ("Depth of field: the fog passes stay sharp, so out-of-focus silhouettes get "
@@ -66,8 +63,6 @@ def render_notes(scene):
     notes = []
     if not scene.render.use_compositing:
         notes.append(COMPOSITING_OFF)
-    if scene.render.use_multiview:
-        notes.append(MULTIVIEW)
     camera = scene.camera
     if camera is not None and camera.type == 'CAMERA' and camera.data.dof.use_dof:
         notes.append(DEPTH_OF_FIELD)
@@ -161,7 +156,7 @@ def on_load_post(*_):
         if settings is None or not (settings.enabled and settings.auto_composite):
             continue
         try:
-            if not compositor.is_complete(scene):
+            if not compositor.is_complete(scene) or not compositor.views_ready(scene):
                 compositor.setup(scene)
             if surface.active(scene) and scene == bpy.context.scene:
                 compositor.complete_surface(scene, bpy.context.evaluated_depsgraph_get())
@@ -169,7 +164,21 @@ def on_load_post(*_):
             print(f"Airlight: cannot set up the compositor of scene '{scene.name}': {ex}", flush=True)
 
 
+@persistent
+def on_render_init(scene, *_):
+    """Before a render builds what it composites with: the fog nodes for its views
+    (Stereoscopy switched on by a script after the file was loaded)."""
+    settings = getattr(scene, "airlight", None)
+    if settings is None or not (settings.enabled and settings.auto_composite) or not _in_main_thread():
+        return
+    try:
+        compositor.ensure_views(scene)
+    except Exception as ex:  # a handler must never take the render down
+        print(f"Airlight: cannot set up the compositor's views: {ex}", flush=True)
+
+
 _HANDLERS = (
+    (bpy.app.handlers.render_init, on_render_init),
     (bpy.app.handlers.render_pre, on_render_pre),
     (bpy.app.handlers.frame_change_post, on_render_frame_evaluated),
     (bpy.app.handlers.render_cancel, on_render_end),

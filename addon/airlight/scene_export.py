@@ -84,12 +84,112 @@ def region_projection(projection, width, height, region):
     return window @ projection
 
 
-def export_camera(scene, depsgraph):
+def render_views(scene):
+    """[(view name, file suffix)] of the views a render of _scene_ makes: with Output >
+    Stereoscopy on, its enabled views (Stereo 3D: "left" and "right"; Multi-View: every
+    enabled view, each with its own camera), else [(None, "")] (one plain view)."""
+    render = scene.render
+    if not render.use_multiview:
+        return [(None, "")]
+    if render.views_format == 'STEREO_3D':
+        views = [v for v in render.views if v.name in ("left", "right") and v.use]
+    else:
+        views = [v for v in render.views if v.use]
+    return [(v.name, v.file_suffix) for v in views] or [(None, "")]
+
+
+def view_camera(scene, view):
+    """The camera object that renders _view_ (a name from render_views): the scene camera,
+    or in Multi-View format the object named like it with the view's suffix in place of
+    another enabled view's suffix (Blender's rule: "Camera_L" -> "Camera_R")."""
+    camera = scene.camera
+    render = scene.render
+    if view is None or camera is None or not render.use_multiview or render.views_format != 'MULTIVIEW':
+        return camera
+    suffix = render.views[view].file_suffix
+    best = None
+    for v in render.views:
+        if v.use and v.file_suffix and camera.name.endswith(v.file_suffix):
+            if best is None or len(v.file_suffix) > len(best):
+                best = v.file_suffix
+    if best is None:
+        return camera
+    other = scene.objects.get(camera.name[:len(camera.name) - len(best)] + suffix)
+    return other if other is not None else camera
+
+
+def _stereo_model_matrix(world, stereo, is_left):
+    """The camera-to-world matrix of the left or right eye in Stereo 3D (Blender's
+    camera_stereo3d_model_matrix): the eyes sit interocular_distance apart along the
+    camera's x axis around the pivot; Toe-in turns each towards the convergence plane."""
+    iod, conv = float(stereo.interocular_distance), float(stereo.convergence_distance)
+    mode, pivot = stereo.convergence_mode, stereo.pivot
+    if (pivot == 'LEFT' and is_left) or (pivot == 'RIGHT' and not is_left):
+        return world.copy()
+    size = np.linalg.norm(world[:3, :3], axis=0)
+    size_mat = np.diag([size[0], size[1], size[2], 1.0])
+    normalized = world.copy()
+    normalized[:3, :3] = world[:3, :3] / size
+    fac = 0.5 if pivot == 'CENTER' else 1.0
+    fac_signed = fac if is_left else -fac
+
+    def translation(x):
+        m = np.eye(4)
+        m[0, 3] = x
+        return m
+
+    if mode == 'TOE':
+        if pivot == 'CENTER':
+            fac, fac_signed = -fac, -fac_signed
+        angle = math.atan(iod * 0.5 / conv) / fac * fac_signed
+        c, s = math.cos(angle), math.sin(angle)
+        rot = np.eye(4)
+        rot[0, 0], rot[0, 2], rot[2, 0], rot[2, 2] = c, -s, s, c  # about the camera's y axis
+        if pivot == 'CENTER':
+            toe_in = rot.copy()
+            toe_in[0, 3] = iod * fac_signed
+            return normalized @ toe_in @ size_mat
+        return normalized @ rot @ translation(-iod * fac_signed) @ rot @ size_mat
+    return normalized @ translation(-iod * fac_signed) @ size_mat
+
+
+def _stereo_shift_x(data, is_left):
+    """The extra horizontal lens shift of an Off-Axis stereo eye (Blender's
+    camera_stereo3d_shift_x), in units of the sensor-fit dimension like Shift X."""
+    stereo = data.stereo
+    pivot = stereo.pivot
+    if stereo.convergence_mode != 'OFFAXIS':
+        return 0.0
+    if (pivot == 'LEFT' and is_left) or (pivot == 'RIGHT' and not is_left):
+        return 0.0
+    fac = 0.5 if pivot == 'CENTER' else 1.0
+    fac_signed = fac if is_left else -fac
+    return (float(stereo.interocular_distance) / float(data.sensor_width)) * \
+        (float(data.lens) / float(stereo.convergence_distance)) * fac_signed
+
+
+def _shifted_projection(projection, data, shift, width, height, render):
+    """_projection_ with the lens shifted by _shift_ more along x (Blender's view plane:
+    dx = shift * viewfac, viewfac the width in pixels for a horizontal sensor fit, the
+    height times the pixel aspect for a vertical one)."""
+    aspx, aspy = float(render.pixel_aspect_x), float(render.pixel_aspect_y)
+    fit = data.sensor_fit
+    if fit == 'AUTO':
+        fit = 'HORIZONTAL' if aspx * width >= aspy * height else 'VERTICAL'
+    viewfac = width if fit == 'HORIZONTAL' else (aspy / aspx) * height
+    out = projection.copy()
+    out[0, 2] += 2.0 * shift * viewfac / width
+    return out
+
+
+def export_camera(scene, depsgraph, view=None):
     """Returns (width, height, cam_to_world (4,4), projection (4,4)) of the scene camera,
     for the pixels of bake_window() only when a render region is set (width and height are
     then the window's; bake.run cuts the region out and, when the render is not cropped to
-    it, puts it back into the whole frame). Its clip range is `export_clip_range`."""
-    camera = scene.camera
+    it, puts it back into the whole frame). Its clip range is `export_clip_range`.
+    _view_ (a name from render_views): that view's camera (view_camera), in Stereo 3D the
+    eye's position, toe-in and off-axis shift."""
+    camera = view_camera(scene, view)
     if camera is None:
         raise ExportError(f"Scene '{scene.name}' has no active camera: set one in the Scene properties.")
     if camera.type != 'CAMERA':
@@ -113,6 +213,12 @@ def export_camera(scene, depsgraph):
         scale_x=render.pixel_aspect_x, scale_y=render.pixel_aspect_y)
     cam_to_world = world
     projection = np.array(projection, dtype=np.float64)
+    if view is not None and render.use_multiview and render.views_format == 'STEREO_3D':
+        is_left = view != "right"  # (Blender: any view but "right" is a left eye)
+        cam_to_world = _stereo_model_matrix(world, camera_eval.data.stereo, is_left)
+        shift = _stereo_shift_x(camera_eval.data, is_left)
+        if shift != 0.0:
+            projection = _shifted_projection(projection, camera_eval.data, shift, width, height, render)
     window = bake_window(scene)
     if window is not None:
         projection = region_projection(projection, width, height, window)
@@ -120,13 +226,15 @@ def export_camera(scene, depsgraph):
     return width, height, cam_to_world, projection
 
 
-def export_clip_range(scene, depsgraph):
-    """(clip_start, clip_end) of the scene camera: Cycles starts camera rays on the near
-    plane (the fog begins there) and does not see surfaces beyond the far plane."""
-    data = scene.camera.evaluated_get(depsgraph).data
+def export_clip_range(scene, depsgraph, view=None):
+    """(clip_start, clip_end) of the scene camera (of _view_'s, view_camera): Cycles starts
+    camera rays on the near plane (the fog begins there) and does not see surfaces beyond
+    the far plane."""
+    camera = view_camera(scene, view)
+    data = camera.evaluated_get(depsgraph).data
     start, end = float(data.clip_start), float(data.clip_end)
     if not start < end:
-        raise ExportError(f"Camera '{scene.camera.name}': Clip Start ({start:g}) must be less than "
+        raise ExportError(f"Camera '{camera.name}': Clip Start ({start:g}) must be less than "
                           f"Clip End ({end:g}).")
     return start, end
 
@@ -382,13 +490,14 @@ def export_noise(scene):
     return dict(noise_amplitude=amplitude, noise_scale=scale, noise_offset=offset)
 
 
-def export_scene(scene, depsgraph, mesh_overrides=None):
+def export_scene(scene, depsgraph, mesh_overrides=None, view=None):
     """The scene description for `_native.bake(**description, ...)` at the depsgraph's frame
-    (_mesh_overrides_: see fog_object.gather)."""
+    (_mesh_overrides_: see fog_object.gather), seen by _view_'s camera (render_views; None:
+    the scene camera)."""
     sigma_t, albedo = export_medium(scene)
     phase, g = export_phase(scene)
-    width, height, cam_to_world, projection = export_camera(scene, depsgraph)
-    clip_start, clip_end = export_clip_range(scene, depsgraph)
+    width, height, cam_to_world, projection = export_camera(scene, depsgraph, view)
+    clip_start, clip_end = export_clip_range(scene, depsgraph, view)
     skip = model_choice.skipped_lights(scene, depsgraph)  # Automatic: lights below the target
     daylight = model_choice.choose(scene.airlight)[0] == "hoffman02"  # sun lamps only
     vertices, triangles, light_positions, light_intensities, _ = export_geometry_and_lights(scene, depsgraph, skip)

@@ -1,0 +1,181 @@
+"""Stereoscopy (Output > Stereoscopy): every view is baked from its own camera and the
+compositor takes each view's passes.
+
+The eyes' cameras follow Blender's Stereo 3D rules (scene_export._stereo_model_matrix,
+_stereo_shift_x); the reference is Cycles: a pole against an empty world rendered in stereo,
+whose silhouette (the alpha's centroid per row) must sit where the bake's own hits (its
+transmittance > 0; the world behind is fog to infinity, T = 0) put it in each eye."""
+
+import math
+
+import bpy
+import numpy as np
+import pytest
+
+from airlight import bake, scene_export
+from conftest import build_plane_scene, exr_pass, needs_native, read_exr, run_blender
+
+# Eyes 0.5 m apart, the pole 3 m away and the convergence plane at 50 m: ~5 px of disparity
+# per eye at 64 px wide (a quarter of the interocular at a pivot eye: twice that), so
+# that the scene camera's bake (no per-view camera) misses Cycles' silhouette by that much.
+INTEROCULAR = 0.5
+
+
+def _pole_scene(tmp_path, mode='OFFAXIS', pivot='CENTER'):
+    scene = build_plane_scene(tmp_path, size=(64, 48))
+    bpy.data.objects.remove(bpy.data.objects["Ground"])
+    bpy.ops.mesh.primitive_cube_add(size=1.0, location=(0.3, 3.0, 1.0))
+    pole = bpy.context.active_object
+    pole.scale = (0.3, 0.3, 4.0)
+    cam = scene.camera
+    cam.location = (0.0, 0.0, 1.0)
+    cam.rotation_euler = (math.pi / 2, 0.0, 0.0)  # looking along +y
+    stereo = cam.data.stereo
+    stereo.interocular_distance = INTEROCULAR
+    stereo.convergence_distance = 50.0
+    stereo.convergence_mode = mode
+    stereo.pivot = pivot
+    scene.render.use_multiview = True
+    scene.render.views_format = 'STEREO_3D'
+    scene.render.engine = 'CYCLES'
+    scene.cycles.samples = 16
+    scene.cycles.use_denoising = False
+    scene.cycles.device = 'CPU'
+    scene.render.film_transparent = True
+    world = bpy.data.worlds.new("Dark")
+    world.color = (0.0, 0.0, 0.0)
+    scene.world = world
+    scene.view_settings.view_transform = 'Standard'
+    settings = scene.render.image_settings
+    settings.file_format = 'OPEN_EXR'
+    settings.color_depth = '32'
+    settings.views_format = 'INDIVIDUAL'
+    scene.airlight.density = 0.2
+    scene.airlight.surface_shading = False
+    return scene
+
+
+def _centroids(weight):
+    """Per image row with enough weight, the weighted mean column (pixel centres)."""
+    cols = np.arange(weight.shape[1]) + 0.5
+    total = weight.sum(axis=1)
+    rows = total > 2.0
+    return rows, (weight * cols).sum(axis=1)[rows] / total[rows]
+
+
+def test01_views_and_their_files():
+    bpy.ops.wm.read_homefile(use_empty=True)
+    scene = bpy.context.scene
+    assert scene_export.render_views(scene) == [(None, "")]
+    assert bake.view_paths(scene, "/c/fog_0001.exr") == [(None, "/c/fog_0001.exr")]
+    scene.render.use_multiview = True
+    scene.render.views_format = 'STEREO_3D'
+    assert scene_export.render_views(scene) == [("left", "_L"), ("right", "_R")]
+    assert bake.view_paths(scene, "/c/fog_0001.exr") == [("left", "/c/fog_0001_L.exr"),
+                                                          ("right", "/c/fog_0001_R.exr")]
+    scene.render.views["right"].use = False
+    assert scene_export.render_views(scene) == [("left", "_L")]
+
+
+@needs_native
+@pytest.mark.parametrize("mode,pivot", [('OFFAXIS', 'CENTER'), ('PARALLEL', 'CENTER'), ('TOE', 'CENTER'),
+                                        ('OFFAXIS', 'LEFT'), ('TOE', 'RIGHT')])
+def test02_each_eye_sees_the_pole_where_cycles_renders_it(tmp_path, mode, pivot):
+    scene = _pole_scene(tmp_path, mode, pivot)
+    # Cycles' stereo render, without the fog composite (its alpha is the pole's coverage).
+    scene.airlight.enabled = False
+    scene.render.filepath = str(tmp_path / "cycles")
+    bpy.ops.render.render(write_still=True)
+    scene.airlight.enabled = True
+    depsgraph = bpy.context.evaluated_depsgraph_get()
+    jobs = bake.prepare_views(scene, depsgraph, str(tmp_path / "fog.exr"))
+    bake.run_views(jobs)
+    centre_job = bake.prepare(scene, depsgraph) + (str(tmp_path / "centre.exr"),)
+    bake.run(*centre_job)
+    centre_T = exr_pass(centre_job[2], "Transmittance")[..., 0]
+    report = []
+    for (view, suffix), (_, _, path) in zip(scene_export.render_views(scene), jobs):
+        alpha = read_exr(str(tmp_path / f"cycles{suffix}.exr"))[0][..., 3]
+        T = exr_pass(path, "Transmittance")[..., 0]
+        rows_c, x_cycles = _centroids(alpha)
+        rows_b, x_bake = _centroids((T > 1e-6).astype(np.float64))
+        rows_0, x_centre = _centroids((centre_T > 1e-6).astype(np.float64))
+        assert rows_c.sum() > 20 and (rows_c == rows_b).mean() > 0.9, (view, rows_c.sum(), rows_b.sum())
+        both = rows_c & rows_b & rows_0
+        error = np.abs(x_cycles[both[rows_c]] - x_bake[both[rows_b]]).mean()
+        centre_error = np.abs(x_cycles[both[rows_c]] - x_centre[both[rows_0]]).mean()
+        report.append((view, error, centre_error))
+        # A pivot eye is the scene camera itself; the other eye(s) are ~5-10 px off it.
+        pivot_eye = (pivot == 'LEFT' and view == "left") or (pivot == 'RIGHT' and view == "right")
+        assert error < 0.5, report
+        if not pivot_eye:
+            assert centre_error > 3.0, report  # the test can tell the eyes apart
+    print(f"{mode} {pivot}: " + ", ".join(f"{v} {e:.3f} px (scene camera {c:.2f} px)" for v, e, c in report))
+
+
+@needs_native
+def test03_stereo_render_composites_each_views_own_bake(tmp_path):
+    scene = _pole_scene(tmp_path)
+    scene.render.film_transparent = False
+    scene.cycles.samples = 2
+    bpy.ops.airlight.setup_compositor()
+    blend = str(tmp_path / "stereo.blend")
+    bpy.ops.wm.save_as_mainfile(filepath=blend)
+    off_script = tmp_path / "fog_off.py"
+    off_script.write_text("import bpy\nbpy.context.scene.airlight.enabled = False\n")
+    for args in ((blend, "-o", str(tmp_path / "on_####"), "-f", "1"),
+                 (blend, "--python", str(off_script), "-o", str(tmp_path / "off_####"), "-f", "1")):
+        proc = run_blender(*args)
+        assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
+    passes = {}
+    for suffix in ("_L", "_R"):
+        fog = str(tmp_path / "cache" / f"fog_0001{suffix}.exr")
+        on = read_exr(str(tmp_path / f"on_0001{suffix}.exr"))[0]
+        off = read_exr(str(tmp_path / f"off_0001{suffix}.exr"))[0]
+        A, T = exr_pass(fog, "Airlight"), exr_pass(fog, "Transmittance")
+        np.testing.assert_allclose(on[..., :3], off[..., :3] * T + A, rtol=1e-4, atol=1e-5)
+        passes[suffix] = T
+    # The eyes' passes differ (the pole's silhouette moved), so each view took its own.
+    assert np.abs(passes["_L"] - passes["_R"]).max() > 0.1
+
+
+def _check_views(tmp_path, out_prefix):
+    """Each view of the render _out_prefix_ equals the plain render x T + A of its own bake."""
+    for suffix in ("_L", "_R"):
+        fog = str(tmp_path / "cache" / f"fog_0001{suffix}.exr")
+        on = read_exr(str(tmp_path / f"{out_prefix}_0001{suffix}.exr"))[0]
+        off = read_exr(str(tmp_path / f"off_0001{suffix}.exr"))[0]
+        A, T = exr_pass(fog, "Airlight"), exr_pass(fog, "Transmittance")
+        np.testing.assert_allclose(on[..., :3], off[..., :3] * T + A, rtol=1e-4, atol=1e-5)
+
+
+@needs_native
+def test04_stereo_switched_on_after_the_compositor_was_set_up(tmp_path):
+    """A file whose fog nodes were set up without Stereoscopy (an older file, or stereo
+    switched on by a script): the nodes for the views are added on load and when a script
+    turns it on before rendering, so that the first frame composites each view's bake."""
+    from airlight import compositor
+    scene = _pole_scene(tmp_path)
+    scene.render.film_transparent = False
+    scene.cycles.samples = 2
+    scene.render.use_multiview = False
+    bpy.ops.airlight.setup_compositor()
+    assert compositor.views_ready(scene)
+    mono = str(tmp_path / "mono.blend")
+    bpy.ops.wm.save_as_mainfile(filepath=mono)
+    scene.render.use_multiview = True
+    compositor.on_depsgraph_update_post(scene, bpy.context.evaluated_depsgraph_get())
+    assert compositor.views_ready(scene)  # (the handler set them up)
+    scene.render.use_multiview = False
+    compositor.on_depsgraph_update_post(scene, bpy.context.evaluated_depsgraph_get())
+    assert compositor.views_ready(scene) and not compositor._view_nodes(scene.node_tree)
+    off_script = tmp_path / "fog_off.py"
+    off_script.write_text("import bpy\nbpy.context.scene.render.use_multiview = True\n"
+                          "bpy.context.scene.airlight.enabled = False\n")
+    on_script = tmp_path / "stereo_on.py"
+    on_script.write_text("import bpy\nbpy.context.scene.render.use_multiview = True\n")
+    for args in ((mono, "--python", str(off_script), "-o", str(tmp_path / "off_####"), "-f", "1"),
+                 (mono, "--python", str(on_script), "-o", str(tmp_path / "script_####"), "-f", "1")):
+        proc = run_blender(*args)
+        assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
+    _check_views(tmp_path, "script")
