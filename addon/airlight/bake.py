@@ -224,7 +224,8 @@ class AIRLIGHT_OT_bake(bpy.types.Operator):
 
     filepath: StringProperty(
         name="File Path",
-        description="Multilayer EXR to write (default: the cache folder's fog_####.exr for the frame)",
+        description="Multilayer EXR to write (default: the cache folder's fog_####.exr for the frame; "
+                    "with Stereoscopy one file per view, the view's suffix before the extension)",
         subtype='FILE_PATH', options={'SKIP_SAVE'},
     )
     frame: IntProperty(

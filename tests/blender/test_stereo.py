@@ -75,6 +75,24 @@ def test01_views_and_their_files():
                                                           ("right", "/c/fog_0001_R.exr")]
     scene.render.views["right"].use = False
     assert scene_export.render_views(scene) == [("left", "_L")]
+    scene.render.views["right"].use = True
+    # Multi-View: each view's camera by its suffix (Blender's rule), else the scene camera.
+    scene.render.views_format = 'MULTIVIEW'
+    cams = {}
+    for name, x in (("Cam_L", -1.0), ("Cam_R", 2.0)):
+        cams[name] = bpy.data.objects.new(name, bpy.data.cameras.new(name))
+        cams[name].location = (x, 0.0, 0.0)
+        scene.collection.objects.link(cams[name])
+    scene.camera = cams["Cam_L"]
+    scene.render.resolution_x, scene.render.resolution_y = 32, 24
+    assert scene_export.view_camera(scene, "left") == cams["Cam_L"]
+    assert scene_export.view_camera(scene, "right") == cams["Cam_R"]
+    depsgraph = bpy.context.evaluated_depsgraph_get()
+    assert scene_export.export_camera(scene, depsgraph, "right")[2][0, 3] == pytest.approx(2.0)
+    assert scene_export.export_camera(scene, depsgraph, "left")[2][0, 3] == pytest.approx(-1.0)
+    scene.camera = bpy.data.objects.new("Other", bpy.data.cameras.new("Other"))
+    scene.collection.objects.link(scene.camera)
+    assert scene_export.view_camera(scene, "right") == scene.camera
 
 
 @needs_native
