@@ -2535,22 +2535,28 @@ void RbfSplat::splat_tile_reduced(int t, int x0, int y0, int w, int h, const flo
     // Lattice of rays at the film corners x0 + s u, y0 + s v covering the pixel centres,
     // padded to whole SIMD vectors with copies of the last ray.
     constexpr int kMaxLattice = 96;  // (16 / 2 + 1)^2 = 81 at step 2, rounded up to 16
-    const int nu = int((w - 0.5) / s) + 2, nv = int((h - 0.5) / s) + 2;
-    const int m = nu * nv, m_pad = (m + 15) / 16 * 16;
-    float lx[kMaxLattice], ly[kMaxLattice], lz[kMaxLattice];
-    for (int v = 0; v < nv; ++v)
-        for (int u = 0; u < nu; ++u) {
-            const Vec3 d = glm::normalize(D0_ + double(x0 + s * u) * Dx_ + double(y0 + s * v) * Dy_);
-            const int k = v * nu + u;
-            lx[k] = float(d.x);
-            ly[k] = float(d.y);
-            lz[k] = float(d.z);
+    // (the rays of a lattice of spacing sp with nu x nv nodes: returns their count padded)
+    auto lattice_rays = [&](int sp, int nu, int nv, float* lx, float* ly, float* lz) {
+        const int m = nu * nv, m_pad = (m + 15) / 16 * 16;
+        for (int v = 0; v < nv; ++v)
+            for (int u = 0; u < nu; ++u) {
+                const Vec3 d = glm::normalize(D0_ + double(x0 + sp * u) * Dx_ + double(y0 + sp * v) * Dy_);
+                const int k = v * nu + u;
+                lx[k] = float(d.x);
+                ly[k] = float(d.y);
+                lz[k] = float(d.z);
+            }
+        for (int k = m; k < m_pad; ++k) {
+            lx[k] = lx[m - 1];
+            ly[k] = ly[m - 1];
+            lz[k] = lz[m - 1];
         }
-    for (int k = m; k < m_pad; ++k) {
-        lx[k] = lx[m - 1];
-        ly[k] = ly[m - 1];
-        lz[k] = lz[m - 1];
-    }
+        return m_pad;
+    };
+    const int nu = int((w - 0.5) / s) + 2, nv = int((h - 0.5) / s) + 2;
+    const int m = nu * nv;
+    float lx[kMaxLattice], ly[kMaxLattice], lz[kMaxLattice];
+    const int m_pad = lattice_rays(s, nu, nv, lx, ly, lz);
     float cT[kMaxLattice] = {}, cR[kMaxLattice] = {}, cG[kMaxLattice] = {}, cB[kMaxLattice] = {};
     // Near segments on the lattice (near clip only): lattice t0 and sums.
     float lt0[kMaxLattice], nT[kMaxLattice] = {}, nR[kMaxLattice] = {}, nG[kMaxLattice] = {}, nB[kMaxLattice] = {};
@@ -2914,22 +2920,9 @@ void RbfSplat::splat_tile_reduced(int t, int x0, int y0, int w, int h, const flo
     if (!fine_list.empty()) {
         // The fine lattice of an exact tile (spacing s / 2), interpolated to the pixels.
         const int sf = s / 2, nuf = int((w - 0.5) / sf) + 2, nvf = int((h - 0.5) / sf) + 2, mf = nuf * nvf;
-        const int mf_pad = (mf + 15) / 16 * 16;
         float qx[kMaxLattice], qy[kMaxLattice], qz[kMaxLattice];
         float qT[kMaxLattice] = {}, qR[kMaxLattice] = {}, qG[kMaxLattice] = {}, qB[kMaxLattice] = {};
-        for (int v = 0; v < nvf; ++v)
-            for (int u = 0; u < nuf; ++u) {
-                const Vec3 d = glm::normalize(D0_ + double(x0 + sf * u) * Dx_ + double(y0 + sf * v) * Dy_);
-                const int k = v * nuf + u;
-                qx[k] = float(d.x);
-                qy[k] = float(d.y);
-                qz[k] = float(d.z);
-            }
-        for (int k = mf; k < mf_pad; ++k) {
-            qx[k] = qx[mf - 1];
-            qy[k] = qy[mf - 1];
-            qz[k] = qz[mf - 1];
-        }
+        lattice_rays(sf, nuf, nvf, qx, qy, qz);
         lattice_sum(fine_list, mf, qx, qy, qz, qT, qR, qG, qB);
         interp_lattice(w, h, sf, nuf, qT, qR, qG, qB, Tf, Rf, Gf, Bf);
     }

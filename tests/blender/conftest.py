@@ -100,6 +100,23 @@ def build_plane_scene(tmp_path, fog=True, light=True, camera=True, size=(64, 48)
     return scene
 
 
+def cycles_exr_render(scene, samples):
+    """Cycles on the CPU with _samples_ samples (no denoiser), a black World, the Standard
+    view transform and 32-bit float EXR output: renders the tests compare to the passes."""
+    scene.render.engine = 'CYCLES'
+    scene.cycles.samples = samples
+    scene.cycles.use_denoising = False
+    scene.cycles.device = 'CPU'
+    world = bpy.data.worlds.new("Dark")
+    world.color = (0.0, 0.0, 0.0)
+    scene.world = world
+    scene.view_settings.view_transform = 'Standard'
+    settings = scene.render.image_settings
+    settings.file_format = 'OPEN_EXR'
+    settings.color_depth = '32'
+    return settings
+
+
 class RecordingLayout:
     """A stand-in for a panel's layout: records what the panel draws (property names,
     operator ids, label texts) and checks that each property exists and has a tooltip and

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from airlight import render
-from conftest import build_plane_scene, draw_panel, exr_pass, needs_native, read_exr, run_blender
+from conftest import build_plane_scene, cycles_exr_render, draw_panel, exr_pass, needs_native, read_exr, run_blender
 
 
 def _render_scene(tmp_path):
@@ -18,17 +18,7 @@ def _render_scene(tmp_path):
     cam.location = (1.5, -5.0, 1.5)
     cam.keyframe_insert("location", frame=2)
     scene.frame_start, scene.frame_end = 1, 2
-    scene.render.engine = 'CYCLES'
-    scene.cycles.samples = 2
-    scene.cycles.use_denoising = False
-    scene.cycles.device = 'CPU'
-    world = bpy.data.worlds.new("Dark")
-    world.color = (0.0, 0.0, 0.0)
-    scene.world = world
-    scene.view_settings.view_transform = 'Standard'
-    settings = scene.render.image_settings
-    settings.file_format = 'OPEN_EXR'
-    settings.color_depth = '32'
+    cycles_exr_render(scene, 2)
     scene.render.use_compositing = True
     scene.airlight.density = 0.1
     # The plain composite render x T + A (surface shading, on by default with Cycles, adds
