@@ -52,9 +52,17 @@ def _alpha_nodes(tree):
 
 
 def _link(tree, from_socket, to_socket):
-    """Links unless already so (a new link re-evaluates the compositor)."""
-    if not (to_socket.is_linked and to_socket.links[0].from_socket == from_socket):
-        tree.links.new(from_socket, to_socket)
+    """Links unless already so (a new link re-evaluates the compositor), also through a
+    view's Switch View node (_setup_views) that takes _from_socket_."""
+    if to_socket.is_linked:
+        source = to_socket.links[0].from_socket
+        if source == from_socket:
+            return
+        node = source.node
+        if node.name.startswith(VIEW_SWITCH_PREFIX) and any(
+                link.from_socket == from_socket for socket in node.inputs for link in socket.links):
+            return
+    tree.links.new(from_socket, to_socket)
 
 
 def _setup_alpha(tree, frame, image_node, add):

@@ -180,3 +180,41 @@ def test04_stereo_switched_on_after_the_compositor_was_set_up(tmp_path):
         proc = run_blender(*args)
         assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
     _check_views(tmp_path, "script")
+
+
+@needs_native
+def test05_setting_up_again_changes_no_link(tmp_path, monkeypatch):
+    """Each render points the fog nodes at the frame's files (compositor.sync, also from an
+    interactive render's thread): with the views' switches in place that must not relink
+    anything (the UI may be drawing the tree), surface shading's chain included."""
+    from airlight import compositor
+    scene = _pole_scene(tmp_path)
+    scene.airlight.surface_shading = True
+    bpy.ops.airlight.setup_compositor()
+    path = bake.bake_frame(scene, bpy.context.evaluated_depsgraph_get())[0]
+    compositor.sync(scene, path)
+    tree = scene.node_tree
+    assert compositor.views_ready(scene)
+    switches = [n for n in tree.nodes if n.name.startswith(compositor.VIEW_SWITCH_PREFIX)]
+    assert len(switches) >= 3, [n.name for n in switches]  # Airlight, Transmittance, a surface pass
+    relinked = []
+    link = compositor._link
+
+    def spy(tree, from_socket, to_socket):  # records a link whose source _link changes
+        source = to_socket.links[0].from_socket if to_socket.is_linked else None
+        link(tree, from_socket, to_socket)
+        if to_socket.links[0].from_socket != source:
+            relinked.append((from_socket.node.name, from_socket.name, to_socket.node.name))
+    monkeypatch.setattr(compositor, "_link", spy)
+    before = [(l.from_node.name, l.from_socket.identifier, l.to_node.name, l.to_socket.identifier) for l in tree.links]
+    path = bake.bake_frame(scene, bpy.context.evaluated_depsgraph_get())[0]
+    compositor.sync(scene, path)
+    after = [(l.from_node.name, l.from_socket.identifier, l.to_node.name, l.to_socket.identifier) for l in tree.links]
+    assert not relinked and after == before, relinked
+    # Without Stereoscopy the fog nodes read the Image node again.
+    scene.render.use_multiview = False
+    path = bake.bake_frame(scene, bpy.context.evaluated_depsgraph_get())[0]
+    compositor.sync(scene, path)
+    assert not compositor._view_nodes(tree) and compositor.is_complete(scene)
+    image_node = tree.nodes[compositor.NODE_IMAGE]
+    assert tree.nodes[compositor.NODE_MULTIPLY].inputs[2].links[0].from_node == image_node
