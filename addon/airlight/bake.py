@@ -163,8 +163,8 @@ def _fit_region(baked, region, fill):
 def view_paths(scene, filepath):
     """[(view, path)]: the passes' file of each view a render makes (render_views): with
     Stereoscopy on, _filepath_ with the view's suffix before the extension (fog_0001_L.exr,
-    fog_0001_R.exr: one multi-view image to the compositor, which takes each view's own),
-    else [(None, filepath)]."""
+    fog_0001_R.exr; the compositor hands each view its own, compositor._setup_views), else
+    [(None, filepath)]."""
     views = scene_export.render_views(scene)
     if views[0][0] is None:
         return [(None, filepath)]

@@ -101,16 +101,16 @@ def render_views(scene):
 def view_camera(scene, view):
     """The camera object that renders _view_ (a name from render_views): the scene camera,
     or in Multi-View format the object named like it with the view's suffix in place of
-    another enabled view's suffix (Blender's rule: "Camera_L" -> "Camera_R")."""
+    another view's suffix (Blender's rule: "Camera_L" -> "Camera_R")."""
     camera = scene.camera
     render = scene.render
     if view is None or camera is None or not render.use_multiview or render.views_format != 'MULTIVIEW':
         return camera
     suffix = render.views[view].file_suffix
     best = None
-    for v in render.views:
-        if v.use and v.file_suffix and camera.name.endswith(v.file_suffix):
-            if best is None or len(v.file_suffix) > len(best):
+    for v in render.views:  # (every view, as Blender: the longest suffix the name ends with)
+        if v.file_suffix and camera.name.endswith(v.file_suffix):
+            if best is None or len(v.file_suffix) >= len(best):
                 best = v.file_suffix
     if best is None:
         return camera
