@@ -150,3 +150,45 @@ def test02_render_thread_frame_changes_leave_the_preview_cache(addon):
     assert state["meshes"] == sentinel and state["generation"] == generation
     addon._on_frame_change(bpy.context.scene)
     assert state["meshes"] == {} and state["generation"] == generation + 1
+
+
+def test03_f12_in_stereo_bakes_and_composites_each_view(tmp_path, addon):
+    """Stereoscopy in an interactive render: the render thread bakes each eye from its own
+    camera (each view's file equals a bake of that view made here, and the eyes differ),
+    and each view's composite takes its own passes: out = render x T + A per view, the
+    render being the Render Result's view before the compositor (read back here from a
+    second F12 with the fog off)."""
+    scene, _ = _scene(tmp_path, ui_frame=2, surface=False)
+    scene.render.use_multiview = True
+    scene.render.views_format = 'STEREO_3D'
+    scene.camera.data.stereo.interocular_distance = 0.3
+    scene.render.image_settings.views_format = 'INDIVIDUAL'
+    bpy.context.view_layer.update()  # the depsgraph handler adds the views' nodes
+    blend = str(tmp_path / "stereo.blend")
+    bpy.ops.wm.save_as_mainfile(filepath=blend)
+    proc = subprocess.run([os.path.join(REPO, "tools", "blender.sh"), blend, "--python", DRIVER, "--", "still"],
+                          capture_output=True, text=True, timeout=300)
+    log = proc.stdout[-4000:] + proc.stderr[-2000:]
+    assert proc.returncode == 0 and "rendered without fog" not in proc.stdout, log
+    scene.airlight.enabled = False
+    scene.render.filepath = str(tmp_path / "off_")
+    bpy.ops.wm.save_as_mainfile(filepath=blend)
+    proc = subprocess.run([os.path.join(REPO, "tools", "blender.sh"), blend, "--python", DRIVER, "--", "still"],
+                          capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stdout[-4000:] + proc.stderr[-2000:]
+    scene.airlight.enabled = True
+    reference = str(tmp_path / "ref.exr")
+    assert bpy.ops.airlight.bake(frame=2, filepath=reference) == {'FINISHED'}
+    passes = {}
+    for suffix in ("_L", "_R"):
+        baked = _channels(str(tmp_path / "cache" / f"fog_0002{suffix}.exr"))
+        ref = _channels(str(tmp_path / f"ref{suffix}.exr"))
+        for name in baked:
+            np.testing.assert_allclose(baked[name], ref[name], rtol=1e-5, atol=1e-7, err_msg=f"{suffix} {name}")
+        A = np.stack([baked[f"Fog.Airlight.{c}"] for c in "RGB"], axis=-1)
+        T = np.stack([baked[f"Fog.Transmittance.{c}"] for c in "RGB"], axis=-1)
+        on = read_exr(str(tmp_path / f"out_{suffix}.exr"))[0][..., :3]
+        off = read_exr(str(tmp_path / f"off_{suffix}.exr"))[0][..., :3]
+        np.testing.assert_allclose(on, off * T + A, rtol=1e-4, atol=1e-5, err_msg=suffix)
+        passes[suffix] = A
+    assert np.abs(passes["_L"] - passes["_R"]).max() > 1e-3
