@@ -32,6 +32,9 @@ SURFACE_GROUPS = "surface_groups"
 REGION = "render_region"
 # And: write the passes as 16-bit floats (scene.airlight.pass_precision 'HALF').
 HALF_PASSES = "half_passes"
+# And, with the camera's depth of field (scene_export.export_lens): [(cam_to_world,
+# projection)] of the lens samples, one bake each, averaged by run().
+LENS = "lens_samples"
 
 
 def film_filter_width(scene):
@@ -76,6 +79,9 @@ def prepare(scene, depsgraph, mesh_overrides=None, view=None):
         raise BakeError(str(ex)) from None
     if getattr(scene.airlight, "pass_precision", 'FULL') == 'HALF':
         settings[HALF_PASSES] = True
+    lens = scene_export.export_lens(scene, depsgraph, view, description["cam_to_world"], description["projection"])
+    if lens is not None:
+        settings[LENS] = lens
     region, window = scene_export.render_region(scene), scene_export.bake_window(scene)
     if region is not None:
         width, height = scene_export.render_size(scene)
@@ -123,18 +129,27 @@ def run(description, settings, filepath, progress=None):
     region = settings.pop(REGION, None)
     half = settings.pop(HALF_PASSES, False)
     world = settings.pop("environment", None)
-    try:
-        result = module.bake(**description, **settings, progress=progress)
-        stats = dict(result["stats"])
-        if world is not None:
-            stats["seconds_environment"] = environment.apply(module, world, description, result)
-    except ValueError as ex:
-        raise BakeError(f"Invalid fog scene: {ex}") from None
-    extra = surface.pass_arrays(result, groups) if settings.get("surface") else None
-    if extra is not None and "environment_surface" in result:
-        name, ratio = result["environment_surface"]
-        extra[surface.PASS_PREFIX + name] = ratio
-    airlight, transmittance = result["airlight"], result["transmittance"]
+    lens = settings.pop(LENS, None)
+
+    def bake_once(description, progress):
+        """(airlight, transmittance, extra passes or None, depth, stats) of one bake."""
+        try:
+            result = module.bake(**description, **settings, progress=progress)
+            stats = dict(result["stats"])
+            if world is not None:
+                stats["seconds_environment"] = environment.apply(module, world, description, result)
+        except ValueError as ex:
+            raise BakeError(f"Invalid fog scene: {ex}") from None
+        extra = surface.pass_arrays(result, groups) if settings.get("surface") else None
+        if extra is not None and "environment_surface" in result:
+            name, ratio = result["environment_surface"]
+            extra[surface.PASS_PREFIX + name] = ratio
+        return result["airlight"], result["transmittance"], extra, result["depth"], stats
+
+    if lens is None:
+        airlight, transmittance, extra, _, stats = bake_once(description, progress)
+    else:
+        airlight, transmittance, extra, stats = _lens_average(bake_once, description, lens, progress)
     if region is not None:
         airlight = _fit_region(airlight, region, 0.0)
         transmittance = _fit_region(transmittance, region, 1.0)
@@ -144,6 +159,42 @@ def run(description, settings, filepath, progress=None):
     except cache.CacheError as ex:
         raise BakeError(str(ex)) from None
     return stats, time.perf_counter() - start
+
+
+def _lens_average(bake_once, description, lens, progress):
+    """The passes averaged over the lens samples' bakes (scene_export.export_lens), as a
+    thin-lens render averages its camera rays over the aperture: airlight and the surface
+    passes the mean of all samples; transmittance the mean of the samples whose rays hit a
+    surface (where some do), as the edge samples take it (a miss looks into the world
+    through fog out to infinity, T = 0, and the render's mix of surface and world at such a
+    pixel is already its own). Returns (airlight, transmittance, extra, stats of the first)."""
+    n = len(lens)
+    airlight = transmittance = extra = stats = None
+    hit_T = hits = None
+    for k, (cam_to_world, projection) in enumerate(lens):
+        step = None
+        if progress is not None:
+            def step(fraction, k=k):
+                return progress((k + fraction) / n)
+        A, T, E, depth, S = bake_once(dict(description, cam_to_world=cam_to_world, projection=projection), step)
+        hit = np.isfinite(depth)[..., None].astype(np.float32)
+        if airlight is None:
+            airlight, transmittance, stats = A.astype(np.float32), T.astype(np.float32), S
+            hit_T, hits = T * hit, hit.copy()
+            extra = {name: p.astype(np.float32) for name, p in E.items()} if E else E
+        else:
+            airlight += A
+            transmittance += T
+            hit_T += T * hit
+            hits += hit
+            for name, p in (E or {}).items():
+                extra[name] += p
+    airlight /= n
+    transmittance = np.where(hits > 0, hit_T / np.maximum(hits, 1.0), transmittance / n).astype(np.float32)
+    for p in (extra or {}).values():
+        p /= n
+    stats = dict(stats, lens_samples=n)
+    return airlight, transmittance, extra, stats
 
 
 def _fit_region(baked, region, fill):

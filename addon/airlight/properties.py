@@ -256,6 +256,14 @@ class AirlightSceneSettings(bpy.types.PropertyGroup):
         ),
         default='FULL',
     )
+    lens_samples: IntProperty(
+        name="Lens Samples",
+        description="With the camera's Depth of Field on, the fog is baked this many times from "
+                    "points spread over the lens aperture and averaged, so that out-of-focus "
+                    "silhouettes blur in the fog passes as they do in the render (each sample "
+                    "costs one bake). 1: one bake from the lens centre, sharp fog edges",
+        default=8, min=1, max=64,
+    )
     auto_composite: BoolProperty(
         name="Auto Composite",
         description="Keep the compositor fog nodes in sync: create them when needed and "

@@ -50,10 +50,12 @@ def _main_thread_depsgraph(scene):
 COMPOSITING_OFF = ("Compositing is off (Output > Post Processing): renders are saved without "
                    "the fog (its passes are still baked)")
 # (Stereoscopy / multi-view renders bake every view from its own camera: bake.view_paths.)
-# The bake traces one pinhole camera at the frame's instant: a render's depth of field
-# and motion blur smear silhouettes that the fog passes keep sharp (a fringe at the edge).
-DEPTH_OF_FIELD = ("Depth of field: the fog passes stay sharp, so out-of-focus silhouettes get "
-                  "a fringe (for clean edges, defocus after the fog with the Defocus node)")
+# The bake traces pinhole cameras at the frame's instant: a render's motion blur, and its
+# depth of field unless the lens is sampled (scene.airlight.lens_samples, perspective
+# cameras), smear silhouettes that the fog passes keep sharp (a fringe at the edge).
+DEPTH_OF_FIELD = ("Depth of field with one lens sample: the fog passes stay sharp, so out-of-focus "
+                  "silhouettes get a fringe (raise Lens Samples, or defocus after the fog with the "
+                  "Defocus node)")
 MOTION_BLUR = "Motion blur: the fog is baked at the frame's instant, sharp at moving silhouettes"
 
 
@@ -64,7 +66,8 @@ def render_notes(scene):
     if not scene.render.use_compositing:
         notes.append(COMPOSITING_OFF)
     camera = scene.camera
-    if camera is not None and camera.type == 'CAMERA' and camera.data.dof.use_dof:
+    if (camera is not None and camera.type == 'CAMERA' and camera.data.dof.use_dof
+            and (scene.airlight.lens_samples <= 1 or camera.data.type != 'PERSP')):
         notes.append(DEPTH_OF_FIELD)
     if scene.render.use_motion_blur:
         notes.append(MOTION_BLUR)

@@ -226,6 +226,52 @@ def export_camera(scene, depsgraph, view=None):
     return width, height, cam_to_world, projection
 
 
+def lens_points(count):
+    """_count_ points spread evenly over the unit disk (a Fibonacci spiral: equal areas per
+    point); the centre alone for one."""
+    if count <= 1:
+        return [(0.0, 0.0)]
+    golden = math.pi * (3.0 - math.sqrt(5.0))
+    return [(math.sqrt((k + 0.5) / count) * math.cos(k * golden),
+             math.sqrt((k + 0.5) / count) * math.sin(k * golden)) for k in range(count)]
+
+
+def export_lens(scene, depsgraph, view, cam_to_world, projection):
+    """The cameras of the lens samples (scene.airlight.lens_samples) when _view_'s camera has
+    Depth of Field on: [(cam_to_world, projection)], each a pinhole at a point of the
+    aperture looking through the same focus plane, as Cycles samples its thin lens (radius
+    lens / (2 F-stop), lens in mm and the radius in metres; focus distance along the view
+    axis, or to the focus object). None for one sample, no depth of field or an
+    orthographic camera. The aperture is a disk (Blades and Ratio are not followed)."""
+    camera = view_camera(scene, view)
+    samples = int(getattr(scene.airlight, "lens_samples", 1))
+    data = camera.evaluated_get(depsgraph).data
+    dof = data.dof
+    if samples <= 1 or not dof.use_dof or data.type != 'PERSP':
+        return None
+    radius = float(data.lens) * 1e-3 / (2.0 * max(float(dof.aperture_fstop), 1e-5))
+    axes = cam_to_world[:3, :3] / np.linalg.norm(cam_to_world[:3, :3], axis=0)
+    eye = cam_to_world[:3, 3]
+    if dof.focus_object is not None:
+        target = np.array(dof.focus_object.evaluated_get(depsgraph).matrix_world.translation, dtype=np.float64)
+        focus = abs(float(np.dot(axes[:, 2], eye - target)))
+    else:
+        focus = float(dof.focus_distance)
+    if not (radius > 0.0 and focus > 0.0 and math.isfinite(radius) and math.isfinite(focus)):
+        return None
+    cameras = []
+    for u, v in lens_points(samples):
+        dx, dy = radius * u, radius * v
+        moved = cam_to_world.copy()
+        moved[:3, 3] = eye + dx * axes[:, 0] + dy * axes[:, 1]
+        # Points of the focus plane (view depth _focus_) keep their pixels.
+        shifted = projection.copy()
+        shifted[0, 2] -= projection[0, 0] * dx / focus
+        shifted[1, 2] -= projection[1, 1] * dy / focus
+        cameras.append((moved, shifted))
+    return cameras
+
+
 def export_clip_range(scene, depsgraph, view=None):
     """(clip_start, clip_end) of the scene camera (of _view_'s, view_camera): Cycles starts
     camera rays on the near plane (the fog begins there) and does not see surfaces beyond

@@ -76,6 +76,9 @@ class AIRLIGHT_PT_scene(bpy.types.Panel):
         col.prop(settings, "threads")
         col.prop(settings, "cache_dir")
         col.prop(settings, "pass_precision")
+        camera = context.scene.camera
+        if camera is not None and camera.type == 'CAMERA' and camera.data.dof.use_dof:
+            col.prop(settings, "lens_samples")
         col.prop(settings, "auto_composite")
         col.prop(settings, "surface_shading")
         sub = col.column()

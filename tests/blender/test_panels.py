@@ -70,6 +70,8 @@ def test03_what_the_fog_composite_cannot_do_is_said_in_the_panel_and_the_console
     scene.render.use_multiview = False
     # Depth of field and motion blur: the passes stay sharp.
     scene.camera.data.dof.use_dof = True
+    assert render.DEPTH_OF_FIELD not in _draw("AIRLIGHT_PT_scene")  # sampled over the lens
+    scene.airlight.lens_samples = 1
     scene.render.use_motion_blur = True
     seen = _draw("AIRLIGHT_PT_scene")
     assert render.DEPTH_OF_FIELD in seen and render.MOTION_BLUR in seen
