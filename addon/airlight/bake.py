@@ -5,6 +5,7 @@ progress lines), and as a cancellable modal operator with a worker thread when i
 from the UI (the native bake releases the GIL, a timer polls its progress).
 """
 
+import math
 import os
 import threading
 import time
@@ -35,6 +36,9 @@ HALF_PASSES = "half_passes"
 # And, with the camera's depth of field (scene_export.export_lens): [(cam_to_world,
 # projection)] of the lens samples, one bake each, averaged by run().
 LENS = "lens_samples"
+# And, with motion blur (prepare_views with evaluate_at): the scene descriptions of the
+# shutter samples (each lens sample of each), one bake each, averaged by run().
+SAMPLES = "samples_to_average"
 
 
 def film_filter_width(scene):
@@ -130,6 +134,7 @@ def run(description, settings, filepath, progress=None):
     half = settings.pop(HALF_PASSES, False)
     world = settings.pop("environment", None)
     lens = settings.pop(LENS, None)
+    samples = settings.pop(SAMPLES, None) or (_variants(description, {LENS: lens}) if lens else None)
 
     def bake_once(description, progress):
         """(airlight, transmittance, extra passes or None, depth, stats) of one bake."""
@@ -146,10 +151,10 @@ def run(description, settings, filepath, progress=None):
             extra[surface.PASS_PREFIX + name] = ratio
         return result["airlight"], result["transmittance"], extra, result["depth"], stats
 
-    if lens is None:
+    if samples is None:
         airlight, transmittance, extra, _, stats = bake_once(description, progress)
     else:
-        airlight, transmittance, extra, stats = _lens_average(bake_once, description, lens, progress)
+        airlight, transmittance, extra, stats = _average(bake_once, samples, progress)
     if region is not None:
         airlight = _fit_region(airlight, region, 0.0)
         transmittance = _fit_region(transmittance, region, 1.0)
@@ -161,22 +166,23 @@ def run(description, settings, filepath, progress=None):
     return stats, time.perf_counter() - start
 
 
-def _lens_average(bake_once, description, lens, progress):
-    """The passes averaged over the lens samples' bakes (scene_export.export_lens), as a
-    thin-lens render averages its camera rays over the aperture: airlight and the surface
-    passes the mean of all samples; transmittance the mean of the samples whose rays hit a
-    surface (where some do), as the edge samples take it (a miss looks into the world
-    through fog out to infinity, T = 0, and the render's mix of surface and world at such a
-    pixel is already its own). Returns (airlight, transmittance, extra, stats of the first)."""
-    n = len(lens)
+def _average(bake_once, descriptions, progress):
+    """The passes averaged over the bakes of _descriptions_ (lens samples,
+    scene_export.export_lens; shutter samples, prepare_views), as a render averages its
+    camera rays over the aperture and the shutter: airlight and the surface passes the mean
+    of all; transmittance the mean of the samples whose rays hit a surface (where some do),
+    as the edge samples take it (a miss looks into the world through fog out to infinity,
+    T = 0, and the render's mix of surface and world at such a pixel is already its own).
+    Returns (airlight, transmittance, extra, stats of the first with "averaged_bakes")."""
+    n = len(descriptions)
     airlight = transmittance = extra = stats = None
     hit_T = hits = None
-    for k, (cam_to_world, projection) in enumerate(lens):
+    for k, description in enumerate(descriptions):
         step = None
         if progress is not None:
             def step(fraction, k=k):
                 return progress((k + fraction) / n)
-        A, T, E, depth, S = bake_once(dict(description, cam_to_world=cam_to_world, projection=projection), step)
+        A, T, E, depth, S = bake_once(description, step)
         hit = np.isfinite(depth)[..., None].astype(np.float32)
         if airlight is None:
             airlight, transmittance, stats = A.astype(np.float32), T.astype(np.float32), S
@@ -193,7 +199,7 @@ def _lens_average(bake_once, description, lens, progress):
     transmittance = np.where(hits > 0, hit_T / np.maximum(hits, 1.0), transmittance / n).astype(np.float32)
     for p in (extra or {}).values():
         p /= n
-    stats = dict(stats, lens_samples=n)
+    stats = dict(stats, averaged_bakes=n)
     return airlight, transmittance, extra, stats
 
 
@@ -223,10 +229,70 @@ def view_paths(scene, filepath):
     return [(name, root + suffix + ext) for name, suffix in views]
 
 
-def prepare_views(scene, depsgraph, filepath, mesh_overrides=None):
+def shutter_offsets(scene):
+    """Frame offsets of the shutter samples (scene.airlight.motion_samples) with Motion Blur
+    on: evenly spaced over the shutter (Output > Motion Blur > Shutter, in frames) placed as
+    the engine's Position says (Cycles or Eevee: start, centre or end on the frame); [] for
+    one sample or no motion blur."""
+    render = scene.render
+    count = int(getattr(scene.airlight, "motion_samples", 1))
+    if not render.use_motion_blur or count <= 1:
+        return []
+    shutter = max(0.0, float(render.motion_blur_shutter))
+    engine = scene.cycles if render.engine == 'CYCLES' and hasattr(scene, "cycles") else scene.eevee
+    position = getattr(engine, "motion_blur_position", 'CENTER')
+    start = {'START': 0.0, 'END': -shutter}.get(position, -0.5 * shutter)
+    return [start + shutter * (k + 0.5) / count for k in range(count)]
+
+
+def frame_evaluator(scene):
+    """evaluate_at for prepare_views, main thread only: sets _scene_'s frame to the current
+    one (with its subframe) plus an offset and returns the depsgraph it evaluated."""
+    frame, subframe = scene.frame_current, scene.frame_subframe
+
+    def evaluate_at(offset):
+        t = frame + subframe + offset
+        whole = math.floor(t)
+        scene.frame_set(int(whole), subframe=t - whole)
+        if bpy.context.scene == scene and bpy.context.view_layer is not None:
+            return bpy.context.evaluated_depsgraph_get()
+        return scene.view_layers[0].depsgraph
+    return evaluate_at
+
+
+def _variants(description, settings):
+    """The scene descriptions one prepare()d bake stands for: one per lens sample."""
+    lens = settings.get(LENS)
+    if not lens:
+        return [description]
+    return [dict(description, cam_to_world=c, projection=p) for c, p in lens]
+
+
+def prepare_views(scene, depsgraph, filepath, mesh_overrides=None, evaluate_at=None):
     """[(description, settings, path)] per view (view_paths): prepare() with each view's
-    camera. The first path is the one the compositor is pointed at."""
-    return [prepare(scene, depsgraph, mesh_overrides, view) + (path,) for view, path in view_paths(scene, filepath)]
+    camera. The first path is the one the compositor is pointed at.
+
+    _evaluate_at_ (main thread only; None elsewhere): a callable taking a frame offset that
+    evaluates the scene there and returns its depsgraph, then back at 0.0. With Motion Blur
+    (shutter_offsets) every view's settings then carry the descriptions of its shutter
+    samples (and of their lens samples) under SAMPLES, which run() bakes and averages."""
+    paths = view_paths(scene, filepath)
+    jobs = [prepare(scene, depsgraph, mesh_overrides, view) + (path,) for view, path in paths]
+    offsets = shutter_offsets(scene) if evaluate_at is not None else []
+    if not offsets:
+        return jobs
+    samples = [[] for _ in jobs]
+    try:
+        for offset in offsets:
+            at = evaluate_at(offset)
+            for k, (view, _) in enumerate(paths):
+                samples[k].extend(_variants(*prepare(scene, at, None, view)))
+    finally:
+        evaluate_at(0.0)
+    for (description, settings, _), own in zip(jobs, samples):
+        settings.pop(LENS, None)
+        settings[SAMPLES] = own
+    return jobs
 
 
 def run_views(jobs, progress=None):
@@ -244,12 +310,13 @@ def run_views(jobs, progress=None):
     return first, total
 
 
-def bake_frame(scene, depsgraph, filepath=None, progress=None, mesh_overrides=None):
+def bake_frame(scene, depsgraph, filepath=None, progress=None, mesh_overrides=None, evaluate_at=None):
     """Synchronous bake of the depsgraph's current frame (every view of a stereo render,
-    view_paths); returns (filepath, stats, seconds), filepath the first view's."""
+    view_paths; the shutter's instants with _evaluate_at_, prepare_views); returns
+    (filepath, stats, seconds), filepath the first view's."""
     if filepath is None:
         filepath = cache_path(scene, scene.frame_current)
-    jobs = prepare_views(scene, depsgraph, filepath, mesh_overrides)
+    jobs = prepare_views(scene, depsgraph, filepath, mesh_overrides, evaluate_at)
     stats, seconds = run_views(jobs, progress)
     return jobs[0][2], stats, seconds
 
@@ -313,7 +380,8 @@ class AIRLIGHT_OT_bake(bpy.types.Operator):
         original = scene.frame_current, scene.frame_subframe
         scene.frame_set(frame)
         try:
-            return prepare_views(scene, context.evaluated_depsgraph_get(), self._target(context)[2])
+            return prepare_views(scene, context.evaluated_depsgraph_get(), self._target(context)[2],
+                                 evaluate_at=frame_evaluator(scene))
         finally:
             if frame != original[0]:
                 scene.frame_set(original[0], subframe=original[1])

@@ -264,6 +264,15 @@ class AirlightSceneSettings(bpy.types.PropertyGroup):
                     "costs one bake). 1: one bake from the lens centre, sharp fog edges",
         default=8, min=1, max=64,
     )
+    motion_samples: IntProperty(
+        name="Motion Samples",
+        description="With Motion Blur on, the fog is baked at this many instants spread over the "
+                    "shutter and averaged, so that moving silhouettes blur in the fog passes as they "
+                    "do in the render (each sample costs one bake; background renders and Bake Fog: "
+                    "interactive renders cannot set the frame from their thread and bake the "
+                    "frame's instant). 1: the frame's instant",
+        default=4, min=1, max=32,
+    )
     auto_composite: BoolProperty(
         name="Auto Composite",
         description="Keep the compositor fog nodes in sync: create them when needed and "

@@ -56,7 +56,10 @@ COMPOSITING_OFF = ("Compositing is off (Output > Post Processing): renders are s
 DEPTH_OF_FIELD = ("Depth of field with one lens sample: the fog passes stay sharp, so out-of-focus "
                   "silhouettes get a fringe (raise Lens Samples, or defocus after the fog with the "
                   "Defocus node)")
-MOTION_BLUR = "Motion blur: the fog is baked at the frame's instant, sharp at moving silhouettes"
+MOTION_BLUR = ("Motion blur with one motion sample: the fog is baked at the frame's instant, sharp "
+               "at moving silhouettes (raise Motion Samples)")
+MOTION_BLUR_INTERACTIVE = ("Motion blur: interactive renders (F12) bake the fog at the frame's instant "
+                           "(background renders and Bake Fog sample the shutter)")
 
 
 def render_notes(scene):
@@ -70,7 +73,7 @@ def render_notes(scene):
             and (scene.airlight.lens_samples <= 1 or camera.data.type != 'PERSP')):
         notes.append(DEPTH_OF_FIELD)
     if scene.render.use_motion_blur:
-        notes.append(MOTION_BLUR)
+        notes.append(MOTION_BLUR if scene.airlight.motion_samples <= 1 else MOTION_BLUR_INTERACTIVE)
     return notes
 
 
@@ -101,7 +104,7 @@ def on_render_pre(scene, *_):
         print(f"Airlight: frame {scene.frame_current} rendered without fog: {native.error()}", flush=True)
         return
     if _in_main_thread():
-        _bake_for_render(scene, lambda: _main_thread_depsgraph(scene))
+        _bake_for_render(scene, lambda: _main_thread_depsgraph(scene), evaluate_at=bake.frame_evaluator(scene))
     else:
         _pending["scene"] = scene.name
 
@@ -120,7 +123,7 @@ def on_render_end(*_):
     _pending["scene"] = None
 
 
-def _bake_for_render(scene, get_depsgraph, get_mesh_overrides=lambda: None):
+def _bake_for_render(scene, get_depsgraph, get_mesh_overrides=lambda: None, evaluate_at=None):
     """Bakes the frame about to render with the depsgraph get_depsgraph() returns (and the
     fog objects' data get_mesh_overrides() returns, fog_object.gather) and points the
     compositor at it; on failure prints why and composites neutral passes."""
@@ -128,7 +131,7 @@ def _bake_for_render(scene, get_depsgraph, get_mesh_overrides=lambda: None):
     frame = scene.frame_current
     try:
         filepath, stats, seconds = bake.bake_frame(scene, get_depsgraph(), bake.cache_path(scene, frame),
-                                                   mesh_overrides=get_mesh_overrides())
+                                                   mesh_overrides=get_mesh_overrides(), evaluate_at=evaluate_at)
     except Exception as ex:  # a handler must never take the render down
         reason = str(ex) if isinstance(ex, bake.BakeError) else f"{type(ex).__name__}: {ex}"
         print(f"Airlight: frame {frame} rendered without fog: {reason}", flush=True)
@@ -140,6 +143,8 @@ def _bake_for_render(scene, get_depsgraph, get_mesh_overrides=lambda: None):
     _failed.pop(scene.name, None)
     print(f"Airlight: fog of frame {frame} baked in {seconds * 1000.0:.0f} ms -> {filepath}", flush=True)
     for note in render_notes(scene):
+        if note == MOTION_BLUR_INTERACTIVE and evaluate_at is not None:
+            continue  # (this bake sampled the shutter)
         print(f"Airlight: frame {frame}: {note}", flush=True)
     if settings.auto_composite:
         compositor.sync(scene, filepath)

@@ -79,6 +79,8 @@ class AIRLIGHT_PT_scene(bpy.types.Panel):
         camera = context.scene.camera
         if camera is not None and camera.type == 'CAMERA' and camera.data.dof.use_dof:
             col.prop(settings, "lens_samples")
+        if context.scene.render.use_motion_blur:
+            col.prop(settings, "motion_samples")
         col.prop(settings, "auto_composite")
         col.prop(settings, "surface_shading")
         sub = col.column()

@@ -1,5 +1,5 @@
 """Depth of field: the fog is baked from points over the lens aperture and averaged
-(scene.airlight.lens_samples, scene_export.export_lens, bake._lens_average), so that the fog
+(scene.airlight.lens_samples, scene_export.export_lens, bake._average), so that the fog
 passes blur at out-of-focus silhouettes as the render does.
 
 The reference is Cycles: two poles in front of an empty world, one in the focus plane and
@@ -107,13 +107,13 @@ def test02_lens_average_rules():
         return A[k], T[k], E[k], depth[k], {"samples": k}
 
     fractions = []
-    airlight, transmittance, extra, stats = bake._lens_average(
-        bake_once, {"cam_to_world": None, "projection": None}, [("c0", "p0"), ("c1", "p1")], fractions.append)
+    airlight, transmittance, extra, stats = bake._average(
+        bake_once, [{"cam_to_world": "c0"}, {"cam_to_world": "c1"}], fractions.append)
     assert calls == ["c0", "c1"] and fractions == [0.5, 1.0]
     np.testing.assert_allclose(airlight[0, :, 0], [2.0, 3.0])
     np.testing.assert_allclose(transmittance[0, :, 0], [0.5, 0.0])  # pixel 0: only sample 0 hits
     np.testing.assert_allclose(extra["Surface_x"], 3.0)
-    assert stats["lens_samples"] == 2 and stats["samples"] == 0
+    assert stats["averaged_bakes"] == 2 and stats["samples"] == 0
 
 
 @needs_native
@@ -125,7 +125,7 @@ def test03_bake_averages_the_lens_samples_and_the_panel_no_longer_warns(tmp_path
     assert len(settings[bake.LENS]) == 4
     path = str(tmp_path / "fog.exr")
     stats, _ = bake.run(description, settings, path)
-    assert stats["lens_samples"] == 4
+    assert stats["averaged_bakes"] == 4
     # The same as averaging the four bakes by hand.
     plain = dict(settings)
     lens = plain.pop(bake.LENS)

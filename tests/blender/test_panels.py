@@ -74,10 +74,14 @@ def test03_what_the_fog_composite_cannot_do_is_said_in_the_panel_and_the_console
     scene.airlight.lens_samples = 1
     scene.render.use_motion_blur = True
     seen = _draw("AIRLIGHT_PT_scene")
+    assert render.DEPTH_OF_FIELD in seen and render.MOTION_BLUR_INTERACTIVE in seen
+    scene.airlight.motion_samples = 1
+    seen = _draw("AIRLIGHT_PT_scene")
     assert render.DEPTH_OF_FIELD in seen and render.MOTION_BLUR in seen
     render.on_render_pre(scene)
     out = capsys.readouterr().out
     assert render.DEPTH_OF_FIELD in out and render.MOTION_BLUR in out
     scene.airlight.enabled = False
     seen = _draw("AIRLIGHT_PT_scene")
-    assert not {render.COMPOSITING_OFF, render.DEPTH_OF_FIELD, render.MOTION_BLUR} & set(seen)
+    assert not {render.COMPOSITING_OFF, render.DEPTH_OF_FIELD, render.MOTION_BLUR,
+                render.MOTION_BLUR_INTERACTIVE} & set(seen)
