@@ -178,11 +178,7 @@ def _average(bake_once, descriptions, progress):
     airlight = transmittance = extra = stats = None
     hit_T = hits = None
     for k, description in enumerate(descriptions):
-        step = None
-        if progress is not None:
-            def step(fraction, k=k):
-                return progress((k + fraction) / n)
-        A, T, E, depth, S = bake_once(description, step)
+        A, T, E, depth, S = bake_once(description, _sub_progress(progress, k, n))
         hit = np.isfinite(depth)[..., None].astype(np.float32)
         if airlight is None:
             airlight, transmittance, stats = A.astype(np.float32), T.astype(np.float32), S
@@ -277,22 +273,33 @@ def prepare_views(scene, depsgraph, filepath, mesh_overrides=None, evaluate_at=N
     (shutter_offsets) every view's settings then carry the descriptions of its shutter
     samples (and of their lens samples) under SAMPLES, which run() bakes and averages."""
     paths = view_paths(scene, filepath)
-    jobs = [prepare(scene, depsgraph, mesh_overrides, view) + (path,) for view, path in paths]
     offsets = shutter_offsets(scene) if evaluate_at is not None else []
     if not offsets:
-        return jobs
-    samples = [[] for _ in jobs]
+        return [prepare(scene, depsgraph, mesh_overrides, view) + (path,) for view, path in paths]
+    # (the frame's own instant is not a shutter sample: each view's job is its first sample's
+    # description and settings, which run() does not bake itself when SAMPLES is there)
+    jobs = [None] * len(paths)
+    samples = [[] for _ in paths]
     try:
         for offset in offsets:
             at = evaluate_at(offset)
-            for k, (view, _) in enumerate(paths):
-                samples[k].extend(_variants(*prepare(scene, at, None, view)))
+            for k, (view, path) in enumerate(paths):
+                description, settings = prepare(scene, at, None, view)
+                jobs[k] = jobs[k] or (description, settings, path)
+                samples[k].extend(_variants(description, settings))
     finally:
         evaluate_at(0.0)
-    for (description, settings, _), own in zip(jobs, samples):
+    for (_, settings, _), own in zip(jobs, samples):
         settings.pop(LENS, None)
         settings[SAMPLES] = own
     return jobs
+
+
+def _sub_progress(progress, k, n):
+    """The progress callback for part _k_ of _n_ equal parts of a bake (None: none)."""
+    if progress is None:
+        return None
+    return lambda fraction: progress((k + fraction) / n)
 
 
 def run_views(jobs, progress=None):
@@ -300,11 +307,7 @@ def run_views(jobs, progress=None):
     first view's stats, seconds for all)."""
     first, total = None, 0.0
     for k, (description, settings, path) in enumerate(jobs):
-        step = None
-        if progress is not None:
-            def step(fraction, k=k):
-                return progress((k + fraction) / len(jobs))
-        stats, seconds = run(description, settings, path, step)
+        stats, seconds = run(description, settings, path, _sub_progress(progress, k, len(jobs)))
         first = stats if first is None else first
         total += seconds
     return first, total

@@ -118,20 +118,31 @@ def view_camera(scene, view):
     return other if other is not None else camera
 
 
+def _eye_factors(stereo, is_left):
+    """(fac, fac_signed) of a Stereo 3D eye as Blender's camera_stereo3d_* functions take
+    them (half the interocular distance each side of a centre pivot, all of it from a
+    side pivot; positive for the left eye), or None for the pivot eye itself (the camera)."""
+    pivot = stereo.pivot
+    if (pivot == 'LEFT' and is_left) or (pivot == 'RIGHT' and not is_left):
+        return None
+    fac = 0.5 if pivot == 'CENTER' else 1.0
+    return fac, (fac if is_left else -fac)
+
+
 def _stereo_model_matrix(world, stereo, is_left):
     """The camera-to-world matrix of the left or right eye in Stereo 3D (Blender's
     camera_stereo3d_model_matrix): the eyes sit interocular_distance apart along the
     camera's x axis around the pivot; Toe-in turns each towards the convergence plane."""
     iod, conv = float(stereo.interocular_distance), float(stereo.convergence_distance)
     mode, pivot = stereo.convergence_mode, stereo.pivot
-    if (pivot == 'LEFT' and is_left) or (pivot == 'RIGHT' and not is_left):
+    factors = _eye_factors(stereo, is_left)
+    if factors is None:
         return world.copy()
+    fac, fac_signed = factors
     size = np.linalg.norm(world[:3, :3], axis=0)
     size_mat = np.diag([size[0], size[1], size[2], 1.0])
     normalized = world.copy()
     normalized[:3, :3] = world[:3, :3] / size
-    fac = 0.5 if pivot == 'CENTER' else 1.0
-    fac_signed = fac if is_left else -fac
 
     def translation(x):
         m = np.eye(4)
@@ -157,13 +168,10 @@ def _stereo_shift_x(data, is_left):
     """The extra horizontal lens shift of an Off-Axis stereo eye (Blender's
     camera_stereo3d_shift_x), in units of the sensor-fit dimension like Shift X."""
     stereo = data.stereo
-    pivot = stereo.pivot
-    if stereo.convergence_mode != 'OFFAXIS':
+    factors = _eye_factors(stereo, is_left)
+    if stereo.convergence_mode != 'OFFAXIS' or factors is None:
         return 0.0
-    if (pivot == 'LEFT' and is_left) or (pivot == 'RIGHT' and not is_left):
-        return 0.0
-    fac = 0.5 if pivot == 'CENTER' else 1.0
-    fac_signed = fac if is_left else -fac
+    fac_signed = factors[1]
     return (float(stereo.interocular_distance) / float(data.sensor_width)) * \
         (float(data.lens) / float(stereo.convergence_distance)) * fac_signed
 

@@ -9,6 +9,7 @@ import subprocess
 import sys
 
 import bpy
+import numpy as np
 import pytest
 
 HERE = os.path.dirname(os.path.abspath(__file__))
@@ -115,6 +116,45 @@ def cycles_exr_render(scene, samples):
     settings.file_format = 'OPEN_EXR'
     settings.color_depth = '32'
     return settings
+
+
+def poles_scene(tmp_path, poles, samples):
+    """The camera tests' scene: an empty world (transparent film: Cycles' alpha is the
+    coverage), the camera at (0, 0, 1) looking along +y, and a box pole per (location,
+    (sx, sy, sz)) of _poles_ (returned in order); Cycles at _samples_ (cycles_exr_render),
+    fog of density 0.2 without surface shading."""
+    scene = build_plane_scene(tmp_path, size=(64, 48))
+    bpy.data.objects.remove(bpy.data.objects["Ground"])
+    objects = []
+    for location, scale in poles:
+        bpy.ops.mesh.primitive_cube_add(size=1.0, location=location)
+        objects.append(bpy.context.active_object)
+        objects[-1].scale = scale
+    cam = scene.camera
+    cam.location = (0.0, 0.0, 1.0)
+    cam.rotation_euler = (1.5707963267948966, 0.0, 0.0)  # looking along +y
+    scene.render.film_transparent = True
+    cycles_exr_render(scene, samples)
+    scene.airlight.density = 0.2
+    scene.airlight.surface_shading = False
+    return scene, objects
+
+
+def hit_coverage(descriptions, settings):
+    """Per pixel, the fraction of the bakes of _descriptions_ (with _settings_) whose centre
+    ray hits a surface."""
+    hit = 0.0
+    for description in descriptions:
+        result = native.get().bake(**description, **settings)
+        hit = hit + np.isfinite(result["depth"]).astype(np.float64)
+    return hit / len(descriptions)
+
+
+def coverage_errors(alpha, sampled, single):
+    """Against Cycles' coverage _alpha_, over the pixels partly covered in it or in _sampled_:
+    (their count, the mean absolute error of _sampled_, that of _single_)."""
+    band = ((alpha > 0.02) & (alpha < 0.98)) | ((sampled > 0.02) & (sampled < 0.98))
+    return int(band.sum()), np.abs(sampled - alpha)[band].mean(), np.abs(single - alpha)[band].mean()
 
 
 class RecordingLayout:

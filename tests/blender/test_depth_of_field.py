@@ -7,28 +7,19 @@ one near the camera, rendered with depth of field; its alpha is each pixel's cov
 the poles over the lens. The lens samples' cameras must give the same coverage (the
 fraction of them whose centre ray hits a pole), and the in-focus pole must stay sharp."""
 
-import math
-
 import bpy
 import numpy as np
 import pytest
 
 from airlight import bake, native, render, scene_export
-from conftest import build_plane_scene, cycles_exr_render, exr_pass, needs_native, read_exr
+from conftest import coverage_errors, exr_pass, hit_coverage, needs_native, poles_scene, read_exr
 
 
 def _poles_scene(tmp_path, fstop=0.4, focus=4.0, use_object=False):
-    scene = build_plane_scene(tmp_path, size=(64, 48))
-    bpy.data.objects.remove(bpy.data.objects["Ground"])
-    for name, (x, y, sx) in {"Near": (-0.25, 1.2, 0.12), "Far": (0.9, focus, 0.3)}.items():
-        bpy.ops.mesh.primitive_cube_add(size=1.0, location=(x, y, 1.0))
-        pole = bpy.context.active_object
-        pole.name = name
-        pole.scale = (sx, sx, 6.0)
-    cam = scene.camera
-    cam.location = (0.0, 0.0, 1.0)
-    cam.rotation_euler = (math.pi / 2, 0.0, 0.0)  # looking along +y
-    dof = cam.data.dof
+    scene, _ = poles_scene(tmp_path, [((-0.25, 1.2, 1.0), (0.12, 0.12, 6.0)),  # near
+                                      ((0.9, focus, 1.0), (0.3, 0.3, 6.0))], 256)  # in focus
+    scene.cycles.filter_width = 0.01  # (a point filter: the bake's hit masks have none)
+    dof = scene.camera.data.dof
     dof.use_dof = True
     dof.aperture_fstop = fstop
     if use_object:
@@ -39,24 +30,14 @@ def _poles_scene(tmp_path, fstop=0.4, focus=4.0, use_object=False):
         dof.focus_distance = 100.0  # ignored
     else:
         dof.focus_distance = focus
-    scene.render.film_transparent = True
-    cycles_exr_render(scene, 256)
-    scene.cycles.filter_width = 0.01  # (a point filter: the bake's hit masks have none)
-    scene.airlight.density = 0.2
-    scene.airlight.surface_shading = False
     return scene
 
 
 def _coverage(scene, cameras):
-    """Mean over _cameras_ of the pixels whose centre ray hits a surface (native bake)."""
-    depsgraph = bpy.context.evaluated_depsgraph_get()
-    description, settings = bake.prepare(scene, depsgraph)
+    """hit_coverage of the scene's bake seen by each of _cameras_."""
+    description, settings = bake.prepare(scene, bpy.context.evaluated_depsgraph_get())
     settings.pop(bake.LENS, None)
-    hit = 0.0
-    for cam_to_world, projection in cameras:
-        result = native.get().bake(**dict(description, cam_to_world=cam_to_world, projection=projection), **settings)
-        hit = hit + np.isfinite(result["depth"]).astype(np.float64)
-    return hit / len(cameras)
+    return hit_coverage([dict(description, cam_to_world=c, projection=p) for c, p in cameras], settings)
 
 
 @needs_native
@@ -75,14 +56,12 @@ def test01_lens_samples_cover_the_pixels_as_cycles_thin_lens(tmp_path, use_objec
     assert cameras is not None and len(cameras) == 64
     lens = _coverage(scene, cameras)
     pinhole = _coverage(scene, [(description["cam_to_world"], description["projection"])])
-    # The pixels where either is partly covered: the blurred band of the near pole and the
-    # sharp edges of the far one.
-    band = ((alpha > 0.02) & (alpha < 0.98)) | ((lens > 0.02) & (lens < 0.98))
-    error = np.abs(lens - alpha)[band].mean()
-    pinhole_error = np.abs(pinhole - alpha)[band].mean()
-    print(f"focus object {use_object}: coverage vs Cycles' thin lens over {band.sum()} px: lens samples "
+    # The partly covered pixels: the blurred band of the near pole and the sharp edges of
+    # the far one.
+    n_band, error, pinhole_error = coverage_errors(alpha, lens, pinhole)
+    print(f"focus object {use_object}: coverage vs Cycles' thin lens over {n_band} px: lens samples "
           f"{error:.3f}, one pinhole {pinhole_error:.3f}")
-    assert band.sum() > 100
+    assert n_band > 100
     assert error < 0.05, (error, pinhole_error)
     assert pinhole_error > 3 * error
     # The far pole is in the focus plane: its edges stay as sharp as the pinhole's.

@@ -6,14 +6,13 @@ _stereo_shift_x); the reference is Cycles: a pole against an empty world rendere
 whose silhouette (the alpha's centroid per row) must sit where the bake's own hits (its
 transmittance > 0; the world behind is fog to infinity, T = 0) put it in each eye."""
 
-import math
 
 import bpy
 import numpy as np
 import pytest
 
 from airlight import bake, scene_export
-from conftest import build_plane_scene, cycles_exr_render, exr_pass, needs_native, read_exr, run_blender
+from conftest import exr_pass, needs_native, poles_scene, read_exr, run_blender
 
 # Eyes 0.5 m apart, the pole 3 m away and the convergence plane at 50 m: ~5 px of disparity
 # per eye at 64 px wide (a quarter of the interocular at a pivot eye: twice that), so
@@ -22,25 +21,15 @@ INTEROCULAR = 0.5
 
 
 def _pole_scene(tmp_path, mode='OFFAXIS', pivot='CENTER'):
-    scene = build_plane_scene(tmp_path, size=(64, 48))
-    bpy.data.objects.remove(bpy.data.objects["Ground"])
-    bpy.ops.mesh.primitive_cube_add(size=1.0, location=(0.3, 3.0, 1.0))
-    pole = bpy.context.active_object
-    pole.scale = (0.3, 0.3, 4.0)
-    cam = scene.camera
-    cam.location = (0.0, 0.0, 1.0)
-    cam.rotation_euler = (math.pi / 2, 0.0, 0.0)  # looking along +y
-    stereo = cam.data.stereo
+    scene, _ = poles_scene(tmp_path, [((0.3, 3.0, 1.0), (0.3, 0.3, 4.0))], 16)
+    scene.render.image_settings.views_format = 'INDIVIDUAL'
+    stereo = scene.camera.data.stereo
     stereo.interocular_distance = INTEROCULAR
     stereo.convergence_distance = 50.0
     stereo.convergence_mode = mode
     stereo.pivot = pivot
     scene.render.use_multiview = True
     scene.render.views_format = 'STEREO_3D'
-    scene.render.film_transparent = True
-    cycles_exr_render(scene, 16).views_format = 'INDIVIDUAL'
-    scene.airlight.density = 0.2
-    scene.airlight.surface_shading = False
     return scene
 
 
