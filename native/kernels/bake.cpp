@@ -1151,6 +1151,15 @@ void run_parallel(int n, int n_threads, const std::function<void(int)>& work,
     on_progress(n);
 }
 
+// Refuses the bake if _caster_ was handed rays Embree cannot take (CameraRays checks the
+// camera's; this catches any other pass's): they were not traced, so the passes are wrong.
+void check_traced(const RayCaster& caster) {
+    if (const long n = caster.invalid_rays())
+        throw std::invalid_argument("the camera cannot be baked: " + std::to_string(n) +
+                                    " of its rays are not finite (check the camera's lens, sensor, shift and "
+                                    "clip range, and the scene's scale)");
+}
+
 // Sizes _v_ to _n_ zeros (acquire_image_buffer).
 void allocate_image(std::vector<float>& v, size_t n) { acquire_image_buffer(v, n, 0.0f); }
 
@@ -1419,6 +1428,7 @@ BakeResult bake(const SceneDescription& scene, const BakeSettings& settings, con
         },
         reporter(0.0, kRaycastProgressShare));
     result.stats.seconds_raycast = seconds_since(start);
+    check_traced(caster);
 
     // Edge test, in two steps. A pixel has a "kink" along one of the 4 lines through it
     // (horizontal, vertical, 2 diagonals) if the key's second difference along that line
@@ -2061,6 +2071,7 @@ BakeResult bake(const SceneDescription& scene, const BakeSettings& settings, con
         bake_surface_pass(scene, settings, rays, caster, n_threads, result);
         result.stats.seconds_surface = seconds_since(start);
     }
+    check_traced(caster);
     return result;
 }
 

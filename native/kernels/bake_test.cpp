@@ -85,6 +85,57 @@ TEST(Camera, RejectsSingularMatrices) {
     EXPECT_THROW(CameraRays{cam}, std::invalid_argument);
 }
 
+// Blender hands over its projection in single precision: with clip_end / clip_start ~ 1e8
+// -(f + n) / (f - n) rounds to -1 and the far plane unprojects to infinity. The rays come
+// from the matrix's x and y rows, so they stay the exact pinhole rays (they aborted Blender
+// through an Embree assertion before).
+glm::dmat4 single_precision(const glm::dmat4& m) {
+    glm::dmat4 out;
+    for (int c = 0; c < 4; ++c)
+        for (int r = 0; r < 4; ++r) out[c][r] = double(float(m[c][r]));
+    return out;
+}
+
+TEST(Camera, WideClipRangeKeepsExactRays) {
+    const glm::dmat4 c2w = rotated_camera();
+    const int W = 64, H = 48;
+    const Camera exact = test_camera(c2w, blender_perspective(kPi / 3, W, H, 0.1, 100.0), W, H);
+    for (const auto& clip : {std::pair<double, double>{1e-3, 1e5}, {1e-6, 100.0}, {1e-6, 1e9}}) {
+        Camera cam = test_camera(c2w, single_precision(blender_perspective(kPi / 3, W, H, clip.first, clip.second)), W, H);
+        cam.clip_start = clip.first;
+        cam.clip_end = clip.second;
+        const CameraRays rays(cam), want(exact);
+        for (double px : {0.0, 17.5, 64.0})
+            for (double py : {0.0, 31.5, 48.0}) {
+                const Ray a = rays(px, py), b = want(px, py);
+                EXPECT_TRUE(std::isfinite(a.d.x) && std::isfinite(a.d.y) && std::isfinite(a.d.z));
+                EXPECT_NEAR(glm::length(a.d - b.d), 0.0, 1e-6) << clip.first << " " << clip.second;
+                EXPECT_NEAR(glm::length(a.o - b.o), 0.0, 1e-12);
+            }
+    }
+}
+
+TEST(Camera, OrthographicWideClipRangeKeepsOrigins) {
+    const glm::dmat4 c2w = rotated_camera();
+    Camera cam = test_camera(c2w, single_precision(glm::ortho(-2.0, 2.0, -1.5, 1.5, 1e-6, 1e9)));
+    cam.clip_start = 1e-6;
+    cam.clip_end = 1e9;
+    const Ray a = camera_ray(cam, 0.5, 0.5);
+    const Vec3 forward = -glm::normalize(Vec3(c2w[2]));
+    EXPECT_NEAR(glm::dot(a.d, forward), 1.0, 1e-12);
+    EXPECT_NEAR(glm::dot(a.o - Vec3(c2w[3]), forward), 1e-6, 1e-9);
+}
+
+// A projection that maps the film onto a line, or rays that would leave Embree's range, is
+// refused with a message rather than handed on.
+TEST(Camera, RefusesDegenerateProjections) {
+    glm::dmat4 flat = blender_perspective(kPi / 3, 64, 48);
+    flat[0][0] = 0.0;
+    EXPECT_THROW(CameraRays{test_camera(glm::dmat4(1.0), flat)}, std::invalid_argument);
+    glm::dmat4 far = glm::translate(glm::dmat4(1.0), Vec3(1e19, 0.0, 0.0));
+    EXPECT_THROW(CameraRays{test_camera(far, blender_perspective(kPi / 3, 64, 48))}, std::invalid_argument);
+}
+
 TriangleMesh square(double z, double s = 10.0) {
     TriangleMesh m;
     m.vertices = {float(-s), float(-s), float(z), float(s), float(-s), float(z),
@@ -126,6 +177,29 @@ TEST(RayCaster, EmptyMeshAndBadIndices) {
     TriangleMesh bad = square(-1.0);
     bad.triangles[5] = 4;
     EXPECT_THROW(RayCaster{bad}, std::invalid_argument);
+}
+
+// Rays Embree would assert on (NaN or huge origins or directions, tnear > tfar) are not
+// traced: they read back NaN and are counted, so the bake refuses instead of aborting.
+TEST(RayCaster, RefusesInvalidRaysInsteadOfAborting) {
+    RayCaster caster(square(-5.0));
+    const double nan = std::numeric_limits<double>::quiet_NaN();
+    EXPECT_TRUE(std::isnan(caster.first_hit({Vec3(0.0), Vec3(nan, 0.0, -1.0)})));
+    std::vector<Ray> rays(20, Ray{Vec3(0.0), Vec3(0.0, 0.0, -1.0)});
+    rays[3].o.x = 1e30;
+    rays[17].d = Vec3(nan);
+    std::vector<float> t(rays.size());
+    caster.first_hits(rays.data(), int(rays.size()), t.data());
+    EXPECT_TRUE(std::isnan(t[3]) && std::isnan(t[17]));
+    EXPECT_NEAR(t[0], 5.0, 1e-5);
+    std::vector<float> dx(16, 0.0f), dy(16, 0.0f), dz(16, -1.0f), tn(16, 0.0f), tf(16, 1e30f), out(16);
+    tn[5] = 2.0f;
+    tf[5] = 1.0f;  // tnear > tfar
+    dz[9] = std::numeric_limits<float>::infinity();
+    caster.first_hits(Vec3(0.0), dx.data(), dy.data(), dz.data(), tn.data(), tf.data(), 16, out.data());
+    EXPECT_TRUE(std::isnan(out[5]) && std::isnan(out[9]));
+    EXPECT_NEAR(out[0], 5.0, 1e-5);
+    EXPECT_EQ(caster.invalid_rays(), 5);
 }
 
 SceneDescription test_scene(int W = 40, int H = 30) {

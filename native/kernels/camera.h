@@ -20,7 +20,8 @@ Ray camera_ray(const Camera& cam, double px, double py);
 // The same rays with the matrix inverse done once, for generating many rays.
 class CameraRays {
   public:
-    // Throws std::invalid_argument if the matrices are not finite or not invertible.
+    // Throws std::invalid_argument if the matrices are not finite or not invertible, or the
+    // rays they give are not finite and ahead of the camera.
     explicit CameraRays(const Camera& cam);
     Ray operator()(double px, double py) const {
         if (!affine_) return unproject(px, py);
@@ -59,6 +60,8 @@ class CameraRays {
 
   private:
     Ray unproject(double px, double py) const;  // the general (projective) case
+    void affine_from_xy_rows(const Camera& cam);  // Blender's perspective and orthographic forms
+    void check_rays(const Camera& cam) const;     // throws std::invalid_argument
 
     glm::dmat4 raster_to_world_;  // clip space -> world, homogeneous
     // When w of the unprojected near/far points does not depend on the film position

@@ -4,6 +4,7 @@
 #include <embree3/rtcore.h>
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <limits>
 #include <mutex>
@@ -29,6 +30,16 @@ void embree_error(void* user, RTCError code, const char* str) {
 }
 
 constexpr float kInf = std::numeric_limits<float>::infinity();
+constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();
+
+// A ray Embree accepts: finite origin and direction within its FLT_LARGE (1.844e18),
+// 0 <= tnear <= tfar (tfar may be inf). Embree asserts on anything else (an abort).
+inline bool valid_ray(const float* org, const float* dir, float tnear, float tfar) {
+    constexpr float kLarge = 1.8e18f;
+    return std::abs(org[0]) < kLarge && std::abs(org[1]) < kLarge && std::abs(org[2]) < kLarge &&
+           std::abs(dir[0]) < kLarge && std::abs(dir[1]) < kLarge && std::abs(dir[2]) < kLarge &&
+           (dir[0] != 0.0f || dir[1] != 0.0f || dir[2] != 0.0f) && tnear >= 0.0f && tnear <= tfar;
+}
 
 }  // namespace
 
@@ -36,6 +47,7 @@ struct RayCaster::Impl {
     RTCDevice device = nullptr;
     RTCScene scene = nullptr;  // null for an empty mesh: every ray misses
     EmbreeErrors errors;
+    mutable std::atomic<long> invalid{0};  // rays refused by valid_ray (never traced)
 
     ~Impl() {
         if (scene) rtcReleaseScene(scene);
@@ -95,6 +107,8 @@ RayCaster::RayCaster(const TriangleMesh& mesh) : impl_(new Impl) {
 
 RayCaster::~RayCaster() = default;
 
+long RayCaster::invalid_rays() const { return impl_->invalid.load(); }
+
 double RayCaster::first_hit(const Ray& ray) const {
     if (!impl_->scene) return std::numeric_limits<double>::infinity();
     // Trace one ray with tnear = 0 and an unbounded tfar.
@@ -115,6 +129,11 @@ double RayCaster::first_hit(const Ray& ray) const {
     rh.ray.flags = 0;
     rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
     rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
+    const float org[3] = {rh.ray.org_x, rh.ray.org_y, rh.ray.org_z}, dir[3] = {rh.ray.dir_x, rh.ray.dir_y, rh.ray.dir_z};
+    if (!valid_ray(org, dir, rh.ray.tnear, rh.ray.tfar)) {
+        ++impl_->invalid;
+        return std::numeric_limits<double>::quiet_NaN();
+    }
     rtcIntersect1(impl_->scene, &context, &rh);
     if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return std::numeric_limits<double>::infinity();
     return double(rh.ray.tfar);
@@ -137,8 +156,9 @@ inline void reset_packet_lanes(RTCRayHit16& rh) {
 // Traces _n_ rays in coherent packets of 16 (the tail's unused lanes masked off):
 // set(i, org, dir, tnear, tfar) fills in ray i (tnear 0 and tfar inf unless set), done(k, i,
 // rayhit) reads lane k, ray i's hit.
+// Lanes failing valid_ray are masked off, counted in _invalid_ and read back as NaN.
 template <typename Set, typename Done>
-void trace_packets(RTCScene scene, int n, Set&& set, Done&& done) {
+void trace_packets(RTCScene scene, int n, std::atomic<long>& invalid, Set&& set, Done&& done) {
     RTCIntersectContext context;
     rtcInitIntersectContext(&context);
     context.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
@@ -152,6 +172,15 @@ void trace_packets(RTCScene scene, int n, Set&& set, Done&& done) {
             valid[k] = live ? -1 : 0;
             float org[3], dir[3], tnear = 0.0f, tfar = kInf;
             set(i, org, dir, tnear, tfar);
+            if (live && !valid_ray(org, dir, tnear, tfar)) {
+                valid[k] = 0;
+                ++invalid;
+                org[0] = org[1] = org[2] = 0.0f;
+                dir[0] = 1.0f;
+                dir[1] = dir[2] = 0.0f;
+                tnear = 0.0f;
+                tfar = kNaN;  // read back as the lane's "hit"
+            }
             rh.ray.org_x[k] = org[0];
             rh.ray.org_y[k] = org[1];
             rh.ray.org_z[k] = org[2];
@@ -162,7 +191,10 @@ void trace_packets(RTCScene scene, int n, Set&& set, Done&& done) {
             rh.ray.tfar[k] = tfar;
         }
         rtcIntersect16(valid, scene, &context, &rh);
-        for (int k = 0; k < 16 && base + k < n; ++k) done(k, base + k, rh);
+        for (int k = 0; k < 16 && base + k < n; ++k) {
+            if (!valid[k]) rh.hit.geomID[k] = 0;  // refused: done() reads tfar = NaN
+            done(k, base + k, rh);
+        }
     }
 }
 
@@ -183,7 +215,8 @@ void RayCaster::first_hits(const Ray* rays, int n, float* t) const {
         return;
     }
     trace_packets(
-        impl_->scene, n, [&](int i, float* org, float* dir, float&, float&) { ray_arrays(rays[i], org, dir); },
+        impl_->scene, n, impl_->invalid,
+        [&](int i, float* org, float* dir, float&, float&) { ray_arrays(rays[i], org, dir); },
         [&](int k, int i, const RTCRayHit16& rh) {
             t[i] = rh.hit.geomID[k] == RTC_INVALID_GEOMETRY_ID ? kInf : rh.ray.tfar[k];
         });
@@ -225,15 +258,29 @@ void RayCaster::first_hits(const Vec3& o, const float* dx, const float* dy, cons
             }
         }
         reset_packet_lanes(rh);
+        int refused = 0;
         for (int k = 0; k < 16; ++k) {
             valid[k] = k < m ? -1 : 0;
             rh.ray.org_x[k] = ox;
             rh.ray.org_y[k] = oy;
             rh.ray.org_z[k] = oz;
+            const float org[3] = {ox, oy, oz}, dir[3] = {rh.ray.dir_x[k], rh.ray.dir_y[k], rh.ray.dir_z[k]};
+            if (!valid_ray(org, dir, rh.ray.tnear[k], rh.ray.tfar[k])) {
+                refused += k < m;
+                valid[k] = 0;
+                rh.ray.dir_x[k] = 1.0f;
+                rh.ray.dir_y[k] = rh.ray.dir_z[k] = 0.0f;
+                rh.ray.tnear[k] = 0.0f;
+                rh.ray.tfar[k] = 0.0f;
+            }
         }
+        if (refused) impl_->invalid += refused;
         rtcIntersect16(valid, impl_->scene, &context, &rh);
         float hit_t[16];
-        for (int k = 0; k < 16; ++k) hit_t[k] = rh.hit.geomID[k] == RTC_INVALID_GEOMETRY_ID ? kInf : rh.ray.tfar[k];
+        for (int k = 0; k < 16; ++k)
+            hit_t[k] = !valid[k]                                   ? kNaN
+                       : rh.hit.geomID[k] == RTC_INVALID_GEOMETRY_ID ? kInf
+                                                                    : rh.ray.tfar[k];
         for (int k = 0; k < m; ++k) t[base + k] = hit_t[k];
     }
 }
@@ -248,7 +295,7 @@ void RayCaster::first_hits_normals(const Ray* rays, const float* t_near, const f
         return;
     }
     trace_packets(
-        impl_->scene, n,
+        impl_->scene, n, impl_->invalid,
         [&](int i, float* org, float* dir, float& tn, float& tf) {
             ray_arrays(rays[i], org, dir);
             tn = t_near[i];

@@ -34,6 +34,11 @@ class RayCaster {
     void first_hits_normals(const Ray* rays, const float* t_near, const float* t_far, int n, float* t,
                             float* ng) const;
 
+    // Rays refused so far because Embree would assert on them (a NaN or huge origin or
+    // direction, tnear < 0 or tnear > tfar): they are not traced and read back as NaN.
+    // Callers check this after a pass and refuse the bake (bake.cpp).
+    long invalid_rays() const;
+
   private:
     struct Impl;
     std::unique_ptr<Impl> impl_;
