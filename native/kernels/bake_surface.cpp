@@ -190,10 +190,10 @@ void bake_surface_pass(const SceneDescription& scene, const BakeSettings& settin
                     float* a = &result.surface_attenuation[(l * n_pixels + px) * 3];
                     a[0] = a[1] = a[2] = att;
                     if (!glow_on || !(D > 0.0)) continue;
-                    // Beyond the tables (T > 64) the glow is below e^{-64} of the light's: skip it on
-                    // the new paths (the exact evaluators cost ~ms a pixel; fog objects reach such T
-                    // often). Sun's isotropic homogeneous path keeps its exact fallback (unchanged).
-                    if ((rbf || !table) && T > 64.0) continue;
+                    // Beyond T = 64 the G tables take their large-T tails (sun05_surface.h), so
+                    // every density costs the same. Biri's eq. 10 table (a comparison model) has
+                    // no tail: there the glow, below e^{-64} of the light's, is left out.
+                    if (biri_lambert && T > 64.0) continue;
                     // A spot's glow: the point-light glow times its model factor (spot_surface.h).
                     RGB I0 = l < n_point ? scene.point_lights[l].I0 : scene.spot_lights[l - n_point].I0;
                     if (l >= n_point) {

@@ -156,18 +156,17 @@ PhaseSurfaceGTable::PhaseSurfaceGTable(const PhaseFunction& phase, double m, int
       grid_(nT, ntheta, m, threads,
             // The 1/T layer of H near gamma = 0 and the phase lobes.
             [this](double T, std::vector<double>& cuts) { add_row_cuts(phase_, T, cuts); },
-            [this](double T, double gamma) { return H_scaled(phase_, T, gamma, kTableHTol); }) {}
+            [this](double T, double gamma) { return H_scaled(phase_, T, gamma, kTableHTol); },
+            4.0 * kPi * phase.eval(1.0)) {}
 
 double PhaseSurfaceGTable::eval(double T, double theta_s) const {
-    if (!(T >= 0.0) || !(theta_s >= 0.0)) require_args(T, theta_s, m_);
-    if (T > kTableTMax) return biri06_surface_G_exact(phase_, T, std::min(theta_s, kPi), m_);
-    return eval_scaled(T, theta_s) * std::exp(-T);
+    const double scaled = eval_scaled(T, theta_s);
+    return scaled == 0.0 ? 0.0 : scaled * std::exp(-T);
 }
 
 double PhaseSurfaceGTable::eval_scaled(double T, double theta_s) const {
     if (!(T >= 0.0) || !(theta_s >= 0.0)) require_args(T, theta_s, m_);
-    if (T > kTableTMax) return biri06_surface_G_scaled_exact(phase_, T, std::min(theta_s, kPi), m_);
-    return grid_.lookup(T, theta_s);
+    return grid_.lookup(T, theta_s);  // beyond T = 64 the grid's tail (sun05_surface.h)
 }
 
 std::shared_ptr<const PhaseSurfaceGTable> shared_phase_surface_G_table(const PhaseFunction& phase, int nT, int ntheta,

@@ -62,7 +62,7 @@ double biri06_surface_G_exact(const PhaseFunction& phase, double T, double theta
 class PhaseSurfaceGTable {
   public:
     PhaseSurfaceGTable(const PhaseFunction& phase, double m = 1.0, int nT = 128, int ntheta = 128, int threads = 0);
-    // G_p(T, theta_s); beyond the tabulated T range the exact evaluator.
+    // G_p(T, theta_s) for every T >= 0 (beyond T = 64 the grid's tail, SurfaceGGrid).
     double eval(double T, double theta_s) const;
     // e^{T} G_p(T, theta_s).
     double eval_scaled(double T, double theta_s) const;

@@ -124,6 +124,27 @@ TEST(Biri06Surface, TableError) {
         }
 }
 
+// Thick fog: the phase-aware tables' tails (beyond T = 64; sun05_surface.h) against the exact
+// evaluator for T log-uniform in [64, 1e5], away from the horizon (its kink: sun05_surface_test).
+TEST(Biri06Surface, TailError) {
+    for (const PhaseFunction& phase : anisotropic_phases()) {
+        const PhaseSurfaceGTable table(phase, 1.0, 128, 128, 0);
+        std::mt19937 rng(3);
+        std::uniform_real_distribution<double> U(0.0, 1.0);
+        double worst = 0.0;
+        for (int k = 0; k < 12; ++k) {
+            const double T = std::exp(std::log(64.0) + U(rng) * (std::log(1e5) - std::log(64.0)));
+            const double theta = U(rng) * kPi;
+            if (std::abs(theta - kPi / 2) < 0.05) continue;
+            const double exact = biri06_surface_G_scaled_exact(phase, T, theta, 1.0);
+            if (exact < 1e-6 * biri06_surface_G_scaled_exact(phase, T, 0.0, 1.0)) continue;
+            worst = std::max(worst, std::abs(table.eval_scaled(T, theta) / exact - 1.0));
+        }
+        std::printf("G_p table %-16s tail: max rel err %.3g\n", label(phase).c_str(), worst);
+        EXPECT_LT(worst, 3e-2) << label(phase);
+    }
+}
+
 // Biri eq. 11 as printed (nested over phi and alpha, exponent corrected) equals the H_p form.
 TEST(Biri06Surface, GammaLPaperMatchesHForm) {
     std::vector<PhaseFunction> phases = anisotropic_phases();

@@ -13,8 +13,8 @@
 //           and the error was 2 %)
 //   columns j over theta_s uniform in [0, pi]
 //   stored  Q = e^{T} G(T, theta_s, m), O(1) (e^T G(64, 0, 1) = 0.36)
-//   lookup  bilinear in (x, theta_s); beyond T_max the exact evaluator (e^{-64}: never
-//           reached in a visible pixel).
+//   lookup  bilinear in (x, theta_s); beyond T_max the tail grid (sun05_surface.h: the
+//           large-T asymptotics T e^T G = c ln T + B(theta) tabulated to T = 1e8).
 //   build   per row, one Gauss-Legendre rule (8 nodes per panel) over panels whose ends are
 //           the kinks of W_m(., theta_j) of every column (they all lie on the grid gamma =
 //           (2k + 1) pi / (2 (ntheta - 1))) plus cuts at the 1/T layer, so H is evaluated once
@@ -48,7 +48,6 @@ namespace {
 
 constexpr double kPi = 3.14159265358979323846;
 constexpr double kHalfPi = 1.57079632679489661923;
-constexpr double kTableTMax = 64.0;
 
 void require_args(double T, double theta_s, double m) {
     if (!(T >= 0.0) || !(theta_s >= 0.0 && theta_s <= kPi + 1e-12) || !(m >= 1.0) || std::isinf(m))
@@ -135,49 +134,53 @@ double W_fixed(double gamma, double theta_s, double m, const std::vector<double>
 
 SurfaceGGrid::SurfaceGGrid(int nT, int ntheta, double m, int threads,
                            const std::function<void(double, std::vector<double>&)>& row_cuts,
-                           const std::function<double(double, double)>& H_scaled)
-    : nT_(nT), ntheta_(ntheta) {
+                           const std::function<double(double, double)>& H_scaled, double forward_weight)
+    : nT_(nT), ntheta_(ntheta), m_(m), forward_weight_(forward_weight), threads_(threads), row_cuts_(row_cuts),
+      H_scaled_(H_scaled) {
     if (nT < 2 || ntheta < 2) throw std::invalid_argument("surface G table: need at least 2 x 2 samples");
     data_.assign(size_t(nT) * size_t(ntheta), 0.0);
-    // The kinks of W_m(., theta_j) for every column theta_j = pi j / (ntheta - 1) lie on the
-    // grid gamma = (2 k + 1) pi / (2 (ntheta - 1)): panels between them (plus the row's cuts)
-    // with 8 Gauss-Legendre nodes each integrate every column, and H is evaluated once per
-    // node for the whole row.
-    std::vector<double> glx, glw, psx, psw;
-    gauss_legendre(8, glx, glw);
-    gauss_legendre(48, psx, psw);
     int n_threads = threads > 0 ? threads : int(std::thread::hardware_concurrency());
     n_threads = std::max(1, std::min(n_threads, nT));
     auto work = [&](int first) {
-        for (int i = first; i < nT; i += n_threads) {
-            const double T = row_T(i, nT);
-            std::vector<double> cuts{0.0, kPi};
-            for (int k = 0; k < ntheta - 1; ++k) cuts.push_back((2 * k + 1) * kPi / (2.0 * (ntheta - 1)));
-            row_cuts(T, cuts);
-            std::sort(cuts.begin(), cuts.end());
-            std::vector<double> nodes, weights, H;
-            for (size_t k = 0; k + 1 < cuts.size(); ++k) {
-                const double a = cuts[k], b = cuts[k + 1];
-                if (!(b > a)) continue;
-                for (size_t q = 0; q < glx.size(); ++q) {
-                    const double g = 0.5 * (a + b) + 0.5 * (b - a) * glx[q];
-                    nodes.push_back(g);
-                    weights.push_back(0.5 * (b - a) * glw[q]);
-                    H.push_back(H_scaled(T, g));
-                }
-            }
-            for (int j = 0; j < ntheta; ++j) {
-                const double theta = kPi * j / (ntheta - 1);
-                double sum = 0.0;
-                for (size_t q = 0; q < nodes.size(); ++q) sum += weights[q] * H[q] * W_fixed(nodes[q], theta, m, psx, psw);
-                data_[size_t(i) * ntheta + j] = sum;
-            }
-        }
+        for (int i = first; i < nT; i += n_threads) integrate_row(row_T(i, nT), &data_[size_t(i) * ntheta]);
     };
     std::vector<std::thread> pool;
     for (int t = 1; t < n_threads; ++t) pool.emplace_back(work, t);
     work(0);
     for (auto& th : pool) th.join();
+}
+
+void SurfaceGGrid::integrate_row(double T, double* out) const {
+    // The kinks of W_m(., theta_j) for every column theta_j = pi j / (ntheta - 1) lie on the
+    // grid gamma = (2 k + 1) pi / (2 (ntheta - 1)): panels between them (plus the row's cuts)
+    // with 8 Gauss-Legendre nodes each integrate every column, and H is evaluated once per
+    // node for the whole row.
+    static const std::vector<double> glx = [] { std::vector<double> x, w; gauss_legendre(8, x, w); return x; }();
+    static const std::vector<double> glw = [] { std::vector<double> x, w; gauss_legendre(8, x, w); return w; }();
+    static const std::vector<double> psx = [] { std::vector<double> x, w; gauss_legendre(48, x, w); return x; }();
+    static const std::vector<double> psw = [] { std::vector<double> x, w; gauss_legendre(48, x, w); return w; }();
+    const int ntheta = ntheta_;
+    std::vector<double> cuts{0.0, kPi};
+    for (int k = 0; k < ntheta - 1; ++k) cuts.push_back((2 * k + 1) * kPi / (2.0 * (ntheta - 1)));
+    row_cuts_(T, cuts);
+    std::sort(cuts.begin(), cuts.end());
+    std::vector<double> nodes, weights, H;
+    for (size_t k = 0; k + 1 < cuts.size(); ++k) {
+        const double a = cuts[k], b = cuts[k + 1];
+        if (!(b > a)) continue;
+        for (size_t q = 0; q < glx.size(); ++q) {
+            const double g = 0.5 * (a + b) + 0.5 * (b - a) * glx[q];
+            nodes.push_back(g);
+            weights.push_back(0.5 * (b - a) * glw[q]);
+            H.push_back(H_scaled_(T, g));
+        }
+    }
+    for (int j = 0; j < ntheta; ++j) {
+        const double theta = kPi * j / (ntheta - 1);
+        double sum = 0.0;
+        for (size_t q = 0; q < nodes.size(); ++q) sum += weights[q] * H[q] * W_fixed(nodes[q], theta, m_, psx, psw);
+        out[j] = sum;
+    }
 }
 
 double SurfaceGGrid::row_T(int i, int nT) {
@@ -189,7 +192,48 @@ double SurfaceGGrid::row_position(double T, int nT) {
     return std::min(std::sqrt(std::log1p(T) / std::log1p(kTMax)), 1.0) * (nT - 1);
 }
 
+namespace {
+
+// Row i of the tail: T = kTMax (kTTail / kTMax)^(i / (rows - 1)).
+double tail_row_T(int i) {
+    const double u = double(i) / (SurfaceGGrid::kTailRows - 1);
+    return i == SurfaceGGrid::kTailRows - 1 ? SurfaceGGrid::kTTail
+                                             : SurfaceGGrid::kTMax * std::pow(SurfaceGGrid::kTTail / SurfaceGGrid::kTMax, u);
+}
+
+// The tail's log coefficient c(theta) = forward_weight W_m(0, theta) = forward_weight 2 pi cos+^m.
+double tail_log_coefficient(double forward_weight, double theta, double m) {
+    const double c = std::cos(theta);
+    return c > 0.0 ? forward_weight * 2.0 * kPi * std::pow(c, m) : 0.0;
+}
+
+}  // namespace
+
+void SurfaceGGrid::build_tail() const {
+    const int rows = kTailRows, ntheta = ntheta_;
+    tail_.assign(size_t(rows) * size_t(ntheta), 0.0);
+    int n_threads = threads_ > 0 ? threads_ : int(std::thread::hardware_concurrency());
+    n_threads = std::max(1, std::min(n_threads, rows));
+    auto work = [&](int first) {
+        for (int i = first; i < rows; i += n_threads) {
+            const double T = tail_row_T(i);
+            double* q = &tail_[size_t(i) * ntheta];
+            integrate_row(T, q);
+            for (int j = 0; j < ntheta; ++j)
+                q[j] = T * q[j] - tail_log_coefficient(forward_weight_, kPi * j / (ntheta - 1), m_) * std::log(T);
+        }
+    };
+    std::vector<std::thread> pool;
+    for (int t = 1; t < n_threads; ++t) pool.emplace_back(work, t);
+    work(0);
+    for (auto& th : pool) th.join();
+}
+
 double SurfaceGGrid::lookup(double T, double theta_s) const {
+    return T > kTMax ? lookup_tail(T, theta_s) : lookup_body(T, theta_s);
+}
+
+double SurfaceGGrid::lookup_body(double T, double theta_s) const {
     const double fi = row_position(T, nT_);
     const double fj = std::min(theta_s / kPi, 1.0) * (ntheta_ - 1);
     const int i = std::min(int(fi), nT_ - 2), j = std::min(int(fj), ntheta_ - 2);
@@ -197,6 +241,21 @@ double SurfaceGGrid::lookup(double T, double theta_s) const {
     const double* r0 = &data_[size_t(i) * ntheta_ + j];
     const double* r1 = r0 + ntheta_;
     return (1.0 - di) * ((1.0 - dj) * r0[0] + dj * r0[1]) + di * ((1.0 - dj) * r1[0] + dj * r1[1]);
+}
+
+double SurfaceGGrid::lookup_tail(double T, double theta_s) const {
+    if (std::isinf(T)) return 0.0;  // ~ ln T / T
+    std::call_once(tail_once_, [this] { build_tail(); });
+    const double lnT = std::log(T);
+    const double fi = std::clamp((lnT - std::log(kTMax)) / std::log(kTTail / kTMax), 0.0, 1.0) * (kTailRows - 1);
+    const double theta = std::min(theta_s, kPi);
+    const double fj = theta / kPi * (ntheta_ - 1);
+    const int i = std::min(int(fi), kTailRows - 2), j = std::min(int(fj), ntheta_ - 2);
+    const double di = fi - i, dj = fj - j;
+    const double* r0 = &tail_[size_t(i) * ntheta_ + j];
+    const double* r1 = r0 + ntheta_;
+    const double Q = (1.0 - di) * ((1.0 - dj) * r0[0] + dj * r0[1]) + di * ((1.0 - dj) * r1[0] + dj * r1[1]);
+    return std::max(0.0, (Q + tail_log_coefficient(forward_weight_, theta, m_) * lnT) / T);
 }
 
 namespace {
@@ -214,14 +273,12 @@ SurfaceGTable::SurfaceGTable(double m, int nT, int ntheta, int threads)
             [](double T, double gamma) { return sun05_surface_H_scaled(T, gamma); }) {}
 
 double SurfaceGTable::eval(double T, double theta_s) const {
-    if (!(T >= 0.0) || !(theta_s >= 0.0)) require_args(T, theta_s, m_);
-    if (T > kTableTMax) return sun05_surface_G_exact(T, std::min(theta_s, kPi), m_);
-    return eval_scaled(T, theta_s) * std::exp(-T);
+    const double scaled = eval_scaled(T, theta_s);
+    return scaled == 0.0 ? 0.0 : scaled * std::exp(-T);
 }
 
 double SurfaceGTable::eval_scaled(double T, double theta_s) const {
     if (!(T >= 0.0) || !(theta_s >= 0.0)) require_args(T, theta_s, m_);
-    if (T > kTableTMax) return sun05_surface_G_scaled_exact(T, std::min(theta_s, kPi), m_);
     return grid_.lookup(T, theta_s);
 }
 

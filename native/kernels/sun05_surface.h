@@ -23,6 +23,7 @@
 #pragma once
 
 #include <functional>
+#include <mutex>
 #include <vector>
 
 namespace airlight {
@@ -45,22 +46,45 @@ double sun05_surface_W(double gamma, double theta_s, double m);
 // theta_j = pi j / (ntheta - 1), entries e^{T} G(T_i, theta_j, m) = int_0^pi H(T_i, g) e^{T_i}
 // W_m(g, theta_j) dg by 8-point Gauss-Legendre panels between the kinks of every column's W_m
 // and the row's extra breakpoints; bilinear lookup.
+//
+// Beyond kTMax (thick fog) a tail grid takes over, built on first use: the glow then comes
+// from a cone ~1/T wide about the light, where e^{T} H ~ 4 pi p(1) / (T gamma) for gamma >> 1/T,
+// so T e^{T} G = c(theta) ln T + B(theta) + O(ln T / T), c = 4 pi p(1) W_m(0, theta) (the
+// forward phase value _forward_weight_ = 4 pi p(1); 1 for the isotropic phase). The tail
+// stores Q = T e^{T} G - c ln T on rows log-spaced from kTMax to kTTail (same columns, same
+// node rule), bilinear in (ln T, theta); beyond kTTail Q is held at its last row (its drift
+// there, ~ln T / T, is below 1e-6 of T e^{T} G). Every density then costs the same per pixel.
 class SurfaceGGrid {
   public:
     static constexpr double kTMax = 64.0;
+    static constexpr double kTTail = 1e8;
+    static constexpr int kTailRows = 40;
     // _row_cuts_(T, cuts) appends a row's extra gamma breakpoints; _H_scaled_(T, gamma) is
-    // e^{T} H(T, gamma). Rows go to _threads_ worker threads (0: all).
+    // e^{T} H(T, gamma). Rows go to _threads_ worker threads (0: all). The two functions are
+    // kept for the tail's build (they must outlive the grid's owner's use of it).
     SurfaceGGrid(int nT, int ntheta, double m, int threads,
                  const std::function<void(double, std::vector<double>&)>& row_cuts,
-                 const std::function<double(double, double)>& H_scaled);
-    // e^{T} G(T, theta_s) for 0 <= T <= kTMax.
+                 const std::function<double(double, double)>& H_scaled, double forward_weight = 1.0);
+    // e^{T} G(T, theta_s) for every T >= 0 (the tail beyond kTMax).
     double lookup(double T, double theta_s) const;
     static double row_T(int i, int nT);
     static double row_position(double T, int nT);
 
   private:
+    double lookup_body(double T, double theta_s) const;
+    double lookup_tail(double T, double theta_s) const;
+    // Integrates row _T_ for every column into _out_[0, ntheta).
+    void integrate_row(double T, double* out) const;
+    void build_tail() const;
+
     int nT_, ntheta_;
+    double m_, forward_weight_;
+    int threads_;
+    std::function<void(double, std::vector<double>&)> row_cuts_;
+    std::function<double(double, double)> H_scaled_;
     std::vector<double> data_;  // row-major [iT][itheta]
+    mutable std::once_flag tail_once_;
+    mutable std::vector<double> tail_;  // Q, row-major [row][itheta]
 };
 
 // Tabulated G for one exponent m (layout and measured error in sun05_surface.cpp).
@@ -68,7 +92,7 @@ class SurfaceGTable {
   public:
     // _nT_ x _ntheta_ samples; builds with _threads_ worker threads (0: all).
     explicit SurfaceGTable(double m = 1.0, int nT = 96, int ntheta = 64, int threads = 0);
-    // G(T, theta_s); beyond the tabulated T range the exact evaluator.
+    // G(T, theta_s) for every T >= 0 (beyond kTMax the grid's tail, SurfaceGGrid).
     double eval(double T, double theta_s) const;
     // e^{T} G(T, theta_s) (no exp: for callers that have e^{-T} already).
     double eval_scaled(double T, double theta_s) const;
