@@ -200,4 +200,33 @@ void gauss_legendre(int n, std::vector<double>& x, std::vector<double>& w) {
     }
 }
 
+void gauss_laguerre(int n, std::vector<double>& x, std::vector<double>& w) {
+    // Newton on the Laguerre recurrence from the usual asymptotic guesses (Numerical
+    // Recipes' gaulag with alpha = 0); w_i = x_i / ((n + 1) L_{n+1}(x_i))^2.
+    x.assign(size_t(n), 0.0);
+    w.assign(size_t(n), 0.0);
+    double z = 0.0;
+    for (int i = 0; i < n; ++i) {
+        if (i == 0) z = 3.0 / (1.0 + 2.4 * n);
+        else if (i == 1) z += 15.0 / (1.0 + 2.5 * n);
+        else z += (1.0 + 2.55 * (i - 1)) / (1.9 * (i - 1)) * (z - x[size_t(i - 2)]);
+        double dp = 1.0, p1 = 1.0, p2 = 0.0;
+        for (int it = 0; it < 100; ++it) {
+            p1 = 1.0;
+            p2 = 0.0;
+            for (int k = 1; k <= n; ++k) {
+                const double p3 = p2;
+                p2 = p1;
+                p1 = ((2.0 * k - 1.0 - z) * p2 - (k - 1.0) * p3) / k;
+            }
+            dp = n * (p1 - p2) / z;
+            const double dz = p1 / dp;
+            z -= dz;
+            if (std::abs(dz) <= 1e-15 * std::max(1.0, z)) break;
+        }
+        x[size_t(i)] = z;
+        w[size_t(i)] = -1.0 / (dp * n * p2);
+    }
+}
+
 }  // namespace airlight

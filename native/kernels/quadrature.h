@@ -10,6 +10,10 @@ namespace airlight {
 // recurrence; exact for polynomials of degree 2n - 1).
 void gauss_legendre(int n, std::vector<double>& x, std::vector<double>& w);
 
+// Gauss-Laguerre nodes _x_ and weights _w_ of order _n_: int_0^inf e^{-x} f(x) dx ~
+// sum w_i f(x_i), exact for polynomials of degree 2n - 1 (Boost.Math has no Laguerre rule).
+void gauss_laguerre(int n, std::vector<double>& x, std::vector<double>& w);
+
 // Adaptive Gauss-Kronrod (7-15) integration of f over [a, b] (b may be +inf, handled
 // by a change of variables) to relative tolerance _rel_tol_.
 double integrate_adaptive(const std::function<double(double)>& f, double a, double b,
