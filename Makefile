@@ -7,7 +7,7 @@ JOBS     ?= 2
 XVFB     := xvfb-run -a -s "-screen 0 1280x1024x24"
 BLENDER  := tools/blender.sh
 
-.PHONY: all deps build package demo test test-native test-python test-blender test-gpu bench clean
+.PHONY: all deps build package demo test test-native test-python test-blender test-gpu sanitize bench clean
 
 all: build
 
@@ -45,8 +45,24 @@ test-blender:
 test-gpu:
 	$(XVFB) $(BLENDER) --python tests/gpu/run_gpu_tests.py -- -q
 
+# The C++ tests and the native pytest under AddressSanitizer and UndefinedBehaviorSanitizer,
+# from their own build (build-sanitize/, its module there too): any out-of-bounds access,
+# use after free or undefined behaviour reachable from the bindings fails the run.
+SANITIZE := build-sanitize
+SAN_FLAGS := -fsanitize=address,undefined -fno-sanitize-recover=undefined -fno-omit-frame-pointer
+sanitize: deps
+	cmake -S . -B $(SANITIZE) -DCMAKE_BUILD_TYPE=RelWithDebInfo -DPython_EXECUTABLE=$(PYTHON) \
+	  -DCMAKE_CXX_FLAGS="$(SAN_FLAGS)" -DCMAKE_EXE_LINKER_FLAGS="$(SAN_FLAGS)" \
+	  -DCMAKE_SHARED_LINKER_FLAGS="$(SAN_FLAGS)" -DCMAKE_INTERPROCEDURAL_OPTIMIZATION=OFF \
+	  -DAIRLIGHT_MODULE_DIR=$(CURDIR)/$(SANITIZE)/module
+	cmake --build $(SANITIZE) -j$(JOBS)
+	cd $(SANITIZE) && ASAN_OPTIONS=detect_leaks=0 UBSAN_OPTIONS=print_stacktrace=1 ctest --output-on-failure -j$(JOBS)
+	AIRLIGHT_NATIVE_DIR=$(CURDIR)/$(SANITIZE)/module ASAN_OPTIONS=detect_leaks=0 \
+	  UBSAN_OPTIONS=print_stacktrace=1 LD_PRELOAD="$$(g++ -print-file-name=libasan.so) $$(g++ -print-file-name=libubsan.so)" \
+	  $(PYTHON) -m pytest tests/native -q -x
+
 bench: build
 	$(PYTHON) benchmarks/bench_sun05.py
 
 clean:
-	rm -rf $(BUILD) out addon/airlight/_native*.so
+	rm -rf $(BUILD) $(SANITIZE) out addon/airlight/_native*.so
