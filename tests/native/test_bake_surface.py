@@ -124,7 +124,7 @@ def test04_spot_lights_attenuated_after_points():
     hit = np.isfinite(result["depth"])
     D = np.linalg.norm(SPOT_POS[0] - p[hit], axis=-1)
     np.testing.assert_allclose(att[2][hit][:, 0], np.exp(-SIGMA_T * D), rtol=2e-5)
-    # Spot lights add their glow (SpotGlowModel, checked per pixel in test16_surface_phase.py).
+    # Spot lights add their glow (SpotGlowModel, checked per pixel in test_surface_glow_phase.py).
     kw0, _ = scene()
     assert np.all(result["surface_glow"] >= _native.bake(**kw0)["surface_glow"])
     assert np.any(result["surface_glow"] > _native.bake(**kw0)["surface_glow"])
@@ -141,7 +141,7 @@ def test05_no_fog_is_neutral():
 def test06_gaussian_fog_attenuation_uses_the_exact_optical_depth():
     """With fog objects (Gaussians), the attenuation from each light to the hit is
     exp(-optical depth through beta0 + the Gaussians) (Fogshop's T(s, p)), checked against
-    RbfMedium.optical_depth without culling; the glow follows it too (test16_surface_phase.py)."""
+    RbfMedium.optical_depth without culling; the glow follows it too (test_surface_glow_phase.py)."""
     kw, R = scene()
     centres = np.array([[0.0, 0.5, 1.0], [-1.5, 2.0, 0.5], [1.0, -1.0, 0.3]])
     scales = np.array([0.8, 1.2, 0.6])

@@ -12,7 +12,7 @@ import pytest
 from scipy import integrate
 
 import _native
-from test13_bake_surface import ALBEDO, CAM_POS, FOV, H, POINT_I, POINT_POS, SIGMA_T, W, G_ref, hit_points, scene
+from test_bake_surface import ALBEDO, CAM_POS, FOV, H, POINT_I, POINT_POS, SIGMA_T, W, G_ref, hit_points, scene
 
 
 def phase(name, g, mu):

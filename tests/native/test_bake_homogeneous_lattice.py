@@ -1,7 +1,8 @@
 """homogeneous_resolution "half" / "quarter" (bake.cpp lattice_band): the homogeneous airlight
 on a 2 / 4-pixel lattice, interpolated where smooth. References: the exact per-pixel bake
-("full", itself checked against quadrature in test04/test13) and, independently, the
-quadrature model on analytic rays (scene_util's camera, analytic floor depth)."""
+("full", itself checked against quadrature in test_bake_passes.py, test_bake_F_table.py and
+test_bake_sun_lamps.py) and, independently, the quadrature model on analytic rays
+(scene_util's camera, analytic floor depth)."""
 import math
 
 import numpy as np

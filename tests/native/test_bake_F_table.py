@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 import _native
-import test04_bake as scene  # its tiny floor scene (module import: its tests are not re-collected)
+import test_bake_passes as scene  # its tiny floor scene (module import: its tests are not re-collected)
 
 # Worst per-ray airlight error against the exact-F path, measured over random rays in
 # native/kernels/sun05_nearest_test.cpp (AirlightErrorAgainstExactF), + 20 %.

@@ -144,7 +144,7 @@ def test04_bad_input():
     for kw in bad:
         with pytest.raises(ValueError, match="rbf_"):
             bake(**kw)
-    # (anisotropic phases, biri06 / pegoraro10, suns and spots with Gaussians: test17)
+    # (anisotropic phases, biri06 / pegoraro10, suns and spots with Gaussians: test_bake_gaussians_lights.py)
     with pytest.raises(ValueError, match="does not take fog objects"):
         bake(rbf_centres=b, rbf_scales=a, rbf_amplitudes=c, model="hoffman02", light_positions=np.zeros((0, 3)),
              light_intensities=np.zeros((0, 3)))

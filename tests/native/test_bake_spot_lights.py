@@ -173,4 +173,4 @@ def test_spot_argument_errors():
     bad["spot_positions"] = np.array([[np.nan, 0, 0], [0, 0, 0]])
     with pytest.raises(ValueError, match="position"):
         _native.bake(**scene(**bad))
-    # (spots with Gaussians are baked now: test17_bake_rbf_lights.py)
+    # (spots with Gaussians are baked now: test_bake_gaussians_lights.py)

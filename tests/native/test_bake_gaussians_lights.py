@@ -6,9 +6,9 @@ with any phase function:
   independent scipy integral of eq. 2 written out here (erf optical depths per Gaussian);
 - the Fogshop models (sun05, biri06, pegoraro10) against that quadrature model on thin
   smooth Gaussians: the approximation's own error (thin-fog bound of rbf_airlight_test.cpp
-  and test11: mean 1 %, p99 3 %), and on thick fog / hard spot cones reported with loose
-  bounds (the approximation samples the phase, the spot profile and the light-side
-  attenuation at b_i^r);
+  and test_bake_gaussians.py: mean 1 %, p99 3 %), and on thick fog / hard spot cones
+  reported with loose bounds (the approximation samples the phase, the spot profile and the
+  light-side attenuation at b_i^r);
 - reduced resolution (half, quarter) against full with a sun, a spot and HG phase;
 - zero-power suns and spots leave the isotropic point-light path bit-identical (the plain
   kernels run when nothing else is present);
@@ -186,7 +186,8 @@ CASES = {
 @pytest.mark.parametrize("case", list(CASES))
 def test02_fogshop_against_quadrature_thin_fog(case):
     """Thin smooth Gaussians: the Fogshop terms with phase / sun / spot against the exact
-    quadrature model: mean < 1 %, p99 < 3 % (the isotropic point-light bound of test11)."""
+    quadrature model: mean < 1 %, p99 < 3 % (the isotropic point-light bound of
+    test_bake_gaussians.py)."""
     kw, model = CASES[case]
     gauss = gaussians(scale=0.01)
     approx = bake(gauss, model=model, **kw)["airlight"]

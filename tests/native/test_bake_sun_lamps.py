@@ -150,7 +150,7 @@ def test_bad_sun_input():
         _native.bake(**base, sun_directions=SUN_DIR[:1], sun_irradiances=-np.ones((1, 3)))
     with pytest.raises(ValueError, match="fog_top"):
         _native.bake(**base, sun_directions=SUN_DIR[:1], sun_irradiances=np.ones((1, 3)), fog_top=math.nan)
-    # (suns with Gaussians are baked now: test17_bake_rbf_lights.py)
+    # (suns with Gaussians are baked now: test_bake_gaussians_lights.py)
 
 
 def test_orthographic_camera():

@@ -94,7 +94,7 @@ def test07_additive_over_lights():
     b = ([-3.0, 0.0, -2.0], [0.3, 0.6, 0.9])
     # Exact with every edge sub-sample evaluated; the default clusters of sub-samples are
     # refined where their error estimate (which depends on all lights) exceeds 5e-4
-    # (test19_edge_clusters.py), so edge pixels add up to that.
+    # (test_bake_edge_clusters.py), so edge pixels add up to that.
     for kw, rtol in (({"edge_cluster_tol": 0.0}, 1e-5), ({}, 1e-3)):
         both = bake(lights=[a[0], b[0]], intensities=[a[1], b[1]], **kw)["airlight"]
         sep = (bake(lights=[a[0]], intensities=[a[1]], **kw)["airlight"] +
