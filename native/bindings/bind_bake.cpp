@@ -3,11 +3,11 @@
 #include <limits>
 #include <string>
 
-#include "kernels/bake.h"
-#include "kernels/exr_io.h"
-#include "kernels/models.h"
-#include "kernels/phase.h"
-#include "numpy_util.h"
+#include "bake/bake.h"
+#include "image/exr_io.h"
+#include "models/models.h"
+#include "core/phase.h"
+#include "bindings/numpy_util.h"
 
 namespace airlight::bindings {
 

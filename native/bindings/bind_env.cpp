@@ -2,9 +2,9 @@
 #include <cmath>
 #include <string>
 
-#include "kernels/camera.h"
-#include "kernels/sun05_psf.h"
-#include "numpy_util.h"
+#include "image/camera.h"
+#include "homogeneous/sun05_psf.h"
+#include "bindings/numpy_util.h"
 
 namespace airlight::bindings {
 

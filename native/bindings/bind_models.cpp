@@ -3,11 +3,11 @@
 #include <cmath>
 #include <stdexcept>
 
-#include "kernels/biri06.h"
-#include "kernels/hoffman02.h"
-#include "kernels/phase.h"
-#include "kernels/sun05.h"
-#include "numpy_util.h"
+#include "homogeneous/biri06.h"
+#include "homogeneous/hoffman02.h"
+#include "core/phase.h"
+#include "homogeneous/sun05.h"
+#include "bindings/numpy_util.h"
 
 namespace airlight::bindings {
 

@@ -9,12 +9,12 @@
 #include <pybind11/complex.h>
 #include <pybind11/stl.h>
 
-#include "kernels/baseline_fog.h"
-#include "kernels/complex_e1.h"
-#include "kernels/pegoraro10.h"
-#include "kernels/spot_light.h"
-#include "kernels/sun05.h"
-#include "numpy_util.h"
+#include "homogeneous/baseline_fog.h"
+#include "core/complex_e1.h"
+#include "homogeneous/pegoraro10.h"
+#include "homogeneous/spot_light.h"
+#include "homogeneous/sun05.h"
+#include "bindings/numpy_util.h"
 
 namespace airlight::bindings {
 

@@ -2,12 +2,12 @@
 #include <cmath>
 #include <stdexcept>
 
-#include "kernels/bake.h"
-#include "kernels/models.h"
-#include "kernels/quadrature.h"
-#include "kernels/special_f.h"
-#include "kernels/sun05.h"
-#include "numpy_util.h"
+#include "bake/bake.h"
+#include "models/models.h"
+#include "core/quadrature.h"
+#include "core/special_f.h"
+#include "homogeneous/sun05.h"
+#include "bindings/numpy_util.h"
 
 namespace airlight::bindings {
 

@@ -7,9 +7,9 @@
 #include <cmath>
 #include <vector>
 
-#include "kernels/noise.h"
-#include "numpy_util.h"
-#include "preview_tiles.h"
+#include "core/noise.h"
+#include "bindings/numpy_util.h"
+#include "bindings/preview_tiles.h"
 
 namespace airlight::bindings {
 

@@ -2,11 +2,11 @@
 #include <cmath>
 #include <stdexcept>
 
-#include "kernels/bake.h"
-#include "kernels/rbf_airlight.h"
-#include "kernels/rbf_medium.h"
-#include "kernels/rbf_splat.h"
-#include "numpy_util.h"
+#include "bake/bake.h"
+#include "gaussian/airlight.h"
+#include "gaussian/medium.h"
+#include "gaussian/splat.h"
+#include "bindings/numpy_util.h"
 
 namespace airlight::bindings {
 

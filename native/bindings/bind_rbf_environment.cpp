@@ -5,9 +5,9 @@
 #include <stdexcept>
 #include <string>
 
-#include "kernels/camera.h"
-#include "kernels/rbf_environment.h"
-#include "numpy_util.h"
+#include "image/camera.h"
+#include "gaussian/environment.h"
+#include "bindings/numpy_util.h"
 
 namespace airlight::bindings {
 

@@ -4,14 +4,14 @@
 #include <cmath>
 #include <stdexcept>
 
-#include "kernels/bake_surface.h"
-#include "kernels/biri06_surface.h"
-#include "kernels/phase.h"
-#include "kernels/scene.h"
-#include "kernels/spot_light.h"
-#include "kernels/spot_surface.h"
-#include "kernels/sun05_surface.h"
-#include "numpy_util.h"
+#include "bake/surface_pass.h"
+#include "surface/biri06_surface.h"
+#include "core/phase.h"
+#include "core/scene.h"
+#include "homogeneous/spot_light.h"
+#include "surface/spot_surface.h"
+#include "surface/sun05_surface.h"
+#include "bindings/numpy_util.h"
 
 namespace airlight::bindings {
 

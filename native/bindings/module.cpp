@@ -1,8 +1,8 @@
 // module.cpp: the private `_native` module. Kernels stay plain C++; the bindings
 // convert whole numpy arrays and release the GIL around work.
-#include "kernels/bake.h"
-#include "kernels/models.h"
-#include "numpy_util.h"
+#include "bake/bake.h"
+#include "models/models.h"
+#include "bindings/numpy_util.h"
 
 #include <pybind11/stl.h>
 

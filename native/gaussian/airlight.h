@@ -1,0 +1,106 @@
+// rbf_airlight.h: airlight of point lights in a Gaussian (RBF) medium
+// (Fogshop, Zhou et al. 2007, section 3), per unit I0 and albedo like sun05.h, plus
+// its exact reference by quadrature.
+//
+// View ray x(t) = v + t r, t in [0, Dvp] (Dvp may be inf), light at s, isotropic phase:
+//   La = int_0^Dvp beta(x) / (4 pi) / d(x)^2 exp(-T(s, x) - T(v, x)) dt      (eq. 2, 5)
+//      = sum_i L_i + L_0                                                       (eq. 8)
+// Fogshop approximation (rbf_airlight.cpp):
+//   L_i ~ f0(b_i^r) f1(b_i) T_i(v, p)                                          (eq. 11)
+//   b_i^r = projection of b_i on the view ray, clamped to [v, p]               (eq. 10)
+//   f0 = 1/(4 pi) / |b_i^r - s|^2 exp(-T_i(s, b_i^r) - T_i(v, b_i^r) + T_i(s, b_i) + T_i(v, b_i))
+//   f1 = exp(-T(s, b_i) - T(v, b_i))     (T over all Gaussians and beta0)      (eq. 12, 13)
+//   L_0 = C_sv La_sun05(beta0, Dsv, gamma, Dvp),  C_sv = exp(-T(s, v) + beta0 Dsv)  (eq. 15-17)
+// i.e. Gaussian i itself is attenuated along the true path s -> b_i^r -> v, everything
+// else along s -> b_i -> v, and the homogeneous term by the medium on the segment s -> v.
+#pragma once
+
+#include <cstddef>
+#include <vector>
+
+#include <limits>
+
+#include "core/phase.h"
+#include "gaussian/medium.h"
+#include "core/scene.h"
+#include "core/special_f.h"
+#include "homogeneous/spot_light.h"
+
+namespace airlight {
+
+enum class RbfAirlightModel {
+    Fogshop,     // the paper's approximation (L_0 through the F table if one is given)
+    Quadrature,  // adaptive quadrature of eq. 2 with exact optical depths (reference, slow)
+};
+
+// Fogshop airlight for one viewpoint and a set of point lights. Construction does the
+// per-(light, Gaussian) work of the paper's section 5.1 (f1, C_sv); eval() is per ray.
+class RbfAirlightFogshop {
+  public:
+    // _table_: F table for the homogeneous term (nullptr = exact F). The medium and the
+    // table must outlive this object. Throws std::invalid_argument on non-finite points.
+    RbfAirlightFogshop(const RbfMedium& medium, const Vec3& origin, const std::vector<Vec3>& lights,
+                       const SpecialFTable* table, int threads = 0);
+
+    // Writes the airlight of light l to out[l], per unit I0 and albedo, for the view ray
+    // origin + t r, t in [0, Dvp]; r unit, Dvp > 0 (may be inf).
+    void eval(const Vec3& r, double Dvp, double* out) const;
+    // The same in RGB with per-Gaussian albedo (3 per Gaussian) and the lights' I0:
+    // out = sum_l [medium_albedo I0_l L_0,l + sum_i albedo_i I0_l L_i,l].
+    RGB eval_rgb(const Vec3& r, double Dvp, const double* albedo, const RGB* I0, const RGB& medium_albedo) const;
+
+    std::size_t num_lights() const { return lights_.size(); }
+
+  private:
+    // Calls homogeneous(l, L_0) and gaussian(l, i, L_i) for every term of the ray.
+    template <typename H, typename G>
+    void eval_terms(const Vec3& r, double Dvp, H&& homogeneous, G&& gaussian) const;
+
+    const RbfMedium& medium_;
+    const SpecialFTable* table_;
+    Vec3 v_;
+    std::vector<Vec3> lights_;
+    std::vector<double> Dsv_, Csv_;
+    // f1(b_i) exp(T_i(s, b_i) + T_i(v, b_i)) = exp(-(T(s, b_i) + T(v, b_i) without Gaussian i)),
+    // light-major [l][i].
+    std::vector<double> f1_;
+};
+
+// Reference: adaptive Gauss-Kronrod quadrature of eq. 2 (per unit I0 and albedo) with
+// exact, unculled optical depths, split at the Gaussians' projections on the ray and
+// around the light's closest approach. ~1e-8 relative.
+double rbf_airlight_quadrature(const RbfMedium& medium, const Vec3& light, const Vec3& origin, const Vec3& r,
+                               double Dvp, double rel_tol = 1e-8);
+
+// A light of the generalised reference below: point, spot (Cycles profile, spot_light.h,
+// per unit on-axis I0) or sun (per unit irradiance E, propagation direction w; fog_top: the
+// homogeneous medium's layer top of sun_layer.h, +inf: none).
+struct RbfRefLight {
+    enum class Kind { Point, Spot, Sun };
+    Kind kind = Kind::Point;
+    Vec3 s{0.0};
+    SpotCone cone;
+    Vec3 w{0.0, 0.0, -1.0};
+    double fog_top = std::numeric_limits<double>::infinity();
+};
+
+// The reference for any light and phase: adaptive quadrature of
+//   La = int_0^Dvp beta_s(x) p(cos theta(x)) F(x) exp(-T_light(x) - T(v, x)) dt
+// with exact, unculled optical depths. Point / spot: F = profile / |x - s|^2 (profile 1 for
+// points), T_light = T(s, x), beta_s = beta. Sun: F = 1, T_light = the Gaussians' half-line
+// depth from x towards the sun (to infinity) plus beta0 (fog_top - z) / mu_s below a finite
+// top (0 above it, or without a top: Hoffman-Preetham's unattenuated sun; infinite for mu_s
+// <= 0 in the layer), and beta_s = Gaussians + beta0 inside the layer only (all z without a
+// top): sun_layer.h's medium; the view side T(v, x) is beta0 t + Gaussians, as the bake's
+// Gaussian path (camera inside the layer for the two to agree). Isotropic point lights: the
+// same as rbf_airlight_quadrature above.
+double rbf_airlight_quadrature(const RbfMedium& medium, const RbfRefLight& light, const PhaseFunction& phase,
+                               const Vec3& origin, const Vec3& r, double Dvp, double rel_tol = 1e-8);
+
+// Batch over rays: out[j * L + l] for ray j (unit dirs[j], Dvp[j] > 0 or inf) and light l.
+// Validates all inputs first (std::invalid_argument), then runs on _threads_ threads.
+void rbf_airlight(const RbfMedium& medium, const std::vector<Vec3>& lights, const Vec3& origin,
+                  const Vec3* dirs, const double* Dvp, std::size_t n, double* out, RbfAirlightModel model,
+                  const SpecialFTable* table, int threads = 0);
+
+}  // namespace airlight

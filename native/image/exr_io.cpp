@@ -1,0 +1,49 @@
+// exr_io.cpp: one multilayer float (or half) EXR with an RGB triple per pass, via
+// OpenImageIO (which converts the float buffer to half on writing).
+#include "image/exr_io.h"
+
+#include <OpenImageIO/imageio.h>
+
+#include <stdexcept>
+
+namespace airlight {
+
+void write_multilayer_exr(const std::string& path, int width, int height,
+                          const std::vector<ExrPass>& passes, const std::string& layer_prefix, bool half) {
+    // Check the arguments; OIIO would otherwise fail with a less helpful message.
+    if (width <= 0 || height <= 0) throw std::invalid_argument("EXR size must be positive");
+    if (passes.empty()) throw std::invalid_argument("write_multilayer_exr: no passes given");
+    for (const ExrPass& pass : passes)
+        if (pass.name.empty() || !pass.rgb)
+            throw std::invalid_argument("write_multilayer_exr: pass without name or data");
+
+    // Describe one part with channels "<prefix><name>.R/G/B" per pass.
+    const int nchannels = 3 * int(passes.size());
+    OIIO::ImageSpec spec(width, height, nchannels, half ? OIIO::TypeDesc::HALF : OIIO::TypeDesc::FLOAT);
+    spec.channelnames.clear();
+    for (const ExrPass& pass : passes)
+        for (const char* c : {".R", ".G", ".B"}) spec.channelnames.push_back(layer_prefix + pass.name + c);
+    spec.alpha_channel = -1;
+    spec.attribute("compression", "zip");
+
+    // Interleave the passes into one buffer, top row first (EXR's order too).
+    const size_t npixels = size_t(width) * size_t(height);
+    std::vector<float> buffer(npixels * nchannels);
+    for (size_t p = 0; p < passes.size(); ++p)
+        for (size_t i = 0; i < npixels; ++i)
+            for (int c = 0; c < 3; ++c) buffer[i * nchannels + 3 * p + c] = passes[p].rgb[3 * i + c];
+
+    // Write it, turning OIIO's error state into exceptions.
+    auto out = OIIO::ImageOutput::create("openexr");  // EXR whatever the extension
+    if (!out) throw std::runtime_error("cannot create EXR writer for '" + path + "': " + OIIO::geterror());
+    if (!out->open(path, spec))
+        throw std::runtime_error("cannot open '" + path + "' for writing: " + out->geterror());
+    if (!out->write_image(OIIO::TypeDesc::FLOAT, buffer.data())) {
+        std::string err = out->geterror();
+        out->close();
+        throw std::runtime_error("cannot write '" + path + "': " + err);
+    }
+    if (!out->close()) throw std::runtime_error("cannot close '" + path + "': " + out->geterror());
+}
+
+}  // namespace airlight

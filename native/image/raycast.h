@@ -1,0 +1,47 @@
+// raycast.h: first-hit distances against the scene's triangles (Embree 3).
+#pragma once
+
+#include <memory>
+
+#include "image/camera.h"
+
+namespace airlight {
+
+class RayCaster {
+  public:
+    explicit RayCaster(const TriangleMesh& mesh);
+    ~RayCaster();
+    RayCaster(const RayCaster&) = delete;
+    RayCaster& operator=(const RayCaster&) = delete;
+
+    // Distance along the ray to the first hit, +inf if none. Thread safe.
+    double first_hit(const Ray& ray) const;
+
+    // First-hit distances of _n_ rays at once (Embree packets of 8, coherent), written
+    // to _t_ (+inf where none). Faster than _first_hit_ for camera rays. Thread safe.
+    void first_hits(const Ray* rays, int n, float* t) const;
+
+    // First hits of _n_ rays from one origin _o_ along directions (dx, dy, dz)[k] (any
+    // length), inside [t_near[k], t_far[k]] in units of the direction (Cycles' clip
+    // range), written to _t_ (+inf where none). Packets of 16 coherent rays. Thread safe.
+    void first_hits(const Vec3& o, const float* dx, const float* dy, const float* dz, const float* t_near,
+                    const float* t_far, int n, float* t) const;
+
+    // First hits of _n_ rays with their own origins inside [t_near[k], t_far[k]] (units
+    // of the unit directions), with the unit geometric normal (Embree's Ng, the triangle's
+    // winding normal, not interpolated) of each hit in _ng_[3 k .. 3 k + 2] (0 where none).
+    // Packets of 16. Thread safe. Used by the surface-shading pass (bake_surface.cpp).
+    void first_hits_normals(const Ray* rays, const float* t_near, const float* t_far, int n, float* t,
+                            float* ng) const;
+
+    // Rays refused so far because Embree would assert on them (a NaN or huge origin or
+    // direction, tnear < 0 or tnear > tfar): they are not traced and read back as NaN.
+    // Callers check this after a pass and refuse the bake (bake.cpp).
+    long invalid_rays() const;
+
+  private:
+    struct Impl;
+    std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace airlight
