@@ -7,8 +7,13 @@ collected: a module that is missing, fails to load, or is found anywhere but in 
 directory fails the whole run with the directory searched. The native tests never skip.
 
 Files are collected by pytest's default rules (test_*.py). The helpers beside them are
-plain modules: scene_util.py (cameras, meshes) and stability_cases.py (the stability
-table, also printed by benchmarks/stability_table.py).
+plain modules that the tests import:
+  scene_util.py       cameras, pixel rays, meshes (planes, merged parts), Gaussian clouds;
+  scene_floor.py, scene_surface.py, scene_fog_objects.py
+                      the scenes that more than one test file bakes;
+  reference_util.py   independent numpy/scipy references (phase functions, eq. 31, fog-layer
+                      paths, Sun's surface G) and the relative-error statistics;
+  stability_cases.py  the stability table (also printed by benchmarks/stability_table.py).
 """
 import os
 import sys

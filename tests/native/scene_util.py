@@ -1,4 +1,6 @@
-"""Small scenes for the bake tests, built independently of the C++ camera code."""
+"""Small scenes for the bake tests, built independently of the C++ camera code: cameras,
+projections and pixel rays, meshes (quads, axis-aligned planes, merged parts) and the
+Gaussian clouds that several tests bake. Scenes shared whole live in scene_*.py."""
 import math
 
 import numpy as np
@@ -58,3 +60,52 @@ def quad(corners):
     v = np.asarray(corners, dtype=np.float32)
     tris = np.array([[0, 1, 2], [0, 2, 3]], dtype=np.uint32)
     return v, tris
+
+
+BIG = 1000.0  # half-width of the planes that fill the view
+
+
+def plane_z(z, x=(-BIG, BIG), y=(-BIG, BIG)):
+    """The rectangle x in _x_, y in _y_ of the plane z = _z_ (a floor or a wall facing the -z camera)."""
+    return quad([[x[0], y[0], z], [x[1], y[0], z], [x[1], y[1], z], [x[0], y[1], z]])
+
+
+def plane_y(y, x=(-BIG, BIG), z=(-BIG, BIG)):
+    """The rectangle x in _x_, z in _z_ of the plane y = _y_ (a ground for a y-up scene)."""
+    return quad([[x[0], y, z[0]], [x[1], y, z[0]], [x[1], y, z[1]], [x[0], y, z[1]]])
+
+
+def merge(parts):
+    """One mesh (vertices, triangles) from several, the triangles' indices shifted."""
+    vs, ts, o = [], [], 0
+    for v, t in parts:
+        vs.append(v)
+        ts.append(np.asarray(t) + o)
+        o += len(v)
+    return np.concatenate(vs).astype(np.float32), np.concatenate(ts).astype(np.uint32)
+
+
+def in_camera_space(cam_to_world, mesh):
+    """A mesh given in camera space, moved to world space by _cam_to_world_."""
+    v, t = mesh
+    return (v.astype(float) @ cam_to_world[:3, :3].T + cam_to_world[:3, 3]).astype(np.float32), t
+
+
+def few_gaussians(scale=0.01, n=12, seed=5):
+    """(centres, scales a, amplitudes c) of _n_ Gaussians 3-7 m wide, 20-36 m ahead of a
+    camera at the origin looking down -z, peak densities _scale_ x 0.02-0.06 /m."""
+    rng = np.random.default_rng(seed)
+    b = np.column_stack([16 * rng.random(n) - 8, 4 * rng.random(n) - 2, -(20 + 16 * rng.random(n))])
+    a = 0.15 + 0.15 * rng.random(n)
+    c = scale * (0.02 + 0.04 * rng.random(n))
+    return b, a, c
+
+
+def gaussian_cloud(n=300, seed=11):
+    """(centres, scales a, amplitudes c) of _n_ Gaussians 1-3 m wide filling x in [-18, 18],
+    y in [-2, 5], z in [-45, -8], peak densities 0.02-0.08 /m."""
+    rng = np.random.default_rng(seed)
+    b = np.column_stack([rng.uniform(-18, 18, n), rng.uniform(-2, 5, n), rng.uniform(-45, -8, n)])
+    a = 1.0 / rng.uniform(1.0, 3.0, n)
+    c = rng.uniform(0.02, 0.08, n)
+    return b, a, c

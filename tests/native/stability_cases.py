@@ -30,26 +30,9 @@ import numpy as np
 from scipy import integrate, special
 
 import _native
+from reference_util import INV4PI, hg, phase_value
 
-INV4PI = 1.0 / (4.0 * math.pi)
 T_VALUES = (1e-9, 1e-6, 1e-3, 1.0, 10.0, 100.0)
-
-
-def hg(mu, g):
-    return INV4PI * (1 - g * g) / (1 + g * g - 2 * g * mu) ** 1.5
-
-
-def phase_value(name, g, mu):
-    if name == "isotropic" or (name == "hg" and g == 0.0):
-        return INV4PI
-    if name == "hg":
-        return hg(mu, g)
-    if name == "rayleigh":
-        return 3 * (1 + mu * mu) / (16 * math.pi)
-    s = (1 + mu) / 2
-    if name == "hazy_mie":
-        return (1 + 9 * s ** 8) / (8 * math.pi)
-    return 33 * (1 + 50 * s ** 32) / (332 * math.pi)
 
 
 def limit_thin(name, g, sigma_t, Dsv, cos_gamma, Dvp):
@@ -61,7 +44,7 @@ def limit_thin(name, g, sigma_t, Dsv, cos_gamma, Dvp):
         return sigma_t * INV4PI * (upper + math.atan(a / h)) / h
 
     def f(phi):  # x = a + h tan(phi): dx / d^2 = dphi / h, mu = -sin(phi)
-        return phase_value(name, g, -math.sin(phi))
+        return phase_value(name, -math.sin(phi), g)
     lo = math.atan(-a / h)
     hi = math.pi / 2 if math.isinf(Dvp) else math.atan((Dvp - a) / h)
     return sigma_t * integrate.quad(f, lo, hi, epsabs=0, epsrel=1e-12, limit=400)[0] / h
@@ -80,7 +63,7 @@ def scipy_reference(name, g, sigma_t, Dsv, cos_gamma, Dvp):
         c = math.cos(phi)
         if c <= 0.0:
             return 0.0
-        return phase_value(name, g, -math.sin(phi)) * math.exp(-sigma_t * (a + h * (1 + math.sin(phi)) / c - e0))
+        return phase_value(name, -math.sin(phi), g) * math.exp(-sigma_t * (a + h * (1 + math.sin(phi)) / c - e0))
     val = integrate.quad(f, lo, hi, epsabs=0, epsrel=1e-12, limit=1000)[0]
     return sigma_t * math.exp(-sigma_t * e0) * val / h
 
@@ -215,11 +198,11 @@ def point_rows():
         # gamma = 0 with the light beyond the surface, gamma = pi (light behind the eye).
         s = 0.1
         for T_label, s in (("T=1", 0.1), ("T=100", 10.0)):
-            lim = limit_light_beyond_surface(phase_value(phase, g, 1.0), s, Dsv, 4.0)
+            lim = limit_light_beyond_surface(phase_value(phase, 1.0, g), s, Dsv, 4.0)
             add("gamma=0, light beyond surface", f"{T_label} Dsv=10 Dvp=4", fn(s, Dsv, 1.0, 4.0), lim,
                 "limit" if kind == "ref" else kind)
             for Dvp in (4.0, math.inf):
-                lim = limit_light_behind_eye(phase_value(phase, g, -1.0), s, Dsv, Dvp)
+                lim = limit_light_behind_eye(phase_value(phase, -1.0, g), s, Dsv, Dvp)
                 add("gamma=pi, light behind eye", f"{T_label} Dsv=10 Dvp={Dvp:g}", fn(s, Dsv, -1.0, Dvp), lim,
                     "limit" if kind == "ref" else kind)
         # Light exactly on the view ray in front of the surface, and at the eye: diverge

@@ -3,8 +3,7 @@ quadrature reference bake of the same scene, and their argument checks."""
 import numpy as np
 import pytest
 
-import _native
-import test_bake_passes as scene  # its tiny floor scene (module import: its tests are not re-collected)
+import scene_floor as scene  # test_bake_passes.py's tiny floor scene
 
 # Worst per-ray airlight error against the exact-F path, measured over random rays in
 # native/kernels/sun05_nearest_test.cpp (AirlightErrorAgainstExactF), + 20 %.

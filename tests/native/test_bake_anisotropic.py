@@ -8,7 +8,8 @@ import pytest
 from scipy import integrate
 
 import _native
-from scene_util import camera_matrix, perspective, pixel_dirs_camera, quad, rotation_x
+from reference_util import phase_value
+from scene_util import camera_matrix, perspective, pixel_dirs_camera, plane_z, rotation_x
 
 W, H = 40, 28
 FOV = math.radians(60.0)
@@ -21,16 +22,6 @@ INTENSITY = np.array([[3.0, 2.0, 1.0], [1.0, 1.0, 2.0]])
 ALBEDO = (0.9, 0.8, 0.6)
 
 
-def phase(name, g, mu):
-    if name == "hg":
-        return (1 - g * g) / (4 * math.pi * (1 + g * g - 2 * g * mu) ** 1.5)
-    s = (1 + mu) / 2
-    return {"isotropic": 1 / (4 * math.pi),
-            "rayleigh": 3 * (1 + mu * mu) / (16 * math.pi),
-            "mie_hazy": (1 + 9 * s ** 8) / (8 * math.pi),
-            "mie_murky": 33 * (1 + 50 * s ** 32) / (332 * math.pi)}[name]
-
-
 def reference(o, d, t1, name, g):
     """sigma_s int_0^t1 p(cos theta) I0 e^{-sigma_t (|x - s| + t)} / |x - s|^2 dt, per light."""
     total = np.zeros(3)
@@ -40,7 +31,7 @@ def reference(o, d, t1, name, g):
             w = x - s
             r = math.sqrt(w @ w)
             mu = -(w @ d) / r         # light's travel direction (s -> x) . scattered one (x -> eye, -d)
-            return phase(name, g, mu) * math.exp(-SIGMA_T * (r + t)) / (r * r)
+            return phase_value(name, mu, g) * math.exp(-SIGMA_T * (r + t)) / (r * r)
         a = max(0.0, (s - o) @ d)     # closest approach: split there (the peak)
         pts = [0.0, min(a, t1), t1]
         val = sum(integrate.quad(f, lo, hi, epsabs=0, epsrel=1e-10, limit=400)[0]
@@ -50,8 +41,7 @@ def reference(o, d, t1, name, g):
 
 
 def bake(**kw):
-    s = 1000.0
-    vertices, triangles = quad([[-s, -s, PLANE_Z], [s, -s, PLANE_Z], [s, s, PLANE_Z], [-s, s, PLANE_Z]])
+    vertices, triangles = plane_z(PLANE_Z)
     args = dict(width=W, height=H, cam_to_world=camera_matrix(rotation_x(TILT), CAM_POS),
                 projection=perspective(FOV, W, H), vertices=vertices, triangles=triangles,
                 light_positions=LIGHTS, light_intensities=INTENSITY, sigma_t=SIGMA_T, albedo=ALBEDO,

@@ -6,15 +6,14 @@ import math
 import numpy as np
 
 import _native
-from scene_util import camera_matrix, perspective, quad, rotation_x
+from scene_util import camera_matrix, perspective, plane_z, rotation_x
 
 W, H = 512, 256  # passes of 0.5-1.5 MB: above the pool's 1 MB floor for the RGB passes
 
 
 def bake(sigma_t, lights, half_floor=False, **kw):
-    s = 1000.0
-    x1 = 0.0 if half_floor else s  # half the view misses: inf depth, Tr 0 there
-    v, t = quad([[-s, -s, -8.0], [x1, -s, -8.0], [x1, s, -8.0], [-s, s, -8.0]])
+    x1 = 0.0 if half_floor else 1000.0  # half the view misses: inf depth, Tr 0 there
+    v, t = plane_z(-8.0, x=(-1000.0, x1))
     args = dict(width=W, height=H, cam_to_world=camera_matrix(rotation_x(math.radians(-10.0)), [0.5, 1.0, 2.0]),
                 projection=perspective(math.radians(60.0), W, H), vertices=v, triangles=t,
                 light_positions=np.array(lights, float).reshape(-1, 3),

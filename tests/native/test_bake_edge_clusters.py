@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 import _native
-from scene_util import camera_matrix, orthographic, perspective, quad, rotation_x
+from scene_util import camera_matrix, merge, orthographic, perspective, plane_y, plane_z, rotation_x
 
 W, H = 480, 270
 FOV = math.radians(60.0)
@@ -34,17 +34,8 @@ def box(centre, h):
     return v, np.array(t, np.uint32)
 
 
-def merge(parts):
-    vs, ts, o = [], [], 0
-    for v, t in parts:
-        vs.append(v)
-        ts.append(np.asarray(t) + o)
-        o += len(v)
-    return np.concatenate(vs).astype(np.float32), np.concatenate(ts).astype(np.uint32)
-
-
 def floor(y=-2.0, s=2000.0):
-    return quad([[-s, y, -s], [s, y, -s], [s, y, s], [-s, y, s]])
+    return plane_y(y, x=(-s, s), z=(-s, s))
 
 
 def silhouettes(**kw):
@@ -52,7 +43,7 @@ def silhouettes(**kw):
     looking down -Z, pitched down 4 degrees): silhouettes, creases and the horizon at
     clip_end; one light 1 m from a box face (a surface next to a light), one in view."""
     parts = [floor(), box((-4, -1, -15), 1.0), box((3, 0.5, -25), 1.5), box((0, -1.5, -8), 0.5),
-             box((8, 2, -40), 2.0), quad([[-16, -2, -60], [-6, -2, -60], [-6, 5, -60], [-16, 5, -60]])]
+             box((8, 2, -40), 2.0), plane_z(-60.0, x=(-16.0, -6.0), y=(-2.0, 5.0))]
     v, t = merge(parts)
     lights = np.array([(-6.0, 3.0, -25.0), (5.0, 2.5, -40.0), (0.0, 6.0, -12.0), (-3.5, -1.0, -13.0)])
     args = dict(width=W, height=H, cam_to_world=camera_matrix(rotation_x(math.radians(-4)), [0, 0, 0]),
@@ -83,8 +74,8 @@ def gaussians(resolution="quarter", n=300, **kw):
     b = np.column_stack([rng.uniform(-30, 30, n), rng.uniform(-2, 6, n), rng.uniform(-80, -10, n)])
     a = 1.0 / rng.uniform(1.0, 3.0, n)
     c = rng.uniform(0.01, 0.05, n)
-    parts = [floor(), quad([[-20, -2, -30], [-4, -2, -30], [-4, 4, -30], [-20, 4, -30]]),
-             quad([[2, -2, -55], [24, -2, -55], [24, 4, -55], [2, 4, -55]])]
+    parts = [floor(), plane_z(-30.0, x=(-20.0, -4.0), y=(-2.0, 4.0)),
+             plane_z(-55.0, x=(2.0, 24.0), y=(-2.0, 4.0))]
     v, t = merge(parts)
     lights = np.array([(8.0, 4.0, -30.0), (-6.0, 3.0, -45.0)])
     args = dict(width=W, height=H, cam_to_world=camera_matrix(np.eye(3), [0, 0, 0]),

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 import _native
-from scene_util import camera_matrix, perspective, pixel_dirs_camera, quad, rotation_x
+from scene_util import camera_matrix, merge, perspective, pixel_dirs_camera, plane_y, plane_z, rotation_x
 
 W, H = 48, 32
 FOV = math.radians(60.0)
@@ -20,9 +20,8 @@ EYE = np.array([0.0, 1.5, 0.0])
 def scene(**kw):
     """Ground y = 0 and a wall z = -12 (x in [-3, 3], up to y = 3) crossing the view: depth
     edges (silhouette, horizon) for the edge samples; camera at EYE looking down -z."""
-    v = np.array([c for q in ([[-200, 0, 5], [200, 0, 5], [200, 0, -400], [-200, 0, -400]],
-                              [[-3, 0, -12], [3, 0, -12], [3, 3, -12], [-3, 3, -12]]) for c in q], np.float32)
-    t = np.array([[0, 1, 2], [0, 2, 3], [4, 5, 6], [4, 6, 7]], np.uint32)
+    v, t = merge([plane_y(0.0, x=(-200.0, 200.0), z=(5.0, -400.0)),
+                  plane_z(-12.0, x=(-3.0, 3.0), y=(0.0, 3.0))])
     args = dict(width=W, height=H, cam_to_world=camera_matrix(rotation_x(-0.15), EYE),
                 projection=perspective(FOV, W, H, near=0.1), vertices=v, triangles=t,
                 light_positions=np.array([[1.0, 2.5, -8.0]]), light_intensities=np.array([[200.0, 180.0, 160.0]]),

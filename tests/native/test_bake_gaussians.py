@@ -7,54 +7,22 @@ import math
 
 import numpy as np
 import pytest
-from scipy.special import erf
 
 import _native
-from scene_util import camera_matrix, perspective, pixel_dirs_camera, quad, rotation_x
-
-W, H = 32, 24
-FOV = math.radians(60.0)
-SIGMA_T = 0.01
-CLIP = 0.5
-CAM_POS = np.array([0.0, 0.0, 0.0])
-FLOOR_Y = -3.0
-LIGHTS = np.array([[4.0, 30.0, -28.0], [-20.0, 10.0, -5.0]])
-INTENSITY = np.array([[100.0, 80.0, 60.0], [30.0, 30.0, 40.0]])
-ALBEDO = (0.9, 0.8, 0.7)
-
-
-def gaussians(scale=0.01, n=12, seed=5):
-    rng = np.random.default_rng(seed)
-    b = np.column_stack([16 * rng.random(n) - 8, 4 * rng.random(n) - 2, -(20 + 16 * rng.random(n))])
-    a = 0.15 + 0.15 * rng.random(n)
-    c = scale * (0.02 + 0.04 * rng.random(n))
-    return b, a, c
-
-
-def bake(**kw):
-    s = 300.0
-    vertices, triangles = quad([[-s, FLOOR_Y, 1.0], [s, FLOOR_Y, 1.0], [s, FLOOR_Y, -200.0], [-s, FLOOR_Y, -200.0]])
-    args = dict(width=W, height=H, cam_to_world=camera_matrix(rotation_x(0.0), CAM_POS),
-                projection=perspective(FOV, W, H), vertices=vertices, triangles=triangles,
-                light_positions=LIGHTS, light_intensities=INTENSITY, sigma_t=SIGMA_T, albedo=ALBEDO,
-                clip_start=CLIP, threads=2, aa_samples=1)
-    args.update(kw)
-    return _native.bake(**args)
+from reference_util import gaussian_depths
+from scene_fog_objects import ALBEDO, CAM_POS, CLIP, FOV, H, INTENSITY, LIGHTS, SIGMA_T, W, bake
+from scene_util import few_gaussians, pixel_dirs_camera
 
 
 def optical_depth(b, a, c, o, d, t0, t1):
-    """sigma_t (t1 - t0) + sum_i T_i along o + t d (eq. 31), plain erf (fine for these sizes)."""
+    """sigma_t (t1 - t0) + sum_i T_i along o + t d (eq. 31)."""
     if math.isinf(t1):
         return math.inf
-    rel = b - o
-    ts = rel @ d
-    h2 = np.sum(rel * rel, axis=1) - ts * ts
-    Ti = c * math.sqrt(math.pi) / (2 * a) * np.exp(-a * a * h2) * (erf(a * (t1 - ts)) - erf(a * (t0 - ts)))
-    return SIGMA_T * (t1 - t0) + Ti.sum()
+    return SIGMA_T * (t1 - t0) + gaussian_depths(b, a, c, o, d, t0, t1).sum()
 
 
 def test01_transmittance_and_airlight_match_references():
-    b, a, c = gaussians()
+    b, a, c = few_gaussians()
     out = bake(rbf_centres=b, rbf_scales=a, rbf_amplitudes=c)
     quad_model = bake(rbf_centres=b, rbf_scales=a, rbf_amplitudes=c, model="quadrature")
     medium = _native.RbfMedium(b, a, c, beta0=SIGMA_T)
@@ -84,7 +52,7 @@ def test01_transmittance_and_airlight_match_references():
 
 def test02_gaussians_change_the_passes_and_none_is_bit_identical():
     plain = bake()
-    b, a, c = gaussians(scale=1.0)
+    b, a, c = few_gaussians(scale=1.0)
     fog = bake(rbf_centres=b, rbf_scales=a, rbf_amplitudes=c)
     assert np.max(plain["transmittance"] - fog["transmittance"]) > 0.05
     assert np.all(fog["transmittance"] <= plain["transmittance"] + 1e-7)
@@ -95,7 +63,7 @@ def test02_gaussians_change_the_passes_and_none_is_bit_identical():
 
 
 def test03_progress_and_cancel_with_gaussians():
-    b, a, c = gaussians()
+    b, a, c = few_gaussians()
     seen = []
     bake(rbf_centres=b, rbf_scales=a, rbf_amplitudes=c, progress=lambda f: seen.append(f))
     assert seen[-1] == 1.0 and seen == sorted(seen)
@@ -129,7 +97,7 @@ def test03b_stats_phases_are_disjoint_parts_of_the_bake():
 
 
 def test04_bad_input():
-    b, a, c = gaussians()
+    b, a, c = few_gaussians()
     bad = [
         dict(rbf_centres=b, rbf_scales=a),                                    # not all three
         dict(rbf_centres=b[:, :2], rbf_scales=a, rbf_amplitudes=c),           # shape

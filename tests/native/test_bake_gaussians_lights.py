@@ -19,20 +19,11 @@ import math
 import numpy as np
 import pytest
 from scipy import integrate
-from scipy.special import erf, erfc
 
-import _native
-from scene_util import camera_matrix, orthographic, perspective, pixel_dirs_camera, quad, rotation_x
+from reference_util import gaussian_depths, hg, rel_errors
+from scene_fog_objects import ALBEDO, CAM_POS, FOV, H, SIGMA_T, W, bake
+from scene_util import few_gaussians, gaussian_cloud, orthographic, perspective, pixel_dirs_camera
 
-W, H = 32, 24
-FOV = math.radians(60.0)
-SIGMA_T = 0.01
-CLIP = 0.5
-CAM = np.zeros(3)
-FLOOR_Y = -3.0
-LIGHTS = np.array([[4.0, 30.0, -28.0], [-20.0, 10.0, -5.0]])
-INTENSITY = np.array([[100.0, 80.0, 60.0], [30.0, 30.0, 40.0]])
-ALBEDO = np.array([0.9, 0.8, 0.7])
 NO_POINTS = dict(light_positions=np.zeros((0, 3)), light_intensities=np.zeros((0, 3)))
 SUN_W = np.array([0.3, -0.5, -0.8]) / np.linalg.norm([0.3, -0.5, -0.8])  # propagation, shining down (-z)
 SUN = dict(sun_directions=SUN_W[None, :], sun_irradiances=np.array([[3.0, 2.5, 2.0]]))
@@ -46,42 +37,11 @@ def spot(size=1.2, blend=0.2):
                 spot_blend=np.array([blend]))
 
 
-def gaussians(scale=0.01, n=12, seed=5):
-    rng = np.random.default_rng(seed)
-    b = np.column_stack([16 * rng.random(n) - 8, 4 * rng.random(n) - 2, -(20 + 16 * rng.random(n))])
-    a = 0.15 + 0.15 * rng.random(n)
-    c = scale * (0.02 + 0.04 * rng.random(n))
-    return b, a, c
-
-
-def bake(gauss=None, **kw):
-    s = 300.0
-    v, t = quad([[-s, FLOOR_Y, 1.0], [s, FLOOR_Y, 1.0], [s, FLOOR_Y, -200.0], [-s, FLOOR_Y, -200.0]])
-    args = dict(width=W, height=H, cam_to_world=camera_matrix(rotation_x(0.0), CAM),
-                projection=perspective(FOV, W, H), vertices=v, triangles=t, light_positions=LIGHTS,
-                light_intensities=INTENSITY, sigma_t=SIGMA_T, albedo=tuple(ALBEDO), clip_start=CLIP, threads=2,
-                aa_samples=1)
-    if gauss is not None:
-        b, a, c = gauss
-        args.update(rbf_centres=b, rbf_scales=a, rbf_amplitudes=c)
-    args.update(kw)
-    return _native.bake(**args)
-
-
 # --- independent reference for one ray (scipy) -------------------------------------------
-
-def hg(mu, g):
-    return (1 - g * g) / (4 * math.pi * (1 + g * g - 2 * g * mu) ** 1.5)
-
 
 def gauss_depth(b, a, c, o, d, t1):
     """sum_i int_0^t1 c_i exp(-a_i^2 |o + t d - b_i|^2) dt (t1 may be inf), erf form."""
-    rel = b - o
-    ts = rel @ d
-    h2 = np.sum(rel * rel, axis=1) - ts * ts
-    k = c * math.sqrt(math.pi) / (2 * a) * np.exp(-a * a * h2)
-    hi = 1.0 if math.isinf(t1) else erf(a * (t1 - ts))
-    return float(np.sum(k * (hi - erf(-a * ts))))
+    return float(gaussian_depths(b, a, c, o, d, 0.0, t1).sum())
 
 
 def ray_reference(gauss, o, d, t1, g, light):
@@ -128,7 +88,7 @@ def ray_reference(gauss, o, d, t1, g, light):
 def test01_quadrature_model_against_scipy(case):
     """The bake's quadrature model with Gaussians (the reference the Fogshop path is held
     to) against the scipy integral above, a few pixels, no near clip."""
-    gauss = gaussians(scale=0.05)
+    gauss = few_gaussians(scale=0.05)
     g = 0.5 if case != "sun_no_top" else 0.0
     ph = dict(phase="hg", g=g) if g else {}
     if case.startswith("sun"):
@@ -149,7 +109,7 @@ def test01_quadrature_model_against_scipy(case):
     assert len(lit) > 50
     for j, i in list(lit[:: len(lit) // 6][:6]) + [(0, 0), (H - 1, W - 1)]:
         d = dirs[j, i]
-        ref = ray_reference(gauss, CAM, d, float(out["depth"][j, i]), g, light) * weight * ALBEDO
+        ref = ray_reference(gauss, CAM_POS, d, float(out["depth"][j, i]), g, light) * weight * ALBEDO
         if ref.max() == 0.0:
             assert np.all(out["airlight"][j, i] == 0.0)
             continue
@@ -189,7 +149,7 @@ def test02_fogshop_against_quadrature_thin_fog(case):
     quadrature model: mean < 1 %, p99 < 3 % (the isotropic point-light bound of
     test_bake_gaussians.py)."""
     kw, model = CASES[case]
-    gauss = gaussians(scale=0.01)
+    gauss = few_gaussians(scale=0.01)
     approx = bake(gauss, model=model, **kw)["airlight"]
     ref = bake(gauss, model="quadrature", **kw)["airlight"]
     hom = bake(None, model=model, **kw)["airlight"]
@@ -213,7 +173,7 @@ def test03_approximation_error_reported(case, mean_tol, p99_tol):
         kw, model, scale = dict(**SUN, **NO_POINTS, fog_top=5.0, phase="hg", g=0.6), "biri06", 1.0
     else:
         kw, model, scale = dict(**spot(2.8, 1.0), **NO_POINTS), "sun05", 1.0
-    gauss = gaussians(scale=scale)
+    gauss = few_gaussians(scale=scale)
     approx = bake(gauss, model=model, **kw)["airlight"]
     ref = bake(gauss, model="quadrature", **kw)["airlight"]
     e, _ = errors(approx, ref, ref)
@@ -223,7 +183,7 @@ def test03_approximation_error_reported(case, mean_tol, p99_tol):
 
 
 def test04_zero_power_sun_and_spot_keep_the_plain_path():
-    gauss = gaussians()
+    gauss = few_gaussians()
     plain = bake(gauss)
     zero = bake(gauss, sun_directions=SUN_W[None, :], sun_irradiances=np.zeros((1, 3)),
                 **{**spot(), "spot_intensities": np.zeros((1, 3))})
@@ -234,13 +194,13 @@ def test04_zero_power_sun_and_spot_keep_the_plain_path():
 def test05_sun_without_sunlight_in_the_layer():
     """A sun shining upwards with a fog top: no sunlight reaches the layer (sun_layer.h);
     the Gaussians (below the top here) get none either: no airlight at all."""
-    gauss = gaussians()
+    gauss = few_gaussians()
     out = bake(gauss, sun_directions=-SUN_W[None, :], sun_irradiances=np.ones((1, 3)), fog_top=5.0, **NO_POINTS)
     assert np.all(out["airlight"] == 0.0)
 
 
 def test06_orthographic_needs_quadrature():
-    gauss = gaussians()
+    gauss = few_gaussians()
     ortho = orthographic(40.0, W, H)
     with pytest.raises(ValueError, match="perspective camera"):
         bake(gauss, projection=ortho, **SUN, **NO_POINTS)
@@ -250,14 +210,6 @@ def test06_orthographic_needs_quadrature():
 
 # --- reduced resolution -------------------------------------------------------------------
 
-def cloud(n=300, seed=11):
-    rng = np.random.default_rng(seed)
-    b = np.column_stack([rng.uniform(-18, 18, n), rng.uniform(-2, 5, n), rng.uniform(-45, -8, n)])
-    a = 1.0 / rng.uniform(1.0, 3.0, n)
-    c = rng.uniform(0.02, 0.08, n)
-    return b, a, c
-
-
 @pytest.mark.parametrize("res, mean_tol, p99_tol", [("half", 1e-4, 1.5e-3), ("quarter", 5e-4, 6e-3)])
 def test07_reduced_resolution_against_full(res, mean_tol, p99_tol):
     """Sun + soft spot + a point light, HG g = 0.5, 300 Gaussians at 160 x 90: the reduced
@@ -266,14 +218,11 @@ def test07_reduced_resolution_against_full(res, mean_tol, p99_tol):
     bounds; the transmittance (untouched by the lights) is printed only."""
     kw = dict(width=160, height=90, projection=perspective(FOV, 160, 90), phase="hg", g=0.5, model="biri06",
               **SUN, **spot(2.0, 0.8), clip_start=0.1, aa_samples=4)
-    full = bake(cloud(), gaussian_resolution="full", **kw)
-    red = bake(cloud(), gaussian_resolution=res, **kw)
+    full = bake(gaussian_cloud(), gaussian_resolution="full", **kw)
+    red = bake(gaussian_cloud(), gaussian_resolution=res, **kw)
     assert np.all(np.isfinite(red["airlight"]))
     for key in ("airlight", "transmittance"):
-        y = full[key][..., 0].astype(np.float64)
-        x = red[key][..., 0].astype(np.float64)
-        m = y > 1e-6 * np.percentile(y, 99.9)
-        rel = np.abs(x - y)[m] / y[m]
+        rel = rel_errors(red[key], full[key])
         print(f"{res} {key}: mean {rel.mean():.2e} p99 {np.percentile(rel, 99):.2e} max {rel.max():.2e}")
         if key == "airlight":
             assert rel.mean() <= mean_tol and np.percentile(rel, 99) <= p99_tol, key

@@ -10,7 +10,9 @@ import numpy as np
 import pytest
 
 import _native
-from scene_util import camera_matrix, perspective, pixel_dirs_camera, rotation_x
+from reference_util import rel_errors
+from scene_util import (camera_matrix, gaussian_cloud, merge, perspective, pixel_dirs_camera, plane_y, plane_z,
+                        rotation_x)
 
 W, H = 320, 180
 FOV = math.radians(60.0)
@@ -20,30 +22,16 @@ INTENSITY = np.array([[400.0, 350.0, 300.0], [200.0, 200.0, 260.0]])
 CLIP = 0.1
 
 
-def cloud(n=300, seed=11):
-    rng = np.random.default_rng(seed)
-    b = np.column_stack([rng.uniform(-18, 18, n), rng.uniform(-2, 5, n), rng.uniform(-45, -8, n)])
-    a = 1.0 / rng.uniform(1.0, 3.0, n)
-    c = rng.uniform(0.02, 0.08, n)
-    return b, a, c
-
-
 def geometry():
     """Ground y = -2, a near wall (z = -14, x in [-12, -2]) and a far wall (z = -26,
     x in [3, 14]), both up to y = 3: their silhouettes cross the cloud."""
-    quads = [
-        [[-300, -2, 1], [300, -2, 1], [300, -2, -400], [-300, -2, -400]],
-        [[-12, -2, -14], [-2, -2, -14], [-2, 3, -14], [-12, 3, -14]],
-        [[3, -2, -26], [14, -2, -26], [14, 3, -26], [3, 3, -26]],
-    ]
-    v = np.array([p for q in quads for p in q], np.float32)
-    t = np.array([[4 * k, 4 * k + 1, 4 * k + 2] for k in range(3)] + [[4 * k, 4 * k + 2, 4 * k + 3] for k in range(3)],
-                 np.uint32)
-    return v, t
+    return merge([plane_y(-2.0, x=(-300.0, 300.0), z=(1.0, -400.0)),
+                  plane_z(-14.0, x=(-12.0, -2.0), y=(-2.0, 3.0)),
+                  plane_z(-26.0, x=(3.0, 14.0), y=(-2.0, 3.0))])
 
 
 def bake(res=None, aa=4, noise=0.0, gauss=None):
-    b, a, c = gauss if gauss is not None else cloud()
+    b, a, c = gauss if gauss is not None else gaussian_cloud()
     v, t = geometry()
     kw = dict(width=W, height=H, cam_to_world=camera_matrix(rotation_x(0.0), np.zeros(3)),
               projection=perspective(FOV, W, H, near=CLIP), vertices=v, triangles=t, light_positions=LIGHTS,
@@ -52,14 +40,6 @@ def bake(res=None, aa=4, noise=0.0, gauss=None):
     if res is not None:
         kw["gaussian_resolution"] = res
     return _native.bake(**kw)
-
-
-def rel_errors(x, ref):
-    """Relative error per pixel (channel 0) where the reference is above 1e-6 of its 99.9th percentile."""
-    x = x[..., 0].astype(np.float64)
-    y = ref[..., 0].astype(np.float64)
-    m = y > 1e-6 * np.percentile(y, 99.9)
-    return np.abs(x - y)[m] / y[m]
 
 
 def depth_edges(depth):
@@ -162,7 +142,7 @@ def test04_against_exact_per_ray_double_path(res, tol, median_tol):
     the depth-edge pixels included (aa_samples = 1: then they are plain pixels). The
     reduced resolutions' interpolation error of the optical depth T shows in the
     transmittance multiplied by T (up to ~4 here)."""
-    b, a, c = cloud()
+    b, a, c = gaussian_cloud()
     r = bake(res, aa=1)
     depth = r["depth"]
     rng = np.random.default_rng(5)
@@ -196,7 +176,7 @@ def test04_against_exact_per_ray_double_path(res, tol, median_tol):
 def test07_gaussian_around_the_eye():
     """A broad Gaussian around the camera reaches the near clip plane: its near segment
     [0, t0] is interpolated from the lattice, its far part classified like the others."""
-    b, a, c = cloud()
+    b, a, c = gaussian_cloud()
     gauss = (np.vstack([b, [[0.3, 0.2, -0.5]]]), np.append(a, 0.3), np.append(c, 0.3))
     full_e = bake("full", gauss=gauss)
     assert not np.array_equal(full_e["transmittance"], bake("full")["transmittance"])

@@ -10,7 +10,8 @@ import pytest
 from scipy import integrate
 
 import _native
-from scene_util import camera_matrix, perspective, pixel_dirs_camera, quad, rotation_x
+from reference_util import hg, layer_top_crossing, phase_value, sun_layer_paths
+from scene_util import camera_matrix, in_camera_space, perspective, pixel_dirs_camera, plane_z, rotation_x
 
 W, H = 16, 12
 FOV = math.radians(70.0)
@@ -28,19 +29,10 @@ def beta_r():
     return np.array([BETA_R550 * (550.0 / lam) ** 4 for lam in LAMBDA])
 
 
-def hg(g, mu):
-    return (1 - g * g) / (4 * math.pi * (1 + g * g - 2 * g * mu) ** 1.5)
-
-
-def rayleigh(mu):
-    return 3.0 * (1.0 + mu * mu) / (16.0 * math.pi)
-
-
 def reference(o, d, t0, t1, fog_top, g):
     bR = beta_r()
     total = np.zeros(3)
     end = t1 if math.isfinite(t1) else 2e3
-    layered = math.isfinite(fog_top)
     for w, E in zip(SUN_DIR, SUN_E):
         w = w / np.linalg.norm(w)
         mu = -float(w @ d)
@@ -49,31 +41,17 @@ def reference(o, d, t0, t1, fog_top, g):
             sigma = bR[c] + BETA_M
 
             def f(t):
-                z = o[2] + t * d[2]
-                if layered and z > fog_top:
-                    return 0.0
-                if layered and d[2] != 0.0:
-                    t_top = (fog_top - o[2]) / d[2]
-                    lo, hi = (t0, min(t, t_top)) if d[2] > 0 else (max(t0, t_top), t)
-                    view = max(0.0, hi - lo)
-                else:
-                    view = t - t0
-                sun = (fog_top - z) / mu_s if layered else 0.0
-                return math.exp(-sigma * (view + sun))
+                paths = sun_layer_paths(o, d, t0, t, fog_top, mu_s)
+                return 0.0 if paths is None else math.exp(-sigma * sum(paths))
 
-            pts = []
-            if layered and d[2] != 0.0:
-                t_top = (fog_top - o[2]) / d[2]
-                if t0 < t_top < end:
-                    pts.append(t_top)
+            pts = layer_top_crossing(o, d, t0, end, fog_top)
             val, _ = integrate.quad(f, t0, end, points=pts or None, limit=400, epsabs=0, epsrel=1e-10)
-            total[c] += ALBEDO[c] * E[c] * (bR[c] * rayleigh(mu) + BETA_M * hg(g, mu)) * val
+            total[c] += ALBEDO[c] * E[c] * (bR[c] * phase_value("rayleigh", mu) + BETA_M * hg(mu, g)) * val
     return total
 
 
 def bake(fog_top, g=0.0, rayleigh_density=BETA_R550, model="hoffman02", **kw):
-    v, tris = quad([[-50, -50, PLANE_Z], [50, -50, PLANE_Z], [50, 0.0, PLANE_Z], [-50, 0.0, PLANE_Z]])
-    v = (v.astype(float) @ CAM[:3, :3].T + CAM[:3, 3]).astype(np.float32)
+    v, tris = in_camera_space(CAM, plane_z(PLANE_Z, x=(-50.0, 50.0), y=(-50.0, 0.0)))
     args = dict(width=W, height=H, cam_to_world=CAM, projection=perspective(FOV, W, H), vertices=v,
                 triangles=tris, light_positions=np.zeros((0, 3)), light_intensities=np.zeros((0, 3)),
                 sigma_t=BETA_M, albedo=ALBEDO, phase="hg" if g else "isotropic", g=g, model=model,

@@ -5,40 +5,8 @@ import numpy as np
 import pytest
 
 import _native
-from scene_util import (camera_matrix, orthographic, perspective, pixel_dirs_camera, quad,
-                        rotation_x)
-
-W, H = 48, 32
-FOV = math.radians(60.0)
-SIGMA_T = 0.08
-TILT = math.radians(-10.0)          # camera pitched down by 10 degrees
-CAM_POS = np.array([0.5, 1.0, 2.0])
-PLANE_Z = -8.0                       # the floor z = -8 fills the whole view (camera looks down -Z)
-
-
-def floor():
-    s = 1000.0
-    return quad([[-s, -s, PLANE_Z], [s, -s, PLANE_Z], [s, s, PLANE_Z], [-s, s, PLANE_Z]])
-
-
-def bake(lights=((1.0, 3.0, -5.0),), intensities=((2.0, 2.0, 2.0),), geometry=None, **kw):
-    vertices, triangles = floor() if geometry is None else geometry
-    args = dict(width=W, height=H, cam_to_world=camera_matrix(rotation_x(TILT), CAM_POS),
-                projection=perspective(FOV, W, H), vertices=vertices, triangles=triangles,
-                light_positions=np.array(lights, dtype=float).reshape(-1, 3),
-                light_intensities=np.array(intensities, dtype=float).reshape(-1, 3),
-                sigma_t=SIGMA_T, threads=2)
-    args.update(kw)
-    return _native.bake(**args)
-
-
-def world_dirs():
-    return pixel_dirs_camera(FOV, W, H) @ rotation_x(TILT).T
-
-
-def analytic_depth():
-    d = world_dirs()
-    return (CAM_POS[2] - PLANE_Z) / -d[..., 2]
+from scene_floor import CAM_POS, FOV, H, PLANE_Z, SIGMA_T, W, analytic_depth, bake, world_dirs
+from scene_util import camera_matrix, orthographic, pixel_dirs_camera, plane_z
 
 
 def test01_shapes_and_types():
@@ -126,8 +94,7 @@ def test10_rows_top_first():
 
 def test11_misses_are_infinite():
     # A floor under the left half of the view only (world x < 0, camera level at origin).
-    s = 1000.0
-    half = quad([[-s, -s, PLANE_Z], [0, -s, PLANE_Z], [0, s, PLANE_Z], [-s, s, PLANE_Z]])
+    half = plane_z(PLANE_Z, x=(-1000.0, 0.0))
     out = bake(geometry=half, cam_to_world=camera_matrix(np.eye(3), [0, 0, 0]))
     assert np.all(np.isfinite(out["depth"][:, : W // 2]))
     assert np.all(np.isinf(out["depth"][:, W // 2:]))
@@ -165,8 +132,7 @@ def test12_edge_pixels_follow_film_filter():
     # A vertical silhouette edge between columns W/2-1 and W/2. The airlight mixes hits and
     # misses by the filter-weighted coverage; the transmittance is the surface's own (the
     # mean over the samples that hit: exact for render * T + A over a black world).
-    s = 1000.0
-    half = quad([[0, -s, PLANE_Z], [s, -s, PLANE_Z], [s, s, PLANE_Z], [0, s, PLANE_Z]])
+    half = plane_z(PLANE_Z, x=(0.0, 1000.0))
     out = bake(geometry=half, cam_to_world=camera_matrix(np.eye(3), [0, 0, 0]), aa_samples=16,
                lights=(EDGE_LIGHT,))
     Tr = out["transmittance"][H // 2, :, 0]
@@ -186,9 +152,8 @@ def test12b_horizontal_edge_coverage_is_resolved_to_1_over_N(shift):
     # A horizontal edge at a sub-pixel offset _shift_: with aa_samples = 4 the 16 samples
     # have 16 distinct rows, so the coverage is within ~1/32 of the filter's (a 4 x 4 grid
     # has 4 rows: errors up to ~1/8, measured as dark edge rows against Cycles).
-    s = 1000.0
     pix = 2.0 * -PLANE_Z * math.tan(0.5 * FOV) / W  # pixel size on the plane
-    half = quad([[-s, 0, PLANE_Z], [s, 0, PLANE_Z], [s, s, PLANE_Z], [-s, s, PLANE_Z]])
+    half = plane_z(PLANE_Z, y=(0.0, 1000.0))
     cam = camera_matrix(np.eye(3), [0, shift * pix, 0])  # the edge moves down by _shift_ px
     out = bake(geometry=half, cam_to_world=cam, aa_samples=4, lights=(EDGE_LIGHT,))
     Dvp = -PLANE_Z / math.cos(0.5 * FOV / W)

@@ -10,7 +10,8 @@ import pytest
 from scipy import integrate, optimize
 
 import _native
-from scene_util import camera_matrix, perspective, pixel_dirs_camera, quad, rotation_x
+from reference_util import hg
+from scene_util import camera_matrix, perspective, pixel_dirs_camera, plane_z, rotation_x
 
 W, H = 24, 16
 FOV = math.radians(60.0)
@@ -40,10 +41,6 @@ def profile(axis, size, blend, u):
     return c * t * t * (3 - 2 * t)
 
 
-def hg(g, mu):
-    return (1 - g * g) / (4 * math.pi * (1 + g * g - 2 * g * mu) ** 1.5)
-
-
 def reference(o, d, t0, t1, blend, g=0.0):
     """sigma_s sum_spots int_t0^t1 I(theta) p e^{-sigma_t (|x - s| + t - t0)} / |x - s|^2 dt."""
     total = np.zeros(3)
@@ -59,7 +56,7 @@ def reference(o, d, t0, t1, blend, g=0.0):
         def f(t):
             w = o + t * d - s
             r = math.sqrt(w @ w)
-            return profile(axis, size, blend, w / r) * hg(g, -(w @ d) / r) * \
+            return profile(axis, size, blend, w / r) * hg(-(w @ d) / r, g) * \
                 math.exp(-SIGMA_T * (r + t - t0)) / (r * r)
         # Breakpoints: cone (and blend-cone) crossings bracketed on a fine grid, the peak.
         ts = t0 + (end - t0) * np.linspace(0.0, 1.0, 1201) ** 2
@@ -80,8 +77,7 @@ def reference(o, d, t0, t1, blend, g=0.0):
 
 
 def scene(**kw):
-    s = 1000.0
-    vertices, triangles = quad([[-s, -s, PLANE_Z], [s, -s, PLANE_Z], [s, s, PLANE_Z], [-s, s, PLANE_Z]])
+    vertices, triangles = plane_z(PLANE_Z)
     args = dict(width=W, height=H, cam_to_world=camera_matrix(rotation_x(TILT), CAM_POS),
                 projection=perspective(FOV, W, H), vertices=vertices, triangles=triangles,
                 light_positions=np.zeros((0, 3)), light_intensities=np.zeros((0, 3)), sigma_t=SIGMA_T,

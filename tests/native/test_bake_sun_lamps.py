@@ -1,6 +1,6 @@
 """Bakes with sun lamps (sun_layer.h) per pixel against an independent scipy quadrature of
 the single-scattering integral written out here (fog below a layer top, or Hoffman &
-Preetham's unattenuated sun without one), any phase, the near plane, camera above the
+Preetham's unattenuated sun without one: reference_util.sun_layer_paths), any phase, the near plane, camera above the
 layer; the 'baseline' model against its definition; the argument checks."""
 import math
 
@@ -9,7 +9,9 @@ import pytest
 from scipy import integrate
 
 import _native
-from scene_util import camera_matrix, perspective, pixel_dirs_camera, quad, rotation_x
+from reference_util import hg, layer_top_crossing, sun_layer_paths
+from scene_util import (camera_matrix, in_camera_space, orthographic, perspective, pixel_dirs_camera, plane_z,
+                        rotation_x)
 
 W, H = 20, 14
 FOV = math.radians(70.0)
@@ -20,42 +22,21 @@ SUN_E = np.array([[3.0, 2.5, 2.0], [1.0, 1.5, 2.0]])
 PLANE_Z = -12.0   # a wall (in camera space) in the lower half of the frame
 
 
-def hg(g, mu):
-    return (1 - g * g) / (4 * math.pi * (1 + g * g - 2 * g * mu) ** 1.5)
-
-
 def reference(o, d, t0, t1, fog_top, g):
     """sum_suns sigma_s E p(theta) int_t0^t1 e^{-tau_view(t) - tau_sun(t)} dt with the
     optical depths from the geometry: fog only below fog_top (world z)."""
     total = np.zeros(3)
     end = t1 if math.isfinite(t1) else 1e3   # e^{-0.08 * 1000}: negligible beyond
-    layered = math.isfinite(fog_top)
     for w, E in zip(SUN_DIR, SUN_E):
         w = w / np.linalg.norm(w)
-        p = hg(g, -float(w @ d))
+        p = hg(-float(w @ d), g)
         mu_s = -w[2]
 
-        def inside(t):
-            return (not layered) or o[2] + t * d[2] <= fog_top
-
         def f(t):
-            if not inside(t):
-                return 0.0
-            # view path: length of [t0, t] inside the layer, by fine clipping
-            if layered and d[2] != 0.0:
-                t_top = (fog_top - o[2]) / d[2]
-                lo, hi = (t0, min(t, t_top)) if d[2] > 0 else (max(t0, t_top), t)
-                view = max(0.0, hi - lo)
-            else:
-                view = t - t0
-            sun = (fog_top - (o[2] + t * d[2])) / mu_s if layered else 0.0
-            return math.exp(-SIGMA_T * (view + sun))
+            paths = sun_layer_paths(o, d, t0, t, fog_top, mu_s)
+            return 0.0 if paths is None else math.exp(-SIGMA_T * sum(paths))
 
-        pts = []
-        if layered and d[2] != 0.0:
-            t_top = (fog_top - o[2]) / d[2]
-            if t0 < t_top < end:
-                pts.append(t_top)
+        pts = layer_top_crossing(o, d, t0, end, fog_top)
         val, _ = integrate.quad(f, t0, end, points=pts or None, limit=400, epsabs=0, epsrel=1e-10)
         total += SIGMA_T * np.asarray(ALBEDO) * E * p * val
     return total
@@ -65,8 +46,7 @@ def bake(cam, fog_top, g=0.0, model=None, near=0.0, **kw):
     phase = "hg" if g != 0.0 else "isotropic"
     if model is None:
         model = "biri06" if g != 0.0 else "sun05"
-    v, tris = quad([[-50, -50, PLANE_Z], [50, -50, PLANE_Z], [50, 0.0, PLANE_Z], [-50, 0.0, PLANE_Z]])
-    v = (v.astype(float) @ cam[:3, :3].T + cam[:3, 3]).astype(np.float32)
+    v, tris = in_camera_space(cam, plane_z(PLANE_Z, x=(-50.0, 50.0), y=(-50.0, 0.0)))
     return _native.bake(width=W, height=H, cam_to_world=cam, projection=perspective(FOV, W, H),
                         vertices=v, triangles=tris, light_positions=np.zeros((0, 3)),
                         light_intensities=np.zeros((0, 3)), sigma_t=SIGMA_T, albedo=ALBEDO, phase=phase,
@@ -155,7 +135,6 @@ def test_bad_sun_input():
 
 def test_orthographic_camera():
     """Orthographic rays have their own origins (the bake's per-ray path, not the SoA one)."""
-    from scene_util import orthographic
     cam = camera_matrix(rotation_x(math.radians(80.0)), [0.0, 0.0, 2.0])  # looks along +y, 10 deg down
     scale = 6.0
     out = _native.bake(width=W, height=H, cam_to_world=cam, projection=orthographic(scale, W, H),

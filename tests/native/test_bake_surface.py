@@ -3,7 +3,7 @@ attenuation e^{-sigma_t |s - p|} and the Lambert glow albedo I0 sigma_t G(T, the
 (2 pi^2 D) at the first hit, checked per pixel against values computed here from the depth
 pass and the scene (p, the floor normal, D, theta_s), with G by an independent scipy
 quadrature of eq. 16 (e^{-T cos g} [F(T sin g, pi/2) - F(T sin g, g/2)] with F integrated
-here, the azimuth integral of cos(theta_i) numerically). Also: surface=False leaves the bake
+too, the azimuth integral of cos(theta_i) numerically: reference_util.G_ref). Also: surface=False leaves the bake
 unchanged and adds nothing; pixels without a hit get attenuation 1 and no glow."""
 import math
 
@@ -12,62 +12,15 @@ import pytest
 from scipy import integrate
 
 import _native
-from scene_util import camera_matrix, perspective, pixel_dirs_camera, quad, rotation_x
-
-W, H = 20, 14
-FOV = math.radians(60.0)
-SIGMA_T = 0.2
-ALBEDO = (0.9, 0.8, 0.6)
-TILT = math.radians(-35.0)
-CAM_POS = np.array([0.0, -6.0, 3.0])
-POINT_POS = np.array([[0.5, 0.0, 2.0], [-2.0, 3.0, 1.0]])
-POINT_I = np.array([[30.0, 20.0, 10.0], [5.0, 8.0, 12.0]])
-SPOT_POS = np.array([[1.0, 1.0, 4.0]])
-
-
-def scene(surface=True, spots=False):
-    # Camera looks along +Y (rotate -Z to +Y), tilted down onto the floor z = 0 (y < 8).
-    R = rotation_x(math.pi / 2 + TILT)
-    v, t = quad([(-30, -20, 0), (30, -20, 0), (30, 8, 0), (-30, 8, 0)])
-    kw = dict(width=W, height=H, cam_to_world=camera_matrix(R, CAM_POS), projection=perspective(FOV, W, H),
-              vertices=v, triangles=t, light_positions=POINT_POS, light_intensities=POINT_I,
-              sigma_t=SIGMA_T, albedo=ALBEDO, aa_samples=1, surface=surface, threads=2)
-    if spots:
-        kw.update(spot_positions=SPOT_POS, spot_axes=np.array([[0.0, 0.0, -1.0]]),
-                  spot_intensities=np.array([[10.0, 10.0, 10.0]]), spot_size=np.array([1.0]),
-                  spot_blend=np.array([0.1]))
-    return kw, R
-
-
-def F(u, v):
-    return integrate.quad(lambda x: math.exp(-u * math.tan(x)), 0.0, v, epsabs=0, epsrel=1e-11, limit=200)[0]
-
-
-def G_ref(T, theta, m=1.0):
-    """Eq. 16 in coordinates about the light direction: int H(T, g) W_m(g, theta) dg."""
-    def H(g):
-        u = T * math.sin(g)
-        return math.exp(-T * math.cos(g)) * (F(u, math.pi / 2) - F(u, g / 2))
-
-    def Wm(g):
-        a, b = math.cos(g) * math.cos(theta), math.sin(g) * math.sin(theta)
-        return integrate.quad(lambda p: max(0.0, a + b * math.cos(p)) ** m, 0.0, 2 * math.pi, epsrel=1e-10,
-                              points=[math.acos(-a / b)] if abs(b) > abs(a) else None, limit=200)[0]
-
-    edge = abs(math.pi / 2 - theta)
-    return integrate.quad(lambda g: H(g) * Wm(g), 0.0, math.pi, points=[edge, math.pi - edge], epsrel=1e-9,
-                          limit=200)[0]
+from reference_util import G_ref, hg
+from scene_surface import ALBEDO, FOV, H, POINT_I, POINT_POS, SIGMA_T, SPOT_POS, W, hit_points, scene
+from scene_util import pixel_dirs_camera
 
 
 @pytest.fixture(scope="module")
 def baked():
     kw, R = scene()
     return _native.bake(**kw), R
-
-
-def hit_points(result, R):
-    d = pixel_dirs_camera(FOV, W, H) @ R.T
-    return CAM_POS + result["depth"][..., None] * d
 
 
 def test01_attenuation_per_light(baked):
@@ -226,12 +179,9 @@ def test09_sun_glow_in_a_layer_against_scipy():
     def sigma_G(mu):
         return integrate.quad(lambda t: math.exp(-t - (tau - mu * t) / mu_s), 0.0, tau / mu, epsrel=1e-10)[0]
 
-    def hg(c):
-        return (1 - g * g) / (4 * math.pi * (1 + g * g - 2 * g * c) ** 1.5)
-
     def inner(th):
         mu, r = math.cos(th), math.sin(th)
-        f = integrate.quad(lambda ph: hg(r * (l[0] * math.cos(ph) + l[1] * math.sin(ph)) + mu * l[2]),
+        f = integrate.quad(lambda ph: hg(r * (l[0] * math.cos(ph) + l[1] * math.sin(ph)) + mu * l[2], g),
                            0.0, 2 * math.pi, epsrel=1e-9, limit=200)[0]
         return f * sigma_G(mu) * mu * r
 
@@ -262,9 +212,6 @@ def test10_sun_gloss_glow_against_scipy():
         end = tau / mu if mu > 0 else np.inf
         return integrate.quad(lambda t: math.exp(-t - (tau - mu * t) / mu_s), 0.0, end, epsrel=1e-10)[0]
 
-    def hg(c):
-        return (1 - g * g) / (4 * math.pi * (1 + g * g - 2 * g * c) ** 1.5)
-
     rng = np.random.default_rng(2)
     for j, i in np.argwhere(hit)[rng.choice(int(hit.sum()), 2, replace=False)]:
         r = dirs[j, i] * np.array([1.0, 1.0, -1.0])
@@ -276,7 +223,7 @@ def test10_sun_gloss_glow_against_scipy():
         def inner(alpha):
             def f(beta):
                 w = math.cos(alpha) * r + math.sin(alpha) * (math.cos(beta) * a + math.sin(beta) * b)
-                return hg(float(l @ w)) * sigma_G(float(w[2]))
+                return hg(float(l @ w), g) * sigma_G(float(w[2]))
             return integrate.quad(f, 0.0, 2 * math.pi, epsrel=1e-7, limit=100)[0] * math.cos(alpha) ** n * math.sin(alpha)
 
         lobe = integrate.quad(inner, 0.0, math.pi / 2, points=[0.2, 0.5], epsrel=1e-7, limit=100)[0]

@@ -7,10 +7,10 @@ import math
 
 import numpy as np
 import pytest
-from scipy.special import erf
 
 import _native
-from scene_util import camera_matrix, perspective, quad, rotation_x
+from reference_util import gaussian_depths
+from scene_util import camera_matrix, perspective, plane_y, rotation_x
 
 W, H = 40, 24
 FOV = math.radians(60.0)
@@ -27,23 +27,15 @@ def cloud(n=20, seed=3):
     return b, a, c
 
 
-def segment_depth(b, a, c, p, q, skip=None):
-    """beta0 |q - p| + sum_i T_i(p, q), eq. 31 with erf, every Gaussian (no culling)."""
+def segment_depth(b, a, c, p, q):
+    """(beta0 |q - p| + sum_i T_i(p, q), the T_i): eq. 31 with erf, every Gaussian (no culling)."""
     L = np.linalg.norm(q - p)
-    d = (q - p) / L
-    rel = b - p
-    ts = rel @ d
-    cr = np.cross(rel, d)
-    h2 = np.sum(cr * cr, axis=1)
-    Ti = c * math.sqrt(math.pi) / (2 * a) * np.exp(-a * a * h2) * (erf(a * (L - ts)) - erf(-a * ts))
-    if skip is not None:
-        Ti[skip] = 0.0
+    Ti = gaussian_depths(b, a, c, p, (q - p) / L, 0.0, L)
     return SIGMA_T * L + Ti.sum(), Ti
 
 
 def bake(**kw):
-    s = 300.0
-    vertices, triangles = quad([[-s, -3.0, 1.0], [s, -3.0, 1.0], [s, -3.0, -200.0], [-s, -3.0, -200.0]])
+    vertices, triangles = plane_y(-3.0, x=(-300.0, 300.0), z=(1.0, -200.0))
     args = dict(width=W, height=H, cam_to_world=camera_matrix(rotation_x(0.0), np.zeros(3)),
                 projection=perspective(FOV, W, H), vertices=vertices, triangles=triangles,
                 light_positions=LIGHTS, light_intensities=INTENSITY, sigma_t=SIGMA_T, albedo=(0.9, 0.8, 0.7),

@@ -5,11 +5,11 @@ import numpy as np
 import pytest
 
 import _native
-from scene_util import perspective, quad
+from scene_util import perspective, plane_z
 
 
 def args(**kw):
-    v, t = quad([[-5, -5, -3], [5, -5, -3], [5, 5, -3], [-5, 5, -3]])
+    v, t = plane_z(-3.0, x=(-5.0, 5.0), y=(-5.0, 5.0))
     a = dict(width=8, height=6, cam_to_world=np.eye(4), projection=perspective(1.0, 8, 6),
              vertices=v, triangles=t, light_positions=[[0.0, 1.0, -1.0]],
              light_intensities=[[1.0, 1.0, 1.0]], sigma_t=0.1)

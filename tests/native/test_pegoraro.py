@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 import _native
+from scene_util import camera_matrix, perspective, plane_z, rotation_x
 
 
 def e1_reference(z):
@@ -177,24 +178,23 @@ def test08_bad_input_is_a_value_error():
         _native.pegoraro10_spot_airlight([0, 0, 0], [0, 0, -1], 4.0, 0.1, 0.1, [0, 0, 1], [[0, 0, -1]], [1.0])
 
 
+def floor_scene(width, height, **kw):
+    """Bake arguments: a camera pitched down 10 degrees over the floor z = -10 filling the view."""
+    v, t = plane_z(-10.0)
+    return dict(width=width, height=height,
+                cam_to_world=camera_matrix(rotation_x(math.radians(-10)), np.array([0, 0.5, 1.0])),
+                projection=perspective(math.radians(60), width, height), vertices=v, triangles=t,
+                albedo=(0.9, 0.8, 0.6), threads=2, aa_samples=1, **kw)
+
+
 def test09_bake_spot_closed_form_vs_quadrature():
     """The bake's closed-form spots (sun05 isotropic; pegoraro10 with HG 0.5, order 30; biri06 with
     HG order 30 keeps the quadrature, so it must equal it) against the 'quadrature' model."""
-    import sys
-    import os
-    sys.path.insert(0, os.path.dirname(__file__))
-    from scene_util import camera_matrix, perspective, quad, rotation_x
-    W, H = 96, 64
-    big = 1000.0
-    v, t = quad([[-big, -big, -10.0], [big, -big, -10.0], [big, big, -10.0], [-big, big, -10.0]])
-    base = dict(width=W, height=H, cam_to_world=camera_matrix(rotation_x(math.radians(-10)), np.array([0, 0.5, 1.0])),
-                projection=perspective(math.radians(60), W, H), vertices=v, triangles=t,
-                light_positions=np.zeros((0, 3)), light_intensities=np.zeros((0, 3)), sigma_t=0.15,
-                albedo=(0.9, 0.8, 0.6), threads=2, aa_samples=1,
-                spot_positions=np.array([[0.5, 3.0, -5.0], [-2.0, 1.0, -3.0]]),
-                spot_axes=np.array([[0.1, -1.0, -0.2], [0.6, -0.3, -1.0]]),
-                spot_intensities=np.array([[30.0, 20.0, 10.0], [5.0, 8.0, 12.0]]),
-                spot_size=np.radians([45.0, 120.0]), spot_blend=np.array([0.15, 1.0]))
+    base = floor_scene(96, 64, light_positions=np.zeros((0, 3)), light_intensities=np.zeros((0, 3)), sigma_t=0.15,
+                       spot_positions=np.array([[0.5, 3.0, -5.0], [-2.0, 1.0, -3.0]]),
+                       spot_axes=np.array([[0.1, -1.0, -0.2], [0.6, -0.3, -1.0]]),
+                       spot_intensities=np.array([[30.0, 20.0, 10.0], [5.0, 8.0, 12.0]]),
+                       spot_size=np.radians([45.0, 120.0]), spot_blend=np.array([0.15, 1.0]))
     for phase, g, fast_model in (("isotropic", 0.0, "sun05"), ("hg", 0.5, "biri06"), ("hg", 0.5, "pegoraro10")):
         fast = _native.bake(model=fast_model, phase=phase, g=g, **base)["airlight"]
         ref = _native.bake(model="quadrature", phase=phase, g=g, **base)["airlight"]
@@ -208,18 +208,8 @@ def test09_bake_spot_closed_form_vs_quadrature():
 
 def test10_bake_pegoraro10_point_lights():
     """Model 'pegoraro10' for point lights with an anisotropic phase equals the quadrature model."""
-    import sys
-    import os
-    sys.path.insert(0, os.path.dirname(__file__))
-    from scene_util import camera_matrix, perspective, quad, rotation_x
-    W, H = 48, 32
-    big = 1000.0
-    v, t = quad([[-big, -big, -10.0], [big, -big, -10.0], [big, big, -10.0], [-big, big, -10.0]])
-    base = dict(width=W, height=H, cam_to_world=camera_matrix(rotation_x(math.radians(-10)), np.array([0, 0.5, 1.0])),
-                projection=perspective(math.radians(60), W, H), vertices=v, triangles=t,
-                light_positions=np.array([[1.0, 0.0, -4.0], [-3.0, 2.0, -8.0]]),
-                light_intensities=np.array([[2.0, 2.0, 3.0], [5.0, 1.0, 1.0]]), sigma_t=0.2,
-                albedo=(0.9, 0.8, 0.6), threads=2, aa_samples=1, clip_start=0.2)
+    base = floor_scene(48, 32, light_positions=np.array([[1.0, 0.0, -4.0], [-3.0, 2.0, -8.0]]),
+                       light_intensities=np.array([[2.0, 2.0, 3.0], [5.0, 1.0, 1.0]]), sigma_t=0.2, clip_start=0.2)
     for phase, g in (("hg", 0.6), ("hg", -0.3), ("rayleigh", 0.0), ("murky_mie", 0.0)):
         a = _native.bake(model="pegoraro10", phase=phase, g=g, **base)["airlight"]
         b = _native.bake(model="quadrature", phase=phase, g=g, **base)["airlight"]

@@ -12,19 +12,8 @@ import pytest
 from scipy import integrate
 
 import _native
-from test_bake_surface import ALBEDO, CAM_POS, FOV, H, POINT_I, POINT_POS, SIGMA_T, W, G_ref, hit_points, scene
-
-
-def phase(name, g, mu):
-    if name == "hg":
-        return (1 - g * g) / (4 * math.pi * (1 + g * g - 2 * g * mu) ** 1.5)
-    if name == "rayleigh":
-        return 3 * (1 + mu * mu) / (16 * math.pi)
-    if name == "hazy_mie":
-        return (1 + 9 * ((1 + mu) / 2) ** 8) / (8 * math.pi)
-    if name == "murky_mie":
-        return 33 * (1 + 50 * ((1 + mu) / 2) ** 32) / (332 * math.pi)
-    return 1 / (4 * math.pi)
+from reference_util import G_ref, cosine_lobe_azimuth, phase_value
+from scene_surface import ALBEDO, POINT_I, POINT_POS, SIGMA_T, SPOT_POS, hit_points, scene
 
 
 def Hp_ref(name, g, T, gam):
@@ -35,7 +24,7 @@ def Hp_ref(name, g, T, gam):
         ca = math.cos(a)
         if ca <= 0:
             return 0.0
-        return phase(name, g, -math.sin(a)) * math.exp(-T * sg * (1 + math.sin(a)) / ca)
+        return phase_value(name, -math.sin(a), g) * math.exp(-T * sg * (1 + math.sin(a)) / ca)
 
     lo = gam - math.pi / 2
     pts = [x for x in (-1.2, -0.6, 0.0, 0.6, 1.2) if lo < x < math.pi / 2]
@@ -44,15 +33,10 @@ def Hp_ref(name, g, T, gam):
 
 
 def Gp_ref(name, g, T, theta, m=1.0):
-    def Wm(gam):
-        a, b = math.cos(gam) * math.cos(theta), math.sin(gam) * math.sin(theta)
-        return integrate.quad(lambda p: max(0.0, a + b * math.cos(p)) ** m, 0.0, 2 * math.pi, epsrel=1e-10,
-                              points=[math.acos(-a / b)] if abs(b) > abs(a) else None, limit=200)[0]
-
     edge = abs(math.pi / 2 - theta)
     pts = sorted({edge, math.pi - edge, 0.05, 0.2, 0.5, math.pi - 0.2, math.pi - 0.05})
-    return integrate.quad(lambda gam: Hp_ref(name, g, T, gam) * Wm(gam), 0.0, math.pi, points=pts,
-                          epsrel=1e-9, limit=400)[0]
+    return integrate.quad(lambda gam: Hp_ref(name, g, T, gam) * cosine_lobe_azimuth(gam, theta, m), 0.0, math.pi,
+                          points=pts, epsrel=1e-9, limit=400)[0]
 
 
 CASES = [("hg", 0.6), ("hg", -0.6), ("rayleigh", 0.0), ("murky_mie", 0.0)]
@@ -82,7 +66,7 @@ def test03_gamma_L_against_scipy():
             ca = math.cos(alpha)
             if ca <= 0:
                 return 0.0
-            return (math.cos(phi) * phase(name, g, math.cos(alpha + math.pi / 2))
+            return (math.cos(phi) * phase_value(name, math.cos(alpha + math.pi / 2), g)
                     * math.exp(-lam * (math.cos(alpha - phi) + math.sin(phi)) / ca))
         ref = integrate.dblquad(f, 0.0, math.pi, lambda phi: phi - math.pi / 2, lambda phi: math.pi / 2,
                                 epsabs=1e-12, epsrel=1e-9)[0]
@@ -154,7 +138,7 @@ def test07_spot_glow_is_point_glow_times_factor():
     spot_part = with_spot["surface_glow"] - without["surface_glow"]
     assert spot_part.max() > 0.0
     p = hit_points(with_spot, R)
-    s = np.array([1.0, 1.0, 4.0])
+    s = SPOT_POS[0]
     for j, i in pixels(with_spot, 4, seed=7):
         v = s - p[j, i]
         D = float(np.linalg.norm(v))
