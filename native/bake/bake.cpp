@@ -6,6 +6,7 @@
 // antialiased edges. Both passes run over row bands on worker threads; the calling
 // thread only waits and reports progress.
 #include "bake/bake.h"
+#include "core/constants.h"
 
 #include <algorithm>
 #include <chrono>
@@ -47,7 +48,6 @@ namespace {
 
 constexpr int kBandRows = 16;
 constexpr int kMaxResolution = 32768;
-constexpr double kPi = 3.14159265358979323846;
 // A fog-object Gaussian's largest optical depth through its centre for the Fogshop models'
 // float kernels (FogModel).
 constexpr double kMaxCentreDepth = 1e4;
@@ -75,7 +75,7 @@ bool finite3(const glm::dvec3& v) {
     return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z);
 }
 
-// Sun lamps and the fog top (sun_layer.h).
+// Sun lamps and the fog top (sunlight_layer.h).
 void validate_suns(const SceneDescription& scene) {
     for (size_t i = 0; i < scene.sun_lights.size(); ++i) {
         const SunLight& sun = scene.sun_lights[i];
@@ -141,8 +141,8 @@ void validate(const SceneDescription& scene, const BakeSettings& settings) {
                 " (|g| <= 0.78 works); use 'biri06' or 'quadrature'");
     // Gaussian fog (Fogshop): the Fogshop approximation (sun05, sun05_exact: F table or exact
     // F for the background term; biri06, pegoraro10: their model for it, any phase) or its
-    // quadrature reference; point, spot and sun lamps (rbf_splat.h RbfSplatLights).
-    const GaussianMedium& gauss = scene.gaussians;
+    // quadrature reference; point, spot and sun lamps (gaussian_splat.h GaussianSplatLights).
+    const Gaussians& gauss = scene.gaussians;
     if (!gauss.empty()) {
         const size_t n = gauss.scales.size();
         require(gauss.amplitudes.size() == n && gauss.centres.size() == 3 * n,
@@ -321,8 +321,8 @@ void edge_sample_clusters(const float* depth, int n, double tol, int* order, std
 // Gaussians' part: ~Var (rho' / 2 + rho^2 / 2 + rho sigma_bg).
 class EdgeClusterBounds {
   public:
-    EdgeClusterBounds(const SceneDescription& scene, const RbfMedium* rbf)
-        : sigma_bg_(scene.medium.sigma_t), phase_(scene.medium.phase), rbf_(rbf) {
+    EdgeClusterBounds(const SceneDescription& scene, const GaussianMedium* gaussians)
+        : sigma_bg_(scene.medium.sigma_t), phase_(scene.medium.phase), gaussian_(gaussians) {
         RGB albedo = scene.medium.albedo;
         for (size_t i = 0; i + 2 < scene.gaussians.albedo.size(); i += 3)
             for (int c = 0; c < 3; ++c) albedo[c] = std::max(albedo[c], scene.gaussians.albedo[i + c]);
@@ -339,7 +339,7 @@ class EdgeClusterBounds {
         }
         for (const PointLight& l : scene.point_lights) lights_.push_back({l.position, albedo * l.I0});
         for (const SunLight& l : scene.sun_lights) suns_.push_back({glm::normalize(l.direction), albedo * l.E});
-        sun_layer_ = std::isfinite(scene.fog_top);
+        sunlight_layer_ = std::isfinite(scene.fog_top);
     }
 
     // Relative error estimates (airlight: the largest over the channels of _La_, the
@@ -376,13 +376,13 @@ class EdgeClusterBounds {
         }
         // The Gaussians' extinction (rho) and its slope along the ray near the hits' segment.
         double rho = 0.0, rho_slope = 0.0;
-        if (rbf_ && hit) {
+        if (gaussian_ && hit) {
             const Vec3 p = rep.o + lo * rep.d;
-            rbf_->for_each_near(p, rep.d, hi - lo, [&](std::size_t i) {
-                const Vec3 b = rbf_->centre(i);
+            gaussian_->for_each_near(p, rep.d, hi - lo, [&](std::size_t i) {
+                const Vec3 b = gaussian_->centre(i);
                 const double t = std::clamp(glm::dot(b - p, rep.d), 0.0, hi - lo);
                 const double r = std::max(0.0, glm::length(p + t * rep.d - b) - lateral);
-                const double a = rbf_->scale(i), c = rbf_->amplitude(i);
+                const double a = gaussian_->scale(i), c = gaussian_->amplitude(i);
                 rho += c * std::exp(-a * a * r * r);
                 rho_slope += c * a * 0.8578;  // max of |d/dt c exp(-a^2 r^2)| = sqrt(2 / e) a c
             });
@@ -400,7 +400,7 @@ class EdgeClusterBounds {
                 return;
             }
             // (g: needed for the depth term and the homogeneous share only)
-            const double g = !hit && rbf_ ? 0.0
+            const double g = !hit && gaussian_ ? 0.0
                                           : (hit ? std::atan((D - ts) / h) : 0.5 * kPi) - std::atan((t0 - ts) / h);
             // (E 1/|h - delta| <= (1 + E |delta|^2 / h^2) / h for the lateral offsets delta)
             const double lat_var = o_var + 2.0 * std::abs(ts) * std::sqrt(o_var * d_var) + ts * ts * d_var;
@@ -416,7 +416,7 @@ class EdgeClusterBounds {
                 rel += g > 0.0 ? var * h / (de * de * de * g) : kInf;
             }
             const double P = phase_bound(rep, t0, D, l.s);
-            const double share = rbf_ ? kInf  // (the Gaussians' density along the ray: unbounded here)
+            const double share = gaussian_ ? kInf  // (the Gaussians' density along the ray: unbounded here)
                                       : sigma_bg_ * P * std::exp(-sigma_bg_ * std::max(0.0, glm::length(v) - t0)) /
                                             (4.0 * kPi) * g / h;
             for (int c = 0; c < 3; ++c) profile[c] += std::min(La[c], l.w[c] * share) * 2.0 * rel;
@@ -428,7 +428,7 @@ class EdgeClusterBounds {
             for (const Sun& s : suns_) {
                 const double p = phase_.eval(-glm::dot(s.w, rep.d));
                 const RGB f = s.w_E * (p * std::exp(-sigma_bg_ * std::max(0.0, lo - t0)));
-                if (sun_layer_) first += f * sigma;
+                if (sunlight_layer_) first += f * sigma;
                 else second += f * (sigma * 2.0 * sigma + rho_slope);
             }
         err_La = 0.0;
@@ -466,8 +466,8 @@ class EdgeClusterBounds {
 
     double sigma_bg_;
     PhaseFunction phase_;
-    const RbfMedium* rbf_;
-    bool isotropic_ = true, sun_layer_ = false;
+    const GaussianMedium* gaussian_;
+    bool isotropic_ = true, sunlight_layer_ = false;
     double phase_grad_ = 0.0;
     std::vector<Light> lights_;
     std::vector<Sun> suns_;
@@ -618,45 +618,45 @@ class FogModel {
         }
         fog_top_ = scene.fog_top;
         if (!scene.gaussians.empty()) {
-            const GaussianMedium& g = scene.gaussians;
-            rbf_ = std::make_unique<RbfMedium>(g.centres, g.scales, g.amplitudes, sigma_t_);
-            for (const LightData& light : lights_) rbf_lights_.push_back(light.s);
+            const Gaussians& g = scene.gaussians;
+            gaussian_ = std::make_unique<GaussianMedium>(g.centres, g.scales, g.amplitudes, sigma_t_);
+            for (const LightData& light : lights_) gaussian_lights_.push_back(light.s);
             // Per-light I0 (the Gaussians' weights carry their own albedo), per-Gaussian albedo.
             medium_albedo_ = scene.medium.albedo;
             for (const PointLight& light : scene.point_lights)
-                if (keeps_light(scene, light)) rbf_I0_.push_back(light.I0);
-            rbf_albedo_ = g.albedo;
-            if (rbf_albedo_.empty())
+                if (keeps_light(scene, light)) gaussian_I0_.push_back(light.I0);
+            gaussian_albedo_ = g.albedo;
+            if (gaussian_albedo_.empty())
                 for (size_t i = 0; i < g.scales.size(); ++i)
-                    for (int c = 0; c < 3; ++c) rbf_albedo_.push_back(scene.medium.albedo[c]);
-            const RbfNoise noise{g.noise_amplitude, g.noise_scale, g.noise_offset};
+                    for (int c = 0; c < 3; ++c) gaussian_albedo_.push_back(scene.medium.albedo[c]);
+            const GaussianNoise noise{g.noise_amplitude, g.noise_scale, g.noise_offset};
             if (noise.on() && !shared_origin_)
                 throw std::invalid_argument("fog noise needs a perspective camera (orthographic cameras bake "
                                             "Gaussian fog without noise only)");
-            // Spots and suns with Gaussians (after the point lights in rbf_lights_ / rbf_I0_).
-            n_rbf_points_ = rbf_lights_.size();
+            // Spots and suns with Gaussians (after the point lights in gaussian_lights_ / gaussian_I0_).
+            n_gaussian_points_ = gaussian_lights_.size();
             for (const SpotLight& spot : scene.spot_lights) {
                 if (spot.I0.x == 0.0 && spot.I0.y == 0.0 && spot.I0.z == 0.0) continue;
-                rbf_lights_.push_back(spot.position);
-                rbf_I0_.push_back(spot.I0);
-                rbf_spots_.push_back({make_spot_cone(spot.axis, spot.spot_size, spot.spot_blend), spot.position,
+                gaussian_lights_.push_back(spot.position);
+                gaussian_I0_.push_back(spot.I0);
+                gaussian_spots_.push_back({make_spot_cone(spot.axis, spot.spot_size, spot.spot_blend), spot.position,
                                       spot.I0});
             }
             for (const SunLight& sun : scene.sun_lights) {
                 if (sun.E.x == 0.0 && sun.E.y == 0.0 && sun.E.z == 0.0) continue;
                 const Vec3 w = glm::normalize(sun.direction);
-                rbf_suns_.push_back({w, -w.z, sun.E});
+                gaussian_suns_.push_back({w, -w.z, sun.E});
             }
             const bool fogshop = model_ == ModelId::Sun05Table || model_ == ModelId::Sun05Exact ||
                                  model_ == ModelId::Biri06 || model_ == ModelId::Pegoraro10;
-            const bool extended = !rbf_spots_.empty() || !rbf_suns_.empty() || !isotropic_ ||
+            const bool extended = !gaussian_spots_.empty() || !gaussian_suns_.empty() || !isotropic_ ||
                                   model_ == ModelId::Biri06 || model_ == ModelId::Pegoraro10;
             if (fogshop && extended && !shared_origin_)
                 throw std::invalid_argument("fog objects with spot or sun lamps, an anisotropic phase or model "
                                             "'biri06' / 'pegoraro10' need a perspective camera (or model "
                                             "'quadrature')");
             // Fogshop's per-(light, Gaussian) precomputation, once for the shared viewpoint,
-            // and the tiled splatting (rbf_splat.h) that evaluates it.
+            // and the tiled splatting (gaussian_splat.h) that evaluates it.
             if (fogshop && shared_origin_) {
                 // The splat's float kernels take a Gaussian's optical depth on a segment as
                 // (c sqrt(pi) / 2a) times a difference of erfc values, which cancels (both near
@@ -673,7 +673,7 @@ class FogModel {
                     if (!(depth > kMaxCentreDepth)) continue;
                     const Vec3 b(g.centres[3 * i], g.centres[3 * i + 1], g.centres[3 * i + 2]);
                     bool inside = a * glm::length(b - origin_) < 2.0;
-                    for (const Vec3& s : rbf_lights_) inside = inside || a * glm::length(b - s) < 2.0;
+                    for (const Vec3& s : gaussian_lights_) inside = inside || a * glm::length(b - s) < 2.0;
                     if (inside) {
                         std::ostringstream os;
                         os << "fog objects: Gaussian " << i << " (amplitude " << g.amplitudes[i] << " /m, scale " << a
@@ -684,78 +684,78 @@ class FogModel {
                         throw std::invalid_argument(os.str());
                     }
                 }
-                RbfSplatLights extra;
+                GaussianSplatLights extra;
                 if (extended) {
                     extra.phase = phase_;
-                    const size_t L = rbf_lights_.size();
+                    const size_t L = gaussian_lights_.size();
                     extra.spot.assign(L, 0);
                     extra.cone.assign(L, SpotCone{});
                     extra.custom_background.assign(L, 0);
                     for (size_t l = 0; l < L; ++l) {
-                        const bool is_spot = l >= n_rbf_points_;
+                        const bool is_spot = l >= n_gaussian_points_;
                         extra.spot[l] = is_spot;
-                        if (is_spot) extra.cone[l] = rbf_spots_[l - n_rbf_points_].cone;
+                        if (is_spot) extra.cone[l] = gaussian_spots_[l - n_gaussian_points_].cone;
                         // The sun05 term of the splat is isotropic: other models and phases
                         // (and spots) use the bake's own model for the background.
                         extra.custom_background[l] = is_spot || !isotropic_ || model_ == ModelId::Biri06 ||
                                                      model_ == ModelId::Pegoraro10;
                     }
-                    for (const RbfSunData& sun : rbf_suns_) {
+                    for (const GaussianSunData& sun : gaussian_suns_) {
                         extra.sun_w.push_back(sun.w);
                         extra.sun_E.push_back(sun.E);
                     }
                     extra.fog_top = fog_top_;
                     extra.background = [this](size_t l, const Vec3& d, double t0, double Dvp) {
-                        return rbf_background(l, d, t0, Dvp);
+                        return gaussian_background(l, d, t0, Dvp);
                     };
                 }
-                splat_ = std::make_unique<RbfSplat>(*rbf_, origin_, rbf_lights_, rbf_I0_, scene.medium.albedo,
+                splat_ = std::make_unique<GaussianSplat>(*gaussian_, origin_, gaussian_lights_, gaussian_I0_, scene.medium.albedo,
                                                     g.albedo, table_.get(), noise, std::max(0, settings.threads),
                                                     extended ? &extra : nullptr);
             }
         }
     }
 
-    // Background (beta0) term of the splat's light l (RbfSplatLights::background): point
-    // lights n_rbf_points_ first, then spots, then suns; per unit albedo I0 (suns: albedo E)
+    // Background (beta0) term of the splat's light l (GaussianSplatLights::background): point
+    // lights n_gaussian_points_ first, then spots, then suns; per unit albedo I0 (suns: albedo E)
     // along origin_ + t d over [t0, Dvp], attenuated from t0, with the bake's model.
-    double rbf_background(size_t l, const Vec3& d, double t0, double Dvp) const {
+    double gaussian_background(size_t l, const Vec3& d, double t0, double Dvp) const {
         if (sigma_t_ == 0.0 || !(Dvp > t0)) return 0.0;
-        const size_t L = rbf_lights_.size();
+        const size_t L = gaussian_lights_.size();
         const Vec3 start = t0 > 0.0 ? origin_ + t0 * d : origin_;
         const double seg = Dvp - t0;  // inf stays inf
-        if (l < n_rbf_points_) {
-            const Vec3 sv = rbf_lights_[l] - start;
+        if (l < n_gaussian_points_) {
+            const Vec3 sv = gaussian_lights_[l] - start;
             const double Dsv = glm::length(sv);
             const double cos_gamma = Dsv > 0.0 ? std::clamp(glm::dot(d, sv) / Dsv, -1.0, 1.0) : 1.0;
             return airlight(Dsv, cos_gamma, seg);
         }
         if (l < L) {
-            const RbfSpotData& spot = rbf_spots_[l - n_rbf_points_];
+            const GaussianSpotData& spot = gaussian_spots_[l - n_gaussian_points_];
             return spot_closed_form_
                        ? pegoraro10_spot_airlight(pegoraro_phase_, spot.cone, spot.s, sigma_t_, start, d, seg)
                        : spot_airlight_quadrature(spot.cone, spot.s, phase_, sigma_t_, start, d, seg, kSpotRelTol);
         }
-        const RbfSunData& sun = rbf_suns_[l - L];
+        const GaussianSunData& sun = gaussian_suns_[l - L];
         return sigma_t_ * phase_.eval(-glm::dot(sun.w, d)) *
-               sun_layer_factor(sigma_t_, fog_top_, sun.mu_s, origin_.z, d.z, t0, Dvp);
+               sunlight_layer_factor(sigma_t_, fog_top_, sun.mu_s, origin_.z, d.z, t0, Dvp);
     }
 
     // Transmittance of the ray _r_ from t0 to _depth_ (inf: none), as eval_many computes it.
     double transmittance(const Ray& r, double t0, double depth) const {
-        if (!rbf_) return std::exp(-sigma_t_ * (depth - t0));
+        if (!gaussian_) return std::exp(-sigma_t_ * (depth - t0));
         const double seg = std::max(0.0, depth - t0);
-        return std::exp(-rbf_->optical_depth_ray(t0 > 0.0 ? r.o + t0 * r.d : r.o, r.d, seg));
+        return std::exp(-gaussian_->optical_depth_ray(t0 > 0.0 ? r.o + t0 * r.d : r.o, r.d, seg));
     }
 
     // Gaussian fog through the tiled splat (perspective, Fogshop models): null otherwise.
-    RbfSplat* splat() const { return splat_.get(); }
+    GaussianSplat* splat() const { return splat_.get(); }
     // The Gaussian medium (null for homogeneous fog).
-    const RbfMedium* rbf_medium() const { return rbf_.get(); }
+    const GaussianMedium* gaussian_medium() const { return gaussian_.get(); }
 
     // True if _eval_soa_ applies (perspective camera, table model, fog): then a near
     // distance t0 costs nothing extra (one evaluation of the segment, sun05_batch.h).
-    bool soa() const { return shared_origin_ && model_ == ModelId::Sun05Table && sigma_t_ > 0.0 && !rbf_; }
+    bool soa() const { return shared_origin_ && model_ == ModelId::Sun05Table && sigma_t_ > 0.0 && !gaussian_; }
 
     // The transmittance part of _eval_soa_ alone (soa() only), the same values.
     void transmittance_soa(const float* Dvp, const float* t0, int n, float* Tr) const {
@@ -855,8 +855,8 @@ class FogModel {
             }
             return;
         }
-        if (rbf_) {
-            eval_rbf(rays, Dvp, t0, n, Tr, La);
+        if (gaussian_) {
+            eval_gaussians(rays, Dvp, t0, n, Tr, La);
             return;
         }
         for (int k = 0; k < n; ++k) {
@@ -884,7 +884,7 @@ class FogModel {
     }
 
     // Airlight of all sun lamps along o + t d over [t_near, Dvp] (inf: none): sigma_s p E G
-    // with the closed form G of sun_layer.h (its quadrature for the quadrature model). The
+    // with the closed form G of sunlight_layer.h (its quadrature for the quadrature model). The
     // phase angle is the same all along the ray.
     RGB sun_airlight(const Vec3& o, const Vec3& d, double t_near, double Dvp) const {
         RGB La(0.0);
@@ -892,9 +892,9 @@ class FogModel {
         for (const SunData& sun : suns_) {
             const double p = phase_.eval(-glm::dot(sun.w, d));
             const double G = model_ == ModelId::Quadrature
-                                 ? sun_layer_factor_quadrature(sigma_t_, fog_top_, sun.mu_s, o.z, d.z, t_near, Dvp,
+                                 ? sunlight_layer_factor_quadrature(sigma_t_, fog_top_, sun.mu_s, o.z, d.z, t_near, Dvp,
                                                                kQuadratureRelTol)
-                                 : sun_layer_factor(sigma_t_, fog_top_, sun.mu_s, o.z, d.z, t_near, Dvp);
+                                 : sunlight_layer_factor(sigma_t_, fog_top_, sun.mu_s, o.z, d.z, t_near, Dvp);
             La += sun.weight * (p * G);
         }
         return La;
@@ -933,10 +933,10 @@ class FogModel {
     // La_eye(t0)), exact for the integral (the eye-side attenuation of every point beyond t0
     // carries the factor exp(-T(eye, near point))). Perspective cameras: the centre samples
     // come from the tiled splat and the rays here (edge samples) from its per-ray twin, both
-    // float (rbf_splat.h). Orthographic rays (own origins) set the exact double Fogshop up per
+    // float (gaussian_splat.h). Orthographic rays (own origins) set the exact double Fogshop up per
     // ray; the quadrature model integrates from the near point directly.
-    void eval_rbf(const Ray* rays, const float* Dvp, const float* t0, int n, double* Tr, RGB* La) const {
-        if (splat_) {  // perspective: rays from the shared eye (rbf_splat.h)
+    void eval_gaussians(const Ray* rays, const float* Dvp, const float* t0, int n, double* Tr, RGB* La) const {
+        if (splat_) {  // perspective: rays from the shared eye (gaussian_splat.h)
             thread_local std::vector<Vec3> dirs;
             dirs.resize(size_t(n));
             for (int k = 0; k < n; ++k) dirs[k] = rays[k].d;
@@ -949,37 +949,37 @@ class FogModel {
             const double near = t0 ? double(t0[k]) : 0.0;
             const double seg = std::max(0.0, double(Dvp[k]) - near);  // inf stays inf
             const Vec3 o = near > 0.0 ? ray.o + near * ray.d : ray.o;
-            Tr[k] = std::exp(-rbf_->optical_depth_ray(o, ray.d, seg));
+            Tr[k] = std::exp(-gaussian_->optical_depth_ray(o, ray.d, seg));
             La[k] = RGB(0.0);
-            if (!(seg > 0.0) || (L == 0 && rbf_spots_.empty() && rbf_suns_.empty())) continue;
+            if (!(seg > 0.0) || (L == 0 && gaussian_spots_.empty() && gaussian_suns_.empty())) continue;
             if (model_ == ModelId::Quadrature) {
                 for (size_t l = 0; l < L; ++l) {
-                    RbfRefLight ref;  // a point light
+                    GaussianRefLight ref;  // a point light
                     ref.s = lights_[l].s;
                     La[k] += lights_[l].weight *
-                             (isotropic_ ? rbf_airlight_quadrature(*rbf_, lights_[l].s, o, ray.d, seg, kQuadratureRelTol)
-                                         : rbf_airlight_quadrature(*rbf_, ref, phase_, o, ray.d, seg, kQuadratureRelTol));
+                             (isotropic_ ? gaussian_airlight_quadrature(*gaussian_, lights_[l].s, o, ray.d, seg, kQuadratureRelTol)
+                                         : gaussian_airlight_quadrature(*gaussian_, ref, phase_, o, ray.d, seg, kQuadratureRelTol));
                 }
-                for (const RbfSpotData& spot : rbf_spots_) {
-                    RbfRefLight ref;
-                    ref.kind = RbfRefLight::Kind::Spot;
+                for (const GaussianSpotData& spot : gaussian_spots_) {
+                    GaussianRefLight ref;
+                    ref.kind = GaussianRefLight::Kind::Spot;
                     ref.s = spot.s;
                     ref.cone = spot.cone;
                     La[k] += medium_albedo_ * spot.I0 *
-                             rbf_airlight_quadrature(*rbf_, ref, phase_, o, ray.d, seg, kQuadratureRelTol);
+                             gaussian_airlight_quadrature(*gaussian_, ref, phase_, o, ray.d, seg, kQuadratureRelTol);
                 }
-                for (const RbfSunData& sun : rbf_suns_) {
-                    RbfRefLight ref;
-                    ref.kind = RbfRefLight::Kind::Sun;
+                for (const GaussianSunData& sun : gaussian_suns_) {
+                    GaussianRefLight ref;
+                    ref.kind = GaussianRefLight::Kind::Sun;
                     ref.w = sun.w;
                     ref.fog_top = fog_top_;
                     La[k] += medium_albedo_ * sun.E *
-                             rbf_airlight_quadrature(*rbf_, ref, phase_, o, ray.d, seg, kQuadratureRelTol);
+                             gaussian_airlight_quadrature(*gaussian_, ref, phase_, o, ray.d, seg, kQuadratureRelTol);
                 }
                 continue;
             }
-            const RbfAirlightFogshop local(*rbf_, o, rbf_lights_, table_.get(), 1);
-            La[k] = local.eval_rgb(ray.d, seg, rbf_albedo_.data(), rbf_I0_.data(), medium_albedo_);
+            const FogshopAirlight local(*gaussian_, o, gaussian_lights_, table_.get(), 1);
+            La[k] = local.eval_rgb(ray.d, seg, gaussian_albedo_.data(), gaussian_I0_.data(), medium_albedo_);
         }
     }
 
@@ -1030,25 +1030,25 @@ class FogModel {
     double fog_top_ = std::numeric_limits<double>::infinity();
     // Gaussian fog (null without): the medium (beta0 = sigma_t), the lights' positions in
     // lights_' order, and Fogshop set up at the shared viewpoint.
-    std::unique_ptr<RbfMedium> rbf_;
-    std::vector<Vec3> rbf_lights_;
-    std::vector<RGB> rbf_I0_;         // I0 of the lights in lights_' order
-    std::vector<double> rbf_albedo_;  // 3 per Gaussian (the medium's if none given)
+    std::unique_ptr<GaussianMedium> gaussian_;
+    std::vector<Vec3> gaussian_lights_;
+    std::vector<RGB> gaussian_I0_;         // I0 of the lights in lights_' order
+    std::vector<double> gaussian_albedo_;  // 3 per Gaussian (the medium's if none given)
     RGB medium_albedo_{1.0};
-    size_t n_rbf_points_ = 0;  // point lights at the front of rbf_lights_ (spots follow)
-    struct RbfSpotData {
+    size_t n_gaussian_points_ = 0;  // point lights at the front of gaussian_lights_ (spots follow)
+    struct GaussianSpotData {
         SpotCone cone;
         Vec3 s;
         RGB I0;
     };
-    struct RbfSunData {
+    struct GaussianSunData {
         Vec3 w;       // unit propagation direction
         double mu_s;  // -w.z
         RGB E;
     };
-    std::vector<RbfSpotData> rbf_spots_;
-    std::vector<RbfSunData> rbf_suns_;
-    std::unique_ptr<RbfSplat> splat_;
+    std::vector<GaussianSpotData> gaussian_spots_;
+    std::vector<GaussianSunData> gaussian_suns_;
+    std::unique_ptr<GaussianSplat> splat_;
 };
 
 // Scratch objects kept between bands and between bakes, one per concurrent user: fresh
@@ -1674,18 +1674,18 @@ BakeResult bake(const SceneDescription& scene, const BakeSettings& settings, con
     std::atomic<long long> supersampled{0}, samples{0}, edge_ns{0};
     start = Clock::now();
     // Gaussian fog with a perspective camera: the centre samples of every pixel come from
-    // the tiled splat (rbf_splat.h) in one pass over tiles; the band loop below then only
-    // supersamples edge pixels (through eval_rbf, the same kernels per ray).
+    // the tiled splat (gaussian_splat.h) in one pass over tiles; the band loop below then only
+    // supersamples edge pixels (through eval_gaussians, the same kernels per ray).
     const bool splatted = affine && fog.splat() != nullptr;
     double band_progress_begin = kRaycastProgressShare;
     if (splatted) {
-        RbfSplat& splat = *fog.splat();
+        GaussianSplat& splat = *fog.splat();
         const auto bin_start = Clock::now();
         splat.bin(D0, Dx, Dy, forward, W, H, near_clip ? clip_start : 0.0, settings.gaussian_resolution,
                   result.depth.data());
         result.stats.seconds_bin = seconds_since(bin_start);
         const int n_tiles = splat.num_tiles();
-        // Costliest tiles first (RbfSplat::tile_cost: binned pairs), so that the last tiles taken are cheap and
+        // Costliest tiles first (GaussianSplat::tile_cost: binned pairs), so that the last tiles taken are cheap and
         // the threads finish together (in order, the tiles next to a light's image or the
         // cloud's core could leave one thread working alone at the end).
         std::vector<int> order(static_cast<size_t>(n_tiles));
@@ -1719,7 +1719,7 @@ BakeResult bake(const SceneDescription& scene, const BakeSettings& settings, con
     // Airlight and transmittance error estimates above which a cluster's samples are
     // evaluated one by one (EdgeClusterBounds).
     constexpr double kEdgeAirlightTol = 5e-4, kEdgeTransmittanceTol = 5e-4;
-    const EdgeClusterBounds bounds(scene, clustered ? fog.rbf_medium() : nullptr);
+    const EdgeClusterBounds bounds(scene, clustered ? fog.gaussian_medium() : nullptr);
     // Rays to evaluate (segments [t0, t]) and their fog.
     struct RayBatch {
         std::vector<Ray> ray;

@@ -44,7 +44,7 @@ struct BakeSettings {
     bool surface_glow_biri_eq10 = false;
     // Gaussian fog (perspective, Fogshop models): the Gaussian terms are evaluated every
     // _gaussian_resolution_ pixels (1 full, 2 half, 4 quarter) and interpolated where the
-    // surface does not cut a Gaussian, exactly per pixel where it does (rbf_splat.h).
+    // surface does not cut a Gaussian, exactly per pixel where it does (gaussian_splat.h).
     int gaussian_resolution = 1;
     // Homogeneous airlight on a lattice of 1 (every pixel, exact), 2 or 4 pixels, interpolated
     // where smooth and exact at depth edges, near point lights' images and where a cell's
@@ -71,7 +71,7 @@ struct BakeStats {
     // averages), summed over the worker threads.
     double seconds_edges = 0.0;
     // Fog objects through the tiled splat: binning the Gaussians into tiles and building
-    // the far-field grids (RbfSplat::bin), inside seconds_airlight.
+    // the far-field grids (GaussianSplat::bin), inside seconds_airlight.
     double seconds_bin = 0.0;
     // Building the fog model between the raycast and the airlight pass (FogModel: the
     // fog objects' medium and cull hierarchy, the splat's per-(light, Gaussian) optical

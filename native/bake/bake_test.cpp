@@ -10,6 +10,7 @@
 
 #include <glm/gtc/matrix_transform.hpp>
 
+#include "core/constants.h"
 #include "bake/bake.h"
 #include "homogeneous/biri06.h"
 #include "image/camera.h"
@@ -22,7 +23,6 @@
 namespace airlight {
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
 
 // OpenGL projection like Blender's calc_matrix_camera with horizontal sensor fit.
 glm::dmat4 blender_perspective(double fov_x, int W, int H, double n = 0.1, double f = 100.0) {
@@ -448,8 +448,8 @@ TEST(Bake, ProgressIsMonotoneAndCancels) {
 // a floor in the lower half of the image (upper half: misses, fog to infinity), two lights
 // outside the cloud, near plane at view depth 0.5. Reference per pixel centre: the exact
 // transmittance exp(-optical depth over all Gaussians, unculled) from the near point to
-// the hit, and the airlight by rbf_airlight_quadrature from the near point. Bounds: the
-// Fogshop approximation's thin-fog bound from rbf_airlight_test.cpp (mean 1 %, p99 3 %),
+// the hit, and the airlight by gaussian_airlight_quadrature from the near point. Bounds: the
+// Fogshop approximation's thin-fog bound from gaussian_airlight_test.cpp (mean 1 %, p99 3 %),
 // the transmittance to 1e-6 (float output, culling <= 1e-7 per Gaussian), the bake's
 // quadrature model to 1e-6 relative (tolerance 1e-8 plus float output).
 SceneDescription gaussian_scene(double amplitude_scale) {
@@ -475,8 +475,8 @@ SceneDescription gaussian_scene(double amplitude_scale) {
     return scene;
 }
 
-RbfMedium medium_of(const SceneDescription& scene) {
-    return RbfMedium(scene.gaussians.centres, scene.gaussians.scales, scene.gaussians.amplitudes,
+GaussianMedium medium_of(const SceneDescription& scene) {
+    return GaussianMedium(scene.gaussians.centres, scene.gaussians.scales, scene.gaussians.amplitudes,
                      scene.medium.sigma_t);
 }
 
@@ -487,7 +487,7 @@ TEST(BakeGaussians, FogshopAndTransmittanceMatchReferences) {
     const BakeResult r = bake(scene, settings);
     settings.model = ModelId::Quadrature;
     const BakeResult q = bake(scene, settings);
-    const RbfMedium m = medium_of(scene);
+    const GaussianMedium m = medium_of(scene);
     const CameraRays rays(scene.camera);
     std::vector<double> err;
     double worst_T = 0.0, worst_q = 0.0, gauss_share = 0.0;
@@ -509,12 +509,12 @@ TEST(BakeGaussians, FogshopAndTransmittanceMatchReferences) {
             RGB ref(0.0);
             for (const PointLight& light : scene.point_lights)
                 ref += scene.medium.albedo * light.I0 *
-                       rbf_airlight_quadrature(m, light.position, o, ray.d, depth - t_near, 1e-10);
+                       gaussian_airlight_quadrature(m, light.position, o, ray.d, depth - t_near, 1e-10);
             for (int c = 0; c < 3; ++c) {
                 err.push_back(std::abs(r.airlight[3 * p + c] / ref[c] - 1.0));
                 EXPECT_NEAR(q.airlight[3 * p + c], ref[c], 1e-6 * ref[c]) << i << " " << j;
                 worst_q = std::max(worst_q, std::abs(q.airlight[3 * p + c] / ref[c] - 1.0));
-                // The Fogshop models splat in float (rbf_splat.h), the quadrature model sums
+                // The Fogshop models splat in float (gaussian_splat.h), the quadrature model sums
                 // in double: both within 1e-6 of the exact transmittance (checked above).
                 EXPECT_NEAR(q.transmittance[3 * p + c], r.transmittance[3 * p + c], 1e-6);
             }
@@ -528,7 +528,7 @@ TEST(BakeGaussians, FogshopAndTransmittanceMatchReferences) {
     mean /= double(err.size());
     std::sort(err.begin(), err.end());
     const double p99 = err[size_t(0.99 * double(err.size()))];
-    std::printf("[ bake rbf ] fogshop vs quadrature: mean %.4f p99 %.4f max %.4f; quadrature model max %.2g; "
+    std::printf("[ bake gaussians ] fogshop vs quadrature: mean %.4f p99 %.4f max %.4f; quadrature model max %.2g; "
                 "transmittance max abs %.2g; Gaussian optical depth up to %.3f\n",
                 mean, p99, err.back(), worst_q, worst_T, gauss_share);
     EXPECT_LT(mean, 0.01);
@@ -554,7 +554,7 @@ TEST(BakeGaussians, OrthographicAndSupersampledAreFinite) {
         }
     // Orthographic centre pixel: rays start on the near plane; T from there to the hit.
     const CameraRays rays(scene.camera);
-    const RbfMedium m = medium_of(scene);
+    const GaussianMedium m = medium_of(scene);
     for (int j : {4, 12, 20}) {
         const Ray ray = rays(16.5, j + 0.5);
         double t_near, t_far;

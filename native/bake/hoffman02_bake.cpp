@@ -71,7 +71,7 @@ BakeResult bake_hoffman02(const SceneDescription& scene, const BakeSettings& set
                     for (int c = 0; c < 3; ++c) {
                         const double sigma = m.beta_R[c] + m.beta_M[c];
                         if (!(sigma > 0.0)) continue;
-                        const double G = sun_layer_factor(sigma, scene.fog_top, sun.mu_s, ray.o.z, ray.d.z, t_near, D);
+                        const double G = sunlight_layer_factor(sigma, scene.fog_top, sun.mu_s, ray.o.z, ray.d.z, t_near, D);
                         A[c] += float(albedo[c] * sun.E[c] * (m.beta_R[c] * pR + m.beta_M[c] * pM) * G);
                     }
                 }

@@ -9,11 +9,11 @@
 // hit at depth D (inf: none):
 //   Transmittance_c = e^{-sigma_c (D - t0)}
 //   Airlight_c      = albedo_c sum_suns E_c (beta_R,c p_R(cos) + beta_M p_HG(cos)) G(sigma_c)
-// with G the sun's geometric factor of sun_layer.h per channel: HP's unattenuated sun
+// with G the sun's geometric factor of sunlight_layer.h per channel: HP's unattenuated sun
 // ((1 - e^{-sigma_c (D - t0)}) / sigma_c, the paper's closed form) without a fog top, the sun
 // dimmed by its path through the layer with one (scene.fog_top). The phase angle is fixed
 // along a ray (cos = -w.d), so this is exact single scattering for that medium; its
-// reference is hoffman02_quadrature / sun_layer_factor_quadrature.
+// reference is hoffman02_quadrature / sunlight_layer_factor_quadrature.
 // Sun lamps only: point and spot lights are refused by validate() (the paper models
 // daylight), as are fog objects. Pixels are evaluated at their centres (no edge
 // supersampling; documented).

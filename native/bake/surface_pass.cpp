@@ -1,5 +1,6 @@
 // bake_surface.cpp: per-pixel surface attenuation and Lambert glow (see bake_surface.h).
 #include "bake/surface_pass.h"
+#include "core/constants.h"
 
 #include <algorithm>
 #include <cstdint>
@@ -23,7 +24,6 @@
 namespace airlight {
 
 namespace {
-constexpr double kPi = 3.14159265358979323846;
 
 // An image of _n_ floats set to _value_, on recycled warm pages where the pool has some
 // (bake.h acquire_image_buffer: 4 KiB page faults cost ~10 us each here, more than the whole
@@ -53,16 +53,16 @@ std::shared_ptr<const SurfaceGTable> shared_surface_G_table(int nT, int ntheta, 
 
 // The sun-glow table for one sun direction and phase function, built once and shared
 // across bakes (an animation with a fixed sun builds it once; ~0.2-0.6 s on one thread).
-std::shared_ptr<const SunLayerGlowTable> shared_sun_glow_table(const PhaseFunction& phase, const Vec3& to_sun,
+std::shared_ptr<const SunlightGlowTable> shared_sun_glow_table(const PhaseFunction& phase, const Vec3& to_sun,
                                                               bool has_top, double m) {
     static std::mutex mutex;
     static std::map<std::tuple<int, double, double, double, double, bool, double>,
-                    std::shared_ptr<const SunLayerGlowTable>>
+                    std::shared_ptr<const SunlightGlowTable>>
         cache;
     std::lock_guard<std::mutex> lock(mutex);
     if (cache.size() > 64) cache.clear();  // a sun animated over many frames: keep memory bounded
     auto& slot = cache[{int(phase.kind), phase.g, to_sun.x, to_sun.y, to_sun.z, has_top, m}];
-    if (!slot) slot = std::make_shared<const SunLayerGlowTable>(phase, to_sun, has_top, m);
+    if (!slot) slot = std::make_shared<const SunlightGlowTable>(phase, to_sun, has_top, m);
     return slot;
 }
 
@@ -72,16 +72,16 @@ void bake_surface_pass(const SceneDescription& scene, const BakeSettings& settin
     const size_t n_pixels = size_t(W) * size_t(H);
     const size_t n_point = scene.point_lights.size(), n_positional = n_point + scene.spot_lights.size();
     // Sun lamps follow the positional lights: their light reaches the surface through the fog
-    // layer above it (sun_layer.h): e^{-sigma_t (h_top - z) / mu_s}, 1 above the top or without
+    // layer above it (sunlight_layer.h): e^{-sigma_t (h_top - z) / mu_s}, 1 above the top or without
     // one (Hoffman-Preetham's unattenuated sun), 0 for a sun shining up into an unbounded layer.
     const size_t n_lights = n_positional + scene.sun_lights.size();
     std::vector<double> sun_mu;
     for (const SunLight& sun : scene.sun_lights) sun_mu.push_back(-glm::normalize(sun.direction).z);
     const double sigma_t = scene.medium.sigma_t;
-    // The suns' glow on Lambert surfaces (sun_layer_glow.h): the light each sun scatters in
+    // The suns' glow on Lambert surfaces (sunlight_glow.h): the light each sun scatters in
     // the homogeneous fog (the layer below fog_top, or unbounded) towards the surface.
     const bool has_top = std::isfinite(scene.fog_top);
-    std::vector<std::shared_ptr<const SunLayerGlowTable>> sun_glow, sun_gloss;
+    std::vector<std::shared_ptr<const SunlightGlowTable>> sun_glow, sun_gloss;
     const RGB albedo = scene.medium.albedo;
     result.surface_lights = int(n_lights);
     allocate_filled(result.surface_attenuation, n_lights * 3 * n_pixels, 1.0f);
@@ -107,12 +107,12 @@ void bake_surface_pass(const SceneDescription& scene, const BakeSettings& settin
         positions.push_back(l.position);
         cones.push_back(make_spot_cone(l.axis, l.spot_size, l.spot_blend));
     }
-    std::unique_ptr<RbfMedium> rbf;
+    std::unique_ptr<GaussianMedium> gaussians;
     if (!scene.gaussians.empty())
-        rbf = std::make_unique<RbfMedium>(scene.gaussians.centres, scene.gaussians.scales,
+        gaussians = std::make_unique<GaussianMedium>(scene.gaussians.centres, scene.gaussians.scales,
                                           scene.gaussians.amplitudes, sigma_t);
     // No fog: attenuation 1, glow 0 (normals are still written below: they do not depend on it).
-    const bool fog = sigma_t > 0.0 || rbf;
+    const bool fog = sigma_t > 0.0 || gaussians;
     // The glow's G tables (see bake_surface.h): Sun's isotropic ones, the phase-aware G_p of
     // biri06_surface.h for an anisotropic phase, and with settings.surface_glow_biri_eq10 Biri's own Lambert model
     // (eq. 10, Gamma_L x cos, clamped at 0) with eq. 12 (= G_p, m = n) for the gloss.
@@ -184,7 +184,7 @@ void bake_surface_pass(const SceneDescription& scene, const BakeSettings& settin
                 for (size_t l = 0; l < n_positional; ++l) {
                     const Vec3 v = positions[l] - p;
                     const double D = glm::length(v);
-                    const double T = rbf ? rbf->optical_depth(positions[l], p) : sigma_t * D;
+                    const double T = gaussians ? gaussians->optical_depth(positions[l], p) : sigma_t * D;
                     const double att_d = std::exp(-T);
                     const float att = float(att_d);
                     float* a = &result.surface_attenuation[(l * n_pixels + px) * 3];
@@ -204,7 +204,7 @@ void bake_surface_pass(const SceneDescription& scene, const BakeSettings& settin
                     // Lambert glow of light l. Homogeneous fog: T = sigma_t D. With fog objects,
                     // Fogshop eq. 25: the exact optical depth T(s, p) in place of sigma_t D and the
                     // mean extinction T / D in place of sigma_t.
-                    const double beta_bar = rbf ? T / D : sigma_t;
+                    const double beta_bar = gaussians ? T / D : sigma_t;
                     const double cos_s = std::clamp(glm::dot(n, v) / D, -1.0, 1.0);
                     // e^{-T} G from the scaled table.
                     double G;

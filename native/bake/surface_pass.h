@@ -27,7 +27,7 @@
 // triangle's, not interpolated) turned towards the camera (Cycles shades both sides).
 // Sun lamps come after the positional lights: attenuation e^{-sigma_t (h_top - z_p) / mu_s}
 // through the fog layer above p (scene.fog_top; 1 without a top or above it), and their
-// Lambert glow E albedo Q(sigma_t (h_top - z_p), n) (sun_layer_glow.h: the sun's light
+// Lambert glow E albedo Q(sigma_t (h_top - z_p), n) (sunlight_glow.h: the sun's light
 // scattered once in the homogeneous fog of the layer, or of unbounded fog without a top,
 // for the medium's phase function) added to surface_glow, and with a Phong exponent n their
 // glossy glow E albedo (n + 2)/2 Q_n(tau, r) about the mirrored view direction r.

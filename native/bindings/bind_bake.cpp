@@ -114,10 +114,10 @@ py::dict bake_py(int width, int height, const py::object& cam_to_world, const py
     }
 
     // Gaussian fog: all three arrays or none; values checked here so the errors name them.
-    const int n_rbf_given = int(!rbf_centres.is_none()) + int(!rbf_scales.is_none()) + int(!rbf_amplitudes.is_none());
-    if (n_rbf_given != 0 && n_rbf_given != 3)
+    const int n_gaussian_given = int(!rbf_centres.is_none()) + int(!rbf_scales.is_none()) + int(!rbf_amplitudes.is_none());
+    if (n_gaussian_given != 0 && n_gaussian_given != 3)
         throw py::value_error("rbf_centres, rbf_scales and rbf_amplitudes must be given together (or all None)");
-    if (n_rbf_given == 3) {
+    if (n_gaussian_given == 3) {
         auto bc = as_array<double>(rbf_centres, "rbf_centres");
         const py::ssize_t n = require_rows_of(bc, 3, "rbf_centres");
         auto a = as_array<double>(rbf_scales, "rbf_scales");

@@ -2,6 +2,7 @@
 #include <cmath>
 #include <stdexcept>
 
+#include "core/constants.h"
 #include "bake/bake.h"
 #include "models/models.h"
 #include "core/quadrature.h"
@@ -15,7 +16,6 @@ using namespace pybind11::literals;
 
 namespace {
 
-constexpr double kHalfPi = 1.57079632679489661923;
 
 py::array_t<double> special_F(const py::object& u, const py::object& v, bool exact) {
     auto args = broadcast_doubles({{u, "u"}, {v, "v"}});

@@ -1,6 +1,6 @@
 // bind_preview.cpp: for the viewport preview (addon/airlight/preview_gaussians.py):
 // - gradient_noise3: native/kernels/noise.h, for the GPU agreement test that holds
-//   shaders/rbf_noise.glsl to it (tests/gpu/test_12_preview_noise.py);
+//   shaders/gaussian_noise.glsl to it (tests/gpu/test_12_preview_noise.py);
 // - rbf_tile_lists: the per-tile Gaussian lists of the preview's tile pass
 //   (preview_tiles.h; the same lists as preview_gaussians.tile_lists builds with numpy,
 //   the reference, ~70x faster at full resolution).

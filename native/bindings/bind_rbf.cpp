@@ -50,20 +50,20 @@ std::vector<double> to_vector(const py::handle& obj, const char* name, py::ssize
     return std::vector<double>(a.data(), a.data() + n);
 }
 
-RbfMedium make_medium(const py::object& centres, const py::object& scales, const py::object& amplitudes,
+GaussianMedium make_medium(const py::object& centres, const py::object& scales, const py::object& amplitudes,
                       double beta0, double cull_eps) {
     auto b = as_array<double>(centres, "centres");
     const py::ssize_t n = require_rows_of(b, 3, "centres");
     std::vector<double> bv(b.data(), b.data() + 3 * n);
     try {
-        return RbfMedium(std::move(bv), to_vector(scales, "scales", n), to_vector(amplitudes, "amplitudes", n), beta0,
+        return GaussianMedium(std::move(bv), to_vector(scales, "scales", n), to_vector(amplitudes, "amplitudes", n), beta0,
                          cull_eps);
     } catch (const std::invalid_argument& e) {
         throw py::value_error(e.what());
     }
 }
 
-py::array_t<double> optical_depth(const RbfMedium& m, const py::object& p, const py::object& q, bool culled,
+py::array_t<double> optical_depth(const GaussianMedium& m, const py::object& p, const py::object& q, bool culled,
                                   int threads) {
     const std::vector<Vec3> P = to_vec3(p, "p");
     const std::vector<Vec3> Q = to_vec3(q, "q", static_cast<py::ssize_t>(P.size()));
@@ -75,7 +75,7 @@ py::array_t<double> optical_depth(const RbfMedium& m, const py::object& p, const
     return to_numpy(std::move(out), {static_cast<py::ssize_t>(P.size())});
 }
 
-py::array_t<double> optical_depth_ray(const RbfMedium& m, const py::object& o, const py::object& d,
+py::array_t<double> optical_depth_ray(const GaussianMedium& m, const py::object& o, const py::object& d,
                                       const py::object& tmax, bool culled, int threads) {
     const std::vector<Vec3> O = to_vec3(o, "origins");
     const py::ssize_t n = static_cast<py::ssize_t>(O.size());
@@ -92,12 +92,12 @@ py::array_t<double> optical_depth_ray(const RbfMedium& m, const py::object& o, c
     return to_numpy(std::move(out), {n});
 }
 
-py::array_t<double> airlight(const RbfMedium& m, const py::object& light_positions, const py::object& origin,
+py::array_t<double> airlight(const GaussianMedium& m, const py::object& light_positions, const py::object& origin,
                              const py::object& directions, const py::object& Dvp, const std::string& model,
                              int threads) {
-    RbfAirlightModel id;
-    if (model == "fogshop") id = RbfAirlightModel::Fogshop;
-    else if (model == "quadrature") id = RbfAirlightModel::Quadrature;
+    GaussianAirlightModel id;
+    if (model == "fogshop") id = GaussianAirlightModel::Fogshop;
+    else if (model == "quadrature") id = GaussianAirlightModel::Quadrature;
     else throw py::value_error("airlight: unknown model '" + model + "' (valid: 'fogshop', 'quadrature')");
     auto lp = as_array<double>(light_positions, "light_positions");
     const bool single_light = lp.ndim() == 1;
@@ -113,9 +113,9 @@ py::array_t<double> airlight(const RbfMedium& m, const py::object& light_positio
     {
         py::gil_scoped_release release;
         std::shared_ptr<const SpecialFTable> table;
-        if (id == RbfAirlightModel::Fogshop) table = shared_special_F_table(256, 256);
+        if (id == GaussianAirlightModel::Fogshop) table = shared_special_F_table(256, 256);
         try {
-            rbf_airlight(m, lights, v, dirs.data(), D.data(), dirs.size(), out.data(), id, table.get(), threads);
+            gaussian_airlight(m, lights, v, dirs.data(), D.data(), dirs.size(), out.data(), id, table.get(), threads);
         } catch (const std::invalid_argument& e) {
             py::gil_scoped_acquire acquire;
             throw py::value_error(e.what());
@@ -128,12 +128,12 @@ py::array_t<double> airlight(const RbfMedium& m, const py::object& light_positio
 py::dict preview_factors(const py::object& centres, const py::object& scales, const py::object& amplitudes,
                          double beta0, const py::object& eye, const py::object& light_positions, double cull_eps,
                          int threads, const py::object& previous, py::ssize_t first_new, bool eye_only) {
-    RbfMedium medium = make_medium(centres, scales, amplitudes, beta0, cull_eps);
+    GaussianMedium medium = make_medium(centres, scales, amplitudes, beta0, cull_eps);
     const Vec3 v = to_point(eye, "eye");
     auto lp = as_array<double>(light_positions, "lights");
     std::vector<Vec3> lights;
     if (!(lp.ndim() == 2 && lp.shape(0) == 0)) lights = to_vec3(lp, "lights");
-    RbfPreviewFactors prev;
+    GaussianPreviewFactors prev;
     const bool incremental = !previous.is_none();
     if (eye_only && !incremental)
         throw py::value_error("eye_only=True needs previous= (the factors of the same Gaussians and lights)");
@@ -161,7 +161,7 @@ py::dict preview_factors(const py::object& centres, const py::object& scales, co
         prev.T_sb = take("T_sb", m);
         prev.own_sb = take("own_sb", m);
     }
-    RbfPreviewFactors f;
+    GaussianPreviewFactors f;
     {
         py::gil_scoped_release release;
         try {
@@ -182,7 +182,7 @@ py::dict preview_factors(const py::object& centres, const py::object& scales, co
 }  // namespace
 
 void bind_rbf(py::module_& m) {
-    py::class_<RbfMedium>(m, "RbfMedium", R"doc(Inhomogeneous medium as a sum of Gaussians (Fogshop, Zhou et al. 2007):
+    py::class_<GaussianMedium>(m, "RbfMedium", R"doc(Inhomogeneous medium as a sum of Gaussians (Fogshop, Zhou et al. 2007):
 beta(x) = beta0 + sum_i c_i exp(-a_i^2 |x - b_i|^2), all in 1/m.
 
 RbfMedium(centres (n, 3), scales (n,) a > 0, amplitudes (n,) c >= 0, beta0=0.0, cull_eps=1e-7)
@@ -190,10 +190,10 @@ Raises ValueError on NaN/inf, a <= 0, c < 0, beta0 < 0 or mismatched lengths.
 cull_eps: per-Gaussian bound on the optical depth that culling may drop on a segment
 (the culled sum is within cull_eps times the number of skipped Gaussians of the exact one).)doc")
         .def(py::init(&make_medium), "centres"_a, "scales"_a, "amplitudes"_a, "beta0"_a = 0.0,
-             "cull_eps"_a = RbfMedium::kDefaultCullEps)
-        .def("__len__", &RbfMedium::size)
-        .def_property_readonly("beta0", &RbfMedium::beta0)
-        .def_property_readonly("cull_eps", &RbfMedium::cull_eps)
+             "cull_eps"_a = GaussianMedium::kDefaultCullEps)
+        .def("__len__", &GaussianMedium::size)
+        .def_property_readonly("beta0", &GaussianMedium::beta0)
+        .def_property_readonly("cull_eps", &GaussianMedium::cull_eps)
         .def("optical_depth", &optical_depth, "p"_a, "q"_a, "culled"_a = true, "threads"_a = 0,
              R"doc(Optical depth T(p[j], q[j]) of the segments, p and q of shape (m, 3); returns (m,).
 culled=False sums every Gaussian (the reference). Exact per Gaussian (erf/erfc, eq. 31).)doc")
@@ -203,7 +203,7 @@ culled=False sums every Gaussian (the reference). Exact per Gaussian (erf/erfc, 
 (directions are normalised). Returns (m,); inf where beta0 > 0 and tmax = inf.)doc")
         .def(
             "density",
-            [](const RbfMedium& self, const py::object& x) {
+            [](const GaussianMedium& self, const py::object& x) {
                 const std::vector<Vec3> X = to_vec3(x, "x");
                 std::vector<double> out(X.size());
                 for (std::size_t j = 0; j < X.size(); ++j) out[j] = self.density(X[j]);
@@ -221,7 +221,7 @@ table) or "quadrature" (adaptive quadrature of eq. 2 with exact optical depths; 
 Multiply by albedo * I0 (W/sr). The GIL is released during the work.)doc");
 
     m.def("rbf_preview_factors", &preview_factors, "centres"_a, "scales"_a, "amplitudes"_a, "beta0"_a, "eye"_a,
-          "lights"_a, "cull_eps"_a = RbfMedium::kDefaultCullEps, "threads"_a = 0, "previous"_a = py::none(),
+          "lights"_a, "cull_eps"_a = GaussianMedium::kDefaultCullEps, "threads"_a = 0, "previous"_a = py::none(),
           "first_new"_a = 0, "eye_only"_a = false,
           R"doc(Per-edit Fogshop factors for a viewport preview that splats the Gaussians (section 5.1).
 

@@ -1,4 +1,4 @@
-// bind_rbf_environment.cpp: environment lighting in Gaussian fog (rbf_environment.h):
+// bind_rbf_environment.cpp: environment lighting in Gaussian fog (gaussian_environment.h):
 // Fogshop's average optical depth and the per-pixel environment irradiance.
 #include <cmath>
 #include <limits>
@@ -22,12 +22,12 @@ std::vector<double> column(const py::object& obj, const char* name, py::ssize_t 
     return std::vector<double>(a.data(), a.data() + n);
 }
 
-RbfMedium medium_of(const py::object& centres, const py::object& scales, const py::object& amplitudes, double beta0) {
+GaussianMedium medium_of(const py::object& centres, const py::object& scales, const py::object& amplitudes, double beta0) {
     auto b = as_array<double>(centres, "centres");
     const py::ssize_t n = require_rows_of(b, 3, "centres");
     std::vector<double> bv(b.data(), b.data() + 3 * n);
     try {
-        return RbfMedium(std::move(bv), column(scales, "scales", n), column(amplitudes, "amplitudes", n), beta0);
+        return GaussianMedium(std::move(bv), column(scales, "scales", n), column(amplitudes, "amplitudes", n), beta0);
     } catch (const std::invalid_argument& e) {
         throw py::value_error(e.what());
     }
@@ -74,7 +74,7 @@ void bind_rbf_environment(py::module_& m) {
         "rbf_average_depth",
         [](const py::object& centres, const py::object& scales, const py::object& amplitudes,
            const py::object& points, double beta0, double distance, double tolerance, bool exact, int threads) {
-            RbfMedium medium = medium_of(centres, scales, amplitudes, beta0);
+            GaussianMedium medium = medium_of(centres, scales, amplitudes, beta0);
             auto pts = as_array<double>(points, "points");
             const size_t n = size_t(require_rows_of(pts, 3, "points"));
             static_assert(sizeof(Vec3) == 3 * sizeof(double), "Vec3 must be 3 packed doubles");
@@ -84,7 +84,7 @@ void bind_rbf_environment(py::module_& m) {
             AverageDepthStats stats;
             try {
                 py::gil_scoped_release release;
-                const RbfAverageDepth avg(medium, distance);
+                const GaussianAverageDepth avg(medium, distance);
                 if (exact) {
                     avg.evaluate_brute(p, n, o, threads);
                     stats.points = n;
@@ -178,8 +178,8 @@ void bind_rbf_environment(py::module_& m) {
             if (dep.ndim() != 2 || dep.shape(0) != height || dep.shape(1) != width)
                 throw py::value_error("depth: expected shape (height, width), got " + shape_str(dep));
             // The Gaussians alone for the rays' optical depth; beta0 enters Tbar only.
-            const RbfMedium gaussians = medium_of(centres, scales, amplitudes, 0.0);
-            const RbfMedium with_beta0 = medium_of(centres, scales, amplitudes, beta0);
+            const GaussianMedium gaussians = medium_of(centres, scales, amplitudes, 0.0);
+            const GaussianMedium with_beta0 = medium_of(centres, scales, amplitudes, beta0);
             const size_t n = size_t(width) * size_t(height);
             std::vector<double> world_depth(n, 0.0), avg_depth(n, beta0 * distance);
             const float* dp = dep.data();
@@ -219,7 +219,7 @@ void bind_rbf_environment(py::module_& m) {
                                                   true, threads);
                 for (size_t k = 0; k < miss_px.size(); ++k) world_depth[miss_px[k]] = T[k];
                 if (average) {
-                    const RbfAverageDepth avg(with_beta0, distance);
+                    const GaussianAverageDepth avg(with_beta0, distance);
                     std::vector<double> Tbar(hit_p.size());
                     stats = avg.evaluate(hit_p.data(), hit_p.size(), Tbar.data(), tolerance, threads);
                     for (size_t k = 0; k < hit_px.size(); ++k) avg_depth[hit_px[k]] = Tbar[k];

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <stdexcept>
 
+#include "core/constants.h"
 #include "bake/surface_pass.h"
 #include "surface/biri06_surface.h"
 #include "core/phase.h"
@@ -19,7 +20,6 @@ using namespace pybind11::literals;
 
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
 
 PhaseFunction parse(const std::string& name, double g) {
     try {

@@ -1,4 +1,5 @@
 // phase_test.cpp: phase functions integrate to 1, HG limits, and the angle convention.
+#include "core/constants.h"
 #include "core/phase.h"
 
 #include <gtest/gtest.h>
@@ -11,7 +12,6 @@
 namespace airlight {
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
 
 // 2 pi int_{-1}^{1} p(mu) dmu, integrated in theta (sin theta dtheta) so peaked lobes are resolved.
 double sphere_integral(const PhaseFunction& p) {

@@ -5,6 +5,7 @@
 // max(abs_tol, rel_tol |I|). The error estimate of one panel is QUADPACK's qk15 rule
 // (|K15 - G7| scaled by the panel's "resasc"), which is realistic for smooth panels.
 #include "core/quadrature.h"
+#include "core/constants.h"
 
 #include <algorithm>
 #include <cmath>
@@ -16,7 +17,6 @@ namespace airlight {
 
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
 
 // Kronrod nodes (positive half, last is 0) and weights; Gauss weights for the
 // 7-point rule living on the odd Kronrod nodes.
@@ -178,7 +178,6 @@ double sun05_airlight_quadrature(double sigma_t, double Dsv, double cos_gamma, d
 }
 
 void gauss_legendre(int n, std::vector<double>& x, std::vector<double>& w) {
-    constexpr double kPi = 3.14159265358979323846;
     x.assign(size_t(n), 0.0);
     w.assign(size_t(n), 0.0);
     for (int i = 0; i < n; ++i) {

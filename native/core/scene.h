@@ -57,7 +57,7 @@ struct SpotLight {
     double spot_blend = 0.15;
 };
 
-// Blender sun lamp (sun_layer.h): _direction_ of propagation (the lamp's -Z, normalised by
+// Blender sun lamp (sunlight_layer.h): _direction_ of propagation (the lamp's -Z, normalised by
 // the bake), _E_ the irradiance in W/m^2 per RGB channel (= colour * strength, Cycles).
 // The lamp's angle (soft shadows) is ignored: a sun of angle 0.
 struct SunLight {
@@ -89,16 +89,16 @@ struct TriangleMesh {
 };
 
 // Optional inhomogeneous part of the medium, a sum of Gaussians (Fogshop, Zhou et al.
-// 2007; rbf_medium.h): beta(x) = medium.sigma_t + sum_i c_i exp(-a_i^2 |x - b_i|^2), i.e.
+// 2007; gaussian_medium.h): beta(x) = medium.sigma_t + sum_i c_i exp(-a_i^2 |x - b_i|^2), i.e.
 // the homogeneous sigma_t acts as the background beta0. Centres _b_ in m (3 doubles per
 // Gaussian), scales _a_ in 1/m (> 0), amplitudes _c_ in 1/m (>= 0). The Gaussians
 // scatter with the medium's (isotropic) phase and with their own _albedo_ (3 per Gaussian,
 // RGB in [0, inf), e.g. the fog object's `airlight_color`) or, if that is empty, the
 // medium's albedo; the background beta0 always uses the medium's. Empty: homogeneous fog.
-// Noise (Fogshop section 5.5, rbf_splat.h): perturbs each Gaussian's optical depth along
+// Noise (Fogshop section 5.5, gaussian_splat.h): perturbs each Gaussian's optical depth along
 // the view rays with world-space gradient noise of cell size _noise_scale_ (m, > 0) and
 // strength _noise_amplitude_ (>= 0; 0 = off), looked up at point / scale + _noise_offset_.
-struct GaussianMedium {
+struct Gaussians {
     std::vector<double> centres;  // x, y, z per Gaussian
     std::vector<double> scales;
     std::vector<double> amplitudes;
@@ -112,12 +112,12 @@ struct GaussianMedium {
 struct SceneDescription {
     Camera camera;
     HomogeneousMedium medium;
-    GaussianMedium gaussians;
+    Gaussians gaussians;
     std::vector<PointLight> point_lights;
     TriangleMesh geometry;
     std::vector<SpotLight> spot_lights;  // airlight by quadrature (spot_light.h)
     // Sun lamps and the world height (Z) of the fog layer's top that bounds the fog they
-    // light: +inf is Hoffman & Preetham's unattenuated sun (sun_layer.h).
+    // light: +inf is Hoffman & Preetham's unattenuated sun (sunlight_layer.h).
     std::vector<SunLight> sun_lights;
     double fog_top = std::numeric_limits<double>::infinity();
 };

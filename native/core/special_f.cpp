@@ -37,6 +37,7 @@
 //   the last column for u < 1/nT) and is first order there, elsewhere second order.
 //   (The uniform 64 x 64 layout over u in [0, 10], v in [0, pi/2] had 9 %.)
 #include "core/special_f.h"
+#include "core/constants.h"
 
 #include <algorithm>
 #include <cmath>
@@ -79,7 +80,6 @@ double special_F_exact_tan(double u, double T) {
 }
 
 double special_F_exact(double u, double v) {
-    constexpr double kHalfPi = 1.57079632679489661923;
     if (std::isnan(v) || v < 0.0 || v > kHalfPi + 1e-12)
         throw std::invalid_argument("special_F: need v in [0, pi/2]");
     if (v >= kHalfPi) return special_F_exact_tan(u, INFINITY);
@@ -131,7 +131,6 @@ double SpecialFTable::eval_tan(double u, double T) const {
 }
 
 double SpecialFTable::eval(double u, double v) const {
-    constexpr double kHalfPi = 1.57079632679489661923;
     return eval_tan(u, v >= kHalfPi ? INFINITY : std::tan(v));
 }
 

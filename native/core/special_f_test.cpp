@@ -1,6 +1,7 @@
 // special_f_test.cpp: F(u, v) of Sun et al. 2005, exact evaluator and table.
 // References are external: mpmath values (30-digit quadrature, generated once with
 // python3-mpmath and pasted here), Si/Ci identities, derivatives, asymptotics.
+#include "core/constants.h"
 #include "core/special_f.h"
 
 #include <gtest/gtest.h>
@@ -16,7 +17,6 @@ namespace {
 
 constexpr double kInf = std::numeric_limits<double>::infinity();
 
-constexpr double kHalfPi = 1.57079632679489661923;
 
 struct FRef {
     double u, v, F;

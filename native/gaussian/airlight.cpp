@@ -1,4 +1,4 @@
-// rbf_airlight.cpp: Fogshop airlight (eq. 8-17) and its quadrature reference.
+// gaussian_airlight.cpp: Fogshop airlight (eq. 8-17) and its quadrature reference.
 //
 // Per view ray the Gaussians come from the medium's cull hierarchy (those whose line
 // integral on the view segment can exceed the medium's cull_eps); a skipped Gaussian
@@ -7,7 +7,7 @@
 // (sharing t* and h), and T_i(s, b_i^r) per light. f1 and C_sv are per (light, Gaussian)
 // and per light, computed once in the constructor with culled optical depths.
 //
-// Where the approximation fails (measured in rbf_airlight_test.cpp, not hidden):
+// Where the approximation fails (measured in gaussian_airlight_test.cpp, not hidden):
 // - a light close to a Gaussian: 1/d^2 varies fast across the Gaussian, so sampling it at
 //   b_i^r alone misses the halo's shape;
 // - light shafts through holes: L_0 attenuates the whole ray by the single factor C_sv of
@@ -47,7 +47,7 @@ void require_finite(const Vec3& p, const char* what) {
 
 }  // namespace
 
-RbfAirlightFogshop::RbfAirlightFogshop(const RbfMedium& medium, const Vec3& origin, const std::vector<Vec3>& lights,
+FogshopAirlight::FogshopAirlight(const GaussianMedium& medium, const Vec3& origin, const std::vector<Vec3>& lights,
                                        const SpecialFTable* table, int threads)
     : medium_(medium), table_(table), v_(origin), lights_(lights) {
     require_finite(origin, "viewpoint");
@@ -58,7 +58,7 @@ RbfAirlightFogshop::RbfAirlightFogshop(const RbfMedium& medium, const Vec3& orig
         const Vec3 d = v_ - s;
         const double D = glm::length(d);
         Dsv_.push_back(D);
-        Csv_.push_back(D > 0.0 ? std::exp(-medium.optical_depth_ray(s, d / D, D, RbfMedium::npos, false)) : 1.0);
+        Csv_.push_back(D > 0.0 ? std::exp(-medium.optical_depth_ray(s, d / D, D, GaussianMedium::npos, false)) : 1.0);
     }
     // f1 with Gaussian i's own terms removed: the medium without i (beta0 included) on
     // s -> b_i and v -> b_i, summed directly so that no T_i cancels against itself.
@@ -80,7 +80,7 @@ RbfAirlightFogshop::RbfAirlightFogshop(const RbfMedium& medium, const Vec3& orig
 }
 
 template <typename H, typename G>
-void RbfAirlightFogshop::eval_terms(const Vec3& r, double Dvp, H&& homogeneous, G&& gaussian) const {
+void FogshopAirlight::eval_terms(const Vec3& r, double Dvp, H&& homogeneous, G&& gaussian) const {
     const std::size_t L = lights_.size(), n = medium_.size();
     const double beta0 = medium_.beta0();
     // Homogeneous term L_0 (eq. 17).
@@ -120,13 +120,13 @@ void RbfAirlightFogshop::eval_terms(const Vec3& r, double Dvp, H&& homogeneous, 
     });
 }
 
-void RbfAirlightFogshop::eval(const Vec3& r, double Dvp, double* out) const {
+void FogshopAirlight::eval(const Vec3& r, double Dvp, double* out) const {
     eval_terms(
         r, Dvp, [&](std::size_t l, double v) { out[l] = v; },
         [&](std::size_t l, std::size_t, double v) { out[l] += v; });
 }
 
-RGB RbfAirlightFogshop::eval_rgb(const Vec3& r, double Dvp, const double* albedo, const RGB* I0,
+RGB FogshopAirlight::eval_rgb(const Vec3& r, double Dvp, const double* albedo, const RGB* I0,
                                  const RGB& medium_albedo) const {
     RGB out(0.0);
     eval_terms(
@@ -137,16 +137,16 @@ RGB RbfAirlightFogshop::eval_rgb(const Vec3& r, double Dvp, const double* albedo
     return out;
 }
 
-double rbf_airlight_quadrature(const RbfMedium& medium, const Vec3& s, const Vec3& v, const Vec3& r, double Dvp,
+double gaussian_airlight_quadrature(const GaussianMedium& medium, const Vec3& s, const Vec3& v, const Vec3& r, double Dvp,
                                double rel_tol) {
-    RbfRefLight light;
+    GaussianRefLight light;
     light.s = s;
-    return rbf_airlight_quadrature(medium, light, PhaseFunction{}, v, r, Dvp, rel_tol);
+    return gaussian_airlight_quadrature(medium, light, PhaseFunction{}, v, r, Dvp, rel_tol);
 }
 
-double rbf_airlight_quadrature(const RbfMedium& medium, const RbfRefLight& light, const PhaseFunction& phase,
+double gaussian_airlight_quadrature(const GaussianMedium& medium, const GaussianRefLight& light, const PhaseFunction& phase,
                                const Vec3& v, const Vec3& r, double Dvp, double rel_tol) {
-    const bool sun = light.kind == RbfRefLight::Kind::Sun, spot = light.kind == RbfRefLight::Kind::Spot;
+    const bool sun = light.kind == GaussianRefLight::Kind::Sun, spot = light.kind == GaussianRefLight::Kind::Spot;
     const bool isotropic = phase.kind == PhaseKind::Isotropic;
     const Vec3 s = sun ? v : light.s;  // (suns: only for the breakpoint layout below)
     const Vec3 u_sun = -light.w;        // towards the sun
@@ -259,8 +259,8 @@ double rbf_airlight_quadrature(const RbfMedium& medium, const RbfRefLight& light
     return sum;
 }
 
-void rbf_airlight(const RbfMedium& medium, const std::vector<Vec3>& lights, const Vec3& origin, const Vec3* dirs,
-                  const double* Dvp, std::size_t n, double* out, RbfAirlightModel model, const SpecialFTable* table,
+void gaussian_airlight(const GaussianMedium& medium, const std::vector<Vec3>& lights, const Vec3& origin, const Vec3* dirs,
+                  const double* Dvp, std::size_t n, double* out, GaussianAirlightModel model, const SpecialFTable* table,
                   int threads) {
     require_finite(origin, "viewpoint");
     for (const Vec3& s : lights) require_finite(s, "light position");
@@ -280,15 +280,15 @@ void rbf_airlight(const RbfMedium& medium, const std::vector<Vec3>& lights, cons
     }
     const std::size_t L = lights.size();
     if (L == 0 || n == 0) return;
-    if (model == RbfAirlightModel::Quadrature) {
+    if (model == GaussianAirlightModel::Quadrature) {
         parallel_chunks(n, threads, 4, [&](std::size_t b, std::size_t e) {
             for (std::size_t j = b; j < e; ++j)
                 for (std::size_t l = 0; l < L; ++l)
-                    out[j * L + l] = rbf_airlight_quadrature(medium, lights[l], origin, dirs[j], Dvp[j]);
+                    out[j * L + l] = gaussian_airlight_quadrature(medium, lights[l], origin, dirs[j], Dvp[j]);
         });
         return;
     }
-    RbfAirlightFogshop fogshop(medium, origin, lights, table, threads);
+    FogshopAirlight fogshop(medium, origin, lights, table, threads);
     parallel_chunks(n, threads, 512, [&](std::size_t b, std::size_t e) {
         for (std::size_t j = b; j < e; ++j) fogshop.eval(dirs[j], Dvp[j], out + j * L);
     });

@@ -1,11 +1,11 @@
-// rbf_airlight.h: airlight of point lights in a Gaussian (RBF) medium
+// gaussian_airlight.h: airlight of point lights in a Gaussian (RBF) medium
 // (Fogshop, Zhou et al. 2007, section 3), per unit I0 and albedo like sun05.h, plus
 // its exact reference by quadrature.
 //
 // View ray x(t) = v + t r, t in [0, Dvp] (Dvp may be inf), light at s, isotropic phase:
 //   La = int_0^Dvp beta(x) / (4 pi) / d(x)^2 exp(-T(s, x) - T(v, x)) dt      (eq. 2, 5)
 //      = sum_i L_i + L_0                                                       (eq. 8)
-// Fogshop approximation (rbf_airlight.cpp):
+// Fogshop approximation (gaussian_airlight.cpp):
 //   L_i ~ f0(b_i^r) f1(b_i) T_i(v, p)                                          (eq. 11)
 //   b_i^r = projection of b_i on the view ray, clamped to [v, p]               (eq. 10)
 //   f0 = 1/(4 pi) / |b_i^r - s|^2 exp(-T_i(s, b_i^r) - T_i(v, b_i^r) + T_i(s, b_i) + T_i(v, b_i))
@@ -28,18 +28,18 @@
 
 namespace airlight {
 
-enum class RbfAirlightModel {
+enum class GaussianAirlightModel {
     Fogshop,     // the paper's approximation (L_0 through the F table if one is given)
     Quadrature,  // adaptive quadrature of eq. 2 with exact optical depths (reference, slow)
 };
 
 // Fogshop airlight for one viewpoint and a set of point lights. Construction does the
 // per-(light, Gaussian) work of the paper's section 5.1 (f1, C_sv); eval() is per ray.
-class RbfAirlightFogshop {
+class FogshopAirlight {
   public:
     // _table_: F table for the homogeneous term (nullptr = exact F). The medium and the
     // table must outlive this object. Throws std::invalid_argument on non-finite points.
-    RbfAirlightFogshop(const RbfMedium& medium, const Vec3& origin, const std::vector<Vec3>& lights,
+    FogshopAirlight(const GaussianMedium& medium, const Vec3& origin, const std::vector<Vec3>& lights,
                        const SpecialFTable* table, int threads = 0);
 
     // Writes the airlight of light l to out[l], per unit I0 and albedo, for the view ray
@@ -56,7 +56,7 @@ class RbfAirlightFogshop {
     template <typename H, typename G>
     void eval_terms(const Vec3& r, double Dvp, H&& homogeneous, G&& gaussian) const;
 
-    const RbfMedium& medium_;
+    const GaussianMedium& medium_;
     const SpecialFTable* table_;
     Vec3 v_;
     std::vector<Vec3> lights_;
@@ -69,13 +69,13 @@ class RbfAirlightFogshop {
 // Reference: adaptive Gauss-Kronrod quadrature of eq. 2 (per unit I0 and albedo) with
 // exact, unculled optical depths, split at the Gaussians' projections on the ray and
 // around the light's closest approach. ~1e-8 relative.
-double rbf_airlight_quadrature(const RbfMedium& medium, const Vec3& light, const Vec3& origin, const Vec3& r,
+double gaussian_airlight_quadrature(const GaussianMedium& medium, const Vec3& light, const Vec3& origin, const Vec3& r,
                                double Dvp, double rel_tol = 1e-8);
 
 // A light of the generalised reference below: point, spot (Cycles profile, spot_light.h,
 // per unit on-axis I0) or sun (per unit irradiance E, propagation direction w; fog_top: the
-// homogeneous medium's layer top of sun_layer.h, +inf: none).
-struct RbfRefLight {
+// homogeneous medium's layer top of sunlight_layer.h, +inf: none).
+struct GaussianRefLight {
     enum class Kind { Point, Spot, Sun };
     Kind kind = Kind::Point;
     Vec3 s{0.0};
@@ -91,16 +91,16 @@ struct RbfRefLight {
 // depth from x towards the sun (to infinity) plus beta0 (fog_top - z) / mu_s below a finite
 // top (0 above it, or without a top: Hoffman-Preetham's unattenuated sun; infinite for mu_s
 // <= 0 in the layer), and beta_s = Gaussians + beta0 inside the layer only (all z without a
-// top): sun_layer.h's medium; the view side T(v, x) is beta0 t + Gaussians, as the bake's
+// top): sunlight_layer.h's medium; the view side T(v, x) is beta0 t + Gaussians, as the bake's
 // Gaussian path (camera inside the layer for the two to agree). Isotropic point lights: the
-// same as rbf_airlight_quadrature above.
-double rbf_airlight_quadrature(const RbfMedium& medium, const RbfRefLight& light, const PhaseFunction& phase,
+// same as gaussian_airlight_quadrature above.
+double gaussian_airlight_quadrature(const GaussianMedium& medium, const GaussianRefLight& light, const PhaseFunction& phase,
                                const Vec3& origin, const Vec3& r, double Dvp, double rel_tol = 1e-8);
 
 // Batch over rays: out[j * L + l] for ray j (unit dirs[j], Dvp[j] > 0 or inf) and light l.
 // Validates all inputs first (std::invalid_argument), then runs on _threads_ threads.
-void rbf_airlight(const RbfMedium& medium, const std::vector<Vec3>& lights, const Vec3& origin,
-                  const Vec3* dirs, const double* Dvp, std::size_t n, double* out, RbfAirlightModel model,
+void gaussian_airlight(const GaussianMedium& medium, const std::vector<Vec3>& lights, const Vec3& origin,
+                  const Vec3* dirs, const double* Dvp, std::size_t n, double* out, GaussianAirlightModel model,
                   const SpecialFTable* table, int threads = 0);
 
 }  // namespace airlight

@@ -1,6 +1,7 @@
-// rbf_airlight_test.cpp: Fogshop airlight against the quadrature reference and analytic
+// gaussian_airlight_test.cpp: Fogshop airlight against the quadrature reference and analytic
 // limits, and the measured error of the approximation on smooth fog and on the paper's
 // failure cases (a light next to a Gaussian, a light shaft through a hole).
+#include "core/constants.h"
 #include "gaussian/airlight.h"
 
 #include <gtest/gtest.h>
@@ -18,7 +19,6 @@
 namespace airlight {
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
 
 struct ErrorStats {
     double mean = 0.0, p99 = 0.0, max = 0.0;
@@ -48,12 +48,12 @@ std::vector<Vec3> image_rays(int w, int h, double half_angle) {
 }
 
 // Relative errors of the approximation against the reference on a ray set.
-ErrorStats compare(const RbfMedium& m, const Vec3& light, const Vec3& v, const std::vector<Vec3>& dirs,
+ErrorStats compare(const GaussianMedium& m, const Vec3& light, const Vec3& v, const std::vector<Vec3>& dirs,
                    const std::vector<double>& Dvp, const char* label) {
     const std::size_t n = dirs.size();
     std::vector<double> fog(n), ref(n), err;
-    rbf_airlight(m, {light}, v, dirs.data(), Dvp.data(), n, fog.data(), RbfAirlightModel::Fogshop, nullptr, 2);
-    rbf_airlight(m, {light}, v, dirs.data(), Dvp.data(), n, ref.data(), RbfAirlightModel::Quadrature, nullptr, 2);
+    gaussian_airlight(m, {light}, v, dirs.data(), Dvp.data(), n, fog.data(), GaussianAirlightModel::Fogshop, nullptr, 2);
+    gaussian_airlight(m, {light}, v, dirs.data(), Dvp.data(), n, ref.data(), GaussianAirlightModel::Quadrature, nullptr, 2);
     double ref_max = 0.0;
     for (double r : ref) ref_max = std::max(ref_max, r);
     for (std::size_t j = 0; j < n; ++j) {
@@ -63,63 +63,63 @@ ErrorStats compare(const RbfMedium& m, const Vec3& light, const Vec3& v, const s
         if (ref[j] > 1e-6 * ref_max) err.push_back(std::abs(fog[j] - ref[j]) / ref[j]);
     }
     const ErrorStats s = stats(err);
-    std::printf("[ rbf ] fogshop vs quadrature, %s: %zu rays, relative error mean %.4f p99 %.4f max %.4f\n", label,
+    std::printf("[ gaussians ] fogshop vs quadrature, %s: %zu rays, relative error mean %.4f p99 %.4f max %.4f\n", label,
                 err.size(), s.mean, s.p99, s.max);
     return s;
 }
 
 // The reference reproduces Sun 2005 on a homogeneous medium (validates the quadrature).
-TEST(RbfAirlight, QuadratureMatchesSun05OnHomogeneous) {
-    const RbfMedium m({}, {}, {}, 0.05);
+TEST(GaussianAirlight, QuadratureMatchesSun05OnHomogeneous) {
+    const GaussianMedium m({}, {}, {}, 0.05);
     const Vec3 v(0.0), s(3.0, 4.0, 2.0);
     for (Vec3 r : {Vec3(1, 0, 0), Vec3(0, 1, 0), Vec3(-1, -1, 0), Vec3(3, 4, 2.1)}) {
         r = glm::normalize(r);
         for (double Dvp : {0.5, 7.0, 100.0, double(INFINITY)}) {
             const double cg = glm::dot(r, s - v) / glm::length(s - v);
             const double ref = sun05_airlight(0.05, glm::length(s - v), cg, Dvp, nullptr, FEval::Exact);
-            EXPECT_NEAR(rbf_airlight_quadrature(m, s, v, r, Dvp) / ref, 1.0, 1e-7);
+            EXPECT_NEAR(gaussian_airlight_quadrature(m, s, v, r, Dvp) / ref, 1.0, 1e-7);
         }
     }
 }
 
 // The reference on a faint Gaussian far from the light: La -> T_i(v, p) / (4 pi D^2).
-TEST(RbfAirlight, QuadratureThinLimit) {
+TEST(GaussianAirlight, QuadratureThinLimit) {
     const double a = 0.8, c = 1e-7, D = 1e5;
-    const RbfMedium m({0, 0, 5}, {a}, {c}, 0.0);
+    const GaussianMedium m({0, 0, 5}, {a}, {c}, 0.0);
     const Vec3 v(0, 0, 0), s(D, 0, 5), r(0, 0, 1);
     const double expect = c * std::sqrt(kPi) / a / (4.0 * kPi * D * D);
-    EXPECT_NEAR(rbf_airlight_quadrature(m, s, v, r, INFINITY) / expect, 1.0, 1e-6);
+    EXPECT_NEAR(gaussian_airlight_quadrature(m, s, v, r, INFINITY) / expect, 1.0, 1e-6);
 }
 
-// The generalised reference (RbfRefLight, any phase) on a homogeneous medium against the
+// The generalised reference (GaussianRefLight, any phase) on a homogeneous medium against the
 // homogeneous models' own references: HG point light (phase_airlight_quadrature), spot
-// (spot_airlight_quadrature), sun with and without a fog top (sun_layer_factor, closed form).
-TEST(RbfAirlight, GeneralQuadratureHomogeneousLimits) {
+// (spot_airlight_quadrature), sun with and without a fog top (sunlight_layer_factor, closed form).
+TEST(GaussianAirlight, GeneralQuadratureHomogeneousLimits) {
     const double beta0 = 0.05;
-    const RbfMedium m({}, {}, {}, beta0);
+    const GaussianMedium m({}, {}, {}, beta0);
     const Vec3 v(0.5, -0.2, 1.0), s(3.0, 4.0, 2.0);
     const PhaseFunction hg{PhaseKind::HenyeyGreenstein, 0.6};
-    RbfRefLight sun;
-    sun.kind = RbfRefLight::Kind::Sun;
+    GaussianRefLight sun;
+    sun.kind = GaussianRefLight::Kind::Sun;
     sun.w = glm::normalize(Vec3(0.3, -0.4, -0.8));
-    RbfRefLight spot{RbfRefLight::Kind::Spot, s, make_spot_cone(Vec3(-0.3, -0.8, -0.2), 1.0, 0.3)};
+    GaussianRefLight spot{GaussianRefLight::Kind::Spot, s, make_spot_cone(Vec3(-0.3, -0.8, -0.2), 1.0, 0.3)};
     int lit = 0;  // rays the spot lights
     for (Vec3 r : {Vec3(1, 0, 0), Vec3(0, 1, 0), Vec3(-1, -1, 0), Vec3(3, 4, 0.5), Vec3(0.2, 0.1, -1)}) {
         r = glm::normalize(r);
         for (double Dvp : {0.5, 7.0, 100.0, double(INFINITY)}) {
             const double Dsv = glm::length(s - v), cg = glm::dot(r, s - v) / Dsv;
             const double point_ref = phase_airlight_quadrature(hg, beta0, Dsv, cg, Dvp, 1e-10);
-            RbfRefLight point{RbfRefLight::Kind::Point, s};
-            EXPECT_NEAR(rbf_airlight_quadrature(m, point, hg, v, r, Dvp) / point_ref, 1.0, 1e-6);
+            GaussianRefLight point{GaussianRefLight::Kind::Point, s};
+            EXPECT_NEAR(gaussian_airlight_quadrature(m, point, hg, v, r, Dvp) / point_ref, 1.0, 1e-6);
             const double spot_ref = spot_airlight_quadrature(spot.cone, s, hg, beta0, v, r, Dvp, 1e-10);
-            const double spot_q = rbf_airlight_quadrature(m, spot, hg, v, r, Dvp);
+            const double spot_q = gaussian_airlight_quadrature(m, spot, hg, v, r, Dvp);
             EXPECT_NEAR(spot_q, spot_ref, 1e-6 * spot_ref + 1e-15);
             lit += spot_ref > 0.0;
             for (double top : {double(INFINITY), 4.0}) {
                 sun.fog_top = top;
                 const double sun_ref = beta0 * hg.eval(-glm::dot(sun.w, r)) *
-                                       sun_layer_factor(beta0, top, -sun.w.z, v.z, r.z, 0.0, Dvp);
-                EXPECT_NEAR(rbf_airlight_quadrature(m, sun, hg, v, r, Dvp) / sun_ref, 1.0, 1e-6)
+                                       sunlight_layer_factor(beta0, top, -sun.w.z, v.z, r.z, 0.0, Dvp);
+                EXPECT_NEAR(gaussian_airlight_quadrature(m, sun, hg, v, r, Dvp) / sun_ref, 1.0, 1e-6)
                     << "top " << top << " Dvp " << Dvp;
             }
         }
@@ -128,8 +128,8 @@ TEST(RbfAirlight, GeneralQuadratureHomogeneousLimits) {
 }
 
 // No Gaussians: the Fogshop model is exactly Sun 2005 with beta0 (table and exact F).
-TEST(RbfAirlight, EmptyMediumIsSun05) {
-    const RbfMedium m({}, {}, {}, 0.03);
+TEST(GaussianAirlight, EmptyMediumIsSun05) {
+    const GaussianMedium m({}, {}, {}, 0.03);
     const SpecialFTable table(256, 256);
     const Vec3 v(1, 2, 3);
     const std::vector<Vec3> lights{{4, 2, 7}, {-3, 5, 0}};
@@ -138,7 +138,7 @@ TEST(RbfAirlight, EmptyMediumIsSun05) {
     for (std::size_t j = 0; j < dirs.size(); ++j) Dvp.push_back(j % 5 == 0 ? INFINITY : 1.0 + j * 0.3);
     for (const SpecialFTable* t : {static_cast<const SpecialFTable*>(nullptr), &table}) {
         std::vector<double> out(dirs.size() * lights.size());
-        rbf_airlight(m, lights, v, dirs.data(), Dvp.data(), dirs.size(), out.data(), RbfAirlightModel::Fogshop, t, 2);
+        gaussian_airlight(m, lights, v, dirs.data(), Dvp.data(), dirs.size(), out.data(), GaussianAirlightModel::Fogshop, t, 2);
         for (std::size_t j = 0; j < dirs.size(); ++j)
             for (std::size_t l = 0; l < lights.size(); ++l) {
                 const Vec3 sv = lights[l] - v;
@@ -151,9 +151,9 @@ TEST(RbfAirlight, EmptyMediumIsSun05) {
 }
 
 // One Gaussian, light well outside it: the approximation is close to the reference.
-TEST(RbfAirlight, SingleGaussianMatchesQuadrature) {
+TEST(GaussianAirlight, SingleGaussianMatchesQuadrature) {
     // T through the centre c sqrt(pi) / a = 0.18.
-    const RbfMedium m({0, 0, 10}, {0.5}, {0.05}, 0.0);
+    const GaussianMedium m({0, 0, 10}, {0.5}, {0.05}, 0.0);
     const Vec3 v(0.0), light(0, 12, 10);
     const std::vector<Vec3> dirs = image_rays(16, 16, 0.35);
     const std::vector<double> Dvp(dirs.size(), INFINITY);
@@ -176,37 +176,37 @@ ErrorStats smooth_fog(double amplitude_scale, const char* label) {
         a.push_back(0.15 + 0.15 * U(rng));
         c.push_back(amplitude_scale * (0.02 + 0.04 * U(rng)));
     }
-    const RbfMedium m(b, a, c, 0.01);
+    const GaussianMedium m(b, a, c, 0.01);
     const Vec3 v(0.0), light(4.0, 40.0, 30.0);
     const std::vector<Vec3> dirs = image_rays(16, 12, 0.45);
     std::vector<double> Dvp;
     for (std::size_t j = 0; j < dirs.size(); ++j) Dvp.push_back(j % 3 == 0 ? 40.0 : INFINITY);
     double T = 0.0;
     for (const Vec3& d : dirs) T = std::max(T, m.optical_depth_ray(v, d, 60.0) - 0.6);
-    std::printf("[ rbf ] %s: max optical depth of the Gaussians along a ray %.2f\n", label, T);
+    std::printf("[ gaussians ] %s: max optical depth of the Gaussians along a ray %.2f\n", label, T);
     return compare(m, light, v, dirs, Dvp, label);
 }
 
-TEST(RbfAirlight, SmoothFogErrorThin) {
+TEST(GaussianAirlight, SmoothFogErrorThin) {
     const ErrorStats s = smooth_fog(0.01, "smooth fog, thin (c 2e-4..6e-4 /m)");
     EXPECT_LT(s.mean, 0.01);
     EXPECT_LT(s.p99, 0.03);
 }
 
-TEST(RbfAirlight, SmoothFogErrorModerate) {
+TEST(GaussianAirlight, SmoothFogErrorModerate) {
     const ErrorStats s = smooth_fog(0.25, "smooth fog, moderate (c 0.005..0.015 /m)");
     EXPECT_LT(s.mean, 0.20);
     EXPECT_LT(s.p99, 0.50);
 }
 
-TEST(RbfAirlight, SmoothFogErrorThickReported) {
+TEST(GaussianAirlight, SmoothFogErrorThickReported) {
     const ErrorStats s = smooth_fog(1.0, "smooth fog, thick (c 0.02..0.06 /m), reported only");
     EXPECT_TRUE(std::isfinite(s.max));
 }
 
 // Failure case 1: a light 0.5 widths from a Gaussian's centre (halo). Reported, not bounded.
-TEST(RbfAirlight, FailureHaloNearLight) {
-    const RbfMedium m({0, 0, 10}, {1.0}, {0.5}, 0.0);
+TEST(GaussianAirlight, FailureHaloNearLight) {
+    const GaussianMedium m({0, 0, 10}, {1.0}, {0.5}, 0.0);
     const Vec3 v(0.0), light(0.5, 0.0, 10.0);
     const std::vector<Vec3> dirs = image_rays(16, 16, 0.3);
     const std::vector<double> Dvp(dirs.size(), INFINITY);
@@ -217,7 +217,7 @@ TEST(RbfAirlight, FailureHaloNearLight) {
 // Failure case 2 (paper Fig. 7): a dense wall of Gaussians with a hole between the light
 // and a thin background fog; the shaft through the hole lights only part of each ray, but
 // L_0 attenuates a whole ray by the one factor C_sv of the segment s -> v.
-TEST(RbfAirlight, FailureShaftThroughHole) {
+TEST(GaussianAirlight, FailureShaftThroughHole) {
     std::vector<double> b, a, c;
     const double spacing = 0.75;  // the paint brush's default spacing 0.75 / a, a = 1
     for (double x = -8.0; x <= 8.0; x += spacing)
@@ -227,7 +227,7 @@ TEST(RbfAirlight, FailureShaftThroughHole) {
             a.push_back(1.0);
             c.push_back(2.0);
         }
-    const RbfMedium m(b, a, c, 0.05);
+    const GaussianMedium m(b, a, c, 0.05);
     const Vec3 light(0.0, 0.0, 12.0);  // in front of the wall; shaft behind it, along +z
     const Vec3 v(-10.0, 0.0, 24.0);    // beside the shaft, behind the wall
     std::vector<Vec3> dirs;
@@ -240,18 +240,18 @@ TEST(RbfAirlight, FailureShaftThroughHole) {
     EXPECT_TRUE(std::isfinite(s.max));
 }
 
-TEST(RbfAirlight, RejectsBadInput) {
-    const RbfMedium m({0, 0, 1}, {1.0}, {1.0}, 0.0);
+TEST(GaussianAirlight, RejectsBadInput) {
+    const GaussianMedium m({0, 0, 1}, {1.0}, {1.0}, 0.0);
     const Vec3 d(0, 0, 1), bad_d(0, 0, 2);
     double Dvp = 1.0, bad_Dvp = -1.0, nan = NAN, out[1];
     const std::vector<Vec3> lights{{1, 1, 1}};
-    EXPECT_THROW(rbf_airlight(m, lights, Vec3(0), &bad_d, &Dvp, 1, out, RbfAirlightModel::Fogshop, nullptr),
+    EXPECT_THROW(gaussian_airlight(m, lights, Vec3(0), &bad_d, &Dvp, 1, out, GaussianAirlightModel::Fogshop, nullptr),
                  std::invalid_argument);
-    EXPECT_THROW(rbf_airlight(m, lights, Vec3(0), &d, &bad_Dvp, 1, out, RbfAirlightModel::Fogshop, nullptr),
+    EXPECT_THROW(gaussian_airlight(m, lights, Vec3(0), &d, &bad_Dvp, 1, out, GaussianAirlightModel::Fogshop, nullptr),
                  std::invalid_argument);
-    EXPECT_THROW(rbf_airlight(m, lights, Vec3(0), &d, &nan, 1, out, RbfAirlightModel::Fogshop, nullptr),
+    EXPECT_THROW(gaussian_airlight(m, lights, Vec3(0), &d, &nan, 1, out, GaussianAirlightModel::Fogshop, nullptr),
                  std::invalid_argument);
-    EXPECT_THROW(rbf_airlight(m, {Vec3(NAN)}, Vec3(0), &d, &Dvp, 1, out, RbfAirlightModel::Fogshop, nullptr),
+    EXPECT_THROW(gaussian_airlight(m, {Vec3(NAN)}, Vec3(0), &d, &Dvp, 1, out, GaussianAirlightModel::Fogshop, nullptr),
                  std::invalid_argument);
 }
 

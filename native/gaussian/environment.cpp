@@ -1,5 +1,5 @@
-// rbf_environment.cpp: Fogshop's average optical depth (section 4.2) and the per-point
-// environment irradiance; the derivations are in rbf_environment.h.
+// gaussian_environment.cpp: Fogshop's average optical depth (section 4.2) and the per-point
+// environment irradiance; the derivations are in gaussian_environment.h.
 #include "gaussian/environment.h"
 
 #include <algorithm>
@@ -20,7 +20,7 @@ inline void require(bool ok, const char* msg) {  // (no std::string unless it th
     if (!ok) throw std::invalid_argument(msg);
 }
 
-// Far-field constants (rbf_environment.h): the expansion is used only where every u_i >= kUFar,
+// Far-field constants (gaussian_environment.h): the expansion is used only where every u_i >= kUFar,
 // where |rho(u)| <= kRhoBound / u^4.
 constexpr double kUFar = 3.0;
 constexpr double kRhoBound = 1.2;
@@ -268,7 +268,7 @@ double average_depth_unit_fast(double u) {
 }
 
 // ---------------------------------------------------------------------------------------------
-// RbfAverageDepth
+// GaussianAverageDepth
 
 namespace {
 constexpr std::uint32_t kLeaf = 8;
@@ -288,7 +288,7 @@ inline std::uint64_t spread_bits(std::uint64_t v) {  // 21 bits -> every third b
 }
 }  // namespace
 
-RbfAverageDepth::RbfAverageDepth(const RbfMedium& medium, double distance) {
+GaussianAverageDepth::GaussianAverageDepth(const GaussianMedium& medium, double distance) {
     require(std::isfinite(distance) && distance >= 0.0, "average depth: the environment distance must be finite and >= 0");
     const std::size_t n = medium.size();
     require(n < (std::size_t(1) << 31), "average depth: too many Gaussians");
@@ -310,7 +310,7 @@ RbfAverageDepth::RbfAverageDepth(const RbfMedium& medium, double distance) {
     }
 }
 
-std::uint32_t RbfAverageDepth::build(std::uint32_t begin, std::uint32_t end) {
+std::uint32_t GaussianAverageDepth::build(std::uint32_t begin, std::uint32_t end) {
     const std::uint32_t ni = std::uint32_t(nodes_.size());
     nodes_.emplace_back();
     Node node;
@@ -364,7 +364,7 @@ std::uint32_t RbfAverageDepth::build(std::uint32_t begin, std::uint32_t end) {
     return ni;
 }
 
-struct RbfAverageDepth::Scratch {  // (per thread)
+struct GaussianAverageDepth::Scratch {  // (per thread)
     std::vector<std::uint32_t> far, near;          // the block's accepted nodes and near Gaussians
     std::vector<std::uint32_t> far_m, near_m;      // what a middle level of the block has left of them
     std::vector<std::uint32_t> far_g, near_g;      // what a group of the block has left of them
@@ -386,7 +386,7 @@ void bounding_sphere(const Vec3* p, const std::uint32_t* idx, std::size_t m, Vec
 }
 }  // namespace
 
-void RbfAverageDepth::evaluate_block(const Vec3* p, const std::uint32_t* idx, std::size_t m, double* out, double tol,
+void GaussianAverageDepth::evaluate_block(const Vec3* p, const std::uint32_t* idx, std::size_t m, double* out, double tol,
                                      Scratch& scratch, AverageDepthStats& stats) const {
     const double* table = phi_table().v.data();
     std::vector<std::uint32_t>& far = scratch.far;
@@ -472,7 +472,7 @@ void RbfAverageDepth::evaluate_block(const Vec3* p, const std::uint32_t* idx, st
     // Linear models. Terms go into a linear model V + G . (p - C) over a sphere (C, rho) (value
     // and gradient at C), smaller linearisation errors first, while the errors fit _left_:
     //  - an accepted node's expansion E: |E(p) - E(C) - grad E(C) . (p - C)| <= H rho^2 / 2 with
-    //    H >= the norm of E's Hessian on the ball |p - C| <= rho (rbf_environment.h);
+    //    H >= the norm of E's Hessian on the ball |p - C| <= rho (gaussian_environment.h);
     //  - a near Gaussian: |Tbar_i(p) - Tbar_i(C) - grad . (p - C)| <= c a K(u_min) rho^2 / 2.
     // Taken entries of _fl_ / _nl_ are removed; returns the errors spent.
     const bool linearise = tol > 0.0 && LB > 0.0 && !nodes_.empty();
@@ -654,7 +654,7 @@ void RbfAverageDepth::evaluate_block(const Vec3* p, const std::uint32_t* idx, st
     stats.points += m;
 }
 
-AverageDepthStats RbfAverageDepth::evaluate(const Vec3* p, std::size_t n, double* out, double tol, int threads) const {
+AverageDepthStats GaussianAverageDepth::evaluate(const Vec3* p, std::size_t n, double* out, double tol, int threads) const {
     require(std::isfinite(tol) && tol >= 0.0, "average depth: the tolerance must be finite and >= 0");
     Vec3 lo(INFINITY), hi(-INFINITY);
     for (std::size_t k = 0; k < n; ++k) {
@@ -699,7 +699,7 @@ AverageDepthStats RbfAverageDepth::evaluate(const Vec3* p, std::size_t n, double
     return total;
 }
 
-void RbfAverageDepth::evaluate_brute(const Vec3* p, std::size_t n, double* out, int threads) const {
+void GaussianAverageDepth::evaluate_brute(const Vec3* p, std::size_t n, double* out, int threads) const {
     for (std::size_t k = 0; k < n; ++k)
         require(std::isfinite(p[k].x) && std::isfinite(p[k].y) && std::isfinite(p[k].z),
                 "average depth: the points must be finite");

@@ -1,6 +1,7 @@
-// rbf_environment_test.cpp: Fogshop's average optical depth (section 4.2) against quadrature
+// gaussian_environment_test.cpp: Fogshop's average optical depth (section 4.2) against quadrature
 // of its definition, the Barnes-Hut far field against the brute-force sum and its stated
 // bound, and the per-point environment irradiance against the homogeneous one.
+#include "core/constants.h"
 #include "gaussian/environment.h"
 
 #include <gtest/gtest.h>
@@ -14,10 +15,9 @@
 namespace airlight {
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
 constexpr double kSqrtPi = 1.77245385090551602729;
 
-TEST(RbfEnvironment, DawsonAgainstMpmath) {
+TEST(GaussianEnvironment, DawsonAgainstMpmath) {
     // sqrt(pi)/2 e^{-x^2} erfi(x) with mpmath at 30 digits.
     const double x[] = {0.1, 0.5, 1.0, 2.0, 5.0, 10.0, 40.0};
     const double F[] = {0.099335992397852866508, 0.42443638350202229593, 0.53807950691276841914,
@@ -42,7 +42,7 @@ double average_depth_by_quadrature(double u) {
                      -1.0, 1.0, 1e-11);
 }
 
-TEST(RbfEnvironment, UnitAverageDepthAgainstQuadratureAndLimits) {
+TEST(GaussianEnvironment, UnitAverageDepthAgainstQuadratureAndLimits) {
     for (double u : {0.0, 0.05, 0.3, 1.0, 2.0, 4.0, 7.9, 8.1, 15.0}) {
         const double ref = average_depth_by_quadrature(u);
         EXPECT_NEAR(average_depth_unit(u) / ref, 1.0, 1e-9) << u;
@@ -54,7 +54,7 @@ TEST(RbfEnvironment, UnitAverageDepthAgainstQuadratureAndLimits) {
     EXPECT_THROW(average_depth_unit(-1.0), std::invalid_argument);
 }
 
-TEST(RbfEnvironment, FastTableError) {
+TEST(GaussianEnvironment, FastTableError) {
     // Dense scan (incl. between the table's nodes and across the switch at u = 32).
     double worst = 0.0;
     for (int k = 0; k <= 200000; ++k) {
@@ -64,7 +64,7 @@ TEST(RbfEnvironment, FastTableError) {
     EXPECT_LT(worst, 2e-10);
 }
 
-RbfMedium random_cloud(std::mt19937& rng, int n, double beta0, int blobs, double spread) {
+GaussianMedium random_cloud(std::mt19937& rng, int n, double beta0, int blobs, double spread) {
     std::uniform_real_distribution<double> U(-1.0, 1.0), A(0.7, 3.0), C(0.0, 0.8);
     std::vector<Vec3> blob(static_cast<std::size_t>(blobs));
     for (Vec3& b : blob) b = Vec3(U(rng), U(rng), U(rng)) * spread;
@@ -75,15 +75,15 @@ RbfMedium random_cloud(std::mt19937& rng, int n, double beta0, int blobs, double
         scales.push_back(A(rng));
         amps.push_back(i % 13 == 0 ? 0.0 : C(rng));
     }
-    return RbfMedium(centres, scales, amps, beta0);
+    return GaussianMedium(centres, scales, amps, beta0);
 }
 
-TEST(RbfEnvironment, AverageDepthAgainstDirectionalQuadrature) {
+TEST(GaussianEnvironment, AverageDepthAgainstDirectionalQuadrature) {
     // (1/4pi) int_S int_0^D beta(p + t w) dt dw with the exact erf line integrals on a
     // Gauss-Legendre (mu) x trapezoid (phi) grid: independent of Dawson's function.
-    const RbfMedium m({0.0, 0.0, 0.0, 1.5, 0.3, -0.2, -0.4, 1.0, 0.7}, {1.0, 2.0, 0.6}, {0.8, 1.5, 0.3}, 0.02);
+    const GaussianMedium m({0.0, 0.0, 0.0, 1.5, 0.3, -0.2, -0.4, 1.0, 0.7}, {1.0, 2.0, 0.6}, {0.8, 1.5, 0.3}, 0.02);
     const double D = 1e4;
-    const RbfAverageDepth avg(m, D);
+    const GaussianAverageDepth avg(m, D);
     std::vector<double> x, w;
     gauss_legendre(96, x, w);
     for (const Vec3& p : {Vec3(0.0), Vec3(0.3, -0.5, 0.2), Vec3(4.0, 1.0, -2.0), Vec3(1.5, 0.3, -0.1)}) {
@@ -106,11 +106,11 @@ TEST(RbfEnvironment, AverageDepthAgainstDirectionalQuadrature) {
     }
 }
 
-TEST(RbfEnvironment, FarFieldWithinItsBound) {
+TEST(GaussianEnvironment, FarFieldWithinItsBound) {
     std::mt19937 rng(7);
     for (double beta0 : {0.0, 0.01}) {
-        const RbfMedium m = random_cloud(rng, 3000, beta0, 12, 25.0);
-        const RbfAverageDepth avg(m, 50.0);
+        const GaussianMedium m = random_cloud(rng, 3000, beta0, 12, 25.0);
+        const GaussianAverageDepth avg(m, 50.0);
         std::uniform_real_distribution<double> U(-1.0, 1.0);
         std::vector<Vec3> p(4000);
         for (std::size_t k = 0; k < p.size(); ++k) {
@@ -134,13 +134,13 @@ TEST(RbfEnvironment, FarFieldWithinItsBound) {
     }
 }
 
-TEST(RbfEnvironment, LinearNearFieldWithinItsBound) {
+TEST(GaussianEnvironment, LinearNearFieldWithinItsBound) {
     // Dense points on two planes through a cloud (as a rendered surface gives them): groups are
     // small, so near Gaussians go through the per-group linear model; the total error stays
     // within tol Tbar.
     std::mt19937 rng(11);
-    const RbfMedium m = random_cloud(rng, 800, 0.0, 6, 8.0);
-    const RbfAverageDepth avg(m, 50.0);
+    const GaussianMedium m = random_cloud(rng, 800, 0.0, 6, 8.0);
+    const GaussianAverageDepth avg(m, 50.0);
     std::vector<Vec3> p;
     for (int j = 0; j < 100; ++j)
         for (int i = 0; i < 100; ++i) {
@@ -158,7 +158,7 @@ TEST(RbfEnvironment, LinearNearFieldWithinItsBound) {
     }
 }
 
-TEST(RbfEnvironment, LinearisedFarFieldWithinItsBound) {
+TEST(GaussianEnvironment, LinearisedFarFieldWithinItsBound) {
     // A compact cloud seen from dense patches in a plane through it (displacements along the
     // line of sight, where the Hessian of 1/r^2 is largest: 6 / r^4): far nodes go through the
     // blocks' and groups' linear models only where the Taylor remainder H rho^2 / 2 of their
@@ -172,8 +172,8 @@ TEST(RbfEnvironment, LinearisedFarFieldWithinItsBound) {
         scales.push_back(A(rng));
         amps.push_back(Cc(rng));
     }
-    const RbfMedium m(centres, scales, amps, 0.0);
-    const RbfAverageDepth avg(m, 50.0);
+    const GaussianMedium m(centres, scales, amps, 0.0);
+    const GaussianAverageDepth avg(m, 50.0);
     std::vector<Vec3> p;
     for (double D : {9.0, 14.0, 22.0})
         for (double spacing : {0.01, 0.06, 0.25})
@@ -192,11 +192,11 @@ TEST(RbfEnvironment, LinearisedFarFieldWithinItsBound) {
     }
 }
 
-TEST(RbfEnvironment, BadInput) {
-    const RbfMedium m({0.0, 0.0, 0.0}, {1.0}, {1.0}, 0.0);
-    EXPECT_THROW(RbfAverageDepth(m, -1.0), std::invalid_argument);
-    EXPECT_THROW(RbfAverageDepth(m, INFINITY), std::invalid_argument);
-    const RbfAverageDepth avg(m, 10.0);
+TEST(GaussianEnvironment, BadInput) {
+    const GaussianMedium m({0.0, 0.0, 0.0}, {1.0}, {1.0}, 0.0);
+    EXPECT_THROW(GaussianAverageDepth(m, -1.0), std::invalid_argument);
+    EXPECT_THROW(GaussianAverageDepth(m, INFINITY), std::invalid_argument);
+    const GaussianAverageDepth avg(m, 10.0);
     const Vec3 bad(NAN, 0.0, 0.0);
     double out = 0.0;
     EXPECT_THROW(avg.evaluate(&bad, 1, &out, 1e-3), std::invalid_argument);
@@ -204,12 +204,12 @@ TEST(RbfEnvironment, BadInput) {
     EXPECT_THROW(avg.evaluate(&good, 1, &out, -1.0), std::invalid_argument);
     EXPECT_THROW(psf_band_eigenvalues(NAN), std::invalid_argument);
     // No Gaussians: beta0 D only.
-    const RbfAverageDepth empty(RbfMedium({}, {}, {}, 0.05), 40.0);
+    const GaussianAverageDepth empty(GaussianMedium({}, {}, {}, 0.05), 40.0);
     empty.evaluate(&good, 1, &out, 1e-3);
     EXPECT_DOUBLE_EQ(out, 2.0);
 }
 
-TEST(RbfEnvironment, PsfBandTableAgainstExactEigenvalues) {
+TEST(GaussianEnvironment, PsfBandTableAgainstExactEigenvalues) {
     double worst_rel = 0.0, worst_ratio = 0.0;
     for (double T : {1e-4, 3e-3, 0.02, 0.1, 0.37, 1.0, 2.2, 5.5, 13.0, 41.0, 120.0}) {
         const std::vector<double> ref = psf_eigenvalues(T, 2, PsfKind::Exact);
@@ -226,7 +226,7 @@ TEST(RbfEnvironment, PsfBandTableAgainstExactEigenvalues) {
     EXPECT_TRUE(std::isfinite(psf_band_eigenvalues(1e6)[0]));
 }
 
-TEST(RbfEnvironment, VaryingIrradianceEqualsHomogeneousAtUniformDepth) {
+TEST(GaussianEnvironment, VaryingIrradianceEqualsHomogeneousAtUniformDepth) {
     // A World with a bright spot: per-point irradiance at a uniform T equals the homogeneous
     // environment_irradiance() with the exact eigenvalues of that T.
     EnvironmentMap world;

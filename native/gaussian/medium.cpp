@@ -1,7 +1,7 @@
-// rbf_medium.cpp: the Gaussian store, its cull-sphere hierarchy and exact optical depth.
+// gaussian_medium.cpp: the Gaussian store, its cull-sphere hierarchy and exact optical depth.
 //
 // Numerics of eq. 31 (tested against mpmath in tests/native/test08_rbf.py and against
-// quadrature of the density in rbf_medium_test.cpp):
+// quadrature of the density in gaussian_medium_test.cpp):
 // - erf(x2) - erf(x1) loses every digit once both arguments are beyond ~6 with one sign
 //   (erf rounds to +-1); there it is erfc(x1) - erfc(x2) (or the mirror for negatives),
 //   which keeps full relative accuracy down to the underflow of erfc (~1e-308 at x ~ 26.5).
@@ -65,7 +65,7 @@ double gaussian_line_integral(double c, double a, const Vec3& b, const Vec3& o, 
     return c * kSqrtPi / (2.0 * a) * std::exp(-a * a * h2) * erf_diff(x1, x2);
 }
 
-RbfMedium::RbfMedium(std::vector<double> centres, std::vector<double> scales, std::vector<double> amplitudes,
+GaussianMedium::GaussianMedium(std::vector<double> centres, std::vector<double> scales, std::vector<double> amplitudes,
                      double beta0, double cull_eps)
     : a_(std::move(scales)), c_(std::move(amplitudes)), beta0_(beta0), eps_(cull_eps) {
     const std::size_t n = a_.size();
@@ -108,7 +108,7 @@ RbfMedium::RbfMedium(std::vector<double> centres, std::vector<double> scales, st
     build();
 }
 
-double RbfMedium::density(const Vec3& x) const {
+double GaussianMedium::density(const Vec3& x) const {
     double beta = beta0_;
     for (std::size_t i = 0; i < size(); ++i) {
         const double dx = x.x - bx_[i], dy = x.y - by_[i], dz = x.z - bz_[i];
@@ -117,7 +117,7 @@ double RbfMedium::density(const Vec3& x) const {
     return beta;
 }
 
-double RbfMedium::gaussian_optical_depth(std::size_t i, const Vec3& o, const Vec3& r, double t0,
+double GaussianMedium::gaussian_optical_depth(std::size_t i, const Vec3& o, const Vec3& r, double t0,
                                          double t1) const {
     return gaussian_line_integral(c_[i], a_[i], centre(i), o, r, t0, t1);
 }
@@ -127,7 +127,7 @@ namespace {
 double background_depth(double beta0, double L) { return beta0 == 0.0 ? 0.0 : beta0 * L; }
 }  // namespace
 
-double RbfMedium::optical_depth_ray(const Vec3& o, const Vec3& r, double tmax, std::size_t skip,
+double GaussianMedium::optical_depth_ray(const Vec3& o, const Vec3& r, double tmax, std::size_t skip,
                                     bool with_beta0) const {
     double T = 0.0;
     for_each_near(o, r, tmax, [&](std::size_t i) {
@@ -136,24 +136,24 @@ double RbfMedium::optical_depth_ray(const Vec3& o, const Vec3& r, double tmax, s
     return with_beta0 ? T + background_depth(beta0_, tmax) : T;
 }
 
-double RbfMedium::optical_depth_ray(const Vec3& o, const Vec3& r, double tmax) const {
+double GaussianMedium::optical_depth_ray(const Vec3& o, const Vec3& r, double tmax) const {
     return optical_depth_ray(o, r, tmax, npos, true);
 }
 
-double RbfMedium::optical_depth(const Vec3& p, const Vec3& q) const {
+double GaussianMedium::optical_depth(const Vec3& p, const Vec3& q) const {
     const Vec3 d = q - p;
     const double L = glm::length(d);
     if (!(L > 0.0)) return 0.0;
     return optical_depth_ray(p, d / L, L);
 }
 
-double RbfMedium::optical_depth_all_ray(const Vec3& o, const Vec3& r, double tmax) const {
+double GaussianMedium::optical_depth_all_ray(const Vec3& o, const Vec3& r, double tmax) const {
     double T = 0.0;
     for (std::size_t i = 0; i < size(); ++i) T += gaussian_optical_depth(i, o, r, 0.0, tmax);
     return T + background_depth(beta0_, tmax);
 }
 
-double RbfMedium::optical_depth_all(const Vec3& p, const Vec3& q) const {
+double GaussianMedium::optical_depth_all(const Vec3& p, const Vec3& q) const {
     const Vec3 d = q - p;
     const double L = glm::length(d);
     if (!(L > 0.0)) return 0.0;
@@ -192,14 +192,14 @@ void parallel_chunks(std::size_t n, int threads, std::size_t chunk,
     if (error) std::rethrow_exception(error);
 }
 
-void RbfMedium::optical_depth_batch(const Vec3* p, const Vec3* q, std::size_t n, double* out, bool culled,
+void GaussianMedium::optical_depth_batch(const Vec3* p, const Vec3* q, std::size_t n, double* out, bool culled,
                                     int threads) const {
     parallel_chunks(n, threads, 1024, [&](std::size_t b, std::size_t e) {
         for (std::size_t j = b; j < e; ++j) out[j] = culled ? optical_depth(p[j], q[j]) : optical_depth_all(p[j], q[j]);
     });
 }
 
-void RbfMedium::optical_depth_ray_batch(const Vec3* o, const Vec3* r, const double* tmax, std::size_t n,
+void GaussianMedium::optical_depth_ray_batch(const Vec3* o, const Vec3* r, const double* tmax, std::size_t n,
                                         double* out, bool culled, int threads) const {
     parallel_chunks(n, threads, 1024, [&](std::size_t b, std::size_t e) {
         for (std::size_t j = b; j < e; ++j)
@@ -207,14 +207,14 @@ void RbfMedium::optical_depth_ray_batch(const Vec3* o, const Vec3* r, const doub
     });
 }
 
-double RbfMedium::cull_radius_for(double c, double a, double eps) {
+double GaussianMedium::cull_radius_for(double c, double a, double eps) {
     const double lg = std::log(c * kSqrtPi / (a * eps));
     return lg > 0.0 ? std::sqrt(lg) / a : 0.0;
 }
 
 // Hierarchy: cull spheres (Gaussians with R_i = 0 never reach eps and are left out),
 // median split on the widest centre axis, leaves of <= 4.
-void RbfMedium::build() {
+void GaussianMedium::build() {
     const std::size_t n = size();
     radius_.assign(n, 0.0);
     order_.clear();
@@ -228,7 +228,7 @@ void RbfMedium::build() {
     build_node(0, static_cast<std::uint32_t>(order_.size()), 0);
 }
 
-std::uint32_t RbfMedium::build_node(std::uint32_t begin, std::uint32_t end, int depth) {
+std::uint32_t GaussianMedium::build_node(std::uint32_t begin, std::uint32_t end, int depth) {
     const std::uint32_t self = static_cast<std::uint32_t>(nodes_.size());
     nodes_.push_back(Node{});
     Node box{};

@@ -1,4 +1,4 @@
-// rbf_medium_test.cpp: the Gaussian store's optical depth against quadrature of the
+// gaussian_medium_test.cpp: the Gaussian store's optical depth against quadrature of the
 // density, the erf-difference numerics against analytic limits, culling against the
 // brute-force sum, and input validation.
 #include "gaussian/medium.h"
@@ -16,13 +16,13 @@ namespace {
 
 constexpr double kSqrtPi = 1.77245385090551602729;
 
-RbfMedium single(const Vec3& b, double a, double c, double beta0 = 0.0) {
-    return RbfMedium({b.x, b.y, b.z}, {a}, {c}, beta0);
+GaussianMedium single(const Vec3& b, double a, double c, double beta0 = 0.0) {
+    return GaussianMedium({b.x, b.y, b.z}, {a}, {c}, beta0);
 }
 
 // int_p^q beta(x) by adaptive quadrature of the density itself (split at the centre's
 // projection and +-k/a so the peak is resolved).
-double depth_by_quadrature(const RbfMedium& m, const Vec3& p, const Vec3& q) {
+double depth_by_quadrature(const GaussianMedium& m, const Vec3& p, const Vec3& q) {
     const double L = glm::length(q - p);
     const Vec3 r = (q - p) / L;
     std::vector<double> cuts{0.0, L};
@@ -58,9 +58,9 @@ TEST(ErfDiff, LimitsAndTails) {
 }
 
 // Infinite line through the centre: c sqrt(pi) / a exactly; ray from the centre: half.
-TEST(RbfMedium, ClosedFormsOnLines) {
+TEST(GaussianMedium, ClosedFormsOnLines) {
     for (double a : {1e-3, 0.1, 1.0, 37.0, 1e3}) {
-        const RbfMedium m = single({1.0, 2.0, 3.0}, a, 0.7);
+        const GaussianMedium m = single({1.0, 2.0, 3.0}, a, 0.7);
         const Vec3 r = glm::normalize(Vec3(1.0, -2.0, 0.5));
         const double full = 0.7 * kSqrtPi / a;
         const double far = 1e4 / a;
@@ -77,14 +77,14 @@ TEST(RbfMedium, ClosedFormsOnLines) {
 
 // Segments of every kind against quadrature of the density: through, beside, in the far
 // tails on one side (where erf differences cancel), short and long, tiny and huge scales.
-TEST(RbfMedium, SegmentsMatchQuadratureOfDensity) {
+TEST(GaussianMedium, SegmentsMatchQuadratureOfDensity) {
     std::mt19937_64 rng(7);
     std::uniform_real_distribution<double> U(-1.0, 1.0);
     double worst = 0.0;
     int compared = 0;
     for (double a : {1e-3, 0.05, 1.0, 20.0, 1e3}) {
         const Vec3 b(0.3, -0.2, 0.1);
-        const RbfMedium m = single(b, a, 1.3);
+        const GaussianMedium m = single(b, a, 1.3);
         for (int k = 0; k < 60; ++k) {
             const double scale = 1.0 / a;
             const Vec3 dir = glm::normalize(Vec3(U(rng), U(rng), U(rng)));
@@ -103,18 +103,18 @@ TEST(RbfMedium, SegmentsMatchQuadratureOfDensity) {
         }
     }
     EXPECT_GT(compared, 250);
-    std::printf("[ rbf ] optical depth vs density quadrature: worst relative error %.2e over %d segments\n",
+    std::printf("[ gaussians ] optical depth vs density quadrature: worst relative error %.2e over %d segments\n",
                 worst, compared);
 }
 
 // beta0 adds beta0 L; an empty medium is homogeneous; T is symmetric in its ends.
-TEST(RbfMedium, BackgroundAndSymmetry) {
-    const RbfMedium empty({}, {}, {}, 0.02);
+TEST(GaussianMedium, BackgroundAndSymmetry) {
+    const GaussianMedium empty({}, {}, {}, 0.02);
     EXPECT_DOUBLE_EQ(empty.optical_depth(Vec3(0.0), Vec3(3, 4, 0)), 0.1);
     EXPECT_TRUE(std::isinf(empty.optical_depth_ray(Vec3(0.0), Vec3(1, 0, 0), INFINITY)));
-    const RbfMedium none({}, {}, {}, 0.0);
+    const GaussianMedium none({}, {}, {}, 0.0);
     EXPECT_EQ(none.optical_depth_ray(Vec3(0.0), Vec3(1, 0, 0), INFINITY), 0.0);
-    const RbfMedium m({0, 0, 0, 1, 1, 0}, {1.0, 0.5}, {0.3, 0.2}, 0.01);
+    const GaussianMedium m({0, 0, 0, 1, 1, 0}, {1.0, 0.5}, {0.3, 0.2}, 0.01);
     const Vec3 p(-2, 0.3, 0.1), q(3, 0.5, -0.2);
     EXPECT_NEAR(m.optical_depth_all(p, q), m.optical_depth_all(q, p), 1e-14);
     EXPECT_NEAR(m.optical_depth_all(p, q), depth_by_quadrature(m, p, q), 1e-12);
@@ -122,7 +122,7 @@ TEST(RbfMedium, BackgroundAndSymmetry) {
 
 // Culling: never drops more than eps per Gaussian skipped, on a random cloud of
 // mixed scales; also reports the measured loss.
-TEST(RbfMedium, CullingErrorBound) {
+TEST(GaussianMedium, CullingErrorBound) {
     std::mt19937_64 rng(11);
     std::uniform_real_distribution<double> U(0.0, 1.0);
     const int n = 2000;
@@ -132,7 +132,7 @@ TEST(RbfMedium, CullingErrorBound) {
         a.push_back(std::pow(10.0, -1.5 + 2.5 * U(rng)));  // 0.03 .. 10 /m
         c.push_back(U(rng));
     }
-    const RbfMedium m(b, a, c, 0.0, 1e-6);
+    const GaussianMedium m(b, a, c, 0.0, 1e-6);
     double worst_abs = 0.0, worst_ratio = 0.0;
     for (int k = 0; k < 400; ++k) {
         const Vec3 p(100 * U(rng) - 50, 100 * U(rng) - 50, 100 * U(rng) - 50);
@@ -147,11 +147,11 @@ TEST(RbfMedium, CullingErrorBound) {
         worst_abs = std::max(worst_abs, all - culled);
         worst_ratio = std::max(worst_ratio, (all - culled) / bound);
     }
-    std::printf("[ rbf ] culling (eps 1e-6, n %d): worst dropped optical depth %.2e (%.3f of the bound)\n", n,
+    std::printf("[ gaussians ] culling (eps 1e-6, n %d): worst dropped optical depth %.2e (%.3f of the bound)\n", n,
                 worst_abs, worst_ratio);
 }
 
-TEST(RbfMedium, RejectsBadInput) {
+TEST(GaussianMedium, RejectsBadInput) {
     auto msg = [](auto&& make) {
         try {
             make();
@@ -160,15 +160,15 @@ TEST(RbfMedium, RejectsBadInput) {
         }
         return std::string("no exception");
     };
-    EXPECT_NE(msg([] { RbfMedium({NAN, 0, 0}, {1}, {1}, 0); }).find("not finite"), std::string::npos);
-    EXPECT_NE(msg([] { RbfMedium({INFINITY, 0, 0}, {1}, {1}, 0); }).find("not finite"), std::string::npos);
-    EXPECT_NE(msg([] { RbfMedium({0, 0, 0}, {0.0}, {1}, 0); }).find("scale"), std::string::npos);
-    EXPECT_NE(msg([] { RbfMedium({0, 0, 0}, {-1.0}, {1}, 0); }).find("scale"), std::string::npos);
-    EXPECT_NE(msg([] { RbfMedium({0, 0, 0}, {1}, {-0.1}, 0); }).find("amplitude"), std::string::npos);
-    EXPECT_NE(msg([] { RbfMedium({0, 0, 0}, {1}, {NAN}, 0); }).find("amplitude"), std::string::npos);
-    EXPECT_NE(msg([] { RbfMedium({0, 0, 0}, {1}, {1}, -0.1); }).find("beta0"), std::string::npos);
-    EXPECT_NE(msg([] { RbfMedium({0, 0, 0}, {1}, {1}, NAN); }).find("beta0"), std::string::npos);
-    EXPECT_NE(msg([] { RbfMedium({0, 0, 0}, {1, 2}, {1}, 0); }).find("must match"), std::string::npos);
+    EXPECT_NE(msg([] { GaussianMedium({NAN, 0, 0}, {1}, {1}, 0); }).find("not finite"), std::string::npos);
+    EXPECT_NE(msg([] { GaussianMedium({INFINITY, 0, 0}, {1}, {1}, 0); }).find("not finite"), std::string::npos);
+    EXPECT_NE(msg([] { GaussianMedium({0, 0, 0}, {0.0}, {1}, 0); }).find("scale"), std::string::npos);
+    EXPECT_NE(msg([] { GaussianMedium({0, 0, 0}, {-1.0}, {1}, 0); }).find("scale"), std::string::npos);
+    EXPECT_NE(msg([] { GaussianMedium({0, 0, 0}, {1}, {-0.1}, 0); }).find("amplitude"), std::string::npos);
+    EXPECT_NE(msg([] { GaussianMedium({0, 0, 0}, {1}, {NAN}, 0); }).find("amplitude"), std::string::npos);
+    EXPECT_NE(msg([] { GaussianMedium({0, 0, 0}, {1}, {1}, -0.1); }).find("beta0"), std::string::npos);
+    EXPECT_NE(msg([] { GaussianMedium({0, 0, 0}, {1}, {1}, NAN); }).find("beta0"), std::string::npos);
+    EXPECT_NE(msg([] { GaussianMedium({0, 0, 0}, {1, 2}, {1}, 0); }).find("must match"), std::string::npos);
 }
 
 }  // namespace

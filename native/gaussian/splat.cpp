@@ -1,4 +1,4 @@
-// rbf_splat.cpp: tiled screen-space splatting of Gaussian fog (see rbf_splat.h).
+// gaussian_splat.cpp: tiled screen-space splatting of Gaussian fog (see gaussian_splat.h).
 //
 // Layout of the work: bin() computes each Gaussian's cull-sphere bounds in film
 // coordinates (the sphere's tangent planes through the eye, exact for the projective map
@@ -8,6 +8,7 @@
 // runs one branch-free loop over the tile's pixels per (Gaussian, light), which GCC
 // vectorises (AVX-512 / AVX2 clones) with the float kernels of fast_erf.h and noise.h.
 #include "gaussian/splat.h"
+#include "core/constants.h"
 
 #include <algorithm>
 #include <cmath>
@@ -41,16 +42,16 @@ namespace {
 
 constexpr double kSqrtPi = 1.77245385090551602729;
 constexpr float kMinD2f = 1e-12f;
-constexpr int kTilePixels = RbfSplat::kTile * RbfSplat::kTile;
+constexpr int kTilePixels = GaussianSplat::kTile * GaussianSplat::kTile;
 
 // View-ray part of one Gaussian for n rays: optical depth over [0, tend] (Tvp), over
 // [0, b^r] (Tvr) and the clamped projection tr. Noise (splat_gaussian): the same on the
 // perturbed directions of noise_dirs gives the perturbed Tvp.
 // kInf (reduced resolution's lattice rays): every tend is +inf, the far erfc term is 0.
-// kFar (RbfSplat::GaussF::far_eye): the ray's start lies >= kFarStart / a before the
+// kFar (GaussianSplat::GaussF::far_eye): the ray's start lies >= kFarStart / a before the
 // Gaussian, so its erfc E1 = erfc(a ts) < 2e-10 is left out (one erfc fewer per lane).
 template <bool kInf = false, bool kFar = false>
-AIRLIGHT_SPLAT_CLONES void view_terms(const RbfSplat::GaussF g, int n, const float* __restrict dx,
+AIRLIGHT_SPLAT_CLONES void view_terms(const GaussianSplat::GaussF g, int n, const float* __restrict dx,
                                       const float* __restrict dy, const float* __restrict dz,
                                       const float* __restrict tend, float* __restrict Tvp_out,
                                       float* __restrict Tvr_out, float* __restrict tr_out) {
@@ -95,11 +96,11 @@ AIRLIGHT_SPLAT_CLONES void noise_dirs(float nscale, const float* eye, float ninv
 }
 
 // Light part: adds w exp(-T_i(s, b^r) - Tvr) Tvp / |b^r - s|^2 to the RGB accumulators.
-// kFar (RbfSplat::GaussF::far_lights): the light lies >= kFarStart / a before the Gaussian
+// kFar (GaussianSplat::GaussF::far_lights): the light lies >= kFarStart / a before the Gaussian
 // along every path s -> b^r with b^r in the cull sphere, so the erfc at s is left out.
 template <bool kFar = false>
-AIRLIGHT_SPLAT_CLONES void light_terms(const RbfSplat::GaussF g, const RbfSplat::GaussLightF gl,
-                                       const RbfSplat::LightF lf, int n, const float* __restrict dx,
+AIRLIGHT_SPLAT_CLONES void light_terms(const GaussianSplat::GaussF g, const GaussianSplat::GaussLightF gl,
+                                       const GaussianSplat::LightF lf, int n, const float* __restrict dx,
                                        const float* __restrict dy, const float* __restrict dz,
                                        const float* __restrict Tvp, const float* __restrict Tvr,
                                        const float* __restrict tr, float* __restrict R, float* __restrict G,
@@ -153,8 +154,8 @@ inline float phase4pi_f(float mu, float g1, float g2, float g3) {
 // returning a struct (or calling fast_erf_diff) stopped GCC vectorising both loops - measured
 // 9x the CPU time of the whole bake on tests/native/test16_rbf_resolution.py's scene.
 template <int K, bool kSpot>
-AIRLIGHT_SPLAT_CLONES void light_terms_ext(const RbfSplat::GaussF g, const RbfSplat::GaussLightF gl,
-                                           const RbfSplat::LightF lf, float g1, float g2, float g3, int n,
+AIRLIGHT_SPLAT_CLONES void light_terms_ext(const GaussianSplat::GaussF g, const GaussianSplat::GaussLightF gl,
+                                           const GaussianSplat::LightF lf, float g1, float g2, float g3, int n,
                                            const float* __restrict dx, const float* __restrict dy,
                                            const float* __restrict dz, const float* __restrict Tvp,
                                            const float* __restrict Tvr, const float* __restrict tr,
@@ -194,7 +195,7 @@ AIRLIGHT_SPLAT_CLONES void light_terms_ext(const RbfSplat::GaussF g, const RbfSp
 // half-line depth from b^r = eye + tr d towards the sun (unit (ux, uy, uz) = -w):
 // k0 e^{-a^2 |(b - b^r) x u|^2} erfc(-a (b - b^r).u).
 template <int K>
-AIRLIGHT_SPLAT_CLONES void sun_terms(const RbfSplat::GaussF g, const RbfSplat::GaussLightF gl, float ux, float uy,
+AIRLIGHT_SPLAT_CLONES void sun_terms(const GaussianSplat::GaussF g, const GaussianSplat::GaussLightF gl, float ux, float uy,
                                      float uz, float g1, float g2, float g3, int n, const float* __restrict dx,
                                      const float* __restrict dy, const float* __restrict dz,
                                      const float* __restrict Tvp, const float* __restrict Tvr,
@@ -225,7 +226,7 @@ AIRLIGHT_SPLAT_CLONES void sun_terms(const RbfSplat::GaussF g, const RbfSplat::G
 // its entry lies beyond far[k]. Per pixel into nf, nb (1: not in front, not behind); one
 // loop over the tile (a call per 4x4 block spent ~40 % in its set-up), and without the
 // square root: te >= ts + half as te - ts >= 0 and (te - ts)^2 >= R2 - h2.
-AIRLIGHT_SPLAT_CLONES void depth_classes(const RbfSplat::GaussF g, float R2, int n, const float* __restrict dx,
+AIRLIGHT_SPLAT_CLONES void depth_classes(const GaussianSplat::GaussF g, float R2, int n, const float* __restrict dx,
                                          const float* __restrict dy, const float* __restrict dz,
                                          const float* __restrict far, unsigned char* __restrict nf,
                                          unsigned char* __restrict nb) {
@@ -342,7 +343,7 @@ AIRLIGHT_SPLAT_CLONES void sum4_16(int n, const float* __restrict a, const float
 
 // kFar: every Gaussian of q is far from the eye and the lights (GaussF::far_eye, far_lights).
 template <bool kFar>
-void lattice_gaussian_major(LatticeSoA& q, int L, const RbfSplat::LightF* lf, int m, const float* lx,
+void lattice_gaussian_major(LatticeSoA& q, int L, const GaussianSplat::LightF* lf, int m, const float* lx,
                             const float* ly, const float* lz, float* T, float* R, float* G, float* B) {
     const int n = q.n;
     float* Tvp = q.scratch.data();
@@ -417,10 +418,10 @@ AIRLIGHT_SPLAT_CLONES void interp_lattice(int w, int h, int s, int nu, const flo
                                           const float* __restrict cR, const float* __restrict cG,
                                           const float* __restrict cB, float* __restrict T, float* __restrict R,
                                           float* __restrict G, float* __restrict B) {
-    constexpr int kMaxNodes = RbfSplat::kTile + 1;
+    constexpr int kMaxNodes = GaussianSplat::kTile + 1;
     const float inv_s = 1.0f / float(s);
-    int ui[RbfSplat::kTile];
-    float wx[RbfSplat::kTile];
+    int ui[GaussianSplat::kTile];
+    float wx[GaussianSplat::kTile];
     for (int i = 0; i < w; ++i) {
         const float fx = (float(i) + 0.5f) * inv_s;
         ui[i] = int(fx);
@@ -432,10 +433,10 @@ AIRLIGHT_SPLAT_CLONES void interp_lattice(int w, int h, int s, int nu, const flo
     // pixel row between two of those: the gathers run per lattice row, not per pixel row.
     const int nv = int((float(h) - 0.5f) * inv_s) + 2;
     for (int q = 0; q < 4; ++q) {
-        float rows[kMaxNodes][RbfSplat::kTile];
+        float rows[kMaxNodes][GaussianSplat::kTile];
         for (int v = 0; v < nv; ++v) {
             const float* node = c[q] + v * nu;
-            float lo[RbfSplat::kTile], hi[RbfSplat::kTile];
+            float lo[GaussianSplat::kTile], hi[GaussianSplat::kTile];
             for (int i = 0; i < w; ++i) {
                 lo[i] = node[ui[i]];
                 hi[i] = node[ui[i] + 1];
@@ -479,14 +480,14 @@ inline void cubic_weights(float f, float* w) {
     w[3] = (f + 1.0f) * f * (f - 1.0f) * (1.0f / 6.0f);
 }
 
-// Adds a far-field grid (RbfSplat::FarGrid: spacing h pixels, nx nodes per row, node (P, Q)
+// Adds a far-field grid (GaussianSplat::FarGrid: spacing h pixels, nx nodes per row, node (P, Q)
 // at film (h (P - 1), h (Q - 1)); channels g[0..4)) at a tile's lattice nodes (film x0 + s u,
 // y0 + s v, nu x nv) to c[0..4), by tensor cubic Lagrange interpolation: along x on the
 // grid rows the stencils reach, then along y.
 // The grid may be a window of the full one: its node (P0, Q0) first, nx per row.
 AIRLIGHT_SPLAT_CLONES void add_far_grid(const float* const* g, int h, int nx, int P0, int Q0, int x0, int y0, int s,
                                         int nu, int nv, float* const* c) {
-    constexpr int kMax = RbfSplat::kTile + 1;
+    constexpr int kMax = GaussianSplat::kTile + 1;
     int pu[kMax], qv[kMax];
     float wu[kMax][4], wv[kMax][4];
     for (int u = 0; u < nu; ++u) {
@@ -711,7 +712,7 @@ AIRLIGHT_SPLAT_CLONES void segment_integrals(int n, const float* __restrict rx, 
 }
 
 // keep[k] = 1 if the segment from + t d, t in [0, D], passes within sqrt(R2[k]) of the
-// Gaussian at rel[k] (relative to from; the test of RbfMedium::for_each_near, R2 inflated
+// Gaussian at rel[k] (relative to from; the test of GaussianMedium::for_each_near, R2 inflated
 // by the caller for float rounding) and id[k] != skip, else 0.
 AIRLIGHT_SPLAT_CLONES void segment_reaches(int n, const float* __restrict rx, const float* __restrict ry,
                                            const float* __restrict rz, const float* __restrict R2,
@@ -1021,7 +1022,7 @@ struct StarGrid {
     std::vector<std::pair<float, std::uint32_t>> keyed;
 };
 
-void build_star(const RbfMedium& m, const float* a, const float* k0, const Vec3& s, std::size_t c0, std::size_t c1,
+void build_star(const GaussianMedium& m, const float* a, const float* k0, const Vec3& s, std::size_t c0, std::size_t c1,
                 bool binned, StarGrid& g) {
     g.s = s;
     // Candidates with a cull sphere (R = 0: never reaches cull_eps, as in for_each_near).
@@ -1193,7 +1194,7 @@ void build_star(const RbfMedium& m, const float* a, const float* k0, const Vec3&
 // out[r (t1 - t0) + k] = sum over the Gaussians j in [c0, c1), j != i, of the culled line
 // integral T_j(src[r], b_i) (float kernels, each skipped Gaussian < cull_eps as in
 // for_each_near) for the targets i = t0 + k in [t0, t1). No beta0. Three ways to the same
-// sums (rbf_depths_to_centres in rbf_splat.h), by the cost of the work:
+// sums (gaussian_depths_to_centres in gaussian_splat.h), by the cost of the work:
 //  - per target (few targets, a brush stroke's new Gaussians): each target's cull test
 //    runs over every candidate, vectorised, then the integrals of those that reach;
 //  - per candidate (few candidates, the old Gaussians' update by a stroke's new ones):
@@ -1201,7 +1202,7 @@ void build_star(const RbfMedium& m, const float* a, const float* k0, const Vec3&
 //    per-target overhead);
 //  - binned (many of both): the cube map of build_star, per target only its cell's list.
 // Throws std::invalid_argument on a non-finite source.
-std::vector<double> star_depths(const RbfMedium& m, const std::vector<Vec3>& src, std::size_t t0, std::size_t t1,
+std::vector<double> star_depths(const GaussianMedium& m, const std::vector<Vec3>& src, std::size_t t0, std::size_t t1,
                                 std::size_t c0, std::size_t c1, int threads, int method = 0) {
     for (const Vec3& s : src)
         if (!std::isfinite(s.x) || !std::isfinite(s.y) || !std::isfinite(s.z))
@@ -1366,7 +1367,7 @@ std::vector<double> star_depths(const RbfMedium& m, const std::vector<Vec3>& src
 // descending z_j + R_j (z = b . u: the half-line from b_i reaches sphere j only if
 // z_j + R_j > z_i); per target its cell's prefix is gathered relative to b_i (double
 // differences, then float) and summed by star_sum with D = inf. No beta0.
-std::vector<double> sun_depths(const RbfMedium& m, const Vec3& u, int threads) {
+std::vector<double> sun_depths(const GaussianMedium& m, const Vec3& u, int threads) {
     const std::size_t n = m.size();
     std::vector<double> out(n, 0.0);
     if (n == 0) return out;
@@ -1488,7 +1489,7 @@ std::vector<double> sun_depths(const RbfMedium& m, const Vec3& u, int threads) {
 
 // T(from_row, b_i) without Gaussian i (beta0 included) for row 0 = the eye and rows 1..L
 // = the lights, all Gaussians: out[row n + i].
-std::vector<double> depths_to_centres(const RbfMedium& m, const Vec3& eye, const std::vector<Vec3>& lights,
+std::vector<double> depths_to_centres(const GaussianMedium& m, const Vec3& eye, const std::vector<Vec3>& lights,
                                       int threads) {
     const std::size_t n = m.size();
     std::vector<Vec3> src{eye};
@@ -1501,21 +1502,21 @@ std::vector<double> depths_to_centres(const RbfMedium& m, const Vec3& eye, const
 
 }  // namespace
 
-std::vector<double> rbf_depths_to_centres(const RbfMedium& medium, const std::vector<Vec3>& sources,
+std::vector<double> gaussian_depths_to_centres(const GaussianMedium& medium, const std::vector<Vec3>& sources,
                                           std::size_t first, std::size_t last, std::size_t cand_first,
                                           std::size_t cand_last, int threads, int method) {
     if (method < 0 || method > 3) throw std::invalid_argument("rbf_depths_to_centres: method must be 0..3");
     return star_depths(medium, sources, first, last, cand_first, cand_last, threads, method);
 }
 
-std::vector<double> rbf_sun_depths(const RbfMedium& medium, const Vec3& u, int threads) {
+std::vector<double> gaussian_sun_depths(const GaussianMedium& medium, const Vec3& u, int threads) {
     if (!std::isfinite(u.x) || !std::isfinite(u.y) || !std::isfinite(u.z) || std::abs(glm::length(u) - 1.0) > 1e-6)
         throw std::invalid_argument("rbf_sun_depths: the sun direction must be a finite unit vector");
     return sun_depths(medium, u, threads);
 }
 
 namespace {
-// The pair list's memory (bin_index_) kept from one RbfSplat to the next: the bake builds
+// The pair list's memory (bin_index_) kept from one GaussianSplat to the next: the bake builds
 // a new one per frame, and fresh pages cost ~10-20 us per 4 KiB fault here (bake.h's image
 // pool): ~20 ms of CPU for the 8.5 MB list of 3000 Gaussians at 1080p, in bin()'s serial
 // part. One buffer of at most kPairPoolBytes is kept (the largest handed back).
@@ -1530,14 +1531,14 @@ PairPool& pair_pool() {
 }
 }  // namespace
 
-RbfSplat::~RbfSplat() {
+GaussianSplat::~GaussianSplat() {
     if (bin_index_.capacity() * sizeof(std::uint32_t) > kPairPoolBytes) return;
     PairPool& pool = pair_pool();
     std::lock_guard<std::mutex> lock(pool.mutex);
     if (bin_index_.capacity() > pool.spare.capacity()) pool.spare.swap(bin_index_);
 }
 
-void validate_noise(const RbfNoise& noise) {
+void validate_noise(const GaussianNoise& noise) {
     if (!std::isfinite(noise.amplitude) || noise.amplitude < 0.0) {
         std::ostringstream os;
         os << "noise amplitude must be finite and >= 0, got " << noise.amplitude;
@@ -1552,9 +1553,9 @@ void validate_noise(const RbfNoise& noise) {
         throw std::invalid_argument("noise offset must be finite");
 }
 
-RbfSplat::RbfSplat(const RbfMedium& medium, const Vec3& eye, const std::vector<Vec3>& lights,
+GaussianSplat::GaussianSplat(const GaussianMedium& medium, const Vec3& eye, const std::vector<Vec3>& lights,
                    const std::vector<RGB>& I0, const RGB& medium_albedo, const std::vector<double>& albedo,
-                   const SpecialFTable* table, const RbfNoise& noise, int threads, const RbfSplatLights* extra)
+                   const SpecialFTable* table, const GaussianNoise& noise, int threads, const GaussianSplatLights* extra)
     : medium_(medium),
       table_(table),
       eye_(eye),
@@ -1586,7 +1587,7 @@ RbfSplat::RbfSplat(const RbfMedium& medium, const Vec3& eye, const std::vector<V
         const Vec3 d = eye - s;
         const double D = glm::length(d);
         Dsv_.push_back(D);
-        Csv_.push_back(D > 0.0 ? std::exp(-medium.optical_depth_ray(s, d / D, D, RbfMedium::npos, false)) : 1.0);
+        Csv_.push_back(D > 0.0 ? std::exp(-medium.optical_depth_ray(s, d / D, D, GaussianMedium::npos, false)) : 1.0);
     }
     const std::size_t S = extra ? extra->sun_w.size() : 0;
     if (extra) {
@@ -1661,13 +1662,13 @@ RbfSplat::RbfSplat(const RbfMedium& medium, const Vec3& eye, const std::vector<V
         const Vec3 u = -extra->sun_w[j];  // towards the sun
         const double mu_s = u.z;
         Csun_.push_back(std::exp(-medium.optical_depth_ray(eye, u, std::numeric_limits<double>::infinity(),
-                                                           RbfMedium::npos, false)));
+                                                           GaussianMedium::npos, false)));
         const RGB E = extra->sun_E[j];
         const std::vector<double> Tg = sun_depths(medium, u, threads);
         parallel_chunks(n, threads, 64, [&](std::size_t b, std::size_t e) {
             for (std::size_t i = b; i < e; ++i) {
                 const Vec3 c = medium.centre(i);
-                const double Tsun = Tg[i] + sun_layer_depth(medium.beta0(), extra->fog_top, mu_s, c.z);
+                const double Tsun = Tg[i] + sunlight_layer_depth(medium.beta0(), extra->fog_top, mu_s, c.z);
                 const double f1 = std::isinf(Tsun) ? 0.0 : std::exp(-depth[i] - Tsun) * kInv4Pi;
                 GaussLightF& q = gs_[i * S + j];
                 q.sx = q.sy = q.sz = 0.0f;
@@ -1680,14 +1681,14 @@ RbfSplat::RbfSplat(const RbfMedium& medium, const Vec3& eye, const std::vector<V
     }
 }
 
-double sun_layer_depth(double beta0, double h_top, double mu_s, double z) {
+double sunlight_layer_depth(double beta0, double h_top, double mu_s, double z) {
     if (!(beta0 > 0.0) || std::isinf(h_top)) return 0.0;
     if (mu_s > 0.0) return beta0 * std::max(0.0, h_top - z) / mu_s;
     if (mu_s == 0.0 && z > h_top) return 0.0;  // horizontal above the layer
     return std::numeric_limits<double>::infinity();
 }
 
-void RbfSplat::bin(const Vec3& D0, const Vec3& Dx, const Vec3& Dy, const Vec3& forward, int W, int H,
+void GaussianSplat::bin(const Vec3& D0, const Vec3& Dx, const Vec3& Dy, const Vec3& forward, int W, int H,
                    double clip_start, int step, const float* depth) {
     if (step != 1 && step != 2 && step != 4) {
         std::ostringstream os;
@@ -1695,15 +1696,15 @@ void RbfSplat::bin(const Vec3& D0, const Vec3& Dx, const Vec3& Dy, const Vec3& f
         throw std::invalid_argument(os.str());
     }
     step_ = step;
-    // Cull spheres (rbf_medium.h: outside R_i a ray's T_i < eps): the medium's cull_eps at full
+    // Cull spheres (gaussian_medium.h: outside R_i a ray's T_i < eps): the medium's cull_eps at full
     // resolution (the reference path); at reduced resolution eps = kReducedCullEps (at least
     // the medium's), tied to the lattice's own error: with the default 1e-7, a quarter of the
-    // tile-Gaussian pairs held terms below 1e-5 (see rbf_splat.h).
+    // tile-Gaussian pairs held terms below 1e-5 (see gaussian_splat.h).
     const double eps_cull =
         step == 1 ? medium_.cull_eps() : std::max(medium_.cull_eps(), kReducedCullEps[step / 2 - 1]);
     for (std::size_t i = 0; i < g_.size(); ++i) {
         const double R = step == 1 ? medium_.cull_radius(i)
-                                   : RbfMedium::cull_radius_for(medium_.amplitude(i), medium_.scale(i), eps_cull);
+                                   : GaussianMedium::cull_radius_for(medium_.amplitude(i), medium_.scale(i), eps_cull);
         g_[i].radius = R;
         // far_eye, far_lights (GaussF): a sqrt(D^2 - R^2) >= kFarStart for the eye and every
         // point light (plain path only: the extended light kernels keep both erfc terms).
@@ -1796,7 +1797,6 @@ void RbfSplat::bin(const Vec3& D0, const Vec3& Dx, const Vec3& Dy, const Vec3& f
         light_min_ = step * std::sqrt(6.0 / (8.0 * tau)) * pix;
         double dist_max = 0.0;
         for (const GaussF& g : g_) dist_max = std::max(dist_max, g.dist);
-        constexpr double kPi = 3.14159265358979323846;
         for (int t = 0; t < n_tiles; ++t) {
             const double half = std::acos(std::clamp(cones[t].cos_t, -1.0, 1.0));
             for (std::size_t l = 0; l < L; ++l) {
@@ -1955,7 +1955,7 @@ void RbfSplat::bin(const Vec3& D0, const Vec3& Dx, const Vec3& Dy, const Vec3& f
     bin_start_ = count;
     {
         // The pooled list when it holds these pairs (pair_pool; a later bin() of this
-        // RbfSplat keeps its own).
+        // GaussianSplat keeps its own).
         PairPool& pool = pair_pool();
         std::lock_guard<std::mutex> lock(pool.mutex);
         if (bin_index_.capacity() < count[n_tiles] && pool.spare.capacity() >= count[n_tiles])
@@ -1968,7 +1968,7 @@ void RbfSplat::bin(const Vec3& D0, const Vec3& Dx, const Vec3& Dy, const Vec3& f
     if (far_field) build_far_field(rect, far);
 }
 
-bool RbfSplat::far_candidates(const float* depth, const std::vector<int>& rect, FarScratch& far) {
+bool GaussianSplat::far_candidates(const float* depth, const std::vector<int>& rect, FarScratch& far) {
     const std::size_t n = g_.size();
     const int n_tiles = num_tiles();
     far_grids_.clear();
@@ -1981,7 +1981,7 @@ bool RbfSplat::far_candidates(const float* depth, const std::vector<int>& rect, 
     const double f = glm::dot(D0_, forward_);
     const double pix = f > 0.0 ? std::max(glm::length(Dx_), glm::length(Dy_)) / f : 0.0;
     if (!(pix > 0.0)) return false;
-    // The level criteria (rbf_splat.h): the cubic's error at the lattice's tau at quarter
+    // The level criteria (gaussian_splat.h): the cubic's error at the lattice's tau at quarter
     // resolution; at half a quarter of the lattice's (1e-3 / 16), so that half keeps its max
     // error against full at 0.1 % (bench_rbf.py's transmittance: 0.099 %; 0.101 % at 1e-3 / 8,
     // 0.109 % at the lattice's 1e-3 / 4).
@@ -2044,7 +2044,7 @@ bool RbfSplat::far_candidates(const float* depth, const std::vector<int>& rect, 
     return true;
 }
 
-void RbfSplat::build_far_field(const std::vector<int>& rect, FarScratch& far) {
+void GaussianSplat::build_far_field(const std::vector<int>& rect, FarScratch& far) {
     const std::size_t n = g_.size();
     const int n_tiles = num_tiles();
     const std::vector<unsigned char>& cand = far.cand;
@@ -2278,7 +2278,7 @@ void RbfSplat::build_far_field(const std::vector<int>& rect, FarScratch& far) {
     far_nodes_ = evals.load();
 }
 
-void RbfSplat::far_share(std::size_t i, int x0, int y0, int s, int nu, int nv, float* const* out) const {
+void GaussianSplat::far_share(std::size_t i, int x0, int y0, int s, int nu, int nv, float* const* out) const {
     const FarGrid& grid = far_grids_[level_[i] - 1];
     const int h = grid.h;
     const int P0 = x0 / h, P1 = (x0 + s * (nu - 1)) / h + 3, Q0 = y0 / h, Q1 = (y0 + s * (nv - 1)) / h + 3;
@@ -2307,7 +2307,7 @@ void RbfSplat::far_share(std::size_t i, int x0, int y0, int s, int nu, int nv, f
     add_far_grid(g, h, wx, P0, Q0, x0, y0, s, nu, nv, out);
 }
 
-bool RbfSplat::light_clear(std::size_t i, int t, double factor) const {
+bool GaussianSplat::light_clear(std::size_t i, int t, double factor) const {
     // For a ray of unit direction d, b^r = eye + ((b - eye) . d) d (unclamped) and
     // |b^r - s|^2 = ((b - s) . d)^2 + h^2, h the ray's closest approach to s: so |b^r - s| is
     // at least h >= h_min and at least |(b - s) . d| >= |(b - s) . u| cos a - |b - s| sin a
@@ -2327,7 +2327,7 @@ bool RbfSplat::light_clear(std::size_t i, int t, double factor) const {
     return true;
 }
 
-void RbfSplat::splat_gaussian(std::size_t i, int n, const float* dx, const float* dy, const float* dz,
+void GaussianSplat::splat_gaussian(std::size_t i, int n, const float* dx, const float* dy, const float* dz,
                               const float* tend, float* accT, float* accR, float* accG, float* accB) const {
     float Tvp[kTilePixels], Tvr[kTilePixels], tr[kTilePixels];
     const GaussF& g = g_[i];
@@ -2359,7 +2359,7 @@ void RbfSplat::splat_gaussian(std::size_t i, int n, const float* dx, const float
                                                                    Tvr, tr, accR, accG, accB);
 }
 
-void RbfSplat::light_loop(std::size_t i, int n, const float* dx, const float* dy, const float* dz, const float* Tvp,
+void GaussianSplat::light_loop(std::size_t i, int n, const float* dx, const float* dy, const float* dz, const float* Tvp,
                           const float* Tvr, const float* tr, float* accR, float* accG, float* accB) const {
     const GaussF& g = g_[i];
     const std::size_t L = lights_.size();
@@ -2397,7 +2397,7 @@ void RbfSplat::light_loop(std::size_t i, int n, const float* dx, const float* dy
     for (std::size_t j = 0; j < S; ++j) dispatch(sun, j);
 }
 
-void RbfSplat::background_extra(const double* ddx, const double* ddy, const double* ddz, const float* far,
+void GaussianSplat::background_extra(const double* ddx, const double* ddy, const double* ddz, const float* far,
                                 const float* t0, int n, float (*L0)[3]) const {
     if (plain_ && extra_.custom_background.empty()) return;
     if (!extra_.background) return;
@@ -2416,7 +2416,7 @@ void RbfSplat::background_extra(const double* ddx, const double* ddy, const doub
     }
 }
 
-void RbfSplat::homogeneous(const double* cos_gamma, std::size_t l, const float* Dvp, const float* t0, int n,
+void GaussianSplat::homogeneous(const double* cos_gamma, std::size_t l, const float* Dvp, const float* t0, int n,
                            float* out) const {
     const double beta0 = medium_.beta0();
     if (!(beta0 > 0.0)) {
@@ -2444,7 +2444,7 @@ void RbfSplat::homogeneous(const double* cos_gamma, std::size_t l, const float* 
     }
 }
 
-void RbfSplat::splat_tile(int t, const float* depth, float* transmittance, float* airlight) const {
+void GaussianSplat::splat_tile(int t, const float* depth, float* transmittance, float* airlight) const {
     const int tx = t % tiles_x_, ty = t / tiles_x_;
     const int x0 = tx * kTile, y0 = ty * kTile;
     const int x1 = std::min(W_, x0 + kTile), y1 = std::min(H_, y0 + kTile);
@@ -2521,7 +2521,7 @@ void RbfSplat::splat_tile(int t, const float* depth, float* transmittance, float
         }
 }
 
-void RbfSplat::splat_tile_reduced(int t, int x0, int y0, int w, int h, const float* dx, const float* dy,
+void GaussianSplat::splat_tile_reduced(int t, int x0, int y0, int w, int h, const float* dx, const float* dy,
                                   const float* dz, const float* far, const float* t0, float* Tf, float* Rf, float* Gf,
                                   float* Bf, float* Tn, float* Rn, float* Gn, float* Bn) const {
     const int n = w * h, s = step_;
@@ -2568,7 +2568,7 @@ void RbfSplat::splat_tile_reduced(int t, int x0, int y0, int w, int h, const flo
     std::size_t lattice = 0, exact = 0, behind = 0, far_front = 0;
     // The tile's pixels regrouped into 4x4 blocks (one SIMD vector each), so that a
     // Gaussian the surface cuts is evaluated exactly only on the blocks it reaches.
-    constexpr int kBlock = 4, kMaxBlocks = (RbfSplat::kTile / kBlock) * (RbfSplat::kTile / kBlock);
+    constexpr int kBlock = 4, kMaxBlocks = (GaussianSplat::kTile / kBlock) * (GaussianSplat::kTile / kBlock);
     // Set up on the first Gaussian that needs them (prepare_blocks): a tile whose Gaussians
     // all lie wholly in front of or behind its surface never does.
     int perm[kTilePixels], block_start[kMaxBlocks + 1];
@@ -2932,7 +2932,7 @@ void RbfSplat::splat_tile_reduced(int t, int x0, int y0, int w, int h, const flo
     if (near_lattice) interp_lattice(w, h, s, nu, nT, nR, nG, nB, Tn, Rn, Gn, Bn);
 }
 
-void RbfSplat::cut_light_factor(std::size_t i, int n_blocks, const int* block_start, unsigned live, int m_pad,
+void GaussianSplat::cut_light_factor(std::size_t i, int n_blocks, const int* block_start, unsigned live, int m_pad,
                                 const float* lx, const float* ly, const float* lz, int nu, const int* lat,
                                 const float* wgt, const float* blk_h, const float* blk_err, const float* bx,
                                 const float* by, const float* bz, const float* bfar, float* eT, float* eR, float* eG,
@@ -3054,7 +3054,7 @@ void RbfSplat::cut_light_factor(std::size_t i, int n_blocks, const int* block_st
     }
 }
 
-void RbfSplat::lattice_batch(const std::uint32_t* idx, int n, int m, const float* lx, const float* ly,
+void GaussianSplat::lattice_batch(const std::uint32_t* idx, int n, int m, const float* lx, const float* ly,
                              const float* lz, float* T, float* R, float* G, float* B) const {
     // The Gaussians far from the eye and the lights (GaussF::far_eye, far_lights: one erfc
     // fewer per lane and light, ~20 % of a lane's cost) in a batch of their own, unless the
@@ -3108,12 +3108,12 @@ void RbfSplat::lattice_batch(const std::uint32_t* idx, int n, int m, const float
     }
 }
 
-RbfSplat::ReducedCounts RbfSplat::reduced_counts() const {
+GaussianSplat::ReducedCounts GaussianSplat::reduced_counts() const {
     return {n_lattice_.load(), n_exact_.load(), n_behind_.load(), n_coarse_.load(),
             n_far_.load(),     n_cancelled_.load(), far_gaussians_, far_nodes_, n_fine_.load()};
 }
 
-void RbfSplat::eval_rays(const Vec3* dirs, const float* Dvp, const float* t0, int n, double* Tr, RGB* La) const {
+void GaussianSplat::eval_rays(const Vec3* dirs, const float* Dvp, const float* t0, int n, double* Tr, RGB* La) const {
     // Chunks of up to kChunk rays (the bake passes each edge pixel's sub-samples together,
     // so a chunk's rays are close): the union of the Gaussians whose cull spheres the
     // chunk's segments reach, each evaluated over the whole chunk with the splat's kernels.
@@ -3289,8 +3289,8 @@ void RbfSplat::eval_rays(const Vec3* dirs, const float* Dvp, const float* t0, in
     }
 }
 
-RbfPreviewFactors rbf_preview_factors(const RbfMedium& medium, const Vec3& eye, const std::vector<Vec3>& lights,
-                                      int threads, const RbfPreviewFactors* previous, std::size_t first_new,
+GaussianPreviewFactors rbf_preview_factors(const GaussianMedium& medium, const Vec3& eye, const std::vector<Vec3>& lights,
+                                      int threads, const GaussianPreviewFactors* previous, std::size_t first_new,
                                       bool eye_only) {
     auto finite = [](const Vec3& p) { return std::isfinite(p.x) && std::isfinite(p.y) && std::isfinite(p.z); };
     if (!finite(eye)) throw std::invalid_argument("rbf_preview_factors: eye is not finite");
@@ -3316,7 +3316,7 @@ RbfPreviewFactors rbf_preview_factors(const RbfMedium& medium, const Vec3& eye, 
             throw std::invalid_argument(os.str());
         }
     }
-    RbfPreviewFactors f;
+    GaussianPreviewFactors f;
     f.T_vb.resize(n);
     f.own_vb.resize(n);
     f.T_sb.resize(m * n);
@@ -3327,7 +3327,7 @@ RbfPreviewFactors rbf_preview_factors(const RbfMedium& medium, const Vec3& eye, 
         const Vec3 d = eye - s;
         const double D = glm::length(d);
         f.Dsv.push_back(D);
-        f.Csv.push_back(D > 0.0 ? std::exp(-medium.optical_depth_ray(s, d / D, D, RbfMedium::npos, false)) : 1.0);
+        f.Csv.push_back(D > 0.0 ? std::exp(-medium.optical_depth_ray(s, d / D, D, GaussianMedium::npos, false)) : 1.0);
     }
     if (eye_only) {
         // The eye row as in the full call (the same star, row 0 alone); the light rows
@@ -3380,8 +3380,8 @@ RbfPreviewFactors rbf_preview_factors(const RbfMedium& medium, const Vec3& eye, 
     return f;
 }
 
-RGB RbfSplat::eval_exact(const Vec3& dir, double Dvp) const {
-    if (!exact_) exact_ = std::make_unique<RbfAirlightFogshop>(medium_, eye_, lights_, table_, threads_);
+RGB GaussianSplat::eval_exact(const Vec3& dir, double Dvp) const {
+    if (!exact_) exact_ = std::make_unique<FogshopAirlight>(medium_, eye_, lights_, table_, threads_);
     return exact_->eval_rgb(dir, Dvp, albedo_.data(), I0_.data(), medium_albedo_);
 }
 

@@ -1,20 +1,20 @@
-// rbf_splat.h: the bake's fast path for Gaussian fog (Fogshop, Zhou et al. 2007, §5.2-5.3
+// gaussian_splat.h: the bake's fast path for Gaussian fog (Fogshop, Zhou et al. 2007, §5.2-5.3
 // and the noise of §5.5): screen-space splatting of the Gaussians' cull spheres into
 // 16x16 pixel tiles, float SIMD evaluation of the paper's per-(pixel, Gaussian) terms.
 //
 // Per pixel (perspective camera at the eye v, unit direction r, near distance t0 along
 // the ray, first hit Dvp) it computes the same quantities as the exact double path
-// (RbfAirlightFogshop::eval, used by FogModel::eval_rbf before; still the reference):
+// (FogshopAirlight::eval, used by FogModel::eval_gaussians before; still the reference):
 //   T  = beta0 (Dvp - t0) + sum_i [T_i(v, Dvp) - T_i(v, t0)]
 //   La = exp(T(v, t0)) sum_l [ Lg_l(Dvp) - Lg_l(t0) ] + sum_l w_l C_sv,l exp(Tg(v, t0)) L0seg_l
 //   Lg_l(t) = sum_i w_{l,i} f1'_{l,i} exp(-T_i(s_l, b_i^r) - T_i(v, b_i^r)) T_i(v, t) / |b_i^r - s_l|^2
 // with b_i^r the projection of b_i on the ray clamped to [0, t], f1' = f1 exp(T_i(s, b_i) +
 // T_i(v, b_i)) (the other Gaussians and beta0 on s -> b_i -> v), w_{l,i} = albedo_i I0_l /
-// (4 pi) (albedo_i: the Gaussian's own colour if GaussianMedium::albedo is given, else the
+// (4 pi) (albedo_i: the Gaussian's own colour if Gaussians::albedo is given, else the
 // medium's), w_l = medium albedo I0_l, and L0seg the homogeneous Sun 2005 term of the
 // segment [t0, Dvp] attenuated from the near point (sun05_batch.h; F table or exact F).
 // Differences to the exact path: float arithmetic with fast_erf.h (error bound there;
-// rbf_splat_test.cpp measures the whole image against the exact path), and every Gaussian
+// gaussian_splat_test.cpp measures the whole image against the exact path), and every Gaussian
 // whose cull sphere's screen bounds cover a pixel is evaluated there (a superset of the
 // per-ray cull, whose skipped terms are < cull_eps each; at half and quarter resolution the
 // spheres are sized for kReducedCullEps instead).
@@ -45,7 +45,7 @@
 
 namespace airlight {
 
-struct RbfNoise {
+struct GaussianNoise {
     double amplitude = 0.0;  // 0: off (bit-identical to no noise)
     double scale = 1.0;      // world-space size of the noise cells in m (> 0)
     Vec3 offset{0.0};        // added to the noise lookup point (in cells): animate it
@@ -53,7 +53,7 @@ struct RbfNoise {
 };
 
 // Throws std::invalid_argument unless amplitude >= 0, scale > 0 and all are finite.
-void validate_noise(const RbfNoise& noise);
+void validate_noise(const GaussianNoise& noise);
 
 // Lights and phases beyond isotropic point lights (the Fogshop terms generalised; all
 // optional, the defaults keep the plain path bit-identical). Per (pixel, Gaussian i, light):
@@ -65,7 +65,7 @@ void validate_noise(const RbfNoise& noise);
 //    1/d^2, theta fixed along the ray), Gaussian i's own light-side depth the exact half-line
 //    integral from b_i^r towards the sun (erfc form, to infinity), f1 = exp(-T_sun(b_i) -
 //    T(v, b_i)) with T_sun(b_i) the other Gaussians' half-line depths from b_i plus the
-//    homogeneous part of sun_layer.h: beta0 (fog_top - z)/mu_s below a finite top (0 above
+//    homogeneous part of sunlight_layer.h: beta0 (fog_top - z)/mu_s below a finite top (0 above
 //    it; no sunlight for mu_s <= 0), nothing without a top (Hoffman-Preetham's unattenuated
 //    sun). The Gaussians are not cut at the top (the view side does not see the top either).
 //  - background (beta0) term of light l (l < L: point / spot, l = L + j: sun j), per unit
@@ -74,7 +74,7 @@ void validate_noise(const RbfNoise& noise);
 //    and phase). It is scaled like Fogshop's C_sv: by the Gaussians' transmittance from the
 //    light to the eye (suns: along the half-line from the eye towards the sun). Used for the
 //    lights with custom_background[l] set (and every sun); the others keep the sun05 term.
-struct RbfSplatLights {
+struct GaussianSplatLights {
     PhaseFunction phase;
     std::vector<char> spot;          // per point light (size L or empty: none is a spot)
     std::vector<SpotCone> cone;      // per point light (read where spot[l])
@@ -85,12 +85,12 @@ struct RbfSplatLights {
     std::function<double(std::size_t l, const Vec3& d, double t0, double Dvp)> background;
 };
 
-// Light-side homogeneous optical depth of a sun lamp at height z (sun_layer.h's layer):
+// Light-side homogeneous optical depth of a sun lamp at height z (sunlight_layer.h's layer):
 // beta0 (h_top - z) / mu_s below a finite top, 0 above it or without a top; +inf where
 // the path to the sun crosses infinitely much fog (mu_s <= 0 inside the layer, mu_s < 0).
-double sun_layer_depth(double beta0, double h_top, double mu_s, double z);
+double sunlight_layer_depth(double beta0, double h_top, double mu_s, double z);
 
-class RbfSplat {
+class GaussianSplat {
   public:
     static constexpr int kTile = 16;
     // Per-Gaussian optical depth below which a ray skips a Gaussian at half and quarter
@@ -110,11 +110,11 @@ class RbfSplat {
     // homogeneous medium's albedo; _albedo_ 3 per Gaussian or empty (use medium_albedo);
     // _table_ F table for the homogeneous term (nullptr = exact F). The medium and table
     // must outlive this object. Does Fogshop's per-(light, Gaussian) precomputation.
-    RbfSplat(const RbfMedium& medium, const Vec3& eye, const std::vector<Vec3>& lights, const std::vector<RGB>& I0,
+    GaussianSplat(const GaussianMedium& medium, const Vec3& eye, const std::vector<Vec3>& lights, const std::vector<RGB>& I0,
              const RGB& medium_albedo, const std::vector<double>& albedo, const SpecialFTable* table,
-             const RbfNoise& noise, int threads = 0, const RbfSplatLights* extra = nullptr);
-    // Hands the pair list's memory to the next RbfSplat's bin() (rbf_splat.cpp, pair_pool).
-    ~RbfSplat();
+             const GaussianNoise& noise, int threads = 0, const GaussianSplatLights* extra = nullptr);
+    // Hands the pair list's memory to the next GaussianSplat's bin() (gaussian_splat.cpp, pair_pool).
+    ~GaussianSplat();
 
     // Bins the Gaussians into tiles for the image W x H whose pixel (px, py) (film
     // position, pixel centres at +0.5) looks along D0 + px Dx + py Dy from the eye;
@@ -208,12 +208,12 @@ class RbfSplat {
     //  passing both criteria (spacings 2 s .. 32 s in steps of ~1.41) where that costs fewer
     //  evaluations than its tiles' lattices would, counted from the tiles' depth ranges, and
     //  builds no grids when they would save fewer than ~1e5 evaluations.
-    //  (tests: RbfSplat.FarFieldGridsAgainstFull; bench_rbf.py's errors against full.)
+    //  (tests: GaussianSplat.FarFieldGridsAgainstFull; bench_rbf.py's errors against full.)
     //  Edge supersamples (eval_rays) use the (fine) lattice for the Gaussians in front of
     //  all the samples of their chunk.
     // So depth edges cost no accuracy (a pixel's depth only selects which Gaussians are
     // exact); the error is the bilinear interpolation of smooth terms (measured in
-    // rbf_splat_test.cpp and benchmarks/bench_rbf.py).
+    // gaussian_splat_test.cpp and benchmarks/bench_rbf.py).
     void splat_tile(int t, const float* depth, float* transmittance, float* airlight) const;
     // Pair counts of the last splat at step > 1 (all tiles; reset by bin()): lattice
     // (interpolated), exact per pixel, skipped behind the surface; coarse: of the lattice
@@ -238,7 +238,7 @@ class RbfSplat {
     // positions, interpolated at each ray), as for the centre samples. Thread safe.
     void eval_rays(const Vec3* dirs, const float* Dvp, const float* t0, int n, double* Tr, RGB* La) const;
 
-    // Exact double reference for one ray (no noise support; RbfAirlightFogshop::eval with
+    // Exact double reference for one ray (no noise support; FogshopAirlight::eval with
     // per-Gaussian albedo, its f1 in double): RGB airlight of the segment [0, Dvp] from
     // the eye. Sets up the reference on first use: not thread safe (tests).
     RGB eval_exact(const Vec3& dir, double Dvp) const;
@@ -268,7 +268,7 @@ class RbfSplat {
     };
     struct LightF {
         float vx, vy, vz;  // eye - s
-        // Spots (RbfSplatLights): unit axis, cos(size / 2) and the smoothstep width.
+        // Spots (GaussianSplatLights): unit axis, cos(size / 2) and the smoothstep width.
         float ax = 0.0f, ay = 0.0f, az = 0.0f, cos_half = 0.0f, smooth = 0.0f;
     };
 
@@ -305,30 +305,30 @@ class RbfSplat {
     // !plain_ (the plain path calls light_terms directly).
     void light_loop(std::size_t i, int n, const float* dx, const float* dy, const float* dz, const float* Tvp,
                     const float* Tvr, const float* tr, float* accR, float* accG, float* accB) const;
-    // Adds the background terms of the lights with a custom background (RbfSplatLights) and
+    // Adds the background terms of the lights with a custom background (GaussianSplatLights) and
     // of the suns, scaled by their C factors, to L0 for n rays.
     void background_extra(const double* ddx, const double* ddy, const double* ddz, const float* far,
                           const float* t0, int n, float (*L0)[3]) const;
 
-    const RbfMedium& medium_;
+    const GaussianMedium& medium_;
     const SpecialFTable* table_;
     Vec3 eye_;
     std::vector<Vec3> lights_;
     std::vector<RGB> I0_;
     RGB medium_albedo_;
     std::vector<RGB> weight0_;  // medium albedo * I0 per light (homogeneous term)
-    RbfNoise noise_;
+    GaussianNoise noise_;
     int threads_ = 0;
     std::vector<double> Dsv_, Csv_;
-    mutable std::unique_ptr<RbfAirlightFogshop> exact_;
+    mutable std::unique_ptr<FogshopAirlight> exact_;
     std::vector<double> albedo_;  // 3 per Gaussian (resolved: medium albedo if none given)
     std::vector<GaussF> g_;
     std::vector<GaussLightF> gl_;  // [i * L + l]
     std::vector<LightF> lf_;
     float eye_f_[3];
-    // Extensions (RbfSplatLights): plain_ = isotropic point lights only (the original kernels).
+    // Extensions (GaussianSplatLights): plain_ = isotropic point lights only (the original kernels).
     bool plain_ = true;
-    RbfSplatLights extra_;
+    GaussianSplatLights extra_;
     std::vector<GaussLightF> gs_;  // [i * S + j] per sun: sx, sy, sz unused
     std::vector<double> Csun_;     // per sun: Gaussians' transmittance from the eye towards it
     // Binning.
@@ -357,7 +357,7 @@ class RbfSplat {
     std::vector<TileLight> tile_light_;
     double light_min_ = 0.0;
     // Whether Gaussian i's b^r stays factor light_min_ d_i away from every light whose image is
-    // next to tile t, for all of the tile's rays (see rbf_splat.cpp): factor 1 is the lattice's
+    // next to tile t, for all of the tile's rays (see gaussian_splat.cpp): factor 1 is the lattice's
     // criterion at spacing s, 2 the coarse lattice's (2 s), 1/2 a lattice at spacing s / 2.
     bool light_clear(std::size_t i, int t, double factor = 1.0) const;
     // Far-field grids (see splat_tile), built by bin() from the depth: level k (1..) has
@@ -412,11 +412,11 @@ class RbfSplat {
 //   own_vb[i]     = T_i(v, b_i): Gaussian i's own share of it;
 //   T_sb[l n + i], own_sb[l n + i]: the same from light l;
 //   Csv[l]        = exp(-(T(s_l, v) - beta0 D_sv)): the Gaussians alone on s_l -> v (eq. 16);
-//   Dsv[l]        = |s_l - v|;  radius[i] = the cull radius R_i (rbf_medium.h).
+//   Dsv[l]        = |s_l - v|;  radius[i] = the cull radius R_i (gaussian_medium.h).
 // f1 (eq. 13) is exp(-T_sb - T_vb); the bake uses exp(-(T_sb - own_sb) - (T_vb - own_vb))
-// with Gaussian i's own attenuation taken along the true path (rbf_airlight.h).
+// with Gaussian i's own attenuation taken along the true path (gaussian_airlight.h).
 // Optical depths are culled with the medium's cull_eps (each skipped Gaussian < eps).
-struct RbfPreviewFactors {
+struct GaussianPreviewFactors {
     std::vector<double> T_vb, own_vb, T_sb, own_sb, Csv, Dsv, radius;
 };
 // Incremental form (an edit that appended Gaussians): with _previous_ = the factors of
@@ -431,25 +431,25 @@ struct RbfPreviewFactors {
 // copied: 1 segment per Gaussian instead of 1 + m, the same sums as the full call
 // (first_new is ignored). Throws std::invalid_argument on mismatched sizes or non-finite
 // points.
-RbfPreviewFactors rbf_preview_factors(const RbfMedium& medium, const Vec3& eye, const std::vector<Vec3>& lights,
-                                      int threads = 0, const RbfPreviewFactors* previous = nullptr,
+GaussianPreviewFactors rbf_preview_factors(const GaussianMedium& medium, const Vec3& eye, const std::vector<Vec3>& lights,
+                                      int threads = 0, const GaussianPreviewFactors* previous = nullptr,
                                       std::size_t first_new = 0, bool eye_only = false);
 
-// The optical depths behind the factors (RbfSplat's f1 and rbf_preview_factors): for each
+// The optical depths behind the factors (GaussianSplat's f1 and rbf_preview_factors): for each
 // source s_r in _sources_ and target Gaussian i in [first, last),
 //   out[r (last - first) + i - first] = sum over j in [cand_first, cand_last), j != i, of T_j(s_r, b_i),
-// no beta0, culled as RbfMedium::for_each_near (each skipped Gaussian < cull_eps), in float
+// no beta0, culled as GaussianMedium::for_each_near (each skipped Gaussian < cull_eps), in float
 // (fast_erf.h). The segments from one source form a star; _method_ picks how the work is
-// organised (rbf_splat.cpp): 0 by cost, 1 per target, 2 per candidate, 3 binned by
+// organised (gaussian_splat.cpp): 0 by cost, 1 per target, 2 per candidate, 3 binned by
 // direction around the source. All give the same sums to float rounding (tested).
 // Throws std::invalid_argument on a non-finite source or ranges outside the medium.
-std::vector<double> rbf_depths_to_centres(const RbfMedium& medium, const std::vector<Vec3>& sources,
+std::vector<double> gaussian_depths_to_centres(const GaussianMedium& medium, const std::vector<Vec3>& sources,
                                           std::size_t first, std::size_t last, std::size_t cand_first,
                                           std::size_t cand_last, int threads = 0, int method = 0);
-// The same towards a sun lamp (RbfSplatLights): out[i] = sum over j != i of T_j on the
+// The same towards a sun lamp (GaussianSplatLights): out[i] = sum over j != i of T_j on the
 // half-line b_i + t u, t >= 0 (u unit, towards the sun), culled, in float, no beta0 (binned
 // on a grid over the plane normal to u). Throws std::invalid_argument unless u is a finite
 // unit vector.
-std::vector<double> rbf_sun_depths(const RbfMedium& medium, const Vec3& u, int threads = 0);
+std::vector<double> gaussian_sun_depths(const GaussianMedium& medium, const Vec3& u, int threads = 0);
 
 }  // namespace airlight

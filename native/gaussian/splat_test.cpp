@@ -1,6 +1,6 @@
-// rbf_splat_test.cpp: the float fast paths against their double references: fast_erf.h
+// gaussian_splat_test.cpp: the float fast paths against their double references: fast_erf.h
 // against erf_diff / std::erfc, and the tiled splat (and its per-ray twin) against the
-// exact Fogshop evaluation (RbfAirlightFogshop, double) pixel by pixel; per-Gaussian
+// exact Fogshop evaluation (FogshopAirlight, double) pixel by pixel; per-Gaussian
 // colour; the noise perturbation (off = bit-identical, on = bounded change).
 #include "gaussian/splat.h"
 
@@ -128,7 +128,7 @@ struct SmallCamera {
 };
 
 // Gaussians in front of the camera, a ground plane y = -1.5 as the depth.
-RbfMedium cloud(int n, unsigned seed, double beta0) {
+GaussianMedium cloud(int n, unsigned seed, double beta0) {
     std::mt19937 rng(seed);
     std::uniform_real_distribution<double> U(0.0, 1.0);
     std::vector<double> b, a, c;
@@ -141,7 +141,7 @@ RbfMedium cloud(int n, unsigned seed, double beta0) {
     b.insert(b.end(), {0.2, 0.1, 0.3});
     a.push_back(1.5);
     c.push_back(0.2);
-    return RbfMedium(b, a, c, beta0);
+    return GaussianMedium(b, a, c, beta0);
 }
 
 std::vector<float> ground_depth(const SmallCamera& cam) {
@@ -158,7 +158,7 @@ struct Image {
     std::vector<float> T, A;
 };
 
-Image splat_image(const RbfSplat& s, const SmallCamera& cam, const std::vector<float>& depth) {
+Image splat_image(const GaussianSplat& s, const SmallCamera& cam, const std::vector<float>& depth) {
     Image im;
     im.T.assign(3 * depth.size(), -1.0f);
     im.A.assign(3 * depth.size(), -1.0f);
@@ -170,11 +170,11 @@ const std::vector<Vec3> kLights = {Vec3(-3.0, 3.0, 8.0), Vec3(4.0, 1.0, 15.0)};
 const std::vector<RGB> kI0 = {RGB(1.0, 0.8, 0.6), RGB(0.5, 0.5, 1.0)};
 
 // The splat (float, tiles) against the exact double Fogshop path, no near clip.
-TEST(RbfSplat, MatchesExactPerRayPath) {
-    const RbfMedium m = cloud(40, 11, 0.01);
+TEST(GaussianSplat, MatchesExactPerRayPath) {
+    const GaussianMedium m = cloud(40, 11, 0.01);
     const SmallCamera cam(72, 40);
     const RGB albedo(0.9, 0.8, 0.7);
-    RbfSplat s(m, Vec3(0.0), kLights, kI0, albedo, {}, nullptr, RbfNoise{}, 2);
+    GaussianSplat s(m, Vec3(0.0), kLights, kI0, albedo, {}, nullptr, GaussianNoise{}, 2);
     s.bin(cam.D0, cam.Dx, cam.Dy, cam.forward, cam.W, cam.H, 0.0);
     const std::vector<float> depth = ground_depth(cam);
     const Image im = splat_image(s, cam, depth);
@@ -200,10 +200,10 @@ TEST(RbfSplat, MatchesExactPerRayPath) {
     EXPECT_LT(worst_T, 2e-5);
 }
 
-// Reduced resolution's coarse lattice (rbf_splat.h splat_tile): broad Gaussians near the
+// Reduced resolution's coarse lattice (gaussian_splat.h splat_tile): broad Gaussians near the
 // eye (smooth on 8 pixels) go on every other node of the quarter lattice, small far ones on
 // the lattice itself; both against the full-resolution splat, sky and ground pixels.
-TEST(RbfSplat, CoarseLatticeAgainstFull) {
+TEST(GaussianSplat, CoarseLatticeAgainstFull) {
     std::mt19937 rng(7);
     std::uniform_real_distribution<double> U(0.0, 1.0);
     std::vector<double> b, a, c;
@@ -223,15 +223,15 @@ TEST(RbfSplat, CoarseLatticeAgainstFull) {
     // The broad ones alone (all coarse), then all (both kinds).
     for (const bool all : {false, true}) {
         const std::size_t n = all ? a.size() : n_broad;
-        const RbfMedium m(std::vector<double>(b.begin(), b.begin() + 3 * n), std::vector<double>(a.begin(), a.begin() + n),
+        const GaussianMedium m(std::vector<double>(b.begin(), b.begin() + 3 * n), std::vector<double>(a.begin(), a.begin() + n),
                           std::vector<double>(c.begin(), c.begin() + n), 0.005);
-        RbfSplat s(m, Vec3(0.0), {Vec3(40.0, 25.0, 70.0)}, {RGB(300.0, 250.0, 200.0)}, RGB(0.9), {}, nullptr,
-                   RbfNoise{}, 2);
+        GaussianSplat s(m, Vec3(0.0), {Vec3(40.0, 25.0, 70.0)}, {RGB(300.0, 250.0, 200.0)}, RGB(0.9), {}, nullptr,
+                   GaussianNoise{}, 2);
         s.bin(cam.D0, cam.Dx, cam.Dy, cam.forward, cam.W, cam.H, 0.0, 1);
         const Image full = splat_image(s, cam, depth);
         s.bin(cam.D0, cam.Dx, cam.Dy, cam.forward, cam.W, cam.H, 0.0, 4);
         const Image quarter = splat_image(s, cam, depth);
-        const RbfSplat::ReducedCounts rc = s.reduced_counts();
+        const GaussianSplat::ReducedCounts rc = s.reduced_counts();
         double worst_A = 0.0, worst_T = 0.0, mean_A = 0.0;
         for (size_t p = 0; p < depth.size(); ++p) {
             worst_T = std::max(worst_T,
@@ -258,12 +258,12 @@ TEST(RbfSplat, CoarseLatticeAgainstFull) {
     }
 }
 
-// The far-field grids (rbf_splat.h splat_tile): broad Gaussians' Dvp = inf terms on
+// The far-field grids (gaussian_splat.h splat_tile): broad Gaussians' Dvp = inf terms on
 // image-wide grids, cancelled where a Gaussian lies behind the ground, exact where the ground
 // cuts it; small ones stay on the tile lattices. Quarter and half with the grids (bin()
 // given the depth) against the full-resolution splat, and against the same resolution
 // without them (the lattice's own error).
-TEST(RbfSplat, FarFieldGridsAgainstFull) {
+TEST(GaussianSplat, FarFieldGridsAgainstFull) {
     std::mt19937 rng(5);
     std::uniform_real_distribution<double> U(0.0, 1.0);
     std::vector<double> b, a, c;
@@ -289,11 +289,11 @@ TEST(RbfSplat, FarFieldGridsAgainstFull) {
         a.push_back(1.0 / (6.0 + 2.0 * U(rng)));
         c.push_back(0.01 + 0.02 * U(rng));
     }
-    const RbfMedium m(b, a, c, 0.005);
+    const GaussianMedium m(b, a, c, 0.005);
     const SmallCamera cam(640, 360);
     const std::vector<float> depth = ground_depth(cam);
-    RbfSplat s(m, Vec3(0.0), {Vec3(5.0, 30.0, 15.0)}, {RGB(300.0, 250.0, 200.0)}, RGB(0.9), {}, nullptr,
-               RbfNoise{}, 2);
+    GaussianSplat s(m, Vec3(0.0), {Vec3(5.0, 30.0, 15.0)}, {RGB(300.0, 250.0, 200.0)}, RGB(0.9), {}, nullptr,
+               GaussianNoise{}, 2);
     s.bin(cam.D0, cam.Dx, cam.Dy, cam.forward, cam.W, cam.H, 0.1, 1);
     const Image full = splat_image(s, cam, depth);
     auto errors = [&](const Image& im, double& worst_A, double& worst_T) {
@@ -310,7 +310,7 @@ TEST(RbfSplat, FarFieldGridsAgainstFull) {
         const Image plain = splat_image(s, cam, depth);
         s.bin(cam.D0, cam.Dx, cam.Dy, cam.forward, cam.W, cam.H, 0.1, step, depth.data());
         const Image grids = splat_image(s, cam, depth);
-        const RbfSplat::ReducedCounts rc = s.reduced_counts();
+        const GaussianSplat::ReducedCounts rc = s.reduced_counts();
         double A0, T0, A1, T1, dA = 0.0, dT = 0.0;
         errors(plain, A0, T0);
         errors(grids, A1, T1);
@@ -339,14 +339,14 @@ TEST(RbfSplat, FarFieldGridsAgainstFull) {
     }
 }
 
-// The cull spheres at reduced resolution (RbfSplat::kReducedCullEps), Gaussian by Gaussian:
+// The cull spheres at reduced resolution (GaussianSplat::kReducedCullEps), Gaussian by Gaussian:
 // one Gaussian beside the view whose tail alone reaches in (1e-7 .. 3e-3 of optical depth
 // per ray), binned at full, half and quarter resolution. Every pixel of a tile it is not
 // binned to must see less than eps of it (the exact line integral in double): culling never
 // drops more than eps per Gaussian and ray. And the smaller spheres must bin fewer tiles
 // (the point of them). With the radius 20 % short, 23 checks fail (up to 2.3e-4 dropped at
 // quarter).
-TEST(RbfSplat, ReducedCullWithinItsBound) {
+TEST(GaussianSplat, ReducedCullWithinItsBound) {
     const SmallCamera cam(320, 180);
     const std::vector<float> depth = ground_depth(cam);
     double tail_max = 0.0;
@@ -354,8 +354,8 @@ TEST(RbfSplat, ReducedCullWithinItsBound) {
         const double z = 6.0 + 3.0 * (i / 2), side = i % 2 ? 1.0 : -1.0, inv_a = 0.6 + 0.1 * (i % 5);
         // The centre 2.2 .. 3.6 scale lengths beside the frustum's edge (x = 0.577 z).
         const Vec3 centre(side * (0.577 * z + (2.2 + 0.2 * (i % 8)) * inv_a * 1.155), 0.3 * (i % 3), z);
-        const RbfMedium m({centre.x, centre.y, centre.z}, {1.0 / inv_a}, {0.3}, 0.0);
-        RbfSplat s(m, Vec3(0.0), {Vec3(0.0, 6.0, 12.0)}, {RGB(100.0)}, RGB(0.9), {}, nullptr, RbfNoise{}, 1);
+        const GaussianMedium m({centre.x, centre.y, centre.z}, {1.0 / inv_a}, {0.3}, 0.0);
+        GaussianSplat s(m, Vec3(0.0), {Vec3(0.0, 6.0, 12.0)}, {RGB(100.0)}, RGB(0.9), {}, nullptr, GaussianNoise{}, 1);
         std::vector<double> tail(depth.size());
         for (int j = 0; j < cam.H; ++j)
             for (int k = 0; k < cam.W; ++k) {
@@ -365,7 +365,7 @@ TEST(RbfSplat, ReducedCullWithinItsBound) {
             }
         int binned[3] = {0, 0, 0};
         for (const int step : {1, 2, 4}) {
-            const double eps = step == 1 ? m.cull_eps() : RbfSplat::kReducedCullEps[step / 2 - 1];
+            const double eps = step == 1 ? m.cull_eps() : GaussianSplat::kReducedCullEps[step / 2 - 1];
             s.bin(cam.D0, cam.Dx, cam.Dy, cam.forward, cam.W, cam.H, 0.0, step);
             double dropped = 0.0;
             for (int t = 0; t < s.num_tiles(); ++t) {
@@ -387,20 +387,20 @@ TEST(RbfSplat, ReducedCullWithinItsBound) {
     EXPECT_LT(tail_max, 1e-2);
 }
 
-// Noise (rbf_splat.h, Fogshop 5.5) against its definition, per Gaussian in double: the
+// Noise (gaussian_splat.h, Fogshop 5.5) against its definition, per Gaussian in double: the
 // optical depth of Gaussian i along r'_i = normalize(r + amplitude R_i / |b_i - v|
 // N(b_i^r / scale + offset)) over [0, Dvp] (b_i^r from the unperturbed ray, clamped to
 // [0, Dvp]), summed with beta0 Dvp, at full resolution (measured 3.5e-6; with the noise
 // left out of the reference 0.61, with its lookup point 0.3 m further along the ray 0.75).
-TEST(RbfSplat, NoiseMatchesItsDefinition) {
-    const RbfMedium m = cloud(25, 17, 0.01);
+TEST(GaussianSplat, NoiseMatchesItsDefinition) {
+    const GaussianMedium m = cloud(25, 17, 0.01);
     const SmallCamera cam(64, 36);
     const std::vector<float> depth = ground_depth(cam);
-    RbfNoise noise;
+    GaussianNoise noise;
     noise.amplitude = 0.4;
     noise.scale = 0.9;
     noise.offset = Vec3(0.3, -1.2, 2.5);
-    RbfSplat s(m, Vec3(0.0), kLights, kI0, RGB(1.0), {}, nullptr, noise, 2);
+    GaussianSplat s(m, Vec3(0.0), kLights, kI0, RGB(1.0), {}, nullptr, noise, 2);
     s.bin(cam.D0, cam.Dx, cam.Dy, cam.forward, cam.W, cam.H, 0.0, 1);
     const Image im = splat_image(s, cam, depth);
     double worst = 0.0;
@@ -433,10 +433,10 @@ TEST(RbfSplat, NoiseMatchesItsDefinition) {
 
 // Around a light's image: Gaussians whose b^r can come close to the light (around it, or
 // at its depth beside it) stay exact per pixel, the others (before or behind it on its line
-// of sight) take the lattice like anywhere else (RbfSplat::light_clear). Before, every
+// of sight) take the lattice like anywhere else (GaussianSplat::light_clear). Before, every
 // Gaussian within 64 px of the image was exact and those beside the light, further out,
 // were interpolated (0.78 % airlight error 100 px from the image with them 2.5 m away).
-TEST(RbfSplat, LightImageTilesAgainstFull) {
+TEST(GaussianSplat, LightImageTilesAgainstFull) {
     std::mt19937 rng(3);
     std::uniform_real_distribution<double> U(0.0, 1.0);
     const Vec3 light(1.0, 0.8, 20.0);
@@ -462,15 +462,15 @@ TEST(RbfSplat, LightImageTilesAgainstFull) {
         a.push_back(1.0 / 3.0);
         c.push_back(0.05);
     }
-    const RbfMedium m(b, a, c, 0.004);
+    const GaussianMedium m(b, a, c, 0.004);
     const SmallCamera cam(640, 360);
     const std::vector<float> depth = ground_depth(cam);
-    RbfSplat s(m, Vec3(0.0), {light}, {RGB(300.0, 250.0, 200.0)}, RGB(0.9), {}, nullptr, RbfNoise{}, 2);
+    GaussianSplat s(m, Vec3(0.0), {light}, {RGB(300.0, 250.0, 200.0)}, RGB(0.9), {}, nullptr, GaussianNoise{}, 2);
     s.bin(cam.D0, cam.Dx, cam.Dy, cam.forward, cam.W, cam.H, 0.0, 1);
     const Image full = splat_image(s, cam, depth);
     s.bin(cam.D0, cam.Dx, cam.Dy, cam.forward, cam.W, cam.H, 0.0, 4);
     const Image quarter = splat_image(s, cam, depth);
-    const RbfSplat::ReducedCounts rc = s.reduced_counts();
+    const GaussianSplat::ReducedCounts rc = s.reduced_counts();
     // The light's image and the 96 px around it.
     const Vec3 q = light / light.z;
     const double lx = (q.x - cam.D0.x) / cam.Dx.x, ly = (q.y - cam.D0.y) / cam.Dy.y;
@@ -496,12 +496,12 @@ TEST(RbfSplat, LightImageTilesAgainstFull) {
 
 // Near clip: the segment [t0, Dvp] against the exact formula
 // exp(T(v, t0)) (La(Dvp) - La(t0)), and the per-ray twin (edge samples) against the splat.
-TEST(RbfSplat, NearClipAndPerRayTwin) {
-    const RbfMedium m = cloud(30, 5, 0.02);
+TEST(GaussianSplat, NearClipAndPerRayTwin) {
+    const GaussianMedium m = cloud(30, 5, 0.02);
     const SmallCamera cam(48, 32);
     const double clip_start = 0.25;
     const RGB albedo(1.0);
-    RbfSplat s(m, Vec3(0.0), kLights, kI0, albedo, {}, nullptr, RbfNoise{}, 2);
+    GaussianSplat s(m, Vec3(0.0), kLights, kI0, albedo, {}, nullptr, GaussianNoise{}, 2);
     s.bin(cam.D0, cam.Dx, cam.Dy, cam.forward, cam.W, cam.H, clip_start);
     const std::vector<float> depth = ground_depth(cam);
     const Image im = splat_image(s, cam, depth);
@@ -537,13 +537,13 @@ TEST(RbfSplat, NearClipAndPerRayTwin) {
 
 // Per-Gaussian colour: two Gaussians far apart, one red and one blue: each pixel's
 // airlight takes its Gaussian's colour, and the splat matches the exact RGB path.
-TEST(RbfSplat, PerGaussianColour) {
-    const RbfMedium m({-3.0, 0.0, 10.0, 3.0, 0.0, 10.0}, {2.0, 2.0}, {0.5, 0.5}, 0.0);
+TEST(GaussianSplat, PerGaussianColour) {
+    const GaussianMedium m({-3.0, 0.0, 10.0, 3.0, 0.0, 10.0}, {2.0, 2.0}, {0.5, 0.5}, 0.0);
     const SmallCamera cam(64, 32);
     const std::vector<double> colours = {1.0, 0.2, 0.0, 0.0, 0.3, 1.0};
     const std::vector<Vec3> light = {Vec3(0.0, 4.0, 10.0)};
     const std::vector<RGB> I0 = {RGB(1.0)};
-    RbfSplat s(m, Vec3(0.0), light, I0, RGB(1.0), colours, nullptr, RbfNoise{}, 1);
+    GaussianSplat s(m, Vec3(0.0), light, I0, RGB(1.0), colours, nullptr, GaussianNoise{}, 1);
     s.bin(cam.D0, cam.Dx, cam.Dy, cam.forward, cam.W, cam.H, 0.0);
     const std::vector<float> depth(size_t(cam.W) * cam.H, std::numeric_limits<float>::infinity());
     const Image im = splat_image(s, cam, depth);
@@ -568,8 +568,8 @@ TEST(RbfSplat, PerGaussianColour) {
     EXPECT_NEAR(right[1] / right[2], 0.3, 1e-3);
     EXPECT_LT(right[0], 1e-3 * right[2]);
     // With one colour for all, per-Gaussian albedo equal to the medium's gives the same image.
-    RbfSplat grey(m, Vec3(0.0), light, I0, RGB(0.5), {0.5, 0.5, 0.5, 0.5, 0.5, 0.5}, nullptr, RbfNoise{}, 1);
-    RbfSplat plain(m, Vec3(0.0), light, I0, RGB(0.5), {}, nullptr, RbfNoise{}, 1);
+    GaussianSplat grey(m, Vec3(0.0), light, I0, RGB(0.5), {0.5, 0.5, 0.5, 0.5, 0.5, 0.5}, nullptr, GaussianNoise{}, 1);
+    GaussianSplat plain(m, Vec3(0.0), light, I0, RGB(0.5), {}, nullptr, GaussianNoise{}, 1);
     grey.bin(cam.D0, cam.Dx, cam.Dy, cam.forward, cam.W, cam.H, 0.0);
     plain.bin(cam.D0, cam.Dx, cam.Dy, cam.forward, cam.W, cam.H, 0.0);
     EXPECT_EQ(splat_image(grey, cam, depth).A, splat_image(plain, cam, depth).A);
@@ -578,23 +578,23 @@ TEST(RbfSplat, PerGaussianColour) {
 // Noise: amplitude 0 is the code path without noise (bit-identical images); a nonzero
 // amplitude changes the image, deterministically, and each Gaussian's optical depth stays
 // within its line-integral bound c sqrt(pi) / a (so T >= exp(-sum of the bounds)).
-TEST(RbfSplat, NoiseOffIdenticalOnBounded) {
-    const RbfMedium m = cloud(30, 9, 0.01);
+TEST(GaussianSplat, NoiseOffIdenticalOnBounded) {
+    const GaussianMedium m = cloud(30, 9, 0.01);
     const SmallCamera cam(48, 32);
     const std::vector<float> depth = ground_depth(cam);
-    auto render = [&](const RbfNoise& noise) {
-        RbfSplat s(m, Vec3(0.0), kLights, kI0, RGB(1.0), {}, nullptr, noise, 1);
+    auto render = [&](const GaussianNoise& noise) {
+        GaussianSplat s(m, Vec3(0.0), kLights, kI0, RGB(1.0), {}, nullptr, noise, 1);
         s.bin(cam.D0, cam.Dx, cam.Dy, cam.forward, cam.W, cam.H, 0.1);
         return splat_image(s, cam, depth);
     };
-    const Image base = render(RbfNoise{});
-    RbfNoise zero;
+    const Image base = render(GaussianNoise{});
+    GaussianNoise zero;
     zero.scale = 0.37;
     zero.offset = Vec3(1.0, 2.0, 3.0);
     const Image off = render(zero);
     EXPECT_EQ(base.A, off.A);
     EXPECT_EQ(base.T, off.T);
-    RbfNoise on;
+    GaussianNoise on;
     on.amplitude = 0.5;
     on.scale = 0.7;
     const Image a = render(on), b = render(on);
@@ -633,7 +633,7 @@ namespace {
 // Profiling aid (not a timed test; run with --gtest_also_run_disabled_tests): the
 // 3000-Gaussian benchmark cloud of bench_rbf.py (AIRLIGHT_PROFILE_34 set: its 34 broad
 // Gaussians) at 1920 x 1080, one light, one thread; full, half and quarter resolution.
-TEST(RbfSplat, DISABLED_Profile3000) {
+TEST(GaussianSplat, DISABLED_Profile3000) {
     std::mt19937 rng(2);
     std::uniform_real_distribution<double> U(0.0, 1.0);
     std::vector<double> b, a, c;
@@ -643,7 +643,7 @@ TEST(RbfSplat, DISABLED_Profile3000) {
         a.push_back(broad ? 1.0 / (3.0 + 7.0 * U(rng)) : 1.0 / (1.0 + 2.0 * U(rng)));
         c.push_back(broad ? 0.005 + 0.015 * U(rng) : 0.01 + 0.04 * U(rng));
     }
-    const RbfMedium m(b, a, c, 0.002);
+    const GaussianMedium m(b, a, c, 0.002);
     SmallCamera cam(1920, 1080);
     const SpecialFTable table(256, 256);
     // (the 34 with bench_rbf.py's 3 lights)
@@ -651,7 +651,7 @@ TEST(RbfSplat, DISABLED_Profile3000) {
                                            : std::vector<Vec3>{Vec3(-8.0, 4.0, 30.0)};
     // (AIRLIGHT_PROFILE_THREADS=k: bin() and the splat's set-up on k threads; the tiles stay on one)
     const char* threads = std::getenv("AIRLIGHT_PROFILE_THREADS");
-    RbfSplat s(m, Vec3(0.0), lights, std::vector<RGB>(lights.size(), RGB(40.0)), RGB(0.9), {}, &table, RbfNoise{},
+    GaussianSplat s(m, Vec3(0.0), lights, std::vector<RGB>(lights.size(), RGB(40.0)), RGB(0.9), {}, &table, GaussianNoise{},
                threads ? std::atoi(threads) : 1);
     s.bin(cam.D0, cam.Dx, cam.Dy, cam.forward, cam.W, cam.H, 0.1);
     std::vector<float> depth(size_t(cam.W) * cam.H);
@@ -673,8 +673,8 @@ TEST(RbfSplat, DISABLED_Profile3000) {
     for (int t = 0; t < s.num_tiles(); ++t) s.splat_tile(t, depth.data(), T.data(), A.data());
     const double sec = double(std::clock() - t0) / CLOCKS_PER_SEC;
     std::printf("splat 1920x1080: %.3f s CPU, %zu (tile, Gaussian) pairs = %.1f per pixel, %.2f ns per pixel-Gaussian\n",
-                sec, s.num_pairs(), double(s.num_pairs()) * RbfSplat::kTile * RbfSplat::kTile / depth.size(),
-                sec * 1e9 / (double(s.num_pairs()) * RbfSplat::kTile * RbfSplat::kTile));
+                sec, s.num_pairs(), double(s.num_pairs()) * GaussianSplat::kTile * GaussianSplat::kTile / depth.size(),
+                sec * 1e9 / (double(s.num_pairs()) * GaussianSplat::kTile * GaussianSplat::kTile));
     for (int step : {2, 4}) {
         for (const bool grids : {false, true}) {
             const std::clock_t b0 = std::clock();
@@ -683,7 +683,7 @@ TEST(RbfSplat, DISABLED_Profile3000) {
             const std::clock_t c0 = std::clock();
             for (int t = 0; t < s.num_tiles(); ++t) s.splat_tile(t, depth.data(), T.data(), A.data());
             const double sec_s = double(std::clock() - c0) / CLOCKS_PER_SEC;
-            const RbfSplat::ReducedCounts rc = s.reduced_counts();
+            const GaussianSplat::ReducedCounts rc = s.reduced_counts();
             std::printf("step %d%s: bin %.3f s, splat %.3f s CPU (x%.2f), pairs lattice %zu (coarse %zu, far %zu), "
                         "exact %zu, behind %zu; far-field %zu Gaussians, %zu nodes\n",
                         step, grids ? " with far-field grids" : "", sec_b, sec_s, sec / sec_s, rc.lattice, rc.coarse,
@@ -696,7 +696,7 @@ TEST(RbfSplat, DISABLED_Profile3000) {
 
 namespace airlight {
 namespace {
-// The optical depths behind the per-(light, Gaussian) factors (rbf_depths_to_centres), by
+// The optical depths behind the per-(light, Gaussian) factors (gaussian_depths_to_centres), by
 // each of its three ways (per target, per candidate, binned by direction), against the
 // exact double line integrals of every other Gaussian (eq. 31 with erf_diff, no culling).
 // The medium is built to hit the binning's corners: sources inside the cloud, cull spheres
@@ -706,7 +706,7 @@ namespace {
 // a few large faint ones whose spheres cover many cells.
 const std::vector<Vec3> kStarSources = {Vec3(0.0), Vec3(2.0, 1.0, 9.0), Vec3(-6.0, 5.0, 20.0)};
 
-RbfMedium star_cloud(int n, unsigned seed) {
+GaussianMedium star_cloud(int n, unsigned seed) {
     std::mt19937 rng(seed);
     std::uniform_real_distribution<double> U(0.0, 1.0);
     std::vector<double> b, a, c;
@@ -728,12 +728,12 @@ RbfMedium star_cloud(int n, unsigned seed) {
     add(Vec3(-5.0, 4.5, 19.0), 0.15, 0.01);                                                 // large, holds source 2
     add(Vec3(3.0, 2.0, 4.0), 1.0, 1e-9);                                                    // no cull sphere
     add(Vec3(-3.0, 0.0, 12.0), 2.0, 0.0);                                                   // c = 0
-    return RbfMedium(b, a, c, 0.01);
+    return GaussianMedium(b, a, c, 0.01);
 }
 
 // Exact sum over j in [c0, c1), j != i, on s -> b_i: all of them (culled = false) or those
 // the medium's own cull test reaches (for_each_near, in double).
-double exact_others(const RbfMedium& m, const Vec3& s, std::size_t i, std::size_t c0, std::size_t c1, bool culled) {
+double exact_others(const GaussianMedium& m, const Vec3& s, std::size_t i, std::size_t c0, std::size_t c1, bool culled) {
     const Vec3 d = m.centre(i) - s;
     const double D = glm::length(d);
     if (!(D > 0.0)) return 0.0;
@@ -748,8 +748,8 @@ double exact_others(const RbfMedium& m, const Vec3& s, std::size_t i, std::size_
     return T;
 }
 
-TEST(RbfFactors, EveryMethodMatchesExactSums) {
-    const RbfMedium m = star_cloud(700, 17);
+TEST(GaussianFactors, EveryMethodMatchesExactSums) {
+    const GaussianMedium m = star_cloud(700, 17);
     const std::size_t n = m.size();
     // Full (every target, every candidate) and the incremental split (targets and
     // candidates in different ranges, as rbf_preview_factors uses them).
@@ -770,7 +770,7 @@ TEST(RbfFactors, EveryMethodMatchesExactSums) {
         const double extra = 20.0 * m.cull_eps(), cull = m.cull_eps() * double(cs.c1 - cs.c0);
         std::vector<std::vector<double>> got;
         for (int method = 1; method <= 3; ++method) {
-            got.push_back(rbf_depths_to_centres(m, kStarSources, cs.t0, cs.t1, cs.c0, cs.c1, 2, method));
+            got.push_back(gaussian_depths_to_centres(m, kStarSources, cs.t0, cs.t1, cs.c0, cs.c1, 2, method));
             const std::vector<double>& T = got.back();
             ASSERT_EQ(T.size(), ref.size());
             double worst = 0.0, worst_all = 0.0, biggest = 0.0;
@@ -793,17 +793,17 @@ TEST(RbfFactors, EveryMethodMatchesExactSums) {
         }
     }
     // The Gaussian centred on source 1 (index n - 4): a zero-length segment.
-    const std::vector<double> T = rbf_depths_to_centres(m, {kStarSources[1]}, n - 4, n - 3, 0, n, 1, 3);
+    const std::vector<double> T = gaussian_depths_to_centres(m, {kStarSources[1]}, n - 4, n - 3, 0, n, 1, 3);
     EXPECT_EQ(T[0], 0.0);
 }
 
-// Sun lamps' half-line depths (rbf_sun_depths) against the exact double ones: the culled
+// Sun lamps' half-line depths (gaussian_sun_depths) against the exact double ones: the culled
 // per-ray walk of the hierarchy (optical_depth_ray, the previous path) and every Gaussian.
-TEST(RbfFactors, SunDepthsMatchExact) {
-    const RbfMedium m = star_cloud(1500, 23);
+TEST(GaussianFactors, SunDepthsMatchExact) {
+    const GaussianMedium m = star_cloud(1500, 23);
     const double inf = std::numeric_limits<double>::infinity();
     for (const Vec3& u : {glm::normalize(Vec3(0.3, 0.8, -0.5)), Vec3(0.0, 1.0, 0.0), Vec3(0.0, 0.0, -1.0)}) {
-        const std::vector<double> T = rbf_sun_depths(m, u, 2);
+        const std::vector<double> T = gaussian_sun_depths(m, u, 2);
         ASSERT_EQ(T.size(), m.size());
         double worst = 0.0, worst_all = 0.0, biggest = 0.0;
         for (std::size_t i = 0; i < m.size(); ++i) {
@@ -821,18 +821,18 @@ TEST(RbfFactors, SunDepthsMatchExact) {
         EXPECT_LE(worst, 1.0);
         EXPECT_LE(worst_all, 1.0);
     }
-    EXPECT_THROW(rbf_sun_depths(m, Vec3(0.0, 2.0, 0.0)), std::invalid_argument);
+    EXPECT_THROW(gaussian_sun_depths(m, Vec3(0.0, 2.0, 0.0)), std::invalid_argument);
 }
 
-TEST(RbfFactors, BadInput) {
-    const RbfMedium m = star_cloud(20, 3);
+TEST(GaussianFactors, BadInput) {
+    const GaussianMedium m = star_cloud(20, 3);
     const double nan = std::numeric_limits<double>::quiet_NaN();
-    EXPECT_THROW(rbf_depths_to_centres(m, {Vec3(0.0, nan, 1.0)}, 0, m.size(), 0, m.size()), std::invalid_argument);
-    EXPECT_THROW(rbf_depths_to_centres(m, {Vec3(0.0)}, 0, m.size() + 1, 0, m.size()), std::invalid_argument);
-    EXPECT_THROW(rbf_depths_to_centres(m, {Vec3(0.0)}, 0, m.size(), 3, 2), std::invalid_argument);
-    EXPECT_THROW(rbf_depths_to_centres(m, {Vec3(0.0)}, 0, m.size(), 0, m.size(), 1, 4), std::invalid_argument);
+    EXPECT_THROW(gaussian_depths_to_centres(m, {Vec3(0.0, nan, 1.0)}, 0, m.size(), 0, m.size()), std::invalid_argument);
+    EXPECT_THROW(gaussian_depths_to_centres(m, {Vec3(0.0)}, 0, m.size() + 1, 0, m.size()), std::invalid_argument);
+    EXPECT_THROW(gaussian_depths_to_centres(m, {Vec3(0.0)}, 0, m.size(), 3, 2), std::invalid_argument);
+    EXPECT_THROW(gaussian_depths_to_centres(m, {Vec3(0.0)}, 0, m.size(), 0, m.size(), 1, 4), std::invalid_argument);
     // The bake's constructor and the preview factors refuse a non-finite light too.
-    EXPECT_THROW(RbfSplat(m, Vec3(0.0), {Vec3(nan, 0.0, 0.0)}, {RGB(1.0)}, RGB(0.9), {}, nullptr, RbfNoise{}, 1),
+    EXPECT_THROW(GaussianSplat(m, Vec3(0.0), {Vec3(nan, 0.0, 0.0)}, {RGB(1.0)}, RGB(0.9), {}, nullptr, GaussianNoise{}, 1),
                  std::invalid_argument);
     EXPECT_THROW(rbf_preview_factors(m, Vec3(0.0), {Vec3(0.0, 0.0, nan)}), std::invalid_argument);
 }

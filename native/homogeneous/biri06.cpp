@@ -36,6 +36,7 @@
 // complementary table of the scaled tail e^{lambda T} int_T^inf would remove that fallback.
 // Table build: ~38 ms per phase function (per g for HG), cached.
 #include "homogeneous/biri06.h"
+#include "core/constants.h"
 
 #include <algorithm>
 #include <cmath>
@@ -52,7 +53,6 @@ namespace airlight {
 
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
 // The table difference G1 - G0 is used only where it keeps >= 1/kCancel of G1 (the lookup
 // error of G1 and G0, ~1e-4 relative, is amplified by G1 / (G1 - G0)); else the exact path.
 #ifndef AIRLIGHT_BIRI_CANCEL

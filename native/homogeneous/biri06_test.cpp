@@ -1,5 +1,6 @@
 // biri06_test.cpp: the Biri 2006 model against the quadrature reference, the Gamma
 // re-derivation against the paper's eq. 6, the table against the exact G, and the limits.
+#include "core/constants.h"
 #include "homogeneous/biri06.h"
 
 #include <gtest/gtest.h>
@@ -18,7 +19,6 @@
 namespace airlight {
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
 
 std::vector<PhaseFunction> all_phases() {
     std::vector<PhaseFunction> out{phase_from_name("isotropic"), phase_from_name("rayleigh"),

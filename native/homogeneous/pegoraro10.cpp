@@ -1,5 +1,6 @@
 // pegoraro10.cpp: Pegoraro et al. 2010 closed form (see pegoraro10.h for the derivation).
 #include "homogeneous/pegoraro10.h"
+#include "core/constants.h"
 
 #include <algorithm>
 #include <array>
@@ -14,7 +15,6 @@ namespace airlight {
 
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
 // Largest trigonometric degree K handled (phase order + light order).
 constexpr int kMaxDegree = 132;
 // The recurrence runs forward below this H (= sigma_t h); above it, Olver's algorithm.

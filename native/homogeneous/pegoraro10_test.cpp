@@ -1,6 +1,7 @@
 // pegoraro10_test.cpp: the complex E1 at known values and on both sides of its cut, the
 // Pegoraro closed form against Sun 2005's exact F path (isotropic), the phase-aware
 // quadrature (Rayleigh, murky Mie, HG at order 64) and the spot quadrature.
+#include "core/constants.h"
 #include "homogeneous/pegoraro10.h"
 
 #include <gtest/gtest.h>
@@ -17,7 +18,6 @@
 namespace airlight {
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
 
 TEST(ComplexE1, KnownValuesAndBranch) {
     // E1(1) and Ei(1) (Abramowitz & Stegun table 5.1): E1(-1 +- i0) = -Ei(1) -+ i pi.

@@ -1,5 +1,6 @@
 // spot_light_test.cpp: the spot airlight quadrature against an independent brute-force
 // midpoint integration and analytic limits.
+#include "core/constants.h"
 #include "homogeneous/spot_light.h"
 
 #include <gtest/gtest.h>
@@ -12,7 +13,6 @@
 namespace airlight {
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
 
 // Independent Cycles profile (NOTES.md), written out again here.
 double profile_ref(glm::dvec3 axis, double size, double blend, glm::dvec3 dir) {

@@ -70,7 +70,7 @@ double sun05_airlight(double sigma_t, double Dsv, double cos_gamma, double Dvp, 
     Sun05Geometry g = sun05_geometry(Dsv, cos_gamma, Dvp);
     if (g.behind_limit) return sun05_behind_limit(sigma_t, g.Dsv, Dvp);
     sun05_geometry_dn(g, Dvp);
-    return sigma_t / (2.0 * sun05::kPi) * std::exp(-sigma_t * g.Dsv) * sun05_exact_E(sigma_t, g);
+    return sigma_t / (2.0 * kPi) * std::exp(-sigma_t * g.Dsv) * sun05_exact_E(sigma_t, g);
 }
 
 void sun05_check_inputs(double sigma_t, double Dsv, double cos_gamma, double Dvp) {

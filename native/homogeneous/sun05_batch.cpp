@@ -168,7 +168,7 @@ __attribute__((always_inline)) inline int table_block_impl(const float* __restri
                                                            float sigma_t, float Dsv_f,
                                                            const BlockAngles& __restrict ang, int n,
                                                            float* __restrict out, int* __restrict fallback) {
-    const float prefactor = sigma_t / float(2.0 * sun05::kPi);
+    const float prefactor = sigma_t / float(2.0 * kPi);
     const float kCancel = float(sun05::kCancel) * kCancelMargin;
     const float kSinMin = float(sun05::kSinGammaMin);
     const float kTableK = float(kSpecialFTableK);
@@ -221,7 +221,7 @@ int table_block_nearest(const float* __restrict table, int nu, int nT, float sig
 AIRLIGHT_SIMD_CLONES
 void short_block(float sigma_t, float Dsv_f, const BlockAngles& __restrict ang, const int* __restrict idx, int n,
                  float* __restrict value, int* __restrict done) {
-    const float prefactor = sigma_t / float(2.0 * sun05::kPi);
+    const float prefactor = sigma_t / float(2.0 * kPi);
     const float kSinMin = float(sun05::kSinGammaMin);
     const float kMargin = 1.0f / kCancelMargin;
     for (int m = 0; m < n; ++m) {

@@ -1,5 +1,6 @@
 // sun05_batch_test.cpp: the SIMD batch table path against the scalar double table path
 // (same branch, float rounding only), against quadrature, and its transmittance exp.
+#include "core/constants.h"
 #include "core/quadrature.h"
 #include "core/special_f.h"
 #include "homogeneous/sun05_batch.h"
@@ -18,7 +19,6 @@ namespace airlight {
 namespace {
 
 constexpr double kInf = std::numeric_limits<double>::infinity();
-constexpr double kPi = 3.14159265358979323846;
 
 // Float vs double on the kept lanes: ~3e-7 per F value, amplified by F1 / G < 1 / kCancel
 // (sun05_batch.h). Measured max over the sweep below: see BatchMatchesScalarSweep.

@@ -17,13 +17,13 @@
 #include <algorithm>
 #include <cmath>
 
+#include "core/constants.h"
 #include "core/special_f.h"
 
 namespace airlight {
 
 namespace sun05 {
 
-constexpr double kPi = 3.14159265358979323846;
 // Below this sin(gamma) (the smallest nonzero value a double cos(gamma) can give is
 // ~1.05e-8) a ray through the light is regularised to sin(gamma) = kSinGammaMin: the
 // exact value diverges like 1/gamma, while a pixel integrates it to a finite value.
@@ -209,7 +209,7 @@ inline void sun05_geometry_shift(Sun05Geometry& g, double t0) {
 
 // Closed form for gamma = 0 with the light behind the surface (Dvp < Dsv).
 inline double sun05_behind_limit(double sigma_t, double Dsv, double Dvp) {
-    return sigma_t * std::exp(-sigma_t * Dsv) * Dvp / (4.0 * sun05::kPi * Dsv * (Dsv - Dvp));
+    return sigma_t * std::exp(-sigma_t * Dsv) * Dvp / (4.0 * kPi * Dsv * (Dsv - Dvp));
 }
 
 // Airlight per unit I0 and albedo, table path. Inputs assumed valid (see sun05_check_inputs).
@@ -236,10 +236,10 @@ inline double sun05_airlight_table(const float* data, int nu, int nT, double sig
         special_F_table_pair(data, nu, nT, u, g.h, g.n0, g.n1, g.Dvp_inf, &F0, &F1, interp);
         const double G = F1 - F0;
         if (G > sun05::kCancel * F1)
-            return sigma_t / (2.0 * sun05::kPi * g.h) * std::exp(-sigma_t * g.a) * G;
+            return sigma_t / (2.0 * kPi * g.h) * std::exp(-sigma_t * g.a) * G;
     }
     sun05_geometry_dn(g, Dvp);
-    return sigma_t / (2.0 * sun05::kPi) * std::exp(-sigma_t * g.Dsv) * sun05_direct_E(sigma_t, g);
+    return sigma_t / (2.0 * kPi) * std::exp(-sigma_t * g.Dsv) * sun05_direct_E(sigma_t, g);
 }
 
 }  // namespace airlight

@@ -2,6 +2,7 @@
 // nearest vs bilinear lookup) against the exact F and the exact airlight, and the SIMD
 // batch's nearest lookup against the scalar one. The bounds are measured values (printed
 // by these tests; special_f.cpp's table lists the F errors) with a 20 % margin.
+#include "core/constants.h"
 #include "core/special_f.h"
 #include "homogeneous/sun05.h"
 #include "homogeneous/sun05_batch.h"
@@ -20,7 +21,6 @@ namespace airlight {
 namespace {
 
 constexpr double kInf = std::numeric_limits<double>::infinity();
-constexpr double kPi = 3.14159265358979323846;
 
 struct ErrorStats {
     double mean, p99, max;

@@ -10,6 +10,7 @@
 // D(sin g, .). As gamma -> pi, D ~ 1/t0 and PSF -> Tsv e^{-Tsv} / (4 pi) (evaluated as that
 // limit when sin gamma < 1e-7 on the back side).
 #include "homogeneous/sun05_psf.h"
+#include "core/constants.h"
 
 #include <algorithm>
 #include <cmath>
@@ -26,7 +27,6 @@ namespace airlight {
 
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
 
 // D(u, t0) = e^{u t0} int_{t0}^inf e^{-u t} / (1 + t^2) dt = int_0^inf e^{-u x} / (1 + (t0 + x)^2) dx.
 // For t0 >> 1 (gamma -> pi) special_F_diff_exact's angle substitution loses accuracy; there

@@ -1,5 +1,6 @@
 // sun05_psf_test.cpp: PSF / NPSF against the airlight kernel and Fogshop's published
 // coefficients; spherical harmonics against direct convolution and analytic identities.
+#include "core/constants.h"
 #include "homogeneous/sun05_psf.h"
 
 #include <gtest/gtest.h>
@@ -13,7 +14,6 @@
 namespace airlight {
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
 
 TEST(Sun05Psf, EqualsScaledAirlight) {
     // eq. 20: PSF = Dsv^2 La / I0, with La from the Sun 2005 kernel (exact F), Dvp = inf.

@@ -1,5 +1,6 @@
 // sun05_test.cpp: Sun 2005 airlight against the quadrature of eq. 5 and analytic limits;
 // the quadrature itself against closed forms; the model registry.
+#include "core/constants.h"
 #include "models/models.h"
 #include "core/quadrature.h"
 #include "homogeneous/sun05.h"
@@ -18,7 +19,6 @@ namespace {
 
 constexpr double kInf = std::numeric_limits<double>::infinity();
 
-constexpr double kPi = 3.14159265358979323846;
 
 const SpecialFTable& table() {
     static const SpecialFTable tab(256, 256);

@@ -1,4 +1,4 @@
-// sun_layer.cpp: sun lamps in (layered) homogeneous fog, see sun_layer.h.
+// sunlight_layer.cpp: sun lamps in (layered) homogeneous fog, see sunlight_layer.h.
 #include "homogeneous/sunlight_layer.h"
 
 #include <algorithm>
@@ -20,7 +20,7 @@ double one_minus_exp_over(double k, double L) {
 
 }  // namespace
 
-double sun_layer_factor(double sigma_t, double h_top, double mu_s, double o_z, double d_z, double t0, double t1) {
+double sunlight_layer_factor(double sigma_t, double h_top, double mu_s, double o_z, double d_z, double t0, double t1) {
     if (!(t1 > t0)) return 0.0;
     if (std::isinf(h_top)) return one_minus_exp_over(sigma_t, t1 - t0);  // Hoffman-Preetham
     if (!(mu_s > 0.0)) return 0.0;  // the sunlight crossed infinitely much fog
@@ -46,7 +46,7 @@ double sun_layer_factor(double sigma_t, double h_top, double mu_s, double o_z, d
     return std::exp(-sigma_t * L - tau_b) * one_minus_exp_over(-k, L);
 }
 
-double sun_layer_factor_quadrature(double sigma_t, double h_top, double mu_s, double o_z, double d_z, double t0,
+double sunlight_layer_factor_quadrature(double sigma_t, double h_top, double mu_s, double o_z, double d_z, double t0,
                                    double t1, double rel_tol) {
     if (!(t1 > t0)) return 0.0;
     const bool layered = !std::isinf(h_top);
@@ -77,7 +77,7 @@ double sun_layer_factor_quadrature(double sigma_t, double h_top, double mu_s, do
         if (!inside(t)) return 0.0;
         return std::exp(-view_depth(t) - sun_depth(t));
     };
-    // The integrand is an exponential in t of rate |k| (sun_layer.h) peaking at the entry
+    // The integrand is an exponential in t of rate |k| (sunlight_layer.h) peaking at the entry
     // into the fog or at the exit through the top: cut geometrically around both ends so
     // that narrow peaks (grazing sun: width mu_s / sigma) are resolved.
     const double k = std::abs(sigma_t * (1.0 - (layered && mu_s > 0.0 ? d_z / mu_s : 0.0)));

@@ -1,4 +1,4 @@
-// sun_layer.h: single scattering of a sun lamp (directional light) in homogeneous fog,
+// sunlight_layer.h: single scattering of a sun lamp (directional light) in homogeneous fog,
 // optionally bounded above by a fog layer top at world height h_top.
 //
 // Why a layer: in Cycles an infinite world-volume fog attenuates a sun to zero (its light
@@ -37,11 +37,11 @@ namespace airlight {
 // o_z = o.z, d_z = d.z of the unit direction d; h_top = +inf for the HP model (then
 // G = (1 - e^{-sigma (t1 - t0)}) / sigma, or t1 - t0 for sigma = 0).
 // La = sigma_s * p(cos theta) * E * G.
-double sun_layer_factor(double sigma_t, double h_top, double mu_s, double o_z, double d_z, double t0, double t1);
+double sunlight_layer_factor(double sigma_t, double h_top, double mu_s, double o_z, double d_z, double t0, double t1);
 
 // Reference for G by adaptive quadrature of the integrand written out independently
 // (optical depths of the view and sun paths computed from the geometry at every t).
-double sun_layer_factor_quadrature(double sigma_t, double h_top, double mu_s, double o_z, double d_z, double t0,
+double sunlight_layer_factor_quadrature(double sigma_t, double h_top, double mu_s, double o_z, double d_z, double t0,
                                    double t1, double rel_tol = 1e-12);
 
 }  // namespace airlight

@@ -32,6 +32,7 @@
 //   wide forward lobe crosses the horizon (theta_s ~ pi/2), as Sun's table does at T ~ 16.
 //   Gamma_L table (256 rows, linear): max 2.3e-4 relative (HG g = -0.9), <= 3e-5 otherwise.
 #include "surface/biri06_surface.h"
+#include "core/constants.h"
 
 #include <algorithm>
 #include <cmath>
@@ -50,8 +51,6 @@ namespace airlight {
 
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
-constexpr double kHalfPi = 1.57079632679489661923;
 constexpr double kTableTMax = 64.0;
 
 void require_args(double T, double theta_s, double m) {

@@ -3,6 +3,7 @@
 // against the exact evaluator (measured error asserted), Biri's eq. 11 as printed against the
 // H_p form, and the error of Biri's unclamped Lambert model (eq. 10) against the clamped G_p
 // (printed: a reported figure).
+#include "core/constants.h"
 #include "surface/biri06_surface.h"
 
 #include <gtest/gtest.h>
@@ -20,7 +21,6 @@
 namespace airlight {
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
 
 PhaseFunction hg(double g) { return PhaseFunction{PhaseKind::HenyeyGreenstein, g}; }
 PhaseFunction of(PhaseKind k) { return PhaseFunction{k, 0.0}; }

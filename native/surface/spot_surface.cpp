@@ -1,5 +1,6 @@
 // spot_surface.cpp: spot-light glow on surfaces (see spot_surface.h).
 #include "surface/spot_surface.h"
+#include "core/constants.h"
 
 #include <algorithm>
 #include <cmath>
@@ -13,8 +14,6 @@
 namespace airlight {
 
 namespace {
-constexpr double kPi = 3.14159265358979323846;
-constexpr double kHalfPi = 1.57079632679489661923;
 
 }  // namespace
 

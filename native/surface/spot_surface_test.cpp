@@ -1,6 +1,7 @@
 // spot_surface_test.cpp: the bake's spot glow (SpotGlowModel x the point-light glow) and the
 // naive profile-toward-p estimate against the brute-force integral of the spot's profile along
 // every incident ray (spot_surface_glow_reference). Prints the measured errors.
+#include "core/constants.h"
 #include "surface/spot_surface.h"
 
 #include <gtest/gtest.h>
@@ -13,7 +14,6 @@
 namespace airlight {
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
 
 struct Errors {
     double model, naive;

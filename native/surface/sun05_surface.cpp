@@ -32,6 +32,7 @@
 // The exact evaluator agrees with the brute-force single-scattering integral
 // (sun05_surface_glow_reference) to ~1e-11.
 #include "surface/sun05_surface.h"
+#include "core/constants.h"
 
 #include <algorithm>
 #include <cmath>
@@ -46,8 +47,6 @@ namespace airlight {
 
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
-constexpr double kHalfPi = 1.57079632679489661923;
 
 void require_args(double T, double theta_s, double m) {
     if (!(T >= 0.0) || !(theta_s >= 0.0 && theta_s <= kPi + 1e-12) || !(m >= 1.0) || std::isinf(m))

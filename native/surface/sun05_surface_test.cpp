@@ -1,6 +1,7 @@
 // sun05_surface_test.cpp: G(T, theta_s, m) of Sun 2005 eq. 16-18 against the brute-force
 // surface single-scattering integral (eq. 15), the F identity, analytic limits, and the
 // table against the exact evaluator (measured error asserted).
+#include "core/constants.h"
 #include "surface/sun05_surface.h"
 
 #include <gtest/gtest.h>
@@ -17,7 +18,6 @@
 namespace airlight {
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
 
 // The closed form of the glow beta G(beta D, theta_s, m) / (2 pi D) equals the nested
 // quadrature of (beta / 4 pi) e^{-beta (r + t)} / r^2 cos^m(theta_i) over incident

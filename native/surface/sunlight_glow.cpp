@@ -1,5 +1,5 @@
-// sun_layer_glow.cpp: the glow of a sun lamp on a Lambert surface in a fog layer (see
-// sun_layer_glow.h).
+// sunlight_glow.cpp: the glow of a sun lamp on a Lambert surface in a fog layer (see
+// sunlight_glow.h).
 //
 // Integration: directions in spherical coordinates about the sun, w = cos(gamma) l +
 // sin(gamma) (cos(psi) a + sin(psi) b) with a the unit vector towards +Z orthogonal to l and
@@ -11,16 +11,17 @@
 // so each piece of the psi integral is smooth. The gamma breakpoints are where the cone of
 // half-angle gamma about l touches the horizon of n or of Z.
 //
-// Table (SunLayerGlowTable): normals by polar angle theta in [0, pi] (n_theta nodes) and
+// Table (SunlightGlowTable): normals by polar angle theta in [0, pi] (n_theta nodes) and
 // azimuth phi in [0, pi] from the sun's (n_phi nodes; Q is even in phi), and with a top
 // s = tau / (1 + tau) on [0, s_max] (n_tau nodes, s_max at tau = 1e6), storing e^{tau} Q.
 // Its entries come from a second decomposition of the same integral (theta_nodes below:
 // polar angle from Z, then azimuth), so TableMatchesExact also checks the two rules
-// against each other. Measured at the default 48 x 49 x 25 (sun_layer_glow_test.cpp): max
+// against each other. Measured at the default 48 x 49 x 25 (sunlight_glow_test.cpp): max
 // |table - exact| <= 7.9e-3 of the largest Q of the sample set (isotropic with a top; 1.6e-3
 // to 2.8e-3 for Henyey-Greenstein g = -0.3 ... 0.9), mean <= 5.4e-4; a table builds in
 // 0.2-0.6 s on one thread (no top: one tau plane, 0.14-0.25 s).
 #include "surface/sunlight_glow.h"
+#include "core/constants.h"
 
 #include <algorithm>
 #include <cmath>
@@ -36,7 +37,6 @@ namespace airlight {
 
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
 constexpr double kTauMax = 1e6;
 
 // The surface's weight of an incident direction: max(0, x)^m with x = n.w (Lambert, m = 1)
@@ -67,7 +67,7 @@ SunFrame sun_frame(const glm::dvec3& to_sun) {
     return f;
 }
 
-// e^{tau} sigma G(w) for a point at optical depth tau below the top (sun_layer.h with
+// e^{tau} sigma G(w) for a point at optical depth tau below the top (sunlight_layer.h with
 // sigma = 1), written so that no factor overflows: every exponent is <= 0 since mu, mu_s <= 1.
 // Without a top: 1 (the sun unattenuated, the ray infinitely long in fog).
 double fog_factor_scaled(bool has_top, double tau, double mu_s, double mu) {
@@ -285,7 +285,7 @@ void check_inputs(bool has_top, double tau, const glm::dvec3& normal, double m) 
 
 }  // namespace
 
-double sun_layer_glow_exact(const PhaseFunction& phase, const glm::dvec3& to_sun, bool has_top, double tau,
+double sunlight_glow_exact(const PhaseFunction& phase, const glm::dvec3& to_sun, bool has_top, double tau,
                             const glm::dvec3& normal, double m, double rel_tol) {
     check_inputs(has_top, tau, normal, m);
     const SunFrame f = sun_frame(to_sun);
@@ -296,7 +296,7 @@ double sun_layer_glow_exact(const PhaseFunction& phase, const glm::dvec3& to_sun
     return scale * glow_adaptive(phase, f, normal, m, fog, rel_tol);
 }
 
-double sun_layer_glow_reference(const PhaseFunction& phase, const glm::dvec3& to_sun, bool has_top, double tau,
+double sunlight_glow_reference(const PhaseFunction& phase, const glm::dvec3& to_sun, bool has_top, double tau,
                                 const glm::dvec3& normal, double m, double rel_tol) {
     check_inputs(has_top, tau, normal, m);
     const SunFrame f = sun_frame(to_sun);
@@ -304,13 +304,13 @@ double sun_layer_glow_reference(const PhaseFunction& phase, const glm::dvec3& to
     // sigma = 1, p at height 0, the top at tau (or none): the path integral along each ray.
     const double h_top = has_top ? tau : std::numeric_limits<double>::infinity();
     auto fog = [&](double mu) {
-        return sun_layer_factor_quadrature(1.0, h_top, f.mu_s, 0.0, mu, 0.0, std::numeric_limits<double>::infinity(),
+        return sunlight_layer_factor_quadrature(1.0, h_top, f.mu_s, 0.0, mu, 0.0, std::numeric_limits<double>::infinity(),
                                            0.1 * rel_tol);
     };
     return glow_adaptive(phase, f, normal, m, fog, rel_tol);
 }
 
-SunLayerGlowTable::SunLayerGlowTable(const PhaseFunction& phase, const glm::dvec3& to_sun, bool has_top, double m,
+SunlightGlowTable::SunlightGlowTable(const PhaseFunction& phase, const glm::dvec3& to_sun, bool has_top, double m,
                                      int n_tau, int n_theta, int n_phi, int threads)
     : phase_(phase), m_(m), has_top_(has_top), n_tau_(has_top ? n_tau : 1), n_theta_(n_theta), n_phi_(n_phi) {
     if (!(m >= 1.0 && m <= 10000.0)) throw std::invalid_argument("SunLayerGlowTable: the exponent m must be in [1, 10000]");
@@ -349,12 +349,12 @@ SunLayerGlowTable::SunLayerGlowTable(const PhaseFunction& phase, const glm::dvec
     for (auto& th : pool) th.join();
 }
 
-void SunLayerGlowTable::frame(const glm::dvec3& n, double& theta, double& phi) const {
+void SunlightGlowTable::frame(const glm::dvec3& n, double& theta, double& phi) const {
     theta = std::acos(std::clamp(n.z, -1.0, 1.0));
     phi = std::abs(std::atan2(glm::dot(n, e2_), glm::dot(n, e1_)));
 }
 
-double SunLayerGlowTable::eval(double tau, const glm::dvec3& normal) const {
+double SunlightGlowTable::eval(double tau, const glm::dvec3& normal) const {
     if (!lit_) return 0.0;
     double theta, phi;
     frame(normal, theta, phi);

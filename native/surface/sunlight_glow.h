@@ -1,13 +1,13 @@
-// sun_layer_glow.h: the glow of a sun lamp on a Lambert surface in a fog layer: the sun's
+// sunlight_glow.h: the glow of a sun lamp on a Lambert surface in a fog layer: the sun's
 // light scattered once in the fog on its way to the surface (Sun et al. 2005's surface
-// "glow", eq. 15, for a directional light, with the layer geometry of sun_layer.h and any
+// "glow", eq. 15, for a directional light, with the layer geometry of sunlight_layer.h and any
 // phase function).
 //
 // A surface point p of normal n at height z_p, fog of extinction sigma below h_top (or
 // everywhere without a top: the sun then reaches every point unattenuated, Hoffman-Preetham's
 // assumption), a sun of irradiance E propagating along w_s, l = -w_s (towards the sun),
 // mu_s = l.z. Along the incident direction w (looking out from p) the fog scatters towards p
-//   L_in(w) = sigma_s p(l.w) E G(w),   G(w) = sun_layer_factor(sigma, h_top, mu_s, z_p, w.z, 0, inf)
+//   L_in(w) = sigma_s p(l.w) E G(w),   G(w) = sunlight_layer_factor(sigma, h_top, mu_s, z_p, w.z, 0, inf)
 // (cos theta = l.w: theta = 0 looking into the sun). sigma G depends on the geometry only
 // through tau = sigma (h_top - z_p) (the optical depth of p below the top; every height
 // above the top behaves as tau = 0: no fog between p and the layer) and w.z. The surface's
@@ -38,22 +38,22 @@ namespace airlight {
 // _has_top_ is false), _normal_ n (unit). 0 when the sun is at or below the horizon of a
 // layer with a top (its light crosses infinitely much fog).
 // _m_ in [1, 10000]: the lobe exponent (1: Lambert).
-double sun_layer_glow_exact(const PhaseFunction& phase, const glm::dvec3& to_sun, bool has_top, double tau,
+double sunlight_glow_exact(const PhaseFunction& phase, const glm::dvec3& to_sun, bool has_top, double tau,
                             const glm::dvec3& normal, double m = 1.0, double rel_tol = 1e-9);
 
-// The same integral with the fog factor sigma G(w) from sun_layer_factor_quadrature (the
+// The same integral with the fog factor sigma G(w) from sunlight_layer_factor_quadrature (the
 // path integral along each incident ray written out from the geometry): an independent,
 // slow reference for tests.
-double sun_layer_glow_reference(const PhaseFunction& phase, const glm::dvec3& to_sun, bool has_top, double tau,
+double sunlight_glow_reference(const PhaseFunction& phase, const glm::dvec3& to_sun, bool has_top, double tau,
                                 const glm::dvec3& normal, double m = 1.0, double rel_tol = 1e-6);
 
 // Q tabulated for one sun direction and phase function: over the normal (polar angle from
 // +Z, azimuth from the sun's, folded by the mirror symmetry about the sun's vertical plane)
 // and, with a top, over s = tau / (1 + tau) (stored as e^{tau} Q, which stays bounded).
-// Trilinear interpolation; layout and measured error in sun_layer_glow.cpp.
-class SunLayerGlowTable {
+// Trilinear interpolation; layout and measured error in sunlight_glow.cpp.
+class SunlightGlowTable {
   public:
-    SunLayerGlowTable(const PhaseFunction& phase, const glm::dvec3& to_sun, bool has_top, double m = 1.0, int n_tau = 48,
+    SunlightGlowTable(const PhaseFunction& phase, const glm::dvec3& to_sun, bool has_top, double m = 1.0, int n_tau = 48,
                       int n_theta = 49, int n_phi = 25, int threads = 0);
     // Q_m(tau, n); tau < 0 (above the top) is taken as 0; _normal_ unit.
     double eval(double tau, const glm::dvec3& normal) const;
