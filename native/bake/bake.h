@@ -6,7 +6,8 @@
 #include <memory>
 #include <vector>
 
-#include "models/models.h"
+#include "bake/buffers.h"
+#include "models/model_id.h"
 #include "core/scene.h"
 #include "core/special_f.h"
 
@@ -121,18 +122,5 @@ struct Cancelled : std::exception {
 BakeResult bake(const SceneDescription& scene, const BakeSettings& settings,
                 const ProgressFn& progress = nullptr);
 
-// The F table the bake uses for ModelId::Sun05Table, built once per (nu, nT, interp) and
-// shared for the life of the process (thread safe).
-std::shared_ptr<const SpecialFTable> shared_special_F_table(int nu, int nT, Interp interp = Interp::Bilinear);
-
-// Output images on recycled memory. Fresh pages cost ~10-20 us per 4 KiB page fault on
-// the development machine (a 1080p bake's 60 MB of passes: ~100-200 ms, more than the bake
-// itself), so the bindings hand an output buffer back with recycle_image_buffer when numpy
-// frees it, and acquire_image_buffer gives the next bake's passes those warm pages (a held
-// buffer of 1 to 2 times the size asked for; else new memory, on transparent huge pages where
-// the kernel allows). At most 256 MB are kept, oldest dropped first. Thread safe.
-// acquire_image_buffer: _v_ = _n_ copies of _value_.
-void acquire_image_buffer(std::vector<float>& v, size_t n, float value);
-void recycle_image_buffer(std::vector<float>&& buffer);
 
 }  // namespace airlight

@@ -5,7 +5,7 @@
 
 #include "bake/bake.h"
 #include "image/exr_io.h"
-#include "models/models.h"
+#include "models/registry.h"
 #include "core/phase.h"
 #include "bindings/numpy_util.h"
 

@@ -4,7 +4,7 @@
 
 #include "core/constants.h"
 #include "bake/bake.h"
-#include "models/models.h"
+#include "models/registry.h"
 #include "core/quadrature.h"
 #include "core/special_f.h"
 #include "homogeneous/sun05.h"

@@ -1,7 +1,7 @@
 // module.cpp: the private `_native` module. Kernels stay plain C++; the bindings
 // convert whole numpy arrays and release the GIL around work.
 #include "bake/bake.h"
-#include "models/models.h"
+#include "models/registry.h"
 #include "bindings/numpy_util.h"
 
 #include <pybind11/stl.h>

@@ -41,6 +41,10 @@
 
 #include <algorithm>
 #include <cmath>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <tuple>
 #include <stdexcept>
 #include <thread>
 #include <vector>
@@ -132,6 +136,16 @@ double SpecialFTable::eval_tan(double u, double T) const {
 
 double SpecialFTable::eval(double u, double v) const {
     return eval_tan(u, v >= kHalfPi ? INFINITY : std::tan(v));
+}
+
+// F tables are deterministic and costly to build: keep one per (nu, nT, interp) for the process.
+std::shared_ptr<const SpecialFTable> shared_special_F_table(int nu, int nT, Interp interp) {
+    static std::mutex mutex;
+    static std::map<std::tuple<int, int, Interp>, std::shared_ptr<const SpecialFTable>> cache;
+    std::lock_guard<std::mutex> lock(mutex);
+    auto& slot = cache[{nu, nT, interp}];
+    if (!slot) slot = std::make_shared<const SpecialFTable>(nu, nT, interp);
+    return slot;
 }
 
 }  // namespace airlight

@@ -6,6 +6,8 @@
 // and worst-case error are documented in special_f.cpp.
 #pragma once
 
+#include <memory>
+
 #include <vector>
 
 namespace airlight {
@@ -54,5 +56,9 @@ class SpecialFTable {
     Interp interp_;
     std::vector<float> data_;
 };
+
+// The F table for (nu, nT, interp), built once and shared for the life of the process
+// (thread safe).
+std::shared_ptr<const SpecialFTable> shared_special_F_table(int nu, int nT, Interp interp = Interp::Bilinear);
 
 }  // namespace airlight

@@ -1,7 +1,7 @@
 // sun05_test.cpp: Sun 2005 airlight against the quadrature of eq. 5 and analytic limits;
 // the quadrature itself against closed forms; the model registry.
 #include "core/constants.h"
-#include "models/models.h"
+#include "models/registry.h"
 #include "core/quadrature.h"
 #include "homogeneous/sun05.h"
 

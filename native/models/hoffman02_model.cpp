@@ -1,17 +1,42 @@
-// bake_hoffman02.cpp: the Hoffman & Preetham 2002 bake model (see bake_hoffman02.h).
-#include "bake/hoffman02_bake.h"
+// as a bake model: a Rayleigh + Mie medium with wavelength-dependent extinction lit by sun
+// lamps.
+//
+// Medium per RGB channel c (hoffman02.h): Rayleigh beta_R,c = beta_R(550 nm) (550 / lambda_c)^4
+// (scene.medium.rayleigh_550, lambda = 650 / 570 / 475 nm) plus Mie beta_M = medium.sigma_t with
+// the medium's Henyey-Greenstein g (Cycles' sign), sigma_c = beta_R,c + beta_M, scattering
+// albedo medium.albedo. Along a pixel-centre ray from the near clip point t0 to the first
+// hit at depth D (inf: none):
+//   Transmittance_c = e^{-sigma_c (D - t0)}
+//   Airlight_c      = albedo_c sum_suns E_c (beta_R,c p_R(cos) + beta_M p_HG(cos)) G(sigma_c)
+// with G the sun's geometric factor of sunlight_layer.h per channel: HP's unattenuated sun
+// ((1 - e^{-sigma_c (D - t0)}) / sigma_c, the paper's closed form) without a fog top, the sun
+// dimmed by its path through the layer with one (scene.fog_top). The phase angle is fixed
+// along a ray (cos = -w.d), so this is exact single scattering for that medium; its
+// reference is hoffman02_quadrature / sunlight_layer_factor_quadrature.
+// Sun lamps only: point and spot lights are refused by validate() (the paper models
+// daylight), as are fog objects. Pixels are evaluated at their centres (no edge
+// supersampling; documented).
+#pragma once
+
+#include "bake/bake.h"
 
 #include <algorithm>
 #include <cmath>
 #include <thread>
 #include <vector>
 
+#include <stdexcept>
+#include <string>
+
 #include "image/camera.h"
 #include "homogeneous/hoffman02.h"
 #include "core/phase.h"
 #include "homogeneous/sunlight_layer.h"
+#include "models/registry.h"
 
 namespace airlight {
+
+namespace {
 
 BakeResult bake_hoffman02(const SceneDescription& scene, const BakeSettings& settings, const ProgressFn& progress) {
     // The first hits come from the ordinary bake of the scene with no fog and no lights
@@ -84,6 +109,33 @@ BakeResult bake_hoffman02(const SceneDescription& scene, const BakeSettings& set
     for (std::thread& t : pool) t.join();
     if (progress && !progress(1.0)) throw Cancelled();
     return result;
+}
+
+// Hoffman & Preetham model daylight: sun lamps in a Rayleigh + Mie (HG) medium.
+void validate(const SceneDescription& scene, const BakeSettings& settings) {
+    auto require = [](bool ok, const std::string& msg) {
+        if (!ok) throw std::invalid_argument(msg);
+    };
+    require(scene.point_lights.empty() && scene.spot_lights.empty(),
+            "model 'hoffman02' (Hoffman & Preetham 2002) scatters sun lamps only: exclude the point "
+            "and spot lights from the fog or use another model");
+    require(scene.gaussians.empty(), "model 'hoffman02' does not take fog objects (Gaussians)");
+    require(!settings.surface, "model 'hoffman02' has no surface-shading pass (per-channel extinction): "
+                               "bake it with surface=False");
+    const PhaseFunction& phase = scene.medium.phase;
+    require(phase.kind == PhaseKind::Isotropic || phase.kind == PhaseKind::HenyeyGreenstein,
+            "model 'hoffman02': the Mie part is Henyey-Greenstein (the Rayleigh part is built in); got phase '" +
+                std::string(phase_name(phase.kind)) + "'");
+}
+
+}  // namespace
+
+ModelEntry hoffman02_entry() {
+    ModelEntry e{ModelId::Hoffman02, "hoffman02",
+                 "Hoffman & Preetham 2002 daylight: Rayleigh (1/lambda^4 per channel) + Mie haze lit by sun lamps only"};
+    e.validate = validate;
+    e.bake = bake_hoffman02;
+    return e;
 }
 
 }  // namespace airlight

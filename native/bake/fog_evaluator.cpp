@@ -1,0 +1,403 @@
+// fog_evaluator.cpp: see fog_evaluator.h.
+#include "bake/fog_evaluator.h"
+
+#include <algorithm>
+#include <cmath>
+#include <sstream>
+#include <stdexcept>
+
+#include "core/constants.h"
+#include "core/target_clones.h"
+#include "gaussian/airlight.h"
+#include "homogeneous/sun05_batch.h"
+#include "homogeneous/sunlight_layer.h"
+
+namespace airlight {
+
+namespace {
+
+// A fog-object Gaussian's largest optical depth through its centre for the Fogshop models'
+// float kernels (see the constructor).
+constexpr double kMaxCentreDepth = 1e4;
+// Relative tolerance of the spot-light quadrature (every model: spots have no closed form);
+// far below the float passes' and Cycles' noise, and ~3x cheaper than 1e-8.
+constexpr double kSpotRelTol = 1e-5;
+// Spots of the models but Pegoraro 2010's take its closed form up to this phase order.
+constexpr int kPegoraroSpotMaxOrder = 8;
+
+// cos(gamma) of unit directions (dx, dy, dz)[k] with the unit vector _sv_ to a light.
+AIRLIGHT_ROW_CLONES
+void cos_to_light(const double* __restrict dx, const double* __restrict dy, const double* __restrict dz,
+                  const Vec3& sv, int n, double* __restrict cos_gamma) {
+    for (int k = 0; k < n; ++k) cos_gamma[k] = dx[k] * sv.x + dy[k] * sv.y + dz[k] * sv.z;
+}
+
+// sum_c[k] += w_c value[k] for the three colour channels.
+AIRLIGHT_ROW_CLONES
+void accumulate_rgb(const float* __restrict value, float wr, float wg, float wb, int n, float* __restrict r,
+                    float* __restrict g, float* __restrict b) {
+    for (int k = 0; k < n; ++k) {
+        r[k] += wr * value[k];
+        g[k] += wg * value[k];
+        b[k] += wb * value[k];
+    }
+}
+
+}  // namespace
+
+FogEvaluator::FogEvaluator(const SceneDescription& scene, const BakeSettings& settings, const FogModel& model, bool shared_origin,
+         const Vec3& origin)
+    : model_(model),
+      sigma_t_(scene.medium.sigma_t),
+      phase_(scene.medium.phase),
+      isotropic_(phase_is_isotropic(scene.medium.phase)),
+      shared_origin_(shared_origin),
+      origin_(origin) {
+    const SpotMethod spot_method = model_.spot_method();
+    if (spot_method != SpotMethod::Quadrature && !scene.spot_lights.empty()) {
+        pegoraro_phase_ = pegoraro_phase_auto(phase_, kPegoraroPhaseTol, kPegoraroMaxOrder);
+        // Spots: the closed form where the model asks for it, and for the other non-quadrature
+        // models while the phase polynomial is of order <= kPegoraroSpotMaxOrder: there it costs
+        // about what the 1e-5 quadrature does (bench_pegoraro.py, isotropic); at HG order 30 it
+        // was ~5x slower, so those spots keep the quadrature.
+        spot_closed_form_ = spot_method == SpotMethod::ClosedForm || pegoraro_phase_.order() <= kPegoraroSpotMaxOrder;
+    }
+    for (const PointLight& light : scene.point_lights) {
+        if (!keeps_light(scene, light)) continue;
+        RGB weight = scene.medium.albedo * light.I0;
+        lights_.push_back({light.position, weight, glm::length(light.position - origin)});
+    }
+    for (const SpotLight& spot : scene.spot_lights) {
+        RGB weight = scene.medium.albedo * spot.I0;
+        if (weight.x == 0.0 && weight.y == 0.0 && weight.z == 0.0) continue;
+        spots_.push_back({make_spot_cone(spot.axis, spot.spot_size, spot.spot_blend), spot.position, weight});
+    }
+    for (const SunLight& sun : scene.sun_lights) {
+        const RGB weight = scene.medium.albedo * sun.E * sigma_t_;  // sigma_s E
+        if (weight.x == 0.0 && weight.y == 0.0 && weight.z == 0.0) continue;
+        const Vec3 w = glm::normalize(sun.direction);
+        suns_.push_back({w, -w.z, weight});
+    }
+    fog_top_ = scene.fog_top;
+    if (!scene.gaussians.empty()) {
+        const Gaussians& g = scene.gaussians;
+        gaussian_ = std::make_unique<GaussianMedium>(g.centres, g.scales, g.amplitudes, sigma_t_);
+        for (const LightData& light : lights_) gaussian_lights_.push_back(light.s);
+        // Per-light I0 (the Gaussians' weights carry their own albedo), per-Gaussian albedo.
+        medium_albedo_ = scene.medium.albedo;
+        for (const PointLight& light : scene.point_lights)
+            if (keeps_light(scene, light)) gaussian_I0_.push_back(light.I0);
+        gaussian_albedo_ = g.albedo;
+        if (gaussian_albedo_.empty())
+            for (size_t i = 0; i < g.scales.size(); ++i)
+                for (int c = 0; c < 3; ++c) gaussian_albedo_.push_back(scene.medium.albedo[c]);
+        const GaussianNoise noise{g.noise_amplitude, g.noise_scale, g.noise_offset};
+        if (noise.on() && !shared_origin_)
+            throw std::invalid_argument("fog noise needs a perspective camera (orthographic cameras bake "
+                                        "Gaussian fog without noise only)");
+        // Spots and suns with Gaussians (after the point lights in gaussian_lights_ / gaussian_I0_).
+        n_gaussian_points_ = gaussian_lights_.size();
+        for (const SpotLight& spot : scene.spot_lights) {
+            if (spot.I0.x == 0.0 && spot.I0.y == 0.0 && spot.I0.z == 0.0) continue;
+            gaussian_lights_.push_back(spot.position);
+            gaussian_I0_.push_back(spot.I0);
+            gaussian_spots_.push_back({make_spot_cone(spot.axis, spot.spot_size, spot.spot_blend), spot.position,
+                                  spot.I0});
+        }
+        for (const SunLight& sun : scene.sun_lights) {
+            if (sun.E.x == 0.0 && sun.E.y == 0.0 && sun.E.z == 0.0) continue;
+            const Vec3 w = glm::normalize(sun.direction);
+            gaussian_suns_.push_back({w, -w.z, sun.E});
+        }
+        const bool fogshop = model_.gaussian_method() == GaussianMethod::Fogshop;
+        const bool extended = !gaussian_spots_.empty() || !gaussian_suns_.empty() || !isotropic_ ||
+                              model_.own_gaussian_background();
+        if (fogshop && extended && !shared_origin_)
+            throw std::invalid_argument("fog objects with spot or sun lamps, an anisotropic phase or model "
+                                        "'biri06' / 'pegoraro10' need a perspective camera (or model "
+                                        "'quadrature')");
+        // Fogshop's per-(light, Gaussian) precomputation, once for the shared viewpoint,
+        // and the tiled splatting (gaussian_splat.h) that evaluates it.
+        if (fogshop && shared_origin_) {
+            // The splat's float kernels take a Gaussian's optical depth on a segment as
+            // (c sqrt(pi) / 2a) times a difference of erfc values, which cancels (both near
+            // 1) on a segment that starts inside the Gaussian's core (the eye or a light
+            // within ~1 / a of its centre) and is short against 1 / a: that loses c
+            // sqrt(pi) / 2a times float's 1.2e-7. Such a Gaussian whose optical depth
+            // through its centre, c sqrt(pi) / a, exceeds kMaxCentreDepth (1e4: <= ~1e-3
+            // of transmittance; measured 2.9e-3 at 1.8e4, garbage and an infinite airlight
+            // at 1.8e8) is refused with what to do. Elsewhere its segments' erfc values are
+            // not both near 1 (a dense blob seen from outside: no loss).
+            for (size_t i = 0; i < g.scales.size(); ++i) {
+                const double a = g.scales[i];
+                const double depth = g.amplitudes[i] * std::sqrt(kPi) / a;
+                if (!(depth > kMaxCentreDepth)) continue;
+                const Vec3 b(g.centres[3 * i], g.centres[3 * i + 1], g.centres[3 * i + 2]);
+                bool inside = a * glm::length(b - origin_) < 2.0;
+                for (const Vec3& s : gaussian_lights_) inside = inside || a * glm::length(b - s) < 2.0;
+                if (inside) {
+                    std::ostringstream os;
+                    os << "fog objects: Gaussian " << i << " (amplitude " << g.amplitudes[i] << " /m, scale " << a
+                       << " /m) holds the camera or a light in its core and has an optical depth of " << depth
+                       << " through its centre, beyond the " << kMaxCentreDepth
+                       << " the Fogshop models compute accurately there: give fog this wide and dense to "
+                          "the scene's uniform Density, or use model 'quadrature'";
+                    throw std::invalid_argument(os.str());
+                }
+            }
+            GaussianSplatLights extra;
+            if (extended) {
+                extra.phase = phase_;
+                const size_t L = gaussian_lights_.size();
+                extra.spot.assign(L, 0);
+                extra.cone.assign(L, SpotCone{});
+                extra.custom_background.assign(L, 0);
+                for (size_t l = 0; l < L; ++l) {
+                    const bool is_spot = l >= n_gaussian_points_;
+                    extra.spot[l] = is_spot;
+                    if (is_spot) extra.cone[l] = gaussian_spots_[l - n_gaussian_points_].cone;
+                    // The sun05 term of the splat is isotropic: other models and phases
+                    // (and spots) use the bake's own model for the background.
+                    extra.custom_background[l] = is_spot || !isotropic_ || model_.own_gaussian_background();
+                }
+                for (const GaussianSunData& sun : gaussian_suns_) {
+                    extra.sun_w.push_back(sun.w);
+                    extra.sun_E.push_back(sun.E);
+                }
+                extra.fog_top = fog_top_;
+                extra.background = [this](size_t l, const Vec3& d, double t0, double Dvp) {
+                    return gaussian_background(l, d, t0, Dvp);
+                };
+            }
+            splat_ = std::make_unique<GaussianSplat>(*gaussian_, origin_, gaussian_lights_, gaussian_I0_, scene.medium.albedo,
+                                                g.albedo, model_.f_table(), noise, std::max(0, settings.threads),
+                                                extended ? &extra : nullptr);
+        }
+    }
+}
+
+double FogEvaluator::gaussian_background(size_t l, const Vec3& d, double t0, double Dvp) const {
+    if (sigma_t_ == 0.0 || !(Dvp > t0)) return 0.0;
+    const size_t L = gaussian_lights_.size();
+    const Vec3 start = t0 > 0.0 ? origin_ + t0 * d : origin_;
+    const double seg = Dvp - t0;  // inf stays inf
+    if (l < n_gaussian_points_) {
+        const Vec3 sv = gaussian_lights_[l] - start;
+        const double Dsv = glm::length(sv);
+        const double cos_gamma = Dsv > 0.0 ? std::clamp(glm::dot(d, sv) / Dsv, -1.0, 1.0) : 1.0;
+        return airlight(Dsv, cos_gamma, seg);
+    }
+    if (l < L) {
+        const GaussianSpotData& spot = gaussian_spots_[l - n_gaussian_points_];
+        return spot_closed_form_
+                   ? pegoraro10_spot_airlight(pegoraro_phase_, spot.cone, spot.s, sigma_t_, start, d, seg)
+                   : spot_airlight_quadrature(spot.cone, spot.s, phase_, sigma_t_, start, d, seg, kSpotRelTol);
+    }
+    const GaussianSunData& sun = gaussian_suns_[l - L];
+    return sigma_t_ * phase_.eval(-glm::dot(sun.w, d)) *
+           sunlight_layer_factor(sigma_t_, fog_top_, sun.mu_s, origin_.z, d.z, t0, Dvp);
+}
+
+double FogEvaluator::transmittance(const Ray& r, double t0, double depth) const {
+    if (!gaussian_) return std::exp(-sigma_t_ * (depth - t0));
+    const double seg = std::max(0.0, depth - t0);
+    return std::exp(-gaussian_->optical_depth_ray(t0 > 0.0 ? r.o + t0 * r.d : r.o, r.d, seg));
+}
+
+void FogEvaluator::transmittance_soa(const float* Dvp, const float* t0, int n, float* Tr) const {
+    constexpr int kChunk = 256;
+    float seg[kChunk];
+    for (int k0 = 0; k0 < n; k0 += kChunk) {
+        const int m = std::min(kChunk, n - k0);
+        if (t0) {
+            for (int k = 0; k < m; ++k) seg[k] = Dvp[k0 + k] - t0[k0 + k];
+            transmittance_batch(float(sigma_t_), seg, m, Tr + k0);
+        } else {
+            transmittance_batch(float(sigma_t_), Dvp + k0, m, Tr + k0);
+        }
+    }
+}
+
+void FogEvaluator::eval_soa(const double* dx, const double* dy, const double* dz, const float* Dvp, const float* t0, int n,
+              float* Tr, float* rgb) const {
+    constexpr int kChunk = 256;
+    double cos_gamma[kChunk];
+    float sum_r[kChunk], sum_g[kChunk], sum_b[kChunk], value[kChunk], seg[kChunk];
+    const SpecialFTable& table = *model_.f_table();
+    const float* data = table.data().data();
+    const int nu = table.nu(), nT = table.nT();
+    for (int k0 = 0; k0 < n; k0 += kChunk) {
+        const int m = std::min(kChunk, n - k0);
+        const float* near = t0 ? t0 + k0 : nullptr;
+        if (near) {
+            for (int k = 0; k < m; ++k) seg[k] = Dvp[k0 + k] - near[k];
+            transmittance_batch(float(sigma_t_), seg, m, Tr + k0);
+        } else {
+            transmittance_batch(float(sigma_t_), Dvp + k0, m, Tr + k0);
+        }
+        for (int k = 0; k < m; ++k) sum_r[k] = sum_g[k] = sum_b[k] = 0.0f;
+        for (const LightData& light : lights_) {
+            const Vec3 sv = (light.s - origin_) * (light.Dsv > 0.0 ? 1.0 / light.Dsv : 0.0);
+            const bool at_light = !(light.Dsv > 0.0);
+            if (at_light) std::fill(cos_gamma, cos_gamma + m, 1.0);
+            else cos_to_light(dx + k0, dy + k0, dz + k0, sv, m, cos_gamma);
+            sun05_airlight_table_batch(data, nu, nT, sigma_t_, light.Dsv, cos_gamma, Dvp + k0, m, value, near,
+                                       table.interp());
+            accumulate_rgb(value, float(light.weight.x), float(light.weight.y), float(light.weight.z), m, sum_r,
+                           sum_g, sum_b);
+        }
+        float* out = rgb + 3 * size_t(k0);
+        for (int k = 0; k < m; ++k) {
+            out[3 * k] = sum_r[k];
+            out[3 * k + 1] = sum_g[k];
+            out[3 * k + 2] = sum_b[k];
+        }
+        if (!spots_.empty()) {
+            for (int k = 0; k < m; ++k) {
+                const Vec3 d(dx[k0 + k], dy[k0 + k], dz[k0 + k]);
+                const double t_near = near ? double(near[k]) : 0.0;
+                const RGB La = spot_airlight(origin_, d, t_near, double(Dvp[k0 + k]));
+                for (int c = 0; c < 3; ++c) out[3 * k + c] = float(double(out[3 * k + c]) + La[c]);
+            }
+        }
+        if (!suns_.empty()) {
+            for (int k = 0; k < m; ++k) {
+                const Vec3 d(dx[k0 + k], dy[k0 + k], dz[k0 + k]);
+                const RGB La = sun_airlight(origin_, d, near ? double(near[k]) : 0.0, double(Dvp[k0 + k]));
+                for (int c = 0; c < 3; ++c) out[3 * k + c] = float(double(out[3 * k + c]) + La[c]);
+            }
+        }
+    }
+}
+
+void FogEvaluator::eval_many(const Ray* rays, const float* Dvp, const float* t0, int n, double* Tr, RGB* La) const {
+    if (soa()) {
+        constexpr int kChunk = 256;
+        double dx[kChunk], dy[kChunk], dz[kChunk];
+        float Tr_f[kChunk], rgb[3 * kChunk];
+        for (int k0 = 0; k0 < n; k0 += kChunk) {
+            const int m = std::min(kChunk, n - k0);
+            for (int k = 0; k < m; ++k) {
+                dx[k] = rays[k0 + k].d.x;
+                dy[k] = rays[k0 + k].d.y;
+                dz[k] = rays[k0 + k].d.z;
+            }
+            eval_soa(dx, dy, dz, Dvp + k0, t0 ? t0 + k0 : nullptr, m, Tr_f, rgb);
+            for (int k = 0; k < m; ++k) {
+                Tr[k0 + k] = Tr_f[k];
+                La[k0 + k] = RGB(rgb[3 * k], rgb[3 * k + 1], rgb[3 * k + 2]);
+            }
+        }
+        return;
+    }
+    if (gaussian_) {
+        eval_gaussians(rays, Dvp, t0, n, Tr, La);
+        return;
+    }
+    for (int k = 0; k < n; ++k) {
+        const double near = t0 ? double(t0[k]) : 0.0;
+        const double seg = std::max(0.0, double(Dvp[k]) - near);  // inf stays inf
+        La[k] = RGB(0.0);
+        Tr[k] = sigma_t_ == 0.0 ? 1.0 : std::isinf(seg) ? 0.0 : std::exp(-sigma_t_ * seg);
+    }
+    if (sigma_t_ == 0.0) return;
+    for (const LightData& light : lights_) {
+        for (int k = 0; k < n; ++k) {
+            const double near = t0 ? double(t0[k]) : 0.0;
+            const Vec3 o = near > 0.0 ? rays[k].o + near * rays[k].d : rays[k].o;
+            const Vec3 sv = light.s - o;
+            const double Dsv = shared_origin_ && !(near > 0.0) ? light.Dsv : glm::length(sv);
+            const double cos_gamma = Dsv > 0.0 ? std::clamp(glm::dot(rays[k].d, sv) / Dsv, -1.0, 1.0) : 1.0;
+            const double seg = std::max(0.0, double(Dvp[k]) - near);
+            La[k] += light.weight * airlight(Dsv, cos_gamma, seg);
+        }
+    }
+    if (!spots_.empty())
+        for (int k = 0; k < n; ++k) La[k] += spot_airlight(rays[k].o, rays[k].d, t0 ? double(t0[k]) : 0.0, double(Dvp[k]));
+    if (!suns_.empty())
+        for (int k = 0; k < n; ++k) La[k] += sun_airlight(rays[k].o, rays[k].d, t0 ? double(t0[k]) : 0.0, double(Dvp[k]));
+}
+
+RGB FogEvaluator::sun_airlight(const Vec3& o, const Vec3& d, double t_near, double Dvp) const {
+    RGB La(0.0);
+    if (sigma_t_ == 0.0 || !(Dvp > t_near)) return La;
+    for (const SunData& sun : suns_) {
+        const double p = phase_.eval(-glm::dot(sun.w, d));
+        const double G = model_.sun_quadrature()
+                             ? sunlight_layer_factor_quadrature(sigma_t_, fog_top_, sun.mu_s, o.z, d.z, t_near, Dvp,
+                                                           kQuadratureRelTol)
+                             : sunlight_layer_factor(sigma_t_, fog_top_, sun.mu_s, o.z, d.z, t_near, Dvp);
+        La += sun.weight * (p * G);
+    }
+    return La;
+}
+
+RGB FogEvaluator::spot_airlight(const Vec3& o, const Vec3& d, double t_near, double Dvp) const {
+    RGB La(0.0);
+    if (sigma_t_ == 0.0) return La;
+    const double seg = std::max(0.0, Dvp - t_near);  // inf stays inf
+    if (!(seg > 0.0)) return La;
+    const Vec3 start = t_near > 0.0 ? o + t_near * d : o;
+    for (const SpotData& spot : spots_)
+        La += spot.weight *
+              (!spot_closed_form_
+                   ? spot_airlight_quadrature(spot.cone, spot.s, phase_, sigma_t_, start, d, seg, kSpotRelTol)
+                   : pegoraro10_spot_airlight(pegoraro_phase_, spot.cone, spot.s, sigma_t_, start, d, seg));
+    return La;
+}
+
+bool FogEvaluator::keeps_light(const SceneDescription& scene, const PointLight& light) {
+    const RGB weight = scene.medium.albedo * light.I0;
+    if (weight.x != 0.0 || weight.y != 0.0 || weight.z != 0.0) return true;
+    return !scene.gaussians.albedo.empty() && (light.I0.x != 0.0 || light.I0.y != 0.0 || light.I0.z != 0.0);
+}
+
+void FogEvaluator::eval_gaussians(const Ray* rays, const float* Dvp, const float* t0, int n, double* Tr, RGB* La) const {
+    if (splat_) {  // perspective: rays from the shared eye (gaussian_splat.h)
+        thread_local std::vector<Vec3> dirs;
+        dirs.resize(size_t(n));
+        for (int k = 0; k < n; ++k) dirs[k] = rays[k].d;
+        splat_->eval_rays(dirs.data(), Dvp, t0, n, Tr, La);
+        return;
+    }
+    const size_t L = lights_.size();
+    for (int k = 0; k < n; ++k) {
+        const Ray& ray = rays[k];
+        const double near = t0 ? double(t0[k]) : 0.0;
+        const double seg = std::max(0.0, double(Dvp[k]) - near);  // inf stays inf
+        const Vec3 o = near > 0.0 ? ray.o + near * ray.d : ray.o;
+        Tr[k] = std::exp(-gaussian_->optical_depth_ray(o, ray.d, seg));
+        La[k] = RGB(0.0);
+        if (!(seg > 0.0) || (L == 0 && gaussian_spots_.empty() && gaussian_suns_.empty())) continue;
+        if (model_.gaussian_method() == GaussianMethod::Quadrature) {
+            for (size_t l = 0; l < L; ++l) {
+                GaussianRefLight ref;  // a point light
+                ref.s = lights_[l].s;
+                La[k] += lights_[l].weight *
+                         (isotropic_ ? gaussian_airlight_quadrature(*gaussian_, lights_[l].s, o, ray.d, seg, kQuadratureRelTol)
+                                     : gaussian_airlight_quadrature(*gaussian_, ref, phase_, o, ray.d, seg, kQuadratureRelTol));
+            }
+            for (const GaussianSpotData& spot : gaussian_spots_) {
+                GaussianRefLight ref;
+                ref.kind = GaussianRefLight::Kind::Spot;
+                ref.s = spot.s;
+                ref.cone = spot.cone;
+                La[k] += medium_albedo_ * spot.I0 *
+                         gaussian_airlight_quadrature(*gaussian_, ref, phase_, o, ray.d, seg, kQuadratureRelTol);
+            }
+            for (const GaussianSunData& sun : gaussian_suns_) {
+                GaussianRefLight ref;
+                ref.kind = GaussianRefLight::Kind::Sun;
+                ref.w = sun.w;
+                ref.fog_top = fog_top_;
+                La[k] += medium_albedo_ * sun.E *
+                         gaussian_airlight_quadrature(*gaussian_, ref, phase_, o, ray.d, seg, kQuadratureRelTol);
+            }
+            continue;
+        }
+        const FogshopAirlight local(*gaussian_, o, gaussian_lights_, model_.f_table(), 1);
+        La[k] = local.eval_rgb(ray.d, seg, gaussian_albedo_.data(), gaussian_I0_.data(), medium_albedo_);
+    }
+}
+
+}  // namespace airlight

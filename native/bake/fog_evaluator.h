@@ -1,0 +1,145 @@
+// fog_evaluator.h: transmittance and airlight of view rays for every light type and for
+// Gaussian fog, with the fog model of the bake (models/fog_model.h supplies what differs
+// between the papers: a point light's airlight along a segment, how spots, suns and Gaussian
+// fog are integrated, the table of the fast row path).
+#pragma once
+
+#include <limits>
+#include <memory>
+#include <vector>
+
+#include "bake/bake.h"
+#include "core/scene.h"
+#include "gaussian/medium.h"
+#include "gaussian/splat.h"
+#include "homogeneous/pegoraro10.h"
+#include "homogeneous/spot_light.h"
+#include "image/camera.h"
+#include "models/fog_model.h"
+
+namespace airlight {
+
+// Per-light data, precomputed once per bake.
+struct LightData {
+    Vec3 s;          // position
+    RGB weight;      // albedo * I0
+    double Dsv = 0;  // distance to the camera position (perspective rays share the origin)
+};
+
+// Evaluates transmittance and airlight of view rays with a fog model.
+class FogEvaluator {
+  public:
+    FogEvaluator(const SceneDescription& scene, const BakeSettings& settings, const FogModel& model, bool shared_origin,
+             const Vec3& origin);
+
+    // Background (beta0) term of the splat's light l (GaussianSplatLights::background): point
+    // lights n_gaussian_points_ first, then spots, then suns; per unit albedo I0 (suns: albedo E)
+    // along origin_ + t d over [t0, Dvp], attenuated from t0, with the bake's model.
+    double gaussian_background(size_t l, const Vec3& d, double t0, double Dvp) const;
+
+    // Transmittance of the ray _r_ from t0 to _depth_ (inf: none), as eval_many computes it.
+    double transmittance(const Ray& r, double t0, double depth) const;
+
+    // Gaussian fog through the tiled splat (perspective, Fogshop models): null otherwise.
+    GaussianSplat* splat() const { return splat_.get(); }
+    // The Gaussian medium (null for homogeneous fog).
+    const GaussianMedium* gaussian_medium() const { return gaussian_.get(); }
+
+    // True if _eval_soa_ applies (perspective camera, table model, fog): then a near
+    // distance t0 costs nothing extra (one evaluation of the segment, sun05_batch.h).
+    bool soa() const { return shared_origin_ && model_.f_table() && sigma_t_ > 0.0 && !gaussian_; }
+
+    // The transmittance part of _eval_soa_ alone (soa() only), the same values.
+    void transmittance_soa(const float* Dvp, const float* t0, int n, float* Tr) const;
+    bool has_spots() const { return !spots_.empty(); }
+
+    // Hot path (soa() only): _n_ rays from the shared origin with unit directions (dx,
+    // dy, dz)[k] (structure of arrays, so the per-light dot products and accumulations
+    // vectorise), segment [t0[k], Dvp[k]] (t0 null: 0). Writes Tr[k] = exp(-sigma_t (Dvp -
+    // t0)) and the airlight summed over the lights to rgb[3 k .. 3 k + 2].
+    void eval_soa(const double* dx, const double* dy, const double* dz, const float* Dvp, const float* t0, int n,
+                  float* Tr, float* rgb) const;
+
+    // The same for _n_ rays at once, light by light: the iterations of the inner loop
+    // are independent, so the CPU overlaps the long dependency chains of the model.
+    // _t0_ (near distances, may be null): the fog of the segment [t0, Dvp] with
+    // attenuation from the near point, as Cycles integrates it. soa() folds t0 into the
+    // table evaluation; the other models move the viewer to the near point o + t0 d (same
+    // direction, so the same phase angles along the ray; Dsv and gamma from there), one
+    // evaluation per ray and light with no difference to cancel.
+    void eval_many(const Ray* rays, const float* Dvp, const float* t0, int n, double* Tr, RGB* La) const;
+
+    // Airlight of all sun lamps along o + t d over [t_near, Dvp] (inf: none): sigma_s p E G
+    // with the closed form G of sunlight_layer.h (its quadrature for the quadrature model). The
+    // phase angle is the same all along the ray.
+    RGB sun_airlight(const Vec3& o, const Vec3& d, double t_near, double Dvp) const;
+
+    // Airlight of all spot lights along the ray o + t d over [t_near, Dvp] (Dvp from o; inf:
+    // none), attenuated from the near point (the viewer moved there, as eval_many does for
+    // the other models). Pegoraro 2010 closed form with the medium's phase (pegoraro10.h), or
+    // quadrature (spot_light.h): model 'quadrature', and phases above order 8 unless 'pegoraro10'.
+    RGB spot_airlight(const Vec3& o, const Vec3& d, double t_near, double Dvp) const;
+
+  private:
+    // A light scatters if albedo * I0 is nonzero, or (Gaussian fog with its own colours) if
+    // I0 is: a black background medium can carry coloured fog objects.
+    static bool keeps_light(const SceneDescription& scene, const PointLight& light);
+
+    // Gaussian fog: Tr = exp(-(sigma_t (t1 - t0) + sum_i T_i)) with the culled optical depth,
+    // La = sum_l I0_l [albedo L_0,l + sum_i albedo_i L_i,l] (Fogshop) over the same segment
+    // [t0, t1], attenuated from the near point o + t0 d: exp(T(eye, near point)) (La_eye(t1) -
+    // La_eye(t0)), exact for the integral (the eye-side attenuation of every point beyond t0
+    // carries the factor exp(-T(eye, near point))). Perspective cameras: the centre samples
+    // come from the tiled splat and the rays here (edge samples) from its per-ray twin, both
+    // float (gaussian_splat.h). Orthographic rays (own origins) set the exact double Fogshop up per
+    // ray; the quadrature model integrates from the near point directly.
+    void eval_gaussians(const Ray* rays, const float* Dvp, const float* t0, int n, double* Tr, RGB* La) const;
+
+    double airlight(double Dsv, double cos_gamma, double Dvp) const { return model_.point_airlight(Dsv, cos_gamma, Dvp); }
+
+    const FogModel& model_;
+    double sigma_t_;
+    PhaseFunction phase_;
+    bool isotropic_;
+    bool shared_origin_;
+    Vec3 origin_;
+    PegoraroPhase pegoraro_phase_;  // spots (all models but quadrature) and model pegoraro10
+    bool spot_closed_form_ = false;  // spots by pegoraro10_spot_airlight (else quadrature)
+    std::vector<LightData> lights_;
+    struct SpotData {
+        SpotCone cone;
+        Vec3 s;
+        RGB weight;  // albedo * I0
+    };
+    std::vector<SpotData> spots_;
+    struct SunData {
+        Vec3 w;       // unit propagation direction
+        double mu_s;  // -w.z: the cosine of the sun's path through the layer to the vertical
+        RGB weight;   // albedo * sigma_t * E
+    };
+    std::vector<SunData> suns_;
+    double fog_top_ = std::numeric_limits<double>::infinity();
+    // Gaussian fog (null without): the medium (beta0 = sigma_t), the lights' positions in
+    // lights_' order, and Fogshop set up at the shared viewpoint.
+    std::unique_ptr<GaussianMedium> gaussian_;
+    std::vector<Vec3> gaussian_lights_;
+    std::vector<RGB> gaussian_I0_;         // I0 of the lights in lights_' order
+    std::vector<double> gaussian_albedo_;  // 3 per Gaussian (the medium's if none given)
+    RGB medium_albedo_{1.0};
+    size_t n_gaussian_points_ = 0;  // point lights at the front of gaussian_lights_ (spots follow)
+    struct GaussianSpotData {
+        SpotCone cone;
+        Vec3 s;
+        RGB I0;
+    };
+    struct GaussianSunData {
+        Vec3 w;       // unit propagation direction
+        double mu_s;  // -w.z
+        RGB E;
+    };
+    std::vector<GaussianSpotData> gaussian_spots_;
+    std::vector<GaussianSunData> gaussian_suns_;
+    std::unique_ptr<GaussianSplat> splat_;
+};
+
+}  // namespace airlight

@@ -1,0 +1,51 @@
+// gaussian_pass.cpp: Gaussian fog by the tiled splat (passes.h).
+#include <algorithm>
+#include <numeric>
+#include <vector>
+
+#include "bake/passes.h"
+#include "core/parallel.h"
+
+namespace airlight {
+
+double gaussian_pass(BakeContext& ctx, const FogEvaluator& fog) {
+    // Gaussian fog with a perspective camera: the centre samples of every pixel come from
+    // the tiled splat (gaussian/splat.h) in one pass over tiles; the homogeneous pass then
+    // only finds the edge pixels, which the edge pass supersamples (through the same kernels
+    // per ray).
+    const int W = ctx.W, H = ctx.H, n_threads = ctx.n_threads;
+    const ProgressFn& progress = ctx.progress;
+    BakeResult& result = ctx.result;
+    GaussianSplat& splat = *fog.splat();
+    const auto bin_start = Clock::now();
+    splat.bin(ctx.D0, ctx.Dx, ctx.Dy, ctx.forward, W, H, ctx.near_clip ? ctx.clip_start : 0.0,
+              ctx.settings.gaussian_resolution,
+              result.depth.data());
+    result.stats.seconds_bin = seconds_since(bin_start);
+    const int n_tiles = splat.num_tiles();
+    // Costliest tiles first (GaussianSplat::tile_cost: binned pairs), so that the last tiles taken are cheap and
+    // the threads finish together (in order, the tiles next to a light's image or the
+    // cloud's core could leave one thread working alone at the end).
+    std::vector<int> order(static_cast<size_t>(n_tiles));
+    std::iota(order.begin(), order.end(), 0);
+    std::stable_sort(order.begin(), order.end(),
+                     [&](int a, int b) { return splat.tile_cost(a) > splat.tile_cost(b); });
+    constexpr double kSplatShare = 0.6;  // of the progress bar, after pass 1
+    const double end = kRaycastProgressShare + kSplatShare;
+    run_parallel(
+        n_tiles, n_threads,
+        [&](int k) {
+            splat.splat_tile(order[k], result.depth.data(), result.transmittance.data(), result.airlight.data());
+        },
+        [&, last = -1](int done) mutable {
+            // Thousands of tiles: report (and check for cancel) once per percent.
+            const int percent = int(100LL * done / n_tiles);
+            if (!progress || percent == last) return;
+            last = percent;
+            const double f = kRaycastProgressShare + (end - kRaycastProgressShare) * done / n_tiles;
+            if (!progress(f)) throw Cancelled();
+        });
+    return end;
+}
+
+}  // namespace airlight

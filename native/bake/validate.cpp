@@ -1,0 +1,131 @@
+// validate.cpp: the bake's checks of a scene and its settings (validate.h).
+#include "bake/validate.h"
+
+#include <cmath>
+#include <limits>
+#include <stdexcept>
+#include <string>
+
+#include "core/constants.h"
+#include "gaussian/splat.h"
+#include "models/registry.h"
+
+namespace airlight {
+
+namespace {
+
+constexpr int kMaxResolution = 32768;
+
+// Throw std::invalid_argument with _msg_ unless _ok_.
+void require(bool ok, const std::string& msg) {
+    if (!ok) throw std::invalid_argument(msg);
+}
+
+bool finite3(const glm::dvec3& v) {
+    return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z);
+}
+
+// Sun lamps and the fog top (sunlight_layer.h).
+void validate_suns(const SceneDescription& scene) {
+    for (size_t i = 0; i < scene.sun_lights.size(); ++i) {
+        const SunLight& sun = scene.sun_lights[i];
+        const std::string name = "sun light " + std::to_string(i);
+        require(finite3(sun.direction) && glm::length(sun.direction) > 0.0,
+                name + ": direction must be finite and nonzero");
+        require(finite3(sun.E) && sun.E.x >= 0.0 && sun.E.y >= 0.0 && sun.E.z >= 0.0,
+                name + ": irradiance must be finite and >= 0");
+    }
+    require(!std::isnan(scene.fog_top) && scene.fog_top != -std::numeric_limits<double>::infinity(),
+            "fog_top must be a finite height or +inf (no top), got " + std::to_string(scene.fog_top));
+}
+
+}  // namespace
+
+void validate(const SceneDescription& scene, const BakeSettings& settings) {
+    const Camera& cam = scene.camera;
+    require(cam.width > 0 && cam.height > 0,
+            "resolution must be positive, got " + std::to_string(cam.width) + " x " +
+                std::to_string(cam.height));
+    require(cam.width <= kMaxResolution && cam.height <= kMaxResolution,
+            "resolution must be at most " + std::to_string(kMaxResolution) + " per axis, got " +
+                std::to_string(cam.width) + " x " + std::to_string(cam.height));
+    const HomogeneousMedium& medium = scene.medium;
+    require(std::isfinite(medium.sigma_t) && medium.sigma_t >= 0.0,
+            "sigma_t (density) must be finite and >= 0, got " + std::to_string(medium.sigma_t));
+    require(finite3(medium.albedo) && medium.albedo.x >= 0.0 && medium.albedo.y >= 0.0 &&
+                medium.albedo.z >= 0.0,
+            "albedo must be finite and >= 0");
+    require(std::abs(medium.phase.g) < 1.0,
+            "phase: g (anisotropy) must be finite with |g| < 1, got " + std::to_string(medium.phase.g));
+    // The model's own checks (its phases, lights and fog objects: models/<paper>_model.cpp).
+    const ModelEntry& entry = model_entry(settings.model);
+    if (entry.validate) entry.validate(scene, settings);
+    validate_suns(scene);
+    require(std::isfinite(medium.rayleigh_550) && medium.rayleigh_550 >= 0.0,
+            "rayleigh_density must be finite and >= 0, got " + std::to_string(medium.rayleigh_550));
+    // Gaussian fog (Fogshop): the Fogshop approximation (sun05, sun05_exact: F table or exact
+    // F for the background term; biri06, pegoraro10: their model for it, any phase) or its
+    // quadrature reference; point, spot and sun lamps (gaussian_splat.h GaussianSplatLights).
+    const Gaussians& gauss = scene.gaussians;
+    if (!gauss.empty()) {
+        const size_t n = gauss.scales.size();
+        require(gauss.amplitudes.size() == n && gauss.centres.size() == 3 * n,
+                "gaussians: centres (" + std::to_string(gauss.centres.size()) + " values), scales (" +
+                    std::to_string(n) + ") and amplitudes (" + std::to_string(gauss.amplitudes.size()) +
+                    ") must describe the same number of Gaussians (3 centre values each)");
+        for (double x : gauss.centres) require(std::isfinite(x), "gaussians: centres must be finite");
+        for (size_t i = 0; i < n; ++i) {
+            require(std::isfinite(gauss.scales[i]) && gauss.scales[i] > 0.0,
+                    "gaussians: scale " + std::to_string(i) + " must be finite and > 0, got " +
+                        std::to_string(gauss.scales[i]));
+            require(std::isfinite(gauss.amplitudes[i]) && gauss.amplitudes[i] >= 0.0,
+                    "gaussians: amplitude " + std::to_string(i) + " must be finite and >= 0, got " +
+                        std::to_string(gauss.amplitudes[i]));
+        }
+        require(gauss.albedo.empty() || gauss.albedo.size() == 3 * n,
+                "gaussians: albedo must hold 3 values per Gaussian (" + std::to_string(3 * n) + "), got " +
+                    std::to_string(gauss.albedo.size()));
+        for (double x : gauss.albedo)
+            require(std::isfinite(x) && x >= 0.0, "gaussians: albedo must be finite and >= 0");
+        validate_noise({gauss.noise_amplitude, gauss.noise_scale, gauss.noise_offset});
+    }
+    for (size_t i = 0; i < scene.point_lights.size(); ++i) {
+        const PointLight& light = scene.point_lights[i];
+        require(finite3(light.position), "light " + std::to_string(i) + ": position must be finite");
+        require(finite3(light.I0) && light.I0.x >= 0.0 && light.I0.y >= 0.0 && light.I0.z >= 0.0,
+                "light " + std::to_string(i) + ": intensity must be finite and >= 0");
+    }
+    for (size_t i = 0; i < scene.spot_lights.size(); ++i) {
+        const SpotLight& spot = scene.spot_lights[i];
+        const std::string name = "spot light " + std::to_string(i);
+        require(finite3(spot.position), name + ": position must be finite");
+        require(finite3(spot.axis) && glm::length(spot.axis) > 0.0, name + ": axis must be finite and nonzero");
+        require(finite3(spot.I0) && spot.I0.x >= 0.0 && spot.I0.y >= 0.0 && spot.I0.z >= 0.0,
+                name + ": intensity must be finite and >= 0");
+        require(std::isfinite(spot.spot_size) && spot.spot_size > 0.0 && spot.spot_size <= kPi + 1e-9,
+                name + ": spot_size must be in (0, pi] rad, got " + std::to_string(spot.spot_size));
+        require(std::isfinite(spot.spot_blend) && spot.spot_blend >= 0.0 && spot.spot_blend <= 1.0,
+                name + ": spot_blend must be in [0, 1], got " + std::to_string(spot.spot_blend));
+    }
+    const TriangleMesh& mesh = scene.geometry;
+    require(mesh.vertices.size() % 3 == 0, "vertices must hold 3 floats per vertex");
+    require(mesh.triangles.size() % 3 == 0, "triangles must hold 3 indices per triangle");
+    for (float x : mesh.vertices) require(std::isfinite(x), "vertices must be finite (found NaN or inf)");
+    const size_t n_vertices = mesh.vertices.size() / 3;
+    for (uint32_t index : mesh.triangles)
+        require(index < n_vertices, "triangle index " + std::to_string(index) +
+                                        " out of range (vertex count " + std::to_string(n_vertices) + ")");
+    require(settings.threads >= 0, "threads must be >= 0 (0: all hardware threads)");
+    require(settings.aa_samples >= 1 && settings.aa_samples <= 64, "aa_samples must be in [1, 64]");
+    require(std::isfinite(settings.filter_width) && settings.filter_width >= 0.0,
+            "filter_width must be finite and >= 0");
+    require(settings.edge_cluster_tol >= 0.0 && !std::isnan(settings.edge_cluster_tol),
+            "edge_cluster_tol must be >= 0 (0: every sub-sample evaluated), got " +
+                std::to_string(settings.edge_cluster_tol));
+    require(settings.table_nu >= 2 && settings.table_nT >= 2 && settings.table_nu <= 16384 &&
+                settings.table_nT <= 16384,
+            "table size must be in [2, 16384] per axis");
+    // The camera matrices are checked by CameraRays (finite, invertible).
+}
+
+}  // namespace airlight

@@ -1,0 +1,77 @@
+// parallel.cpp: see parallel.h.
+#include "core/parallel.h"
+
+#include <algorithm>
+#include <atomic>
+#include <exception>
+#include <mutex>
+#include <thread>
+#include <vector>
+
+namespace airlight {
+
+void run_parallel(int n, int n_threads, const std::function<void(int)>& work,
+                  const std::function<void(int)>& on_progress) {
+    if (n <= 0) return;
+    std::atomic<int> next{0};
+    std::atomic<bool> stop{false};
+    std::atomic<int> done{0};
+    std::mutex mutex;
+    std::exception_ptr error;
+    auto fail = [&](std::exception_ptr e) {
+        std::lock_guard<std::mutex> lock(mutex);
+        if (!error) error = e;
+        stop = true;
+    };
+    // Takes items until none is left or stop; _after_ runs after each completed item.
+    auto take = [&](auto&& after) {
+        while (!stop.load(std::memory_order_relaxed)) {
+            const int i = next.fetch_add(1);
+            if (i >= n) return;
+            work(i);
+            done.fetch_add(1);
+            after();
+        }
+    };
+    auto worker = [&]() {
+        try {
+            take([] {});
+        } catch (...) {
+            fail(std::current_exception());
+        }
+    };
+    std::vector<std::thread> threads;
+    n_threads = std::max(1, std::min(n_threads, n));
+    threads.reserve(size_t(n_threads - 1));
+    auto join_all = [&]() {
+        for (std::thread& t : threads)
+            if (t.joinable()) t.join();
+    };
+    const int report_every = std::max(1, n / 128);
+    int reported = 0;
+    try {
+        for (int t = 1; t < n_threads; ++t) threads.emplace_back(worker);
+        try {
+            take([&] {
+                const int d = done.load(std::memory_order_relaxed);
+                if (d - reported >= report_every) on_progress(reported = d);
+            });
+        } catch (...) {
+            fail(std::current_exception());
+        }
+    } catch (...) {  // a thread could not be started
+        stop = true;
+        join_all();
+        throw;
+    }
+    join_all();
+    if (error) std::rethrow_exception(error);
+    on_progress(n);
+}
+
+int resolve_threads(int threads) {
+    const int n = threads > 0 ? threads : int(std::thread::hardware_concurrency());
+    return std::max(1, n);
+}
+
+}  // namespace airlight
