@@ -13,7 +13,9 @@ bl_info = {
 
 if "bpy" in locals():
     import importlib
-    for _name in ("native", "properties", "cache", "scene_export", "compositor", "bake", "render", "ui", "preview"):
+    for _name in ("names", "views", "native", "visibility", "light_bounds", "fog_object", "scene_description",
+                  "model_choice", "scene_export", "surface", "cache", "compositor", "properties", "bake",
+                  "render", "ui", "preview"):
         if _name in locals():
             importlib.reload(locals()[_name])
 

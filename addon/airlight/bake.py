@@ -14,7 +14,9 @@ import bpy
 import numpy as np
 from bpy.props import IntProperty, StringProperty
 
-from . import cache, compositor, environment, model_choice, native, scene_export, surface
+from . import cache, compositor, environment, model_choice, native, scene_description, scene_export, surface
+from .views import bake_window, render_region, render_size, render_views
+
 
 class BakeError(RuntimeError):
     """A bake failed for a reason the user can fix; the message says which."""
@@ -24,8 +26,8 @@ cache_path = cache.cache_path
 # Key of the settings dict (not a `_native.bake` argument; run() takes it out): the light
 # group name per bake light when surface shading is on (surface.ensure_passes).
 SURFACE_GROUPS = "surface_groups"
-# Another such key, with a render region (scene_export.render_region): the bake covers
-# the region and a margin around it (scene_export.bake_window); ((left, top, width,
+# Another such key, with a render region (views.render_region): the bake covers
+# the region and a margin around it (views.bake_window); ((left, top, width,
 # height) of the region in the baked image, rows top first; (left, top, width, height) of
 # the region in the whole frame when the render is not cropped to the region, else None).
 # run() cuts the region out of the passes and, uncropped, puts it back into a whole frame
@@ -33,7 +35,7 @@ SURFACE_GROUPS = "surface_groups"
 REGION = "render_region"
 # And: write the passes as 16-bit floats (scene.airlight.pass_precision 'HALF').
 HALF_PASSES = "half_passes"
-# And, with the camera's depth of field (scene_export.export_lens): [(cam_to_world,
+# And, with the camera's depth of field (scene_description.export_lens): [(cam_to_world,
 # projection)] of the lens samples, one bake each, averaged by run().
 LENS = "lens_samples"
 # And, with motion blur (prepare_views with evaluate_at): the scene descriptions of the
@@ -69,26 +71,27 @@ def bake_settings(scene, description=None):
 def prepare(scene, depsgraph, mesh_overrides=None, view=None):
     """Everything the bake needs, gathered in the main thread (touches bpy); in a render
     thread nothing is written (_mesh_overrides_: see fog_object.gather). _view_: the
-    render view whose camera sees it (scene_export.render_views; None: the scene camera).
+    render view whose camera sees it (views.render_views; None: the scene camera).
 
     The World for the environment glow travels in the settings under "environment"
     (environment.prepare(); absent when off), which `run` takes out before the native bake."""
     try:
-        description = scene_export.export_scene(scene, depsgraph, mesh_overrides, view)
+        description, plan = scene_export.export(scene, depsgraph, mesh_overrides, view)
         settings = bake_settings(scene, description)
         world = environment.prepare(scene)
         if world is not None:
             settings["environment"] = world
-    except (scene_export.ExportError, environment.WorldMapError) as ex:
+    except (scene_description.ExportError, environment.WorldMapError) as ex:
         raise BakeError(str(ex)) from None
     if getattr(scene.airlight, "pass_precision", 'FULL') == 'HALF':
         settings[HALF_PASSES] = True
-    lens = scene_export.export_lens(scene, depsgraph, view, description["cam_to_world"], description["projection"])
+    lens = scene_description.export_lens(scene, depsgraph, view, description["cam_to_world"],
+                                         description["projection"])
     if lens is not None:
         settings[LENS] = lens
-    region, window = scene_export.render_region(scene), scene_export.bake_window(scene)
+    region, window = render_region(scene), bake_window(scene)
     if region is not None:
-        width, height = scene_export.render_size(scene)
+        width, height = render_size(scene)
         x0, y0, x1, y1 = region
         cut = (x0 - window[0], window[3] - y1, x1 - x0, y1 - y0)
         whole = None if scene.render.use_crop_to_border else (x0, height - y1, width, height)
@@ -106,10 +109,9 @@ def prepare(scene, depsgraph, mesh_overrides=None, view=None):
                   else surface.current_groups(depsgraph))
         # One entry per light the bake gets: Automatic's skipped lights are not exported
         # (scene_export), so drop their groups or the attenuation images would shift.
-        skipped = model_choice.skipped_lights(scene, depsgraph)
         rows = surface.fogged_lights(depsgraph)
         settings[SURFACE_GROUPS] = [group for (obj, _), group in zip(rows, groups)
-                                    if obj.name not in skipped]
+                                    if obj.name not in plan.skipped]
         if world is not None:
             world["group"] = (surface.ensure_world_group(scene) if main
                               else surface.current_world_group(scene))
@@ -168,7 +170,7 @@ def run(description, settings, filepath, progress=None):
 
 def _average(bake_once, descriptions, progress):
     """The passes averaged over the bakes of _descriptions_ (lens samples,
-    scene_export.export_lens; shutter samples, prepare_views), as a render averages its
+    scene_description.export_lens; shutter samples, prepare_views), as a render averages its
     camera rays over the aperture and the shutter: airlight and the surface passes the mean
     of all; transmittance the mean of the samples whose rays hit a surface (where some do),
     as the edge samples take it (a miss looks into the world through fog out to infinity,
@@ -218,7 +220,7 @@ def view_paths(scene, filepath):
     Stereoscopy on, _filepath_ with the view's suffix before the extension (fog_0001_L.exr,
     fog_0001_R.exr; the compositor hands each view its own, compositor._setup_views), else
     [(None, filepath)]."""
-    views = scene_export.render_views(scene)
+    views = render_views(scene)
     if views[0][0] is None:
         return [(None, filepath)]
     root, ext = os.path.splitext(filepath)

@@ -7,16 +7,10 @@ import bpy
 import numpy as np
 
 from . import native
-
-# EXR layout: channels "Fog.Airlight.R" ... Blender 3.4 reads "<layer>.<pass>.<chan>" as
-# layer "Fog" with passes "Airlight" and "Transmittance", which the compositor Image
-# node exposes as outputs of those names. (Without a layer prefix the passes also show,
-# but in a nameless layer that RNA cannot represent.)
-LAYER_PREFIX = "Fog."
-# With surface shading the file also holds Surface_<light group> (attenuation - 1 per
-# fogged light) and SurfaceGlow (Lambert glow per unit DiffCol): see surface.py.
-PASS_AIRLIGHT = "Airlight"
-PASS_TRANSMITTANCE = "Transmittance"
+# EXR layout (names.py): layer "Fog" with passes "Airlight" and "Transmittance", and with
+# surface shading Surface_<light group> (attenuation - 1 per fogged light) and SurfaceGlow
+# (Lambert glow per unit DiffCol): see surface.py.
+from .names import LAYER_PREFIX, PASS_AIRLIGHT, PASS_TRANSMITTANCE
 
 
 class CacheError(RuntimeError):

@@ -23,7 +23,8 @@ import bpy
 from bpy.app.handlers import persistent
 
 from . import cache, native, surface
-from .cache import PASS_AIRLIGHT, PASS_TRANSMITTANCE
+from .names import PASS_AIRLIGHT, PASS_TRANSMITTANCE
+from .views import render_size, render_views
 
 FRAME = "Airlight Fog"
 NODE_IMAGE = "Airlight Passes"
@@ -173,7 +174,6 @@ def _image(filepath, name=IMAGE_NAME):
 
 def _is_view_file(scene, filepath):
     """_filepath_ is the first view's file of a stereo bake of _scene_ (bake.view_paths)."""
-    from .scene_export import render_views
     if filepath is None:
         return False
     view, suffix = render_views(scene)[0]
@@ -278,7 +278,6 @@ def _setup_views(scene, tree, frame, image_node, filepath):
     Without Stereoscopy the switches and the views' Image nodes go and their targets read
     the Image node again. (Blender's multi-view images do not take multilayer EXR passes
     per view file, hence the switches.)"""
-    from .scene_export import render_views
     views = render_views(scene)
     switches = {node.name[len(VIEW_SWITCH_PREFIX):]: node for node in tree.nodes
                 if node.name.startswith(VIEW_SWITCH_PREFIX)}
@@ -332,7 +331,6 @@ def views_ready(scene):
     """The fog nodes take each view's passes as the render's views need (_setup_views): a
     Switch View node on the Transmittance pass and an Image node per view after the first
     with Stereoscopy, neither without."""
-    from .scene_export import render_views
     tree = scene.node_tree
     if tree is None:
         return False
@@ -444,7 +442,6 @@ def neutral_passes(scene, depsgraph=None):
     """Path of pass-through passes at the render size, or None if they cannot be written.
     With surface shading (main thread) it first sets up the light groups for the scene as
     _depsgraph_ (default: the context's) has it."""
-    from .scene_export import render_size
     if not native.available():
         return None
     width, height = render_size(scene)

@@ -31,8 +31,8 @@ from collections import namedtuple
 
 import numpy as np
 
-from . import light_bounds, visibility
-from .properties import MODEL_NAMES, PHASE_NAMES, SUPPORTED_LIGHT_TYPES
+from . import light_bounds, scene_description
+from .names import MODEL_NAMES, SUPPORTED_LIGHT_TYPES, is_isotropic, native_phase
 
 # native name -> (label, max relative error, relative cost)
 MEASURED = {
@@ -64,19 +64,6 @@ BIRI06_NARROW_LOBE_G = 0.95
 # Models that integrate any phase function; the others are isotropic only.
 PHASE_MODELS = ("biri06", "pegoraro10", "quadrature")
 ISOTROPIC_ONLY = ("sun05", "sun05_exact")
-
-
-def is_isotropic(settings):
-    """True if the fog's phase is isotropic (Henyey-Greenstein with Anisotropy 0)."""
-    return settings.phase == 'HENYEY_GREENSTEIN' and settings.anisotropy == 0.0
-
-
-def native_phase(settings):
-    """(phase, g) for `_native.bake`: ("isotropic", 0) or the phase with HG's g."""
-    if is_isotropic(settings):
-        return "isotropic", 0.0
-    g = float(settings.anisotropy) if settings.phase == 'HENYEY_GREENSTEIN' else 0.0
-    return PHASE_NAMES[settings.phase], g
 
 
 def model_error(name, settings):
@@ -245,48 +232,31 @@ SUN_QUADRATURE_MODEL = ("Quadrature (sun)", 1e-8)
 LightRow = namedtuple("LightRow", "name type status label error share")
 
 
-def _frame(scene, depsgraph):
-    """light_bounds.Frame of the scene camera, or None when there is none to bound."""
-    camera = scene.camera
-    if camera is None or camera.type != 'CAMERA' or camera.data.type == 'PANO':
-        return None
-    cam = camera.evaluated_get(depsgraph) if depsgraph is not None else camera
-    corners = [tuple(v) for v in cam.data.view_frame(scene=scene)]
-    return light_bounds.Frame(np.array(cam.matrix_world), corners, cam.data.type == 'ORTHO',
-                              float(cam.data.clip_start))
-
-
-def light_plan(scene, depsgraph=None, view_layer=None):
-    """Per render-visible light of the scene (not instanced ones): what the bake does with
-    it, as LightRows. Cheap (no bake): the panel redraws it when settings change.
+def plan_rows(settings, survey):
+    """Per light of a scene_description.Survey (the scene's render-visible lights, not
+    instanced ones): what the bake does with it, as LightRows. Cheap (no bake): the panel
+    redraws it when settings change.
 
     With the Automatic model, lights whose airlight is rigorously below the accuracy target
     everywhere in frame are skipped (light_bounds.py says what is guaranteed); instanced
     lights are never skipped. Explicit models bake every participating light."""
-    settings = scene.airlight
-    if view_layer is None:
-        view_layer = depsgraph.view_layer if depsgraph is not None else scene.view_layers[0]
-    visible = visibility.RenderVisibility(view_layer)
     name, point_label, point_error = choose(settings)
     sigma = float(settings.density)
     albedo = np.array(settings.color, dtype=np.float64)
     phase, g = native_phase(settings)
     p_min, p_max = light_bounds.phase_range(phase, g)
-    frame = _frame(scene, depsgraph)
+    frame = survey.frame
     rows, fogged = [], []
     kinds, weights, positions = [], [], []   # per fogged light: type, I0 or E (RGB), position
-    for obj in scene.objects:
-        if obj.type != 'LIGHT' or not visible(obj):
-            continue
-        light = obj.data
+    for light in survey.lights:
         if light.type not in SUPPORTED_LIGHT_TYPES:
-            rows.append(LightRow(obj.name, light.type, 'unsupported', "", math.nan, math.nan))
+            rows.append(LightRow(light.name, light.type, 'unsupported', "", math.nan, math.nan))
             continue
-        if not light.airlight.participate:
-            rows.append(LightRow(obj.name, light.type, 'off', "", math.nan, math.nan))
+        if not light.participates:
+            rows.append(LightRow(light.name, light.type, 'off', "", math.nan, math.nan))
             continue
         if name == "hoffman02" and light.type != 'SUN':
-            rows.append(LightRow(obj.name, light.type, 'unsupported', "", math.nan, math.nan))
+            rows.append(LightRow(light.name, light.type, 'unsupported', "", math.nan, math.nan))
             continue
         if name == "baseline":
             label, error = BASELINE[1], BASELINE[2]
@@ -296,13 +266,11 @@ def light_plan(scene, depsgraph=None, view_layer=None):
             label, error = spot_model(name, settings)
         else:
             label, error = point_label, point_error
-        rows.append(LightRow(obj.name, light.type, 'fog', label, error, math.nan))
+        rows.append(LightRow(light.name, light.type, 'fog', label, error, math.nan))
         fogged.append(len(rows) - 1)
         kinds.append(light.type)
-        colour = np.array(light.color, dtype=np.float64) * light.energy
-        weights.append(colour if light.type == 'SUN' else colour / (4.0 * math.pi))
-        src = obj.evaluated_get(depsgraph) if depsgraph is not None else obj
-        positions.append(tuple(src.matrix_world.translation))
+        weights.append(light.emission if light.type == 'SUN' else light.emission / (4.0 * math.pi))
+        positions.append(light.position)
     if not fogged:
         return rows
     kinds = np.array(kinds)
@@ -318,9 +286,7 @@ def light_plan(scene, depsgraph=None, view_layer=None):
     skip = np.zeros(len(fogged), dtype=bool)
     # The bounds are those of the homogeneous fog: a light they rate faint can still light a
     # dense fog object (Gaussians) brightly, so Automatic skips no light when there is one.
-    fog_objects = any(getattr(getattr(obj, "airlight_fog", None), "is_fog", False)
-                      and visible(obj) for obj in scene.objects)
-    if settings.model == 'AUTO' and frame is not None and sigma > 0.0 and not fog_objects:
+    if settings.model == 'AUTO' and frame is not None and sigma > 0.0 and not survey.fog_objects:
         skip = light_bounds.skip_faint(uppers, lowers, settings.accuracy / 100.0)
     total_lower = lowers.sum(axis=0)
     with np.errstate(divide='ignore', invalid='ignore'):
@@ -328,6 +294,27 @@ def light_plan(scene, depsgraph=None, view_layer=None):
     for k, i in enumerate(fogged):
         rows[i] = rows[i]._replace(share=float(shares[k]), status='skipped' if skip[k] else 'fog')
     return rows
+
+
+def light_plan(scene, depsgraph=None, view_layer=None):
+    """plan_rows of _scene_'s lights (scene_description.survey: in _view_layer_, placed as
+    _depsgraph_ evaluates them; without one as the objects are, for the panel)."""
+    return plan_rows(scene.airlight, scene_description.survey(scene, depsgraph, view_layer))
+
+
+# What the bake does with a scene's lights: the native model, the names of the lights
+# Automatic skips (applied to the lights the depsgraph does not instance), and whether the
+# model is the daylight one (sun lamps only).
+Plan = namedtuple("Plan", "model skipped daylight")
+
+
+def plan(settings, survey):
+    """The Plan for these fog settings and a scene_description.Survey of the scene."""
+    name = choose(settings)[0]
+    skipped = frozenset()
+    if settings.model == 'AUTO':
+        skipped = frozenset(row.name for row in plan_rows(settings, survey) if row.status == 'skipped')
+    return Plan(name, skipped, name == "hoffman02")
 
 
 def skipped_lights(scene, depsgraph=None):

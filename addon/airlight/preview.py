@@ -14,7 +14,8 @@ Per draw (POST_VIEW):
    matrices, clipped like Cycles and the bake clip it (`view_clip_range`: the fog
    begins on the near plane, t0 = clip_start / cos(angle to the view axis), and
    surfaces beyond the far plane are already missing from the depth), the airlight of
-   all point lights over [t0, Dvp] by sun05_airlight and Tr = exp(-sigma_t (Dvp - t0)),
+   lights the bake takes (preview_lights: the same scene_description and plan) over
+   [t0, Dvp] by sun05_airlight and Tr = exp(-sigma_t (Dvp - t0)),
    premultiplied (rgb = airlight, alpha = 1 - Tr). At FULL scale
    it is drawn straight into the viewport; at HALF / QUARTER into a float offscreen of
    1/2 or 1/4 the size (airlight and surface distance), then
@@ -34,16 +35,21 @@ the benchmark with depth they render themselves.
 """
 
 import math
+import textwrap
 import threading
 import time
 
 import bpy
+import gpu
+import numpy as np
 from bpy.app.handlers import persistent
 from bpy.props import BoolProperty, EnumProperty
-
+from gpu_extras.batch import batch_for_shader
 from mathutils import Vector
 
-from . import native
+from . import environment, model_choice, native, scene_description, scene_export
+from . import gpu_shaders as gs
+from . import preview_gaussians as pg
 
 # Module state: the draw handler, GPU resources built lazily, and diagnostics.
 _state = {
@@ -59,6 +65,8 @@ _state = {
     "capture": None,    # tests: set to {} and the next draw stores its inputs there
     "gaussians": None,  # fog objects' Gaussians (dict, see draw_fog) of one generation
     "environment": None,  # (key, scene_environment's value): the World's glow map
+    "lights": None,     # (key, preview_lights' value) of one generation and fog settings
+    "problem": None,    # why the bake (and so the preview) refuses the scene, or None
 }
 
 MAX_LIGHTS = 256
@@ -97,7 +105,6 @@ def _phase_inputs(res, phase):
     key = (name, g)
     cached = res.get("gtab")
     if cached is None or cached[0] != key:
-        from . import gpu_shaders as gs
         table = _native_for_preview().biri06_table(name, g)
         vec = (float(kinds[table["phase"]]), float(table["g"]), float(table["K"]), float(table["k"]))
         cached = res["gtab"] = (key, vec, gs.float_texture(table["data"]))
@@ -108,7 +115,6 @@ def _gpu_resources():
     """Builds (once) the quad and the F table texture; shaders are built on first use."""
     res = _state["gpu"]
     if res is None:
-        from . import gpu_shaders as gs
         module = _native_for_preview()
         if module is None:
             raise RuntimeError(_missing_reason())
@@ -126,7 +132,6 @@ def _shader(kind, window_depth, variant=False, phase=False, spots=False, suns=Fa
     function (biri06_airlight.glsl) instead of Sun 2005; spots: with the spot-light loop
     (spot_airlight.glsl); suns: with the sun-lamp loop (sun_airlight.glsl); env: with the
     World's glow where rays meet no surface (preview_common.glsl preview_env)."""
-    from . import gpu_shaders as gs
     res = _gpu_resources()
     key = (kind, bool(window_depth), variant, bool(phase), bool(spots), bool(suns), bool(env))
     shader = res["shaders"].get(key)
@@ -164,7 +169,6 @@ def _target(name, width, height, fmt, depth=False):
     res = _gpu_resources()
     entry = res["targets"].get(name)
     if entry is None or entry["size"] != (width, height):
-        import gpu
         colour = gpu.types.GPUTexture((width, height), format=fmt)
         depth_tex = gpu.types.GPUTexture((width, height), format='DEPTH_COMPONENT32F') if depth else None
         entry = res["targets"][name] = dict(size=(width, height), colour=colour,
@@ -173,16 +177,13 @@ def _target(name, width, height, fmt, depth=False):
 
 
 def _framebuffer(target):
-    import gpu
     return gpu.types.GPUFrameBuffer(depth_slot=target["depth"], color_slots=(target["colour"],))
 
 
 def free_gpu_resources():
     _state["gpu"] = None
-    _state["gaussians"] = None
-    _state["environment"] = None
-    from . import preview_gaussians
-    preview_gaussians.clear_cache()
+    _state["gaussians"] = _state["environment"] = _state["lights"] = None
+    pg.clear_cache()
     _state["meshes"] = {}
     _state["instances"] = None
 
@@ -197,11 +198,10 @@ def _mesh_key(obj_eval):
 def _visible_instances(depsgraph, view_layer):
     """[(key, object, matrix)] of the geometry the viewport shows (solid objects whose
     source is visible in the view layer), from the evaluated depsgraph's instances."""
-    from . import scene_export
     out = []
     for instance in depsgraph.object_instances:
         obj = instance.object
-        if obj.type not in scene_export._GEOMETRY_TYPES:
+        if obj.type not in scene_description.GEOMETRY_TYPES:
             continue
         source = instance.parent if instance.is_instance else obj
         if source is None:
@@ -220,21 +220,18 @@ def _visible_instances(depsgraph, view_layer):
 def _scene_instances(context):
     """[(batch, model matrix)] of the visible geometry; batches built on demand and kept
     until a depsgraph update touches the object's geometry (or the frame changes)."""
-    from . import gpu_shaders as gs
-    from . import scene_export
     instances = _state["instances"]
     if instances is None:
         res = _gpu_resources()
         if res.get("distance_shader") is None:
             res["distance_shader"] = gs.create_distance_shader()
         shader = res["distance_shader"]
-        from gpu_extras.batch import batch_for_shader
         depsgraph = context.evaluated_depsgraph_get()
         instances = []
         for key, obj, matrix in _visible_instances(depsgraph, context.view_layer):
             batch = _state["meshes"].get(key)
             if batch is None:
-                arrays = scene_export._mesh_arrays(obj)
+                arrays = scene_description.mesh_arrays(obj)
                 if arrays is None:
                     continue
                 verts, tris = arrays
@@ -262,8 +259,6 @@ def draw_distance(context, *, perspective_matrix, view_origin, is_perspective, s
     """Draws the visible geometry's linear distance (inf = nothing) into the preview's
     R32F distance target of _size_ and returns that texture. Restores the viewport and
     depth state; the caller's framebuffer is bound again afterwards."""
-    import gpu
-    from . import gpu_shaders as gs
     w, h = size
     target = _target("distance", w, h, 'R32F', depth=True)
     instances = _scene_instances(context)
@@ -332,8 +327,7 @@ def scene_gaussians(context):
     update or frame change starts a new one). Invalid fog objects raise ValueError."""
     cached = _state["gaussians"]
     if cached is None or cached["key"] != _state["generation"]:
-        from . import fog_object
-        gathered = fog_object.gather(context.evaluated_depsgraph_get())
+        gathered = scene_description.fog_gaussians(context.evaluated_depsgraph_get())
         centres, scales, amplitudes = gathered
         colors = gathered.get("colors") if hasattr(gathered, "get") else None
         cached = _state["gaussians"] = dict(centres=centres, scales=scales,
@@ -342,88 +336,71 @@ def scene_gaussians(context):
     return cached
 
 
+def preview_lights(scene, depsgraph):
+    """The lights the bake takes, as draw_fog's inputs: those of scene_export.light_arguments
+    for the scene's scene_description and model_choice plan (lights inside collection
+    instances included, Automatic's skipped lights left out, no points or spots in the
+    daylight model), MAX_LIGHTS of each kind at most. dict: positions and intensities
+    (albedo * I0) of the point lights and their bare I0 (lists of 3-tuples); spots
+    (positions, axes, intensities = albedo * I0, sizes, blends); suns (directions,
+    irradiances = albedo * E, fog_top: inf without Fog Top). Cached per depsgraph
+    generation and fog settings (read only: scene_lights and co. give copies); raises
+    scene_description.ExportError where the bake does."""
+    settings = scene.airlight
+    key = (_state["generation"], scene.name, depsgraph.view_layer.name, scene.frame_current,
+           getattr(scene.camera, "name", None), float(settings.density), tuple(settings.color),
+           settings.model, float(settings.accuracy), settings.phase, float(settings.anisotropy),
+           bool(settings.use_fog_top), float(settings.fog_top), settings.table_resolution,
+           settings.table_interpolation)
+    cached = _state["lights"]
+    if cached is not None and cached[0] == key:
+        return cached[1]
+    description = scene_description.describe(scene, depsgraph, bake=False)
+    lights = scene_export.light_arguments(description, model_choice.plan(settings, description.survey))
+    albedo = np.asarray(settings.color, dtype=np.float64)
+
+    def rows(name, scale=1.0):
+        return [tuple(row) for row in (scale * lights[name][:MAX_LIGHTS]).tolist()] if name in lights else []
+    value = dict(positions=rows("light_positions"), intensities=rows("light_intensities", albedo),
+                 I0=rows("light_intensities"),
+                 spots=dict(positions=rows("spot_positions"), axes=rows("spot_axes"),
+                            intensities=rows("spot_intensities", albedo),
+                            sizes=[float(v) for v in lights.get("spot_size", ())[:MAX_LIGHTS]],
+                            blends=[float(v) for v in lights.get("spot_blend", ())[:MAX_LIGHTS]]),
+                 suns=dict(directions=rows("sun_directions"), irradiances=rows("sun_irradiances", albedo),
+                           fog_top=description.fog_top))
+    _state["lights"] = (key, value)
+    return value
+
+
+def _depsgraph(view_layer):
+    if view_layer is None or view_layer == bpy.context.view_layer:
+        return bpy.context.evaluated_depsgraph_get()
+    return view_layer.depsgraph
+
+
 def scene_lights(scene, view_layer=None, with_albedo=True):
-    """(positions, intensities) of the visible point lights that scatter in the fog:
-    lists of 3-tuples; intensity = albedo * colour * power / (4 pi) W/sr (the bake's
-    I0 times the fog albedo; with_albedo=False: the bake's I0 alone, which Gaussians with
-    their own colours multiply by theirs)."""
-    albedo = tuple(scene.airlight.color) if with_albedo else (1.0, 1.0, 1.0)
-    positions, intensities = [], []
-    objects = view_layer.objects if view_layer is not None else scene.objects
-    for obj in objects:
-        if obj.type != 'LIGHT' or obj.data.type != 'POINT':
-            continue
-        if not obj.data.airlight.participate:
-            continue
-        if view_layer is not None and not obj.visible_get(view_layer=view_layer):
-            continue
-        scale = obj.data.energy / (4.0 * math.pi)
-        positions.append(tuple(obj.matrix_world.translation))
-        intensities.append(tuple(a * c * scale for a, c in zip(albedo, obj.data.color)))
-        if len(positions) == MAX_LIGHTS:
-            break
-    return positions, intensities
+    """(positions, intensities) of preview_lights' point lights: intensity = albedo * I0 (the
+    bake's I0 times the fog albedo; with_albedo=False: the bake's I0 alone, which Gaussians
+    with their own colours multiply by theirs). _view_layer_: the context's by default."""
+    lights = preview_lights(scene, _depsgraph(view_layer))
+    return list(lights["positions"]), list(lights["intensities" if with_albedo else "I0"])
 
 
 def scene_spots(scene, view_layer=None):
-    """The visible participating spot lights for draw_fog's _spots_: dict of lists
-    positions, axes (unit, the lamp's -Z), intensities (albedo * colour * power / (4 pi),
-    as scene_lights), sizes (spot_size, rad) and blends (spot_blend), the values the bake
-    gets from scene_export.export_spot_lights."""
-    albedo = tuple(scene.airlight.color)
-    out = dict(positions=[], axes=[], intensities=[], sizes=[], blends=[])
-    objects = view_layer.objects if view_layer is not None else scene.objects
-    for obj in objects:
-        if obj.type != 'LIGHT' or obj.data.type != 'SPOT' or not obj.data.airlight.participate:
-            continue
-        if view_layer is not None and not obj.visible_get(view_layer=view_layer):
-            continue
-        m = obj.matrix_world
-        axis = -m.col[2].xyz
-        if not axis.length > 0.0:
-            continue
-        scale = obj.data.energy / (4.0 * math.pi)
-        out["positions"].append(tuple(m.translation))
-        out["axes"].append(tuple(axis.normalized()))
-        out["intensities"].append(tuple(a * c * scale for a, c in zip(albedo, obj.data.color)))
-        out["sizes"].append(float(obj.data.spot_size))
-        out["blends"].append(float(obj.data.spot_blend))
-        if len(out["positions"]) == MAX_LIGHTS:
-            break
-    return out
+    """preview_lights' spot lights: draw_fog's _spots_ dict (the bake's spot_* values)."""
+    return {k: list(v) for k, v in preview_lights(scene, _depsgraph(view_layer))["spots"].items()}
 
 
 def scene_suns(scene, view_layer=None):
-    """The visible participating sun lamps for draw_fog's _suns_: dict of lists
-    directions (unit propagation direction, the lamp's -Z), irradiances (albedo * colour *
-    strength, W/m^2) and fog_top (world height of the fog layer's top when the scene has
-    `airlight.use_fog_top` on, else inf: Hoffman-Preetham's unattenuated sun)."""
-    settings = scene.airlight
-    albedo = tuple(settings.color)
-    top = float(getattr(settings, "fog_top", math.inf)) if getattr(settings, "use_fog_top", False) \
-        else math.inf
-    out = dict(directions=[], irradiances=[], fog_top=top)
-    objects = view_layer.objects if view_layer is not None else scene.objects
-    for obj in objects:
-        if obj.type != 'LIGHT' or obj.data.type != 'SUN' or not obj.data.airlight.participate:
-            continue
-        if view_layer is not None and not obj.visible_get(view_layer=view_layer):
-            continue
-        w = -obj.matrix_world.col[2].xyz
-        if not w.length > 0.0:
-            continue
-        out["directions"].append(tuple(w.normalized()))
-        out["irradiances"].append(tuple(a * c * obj.data.energy for a, c in zip(albedo, obj.data.color)))
-        if len(out["directions"]) == MAX_LIGHTS:
-            break
-    return out
+    """preview_lights' sun lamps: draw_fog's _suns_ dict (the bake's sun_* values)."""
+    suns = preview_lights(scene, _depsgraph(view_layer))["suns"]
+    return dict(suns, directions=list(suns["directions"]), irradiances=list(suns["irradiances"]))
 
 
 def _suns_texture(suns):
     """RGBA32F, sun_count x 2 (sun_airlight.glsl via preview_common.glsl): row 0 =
     (direction, fog top), row 1 = albedo E."""
-    import numpy as np
-    from . import gpu_shaders as gs
     n = 0 if suns is None else len(suns["directions"])
     data = np.zeros((2, max(1, n), 4), np.float32)
     if n:
@@ -437,8 +414,6 @@ def _suns_texture(suns):
 def _spots_texture(spots):
     """RGBA32F, spot_count x 3 (spot_airlight.glsl via preview_common.glsl): row 0 =
     (position, cos(size / 2)), row 1 = (axis, (1 - cos(size / 2)) blend), row 2 = albedo I0."""
-    import numpy as np
-    from . import gpu_shaders as gs
     n = 0 if spots is None else len(spots["positions"])
     data = np.zeros((3, max(1, n), 4), np.float32)
     if n:
@@ -455,8 +430,6 @@ def _spots_texture(spots):
 def _environment_texture(res, environment):
     """(GPU texture of the glow map, World transmittance); a 1x1 black texture when off
     (every preview shader declares the sampler)."""
-    from . import gpu_shaders as gs
-    import numpy as np
     if environment is None:
         tex = res.get("env_off")
         if tex is None:
@@ -472,7 +445,6 @@ def scene_environment(scene):
     emits nothing, else dict(glow, transmittance) from the same native convolution the bake
     uses (environment.py). Cached on the World's data and the fog settings it depends on
     (the convolution costs ~0.1-0.3 s); a World the glow cannot read raises WorldMapError."""
-    from . import environment, native
     settings = scene.airlight
     if not settings.environment_glow or scene.world is None:
         return None
@@ -490,7 +462,6 @@ def scene_environment(scene):
     if world is None:
         value = None
     else:
-        import numpy as np
         fog = native.get().environment_fog(
             world=world, sigma_t=float(settings.density), distance=float(settings.environment_distance),
             albedo=np.asarray(settings.color, dtype=np.float64), sh_order=int(settings.environment_sh_order),
@@ -505,8 +476,6 @@ def _lights_texture(positions, intensities, Csv=None, splat_I0=None):
     light -> eye, 1 without fog objects); row 2: rgb = the I0 the Gaussian fog's splat
     multiplies by each Gaussian's albedo texel (rbf_splat_pixel.glsl): _splat_I0_ (the
     bare I0 when the Gaussians have their own colours), else albedo I0 again."""
-    import numpy as np
-    from . import gpu_shaders as gs
     n = max(1, len(positions))
     data = np.zeros((3, n, 4), np.float32)
     data[1, :, 3] = 1.0
@@ -536,8 +505,6 @@ def _gaussian_fog(res, *, gaussians, window_depth, sigma_t, view_origin, light_p
     """The splat or tile shader and the current GaussianFog (textures, batch, factors)
     for these inputs (preview_gaussians.py; rebuilt only when one changes; _noise_:
     whether the draw uses the noise, see GaussianFog.update)."""
-    from . import gpu_shaders as gs
-    from . import preview_gaussians as pg
     key = (gauss_pass.lower(), bool(window_depth), bool(light_fit))
     shader = res["shaders"].get(key)
     if shader is None:
@@ -562,8 +529,6 @@ def _fit_lights(fit, fog, size, bind):
     """The light-fit pass (rbf_light_fit_frag.glsl) into fog.light_tex: per Gaussian the
     fitted light factor the Gaussian passes read as gauss_light. Run every draw: it depends
     on f1 and the lights' intensities, and costs one fragment per (Gaussian, row)."""
-    import gpu
-    from . import gpu_shaders as gs
     w, h = size
     if fog.light_tex is None or fog.light_tex_count != fog.count:
         fog.light_tex = gs.rbf_light_fit_texture(fog.count)
@@ -584,7 +549,6 @@ def _draw_gaussians(shader, fog, gauss_pass, fit, size, scale, bind):
     texel once from its tile's Gaussian list (no blending; the lists made current by
     fog.update_tiles). With _fit_ (the light-fit shader) its pass runs first and the
     passes read its output. Returns (acc, near) textures. The caller restores gpu.state."""
-    import gpu
     w, h = size
     if fit is not None:
         _fit_lights(fit, fog, size, bind)
@@ -685,8 +649,6 @@ def draw_fog(*, depth_tex, perspective_matrix, view_origin, is_perspective, view
     transmittance, as the bake's environment.apply does.
     Restores every gpu.state it changes.
     """
-    import gpu
-    from . import gpu_shaders as gs
     res = _gpu_resources()
     flags = dict(phase=phase[0] != "isotropic", spots=bool(spots is not None and len(spots["positions"])),
                  suns=bool(suns is not None and len(suns["directions"])), env=environment is not None)
@@ -855,8 +817,6 @@ def auto_preview_scale(gaussians, perspective_matrix, size):
     """The scale of the preview's 'AUTO' resolution: with Gaussian fog, the coarsest whose
     texels stay within half the smallest visible Gaussian's projected sigma
     (preview_gaussians.auto_scale, up to EIGHTH); without, HALF."""
-    import numpy as np
-    from . import preview_gaussians as pg
     if not len(gaussians["scales"]):
         return SCALES['HALF']
     radii = pg.cull_radii(gaussians["scales"], gaussians["amplitudes"])
@@ -870,8 +830,6 @@ def _draw_callback():
     try:
         if not _should_draw(context):
             return
-        import gpu
-        from . import gpu_shaders as gs
         rv3d = context.region_data
         if rv3d is None:
             return
@@ -880,6 +838,13 @@ def _draw_callback():
         scale = SCALES.get(scale_name, 2)
         readback = getattr(wm, "airlight_preview_depth", 'DRAWN') == 'READBACK'
         t0 = time.perf_counter()
+        scene = context.scene
+        try:  # the bake's lights (scene_description + plan); a scene it refuses has no fog
+            lights = preview_lights(scene, context.evaluated_depsgraph_get())
+        except scene_description.ExportError as ex:
+            _state["problem"] = str(ex)  # (shown in the panel; the next draw asks again)
+            return
+        _state["problem"] = None
         x, y, w, h = gpu.state.viewport_get()
         persp = rv3d.perspective_matrix.copy()
         view_origin = tuple(rv3d.view_matrix.inverted().translation)
@@ -892,22 +857,19 @@ def _draw_callback():
                                       view_origin=view_origin,
                                       is_perspective=rv3d.is_perspective, size=(w, h))
         _state["last_depth_ms"] = (time.perf_counter() - t0) * 1e3
-        scene = context.scene
-        positions, intensities = scene_lights(scene, context.view_layer)
+        positions, intensities = lights["positions"], lights["intensities"]
         clip_start, clip_end = view_clip_range(context)
         gaussians = scene_gaussians(context)
         light_I0 = None
         if len(gaussians["scales"]) and gaussians.get("colors") is not None:
-            light_I0 = scene_lights(scene, context.view_layer, with_albedo=False)[1]
+            light_I0 = lights["I0"]
         if scale_name == 'AUTO':
             scale = auto_preview_scale(gaussians, persp, (w, h))
         settings = scene.airlight
         noise = (float(settings.noise_amplitude), float(settings.noise_scale),
                  tuple(float(v) for v in settings.noise_offset))
-        from . import model_choice
         phase = model_choice.native_phase(scene.airlight)
-        spots = scene_spots(scene, context.view_layer)
-        suns = scene_suns(scene, context.view_layer)
+        spots, suns = lights["spots"], lights["suns"]
         env = scene_environment(scene)
         draw_fog(depth_tex=depth_tex, perspective_matrix=persp, view_origin=view_origin,
                  is_perspective=rv3d.is_perspective, viewport=(x, y, w, h),
@@ -938,7 +900,7 @@ def _draw_callback():
             _state["capture"].update(
                 depth=depth, fog_lo=fog_lo, window_depth=readback, viewport=(x, y, w, h), scale=scale,
                 perspective_matrix=persp, view_origin=view_origin,
-                sigma_t=scene.airlight.density, lights=(positions, intensities),
+                sigma_t=scene.airlight.density, lights=(positions, intensities), spots=spots, suns=suns,
                 clip=(clip_start, clip_end), gaussians=gaussians, phase=phase, noise=noise)
     except Exception as ex:  # never break Blender's draw loop
         _state["error"] = f"{type(ex).__name__}: {ex}"
@@ -975,7 +937,7 @@ def handler_count():
 def _on_load_pre(*_args):
     remove_draw_handler()
     free_gpu_resources()  # the GPU context survives, but drop everything file-bound
-    _state["error"] = None
+    _state["error"] = _state["problem"] = None
 
 
 @persistent
@@ -1005,15 +967,14 @@ class AIRLIGHT_PT_viewport_preview(bpy.types.Panel):
             col = layout.column()
             col.alert = True
             col.label(text="Preview unavailable:", icon='ERROR')
-            import textwrap
             for line in textwrap.wrap(_missing_reason(), 40):
                 col.label(text=line)
             return
-        if _state["error"]:
+        if _state["error"] or _state["problem"]:
             col = layout.column()
             col.alert = True
-            col.label(text="Preview stopped:", icon='ERROR')
-            col.label(text=_state["error"][:120])
+            col.label(text="Preview stopped:" if _state["error"] else "No fog to preview:", icon='ERROR')
+            col.label(text=(_state["error"] or _state["problem"])[:120])
         elif _state["last_ms"] is not None and context.window_manager.airlight_preview:
             layout.label(text=f"Last fog pass: {_state['last_ms']:.1f} ms")
         col = layout.column()
@@ -1094,5 +1055,5 @@ def unregister():
     for prop in ("airlight_preview", "airlight_preview_scale", "airlight_preview_depth"):
         if hasattr(bpy.types.WindowManager, prop):
             delattr(bpy.types.WindowManager, prop)
-    _state["error"] = None
+    _state["error"] = _state["problem"] = None
     _state["last_ms"] = None

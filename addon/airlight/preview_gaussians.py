@@ -34,8 +34,11 @@ cone test there).
 """
 
 import math
+import time
 
 import numpy as np
+
+from . import gpu_shaders as gs
 
 # Per-Gaussian cull tolerance on the optical depth of the splat quads and of the
 # fragment's cull test. The bake uses RbfMedium::kDefaultCullEps = 1e-7; the preview
@@ -355,8 +358,6 @@ class GaussianFog:
         _key_ changes whenever the arrays do. _noise_: whether the draw uses the noise
         (its per-Gaussian scale R_bake / |b - eye| in the gauss texture then follows the
         eye; without, the gauss texture does not depend on the eye)."""
-        import time
-        from . import gpu_shaders as gs
         n = len(gaussians["scales"])
         lights = [tuple(float(x) for x in s) for s in lights]
         eye = tuple(float(x) for x in eye)
@@ -402,8 +403,6 @@ class GaussianFog:
         (`_native.rbf_tile_lists` when the module has it, else `tile_lists`: the same).
         False (and no textures) when the lists exceed MAX_TILE_ENTRIES: the caller draws
         the splat instead."""
-        import time
-        from . import gpu_shaders as gs
         P = np.asarray(persp, np.float64).reshape(4, 4)
         # The lists depend on the Gaussians (centres, radii) and the view, not on f1.
         key = (self.data_key, tuple(P.ravel().tolist()), tuple(size), int(scale))

@@ -4,33 +4,11 @@ import bpy
 from bpy.props import (BoolProperty, EnumProperty, FloatProperty, FloatVectorProperty,
                        IntProperty, PointerProperty, StringProperty)
 
-# Scene model enum -> name in _native.models(). AUTO is resolved by model_choice.py.
-MODEL_NAMES = {
-    'AUTO': "sun05",
-    'SUN05': "sun05",
-    'SUN05_EXACT': "sun05_exact",
-    'QUADRATURE': "quadrature",
-    'BIRI06': "biri06",
-    'BASELINE': "baseline",
-    'PEGORARO10': "pegoraro10",
-    'HOFFMAN02': "hoffman02",
-}
-
-# Scene phase enum -> `_native.bake(phase=...)`; the anisotropy g applies to HG only.
-PHASE_NAMES = {
-    'HENYEY_GREENSTEIN': "hg",
-    'RAYLEIGH': "rayleigh",
-    'MIE_HAZY': "mie_hazy",
-    'MIE_MURKY': "mie_murky",
-}
-
-# Light types the bake scatters; the others are listed in the UI as "not yet in fog".
-SUPPORTED_LIGHT_TYPES = {'POINT', 'SPOT', 'SUN'}
+from . import compositor
 
 
 def _on_fog_changed(self, context):
     """Keeps the compositor fog nodes muted or live when the fog is switched."""
-    from . import compositor
     scene = context.scene if context else None
     if scene is not None and getattr(scene, "airlight", None) is not None:
         compositor.sync(scene)
@@ -41,7 +19,6 @@ def _on_surface_changed(self, context):
     or Environment Glow (the World's light group) is switched, so the next render composites
     with it (a render reads the node links as they are when it starts); the Image node gets
     neutral passes with the right names until the next bake."""
-    from . import compositor
     scene = context.scene if context else None
     if scene is not None and getattr(scene, "airlight", None) is not None and compositor.is_set_up(scene):
         try:

@@ -31,12 +31,10 @@ the light); with fog objects the glow takes the exact optical depth T(s, p) (Fog
 import re
 
 from . import visibility
+# PASS_GLOSS: glossy glow per unit Glossy Color (scene.airlight.surface_gloss > 0).
+from .names import GROUP_PREFIX, PASS_GLOSS, PASS_GLOW, PASS_PREFIX, WORLD_GROUP, is_isotropic
 
-GROUP_PREFIX = "fog_"
 SURFACE_LIGHT_TYPES = ('POINT', 'SPOT', 'SUN')  # lights the bake's surface pass attenuates
-PASS_PREFIX = "Surface_"
-PASS_GLOW = "SurfaceGlow"
-PASS_GLOSS = "SurfaceGloss"  # glossy glow per unit Glossy Color (scene.airlight.surface_gloss > 0)
 
 
 def gloss_exponent(scene):
@@ -61,11 +59,10 @@ BIRI06_LAMBERT_ERROR = 0.86   # eq. 10 vs the clamped G_p facing the light, wors
 def glow_model_text(settings, model_name):
     """One line for the Surface Shading panel: which glow model the bake uses for these fog
     settings and the resolved fog model _model_name_ (native name, e.g. "biri06")."""
-    from . import model_choice
     if getattr(settings, "surface_glow_model", 'EXACT') == 'BIRI06_EQ10':
         text = (f"Glow: Biri 2006 eq. 10 (coarse: up to {100 * BIRI06_LAMBERT_ERROR:.0f} % low, "
                 "none facing away)")
-    elif model_choice.is_isotropic(settings):
+    elif is_isotropic(settings):
         text = "Glow: Sun 2005 G0 (isotropic phase)"
     else:
         text = f"Glow: phase-aware G (Biri 2006 eq. 8-13), table ≤ {100 * GLOW_G_P_TABLE_ERROR:.2g} %"
@@ -104,11 +101,6 @@ def fogged_lights(depsgraph):
         usable = counts[obj.name] == 1 and obj.lightgroup in ("", group)
         rows.append((obj, group if usable else None))
     return rows
-
-
-# The World's light group when the environment glow is on (environment.py): its pass is
-# scaled by the fog-aware environment irradiance ratio, like a light's by its attenuation.
-WORLD_GROUP = GROUP_PREFIX + "world_environment"
 
 
 def world_group_wanted(scene):

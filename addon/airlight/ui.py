@@ -4,8 +4,8 @@ import math
 
 import bpy
 
-from . import compositor, fog_object, model_choice, native, render, scene_export, surface
-from .properties import SUPPORTED_LIGHT_TYPES
+from . import compositor, environment, fog_object, model_choice, native, render, scene_description, surface
+from .names import SUPPORTED_LIGHT_TYPES
 
 
 class AIRLIGHT_PT_scene(bpy.types.Panel):
@@ -223,8 +223,9 @@ def resolution_note(context):
     if settings.model != 'AUTO':
         return None
     try:
-        width, _height, _to_world, projection = scene_export.export_camera(scene, context.evaluated_depsgraph_get())
-    except scene_export.ExportError:
+        width, _height, _to_world, projection = scene_description.export_camera(
+            scene, context.evaluated_depsgraph_get())
+    except scene_description.ExportError:
         return None
     angle = model_choice.pixel_angle(projection, width)
     chosen = model_choice.gaussian_resolution(settings, angle)
@@ -248,7 +249,6 @@ class AIRLIGHT_PT_environment(bpy.types.Panel):
         self.layout.prop(context.scene.airlight, "environment_glow", text="")
 
     def draw(self, context):
-        from . import environment
         layout = self.layout
         layout.use_property_split = True
         layout.use_property_decorate = False

@@ -1,5 +1,5 @@
 """Depth of field: the fog is baked from points over the lens aperture and averaged
-(scene.airlight.lens_samples, scene_export.export_lens, bake._average), so that the fog
+(scene.airlight.lens_samples, scene_description.export_lens, bake._average), so that the fog
 passes blur at out-of-focus silhouettes as the render does.
 
 The reference is Cycles: two poles in front of an empty world, one in the focus plane and
@@ -11,7 +11,7 @@ import bpy
 import numpy as np
 import pytest
 
-from airlight import bake, native, render, scene_export
+from airlight import bake, native, render, scene_description, scene_export
 from conftest import coverage_errors, exr_pass, hit_coverage, needs_native, poles_scene, read_exr
 
 
@@ -51,7 +51,7 @@ def test01_lens_samples_cover_the_pixels_as_cycles_thin_lens(tmp_path, use_objec
     depsgraph = bpy.context.evaluated_depsgraph_get()
     description = scene_export.export_scene(scene, depsgraph)
     scene.airlight.lens_samples = 64
-    cameras = scene_export.export_lens(scene, depsgraph, None, description["cam_to_world"],
+    cameras = scene_description.export_lens(scene, depsgraph, None, description["cam_to_world"],
                                        description["projection"])
     assert cameras is not None and len(cameras) == 64
     lens = _coverage(scene, cameras)

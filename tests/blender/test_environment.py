@@ -73,8 +73,8 @@ def test01_native_equirect_mapping_is_blenders(tmp_path):
         pixels, names = read_exr(path)
         cycles_uv = pixels[..., [names.index("R"), names.index("G")]]
         depsgraph = bpy.context.evaluated_depsgraph_get()
-        from airlight import scene_export
-        width, height, cam_to_world, projection = scene_export.export_camera(scene, depsgraph)
+        from airlight import scene_description
+        width, height, cam_to_world, projection = scene_description.export_camera(scene, depsgraph)
         ours = module.environment_view(cam_to_world=cam_to_world, projection=projection, width=width,
                                        height=height, glow=world)[..., :2]
         # Away from the u seam (where bilinear lookups blend 0 and 1), the two agree to a

@@ -121,15 +121,15 @@ def test05_render_region_bakes_the_region_and_composites_in_place(tmp_path):
     its edge test), and its passes equal the whole frame's bake there to float rounding;
     cropped to the region the passes are the region's size, else they are placed in a
     whole frame of neutral passes. Either way the composite is render x T + A."""
-    from airlight import scene_export
+    from airlight import views
     scene, blend = _render_scene(tmp_path)
     whole_ref = str(tmp_path / "whole.exr")
     assert bpy.ops.airlight.bake(frame=1, filepath=whole_ref) == {'FINISHED'}
     r = scene.render
     r.use_border = True
     r.border_min_x, r.border_max_x, r.border_min_y, r.border_max_y = 0.21, 0.67, 0.33, 0.9
-    x0, y0, x1, y1 = scene_export.render_region(scene)
-    W, H = scene_export.render_size(scene)
+    x0, y0, x1, y1 = views.render_region(scene)
+    W, H = views.render_size(scene)
     assert (x0, y0, x1, y1) == (13, 15, 42, 43)  # Blender truncates border x size
     rows, cols = slice(H - y1, H - y0), slice(x0, x1)  # EXR rows are top first
     off_script = tmp_path / "fog_off.py"

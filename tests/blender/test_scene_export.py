@@ -1,11 +1,11 @@
-"""Blender scene -> plain description for _native.bake."""
+"""Blender scene -> plain description (scene_description) -> keyword arguments of _native.bake (scene_export)."""
 import math
 
 import bpy
 import numpy as np
 import pytest
 
-from airlight import scene_export, visibility
+from airlight import model_choice, scene_description, scene_export, visibility
 from conftest import build_plane_scene
 
 
@@ -30,7 +30,7 @@ def test01_camera_matches_blender(tmp_path):
     cam.data.shift_x = 0.1
     cam.rotation_euler = (0.3, 0.0, 0.7)
     depsgraph = bpy.context.evaluated_depsgraph_get()
-    width, height, cam_to_world, projection = scene_export.export_camera(scene, depsgraph)
+    width, height, cam_to_world, projection = scene_description.export_camera(scene, depsgraph)
     assert (width, height) == (40, 20)
     np.testing.assert_allclose(cam_to_world, np.array(cam.matrix_world), atol=1e-12)
     expected = cam.calc_matrix_camera(depsgraph, x=40, y=20, scale_x=2.0, scale_y=1.0)
@@ -56,7 +56,7 @@ def test02_geometry_counts_instances_and_skips_hidden(tmp_path):
         empty.location = (x, 1.0, 0.5)
         scene.collection.objects.link(empty)
     depsgraph = bpy.context.evaluated_depsgraph_get()
-    vertices, triangles, *_ = scene_export.export_geometry_and_lights(scene, depsgraph)
+    _, vertices, triangles = scene_description.export_instances(depsgraph)
     # plane 2 + visible cube 12 + 2 instanced cubes 24 (hidden cube and excluded source: 0)
     assert len(triangles) == 2 + 12 + 24
     assert vertices.dtype == np.float32 and triangles.dtype == np.uint32
@@ -126,12 +126,17 @@ def test03_light_intensity_is_colour_times_power_over_4pi(tmp_path):
     spot = bpy.data.objects.new("Spot", bpy.data.lights.new("Spot", 'SPOT'))
     scene.collection.objects.link(spot)
     depsgraph = bpy.context.evaluated_depsgraph_get()
-    *_, positions, intensities, skipped = scene_export.export_geometry_and_lights(scene, depsgraph)
+    description = scene_description.describe(scene, depsgraph)
+    assert {(light.name, light.participates) for light in description.lights} == {
+        ("Lamp", True), ("Off", False), ("Spot", True)}
+    plan = model_choice.plan(scene.airlight, description.survey)
+    positions, intensities = scene_export.point_lights(description.lights, plan)
     assert positions.shape == (1, 3) and intensities.shape == (1, 3)
     np.testing.assert_allclose(positions[0], (0.5, 0.3, 1.0), atol=1e-6)
     np.testing.assert_allclose(intensities[0], np.array([1.0, 0.5, 0.25]) * 300.0 / (4 * math.pi), rtol=1e-6)
-    assert skipped == []   # spot lights are exported apart (export_spot_lights)
-    rows = {name: (supported, participates) for name, _, supported, participates in scene_export.fog_lights(scene)}
+    assert len(scene_export.spot_lights(description.lights, plan)["spot_positions"]) == 1  # exported apart
+    rows = {name: (supported, participates)
+            for name, _, supported, participates in scene_description.fog_lights(scene)}
     assert rows == {"Lamp": (True, True), "Off": (True, False), "Spot": (True, True)}
 
 

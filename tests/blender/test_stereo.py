@@ -1,7 +1,7 @@
 """Stereoscopy (Output > Stereoscopy): every view is baked from its own camera and the
 compositor takes each view's passes.
 
-The eyes' cameras follow Blender's Stereo 3D rules (scene_export._stereo_model_matrix,
+The eyes' cameras follow Blender's Stereo 3D rules (scene_description._stereo_model_matrix,
 _stereo_shift_x); the reference is Cycles: a pole against an empty world rendered in stereo,
 whose silhouette (the alpha's centroid per row) must sit where the bake's own hits (its
 transmittance > 0; the world behind is fog to infinity, T = 0) put it in each eye."""
@@ -11,7 +11,7 @@ import bpy
 import numpy as np
 import pytest
 
-from airlight import bake, scene_export
+from airlight import bake, scene_description, views
 from conftest import exr_pass, needs_native, poles_scene, read_exr, run_blender
 
 # Eyes 0.5 m apart, the pole 3 m away and the convergence plane at 50 m: ~5 px of disparity
@@ -44,15 +44,15 @@ def _centroids(weight):
 def test01_views_and_their_files():
     bpy.ops.wm.read_homefile(use_empty=True)
     scene = bpy.context.scene
-    assert scene_export.render_views(scene) == [(None, "")]
+    assert views.render_views(scene) == [(None, "")]
     assert bake.view_paths(scene, "/c/fog_0001.exr") == [(None, "/c/fog_0001.exr")]
     scene.render.use_multiview = True
     scene.render.views_format = 'STEREO_3D'
-    assert scene_export.render_views(scene) == [("left", "_L"), ("right", "_R")]
+    assert views.render_views(scene) == [("left", "_L"), ("right", "_R")]
     assert bake.view_paths(scene, "/c/fog_0001.exr") == [("left", "/c/fog_0001_L.exr"),
                                                           ("right", "/c/fog_0001_R.exr")]
     scene.render.views["right"].use = False
-    assert scene_export.render_views(scene) == [("left", "_L")]
+    assert views.render_views(scene) == [("left", "_L")]
     scene.render.views["right"].use = True
     # Multi-View: each view's camera by its suffix (Blender's rule), else the scene camera.
     scene.render.views_format = 'MULTIVIEW'
@@ -63,14 +63,14 @@ def test01_views_and_their_files():
         scene.collection.objects.link(cams[name])
     scene.camera = cams["Cam_L"]
     scene.render.resolution_x, scene.render.resolution_y = 32, 24
-    assert scene_export.view_camera(scene, "left") == cams["Cam_L"]
-    assert scene_export.view_camera(scene, "right") == cams["Cam_R"]
+    assert views.view_camera(scene, "left") == cams["Cam_L"]
+    assert views.view_camera(scene, "right") == cams["Cam_R"]
     depsgraph = bpy.context.evaluated_depsgraph_get()
-    assert scene_export.export_camera(scene, depsgraph, "right")[2][0, 3] == pytest.approx(2.0)
-    assert scene_export.export_camera(scene, depsgraph, "left")[2][0, 3] == pytest.approx(-1.0)
+    assert scene_description.export_camera(scene, depsgraph, "right")[2][0, 3] == pytest.approx(2.0)
+    assert scene_description.export_camera(scene, depsgraph, "left")[2][0, 3] == pytest.approx(-1.0)
     scene.camera = bpy.data.objects.new("Other", bpy.data.cameras.new("Other"))
     scene.collection.objects.link(scene.camera)
-    assert scene_export.view_camera(scene, "right") == scene.camera
+    assert views.view_camera(scene, "right") == scene.camera
 
 
 @needs_native
@@ -90,7 +90,7 @@ def test02_each_eye_sees_the_pole_where_cycles_renders_it(tmp_path, mode, pivot)
     bake.run(*centre_job)
     centre_T = exr_pass(centre_job[2], "Transmittance")[..., 0]
     report = []
-    for (view, suffix), (_, _, path) in zip(scene_export.render_views(scene), jobs):
+    for (view, suffix), (_, _, path) in zip(views.render_views(scene), jobs):
         alpha = read_exr(str(tmp_path / f"cycles{suffix}.exr"))[0][..., 3]
         T = exr_pass(path, "Transmittance")[..., 0]
         rows_c, x_cycles = _centroids(alpha)

@@ -7,7 +7,7 @@ import bpy
 import numpy as np
 import pytest
 
-from airlight import bake, fog_object, light_bounds, model_choice, native, scene_export, ui
+from airlight import bake, fog_object, light_bounds, model_choice, names, native, scene_description, scene_export, ui
 from conftest import needs_real_native
 
 SIGMA = 0.1
@@ -75,7 +75,7 @@ def test01_sun_is_exported(tmp_path):
     assert scene_export.export_scene(scene, depsgraph)["fog_top"] == math.inf
     sun.data.airlight.participate = False
     assert "sun_directions" not in scene_export.export_scene(scene, depsgraph)
-    assert 'SUN' in scene_export.SUPPORTED_LIGHT_TYPES
+    assert 'SUN' in names.SUPPORTED_LIGHT_TYPES
 
 
 def test02_faint_far_light_is_skipped_bright_one_never(tmp_path):
@@ -135,7 +135,7 @@ def test04_bounds_hold_against_the_bake(tmp_path):
     scene = build_scene(tmp_path, far_energy=500.0)
     scene.airlight.model = 'SUN05'
     depsgraph = bpy.context.evaluated_depsgraph_get()
-    frame = model_choice._frame(scene, depsgraph)
+    frame = scene_description.bounds_frame(scene, depsgraph)
     p_min, p_max = light_bounds.phase_range("isotropic", 0.0)
     for name in ("Near", "Far"):
         for obj in scene.objects:

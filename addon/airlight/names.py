@@ -1,0 +1,60 @@
+"""The names the add-on's modules share: the fog settings' enums and their native names,
+the light types the bake scatters, and the names of the baked passes and light groups.
+
+A leaf module (no bpy, nothing of the package): every other module may import it.
+"""
+
+# Scene model enum -> name in _native.models(). AUTO is resolved by model_choice.py.
+MODEL_NAMES = {
+    'AUTO': "sun05",
+    'SUN05': "sun05",
+    'SUN05_EXACT': "sun05_exact",
+    'QUADRATURE': "quadrature",
+    'BIRI06': "biri06",
+    'BASELINE': "baseline",
+    'PEGORARO10': "pegoraro10",
+    'HOFFMAN02': "hoffman02",
+}
+
+# Scene phase enum -> `_native.bake(phase=...)`; the anisotropy g applies to HG only.
+PHASE_NAMES = {
+    'HENYEY_GREENSTEIN': "hg",
+    'RAYLEIGH': "rayleigh",
+    'MIE_HAZY': "mie_hazy",
+    'MIE_MURKY': "mie_murky",
+}
+
+# Light types the bake scatters; the others are listed in the UI as "not yet in fog".
+SUPPORTED_LIGHT_TYPES = {'POINT', 'SPOT', 'SUN'}
+
+
+def is_isotropic(settings):
+    """True if the fog's phase is isotropic (Henyey-Greenstein with Anisotropy 0)."""
+    return settings.phase == 'HENYEY_GREENSTEIN' and settings.anisotropy == 0.0
+
+
+def native_phase(settings):
+    """(phase, g) for `_native.bake`: ("isotropic", 0) or the phase with HG's g."""
+    if is_isotropic(settings):
+        return "isotropic", 0.0
+    g = float(settings.anisotropy) if settings.phase == 'HENYEY_GREENSTEIN' else 0.0
+    return PHASE_NAMES[settings.phase], g
+
+
+# EXR layout: channels "Fog.Airlight.R" ... Blender 3.4 reads "<layer>.<pass>.<chan>" as
+# layer "Fog" with passes "Airlight" and "Transmittance", which the compositor Image
+# node exposes as outputs of those names. (Without a layer prefix the passes also show,
+# but in a nameless layer that RNA cannot represent.)
+LAYER_PREFIX = "Fog."
+PASS_AIRLIGHT = "Airlight"
+PASS_TRANSMITTANCE = "Transmittance"
+# Surface shading (surface.py): a Cycles light group fog_<light> per fogged light, whose
+# pass Surface_<group> (attenuation - 1) the bake writes, the Lambert glow per unit DiffCol
+# and the glossy glow per unit Glossy Color.
+GROUP_PREFIX = "fog_"
+PASS_PREFIX = "Surface_"
+PASS_GLOW = "SurfaceGlow"
+PASS_GLOSS = "SurfaceGloss"
+# The World's light group when the environment glow is on (environment.py): its pass is
+# scaled by the fog-aware environment irradiance ratio, like a light's by its attenuation.
+WORLD_GROUP = GROUP_PREFIX + "world_environment"
