@@ -1,7 +1,8 @@
 """Fog-only Cycles scenes used as external ground truth for the Airlight bake.
 
-Shared by tests/blender/test_cycles_reference.py (and usable from benchmarks). Runs
-inside Blender (needs bpy); the numpy helpers at the bottom need no Blender.
+Shared by the tests/blender/test_cycles_*.py modules (and usable from benchmarks): the
+scenes, the seeded renders and their noise, the pixel masks. Runs inside Blender (needs
+bpy); the numpy helpers at the bottom need no Blender.
 
 The scene follows the Cycles single-scattering recipe in shared NOTES.md:
 volume_bounces = 0, a homogeneous Volume Scatter box (anisotropy 0, white) enclosing
@@ -19,7 +20,7 @@ are never shadowed by the floor (the analytic models ignore shadows), see _check
 
 import math
 import os
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -241,22 +242,67 @@ def build(desc: FogScene):
 
 
 def addon_ready():
-    """Skips the calling test unless the add-on is registered with the compiled _native."""
+    """Fails the calling test unless the add-on is registered (tools/blender.sh enables it;
+    conftest's native_module has failed the session already without the compiled module)."""
     import bpy
-    import pytest
-    if not (hasattr(bpy.types.Scene, "airlight") and hasattr(bpy.ops.airlight, "bake")):
-        pytest.skip("the add-on is not registered")
-    from airlight import native
-    if not native.available() or native.get().__name__.endswith("fake_native"):
-        pytest.skip("needs the compiled _native module")
+    assert hasattr(bpy.types.Scene, "airlight") and hasattr(bpy.ops.airlight, "bake"), \
+        "the add-on is not registered: run the tests through tools/blender.sh"
+
+
+def render_seeds(scene, artifacts, stem, seeds):
+    """Cycles renders of _scene_ with each of _seeds_ (float EXR <artifacts>/<stem>_seed<k>.exr):
+    ([(H, W, 3) float64 per seed], [seconds per seed])."""
+    os.makedirs(artifacts, exist_ok=True)
+    renders, seconds = [], []
+    for seed in seeds:
+        path = os.path.join(artifacts, f"{stem}_seed{seed}.exr")
+        seconds.append(render(scene, path, seed=seed))
+        renders.append(read_exr_rgb(path).astype(np.float64))
+    return renders, seconds
+
+
+def seed_noise(c1, c2):
+    """|c1 - c2| / (c1 + c2) of two renders with different seeds ((H, W, 3): the first
+    channel; or (H, W)): the relative noise of their mean (|c1 - c2| / 2 has the spread of
+    (c1 + c2) / 2), 0 where both are black."""
+    c1, c2 = np.asarray(c1), np.asarray(c2)
+    if c1.ndim == 3:
+        c1, c2 = c1[..., 0], c2[..., 0]
+    return np.abs(c1 - c2) / np.maximum(c1 + c2, 1e-30)
+
+
+def noise_stats(noise, mask):
+    """(mean, p99) of _noise_ over _mask_."""
+    n = noise[mask]
+    return float(n.mean()), float(np.percentile(n, 99))
+
+
+def reference_rays(scene, desc: "FogScene", light_radius_px):
+    """Per pixel of the fog-only scene _desc_ built in _scene_: dict(inputs (bake_inputs),
+    o, d (rays from the near plane, as Cycles), depth (the floor's, from the eye), Dvp (from
+    the ray start) and near_light (near_light's mask of _light_radius_px_))."""
+    inputs = bake_inputs(scene)
+    o, d = camera_rays(inputs["cam_to_world"], inputs["projection"], desc.width, desc.height)
+    eye, _ = camera_rays(inputs["cam_to_world"], inputs["projection"], desc.width, desc.height, from_eye=True)
+    depth = floor_depth(eye, d, desc)
+    return dict(inputs=inputs, o=o, d=d, depth=depth, Dvp=floor_depth(o, d, desc),
+                near_light=near_light(inputs, desc.width, desc.height, desc.light_location, light_radius_px))
+
+
+def near_light(inputs, width, height, light_location, radius_px):
+    """(H, W) mask of the pixels whose centres lie within _radius_px_ of the light's image
+    (_inputs_: bake_inputs' camera)."""
+    lx, ly = project_point(inputs["cam_to_world"], inputs["projection"], width, height, light_location)
+    jj, ii = np.mgrid[0:height, 0:width]
+    return np.hypot(ii + 0.5 - lx, jj + 0.5 - ly) < radius_px
 
 
 class Summary:
-    """Figures of one test module: printed as "<prefix> <name>: k=v, ..." and kept in
-    <artifacts>/summary.json."""
+    """Figures of one test module: printed as "<prefix> <name>: k=v, ..." (floats to
+    _digits_ significant digits) and kept in <artifacts>/summary.json."""
 
-    def __init__(self, artifacts, prefix):
-        self.artifacts, self.prefix, self.figures = artifacts, prefix, {}
+    def __init__(self, artifacts, prefix, digits=5):
+        self.artifacts, self.prefix, self.digits, self.figures = artifacts, prefix, digits, {}
 
     def report(self, name, **figures):
         import json
@@ -265,7 +311,8 @@ class Summary:
         with open(os.path.join(self.artifacts, "summary.json"), "w") as f:
             json.dump(self.figures, f, indent=2)
         print(f"{self.prefix} {name}: " + ", ".join(
-            f"{k}={v:.5g}" if isinstance(v, float) else f"{k}={v}" for k, v in figures.items()), flush=True)
+            f"{k}={v:.{self.digits}g}" if isinstance(v, float) else f"{k}={v}" for k, v in figures.items()),
+            flush=True)
 
 
 def diffuse_floor(scene, albedo, diffuse_bounces):
@@ -324,6 +371,98 @@ def make_sun_lamp(light, direction, strength, color=(1.0, 1.0, 1.0)):
     light.data.angle = 0.0
     light.rotation_mode = 'QUATERNION'
     light.rotation_quaternion = Vector((0.0, 0.0, -1.0)).rotation_difference(Vector(tuple(float(x) for x in direction)))
+
+
+# The Gaussian-fog scenes (test_cycles_gaussians*.py): no floor and no homogeneous fog; a
+# 7 m box holds a Volume Scatter (albedo 1) whose Density is sum_i c_i exp(-a_i^2 |P - b_i|^2),
+# built from Geometry > Position with vector and math nodes: the medium the bake gets as
+# rbf_centres / rbf_scales / rbf_amplitudes.
+GAUSSIAN_CENTRES = np.array([[0.0, 2.0, 1.5], [0.8, 2.6, 1.2], [-0.7, 1.6, 1.9], [0.2, 3.2, 2.2]])
+GAUSSIAN_SCALES = np.array([1.2, 1.0, 1.5, 0.9])
+GAUSSIAN_AMPLITUDES = np.array([0.35, 0.25, 0.4, 0.2])
+# Cycles' volume step rate there (relative to the box): converged, test_cycles_gaussians.py.
+GAUSSIAN_STEP_RATE = 0.1
+
+
+def gaussian_scene(samples, step_rate=GAUSSIAN_STEP_RATE):
+    """(desc, scene) of the Gaussian-fog scene: 48 x 36 at _samples_, the camera 4 m before
+    the Gaussians, a 300 W point light above them, Cycles' volume step rate _step_rate_."""
+    desc = FogScene(width=48, height=36, fog=False, floor=False, samples=samples,
+                    camera_location=(0.0, -4.0, 1.6), camera_pitch_deg=0.0, lens_mm=35.0,
+                    light_location=(1.2, 1.0, 3.0), light_power=300.0, clip_start=0.1)
+    scene = build(desc)
+    _gaussian_box(scene, step_rate)
+    return desc, scene
+
+
+def _gaussian_box(scene, step_rate):
+    """A box around the Gaussians whose Volume Scatter density is their sum (shader nodes)."""
+    import bpy
+    h = 3.5
+    mesh = bpy.data.meshes.new("RefFogBox")
+    verts = [(sx * h, sy * h, sz * h) for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)]
+    faces = [(0, 1, 3, 2), (4, 6, 7, 5), (0, 4, 5, 1), (2, 3, 7, 6), (0, 2, 6, 4), (1, 5, 7, 3)]
+    mesh.from_pydata(verts, [], faces)
+    box = bpy.data.objects.new("RefFogBox", mesh)
+    box.location = (0.0, 2.3, 1.6)
+    mat = bpy.data.materials.new("RefGaussians")
+    mat.use_nodes = True
+    nodes, links = mat.node_tree.nodes, mat.node_tree.links
+    for n in list(nodes):
+        nodes.remove(n)
+    out = nodes.new("ShaderNodeOutputMaterial")
+    scatter = nodes.new("ShaderNodeVolumeScatter")
+    scatter.inputs["Color"].default_value = (1.0, 1.0, 1.0, 1.0)
+    scatter.inputs["Anisotropy"].default_value = 0.0
+    geometry = nodes.new("ShaderNodeNewGeometry")
+    total = None
+    for b, a, c in zip(GAUSSIAN_CENTRES, GAUSSIAN_SCALES, GAUSSIAN_AMPLITUDES):
+        sub = nodes.new("ShaderNodeVectorMath")
+        sub.operation = 'SUBTRACT'
+        links.new(geometry.outputs["Position"], sub.inputs[0])
+        sub.inputs[1].default_value = tuple(b)
+        dot = nodes.new("ShaderNodeVectorMath")
+        dot.operation = 'DOT_PRODUCT'
+        links.new(sub.outputs[0], dot.inputs[0])
+        links.new(sub.outputs[0], dot.inputs[1])
+        arg = nodes.new("ShaderNodeMath")
+        arg.operation = 'MULTIPLY'
+        links.new(dot.outputs["Value"], arg.inputs[0])
+        arg.inputs[1].default_value = -a * a
+        gauss = nodes.new("ShaderNodeMath")
+        gauss.operation = 'EXPONENT'
+        links.new(arg.outputs[0], gauss.inputs[0])
+        term = nodes.new("ShaderNodeMath")
+        term.operation = 'MULTIPLY'
+        links.new(gauss.outputs[0], term.inputs[0])
+        term.inputs[1].default_value = c
+        if total is None:
+            total = term
+        else:
+            add = nodes.new("ShaderNodeMath")
+            add.operation = 'ADD'
+            links.new(total.outputs[0], add.inputs[0])
+            links.new(term.outputs[0], add.inputs[1])
+            total = add
+    links.new(total.outputs[0], scatter.inputs["Density"])
+    links.new(scatter.outputs["Volume"], out.inputs["Volume"])
+    mat.cycles.homogeneous_volume = False
+    mesh.materials.append(mat)
+    scene.collection.objects.link(box)
+    scene.cycles.volume_step_rate = step_rate
+    scene.cycles.volume_max_steps = 4096
+    bpy.context.view_layer.update()
+
+
+
+def flux_bias(a, b, mask):
+    """Relative difference of the total first channel of _a_ and _b_ over _mask_."""
+    return float((a - b)[..., 0][mask].sum() / b[..., 0][mask].sum())
+
+
+def channel_rel_stats(a, b, mask):
+    """rel_stats of the first channels of (H, W, 3) images _a_ and _b_ (the reference)."""
+    return rel_stats(a[..., 0], b[..., 0], mask)
 
 
 def _black_material():

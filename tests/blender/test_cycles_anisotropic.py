@@ -29,7 +29,6 @@ quadrature mean 1.1e-5, p99 4.5e-5. g = -0.4: mean 0.085 %, p99 0.57 % (noise 0.
 out/test_artifacts/cycles_anisotropic/summary.json.
 """
 
-import json
 import math
 import os
 import sys
@@ -48,16 +47,7 @@ G_VALUES = (0.6, -0.4)
 SIGNAL_FLOOR = 1e-3
 LIGHT_RADIUS_PX = 4.0
 BIRI06_MAX_ERROR = 8.9e-4   # model_choice.MEASURED["biri06"], |g| < 0.95
-SUMMARY = {}
-
-
-def _report(name, **figures):
-    SUMMARY[name] = figures
-    print(f"[cycles_anisotropic] {name}: " + ", ".join(
-        f"{k}={v:.4g}" if isinstance(v, float) else f"{k}={v}" for k, v in figures.items()))
-    os.makedirs(ARTIFACTS, exist_ok=True)
-    with open(os.path.join(ARTIFACTS, "summary.json"), "w") as f:
-        json.dump(SUMMARY, f, indent=2)
+SUMMARY = cs.Summary(ARTIFACTS, "[cycles_anisotropic]", digits=4)
 
 
 def hg_quadrature_airlight(o, d, Dvp, light_pos, I0, sigma_t, g, n=512):
@@ -76,45 +66,30 @@ def _set_anisotropy(scene, g):
 @pytest.fixture(scope="module")
 def refs():
     """Per g: two Cycles renders, the noise, the quadrature and the pixel masks."""
-    import bpy  # noqa: F401
-    os.makedirs(ARTIFACTS, exist_ok=True)
     desc = cs.FogScene(width=96, height=72)
     scene = cs.build(desc)
-    inputs = cs.bake_inputs(scene)
-    o, d = cs.camera_rays(inputs["cam_to_world"], inputs["projection"], desc.width, desc.height)
-    eye, _ = cs.camera_rays(inputs["cam_to_world"], inputs["projection"], desc.width, desc.height,
-                            from_eye=True)
-    depth = cs.floor_depth(eye, d, desc)
-    Dvp = cs.floor_depth(o, d, desc)
-    H, W = depth.shape
-    lx, ly = cs.project_point(inputs["cam_to_world"], inputs["projection"], W, H, desc.light_location)
-    jj, ii = np.mgrid[0:H, 0:W]
-    near_light = np.hypot(ii + 0.5 - lx, jj + 0.5 - ly) < LIGHT_RADIUS_PX
+    rays = cs.reference_rays(scene, desc, LIGHT_RADIUS_PX)
+    o, d, depth, Dvp, near_light = (rays[k] for k in ("o", "d", "depth", "Dvp", "near_light"))
     silhouette = cs.silhouette_mask(depth, radius=2)
     out = {}
     for g in G_VALUES:
         _set_anisotropy(scene, g)
-        renders, seconds = [], 0.0
-        for seed in SEEDS:
-            path = os.path.join(ARTIFACTS, f"cycles_g{g:+.1f}_seed{seed}.exr")
-            seconds += cs.render(scene, path, seed=seed)
-            renders.append(cs.read_exr_rgb(path).astype(np.float64))
-        c1, c2 = renders
+        (c1, c2), seconds = cs.render_seeds(scene, ARTIFACTS, f"cycles_g{g:+.1f}", SEEDS)
+        seconds = sum(seconds)
         La = hg_quadrature_airlight(o, d, Dvp, desc.light_location, desc.I0, desc.sigma_t, g)
         signal = La > SIGNAL_FLOOR * np.percentile(La, 99)
         interior = signal & ~silhouette & ~near_light
-        noise = np.abs(c1 - c2)[..., 0] / (c1 + c2)[..., 0]
+        noise = cs.seed_noise(c1, c2)
         out[g] = dict(cycles=0.5 * (c1 + c2), La=La, noise=noise, interior=interior,
                       near_light=near_light & signal, seconds=seconds)
-        _report(f"cycles_g{g:+.1f}", seconds=seconds, noise_mean=float(noise[interior].mean()),
-                noise_p99=float(np.percentile(noise[interior], 99)), interior_pixels=int(interior.sum()))
+        SUMMARY.report(f"cycles_g{g:+.1f}", seconds=seconds, noise_mean=float(noise[interior].mean()),
+                       noise_p99=float(np.percentile(noise[interior], 99)), interior_pixels=int(interior.sum()))
     _set_anisotropy(scene, 0.0)
     return dict(desc=desc, scene=scene, per_g=out)
 
 
 def _noise(r):
-    n = r["noise"][r["interior"]]
-    return float(n.mean()), float(np.percentile(n, 99))
+    return cs.noise_stats(r["noise"], r["interior"])
 
 
 @pytest.mark.parametrize("g", G_VALUES)
@@ -131,8 +106,8 @@ def test01_cycles_matches_hg_quadrature(refs, g):
     flipped = hg_quadrature_airlight(o, d, cs.floor_depth(o, d, desc), desc.light_location, desc.I0,
                                      desc.sigma_t, -g)
     fmean, _ = cs.rel_stats(C, flipped, r["interior"])
-    _report(f"cycles_vs_hg_quadrature_g{g:+.1f}", mean=mean, p99=p99, noise_mean=nmean, noise_p99=np99,
-            opposite_sign_mean=fmean)
+    SUMMARY.report(f"cycles_vs_hg_quadrature_g{g:+.1f}", mean=mean, p99=p99, noise_mean=nmean, noise_p99=np99,
+                   opposite_sign_mean=fmean)
     assert mean < 2.0 * nmean + 0.002, (mean, nmean)
     assert p99 < 2.0 * np99 + 0.005, (p99, np99)
     assert fmean > 0.1, fmean
@@ -140,11 +115,7 @@ def test01_cycles_matches_hg_quadrature(refs, g):
 
 def _bake_with_addon(refs, g):
     import bpy
-    from airlight import native
-    if not native.available() or native.get().__name__.endswith("fake_native"):
-        pytest.skip("needs the compiled _native module")
-    if not hasattr(bpy.ops, "airlight"):
-        pytest.skip("the add-on is not enabled (run through tools/blender.sh)")
+    cs.addon_ready()
     scene, desc = refs["scene"], refs["desc"]
     st = scene.airlight
     st.auto_composite = False
@@ -189,8 +160,8 @@ def test02_biri06_bake_matches_cycles(refs, g):
         figures[f"mean_{'RGB'[ch]}"], figures[f"p99_{'RGB'[ch]}"] = mean, p99
     qmean, qp99 = cs.rel_stats(A[..., 0], r["La"], r["interior"])
     lmean, lp99 = cs.rel_stats(A[..., 0], C[..., 0], r["near_light"])
-    _report(f"biri06_vs_cycles_g{g:+.1f}", noise_mean=nmean, noise_p99=np99, vs_quadrature_mean=qmean,
-            vs_quadrature_p99=qp99, near_light_mean=lmean, near_light_p99=lp99, **figures)
+    SUMMARY.report(f"biri06_vs_cycles_g{g:+.1f}", noise_mean=nmean, noise_p99=np99, vs_quadrature_mean=qmean,
+                   vs_quadrature_p99=qp99, near_light_mean=lmean, near_light_p99=lp99, **figures)
     assert qp99 < BIRI06_MAX_ERROR + 1e-4, qp99   # float32 output on top of the table error
     for ch in range(3):
         assert figures[f"mean_{'RGB'[ch]}"] < nmean + BIRI06_MAX_ERROR + 0.002, (ch, figures, nmean)

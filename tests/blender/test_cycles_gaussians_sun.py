@@ -18,7 +18,6 @@ thin regime, against the exact bake only). Figures:
 out/test_artifacts/cycles_gaussians_sun/summary.json.
 """
 
-import json
 import os
 import sys
 
@@ -29,8 +28,6 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 REPO = os.path.dirname(os.path.dirname(HERE))
 sys.path.insert(0, HERE)
 import cycles_scenes as cs  # noqa: E402
-import test_cycles_gaussians as tcg  # noqa: E402
-from conftest import needs_real_native  # noqa: E402
 
 ARTIFACTS = os.path.join(REPO, "out", "test_artifacts", "cycles_gaussians_sun")
 SEEDS = (1, 2)
@@ -39,16 +36,7 @@ G = 0.5
 SUN_STRENGTH = 3.0
 SUN_COLOR = (1.0, 0.8, 0.6)
 SUN_DIR = np.array([0.2, -0.6, -0.8]) / np.linalg.norm([0.2, -0.6, -0.8])  # propagation
-SUMMARY = {}
-
-
-def _report(name, **figures):
-    SUMMARY[name] = figures  # (keys carry the light: "sun/..." or "spot/...")
-    print(f"[cycles_gaussians_sun] {name}: " + ", ".join(
-        f"{k}={v:.4g}" if isinstance(v, float) else f"{k}={v}" for k, v in figures.items()))
-    os.makedirs(ARTIFACTS, exist_ok=True)
-    with open(os.path.join(ARTIFACTS, "summary.json"), "w") as f:
-        json.dump(SUMMARY, f, indent=2)
+SUMMARY = cs.Summary(ARTIFACTS, "[cycles_gaussians_sun]", digits=4)  # (keys carry the light: "sun/...")
 
 
 SPOT_POWER = 300.0
@@ -62,14 +50,7 @@ def refs(request):
     import bpy
     from mathutils import Vector
     from airlight import native
-    if not native.available() or native.get().__name__ == "fake_native":
-        pytest.skip("needs the compiled _native module")
-    os.makedirs(ARTIFACTS, exist_ok=True)
-    desc = cs.FogScene(width=48, height=36, fog=False, floor=False, samples=SAMPLES,
-                       camera_location=(0.0, -4.0, 1.6), camera_pitch_deg=0.0, lens_mm=35.0,
-                       light_location=(1.2, 1.0, 3.0), light_power=300.0, clip_start=0.1)
-    scene = cs.build(desc)
-    tcg._gaussian_box(scene)
+    _desc, scene = cs.gaussian_scene(SAMPLES)
     # (this scene's box and lamp: an earlier fixture's data may hold the plain names)
     box = next(ob for ob in scene.objects if ob.name.startswith("RefFogBox"))
     scatter = [n for n in box.data.materials[0].node_tree.nodes if n.type == 'VOLUME_SCATTER']
@@ -89,11 +70,8 @@ def refs(request):
         axis = np.array([0.0, 2.3, 1.6]) - np.array(light.location)
         light.rotation_quaternion = Vector((0.0, 0.0, -1.0)).rotation_difference(Vector(axis.tolist()))
     bpy.context.view_layer.update()
-    renders, seconds = [], 0.0
-    for seed in SEEDS:
-        path = os.path.join(ARTIFACTS, f"cycles_{kind}_seed{seed}.exr")
-        seconds += cs.render(scene, path, seed=seed)
-        renders.append(cs.read_exr_rgb(path).astype(np.float64))
+    renders, seconds = cs.render_seeds(scene, ARTIFACTS, f"cycles_{kind}", SEEDS)
+    seconds = sum(seconds)
     module = native.get()
     inputs = cs.bake_inputs(scene)  # (no point lights now: the sun goes in apart)
     assert len(inputs["light_positions"]) == (kind == "point")
@@ -108,33 +86,32 @@ def refs(request):
                       spot_intensities=SPOT_POWER / (4.0 * np.pi) * np.asarray(SUN_COLOR)[None, :],
                       spot_size=np.array([SPOT_SIZE]), spot_blend=np.array([SPOT_BLEND]))
     common = dict(inputs, sigma_t=0.0, albedo=(1.0, 1.0, 1.0), phase="hg", g=G, aa_samples=4,
-                  rbf_centres=tcg.CENTRES, rbf_scales=tcg.SCALES, rbf_amplitudes=tcg.AMPLITUDES, **lights)
+                  rbf_centres=cs.GAUSSIAN_CENTRES, rbf_scales=cs.GAUSSIAN_SCALES,
+                  rbf_amplitudes=cs.GAUSSIAN_AMPLITUDES, **lights)
     exact = module.bake(**common, model="quadrature")["airlight"].astype(np.float64)
     fogshop = module.bake(**common, model="biri06")["airlight"].astype(np.float64)
-    thin = dict(common, rbf_amplitudes=0.1 * tcg.AMPLITUDES)
+    thin = dict(common, rbf_amplitudes=0.1 * cs.GAUSSIAN_AMPLITUDES)
     thin_exact = module.bake(**thin, model="quadrature")["airlight"].astype(np.float64)
     thin_fogshop = module.bake(**thin, model="biri06")["airlight"].astype(np.float64)
     c1, c2 = renders
     signal = exact[..., 0] > 0.02 * np.percentile(exact[..., 0], 99)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        noise = (np.abs(c1 - c2) / (c1 + c2))[..., 0]
-    _report(f"{kind}/cycles", seconds=seconds, samples=SAMPLES, pixels=int(signal.sum()),
-            noise_mean=float(noise[signal].mean()), noise_p99=float(np.percentile(noise[signal], 99)))
+    noise = cs.seed_noise(c1, c2)
+    SUMMARY.report(f"{kind}/cycles", seconds=seconds, samples=SAMPLES, pixels=int(signal.sum()),
+                   noise_mean=float(noise[signal].mean()), noise_p99=float(np.percentile(noise[signal], 99)))
     return dict(cycles=0.5 * (c1 + c2), exact=exact, fogshop=fogshop, signal=signal, noise=noise,
                 thin_exact=thin_exact, thin_fogshop=thin_fogshop, kind=kind)
 
 
-@needs_real_native
 def test01_exact_bake_matches_cycles_sun_hg(refs):
     """Sun + HG through the exact Gaussian path equals Cycles to noise, pixel by pixel and in
     total (same bounds as test_cycles_gaussians.py's point light)."""
     mask = refs["signal"]
     assert mask.sum() > 200
-    mean, p99 = tcg._rel(refs["exact"], refs["cycles"], mask)
-    bias = tcg._flux_bias(refs["cycles"], refs["exact"], mask)
+    mean, p99 = cs.channel_rel_stats(refs["exact"], refs["cycles"], mask)
+    bias = cs.flux_bias(refs["cycles"], refs["exact"], mask)
     noise_mean = float(refs["noise"][mask].mean())
     noise_p99 = float(np.percentile(refs["noise"][mask], 99))
-    _report(f"{refs['kind']}/exact_bake_vs_cycles", mean=mean, p99=p99, flux_bias=bias, noise_mean=noise_mean)
+    SUMMARY.report(f"{refs['kind']}/exact_bake_vs_cycles", mean=mean, p99=p99, flux_bias=bias, noise_mean=noise_mean)
     assert abs(bias) < 0.01, bias
     assert mean < 1.5 * noise_mean + 0.005, (mean, noise_mean)
     if refs["kind"] == "spot":  # the pixels on the cone's edge (airlight varying at the pixel
@@ -143,18 +120,17 @@ def test01_exact_bake_matches_cycles_sun_hg(refs):
         assert p99 < 1.5 * noise_p99 + 0.02, (p99, noise_p99)
 
 
-@needs_real_native
 def test02_fogshop_error_is_measured(refs):
     """Fogshop with the sun and HG on the same (thick) medium, against the exact bake and
     Cycles: reported; loose bounds so that a change in the approximation shows."""
     mask = refs["signal"]
-    mean_q, p99_q = tcg._rel(refs["fogshop"], refs["exact"], mask)
-    mean_c, p99_c = tcg._rel(refs["fogshop"], refs["cycles"], mask)
-    _report(f"{refs['kind']}/fogshop_vs_exact", mean=mean_q, p99=p99_q)
-    _report(f"{refs['kind']}/fogshop_vs_cycles", mean=mean_c, p99=p99_c)
+    mean_q, p99_q = cs.channel_rel_stats(refs["fogshop"], refs["exact"], mask)
+    mean_c, p99_c = cs.channel_rel_stats(refs["fogshop"], refs["cycles"], mask)
+    SUMMARY.report(f"{refs['kind']}/fogshop_vs_exact", mean=mean_q, p99=p99_q)
+    SUMMARY.report(f"{refs['kind']}/fogshop_vs_cycles", mean=mean_c, p99=p99_c)
     assert abs(mean_c - mean_q) < 0.05, (mean_c, mean_q)
-    mean_t, p99_t = tcg._rel(refs["thin_fogshop"], refs["thin_exact"], mask)
-    _report(f"{refs['kind']}/fogshop_vs_exact_thin", mean=mean_t, p99=p99_t)
+    mean_t, p99_t = cs.channel_rel_stats(refs["thin_fogshop"], refs["thin_exact"], mask)
+    SUMMARY.report(f"{refs['kind']}/fogshop_vs_exact_thin", mean=mean_t, p99=p99_t)
     if refs["kind"] != "sun":
         # The lamp sits next to the Gaussians (1/d^2, the phase and the spot profile sampled
         # at b_i^r: the paper's failure case, test_cycles_gaussians.py): measured point 39 %,

@@ -44,7 +44,6 @@ the sequencer and the add-on's fog off in the scene it reuses.
 Images and a JSON summary are written to out/test_artifacts/cycles_reference/.
 """
 
-import json
 import os
 import sys
 import time
@@ -62,7 +61,7 @@ SEEDS = (1, 2)
 SIGNAL_FLOOR = 1e-3      # relative to the image's 99th percentile of the reference
 LIGHT_RADIUS_PX = 4.0    # pixels this close to the light's image are reported apart
 MODEL_P99 = 0.005        # the table model's target error vs quadrature (p99)
-SUMMARY = {}
+SUMMARY = cs.Summary(ARTIFACTS, "[cycles_reference]", digits=4)
 
 
 def _native_module():
@@ -84,7 +83,7 @@ def _native_module():
     try:
         import _native  # type: ignore
     except ImportError as e:
-        pytest.skip(f"_native not built ({e}); build the _native CMake target")
+        pytest.fail(f"_native not built ({e}): build it with `make build`")
     return _native
 
 
@@ -100,36 +99,18 @@ def _write_exr(path, img):
     out.close()
 
 
-def _report(name, **figures):
-    SUMMARY[name] = figures
-    print(f"[cycles_reference] {name}: " + ", ".join(
-        f"{k}={v:.4g}" if isinstance(v, float) else f"{k}={v}" for k, v in figures.items()))
-    os.makedirs(ARTIFACTS, exist_ok=True)
-    with open(os.path.join(ARTIFACTS, "summary.json"), "w") as f:
-        json.dump(SUMMARY, f, indent=2)
-
-
 @pytest.fixture(scope="module")
 def ref():
     """Renders the scene twice in Cycles and computes the quadrature reference."""
-    os.makedirs(ARTIFACTS, exist_ok=True)
     desc = cs.FogScene()
     scene = cs.build(desc)
     inputs = cs.bake_inputs(scene)
-    renders, seconds = [], []
-    for seed in SEEDS:
-        path = os.path.join(ARTIFACTS, f"cycles_seed{seed}.exr")
-        seconds.append(cs.render(scene, path, seed=seed))
-        renders.append(cs.read_exr_rgb(path).astype(np.float64))
-    c1, c2 = renders
+    (c1, c2), seconds = cs.render_seeds(scene, ARTIFACTS, "cycles", SEEDS)
     cycles = 0.5 * (c1 + c2)
 
     La, depth = cs.reference_image(desc, inputs["cam_to_world"], inputs["projection"])
     H, W = depth.shape
-    lx, ly = cs.project_point(inputs["cam_to_world"], inputs["projection"], W, H,
-                              desc.light_location)
-    jj, ii = np.mgrid[0:H, 0:W]
-    near_light = np.hypot(ii + 0.5 - lx, jj + 0.5 - ly) < LIGHT_RADIUS_PX
+    near_light = cs.near_light(inputs, W, H, desc.light_location, LIGHT_RADIUS_PX)
     # Pixels whose +-1.5 px film-filter footprint straddles the floor's far edge.
     silhouette = cs.silhouette_mask(depth, radius=2)
     # Where the image is not smooth at the pixel scale, the film filter matters.
@@ -140,23 +121,21 @@ def ref():
     signal = La_film > SIGNAL_FLOOR * np.percentile(La_film, 99)
     interior = signal & ~special
 
-    # Noise of the two-render mean: |c1 - c2| / 2 has the same spread as (c1 + c2) / 2.
-    noise = np.abs(c1 - c2)[..., 0] / (c1 + c2)[..., 0]
+    noise = cs.seed_noise(c1, c2)
     _write_exr(os.path.join(ARTIFACTS, "quadrature.exr"), La_film)
-    _report("cycles", seconds=float(sum(seconds)), samples=desc.samples,
-            width=W, height=H,
-            noise_mean=float(noise[interior].mean()),
-            noise_p99=float(np.percentile(noise[interior], 99)),
-            noise_silhouette_mean=float(noise[silhouette].mean()),
-            silhouette_pixels=int(silhouette.sum()))
+    SUMMARY.report("cycles", seconds=float(sum(seconds)), samples=desc.samples,
+                   width=W, height=H,
+                   noise_mean=float(noise[interior].mean()),
+                   noise_p99=float(np.percentile(noise[interior], 99)),
+                   noise_silhouette_mean=float(noise[silhouette].mean()),
+                   silhouette_pixels=int(silhouette.sum()))
     return dict(desc=desc, scene=scene, inputs=inputs, cycles=cycles, La=La_film,
                 depth=depth, noise=noise, interior=interior, silhouette=silhouette,
                 near_light=near_light, signal=signal)
 
 
 def _bounds(ref, mask):
-    n = ref["noise"][mask]
-    return float(n.mean()), float(np.percentile(n, 99))
+    return cs.noise_stats(ref["noise"], mask)
 
 
 def test01_cycles_matches_quadrature(ref):
@@ -170,8 +149,8 @@ def test01_cycles_matches_quadrature(ref):
     lmean, lp99 = cs.rel_stats(C[..., 0], La, ref["near_light"])
     nmean, np99 = _bounds(ref, ref["interior"])
     nsmean, _ = _bounds(ref, ref["silhouette"])
-    _report("cycles_vs_quadrature", mean=mean, p99=p99, silhouette_mean=smean,
-            silhouette_p99=sp99, near_light_mean=lmean, near_light_p99=lp99)
+    SUMMARY.report("cycles_vs_quadrature", mean=mean, p99=p99, silhouette_mean=smean,
+                   silhouette_p99=sp99, near_light_mean=lmean, near_light_p99=lp99)
     # Quadrature converged to ~1e-8; the difference is noise: allow 2x its estimate
     # plus 0.2 % for Cycles' own float precision and filter-table discretisation.
     assert mean < 2.0 * nmean + 0.002, (mean, nmean)
@@ -192,11 +171,6 @@ def _bake_with_addon(ref):
     """What users run: scene.airlight + bpy.ops.airlight.bake(filepath=...), passes read
     back from the add-on's multilayer EXR (layers Fog.Airlight / Fog.Transmittance)."""
     import bpy
-    from airlight import native
-    if not native.available():
-        pytest.skip(f"_native unavailable: {native.error()}")
-    if native.get().__name__.endswith("fake_native"):
-        pytest.skip("needs the compiled _native module, not the numpy fake")
     scene, desc = ref["scene"], ref["desc"]
     st = scene.airlight
     st.auto_composite = False  # the Cycles renders are done; leave the compositor alone
@@ -230,8 +204,7 @@ def _bake_with_addon(ref):
 def _bake_direct(ref):
     """_native.bake called with this file's own export of the Blender scene."""
     _native = _native_module()
-    if not hasattr(_native, "bake"):
-        pytest.skip("_native has no bake() yet")
+    assert hasattr(_native, "bake"), f"{_native.__file__} has no bake(): rebuild it"
     desc = ref["desc"]
     t0 = time.perf_counter()
     res = _native.bake(**ref["inputs"], sigma_t=desc.sigma_t, albedo=(1.0, 1.0, 1.0),
@@ -252,7 +225,7 @@ def baked(ref):
     _write_exr(os.path.join(ARTIFACTS, "airlight.exr"), A)
     diff = np.abs(A - ref["cycles"]) / np.maximum(ref["cycles"], 1e-12)
     _write_exr(os.path.join(ARTIFACTS, "reldiff_airlight_vs_cycles.exr"), diff)
-    _report("bake", path=res["path"], seconds=res["seconds"], **res["stats"])
+    SUMMARY.report("bake", path=res["path"], seconds=res["seconds"], **res["stats"])
     return res
 
 
@@ -266,7 +239,7 @@ def test02_airlight_matches_cycles(ref, baked):
         mean, p99 = cs.rel_stats(A[..., ch], C[..., ch], ref["interior"])
         figures[f"mean_{'RGB'[ch]}"] = mean
         figures[f"p99_{'RGB'[ch]}"] = p99
-    _report("airlight_vs_cycles", noise_mean=nmean, noise_p99=np99, **figures)
+    SUMMARY.report("airlight_vs_cycles", noise_mean=nmean, noise_p99=np99, **figures)
     for ch in range(3):
         mean, p99 = figures[f"mean_{'RGB'[ch]}"], figures[f"p99_{'RGB'[ch]}"]
         assert mean < min(0.02, nmean + MODEL_P99), (ch, mean, nmean)
@@ -290,9 +263,9 @@ def test03_silhouette_halo(ref, baked):
     centre = cs.quadrature_airlight(o, d, cs.floor_depth(o, d, ref["desc"]), ref["desc"].light_location,
                                     ref["desc"].I0, ref["desc"].sigma_t)
     cmean, cp99 = cs.rel_stats(centre, C, sil)
-    _report("silhouette", pixels=int(sil.sum()), mean=mean, p99=p99, bias=bias,
-            noise_mean=nmean, noise_p99=np99, centre_sample_mean=cmean,
-            centre_sample_p99=cp99)
+    SUMMARY.report("silhouette", pixels=int(sil.sum()), mean=mean, p99=p99, bias=bias,
+                   noise_mean=nmean, noise_p99=np99, centre_sample_mean=cmean,
+                   centre_sample_p99=cp99)
     # Edge contrast here is ~3:1. Supersampling with N distinct sub-pixel positions per
     # axis quantises an edge's coverage to 1/N (rounded: <= 1/(2N)), so with 16 distinct
     # offsets per axis the error is <= 3 x 1/32 ~ 9 % on the worst pixel and ~1 % mean
@@ -349,9 +322,6 @@ def _bake_scene(scene, desc, name):
     """Fog passes of _scene_: through the add-on when enabled, else _native.bake."""
     if _addon_available():
         import bpy
-        from airlight import native
-        if not native.available() or native.get().__name__.endswith("fake_native"):
-            pytest.skip("needs the compiled _native module")
         st = scene.airlight
         st.auto_composite = False
         st.density = desc.sigma_t
@@ -390,10 +360,9 @@ def halo(baked):
         d = cs.FogScene(**{**HALO, "fog": fog,
                            "samples": HALO["samples"] if fog else HALO_NOFOG_SAMPLES})
         scene = cs.build(d)
-        for seed in SEEDS:
-            path = os.path.join(ARTIFACTS, f"halo_{'fog' if fog else 'nofog'}_seed{seed}.exr")
-            cs.render(scene, path, seed=seed)
-            renders[fog, seed] = cs.read_exr_rgb(path)[..., 0].astype(np.float64)
+        images, _ = cs.render_seeds(scene, ARTIFACTS, f"halo_{'fog' if fog else 'nofog'}", SEEDS)
+        for seed, image in zip(SEEDS, images):
+            renders[fog, seed] = image[..., 0]
     seconds = time.perf_counter() - t0
     # The bake is of the fogged scene (the nofog one is the same geometry and camera).
     scene = cs.build(desc)
@@ -402,10 +371,7 @@ def halo(baked):
     W, H = desc.width, desc.height
     o, d = cs.camera_rays(inputs["cam_to_world"], inputs["projection"], W, H)
     depth = _emitter_depth(o, d, desc)
-    lx, ly = cs.project_point(inputs["cam_to_world"], inputs["projection"], W, H,
-                              desc.light_location)
-    jj, ii = np.mgrid[0:H, 0:W]
-    near_light = np.hypot(ii + 0.5 - lx, jj + 0.5 - ly) < LIGHT_RADIUS_PX
+    near_light = cs.near_light(inputs, W, H, desc.light_location, LIGHT_RADIUS_PX)
     silhouette = cs.silhouette_mask(depth, radius=2) & ~near_light
     interior = ~cs.silhouette_mask(depth, radius=2) & ~near_light
     return dict(desc=desc, renders=renders, A=A[..., 0], T=T[..., 0], depth=depth,
@@ -443,7 +409,7 @@ def test05_no_halo_in_composite_at_silhouettes(halo):
                    noise_silhouette_mean=float(noise[sil].mean()),
                    noise_silhouette_p99=float(np.percentile(noise[sil], 99)),
                    silhouette_pixels=int(sil.sum()))
-    _report("halo", **figures)
+    SUMMARY.report("halo", **figures)
     _write_exr(os.path.join(ARTIFACTS, "halo_composite.exr"), comp)
     _write_exr(os.path.join(ARTIFACTS, "halo_cycles_fog.exr"), C)
     _write_exr(os.path.join(ARTIFACTS, "halo_reldiff.exr"), np.abs(rel))

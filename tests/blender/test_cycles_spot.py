@@ -23,7 +23,6 @@ without the cos(theta) factor: mean 9.8 %); bake vs Cycles mean 0.31 %, p99 1.75
 quadrature p99 1.0e-6. Figures are written to out/test_artifacts/cycles_spot/summary.json.
 """
 
-import json
 import math
 import os
 import sys
@@ -44,16 +43,7 @@ SPOT_SIZE = math.radians(90.0)
 SPOT_BLEND = 1.0
 # Spot direction: down and back toward the camera (Blender Z up, camera looks along +Y).
 SPOT_AXIS = np.array([-0.35, -0.5, -1.0]) / np.linalg.norm([-0.35, -0.5, -1.0])
-SUMMARY = {}
-
-
-def _report(name, **figures):
-    SUMMARY[name] = figures
-    print(f"[cycles_spot] {name}: " + ", ".join(
-        f"{k}={v:.4g}" if isinstance(v, float) else f"{k}={v}" for k, v in figures.items()))
-    os.makedirs(ARTIFACTS, exist_ok=True)
-    with open(os.path.join(ARTIFACTS, "summary.json"), "w") as f:
-        json.dump(SUMMARY, f, indent=2)
+SUMMARY = cs.Summary(ARTIFACTS, "[cycles_spot]", digits=4)
 
 
 def spot_reference(o, d, Dvp, pos, axis, I0, sigma_t, size, blend, with_cos=True, n=6000, t_max=160.0):
@@ -101,26 +91,13 @@ def _make_spot(scene, desc):
 
 @pytest.fixture(scope="module")
 def refs():
-    import bpy  # noqa: F401
-    os.makedirs(ARTIFACTS, exist_ok=True)
     desc = cs.FogScene(width=96, height=72)
     scene = cs.build(desc)
     _make_spot(scene, desc)
-    inputs = cs.bake_inputs(scene)
-    o, d = cs.camera_rays(inputs["cam_to_world"], inputs["projection"], desc.width, desc.height)
-    eye, _ = cs.camera_rays(inputs["cam_to_world"], inputs["projection"], desc.width, desc.height, from_eye=True)
-    depth = cs.floor_depth(eye, d, desc)
-    Dvp = cs.floor_depth(o, d, desc)
-    H, W = depth.shape
-    lx, ly = cs.project_point(inputs["cam_to_world"], inputs["projection"], W, H, desc.light_location)
-    jj, ii = np.mgrid[0:H, 0:W]
-    near_light = np.hypot(ii + 0.5 - lx, jj + 0.5 - ly) < LIGHT_RADIUS_PX
-    renders, seconds = [], 0.0
-    for seed in SEEDS:
-        path = os.path.join(ARTIFACTS, f"cycles_spot_seed{seed}.exr")
-        seconds += cs.render(scene, path, seed=seed)
-        renders.append(cs.read_exr_rgb(path).astype(np.float64))
-    c1, c2 = renders
+    rays = cs.reference_rays(scene, desc, LIGHT_RADIUS_PX)
+    o, d, depth, Dvp, near_light = (rays[k] for k in ("o", "d", "depth", "Dvp", "near_light"))
+    (c1, c2), seconds = cs.render_seeds(scene, ARTIFACTS, "cycles_spot", SEEDS)
+    seconds = sum(seconds)
     args = (o, d, Dvp, desc.light_location, SPOT_AXIS, desc.I0, desc.sigma_t, SPOT_SIZE, SPOT_BLEND)
     La = spot_reference(*args)
     La_nocos = spot_reference(*args, with_cos=False)
@@ -134,16 +111,15 @@ def refs():
         for di in range(-2, 3):
             near_dark |= np.roll(np.roll(dark, dj, axis=0), di, axis=1)
     interior = ~near_dark & ~cs.silhouette_mask(depth, radius=2) & ~near_light
-    noise = np.abs(c1 - c2)[..., 0] / np.maximum((c1 + c2)[..., 0], 1e-30)
-    _report("cycles", seconds=seconds, noise_mean=float(noise[interior].mean()),
-            noise_p99=float(np.percentile(noise[interior], 99)), interior_pixels=int(interior.sum()))
+    noise = cs.seed_noise(c1, c2)
+    SUMMARY.report("cycles", seconds=seconds, noise_mean=float(noise[interior].mean()),
+                   noise_p99=float(np.percentile(noise[interior], 99)), interior_pixels=int(interior.sum()))
     return dict(desc=desc, scene=scene, cycles=0.5 * (c1 + c2), La=La, La_nocos=La_nocos, noise=noise,
                 interior=interior)
 
 
 def _noise(r):
-    n = r["noise"][r["interior"]]
-    return float(n.mean()), float(np.percentile(n, 99))
+    return cs.noise_stats(r["noise"], r["interior"])
 
 
 def test01_cycles_matches_spot_quadrature(refs):
@@ -152,8 +128,8 @@ def test01_cycles_matches_spot_quadrature(refs):
     mean, p99 = cs.rel_stats(C, refs["La"], refs["interior"])
     nmean, np99 = _noise(refs)
     cmean, _ = cs.rel_stats(C, refs["La_nocos"], refs["interior"])
-    _report("cycles_vs_spot_quadrature", mean=mean, p99=p99, noise_mean=nmean, noise_p99=np99,
-            without_cos_mean=cmean)
+    SUMMARY.report("cycles_vs_spot_quadrature", mean=mean, p99=p99, noise_mean=nmean, noise_p99=np99,
+                   without_cos_mean=cmean)
     assert refs["interior"].sum() > 300
     assert mean < 2.0 * nmean + 0.002, (mean, nmean)
     assert p99 < 2.0 * np99 + 0.005, (p99, np99)
@@ -164,8 +140,6 @@ def test02_spot_bake_matches_cycles(refs):
     """scene_export + _native.bake (model sun05 for the point part; spots by quadrature)."""
     import bpy
     from airlight import native, scene_export
-    if not native.available() or native.get().__name__.endswith("fake_native"):
-        pytest.skip("needs the compiled _native module")
     scene, desc = refs["scene"], refs["desc"]
     st = scene.airlight
     st.density = desc.sigma_t
@@ -188,8 +162,8 @@ def test02_spot_bake_matches_cycles(refs):
         mean, p99 = cs.rel_stats(A[..., ch], C[..., ch], refs["interior"])
         figures[f"mean_{'RGB'[ch]}"], figures[f"p99_{'RGB'[ch]}"] = mean, p99
     qmean, qp99 = cs.rel_stats(A[..., 0], refs["La"], refs["interior"])
-    _report("bake_vs_cycles", noise_mean=nmean, noise_p99=np99, vs_quadrature_mean=qmean, vs_quadrature_p99=qp99,
-            seconds_airlight=float(result["stats"]["seconds_airlight"]), **figures)
+    SUMMARY.report("bake_vs_cycles", noise_mean=nmean, noise_p99=np99, vs_quadrature_mean=qmean, vs_quadrature_p99=qp99,
+                   seconds_airlight=float(result["stats"]["seconds_airlight"]), **figures)
     assert qp99 < 2e-3, qp99   # vs the midpoint reference (its own discretisation error, float32 output)
     for ch in range(3):
         assert figures[f"mean_{'RGB'[ch]}"] < nmean + 0.002, (ch, figures, nmean)

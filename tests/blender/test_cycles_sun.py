@@ -35,7 +35,6 @@ Measured here (2 x 256 samples, 6912 pixels per view, ~11-16 s of Cycles per vie
   inside isotropic, 44 % (145 %) inside g = 0.5, 10.1 % (20 %) above.
 """
 
-import json
 import math
 import os
 import sys
@@ -62,16 +61,7 @@ VIEWS = {
     "above": dict(camera_location=(0.0, -8.0, FOG_TOP + 6.0), camera_pitch_deg=-25.0),
 }
 CASES = [("inside", 0.0), ("inside", 0.5), ("above", 0.0)]
-SUMMARY = {}
-
-
-def _report(name, **figures):
-    SUMMARY[name] = figures
-    print(f"[cycles_sun] {name}: " + ", ".join(
-        f"{k}={v:.4g}" if isinstance(v, float) else f"{k}={v}" for k, v in figures.items()))
-    os.makedirs(ARTIFACTS, exist_ok=True)
-    with open(os.path.join(ARTIFACTS, "summary.json"), "w") as f:
-        json.dump(SUMMARY, f, indent=2)
+SUMMARY = cs.Summary(ARTIFACTS, "[cycles_sun]", digits=4)
 
 
 def hg(g, mu):
@@ -112,28 +102,22 @@ def _build(view, g):
 @pytest.fixture(scope="module", params=CASES, ids=[f"{v}-g{g}" for v, g in CASES])
 def refs(request):
     view, g = request.param
-    os.makedirs(ARTIFACTS, exist_ok=True)
     desc, scene = _build(view, g)
     inputs = cs.bake_inputs(scene)
     o, d = cs.camera_rays(inputs["cam_to_world"], inputs["projection"], desc.width, desc.height)
-    renders, seconds = [], 0.0
-    for seed in SEEDS:
-        path = os.path.join(ARTIFACTS, f"cycles_sun_{view}_g{g}_seed{seed}.exr")
-        seconds += cs.render(scene, path, seed=seed)
-        renders.append(cs.read_exr_rgb(path).astype(np.float64))
-    c1, c2 = renders
+    (c1, c2), seconds = cs.render_seeds(scene, ARTIFACTS, f"cycles_sun_{view}_g{g}", SEEDS)
+    seconds = sum(seconds)
     La = sun_reference(o, d, g)[..., None] * SUN_STRENGTH * np.asarray(SUN_COLOR)
     mask = La[..., 0] > SIGNAL_FLOOR * np.percentile(La[..., 0], 99)
-    noise = np.abs(c1 - c2)[..., 0] / np.maximum((c1 + c2)[..., 0], 1e-30)
+    noise = cs.seed_noise(c1, c2)
     name = f"{view}_g{g}"
-    _report(f"{name}_cycles", seconds=seconds, noise_mean=float(noise[mask].mean()),
-            noise_p99=float(np.percentile(noise[mask], 99)), pixels=int(mask.sum()))
+    SUMMARY.report(f"{name}_cycles", seconds=seconds, noise_mean=float(noise[mask].mean()),
+                   noise_p99=float(np.percentile(noise[mask], 99)), pixels=int(mask.sum()))
     return dict(name=name, g=g, desc=desc, scene=scene, cycles=0.5 * (c1 + c2), La=La, noise=noise, mask=mask)
 
 
 def _noise(r):
-    n = r["noise"][r["mask"]]
-    return float(n.mean()), float(np.percentile(n, 99))
+    return cs.noise_stats(r["noise"], r["mask"])
 
 
 def test01_cycles_matches_sun_quadrature(refs):
@@ -145,7 +129,7 @@ def test01_cycles_matches_sun_quadrature(refs):
         figures[f"mean_{'RGB'[ch]}"], figures[f"p99_{'RGB'[ch]}"] = mean, p99
     # Without the sunlight's path through the top (Hoffman-Preetham's unattenuated sun):
     # must be visibly off, or this scene could not tell the two models apart.
-    _report(f"{refs['name']}_cycles_vs_quadrature", noise_mean=nmean, noise_p99=np99, **figures)
+    SUMMARY.report(f"{refs['name']}_cycles_vs_quadrature", noise_mean=nmean, noise_p99=np99, **figures)
     assert refs["mask"].sum() > 1000
     for ch in range(3):
         assert figures[f"mean_{'RGB'[ch]}"] < 2.0 * nmean + 0.002, (ch, figures, nmean)
@@ -156,8 +140,6 @@ def test02_sun_bake_matches_cycles(refs):
     """scene_export + _native.bake (model sun05 / biri06 for the phase; suns in closed form)."""
     import bpy
     from airlight import model_choice, native, scene_export
-    if not native.available() or native.get().__name__.endswith("fake_native"):
-        pytest.skip("needs the compiled _native module")
     scene = refs["scene"]
     st = scene.airlight
     st.density = SIGMA_T
@@ -184,9 +166,9 @@ def test02_sun_bake_matches_cycles(refs):
         mean, p99 = cs.rel_stats(A[..., ch], C[..., ch], refs["mask"])
         figures[f"mean_{'RGB'[ch]}"], figures[f"p99_{'RGB'[ch]}"] = mean, p99
     qmean, qp99 = cs.rel_stats(A[..., 0], refs["La"][..., 0], refs["mask"])
-    _report(f"{refs['name']}_bake_vs_cycles", model=model, noise_mean=nmean, noise_p99=np99,
-            vs_quadrature_mean=qmean, vs_quadrature_p99=qp99,
-            seconds_airlight=float(result["stats"]["seconds_airlight"]), **figures)
+    SUMMARY.report(f"{refs['name']}_bake_vs_cycles", model=model, noise_mean=nmean, noise_p99=np99,
+                   vs_quadrature_mean=qmean, vs_quadrature_p99=qp99,
+                   seconds_airlight=float(result["stats"]["seconds_airlight"]), **figures)
     assert qp99 < 2e-3, qp99   # vs the midpoint reference (its discretisation error, float32 output)
     for ch in range(3):
         assert figures[f"mean_{'RGB'[ch]}"] < nmean + 0.002, (ch, figures, nmean)
@@ -195,11 +177,11 @@ def test02_sun_bake_matches_cycles(refs):
     description["fog_top"] = math.inf
     hp = native.get().bake(**description, model=model, threads=2)["airlight"].astype(np.float64)
     hp_mean, _ = cs.rel_stats(hp[..., 0], C[..., 0], refs["mask"])
-    _report(f"{refs['name']}_unbounded_vs_cycles", mean=hp_mean)
+    SUMMARY.report(f"{refs['name']}_unbounded_vs_cycles", mean=hp_mean)
     assert hp_mean > 5 * (nmean + 0.002), hp_mean
     # The bar: the constant-colour baseline (best least-squares colour) in the same view.
     description["fog_top"] = FOG_TOP
     base = native.get().bake(**description, model="baseline", threads=2)["airlight"].astype(np.float64)
     base_mean, base_p99 = cs.rel_stats(base[..., 0], C[..., 0], refs["mask"])
-    _report(f"{refs['name']}_baseline_vs_cycles", mean=base_mean, p99=base_p99)
+    SUMMARY.report(f"{refs['name']}_baseline_vs_cycles", mean=base_mean, p99=base_p99)
     assert base_mean > figures["mean_R"], (base_mean, figures["mean_R"])

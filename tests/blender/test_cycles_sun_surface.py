@@ -85,15 +85,11 @@ def _composite():
 @pytest.fixture(scope="module")
 def renders():
     cs.addon_ready()
-    os.makedirs(ARTIFACTS, exist_ok=True)
     scene, desc = _build(slab=True, diffuse_bounces=1)
-    cycles, seconds = [], 0.0
-    for seed in SEEDS:
-        path = os.path.join(ARTIFACTS, f"cycles_seed{seed}.exr")
-        seconds += cs.render(scene, path, seed=seed)
-        cycles.append(cs.read_exr_rgb(path)[..., 0].astype(np.float64))
+    images, seconds = cs.render_seeds(scene, ARTIFACTS, "cycles", SEEDS)
+    cycles = [image[..., 0] for image in images]
     surface, groups = _composite()
-    SUMMARY.report("cycles", samples=desc.samples, seconds=seconds)
+    SUMMARY.report("cycles", samples=desc.samples, seconds=sum(seconds))
     return dict(cycles=cycles, ref=0.5 * (cycles[0] + cycles[1]), surface=surface, groups=groups)
 
 

@@ -81,15 +81,12 @@ def _composite(surface_shading, name):
 @pytest.fixture(scope="module")
 def renders():
     cs.addon_ready()
-    os.makedirs(ARTIFACTS, exist_ok=True)
     scene, desc = _build(fog=True, diffuse_bounces=1)
-    cycles, seconds = [], 0.0
-    for seed in SEEDS:
-        path = os.path.join(ARTIFACTS, f"cycles_fog_seed{seed}.exr")
-        seconds += cs.render(scene, path, seed=seed)
-        cycles.append(cs.read_exr_rgb(path)[..., 0].astype(np.float64))
+    images, seconds = cs.render_seeds(scene, ARTIFACTS, "cycles_fog", SEEDS)
+    cycles = [image[..., 0] for image in images]
+    seconds = sum(seconds)
     ref = 0.5 * (cycles[0] + cycles[1])
-    noise = np.abs(cycles[0] - cycles[1]) / (cycles[0] + cycles[1])
+    noise = cs.seed_noise(*cycles)
     inputs = cs.bake_inputs(scene)
     W, H = desc.width, desc.height
     o, d = cs.camera_rays(inputs["cam_to_world"], inputs["projection"], W, H)
@@ -100,7 +97,7 @@ def renders():
     surface, groups, _ = _composite(True, "surface")
     plain, _, _ = _composite(False, "plain")
     SUMMARY.report("cycles", samples=desc.samples, seconds=seconds, floor_pixels=int(floor.sum()),
-            noise_mean=float(noise[floor].mean()), noise_p99=float(np.percentile(noise[floor], 99)))
+                   noise_mean=float(noise[floor].mean()), noise_p99=float(np.percentile(noise[floor], 99)))
     return dict(ref=ref, cycles=cycles, noise=noise, floor=floor, surface=surface, plain=plain, groups=groups,
                 composite_seconds=time.perf_counter() - t0)
 
@@ -134,7 +131,7 @@ def test02_surface_composite_matches_cycles(renders):
     pbias = float(renders["plain"].sum() / ref.sum() - 1.0)
     nbias = float(abs(c1.sum() - c2.sum()) / (c1.sum() + c2.sum()))
     SUMMARY.report("blocks_8x8", surface_mean=bmean, surface_max=bmax, plain_mean=pbmean,
-            cycles_noise_mean=float(block_noise.mean()), cycles_noise_max=float(block_noise.max()))
+                   cycles_noise_mean=float(block_noise.mean()), cycles_noise_max=float(block_noise.max()))
     SUMMARY.report("floor_total", surface_bias=bias, plain_bias=pbias, cycles_noise=nbias)
     assert abs(bias) < 0.01 + 2.0 * nbias, (bias, nbias)
     assert bmean < 0.01 + 2.0 * float(block_noise.mean()), (bmean, float(block_noise.mean()))
