@@ -1,8 +1,8 @@
 """Shared fixtures for the headless Blender tests (run through run_tests.py).
 
-AIRLIGHT_FAKE_NATIVE=1 substitutes a slow pure-numpy `_native` (support/fake_native.py)
-when the compiled module is missing, to develop the add-on before the C++ side exists;
-tests that hold the add-on to the real module are skipped then.
+The compiled `_native` must load: when it is missing, stale or broken every test fails
+(`native_module`, with native.error()'s reason), since the tests hold the add-on to it;
+none is ever skipped for it. Build it with `make build`.
 """
 import os
 import subprocess
@@ -21,15 +21,14 @@ import airlight  # noqa: E402
 from exr_files import exr_pass, read_exr  # noqa: E402,F401  (the tests import them from here)
 from airlight import native  # noqa: E402
 
-USING_FAKE = False
-if os.environ.get("AIRLIGHT_FAKE_NATIVE") == "1":
-    import use_fake_native  # noqa: E402
-    USING_FAKE = native.available() and native.get().__name__ == "fake_native" or use_fake_native.install()
 
-needs_native = pytest.mark.skipif(not native.available(), reason=f"_native unavailable: {native.error()}")
-needs_real_native = pytest.mark.skipif(
-    not native.available() or native.get().__name__ == "fake_native",
-    reason="needs the compiled _native module")
+@pytest.fixture(scope="session", autouse=True)
+def native_module():
+    """The add-on's compiled module; a missing or broken one fails every test, loudly."""
+    if not native.available():
+        pytest.fail(f"the Airlight native module is not available: {native.error()} "
+                    "(run `make build`)", pytrace=False)
+    return native.get()
 
 
 def reset_blender():
@@ -63,8 +62,7 @@ def fresh_blender_per_module():
 
 def run_blender(*args, timeout=120):
     """Runs tools/blender.sh in a subprocess; returns CompletedProcess (text output)."""
-    pre = ["--python", os.path.join(HERE, "support", "use_fake_native.py")] if USING_FAKE else []
-    cmd = [BLENDER_SH, "-b", *pre, *args]
+    cmd = [BLENDER_SH, "-b", *args]
     return subprocess.run(cmd, capture_output=True, text=True, timeout=timeout)
 
 

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from airlight import fog_object, native, scene_export
-from conftest import build_plane_scene, exr_pass, needs_real_native
+from conftest import build_plane_scene, exr_pass
 
 W, H = 48, 36
 CENTRES = np.array([[0.0, 0.0, 1.0], [0.3, -0.2, 0.8], [-0.4, 0.3, 1.2], [0.1, 0.35, 0.6]])
@@ -35,7 +35,6 @@ def _pixel_rays(scene):
     return np.array([0.0, 0.0, 2.0]), d, cam.clip_start * norm, 2.0 * norm
 
 
-@needs_real_native
 def test01_transmittance_is_exp_minus_optical_depth(tmp_path):
     scene = build_plane_scene(tmp_path, size=(W, H))
     fog_object.new_fog_object("Fog", scene.collection, CENTRES, SCALES, AMPLITUDES)
@@ -56,7 +55,6 @@ def test01_transmittance_is_exp_minus_optical_depth(tmp_path):
     assert np.max(homogeneous - expected) > 0.1
 
 
-@needs_real_native
 @pytest.mark.parametrize("case,message", [("empty", "has no Gaussians"),
                                           ("scale", "airlight_scale"),
                                           ("amplitude", "airlight_amplitude")])
@@ -76,7 +74,6 @@ def test02_empty_or_invalid_fog_object_is_a_clear_error(tmp_path, case, message)
     assert not os.path.exists(path)
 
 
-@needs_real_native
 def test03_no_visible_fog_object_is_bit_identical(tmp_path):
     scene = build_plane_scene(tmp_path, size=(W, H))
     before = _bake(tmp_path / "before.exr")
@@ -92,7 +89,6 @@ def test03_no_visible_fog_object_is_bit_identical(tmp_path):
     assert not np.array_equal(exr_pass(before, "Transmittance"), exr_pass(visible, "Transmittance"))
 
 
-@needs_real_native
 def test04_noise_properties_export_animate_and_bake(tmp_path):
     scene = build_plane_scene(tmp_path, size=(W, H))
     fog_object.new_fog_object("Fog", scene.collection, CENTRES, SCALES, AMPLITUDES)
@@ -126,7 +122,6 @@ def test04_noise_properties_export_animate_and_bake(tmp_path):
     assert np.all(np.isfinite(T1)) and np.all((T1 >= 0) & (T1 <= 1))
 
 
-@needs_real_native
 def test05_fog_colours_are_exported_when_gathered(tmp_path, monkeypatch):
     scene = build_plane_scene(tmp_path, size=(W, H))
     fog_object.new_fog_object("Fog", scene.collection, CENTRES, SCALES, AMPLITUDES)
@@ -145,7 +140,6 @@ def test05_fog_colours_are_exported_when_gathered(tmp_path, monkeypatch):
         scene_export.export_scene(scene, depsgraph)
 
 
-@needs_real_native
 def test06_fog_object_resolution_reaches_the_bake(tmp_path):
     """scene.airlight.gaussian_resolution: Full is the per-pixel splat (Transmittance as
     exact as test01's), Quarter differs from it but stays within its interpolation error."""
@@ -181,7 +175,6 @@ def _fog_pixels(scene):
     return np.any(dist < 0.3, axis=-1)
 
 
-@needs_real_native
 def test07_fog_object_with_sun_spot_and_anisotropic_phase(tmp_path):
     """Fog objects lit by a sun lamp (with and without a fog top), then + a spot light and
     Henyey-Greenstein anisotropy: bpy.ops.airlight.bake exports and bakes them (Automatic

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from airlight import bake, native, scene_export
-from conftest import build_plane_scene, exr_pass, needs_native, needs_real_native, read_exr
+from conftest import build_plane_scene, exr_pass, read_exr
 
 
 def _bake(filepath, **kwargs):
@@ -16,7 +16,6 @@ def _bake(filepath, **kwargs):
     return str(filepath)
 
 
-@needs_real_native
 def test01_exr_passes_equal_native_bake_of_exported_scene(tmp_path):
     scene = build_plane_scene(tmp_path)
     path = _bake(tmp_path / "fog.exr")
@@ -29,7 +28,6 @@ def test01_exr_passes_equal_native_bake_of_exported_scene(tmp_path):
     assert reference["airlight"].max() > 0.0
 
 
-@needs_native
 def test02_transmittance_of_plane_is_exp_minus_sigma_distance(tmp_path):
     """Camera 2 m above the plane z=0 looking straight down: d = 2 sqrt(1 + x^2 + y^2),
     of which the first clip_start sqrt(1 + x^2 + y^2) lie before the near plane."""
@@ -48,7 +46,6 @@ def test02_transmittance_of_plane_is_exp_minus_sigma_distance(tmp_path):
         np.testing.assert_allclose(T[..., c], expected, rtol=2e-5)
 
 
-@needs_native
 def test03_default_path_is_cache_dir_frame(tmp_path):
     scene = build_plane_scene(tmp_path)
     scene.frame_set(3)
@@ -59,7 +56,6 @@ def test03_default_path_is_cache_dir_frame(tmp_path):
     assert scene.frame_current == 3
 
 
-@needs_native
 def test04_no_camera_is_a_clear_error(tmp_path):
     build_plane_scene(tmp_path, camera=False)
     with pytest.raises(RuntimeError, match="no active camera"):
@@ -67,7 +63,6 @@ def test04_no_camera_is_a_clear_error(tmp_path):
     assert not os.path.exists(tmp_path / "x.exr")
 
 
-@needs_native
 def test05_nan_density_is_a_clear_error(tmp_path):
     scene = build_plane_scene(tmp_path)
     scene.airlight.density = float("nan")
@@ -77,7 +72,6 @@ def test05_nan_density_is_a_clear_error(tmp_path):
         bpy.ops.airlight.bake(filepath=str(tmp_path / "x.exr"))
 
 
-@needs_native
 def test06_broken_cache_dir_is_a_clear_error(tmp_path):
     scene = build_plane_scene(tmp_path)
     blocker = tmp_path / "not_a_folder"
@@ -96,7 +90,6 @@ def test07_poll_explains_missing_native(monkeypatch):
         bpy.ops.airlight.bake()
 
 
-@needs_native
 def test08_progress_returning_false_cancels_without_writing(tmp_path):
     scene = build_plane_scene(tmp_path)
     description, settings = bake.prepare(scene, bpy.context.evaluated_depsgraph_get())
@@ -112,7 +105,6 @@ def test08_progress_returning_false_cancels_without_writing(tmp_path):
     assert calls and not path.exists()
 
 
-@needs_real_native
 def test09_edge_samples_follow_the_render_pixel_filter(tmp_path):
     """The bake's edge sub-samples use the render's pixel filter width (Cycles' Film >
     Pixel Filter; EEVEE's Filter Size), so that its silhouette pixels average the fog as
@@ -138,7 +130,6 @@ def test09_edge_samples_follow_the_render_pixel_filter(tmp_path):
     assert 0 < differs.sum() <= wide["stats"]["supersampled_pixels"]
 
 
-@needs_real_native
 def test10_half_precision_passes(tmp_path):
     """Pass Precision Half: the cache file holds the bake's passes rounded to 16-bit floats
     (numpy's float16 rounding of the native bake), in a much smaller file."""

@@ -2,7 +2,7 @@
 import bpy
 
 from airlight import compositor
-from conftest import build_plane_scene, needs_native
+from conftest import build_plane_scene
 
 
 def _airlight_nodes(tree):
@@ -49,7 +49,6 @@ def test02_inserts_after_users_node_and_keeps_it(tmp_path):
     assert composite.inputs["Image"].links[0].from_node.name == "Airlight Alpha"
 
 
-@needs_native
 def test03_passes_are_linked_and_muted_when_fog_off(tmp_path):
     scene = build_plane_scene(tmp_path)
     compositor.setup(scene)
@@ -119,7 +118,6 @@ def test06_users_nodes_after_the_fog_stay_after_it(tmp_path):
     assert composite.inputs["Image"].links[0].from_node == grade
 
 
-@needs_native
 def test05_transparent_film_alpha_is_the_fogs_coverage(tmp_path):
     """Film > Transparent: as Cycles does for a volume, the composite's alpha is
     1 - (1 - alpha) T (T the mean of the Transmittance pass), the RGB render x T + A: fog

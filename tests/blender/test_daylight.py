@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from airlight import model_choice, ui
-from conftest import build_plane_scene, exr_pass, needs_native
+from conftest import build_plane_scene, exr_pass
 
 
 def _daylight_scene(tmp_path):
@@ -30,7 +30,6 @@ def _daylight_scene(tmp_path):
     return scene
 
 
-@needs_native
 def test01_bake_daylight(tmp_path):
     scene = _daylight_scene(tmp_path)
     path = str(tmp_path / "fog.exr")

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from airlight import bake, native, render, scene_description, scene_export
-from conftest import coverage_errors, exr_pass, hit_coverage, needs_native, poles_scene, read_exr
+from conftest import coverage_errors, exr_pass, hit_coverage, poles_scene, read_exr
 
 
 def _poles_scene(tmp_path, fstop=0.4, focus=4.0, use_object=False):
@@ -40,7 +40,6 @@ def _coverage(scene, cameras):
     return hit_coverage([dict(description, cam_to_world=c, projection=p) for c, p in cameras], settings)
 
 
-@needs_native
 @pytest.mark.parametrize("use_object", [False, True])
 def test01_lens_samples_cover_the_pixels_as_cycles_thin_lens(tmp_path, use_object):
     scene = _poles_scene(tmp_path, use_object=use_object)
@@ -95,7 +94,6 @@ def test02_lens_average_rules():
     assert stats["averaged_bakes"] == 2 and stats["samples"] == 0
 
 
-@needs_native
 def test03_bake_averages_the_lens_samples_and_the_panel_no_longer_warns(tmp_path):
     scene = _poles_scene(tmp_path)
     scene.airlight.lens_samples = 4

@@ -11,7 +11,7 @@ import pytest
 from mathutils import Euler, Matrix
 
 from airlight import emitter, fog_object as fo
-from conftest import build_plane_scene, draw_panel, exr_pass, needs_real_native, read_exr, run_blender
+from conftest import build_plane_scene, draw_panel, exr_pass, read_exr, run_blender
 
 
 @pytest.fixture
@@ -255,7 +255,6 @@ def test08_bake_to_frames_survives_save_and_reload(scene, tmp_path):
     assert len(obj.airlight_emitter.target.data.vertices) != len(live[6][0])
 
 
-@needs_real_native
 @pytest.mark.parametrize("baked", [False, True])
 def test09_background_animation_render_has_moving_smoke(tmp_path, baked):
     """`blender -b file.blend -a` over 3 frames: the fog baked for each frame (render_pre,

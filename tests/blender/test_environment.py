@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from airlight import bake, environment, native
-from conftest import build_plane_scene, needs_real_native, read_exr
+from conftest import build_plane_scene, read_exr
 
 
 def _uv_image(width=64, height=32):
@@ -44,7 +44,6 @@ def _env_world(image, strength=1.0):
     return world
 
 
-@needs_real_native
 def test01_native_equirect_mapping_is_blenders(tmp_path):
     scene = build_plane_scene(tmp_path, fog=False, light=False, size=(24, 16))
     bpy.data.objects.remove(bpy.data.objects["Ground"])
@@ -128,7 +127,6 @@ def test02_world_map_sources_and_errors(tmp_path):
             bpy.ops.airlight.bake()
 
 
-@needs_real_native
 def test03_bake_with_glow_matches_exact_psf_reference(tmp_path):
     """World pixels: T = e^(-sigma D) and the glow against the direct convolution of the
     World with the exact PSF (Sun 2005 eq. 20; no factorisation, no SH truncation)."""
@@ -201,7 +199,6 @@ def _psf_lambda0_scipy(Tsv):
     return 2 * math.pi * quad(integrand, 1e-9, math.pi, limit=200, points=[0.01, 0.1, 1.0])[0]
 
 
-@needs_real_native
 def test04_world_light_on_surfaces_through_fog(tmp_path):
     """Surface shading + Environment Glow: the World goes in its own light group and the bake
     writes its correction pass E_fogged / E_world - 1 per pixel (eq. 26-27 irradiance). For a
@@ -264,7 +261,6 @@ def _pixel_rays(scene):
     return np.array(cam.matrix_world.translation), d / np.linalg.norm(d, axis=-1, keepdims=True)
 
 
-@needs_real_native
 def test05_world_light_with_fog_object(tmp_path):
     """Environment Glow + surface shading + a fog object (Fogshop section 4.2): the World's
     surface ratio uses each pixel's average optical depth Tbar(p) = sigma D + sum_i c_i / a_i

@@ -5,7 +5,7 @@ import bpy
 import numpy as np
 
 from airlight import bake, native, scene_export
-from conftest import build_plane_scene, exr_pass, needs_real_native
+from conftest import build_plane_scene, exr_pass
 
 
 def test01_default_full_and_choices_reach_the_bake_settings():
@@ -20,7 +20,6 @@ def test01_default_full_and_choices_reach_the_bake_settings():
         settings.homogeneous_resolution = old
 
 
-@needs_real_native
 def test02_bake_operator_at_quarter(tmp_path):
     scene = build_plane_scene(tmp_path, size=(320, 240))
     settings = scene.airlight

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from airlight import bake, model_choice, native
-from conftest import build_plane_scene, needs_real_native
+from conftest import build_plane_scene
 
 
 def test01_auto_follows_accuracy_target():
@@ -41,7 +41,6 @@ def test03_every_choice_is_a_native_model():
     assert set(model_choice.MEASURED) <= names
 
 
-@needs_real_native
 def test04_bake_settings_carry_the_choice():
     settings = bpy.context.scene.airlight
     settings.model = 'AUTO'
@@ -101,7 +100,6 @@ def test07_explicit_sun05_with_anisotropic_phase_is_flagged():
     assert model_choice.choose(settings)[2] == float("inf")
 
 
-@needs_real_native
 def test08_bake_refuses_sun05_with_anisotropic_phase(tmp_path):
     """The bake path reports a clear error rather than baking isotropic fog."""
     scene = build_plane_scene(tmp_path)

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from airlight import bake
-from conftest import coverage_errors, exr_pass, hit_coverage, needs_native, poles_scene, read_exr, run_blender
+from conftest import coverage_errors, exr_pass, hit_coverage, poles_scene, read_exr, run_blender
 
 
 def _moving_pole_scene(tmp_path, position='CENTER', shutter=1.0):
@@ -52,7 +52,6 @@ def test01_shutter_offsets():
     assert bake.shutter_offsets(scene) == []
 
 
-@needs_native
 @pytest.mark.parametrize("position", ['CENTER', 'START'])
 def test02_shutter_samples_cover_the_pixels_as_cycles_motion_blur(tmp_path, position):
     scene = _moving_pole_scene(tmp_path, position)
@@ -77,7 +76,6 @@ def test02_shutter_samples_cover_the_pixels_as_cycles_motion_blur(tmp_path, posi
     assert instant_error > 3 * error
 
 
-@needs_native
 def test03_background_render_bakes_the_shutter(tmp_path):
     """`blender -b -f 2` with motion blur: the frame's passes are the average of the shutter
     samples' bakes (each equal to a bake made here at that instant)."""

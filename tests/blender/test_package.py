@@ -11,7 +11,7 @@ import zipfile
 import bpy
 import numpy as np
 
-from conftest import REPO, build_plane_scene, exr_pass, needs_real_native
+from conftest import REPO, build_plane_scene, exr_pass
 
 _spec = importlib.util.spec_from_file_location("airlight_package", os.path.join(REPO, "tools", "package.py"))
 package = importlib.util.module_from_spec(_spec)
@@ -30,7 +30,6 @@ bpy.ops.render.render(write_still=True)
 """
 
 
-@needs_real_native
 def test01_zip_installs_into_a_clean_blender_and_bakes_the_same_fog(tmp_path):
     zip_path = str(tmp_path / "airlight.zip")
     names = package.make_zip(zip_path)

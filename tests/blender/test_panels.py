@@ -46,7 +46,6 @@ def test02_fog_object_note_matches_what_the_bake_does():
     assert "does not take fog objects" in ui.fog_object_note("hoffman02")
 
 
-@pytest.mark.skipif(not __import__("airlight").native.available(), reason="needs _native")
 def test03_what_the_fog_composite_cannot_do_is_said_in_the_panel_and_the_console(tmp_path, capsys):
     """With Output > Post Processing > Compositing off a render skips the compositor, so the
     fog never reaches the image; depth of field and motion blur leave the fog passes sharp: the panel and each render's

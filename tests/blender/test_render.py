@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from airlight import render
-from conftest import build_plane_scene, cycles_exr_render, draw_panel, exr_pass, needs_native, read_exr, run_blender
+from conftest import build_plane_scene, cycles_exr_render, draw_panel, exr_pass, read_exr, run_blender
 
 
 def _render_scene(tmp_path):
@@ -36,7 +36,6 @@ def _run(*args):
     return proc.stdout
 
 
-@needs_native
 def test01_render_is_plain_render_times_T_plus_A_and_animated_frames_differ(tmp_path):
     scene, blend = _render_scene(tmp_path)
     off_script = tmp_path / "fog_off.py"
@@ -65,7 +64,6 @@ def test01_render_is_plain_render_times_T_plus_A_and_animated_frames_differ(tmp_
     assert np.abs(exr_pass(str(fog1), "Airlight") - exr_pass(str(fog2), "Airlight")).max() > 1e-3
 
 
-@needs_native
 def test02_single_frame_render_uses_that_frames_camera(tmp_path):
     scene, blend = _render_scene(tmp_path)
     _run(blend, "-o", str(tmp_path / "on_####"), "-f", "2")
@@ -115,7 +113,6 @@ def test04_settings_persist_through_save_and_reload(tmp_path):
     assert bpy.data.lights["Lamp"].airlight.participate is False
 
 
-@needs_native
 def test05_render_region_bakes_the_region_and_composites_in_place(tmp_path):
     """Render > Format > Render Region: the bake covers the region only (and a margin for
     its edge test), and its passes equal the whole frame's bake there to float rounding;

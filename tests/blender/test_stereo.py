@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from airlight import bake, scene_description, views
-from conftest import exr_pass, needs_native, poles_scene, read_exr, run_blender
+from conftest import exr_pass, poles_scene, read_exr, run_blender
 
 # Eyes 0.5 m apart, the pole 3 m away and the convergence plane at 50 m: ~5 px of disparity
 # per eye at 64 px wide (a quarter of the interocular at a pivot eye: twice that), so
@@ -73,7 +73,6 @@ def test01_views_and_their_files():
     assert views.view_camera(scene, "right") == scene.camera
 
 
-@needs_native
 @pytest.mark.parametrize("mode,pivot", [('OFFAXIS', 'CENTER'), ('PARALLEL', 'CENTER'), ('TOE', 'CENTER'),
                                         ('OFFAXIS', 'LEFT'), ('TOE', 'RIGHT')])
 def test02_each_eye_sees_the_pole_where_cycles_renders_it(tmp_path, mode, pivot):
@@ -119,7 +118,6 @@ def _check_views(tmp_path, out_prefix):
         np.testing.assert_allclose(on[..., :3], off[..., :3] * T + A, rtol=1e-4, atol=1e-5)
 
 
-@needs_native
 def test03_stereo_render_composites_each_views_own_bake(tmp_path):
     scene = _pole_scene(tmp_path)
     scene.render.film_transparent = False
@@ -139,7 +137,6 @@ def test03_stereo_render_composites_each_views_own_bake(tmp_path):
     assert np.abs(T_L - T_R).max() > 0.1
 
 
-@needs_native
 def test04_stereo_switched_on_after_the_compositor_was_set_up(tmp_path):
     """A file whose fog nodes were set up without Stereoscopy (an older file, or stereo
     switched on by a script): the nodes for the views are added on load and when a script
@@ -171,7 +168,6 @@ def test04_stereo_switched_on_after_the_compositor_was_set_up(tmp_path):
     _check_views(tmp_path, "script")
 
 
-@needs_native
 def test05_setting_up_again_changes_no_link(tmp_path, monkeypatch):
     """Each render points the fog nodes at the frame's files (compositor.sync, also from an
     interactive render's thread): with the views' switches in place that must not relink

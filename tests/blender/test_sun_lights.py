@@ -8,7 +8,6 @@ import numpy as np
 import pytest
 
 from airlight import bake, fog_object, light_bounds, model_choice, names, native, scene_description, scene_export, ui
-from conftest import needs_real_native
 
 SIGMA = 0.1
 
@@ -112,7 +111,6 @@ def _bake(scene, model=None):
     return native.get().bake(**description, **settings), description
 
 
-@needs_real_native
 def test03_skipping_changes_the_image_by_less_than_the_target(tmp_path):
     scene = build_scene(tmp_path)
     auto, description = _bake(scene)          # AUTO -> sun05, Far skipped
@@ -128,7 +126,6 @@ def test03_skipping_changes_the_image_by_less_than_the_target(tmp_path):
     assert np.abs(A_auto - A_full).max() > 0.0   # the far light did light the fog
 
 
-@needs_real_native
 def test04_bounds_hold_against_the_bake(tmp_path):
     """Each light's upper bound is above its airlight on every pixel; its lower bound below
     it on every pixel that looks at least one mean free path deep."""

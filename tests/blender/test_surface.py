@@ -8,7 +8,7 @@ import bpy
 import numpy as np
 
 from airlight import compositor, scene_export, surface
-from conftest import build_plane_scene, exr_pass, needs_native, run_blender
+from conftest import build_plane_scene, exr_pass, run_blender
 
 
 def _surface_nodes(tree):
@@ -60,7 +60,6 @@ def test02_eevee_keeps_the_plain_composite(tmp_path):
     assert len(bpy.context.view_layer.lightgroups) == 0
 
 
-@needs_native
 def test03_cycles_bake_sets_up_groups_passes_and_chain(tmp_path):
     scene = build_plane_scene(tmp_path)
     scene.render.engine = 'CYCLES'
@@ -110,7 +109,6 @@ def test03_cycles_bake_sets_up_groups_passes_and_chain(tmp_path):
     assert len(_surface_nodes(tree)) == 4
 
 
-@needs_native
 def test04_bake_without_surface_writes_no_surface_passes(tmp_path):
     from conftest import read_exr
     scene = build_plane_scene(tmp_path)
@@ -123,7 +121,6 @@ def test04_bake_without_surface_writes_no_surface_passes(tmp_path):
     assert len(bpy.context.view_layer.lightgroups) == 0
 
 
-@needs_native
 def test05_gloss_exponent_adds_the_glossy_glow(tmp_path):
     """Gloss Exponent > 0: the bake writes SurfaceGloss (Sun 2005 eq. 18 glossy glow, the
     kernel is held to scipy in tests/native/test13_bake_surface.py), equal to the native
@@ -158,7 +155,6 @@ def test05_gloss_exponent_adds_the_glossy_glow(tmp_path):
     assert not any(l.from_socket.name == "GlossCol" for l in tree.links)
 
 
-@needs_native
 def test06_skipped_lights_keep_groups_aligned(tmp_path):
     """Automatic skips a faint light (not exported to the bake): its group must not take a
     place in the bake's light order, or the attenuation images would shift onto the wrong
@@ -186,7 +182,6 @@ def test06_skipped_lights_keep_groups_aligned(tmp_path):
     np.testing.assert_allclose(exr_pass(path, "Surface_fog_Key"), ref, rtol=1e-5, atol=1e-7)
 
 
-@needs_native
 def test07_sun_light_on_surfaces_is_dimmed_by_the_fog_layer(tmp_path):
     """A sun lamp's light on a surface inside the fog layer crosses (top - z) / mu_s of fog:
     its group's pass is e^(-sigma (top - z) / mu_s) - 1 (sun_layer.h), computed here from the
@@ -232,7 +227,6 @@ def _centre_pixel_glow(scene, G):
     return albedo * I0 * sigma * G(sigma * D, math.acos(v[2] / D)) / (2.0 * math.pi ** 2 * D)
 
 
-@needs_native
 def test08_anisotropic_phase_glow(tmp_path):
     """An anisotropic phase changes the glow: the phase-aware G_p (Biri 2006 eq. 8-13) for the
     default glow model (every fog model), Biri's own eq. 10 (Gamma_L x cos, clamped) with Glow
@@ -267,7 +261,6 @@ def test08_anisotropic_phase_glow(tmp_path):
     assert "eq. 10" in surface.glow_model_text(scene.airlight, "biri06")
 
 
-@needs_native
 def test09_lights_added_later_get_their_groups_before_a_render(tmp_path):
     """A render composites with the node links it starts with, and an interactive render's
     thread cannot add light groups: a light added after the fog nodes exist gets its group

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from airlight import bake, model_choice, native, scene_export
-from conftest import build_plane_scene, exr_pass, needs_real_native
+from conftest import build_plane_scene, exr_pass
 
 
 @pytest.fixture(autouse=True)
@@ -50,7 +50,6 @@ def test03_coarse_table_raises_the_expected_error_and_auto_avoids_it():
     assert model_choice.choose(settings)[0] == "sun05"
 
 
-@needs_real_native
 def test04_bake_operator_uses_the_chosen_table(tmp_path):
     scene = build_plane_scene(tmp_path)
     settings = scene.airlight
