@@ -302,7 +302,7 @@ RBF_LIST_WIDTH = 4096
 # Light fit (rbf_light_fit_frag.glsl): rows of gauss_light per block of RBF_TEX_WIDTH
 # Gaussians, and when a Gaussian keeps the exact per-pixel light terms: a light closer
 # than RBF_FIT_NEAR cull radii, or a peak optical depth c sqrt(pi) / a above
-# RBF_FIT_MAX_T (tests/gpu/test_09 measures the fit's error against the bake).
+# RBF_FIT_MAX_T (tests/gpu/test_preview_gaussians.py measures the fit's error against the bake).
 RBF_FIT_ROWS = 9
 RBF_FIT_NEAR = 2.0
 RBF_FIT_MAX_T = 0.1
@@ -495,16 +495,16 @@ def rbf_f1_texture(f1, n):
 
 
 def create_rbf_test_shader():
-    """GLSL-vs-C++ agreement shader for rbf_gaussian.glsl (test_09): fullscreen_vert.glsl
-    + rbf_gaussian.glsl + test_rbf_frag.glsl; samplers 0..4 "in0".."in4" (RGBA32F, one
+    """GLSL-vs-C++ agreement shader for rbf_gaussian.glsl (test_preview_gaussians.py):
+    fullscreen_vert.glsl + rbf_gaussian.glsl + test_rbf_frag.glsl; samplers 0..4 "in0".."in4" (RGBA32F, one
     input point per pixel; layout in test_rbf_frag.glsl); output frag_color."""
     return create_fullscreen_shader("test_rbf", "test_rbf_frag.glsl", libs=("rbf_gaussian.glsl",),
                                     samplers=("in0", "in1", "in2", "in3", "in4"))
 
 
 def create_biri_test_shader():
-    """GLSL-vs-C++ agreement shader for biri06_airlight.glsl (test_10): fullscreen_vert.glsl
-    + sun05_airlight.glsl + biri06_airlight.glsl + test_biri_frag.glsl; samplers 0 "in0"
+    """GLSL-vs-C++ agreement shader for biri06_airlight.glsl (test_preview_phase_spot_sun.py):
+    fullscreen_vert.glsl + sun05_airlight.glsl + biri06_airlight.glsl + test_biri_frag.glsl; samplers 0 "in0"
     (RGBA32F inputs), 1 "Gtab" (the Biri table); push constant VEC4 "phase"."""
     return create_fullscreen_shader("test_biri", "test_biri_frag.glsl",
                                     libs=("sun05_airlight.glsl", "biri06_airlight.glsl"),
@@ -512,22 +512,22 @@ def create_biri_test_shader():
 
 
 def create_sun_test_shader():
-    """GLSL-vs-reference shader for sun_airlight.glsl (test_10): fullscreen_vert.glsl +
-    sun05_airlight.glsl + sun_airlight.glsl + test_sun_frag.glsl; samplers 0 "in0", 1 "in1"."""
+    """GLSL-vs-reference shader for sun_airlight.glsl (test_preview_phase_spot_sun.py):
+    fullscreen_vert.glsl + sun05_airlight.glsl + sun_airlight.glsl + test_sun_frag.glsl; samplers 0 "in0", 1 "in1"."""
     return create_fullscreen_shader("test_sun", "test_sun_frag.glsl",
                                     libs=("sun05_airlight.glsl", "sun_airlight.glsl"),
                                     samplers=("in0", "in1"))
 
 
 def create_noise_test_shader():
-    """GLSL-vs-C++ agreement shader for rbf_noise.glsl (test_12): fullscreen_vert.glsl +
-    rbf_noise.glsl + test_noise_frag.glsl; sampler 0 "in0" (RGBA32F points)."""
+    """GLSL-vs-C++ agreement shader for rbf_noise.glsl (test_preview_noise.py):
+    fullscreen_vert.glsl + rbf_noise.glsl + test_noise_frag.glsl; sampler 0 "in0" (RGBA32F points)."""
     return create_fullscreen_shader("test_noise", "test_noise_frag.glsl", libs=("rbf_noise.glsl",),
                                     samplers=("in0",))
 
 
 def create_rbf_fast_test_shader():
-    """Agreement shader for rbf_gaussian.glsl's rbf_fast_erf_diff (test_09):
+    """Agreement shader for rbf_gaussian.glsl's rbf_fast_erf_diff (test_preview_gaussians.py):
     fullscreen_vert.glsl + rbf_gaussian.glsl + test_rbf_fast_frag.glsl; sampler 0 "in0"."""
     return create_fullscreen_shader("test_rbf_fast", "test_rbf_fast_frag.glsl",
                                     libs=("rbf_gaussian.glsl",), samplers=("in0",))

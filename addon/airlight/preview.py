@@ -490,7 +490,7 @@ def _lights_texture(positions, intensities, Csv=None, splat_I0=None):
 
 # How the Gaussian fog's per-pixel sums are drawn: 'TILES' (one full-screen pass looping
 # over per-tile Gaussian lists, rbf_tiles_frag.glsl) or 'SPLAT' (one blended quad per
-# Gaussian, rbf_splat_*.glsl). Both give the same sums (tests/gpu/test_09).
+# Gaussian, rbf_splat_*.glsl). Both give the same sums (tests/gpu/test_preview_gaussians.py).
 GAUSS_PASSES = ('TILES', 'SPLAT')
 GAUSS_PASS = 'TILES'
 # Whether the Gaussian passes evaluate each Gaussian's fitted light factor per pixel
@@ -591,7 +591,7 @@ def view_clip_range(context):
     perspective views. Orthographic user views are centred on the view: Blender (and
     Cycles' viewport render) put their near plane at -clip_end / 2 and their far plane at
     +clip_end / 2, and the preview's orthographic rays start on that projected near plane
-    anyway (tests/gpu/test_05_clip_range.py checks both)."""
+    anyway (tests/gpu/test_preview_clip_range.py checks both)."""
     rv3d, space = context.region_data, context.space_data
     camera = context.scene.camera
     if (rv3d is not None and rv3d.view_perspective == 'CAMERA' and camera is not None

@@ -43,7 +43,7 @@ from . import gpu_shaders as gs
 # Per-Gaussian cull tolerance on the optical depth of the splat quads and of the
 # fragment's cull test. The bake uses RbfMedium::kDefaultCullEps = 1e-7; the preview
 # drops Gaussians that add < 1e-4 to a pixel's optical depth: their radii (and quads)
-# shrink by ~25 % (area ~45 %) for a measured difference to the bake in test_09.
+# shrink by ~25 % (area ~45 %) for a measured difference to the bake in tests/gpu/test_preview_gaussians.py.
 CULL_EPS = 1e-4
 # The bake's cull tolerance (RbfMedium::kDefaultCullEps): its cull radii scale the noise.
 BAKE_CULL_EPS = 1e-7

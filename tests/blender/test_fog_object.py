@@ -86,7 +86,7 @@ def test04_save_and_reload(scene, tmp_path):
 
 
 # Undo/redo of the add operator needs a window (ed.undo's poll fails under -b): it is
-# tested in the GPU tier, tests/gpu/test_06_brush_ops.py.
+# tested in the GPU tier, tests/gpu/test_brush_ops_modal.py.
 
 
 def test06_duplicate_copies_data(scene):

@@ -265,7 +265,7 @@ def test09_lights_added_later_get_their_groups_before_a_render(tmp_path):
     """A render composites with the node links it starts with, and an interactive render's
     thread cannot add light groups: a light added after the fog nodes exist gets its group
     and its pass in the chain at the next depsgraph update (compositor's
-    on_depsgraph_update_post; tests/gpu/test_14 renders such a scene with Ctrl+F12), and a
+    on_depsgraph_update_post; tests/gpu/test_interactive_render.py renders such a scene with Ctrl+F12), and a
     file saved without that (an older add-on) gets it when loaded (render.on_load_post)."""
     scene = build_plane_scene(tmp_path)
     scene.render.engine = 'CYCLES'

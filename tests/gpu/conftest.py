@@ -1,12 +1,16 @@
 """Shared fixtures of the GPU tests: the add-on's preview module, the native module, a place for
-artifacts. Runs inside Blender (see run_gpu_tests.py)."""
+artifacts, the homogeneous fog scene. Runs inside Blender (see run_gpu_tests.py); the helpers
+the test modules share live in support/ (preview_scenes.py, event_driver.py)."""
 
 import os
+import sys
 
 import pytest
 
-REPO = os.path.normpath(os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", ".."))
+HERE = os.path.dirname(os.path.abspath(__file__))
+REPO = os.path.normpath(os.path.join(HERE, "..", ".."))
 ARTIFACTS = os.path.join(REPO, "out", "test_artifacts")
+sys.path.insert(0, os.path.join(HERE, "support"))
 
 
 def pytest_configure(config):
@@ -32,19 +36,28 @@ def addon():
     return preview
 
 
-@pytest.fixture(scope="session")
+@pytest.fixture(scope="session", autouse=True)
 def native():
-    """The compiled module; a missing or incomplete module FAILS the tests that need it
-    (they are the check that GLSL and C++ agree, so they must not skip silently)."""
-    try:
-        from airlight import _native
-    except ImportError as ex:
-        pytest.fail(f"_native could not be imported: {ex}. Build it first (see README).")
+    """The compiled module, checked for every test: a missing, broken or incomplete module
+    FAILS the session's tests with the loader's reason (they hold the GLSL and the add-on to
+    the C++, so they must never skip)."""
+    from airlight import native as loader
+    if not loader.available():
+        pytest.fail(f"the Airlight native module is not available: {loader.error()} (run `make build`)",
+                    pytrace=False)
+    module = loader.get()
     needed = ("special_F", "special_F_table", "sun05_airlight")
-    missing = [n for n in needed if not hasattr(_native, n)]
+    missing = [n for n in needed if not hasattr(module, n)]
     if missing:
-        pytest.fail("_native lacks " + ", ".join(missing))
-    return _native
+        pytest.fail("_native lacks " + ", ".join(missing) + ": rebuild it (`make build`)", pytrace=False)
+    return module
+
+
+@pytest.fixture(scope="module")
+def fog_scene(addon, native):
+    """Floor, cube, two point lights, a camera; homogeneous fog on (preview_scenes.build_scene)."""
+    import preview_scenes
+    return preview_scenes.build_scene(preview_scenes.FOG_SIGMA_T)
 
 
 @pytest.fixture(scope="session")

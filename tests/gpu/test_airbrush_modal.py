@@ -6,9 +6,9 @@ all, Esc and right-click leave the object as it was, F adjusts the radius."""
 import os
 import sys
 
-HERE = os.path.dirname(os.path.abspath(__file__))
-sys.path.insert(0, HERE)
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "support"))
 import event_driver  # noqa: E402
+from event_driver import fog_objects  # noqa: E402
 
 SCALE = 4.0
 AMPLITUDE = 0.05
@@ -19,40 +19,20 @@ def _drive(out_path):
     import time
 
     import bpy
-    import numpy as np
-    from mathutils import Quaternion
 
     from airlight import brush_ops, fog_object
 
     record = {}
 
-    def fog_objects():
-        return sorted((o for o in bpy.data.objects if fog_object.is_fog_object(o)), key=lambda o: o.name)
-
     def steps():
-        wm = bpy.context.window_manager
-        win = wm.windows[0]
-        area = max((a for a in win.screen.areas if a.type == 'VIEW_3D'), key=lambda a: a.width * a.height)
-        region = next(r for r in area.regions if r.type == 'WINDOW')
-        rv3d = area.spaces.active.region_3d
-
-        def override():
-            return bpy.context.temp_override(window=win, screen=win.screen, area=area, region=region)
-
-        def ev(kind, value, px, py, shift=False):
-            cx, cy = region.width // 2, region.height // 2
-            win.event_simulate(kind, value, x=int(region.x + cx + px), y=int(region.y + cy + py), shift=shift)
+        vp = event_driver.Viewport()
+        override, ev = vp.override, vp.event
 
         def st():
-            return win.scene.airlight_airbrush
+            return vp.scene.airlight_airbrush
 
-        scene = win.scene
-        for obj in list(scene.objects):
-            bpy.data.objects.remove(obj)
-        rv3d.view_perspective = 'ORTHO'
-        rv3d.view_rotation = Quaternion((1.0, 0.0, 0.0, 0.0))  # top view, looking down -Z
-        rv3d.view_location = (0.0, 0.0, 0.0)
-        rv3d.view_distance = VIEW_DISTANCE
+        vp.top_view(VIEW_DISTANCE)
+        scene = vp.scene
         with override():
             bpy.ops.mesh.primitive_plane_add(size=40.0, location=(0.0, 0.0, 0.0))
         fog = fog_object.new_fog_object("Fog", scene.collection, centres=[(0.0, 0.0, 5.0)],
@@ -135,20 +115,18 @@ def _drive(out_path):
         yield
         record["handles_end"] = len(brush_ops._draw_handles)
 
-    event_driver.drive(steps(), record, out_path)
+    event_driver.run(steps(), record, out_path)
 
 
 if __name__ == "__main__":
-    _drive(sys.argv[sys.argv.index("--") + 1])
+    event_driver.main(_drive)
 
 
 else:
     import numpy as np
     import pytest
 
-    @pytest.fixture(scope="module")
-    def record(tmp_path_factory):
-        return event_driver.run_child(__file__, tmp_path_factory.mktemp("airbrush"))
+    record = event_driver.record_fixture(__file__, "airbrush")
 
     def test01_stroke_adds_gaussians_on_release(record):
         assert record["invoke"] == ["RUNNING_MODAL"]

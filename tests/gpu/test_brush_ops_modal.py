@@ -14,9 +14,9 @@ spacing 0.75/a and offset bound 1/a).
 import os
 import sys
 
-HERE = os.path.dirname(os.path.abspath(__file__))
-sys.path.insert(0, HERE)
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "support"))
 import event_driver  # noqa: E402
+from event_driver import fog_objects  # noqa: E402
 
 SCALE = 2.0        # a (1/m): spacing 0.75/a = 0.375 m, offsets < 0.5 m
 AMPLITUDE = 0.3
@@ -30,45 +30,19 @@ def _drive(out_path):
 
     import bpy
     import numpy as np
-    from bpy_extras import view3d_utils
-    from mathutils import Quaternion
 
     from airlight import brush_ops, fog_object
 
     record = {}
 
-    def fog_objects():
-        return sorted((o for o in bpy.data.objects if fog_object.is_fog_object(o)), key=lambda o: o.name)
-
     def steps():
-        wm = bpy.context.window_manager
-        win = wm.windows[0]
-        area = max((a for a in win.screen.areas if a.type == 'VIEW_3D'), key=lambda a: a.width * a.height)
-        region = next(r for r in area.regions if r.type == 'WINDOW')
-        rv3d = area.spaces.active.region_3d
-
-        def override():
-            return bpy.context.temp_override(window=win, screen=win.screen, area=area, region=region)
-
-        def ev(kind, value, px, py, shift=False):
-            cx, cy = region.width // 2, region.height // 2
-            win.event_simulate(kind, value, x=int(region.x + cx + px), y=int(region.y + cy + py), shift=shift)
-
-        def to_world(px, py):
-            cx, cy = region.width // 2, region.height // 2
-            return np.array(view3d_utils.region_2d_to_location_3d(region, rv3d, (cx + px, cy + py), (0, 0, 0)))
-
-        scene = win.scene
+        vp = event_driver.Viewport()
+        override, ev, to_world = vp.override, vp.event, vp.to_world
 
         def st():  # the settings, looked up again: an undo replaces all data blocks
-            return win.scene.airlight_brush
-        for obj in list(scene.objects):
-            bpy.data.objects.remove(obj)
-        scene.cursor.location = (0.0, 0.0, 0.0)
-        rv3d.view_perspective = 'ORTHO'
-        rv3d.view_rotation = Quaternion((1.0, 0.0, 0.0, 0.0))  # top view, looking down -Z
-        rv3d.view_location = (0.0, 0.0, 0.0)
-        rv3d.view_distance = VIEW_DISTANCE
+            return vp.scene.airlight_brush
+        vp.top_view(VIEW_DISTANCE)
+        vp.scene.cursor.location = (0.0, 0.0, 0.0)
         for _ in range(5):
             yield
         with override():
@@ -188,9 +162,7 @@ def _drive(out_path):
         obj = fog_objects()[0]
         before_c, _, before_a = fog_object.read(obj)
         world = before_c @ np.array(obj.matrix_world)[:3, :3].T + np.array(obj.matrix_world)[:3, 3]
-        cx, cy = region.width // 2, region.height // 2
-        xy = np.array([view3d_utils.location_3d_to_region_2d(region, rv3d, p) for p in world])
-        record["erase_pixels"] = (xy - [cx, cy]).tolist()
+        record["erase_pixels"] = vp.pixels(world).tolist()
         record["erase_before"] = before_a.tolist()
         with override():
             bpy.ops.ed.undo_push(message="eraser settings")
@@ -218,7 +190,7 @@ def _drive(out_path):
         bpy.context.view_layer.objects.active = fog_objects()[0]
         for plane, cursor_z in (('VIEW', -1.0), ('SURFACE', 3.0)):
             st().plane = plane
-            win.scene.cursor.location = (0.0, 0.0, cursor_z)
+            vp.scene.cursor.location = (0.0, 0.0, cursor_z)
             n0 = len(fog_objects()[0].data.vertices)
             with override():
                 bpy.ops.airlight.fog_paint('INVOKE_DEFAULT')
@@ -233,15 +205,14 @@ def _drive(out_path):
             c, _, _ = fog_object.read(fog_objects()[0])
             record[f"plane_{plane}"] = dict(
                 centres=c[n0:].tolist(),
-                start=view3d_utils.region_2d_to_location_3d(
-                    region, rv3d, (region.width // 2 + x0, region.height // 2 + 100), (0, 0, 0))[:])
+                start=to_world(x0, 100).tolist())
         record["draws_total"] = brush_ops._draw_count[0]
 
-    event_driver.drive(steps(), record, out_path)
+    event_driver.run(steps(), record, out_path)
 
 
 if __name__ == "__main__":
-    _drive(sys.argv[sys.argv.index("--") + 1])
+    event_driver.main(_drive)
 
 
 # ---- the checks (pytest, in the GPU test Blender) ---------------------------------------
@@ -249,9 +220,7 @@ else:
     import numpy as np
     import pytest
 
-    @pytest.fixture(scope="module")
-    def record(tmp_path_factory):
-        return event_driver.run_child(__file__, tmp_path_factory.mktemp("brush"))
+    record = event_driver.record_fixture(__file__, "brush")
 
     def test01_add_fog_object_undo_redo(record):
         assert record["add_undo_redo"] == [1, 0, 1]

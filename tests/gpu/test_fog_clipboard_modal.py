@@ -1,5 +1,5 @@
 """Fog rectangle selection and move (addon/airlight/fog_clipboard.py) driven by synthetic
-events in a real window, as in test_06_brush_ops.py: this module starts a second Blender
+events in a real window, as in test_brush_ops_modal.py: this module starts a second Blender
 (same Xvfb display) with --enable-event-simulate and runs ITSELF there as the --python
 script; a bpy.app.timers generator invokes the modal operators in the 3D viewport, feeds
 them Window.event_simulate() events, records what happened (JSON) and exits. The pytest
@@ -10,8 +10,7 @@ fog_clipboard's own projection).
 import os
 import sys
 
-HERE = os.path.dirname(os.path.abspath(__file__))
-sys.path.insert(0, HERE)
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "support"))
 import event_driver  # noqa: E402
 
 N = 60
@@ -27,27 +26,14 @@ def _drive(out_path):
 
     import bpy
     import numpy as np
-    from bpy_extras import view3d_utils
-    from mathutils import Quaternion
 
     from airlight import fog_clipboard, fog_object
 
     record = {}
 
     def steps():
-        wm = bpy.context.window_manager
-        win = wm.windows[0]
-        area = max((a for a in win.screen.areas if a.type == 'VIEW_3D'), key=lambda a: a.width * a.height)
-        region = next(r for r in area.regions if r.type == 'WINDOW')
-        rv3d = area.spaces.active.region_3d
-        cx, cy = region.width // 2, region.height // 2
-
-        def override():
-            return bpy.context.temp_override(window=win, screen=win.screen, area=area, region=region)
-
-        def ev(kind, value, px, py, shift=False, ctrl=False):
-            win.event_simulate(kind, value, x=int(region.x + cx + px), y=int(region.y + cy + py),
-                               shift=shift, ctrl=ctrl)
+        vp = event_driver.Viewport()
+        override, ev = vp.override, vp.event
 
         def fog():  # looked up again: an undo replaces all data blocks
             return bpy.data.objects["Fog"]
@@ -58,17 +44,8 @@ def _drive(out_path):
             m = np.array(obj.matrix_world)
             return c @ m[:3, :3].T + m[:3, 3]
 
-        def pixels(points):
-            return [(np.array(view3d_utils.location_3d_to_region_2d(region, rv3d, p)) - [cx, cy]).tolist()
-                    for p in points]
-
-        scene = win.scene
-        for obj in list(scene.objects):
-            bpy.data.objects.remove(obj)
-        rv3d.view_perspective = 'ORTHO'
-        rv3d.view_rotation = Quaternion((1.0, 0.0, 0.0, 0.0))  # top view, looking down -Z
-        rv3d.view_location = (0.0, 0.0, 0.0)
-        rv3d.view_distance = VIEW_DISTANCE
+        vp.top_view(VIEW_DISTANCE)
+        scene = vp.scene
         rng = np.random.default_rng(5)
         local = rng.uniform(-2.5, 2.5, (N, 3))
         obj = fog_object.new_fog_object("Fog", scene.collection, local, rng.uniform(0.5, 2.0, N),
@@ -81,8 +58,8 @@ def _drive(out_path):
             yield
         with override():
             bpy.ops.ed.undo_push(message="test setup")
-        record["pixels"] = pixels(world_centres())
-        record["region"] = [region.width, region.height]
+        record["pixels"] = vp.pixels(world_centres()).tolist()
+        record["region"] = [vp.region.width, vp.region.height]
 
         # 1. drag a rectangle
         (x0, y0), (x1, y1) = RECT_PX
@@ -173,9 +150,7 @@ def _drive(out_path):
         record["after_move"] = world_centres().tolist()
         record["selected_after_move"] = fog_clipboard.read_selection(fog()).tolist()
         record["handles_after_move"] = len(fog_clipboard._draw_handles)
-        record["move_offset"] = list(
-            view3d_utils.region_2d_to_location_3d(region, rv3d, (cx + m1, cy + n1), (0, 0, 0))
-            - view3d_utils.region_2d_to_location_3d(region, rv3d, (cx + m0, cy + n0), (0, 0, 0)))
+        record["move_offset"] = (vp.to_world(m1, n1) - vp.to_world(m0, n0)).tolist()
         with override():
             bpy.ops.ed.undo()
         yield
@@ -186,21 +161,18 @@ def _drive(out_path):
         record["after_redo"] = world_centres().tolist()
         record["draws_total"] = fog_clipboard._draw_count[0]
 
-    event_driver.drive(steps(), record, out_path)
+    event_driver.run(steps(), record, out_path)
 
 
 if __name__ == "__main__":
-    _drive(sys.argv[sys.argv.index("--") + 1])
+    event_driver.main(_drive)
 
 
 # ---- the checks (pytest, in the GPU test Blender) ---------------------------------------
 else:
     import numpy as np
-    import pytest
 
-    @pytest.fixture(scope="module")
-    def record(tmp_path_factory):
-        return event_driver.run_child(__file__, tmp_path_factory.mktemp("clipboard"))
+    record = event_driver.record_fixture(__file__, "clipboard")
 
     def _inside(xy, rect):
         (x0, y0), (x1, y1) = rect

@@ -21,7 +21,7 @@ import numpy as np
 import pytest
 from mathutils import Matrix, Vector
 
-from test_03_preview import _redraw, _view3d, fog_scene  # noqa: F401 (fixture)
+from preview_scenes import redraw, view3d
 
 W, H = 160, 120
 
@@ -38,7 +38,7 @@ def _plane_depths(persp, eye, is_perspective, axis):
 
 @pytest.mark.parametrize("perspective", ["CAMERA", "PERSP", "ORTHO"])
 def test01_clip_range_is_the_region_projection(addon, fog_scene, perspective):
-    area = _view3d()
+    area = view3d()
     space = area.spaces.active
     rv3d = space.region_3d
     cam = fog_scene.camera.data
@@ -47,7 +47,7 @@ def test01_clip_range_is_the_region_projection(addon, fog_scene, perspective):
     space.clip_start, space.clip_end = 0.05, 500.0
     rv3d.view_perspective = perspective
     try:
-        _redraw()  # updates the region's matrices
+        redraw()  # updates the region's matrices
         region = next(r for r in area.regions if r.type == 'WINDOW')
         with bpy.context.temp_override(window=bpy.context.window_manager.windows[0],
                                        area=area, region=region, space_data=space,
@@ -136,7 +136,7 @@ def test03_handler_uses_camera_clip_start(addon, fog_scene):
     addon._state["error"] = None
     wm.airlight_preview = True
     wm.airlight_preview_scale = 'HALF'  # the capture holds the reduced fog image
-    _view3d().spaces.active.region_3d.view_perspective = 'CAMERA'
+    view3d().spaces.active.region_3d.view_perspective = 'CAMERA'
     cam = fog_scene.camera.data
     old = cam.clip_start
     caps = []
@@ -144,7 +144,7 @@ def test03_handler_uses_camera_clip_start(addon, fog_scene):
         for clip_start in (0.1, 4.0):
             cam.clip_start = clip_start
             addon._state["capture"] = cap = {}
-            _redraw()
+            redraw()
             assert addon._state["error"] is None, addon._state["error"]
             caps.append(cap)
     finally:

@@ -10,7 +10,7 @@ import bpy
 import numpy as np
 import pytest
 
-from test_09_preview_gaussians import H, W, _compare, _save_png, build_scene, render_preview
+from preview_scenes import build_scene, compare, render_preview, save_png
 
 
 def _sky_world():
@@ -53,12 +53,12 @@ def test01_preview_world_glow_matches_bake(addon, native, gs, artifacts, scale):
         env = addon.scene_environment(scene)
         assert env is not None and abs(env["transmittance"] / math.exp(-0.03 * 40.0) - 1.0) < 1e-6
         got, got_T = render_preview(addon, gs, scene, desc, None, environment=env, scale=scale)
-        rel, dT = _compare(f"preview vs bake with the World's glow (scale {scale})", got, got_T, ref, ref_T)
+        rel, dT = compare(f"preview vs bake with the World's glow (scale {scale})", got, got_T, ref, ref_T)
         glow_share = float(((ref - plain)[miss]).mean() / ref[miss].mean())
         print(f"the glow is {glow_share:.3g} of the World pixels' airlight")
         sc = 1.0 / np.percentile(ref, 99)
-        _save_png(os.path.join(artifacts, f"preview_env_gpu_{scale}.png"), np.clip(got * sc, 0, 1))
-        _save_png(os.path.join(artifacts, f"preview_env_bake_{scale}.png"), np.clip(ref * sc, 0, 1))
+        save_png(os.path.join(artifacts, f"preview_env_gpu_{scale}.png"), np.clip(got * sc, 0, 1))
+        save_png(os.path.join(artifacts, f"preview_env_bake_{scale}.png"), np.clip(ref * sc, 0, 1))
         assert glow_share > 0.2
         np.testing.assert_allclose(got_T[miss], math.exp(-1.2), rtol=1e-5)
         if scale == 1:

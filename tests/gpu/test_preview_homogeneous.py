@@ -12,7 +12,6 @@
   the native module, and register/unregister cycles and file loads leave no handlers.
 """
 
-import math
 import os
 import tempfile
 
@@ -20,56 +19,9 @@ import bpy
 import gpu
 import numpy as np
 import pytest
-from mathutils import Matrix, Vector
+from mathutils import Matrix
 
-W, H = 160, 120
-SIGMA_T = 0.08
-ALBEDO = (1.0, 0.8, 0.6)
-
-
-@pytest.fixture(scope="module")
-def fog_scene(addon, native):
-    """Floor, cube, two point lights, a camera; fog on. Built from scratch (no .blend)."""
-    scene = bpy.context.scene
-    for obj in list(scene.objects):
-        bpy.data.objects.remove(obj)
-    bpy.ops.mesh.primitive_plane_add(size=40.0, location=(0.0, 0.0, 0.0))
-    bpy.ops.mesh.primitive_cube_add(size=2.0, location=(0.0, 0.0, 1.0))
-    for name, loc, energy, colour in (("LampA", (2.0, -1.0, 3.0), 2000.0, (1.0, 1.0, 1.0)),
-                                      ("LampB", (-4.0, 3.0, 2.0), 800.0, (1.0, 0.5, 0.2))):
-        data = bpy.data.lights.new(name, 'POINT')
-        data.energy = energy
-        data.color = colour
-        data.shadow_soft_size = 0.0
-        obj = bpy.data.objects.new(name, data)
-        obj.location = loc
-        scene.collection.objects.link(obj)
-    cam = bpy.data.objects.new("Cam", bpy.data.cameras.new("Cam"))
-    cam.location = (1.0, -12.0, 5.0)
-    direction = Vector((0.0, 0.0, 1.0)) - cam.location
-    cam.rotation_euler = direction.to_track_quat('-Z', 'Y').to_euler()
-    scene.collection.objects.link(cam)
-    scene.camera = cam
-    scene.render.resolution_x, scene.render.resolution_y = W, H
-    scene.render.resolution_percentage = 100
-    scene.airlight.enabled = True
-    scene.airlight.density = SIGMA_T
-    scene.airlight.color = ALBEDO
-    bpy.context.view_layer.update()
-    return scene
-
-
-def _save_png(path, rgb):
-    """Saves (H, W, 3) linear float (row 0 = top) as an 8-bit sRGB-ish PNG via bpy."""
-    h, w, _ = rgb.shape
-    img = bpy.data.images.new(os.path.basename(path), w, h, alpha=True, float_buffer=True)
-    rgba = np.ones((h, w, 4), np.float32)
-    rgba[..., :3] = rgb
-    img.pixels.foreach_set(np.ascontiguousarray(rgba[::-1]).ravel())
-    img.filepath_raw = path
-    img.file_format = 'PNG'
-    img.save()
-    bpy.data.images.remove(img)
+from preview_scenes import FOG_SIGMA_T, H, W, redraw, save_png, view3d
 
 
 def test01_preview_matches_bake(addon, native, fog_scene, gs, artifacts):
@@ -95,7 +47,7 @@ def test01_preview_matches_bake(addon, native, fog_scene, gs, artifacts):
             fb.clear(color=(0.0, 0.0, 0.0, 0.0))
             addon.draw_fog(depth_tex=depth_tex, perspective_matrix=persp,
                            view_origin=tuple(cam.matrix_world.translation),
-                           is_perspective=True, viewport=(0, 0, W, H), sigma_t=SIGMA_T,
+                           is_perspective=True, viewport=(0, 0, W, H), sigma_t=FOG_SIGMA_T,
                            light_positions=positions, light_intensities=intensities,
                            clip_start=desc["clip_start"])
         out = gs.read_offscreen(off)[::-1].astype(np.float64)  # to top row first
@@ -111,11 +63,11 @@ def test01_preview_matches_bake(addon, native, fog_scene, gs, artifacts):
           f"p99 {np.percentile(rel, 99):.4g}, max {rel.max():.4g}; "
           f"transmittance mean abs {rel_T.mean():.3g}, max {rel_T.max():.3g}")
     scale = 1.0 / np.percentile(ref, 99)
-    _save_png(os.path.join(artifacts, "preview_gpu.png"), np.clip(got * scale, 0, 1))
-    _save_png(os.path.join(artifacts, "preview_bake.png"), np.clip(ref * scale, 0, 1))
+    save_png(os.path.join(artifacts, "preview_gpu.png"), np.clip(got * scale, 0, 1))
+    save_png(os.path.join(artifacts, "preview_bake.png"), np.clip(ref * scale, 0, 1))
     diff = np.zeros_like(ref)
     diff[use] = np.abs(got - ref)[use] / ref[use]
-    _save_png(os.path.join(artifacts, "preview_reldiff_x10.png"), np.clip(diff * 10.0, 0, 1))
+    save_png(os.path.join(artifacts, "preview_reldiff_x10.png"), np.clip(diff * 10.0, 0, 1))
     native.write_exr(os.path.join(artifacts, "preview_vs_bake.exr"),
                      {"preview": got.astype(np.float32), "bake": ref.astype(np.float32)})
     assert np.isfinite(got).all()
@@ -127,21 +79,6 @@ def test01_preview_matches_bake(addon, native, fog_scene, gs, artifacts):
 
 
 # ---- the real draw handler in the window's 3D viewport ---------------------------------
-
-def _view3d():
-    for area in bpy.context.window_manager.windows[0].screen.areas:
-        if area.type == 'VIEW_3D':
-            return area
-    pytest.fail("no 3D viewport in the test window")
-
-
-def _redraw():
-    """Draws the whole window now (also after a file load, when the script's context
-    has no window any more)."""
-    window = bpy.context.window_manager.windows[0]
-    with bpy.context.temp_override(window=window, screen=window.screen):
-        bpy.ops.wm.redraw_timer(type='DRAW_WIN_SWAP', iterations=1)
-
 
 @pytest.fixture
 def preview_on(addon, fog_scene):
@@ -160,12 +97,12 @@ def test02_handler_draws_with_scene_depth(preview_on, depth_mode):
     addon = preview_on
     wm = bpy.context.window_manager
     wm.airlight_preview_depth = depth_mode
-    area = _view3d()
+    area = view3d()
     area.spaces.active.region_3d.view_perspective = 'CAMERA'
     addon._state["capture"] = cap = {}
     before = addon._state["draws"]
     try:
-        _redraw()
+        redraw()
     finally:
         wm.airlight_preview_depth = 'DRAWN'
     assert addon._state["error"] is None, addon._state["error"]
@@ -208,22 +145,22 @@ def test03_no_draw_when_off_rendering_or_without_native(preview_on, monkeypatch)
     wm = bpy.context.window_manager
     n = addon._state["draws"]
     wm.airlight_preview = False
-    _redraw()
+    redraw()
     assert addon._state["draws"] == n
     wm.airlight_preview = True
     monkeypatch.setattr(addon, "_is_rendering", lambda: True)
-    _redraw()
+    redraw()
     assert addon._state["draws"] == n
     monkeypatch.undo()
     monkeypatch.setattr(addon, "_native_for_preview", lambda: None)
-    _redraw()
+    redraw()
     assert addon._state["draws"] == n and addon._state["error"] is None
     monkeypatch.undo()
     bpy.context.scene.airlight.enabled = False
-    _redraw()
+    redraw()
     assert addon._state["draws"] == n
     bpy.context.scene.airlight.enabled = True
-    _redraw()
+    redraw()
     assert addon._state["draws"] > n
 
 
@@ -280,7 +217,7 @@ def test06_file_load_keeps_one_handler_and_redraws(preview_on):
     bpy.context.window_manager.airlight_preview = True  # a session setting
     assert bpy.context.scene.airlight.enabled
     n = addon._state["draws"]
-    _redraw()
+    redraw()
     assert addon._state["error"] is None, addon._state["error"]
     assert addon._state["draws"] > n
 
@@ -297,10 +234,10 @@ def test07_disable_addon_while_drawing(preview_on):
         bpy.types.SpaceView3D.draw_handler_remove(handle[0], 'WINDOW')
         disable()
     handle = [bpy.types.SpaceView3D.draw_handler_add(disable_from_draw, (), 'WINDOW', 'POST_VIEW')]
-    _redraw()
+    redraw()
     assert addon.handler_count() == 0
     assert _update_handlers(addon) == (0, 0)
-    _redraw()  # nothing left to draw, nothing raises
+    redraw()  # nothing left to draw, nothing raises
     if installed:
         addon_utils.enable("airlight")
         from airlight import preview as fresh

@@ -8,7 +8,7 @@ rbf_splat_pixel.glsl with RBF_LIGHT_FIT 1, the preview's default preview.LIGHT_F
   flags: lights within RBF_FIT_NEAR cull radii in the mask, dense Gaussians exact, grey
   fits where the fitted lights are grey. Coloured and grey lights.
 - test02: preview with the fit vs without it vs `_native.bake` at full resolution on
-  faint Gaussians (the fit's domain; most of test_09's Gaussians are too dense for it)
+  faint Gaussians (the fit's domain; most of test_preview_gaussians.py's Gaussians are too dense for it)
   with a light 0.3 m from one Gaussian (Fogshop's "light next to a Gaussian" case), and
   the same with RBF_FIT_NEAR = 0 (every light fitted): the near-light handling must
   matter, so the test can fail. Figures printed, at FULL, HALF, QUARTER and EIGHTH.
@@ -26,7 +26,7 @@ import gpu
 import numpy as np
 import pytest
 
-from test_09_preview_gaussians import W, H, SIGMA_T, build_scene, render_preview
+from preview_scenes import GAUSS_SIGMA_T as SIGMA_T, H, W, build_scene, render_preview
 
 _NODE = math.sqrt(1.5)
 
@@ -237,7 +237,7 @@ def test02_fit_vs_exact_vs_bake(addon, native, gs, fit_scene, monkeypatch):
     all_vs_exact = np.abs(all_fit - exact).mean() / part
     print(f"RBF_FIT_NEAR = 0 (every light fitted): fit vs exact / Gaussian part {all_vs_exact:.3e}")
     # FULL: the fit adds little to the preview's own difference to the bake (its cull
-    # eps), and the whole stays within test_09's bound.
+    # eps), and the whole stays within test_preview_gaussians.py's bound.
     assert res[1, "on"][0] <= 1e-3
     assert fit_vs_exact <= 1e-3  # measured 1.0e-4
     # The exact near lights matter: fitting them too is clearly worse.

@@ -20,8 +20,7 @@ import numpy as np
 import pytest
 
 from conftest import draw_fullscreen
-from test_09_preview_gaussians import (W, H, SIGMA_T, _compare, _gaussians, _save_png,
-                                       build_scene, render_preview)
+from preview_scenes import GAUSS_SIGMA_T as SIGMA_T, build_scene, compare, random_gaussians, redraw, render_preview, save_png
 
 NOISE = (0.6, 1.5, (0.3, -1.2, 2.5))  # amplitude, scale (m), offset (cells)
 
@@ -81,8 +80,8 @@ def _bake(native, desc, centres, scales, amplitudes, noise=None, colors=None):
 
 def _save(artifacts, name, got, ref, got_T, ref_T, native):
     scale = 1.0 / np.percentile(ref, 99)
-    _save_png(os.path.join(artifacts, f"{name}_gpu.png"), np.clip(got * scale, 0, 1))
-    _save_png(os.path.join(artifacts, f"{name}_bake.png"), np.clip(ref * scale, 0, 1))
+    save_png(os.path.join(artifacts, f"{name}_gpu.png"), np.clip(got * scale, 0, 1))
+    save_png(os.path.join(artifacts, f"{name}_bake.png"), np.clip(ref * scale, 0, 1))
     native.write_exr(os.path.join(artifacts, f"{name}_vs_bake.exr"),
                      {"preview": got.astype(np.float32), "bake": ref.astype(np.float32),
                       "preview_T": np.repeat(got_T[..., None], 3, -1).astype(np.float32),
@@ -94,13 +93,13 @@ def test02_noise_preview_matches_bake(addon, native, gs, noise_scene, artifacts,
     from airlight import scene_export
     scene = noise_scene
     desc = scene_export.export_scene(scene, bpy.context.evaluated_depsgraph_get())
-    centres, scales, amplitudes = _gaussians(tuple(scene.camera.matrix_world.translation))
+    centres, scales, amplitudes = random_gaussians(tuple(scene.camera.matrix_world.translation))
     ref, ref_T = _bake(native, desc, centres, scales, amplitudes, noise=NOISE)
     plain, _ = _bake(native, desc, centres, scales, amplitudes)
     gaussians = dict(centres=centres, scales=scales, amplitudes=amplitudes, key="test12")
     got, got_T = render_preview(addon, gs, scene, desc, gaussians, noise=NOISE,
                                 gauss_pass=gauss_pass)
-    rel, dT = _compare(f"noisy Gaussian preview ({gauss_pass}) vs bake", got, got_T, ref, ref_T)
+    rel, dT = compare(f"noisy Gaussian preview ({gauss_pass}) vs bake", got, got_T, ref, ref_T)
     change = np.abs(plain - ref).mean() / ref.mean()
     print(f"noise changes the bake's airlight by {change:.3g} (mean abs / mean)")
     _save(artifacts, f"preview_noise_{gauss_pass.lower()}", got, ref, got_T, ref_T, native)
@@ -111,7 +110,7 @@ def test02_noise_preview_matches_bake(addon, native, gs, noise_scene, artifacts,
     # Off (amplitude 0) is the plain preview.
     off, _ = render_preview(addon, gs, scene, desc, gaussians, noise=(0.0, 1.0, (0, 0, 0)),
                             gauss_pass=gauss_pass)
-    rel_off, _ = _compare("noise amplitude 0 vs the plain bake", off, got_T, plain, ref_T)
+    rel_off, _ = compare("noise amplitude 0 vs the plain bake", off, got_T, plain, ref_T)
     assert rel_off.mean() <= 1e-3
 
 
@@ -120,7 +119,7 @@ def test03_colours_and_noise_match_bake(addon, native, gs, noise_scene, artifact
     from airlight import scene_export
     scene = noise_scene
     desc = scene_export.export_scene(scene, bpy.context.evaluated_depsgraph_get())
-    centres, scales, amplitudes = _gaussians(tuple(scene.camera.matrix_world.translation))
+    centres, scales, amplitudes = random_gaussians(tuple(scene.camera.matrix_world.translation))
     rng = np.random.default_rng(3)
     colors = rng.uniform(0.0, 1.0, (len(scales), 3))
     colors[::3] = (1.0, 0.1, 0.05)
@@ -130,7 +129,7 @@ def test03_colours_and_noise_match_bake(addon, native, gs, noise_scene, artifact
     I0 = addon.scene_lights(scene, bpy.context.view_layer, with_albedo=False)[1]
     got, got_T = render_preview(addon, gs, scene, desc, gaussians, noise=NOISE, light_I0=I0,
                                 gauss_pass=gauss_pass)
-    rel, dT = _compare(f"coloured noisy Gaussians ({gauss_pass}) vs bake", got, got_T, ref, ref_T)
+    rel, dT = compare(f"coloured noisy Gaussians ({gauss_pass}) vs bake", got, got_T, ref, ref_T)
     _save(artifacts, f"preview_noise_colour_{gauss_pass.lower()}", got, ref, got_T, ref_T, native)
     assert rel.mean() <= 0.05
     with pytest.raises(ValueError):
@@ -140,18 +139,12 @@ def test03_colours_and_noise_match_bake(addon, native, gs, noise_scene, artifact
                        noise=(-1.0, 1.0, (0, 0, 0)), gauss_pass=gauss_pass)
 
 
-def _redraw():
-    window = bpy.context.window_manager.windows[0]
-    with bpy.context.temp_override(window=window, screen=window.screen):
-        bpy.ops.wm.redraw_timer(type='DRAW_WIN_SWAP', iterations=1)
-
-
 def test04_keyframed_offset_follows_the_frame(addon, native, gs, noise_scene):
     """Scrubbing: each draw reads the noise at the current frame (keyframes evaluated),
     and the offsets of two frames give different images."""
     from airlight import fog_object, scene_export
     scene = noise_scene
-    centres, scales, amplitudes = _gaussians(tuple(scene.camera.matrix_world.translation))
+    centres, scales, amplitudes = random_gaussians(tuple(scene.camera.matrix_world.translation))
     obj = fog_object.new_fog_object("NoiseFog", scene.collection, centres, scales, amplitudes)
     s = scene.airlight
     s.noise_amplitude = NOISE[0]
@@ -171,7 +164,7 @@ def test04_keyframed_offset_follows_the_frame(addon, native, gs, noise_scene):
         for frame in (1, 6, 11):
             scene.frame_set(frame)
             addon._state["capture"] = cap = {}
-            _redraw()
+            redraw()
             assert addon._state["error"] is None, addon._state["error"]
             expected = tuple(scene.airlight.noise_offset)
             print(f"\nframe {frame}: offset {expected}, drawn with {cap['noise']}")

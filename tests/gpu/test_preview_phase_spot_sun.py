@@ -16,8 +16,7 @@ import numpy as np
 import pytest
 
 from conftest import draw_fullscreen
-from test_09_preview_gaussians import (ALBEDO, H, W, _compare, _save_png, build_scene,
-                                       render_preview)
+from preview_scenes import build_scene, compare, render_preview, save_png
 
 N = 64
 G = 0.6
@@ -83,14 +82,14 @@ def test02_preview_hg_matches_bake(addon, native, gs, artifacts):
         ref = baked["airlight"].astype(np.float64)
         ref_T = baked["transmittance"].astype(np.float64)[..., 0]
         got, got_T = render_preview(addon, gs, scene, desc, None, phase=(desc["phase"], desc["g"]))
-        rel, dT = _compare(f"preview vs bake, HG g = {G} (biri06)", got, got_T, ref, ref_T)
+        rel, dT = compare(f"preview vs bake, HG g = {G} (biri06)", got, got_T, ref, ref_T)
         iso = native.bake(**dict(desc, phase="isotropic", g=0.0), model="sun05", aa_samples=1,
                           threads=0)["airlight"]
         change = np.abs(iso - ref).mean() / ref.mean()
         print(f"g = {G} changes the bake's airlight by {change:.3g} (mean abs / mean)")
         scale = 1.0 / np.percentile(ref, 99)
-        _save_png(os.path.join(artifacts, "preview_hg_gpu.png"), np.clip(got * scale, 0, 1))
-        _save_png(os.path.join(artifacts, "preview_hg_bake.png"), np.clip(ref * scale, 0, 1))
+        save_png(os.path.join(artifacts, "preview_hg_gpu.png"), np.clip(got * scale, 0, 1))
+        save_png(os.path.join(artifacts, "preview_hg_bake.png"), np.clip(ref * scale, 0, 1))
         assert change > 0.1
         assert rel.mean() <= 2e-3
         assert np.percentile(rel, 99) <= 2e-2
@@ -142,12 +141,12 @@ def test03_preview_spots_match_bake(addon, native, gs, artifacts, g):
         spot_dict = addon.scene_spots(scene, bpy.context.view_layer)
         got, got_T = render_preview(addon, gs, scene, desc, None, phase=(desc["phase"], desc["g"]),
                                     spots=spot_dict)
-        rel, dT = _compare(f"preview vs bake, 2 spots only (g = {g})", got, got_T, ref, ref_T)
+        rel, dT = compare(f"preview vs bake, 2 spots only (g = {g})", got, got_T, ref, ref_T)
         lit = (ref > 1e-3 * ref.max()).mean()
         print(f"pixels with spot fog above 1e-3 of the max: {lit:.3g}")
         scale = 1.0 / np.percentile(ref, 99)
-        _save_png(os.path.join(artifacts, f"preview_spots_g{g}_gpu.png"), np.clip(got * scale, 0, 1))
-        _save_png(os.path.join(artifacts, f"preview_spots_g{g}_bake.png"), np.clip(ref * scale, 0, 1))
+        save_png(os.path.join(artifacts, f"preview_spots_g{g}_gpu.png"), np.clip(got * scale, 0, 1))
+        save_png(os.path.join(artifacts, f"preview_spots_g{g}_bake.png"), np.clip(ref * scale, 0, 1))
         assert len(desc["light_positions"]) == 0
         assert lit > 0.2
         # Asked: <= 2 %; measured 1e-4 mean, 4e-4 p99 (max: hit/miss pixels on a cone edge).
@@ -242,9 +241,8 @@ def test04_sun_glsl_matches_references(gs, native):
 
 @pytest.mark.parametrize("fog_top", [np.inf, 3.0])
 def test05_preview_sun_matches_bake(addon, native, gs, artifacts, fog_top):
-    """A sun lamp (point lights removed) vs `_native.bake(sun_directions=...)` once the
-    bake has sun lamps (branch wt-sun); skipped with a message before that merge."""
-    import math
+    """A sun lamp (point lights removed) vs `_native.bake(sun_directions=...)`; a bake
+    without sun lamps (a TypeError on the keyword) fails the test."""
     from mathutils import Vector
     scene = build_scene(0.05)
     for obj in [o for o in scene.objects if o.type == 'LIGHT']:
@@ -265,15 +263,12 @@ def test05_preview_sun_matches_bake(addon, native, gs, artifacts, fog_top):
         w = np.array(suns["directions"])
         E = np.array([[c * data.energy for c in data.color]])
         kwargs = {k: v for k, v in desc.items() if not k.startswith("sun_") and k != "fog_top"}
-        try:
-            baked = native.bake(**kwargs, sun_directions=w, sun_irradiances=E, fog_top=float(fog_top),
-                                model="sun05", aa_samples=1, threads=0)
-        except TypeError as ex:
-            pytest.skip(f"_native.bake has no sun lamps in this build ({ex}); branch wt-sun adds them")
+        baked = native.bake(**kwargs, sun_directions=w, sun_irradiances=E, fog_top=float(fog_top),
+                            model="sun05", aa_samples=1, threads=0)
         ref = baked["airlight"].astype(np.float64)
         ref_T = baked["transmittance"].astype(np.float64)[..., 0]
         got, got_T = render_preview(addon, gs, scene, desc, None, suns=suns)
-        rel, dT = _compare(f"preview vs bake, sun lamp (fog top {fog_top})", got, got_T, ref, ref_T)
+        rel, dT = compare(f"preview vs bake, sun lamp (fog top {fog_top})", got, got_T, ref, ref_T)
         assert rel.mean() <= 1e-3
         assert dT.mean() <= 1e-4
     finally:

@@ -20,7 +20,7 @@ import numpy as np
 import pytest
 from mathutils import Matrix
 
-from test_03_preview import _redraw, _view3d, fog_scene  # noqa: F401 (fixture)
+from preview_scenes import redraw, save_png, view3d
 
 W, H = 320, 240
 MODES = {"bilinear": 0, "bilateral": 1, "bilateral+exact": 2}
@@ -39,7 +39,7 @@ def _camera_view(scene, native):
 
 
 @pytest.fixture(scope="module")
-def view(addon, native, fog_scene):  # noqa: F811
+def view(addon, native, fog_scene):
     baked, persp, eye, clip_start = _camera_view(fog_scene, native)
     addon.free_gpu_resources()
     # Distance pass through the camera (the handler's code, with the camera's matrices).
@@ -110,7 +110,7 @@ def _rel(got, ref, mask):
     return np.abs(got - ref)[use] / ref[use]
 
 
-def test02_reduced_scale_accuracy(addon, view, fog_scene, artifacts):  # noqa: F811
+def test02_reduced_scale_accuracy(addon, view, fog_scene, artifacts):
     ref = view["baked"]["airlight"].astype(np.float64)
     full = _fog(addon, view, fog_scene, 1, 2)[..., :3]
     sil = _silhouettes(view["baked"]["depth"].astype(np.float64))
@@ -132,10 +132,9 @@ def test02_reduced_scale_accuracy(addon, view, fog_scene, artifacts):  # noqa: F
                   f"{np.percentile(rel, 99):>8.2e} {rel_sil.mean():>10.2e} "
                   f"{_rel(got, full, every).mean():>9.2e} {_rel(got, full, sil).mean():>12.2e}")
             if mode == 2:
-                from test_03_preview import _save_png
                 scale_png = 1.0 / np.percentile(ref, 99)
-                _save_png(f"{artifacts}/preview_{scale_name.lower()}.png",
-                          np.clip(got * scale_png, 0, 1))
+                save_png(f"{artifacts}/preview_{scale_name.lower()}.png",
+                         np.clip(got * scale_png, 0, 1))
     # FULL: the bake's clip range, float32 (measured 1.5e-5).
     assert full_rel.mean() <= 1e-4
     for scale_name in ("HALF", "QUARTER", "EIGHTH"):
@@ -156,13 +155,13 @@ def test02_reduced_scale_accuracy(addon, view, fog_scene, artifacts):  # noqa: F
 # ---- the draw handler follows edits -----------------------------------------------------
 
 @pytest.fixture
-def handler_view(addon, fog_scene):  # noqa: F811
+def handler_view(addon, fog_scene):
     wm = bpy.context.window_manager
     addon._state["error"] = None
     wm.airlight_preview = True
     wm.airlight_preview_scale = 'HALF'
     wm.airlight_preview_depth = 'DRAWN'
-    _view3d().spaces.active.region_3d.view_perspective = 'CAMERA'
+    view3d().spaces.active.region_3d.view_perspective = 'CAMERA'
     yield addon
     wm.airlight_preview = False
     addon._state["capture"] = None
@@ -171,7 +170,7 @@ def handler_view(addon, fog_scene):  # noqa: F811
 def _draw(addon):
     addon._state["capture"] = cap = {}
     n = addon._state["draws"]
-    _redraw()
+    redraw()
     assert addon._state["error"] is None, addon._state["error"]
     assert addon._state["draws"] > n
     return cap
