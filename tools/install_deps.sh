@@ -7,7 +7,7 @@ PKGS=(
   build-essential cmake pkg-config
   pybind11-dev python3-dev libglm-dev
   libopenimageio-dev openimageio-tools python3-openimageio
-  libembree-dev libtbb-dev
+  libembree-dev libtbb-dev libsleef-dev libboost-math-dev
   libgtest-dev googletest
   python3-numpy python3-scipy python3-mpmath python3-pytest python3-matplotlib
   blender xvfb xauth

@@ -1,5 +1,6 @@
 // bake_surface.cpp: per-pixel surface attenuation and Lambert glow (see bake_surface.h).
 #include "bake/surface_pass.h"
+#include "core/parallel.h"
 #include "core/constants.h"
 
 #include <algorithm>
@@ -225,10 +226,7 @@ void bake_surface_pass(const SceneDescription& scene, const BakeSettings& settin
             }
         }
     };
-    std::vector<std::thread> pool;
-    for (int k = 1; k < n_threads; ++k) pool.emplace_back(work, k);
-    work(0);
-    for (auto& th : pool) th.join();
+    parallel_for(n_threads, n_threads, work);  // one stripe of rows per item
 }
 
 }  // namespace airlight

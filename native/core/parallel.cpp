@@ -6,7 +6,9 @@
 #include <exception>
 #include <mutex>
 #include <thread>
-#include <vector>
+
+#include <oneapi/tbb/task_arena.h>
+#include <oneapi/tbb/task_group.h>
 
 namespace airlight {
 
@@ -40,17 +42,15 @@ void run_parallel(int n, int n_threads, const std::function<void(int)>& work,
             fail(std::current_exception());
         }
     };
-    std::vector<std::thread> threads;
+    // oneTBB's thread pool (kept between calls) in an arena of n_threads: n_threads - 1
+    // tasks take items, the calling thread takes items too and reports progress.
     n_threads = std::max(1, std::min(n_threads, n));
-    threads.reserve(size_t(n_threads - 1));
-    auto join_all = [&]() {
-        for (std::thread& t : threads)
-            if (t.joinable()) t.join();
-    };
     const int report_every = std::max(1, n / 128);
     int reported = 0;
-    try {
-        for (int t = 1; t < n_threads; ++t) threads.emplace_back(worker);
+    oneapi::tbb::task_arena arena(n_threads);
+    arena.execute([&] {
+        oneapi::tbb::task_group group;
+        for (int t = 1; t < n_threads; ++t) group.run(worker);
         try {
             take([&] {
                 const int d = done.load(std::memory_order_relaxed);
@@ -59,14 +59,14 @@ void run_parallel(int n, int n_threads, const std::function<void(int)>& work,
         } catch (...) {
             fail(std::current_exception());
         }
-    } catch (...) {  // a thread could not be started
-        stop = true;
-        join_all();
-        throw;
-    }
-    join_all();
+        group.wait();
+    });
     if (error) std::rethrow_exception(error);
     on_progress(n);
+}
+
+void parallel_for(int n, int n_threads, const std::function<void(int)>& work) {
+    run_parallel(n, n_threads, work, [](int) {});
 }
 
 int resolve_threads(int threads) {

@@ -7,7 +7,9 @@
 namespace airlight {
 
 // Gauss-Legendre nodes _x_ and weights _w_ of order _n_ on [-1, 1] (Newton on the Legendre
-// recurrence; exact for polynomials of degree 2n - 1).
+// recurrence; exact for polynomials of degree 2n - 1). Boost.Math's gauss<N> fixes N at
+// compile time; the callers choose n at run time. Against Boost's correctly rounded tables
+// (benchmarks/libraries/library_bench): abscissae within 1 ulp, weights within 124 ulp (3e-14).
 void gauss_legendre(int n, std::vector<double>& x, std::vector<double>& w);
 
 // Gauss-Laguerre nodes _x_ and weights _w_ of order _n_: int_0^inf e^{-x} f(x) dx ~
@@ -15,7 +17,11 @@ void gauss_legendre(int n, std::vector<double>& x, std::vector<double>& w);
 void gauss_laguerre(int n, std::vector<double>& x, std::vector<double>& w);
 
 // Adaptive Gauss-Kronrod (7-15) integration of f over [a, b] (b may be +inf, handled
-// by a change of variables) to relative tolerance _rel_tol_.
+// by a change of variables) to relative tolerance _rel_tol_: globally adaptive (QUADPACK's
+// QAG, the worst panel split first, at most 20000 panels), which the references need.
+// Boost.Math's gauss_kronrod<15> is locally recursive: 1.3-1.6x faster on smooth or peaked
+// integrands, but on 1/sqrt(x) over [0, 1] it took 1.5e6 evaluations and 4.6 ms for 7e-7
+// where this takes 1815 and 14 us for 2e-11 (benchmarks/libraries/library_bench).
 double integrate_adaptive(const std::function<double(double)>& f, double a, double b,
                           double rel_tol = 1e-10, double abs_tol = 0.0, int max_depth = 60);
 

@@ -37,6 +37,7 @@
 //   the last column for u < 1/nT) and is first order there, elsewhere second order.
 //   (The uniform 64 x 64 layout over u in [0, 10], v in [0, pi/2] had 9 %.)
 #include "core/special_f.h"
+#include "core/parallel.h"
 #include "core/constants.h"
 
 #include <algorithm>
@@ -117,10 +118,7 @@ SpecialFTable::SpecialFTable(int nu, int nT, Interp interp) : nu_(nu), nT_(nT), 
     };
     const long long work = static_cast<long long>(nu) * nT;
     const int n_threads = work < 4096 ? 1 : std::clamp(int(std::thread::hardware_concurrency()), 1, std::min(8, nu));
-    std::vector<std::thread> threads;
-    for (int t = 1; t < n_threads; ++t) threads.emplace_back(build_rows, t, n_threads);
-    build_rows(0, n_threads);
-    for (std::thread& t : threads) t.join();
+    parallel_for(n_threads, n_threads, [&](int t) { build_rows(t, n_threads); });  // one stripe per item
 }
 
 double SpecialFTable::eval_tan(double u, double T) const {

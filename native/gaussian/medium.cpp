@@ -11,6 +11,7 @@
 // - h^2 comes from the cross product, not |b - o|^2 - t*^2, so Gaussians far along the
 //   line keep their distance digits.
 #include "gaussian/medium.h"
+#include "core/parallel.h"
 
 #include <algorithm>
 #include <limits>
@@ -164,32 +165,12 @@ void parallel_chunks(std::size_t n, int threads, std::size_t chunk,
                      const std::function<void(std::size_t, std::size_t)>& fn) {
     if (n == 0) return;
     chunk = std::max<std::size_t>(chunk, 1);
-    std::size_t nthreads = threads > 0 ? threads : std::max(1u, std::thread::hardware_concurrency());
-    nthreads = std::min(nthreads, (n + chunk - 1) / chunk);
-    std::atomic<std::size_t> next{0};
-    std::exception_ptr error;
-    std::atomic<bool> failed{false};
-    std::mutex error_mutex;
-    auto work = [&]() {
-        for (;;) {
-            if (failed.load(std::memory_order_relaxed)) return;
-            const std::size_t b = next.fetch_add(chunk);
-            if (b >= n) return;
-            try {
-                fn(b, std::min(n, b + chunk));
-            } catch (...) {
-                std::lock_guard<std::mutex> lock(error_mutex);
-                if (!error) error = std::current_exception();
-                failed = true;
-                return;
-            }
-        }
-    };
-    std::vector<std::thread> pool;
-    for (std::size_t t = 1; t < nthreads; ++t) pool.emplace_back(work);
-    work();
-    for (std::thread& t : pool) t.join();
-    if (error) std::rethrow_exception(error);
+    const std::size_t n_chunks = (n + chunk - 1) / chunk;
+    const int n_threads = int(std::min<std::size_t>(std::size_t(resolve_threads(threads)), n_chunks));
+    parallel_for(int(n_chunks), n_threads, [&](int c) {
+        const std::size_t b = std::size_t(c) * chunk;
+        fn(b, std::min(n, b + chunk));
+    });
 }
 
 void GaussianMedium::optical_depth_batch(const Vec3* p, const Vec3* q, std::size_t n, double* out, bool culled,

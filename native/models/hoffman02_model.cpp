@@ -19,6 +19,7 @@
 #pragma once
 
 #include "bake/bake.h"
+#include "core/parallel.h"
 
 #include <algorithm>
 #include <cmath>
@@ -71,8 +72,7 @@ BakeResult bake_hoffman02(const SceneDescription& scene, const BakeSettings& set
     const RGB albedo = scene.medium.albedo;
     const CameraRays rays(scene.camera);
     const int W = scene.camera.width, H = scene.camera.height;
-    int n_threads = settings.threads > 0 ? settings.threads : int(std::thread::hardware_concurrency());
-    n_threads = std::max(1, std::min(n_threads, H));
+    const int n_threads = std::min(resolve_threads(settings.threads), H);
     auto work = [&](int first) {
         for (int j = first; j < H; j += n_threads) {
             for (int i = 0; i < W; ++i) {
@@ -103,10 +103,7 @@ BakeResult bake_hoffman02(const SceneDescription& scene, const BakeSettings& set
             }
         }
     };
-    std::vector<std::thread> pool;
-    for (int k = 1; k < n_threads; ++k) pool.emplace_back(work, k);
-    work(0);
-    for (std::thread& t : pool) t.join();
+    parallel_for(n_threads, n_threads, work);  // one stripe of rows per item
     if (progress && !progress(1.0)) throw Cancelled();
     return result;
 }

@@ -32,6 +32,7 @@
 //   wide forward lobe crosses the horizon (theta_s ~ pi/2), as Sun's table does at T ~ 16.
 //   Gamma_L table (256 rows, linear): max 2.3e-4 relative (HG g = -0.9), <= 3e-5 otherwise.
 #include "surface/biri06_surface.h"
+#include "core/parallel.h"
 #include "core/constants.h"
 
 #include <algorithm>
@@ -225,7 +226,7 @@ Biri06LambertTable::Biri06LambertTable(const PhaseFunction& phase, int n) : phas
     // 1/T and phase-lobe cuts of the G tables (the exact evaluator costs ~15-40 ms a row).
     std::vector<double> glx, glw;
     gauss_legendre(8, glx, glw);
-    const int n_threads = std::max(1, std::min(int(std::thread::hardware_concurrency()), n));
+    const int n_threads = std::min(resolve_threads(0), n);
     auto work = [&](int first) {
         for (int i = first; i < n; i += n_threads) {
             const double T = SurfaceGGrid::row_T(i, n);
@@ -245,10 +246,7 @@ Biri06LambertTable::Biri06LambertTable(const PhaseFunction& phase, int n) : phas
             data_[size_t(i)] = sum / (2.0 * kPi);
         }
     };
-    std::vector<std::thread> pool;
-    for (int t = 1; t < n_threads; ++t) pool.emplace_back(work, t);
-    work(0);
-    for (auto& th : pool) th.join();
+    parallel_for(n_threads, n_threads, work);  // one stripe of rows per item
 }
 
 double Biri06LambertTable::eval_scaled(double lambda) const {

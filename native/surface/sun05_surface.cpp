@@ -32,6 +32,7 @@
 // The exact evaluator agrees with the brute-force single-scattering integral
 // (sun05_surface_glow_reference) to ~1e-11.
 #include "surface/sun05_surface.h"
+#include "core/parallel.h"
 #include "core/constants.h"
 
 #include <algorithm>
@@ -138,15 +139,8 @@ SurfaceGGrid::SurfaceGGrid(int nT, int ntheta, double m, int threads,
       H_scaled_(H_scaled) {
     if (nT < 2 || ntheta < 2) throw std::invalid_argument("surface G table: need at least 2 x 2 samples");
     data_.assign(size_t(nT) * size_t(ntheta), 0.0);
-    int n_threads = threads > 0 ? threads : int(std::thread::hardware_concurrency());
-    n_threads = std::max(1, std::min(n_threads, nT));
-    auto work = [&](int first) {
-        for (int i = first; i < nT; i += n_threads) integrate_row(row_T(i, nT), &data_[size_t(i) * ntheta]);
-    };
-    std::vector<std::thread> pool;
-    for (int t = 1; t < n_threads; ++t) pool.emplace_back(work, t);
-    work(0);
-    for (auto& th : pool) th.join();
+    parallel_for(nT, resolve_threads(threads),
+                 [&](int i) { integrate_row(row_T(i, nT), &data_[size_t(i) * ntheta]); });
 }
 
 void SurfaceGGrid::integrate_row(double T, double* out) const {
@@ -211,21 +205,13 @@ double tail_log_coefficient(double forward_weight, double theta, double m) {
 void SurfaceGGrid::build_tail() const {
     const int rows = kTailRows, ntheta = ntheta_;
     tail_.assign(size_t(rows) * size_t(ntheta), 0.0);
-    int n_threads = threads_ > 0 ? threads_ : int(std::thread::hardware_concurrency());
-    n_threads = std::max(1, std::min(n_threads, rows));
-    auto work = [&](int first) {
-        for (int i = first; i < rows; i += n_threads) {
-            const double T = tail_row_T(i);
-            double* q = &tail_[size_t(i) * ntheta];
-            integrate_row(T, q);
-            for (int j = 0; j < ntheta; ++j)
-                q[j] = T * q[j] - tail_log_coefficient(forward_weight_, kPi * j / (ntheta - 1), m_) * std::log(T);
-        }
-    };
-    std::vector<std::thread> pool;
-    for (int t = 1; t < n_threads; ++t) pool.emplace_back(work, t);
-    work(0);
-    for (auto& th : pool) th.join();
+    parallel_for(rows, resolve_threads(threads_), [&](int i) {
+        const double T = tail_row_T(i);
+        double* q = &tail_[size_t(i) * ntheta];
+        integrate_row(T, q);
+        for (int j = 0; j < ntheta; ++j)
+            q[j] = T * q[j] - tail_log_coefficient(forward_weight_, kPi * j / (ntheta - 1), m_) * std::log(T);
+    });
 }
 
 double SurfaceGGrid::lookup(double T, double theta_s) const {

@@ -21,6 +21,7 @@
 // to 2.8e-3 for Henyey-Greenstein g = -0.3 ... 0.9), mean <= 5.4e-4; a table builds in
 // 0.2-0.6 s on one thread (no top: one tau plane, 0.14-0.25 s).
 #include "surface/sunlight_glow.h"
+#include "core/parallel.h"
 #include "core/constants.h"
 
 #include <algorithm>
@@ -342,11 +343,8 @@ SunlightGlowTable::SunlightGlowTable(const PhaseFunction& phase, const glm::dvec
             }
         }
     };
-    int t = threads > 0 ? threads : int(std::max(1u, std::thread::hardware_concurrency()));
-    std::vector<std::thread> pool;
-    for (int i = 1; i < t; ++i) pool.emplace_back(work, size_t(i), size_t(t));
-    work(0, size_t(t));
-    for (auto& th : pool) th.join();
+    const int t = resolve_threads(threads);
+    parallel_for(t, t, [&](int i) { work(size_t(i), size_t(t)); });  // one stripe per item
 }
 
 void SunlightGlowTable::frame(const glm::dvec3& n, double& theta, double& phi) const {
