@@ -450,8 +450,8 @@ def fog_gaussians(depsgraph, mesh_overrides=None):
 
 class SceneDescription(NamedTuple):
     """What the fog knows of a scene at one frame (see the module docstring); camera, clip,
-    vertices and triangles are None unless described for the bake, noise unless fog
-    objects hold Gaussians."""
+    vertices, triangles and gaussians are None unless described for the bake, noise unless
+    fog objects hold Gaussians."""
     sigma_t: float
     albedo: tuple
     phase: str
@@ -459,7 +459,7 @@ class SceneDescription(NamedTuple):
     fog_top: float          # world Z of the fog layer's top for sun lamps (inf: Fog Top off)
     lights: tuple           # LightInstance, the depsgraph's order
     survey: Survey
-    gaussians: dict         # export_fog_objects: rbf_* arrays, {} without fog objects
+    gaussians: dict         # export_fog_objects: rbf_* arrays, {} without fog objects; None
     noise: dict             # export_noise, or None
     camera: tuple           # export_camera: (width, height, cam_to_world, projection), or None
     clip: tuple             # export_clip_range: (clip_start, clip_end), or None
@@ -469,9 +469,11 @@ class SceneDescription(NamedTuple):
 
 def describe(scene, depsgraph, mesh_overrides=None, view=None, bake=True):
     """The SceneDescription of _scene_ at _depsgraph_'s frame. With _bake_, also what only
-    the bake reads: _view_'s camera (views.render_views; None: the scene camera), its clip
-    range and the geometry (_mesh_overrides_: see fog_object.gather); without, what the
-    viewport preview reads (it has its own view and depth). Invalid data raises ExportError."""
+    the bake reads at once: _view_'s camera (views.render_views; None: the scene camera),
+    its clip range, the geometry and the fog objects (_mesh_overrides_: see
+    fog_object.gather); without, what the viewport preview reads per draw, the fog and its
+    lights (it has its own view and depth, and gathers the fog objects once per depsgraph
+    update with fog_gaussians). Invalid data raises ExportError."""
     sigma_t, albedo = export_medium(scene)
     phase, g = export_phase(scene)
     camera = clip = None
@@ -480,7 +482,7 @@ def describe(scene, depsgraph, mesh_overrides=None, view=None, bake=True):
         clip = export_clip_range(scene, depsgraph, view)
     surveyed = survey(scene, depsgraph)
     lights, vertices, triangles = export_instances(depsgraph, geometry=bake)
-    gaussians = export_fog_objects(depsgraph, mesh_overrides)
+    gaussians = export_fog_objects(depsgraph, mesh_overrides) if bake else None
     settings = scene.airlight
     fog_top = float(settings.fog_top) if settings.use_fog_top else math.inf
     return SceneDescription(sigma_t=sigma_t, albedo=albedo, phase=phase, g=g, fog_top=fog_top,
