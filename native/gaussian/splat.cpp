@@ -27,14 +27,9 @@
 #include "core/fast_erf.h"
 #include "core/noise.h"
 #include "core/phase.h"
+#include "gaussian/simd_clones.h"
 #include "homogeneous/sun05.h"
 #include "homogeneous/sun05_batch.h"
-
-#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__)
-#define AIRLIGHT_SPLAT_CLONES __attribute__((target_clones("arch=x86-64-v4", "arch=x86-64-v3", "default")))
-#else
-#define AIRLIGHT_SPLAT_CLONES
-#endif
 
 namespace airlight {
 
@@ -51,10 +46,10 @@ constexpr int kTilePixels = GaussianSplat::kTile * GaussianSplat::kTile;
 // kFar (GaussianSplat::GaussF::far_eye): the ray's start lies >= kFarStart / a before the
 // Gaussian, so its erfc E1 = erfc(a ts) < 2e-10 is left out (one erfc fewer per lane).
 template <bool kInf = false, bool kFar = false>
-AIRLIGHT_SPLAT_CLONES void view_terms(const GaussianSplat::GaussF g, int n, const float* __restrict dx,
-                                      const float* __restrict dy, const float* __restrict dz,
-                                      const float* __restrict tend, float* __restrict Tvp_out,
-                                      float* __restrict Tvr_out, float* __restrict tr_out) {
+AIRLIGHT_SIMD_CLONES void view_terms(const GaussianSplat::GaussF g, int n, const float* __restrict dx,
+                                     const float* __restrict dy, const float* __restrict dz,
+                                     const float* __restrict tend, float* __restrict Tvp_out,
+                                     float* __restrict Tvr_out, float* __restrict tr_out) {
     for (int k = 0; k < n; ++k) {
         const float x = dx[k], y = dy[k], z = dz[k];
         const float ts = g.rx * x + g.ry * y + g.rz * z;
@@ -76,10 +71,10 @@ AIRLIGHT_SPLAT_CLONES void view_terms(const GaussianSplat::GaussF g, int n, cons
 // The noise-perturbed view directions for n rays (Fogshop 5.5: lookup at b^r = eye + tr d
 // in world space, the unperturbed ray's), in a loop of its own so that it vectorises;
 // view_terms on these directions then gives the perturbed Tvp.
-AIRLIGHT_SPLAT_CLONES void noise_dirs(float nscale, const float* eye, float ninv_scale, float nox, float noy,
-                                      float noz, int n, const float* __restrict dx, const float* __restrict dy,
-                                      const float* __restrict dz, const float* __restrict tr, float* __restrict qx_out,
-                                      float* __restrict qy_out, float* __restrict qz_out) {
+AIRLIGHT_SIMD_CLONES void noise_dirs(float nscale, const float* eye, float ninv_scale, float nox, float noy,
+                                     float noz, int n, const float* __restrict dx, const float* __restrict dy,
+                                     const float* __restrict dz, const float* __restrict tr, float* __restrict qx_out,
+                                     float* __restrict qy_out, float* __restrict qz_out) {
     for (int k = 0; k < n; ++k) {
         const float x = dx[k], y = dy[k], z = dz[k], t = tr[k];
         const float px = (eye[0] + t * x) * ninv_scale + nox;
@@ -99,12 +94,12 @@ AIRLIGHT_SPLAT_CLONES void noise_dirs(float nscale, const float* eye, float ninv
 // kFar (GaussianSplat::GaussF::far_lights): the light lies >= kFarStart / a before the Gaussian
 // along every path s -> b^r with b^r in the cull sphere, so the erfc at s is left out.
 template <bool kFar = false>
-AIRLIGHT_SPLAT_CLONES void light_terms(const GaussianSplat::GaussF g, const GaussianSplat::GaussLightF gl,
-                                       const GaussianSplat::LightF lf, int n, const float* __restrict dx,
-                                       const float* __restrict dy, const float* __restrict dz,
-                                       const float* __restrict Tvp, const float* __restrict Tvr,
-                                       const float* __restrict tr, float* __restrict R, float* __restrict G,
-                                       float* __restrict B) {
+AIRLIGHT_SIMD_CLONES void light_terms(const GaussianSplat::GaussF g, const GaussianSplat::GaussLightF gl,
+                                      const GaussianSplat::LightF lf, int n, const float* __restrict dx,
+                                      const float* __restrict dy, const float* __restrict dz,
+                                      const float* __restrict Tvp, const float* __restrict Tvr,
+                                      const float* __restrict tr, float* __restrict R, float* __restrict G,
+                                      float* __restrict B) {
     for (int k = 0; k < n; ++k) {
         const float t = tr[k];
         const float sx = lf.vx + t * dx[k], sy = lf.vy + t * dy[k], sz = lf.vz + t * dz[k];
@@ -154,12 +149,12 @@ inline float phase4pi_f(float mu, float g1, float g2, float g3) {
 // returning a struct (or calling fast_erf_diff) stopped GCC vectorising both loops - measured
 // 9x the CPU time of the whole bake on tests/native/test16_rbf_resolution.py's scene.
 template <int K, bool kSpot>
-AIRLIGHT_SPLAT_CLONES void light_terms_ext(const GaussianSplat::GaussF g, const GaussianSplat::GaussLightF gl,
-                                           const GaussianSplat::LightF lf, float g1, float g2, float g3, int n,
-                                           const float* __restrict dx, const float* __restrict dy,
-                                           const float* __restrict dz, const float* __restrict Tvp,
-                                           const float* __restrict Tvr, const float* __restrict tr,
-                                           float* __restrict R, float* __restrict G, float* __restrict B) {
+AIRLIGHT_SIMD_CLONES void light_terms_ext(const GaussianSplat::GaussF g, const GaussianSplat::GaussLightF gl,
+                                          const GaussianSplat::LightF lf, float g1, float g2, float g3, int n,
+                                          const float* __restrict dx, const float* __restrict dy,
+                                          const float* __restrict dz, const float* __restrict Tvp,
+                                          const float* __restrict Tvr, const float* __restrict tr,
+                                          float* __restrict R, float* __restrict G, float* __restrict B) {
     for (int k = 0; k < n; ++k) {
         const float t = tr[k];
         const float sx = lf.vx + t * dx[k], sy = lf.vy + t * dy[k], sz = lf.vz + t * dz[k];
@@ -195,12 +190,12 @@ AIRLIGHT_SPLAT_CLONES void light_terms_ext(const GaussianSplat::GaussF g, const 
 // half-line depth from b^r = eye + tr d towards the sun (unit (ux, uy, uz) = -w):
 // k0 e^{-a^2 |(b - b^r) x u|^2} erfc(-a (b - b^r).u).
 template <int K>
-AIRLIGHT_SPLAT_CLONES void sun_terms(const GaussianSplat::GaussF g, const GaussianSplat::GaussLightF gl, float ux, float uy,
-                                     float uz, float g1, float g2, float g3, int n, const float* __restrict dx,
-                                     const float* __restrict dy, const float* __restrict dz,
-                                     const float* __restrict Tvp, const float* __restrict Tvr,
-                                     const float* __restrict tr, float* __restrict R, float* __restrict G,
-                                     float* __restrict B) {
+AIRLIGHT_SIMD_CLONES void sun_terms(const GaussianSplat::GaussF g, const GaussianSplat::GaussLightF gl, float ux, float uy,
+                                    float uz, float g1, float g2, float g3, int n, const float* __restrict dx,
+                                    const float* __restrict dy, const float* __restrict dz,
+                                    const float* __restrict Tvp, const float* __restrict Tvr,
+                                    const float* __restrict tr, float* __restrict R, float* __restrict G,
+                                    float* __restrict B) {
     for (int k = 0; k < n; ++k) {
         const float t = tr[k];
         const float bx = g.rx - t * dx[k], by = g.ry - t * dy[k], bz = g.rz - t * dz[k];
@@ -226,10 +221,10 @@ AIRLIGHT_SPLAT_CLONES void sun_terms(const GaussianSplat::GaussF g, const Gaussi
 // its entry lies beyond far[k]. Per pixel into nf, nb (1: not in front, not behind); one
 // loop over the tile (a call per 4x4 block spent ~40 % in its set-up), and without the
 // square root: te >= ts + half as te - ts >= 0 and (te - ts)^2 >= R2 - h2.
-AIRLIGHT_SPLAT_CLONES void depth_classes(const GaussianSplat::GaussF g, float R2, int n, const float* __restrict dx,
-                                         const float* __restrict dy, const float* __restrict dz,
-                                         const float* __restrict far, unsigned char* __restrict nf,
-                                         unsigned char* __restrict nb) {
+AIRLIGHT_SIMD_CLONES void depth_classes(const GaussianSplat::GaussF g, float R2, int n, const float* __restrict dx,
+                                        const float* __restrict dy, const float* __restrict dz,
+                                        const float* __restrict far, unsigned char* __restrict nf,
+                                        unsigned char* __restrict nb) {
     for (int k = 0; k < n; ++k) {
         const float x = dx[k], y = dy[k], z = dz[k];
         const float ts = g.rx * x + g.ry * y + g.rz * z;
@@ -259,11 +254,11 @@ struct LatticeSoA {
 
 // View side of lattice_gaussian_major for one ray (x, y, z): Tvp, Tvr, tr per Gaussian.
 template <bool kFar>
-AIRLIGHT_SPLAT_CLONES void lattice_view_gm(int n, const float* __restrict rx, const float* __restrict ry,
-                                           const float* __restrict rz, const float* __restrict ga,
-                                           const float* __restrict ga2, const float* __restrict gk0,
-                                           const float* __restrict gke, float x, float y, float z,
-                                           float* __restrict Tvp, float* __restrict Tvr, float* __restrict tr) {
+AIRLIGHT_SIMD_CLONES void lattice_view_gm(int n, const float* __restrict rx, const float* __restrict ry,
+                                          const float* __restrict rz, const float* __restrict ga,
+                                          const float* __restrict ga2, const float* __restrict gk0,
+                                          const float* __restrict gke, float x, float y, float z,
+                                          float* __restrict Tvp, float* __restrict Tvr, float* __restrict tr) {
     for (int k = 0; k < n; ++k) {
         const float ts = rx[k] * x + ry[k] * y + rz[k] * z;
         const float cx = ry[k] * z - rz[k] * y, cy = rz[k] * x - rx[k] * z, cz = rx[k] * y - ry[k] * x;
@@ -279,14 +274,14 @@ AIRLIGHT_SPLAT_CLONES void lattice_view_gm(int n, const float* __restrict rx, co
 // Light side of lattice_gaussian_major for one ray and light (v = eye - s): sets (first)
 // or adds the RGB terms per Gaussian.
 template <bool kFirst, bool kFar>
-AIRLIGHT_SPLAT_CLONES void lattice_light_gm(int n, const float* __restrict ga, const float* __restrict ga2,
-                                            const float* __restrict gk0, const float* __restrict gsx,
-                                            const float* __restrict gsy, const float* __restrict gsz,
-                                            const float* __restrict gwr, const float* __restrict gwg,
-                                            const float* __restrict gwb, const float* __restrict gke, float vx,
-                                            float vy, float vz, float x, float y, float z, const float* __restrict Tvp,
-                                            const float* __restrict Tvr, const float* __restrict tr,
-                                            float* __restrict aR, float* __restrict aG, float* __restrict aB) {
+AIRLIGHT_SIMD_CLONES void lattice_light_gm(int n, const float* __restrict ga, const float* __restrict ga2,
+                                           const float* __restrict gk0, const float* __restrict gsx,
+                                           const float* __restrict gsy, const float* __restrict gsz,
+                                           const float* __restrict gwr, const float* __restrict gwg,
+                                           const float* __restrict gwb, const float* __restrict gke, float vx,
+                                           float vy, float vz, float x, float y, float z, const float* __restrict Tvp,
+                                           const float* __restrict Tvr, const float* __restrict tr,
+                                           float* __restrict aR, float* __restrict aG, float* __restrict aB) {
     for (int k = 0; k < n; ++k) {
         const float t = tr[k];
         const float sx = vx + t * x, sy = vy + t * y, sz = vz + t * z;
@@ -317,9 +312,9 @@ AIRLIGHT_SPLAT_CLONES void lattice_light_gm(int n, const float* __restrict ga, c
 
 // Sums of four arrays of n values (n a multiple of 16) in 16 lanes (vectorised without
 // reassociation flags), added to *T, *R, *G, *B.
-AIRLIGHT_SPLAT_CLONES void sum4_16(int n, const float* __restrict a, const float* __restrict b,
-                                   const float* __restrict c, const float* __restrict d, float* T, float* R, float* G,
-                                   float* B) {
+AIRLIGHT_SIMD_CLONES void sum4_16(int n, const float* __restrict a, const float* __restrict b,
+                                  const float* __restrict c, const float* __restrict d, float* T, float* R, float* G,
+                                  float* B) {
     float pT[16] = {}, pR[16] = {}, pG[16] = {}, pB[16] = {};
     for (int k = 0; k < n; k += 16)
         for (int u = 0; u < 16; ++u) {
@@ -372,11 +367,11 @@ void lattice_gaussian_major(LatticeSoA& q, int L, const GaussianSplat::LightF* l
 }
 
 // sub_interp for n pixels inside one lattice cell (top-left index a).
-AIRLIGHT_SPLAT_CLONES void sub_interp_cell(int n, int a, const float* __restrict wgt, int nu,
-                                           const float* __restrict T, const float* __restrict R,
-                                           const float* __restrict G, const float* __restrict B,
-                                           float* __restrict aT, float* __restrict aR, float* __restrict aG,
-                                           float* __restrict aB) {
+AIRLIGHT_SIMD_CLONES void sub_interp_cell(int n, int a, const float* __restrict wgt, int nu,
+                                          const float* __restrict T, const float* __restrict R,
+                                          const float* __restrict G, const float* __restrict B,
+                                          float* __restrict aT, float* __restrict aR, float* __restrict aG,
+                                          float* __restrict aB) {
     const int b = a + 1, c = a + nu, d = c + 1;
     const float t0 = T[a], t1 = T[b], t2 = T[c], t3 = T[d];
     const float r0 = R[a], r1 = R[b], r2 = R[c], r3 = R[d];
@@ -395,10 +390,10 @@ AIRLIGHT_SPLAT_CLONES void sub_interp_cell(int n, int a, const float* __restrict
 // Subtracts the bilinear interpolation of the lattice values (T, R, G, B; lattice rows of
 // nu) at n pixels (top-left lattice index lat[k], weights wgt[j kTilePixels + k], j = 0..3)
 // from the accumulators.
-AIRLIGHT_SPLAT_CLONES void sub_interp(int n, const int* __restrict lat, const float* __restrict wgt, int nu,
-                                      const float* __restrict T, const float* __restrict R,
-                                      const float* __restrict G, const float* __restrict B, float* __restrict aT,
-                                      float* __restrict aR, float* __restrict aG, float* __restrict aB) {
+AIRLIGHT_SIMD_CLONES void sub_interp(int n, const int* __restrict lat, const float* __restrict wgt, int nu,
+                                     const float* __restrict T, const float* __restrict R,
+                                     const float* __restrict G, const float* __restrict B, float* __restrict aT,
+                                     float* __restrict aR, float* __restrict aG, float* __restrict aB) {
     for (int k = 0; k < n; ++k) {
         const int a = lat[k], b = a + 1, c = a + nu, d = c + 1;
         const float w0 = wgt[k], w1 = wgt[kTilePixels + k], w2 = wgt[2 * kTilePixels + k],
@@ -414,10 +409,10 @@ AIRLIGHT_SPLAT_CLONES void sub_interp(int n, const int* __restrict lat, const fl
 // w x h pixel centres, added to T, R, G, B: per row, the sums interpolated along y at each
 // node column, spread to the pixels' left and right nodes, then one vectorised blend along x
 // (a free function so that the SIMD clones apply; the direct 4-tap form needed gathers).
-AIRLIGHT_SPLAT_CLONES void interp_lattice(int w, int h, int s, int nu, const float* __restrict cT,
-                                          const float* __restrict cR, const float* __restrict cG,
-                                          const float* __restrict cB, float* __restrict T, float* __restrict R,
-                                          float* __restrict G, float* __restrict B) {
+AIRLIGHT_SIMD_CLONES void interp_lattice(int w, int h, int s, int nu, const float* __restrict cT,
+                                         const float* __restrict cR, const float* __restrict cG,
+                                         const float* __restrict cB, float* __restrict T, float* __restrict R,
+                                         float* __restrict G, float* __restrict B) {
     constexpr int kMaxNodes = GaussianSplat::kTile + 1;
     const float inv_s = 1.0f / float(s);
     int ui[GaussianSplat::kTile];
@@ -459,10 +454,10 @@ AIRLIGHT_SPLAT_CLONES void interp_lattice(int w, int h, int s, int nu, const flo
 // and sin of the half-angles) against one ball (unit direction u, sin and cos of its angular
 // radius): hit[k] = 1 where the ball can meet tile k's rays. A loop of its own so that it
 // vectorises; the count and the fill pass both call it (the same clone: the same answers).
-AIRLIGHT_SPLAT_CLONES void cone_hits(int m, const double* __restrict ax, const double* __restrict ay,
-                                     const double* __restrict az, const double* __restrict ct,
-                                     const double* __restrict st, double ux, double uy, double uz, double sin_r,
-                                     double cos_r, unsigned char* __restrict hit) {
+AIRLIGHT_SIMD_CLONES void cone_hits(int m, const double* __restrict ax, const double* __restrict ay,
+                                    const double* __restrict az, const double* __restrict ct,
+                                    const double* __restrict st, double ux, double uy, double uz, double sin_r,
+                                    double cos_r, unsigned char* __restrict hit) {
     for (int k = 0; k < m; ++k) {
         const double cos_sum = ct[k] * cos_r - st[k] * sin_r;  // cos(theta + rho)
         // theta + rho >= pi: every direction qualifies (sin of the sum < 0 with cos < 0)
@@ -485,8 +480,8 @@ inline void cubic_weights(float f, float* w) {
 // y0 + s v, nu x nv) to c[0..4), by tensor cubic Lagrange interpolation: along x on the
 // grid rows the stencils reach, then along y.
 // The grid may be a window of the full one: its node (P0, Q0) first, nx per row.
-AIRLIGHT_SPLAT_CLONES void add_far_grid(const float* const* g, int h, int nx, int P0, int Q0, int x0, int y0, int s,
-                                        int nu, int nv, float* const* c) {
+AIRLIGHT_SIMD_CLONES void add_far_grid(const float* const* g, int h, int nx, int P0, int Q0, int x0, int y0, int s,
+                                       int nu, int nv, float* const* c) {
     constexpr int kMax = GaussianSplat::kTile + 1;
     int pu[kMax], qv[kMax];
     float wu[kMax][4], wv[kMax][4];
@@ -528,11 +523,11 @@ AIRLIGHT_SPLAT_CLONES void add_far_grid(const float* const* g, int h, int nx, in
 // kClip: near clip on (else t0 = 0); a template argument so that the loop has no branch
 // and vectorises.
 template <bool kClip>
-AIRLIGHT_SPLAT_CLONES void tile_row_rays(int n, double Ax, double Ay, double Az, double Bx, double By, double Bz,
-                                         double fx, double fy, double fz, double clip, const float* __restrict depth,
-                                         double* __restrict ddx, double* __restrict ddy, double* __restrict ddz,
-                                         float* __restrict dx, float* __restrict dy, float* __restrict dz,
-                                         float* __restrict t0, float* __restrict far) {
+AIRLIGHT_SIMD_CLONES void tile_row_rays(int n, double Ax, double Ay, double Az, double Bx, double By, double Bz,
+                                        double fx, double fy, double fz, double clip, const float* __restrict depth,
+                                        double* __restrict ddx, double* __restrict ddy, double* __restrict ddz,
+                                        float* __restrict dx, float* __restrict dy, float* __restrict dz,
+                                        float* __restrict t0, float* __restrict far) {
     for (int i = 0; i < n; ++i) {
         const double X = Ax + double(i) * Bx, Y = Ay + double(i) * By, Z = Az + double(i) * Bz;
         const double inv = 1.0 / std::sqrt(X * X + Y * Y + Z * Z);
@@ -550,8 +545,8 @@ AIRLIGHT_SPLAT_CLONES void tile_row_rays(int n, double Ax, double Ay, double Az,
 }
 
 // L0 (3 floats per pixel) += w value, for n pixels.
-AIRLIGHT_SPLAT_CLONES void add_weighted3(int n, float w0, float w1, float w2, const float* __restrict value,
-                                         float* __restrict L0) {
+AIRLIGHT_SIMD_CLONES void add_weighted3(int n, float w0, float w1, float w2, const float* __restrict value,
+                                        float* __restrict L0) {
     for (int k = 0; k < n; ++k) {
         L0[3 * k] += w0 * value[k];
         L0[3 * k + 1] += w1 * value[k];
@@ -561,13 +556,13 @@ AIRLIGHT_SPLAT_CLONES void add_weighted3(int n, float w0, float w1, float w2, co
 
 // One row of a tile at reduced resolution into the passes (3 floats per pixel each):
 // transmittance Tr, airlight sc max(0, Gaussians) + sg L0 where the segment is not empty.
-AIRLIGHT_SPLAT_CLONES void write_row_reduced(int n, const float* __restrict far, const float* __restrict t0,
-                                             const float* __restrict Tr, const float* __restrict sc,
-                                             const float* __restrict sg, const float* __restrict Rf,
-                                             const float* __restrict Gf, const float* __restrict Bf,
-                                             const float* __restrict Rn, const float* __restrict Gn,
-                                             const float* __restrict Bn, const float* __restrict L0,
-                                             float* __restrict transmittance, float* __restrict airlight) {
+AIRLIGHT_SIMD_CLONES void write_row_reduced(int n, const float* __restrict far, const float* __restrict t0,
+                                            const float* __restrict Tr, const float* __restrict sc,
+                                            const float* __restrict sg, const float* __restrict Rf,
+                                            const float* __restrict Gf, const float* __restrict Bf,
+                                            const float* __restrict Rn, const float* __restrict Gn,
+                                            const float* __restrict Bn, const float* __restrict L0,
+                                            float* __restrict transmittance, float* __restrict airlight) {
     // The empty segment's 0 as a factor: GCC 12 leaves the loop scalar with a select there
     // (the terms are finite and >= 0, so the factor gives the same values).
     for (int k = 0; k < n; ++k) {
@@ -586,10 +581,10 @@ AIRLIGHT_SPLAT_CLONES void write_row_reduced(int n, const float* __restrict far,
 // exp(beta0 t0) (both 1 without near clip), as splat_tile's double loop, in float.
 // The branches are template arguments (a conditional call left the loop scalar).
 template <bool kNearClip, bool kBackground>
-AIRLIGHT_SPLAT_CLONES void finish_float_impl(int n, float beta0, const float* __restrict far,
-                                             const float* __restrict t0, const float* __restrict Tf,
-                                             const float* __restrict Tn, float* __restrict Tr, float* __restrict sg,
-                                             float* __restrict sc) {
+AIRLIGHT_SIMD_CLONES void finish_float_impl(int n, float beta0, const float* __restrict far,
+                                            const float* __restrict t0, const float* __restrict Tf,
+                                            const float* __restrict Tn, float* __restrict Tr, float* __restrict sg,
+                                            float* __restrict sc) {
     for (int k = 0; k < n; ++k) {
         // beta0 seg: 0 for beta0 = 0 even when seg = inf (background_depth)
         const float bg = kBackground ? beta0 * (far[k] - t0[k]) : 0.0f;
@@ -613,11 +608,11 @@ void finish_float(int n, float beta0, bool near_clip, const float* far, const fl
 // Reduced resolution, a Gaussian the surface cuts (cut_light_factor): adds Tvp times the
 // bilinear interpolation of the lattice light factor (FR, FG, FB) at n pixels whose
 // projection b^r lies before their surface (tr < far), nothing at the others.
-AIRLIGHT_SPLAT_CLONES void add_interp_factor(int n, const int* __restrict lat, const float* __restrict wgt, int nu,
-                                             const float* __restrict FR, const float* __restrict FG,
-                                             const float* __restrict FB, const float* __restrict Tvp,
-                                             const float* __restrict tr, const float* __restrict far,
-                                             float* __restrict aR, float* __restrict aG, float* __restrict aB) {
+AIRLIGHT_SIMD_CLONES void add_interp_factor(int n, const int* __restrict lat, const float* __restrict wgt, int nu,
+                                            const float* __restrict FR, const float* __restrict FG,
+                                            const float* __restrict FB, const float* __restrict Tvp,
+                                            const float* __restrict tr, const float* __restrict far,
+                                            float* __restrict aR, float* __restrict aG, float* __restrict aB) {
     for (int k = 0; k < n; ++k) {
         const int a = lat[k], b = a + 1, c = a + nu, d = c + 1;
         const float w0 = wgt[k], w1 = wgt[kTilePixels + k], w2 = wgt[2 * kTilePixels + k],
@@ -630,11 +625,11 @@ AIRLIGHT_SPLAT_CLONES void add_interp_factor(int n, const int* __restrict lat, c
 }
 
 // add_interp_factor for n pixels inside one lattice cell (top-left index a).
-AIRLIGHT_SPLAT_CLONES void add_interp_factor_cell(int n, int a, const float* __restrict wgt, int nu,
-                                                  const float* __restrict FR, const float* __restrict FG,
-                                                  const float* __restrict FB, const float* __restrict Tvp,
-                                                  const float* __restrict tr, const float* __restrict far,
-                                                  float* __restrict aR, float* __restrict aG, float* __restrict aB) {
+AIRLIGHT_SIMD_CLONES void add_interp_factor_cell(int n, int a, const float* __restrict wgt, int nu,
+                                                 const float* __restrict FR, const float* __restrict FG,
+                                                 const float* __restrict FB, const float* __restrict Tvp,
+                                                 const float* __restrict tr, const float* __restrict far,
+                                                 float* __restrict aR, float* __restrict aG, float* __restrict aB) {
     const int b = a + 1, c = a + nu, d = c + 1;
     const float r0 = FR[a], r1 = FR[b], r2 = FR[c], r3 = FR[d];
     const float g0 = FG[a], g1 = FG[b], g2 = FG[c], g3 = FG[d];
@@ -651,9 +646,9 @@ AIRLIGHT_SPLAT_CLONES void add_interp_factor_cell(int n, int a, const float* __r
 
 // Reduced resolution, a Gaussian the surface cuts (cut_light_factor): t = Tvp exp(-Tvr)
 // for the n pixels whose surface lies before b^r (tr >= far), else 0.
-AIRLIGHT_SPLAT_CLONES void surface_weight(int n, const float* __restrict Tvp, const float* __restrict Tvr,
-                                          const float* __restrict tr, const float* __restrict far,
-                                          float* __restrict t) {
+AIRLIGHT_SIMD_CLONES void surface_weight(int n, const float* __restrict Tvp, const float* __restrict Tvr,
+                                         const float* __restrict tr, const float* __restrict far,
+                                         float* __restrict t) {
     for (int k = 0; k < n; ++k) {
         const float v = Tvp[k] * fast_expf_le88(-Tvr[k]);
         t[k] = tr[k] < far[k] ? 0.0f : v;
@@ -661,7 +656,7 @@ AIRLIGHT_SPLAT_CLONES void surface_weight(int n, const float* __restrict Tvp, co
 }
 
 // The number of the n pixels whose b^r lies before the surface (tr < far).
-AIRLIGHT_SPLAT_CLONES int count_before(int n, const float* __restrict tr, const float* __restrict far) {
+AIRLIGHT_SIMD_CLONES int count_before(int n, const float* __restrict tr, const float* __restrict far) {
     int c = 0;
     for (int k = 0; k < n; ++k) c += tr[k] < far[k] ? 1 : 0;
     return c;
@@ -669,9 +664,9 @@ AIRLIGHT_SPLAT_CLONES int count_before(int n, const float* __restrict tr, const 
 
 // On one 4x4 block (16 pixels, row-major): adds t times the bilinear interpolation of the
 // corner pixels' light factors (R4, G4, B4: corners (0,0), (3,0), (0,3), (3,3)).
-AIRLIGHT_SPLAT_CLONES void add_surface_factor16(const float* __restrict t, const float* __restrict R4,
-                                                const float* __restrict G4, const float* __restrict B4,
-                                                float* __restrict aR, float* __restrict aG, float* __restrict aB) {
+AIRLIGHT_SIMD_CLONES void add_surface_factor16(const float* __restrict t, const float* __restrict R4,
+                                               const float* __restrict G4, const float* __restrict B4,
+                                               float* __restrict aR, float* __restrict aG, float* __restrict aB) {
     static constexpr float kU[16] = {0.0f, 1.0f / 3.0f, 2.0f / 3.0f, 1.0f, 0.0f, 1.0f / 3.0f, 2.0f / 3.0f, 1.0f,
                                      0.0f, 1.0f / 3.0f, 2.0f / 3.0f, 1.0f, 0.0f, 1.0f / 3.0f, 2.0f / 3.0f, 1.0f};
     static constexpr float kV[16] = {0.0f,        0.0f,        0.0f,        0.0f,        1.0f / 3.0f, 1.0f / 3.0f,
@@ -689,17 +684,17 @@ AIRLIGHT_SPLAT_CLONES void add_surface_factor16(const float* __restrict t, const
     }
 }
 
-AIRLIGHT_SPLAT_CLONES void add_to(const float* __restrict x, int n, float* __restrict acc) {
+AIRLIGHT_SIMD_CLONES void add_to(const float* __restrict x, int n, float* __restrict acc) {
     for (int k = 0; k < n; ++k) acc[k] += x[k];
 }
 
 double background_depth(double beta0, double L) { return beta0 == 0.0 ? 0.0 : beta0 * L; }
 
 // Line integrals of the gathered Gaussians (rel = b - from) on from + t d, t in [0, D].
-AIRLIGHT_SPLAT_CLONES void segment_integrals(int n, const float* __restrict rx, const float* __restrict ry,
-                                             const float* __restrict rz, const float* __restrict a,
-                                             const float* __restrict k0, float dx, float dy, float dz, float D,
-                                             float* __restrict out) {
+AIRLIGHT_SIMD_CLONES void segment_integrals(int n, const float* __restrict rx, const float* __restrict ry,
+                                            const float* __restrict rz, const float* __restrict a,
+                                            const float* __restrict k0, float dx, float dy, float dz, float D,
+                                            float* __restrict out) {
     for (int k = 0; k < n; ++k) {
         const float ts = rx[k] * dx + ry[k] * dy + rz[k] * dz;
         const float cx = ry[k] * dz - rz[k] * dy, cy = rz[k] * dx - rx[k] * dz, cz = rx[k] * dy - ry[k] * dx;
@@ -714,10 +709,10 @@ AIRLIGHT_SPLAT_CLONES void segment_integrals(int n, const float* __restrict rx, 
 // keep[k] = 1 if the segment from + t d, t in [0, D], passes within sqrt(R2[k]) of the
 // Gaussian at rel[k] (relative to from; the test of GaussianMedium::for_each_near, R2 inflated
 // by the caller for float rounding) and id[k] != skip, else 0.
-AIRLIGHT_SPLAT_CLONES void segment_reaches(int n, const float* __restrict rx, const float* __restrict ry,
-                                           const float* __restrict rz, const float* __restrict R2,
-                                           const std::uint32_t* __restrict id, std::uint32_t skip, float dx,
-                                           float dy, float dz, float D, float* __restrict keep) {
+AIRLIGHT_SIMD_CLONES void segment_reaches(int n, const float* __restrict rx, const float* __restrict ry,
+                                          const float* __restrict rz, const float* __restrict R2,
+                                          const std::uint32_t* __restrict id, std::uint32_t skip, float dx,
+                                          float dy, float dz, float D, float* __restrict keep) {
     for (int k = 0; k < n; ++k) {
         const float ts = rx[k] * dx + ry[k] * dy + rz[k] * dz;
         const float tc = ts < 0.0f ? 0.0f : (ts > D ? D : ts);
@@ -731,11 +726,11 @@ AIRLIGHT_SPLAT_CLONES void segment_reaches(int n, const float* __restrict rx, co
 // 4.5: both erfc terms of eq. 31 are below 2e-10, so T = 2 e to float precision, one exp
 // instead of three), 1 for the other reaching ones, 0 for the rest.
 constexpr float kInteriorX = 4.5f;
-AIRLIGHT_SPLAT_CLONES void segment_reaches_split(int n, const float* __restrict rx, const float* __restrict ry,
-                                                 const float* __restrict rz, const float* __restrict R2,
-                                                 const float* __restrict a, const std::uint32_t* __restrict id,
-                                                 std::uint32_t skip, float dx, float dy, float dz, float D,
-                                                 float* __restrict keep) {
+AIRLIGHT_SIMD_CLONES void segment_reaches_split(int n, const float* __restrict rx, const float* __restrict ry,
+                                                const float* __restrict rz, const float* __restrict R2,
+                                                const float* __restrict a, const std::uint32_t* __restrict id,
+                                                std::uint32_t skip, float dx, float dy, float dz, float D,
+                                                float* __restrict keep) {
     for (int k = 0; k < n; ++k) {
         const float ts = rx[k] * dx + ry[k] * dy + rz[k] * dz;
         const float tc = ts < 0.0f ? 0.0f : (ts > D ? D : ts);
@@ -748,10 +743,10 @@ AIRLIGHT_SPLAT_CLONES void segment_reaches_split(int n, const float* __restrict 
 
 // The whole-line integral 2 e = c sqrt(pi) / a exp(-a^2 h^2) of the gathered Gaussians
 // (those segment_reaches_split marks 2).
-AIRLIGHT_SPLAT_CLONES void line_integrals_whole(int n, const float* __restrict rx, const float* __restrict ry,
-                                                const float* __restrict rz, const float* __restrict a,
-                                                const float* __restrict k0, float dx, float dy, float dz,
-                                                float* __restrict out) {
+AIRLIGHT_SIMD_CLONES void line_integrals_whole(int n, const float* __restrict rx, const float* __restrict ry,
+                                               const float* __restrict rz, const float* __restrict a,
+                                               const float* __restrict k0, float dx, float dy, float dz,
+                                               float* __restrict out) {
     for (int k = 0; k < n; ++k) {
         const float cx = ry[k] * dz - rz[k] * dy, cy = rz[k] * dx - rx[k] * dz, cz = rx[k] * dy - ry[k] * dx;
         out[k] = 2.0f * k0[k] * fast_expf_le88(-a[k] * a[k] * (cx * cx + cy * cy + cz * cz));
@@ -761,10 +756,10 @@ AIRLIGHT_SPLAT_CLONES void line_integrals_whole(int n, const float* __restrict r
 // Per candidate Gaussian (rel = b - s, R2, a, k0; index _skip_) over n targets' segments
 // s + t d_k, t in [0, D_k]: keep[k] = the cull test of segment_reaches (and tid[k] !=
 // skip); out[k] = the line integral (segment_integrals with the roles swapped).
-AIRLIGHT_SPLAT_CLONES void targets_reached(int n, const float* __restrict dx, const float* __restrict dy,
-                                           const float* __restrict dz, const float* __restrict D,
-                                           const std::uint32_t* __restrict tid, std::uint32_t skip, float rx,
-                                           float ry, float rz, float R2, float* __restrict keep) {
+AIRLIGHT_SIMD_CLONES void targets_reached(int n, const float* __restrict dx, const float* __restrict dy,
+                                          const float* __restrict dz, const float* __restrict D,
+                                          const std::uint32_t* __restrict tid, std::uint32_t skip, float rx,
+                                          float ry, float rz, float R2, float* __restrict keep) {
     for (int k = 0; k < n; ++k) {
         const float ts = rx * dx[k] + ry * dy[k] + rz * dz[k];
         const float tc = ts < 0.0f ? 0.0f : (ts > D[k] ? D[k] : ts);
@@ -772,9 +767,9 @@ AIRLIGHT_SPLAT_CLONES void targets_reached(int n, const float* __restrict dx, co
         keep[k] = (qx * qx + qy * qy + qz * qz < R2) & (tid[k] != skip) ? 1.0f : 0.0f;
     }
 }
-AIRLIGHT_SPLAT_CLONES void target_integrals(int n, const float* __restrict dx, const float* __restrict dy,
-                                            const float* __restrict dz, const float* __restrict D, float rx, float ry,
-                                            float rz, float a, float k0, float* __restrict out) {
+AIRLIGHT_SIMD_CLONES void target_integrals(int n, const float* __restrict dx, const float* __restrict dy,
+                                           const float* __restrict dz, const float* __restrict D, float rx, float ry,
+                                           float rz, float a, float k0, float* __restrict out) {
     for (int k = 0; k < n; ++k) {
         const float ts = rx * dx[k] + ry * dy[k] + rz * dz[k];
         const float cx = ry * dz[k] - rz * dy[k], cy = rz * dx[k] - rx * dz[k], cz = rx * dy[k] - ry * dx[k];
@@ -859,7 +854,7 @@ struct StarScratch {
 
 // sum_k x[k] in double over n (a multiple of 8): eight accumulators, so GCC vectorises it
 // without reassociating (the same order in every clone).
-AIRLIGHT_SPLAT_CLONES double sum_double(const float* __restrict x, std::size_t n) {
+AIRLIGHT_SIMD_CLONES double sum_double(const float* __restrict x, std::size_t n) {
     double acc[8] = {0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0};
     for (std::size_t k = 0; k < n; k += 8)
         for (int l = 0; l < 8; ++l) acc[l] += double(x[k + l]);
