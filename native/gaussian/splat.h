@@ -42,6 +42,9 @@
 #include "core/scene.h"
 #include "core/special_f.h"
 #include "homogeneous/spot_light.h"
+// (bindings/bind_rbf.cpp reaches rbf_preview_factors through this header; drop this include
+// once it includes gaussian/preview_factors.h itself)
+#include "gaussian/preview_factors.h"
 
 namespace airlight {
 
@@ -404,52 +407,5 @@ class GaussianSplat {
     std::vector<std::uint32_t> bin_start_;  // per tile, into bin_index_ (size tiles + 1)
     std::vector<std::uint32_t> bin_index_;
 };
-
-// Per-edit factors for a viewport preview that splats the Gaussians itself (Fogshop
-// section 5.1): for the eye v, lights s_l (m of them) and Gaussians b_i (n):
-//   T_vb[i]       = T(v, b_i): optical depth of the whole medium (beta0 and every Gaussian,
-//                   i's own half included) on the segment v -> b_i;
-//   own_vb[i]     = T_i(v, b_i): Gaussian i's own share of it;
-//   T_sb[l n + i], own_sb[l n + i]: the same from light l;
-//   Csv[l]        = exp(-(T(s_l, v) - beta0 D_sv)): the Gaussians alone on s_l -> v (eq. 16);
-//   Dsv[l]        = |s_l - v|;  radius[i] = the cull radius R_i (gaussian_medium.h).
-// f1 (eq. 13) is exp(-T_sb - T_vb); the bake uses exp(-(T_sb - own_sb) - (T_vb - own_vb))
-// with Gaussian i's own attenuation taken along the true path (gaussian_airlight.h).
-// Optical depths are culled with the medium's cull_eps (each skipped Gaussian < eps).
-struct GaussianPreviewFactors {
-    std::vector<double> T_vb, own_vb, T_sb, own_sb, Csv, Dsv, radius;
-};
-// Incremental form (an edit that appended Gaussians): with _previous_ = the factors of
-// the first _first_new_ Gaussians (same positions, scales, amplitudes, eye, lights and
-// beta0), only Gaussians [first_new, n) get the full computation; the others add the new
-// Gaussians' line integrals to their previous T (optical depth is a sum over Gaussians).
-// Eq. to the full call to float rounding (tested).
-// View-change form (_eye_only_, the viewport orbiting): the light rows T_sb, own_sb depend
-// only on the Gaussians, beta0 and the lights, not on the eye. With _previous_ = the
-// factors of the same Gaussians, lights and beta0 (at any eye; its T_sb, own_sb of all n
-// Gaussians), only the eye row (T_vb, own_vb), C_sv and D_sv are computed, the light rows
-// copied: 1 segment per Gaussian instead of 1 + m, the same sums as the full call
-// (first_new is ignored). Throws std::invalid_argument on mismatched sizes or non-finite
-// points.
-GaussianPreviewFactors rbf_preview_factors(const GaussianMedium& medium, const Vec3& eye, const std::vector<Vec3>& lights,
-                                      int threads = 0, const GaussianPreviewFactors* previous = nullptr,
-                                      std::size_t first_new = 0, bool eye_only = false);
-
-// The optical depths behind the factors (GaussianSplat's f1 and rbf_preview_factors): for each
-// source s_r in _sources_ and target Gaussian i in [first, last),
-//   out[r (last - first) + i - first] = sum over j in [cand_first, cand_last), j != i, of T_j(s_r, b_i),
-// no beta0, culled as GaussianMedium::for_each_near (each skipped Gaussian < cull_eps), in float
-// (fast_erf.h). The segments from one source form a star; _method_ picks how the work is
-// organised (gaussian_splat.cpp): 0 by cost, 1 per target, 2 per candidate, 3 binned by
-// direction around the source. All give the same sums to float rounding (tested).
-// Throws std::invalid_argument on a non-finite source or ranges outside the medium.
-std::vector<double> gaussian_depths_to_centres(const GaussianMedium& medium, const std::vector<Vec3>& sources,
-                                          std::size_t first, std::size_t last, std::size_t cand_first,
-                                          std::size_t cand_last, int threads = 0, int method = 0);
-// The same towards a sun lamp (GaussianSplatLights): out[i] = sum over j != i of T_j on the
-// half-line b_i + t u, t >= 0 (u unit, towards the sun), culled, in float, no beta0 (binned
-// on a grid over the plane normal to u). Throws std::invalid_argument unless u is a finite
-// unit vector.
-std::vector<double> gaussian_sun_depths(const GaussianMedium& medium, const Vec3& u, int threads = 0);
 
 }  // namespace airlight
