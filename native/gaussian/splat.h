@@ -1,6 +1,6 @@
-// gaussian_splat.h: the bake's fast path for Gaussian fog (Fogshop, Zhou et al. 2007, §5.2-5.3
-// and the noise of §5.5): screen-space splatting of the Gaussians' cull spheres into
-// 16x16 pixel tiles, float SIMD evaluation of the paper's per-(pixel, Gaussian) terms.
+// splat.h: the bake's fast path for Gaussian fog (Fogshop, Zhou et al. 2007, §5.2-5.3 and the
+// noise of §5.5): screen-space splatting of the Gaussians' cull spheres into 16x16 pixel
+// tiles, float SIMD evaluation of the paper's per-(pixel, Gaussian) terms.
 //
 // Per pixel (perspective camera at the eye v, unit direction r, near distance t0 along
 // the ray, first hit Dvp) it computes the same quantities as the exact double path
@@ -14,7 +14,7 @@
 // medium's), w_l = medium albedo I0_l, and L0seg the homogeneous Sun 2005 term of the
 // segment [t0, Dvp] attenuated from the near point (sun05_batch.h; F table or exact F).
 // Differences to the exact path: float arithmetic with fast_erf.h (error bound there;
-// gaussian_splat_test.cpp measures the whole image against the exact path), and every Gaussian
+// splat_test.cpp measures the whole image against the exact path), and every Gaussian
 // whose cull sphere's screen bounds cover a pixel is evaluated there (a superset of the
 // per-ray cull, whose skipped terms are < cull_eps each; at half and quarter resolution the
 // spheres are sized for kReducedCullEps instead).
@@ -26,6 +26,12 @@
 // camera moves; _offset_ animates it), R_i the Gaussian's cull radius; the integration
 // distance is unchanged, and the light-side terms (f0, b_i^r) use the unperturbed ray,
 // as in the paper. It perturbs both the screen optical depth and the airlight.
+//
+// GaussianSplat's parts, one file each: splat.cpp (set-up; one Gaussian's terms on many
+// rays), splat_bin.cpp (bin: the tiles' lists), splat_tile.cpp (a tile's pixels; edge rays),
+// splat_reduced.cpp (half and quarter resolution: the lattice), splat_far_field.cpp (the
+// far-field grids); their float kernels in splat_kernels.h and splat_interp.h. The light
+// side's set-up takes its optical depths from centre_depths.h.
 #pragma once
 
 #include <atomic>
@@ -96,6 +102,7 @@ double sunlight_layer_depth(double beta0, double h_top, double mu_s, double z);
 class GaussianSplat {
   public:
     static constexpr int kTile = 16;
+    static constexpr int kTilePixels = kTile * kTile;
     // Per-Gaussian optical depth below which a ray skips a Gaussian at half and quarter
     // resolution (the cull spheres of bin(); full resolution keeps the medium's cull_eps,
     // 1e-7 by default). Tied to the lattice's own error: at 1e-7 a quarter of the
@@ -113,10 +120,11 @@ class GaussianSplat {
     // homogeneous medium's albedo; _albedo_ 3 per Gaussian or empty (use medium_albedo);
     // _table_ F table for the homogeneous term (nullptr = exact F). The medium and table
     // must outlive this object. Does Fogshop's per-(light, Gaussian) precomputation.
-    GaussianSplat(const GaussianMedium& medium, const Vec3& eye, const std::vector<Vec3>& lights, const std::vector<RGB>& I0,
-             const RGB& medium_albedo, const std::vector<double>& albedo, const SpecialFTable* table,
-             const GaussianNoise& noise, int threads = 0, const GaussianSplatLights* extra = nullptr);
-    // Hands the pair list's memory to the next GaussianSplat's bin() (gaussian_splat.cpp, pair_pool).
+    GaussianSplat(const GaussianMedium& medium, const Vec3& eye, const std::vector<Vec3>& lights,
+                  const std::vector<RGB>& I0, const RGB& medium_albedo, const std::vector<double>& albedo,
+                  const SpecialFTable* table, const GaussianNoise& noise, int threads = 0,
+                  const GaussianSplatLights* extra = nullptr);
+    // Hands the pair list's memory to the next GaussianSplat's bin() (splat_bin.cpp, pair_pool).
     ~GaussianSplat();
 
     // Bins the Gaussians into tiles for the image W x H whose pixel (px, py) (film
@@ -125,7 +133,7 @@ class GaussianSplat {
     // _step_ (1, 2 or 4) is the resolution of the Gaussian terms' evaluation, see
     // splat_tile; 1 (full) is the plain splat. Throws std::invalid_argument otherwise.
     // _depth_ (optional; W x H, as splat_tile will read it): at step > 1 on the plain path
-    // without noise it lets bin() put broad Gaussians on the far-field grids (splat_tile).
+    // without noise it lets bin() put broad Gaussians on the far-field grids (splat_far_field.cpp).
     void bin(const Vec3& D0, const Vec3& Dx, const Vec3& Dy, const Vec3& forward, int W, int H, double clip_start,
              int step = 1, const float* depth = nullptr);
     int step() const { return step_; }
@@ -144,87 +152,18 @@ class GaussianSplat {
     // hit), writes transmittance (3 equal floats per pixel) and airlight (RGB) of the
     // tile's pixels into the W x H images. Thread safe for distinct tiles.
     //
-    // Reduced resolution (step s = 2 or 4; Fogshop also evaluated its airlight at reduced
-    // resolution), in a depth-independent form: with the tile's pixel depths in [Dmin,
-    // Dmax] and Gaussian i at distance d_i from the eye with cull radius R_i,
-    //  - d_i - R_i >= Dmax ("behind"): every pixel's segment [0, Dvp] stays outside the
-    //    cull sphere, so the term is < cull_eps (the per-ray cull's bound): skipped;
-    //  - d_i + R_i <= Dmin ("in front"): beyond every pixel's Dvp the ray is outside the
-    //    sphere, so the term equals the one with Dvp = inf to < cull_eps (and b^r is the
-    //    same): a smooth function of the direction alone. These are evaluated with Dvp =
-    //    inf on a lattice of rays every s pixels (film corners x0 + s u, y0 + s v of the
-    //    tile, (16/s + 1)^2 rays) and interpolated bilinearly to the pixel centres;
-    //  - otherwise (the surface cuts the sphere somewhere in the tile): evaluated exactly,
-    //    on the tile's 4x4 pixel blocks whose segments the sphere does not wholly miss or
-    //    lie in front of (or, when cheaper, on the lattice with the exact value replacing
-    //    the interpolated one on the cut blocks). On the plain path without noise only the
-    //    view terms (Tvp, Tvr) are exact there; the light side of such a pixel depends on
-    //    Dvp only through b^r: where b^r = eye + max(ts, 0) r lies before the surface it is
-    //    the lattice's (Dvp = inf) light factor, interpolated; where the surface lies before
-    //    b^r (b^r = the surface point p) it is exp(-Tvp) G(p), G(p) = sum_l w_l exp(-T_i(s_l,
-    //    p)) / |p - s_l|^2, interpolated bilinearly from the block's 4 corner pixels when
-    //    the block's surface points lie within 0.01 |p - s_l| and 0.05 / a of the corners'
-    //    bilinear patch and the patch spans at most 0.05 |p - s_l| and 0.5 / a (no depth
-    //    edge, not next to a light; cut_light_factor); else exact.
-    //  A Gaussian reaching the near clip plane has its near segment [0, t0] (t0 = clip /
-    //  cos, smooth) on the lattice too. Near a light the light factor 1 / |b^r - s|^2 peaks:
-    //  the lattice interpolates it to tau = 1e-3 (quarter; 2.5e-4 half) while |b^r - s| >=
-    //  27 s pixels' angle times d (d the Gaussian's distance; the coarse lattice's criterion
-    //  below at spacing s); a Gaussian for which a tile's rays cannot guarantee that is
-    //  evaluated exactly there. Guarantees: |b - s| - R (b^r lies within the cull radius of
-    //  b), the rays' closest approach to s, and |(b - s) . u| cos a - |b - s| sin a (b^r stays
-    //  before or beyond the light along its line of sight u; a the rays' largest angle to u).
-    //  In such a tile at quarter resolution a Gaussian wholly behind the surface is skipped
-    //  as anywhere, and one wholly in front whose rays keep |b^r - s| >= 27 (s / 2) pixels'
-    //  angle times d goes on a fine lattice of spacing s / 2 (9 x 9 rays instead of 256
-    //  pixels; the same bound tau, the light factor's error scaling as the spacing squared
-    //  over |b^r - s|^2), interpolated bilinearly like the lattice.
-    //  Coarse lattice (plain path, no noise): an in-front Gaussian whose term is smooth on
-    //  the scale of H = 2 s pixels goes on every other lattice node (spacing H), whose
-    //  bilinear interpolant is spread onto the lattice: its angular scale 1 / (sqrt 2 a d)
-    //  (d its distance) at least H / (2 sqrt(tau)) pixels, tau = 1e-3 at quarter resolution,
-    //  1e-3 / 4 at half (so half keeps erring ~4x less than quarter) (bilinear error of a
-    //  Gaussian bump < H^2 / (4 sigma^2) = tau of its peak), and for every point light
-    //  |b - s| - R >= 27 H pixels' angle times d (the light factor ~ 1/|b^r - s|^2: error
-    //  < (H d pix)^2 6 / (8 |b^r - s|^2) = tau). The quarter lattice itself allows up to
-    //  ~2 % per Gaussian for the smallest ones (sigma 15 px at 80 m in bench_rbf.py).
-    //  Far-field grids (plain path, no noise, bin() given the depth): the Dvp = inf terms of
-    //  a broad Gaussian are a smooth function of the film position alone, the same in every
-    //  tile; evaluating them once on an image-wide grid of spacing h >= 2 s pixels (blocks of
-    //  8 x 8 nodes, each with the Gaussians whose cull cones meet it, Gaussian-major as the
-    //  lattice) instead of on the lattice of each tile it lies in front of costs ~(8 sigma /
-    //  h)^2 evaluations per Gaussian instead of ~25 per tile. The grids' sums are interpolated
-    //  to each tile's lattice nodes with tensor cubic Lagrange weights (error < 8e-4 of a
-    //  Gaussian bump's peak for h <= 0.28 sigma, sigma its angular standard deviation
-    //  1 / (sqrt 2 a d) in pixels, shrunk by 1 + k0 (half its peak optical depth) for the
-    //  narrower bump exp(-T_i(v, b^r)) adds; < 7e-4 of 1 / |b^r - s|^2 for |b^r - s| >= 6 h
-    //  pixels' angle times d), scaled to tau as the 4th power of h: 0.28 (tau / 1e-3)^(1/4)
-    //  and 6 (1e-3 / tau)^(1/4), tau = 1e-3 at quarter and 1e-3 / 16 at half (a quarter of
-    //  its lattice's: half keeps erring < 0.1 %); the Gaussian must also pass the lattice's
-    //  own light criterion (light_far_) and lie wholly before the eye's plane and the near
-    //  clip ball.
-    //  A tile reads a level's grid only when that saves evaluations (its Gaussians of that
-    //  level in front against those it must cancel); there a Gaussian not wholly in front has
-    //  its own grid share (far_share: its terms on the grid nodes the tile's stencils reach,
-    //  interpolated the same way) subtracted, exactly, on the blocks behind, and replaced by
-    //  its exact terms on the blocks it cuts. bin() moves a Gaussian to the coarsest level
-    //  passing both criteria (spacings 2 s .. 32 s in steps of ~1.41) where that costs fewer
-    //  evaluations than its tiles' lattices would, counted from the tiles' depth ranges, and
-    //  builds no grids when they would save fewer than ~1e5 evaluations.
-    //  (tests: GaussianSplat.FarFieldGridsAgainstFull; bench_rbf.py's errors against full.)
-    //  Edge supersamples (eval_rays) use the (fine) lattice for the Gaussians in front of
-    //  all the samples of their chunk.
-    // So depth edges cost no accuracy (a pixel's depth only selects which Gaussians are
-    // exact); the error is the bilinear interpolation of smooth terms (measured in
-    // gaussian_splat_test.cpp and benchmarks/bench_rbf.py).
+    // At reduced resolution (step s = 2 or 4) the Gaussian terms are evaluated exactly only
+    // where the tile's surface cuts a Gaussian; the others come from a lattice of rays every s
+    // pixels, interpolated bilinearly, or from the far-field grids (splat_reduced.cpp and
+    // splat_far_field.cpp give an overview; docs/architecture.md the criteria and bounds).
     void splat_tile(int t, const float* depth, float* transmittance, float* airlight) const;
     // Pair counts of the last splat at step > 1 (all tiles; reset by bin()): lattice
     // (interpolated), exact per pixel, skipped behind the surface; coarse: of the lattice
-    // pairs, those on the coarse lattice (every other node, see splat_tile).
+    // pairs, those on the coarse lattice (every other node, see splat_reduced.cpp).
     // far: of the lattice pairs, those served by the far-field grids; far_cancelled: of the
     // pairs behind, those whose grid share was cancelled; far_gaussians and far_nodes: the
     // Gaussians on the grids and their (grid node, Gaussian) evaluations. fine: of the lattice
-    // pairs, those on the fine lattice of a tile next to a light's image (splat_tile).
+    // pairs, those on the fine lattice of a tile next to a light's image (splat_reduced.cpp).
     struct ReducedCounts {
         std::size_t lattice = 0, exact = 0, behind = 0, coarse = 0, far = 0, far_cancelled = 0, far_gaussians = 0,
                     far_nodes = 0, fine = 0;
@@ -233,12 +172,13 @@ class GaussianSplat {
 
     // Rays from the eye with unit directions dirs[k], segment [t0[k], Dvp[k]] (t0 null: 0):
     // the same quantities as splat_tile (Tr, RGB airlight), for edge supersampling. Rays go
-    // in chunks of 16 (pass neighbouring rays together, e.g. one pixel's sub-samples); each
-    // chunk evaluates the union of the Gaussians whose cull spheres its segments reach
-    // (from the medium's hierarchy) with the splat's kernels. At step > 1 (after bin()) the
-    // union comes from the tile bins, and on the plain path without noise the Gaussians in
-    // front of every segment of a chunk come from the lattice (nodes around the chunk's film
-    // positions, interpolated at each ray), as for the centre samples. Thread safe.
+    // in chunks of 16, 64 at step > 1 (pass neighbouring rays together, e.g. one pixel's
+    // sub-samples); each chunk evaluates the union of the Gaussians whose cull spheres its
+    // segments reach (from the medium's hierarchy) with the splat's kernels. At step > 1
+    // (after bin()) the union comes from the tile bins, and on the plain path without noise
+    // the Gaussians in front of every segment of a chunk come from the lattice (nodes around
+    // the chunk's film positions, interpolated at each ray), as for the centre samples.
+    // Thread safe.
     void eval_rays(const Vec3* dirs, const float* Dvp, const float* t0, int n, double* Tr, RGB* La) const;
 
     // Exact double reference for one ray (no noise support; FogshopAirlight::eval with
@@ -276,12 +216,21 @@ class GaussianSplat {
     };
 
   private:
+    // The steps of bin(), of splat_tile_reduced (one tile), of build_far_field and of
+    // eval_rays (one chunk of rays), with their state: splat_bin.cpp, splat_reduced.cpp,
+    // splat_far_field.cpp, splat_tile.cpp.
+    struct Binning;
+    struct ReducedTile;
+    struct FarBuild;
+    struct RayChunk;
+    // The suns' f1 weights and C factors (gs_, Csun_) from the eye row of _depth_ (constructor).
+    void sun_weights(const std::vector<double>& depth);
     // Accumulates Gaussian g's optical depth over [0, tend[k]] into accT and its airlight
     // (all lights) into accR/G/B for the n rays (dx, dy, dz). At step_ > 1, tend =
     // nullptr means +inf for every ray (the lattice).
     void splat_gaussian(std::size_t g, int n, const float* dx, const float* dy, const float* dz, const float* tend,
                         float* accT, float* accR, float* accG, float* accB) const;
-    // The Gaussian terms of tile (x0, y0, w x h, n pixels) at step_ > 1 (see splat_tile)
+    // The Gaussian terms of tile (x0, y0, w x h, n pixels) at step_ > 1 (splat_reduced.cpp)
     // into the accumulators: far segment (tend = far) and near segment (t0).
     void splat_tile_reduced(int t, int x0, int y0, int w, int h, const float* dx, const float* dy, const float* dz,
                             const float* far, const float* t0, float* Tf, float* Rf, float* Gf, float* Bf, float* Tn,
@@ -290,17 +239,6 @@ class GaussianSplat {
     // the m lattice rays (lx, ly, lz), added to T, R, G, B (lattice_gaussian_major).
     void lattice_batch(const std::uint32_t* idx, int n, int m, const float* lx, const float* ly, const float* lz,
                        float* T, float* R, float* G, float* B) const;
-    // A Gaussian the surface cuts in a tile at step_ > 1 (plain path, no noise): exact view
-    // terms on the live 4x4 blocks (bit mask _live_ over the regrouped pixels of
-    // splat_tile_reduced), and the light side per block: from the lattice (m_pad rays, when
-    // that saves light terms) where b^r lies before the surface, from the block's 4 corner
-    // pixels where the surface lies before b^r on a smooth surface patch (blk_h, blk_err:
-    // its size and the pixels' deviation from the corners' bilinear patch, inf: none),
-    // else exact; into eT, eR, eG, eB (see splat_tile).
-    void cut_light_factor(std::size_t i, int n_blocks, const int* block_start, unsigned live, int m_pad,
-                          const float* lx, const float* ly, const float* lz, int nu, const int* lat, const float* wgt,
-                          const float* blk_h, const float* blk_err, const float* bx, const float* by, const float* bz,
-                          const float* bfar, float* eT, float* eR, float* eG, float* eB) const;
     // Homogeneous term of light l for n rays: segment [t0, Dvp] attenuated from t0.
     void homogeneous(const double* cos_gamma, std::size_t l, const float* Dvp, const float* t0, int n,
                      float* out) const;
@@ -360,10 +298,10 @@ class GaussianSplat {
     std::vector<TileLight> tile_light_;
     double light_min_ = 0.0;
     // Whether Gaussian i's b^r stays factor light_min_ d_i away from every light whose image is
-    // next to tile t, for all of the tile's rays (see gaussian_splat.cpp): factor 1 is the lattice's
+    // next to tile t, for all of the tile's rays (splat_reduced.cpp): factor 1 is the lattice's
     // criterion at spacing s, 2 the coarse lattice's (2 s), 1/2 a lattice at spacing s / 2.
     bool light_clear(std::size_t i, int t, double factor = 1.0) const;
-    // Far-field grids (see splat_tile), built by bin() from the depth: level k (1..) has
+    // Far-field grids (splat_far_field.cpp), built by bin() from the depth: level k (1..) has
     // spacing h = step_ kFarSpacing[k - 1] pixels, node (P, Q) at film (h (P - 1), h (Q - 1)),
     // sums of the Dvp = inf terms of the Gaussians with level_[i] = k (0: on the tile lattices).
     struct FarGrid {

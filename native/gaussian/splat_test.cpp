@@ -200,7 +200,7 @@ TEST(GaussianSplat, MatchesExactPerRayPath) {
     EXPECT_LT(worst_T, 2e-5);
 }
 
-// Reduced resolution's coarse lattice (gaussian_splat.h splat_tile): broad Gaussians near the
+// Reduced resolution's coarse lattice (splat_reduced.cpp): broad Gaussians near the
 // eye (smooth on 8 pixels) go on every other node of the quarter lattice, small far ones on
 // the lattice itself; both against the full-resolution splat, sky and ground pixels.
 TEST(GaussianSplat, CoarseLatticeAgainstFull) {
@@ -258,7 +258,7 @@ TEST(GaussianSplat, CoarseLatticeAgainstFull) {
     }
 }
 
-// The far-field grids (gaussian_splat.h splat_tile): broad Gaussians' Dvp = inf terms on
+// The far-field grids (splat_far_field.cpp): broad Gaussians' Dvp = inf terms on
 // image-wide grids, cancelled where a Gaussian lies behind the ground, exact where the ground
 // cuts it; small ones stay on the tile lattices. Quarter and half with the grids (bin()
 // given the depth) against the full-resolution splat, and against the same resolution
@@ -387,7 +387,7 @@ TEST(GaussianSplat, ReducedCullWithinItsBound) {
     EXPECT_LT(tail_max, 1e-2);
 }
 
-// Noise (gaussian_splat.h, Fogshop 5.5) against its definition, per Gaussian in double: the
+// Noise (splat.h, Fogshop 5.5) against its definition, per Gaussian in double: the
 // optical depth of Gaussian i along r'_i = normalize(r + amplitude R_i / |b_i - v|
 // N(b_i^r / scale + offset)) over [0, Dvp] (b_i^r from the unperturbed ray, clamped to
 // [0, Dvp]), summed with beta0 Dvp, at full resolution (measured 3.5e-6; with the noise
