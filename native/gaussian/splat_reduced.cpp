@@ -18,7 +18,8 @@
 // A Gaussian reaching the near clip plane has its near segment [0, t0] on the lattice too.
 // Next to a light's image (exact_tile_) the light factor 1 / |b^r - s|^2 peaks: a Gaussian
 // whose b^r may come closer to a light than 27 s pixels' angle times d_i (light_clear) is
-// skipped behind, goes on a fine lattice of spacing s / 2 in front (quarter), else exact.
+// skipped behind, goes on a fine lattice of spacing s / 2 when in front and clear at that
+// spacing (quarter only), else is exact per pixel.
 // Depth edges cost no accuracy (a pixel's depth only selects which Gaussians are exact);
 // the error is the bilinear interpolation of smooth terms (splat_test.cpp, bench_rbf.py).
 // The criteria and their error bounds: docs/architecture.md, "The Gaussian splat".
