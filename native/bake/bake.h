@@ -60,6 +60,10 @@ struct BakeSettings {
     // per sample (bake.cpp edge_sample_clusters, EdgeClusterBounds). 0, and scenes with spot
     // lights: every sub-sample evaluated (the reference).
     double edge_cluster_tol = 0.1;
+    // Volumetric shadows (shadow/shadow_volumes.h): the in-scattering of every light that casts
+    // shadows is integrated over the lit intervals of each view ray only. Off: the passes are
+    // those of unshadowed fog, bit for bit.
+    bool shadows = false;
 };
 
 struct BakeStats {

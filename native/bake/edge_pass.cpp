@@ -69,7 +69,10 @@ void edge_pass(BakeContext& ctx, const FogEvaluator& fog, const EdgePixels& foun
     // per sub-sample (edge_cluster_tol = 0: the reference; and with spot lights, whose cone
     // edge makes the fog a kinked function of the ray: the mean ray erred by up to 40 % of
     // the spot's airlight on such pixels).
-    const bool clustered = supersample && settings.edge_cluster_tol > 0.0 && scene.spot_lights.empty();
+    // (Volumetric shadows too: a shadow's edge on the surface makes the fog a kinked function
+    // of the sample's ray as a spot's cone does.)
+    const bool clustered =
+        supersample && settings.edge_cluster_tol > 0.0 && scene.spot_lights.empty() && !fog.has_shadows();
     const double cluster_tol = settings.edge_cluster_tol;
     const double sigma_bg = scene.medium.sigma_t;  // the background extinction (Gaussians' too)
     // Airlight and transmittance error estimates above which a cluster's samples are

@@ -11,6 +11,7 @@
 #include "gaussian/airlight.h"
 #include "homogeneous/sun05_batch.h"
 #include "homogeneous/sunlight_layer.h"
+#include "shadow/shadowed_quadrature.h"
 
 namespace airlight {
 
@@ -24,6 +25,26 @@ constexpr double kMaxCentreDepth = 1e4;
 constexpr double kSpotRelTol = 1e-5;
 // Spots of the models but Pegoraro 2010's take its closed form up to this phase order.
 constexpr int kPegoraroSpotMaxOrder = 8;
+// Relative tolerance of the shadowed reference (visibility inside the integrand: each node a
+// shadow ray).
+constexpr double kShadowRelTol = 1e-8;
+
+// The one span [t0, t1] of a ray lit all along.
+bool fully_lit(const LitIntervals& lit, int v, double t0, double t1) {
+    return lit.end[v] - lit.begin[v] == 1 && lit.spans[lit.begin[v]].first == t0 && lit.spans[lit.begin[v]].second == t1;
+}
+
+// The sun's factor over the lit span [a, b] of a ray from o, attenuated from the fog's start
+// t_start (sunlight_layer_factor attenuates from the start of its own segment inside the layer).
+double sunlight_span(double sigma, double h_top, double mu_s, const Vec3& o, const Vec3& d, double t_start, double a,
+                     double b) {
+    const double G = sunlight_layer_factor(sigma, h_top, mu_s, o.z, d.z, a, b);
+    if (G == 0.0) return 0.0;
+    // Where the ray enters the layer z <= h_top (-inf: it starts inside or never leaves).
+    double enter = -std::numeric_limits<double>::infinity();
+    if (std::isfinite(h_top) && d.z < 0.0 && o.z > h_top) enter = (h_top - o.z) / d.z;
+    return G * std::exp(-sigma * (std::max(a, enter) - std::max(t_start, enter)));
+}
 
 // cos(gamma) of unit directions (dx, dy, dz)[k] with the unit vector _sv_ to a light.
 AIRLIGHT_ROW_CLONES
@@ -174,6 +195,83 @@ FogEvaluator::FogEvaluator(const SceneDescription& scene, const BakeSettings& se
                                                 extended ? &extra : nullptr);
         }
     }
+    if (settings.shadows && !gaussian_) set_up_shadows(scene, settings);
+}
+
+void FogEvaluator::set_up_shadows(const SceneDescription& scene, const BakeSettings&) {
+    const TriangleMesh& casters = scene.occluders_from_geometry ? scene.geometry : scene.occluders;
+    if (casters.triangles.empty()) return;
+    std::vector<ShadowLight> lights;
+    auto add = [&](bool casts, ShadowLight light) {
+        if (!casts) return -1;
+        lights.push_back(light);
+        return int(lights.size()) - 1;
+    };
+    size_t i = 0;
+    for (const PointLight& light : scene.point_lights) {
+        if (!keeps_light(scene, light)) continue;
+        ShadowLight sl;
+        sl.position = light.position;
+        light_volume_.push_back(add(light.casts_shadow, sl));
+        ++i;
+    }
+    for (const SpotLight& spot : scene.spot_lights) {
+        const RGB weight = scene.medium.albedo * spot.I0;
+        if (weight.x == 0.0 && weight.y == 0.0 && weight.z == 0.0) continue;
+        ShadowLight sl;
+        sl.position = spot.position;
+        spot_volume_.push_back(add(spot.casts_shadow, sl));
+    }
+    for (const SunLight& sun : scene.sun_lights) {
+        const RGB weight = scene.medium.albedo * sun.E * sigma_t_;
+        if (weight.x == 0.0 && weight.y == 0.0 && weight.z == 0.0) continue;
+        ShadowLight sl;
+        sl.directional = true;
+        sl.direction = glm::normalize(sun.direction);
+        sun_volume_.push_back(add(sun.casts_shadow, sl));
+    }
+    if (lights.empty()) return;
+    shadows_ = std::make_unique<ShadowVolumes>(casters, lights, origin_);
+    if (shared_origin_)
+        for (int v = 0; v < shadows_->num_lights(); ++v) origin_count_.push_back(shadows_->count_at(v, origin_));
+}
+
+const LitIntervals* FogEvaluator::lit_intervals(const Ray* rays, const float* t0, const float* t1, int n) const {
+    thread_local std::vector<LitIntervals> lit;
+    thread_local std::vector<float> zeros;
+    thread_local std::vector<int> counts;
+    if (lit.size() < size_t(n)) lit.resize(size_t(n));
+    if (!t0) {
+        zeros.assign(size_t(n), 0.0f);
+        t0 = zeros.data();
+    }
+    const int L = shadows_->num_lights();
+    const int* count0 = nullptr;
+    if (shared_origin_) {
+        counts.resize(size_t(n) * L);
+        for (int k = 0; k < n; ++k) std::copy(origin_count_.begin(), origin_count_.end(), counts.begin() + size_t(k) * L);
+        count0 = counts.data();
+    }
+    shadows_->lit_intervals(rays, t0, t1, n, count0, lit.data());
+    return lit.data();
+}
+
+double FogEvaluator::point_airlight_lit(const LightData& light, int v, const Vec3& o, const Vec3& d, double t_start,
+                                        double t_end, const LitIntervals& lit) const {
+    if (model_.visibility_in_integrand()) {
+        const Vec3 start = t_start > 0.0 ? o + t_start * d : o;
+        return point_airlight_visible(phase_, sigma_t_, light.s, start, d, t_end - t_start,
+                                      [&](const Vec3& p) { return visible(v, p); }, kShadowRelTol);
+    }
+    double sum = 0.0;
+    for (int k = lit.begin[v]; k < lit.end[v]; ++k) {
+        const double a = lit.spans[k].first, b = lit.spans[k].second;
+        const Vec3 x = o + a * d, sv = light.s - x;
+        const double Dsv = glm::length(sv);
+        const double cos_gamma = Dsv > 0.0 ? std::clamp(glm::dot(d, sv) / Dsv, -1.0, 1.0) : 1.0;
+        sum += std::exp(-sigma_t_ * (a - t_start)) * airlight(Dsv, cos_gamma, b - a);
+    }
+    return sum;
 }
 
 double FogEvaluator::gaussian_background(size_t l, const Vec3& d, double t0, double Dvp) const {
@@ -236,13 +334,28 @@ void FogEvaluator::eval_soa(const double* dx, const double* dy, const double* dz
             transmittance_batch(float(sigma_t_), Dvp + k0, m, Tr + k0);
         }
         for (int k = 0; k < m; ++k) sum_r[k] = sum_g[k] = sum_b[k] = 0.0f;
-        for (const LightData& light : lights_) {
+        // Volumetric shadows: the rays' lit intervals, for every shadowed light at once.
+        const LitIntervals* lit = nullptr;
+        Ray rays[kChunk];
+        if (shadows_) {
+            for (int k = 0; k < m; ++k) rays[k] = {origin_, Vec3(dx[k0 + k], dy[k0 + k], dz[k0 + k])};
+            lit = lit_intervals(rays, near, Dvp + k0, m);
+        }
+        for (size_t l = 0; l < lights_.size(); ++l) {
+            const LightData& light = lights_[l];
             const Vec3 sv = (light.s - origin_) * (light.Dsv > 0.0 ? 1.0 / light.Dsv : 0.0);
             const bool at_light = !(light.Dsv > 0.0);
             if (at_light) std::fill(cos_gamma, cos_gamma + m, 1.0);
             else cos_to_light(dx + k0, dy + k0, dz + k0, sv, m, cos_gamma);
             sun05_airlight_table_batch(data, nu, nT, sigma_t_, light.Dsv, cos_gamma, Dvp + k0, m, value, near,
                                        table.interp());
+            const int v = lit ? light_volume_[l] : -1;
+            if (v >= 0)  // the batch's value stands where the ray is lit all along
+                for (int k = 0; k < m; ++k) {
+                    const double t_start = near ? double(near[k]) : 0.0;
+                    if (!fully_lit(lit[k], v, t_start, double(Dvp[k0 + k])))
+                        value[k] = float(point_airlight_lit(light, v, origin_, rays[k].d, t_start, Dvp[k0 + k], lit[k]));
+                }
             accumulate_rgb(value, float(light.weight.x), float(light.weight.y), float(light.weight.z), m, sum_r,
                            sum_g, sum_b);
         }
@@ -256,14 +369,15 @@ void FogEvaluator::eval_soa(const double* dx, const double* dy, const double* dz
             for (int k = 0; k < m; ++k) {
                 const Vec3 d(dx[k0 + k], dy[k0 + k], dz[k0 + k]);
                 const double t_near = near ? double(near[k]) : 0.0;
-                const RGB La = spot_airlight(origin_, d, t_near, double(Dvp[k0 + k]));
+                const RGB La = spot_airlight(origin_, d, t_near, double(Dvp[k0 + k]), lit ? &lit[k] : nullptr);
                 for (int c = 0; c < 3; ++c) out[3 * k + c] = float(double(out[3 * k + c]) + La[c]);
             }
         }
         if (!suns_.empty()) {
             for (int k = 0; k < m; ++k) {
                 const Vec3 d(dx[k0 + k], dy[k0 + k], dz[k0 + k]);
-                const RGB La = sun_airlight(origin_, d, near ? double(near[k]) : 0.0, double(Dvp[k0 + k]));
+                const RGB La = sun_airlight(origin_, d, near ? double(near[k]) : 0.0, double(Dvp[k0 + k]),
+                                            lit ? &lit[k] : nullptr);
                 for (int c = 0; c < 3; ++c) out[3 * k + c] = float(double(out[3 * k + c]) + La[c]);
             }
         }
@@ -301,9 +415,16 @@ void FogEvaluator::eval_many(const Ray* rays, const float* Dvp, const float* t0,
         Tr[k] = sigma_t_ == 0.0 ? 1.0 : std::isinf(seg) ? 0.0 : std::exp(-sigma_t_ * seg);
     }
     if (sigma_t_ == 0.0) return;
-    for (const LightData& light : lights_) {
+    const LitIntervals* lit = shadows_ ? lit_intervals(rays, t0, Dvp, n) : nullptr;
+    for (size_t l = 0; l < lights_.size(); ++l) {
+        const LightData& light = lights_[l];
+        const int v = lit ? light_volume_[l] : -1;
         for (int k = 0; k < n; ++k) {
             const double near = t0 ? double(t0[k]) : 0.0;
+            if (v >= 0 && (model_.visibility_in_integrand() || !fully_lit(lit[k], v, near, double(Dvp[k])))) {
+                La[k] += light.weight * point_airlight_lit(light, v, rays[k].o, rays[k].d, near, Dvp[k], lit[k]);
+                continue;
+            }
             const Vec3 o = near > 0.0 ? rays[k].o + near * rays[k].d : rays[k].o;
             const Vec3 sv = light.s - o;
             const double Dsv = shared_origin_ && !(near > 0.0) ? light.Dsv : glm::length(sv);
@@ -313,36 +434,66 @@ void FogEvaluator::eval_many(const Ray* rays, const float* Dvp, const float* t0,
         }
     }
     if (!spots_.empty())
-        for (int k = 0; k < n; ++k) La[k] += spot_airlight(rays[k].o, rays[k].d, t0 ? double(t0[k]) : 0.0, double(Dvp[k]));
+        for (int k = 0; k < n; ++k)
+            La[k] += spot_airlight(rays[k].o, rays[k].d, t0 ? double(t0[k]) : 0.0, double(Dvp[k]), lit ? &lit[k] : nullptr);
     if (!suns_.empty())
-        for (int k = 0; k < n; ++k) La[k] += sun_airlight(rays[k].o, rays[k].d, t0 ? double(t0[k]) : 0.0, double(Dvp[k]));
+        for (int k = 0; k < n; ++k)
+            La[k] += sun_airlight(rays[k].o, rays[k].d, t0 ? double(t0[k]) : 0.0, double(Dvp[k]), lit ? &lit[k] : nullptr);
 }
 
-RGB FogEvaluator::sun_airlight(const Vec3& o, const Vec3& d, double t_near, double Dvp) const {
+RGB FogEvaluator::sun_airlight(const Vec3& o, const Vec3& d, double t_near, double Dvp, const LitIntervals* lit) const {
     RGB La(0.0);
     if (sigma_t_ == 0.0 || !(Dvp > t_near)) return La;
-    for (const SunData& sun : suns_) {
+    for (size_t i = 0; i < suns_.size(); ++i) {
+        const SunData& sun = suns_[i];
         const double p = phase_.eval(-glm::dot(sun.w, d));
-        const double G = model_.sun_quadrature()
-                             ? sunlight_layer_factor_quadrature(sigma_t_, fog_top_, sun.mu_s, o.z, d.z, t_near, Dvp,
-                                                           kQuadratureRelTol)
-                             : sunlight_layer_factor(sigma_t_, fog_top_, sun.mu_s, o.z, d.z, t_near, Dvp);
+        const int v = lit ? sun_volume_[i] : -1;
+        double G;
+        if (v >= 0 && model_.visibility_in_integrand()) {
+            G = sunlight_factor_visible(sigma_t_, fog_top_, sun.mu_s, o + t_near * d, d, Dvp - t_near,
+                                        [&](const Vec3& x) { return visible(v, x); }, kShadowRelTol);
+        } else if (v >= 0 && !fully_lit(*lit, v, t_near, Dvp)) {
+            G = 0.0;
+            for (int k = lit->begin[v]; k < lit->end[v]; ++k)
+                G += sunlight_span(sigma_t_, fog_top_, sun.mu_s, o, d, t_near, lit->spans[k].first, lit->spans[k].second);
+        } else {
+            G = model_.sun_quadrature()
+                    ? sunlight_layer_factor_quadrature(sigma_t_, fog_top_, sun.mu_s, o.z, d.z, t_near, Dvp,
+                                                       kQuadratureRelTol)
+                    : sunlight_layer_factor(sigma_t_, fog_top_, sun.mu_s, o.z, d.z, t_near, Dvp);
+        }
         La += sun.weight * (p * G);
     }
     return La;
 }
 
-RGB FogEvaluator::spot_airlight(const Vec3& o, const Vec3& d, double t_near, double Dvp) const {
+RGB FogEvaluator::spot_airlight(const Vec3& o, const Vec3& d, double t_near, double Dvp, const LitIntervals* lit) const {
     RGB La(0.0);
     if (sigma_t_ == 0.0) return La;
     const double seg = std::max(0.0, Dvp - t_near);  // inf stays inf
     if (!(seg > 0.0)) return La;
     const Vec3 start = t_near > 0.0 ? o + t_near * d : o;
-    for (const SpotData& spot : spots_)
-        La += spot.weight *
-              (!spot_closed_form_
-                   ? spot_airlight_quadrature(spot.cone, spot.s, phase_, sigma_t_, start, d, seg, kSpotRelTol)
-                   : pegoraro10_spot_airlight(pegoraro_phase_, spot.cone, spot.s, sigma_t_, start, d, seg));
+    // One segment [a, a + len] from _from_, attenuated from there.
+    auto segment = [&](const SpotData& spot, const Vec3& from, double len) {
+        return !spot_closed_form_
+                   ? spot_airlight_quadrature(spot.cone, spot.s, phase_, sigma_t_, from, d, len, kSpotRelTol)
+                   : pegoraro10_spot_airlight(pegoraro_phase_, spot.cone, spot.s, sigma_t_, from, d, len);
+    };
+    for (size_t i = 0; i < spots_.size(); ++i) {
+        const SpotData& spot = spots_[i];
+        const int v = lit ? spot_volume_[i] : -1;
+        if (v >= 0 && model_.visibility_in_integrand()) {
+            La += spot.weight * spot_airlight_visible(spot.cone, phase_, sigma_t_, spot.s, start, d, seg,
+                                                      [&](const Vec3& x) { return visible(v, x); }, kShadowRelTol);
+        } else if (v < 0 || fully_lit(*lit, v, t_near, Dvp)) {
+            La += spot.weight * segment(spot, start, seg);
+        } else {
+            for (int k = lit->begin[v]; k < lit->end[v]; ++k) {
+                const double a = lit->spans[k].first, b = lit->spans[k].second;
+                La += spot.weight * (std::exp(-sigma_t_ * (a - t_near)) * segment(spot, o + a * d, b - a));
+            }
+        }
+    }
     return La;
 }
 

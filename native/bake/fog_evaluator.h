@@ -16,6 +16,7 @@
 #include "homogeneous/spot_light.h"
 #include "image/camera.h"
 #include "models/fog_model.h"
+#include "shadow/shadow_volumes.h"
 
 namespace airlight {
 
@@ -52,6 +53,8 @@ class FogEvaluator {
     // The transmittance part of _eval_soa_ alone (soa() only), the same values.
     void transmittance_soa(const float* Dvp, const float* t0, int n, float* Tr) const;
     bool has_spots() const { return !spots_.empty(); }
+    // Volumetric shadows are on for at least one light (BakeSettings::shadows and casters).
+    bool has_shadows() const { return shadows_ != nullptr; }
 
     // Hot path (soa() only): _n_ rays from the shared origin with unit directions (dx,
     // dy, dz)[k] (structure of arrays, so the per-light dot products and accumulations
@@ -72,13 +75,13 @@ class FogEvaluator {
     // Airlight of all sun lamps along o + t d over [t_near, Dvp] (inf: none): sigma_s p E G
     // with the closed form G of sunlight_layer.h (its quadrature for the quadrature model). The
     // phase angle is the same all along the ray.
-    RGB sun_airlight(const Vec3& o, const Vec3& d, double t_near, double Dvp) const;
+    RGB sun_airlight(const Vec3& o, const Vec3& d, double t_near, double Dvp, const LitIntervals* lit = nullptr) const;
 
     // Airlight of all spot lights along the ray o + t d over [t_near, Dvp] (Dvp from o; inf:
     // none), attenuated from the near point (the viewer moved there, as eval_many does for
     // the other models). Pegoraro 2010 closed form with the medium's phase (pegoraro10.h), or
     // quadrature (spot_light.h): model 'quadrature', and phases above order 8 unless 'pegoraro10'.
-    RGB spot_airlight(const Vec3& o, const Vec3& d, double t_near, double Dvp) const;
+    RGB spot_airlight(const Vec3& o, const Vec3& d, double t_near, double Dvp, const LitIntervals* lit = nullptr) const;
 
   private:
     // A light scatters if albedo * I0 is nonzero, or (Gaussian fog with its own colours) if
@@ -96,6 +99,19 @@ class FogEvaluator {
     void eval_gaussians(const Ray* rays, const float* Dvp, const float* t0, int n, double* Tr, RGB* La) const;
 
     double airlight(double Dsv, double cos_gamma, double Dvp) const { return model_.point_airlight(Dsv, cos_gamma, Dvp); }
+
+    // Volumetric shadows: the shadow volumes of the lights that cast shadows, and per point
+    // light (lights_' order), spot and sun its light in them (-1: unshadowed).
+    void set_up_shadows(const SceneDescription& scene, const BakeSettings& settings);
+    // The lit intervals of _n_ rays within [t0, t1] (t0 null: 0), in a buffer of the calling thread.
+    const LitIntervals* lit_intervals(const Ray* rays, const float* t0, const float* t1, int n) const;
+    // A point light's airlight over the lit spans of light _v_ along o + t d, each span
+    // attenuated from _t_start_ (the fog's start); the reference model integrates the
+    // visibility itself over [t_start, t_end] (shadowed_quadrature.h).
+    double point_airlight_lit(const LightData& light, int v, const Vec3& o, const Vec3& d, double t_start, double t_end,
+                              const LitIntervals& lit) const;
+    // The visibility of light _v_ (for the reference model).
+    bool visible(int v, const Vec3& p) const { return shadows_->count_at(v, p) == 0; }
 
     const FogModel& model_;
     double sigma_t_;
@@ -140,6 +156,9 @@ class FogEvaluator {
     std::vector<GaussianSpotData> gaussian_spots_;
     std::vector<GaussianSunData> gaussian_suns_;
     std::unique_ptr<GaussianSplat> splat_;
+    std::unique_ptr<ShadowVolumes> shadows_;
+    std::vector<int> light_volume_, spot_volume_, sun_volume_;
+    std::vector<int> origin_count_;  // per light of shadows_: its count at origin_
 };
 
 }  // namespace airlight

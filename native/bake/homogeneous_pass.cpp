@@ -45,7 +45,8 @@ Lattice plan_lattice(const BakeContext& ctx, const FogEvaluator& fog) {
     const Vec3 eye = ctx.eye, forward = ctx.forward, D0 = ctx.D0, Dx = ctx.Dx, Dy = ctx.Dy;
     Lattice out;
     const int lattice = ctx.settings.homogeneous_resolution;
-    const bool use_lattice = lattice > 1 && ctx.affine && fog.soa() && !fog.has_spots();
+    // (Not with volumetric shadows: a shaft's edge crosses cells that pass the smoothness tests.)
+    const bool use_lattice = lattice > 1 && ctx.affine && fog.soa() && !fog.has_spots() && !fog.has_shadows();
     std::vector<Vec3>& light_dirs = out.light_dirs;
     double& cos_ex = out.cos_ex;
     if (use_lattice) {

@@ -83,7 +83,9 @@ py::dict bake_py(int width, int height, const py::object& cam_to_world, const py
                  double noise_amplitude, double noise_scale, const py::object& noise_offset, bool surface,
                  double surface_phong_exponent, double rayleigh_density, const std::string& gaussian_resolution,
                  const std::string& surface_glow_model, const std::string& homogeneous_resolution,
-                 double edge_cluster_tol) {
+                 double edge_cluster_tol, bool shadows, const py::object& light_shadows,
+                 const py::object& spot_shadows, const py::object& sun_shadows, const py::object& occluder_vertices,
+                 const py::object& occluder_triangles) {
     // Gather the scene description from the arrays (shapes checked here, values in bake()).
     SceneDescription scene;
     scene.camera.width = width;
@@ -206,7 +208,38 @@ py::dict bake_py(int width, int height, const py::object& cam_to_world, const py
     }
     scene.fog_top = fog_top;
 
+    // Volumetric shadows: per light its Cast Shadow (all cast by default), and the casters
+    // when they are not the camera's geometry.
+    auto cast_flags = [](const py::object& flags, const char* name, size_t n, auto set) {
+        if (flags.is_none()) return;
+        auto f = as_array<double>(flags, name);
+        if (!(f.ndim() == 1 && size_t(f.shape(0)) == n))
+            throw py::value_error(std::string(name) + ": expected one flag per light (" + std::to_string(n) +
+                                  "), got shape " + shape_str(f));
+        for (size_t i = 0; i < n; ++i) set(i, f.data()[i] != 0.0);
+    };
+    cast_flags(light_shadows, "light_shadows", scene.point_lights.size(),
+               [&](size_t i, bool on) { scene.point_lights[i].casts_shadow = on; });
+    cast_flags(spot_shadows, "spot_shadows", scene.spot_lights.size(),
+               [&](size_t i, bool on) { scene.spot_lights[i].casts_shadow = on; });
+    cast_flags(sun_shadows, "sun_shadows", scene.sun_lights.size(),
+               [&](size_t i, bool on) { scene.sun_lights[i].casts_shadow = on; });
+    if (occluder_vertices.is_none() != occluder_triangles.is_none())
+        throw py::value_error("occluder_vertices and occluder_triangles must be given together (or both None)");
+    if (!occluder_vertices.is_none()) {
+        auto ov = as_array<float>(occluder_vertices, "occluder_vertices");
+        const py::ssize_t n = require_rows_of(ov, 3, "occluder_vertices");
+        for (py::ssize_t i = 0; i < 3 * n; ++i)
+            if (!std::isfinite(ov.data()[i])) throw py::value_error("occluder_vertices: must be finite (found NaN or inf)");
+        scene.occluders.vertices.assign(ov.data(), ov.data() + 3 * n);
+        scene.occluders.triangles = to_triangles(occluder_triangles);
+        for (uint32_t i : scene.occluders.triangles)
+            if (i >= uint32_t(n)) throw py::value_error("occluder_triangles: index " + std::to_string(i) + " out of range");
+        scene.occluders_from_geometry = false;
+    }
+
     BakeSettings settings;
+    settings.shadows = shadows;
     settings.model = model_from_name(model);
     settings.threads = threads;
     settings.aa_samples = aa_samples;
@@ -325,7 +358,9 @@ void bind_bake(py::module_& m) {
           "noise_amplitude"_a = 0.0, "noise_scale"_a = 1.0, "noise_offset"_a = py::make_tuple(0.0, 0.0, 0.0),
           "surface"_a = false, "surface_phong_exponent"_a = 0.0, "rayleigh_density"_a = 0.0,
           "gaussian_resolution"_a = "full", "surface_glow_model"_a = "exact", "homogeneous_resolution"_a = "full",
-          "edge_cluster_tol"_a = BakeSettings().edge_cluster_tol,
+          "edge_cluster_tol"_a = BakeSettings().edge_cluster_tol, "shadows"_a = false,
+          "light_shadows"_a = py::none(), "spot_shadows"_a = py::none(), "sun_shadows"_a = py::none(),
+          "occluder_vertices"_a = py::none(), "occluder_triangles"_a = py::none(),
           R"doc(Bake fog passes for one camera view (all arguments keyword-only).
 
 width, height: render resolution in pixels.
@@ -371,6 +406,12 @@ homogeneous_resolution: "full" (default: every pixel exact), "half" or "quarter"
   cells, cells near a point light's image and cells whose centre pixel disagrees with the
   interpolation by more than 5e-4 of its value are exact per pixel (bake.cpp). The
   transmittance is always exact. Other cases ignore it (exact).
+shadows (default False): volumetric shadows and light shafts: each light's in-scattering counts
+  only where the light is not blocked by the shadow casters (shadow/shadow_volumes.h: exact to
+  the triangles); light_shadows, spot_shadows, sun_shadows: one flag per light of each kind (its
+  Cast Shadow; None: all cast); occluder_vertices (N, 3) float32, occluder_triangles (M, 3): the
+  casters when they are not the camera's geometry (Blender's Ray Visibility > Shadow).
+  Not yet with Gaussian fog (fog objects): there the fog is baked unshadowed.
 edge_cluster_tol >= 0 (default 0.1): edge pixels (aa_samples > 1) evaluate the fog once per
   cluster of their sub-samples (all misses; hits within a depth ratio of 1 + edge_cluster_tol),
   at the cluster's mean ray and depth, and per sample where a cluster's error estimate exceeds

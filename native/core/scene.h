@@ -43,6 +43,7 @@ inline bool phase_is_isotropic(const PhaseFunction& phase) {
 struct PointLight {
     Vec3 position{0.0};
     RGB I0{0.0};
+    bool casts_shadow = true;  // Blender's Cast Shadow (with BakeSettings::shadows)
 };
 
 // Blender spot light (Cycles' profile, spot_light.h): _I0_ = C * P / (4 pi) in W/sr as for
@@ -55,6 +56,7 @@ struct SpotLight {
     RGB I0{0.0};
     double spot_size = 0.785398163397448;  // Blender's default 45 deg
     double spot_blend = 0.15;
+    bool casts_shadow = true;
 };
 
 // Blender sun lamp (sunlight_layer.h): _direction_ of propagation (the lamp's -Z, normalised by
@@ -63,6 +65,7 @@ struct SpotLight {
 struct SunLight {
     Vec3 direction{0.0, 0.0, -1.0};
     RGB E{0.0};
+    bool casts_shadow = true;
 };
 
 // Pinhole or orthographic camera, given the way Blender gives it:
@@ -115,6 +118,10 @@ struct SceneDescription {
     Gaussians gaussians;
     std::vector<PointLight> point_lights;
     TriangleMesh geometry;
+    // The triangles that cast volumetric shadows (BakeSettings::shadows): Blender's objects
+    // with Ray Visibility > Shadow on. _occluders_from_geometry_: the same as _geometry_.
+    TriangleMesh occluders;
+    bool occluders_from_geometry = true;
     std::vector<SpotLight> spot_lights;  // airlight by quadrature (spot_light.h)
     // Sun lamps and the world height (Z) of the fog layer's top that bounds the fog they
     // light: +inf is Hoffman & Preetham's unattenuated sun (sunlight_layer.h).

@@ -1,0 +1,179 @@
+// shadow_volumes_test.cpp: lit intervals against analytic shadows and brute-force visibility.
+#include "shadow/shadow_volumes.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <random>
+#include <vector>
+
+namespace airlight {
+namespace {
+
+void add_quad(TriangleMesh& m, const Vec3& a, const Vec3& b, const Vec3& c, const Vec3& d) {
+    const uint32_t base = uint32_t(m.vertices.size() / 3);
+    for (const Vec3& p : {a, b, c, d})
+        for (int k = 0; k < 3; ++k) m.vertices.push_back(float(p[k]));
+    m.triangles.insert(m.triangles.end(), {base, base + 1, base + 2, base, base + 2, base + 3});
+}
+
+// An axis-aligned box as 12 triangles (closed, each face wound outward).
+void add_box(TriangleMesh& m, const Vec3& lo, const Vec3& hi) {
+    auto P = [&](int x, int y, int z) { return Vec3(x ? hi.x : lo.x, y ? hi.y : lo.y, z ? hi.z : lo.z); };
+    add_quad(m, P(0, 0, 0), P(0, 1, 0), P(1, 1, 0), P(1, 0, 0));
+    add_quad(m, P(0, 0, 1), P(1, 0, 1), P(1, 1, 1), P(0, 1, 1));
+    add_quad(m, P(0, 0, 0), P(1, 0, 0), P(1, 0, 1), P(0, 0, 1));
+    add_quad(m, P(0, 1, 0), P(0, 1, 1), P(1, 1, 1), P(1, 1, 0));
+    add_quad(m, P(0, 0, 0), P(0, 0, 1), P(0, 1, 1), P(0, 1, 0));
+    add_quad(m, P(1, 0, 0), P(1, 1, 0), P(1, 1, 1), P(1, 0, 1));
+}
+
+double lit_length(const LitIntervals& lit, int l) {
+    double sum = 0.0;
+    for (int k = lit.begin[l]; k < lit.end[l]; ++k) sum += lit.spans[k].second - lit.spans[k].first;
+    return sum;
+}
+
+bool is_lit(const LitIntervals& lit, int l, double t) {
+    for (int k = lit.begin[l]; k < lit.end[l]; ++k)
+        if (t >= lit.spans[k].first && t <= lit.spans[k].second) return true;
+    return false;
+}
+
+// Segment p -> q against one triangle (Moller-Trumbore), strictly inside.
+bool segment_hits(const Vec3& p, const Vec3& q, const Vec3& a, const Vec3& b, const Vec3& c) {
+    const Vec3 d = q - p, e1 = b - a, e2 = c - a, h = glm::cross(d, e2);
+    const double det = glm::dot(e1, h);
+    if (std::abs(det) < 1e-14) return false;
+    const Vec3 s = p - a;
+    const double u = glm::dot(s, h) / det;
+    if (u < 0.0 || u > 1.0) return false;
+    const Vec3 qq = glm::cross(s, e1);
+    const double v = glm::dot(d, qq) / det;
+    if (v < 0.0 || u + v > 1.0) return false;
+    const double t = glm::dot(e2, qq) / det;
+    return t > 0.0 && t < 1.0;
+}
+
+// An infinite plane z = 0 (a huge quad) under a light at z = 5: the lit half-space is z > 0.
+TEST(ShadowVolumes, PlaneLitHalfSpace) {
+    TriangleMesh plane;
+    add_quad(plane, Vec3(-1e4, -1e4, 0), Vec3(1e4, -1e4, 0), Vec3(1e4, 1e4, 0), Vec3(-1e4, 1e4, 0));
+    ShadowLight light;
+    light.position = Vec3(0.0, 0.0, 5.0);
+    const Vec3 eye(3.0, 0.0, 10.0);
+    const ShadowVolumes volumes(plane, {light}, eye);
+    EXPECT_EQ(volumes.count_at(0, Vec3(1.0, 2.0, 3.0)), 0);
+    EXPECT_EQ(volumes.count_at(0, Vec3(1.0, 2.0, -3.0)), 1);
+    // Down through the plane at t = 10: lit above it only.
+    std::vector<Ray> rays{{eye, Vec3(0, 0, -1)}, {Vec3(-50, 0, 1), Vec3(1, 0, 0)}, {Vec3(-50, 0, -1), Vec3(1, 0, 0)},
+                          {eye, glm::normalize(Vec3(1, 0.3, -0.5))}};
+    std::vector<float> t0(rays.size(), 0.0f), t1{20.0f, 100.0f, 100.0f, 60.0f};
+    std::vector<LitIntervals> lit(rays.size());
+    volumes.lit_intervals(rays.data(), t0.data(), t1.data(), int(rays.size()), nullptr, lit.data());
+    EXPECT_NEAR(lit_length(lit[0], 0), 10.0, 1e-4);
+    EXPECT_NEAR(lit_length(lit[1], 0), 100.0, 1e-4);
+    EXPECT_NEAR(lit_length(lit[2], 0), 0.0, 1e-9);
+    const double t_plane = 10.0 / 0.5 * glm::length(Vec3(1, 0.3, -0.5));  // z = 10 - 0.5 t / |.|
+    EXPECT_NEAR(lit_length(lit[3], 0), t_plane, 1e-3);
+}
+
+// A light inside a closed box: no point outside is lit, every point inside is.
+TEST(ShadowVolumes, LightInsideClosedBox) {
+    TriangleMesh box;
+    add_box(box, Vec3(-1, -1, -1), Vec3(1, 1, 1));
+    ShadowLight light;
+    light.position = Vec3(0.2, -0.1, 0.3);
+    const Vec3 eye(5.0, 4.0, 3.0);
+    const ShadowVolumes volumes(box, {light}, eye);
+    std::mt19937 rng(3);
+    std::uniform_real_distribution<double> U(-1.0, 1.0);
+    std::vector<Ray> rays;
+    for (int k = 0; k < 64; ++k) rays.push_back({eye, glm::normalize(Vec3(U(rng), U(rng), U(rng)) * 0.3 - eye)});
+    std::vector<float> t0(rays.size(), 0.0f), t1(rays.size(), 30.0f);
+    std::vector<LitIntervals> lit(rays.size());
+    volumes.lit_intervals(rays.data(), t0.data(), t1.data(), int(rays.size()), nullptr, lit.data());
+    for (size_t k = 0; k < rays.size(); ++k) {
+        // Lit length = the chord inside the box (slab test).
+        double tin = 0.0, tout = 30.0;
+        for (int c = 0; c < 3; ++c) {
+            double a = (-1.0 - rays[k].o[c]) / rays[k].d[c], b = (1.0 - rays[k].o[c]) / rays[k].d[c];
+            if (a > b) std::swap(a, b);
+            tin = std::max(tin, a), tout = std::min(tout, b);
+        }
+        EXPECT_NEAR(lit_length(lit[k], 0), std::max(0.0, tout - tin), 1e-4) << k;
+    }
+}
+
+// Random triangle soups (open, non-manifold, overlapping, some zero-area) and point and sun
+// lights: the lit state at points along random rays equals brute-force visibility, away from
+// the boundaries (1e-4 of the ray's length).
+TEST(ShadowVolumes, MatchesBruteForceVisibility) {
+    for (int seed = 1; seed <= 4; ++seed) {
+        std::mt19937 rng(seed);
+        std::uniform_real_distribution<double> U(-1.0, 1.0);
+        TriangleMesh soup;
+        std::vector<Vec3> tri;
+        for (int k = 0; k < 40; ++k) {
+            const Vec3 c(4 * U(rng), 4 * U(rng), 2 * U(rng));
+            for (int v = 0; v < 3; ++v) {
+                const Vec3 p = k % 13 == 0 && v == 2 ? tri[tri.size() - 1] : c + Vec3(U(rng), U(rng), U(rng));
+                tri.push_back(p);
+                for (int q = 0; q < 3; ++q) soup.vertices.push_back(float(p[q]));
+                soup.triangles.push_back(uint32_t(tri.size() - 1));
+            }
+        }
+        add_box(soup, Vec3(-1, -1, -3), Vec3(1, 1, -2.5));  // a closed box among them
+        for (size_t k = soup.triangles.size() - 36; k < soup.triangles.size(); ++k) (void)k;
+        std::vector<Vec3> all;  // the triangles as the brute force sees them (float positions)
+        for (uint32_t i : soup.triangles)
+            all.emplace_back(soup.vertices[3 * i], soup.vertices[3 * i + 1], soup.vertices[3 * i + 2]);
+        ShadowLight point, sun;
+        point.position = Vec3(0.5, -0.3, 4.0);
+        sun.directional = true;
+        sun.direction = glm::normalize(Vec3(0.3, 0.2, -1.0));
+        const Vec3 eye(0.0, -12.0, 1.0);
+        const ShadowVolumes volumes(soup, {point, sun}, eye);
+        std::vector<Ray> rays;
+        for (int k = 0; k < 48; ++k) rays.push_back({eye, glm::normalize(Vec3(5 * U(rng), 12.0, 3 * U(rng)))});
+        std::vector<float> t0(rays.size(), 0.0f), t1(rays.size(), 25.0f);
+        std::vector<LitIntervals> lit(rays.size());
+        volumes.lit_intervals(rays.data(), t0.data(), t1.data(), int(rays.size()), nullptr, lit.data());
+        int checked = 0, wrong = 0;
+        for (size_t k = 0; k < rays.size(); ++k)
+            for (int l = 0; l < 2; ++l)
+                for (int q = 0; q < 200; ++q) {
+                    const double t = 25.0 * (q + 0.5) / 200.0;
+                    bool near_boundary = false;
+                    for (int s = lit[k].begin[l]; s < lit[k].end[l]; ++s)
+                        near_boundary |= std::abs(t - lit[k].spans[s].first) < 2.5e-3 ||
+                                         std::abs(t - lit[k].spans[s].second) < 2.5e-3;
+                    if (near_boundary) continue;
+                    const Vec3 p = rays[k].o + t * rays[k].d;
+                    const Vec3 to = l == 0 ? point.position : p - 1e3 * sun.direction;
+                    bool blocked = false;
+                    for (size_t f = 0; f + 2 < all.size() && !blocked; f += 3)
+                        blocked = segment_hits(p, to, all[f], all[f + 1], all[f + 2]);
+                    ++checked;
+                    wrong += blocked == is_lit(lit[k], l, t);
+                }
+        EXPECT_EQ(wrong, 0) << "seed " << seed << ": " << wrong << " of " << checked << " points disagree";
+    }
+}
+
+// A light shadowed by nothing: one span over the whole segment; an empty caster mesh too.
+TEST(ShadowVolumes, NoCastersLeavesEverythingLit) {
+    ShadowLight light;
+    light.position = Vec3(0.0, 0.0, 3.0);
+    const ShadowVolumes volumes(TriangleMesh{}, {light}, Vec3(0.0));
+    const Ray r{Vec3(0.0), Vec3(1, 0, 0)};
+    const float t0 = 0.5f, t1 = std::numeric_limits<float>::infinity();
+    LitIntervals lit;
+    volumes.lit_intervals(&r, &t0, &t1, 1, nullptr, &lit);
+    ASSERT_EQ(lit.end[0] - lit.begin[0], 1);
+    EXPECT_EQ(lit.spans[0].first, 0.5);
+    EXPECT_TRUE(std::isinf(lit.spans[0].second));
+}
+
+}  // namespace
+}  // namespace airlight
