@@ -29,6 +29,11 @@ constexpr int kPegoraroSpotMaxOrder = 8;
 // shadow ray).
 constexpr double kShadowRelTol = 1e-8;
 
+// A point light whose unshadowed airlight on a ray is below this fraction of the ray's
+// airlight from all point lights keeps it unshadowed there: its shadow cannot change the
+// pixel by more (shadows only remove light), so its lit intervals are not traced.
+constexpr double kShadowCull = 1e-3;
+
 // The one span [t0, t1] of a ray lit all along.
 bool fully_lit(const LitIntervals& lit, int v, double t0, double t1) {
     return lit.end[v] - lit.begin[v] == 1 && lit.spans[lit.begin[v]].first == t0 && lit.spans[lit.begin[v]].second == t1;
@@ -231,12 +236,67 @@ void FogEvaluator::set_up_shadows(const SceneDescription& scene, const BakeSetti
         sun_volume_.push_back(add(sun.casts_shadow, sl));
     }
     if (lights.empty()) return;
+    for (const LightData& light : lights_) light_peak_.push_back(std::max({light.weight.x, light.weight.y, light.weight.z}));
     shadows_ = std::make_unique<ShadowVolumes>(casters, lights, origin_);
     if (shared_origin_)
         for (int v = 0; v < shadows_->num_lights(); ++v) origin_count_.push_back(shadows_->count_at(v, origin_));
 }
 
-const LitIntervals* FogEvaluator::lit_intervals(const Ray* rays, const float* t0, const float* t1, int n) const {
+const uint32_t* FogEvaluator::shadow_masks(const float* values, int m) const {
+    thread_local std::vector<uint32_t> masks;
+    masks.assign(size_t(m), 0u);
+    uint32_t always = 0;  // spots and suns: no unshadowed value to weigh them by
+    for (int v : spot_volume_)
+        if (v >= 0) always |= ShadowVolumes::light_mask(v);
+    for (int v : sun_volume_)
+        if (v >= 0) always |= ShadowVolumes::light_mask(v);
+    const size_t L = lights_.size();
+    for (int k = 0; k < m; ++k) {
+        double total = 0.0;
+        for (size_t l = 0; l < L; ++l) total += light_peak_[l] * double(values[l * size_t(m) + k]);
+        uint32_t mask = always;
+        for (size_t l = 0; l < L; ++l)
+            if (light_volume_[l] >= 0 && light_peak_[l] * double(values[l * size_t(m) + k]) > kShadowCull * total)
+                mask |= ShadowVolumes::light_mask(light_volume_[l]);
+        masks[size_t(k)] = mask;
+    }
+    return masks.data();
+}
+
+void FogEvaluator::relight_spans(const LightData& light, int v, const double* cos_gamma, const float* near,
+                                 const float* Dvp, int m, const LitIntervals* lit, float* value) const {
+    // The batch's value stands where the ray is lit all along; elsewhere the lit spans [a, b]
+    // of every ray go through the same SIMD kernel as segments from the eye (its near
+    // distance a, attenuated from there), each times e^{-sigma_t (a - t_start)}.
+    thread_local std::vector<double> span_cos;
+    thread_local std::vector<float> span_a, span_b, span_value;
+    thread_local std::vector<int> span_ray;
+    span_cos.clear(), span_a.clear(), span_b.clear(), span_ray.clear();
+    for (int k = 0; k < m; ++k) {
+        const double t_start = near ? double(near[k]) : 0.0;
+        if (fully_lit(lit[k], v, t_start, double(Dvp[k]))) continue;
+        value[k] = 0.0f;
+        for (int q = lit[k].begin[v]; q < lit[k].end[v]; ++q) {
+            span_cos.push_back(cos_gamma[k]);
+            span_a.push_back(float(lit[k].spans[q].first));
+            span_b.push_back(float(lit[k].spans[q].second));
+            span_ray.push_back(k);
+        }
+    }
+    if (span_ray.empty()) return;
+    const SpecialFTable& table = *model_.f_table();
+    span_value.resize(span_ray.size());
+    sun05_airlight_table_batch(table.data().data(), table.nu(), table.nT(), sigma_t_, light.Dsv, span_cos.data(),
+                               span_b.data(), int(span_ray.size()), span_value.data(), span_a.data(), table.interp());
+    for (size_t q = 0; q < span_ray.size(); ++q) {
+        const int k = span_ray[q];
+        const double t_start = near ? double(near[k]) : 0.0;
+        value[k] += float(std::exp(-sigma_t_ * (double(span_a[q]) - t_start)) * double(span_value[q]));
+    }
+}
+
+const LitIntervals* FogEvaluator::lit_intervals(const Ray* rays, const float* t0, const float* t1, int n,
+                                                const uint32_t* masks) const {
     thread_local std::vector<LitIntervals> lit;
     thread_local std::vector<float> zeros;
     thread_local std::vector<int> counts;
@@ -252,7 +312,7 @@ const LitIntervals* FogEvaluator::lit_intervals(const Ray* rays, const float* t0
         for (int k = 0; k < n; ++k) std::copy(origin_count_.begin(), origin_count_.end(), counts.begin() + size_t(k) * L);
         count0 = counts.data();
     }
-    shadows_->lit_intervals(rays, t0, t1, n, count0, lit.data());
+    shadows_->lit_intervals(rays, t0, t1, n, count0, lit.data(), masks);
     return lit.data();
 }
 
@@ -334,30 +394,47 @@ void FogEvaluator::eval_soa(const double* dx, const double* dy, const double* dz
             transmittance_batch(float(sigma_t_), Dvp + k0, m, Tr + k0);
         }
         for (int k = 0; k < m; ++k) sum_r[k] = sum_g[k] = sum_b[k] = 0.0f;
-        // Volumetric shadows: the rays' lit intervals, for every shadowed light at once.
         const LitIntervals* lit = nullptr;
-        Ray rays[kChunk];
-        if (shadows_) {
+        if (!shadows_) {
+            for (const LightData& light : lights_) {
+                const Vec3 sv = (light.s - origin_) * (light.Dsv > 0.0 ? 1.0 / light.Dsv : 0.0);
+                const bool at_light = !(light.Dsv > 0.0);
+                if (at_light) std::fill(cos_gamma, cos_gamma + m, 1.0);
+                else cos_to_light(dx + k0, dy + k0, dz + k0, sv, m, cos_gamma);
+                sun05_airlight_table_batch(data, nu, nT, sigma_t_, light.Dsv, cos_gamma, Dvp + k0, m, value, near,
+                                           table.interp());
+                accumulate_rgb(value, float(light.weight.x), float(light.weight.y), float(light.weight.z), m, sum_r,
+                               sum_g, sum_b);
+            }
+        } else {
+            // Volumetric shadows: every light's unshadowed airlight first, then the lit intervals
+            // of the lights that matter on each ray (shadow_mask), then the lit spans of the rays
+            // a shadow crosses.
+            thread_local std::vector<float> values;
+            thread_local std::vector<double> cosines;
+            const size_t L = lights_.size();
+            values.resize(L * size_t(m));
+            cosines.resize(L * size_t(m));
+            for (size_t l = 0; l < L; ++l) {
+                const LightData& light = lights_[l];
+                double* c = &cosines[l * size_t(m)];
+                const Vec3 sv = (light.s - origin_) * (light.Dsv > 0.0 ? 1.0 / light.Dsv : 0.0);
+                if (!(light.Dsv > 0.0)) std::fill(c, c + m, 1.0);
+                else cos_to_light(dx + k0, dy + k0, dz + k0, sv, m, c);
+                sun05_airlight_table_batch(data, nu, nT, sigma_t_, light.Dsv, c, Dvp + k0, m, &values[l * size_t(m)],
+                                           near, table.interp());
+            }
+            Ray rays[kChunk];
             for (int k = 0; k < m; ++k) rays[k] = {origin_, Vec3(dx[k0 + k], dy[k0 + k], dz[k0 + k])};
-            lit = lit_intervals(rays, near, Dvp + k0, m);
-        }
-        for (size_t l = 0; l < lights_.size(); ++l) {
-            const LightData& light = lights_[l];
-            const Vec3 sv = (light.s - origin_) * (light.Dsv > 0.0 ? 1.0 / light.Dsv : 0.0);
-            const bool at_light = !(light.Dsv > 0.0);
-            if (at_light) std::fill(cos_gamma, cos_gamma + m, 1.0);
-            else cos_to_light(dx + k0, dy + k0, dz + k0, sv, m, cos_gamma);
-            sun05_airlight_table_batch(data, nu, nT, sigma_t_, light.Dsv, cos_gamma, Dvp + k0, m, value, near,
-                                       table.interp());
-            const int v = lit ? light_volume_[l] : -1;
-            if (v >= 0)  // the batch's value stands where the ray is lit all along
-                for (int k = 0; k < m; ++k) {
-                    const double t_start = near ? double(near[k]) : 0.0;
-                    if (!fully_lit(lit[k], v, t_start, double(Dvp[k0 + k])))
-                        value[k] = float(point_airlight_lit(light, v, origin_, rays[k].d, t_start, Dvp[k0 + k], lit[k]));
-                }
-            accumulate_rgb(value, float(light.weight.x), float(light.weight.y), float(light.weight.z), m, sum_r,
-                           sum_g, sum_b);
+            lit = lit_intervals(rays, near, Dvp + k0, m, shadow_masks(values.data(), m));
+            for (size_t l = 0; l < L; ++l) {
+                const LightData& light = lights_[l];
+                float* v_l = &values[l * size_t(m)];
+                if (light_volume_[l] >= 0)
+                    relight_spans(light, light_volume_[l], &cosines[l * size_t(m)], near, Dvp + k0, m, lit, v_l);
+                accumulate_rgb(v_l, float(light.weight.x), float(light.weight.y), float(light.weight.z), m, sum_r,
+                               sum_g, sum_b);
+            }
         }
         float* out = rgb + 3 * size_t(k0);
         for (int k = 0; k < m; ++k) {

@@ -104,12 +104,20 @@ class FogEvaluator {
     // light (lights_' order), spot and sun its light in them (-1: unshadowed).
     void set_up_shadows(const SceneDescription& scene, const BakeSettings& settings);
     // The lit intervals of _n_ rays within [t0, t1] (t0 null: 0), in a buffer of the calling thread.
-    const LitIntervals* lit_intervals(const Ray* rays, const float* t0, const float* t1, int n) const;
+    const LitIntervals* lit_intervals(const Ray* rays, const float* t0, const float* t1, int n,
+                                      const uint32_t* masks = nullptr) const;
+    // Per ray, the shadowed lights that matter there (light_mask bits): _values_ holds each
+    // point light's unshadowed airlight per unit weight, light-major (m per light).
+    const uint32_t* shadow_masks(const float* values, int m) const;
     // A point light's airlight over the lit spans of light _v_ along o + t d, each span
     // attenuated from _t_start_ (the fog's start); the reference model integrates the
     // visibility itself over [t_start, t_end] (shadowed_quadrature.h).
     double point_airlight_lit(const LightData& light, int v, const Vec3& o, const Vec3& d, double t_start, double t_end,
                               const LitIntervals& lit) const;
+    // eval_soa's shadows: _value_ (the batch's airlight of _light_ for _m_ rays from origin_)
+    // recomputed over the lit spans of light _v_ where a ray is not lit all along.
+    void relight_spans(const LightData& light, int v, const double* cos_gamma, const float* near, const float* Dvp,
+                       int m, const LitIntervals* lit, float* value) const;
     // The visibility of light _v_ (for the reference model).
     bool visible(int v, const Vec3& p) const { return shadows_->count_at(v, p) == 0; }
 
@@ -159,6 +167,7 @@ class FogEvaluator {
     std::unique_ptr<ShadowVolumes> shadows_;
     std::vector<int> light_volume_, spot_volume_, sun_volume_;
     std::vector<int> origin_count_;  // per light of shadows_: its count at origin_
+    std::vector<double> light_peak_;  // per point light: its largest channel of albedo x I0
 };
 
 }  // namespace airlight

@@ -18,7 +18,7 @@ namespace {
 
 // The volumes' quads go from ring to ring, each this much farther from the light (see the
 // constructor), at most this many rings.
-constexpr double kRingGrowth = 4.0;
+constexpr double kRingGrowth = 64.0;
 constexpr int kMaxRings = 16;
 
 // Vertices welded by exact position (shared edges of triangles that do not share indices).
@@ -175,7 +175,7 @@ ShadowVolumes::ShadowVolumes(const TriangleMesh& casters, const std::vector<Shad
         // The extrusion distance (shadow_volumes.h).
         double far = glm::length(viewer - (light.directional ? 0.5 * (lo + hi) : s));
         for (const Vec3& p : mesh.position) far = std::max(far, light.directional ? extent : glm::length(p - s));
-        const double R = std::min(64.0 * std::max(far, extent * 1e-6), 1e7 * extent);
+        const double R = std::min(8.0 * std::max(far, extent * 1e-6), 1e7 * extent);
         impl_->reach[l] = R;
         // Outward normal of the side through edge p -> q of a triangle wound counter-clockwise
         // as the light sees it: (q - p) x (s - p), or (q - p) x (-w) for a sun.
@@ -256,6 +256,7 @@ ShadowVolumes::ShadowVolumes(const TriangleMesh& casters, const std::vector<Shad
             rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, 3 * sizeof(uint32_t), 0);
         }
         rtcSetGeometryIntersectFilterFunction(g, record_crossings);
+        rtcSetGeometryMask(g, light_mask(int(l)));
         rtcCommitGeometry(g);
         rtcAttachGeometryByID(impl_->volumes, g, unsigned(l));
         rtcReleaseGeometry(g);
@@ -289,10 +290,11 @@ int ShadowVolumes::count_at(int l, const Vec3& p) const {
 }
 
 void ShadowVolumes::lit_intervals(const Ray* rays, const float* t0, const float* t1, int n, const int* count0,
-                                  LitIntervals* out) const {
+                                  LitIntervals* out, const uint32_t* masks) const {
     const int L = num_lights();
-    std::vector<Crossing> lists[16];
-    std::vector<int> count(static_cast<size_t>(L));
+    thread_local std::vector<Crossing> lists[16];
+    thread_local std::vector<int> count;
+    count.resize(static_cast<size_t>(L));
     CrossingContext ctx;
     ctx.lists = lists;
     ctx.weights = &impl_->weights;
@@ -304,13 +306,14 @@ void ShadowVolumes::lit_intervals(const Ray* rays, const float* t0, const float*
             const int i = base + std::min(k, m - 1);
             const Ray& r = rays[i];
             lists[k].clear();
-            valid[k] = k < m && t1[i] > 0.0f ? -1 : 0;
+            const uint32_t mask = masks ? masks[i] : 0xFFFFFFFFu;
+            valid[k] = k < m && t1[i] > 0.0f && mask != 0 ? -1 : 0;
             rh.ray.org_x[k] = float(r.o.x), rh.ray.org_y[k] = float(r.o.y), rh.ray.org_z[k] = float(r.o.z);
             rh.ray.dir_x[k] = float(r.d.x), rh.ray.dir_y[k] = float(r.d.y), rh.ray.dir_z[k] = float(r.d.z);
             rh.ray.tnear[k] = 0.0f;
             rh.ray.tfar[k] = std::isinf(t1[i]) ? std::numeric_limits<float>::infinity() : t1[i];
             rh.ray.time[k] = 0.0f;
-            rh.ray.mask[k] = 0xFFFFFFFFu;
+            rh.ray.mask[k] = mask;
             rh.ray.id[k] = unsigned(k);
             rh.ray.flags[k] = 0;
             rh.hit.geomID[k] = RTC_INVALID_GEOMETRY_ID;
@@ -324,14 +327,21 @@ void ShadowVolumes::lit_intervals(const Ray* rays, const float* t0, const float*
             const Ray& r = rays[i];
             std::vector<Crossing>& list = lists[k];
             std::sort(list.begin(), list.end(), [](const Crossing& a, const Crossing& b) { return a.t < b.t; });
-            for (int l = 0; l < L; ++l) count[l] = count0 ? count0[size_t(i) * L + l] : count_at(l, r.o);
+            const uint32_t mask = masks ? masks[i] : 0xFFFFFFFFu;
             LitIntervals& lit = out[i];
             lit.clear(L);
             const double a = t0[i], b = t1[i];
+            for (int l = 0; l < L; ++l)
+                count[l] = !(mask & light_mask(l)) ? 0 : count0 ? count0[size_t(i) * L + l] : count_at(l, r.o);
             // Per light, sweep its crossings: lit where the count is 0 (clamped at 0: a crossing
             // lost to rounding must not leave the rest of the ray dark).
             for (int l = 0; l < L; ++l) {
                 lit.begin[l] = int(lit.spans.size());
+                if (!(mask & light_mask(l))) {  // not asked for: lit all along
+                    if (b > a) lit.spans.emplace_back(a, b);
+                    lit.end[l] = int(lit.spans.size());
+                    continue;
+                }
                 int c = count[l];
                 double start = a;
                 bool open = false;

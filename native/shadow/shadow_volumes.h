@@ -69,9 +69,13 @@ class ShadowVolumes {
     // The lit intervals within [t0[k], t1[k]] (t1 may be inf) of the _n_ rays o[k] + t d[k]
     // (unit d) for every light, into out[k]; _count0_ (num_lights() per ray, or null: computed
     // here) holds each light's count at the rays' origins. Rays sharing an origin pass the
-    // counts of count_at once. Thread safe.
+    // counts of count_at once. _masks_ (optional): per ray, the lights asked for (light_mask
+    // bits); the others come back lit all along, and a ray asking for none is not traced.
+    // Thread safe.
     void lit_intervals(const Ray* rays, const float* t0, const float* t1, int n, const int* count0,
-                       LitIntervals* out) const;
+                       LitIntervals* out, const uint32_t* masks = nullptr) const;
+    // The mask bit of light _l_ (lights beyond 32 share bits: asking for one traces both).
+    static uint32_t light_mask(int l) { return 1u << (l % 32); }
     // Quads (two triangles each) and caps built, for the figures.
     size_t num_faces() const { return n_faces_; }
 
