@@ -173,14 +173,42 @@ def sun_bounds(E, sigma, albedo, p_min, p_max, layered):
     return w * p_max, lower
 
 
-def skip_faint(uppers, lowers, target):
+def box_distances(points, boxes):
+    """(N,) least distance from each of N points to the union of axis-aligned boxes ((K, 2, 3)
+    lo, hi); inf with no box, 0 inside one."""
+    points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    if len(boxes) == 0:
+        return np.full(len(points), math.inf)
+    b = np.asarray(boxes, dtype=np.float64).reshape(-1, 2, 3)
+    gap = np.maximum(0.0, np.maximum(b[None, :, 0, :] - points[:, None, :], points[:, None, :] - b[None, :, 1, :]))
+    return np.sqrt(np.min(np.sum(gap * gap, axis=2), axis=1))
+
+
+def shadow_bounds(positions, I0, sigma, albedo, p_max, casters):
+    """(N, 3) upper bounds of the airlight a shadow can take from any pixel, for N point or
+    spot lights (positions (N, 3), I0 (N, 3)) and the casters' bounding boxes. A shadow only
+    darkens points farther from the light than the nearest caster, r: along any ray the
+    points with d(x) >= r give int dt / d^2 <= pi / r and their light crossed at least r of
+    fog, so La_shadowed <= omega sigma p_max I0 pi e^{-sigma r} / r (inf for a light inside a
+    caster's box)."""
+    r = box_distances(positions, casters)
+    w = np.asarray(albedo, dtype=np.float64) * np.asarray(I0, dtype=np.float64).reshape(-1, 3)
+    with np.errstate(divide='ignore', over='ignore', invalid='ignore'):
+        scale = np.where(r > 0.0, sigma * p_max * math.pi * np.exp(-sigma * r) / r, math.inf)
+    return np.where(w > 0.0, w * scale[:, None], 0.0)
+
+
+def skip_faint(uppers, lowers, target, spent=None):
     """Bool mask (N,) of the lights to skip: the faintest (by upper bound) while the sum of
-    the skipped upper bounds stays <= target * (sum of all lower bounds) in every channel."""
+    the skipped upper bounds stays <= target * (sum of all lower bounds) in every channel,
+    less _spent_ ((3,): what other approximations already took of that budget)."""
     uppers = np.asarray(uppers, dtype=np.float64).reshape(-1, 3)
     skip = np.zeros(len(uppers), dtype=bool)
     if len(uppers) == 0:
         return skip
     budget = target * np.sum(np.asarray(lowers, dtype=np.float64).reshape(-1, 3), axis=0)
+    if spent is not None:
+        budget = budget - np.asarray(spent, dtype=np.float64)
     order = np.argsort(np.max(uppers, axis=1), kind="stable")
     with np.errstate(invalid='ignore'):
         cumulative = np.cumsum(uppers[order], axis=0)

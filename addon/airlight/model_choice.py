@@ -229,7 +229,10 @@ SUN_QUADRATURE_MODEL = ("Quadrature (sun)", 1e-8)
 # 'off' (Scatter in Fog off), 'unsupported' (type not in the bake); label/error: the model
 # it gets and its measured max relative error; share: its upper bound over the fog
 # brightness bound (light_bounds.py), the largest over the colour channels.
-LightRow = namedtuple("LightRow", "name type status label error share")
+# shadow: 'shadowed' (volumetric shadows traced), 'clear' (Automatic: no caster near enough
+# to matter), 'no shadow' (the light's Cast Shadow is off), 'off' (Volumetric Shadows off, no
+# caster in the scene, or fog objects in it), '' for lights not in the fog.
+LightRow = namedtuple("LightRow", "name type status label error share shadow", defaults=("",))
 
 
 def plan_rows(settings, survey):
@@ -247,7 +250,7 @@ def plan_rows(settings, survey):
     p_min, p_max = light_bounds.phase_range(phase, g)
     frame = survey.frame
     rows, fogged = [], []
-    kinds, weights, positions = [], [], []   # per fogged light: type, I0 or E (RGB), position
+    kinds, weights, positions, casts = [], [], [], []   # per fogged light: type, I0 or E (RGB), position, shadow
     for light in survey.lights:
         if light.type not in SUPPORTED_LIGHT_TYPES:
             rows.append(LightRow(light.name, light.type, 'unsupported', "", math.nan, math.nan))
@@ -271,6 +274,7 @@ def plan_rows(settings, survey):
         kinds.append(light.type)
         weights.append(light.emission if light.type == 'SUN' else light.emission / (4.0 * math.pi))
         positions.append(light.position)
+        casts.append(light.casts_shadow)
     if not fogged:
         return rows
     kinds = np.array(kinds)
@@ -293,7 +297,39 @@ def plan_rows(settings, survey):
         shares = np.max(np.where(uppers > 0.0, uppers / total_lower, 0.0), axis=1)
     for k, i in enumerate(fogged):
         rows[i] = rows[i]._replace(share=float(shares[k]), status='skipped' if skip[k] else 'fog')
+    spent = uppers[skip].sum(axis=0) if np.any(skip) else np.zeros(3)
+    shadows = shadow_states(settings, survey, kinds, weights, positions, np.array(casts, dtype=bool), albedo,
+                            sigma, p_max, lowers, spent)
+    for k, i in enumerate(fogged):
+        if rows[i].status == 'fog':
+            rows[i] = rows[i]._replace(shadow=shadows[k])
     return rows
+
+
+def shadows_baked(settings, survey):
+    """Whether the bake traces volumetric shadows: Volumetric Shadows on, a caster in the
+    scene, and no fog object (their Gaussians are not shadowed yet)."""
+    return bool(getattr(settings, "volumetric_shadows", False)) and bool(survey.casters) and not survey.fog_objects
+
+
+def shadow_states(settings, survey, kinds, weights, positions, casts, albedo, sigma, p_max, lowers, spent):
+    """Per fogged light of plan_rows: its LightRow.shadow. Automatic leaves unshadowed the
+    point and spot lights whose shadows can darken no pixel by more than what the accuracy
+    target leaves after the skipped lights (_spent_: their upper bounds; light_bounds.
+    shadow_bounds against the fog brightness bound, as skip_faint); suns are shadowed
+    wherever there is a caster (their light does not fall off)."""
+    n = len(kinds)
+    if not shadows_baked(settings, survey):
+        return ['off'] * n
+    states = np.where(casts, 'shadowed', 'no shadow').astype(object)
+    if settings.model == 'AUTO' and sigma > 0.0:
+        positional = (kinds != 'SUN') & casts
+        if np.any(positional):
+            uppers = light_bounds.shadow_bounds(positions[positional], weights[positional], sigma, albedo, p_max,
+                                                survey.casters)
+            clear = light_bounds.skip_faint(uppers, lowers, settings.accuracy / 100.0, spent)
+            states[np.flatnonzero(positional)[clear]] = 'clear'
+    return [str(x) for x in states]
 
 
 def light_plan(scene, depsgraph=None, view_layer=None):
@@ -305,16 +341,21 @@ def light_plan(scene, depsgraph=None, view_layer=None):
 # What the bake does with a scene's lights: the native model, the names of the lights
 # Automatic skips (applied to the lights the depsgraph does not instance), and whether the
 # model is the daylight one (sun lamps only).
-Plan = namedtuple("Plan", "model skipped daylight")
+# _unshadowed_: the scene's lights left without volumetric shadows (Automatic's clear ones;
+# instanced lights keep their Cast Shadow); _shadows_: Volumetric Shadows on.
+Plan = namedtuple("Plan", "model skipped daylight shadows unshadowed", defaults=(False, frozenset()))
 
 
 def plan(settings, survey):
     """The Plan for these fog settings and a scene_description.Survey of the scene."""
     name = choose(settings)[0]
+    rows = plan_rows(settings, survey)
     skipped = frozenset()
     if settings.model == 'AUTO':
-        skipped = frozenset(row.name for row in plan_rows(settings, survey) if row.status == 'skipped')
-    return Plan(name, skipped, name == "hoffman02")
+        skipped = frozenset(row.name for row in rows if row.status == 'skipped')
+    shadows = shadows_baked(settings, survey)
+    unshadowed = frozenset(row.name for row in rows if row.shadow == 'clear')
+    return Plan(name, skipped, name == "hoffman02", shadows, unshadowed)
 
 
 def skipped_lights(scene, depsgraph=None):

@@ -985,6 +985,8 @@ class AIRLIGHT_PT_viewport_preview(bpy.types.Panel):
         layout.prop(settings, "color")
         if not (settings.phase == 'HENYEY_GREENSTEIN' and settings.anisotropy == 0.0):
             layout.label(text="Fog objects are previewed isotropic", icon='INFO')
+        if settings.volumetric_shadows:
+            layout.label(text="Volumetric shadows: in the bake, not the preview", icon='INFO')
 
 
 def register():

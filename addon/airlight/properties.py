@@ -264,6 +264,15 @@ class AirlightSceneSettings(bpy.types.PropertyGroup):
                     "the Mie haze on top",
         default=1.2e-5, min=0.0, soft_max=0.01, max=100.0, step=1, precision=6,
     )
+    volumetric_shadows: BoolProperty(
+        name="Volumetric Shadows",
+        description="Geometry blocks the light in the fog: light shafts through windows and "
+                    "between buildings, no glow behind walls. Objects with Ray Visibility > Shadow "
+                    "cast them, for lights with Cast Shadow on. Exact to the triangles; "
+                    "Automatic leaves a light unshadowed where no caster is near enough to matter. "
+                    "Off: unshadowed fog, as Sun et al. 2005 model it",
+        default=True,
+    )
     surface_shading: BoolProperty(
         name="Surface Shading",
         description="Cycles only: light surfaces through the fog (each fogged light's direct "

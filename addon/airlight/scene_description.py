@@ -260,6 +260,7 @@ class LightInstance(NamedTuple):
     energy: float         # power in W (spots, points) or strength in W/m^2 (suns)
     spot_size: float      # cone angle in rad (spots; 0 for the others)
     spot_blend: float     # cone edge softness (spots; 0 for the others)
+    casts_shadow: bool = True  # Cast Shadow (volumetric shadows)
 
 
 def _light_instance(instance, obj):
@@ -271,18 +272,45 @@ def _light_instance(instance, obj):
         name=obj.name, type=light.type, participates=bool(light.original.airlight.participate),
         instanced=bool(instance.is_instance), matrix=np.array(instance.matrix_world, dtype=np.float64),
         color=np.array(light.color, dtype=np.float64), energy=light.energy,
-        spot_size=float(light.spot_size) if spot else 0.0, spot_blend=float(light.spot_blend) if spot else 0.0)
+        spot_size=float(light.spot_size) if spot else 0.0, spot_blend=float(light.spot_blend) if spot else 0.0,
+        casts_shadow=bool(getattr(light, "use_shadow", True)))
+
+
+def _world_triangles(obj, matrix):
+    """World-space (vertices float32, triangles uint32) of an evaluated object, or None."""
+    arrays = mesh_arrays(obj)
+    if arrays is None:
+        return None
+    local, tris = arrays
+    world = local.astype(np.float64) @ matrix[:3, :3].T + matrix[:3, 3]
+    if not np.isfinite(world).all():
+        raise ExportError(f"Object '{obj.name}' has NaN or infinite vertices or transform "
+                          "(a driver, constraint or modifier?).")
+    return world.astype(np.float32), tris.astype(np.uint32)
+
+
+def _soup(blocks):
+    """One triangle soup (vertices (N, 3) float32, triangles (M, 3) uint32) of blocks."""
+    if not blocks:
+        return np.zeros((0, 3), np.float32), np.zeros((0, 3), np.uint32)
+    vertices, triangles, base = [], [], 0
+    for v, t in blocks:
+        vertices.append(v)
+        triangles.append(t + np.uint32(base))
+        base += len(v)
+    return np.concatenate(vertices), np.concatenate(triangles)
 
 
 def export_instances(depsgraph, geometry=True):
-    """(lights, vertices, triangles) of every render-visible object instance: the lights as
-    LightInstances in the depsgraph's order, and with _geometry_ the world-space triangle
-    soup (vertices (N, 3) float32, triangles (M, 3) uint32; else both None). An instance is
-    visible when whatever instances it renders (the instanced object itself is often hidden,
-    e.g. in a particle collection)."""
+    """(lights, vertices, triangles, occluders) of every render-visible object instance: the
+    lights as LightInstances in the depsgraph's order, and with _geometry_ the world-space
+    triangle soup the camera sees (vertices (N, 3) float32, triangles (M, 3) uint32) and the
+    one that casts shadows (Ray Visibility > Shadow), as (vertices, triangles) or None when it
+    is the same soup (else all three None). An instance is visible when whatever instances it
+    renders (the instanced object itself is often hidden, e.g. in a particle collection)."""
     visible = visibility.RenderVisibility(depsgraph.view_layer)
-    lights, vertex_blocks, triangle_blocks = [], [], []
-    n_vertices = 0
+    lights, seen, casting = [], [], []
+    differ = False
     for instance in depsgraph.object_instances:
         obj = instance.object
         if obj.type != 'LIGHT' and not geometry:
@@ -293,26 +321,25 @@ def export_instances(depsgraph, geometry=True):
         if obj.type == 'LIGHT':
             lights.append(_light_instance(instance, obj))
             continue
-        # Geometry the camera cannot see does not stop view rays.
-        if obj.type not in GEOMETRY_TYPES or not getattr(obj, "visible_camera", True):
+        if obj.type not in GEOMETRY_TYPES:
             continue
-        arrays = mesh_arrays(obj)
-        if arrays is None:
+        # Geometry the camera cannot see does not stop view rays; geometry that casts no
+        # shadow does not stop the light.
+        camera, shadow = getattr(obj, "visible_camera", True), getattr(obj, "visible_shadow", True)
+        if not (camera or shadow):
             continue
-        local, tris = arrays
-        matrix = np.array(instance.matrix_world, dtype=np.float64)
-        world = local.astype(np.float64) @ matrix[:3, :3].T + matrix[:3, 3]
-        if not np.isfinite(world).all():
-            raise ExportError(f"Object '{obj.name}' has NaN or infinite vertices or transform "
-                              "(a driver, constraint or modifier?).")
-        vertex_blocks.append(world.astype(np.float32))
-        triangle_blocks.append(tris.astype(np.uint32) + np.uint32(n_vertices))
-        n_vertices += len(local)
+        block = _world_triangles(obj, np.array(instance.matrix_world, dtype=np.float64))
+        if block is None:
+            continue
+        if camera:
+            seen.append(block)
+        if shadow:
+            casting.append(block)
+        differ |= camera != shadow
     if not geometry:
-        return tuple(lights), None, None
-    vertices = np.concatenate(vertex_blocks) if vertex_blocks else np.zeros((0, 3), np.float32)
-    triangles = np.concatenate(triangle_blocks) if triangle_blocks else np.zeros((0, 3), np.uint32)
-    return tuple(lights), vertices, triangles
+        return tuple(lights), None, None, None
+    vertices, triangles = _soup(seen)
+    return tuple(lights), vertices, triangles, (_soup(casting) if differ else None)
 
 
 class SurveyLight(NamedTuple):
@@ -322,15 +349,18 @@ class SurveyLight(NamedTuple):
     participates: bool
     emission: np.ndarray    # colour x power (3,) float64 (None unless participating and supported)
     position: tuple         # world location (None unless participating and supported)
+    casts_shadow: bool = True
 
 
 class Survey(NamedTuple):
     """What model_choice.light_plan bounds: the scene's render-visible lights (not instanced
-    ones), the scene camera's frame (None: none to bound) and whether a render-visible fog
-    object is in the scene."""
+    ones), the scene camera's frame (None: none to bound), whether a render-visible fog
+    object is in the scene, and the world-space bounding boxes ((2, 3) lo, hi) of the
+    render-visible objects that cast shadows (instances included)."""
     lights: tuple
     frame: object
     fog_objects: bool
+    casters: tuple = ()
 
 
 def survey(scene, depsgraph=None, view_layer=None):
@@ -352,10 +382,34 @@ def survey(scene, depsgraph=None, view_layer=None):
             emission = np.array(light.color, dtype=np.float64) * light.energy
             src = obj.evaluated_get(depsgraph) if depsgraph is not None else obj
             position = tuple(src.matrix_world.translation)
-        lights.append(SurveyLight(obj.name, light.type, participates, emission, position))
+        lights.append(SurveyLight(obj.name, light.type, participates, emission, position,
+                                  bool(getattr(light, "use_shadow", True))))
     fog_objects = any(getattr(getattr(obj, "airlight_fog", None), "is_fog", False)
                       and visible(obj) for obj in scene.objects)
-    return Survey(tuple(lights), frame, fog_objects)
+    return Survey(tuple(lights), frame, fog_objects, caster_boxes(scene, depsgraph, visible))
+
+
+def caster_boxes(scene, depsgraph, visible):
+    """World-space bounding boxes ((2, 3) float64: lo, hi) of the render-visible objects that
+    cast shadows: the depsgraph's instances when given, else the scene's objects as they are
+    (the panel). Fog objects hold Gaussians, not surfaces: they cast none."""
+    boxes = []
+    if depsgraph is not None:
+        items = ((inst.object, inst.parent if inst.is_instance else inst.object, inst.matrix_world)
+                 for inst in depsgraph.object_instances)
+    else:
+        items = ((obj, obj, obj.matrix_world) for obj in scene.objects)
+    for obj, source, matrix in items:
+        if obj.type not in GEOMETRY_TYPES or source is None or not visible(source):
+            continue
+        if not getattr(obj, "visible_shadow", True) or fog_object.is_fog_object(obj):
+            continue
+        corners = np.array([tuple(c) for c in obj.bound_box], dtype=np.float64)
+        m = np.array(matrix, dtype=np.float64)
+        world = corners @ m[:3, :3].T + m[:3, 3]
+        if np.isfinite(world).all():
+            boxes.append(np.array([world.min(axis=0), world.max(axis=0)]))
+    return tuple(boxes)
 
 
 def fog_lights(scene):
@@ -465,6 +519,7 @@ class SceneDescription(NamedTuple):
     clip: tuple             # export_clip_range: (clip_start, clip_end), or None
     vertices: np.ndarray    # (N, 3) float32 world-space, or None
     triangles: np.ndarray   # (M, 3) uint32, or None
+    occluders: tuple = None  # (vertices, triangles) of the shadow casters when not the above
 
 
 def describe(scene, depsgraph, mesh_overrides=None, view=None, bake=True):
@@ -481,11 +536,12 @@ def describe(scene, depsgraph, mesh_overrides=None, view=None, bake=True):
         camera = export_camera(scene, depsgraph, view)
         clip = export_clip_range(scene, depsgraph, view)
     surveyed = survey(scene, depsgraph)
-    lights, vertices, triangles = export_instances(depsgraph, geometry=bake)
+    lights, vertices, triangles, occluders = export_instances(depsgraph, geometry=bake)
     gaussians = export_fog_objects(depsgraph, mesh_overrides) if bake else None
     settings = scene.airlight
     fog_top = float(settings.fog_top) if settings.use_fog_top else math.inf
     return SceneDescription(sigma_t=sigma_t, albedo=albedo, phase=phase, g=g, fog_top=fog_top,
                             lights=lights, survey=surveyed, gaussians=gaussians,
                             noise=export_noise(scene) if gaussians else None,
-                            camera=camera, clip=clip, vertices=vertices, triangles=triangles)
+                            camera=camera, clip=clip, vertices=vertices, triangles=triangles,
+                            occluders=occluders)

@@ -145,6 +145,36 @@ def light_arguments(description, plan):
     return dict(light_positions=positions, light_intensities=intensities, **spots, **suns)
 
 
+def _shadowed(light, plan):
+    """Whether a baked light casts volumetric shadows: Volumetric Shadows on with casters in
+    the scene (plan.shadows), its Cast Shadow on, and not left clear by Automatic
+    (plan.unshadowed; instanced lights never are)."""
+    return plan.shadows and light.casts_shadow and (light.instanced or light.name not in plan.unshadowed)
+
+
+def shadow_arguments(description, plan):
+    """The volumetric-shadow keyword arguments of `_native.bake` ({} when no baked light is
+    shadowed): shadows=True, one flag per baked point light, spot and sun in the order
+    point_lights, spot_lights and sun_lights give them, and the shadow casters when they are
+    not the camera's geometry (occluder_vertices, occluder_triangles)."""
+    if not plan.shadows or description.gaussians:
+        return {}
+    flags = {}
+    kinds = (('POINT', "light_shadows"), ('SPOT', "spot_shadows"), ('SUN', "sun_shadows"))
+    for light_type, key in kinds:
+        if plan.daylight and light_type != 'SUN':
+            continue
+        chosen = [l for l in description.lights if l.type == light_type and _baked(l, plan)]
+        if chosen:
+            flags[key] = np.array([_shadowed(l, plan) for l in chosen], dtype=np.float64)
+    if not any(np.any(f) for f in flags.values()):
+        return {}
+    out = dict(shadows=True, **flags)
+    if description.occluders is not None:
+        out["occluder_vertices"], out["occluder_triangles"] = description.occluders
+    return out
+
+
 def bake_arguments(description, plan):
     """`_native.bake`'s scene keyword arguments (the module docstring) of a SceneDescription
     described for the bake, with the lights its plan takes."""
@@ -168,6 +198,7 @@ def bake_arguments(description, plan):
         **(description.noise or {}),
         **spots,
         **suns,
+        **shadow_arguments(description, plan),
     )
 
 

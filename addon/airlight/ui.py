@@ -82,6 +82,10 @@ class AIRLIGHT_PT_scene(bpy.types.Panel):
         if context.scene.render.use_motion_blur:
             col.prop(settings, "motion_samples")
         col.prop(settings, "auto_composite")
+        col.prop(settings, "volumetric_shadows")
+        note = shadow_note(context.scene)
+        if note:
+            col.label(text=note, icon='INFO')
         col.prop(settings, "surface_shading")
         sub = col.column()
         sub.active = settings.surface_shading
@@ -141,9 +145,27 @@ def light_lines(scene, view_layer=None):
             text = f"{row.name}: skipped: below {_percent(row.share)} of the fog"
         else:
             error = "unbounded" if math.isinf(row.error) else f"\u2264 {_percent(row.error)}"
-            text = f"{row.name}: {row.label}, error {error}{where}"
+            text = f"{row.name}: {row.label}, error {error}{where}{_SHADOW_TEXT.get(row.shadow, '')}"
         lines.append((text, icon))
     return lines
+
+
+_SHADOW_TEXT = {'shadowed': ", shadowed", 'clear': ", unshadowed (no caster near enough to matter)",
+                'no shadow': ", unshadowed (Cast Shadow off)"}
+
+
+def shadow_note(scene):
+    """A line for the panel when Volumetric Shadows is on but bakes none, or None."""
+    settings = scene.airlight
+    if not settings.volumetric_shadows:
+        return None
+    if any(fog_object.is_fog_object(obj) and not obj.hide_render for obj in scene.objects):
+        return "Volumetric shadows are not baked with fog objects yet"
+    if not any(obj.type in ('MESH', 'CURVE', 'SURFACE', 'FONT', 'META') and not obj.hide_render
+               and getattr(obj, "visible_shadow", True) and not fog_object.is_fog_object(obj)
+               for obj in scene.objects):
+        return "No object casts shadows (Ray Visibility > Shadow)"
+    return None
 
 
 class AIRLIGHT_PT_light(bpy.types.Panel):

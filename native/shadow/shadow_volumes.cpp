@@ -113,6 +113,9 @@ struct ShadowVolumes::Impl {
     RTCScene casters = nullptr;  // the caster triangles (count_at)
     std::vector<std::vector<int16_t>> weights;  // per light, per primitive
     std::vector<double> reach;                  // per light: the extrusion distance R
+    // The volumes are built about the viewer (Embree works in floats: a scene 1000 km from the
+    // world's origin keeps its shadows to ~1e-7 of their distance from the camera, not to 6 cm).
+    Vec3 frame{0.0};
     std::string error;
 
     ~Impl() {
@@ -127,11 +130,19 @@ struct ShadowVolumes::Impl {
 
 ShadowVolumes::~ShadowVolumes() = default;
 
-ShadowVolumes::ShadowVolumes(const TriangleMesh& casters, const std::vector<ShadowLight>& lights, const Vec3& viewer)
-    : impl_(new Impl), lights_(lights) {
-    if (lights.size() > size_t(std::numeric_limits<int16_t>::max()))
+ShadowVolumes::ShadowVolumes(const TriangleMesh& casters, const std::vector<ShadowLight>& world_lights,
+                             const Vec3& world_viewer)
+    : impl_(new Impl), lights_(world_lights) {
+    if (lights_.size() > size_t(std::numeric_limits<int16_t>::max()))
         throw std::invalid_argument("shadow volumes: too many lights");
-    const Welded mesh = weld(casters);
+    // Everything below in the viewer's frame (Impl::frame).
+    impl_->frame = world_viewer;
+    const Vec3 viewer(0.0);
+    for (ShadowLight& l : lights_)
+        if (!l.directional) l.position -= world_viewer;
+    const std::vector<ShadowLight>& lights = lights_;
+    Welded mesh = weld(casters);
+    for (Vec3& p : mesh.position) p -= world_viewer;
     const size_t nv = mesh.position.size(), nt = mesh.triangles.size() / 3;
     impl_->device = rtcNewDevice(nullptr);
     if (!impl_->device) throw std::runtime_error("Embree: rtcNewDevice failed (shadow volumes)");
@@ -265,7 +276,8 @@ ShadowVolumes::ShadowVolumes(const TriangleMesh& casters, const std::vector<Shad
     impl_->check("building the volumes");
 }
 
-int ShadowVolumes::count_at(int l, const Vec3& p) const {
+int ShadowVolumes::count_at(int l, const Vec3& world_p) const {
+    const Vec3 p = world_p - impl_->frame;
     const ShadowLight& light = lights_[size_t(l)];
     const Vec3 to = light.directional ? -glm::normalize(light.direction) : light.position - p;
     const double dist = light.directional ? impl_->reach[size_t(l)] : glm::length(to);
@@ -305,10 +317,11 @@ void ShadowVolumes::lit_intervals(const Ray* rays, const float* t0, const float*
         for (int k = 0; k < 16; ++k) {
             const int i = base + std::min(k, m - 1);
             const Ray& r = rays[i];
+            const Vec3 o = r.o - impl_->frame;
             lists[k].clear();
             const uint32_t mask = masks ? masks[i] : 0xFFFFFFFFu;
             valid[k] = k < m && t1[i] > 0.0f && mask != 0 ? -1 : 0;
-            rh.ray.org_x[k] = float(r.o.x), rh.ray.org_y[k] = float(r.o.y), rh.ray.org_z[k] = float(r.o.z);
+            rh.ray.org_x[k] = float(o.x), rh.ray.org_y[k] = float(o.y), rh.ray.org_z[k] = float(o.z);
             rh.ray.dir_x[k] = float(r.d.x), rh.ray.dir_y[k] = float(r.d.y), rh.ray.dir_z[k] = float(r.d.z);
             rh.ray.tnear[k] = 0.0f;
             rh.ray.tfar[k] = std::isinf(t1[i]) ? std::numeric_limits<float>::infinity() : t1[i];

@@ -3,7 +3,9 @@
 // visibility test at every node (shadow rays), independent of the lit intervals the bake's
 // models integrate over (shadow_volumes.h). The jumps of the visibility are found by scanning
 // it along the segment (512 points) and bisecting, and become the rule's breakpoints; shadows
-// narrower than the scan's spacing can be missed. Slow: for the model "quadrature" and the tests.
+// narrower than the scan's spacing can be missed. Slow (hundreds of shadow rays per segment):
+// for the tests, with an analytic visibility or shadow rays; the bake's models, "quadrature"
+// among them, integrate over the lit intervals.
 //
 // Per unit albedo and light intensity (suns: irradiance), along start + x d, x in [0, seg]
 // (seg may be inf), attenuated from start, with the medium's phase (phase.h convention:

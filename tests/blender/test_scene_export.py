@@ -56,7 +56,7 @@ def test02_geometry_counts_instances_and_skips_hidden(tmp_path):
         empty.location = (x, 1.0, 0.5)
         scene.collection.objects.link(empty)
     depsgraph = bpy.context.evaluated_depsgraph_get()
-    _, vertices, triangles = scene_description.export_instances(depsgraph)
+    _, vertices, triangles, _ = scene_description.export_instances(depsgraph)
     # plane 2 + visible cube 12 + 2 instanced cubes 24 (hidden cube and excluded source: 0)
     assert len(triangles) == 2 + 12 + 24
     assert vertices.dtype == np.float32 and triangles.dtype == np.uint32
@@ -144,9 +144,14 @@ def test04_description_keys_match_bake_arguments(tmp_path):
     scene = build_plane_scene(tmp_path)
     scene.airlight.color = (0.9, 0.8, 0.7)
     description = scene_export.export_scene(scene, bpy.context.evaluated_depsgraph_get())
-    assert set(description) == {"width", "height", "cam_to_world", "projection", "clip_start", "clip_end",
-                                "vertices", "triangles", "light_positions", "light_intensities",
-                                "sigma_t", "albedo", "phase", "g"}
+    plain = {"width", "height", "cam_to_world", "projection", "clip_start", "clip_end", "vertices", "triangles",
+             "light_positions", "light_intensities", "sigma_t", "albedo", "phase", "g"}
+    # Volumetric Shadows (on by default): the ground casts them; its flag per point light.
+    assert set(description) == plain | {"shadows", "light_shadows"}
+    assert description["shadows"] is True and list(description["light_shadows"]) == [1.0]
+    scene.airlight.volumetric_shadows = False
+    description = scene_export.export_scene(scene, bpy.context.evaluated_depsgraph_get())
+    assert set(description) == plain
     cam = scene.camera.data
     assert (description["clip_start"], description["clip_end"]) == pytest.approx((cam.clip_start, cam.clip_end))
     assert description["sigma_t"] == pytest.approx(0.2)

@@ -162,7 +162,8 @@ def test05_panel_lines(tmp_path):
     lines = dict((text.split(":")[0], text) for text, _ in ui.light_lines(scene))
     assert lines["Far"].startswith("Far: skipped: below ")
     label, error = model_choice.choose(scene.airlight)[1:]
-    assert lines["Near"] == f"Near: {label}, error \u2264 {100 * error:.2g} %"
+    # (the ground casts volumetric shadows: on by default)
+    assert lines["Near"] == f"Near: {label}, error \u2264 {100 * error:.2g} %, shadowed"
     assert lines["Sun"].startswith("Sun: Closed form (sun)")
     assert "not yet in fog" in lines["Panel"]
     scene.airlight.accuracy = 0.01            # the list follows the settings: Far back in
@@ -171,7 +172,7 @@ def test05_panel_lines(tmp_path):
     assert lines["Far"].startswith(f"Far: {label}")
     scene.airlight.model = 'BASELINE'
     lines = dict((text.split(":")[0], text) for text, _ in ui.light_lines(scene))
-    assert lines["Near"].endswith("error unbounded")
+    assert lines["Near"].endswith("error unbounded, shadowed")
     # With a fog object the rows say their error is the uniform fog's (the Gaussians' is on
     # the Fog Objects panel).
     fog_object.new_fog_object("Fog", scene.collection, centres=[(0.0, 0.0, 1.0)])

@@ -48,6 +48,8 @@ def build_scene(sigma_t):
     settings.enabled = True
     settings.density = sigma_t
     settings.color = ALBEDO
+    # The preview draws the fog unshadowed (its panel says so): it is held to the unshadowed bake.
+    settings.volumetric_shadows = False
     bpy.context.view_layer.update()
     return scene
 
