@@ -11,6 +11,7 @@
 #include "gaussian/airlight.h"
 #include "homogeneous/sun05_batch.h"
 #include "homogeneous/sunlight_layer.h"
+#include "shadow/shadowed_quadrature.h"
 
 namespace airlight {
 
@@ -24,6 +25,10 @@ constexpr double kMaxCentreDepth = 1e4;
 constexpr double kSpotRelTol = 1e-5;
 // Spots of the models but Pegoraro 2010's take its closed form up to this phase order.
 constexpr int kPegoraroSpotMaxOrder = 8;
+
+// Relative tolerance of the shadowed reference (visibility inside the integrand: each node a
+// shadow ray).
+constexpr double kShadowRelTol = 1e-8;
 
 // A point light whose unshadowed airlight on a ray is below this fraction of the ray's
 // airlight from all point lights keeps it unshadowed there: its shadow cannot change the
@@ -312,8 +317,23 @@ const LitIntervals* FogEvaluator::lit_intervals(const Ray* rays, const float* t0
     return lit.data();
 }
 
+std::vector<double> FogEvaluator::span_ends(const LitIntervals& lit, int v, double t_start) {
+    std::vector<double> ends;
+    for (int k = lit.begin[v]; k < lit.end[v]; ++k) {
+        ends.push_back(lit.spans[k].first - t_start);
+        ends.push_back(lit.spans[k].second - t_start);
+    }
+    return ends;
+}
+
 double FogEvaluator::point_airlight_lit(const LightData& light, int v, const Vec3& o, const Vec3& d, double t_start,
                                         double t_end, const LitIntervals& lit) const {
+    if (model_.visibility_in_integrand()) {
+        const Vec3 start = t_start > 0.0 ? o + t_start * d : o;
+        const std::vector<double> jumps = span_ends(lit, v, t_start);
+        return point_airlight_visible(phase_, sigma_t_, light.s, start, d, t_end - t_start,
+                                      [&](const Vec3& p) { return visible(v, p); }, kShadowRelTol, &jumps);
+    }
     double sum = 0.0;
     for (int k = lit.begin[v]; k < lit.end[v]; ++k) {
         const double a = lit.spans[k].first, b = lit.spans[k].second;
@@ -489,7 +509,7 @@ void FogEvaluator::eval_many(const Ray* rays, const float* Dvp, const float* t0,
         const int v = lit ? light_volume_[l] : -1;
         for (int k = 0; k < n; ++k) {
             const double near = t0 ? double(t0[k]) : 0.0;
-            if (v >= 0 && !fully_lit(lit[k], v, near, double(Dvp[k]))) {
+            if (v >= 0 && (model_.visibility_in_integrand() || !fully_lit(lit[k], v, near, double(Dvp[k])))) {
                 La[k] += light.weight * point_airlight_lit(light, v, rays[k].o, rays[k].d, near, Dvp[k], lit[k]);
                 continue;
             }
@@ -517,7 +537,11 @@ RGB FogEvaluator::sun_airlight(const Vec3& o, const Vec3& d, double t_near, doub
         const double p = phase_.eval(-glm::dot(sun.w, d));
         const int v = lit ? sun_volume_[i] : -1;
         double G;
-        if (v >= 0 && !fully_lit(*lit, v, t_near, Dvp)) {
+        if (v >= 0 && model_.visibility_in_integrand()) {
+            const std::vector<double> jumps = span_ends(*lit, v, t_near);
+            G = sunlight_factor_visible(sigma_t_, fog_top_, sun.mu_s, o + t_near * d, d, Dvp - t_near,
+                                        [&](const Vec3& x) { return visible(v, x); }, kShadowRelTol, &jumps);
+        } else if (v >= 0 && !fully_lit(*lit, v, t_near, Dvp)) {
             G = 0.0;
             for (int k = lit->begin[v]; k < lit->end[v]; ++k)
                 G += sunlight_span(sigma_t_, fog_top_, sun.mu_s, o, d, t_near, lit->spans[k].first, lit->spans[k].second);
@@ -547,7 +571,12 @@ RGB FogEvaluator::spot_airlight(const Vec3& o, const Vec3& d, double t_near, dou
     for (size_t i = 0; i < spots_.size(); ++i) {
         const SpotData& spot = spots_[i];
         const int v = lit ? spot_volume_[i] : -1;
-        if (v < 0 || fully_lit(*lit, v, t_near, Dvp)) {
+        if (v >= 0 && model_.visibility_in_integrand()) {
+            const std::vector<double> jumps = span_ends(*lit, v, t_near);
+            La += spot.weight * spot_airlight_visible(spot.cone, phase_, sigma_t_, spot.s, start, d, seg,
+                                                      [&](const Vec3& x) { return visible(v, x); }, kShadowRelTol,
+                                                      &jumps);
+        } else if (v < 0 || fully_lit(*lit, v, t_near, Dvp)) {
             La += spot.weight * segment(spot, start, seg);
         } else {
             for (int k = lit->begin[v]; k < lit->end[v]; ++k) {

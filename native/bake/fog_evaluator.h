@@ -110,13 +110,19 @@ class FogEvaluator {
     // point light's unshadowed airlight per unit weight, light-major (m per light).
     const uint32_t* shadow_masks(const float* values, int m) const;
     // A point light's airlight over the lit spans of light _v_ along o + t d, each span
-    // attenuated from _t_start_ (the fog's start).
+    // attenuated from _t_start_ (the fog's start); the reference model integrates the
+    // visibility itself over [t_start, t_end] (shadowed_quadrature.h).
     double point_airlight_lit(const LightData& light, int v, const Vec3& o, const Vec3& d, double t_start, double t_end,
                               const LitIntervals& lit) const;
     // eval_soa's shadows: _value_ (the batch's airlight of _light_ for _m_ rays from origin_)
     // recomputed over the lit spans of light _v_ where a ray is not lit all along.
     void relight_spans(const LightData& light, int v, const double* cos_gamma, const float* near, const float* Dvp,
                        int m, const LitIntervals* lit, float* value) const;
+
+    // The visibility of light _v_ (for the reference model).
+    bool visible(int v, const Vec3& p) const { return shadows_->lit_at(v, p); }
+    // The ends of light _v_'s lit spans as distances from _t_start_ (the reference's breakpoints).
+    static std::vector<double> span_ends(const LitIntervals& lit, int v, double t_start);
 
     const FogModel& model_;
     double sigma_t_;

@@ -105,8 +105,11 @@ TEST(ShadowBake, HalfPlaneWallMatchesAnalyticVisibility) {
         std::printf("[wall] %s: max rel err %.2e (peak %.3g, %d pixels start in shadow)\n",
                     model_entry(model).name.c_str(), worst, peak, shadowed_pixels);
         EXPECT_GT(shadowed_pixels, 0);
-        // The table models' own error (1e-4); the closed forms' and the quadrature's 5e-7.
-        const double bound = model == ModelId::Sun05Table || model == ModelId::Biri06 ? 1e-3 : 2e-6;
+        // The table models' own error (1e-4); the closed forms' 5e-7; the reference's 8.5e-5 (its
+        // visibility from shadow rays, in floats, meets the wall's edge a little off the volumes').
+        const double bound = model == ModelId::Sun05Table || model == ModelId::Biri06 ? 1e-3
+                             : model == ModelId::Quadrature                           ? 3e-4
+                                                                                      : 2e-6;
         EXPECT_LT(worst, bound) << model_entry(model).name;
     }
 }

@@ -66,9 +66,9 @@ Panel gk15(const std::function<double(double)>& f, double a, double b, int depth
 }  // namespace
 
 double integrate_adaptive(const std::function<double(double)>& f, double a, double b, double rel_tol,
-                          double abs_tol, int max_depth) {
+                          double abs_tol, int max_depth, int max_panels) {
     if (a == b) return 0.0;
-    if (a > b) return -integrate_adaptive(f, b, a, rel_tol, abs_tol, max_depth);
+    if (a > b) return -integrate_adaptive(f, b, a, rel_tol, abs_tol, max_depth, max_panels);
     // Infinite upper limit: x = a + t / (1 - t), dx = dt / (1 - t)^2, t in [0, 1).
     if (std::isinf(b)) {
         auto g = [&f, a](double t) {
@@ -76,9 +76,8 @@ double integrate_adaptive(const std::function<double(double)>& f, double a, doub
             const double v = f(a + t / om);
             return v == 0.0 ? 0.0 : v / (om * om);
         };
-        return integrate_adaptive(g, 0.0, 1.0, rel_tol, abs_tol, max_depth);
+        return integrate_adaptive(g, 0.0, 1.0, rel_tol, abs_tol, max_depth, max_panels);
     }
-    constexpr int kMaxPanels = 20000;
     std::priority_queue<Panel> heap;
     Panel p0 = gk15(f, a, b, 0);
     double total = p0.integral, total_err = p0.error;
@@ -86,7 +85,7 @@ double integrate_adaptive(const std::function<double(double)>& f, double a, doub
     // _done_ holds panels that cannot be split further (depth or resolution limit).
     double done_integral = 0.0, done_error = 0.0;
     int panels = 1;
-    while (!heap.empty() && total_err > std::max(abs_tol, rel_tol * std::abs(total)) && panels < kMaxPanels) {
+    while (!heap.empty() && total_err > std::max(abs_tol, rel_tol * std::abs(total)) && panels < max_panels) {
         Panel p = heap.top();
         heap.pop();
         const double m = 0.5 * (p.a + p.b);
@@ -126,9 +125,11 @@ double integrate_cut(const std::function<double(double)>& f, double lo, double h
 }
 
 double integrate_piecewise(const std::function<double(double)>& f, const std::vector<double>& cuts,
-                           double end, double tail_scale, double rel_tol) {
+                           double end, double tail_scale, double rel_tol, double abs_tol, int max_panels) {
+    const double piece_abs = abs_tol / double(cuts.size());
     double sum = 0.0;
-    for (size_t i = 0; i + 1 < cuts.size(); ++i) sum += integrate_adaptive(f, cuts[i], cuts[i + 1], rel_tol * 0.1);
+    for (size_t i = 0; i + 1 < cuts.size(); ++i)
+        sum += integrate_adaptive(f, cuts[i], cuts[i + 1], rel_tol * 0.1, piece_abs, 60, max_panels);
     const double last = cuts.back();
     if (std::isinf(end)) {
         // Tail [last, inf): x = last + L t / (1 - t) with L the natural length scale.
@@ -138,9 +139,9 @@ double integrate_piecewise(const std::function<double(double)>& f, const std::ve
             const double v = f(last + L * t / om);
             return v == 0.0 ? 0.0 : v * L / (om * om);
         };
-        sum += integrate_adaptive(g, 0.0, 1.0, rel_tol * 0.1);
+        sum += integrate_adaptive(g, 0.0, 1.0, rel_tol * 0.1, piece_abs, 60, max_panels);
     } else if (end > last) {
-        sum += integrate_adaptive(f, last, end, rel_tol * 0.1);
+        sum += integrate_adaptive(f, last, end, rel_tol * 0.1, piece_abs, 60, max_panels);
     }
     return sum;
 }

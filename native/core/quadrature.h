@@ -23,13 +23,17 @@ void gauss_laguerre(int n, std::vector<double>& x, std::vector<double>& w);
 // integrands, but on 1/sqrt(x) over [0, 1] it took 1.5e6 evaluations and 4.6 ms for 7e-7
 // where this takes 1815 and 14 us for 2e-11 (benchmarks/libraries/library_bench).
 double integrate_adaptive(const std::function<double(double)>& f, double a, double b,
-                          double rel_tol = 1e-10, double abs_tol = 0.0, int max_depth = 60);
+                          double rel_tol = 1e-10, double abs_tol = 0.0, int max_depth = 60,
+                          int max_panels = 20000);
 
 // Integrates f over [cuts[0], end] piecewise between the sorted breakpoints _cuts_ (each
 // piece to rel_tol / 10). When _end_ is +inf the tail beyond the last cut is mapped to
-// [0, 1) by x = last + L t / (1 - t), L = max(last, tail_scale).
+// [0, 1) by x = last + L t / (1 - t), L = max(last, tail_scale). _abs_tol_, shared by the
+// pieces, ends the refinement of a piece whose own integral is ~0 (a shadowed one);
+// _max_panels_ bounds each piece's work (integrate_adaptive).
 double integrate_piecewise(const std::function<double(double)>& f, const std::vector<double>& cuts,
-                           double end, double tail_scale, double rel_tol);
+                           double end, double tail_scale, double rel_tol, double abs_tol = 0.0,
+                           int max_panels = 20000);
 
 // Integrates f over [lo, hi] by integrate_adaptive between the breakpoints _cuts_ that fall
 // inside it (any order; those outside are ignored), each piece to _rel_tol_.

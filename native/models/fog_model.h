@@ -36,6 +36,10 @@ class FogModel {
     // (sunlight_layer.h).
     virtual bool sun_quadrature() const { return false; }
     virtual GaussianMethod gaussian_method() const { return GaussianMethod::Fogshop; }
+    // Volumetric shadows: true for the reference, which asks the visibility (a shadow ray) at
+    // every node of its quadrature, the lit intervals' ends its breakpoints; false for the
+    // models that integrate over the lit intervals.
+    virtual bool visibility_in_integrand() const { return false; }
     // Fogshop: true when the splat's background (beta0) term is this model's own airlight,
     // false when it is the splat's built-in isotropic Sun 2005 term (from f_table()).
     virtual bool own_gaussian_background() const { return true; }

@@ -21,6 +21,7 @@ class Quadrature final : public FogModel {
     SpotMethod spot_method() const override { return SpotMethod::Quadrature; }
     bool sun_quadrature() const override { return true; }
     GaussianMethod gaussian_method() const override { return GaussianMethod::Quadrature; }
+    bool visibility_in_integrand() const override { return true; }
 
   private:
     double sigma_t_;

@@ -105,6 +105,44 @@ void embree_error(void* user, RTCError code, const char* str) {
     if (message->empty()) *message = std::string(str ? str : "unknown error") + " (code " + std::to_string(int(code)) + ")";
 }
 
+// The segment from _p_ (in the volumes' frame) toward _light_ (_reach_: a sun's extrusion
+// distance), clipped in double to the casters' box [lo, hi] before it goes to Embree in floats:
+// from a point 1e9 m out the float origin is off by ~60 m, more than a caster's size, while from
+// the box's face it is exact to the casters' own rounding. False: nothing to trace (the point
+// is at the light, or the segment misses the box: lit).
+bool light_ray(const ShadowLight& light, double reach, const Vec3& p, const Vec3& lo, const Vec3& hi, RTCRay& ray) {
+    const Vec3 to = light.directional ? -glm::normalize(light.direction) : light.position - p;
+    const double dist = light.directional ? reach : glm::length(to);
+    if (!(dist > 0.0) || !(hi.x >= lo.x)) return false;
+    const Vec3 d = to / glm::length(to);
+    // Off the point by 1e-6 of its distance from the viewer (and from the light): the caster a
+    // point lies on (a wall's own face, in floats) does not count as between it and the light.
+    // Short of the light by 1e-6 of the way: a triangle through the light (its plane holds it)
+    // shadows nothing, as in the volumes, where it has no frustum.
+    double t0 = 1e-6 * (glm::length(p) + (light.directional ? 0.0 : dist));
+    double t1 = light.directional ? dist : dist * (1.0 - 1e-6);
+    for (int c = 0; c < 3; ++c) {
+        if (d[c] == 0.0) {
+            if (p[c] < lo[c] || p[c] > hi[c]) return false;
+            continue;
+        }
+        double ta = (lo[c] - p[c]) / d[c], tb = (hi[c] - p[c]) / d[c];
+        if (ta > tb) std::swap(ta, tb);
+        t0 = std::max(t0, ta), t1 = std::min(t1, tb);
+    }
+    if (!(t1 >= t0)) return false;
+    const Vec3 o = p + t0 * d;
+    ray.org_x = float(o.x), ray.org_y = float(o.y), ray.org_z = float(o.z);
+    ray.dir_x = float(d.x), ray.dir_y = float(d.y), ray.dir_z = float(d.z);
+    ray.tnear = 0.0f;
+    ray.tfar = float(t1 - t0);
+    ray.time = 0.0f;
+    ray.mask = 0xFFFFFFFFu;
+    ray.id = 0;
+    ray.flags = 0;
+    return true;
+}
+
 }  // namespace
 
 struct ShadowVolumes::Impl {
@@ -113,6 +151,7 @@ struct ShadowVolumes::Impl {
     RTCScene casters = nullptr;  // the caster triangles (count_at)
     std::vector<std::vector<int16_t>> weights;  // per light, per primitive
     std::vector<double> reach;                  // per light: the extrusion distance R
+    Vec3 lo{0.0}, hi{-1.0};                     // the casters' box, padded (count_at, lit_at)
     // The volumes are built about the viewer (Embree works in floats: a scene 1000 km from the
     // world's origin keeps its shadows to ~1e-7 of their distance from the camera, not to 6 cm).
     Vec3 frame{0.0};
@@ -162,6 +201,12 @@ ShadowVolumes::ShadowVolumes(const TriangleMesh& casters, const std::vector<Shad
     lo = glm::min(lo, viewer);
     hi = glm::max(hi, viewer);
     const double extent = nv ? std::max(glm::length(hi - lo), 1e-30) : 1.0;
+    {
+        Vec3 clo(std::numeric_limits<double>::infinity()), chi(-std::numeric_limits<double>::infinity());
+        for (const Vec3& p : mesh.position) clo = glm::min(clo, p), chi = glm::max(chi, p);
+        const Vec3 pad(1e-5 * extent);  // above the floats' rounding of the vertices
+        if (nv) impl_->lo = clo - pad, impl_->hi = chi + pad;
+    }
 
     if (nt > 0) {
         RTCGeometry g = rtcNewGeometry(impl_->device, RTC_GEOMETRY_TYPE_TRIANGLE);
@@ -277,28 +322,24 @@ ShadowVolumes::ShadowVolumes(const TriangleMesh& casters, const std::vector<Shad
 }
 
 int ShadowVolumes::count_at(int l, const Vec3& world_p) const {
-    const Vec3 p = world_p - impl_->frame;
-    const ShadowLight& light = lights_[size_t(l)];
-    const Vec3 to = light.directional ? -glm::normalize(light.direction) : light.position - p;
-    const double dist = light.directional ? impl_->reach[size_t(l)] : glm::length(to);
-    if (!(dist > 0.0)) return 0;
-    const Vec3 d = to / glm::length(to);
+    RTCRayHit rh;
+    if (!light_ray(lights_[size_t(l)], impl_->reach[size_t(l)], world_p - impl_->frame, impl_->lo, impl_->hi, rh.ray)) return 0;
     CountContext ctx;
     rtcInitIntersectContext(&ctx.context);
     ctx.count = 0;
-    RTCRayHit rh;
-    rh.ray.org_x = float(p.x), rh.ray.org_y = float(p.y), rh.ray.org_z = float(p.z);
-    rh.ray.dir_x = float(d.x), rh.ray.dir_y = float(d.y), rh.ray.dir_z = float(d.z);
-    rh.ray.tnear = 0.0f;
-    rh.ray.tfar = float(dist);
-    rh.ray.time = 0.0f;
-    rh.ray.mask = 0xFFFFFFFFu;
-    rh.ray.id = 0;
-    rh.ray.flags = 0;
     rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
     rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
     rtcIntersect1(impl_->casters, &ctx.context, &rh);
     return ctx.count;
+}
+
+bool ShadowVolumes::lit_at(int l, const Vec3& world_p) const {
+    RTCRay ray;
+    if (!light_ray(lights_[size_t(l)], impl_->reach[size_t(l)], world_p - impl_->frame, impl_->lo, impl_->hi, ray)) return true;
+    RTCIntersectContext ctx;
+    rtcInitIntersectContext(&ctx);
+    rtcOccluded1(impl_->casters, &ctx, &ray);  // the counting filter is an intersect filter only
+    return ray.tfar >= 0.0f;                    // set to -inf on a hit
 }
 
 void ShadowVolumes::lit_intervals(const Ray* rays, const float* t0, const float* t1, int n, const int* count0,

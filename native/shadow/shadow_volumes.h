@@ -66,6 +66,8 @@ class ShadowVolumes {
     int num_lights() const { return int(lights_.size()); }
     // Number of caster triangles between _p_ and light _l_ (0: lit). Thread safe.
     int count_at(int l, const Vec3& p) const;
+    // Whether _p_ sees light _l_ (count_at == 0, by an occlusion ray: faster). Thread safe.
+    bool lit_at(int l, const Vec3& p) const;
     // The lit intervals within [t0[k], t1[k]] (t1 may be inf) of the _n_ rays o[k] + t d[k]
     // (unit d) for every light, into out[k]; _count0_ (num_lights() per ray, or null: computed
     // here) holds each light's count at the rays' origins. Rays sharing an origin pass the

@@ -175,5 +175,24 @@ TEST(ShadowVolumes, NoCastersLeavesEverythingLit) {
     EXPECT_TRUE(std::isinf(lit.spans[0].second));
 }
 
+// A light in the plane of a caster (a flat sheet through the light; also what a thin slab
+// 1000 km from the origin becomes in floats): the sheet shadows nothing, and the counts at
+// the rays' origins agree with the volumes (before, count_at counted the sheet at the light
+// itself and left every ray dark).
+TEST(ShadowVolumes, CasterThroughTheLightShadowsNothing) {
+    TriangleMesh sheet;
+    add_quad(sheet, Vec3(-5, 0, -5), Vec3(5, 0, -5), Vec3(5, 0, 5), Vec3(-5, 0, 5));
+    ShadowLight light;
+    light.position = Vec3(0.0, 0.0, 0.5);  // inside the sheet's plane y = 0, inside the sheet
+    const ShadowVolumes volumes(sheet, {light}, Vec3(0.0, -3.0, 0.0));
+    for (const Vec3& p : {Vec3(1.0, 2.0, -1.0), Vec3(-2.0, -4.0, 3.0), Vec3(0.3, 0.5, 0.2)})
+        EXPECT_EQ(volumes.count_at(0, p), 0);
+    const Ray r{Vec3(0.2, -3.0, 0.1), glm::normalize(Vec3(0.1, 1.0, 0.05))};
+    const float t0 = 0.0f, t1 = 20.0f;
+    LitIntervals lit;
+    volumes.lit_intervals(&r, &t0, &t1, 1, nullptr, &lit);
+    EXPECT_NEAR(lit_length(lit, 0), 20.0, 1e-5);
+}
+
 }  // namespace
 }  // namespace airlight
