@@ -85,6 +85,10 @@ void record_crossings(const RTCFilterFunctionNArguments* args) {
     }
 }
 
+// The sine of the angle between a caster's plane and the direction to the light below which
+// the caster gets no shadow volume (it is seen edge-on).
+constexpr double kEdgeOn = 1e-6;
+
 // Counts every caster triangle on a segment (count_at).
 struct CountContext {
     RTCIntersectContext context;
@@ -245,8 +249,12 @@ ShadowVolumes::ShadowVolumes(const TriangleMesh& casters, const std::vector<Shad
             const Vec3 pa = mesh.position[a], pb = mesh.position[b], pc = mesh.position[c];
             const Vec3 n = glm::cross(pb - pa, pc - pa);
             const double facing = glm::dot(n, toward_light(pa));
-            // Zero area, or the light in the triangle's plane: no frustum.
-            if (!(std::abs(facing) > 1e-12 * glm::length(n) * glm::length(toward_light(pa))) || glm::length(n) == 0.0)
+            // Zero area, or the light within kEdgeOn of the triangle's plane: no frustum. A frustum
+            // that thin has side quads closer together than the floats Embree holds them in, so
+            // a ray crossing them could enter and not leave (measured: a fin whose plane held the
+            // light to float32 rounding, 3e-9 rad, shadowed every ray crossing its plane); the
+            // shadow it drops is a wedge kEdgeOn wide seen from the light.
+            if (!(std::abs(facing) > kEdgeOn * glm::length(n) * glm::length(toward_light(pa))) || glm::length(n) == 0.0)
                 continue;
             if (facing < 0.0) std::swap(b, c);  // counter-clockwise seen from the light
             caps.insert(caps.end(), {a, b, c});
@@ -322,15 +330,40 @@ ShadowVolumes::ShadowVolumes(const TriangleMesh& casters, const std::vector<Shad
 }
 
 int ShadowVolumes::count_at(int l, const Vec3& world_p) const {
-    RTCRayHit rh;
-    if (!light_ray(lights_[size_t(l)], impl_->reach[size_t(l)], world_p - impl_->frame, impl_->lo, impl_->hi, rh.ray)) return 0;
-    CountContext ctx;
-    rtcInitIntersectContext(&ctx.context);
-    ctx.count = 0;
-    rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
-    rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
-    rtcIntersect1(impl_->casters, &ctx.context, &rh);
-    return ctx.count;
+    // A segment through an edge that two caster triangles share hits both (Embree's watertight
+    // test), though the point is inside one frustum only: the count would be off by one for the
+    // whole ray (measured: a camera on the plane through the light and a quad's diagonal got
+    // its every ray shadowed). Three segments from points moved off _p_ by 1e-6 of its distance,
+    // in three directions across the segment, cannot all graze one edge; their median is the
+    // count of the frusta the point is inside (a point within 1e-6 of a true frustum boundary
+    // takes either side's count, as the crossings along the ray do).
+    const Vec3 p = world_p - impl_->frame;
+    const ShadowLight& light = lights_[size_t(l)];
+    const Vec3 to = light.directional ? -light.direction : light.position - p;
+    const double len = glm::length(to);
+    if (!(len > 0.0)) return 0;
+    const Vec3 d = to / len;
+    const Vec3 a = glm::normalize(std::abs(d.x) < 0.9 ? glm::cross(d, Vec3(1, 0, 0)) : glm::cross(d, Vec3(0, 1, 0)));
+    const Vec3 b = glm::cross(d, a);
+    const double eps = 1e-6 * (glm::length(p) + (light.directional ? 0.0 : len));
+    const Vec3 offsets[3] = {a, -0.5 * a + 0.8660254037844386 * b, -0.5 * a - 0.8660254037844386 * b};
+    int counts[3];
+    for (int k = 0; k < 3; ++k) {
+        RTCRayHit rh;
+        if (!light_ray(light, impl_->reach[size_t(l)], p + eps * offsets[k], impl_->lo, impl_->hi, rh.ray)) {
+            counts[k] = 0;
+            continue;
+        }
+        CountContext ctx;
+        rtcInitIntersectContext(&ctx.context);
+        ctx.count = 0;
+        rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+        rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
+        rtcIntersect1(impl_->casters, &ctx.context, &rh);
+        counts[k] = ctx.count;
+    }
+    std::sort(counts, counts + 3);
+    return counts[1];
 }
 
 bool ShadowVolumes::lit_at(int l, const Vec3& world_p) const {

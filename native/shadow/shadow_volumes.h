@@ -18,7 +18,7 @@
 //   - crossing a quad or cap against its outward normal enters (count + weight), along it exits.
 // This is exact for the casters' triangles (no shadow map, no sampling: an occluder of any
 // size is seen), for any triangle soup (open, non-manifold or zero-area triangles included;
-// a triangle whose plane holds the light shadows nothing and is left out). It holds to the
+// a triangle whose plane holds the light, to 1e-6 rad, shadows nothing and is left out). It holds to the
 // extrusion distance R (8 times the farthest caster or viewer from the light, clamped to
 // 1e7 times the scene's size): beyond it the count is that at R (a ray that far from the
 // light gets ~1/R of its airlight there).
