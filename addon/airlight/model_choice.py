@@ -229,9 +229,10 @@ SUN_QUADRATURE_MODEL = ("Quadrature (sun)", 1e-8)
 # 'off' (Scatter in Fog off), 'unsupported' (type not in the bake); label/error: the model
 # it gets and its measured max relative error; share: its upper bound over the fog
 # brightness bound (light_bounds.py), the largest over the colour channels.
-# shadow: 'shadowed' (volumetric shadows traced), 'clear' (Automatic: no caster near enough
+# shadow: 'shadowed' (volumetric shadows traced), 'fog objects' (a spot or sun lamp in a scene
+# with fog objects, unshadowed but by model Quadrature), 'clear' (Automatic: no caster near enough
 # to matter), 'no shadow' (the light's Cast Shadow is off), 'off' (Volumetric Shadows off, no
-# caster in the scene, or fog objects in it), '' for lights not in the fog.
+# caster in the scene), '' for lights not in the fog.
 LightRow = namedtuple("LightRow", "name type status label error share shadow", defaults=("",))
 
 
@@ -307,9 +308,9 @@ def plan_rows(settings, survey):
 
 
 def shadows_baked(settings, survey):
-    """Whether the bake traces volumetric shadows: Volumetric Shadows on, a caster in the
-    scene, and no fog object (their Gaussians are not shadowed yet)."""
-    return bool(getattr(settings, "volumetric_shadows", False)) and bool(survey.casters) and not survey.fog_objects
+    """Whether the bake traces volumetric shadows: Volumetric Shadows on and a caster in the
+    scene."""
+    return bool(getattr(settings, "volumetric_shadows", False)) and bool(survey.casters)
 
 
 def shadow_states(settings, survey, kinds, weights, positions, casts, albedo, sigma, p_max, lowers, spent):
@@ -322,7 +323,12 @@ def shadow_states(settings, survey, kinds, weights, positions, casts, albedo, si
     if not shadows_baked(settings, survey):
         return ['off'] * n
     states = np.where(casts, 'shadowed', 'no shadow').astype(object)
-    if settings.model == 'AUTO' and sigma > 0.0:
+    if survey.fog_objects:
+        # The Fogshop models shadow point lights in Gaussian fog; Quadrature every light. The
+        # brightness bound behind 'clear' is the uniform fog's: none with fog objects.
+        if settings.model != 'QUADRATURE':
+            states[(kinds != 'POINT') & casts] = 'fog objects'
+    elif settings.model == 'AUTO' and sigma > 0.0:
         positional = (kinds != 'SUN') & casts
         if np.any(positional):
             uppers = light_bounds.shadow_bounds(positions[positional], weights[positional], sigma, albedo, p_max,

@@ -157,7 +157,7 @@ def shadow_arguments(description, plan):
     shadowed): shadows=True, one flag per baked point light, spot and sun in the order
     point_lights, spot_lights and sun_lights give them, and the shadow casters when they are
     not the camera's geometry (occluder_vertices, occluder_triangles)."""
-    if not plan.shadows or description.gaussians:
+    if not plan.shadows:
         return {}
     flags = {}
     kinds = (('POINT', "light_shadows"), ('SPOT', "spot_shadows"), ('SUN', "sun_shadows"))

@@ -151,7 +151,8 @@ def light_lines(scene, view_layer=None):
 
 
 _SHADOW_TEXT = {'shadowed': ", shadowed", 'clear': ", unshadowed (no caster near enough to matter)",
-                'no shadow': ", unshadowed (Cast Shadow off)"}
+                'no shadow': ", unshadowed (Cast Shadow off)",
+                'fog objects': ", unshadowed in fog objects (model Quadrature shadows spots and suns there)"}
 
 
 def shadow_note(scene):
@@ -159,8 +160,6 @@ def shadow_note(scene):
     settings = scene.airlight
     if not settings.volumetric_shadows:
         return None
-    if any(fog_object.is_fog_object(obj) and not obj.hide_render for obj in scene.objects):
-        return "Volumetric shadows are not baked with fog objects yet"
     if not any(obj.type in ('MESH', 'CURVE', 'SURFACE', 'FONT', 'META') and not obj.hide_render
                and getattr(obj, "visible_shadow", True) and not fog_object.is_fog_object(obj)
                for obj in scene.objects):

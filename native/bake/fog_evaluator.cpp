@@ -201,10 +201,10 @@ FogEvaluator::FogEvaluator(const SceneDescription& scene, const BakeSettings& se
                                                 extended ? &extra : nullptr);
         }
     }
-    if (settings.shadows && !gaussian_) set_up_shadows(scene, settings);
+    if (settings.shadows) set_up_shadows(scene, settings);
 }
 
-void FogEvaluator::set_up_shadows(const SceneDescription& scene, const BakeSettings&) {
+void FogEvaluator::set_up_shadows(const SceneDescription& scene, const BakeSettings& settings) {
     const TriangleMesh& casters = scene.occluders_from_geometry ? scene.geometry : scene.occluders;
     if (casters.triangles.empty()) return;
     std::vector<ShadowLight> lights;
@@ -221,15 +221,16 @@ void FogEvaluator::set_up_shadows(const SceneDescription& scene, const BakeSetti
         light_volume_.push_back(add(light.casts_shadow, sl));
         ++i;
     }
+    // (With Gaussians, spot_volume_ and sun_volume_ follow gaussian_spots_ and gaussian_suns_.)
     for (const SpotLight& spot : scene.spot_lights) {
-        const RGB weight = scene.medium.albedo * spot.I0;
+        const RGB weight = gaussian_ ? spot.I0 : scene.medium.albedo * spot.I0;
         if (weight.x == 0.0 && weight.y == 0.0 && weight.z == 0.0) continue;
         ShadowLight sl;
         sl.position = spot.position;
         spot_volume_.push_back(add(spot.casts_shadow, sl));
     }
     for (const SunLight& sun : scene.sun_lights) {
-        const RGB weight = scene.medium.albedo * sun.E * sigma_t_;
+        const RGB weight = gaussian_ ? sun.E : scene.medium.albedo * sun.E * sigma_t_;
         if (weight.x == 0.0 && weight.y == 0.0 && weight.z == 0.0) continue;
         ShadowLight sl;
         sl.directional = true;
@@ -241,6 +242,67 @@ void FogEvaluator::set_up_shadows(const SceneDescription& scene, const BakeSetti
     shadows_ = std::make_unique<ShadowVolumes>(casters, lights, origin_);
     if (shared_origin_)
         for (int v = 0; v < shadows_->num_lights(); ++v) origin_count_.push_back(shadows_->count_at(v, origin_));
+    if (gaussian_ && model_.gaussian_method() == GaussianMethod::Fogshop && shared_origin_) {
+        const std::vector<Vec3> points(gaussian_lights_.begin(), gaussian_lights_.begin() + std::ptrdiff_t(n_gaussian_points_));
+        eye_fogshop_ = std::make_unique<FogshopAirlight>(*gaussian_, origin_, points, model_.f_table(),
+                                                         std::max(0, settings.threads));
+    }
+}
+
+void FogEvaluator::shadow_gaussians(const Ray* rays, const float* Dvp, const float* t0, int n, RGB* La) const {
+    if (!shadows_ || !gaussian_ || model_.gaussian_method() != GaussianMethod::Fogshop) return;
+    const size_t P = n_gaussian_points_;
+    bool any = false;
+    for (size_t l = 0; l < P; ++l) any = any || light_volume_[l] >= 0;
+    if (!any) return;
+    const LitIntervals* lit = lit_intervals(rays, t0, Dvp, n);
+    thread_local std::vector<RaySpans> with, whole;
+    thread_local std::vector<std::pair<double, double>> lit_spans, full_spans;
+    with.resize(P), whole.resize(P);
+    // The splat's background term with the bake's model (its own for other phases and models).
+    const bool own = !isotropic_ || model_.own_gaussian_background();
+    for (int k = 0; k < n; ++k) {
+        const double near = t0 ? double(t0[k]) : 0.0, end = double(Dvp[k]);
+        if (!(end > near)) continue;
+        bool partial = false;
+        for (size_t l = 0; l < P; ++l) {
+            const int v = light_volume_[l];
+            partial = partial || (v >= 0 && !fully_lit(lit[k], v, near, end));
+        }
+        if (!partial) continue;
+        // Perspective: Fogshop at the eye, t from it; orthographic: set up at the near point.
+        std::unique_ptr<FogshopAirlight> local;
+        if (!eye_fogshop_)
+            local = std::make_unique<FogshopAirlight>(*gaussian_, rays[k].o + near * rays[k].d,
+                                                      std::vector<Vec3>(gaussian_lights_.begin(),
+                                                                        gaussian_lights_.begin() + std::ptrdiff_t(P)),
+                                                      model_.f_table(), 1);
+        const FogshopAirlight& fogshop = eye_fogshop_ ? *eye_fogshop_ : *local;
+        const double shift = eye_fogshop_ ? 0.0 : near, t_start = near - shift;
+        lit_spans.clear(), full_spans.clear();
+        lit_spans.reserve(lit[k].spans.size()), full_spans.reserve(P);
+        for (size_t l = 0; l < P; ++l) {
+            const int v = light_volume_[l];
+            with[l] = whole[l] = RaySpans{};
+            if (v < 0 || fully_lit(lit[k], v, near, end)) continue;
+            const size_t first = lit_spans.size();
+            for (int q = lit[k].begin[v]; q < lit[k].end[v]; ++q)
+                lit_spans.emplace_back(lit[k].spans[q].first - shift, lit[k].spans[q].second - shift);
+            with[l] = RaySpans{lit_spans.data() + first, int(lit_spans.size() - first)};
+            full_spans.emplace_back(near - shift, end - shift);
+            whole[l] = RaySpans{&full_spans.back(), 1};
+        }
+        const Vec3 d = rays[k].d;
+        const FogshopAirlight::SpanBackground background = [&](size_t l, double ta, double tb) {
+            return gaussian_background(l, d, ta, tb);
+        };
+        const FogshopAirlight::SpanBackground* bg = own && eye_fogshop_ ? &background : nullptr;
+        const PhaseFunction* phase = isotropic_ ? nullptr : &phase_;
+        La[k] += fogshop.eval_rgb_spans(d, t_start, with.data(), gaussian_albedo_.data(), gaussian_I0_.data(),
+                                        medium_albedo_, phase, bg) -
+                 fogshop.eval_rgb_spans(d, t_start, whole.data(), gaussian_albedo_.data(), gaussian_I0_.data(),
+                                        medium_albedo_, phase, bg);
+    }
 }
 
 const uint32_t* FogEvaluator::shadow_masks(const float* values, int m) const {
@@ -600,9 +662,19 @@ void FogEvaluator::eval_gaussians(const Ray* rays, const float* Dvp, const float
         dirs.resize(size_t(n));
         for (int k = 0; k < n; ++k) dirs[k] = rays[k].d;
         splat_->eval_rays(dirs.data(), Dvp, t0, n, Tr, La);
+        shadow_gaussians(rays, Dvp, t0, n, La);
         return;
     }
     const size_t L = lights_.size();
+    const bool quadrature = model_.gaussian_method() == GaussianMethod::Quadrature;
+    const LitIntervals* lit = shadows_ && quadrature ? lit_intervals(rays, t0, Dvp, n) : nullptr;
+    // The reference's visibility of shadow volume _v_ (-1: none) on ray k: shadow rays at its
+    // nodes, the lit spans' ends as breakpoints.
+    auto shadowed = [&](GaussianRefLight& ref, int v, int k, double near) {
+        if (!lit || v < 0) return;
+        ref.visible = [this, v](const Vec3& x) { return visible(v, x); };
+        ref.jumps = span_ends(lit[k], v, near);
+    };
     for (int k = 0; k < n; ++k) {
         const Ray& ray = rays[k];
         const double near = t0 ? double(t0[k]) : 0.0;
@@ -611,27 +683,33 @@ void FogEvaluator::eval_gaussians(const Ray* rays, const float* Dvp, const float
         Tr[k] = std::exp(-gaussian_->optical_depth_ray(o, ray.d, seg));
         La[k] = RGB(0.0);
         if (!(seg > 0.0) || (L == 0 && gaussian_spots_.empty() && gaussian_suns_.empty())) continue;
-        if (model_.gaussian_method() == GaussianMethod::Quadrature) {
+        if (quadrature) {
             for (size_t l = 0; l < L; ++l) {
                 GaussianRefLight ref;  // a point light
                 ref.s = lights_[l].s;
+                shadowed(ref, lit ? light_volume_[l] : -1, k, near);
+                const bool plain = isotropic_ && !ref.visible;
                 La[k] += lights_[l].weight *
-                         (isotropic_ ? gaussian_airlight_quadrature(*gaussian_, lights_[l].s, o, ray.d, seg, kQuadratureRelTol)
-                                     : gaussian_airlight_quadrature(*gaussian_, ref, phase_, o, ray.d, seg, kQuadratureRelTol));
+                         (plain ? gaussian_airlight_quadrature(*gaussian_, lights_[l].s, o, ray.d, seg, kQuadratureRelTol)
+                                : gaussian_airlight_quadrature(*gaussian_, ref, phase_, o, ray.d, seg, kQuadratureRelTol));
             }
-            for (const GaussianSpotData& spot : gaussian_spots_) {
+            for (size_t i = 0; i < gaussian_spots_.size(); ++i) {
+                const GaussianSpotData& spot = gaussian_spots_[i];
                 GaussianRefLight ref;
                 ref.kind = GaussianRefLight::Kind::Spot;
                 ref.s = spot.s;
                 ref.cone = spot.cone;
+                shadowed(ref, lit ? spot_volume_[i] : -1, k, near);
                 La[k] += medium_albedo_ * spot.I0 *
                          gaussian_airlight_quadrature(*gaussian_, ref, phase_, o, ray.d, seg, kQuadratureRelTol);
             }
-            for (const GaussianSunData& sun : gaussian_suns_) {
+            for (size_t i = 0; i < gaussian_suns_.size(); ++i) {
+                const GaussianSunData& sun = gaussian_suns_[i];
                 GaussianRefLight ref;
                 ref.kind = GaussianRefLight::Kind::Sun;
                 ref.w = sun.w;
                 ref.fog_top = fog_top_;
+                shadowed(ref, lit ? sun_volume_[i] : -1, k, near);
                 La[k] += medium_albedo_ * sun.E *
                          gaussian_airlight_quadrature(*gaussian_, ref, phase_, o, ray.d, seg, kQuadratureRelTol);
             }
@@ -640,6 +718,7 @@ void FogEvaluator::eval_gaussians(const Ray* rays, const float* Dvp, const float
         const FogshopAirlight local(*gaussian_, o, gaussian_lights_, model_.f_table(), 1);
         La[k] = local.eval_rgb(ray.d, seg, gaussian_albedo_.data(), gaussian_I0_.data(), medium_albedo_);
     }
+    if (!quadrature) shadow_gaussians(rays, Dvp, t0, n, La);
 }
 
 }  // namespace airlight

@@ -10,6 +10,7 @@
 
 #include "bake/bake.h"
 #include "core/scene.h"
+#include "gaussian/airlight.h"
 #include "gaussian/medium.h"
 #include "gaussian/splat.h"
 #include "homogeneous/pegoraro10.h"
@@ -55,6 +56,11 @@ class FogEvaluator {
     bool has_spots() const { return !spots_.empty(); }
     // Volumetric shadows are on for at least one light (BakeSettings::shadows and casters).
     bool has_shadows() const { return shadows_ != nullptr; }
+    // Volumetric shadows on Gaussian fog with the Fogshop models (point lights; spots and suns
+    // there stay unshadowed): adds to La[k] what the shadows take from ray k, Fogshop over the
+    // lit spans (FogshopAirlight::eval_rgb_spans) less Fogshop over the whole segment [t0,
+    // Dvp]. The splat's centre samples (gaussian_pass) and eval_gaussians' rays take it.
+    void shadow_gaussians(const Ray* rays, const float* Dvp, const float* t0, int n, RGB* La) const;
 
     // Hot path (soa() only): _n_ rays from the shared origin with unit directions (dx,
     // dy, dz)[k] (structure of arrays, so the per-light dot products and accumulations
@@ -168,6 +174,8 @@ class FogEvaluator {
     std::vector<GaussianSunData> gaussian_suns_;
     std::unique_ptr<GaussianSplat> splat_;
     std::unique_ptr<ShadowVolumes> shadows_;
+    // Gaussian fog with shadows (Fogshop, perspective): Fogshop at the eye for the point lights.
+    std::unique_ptr<FogshopAirlight> eye_fogshop_;
     std::vector<int> light_volume_, spot_volume_, sun_volume_;
     std::vector<int> origin_count_;  // per light of shadows_: its count at origin_
     std::vector<double> light_peak_;  // per point light: its largest channel of albedo x I0

@@ -8,6 +8,37 @@
 
 namespace airlight {
 
+namespace {
+
+// Volumetric shadows on the splat's centre samples: each row's rays take what the shadows
+// remove from them (FogEvaluator::shadow_gaussians), band by band.
+void shadow_centres(BakeContext& ctx, const FogEvaluator& fog) {
+    const int W = ctx.W, H = ctx.H;
+    BakeResult& result = ctx.result;
+    parallel_for(ctx.n_bands, ctx.n_threads, [&](int band) {
+        thread_local RowRays rr;
+        thread_local std::vector<Ray> rays;
+        thread_local std::vector<RGB> La;
+        if (rr.dx.size() != size_t(W)) rr.resize(size_t(W));
+        rays.resize(size_t(W)), La.resize(size_t(W));
+        for (int j = band * kBandRows; j < std::min(H, (band + 1) * kBandRows); ++j) {
+            ctx.row_rays(j, rr, false);
+            float* A = &result.airlight[3 * size_t(j) * W];
+            for (int i = 0; i < W; ++i) {
+                rays[i].o = ctx.eye;
+                rays[i].d = Vec3(rr.dx[i], rr.dy[i], rr.dz[i]);
+                La[i] = RGB(A[3 * i], A[3 * i + 1], A[3 * i + 2]);
+            }
+            fog.shadow_gaussians(rays.data(), &result.depth[size_t(j) * W], ctx.near_clip ? rr.t_near.data() : nullptr,
+                                 W, La.data());
+            for (int i = 0; i < W; ++i)
+                for (int c = 0; c < 3; ++c) A[3 * i + c] = float(std::max(0.0, La[i][c]));
+        }
+    });
+}
+
+}  // namespace
+
 double gaussian_pass(BakeContext& ctx, const FogEvaluator& fog) {
     // Gaussian fog with a perspective camera: the centre samples of every pixel come from
     // the tiled splat (gaussian/splat.h) in one pass over tiles; the homogeneous pass then
@@ -45,6 +76,7 @@ double gaussian_pass(BakeContext& ctx, const FogEvaluator& fog) {
             const double f = kRaycastProgressShare + (end - kRaycastProgressShare) * done / n_tiles;
             if (!progress(f)) throw Cancelled();
         });
+    if (fog.has_shadows()) shadow_centres(ctx, fog);
     return end;
 }
 

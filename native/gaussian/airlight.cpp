@@ -120,6 +120,69 @@ void FogshopAirlight::eval_terms(const Vec3& r, double Dvp, H&& homogeneous, G&&
     });
 }
 
+RGB FogshopAirlight::eval_rgb_spans(const Vec3& r, double t_start, const RaySpans* spans, const double* albedo,
+                                    const RGB* I0, const RGB& medium_albedo, const PhaseFunction* phase,
+                                    const SpanBackground* background) const {
+    const std::size_t L = lights_.size(), n = medium_.size();
+    const double beta0 = medium_.beta0();
+    double far = 0.0;  // the farthest lit point of any light: the Gaussians near the ray up to it
+    for (std::size_t l = 0; l < L; ++l)
+        for (int k = 0; k < spans[l].count; ++k) far = std::max(far, spans[l].spans[k].second);
+    RGB out(0.0);
+    if (!(far > 0.0)) return out;
+    // Homogeneous term: sun05 on each lit span [ta, tb], attenuated by beta0 to ta, times C_sv.
+    if (beta0 > 0.0)
+        for (std::size_t l = 0; l < L; ++l) {
+            double sum = 0.0;
+            for (int k = 0; k < spans[l].count; ++k) {
+                const double ta = spans[l].spans[k].first, tb = spans[l].spans[k].second;
+                if (!(tb > ta)) continue;
+                double span;
+                if (background) {
+                    span = (*background)(l, ta, tb);
+                } else {
+                    const Vec3 sx = lights_[l] - (v_ + ta * r);
+                    const double D = glm::length(sx);
+                    const double cos_gamma = D > 0.0 ? std::clamp(glm::dot(r, sx) / D, -1.0, 1.0) : 1.0;
+                    span = sun05_airlight(beta0, D, cos_gamma, tb - ta, table_, table_ ? FEval::Table : FEval::Exact);
+                }
+                sum += std::exp(-beta0 * (ta - t_start)) * span;
+            }
+            out += medium_albedo * I0[l] * (Csv_[l] * sum);
+        }
+    // Gaussian terms: eq. 11 with T_i over the lit spans.
+    medium_.for_each_near(v_, r, far, [&](std::size_t i) {
+        const double a = medium_.scale(i), c = medium_.amplitude(i);
+        const Vec3 b = medium_.centre(i);
+        const Vec3 rel = b - v_;
+        const double ts = glm::dot(rel, r);
+        const Vec3 cr = glm::cross(rel, r);
+        const double k = c * kSqrtPi / (2.0 * a) * std::exp(-a * a * glm::dot(cr, cr));
+        if (k == 0.0) return;
+        const double x1 = a * (t_start - ts);
+        for (std::size_t l = 0; l < L; ++l) {
+            if (spans[l].count == 0) continue;
+            double Tlit = 0.0, Dvp = 0.0;
+            for (int q = 0; q < spans[l].count; ++q) {
+                const double ta = spans[l].spans[q].first, tb = spans[l].spans[q].second;
+                Tlit += k * erf_diff(a * (ta - ts), std::isinf(tb) ? kInf : a * (tb - ts));
+                Dvp = std::max(Dvp, tb);
+            }
+            if (!(Tlit > 0.0)) continue;
+            const double tr = std::clamp(ts, t_start, std::max(t_start, Dvp));
+            const double Tvr = k * erf_diff(x1, a * (tr - ts));
+            const Vec3 sx = v_ + tr * r - lights_[l];
+            const double d2 = glm::dot(sx, sx);
+            const double Ds = std::sqrt(d2);
+            const double Tsr = Ds > 0.0 ? gaussian_line_integral(c, a, b, lights_[l], sx / Ds, 0.0, Ds) : 0.0;
+            const double p = phase && Ds > 0.0 ? phase->eval(-glm::dot(sx, r) / Ds) : kInv4Pi;
+            const double v = p / std::max(d2, kMinD2) * std::exp(-Tsr - Tvr) * f1_[l * n + i] * Tlit;
+            out += RGB(albedo[3 * i], albedo[3 * i + 1], albedo[3 * i + 2]) * I0[l] * v;
+        }
+    });
+    return out;
+}
+
 void FogshopAirlight::eval(const Vec3& r, double Dvp, double* out) const {
     eval_terms(
         r, Dvp, [&](std::size_t l, double v) { out[l] = v; },
@@ -184,6 +247,7 @@ double gaussian_airlight_quadrature(const GaussianMedium& medium, const Gaussian
             const bool in_layer = std::isinf(top) || x.z <= top;
             if (!in_layer) beta -= beta0;
             if (!(beta > 0.0)) return 0.0;
+            if (light.visible && !light.visible(x)) return 0.0;
             double Ts = 0.0;
             for (std::size_t i = 0; i < n; ++i)
                 Ts += medium.gaussian_optical_depth(i, x, u_sun, 0.0, std::numeric_limits<double>::infinity());
@@ -201,6 +265,7 @@ double gaussian_airlight_quadrature(const GaussianMedium& medium, const Gaussian
             f *= spot_profile(light.cone, glm::dot(light.cone.axis, sx) / std::sqrt(d2));
             if (f == 0.0) return 0.0;
         }
+        if (light.visible && !light.visible(x)) return 0.0;
         const double Ts = medium.optical_depth_all(s, x);
         return beta * f / d2 * std::exp(-Ts - Tv);
     };
@@ -232,6 +297,7 @@ double gaussian_airlight_quadrature(const GaussianMedium& medium, const Gaussian
             if (c < 1.0)
                 for (double t : ray_cone_crossings(v, r, s, light.cone.axis, c, 0.0, end)) add(t);
     }
+    for (double t : light.jumps) add(t);  // where the light's visibility changes
     std::sort(cuts.begin(), cuts.end());
     cuts.erase(std::unique(cuts.begin(), cuts.end()), cuts.end());
     // Tail [last, inf): t = last + S u / (1 - u).

@@ -16,6 +16,8 @@
 #pragma once
 
 #include <cstddef>
+#include <functional>
+#include <utility>
 #include <vector>
 
 #include <limits>
@@ -27,6 +29,13 @@
 #include "homogeneous/spot_light.h"
 
 namespace airlight {
+
+// The lit spans of one view ray for one light (volumetric shadows): [first, second] in t from
+// the view origin, sorted and disjoint; _count_ 0: the light adds nothing to the ray.
+struct RaySpans {
+    const std::pair<double, double>* spans = nullptr;
+    int count = 0;
+};
 
 enum class GaussianAirlightModel {
     Fogshop,     // the paper's approximation (L_0 through the F table if one is given)
@@ -48,6 +57,17 @@ class FogshopAirlight {
     // The same in RGB with per-Gaussian albedo (3 per Gaussian) and the lights' I0:
     // out = sum_l [medium_albedo I0_l L_0,l + sum_i albedo_i I0_l L_i,l].
     RGB eval_rgb(const Vec3& r, double Dvp, const double* albedo, const RGB* I0, const RGB& medium_albedo) const;
+    // eval_rgb over each light's lit spans only (spans[l] for every light; Biri 2006 eq. 14):
+    // Gaussian i's term takes its optical depth on the lit spans, a sum of erf differences,
+    // in place of T_i(v, p) (eq. 11), and the homogeneous term is sun05's airlight of each
+    // span, attenuated to its start, times C_sv (eq. 17). The fog starts at t_start (the near
+    // plane) for the view-side attenuation. _phase_ (null: isotropic) scales each Gaussian's
+    // term at b_i^r, as the splat does; _background_ (null: sun05 as above) gives light l's
+    // homogeneous airlight per unit albedo I0 on [ta, tb], attenuated from ta (times C_sv here).
+    using SpanBackground = std::function<double(std::size_t l, double ta, double tb)>;
+    RGB eval_rgb_spans(const Vec3& r, double t_start, const RaySpans* spans, const double* albedo, const RGB* I0,
+                       const RGB& medium_albedo, const PhaseFunction* phase = nullptr,
+                       const SpanBackground* background = nullptr) const;
 
     std::size_t num_lights() const { return lights_.size(); }
 
@@ -82,6 +102,10 @@ struct GaussianRefLight {
     SpotCone cone;
     Vec3 w{0.0, 0.0, -1.0};
     double fog_top = std::numeric_limits<double>::infinity();
+    // Volumetric shadows (empty: lit everywhere): whether a point sees the light, and the t
+    // where that changes along the ray (the breakpoints of the quadrature).
+    std::function<bool(const Vec3&)> visible;
+    std::vector<double> jumps;
 };
 
 // The reference for any light and phase: adaptive quadrature of

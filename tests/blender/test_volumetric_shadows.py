@@ -106,10 +106,12 @@ def test05_off_and_no_caster_and_fog_objects(tmp_path):
     bpy.data.objects["Ground"].visible_shadow = True
     fog_object.new_fog_object("Fog", scene.collection, centres=[(0.0, 0.0, 1.0)])
     bpy.context.view_layer.update()
-    assert "not baked with fog objects" in ui.shadow_note(scene)
+    # Fog objects: point lights shadowed (no 'clear': the bound is the uniform fog's).
+    assert ui.shadow_note(scene) is None
     rows = {row.name: row for row in model_choice.light_plan(scene)}
-    assert rows["Lamp"].shadow == 'off'
-    assert "shadows" not in _export(scene)
+    assert rows["Lamp"].shadow == 'shadowed'
+    exported = _export(scene)
+    assert exported["shadows"] is True and "rbf_centres" in exported
 
 
 def test06_bake_operator_lamp_in_a_closed_box(tmp_path):
