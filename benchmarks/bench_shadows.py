@@ -11,7 +11,8 @@ bakes alternating shadows off / on after one untimed bake of each:
     (target: 4 lamps at 1920x1080, shadowed <= 4x unshadowed);
   - the cost growth with the number of occluder triangles: the street plus a field of small
     random triangles (10^3 .. 10^6) around the lamps, 4 lamps, at --width/4 x --height/4;
-  - the shadows' effect on the image (the airlight removed, relative).
+  - the shadows' effect on the image (the airlight removed, relative);
+  - the surface pass with 4 lamps, the glow unshadowed and shadowed (its lit share).
 """
 
 import argparse
@@ -84,6 +85,17 @@ def main():
               f"(shadows remove {100 * removed:.1f} % of the airlight)")
         if n == 4:
             print(f"  target 4 lamps: shadowed <= 4x unshadowed: {'PASS' if t_on <= 4 * t_off else 'FAIL'}")
+    # The surface pass: each lamp's glow times its lit share (glow_shadow.h), 4 lamps.
+    k = dict(kw, light_positions=lights, light_intensities=intens, surface=True)
+    _native.bake(**k)
+    _native.bake(**k, shadows=True)
+    off, on = [], []
+    for _ in range(args.runs):
+        off.append(_native.bake(**k)["stats"]["seconds_surface"])
+        on.append(_native.bake(**k, shadows=True)["stats"]["seconds_surface"])
+    s_off, s_on = 1000 * statistics.median(off), 1000 * statistics.median(on)
+    print(f"  surface pass, 4 lamps: unshadowed glow {s_off:7.1f} ms, shadowed glow {s_on:7.1f} ms "
+          f"(+{s_on - s_off:.1f} ms)")
     if args.skip_growth:
         return
     w, h = args.width // 4, args.height // 4

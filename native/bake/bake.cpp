@@ -8,6 +8,7 @@
 
 #include "bake/fog_evaluator.h"
 #include "bake/passes.h"
+#include "bake/glow_shadow.h"
 #include "bake/surface_pass.h"
 #include "bake/validate.h"
 #include "models/registry.h"
@@ -40,7 +41,20 @@ BakeResult bake(const SceneDescription& scene, const BakeSettings& settings, con
 
     if (settings.surface) {
         const auto surface_start = Clock::now();
-        bake_surface_pass(scene, settings, ctx.rays, ctx.caster, ctx.n_threads, result);
+        std::unique_ptr<GlowShadow> glow_shadow;
+        if (const ShadowVolumes* volumes = fog.shadow_volumes()) {
+            std::vector<int> positional = fog.scene_point_volumes();
+            const std::vector<int>& spots = fog.scene_spot_volumes();
+            positional.insert(positional.end(), spots.begin(), spots.end());
+            std::vector<Vec3> positions, sun_directions;
+            for (const PointLight& l : scene.point_lights) positions.push_back(l.position);
+            for (const SpotLight& l : scene.spot_lights) positions.push_back(l.position);
+            for (const SunLight& l : scene.sun_lights) sun_directions.push_back(glm::normalize(l.direction));
+            glow_shadow = std::make_unique<GlowShadow>(*volumes, std::move(positional), std::move(positions),
+                                                       fog.scene_sun_volumes(), std::move(sun_directions),
+                                                       scene.medium.sigma_t);
+        }
+        bake_surface_pass(scene, settings, ctx.rays, ctx.caster, ctx.n_threads, result, glow_shadow.get());
         result.stats.seconds_surface = seconds_since(surface_start);
     }
     ctx.check_traced();

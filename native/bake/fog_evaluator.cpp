@@ -213,29 +213,33 @@ void FogEvaluator::set_up_shadows(const SceneDescription& scene, const BakeSetti
         lights.push_back(light);
         return int(lights.size()) - 1;
     };
-    size_t i = 0;
     for (const PointLight& light : scene.point_lights) {
+        scene_point_volume_.push_back(-1);
         if (!keeps_light(scene, light)) continue;
         ShadowLight sl;
         sl.position = light.position;
         light_volume_.push_back(add(light.casts_shadow, sl));
-        ++i;
+        scene_point_volume_.back() = light_volume_.back();
     }
     // (With Gaussians, spot_volume_ and sun_volume_ follow gaussian_spots_ and gaussian_suns_.)
     for (const SpotLight& spot : scene.spot_lights) {
+        scene_spot_volume_.push_back(-1);
         const RGB weight = gaussian_ ? spot.I0 : scene.medium.albedo * spot.I0;
         if (weight.x == 0.0 && weight.y == 0.0 && weight.z == 0.0) continue;
         ShadowLight sl;
         sl.position = spot.position;
         spot_volume_.push_back(add(spot.casts_shadow, sl));
+        scene_spot_volume_.back() = spot_volume_.back();
     }
     for (const SunLight& sun : scene.sun_lights) {
+        scene_sun_volume_.push_back(-1);
         const RGB weight = gaussian_ ? sun.E : scene.medium.albedo * sun.E * sigma_t_;
         if (weight.x == 0.0 && weight.y == 0.0 && weight.z == 0.0) continue;
         ShadowLight sl;
         sl.directional = true;
         sl.direction = glm::normalize(sun.direction);
         sun_volume_.push_back(add(sun.casts_shadow, sl));
+        scene_sun_volume_.back() = sun_volume_.back();
     }
     if (lights.empty()) return;
     for (const LightData& light : lights_) light_peak_.push_back(std::max({light.weight.x, light.weight.y, light.weight.z}));

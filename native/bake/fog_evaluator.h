@@ -61,6 +61,12 @@ class FogEvaluator {
     // lit spans (FogshopAirlight::eval_rgb_spans) less Fogshop over the whole segment [t0,
     // Dvp]. The splat's centre samples (gaussian_pass) and eval_gaussians' rays take it.
     void shadow_gaussians(const Ray* rays, const float* Dvp, const float* t0, int n, RGB* La) const;
+    // The shadow volumes (null without shadows), and per light of the scene (its point lights,
+    // spots and suns in the description's order) its light in them (-1: unshadowed).
+    const ShadowVolumes* shadow_volumes() const { return shadows_.get(); }
+    const std::vector<int>& scene_point_volumes() const { return scene_point_volume_; }
+    const std::vector<int>& scene_spot_volumes() const { return scene_spot_volume_; }
+    const std::vector<int>& scene_sun_volumes() const { return scene_sun_volume_; }
 
     // Hot path (soa() only): _n_ rays from the shared origin with unit directions (dx,
     // dy, dz)[k] (structure of arrays, so the per-light dot products and accumulations
@@ -177,6 +183,7 @@ class FogEvaluator {
     // Gaussian fog with shadows (Fogshop, perspective): Fogshop at the eye for the point lights.
     std::unique_ptr<FogshopAirlight> eye_fogshop_;
     std::vector<int> light_volume_, spot_volume_, sun_volume_;
+    std::vector<int> scene_point_volume_, scene_spot_volume_, scene_sun_volume_;
     std::vector<int> origin_count_;  // per light of shadows_: its count at origin_
     std::vector<double> light_peak_;  // per point light: its largest channel of albedo x I0
 };

@@ -1,5 +1,6 @@
 // bake_surface.cpp: per-pixel surface attenuation and Lambert glow (see bake_surface.h).
 #include "bake/surface_pass.h"
+#include "bake/glow_shadow.h"
 #include "core/parallel.h"
 #include "core/constants.h"
 
@@ -30,6 +31,92 @@ namespace {
 // (bake.h acquire_image_buffer: 4 KiB page faults cost ~10 us each here, more than the whole
 // pass at 1080p with several lights).
 void allocate_filled(std::vector<float>& v, size_t n, float value) { acquire_image_buffer(v, n, value); }
+
+// The glow's lit share (glow_shadow.h) on a grid of nodes every glow_shadow_step pixels (and
+// the last row and column), interpolated bilinearly from the cell's nodes that see the same
+// surface as the pixel (the pixel on the node's plane, normals within ~18 degrees); where those carry
+// under 5 % of the weights (a silhouette or crease in the cell), the pixel's own.
+// The grid's spacing: 1/64 of the image's shorter side, 4 to 32 pixels (16 at 1080p).
+int glow_shadow_step(int W, int H) { return std::clamp(std::min(W, H) / 64, 4, 32); }
+
+class GlowShadowGrid {
+  public:
+    GlowShadowGrid(const GlowShadow& shadow, const CameraRays& rays, const RayCaster& caster, int W, int H,
+                   int n_threads)
+        : shadow_(shadow), caster_(caster), L_(shadow.num_lights()), step_(glow_shadow_step(W, H)) {
+        for (int i = 0; i < W; i += step_) xs_.push_back(i);
+        if (xs_.back() != W - 1) xs_.push_back(W - 1);
+        for (int j = 0; j < H; j += step_) ys_.push_back(j);
+        if (ys_.back() != H - 1) ys_.push_back(H - 1);
+        const size_t nx = xs_.size(), ny = ys_.size();
+        point_.assign(nx * ny, Vec3(0.0));
+        normal_.assign(nx * ny, Vec3(0.0));
+        ratio_.assign(nx * ny * L_, 1.0);
+        parallel_for(int(ny), n_threads, [&](int b) {
+            std::vector<Ray> row(nx);
+            std::vector<float> t_near(nx), t_far(nx), t(nx), ng(3 * nx);
+            for (size_t a = 0; a < nx; ++a) {
+                row[a] = rays(xs_[a] + 0.5, ys_[size_t(b)] + 0.5);
+                double tn, tf;
+                rays.clip_range(row[a], tn, tf);
+                t_near[a] = float(tn);
+                t_far[a] = std::isinf(tf) ? std::numeric_limits<float>::infinity()
+                                          : float(std::min(tf, double(std::numeric_limits<float>::max())));
+            }
+            caster.first_hits_normals(row.data(), t_near.data(), t_far.data(), int(nx), t.data(), ng.data());
+            for (size_t a = 0; a < nx; ++a) {
+                if (std::isinf(t[a])) continue;
+                const size_t node = size_t(b) * nx + a;
+                Vec3 n(ng[3 * a], ng[3 * a + 1], ng[3 * a + 2]);
+                if (glm::dot(n, row[a].d) > 0.0) n = -n;
+                point_[node] = row[a].o + double(t[a]) * row[a].d;
+                normal_[node] = n;
+                shadow_.ratios(row[a].o + double(t[a]) * row[a].d, n, caster_, &ratio_[node * L_]);
+            }
+        });
+    }
+
+    // The lit shares at pixel (i, j), whose surface point is _p_ (depth _t_, normal _n_).
+    void at(int i, int j, const Vec3& p, float t, const Vec3& n, double* out) const {
+        const size_t a = std::min(size_t(i / step_), xs_.size() - 2 + (xs_.size() < 2));
+        const size_t b = std::min(size_t(j / step_), ys_.size() - 2 + (ys_.size() < 2));
+        const size_t a1 = std::min(a + 1, xs_.size() - 1), b1 = std::min(b + 1, ys_.size() - 1);
+        const size_t nx = xs_.size();
+        const size_t nodes[4] = {b * nx + a, b * nx + a1, b1 * nx + a, b1 * nx + a1};
+        const double fx = a1 > a ? double(i - xs_[a]) / double(xs_[a1] - xs_[a]) : 0.0;
+        const double fy = b1 > b ? double(j - ys_[b]) / double(ys_[b1] - ys_[b]) : 0.0;
+        double w[4] = {(1 - fx) * (1 - fy), fx * (1 - fy), (1 - fx) * fy, fx * fy};
+        double total = 0.0;
+        for (int k = 0; k < 4; ++k) {
+            const size_t node = nodes[k];
+            // On the node's plane (to 2 % of the pixel's depth) and facing its way.
+            const bool same = glm::dot(normal_[node], n) > 0.95 &&
+                              std::abs(glm::dot(normal_[node], p - point_[node])) < 0.02 * double(t);
+            if (!same) w[k] = 0.0;
+            total += w[k];
+        }
+        // The nodes on the pixel's surface, reweighted; none (a pixel alone on its surface in
+        // the cell, or one next to the nodes' edge): the pixel's own.
+        if (!(total > 0.05)) {
+            shadow_.ratios(p, n, caster_, out);
+            return;
+        }
+        for (size_t l = 0; l < L_; ++l) {
+            double r = 0.0;
+            for (int k = 0; k < 4; ++k) r += w[k] * ratio_[nodes[k] * L_ + l];
+            out[l] = r / total;
+        }
+    }
+
+  private:
+    const GlowShadow& shadow_;
+    const RayCaster& caster_;
+    size_t L_;
+    int step_;
+    std::vector<int> xs_, ys_;
+    std::vector<Vec3> point_, normal_;  // per node its surface point and normal (0: none)
+    std::vector<double> ratio_;
+};
 }  // namespace
 
 std::shared_ptr<const SpotGlowModel> shared_spot_glow_model(const SpotCone& cone, const PhaseFunction& phase) {
@@ -68,7 +155,7 @@ std::shared_ptr<const SunlightGlowTable> shared_sun_glow_table(const PhaseFuncti
 }
 
 void bake_surface_pass(const SceneDescription& scene, const BakeSettings& settings, const CameraRays& rays,
-                       const RayCaster& caster, int n_threads, BakeResult& result) {
+                       const RayCaster& caster, int n_threads, BakeResult& result, const GlowShadow* glow_shadow) {
     const int W = scene.camera.width, H = scene.camera.height;
     const size_t n_pixels = size_t(W) * size_t(H);
     const size_t n_point = scene.point_lights.size(), n_positional = n_point + scene.spot_lights.size();
@@ -146,8 +233,12 @@ void bake_surface_pass(const SceneDescription& scene, const BakeSettings& settin
     if (glow_on)
         for (const SpotCone& cone : cones) spot_models.push_back(shared_spot_glow_model(cone, phase));
 
+    std::unique_ptr<GlowShadowGrid> shadow_grid;
+    if (glow_shadow && glow_shadow->any() && glow_on && fog)
+        shadow_grid = std::make_unique<GlowShadowGrid>(*glow_shadow, rays, caster, W, H, n_threads);
     // Rows interleaved over the threads; each row casts its centre rays with normals.
     auto work = [&](int first) {
+        std::vector<double> lit_share(glow_shadow ? glow_shadow->num_lights() : 0, 1.0);
         std::vector<Ray> row(W);
         std::vector<float> t_near(W), t_far(W), t(W), ng(3 * size_t(W));
         for (int j = first; j < H; j += n_threads) {
@@ -168,6 +259,9 @@ void bake_surface_pass(const SceneDescription& scene, const BakeSettings& settin
                 if (glm::dot(n, row[i].d) > 0.0) n = -n;  // facing the camera
                 for (int c = 0; c < 3; ++c) result.surface_normals[3 * px + c] = float(n[c]);
                 if (!fog) continue;
+                if (shadow_grid) shadow_grid->at(i, j, p, t[i], n, lit_share.data());
+                // Light l's share of its glow from lit fog (1 without volumetric shadows).
+                auto lit_of = [&](size_t l) { return lit_share.empty() ? 1.0 : lit_share[l]; };
                 RGB glow(0.0), gloss(0.0);
                 const Vec3 mirror = row[i].d - 2.0 * glm::dot(row[i].d, n) * n;  // r about n
                 for (size_t k = 0; k < sun_mu.size(); ++k) {
@@ -177,10 +271,12 @@ void bake_surface_pass(const SceneDescription& scene, const BakeSettings& settin
                     float* a = &result.surface_attenuation[((n_positional + k) * n_pixels + px) * 3];
                     a[0] = a[1] = a[2] = float(att);
                     const double tau = has_top ? sigma_t * (scene.fog_top - p.z) : 0.0;
-                    if (!sun_glow.empty()) glow += scene.sun_lights[k].E * sun_glow[k]->eval(tau, n);
+                    const double share = lit_of(n_positional + k);
+                    if (!sun_glow.empty()) glow += scene.sun_lights[k].E * (share * sun_glow[k]->eval(tau, n));
                     // Phong: (n + 2)/(2 pi) int L_in cos^n = albedo E (n + 2)/2 Q_n(tau, r).
                     if (!sun_gloss.empty())
-                        gloss += scene.sun_lights[k].E * (0.5 * (n_phong + 2.0) * sun_gloss[k]->eval(tau, mirror));
+                        gloss += scene.sun_lights[k].E *
+                                 (share * 0.5 * (n_phong + 2.0) * sun_gloss[k]->eval(tau, mirror));
                 }
                 for (size_t l = 0; l < n_positional; ++l) {
                     const Vec3 v = positions[l] - p;
@@ -212,6 +308,7 @@ void bake_surface_pass(const SceneDescription& scene, const BakeSettings& settin
                     if (table) G = att_d * table->eval_scaled(T, std::acos(cos_s));
                     else if (phase_table) G = att_d * phase_table->eval_scaled(T, std::acos(cos_s));
                     else G = att_d * std::max(0.0, biri_lambert->eval_G_scaled(T, cos_s));
+                    I0 *= lit_of(l);
                     glow += I0 * (beta_bar * G / (2.0 * kPi * D * kPi));
                     if (phong || phase_phong) {
                         // Glossy: angles from the mirrored view direction (Ramamoorthi-Hanrahan).

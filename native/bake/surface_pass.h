@@ -31,8 +31,8 @@
 // scattered once in the homogeneous fog of the layer, or of unbounded fog without a top,
 // for the medium's phase function) added to surface_glow, and with a Phong exponent n their
 // glossy glow E albedo (n + 2)/2 Q_n(tau, r) about the mirrored view direction r.
-// Limits (documented, not hidden): the glow assumes unbounded unshadowed fog around p (the
-// paper's assumption); with fog objects the glow takes the fog along s -> p as uniform of mean
+// Limits (documented, not hidden): the glow assumes unbounded fog around p (the paper's
+// assumption), lit but for the volumetric shadows' share (glow_shadow.h); with fog objects the glow takes the fog along s -> p as uniform of mean
 // extinction T / D (Fogshop's approximation).
 #pragma once
 
@@ -45,8 +45,11 @@ namespace airlight {
 
 // Fills result.surface_attenuation / surface_glow (see bake.h) for _scene_ with
 // _n_threads_ threads. Thread safe; the shared Lambert G table is built on first use.
+// _glow_shadow_ (volumetric shadows; null: none): each light's glow times the lit share of
+// it (glow_shadow.h), taken on a grid (16 px at 1080p) and interpolated on a surface.
 void bake_surface_pass(const SceneDescription& scene, const BakeSettings& settings, const CameraRays& rays,
-                       const RayCaster& caster, int n_threads, BakeResult& result);
+                       const RayCaster& caster, int n_threads, BakeResult& result,
+                       const class GlowShadow* glow_shadow = nullptr);
 
 // The G table of exponent _m_ (1: Lambert) the bake uses, built once per (m, size) for the
 // process.
