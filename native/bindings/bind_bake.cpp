@@ -314,7 +314,8 @@ py::dict bake_py(int width, int height, const py::object& cam_to_world, const py
     return out;
 }
 
-void write_exr_py(const std::string& path, const py::dict& passes, const std::string& layer_prefix, bool half) {
+void write_exr_py(const std::string& path, const py::dict& passes, const std::string& layer_prefix, bool half,
+                  const std::string& compression) {
     // Convert every pass to contiguous float32 (H, W, 3), all of one size.
     if (passes.size() == 0) throw py::value_error("write_exr: passes is empty");
     std::vector<std::string> names;
@@ -339,7 +340,7 @@ void write_exr_py(const std::string& path, const py::dict& passes, const std::st
     std::vector<ExrPass> exr_passes;
     for (size_t i = 0; i < names.size(); ++i) exr_passes.push_back({names[i], arrays[i].data()});
     py::gil_scoped_release release;
-    write_multilayer_exr(path, int(W), int(H), exr_passes, layer_prefix, half);
+    write_multilayer_exr(path, int(W), int(H), exr_passes, layer_prefix, half, compression);
 }
 
 }  // namespace
@@ -468,8 +469,12 @@ and the airlight pass)); rows top first. Raises
 ValueError on invalid input. The GIL is released while baking.)doc");
 
     m.def("write_exr", &write_exr_py, "path"_a, "passes"_a, "layer_prefix"_a = "", "half"_a = false,
+          "compression"_a = "auto",
           R"doc(Write one multilayer EXR (32-bit float; half=True: 16-bit half floats, rounded
 to nearest, relative error <= 2^-11 from 6.1e-5 up, a quarter to a third of the file).
+compression: "auto" (PIZ for floats, ZIP for halves: benchmarks/bench_exr.py), or one of
+"none", "rle", "zips", "zip", "piz", "pxr24", "b44", "b44a", "dwaa", "dwab" (the last five
+lossy for floats); OpenEXR compresses on every hardware thread.
 
 passes: dict name -> (H, W, 3) float32 array (top row first); channels are named
 "<layer_prefix><name>.R/G/B" in dict order. Raises RuntimeError on I/O failure.)doc");

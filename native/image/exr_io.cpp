@@ -4,12 +4,36 @@
 
 #include <OpenImageIO/imageio.h>
 
+#include <algorithm>
+#include <iterator>
 #include <stdexcept>
+#include <thread>
 
 namespace airlight {
 
+namespace {
+
+const char* const kCompressions[] = {"none", "rle", "zips", "zip", "piz", "pxr24", "b44", "b44a", "dwaa", "dwab"};
+
+// OpenEXR's compression threads, set once for the process: every hardware thread.
+void use_all_threads() {
+    static const bool done = [] {
+        OIIO::attribute("exr_threads", int(std::max(1u, std::thread::hardware_concurrency())));
+        return true;
+    }();
+    (void)done;
+}
+
+}  // namespace
+
 void write_multilayer_exr(const std::string& path, int width, int height,
-                          const std::vector<ExrPass>& passes, const std::string& layer_prefix, bool half) {
+                          const std::vector<ExrPass>& passes, const std::string& layer_prefix, bool half,
+                          const std::string& compression) {
+    const std::string method = compression == "auto" ? (half ? "zip" : "piz") : compression;
+    if (std::find(std::begin(kCompressions), std::end(kCompressions), method) == std::end(kCompressions))
+        throw std::invalid_argument("write_exr: unknown compression '" + compression +
+                                    "' (auto, none, rle, zips, zip, piz, pxr24, b44, b44a, dwaa or dwab)");
+    use_all_threads();
     // Check the arguments; OIIO would otherwise fail with a less helpful message.
     if (width <= 0 || height <= 0) throw std::invalid_argument("EXR size must be positive");
     if (passes.empty()) throw std::invalid_argument("write_multilayer_exr: no passes given");
@@ -24,7 +48,7 @@ void write_multilayer_exr(const std::string& path, int width, int height,
     for (const ExrPass& pass : passes)
         for (const char* c : {".R", ".G", ".B"}) spec.channelnames.push_back(layer_prefix + pass.name + c);
     spec.alpha_channel = -1;
-    spec.attribute("compression", "zip");
+    spec.attribute("compression", method);
 
     // Interleave the passes into one buffer, top row first (EXR's order too).
     const size_t npixels = size_t(width) * size_t(height);

@@ -69,3 +69,30 @@ def test03_half_precision(tmp_path):
     _native.write_exr(float_path, smooth_only)
     import os
     assert os.path.getsize(half_path) < 0.5 * os.path.getsize(float_path)
+
+
+@pytest.mark.parametrize("compression", ["auto", "none", "rle", "zips", "zip", "piz"])
+def test04_lossless_compressions_round_trip_exactly(tmp_path, compression):
+    """Every lossless compression gives the float passes back bit for bit, and names itself
+    in the file (auto: PIZ for floats)."""
+    rng = np.random.default_rng(11)
+    passes = {"Airlight": (rng.random((37, 53, 3), dtype=np.float32) * 1e3).astype(np.float32),
+              "Transmittance": rng.random((37, 53, 3), dtype=np.float32)}
+    path = str(tmp_path / f"fog_{compression}.exr")
+    _native.write_exr(path, passes, compression=compression)
+    spec, pixels = read(path)
+    assert spec.getattribute("compression") == ("piz" if compression == "auto" else compression)
+    names = list(spec.channelnames)
+    for p, data in passes.items():
+        for k, c in enumerate("RGB"):
+            np.testing.assert_array_equal(pixels[:, :, names.index(f"{p}.{c}")], data[:, :, k])
+
+
+def test05_half_auto_is_zip_and_unknown_compression_refused(tmp_path):
+    passes = {"Airlight": np.full((4, 4, 3), 0.5, np.float32)}
+    path = str(tmp_path / "h.exr")
+    _native.write_exr(path, passes, half=True)
+    spec, _ = read(path)
+    assert spec.getattribute("compression") == "zip" and spec.format == oiio.HALF
+    with pytest.raises(ValueError, match="unknown compression 'lzma'"):
+        _native.write_exr(str(tmp_path / "bad.exr"), passes, compression="lzma")
