@@ -28,4 +28,6 @@ fi
 
 export BLENDER_USER_SCRIPTS="$scripts"
 export BLENDER_USER_CONFIG="$user_root/config"
+# The models' tables across processes (addon/airlight/native.py), beside the user folder.
+export AIRLIGHT_TABLE_CACHE="${AIRLIGHT_TABLE_CACHE-$user_root/table_cache}"
 exec "${BLENDER:-blender}" --factory-startup --addons airlight "$@"

@@ -28,7 +28,25 @@ def load():
                           + ", ".join(missing) + "). Rebuild it.")
             else:
                 _module = _native
+                _use_table_cache(_native)
     return _module
+
+
+def table_cache_dir():
+    """Where the models' tables are kept across processes (native/core/table_cache.h):
+    $AIRLIGHT_TABLE_CACHE ("" or "off": none), else $XDG_CACHE_HOME/airlight/tables
+    (~/.cache/airlight/tables). A farm's per-frame processes then build each table once."""
+    import os
+    env = os.environ.get("AIRLIGHT_TABLE_CACHE")
+    if env is not None:
+        return "" if env.strip().lower() in ("", "off") else env
+    base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
+    return os.path.join(base, "airlight", "tables")
+
+
+def _use_table_cache(module):
+    if hasattr(module, "set_table_cache_dir"):
+        module.set_table_cache_dir(table_cache_dir())
 
 
 def available():

@@ -3,6 +3,7 @@
 #include <cmath>
 #include <stdexcept>
 
+#include "core/table_cache.h"
 #include "homogeneous/biri06.h"
 #include "homogeneous/hoffman02.h"
 #include "core/phase.h"
@@ -102,6 +103,23 @@ py::dict hoffman02_py(const py::object& cos_theta, const py::object& s, const py
 }  // namespace
 
 void bind_models(py::module_& m) {
+    m.def(
+        "set_table_cache_dir", [](const std::string& dir) {
+            if (dir.find('\0') != std::string::npos) throw py::value_error("set_table_cache_dir: NUL byte in the path");
+            set_table_cache_dir(dir);
+        },
+        "dir"_a,
+        "Keep the models' tables (F, surface G, Gamma, sun glow) in this folder across processes "
+        "(core/table_cache.h); \"\" turns the cache off. Default: $AIRLIGHT_TABLE_CACHE, else off.");
+    m.def("table_cache_dir", [] { return table_cache_dir(); }, "The table cache's folder (\"\": off).");
+    m.def(
+        "table_cache_counts",
+        [] {
+            const TableCacheCounts c = table_cache_counts();
+            return py::dict("built"_a = c.built, "loaded"_a = c.loaded, "refused"_a = c.refused);
+        },
+        "This process's tables: built (cache missed or off), loaded from the cache, and cache files "
+        "refused (corrupt, truncated or from another build; rebuilt with a note on stderr).");
     m.def("phase", &phase_py, "name"_a, "mu"_a, "g"_a = 0.0,
           R"doc(Phase function p(mu) in 1/sr, normalised to 1 over the sphere.
 

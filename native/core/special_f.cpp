@@ -37,6 +37,7 @@
 //   the last column for u < 1/nT) and is first order there, elsewhere second order.
 //   (The uniform 64 x 64 layout over u in [0, 10], v in [0, pi/2] had 9 %.)
 #include "core/special_f.h"
+#include "core/table_cache.h"
 #include "core/parallel.h"
 #include "core/constants.h"
 
@@ -118,7 +119,9 @@ SpecialFTable::SpecialFTable(int nu, int nT, Interp interp) : nu_(nu), nT_(nT), 
     };
     const long long work = static_cast<long long>(nu) * nT;
     const int n_threads = work < 4096 ? 1 : std::clamp(int(std::thread::hardware_concurrency()), 1, std::min(8, nu));
-    parallel_for(n_threads, n_threads, [&](int t) { build_rows(t, n_threads); });  // one stripe per item
+    load_or_build("special_F v1 nu=" + std::to_string(nu) + " nT=" + std::to_string(nT), data_, [&] {
+        parallel_for(n_threads, n_threads, [&](int t) { build_rows(t, n_threads); });  // one stripe per item
+    });
 }
 
 double SpecialFTable::eval_tan(double u, double T) const {

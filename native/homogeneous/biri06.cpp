@@ -36,6 +36,7 @@
 // complementary table of the scaled tail e^{lambda T} int_T^inf would remove that fallback.
 // Table build: ~38 ms per phase function (per g for HG), cached.
 #include "homogeneous/biri06.h"
+#include "core/table_cache.h"
 #include "core/constants.h"
 
 #include <algorithm>
@@ -194,29 +195,33 @@ Biri06Table::Biri06Table(const PhaseFunction& phase, int nl, int nT)
     : phase_(phase), nl_(nl), nT_(nT), K_(column_stretch(phase)), k_(std::max(column_stretch(phase), 1.0)) {
     if (nl < 2 || nT < 2) throw std::invalid_argument("Biri06Table: need at least 2 x 2 samples");
     data_.resize(static_cast<size_t>(nl) * nT);
-    const double q0 = 2.0 * phase.eval(1.0);
-    for (int i = 0; i < nl; ++i) {
-        const double s = static_cast<double>(i) / (nl - 1);
-        float* row = &data_[static_cast<size_t>(i) * nT];
-        row[0] = static_cast<float>(q0);
-        if (i == nl - 1) {  // lambda = inf
+    const std::string key = "biri06_gamma v1 phase=" + std::to_string(int(phase.kind)) + " g=" + key_number(phase.g) +
+                            " nl=" + std::to_string(nl) + " nT=" + std::to_string(nT);
+    load_or_build(key, data_, [&] {
+        const double q0 = 2.0 * phase.eval(1.0);
+        for (int i = 0; i < nl; ++i) {
+            const double s = static_cast<double>(i) / (nl - 1);
+            float* row = &data_[static_cast<size_t>(i) * nT];
+            row[0] = static_cast<float>(q0);
+            if (i == nl - 1) {  // lambda = inf
+                for (int j = 1; j < nT; ++j) {
+                    const double w = static_cast<double>(j) / (nT - 1);
+                    row[j] = static_cast<float>(j == nT - 1 ? q0 : -q0 * std::expm1(-w / (1.0 - w)) / w);
+                }
+                continue;
+            }
+            const double lambda = k_ * s * s / (1.0 - s * s);
+            const GIntegrand f{phase, lambda, 0.0, 1.0};
+            double G = 0.0, theta_prev = 0.0;
             for (int j = 1; j < nT; ++j) {
                 const double w = static_cast<double>(j) / (nT - 1);
-                row[j] = static_cast<float>(j == nT - 1 ? q0 : -q0 * std::expm1(-w / (1.0 - w)) / w);
+                const double theta = (j == nT - 1) ? kPi : 2.0 * std::atan(w / ((1.0 - w) * (K_ + lambda)));
+                G += integrate_adaptive(f, theta_prev, theta, 1e-12, 1e-15 * G, 60);
+                theta_prev = theta;
+                row[j] = static_cast<float>(G * (K_ + lambda) / w);
             }
-            continue;
         }
-        const double lambda = k_ * s * s / (1.0 - s * s);
-        const GIntegrand f{phase, lambda, 0.0, 1.0};
-        double G = 0.0, theta_prev = 0.0;
-        for (int j = 1; j < nT; ++j) {
-            const double w = static_cast<double>(j) / (nT - 1);
-            const double theta = (j == nT - 1) ? kPi : 2.0 * std::atan(w / ((1.0 - w) * (K_ + lambda)));
-            G += integrate_adaptive(f, theta_prev, theta, 1e-12, 1e-15 * G, 60);
-            theta_prev = theta;
-            row[j] = static_cast<float>(G * (K_ + lambda) / w);
-        }
-    }
+    });
 }
 
 double Biri06Table::eval(double lambda, double T) const {

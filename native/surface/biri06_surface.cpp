@@ -32,6 +32,7 @@
 //   wide forward lobe crosses the horizon (theta_s ~ pi/2), as Sun's table does at T ~ 16.
 //   Gamma_L table (256 rows, linear): max 2.3e-4 relative (HG g = -0.9), <= 3e-5 otherwise.
 #include "surface/biri06_surface.h"
+#include "core/table_cache.h"
 #include "core/parallel.h"
 #include "core/constants.h"
 
@@ -157,7 +158,8 @@ PhaseSurfaceGTable::PhaseSurfaceGTable(const PhaseFunction& phase, double m, int
             // The 1/T layer of H near gamma = 0 and the phase lobes.
             [this](double T, std::vector<double>& cuts) { add_row_cuts(phase_, T, cuts); },
             [this](double T, double gamma) { return H_scaled(phase_, T, gamma, kTableHTol); },
-            4.0 * kPi * phase.eval(1.0)) {}
+            4.0 * kPi * phase.eval(1.0),
+            "surface_G v1 phase=" + std::to_string(int(phase.kind)) + " g=" + key_number(phase.g)) {}
 
 double PhaseSurfaceGTable::eval(double T, double theta_s) const {
     const double scaled = eval_scaled(T, theta_s);

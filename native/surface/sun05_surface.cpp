@@ -32,6 +32,7 @@
 // The exact evaluator agrees with the brute-force single-scattering integral
 // (sun05_surface_glow_reference) to ~1e-11.
 #include "surface/sun05_surface.h"
+#include "core/table_cache.h"
 #include "core/parallel.h"
 #include "core/constants.h"
 
@@ -134,13 +135,23 @@ double W_fixed(double gamma, double theta_s, double m, const std::vector<double>
 
 SurfaceGGrid::SurfaceGGrid(int nT, int ntheta, double m, int threads,
                            const std::function<void(double, std::vector<double>&)>& row_cuts,
-                           const std::function<double(double, double)>& H_scaled, double forward_weight)
+                           const std::function<double(double, double)>& H_scaled, double forward_weight,
+                           const std::string& cache_key)
     : nT_(nT), ntheta_(ntheta), m_(m), forward_weight_(forward_weight), threads_(threads), row_cuts_(row_cuts),
-      H_scaled_(H_scaled) {
+      H_scaled_(H_scaled), cache_key_(cache_key) {
     if (nT < 2 || ntheta < 2) throw std::invalid_argument("surface G table: need at least 2 x 2 samples");
     data_.assign(size_t(nT) * size_t(ntheta), 0.0);
-    parallel_for(nT, resolve_threads(threads),
-                 [&](int i) { integrate_row(row_T(i, nT), &data_[size_t(i) * ntheta]); });
+    auto build = [&] {
+        parallel_for(nT, resolve_threads(threads),
+                     [&](int i) { integrate_row(row_T(i, nT), &data_[size_t(i) * ntheta]); });
+    };
+    if (cache_key_.empty()) build();
+    else load_or_build(grid_key("body"), data_, build);
+}
+
+std::string SurfaceGGrid::grid_key(const char* part) const {
+    return cache_key_ + " " + part + " nT=" + std::to_string(nT_) + " ntheta=" + std::to_string(ntheta_) +
+           " m=" + key_number(m_) + " fw=" + key_number(forward_weight_);
 }
 
 void SurfaceGGrid::integrate_row(double T, double* out) const {
@@ -205,13 +216,17 @@ double tail_log_coefficient(double forward_weight, double theta, double m) {
 void SurfaceGGrid::build_tail() const {
     const int rows = kTailRows, ntheta = ntheta_;
     tail_.assign(size_t(rows) * size_t(ntheta), 0.0);
-    parallel_for(rows, resolve_threads(threads_), [&](int i) {
-        const double T = tail_row_T(i);
-        double* q = &tail_[size_t(i) * ntheta];
-        integrate_row(T, q);
-        for (int j = 0; j < ntheta; ++j)
-            q[j] = T * q[j] - tail_log_coefficient(forward_weight_, kPi * j / (ntheta - 1), m_) * std::log(T);
-    });
+    auto build = [&] {
+        parallel_for(rows, resolve_threads(threads_), [&](int i) {
+            const double T = tail_row_T(i);
+            double* q = &tail_[size_t(i) * ntheta];
+            integrate_row(T, q);
+            for (int j = 0; j < ntheta; ++j)
+                q[j] = T * q[j] - tail_log_coefficient(forward_weight_, kPi * j / (ntheta - 1), m_) * std::log(T);
+        });
+    };
+    if (cache_key_.empty()) build();
+    else load_or_build(grid_key("tail"), tail_, build);
 }
 
 double SurfaceGGrid::lookup(double T, double theta_s) const {
@@ -255,7 +270,7 @@ SurfaceGTable::SurfaceGTable(double m, int nT, int ntheta, int threads)
                 if (T > 1.0)
                     for (double c = 0.0625 / T; c < 0.5; c *= 2.0) cuts.push_back(c);
             },
-            [](double T, double gamma) { return sun05_surface_H_scaled(T, gamma); }) {}
+            [](double T, double gamma) { return sun05_surface_H_scaled(T, gamma); }, 1.0, "surface_G v1 sun05") {}
 
 double SurfaceGTable::eval(double T, double theta_s) const {
     const double scaled = eval_scaled(T, theta_s);

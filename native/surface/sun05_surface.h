@@ -23,6 +23,7 @@
 #pragma once
 
 #include <functional>
+#include <string>
 #include <mutex>
 #include <vector>
 
@@ -62,9 +63,12 @@ class SurfaceGGrid {
     // _row_cuts_(T, cuts) appends a row's extra gamma breakpoints; _H_scaled_(T, gamma) is
     // e^{T} H(T, gamma). Rows go to _threads_ worker threads (0: all). The two functions are
     // kept for the tail's build (they must outlive the grid's owner's use of it).
+    // _cache_key_ (the owner's H and parameters; empty: not cached) keys its rows in the
+    // table cache (table_cache.h).
     SurfaceGGrid(int nT, int ntheta, double m, int threads,
                  const std::function<void(double, std::vector<double>&)>& row_cuts,
-                 const std::function<double(double, double)>& H_scaled, double forward_weight = 1.0);
+                 const std::function<double(double, double)>& H_scaled, double forward_weight = 1.0,
+                 const std::string& cache_key = "");
     // e^{T} G(T, theta_s) for every T >= 0 (the tail beyond kTMax).
     double lookup(double T, double theta_s) const;
     static double row_T(int i, int nT);
@@ -72,6 +76,7 @@ class SurfaceGGrid {
 
   private:
     double lookup_body(double T, double theta_s) const;
+    std::string grid_key(const char* part) const;
     double lookup_tail(double T, double theta_s) const;
     // Integrates row _T_ for every column into _out_[0, ntheta).
     void integrate_row(double T, double* out) const;
@@ -82,6 +87,7 @@ class SurfaceGGrid {
     int threads_;
     std::function<void(double, std::vector<double>&)> row_cuts_;
     std::function<double(double, double)> H_scaled_;
+    std::string cache_key_;
     std::vector<double> data_;  // row-major [iT][itheta]
     mutable std::once_flag tail_once_;
     mutable std::vector<double> tail_;  // Q, row-major [row][itheta]

@@ -21,6 +21,7 @@
 // to 2.8e-3 for Henyey-Greenstein g = -0.3 ... 0.9), mean <= 5.4e-4; a table builds in
 // 0.2-0.6 s on one thread (no top: one tau plane, 0.14-0.25 s).
 #include "surface/sunlight_glow.h"
+#include "core/table_cache.h"
 #include "core/parallel.h"
 #include "core/constants.h"
 
@@ -344,7 +345,13 @@ SunlightGlowTable::SunlightGlowTable(const PhaseFunction& phase, const glm::dvec
         }
     };
     const int t = resolve_threads(threads);
-    parallel_for(t, t, [&](int i) { work(size_t(i), size_t(t)); });  // one stripe per item
+    const std::string key = "sun_glow v1 phase=" + std::to_string(int(phase.kind)) + " g=" + key_number(phase.g) +
+                            " sun=" + key_number(to_sun_.x) + "," + key_number(to_sun_.y) + "," + key_number(to_sun_.z) +
+                            " top=" + std::to_string(int(has_top)) + " m=" + key_number(m) + " n=" +
+                            std::to_string(n_tau_) + "," + std::to_string(n_theta_) + "," + std::to_string(n_phi_);
+    load_or_build(key, data_, [&] {
+        parallel_for(t, t, [&](int i) { work(size_t(i), size_t(t)); });  // one stripe per item
+    });
 }
 
 void SunlightGlowTable::frame(const glm::dvec3& n, double& theta, double& phi) const {
