@@ -138,11 +138,15 @@ def run(description, settings, filepath, progress=None):
     lens = settings.pop(LENS, None)
     samples = settings.pop(SAMPLES, None) or (_variants(description, {LENS: lens}) if lens else None)
 
+    counts = module.table_cache_counts() if hasattr(module, "table_cache_counts") else None
+
     def bake_once(description, progress):
         """(airlight, transmittance, extra passes or None, depth, stats) of one bake."""
         try:
+            t0 = time.perf_counter()
             result = module.bake(**description, **settings, progress=progress)
             stats = dict(result["stats"])
+            stats["seconds_native"] = time.perf_counter() - t0
             if world is not None:
                 stats["seconds_environment"] = environment.apply(module, world, description, result)
         except ValueError as ex:
@@ -161,10 +165,14 @@ def run(description, settings, filepath, progress=None):
         airlight = _fit_region(airlight, region, 0.0)
         transmittance = _fit_region(transmittance, region, 1.0)
         extra = {name: _fit_region(p, region, 0.0) for name, p in (extra or {}).items()} or None
+    t0 = time.perf_counter()
     try:
         cache.write_passes(filepath, airlight, transmittance, extra, half=half)
     except cache.CacheError as ex:
         raise BakeError(str(ex)) from None
+    stats["seconds_exr"] = time.perf_counter() - t0
+    if counts is not None:
+        stats["tables_built"] = module.table_cache_counts()["built"] - counts["built"]
     return stats, time.perf_counter() - start
 
 
@@ -321,9 +329,25 @@ def bake_frame(scene, depsgraph, filepath=None, progress=None, mesh_overrides=No
     (filepath, stats, seconds), filepath the first view's."""
     if filepath is None:
         filepath = cache_path(scene, scene.frame_current)
+    t0 = time.perf_counter()
     jobs = prepare_views(scene, depsgraph, filepath, mesh_overrides, evaluate_at)
+    export_seconds = time.perf_counter() - t0
     stats, seconds = run_views(jobs, progress)
-    return jobs[0][2], stats, seconds
+    stats = dict(stats, seconds_export=export_seconds)
+    return jobs[0][2], stats, seconds + export_seconds
+
+
+def parts_line(stats):
+    """Where a frame's fog time went, for the console: the scene's export, the native bake
+    (its tables' first build, ray casting, fog, surfaces) and the EXR."""
+    ms = lambda key: 1000.0 * float(stats.get(key, 0.0))  # noqa: E731
+    native_ms = ms("seconds_native")
+    parts = [f"export {ms('seconds_export'):.0f} ms", f"native bake {native_ms:.0f} ms (setup and tables "
+             f"{ms('seconds_fog_setup'):.0f}, rays {ms('seconds_raycast'):.0f}, fog {ms('seconds_airlight'):.0f}, "
+             f"surfaces {ms('seconds_surface'):.0f})", f"EXR {ms('seconds_exr'):.0f} ms"]
+    if stats.get("tables_built"):
+        parts.append(f"{stats['tables_built']} table(s) built")
+    return ", ".join(parts)
 
 
 def _printing_progress(label):

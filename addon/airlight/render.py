@@ -21,6 +21,8 @@ Where the bake happens (checked in Blender 3.4):
 
 import threading
 
+import time
+
 import bpy
 from bpy.app.handlers import persistent
 
@@ -146,8 +148,12 @@ def _bake_for_render(scene, get_depsgraph, get_mesh_overrides=lambda: None, eval
         if note == MOTION_BLUR_INTERACTIVE and evaluate_at is not None:
             continue  # (this bake sampled the shutter)
         print(f"Airlight: frame {frame}: {note}", flush=True)
+    composite = ""
     if settings.auto_composite:
+        t0 = time.perf_counter()
         compositor.sync(scene, filepath)
+        composite = f", compositor {1000.0 * (time.perf_counter() - t0):.0f} ms"
+    print(f"Airlight: frame {frame}: {bake.parts_line(stats)}{composite}", flush=True)
 
 
 @persistent

@@ -1,0 +1,92 @@
+#!/usr/bin/python3
+"""The frame as a user pays for it: `blender -b street.blend -f 1` with fog on and off.
+
+    /usr/bin/python3 benchmarks/bench_frame.py [--runs 3] [--engines BLENDER_WORKBENCH,CYCLES]
+                                               [--width 1920 --height 1080] [--samples 4]
+
+Fresh Blender processes (tools/blender.sh: the add-on from this tree) render frame 1 of
+blend_examples/street.blend at --width x --height, fog off and on alternating, --runs of
+each per engine (Cycles at --samples samples), with a warm table cache (one untimed fog run
+first fills it); then one fog run with an empty cache (a farm worker's first frame). Printed
+as medians: the wall time of each, the time fog adds, and the parts the add-on's console
+line reports (export, native bake, EXR, compositor).
+Targets (issue 25): added wall time <= 3x the native bake's time in a fresh process with a
+warm cache; a Workbench frame with fog <= 1.15x without.
+"""
+
+import argparse
+import os
+import re
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+REPO = os.path.dirname(HERE)
+BLENDER_SH = os.path.join(REPO, "tools", "blender.sh")
+BLEND = os.path.join(REPO, "blend_examples", "street.blend")
+PARTS = re.compile(r"Airlight: frame 1: export (\d+) ms, native bake (\d+) ms .*?EXR (\d+) ms(?:, (\d+) table\(s\) "
+                   r"built)?(?:, compositor (\d+) ms)?")
+
+
+def render(engine, fog, width, height, samples, out_dir, cache):
+    expr = ("import bpy; s = bpy.context.scene; "
+            f"s.render.resolution_x, s.render.resolution_y, s.render.resolution_percentage = {width}, {height}, 100; "
+            f"s.airlight.enabled = {fog}; s.cycles.samples = {samples}; s.cycles.device = 'CPU'")
+    env = dict(os.environ, AIRLIGHT_TABLE_CACHE=cache)
+    t0 = time.perf_counter()
+    proc = subprocess.run([BLENDER_SH, "-b", BLEND, "-E", engine, "--python-expr", expr, "-o",
+                           os.path.join(out_dir, "frame_#"), "-f", "1"], capture_output=True, text=True, env=env)
+    wall = time.perf_counter() - t0
+    if proc.returncode != 0:
+        sys.exit(f"bench_frame: blender failed:\n{proc.stdout[-2000:]}{proc.stderr[-2000:]}")
+    m = PARTS.search(proc.stdout)
+    if fog and not m:
+        sys.exit(f"bench_frame: no fog parts line in the output:\n{proc.stdout[-3000:]}")
+    parts = None
+    if m:
+        parts = dict(export=int(m[1]), bake=int(m[2]), exr=int(m[3]), tables=int(m[4] or 0),
+                     compositor=int(m[5] or 0))
+    return wall, parts
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--runs", type=int, default=3)
+    ap.add_argument("--engines", default="BLENDER_WORKBENCH,CYCLES")
+    ap.add_argument("--width", type=int, default=1920)
+    ap.add_argument("--height", type=int, default=1080)
+    ap.add_argument("--samples", type=int, default=4)
+    args = ap.parse_args()
+    print(f"Airlight bench_frame: street.blend {args.width}x{args.height}, runs={args.runs} (medians), "
+          f"fresh Blender processes")
+    with tempfile.TemporaryDirectory() as tmp:
+        warm = os.path.join(tmp, "tables")
+        for engine in args.engines.split(","):
+            render(engine, True, args.width, args.height, args.samples, tmp, warm)  # fills the cache
+            off, on, parts = [], [], []
+            for _ in range(args.runs):
+                off.append(render(engine, False, args.width, args.height, args.samples, tmp, warm)[0])
+                wall, p = render(engine, True, args.width, args.height, args.samples, tmp, warm)
+                on.append(wall)
+                parts.append(p)
+            t_off, t_on = statistics.median(off), statistics.median(on)
+            med = {k: statistics.median(p[k] for p in parts) for k in parts[0]}
+            added = t_on - t_off
+            print(f"\n{engine}: fog off {t_off:6.2f} s, fog on {t_on:6.2f} s, added {added:5.2f} s "
+                  f"({t_on / t_off:4.2f}x)")
+            print(f"  parts (ms): export {med['export']:.0f}, native bake {med['bake']:.0f}, EXR {med['exr']:.0f}, "
+                  f"compositor {med['compositor']:.0f}, tables built {med['tables']:.0f}")
+            print(f"  added wall time / native bake: {1000 * added / max(med['bake'], 1):4.1f}x (target <= 3x)")
+            if engine == "BLENDER_WORKBENCH":
+                print(f"  Workbench with fog / without: {t_on / t_off:4.2f}x (target <= 1.15x)")
+            cold = os.path.join(tmp, f"cold_{engine}")
+            wall, p = render(engine, True, args.width, args.height, args.samples, tmp, cold)
+            print(f"  empty table cache: fog on {wall:6.2f} s, native bake {p['bake']} ms, "
+                  f"{p['tables']} table(s) built")
+
+
+if __name__ == "__main__":
+    main()
