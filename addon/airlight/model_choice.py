@@ -32,7 +32,7 @@ from collections import namedtuple
 import numpy as np
 
 from . import light_bounds, scene_description
-from .names import MODEL_NAMES, SUPPORTED_LIGHT_TYPES, is_isotropic, native_phase
+from .names import AREA_INTENSITY, MODEL_NAMES, SUPPORTED_LIGHT_TYPES, is_isotropic, native_phase
 
 # native name -> (label, max relative error, relative cost)
 MEASURED = {
@@ -253,7 +253,7 @@ def plan_rows(settings, survey):
     rows, fogged = [], []
     kinds, weights, positions, casts = [], [], [], []   # per fogged light: type, I0 or E (RGB), position, shadow
     for light in survey.lights:
-        if light.type not in SUPPORTED_LIGHT_TYPES:
+        if light.type not in SUPPORTED_LIGHT_TYPES or not getattr(light, "supported", True):
             rows.append(LightRow(light.name, light.type, 'unsupported', "", math.nan, math.nan))
             continue
         if not light.participates:
@@ -266,14 +266,15 @@ def plan_rows(settings, survey):
             label, error = BASELINE[1], BASELINE[2]
         elif light.type == 'SUN':
             label, error = SUN_QUADRATURE_MODEL if name == "quadrature" else SUN_MODEL
-        elif light.type == 'SPOT':
+        elif light.type in ('SPOT', 'AREA'):  # area lights bake as spots (scene_export.area_samples)
             label, error = spot_model(name, settings)
         else:
             label, error = point_label, point_error
         rows.append(LightRow(light.name, light.type, 'fog', label, error, math.nan))
         fogged.append(len(rows) - 1)
         kinds.append(light.type)
-        weights.append(light.emission if light.type == 'SUN' else light.emission / (4.0 * math.pi))
+        weights.append(light.emission if light.type == 'SUN' else
+                       light.emission * AREA_INTENSITY if light.type == 'AREA' else light.emission / (4.0 * math.pi))
         positions.append(light.position)
         casts.append(light.casts_shadow)
     if not fogged:
@@ -287,7 +288,10 @@ def plan_rows(settings, survey):
                                                        bool(settings.use_fog_top))
     if frame is not None and np.any(~sun):
         uppers[~sun], lowers[~sun] = light_bounds.point_bounds(
-            frame, positions[~sun], weights[~sun], sigma, albedo, p_min, p_max, spot=kinds[~sun] == 'SPOT')
+            frame, positions[~sun], weights[~sun], sigma, albedo, p_min, p_max, spot=kinds[~sun] != 'POINT')
+    # An area light is no point: its bound is not the point's near it, so it is never skipped.
+    area = kinds == 'AREA'
+    uppers[area], lowers[area] = math.inf, 0.0
     skip = np.zeros(len(fogged), dtype=bool)
     # The bounds are those of the homogeneous fog: a light they rate faint can still light a
     # dense fog object (Gaussians) brightly, so Automatic skips no light when there is one.
@@ -329,7 +333,7 @@ def shadow_states(settings, survey, kinds, weights, positions, casts, albedo, si
         if settings.model != 'QUADRATURE':
             states[(kinds != 'POINT') & casts] = 'fog objects'
     elif settings.model == 'AUTO' and sigma > 0.0:
-        positional = (kinds != 'SUN') & casts
+        positional = (kinds != 'SUN') & (kinds != 'AREA') & casts
         if np.any(positional):
             uppers = light_bounds.shadow_bounds(positions[positional], weights[positional], sigma, albedo, p_max,
                                                 survey.casters)

@@ -25,7 +25,10 @@ PHASE_NAMES = {
 }
 
 # Light types the bake scatters; the others are listed in the UI as "not yet in fog".
-SUPPORTED_LIGHT_TYPES = {'POINT', 'SPOT', 'SUN'}
+SUPPORTED_LIGHT_TYPES = {'POINT', 'SPOT', 'SUN', 'AREA'}
+# Cycles' area light: a one-sided Lambert emitter whose radiant intensity is C P / 4 cos(theta)
+# about its -Z (kernel/light/area.h: radiance P / (4 A)).
+AREA_INTENSITY = 0.25
 
 
 def is_isotropic(settings):

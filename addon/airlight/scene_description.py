@@ -261,6 +261,9 @@ class LightInstance(NamedTuple):
     spot_size: float      # cone angle in rad (spots; 0 for the others)
     spot_blend: float     # cone edge softness (spots; 0 for the others)
     casts_shadow: bool = True  # Cast Shadow (volumetric shadows)
+    area_shape: str = ""       # area lights: 'SQUARE', 'RECTANGLE', 'DISK' or 'ELLIPSE'
+    area_size: tuple = (0.0, 0.0)  # area lights: the size along the light's X and Y, m
+    spread: float = math.pi    # area lights: Cycles' Spread, rad (pi: the full cosine lobe)
 
 
 def _light_instance(instance, obj):
@@ -273,7 +276,17 @@ def _light_instance(instance, obj):
         instanced=bool(instance.is_instance), matrix=np.array(instance.matrix_world, dtype=np.float64),
         color=np.array(light.color, dtype=np.float64), energy=light.energy,
         spot_size=float(light.spot_size) if spot else 0.0, spot_blend=float(light.spot_blend) if spot else 0.0,
-        casts_shadow=bool(getattr(light, "use_shadow", True)))
+        casts_shadow=bool(getattr(light, "use_shadow", True)), **_area_fields(light))
+
+
+def _area_fields(light):
+    """LightInstance's area_* and spread of an area light ({} for the other types)."""
+    if light.type != 'AREA':
+        return {}
+    square = light.shape in ('SQUARE', 'DISK')
+    size_y = light.size if square else light.size_y
+    return dict(area_shape=str(light.shape), area_size=(float(light.size), float(size_y)),
+                spread=float(getattr(light, "spread", math.pi)))
 
 
 def _world_triangles(obj, matrix):
@@ -350,6 +363,7 @@ class SurveyLight(NamedTuple):
     emission: np.ndarray    # colour x power (3,) float64 (None unless participating and supported)
     position: tuple         # world location (None unless participating and supported)
     casts_shadow: bool = True
+    supported: bool = True  # its type and settings are in the bake (area lights: full Spread)
 
 
 class Survey(NamedTuple):
@@ -378,12 +392,14 @@ def survey(scene, depsgraph=None, view_layer=None):
         light = obj.data
         participates = bool(light.airlight.participate)
         emission = position = None
-        if light.type in SUPPORTED_LIGHT_TYPES and participates:
+        supported = light.type in SUPPORTED_LIGHT_TYPES and (
+            light.type != 'AREA' or getattr(light, "spread", math.pi) >= math.pi - 1e-3)
+        if supported and participates:
             emission = np.array(light.color, dtype=np.float64) * light.energy
             src = obj.evaluated_get(depsgraph) if depsgraph is not None else obj
             position = tuple(src.matrix_world.translation)
         lights.append(SurveyLight(obj.name, light.type, participates, emission, position,
-                                  bool(getattr(light, "use_shadow", True))))
+                                  bool(getattr(light, "use_shadow", True)), supported))
     fog_objects = any(getattr(getattr(obj, "airlight_fog", None), "is_fog", False)
                       and visible(obj) for obj in scene.objects)
     return Survey(tuple(lights), frame, fog_objects, caster_boxes(scene, depsgraph, visible))

@@ -16,15 +16,47 @@ import math
 import numpy as np
 
 from . import model_choice, scene_description
-from .names import SUPPORTED_LIGHT_TYPES
+from .names import AREA_INTENSITY, SUPPORTED_LIGHT_TYPES
 from .scene_description import ExportError
 
 
 def _baked(light, plan):
-    """Whether the bake takes _light_ (a LightInstance): a supported type, Scatter in Fog on,
-    not skipped by Automatic (model_choice.plan; instanced lights never are)."""
-    return (light.type in SUPPORTED_LIGHT_TYPES and light.participates
+    """Whether the bake takes _light_ (a LightInstance): a supported type (area lights with
+    the full Spread), Scatter in Fog on, not skipped by Automatic (model_choice.plan;
+    instanced lights never are)."""
+    return (light.type in SUPPORTED_LIGHT_TYPES and light.participates and area_supported(light)
             and (light.instanced or light.name not in plan.skipped))
+
+
+# An area light (names.AREA_INTENSITY) bakes as spots of 180 degrees without blend (profile
+# cos(theta), spot_light.h) spread over its surface, each carrying 1 / n of the intensity.
+AREA_CELL = 0.5   # m: the samples' spacing along each side, 1 to AREA_MAX_PER_AXIS per side
+AREA_MAX_PER_AXIS = 4
+
+
+def area_supported(light):
+    """Area lights bake with Cycles' default Spread (180 degrees) only."""
+    return light.type != 'AREA' or light.spread >= math.pi - 1e-3
+
+
+def area_samples(light):
+    """The sample points (n, 3) of an area light (a LightInstance) in world space: the
+    centres of kx x ky equal cells over the rectangle, or those cells mapped to the ellipse
+    by the concentric map (Shirley-Chiu, equal areas) for disks and ellipses."""
+    sx, sy = (abs(float(s)) for s in light.area_size)
+    kx = int(min(AREA_MAX_PER_AXIS, max(1, round(sx / AREA_CELL))))
+    ky = int(min(AREA_MAX_PER_AXIS, max(1, round(sy / AREA_CELL))))
+    u = (np.arange(kx) + 0.5) / kx * 2.0 - 1.0
+    v = (np.arange(ky) + 0.5) / ky * 2.0 - 1.0
+    U, V = (a.ravel() for a in np.meshgrid(u, v))
+    if light.area_shape in ('DISK', 'ELLIPSE'):
+        r = np.where(np.abs(U) > np.abs(V), U, V)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            phi = np.where(np.abs(U) > np.abs(V), math.pi / 4 * V / U, math.pi / 2 - math.pi / 4 * U / V)
+        phi = np.where((U == 0) & (V == 0), 0.0, phi)
+        U, V = r * np.cos(phi), r * np.sin(phi)
+    local = np.column_stack([0.5 * sx * U, 0.5 * sy * V, np.zeros_like(U), np.ones_like(U)])
+    return (local @ light.matrix.T)[:, :3]
 
 
 def _emission(light):
@@ -96,6 +128,15 @@ def spot_lights(lights, plan):
         intensities.append(emission / (4.0 * math.pi))
         sizes.append(light.spot_size)
         blends.append(light.spot_blend)
+    # Area lights after the spots, as their samples (AREA_INTENSITY).
+    for light, emission, axis in _directed_lights(lights, 'AREA', plan):
+        samples = area_samples(light)
+        for p in samples:
+            positions.append(p)
+            axes.append(axis)
+            intensities.append(emission * (AREA_INTENSITY / len(samples)))
+            sizes.append(math.pi)
+            blends.append(0.0)
     if not positions:
         return {}
     return _check_finite(dict(spot_positions=np.array(positions, dtype=np.float64).reshape(-1, 3),
@@ -165,6 +206,9 @@ def shadow_arguments(description, plan):
         if plan.daylight and light_type != 'SUN':
             continue
         chosen = [l for l in description.lights if l.type == light_type and _baked(l, plan)]
+        if light_type == 'SPOT' and not plan.daylight:  # each area light's samples follow the spots
+            chosen += [l for l in description.lights if l.type == 'AREA' and _baked(l, plan)
+                       for _ in range(len(area_samples(l)))]
         if chosen:
             flags[key] = np.array([_shadowed(l, plan) for l in chosen], dtype=np.float64)
     if not any(np.any(f) for f in flags.values()):

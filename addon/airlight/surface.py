@@ -28,13 +28,16 @@ clamped at 0). Spot lights glow as a point light times a cone factor (exact for 
 the light); with fog objects the glow takes the exact optical depth T(s, p) (Fogshop eq. 25).
 """
 
+import math
 import re
+
+import numpy as np
 
 from . import visibility
 # PASS_GLOSS: glossy glow per unit Glossy Color (scene.airlight.surface_gloss > 0).
 from .names import GROUP_PREFIX, PASS_GLOSS, PASS_GLOW, PASS_PREFIX, WORLD_GROUP, is_isotropic
 
-SURFACE_LIGHT_TYPES = ('POINT', 'SPOT', 'SUN')  # lights the bake's surface pass attenuates
+SURFACE_LIGHT_TYPES = ('POINT', 'SPOT', 'SUN', 'AREA')  # lights the bake's surface pass attenuates
 
 
 def gloss_exponent(scene):
@@ -80,7 +83,7 @@ def fogged_lights(depsgraph):
     spot lights, then the sun lamps, as scene_export exports them (tests/blender/test_surface.py
     holds them to the same order). The group is None where surface shading cannot apply."""
     visible = visibility.RenderVisibility(depsgraph.view_layer)
-    points, spots, suns, counts = [], [], [], {}
+    points, spots, areas, suns, counts = [], [], [], [], {}
     for instance in depsgraph.object_instances:
         obj = instance.object
         if obj.type != 'LIGHT':
@@ -92,11 +95,16 @@ def fogged_lights(depsgraph):
         # Point, spot and sun lights: the bake's surface pass covers no other type.
         if light.type not in SURFACE_LIGHT_TYPES or not light.original.airlight.participate:
             continue
+        if light.type == 'AREA' and getattr(light, "spread", math.pi) < math.pi - 1e-3:
+            continue  # (not in the bake: scene_export.area_supported)
         original = obj.original
         counts[original.name] = counts.get(original.name, 0) + 1
+        if light.type == 'AREA':  # one row per sample spot (scene_export.area_samples)
+            areas.extend([original] * area_sample_count(light))
+            continue
         {'SPOT': spots, 'SUN': suns}.get(light.type, points).append(original)
     rows = []
-    for obj in points + spots + suns:
+    for obj in points + spots + areas + suns:
         group = group_name(obj.name)
         usable = counts[obj.name] == 1 and obj.lightgroup in ("", group)
         rows.append((obj, group if usable else None))
@@ -190,15 +198,26 @@ def ensure_passes(scene, depsgraph):
     return groups
 
 
+def area_sample_count(light):
+    """The number of spots an area light bakes as (scene_export.area_samples)."""
+    from .scene_export import AREA_CELL, AREA_MAX_PER_AXIS
+    square = light.shape in ('SQUARE', 'DISK')
+    sizes = (light.size, light.size if square else light.size_y)
+    return int(np.prod([min(AREA_MAX_PER_AXIS, max(1, round(abs(s) / AREA_CELL))) for s in sizes]))
+
+
 def pass_arrays(result, groups):
     """{pass name: (H, W, 3) float32} of the surface passes from a bake result: attenuation
-    - 1 per light with a group (so that Combined_<group> x pass is the correction to add)
-    and the glow."""
-    passes = {}
+    - 1 per light with a group (so that Combined_<group> x pass is the correction to add),
+    averaged over an area light's samples (its rows repeat the group), and the glow."""
+    passes, sums = {}, {}
     attenuation = result["surface_attenuation"]
     for index, group in enumerate(groups or ()):
         if group is not None and index < len(attenuation):
-            passes[PASS_PREFIX + group] = attenuation[index] - 1.0
+            total, n = sums.get(group, (0.0, 0))
+            sums[group] = (total + attenuation[index], n + 1)
+    for group, (total, n) in sums.items():
+        passes[PASS_PREFIX + group] = (total / n - 1.0).astype(np.float32)
     passes[PASS_GLOW] = result["surface_glow"]
     if "surface_gloss_glow" in result:
         passes[PASS_GLOSS] = result["surface_gloss_glow"]

@@ -135,14 +135,23 @@ def light_lines(scene, view_layer=None):
     lines = []
     for row in rows:
         icon = _LIGHT_ICONS.get(row.type, 'LIGHT')
-        if row.status == 'unsupported' and row.type in ('POINT', 'SPOT'):
+        daylight = scene.airlight.model == 'HOFFMAN02'
+        if row.status == 'unsupported' and (row.type in ('POINT', 'SPOT') or (row.type == 'AREA' and daylight)):
             text = f"{row.name}: not in Hoffman-Preetham's daylight fog (sun lamps only)"
+        elif row.status == 'unsupported' and row.type == 'AREA':
+            text = f"{row.name}: area light with a Spread below 180 degrees, not yet in fog"
         elif row.status == 'unsupported':
             text = f"{row.name}: {row.type.lower()} light, not yet in fog"
         elif row.status == 'off':
             text = f"{row.name}: excluded (Scatter in Fog is off)"
         elif row.status == 'skipped':
             text = f"{row.name}: skipped: below {_percent(row.share)} of the fog"
+        elif row.type == 'AREA':
+            obj = scene.objects.get(row.name)
+            n = surface.area_sample_count(obj.data) if obj is not None else 0
+            text = (f"{row.name}: area light as {n} spot{'s' if n != 1 else ''} ({row.label}), about 2 % off "
+                    "near the light"
+                    f"{where}{_SHADOW_TEXT.get(row.shadow, '')}")
         else:
             error = "unbounded" if math.isinf(row.error) else f"\u2264 {_percent(row.error)}"
             text = f"{row.name}: {row.label}, error {error}{where}{_SHADOW_TEXT.get(row.shadow, '')}"
@@ -187,6 +196,8 @@ class AIRLIGHT_PT_light(bpy.types.Panel):
         row.prop(light.airlight, "participate")
         if not supported:
             layout.label(text=f"{light.type.title()} lights are not yet in fog.", icon='INFO')
+        elif light.type == 'AREA' and getattr(light, "spread", math.pi) < math.pi - 1e-3:
+            layout.label(text="Area lights with a Spread below 180 degrees are not yet in fog.", icon='INFO')
 
 
 def fog_object_note(model_name):

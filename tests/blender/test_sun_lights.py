@@ -158,6 +158,9 @@ def test05_panel_lines(tmp_path):
     scene.collection.objects.link(sun)
     area = bpy.data.objects.new("Panel", bpy.data.lights.new("Panel", 'AREA'))
     scene.collection.objects.link(area)
+    narrow = bpy.data.objects.new("Narrow", bpy.data.lights.new("Narrow", 'AREA'))
+    narrow.data.spread = math.radians(90.0)
+    scene.collection.objects.link(narrow)
     bpy.context.view_layer.update()
     lines = dict((text.split(":")[0], text) for text, _ in ui.light_lines(scene))
     assert lines["Far"].startswith("Far: skipped: below ")
@@ -165,7 +168,8 @@ def test05_panel_lines(tmp_path):
     # (the ground casts volumetric shadows: on by default)
     assert lines["Near"] == f"Near: {label}, error \u2264 {100 * error:.2g} %, shadowed"
     assert lines["Sun"].startswith("Sun: Closed form (sun)")
-    assert "not yet in fog" in lines["Panel"]
+    assert lines["Panel"].startswith("Panel: area light as 1 spot (")   # 0.25 m: one sample
+    assert "Spread below 180 degrees, not yet in fog" in lines["Narrow"]
     scene.airlight.accuracy = 0.01            # the list follows the settings: Far back in
     lines = dict((text.split(":")[0], text) for text, _ in ui.light_lines(scene))
     label = model_choice.choose(scene.airlight)[1]  # the cheapest model meeting 0.01 %
@@ -177,5 +181,5 @@ def test05_panel_lines(tmp_path):
     # the Fog Objects panel).
     fog_object.new_fog_object("Fog", scene.collection, centres=[(0.0, 0.0, 1.0)])
     lines = dict((text.split(":")[0], text) for text, _ in ui.light_lines(scene))
-    assert lines["Near"].endswith("error unbounded in the uniform fog")
-    assert "in the uniform fog" not in lines["Panel"]
+    assert lines["Near"].endswith("error unbounded in the uniform fog, shadowed")
+    assert "in the uniform fog" not in lines["Narrow"]
