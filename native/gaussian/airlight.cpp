@@ -1,4 +1,4 @@
-// gaussian_airlight.cpp: Fogshop airlight (eq. 8-17) and its quadrature reference.
+// airlight.cpp: Fogshop airlight (eq. 8-17) and its quadrature reference.
 //
 // Per view ray the Gaussians come from the medium's cull hierarchy (those whose line
 // integral on the view segment can exceed the medium's cull_eps); a skipped Gaussian
@@ -7,7 +7,7 @@
 // (sharing t* and h), and T_i(s, b_i^r) per light. f1 and C_sv are per (light, Gaussian)
 // and per light, computed once in the constructor with culled optical depths.
 //
-// Where the approximation fails (measured in gaussian_airlight_test.cpp, not hidden):
+// Where the approximation fails (measured in airlight_test.cpp, not hidden):
 // - a light close to a Gaussian: 1/d^2 varies fast across the Gaussian, so sampling it at
 //   b_i^r alone misses the halo's shape;
 // - light shafts through holes: L_0 attenuates the whole ray by the single factor C_sv of

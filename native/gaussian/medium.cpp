@@ -1,7 +1,7 @@
-// gaussian_medium.cpp: the Gaussian store, its cull-sphere hierarchy and exact optical depth.
+// medium.cpp: the Gaussian store, its cull-sphere hierarchy and exact optical depth.
 //
-// Numerics of eq. 31 (tested against mpmath in tests/native/test08_rbf.py and against
-// quadrature of the density in gaussian_medium_test.cpp):
+// Numerics of eq. 31 (tested against mpmath in tests/native/test_rbf_medium.py and against
+// quadrature of the density in medium_test.cpp):
 // - erf(x2) - erf(x1) loses every digit once both arguments are beyond ~6 with one sign
 //   (erf rounds to +-1); there it is erfc(x1) - erfc(x2) (or the mirror for negatives),
 //   which keeps full relative accuracy down to the underflow of erfc (~1e-308 at x ~ 26.5).

@@ -1,4 +1,4 @@
-// gaussian_medium_test.cpp: the Gaussian store's optical depth against quadrature of the
+// medium_test.cpp: the Gaussian store's optical depth against quadrature of the
 // density, the erf-difference numerics against analytic limits, culling against the
 // brute-force sum, and input validation.
 #include "gaussian/medium.h"
