@@ -879,7 +879,7 @@ std::vector<double> sun_depths(const GaussianMedium& m, const Vec3& u, int threa
 std::vector<double> gaussian_depths_to_centres(const GaussianMedium& medium, const std::vector<Vec3>& sources,
                                                std::size_t first, std::size_t last, std::size_t cand_first,
                                                std::size_t cand_last, int threads, int method) {
-    if (method < 0 || method > 3) throw std::invalid_argument("rbf_depths_to_centres: method must be 0..3");
+    if (method < 0 || method > 3) throw std::invalid_argument("gaussian_depths_to_centres: method must be 0..3");
     return star_depths(medium, sources, first, last, cand_first, cand_last, threads, method);
 }
 
