@@ -40,7 +40,7 @@
 #endif
 
 #include "core/fast_erf.h"
-#include "gaussian/simd_clones.h"
+#include "core/target_clones.h"
 
 namespace airlight {
 

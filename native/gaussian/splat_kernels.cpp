@@ -11,7 +11,7 @@
 
 #include "core/fast_erf.h"
 #include "core/noise.h"
-#include "gaussian/simd_clones.h"
+#include "core/target_clones.h"
 
 namespace airlight {
 namespace splat {
