@@ -22,6 +22,7 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "core/constants.h"
 #include "core/phase.h"
 #include "core/quadrature.h"
 #include "homogeneous/sun05.h"
@@ -30,8 +31,6 @@ namespace airlight {
 
 namespace {
 
-// kInv4Pi (1 / (4 pi)) comes from phase.h, which scene.h includes.
-constexpr double kSqrtPi = 1.77245385090551602729;
 constexpr double kInf = std::numeric_limits<double>::infinity();
 constexpr double kMinD2 = 1e-12;
 

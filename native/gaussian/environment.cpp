@@ -1,6 +1,7 @@
 // environment.cpp: Fogshop's average optical depth (section 4.2) and the per-point
 // environment irradiance; the derivations are in environment.h.
 #include "gaussian/environment.h"
+#include "core/constants.h"
 
 #include <algorithm>
 #include <array>
@@ -13,8 +14,6 @@
 namespace airlight {
 
 namespace {
-
-constexpr double kSqrtPi = 1.7724538509055160273;
 
 inline void require(bool ok, const char* msg) {  // (no std::string unless it throws: hot loops call it)
     if (!ok) throw std::invalid_argument(msg);

@@ -15,8 +15,6 @@
 namespace airlight {
 namespace {
 
-constexpr double kSqrtPi = 1.77245385090551602729;
-
 TEST(GaussianEnvironment, DawsonAgainstMpmath) {
     // sqrt(pi)/2 e^{-x^2} erfi(x) with mpmath at 30 digits.
     const double x[] = {0.1, 0.5, 1.0, 2.0, 5.0, 10.0, 40.0};

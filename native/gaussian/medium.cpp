@@ -11,6 +11,7 @@
 // - h^2 comes from the cross product, not |b - o|^2 - t*^2, so Gaussians far along the
 //   line keep their distance digits.
 #include "gaussian/medium.h"
+#include "core/constants.h"
 #include "core/parallel.h"
 
 #include <algorithm>
@@ -23,8 +24,6 @@ namespace airlight {
 
 namespace {
 
-constexpr double kSqrtPi = 1.77245385090551602729;
-constexpr double kTwoOverSqrtPi = 1.12837916709551257390;
 
 // 4-point Gauss-Legendre on [0, 1].
 constexpr double kGL4x[4] = {0.06943184420297371, 0.33000947820757187, 0.6699905217924281,

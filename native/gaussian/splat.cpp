@@ -12,6 +12,7 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "core/constants.h"
 #include "gaussian/centre_depths.h"
 #include "gaussian/splat_kernels.h"
 #include "homogeneous/sun05.h"
@@ -22,8 +23,6 @@ namespace airlight {
 using namespace splat;
 
 namespace {
-
-constexpr double kSqrtPi = 1.77245385090551602729;
 
 // T(from_row, b_i) without Gaussian i (beta0 included) for row 0 = the eye and rows 1..L
 // = the lights, all Gaussians: out[row n + i].
