@@ -1,6 +1,6 @@
 """Gaussian fog (fog objects) in the viewport preview: the GPU pipeline of Fogshop
 (Zhou et al. 2007) section 5, fed by the same Fogshop approximation the bake uses
-(native/kernels/rbf_airlight.{h,cpp}).
+(native/gaussian/airlight.{h,cpp}).
 
 Per frame (or per edit / view change, cached):
 - natively, per (light, Gaussian): f1 = exp(-(T(s, b_i) + T(v, b_i)) without Gaussian i's
