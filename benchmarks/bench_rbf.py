@@ -15,7 +15,7 @@ of it (seeded, so runs compare):
   - 1e5 small Gaussians (1/a 0.3..1 m), 1 point light (at --size-1e5, once, at the last of
     --resolutions).
 Each Gaussian scene is baked at every --resolutions value (gaussian_resolution: full, half,
-quarter, rbf_splat.h), with the relative error of the Airlight and Transmittance passes
+quarter, splat.h), with the relative error of the Airlight and Transmittance passes
 against the full-resolution bake (mean, p99, max over pixels above 1e-6 of the 99.9th
 percentile) and the speed-up over full in the same run. Prints medians over --runs runs of
 the whole bake (wall clock around _native.bake) and of its airlight pass (stats seconds_airlight: the splat plus edge supersampling),

@@ -1,5 +1,5 @@
 #!/usr/bin/python3
-"""Cost of the surface-shading pass of the bake (native/kernels/bake_surface.cpp).
+"""Cost of the surface-shading pass of the bake (native/bake/surface_pass.cpp).
 
     /usr/bin/python3 benchmarks/bench_surface.py [--runs 5] [--threads 2]
 

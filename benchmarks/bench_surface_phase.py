@@ -1,6 +1,6 @@
 #!/usr/bin/python3
 """Surface glow for any phase function, spots and Biri's Lambert model (biri06_surface.h,
-spot_surface.h, bake_surface.cpp): prints
+spot_surface.h, surface_pass.cpp): prints
 
   1. the one-off build time of each G table (per phase; once per process and (phase, g, m));
   2. the surface pass's cost per pixel*light on the street scene for Sun's isotropic path, the

@@ -1,6 +1,6 @@
 // biri06_airlight.glsl: Biri et al. 2006 airlight of a point light for any phase function
 // in homogeneous fog, the GLSL twin of biri06_airlight(..., GammaEval::Table) in
-// native/kernels/biri06.cpp (same names, same branches; the derivation is in biri06.h).
+// native/homogeneous/biri06.cpp (same names, same branches; the derivation is in biri06.h).
 // Needs sun05_airlight.glsl in front of it (kPi, kInfinite, kSinGammaMin, kDsvMin,
 // airlight_expm1, airlight_log1p, kGLx / kGLw).
 //
@@ -12,7 +12,7 @@
 //
 // Where the table difference would cancel (G1 - G0 <= G1 / 16, or overflow), the C++ takes
 // an adaptive quadrature; here 8-point Gauss-Legendre panels on a geometric ladder
-// (biri06_G_diff_quad). test_10 measures the difference.
+// (biri06_G_diff_quad). tests/gpu/test_preview_phase_spot_sun.py measures the difference.
 
 const float kBiriCancel = 0.0625;
 const float kBiriInv4Pi = 0.07957747154594767;

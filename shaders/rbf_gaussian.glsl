@@ -1,7 +1,7 @@
 // rbf_gaussian.glsl: Gaussian (RBF) fog for the GPU preview, the GLSL twin of
-// native/kernels/rbf_medium.cpp (erf_diff, gaussian_line_integral) and of the per-Gaussian
-// term of native/kernels/rbf_airlight.cpp (RbfAirlightFogshop::eval, Fogshop eq. 10-13).
-// Same names, same branches; tests/gpu/test_09_preview_gaussians.py holds them together.
+// native/gaussian/medium.cpp (erf_diff, gaussian_line_integral) and of the per-Gaussian
+// term of native/gaussian/airlight.cpp (FogshopAirlight::eval, Fogshop eq. 10-13).
+// Same names, same branches; tests/gpu/test_preview_gaussians.py holds them together.
 // GLSL 330 compatible, no #version line, no inputs of its own (pure functions).
 //
 // Density of Gaussian i: c exp(-a^2 |x - b|^2) (c amplitude 1/m, a scale 1/m, b centre).
@@ -13,7 +13,8 @@
 //   |x| < 0.5: Taylor series of erf to x^13 (truncation < 1e-9 relative);
 //   else erfc(|x|) = t exp(-x^2 + P(t)), t = 1 / (1 + |x|/2), the Chebyshev fit of
 //   Numerical Recipes (erfcc; fractional error < 1.2e-7 in exact arithmetic).
-// Measured against the C++ (double) on the same inputs in test_09 (printed there).
+// Measured against the C++ (double) on the same inputs in
+// tests/gpu/test_preview_gaussians.py (printed there).
 
 const float kRbfSqrtPi = 1.7724538509055159;
 const float kRbfTwoOverSqrtPi = 1.1283791670955126;
@@ -93,7 +94,7 @@ float rbf_erfc(float x)
 }
 
 // erf(x2) - erf(x1) for x1 <= x2 (x2 may be +inf, x1 -inf), 0 otherwise; branches as in
-// rbf_medium.cpp erf_diff: 4-point Gauss-Legendre on a short interval, erfc differences
+// gaussian/medium.cpp erf_diff: 4-point Gauss-Legendre on a short interval, erfc differences
 // when both arguments have one sign (beyond 0.5 in the ratio form of rbf_erfc_diff_pos),
 // the plain difference when they straddle 0.
 const float kRbfGL4x[4] = float[4](0.06943184420297371, 0.33000947820757187, 0.6699905217924281,
@@ -121,11 +122,11 @@ float rbf_erf_diff(float x1, float x2)
   return rbf_erf(x2) - rbf_erf(x1);
 }
 
-// The bake's splat kernel's form (native/kernels/fast_erf.h fast_erf_diff): erf(x2) -
+// The bake's splat kernel's form (native/core/fast_erf.h fast_erf_diff): erf(x2) -
 // erf(x1) for x1 <= x2 from E1 = erfc(|x1|), E2 = erfc(|x2|) only, branch-free (selects),
-// as rbf_splat.cpp evaluates every (pixel, Gaussian) pair; its error bound is fast_erf.h's
-// (checked in test_09 against the double erf_diff). rbf_splat_pixel.glsl uses it (with
-// E1, E2 it needs anyway) so that the preview computes what the bake computes, at a
+// as gaussian/splat_kernels.cpp evaluates every (pixel, Gaussian) pair; its error bound
+// is fast_erf.h's (checked in test_preview_gaussians.py against the double erf_diff).
+// rbf_splat_pixel.glsl uses it (with E1, E2 it needs anyway) so that the preview computes what the bake computes, at a
 // fraction of rbf_erf_diff's cost.
 float rbf_diff_from_erfc(float x1, float x2, float E1, float E2)
 {

@@ -8,7 +8,7 @@
 // u = a (p - b) under the Gaussian's own weight exp(-|u|^2) (3x3x3 Gauss-Hermite nodes,
 // exact for the projection of polynomials of degree <= 3 per axis), so that a pixel pays
 // one polynomial (rbf_light_fitted) instead of L exact light terms. Where the fit is not
-// accurate (measured: tests/gpu/test_09) the pixels keep exact terms:
+// accurate (measured: tests/gpu/test_preview_light_fit.py) the pixels keep exact terms:
 //   - a light l within RBF_FIT_NEAR R_i of b_i (1/d^2 varies too fast over the Gaussian:
 //     Fogshop's "light next to a Gaussian" case stays exact) is left out of the fit and
 //     marked in a mask (bit l, l < 24: exact in a float); the pixels add its exact term;

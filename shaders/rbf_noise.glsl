@@ -1,6 +1,6 @@
 // rbf_noise.glsl: the world-space vector gradient noise of Fogshop section 5.5, the GLSL
-// twin of native/kernels/noise.h (same hash, gradients, fade and corner order, float
-// throughout); tests/gpu/test_12_preview_noise.py holds the two together on the same
+// twin of native/core/noise.h (same hash, gradients, fade and corner order, float
+// throughout); tests/gpu/test_preview_noise.py holds the two together on the same
 // inputs (`_native.gradient_noise3`). Pure functions, no inputs, GLSL 330.
 //   hash(ix, iy, iz) -> gradient in [-1, 1]^3 (10 bits per component),
 //   noise(p) = trilinear blend with the quintic fade of dot(g_corner, f - corner),

@@ -1,7 +1,8 @@
 // rbf_splat_frag.glsl: the contribution of Gaussian _gi_ to one pixel of the splat
 // targets (rbf_splat_pixel.glsl), added (blend ADDITIVE_PREMULT) into two float targets;
 // fog_preview_frag.glsl with PREVIEW_GAUSSIANS combines them with the homogeneous part as
-// the bake does (native/kernels/bake.cpp eval_rbf with Fogshop set up at the eye):
+// the bake does (native/bake/fog_evaluator.cpp FogEvaluator::eval_gaussians, Fogshop set up
+// at the eye):
 //   frag_color.rgb += albedo_i sum_l I0_l (L_il(Dvp) - L_il(t0))
 //   frag_color.a   += T_i(t0, Dvp)
 //   frag_near.r    += T_i(0, t0)

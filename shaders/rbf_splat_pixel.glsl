@@ -1,10 +1,10 @@
 // rbf_splat_pixel.glsl: the contribution of one Gaussian to one pixel's view segment, the
-// GLSL twin of the bake's tiled splat kernels (native/kernels/rbf_splat.cpp view_terms,
+// GLSL twin of the bake's tiled splat kernels (native/gaussian/splat_kernels.cpp view_terms,
 // light_terms, splat_gaussian: same terms, same float formulas, rbf_fast_erf_diff for
 // fast_erf_diff); shared by the quad splat (rbf_splat_frag.glsl, one fragment per (pixel,
 // Gaussian), summed by blending) and the tile pass (rbf_tiles_frag.glsl, one fragment per
 // pixel looping over its screen tile's Gaussians). Adds to the caller's sums
-//   La     += albedo_i sum_l I0_l (L_il(Dvp) - L_il(t0))   (Fogshop eq. 11, rbf_splat.h)
+//   La     += albedo_i sum_l I0_l (L_il(Dvp) - L_il(t0))   (Fogshop eq. 11, gaussian/splat.h)
 //   T_seg  += T_i(0, Dvp) - T_i(0, t0)
 //   T_near += T_i(0, t0)
 // for the view ray origin + t dir with [t0, Dvp] the pixel's clipped segment. Gaussians
@@ -14,7 +14,7 @@
 // from the per-Gaussian quadratic fit of rbf_light_fit_frag.glsl instead (rbf_light);
 // the view terms and the optical depths stay the bake's.
 //
-// Noise (Fogshop section 5.5, pv_noise_amp > 0; rbf_splat.h): the optical depths T_i(0, D)
+// Noise (Fogshop section 5.5, pv_noise_amp > 0; gaussian/splat.h): the optical depths T_i(0, D)
 // of the view segments (D = Dvp, t0) are taken along the perturbed direction
 //   r' = normalize(r + pv_noise_amp (R_i / |b_i - v|) N(b_i^r / scale + offset)),
 // N = rbf_gradient_noise3 (rbf_noise.glsl), b_i^r the point of the (unperturbed) ray

@@ -5,7 +5,7 @@
 // Writes what the quad splat (rbf_splat_frag.glsl) adds up, to the same two targets:
 //   frag_color = (sum albedo_i sum_l I0_l (L_il(Dvp) - L_il(t0)), sum T_i(t0, Dvp)),
 //   frag_near.r = sum T_i(0, t0).
-// Like the bake's tiles (native/kernels/rbf_splat.cpp), but on the GPU every pixel of a
+// Like the bake's tiles (native/gaussian/splat_tile.cpp), but on the GPU every pixel of a
 // tile walks the same list, so neighbouring invocations stay in step.
 //
 //   tile_index  RG32F, one texel per tile: (first entry, count) in tile_list

@@ -1,5 +1,5 @@
 // spot_airlight.glsl: airlight of a Blender/Cycles spot light in homogeneous fog for the
-// GPU preview; the C++ (native/kernels/spot_light.cpp, spot_airlight_quadrature)
+// GPU preview; the C++ (native/homogeneous/spot_light.cpp, spot_airlight_quadrature)
 // integrates the same integrand adaptively, here it is a fixed rule:
 //   La = sigma_t int profile(x) p(cos theta_p) exp(-sigma_t (d(x) + x)) / d(x)^2 dx
 // over the part of [0, Dvp] inside the cone (one interval: the cone's half-angle is at
@@ -7,7 +7,8 @@
 // it is split again where the ray crosses the blend cone (the smoothstep's kink). Each
 // piece is integrated in the angle alpha, x = a + h tan(alpha) (a, h: the closest approach
 // to the light), where dx / d^2 = dalpha / h takes the 1/d^2 peak out, by
-// SPOT_PANELS x 8-point Gauss-Legendre panels. test_10 measures it against the bake.
+// SPOT_PANELS x 8-point Gauss-Legendre panels. test_preview_phase_spot_sun.py measures it
+// against the bake.
 // Needs sun05_airlight.glsl (kGLx, kGLw, kPi) and biri06_airlight.glsl (biri06_phase) in
 // front of it.
 //

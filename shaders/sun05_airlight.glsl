@@ -1,6 +1,6 @@
 // sun05_airlight.glsl: Sun et al. 2005 airlight for the GPU preview, the GLSL twin of
-// native/kernels/sun05_inline.h (table path). Same functions, same names, same order,
-// same branches; change both together (tests/gpu/test_02_glsl_agreement.py holds them).
+// native/homogeneous/sun05_inline.h (table path). Same functions, same names, same order,
+// same branches; change both together (tests/gpu/test_glsl_agreement.py holds them).
 // GLSL 330 compatible, no #version line (included by addon/airlight/gpu_shaders.py).
 //
 // Ftab: the F table of _native.special_F_table() as an R32F texture of width nT and

@@ -1,6 +1,7 @@
 // sun_airlight.glsl: single scattering of a sun lamp (directional light) in homogeneous
-// fog for the GPU preview, the GLSL twin of sun_layer_factor in native/kernels/sun_layer.h
-// (the sun lamps of the bake, branch wt-sun; the derivation is there):
+// fog for the GPU preview: sun_layer_factor is the GLSL twin of sunlight_layer_factor in
+// native/homogeneous/sunlight_layer.h
+// (the sun lamps of the bake; the derivation is there):
 //   La = sigma_s p(cos theta) E G,  cos theta = -dot(w, d)  (w: the sun's propagation
 //   direction, the lamp's -Z; theta = 0 looking into the sun), E = colour * strength,
 // with G the geometric factor of the view segment [t0, t1] of o + t d:

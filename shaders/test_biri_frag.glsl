@@ -1,5 +1,5 @@
 // test_biri_frag.glsl: evaluates biri06_airlight.glsl at one input point per pixel, for
-// the GLSL vs C++ agreement test (tests/gpu/test_10_preview_phase_spot_sun.py).
+// the GLSL vs C++ agreement test (tests/gpu/test_preview_phase_spot_sun.py).
 //   in0 texel = (sigma_t, Dsv, cos_gamma, Dvp); Gtab, phase as in biri06_airlight.glsl
 //   out: (biri06_airlight(...), G(lambda = in0.x, T = in0.y) from the table, 0, 1)
 void main()

@@ -1,5 +1,5 @@
 // test_rbf_fast_frag.glsl: rbf_fast_erf_diff (rbf_gaussian.glsl, the bake's fast_erf_diff)
-// at one input point per pixel, for tests/gpu/test_09_preview_gaussians.py.
+// at one input point per pixel, for tests/gpu/test_preview_gaussians.py.
 //   in0 texel = (x1, x2, 0, 0)     out: (rbf_fast_erf_diff(x1, x2), 0, 0, 0)
 void main()
 {

@@ -1,5 +1,5 @@
 // test_rbf_frag.glsl: evaluates rbf_gaussian.glsl at one input point per pixel, for the
-// GLSL vs C++ agreement test (tests/gpu/test_09_preview_gaussians.py).
+// GLSL vs C++ agreement test (tests/gpu/test_preview_gaussians.py).
 //   in0 texel = (x1, x2, D, f1)      in1 texel = (b.xyz, a)
 //   in2 texel = (o.xyz, c)           in3 texel = (r.xyz unit, 0)    in4 texel = (s.xyz, 0)
 //   out: (rbf_erf_diff(x1, x2), rbf_erf(x1), T_i(o, o + D r), L_i(b, a, c, o, r, D, s, f1))

@@ -30,7 +30,7 @@ import numpy as np
 # need ~128 columns; more only costs time.
 MAX_MAP_WIDTH = 256
 # Relative error allowed in Fogshop's average optical depth Tbar(p) (the far field's
-# bound, rbf_environment.h): 1e-2 of Tbar is at most 1e-2 Tbar relative in e^-Tbar; the
+# bound, environment.h): 1e-2 of Tbar is at most 1e-2 Tbar relative in e^-Tbar; the
 # measured error is 20-150x below the bound (benchmarks/bench_rbf_environment.py).
 AVERAGE_DEPTH_TOLERANCE = 1e-2
 

@@ -165,7 +165,7 @@ def point_bounds(frame, positions, I0, sigma, albedo, p_min, p_max, spot=False):
 
 
 def sun_bounds(E, sigma, albedo, p_min, p_max, layered):
-    """(upper, lower), each (N, 3), for N sun lamps of irradiance E (N, 3) (sun_layer.h)."""
+    """(upper, lower), each (N, 3), for N sun lamps of irradiance E (N, 3) (sunlight_layer.h)."""
     w = np.asarray(albedo, dtype=np.float64) * np.asarray(E, dtype=np.float64).reshape(-1, 3)
     if sigma <= 0.0:
         return np.zeros_like(w), np.zeros_like(w)

@@ -3,9 +3,9 @@ measured error meets the accuracy target (`scene.airlight.model == 'AUTO'`).
 
 The figures are measurements, not guesses; each names where it was measured:
 - max_error: the worst relative error of the model's airlight against the quadrature
-  reference (per light and pixel), from native/kernels/sun05_test.cpp's randomized sweep
+  reference (per light and pixel), from native/homogeneous/sun05_test.cpp's randomized sweep
   and special_f.cpp's table measurements (table path: max 1.9e-3, p99 5e-4); for biri06
-  from native/kernels/biri06_test.cpp's sweep against the phase-aware quadrature
+  from native/homogeneous/biri06_test.cpp's sweep against the phase-aware quadrature
   (biri06.cpp: max 8.9e-4 for isotropic, Rayleigh, hazy/murky Mie and HG |g| < 0.95, up
   to 6e-3 for HG |g| >= 0.95, whose lobe is narrower than the table resolves);
 - cost: time relative to the table model on the same 1920x1080 image, from
@@ -48,7 +48,7 @@ PEGORARO10_HG_ERROR = 2.6e-7
 PEGORARO10_MAX_G = 0.78
 # sun05's table choices (scene.airlight.table_resolution, table_interpolation): worst
 # per-ray airlight error against the exact-F model, measured over 20000 random rays by
-# native/kernels/sun05_nearest_test.cpp (AirlightErrorAgainstExactF). model_error takes the
+# native/homogeneous/sun05_nearest_test.cpp (AirlightErrorAgainstExactF). model_error takes the
 # larger of this and MEASURED["sun05"] (the 256 bilinear default against quadrature).
 # Nearest is no faster in the bake (benchmarks/bench_trade.py), so AUTO gains nothing from
 # it; the entries make the shown error honest when a user picks a coarser table.
@@ -94,15 +94,15 @@ def table_settings(settings):
     return dict(table_size=size, table_interpolation=interp.lower())
 
 
-# Fog objects at reduced resolution (scene.airlight.gaussian_resolution, rbf_splat.h): max
+# Fog objects at reduced resolution (scene.airlight.gaussian_resolution, splat.h): max
 # relative error of the Airlight and Transmittance passes against the full-resolution bake
 # at 1920x1080, the worst over benchmarks/bench_rbf.py's scenes (34 broad blobs x 3 lights,
 # 3000 blobs x 1 light, walls cutting the cloud). The error is the bilinear interpolation of
 # smooth terms over 2 or 4 pixels: it grows with a pixel's size (REFERENCE_PIXEL_ANGLE
 # below) and with fog noise.
 # (Quarter: 0.502 % on the transmittance since its cull spheres are sized for 1e-5,
-# RbfSplat::kReducedCullEps; 0.526 % since broad blobs are interpolated from the far-field
-# grids, rbf_splat.h, whose tolerance at Half is tighter to keep Half at 0.099 %.)
+# GaussianSplat::kReducedCullEps; 0.526 % since broad blobs are interpolated from the far-field
+# grids, splat.h, whose tolerance at Half is tighter to keep Half at 0.099 %.)
 GAUSSIAN_RESOLUTION_ERROR = {'FULL': 0.0, 'HALF': 1.0e-3, 'QUARTER': 5.3e-3}
 # The same with fog noise (noise_amplitude 0.4, noise_scale 1 m, the 34 and 3000 scenes;
 # the noise is interpolated too): max 1.2 % (Half) and 5.8 % (Quarter) on the transmittance.
@@ -197,8 +197,8 @@ def choose(settings):
 
 # Hoffman & Preetham 2002 daylight (never chosen by Automatic: it is another medium, with
 # Rayleigh scattering): exact single scattering of sun lamps in it (closed form of
-# sun_layer.h per colour channel, held to 2e-5 against scipy by test15_bake_hoffman02.py);
-# point and spot lights are left out of its fog.
+# sunlight_layer.h per colour channel, held to 2e-5 against scipy by
+# tests/native/test_bake_hoffman02.py); point and spot lights are left out of its fog.
 HOFFMAN02 = ("hoffman02", "Hoffman-Preetham 2002 (daylight)", 2e-5)
 # The constant-colour bar (never chosen by Automatic): its error depends on the scene.
 BASELINE = ("baseline", "Baseline (constant colour)", math.inf)
@@ -206,8 +206,8 @@ BASELINE = ("baseline", "Baseline (constant colour)", math.inf)
 # closed form with the exact piecewise cone profile for model pegoraro10, and for the other
 # non-quadrature models when the phase polynomial has order <= 8 (isotropic, Rayleigh, hazy
 # Mie: there it costs about what the quadrature does), else the adaptive quadrature
-# (kSpotRelTol = 1e-5); suns the closed form of sun_layer.h (exact; held to 1e-6 against
-# quadrature by sun_layer_test.cpp) or, with the quadrature model, its quadrature (1e-8).
+# (kSpotRelTol = 1e-5); suns the closed form of sunlight_layer.h (exact; held to 1e-6 against
+# quadrature by sunlight_layer_test.cpp) or, with the quadrature model, its quadrature (1e-8).
 SPOT_MODEL = ("Quadrature (spot)", 1e-5)
 SPOT_CLOSED_FORM_MODEL = ("Pegoraro 2010 (spot)", 1e-6)
 # Phase polynomial orders of the closed form (pegoraro10.h): HG with g != 0 needs >= 15.

@@ -642,7 +642,7 @@ def draw_fog(*, depth_tex, perspective_matrix, view_origin, is_perspective, view
     blends): spot lights by a fixed quadrature over the ray's part inside each cone
     (spot_airlight.glsl).
     suns: None or `scene_suns`' dict (directions, irradiances = albedo E, fog_top): sun
-    lamps by the closed form of the bake's sun_layer.h (sun_airlight.glsl).
+    lamps by the closed form of the bake's sunlight_layer.h (sun_airlight.glsl).
     environment: None or `scene_environment`'s dict (glow = the World's airlight as an
     equirectangular (h, w, 3) map, albedo included; transmittance = e^(-sigma_t distance)):
     where a ray meets no surface, the glow is added and the World shows through with that

@@ -1,6 +1,6 @@
 """Gaussian fog (fog objects) in the viewport preview: the GPU pipeline of Fogshop
 (Zhou et al. 2007) section 5, fed by the same Fogshop approximation the bake uses
-(native/kernels/rbf_airlight.{h,cpp}).
+(native/gaussian/airlight.{h,cpp}).
 
 Per frame (or per edit / view change, cached):
 - natively, per (light, Gaussian): f1 = exp(-(T(s, b_i) + T(v, b_i)) without Gaussian i's
@@ -14,7 +14,7 @@ Per frame (or per edit / view change, cached):
   (`rbf_splat_batch`).
 Per draw:
 - the Gaussian sums at 1/scale of the viewport (shaders/rbf_splat_pixel.glsl, the GLSL
-  twin of the bake's splat kernels rbf_splat.cpp, incl. its noise): TILES draws one
+  twin of the bake's splat kernels splat_kernels.cpp, incl. its noise): TILES draws one
   full-screen pass whose pixels loop over their tile's list (rbf_tiles_frag.glsl, no
   blending); SPLAT draws each Gaussian's quad over the projected bounds of its cull sphere
   and adds the fragments (ADDITIVE_PREMULT, rbf_splat_frag.glsl). Both give the same two
@@ -41,11 +41,11 @@ import numpy as np
 from . import gpu_shaders as gs
 
 # Per-Gaussian cull tolerance on the optical depth of the splat quads and of the
-# fragment's cull test. The bake uses RbfMedium::kDefaultCullEps = 1e-7; the preview
+# fragment's cull test. The bake uses GaussianMedium::kDefaultCullEps = 1e-7; the preview
 # drops Gaussians that add < 1e-4 to a pixel's optical depth: their radii (and quads)
 # shrink by ~25 % (area ~45 %) for a measured difference to the bake in tests/gpu/test_preview_gaussians.py.
 CULL_EPS = 1e-4
-# The bake's cull tolerance (RbfMedium::kDefaultCullEps): its cull radii scale the noise.
+# The bake's cull tolerance (GaussianMedium::kDefaultCullEps): its cull radii scale the noise.
 BAKE_CULL_EPS = 1e-7
 # rbf_tiles_frag.glsl reads list positions and Gaussian indices from float textures:
 # exact up to 2^24. Beyond that the preview draws the splat instead.
@@ -55,7 +55,7 @@ _SQRT_PI = math.sqrt(math.pi)
 
 def cull_radii(scales, amplitudes, eps=CULL_EPS):
     """R_i = sqrt(ln(c_i sqrt(pi) / (a_i eps))) / a_i, 0 where the log is <= 0 (as
-    native/kernels/rbf_medium.h): outside that sphere a segment integrates to < eps."""
+    native/gaussian/medium.h): outside that sphere a segment integrates to < eps."""
     a = np.asarray(scales, np.float64)
     c = np.asarray(amplitudes, np.float64)
     with np.errstate(divide='ignore'):
@@ -81,7 +81,7 @@ def clear_cache():
 def _factors_from_optical_depth(native, centres, scales, amplitudes, beta0, eye, lights, data_key=None):
     """f1 and C_sv with the RbfMedium binding: culled optical depths of the segments
     s -> b_i and v -> b_i, minus Gaussian i's own part T_i(p, b_i) = c sqrt(pi)/(2a)
-    erf(a |b_i - p|) (the line ends at the centre), as RbfAirlightFogshop's constructor
+    erf(a |b_i - p|) (the line ends at the centre), as FogshopAirlight's constructor
     sums the medium without Gaussian i. _data_key_ (changes with the Gaussian arrays)
     lets the light side be reused across view changes."""
     n = len(scales)
@@ -228,7 +228,7 @@ def auto_scale(centres, scales, radii, persp, size):
 def _tile_cones(inv_persp, eye, size, scale, tile, tx_n, ty_n):
     """Per tile (perspective views): unit axis (ty, tx, 3) of the cone of its texels'
     view rays and the cosine and sine of the largest angle to its corner rays (a rounding
-    margin included), as the bake's RbfSplat::bin."""
+    margin included), as the bake's GaussianSplat::bin."""
     W, H = size
     S = scale
     off = S // 2 + 0.5
@@ -377,7 +377,7 @@ class GaussianFog:
                 self.tiles_key = None
                 self.count = n
             if gauss_stale:
-                # The noise's per-Gaussian scale R_bake / |b - eye| (rbf_splat.h), as the bake.
+                # The noise's per-Gaussian scale R_bake / |b - eye| (splat.h), as the bake.
                 dist = np.linalg.norm(self.centres - np.asarray(eye, np.float64), axis=1)
                 with np.errstate(divide='ignore', invalid='ignore'):
                     noise_radii = np.where(dist > 0.0, self.bake_radii / dist, 0.0)

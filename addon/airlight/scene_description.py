@@ -466,8 +466,9 @@ def export_fog_objects(depsgraph, mesh_overrides=None):
     """World-space Gaussians of the render-visible fog objects (`fog_object.gather`) as
     `_native.bake`'s rbf_* keyword arguments, or {} when there are none (then the bake is
     the homogeneous one, unchanged). Invalid fog objects raise ExportError. Per-Gaussian
-    colours go to rbf_albedo when the gathered data has them: gather() returning a dict
-    with key 'colors' ((n, 3) floats), or a 4-tuple (centres, scales, amplitudes, colors).
+    colours go to rbf_albedo when the gathered data has them: gather()'s GatheredFog with
+    its colors ((n, 3) floats: some fog object has an "airlight_color" attribute), a dict
+    with key 'colors', or a 4-tuple (centres, scales, amplitudes, colors).
     _mesh_overrides_: see fog_object.gather."""
     gathered = fog_gaussians(depsgraph, mesh_overrides)
     colors = None
@@ -476,8 +477,9 @@ def export_fog_objects(depsgraph, mesh_overrides=None):
         colors = gathered.get("colors")
     elif len(gathered) == 4:
         centres, scales, amplitudes, colors = gathered
-    else:
+    else:  # fog_object.GatheredFog: unpacks as three arrays and holds the colours beside them
         centres, scales, amplitudes = gathered
+        colors = getattr(gathered, "colors", None)
     if len(scales) == 0:
         return {}
     out = dict(rbf_centres=np.ascontiguousarray(centres, dtype=np.float64),

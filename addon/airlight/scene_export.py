@@ -153,7 +153,7 @@ def sun_lights(lights, plan, fog_top):
     Cycles' sun: irradiance E = colour * strength in W/m^2 arriving along the lamp's -Z; its
     angle (soft shadows) is ignored. fog_top: the world Z of the fog layer's top when
     `scene.airlight.use_fog_top` is on (sunlight fades through the fog above each point),
-    else +inf (Hoffman-Preetham: unattenuated sunlight), see native/kernels/sun_layer.h.
+    else +inf (Hoffman-Preetham: unattenuated sunlight), see native/homogeneous/sunlight_layer.h.
     """
     directions, irradiances = [], []
     for _light, emission, direction in _directed_lights(lights, 'SUN', plan):
@@ -180,7 +180,7 @@ def light_arguments(description, plan):
     for name, array in (("light positions", positions), ("light intensities", intensities)):
         if not np.all(np.isfinite(array)):
             raise ExportError(f"The scene's {name} contain NaN or infinite values.")
-    # (Fog objects take point, spot and sun lamps and any phase: rbf_splat.h RbfSplatLights.)
+    # (Fog objects take point, spot and sun lamps and any phase: splat.h GaussianSplatLights.)
     spots = {} if plan.daylight else spot_lights(description.lights, plan)
     suns = sun_lights(description.lights, plan, description.fog_top)
     return dict(light_positions=positions, light_intensities=intensities, **spots, **suns)

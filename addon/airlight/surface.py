@@ -1,6 +1,6 @@
 """Surface shading through the fog (Sun 2005 eq. 13-19), composited over Cycles' own shading.
 
-The bake (`_native.bake(surface=True)`, native/kernels/bake_surface.h) writes per fogged
+The bake (`_native.bake(surface=True)`, native/bake/surface_pass.h) writes per fogged
 light l the attenuation e^{-T(light, p)} of the first hit p, and the Lambert glow (the light
 the fog scatters onto p) per unit diffuse colour. The compositor then forms
 
@@ -17,10 +17,10 @@ are left alone (no surface attenuation for them), as are lights of other types (
 lights). Sun lamps are attenuated by the fog layer above the surface (with Fog Top on;
 without it their light reaches surfaces unattenuated, as Hoffman-Preetham assume), and
 their glow is the sunlight the fog (layer) scatters onto the surface
-(native/kernels/sun_layer_glow.h). Eevee and Workbench have no light groups: there the composite stays
+(native/surface/sunlight_glow.h). Eevee and Workbench have no light groups: there the composite stays
 render x Transmittance + Airlight; the Hoffman-Preetham model has no surface pass.
 
-The glow's model depends on the phase function and the fog model (bake_surface.h;
+The glow's model depends on the phase function and the fog model (surface_pass.h;
 `glow_model_text` says which for the panel): Sun 2005's G0/Gn for the isotropic phase; the
 phase-aware G_p (Biri 2006 eq. 8-13 with the hemisphere clamped) for any other phase; with
 model biri06 and an anisotropic phase, Biri's own Lambert model (eq. 10, the unclamped cosine,
@@ -53,7 +53,7 @@ def active(scene):
             and settings.model != 'HOFFMAN02')
 
 
-# Measured errors of the glow models (native/kernels/biri06_surface_test.cpp,
+# Measured errors of the glow models (native/surface/biri06_surface_test.cpp,
 # spot_surface_test.cpp), for the panel.
 GLOW_G_P_TABLE_ERROR = 0.011  # phase-aware G_p table, max over the tested phases (HG 0.9)
 BIRI06_LAMBERT_ERROR = 0.86   # eq. 10 vs the clamped G_p facing the light, worst (HG -0.9)

@@ -202,7 +202,7 @@ class AIRLIGHT_PT_light(bpy.types.Panel):
 
 def fog_object_note(model_name):
     """One line saying how the chosen model treats fog objects (Gaussian fog) and its
-    measured error (README: rbf_airlight_test.cpp, tests/blender/test_cycles_gaussians.py)."""
+    measured error (docs/models.md: airlight_test.cpp, tests/blender/test_cycles_gaussians.py)."""
     if model_name in ("sun05", "sun05_exact", "biri06", "pegoraro10", "baseline"):
         return ("Fogshop 2007 approximation (point, spot and sun lamps, any phase): ~1 % on thin fog, "
                 "up to ~15 % at hard spot cone edges, 12-29 % on thick fog near a light; "

@@ -22,7 +22,7 @@ double cull_radius(double a, double c, double eps)
   return lg > 0.0 ? std::sqrt(lg) / a : 0.0;
 }
 
-// Optical depth of Gaussian (b, a, c) on the segment p -> q (rbf_medium.h, eq. 31).
+// Optical depth of Gaussian (b, a, c) on the segment p -> q (medium.h, eq. 31).
 double segment_T(const glm::dvec3 &b, double a, double c, const glm::dvec3 &p, const glm::dvec3 &q)
 {
   glm::dvec3 d = q - p;
@@ -64,7 +64,7 @@ GaussianSet make_gaussians(int n, const glm::vec3 &eye, const glm::vec3 &axis,
     g.a.push_back(a);
     g.c.push_back(c);
     g.R.push_back(cull_radius(a, c, cull_eps));
-    g.R_bake.push_back(cull_radius(a, c, 1e-7));  // RbfMedium::kDefaultCullEps
+    g.R_bake.push_back(cull_radius(a, c, 1e-7));  // GaussianMedium::kDefaultCullEps
   }
   // Optical depths for the factors: culled at eps 1e-7 like RbfMedium's default.
   std::vector<double> R7(n);

@@ -7,7 +7,7 @@
 #include <glm/glm.hpp>
 
 struct GaussianSet {
-  // Density of Gaussian i: c[i] exp(-a[i]^2 |x - b[i]|^2) (rbf_medium.h).
+  // Density of Gaussian i: c[i] exp(-a[i]^2 |x - b[i]|^2) (medium.h).
   std::vector<glm::dvec3> b;
   std::vector<double> a, c;
   std::vector<double> R;    // cull radii for the splat quads (cull_eps)

@@ -29,7 +29,7 @@ struct BakeSettings {
     // Lookup in the Sun 2005 F table (sun05 model): bilinear, or nearest sample (cheaper,
     // ~20x the error: special_f.cpp). Biri06's Gamma table is always bilinear.
     Interp table_interp = Interp::Bilinear;
-    // Surface shading (bake_surface.h, Sun 2005 eq. 13-19): also bake the per-light
+    // Surface shading (surface_pass.h, Sun 2005 eq. 13-19): also bake the per-light
     // attenuation from each light to the first hit and the Lambert glow. Off: the bake is
     // unchanged. The Lambert G table (sun05_surface.h) is _surface_table_nT_ x _ntheta_.
     bool surface = false;
@@ -45,7 +45,7 @@ struct BakeSettings {
     bool surface_glow_biri_eq10 = false;
     // Gaussian fog (perspective, Fogshop models): the Gaussian terms are evaluated every
     // _gaussian_resolution_ pixels (1 full, 2 half, 4 quarter) and interpolated where the
-    // surface does not cut a Gaussian, exactly per pixel where it does (gaussian_splat.h).
+    // surface does not cut a Gaussian, exactly per pixel where it does (gaussian/splat.h).
     int gaussian_resolution = 1;
     // Homogeneous airlight on a lattice of 1 (every pixel, exact), 2 or 4 pixels, interpolated
     // where smooth and exact at depth edges, near point lights' images and where a cell's
@@ -99,7 +99,7 @@ struct BakeResult {
     // surface_attenuation = e^{-T(light l, first hit)}, image after image for the fogged
     // lights l (point lights, then spot lights, in SceneDescription order; 1 where no hit):
     // 3 * width * height floats per light; surface_glow = the Lambert glow of all point and spot
-    // lights per unit diffuse colour (bake_surface.h).
+    // lights per unit diffuse colour (surface_pass.h).
     int surface_lights = 0;
     std::vector<float> surface_attenuation;
     std::vector<float> surface_glow;

@@ -449,7 +449,7 @@ TEST(Bake, ProgressIsMonotoneAndCancels) {
 // outside the cloud, near plane at view depth 0.5. Reference per pixel centre: the exact
 // transmittance exp(-optical depth over all Gaussians, unculled) from the near point to
 // the hit, and the airlight by gaussian_airlight_quadrature from the near point. Bounds: the
-// Fogshop approximation's thin-fog bound from gaussian_airlight_test.cpp (mean 1 %, p99 3 %),
+// Fogshop approximation's thin-fog bound from gaussian/airlight_test.cpp (mean 1 %, p99 3 %),
 // the transmittance to 1e-6 (float output, culling <= 1e-7 per Gaussian), the bake's
 // quadrature model to 1e-6 relative (tolerance 1e-8 plus float output).
 SceneDescription gaussian_scene(double amplitude_scale) {
@@ -514,7 +514,7 @@ TEST(BakeGaussians, FogshopAndTransmittanceMatchReferences) {
                 err.push_back(std::abs(r.airlight[3 * p + c] / ref[c] - 1.0));
                 EXPECT_NEAR(q.airlight[3 * p + c], ref[c], 1e-6 * ref[c]) << i << " " << j;
                 worst_q = std::max(worst_q, std::abs(q.airlight[3 * p + c] / ref[c] - 1.0));
-                // The Fogshop models splat in float (gaussian_splat.h), the quadrature model sums
+                // The Fogshop models splat in float (gaussian/splat.h), the quadrature model sums
                 // in double: both within 1e-6 of the exact transmittance (checked above).
                 EXPECT_NEAR(q.transmittance[3 * p + c], r.transmittance[3 * p + c], 1e-6);
             }
@@ -579,7 +579,7 @@ TEST(BakeGaussians, RejectsBadInput) {
     scene.gaussians.centres[4] = std::nan("");
     EXPECT_THROW(bake(scene, settings), std::invalid_argument);
     // (Anisotropic phases, biri06 / pegoraro10, spots and suns with Gaussians are accepted:
-    // tests/native/test17_bake_rbf_lights.py.) Hoffman-Preetham daylight takes none.
+    // tests/native/test_bake_gaussians_lights.py.) Hoffman-Preetham daylight takes none.
     scene = gaussian_scene(0.01);
     scene.point_lights.clear();
     settings.model = ModelId::Hoffman02;

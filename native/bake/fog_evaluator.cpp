@@ -144,7 +144,7 @@ FogEvaluator::FogEvaluator(const SceneDescription& scene, const BakeSettings& se
                                         "'biri06' / 'pegoraro10' need a perspective camera (or model "
                                         "'quadrature')");
         // Fogshop's per-(light, Gaussian) precomputation, once for the shared viewpoint,
-        // and the tiled splatting (gaussian_splat.h) that evaluates it.
+        // and the tiled splatting (gaussian/splat.h) that evaluates it.
         if (fogshop && shared_origin_) {
             // The splat's float kernels take a Gaussian's optical depth on a segment as
             // (c sqrt(pi) / 2a) times a difference of erfc values, which cancels (both near
@@ -661,7 +661,7 @@ bool FogEvaluator::keeps_light(const SceneDescription& scene, const PointLight& 
 }
 
 void FogEvaluator::eval_gaussians(const Ray* rays, const float* Dvp, const float* t0, int n, double* Tr, RGB* La) const {
-    if (splat_) {  // perspective: rays from the shared eye (gaussian_splat.h)
+    if (splat_) {  // perspective: rays from the shared eye (gaussian/splat.h)
         thread_local std::vector<Vec3> dirs;
         dirs.resize(size_t(n));
         for (int k = 0; k < n; ++k) dirs[k] = rays[k].d;

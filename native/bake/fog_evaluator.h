@@ -106,7 +106,7 @@ class FogEvaluator {
     // La_eye(t0)), exact for the integral (the eye-side attenuation of every point beyond t0
     // carries the factor exp(-T(eye, near point))). Perspective cameras: the centre samples
     // come from the tiled splat and the rays here (edge samples) from its per-ray twin, both
-    // float (gaussian_splat.h). Orthographic rays (own origins) set the exact double Fogshop up per
+    // float (gaussian/splat.h). Orthographic rays (own origins) set the exact double Fogshop up per
     // ray; the quadrature model integrates from the near point directly.
     void eval_gaussians(const Ray* rays, const float* Dvp, const float* t0, int n, double* Tr, RGB* La) const;
 

@@ -1,4 +1,4 @@
-// bake_surface.cpp: per-pixel surface attenuation and Lambert glow (see bake_surface.h).
+// surface_pass.cpp: per-pixel surface attenuation and Lambert glow (see surface_pass.h).
 #include "bake/surface_pass.h"
 #include "bake/glow_shadow.h"
 #include "core/parallel.h"
@@ -201,7 +201,7 @@ void bake_surface_pass(const SceneDescription& scene, const BakeSettings& settin
                                           scene.gaussians.amplitudes, sigma_t);
     // No fog: attenuation 1, glow 0 (normals are still written below: they do not depend on it).
     const bool fog = sigma_t > 0.0 || gaussians;
-    // The glow's G tables (see bake_surface.h): Sun's isotropic ones, the phase-aware G_p of
+    // The glow's G tables (see surface_pass.h): Sun's isotropic ones, the phase-aware G_p of
     // biri06_surface.h for an anisotropic phase, and with settings.surface_glow_biri_eq10 Biri's own Lambert model
     // (eq. 10, Gamma_L x cos, clamped at 0) with eq. 12 (= G_p, m = n) for the gloss.
     const PhaseFunction& phase = scene.medium.phase;

@@ -1,4 +1,4 @@
-// bake_surface.h: the surface-shading pass of the bake (Sun et al. 2005 eq. 13-19).
+// surface_pass.h: the surface-shading pass of the bake (Sun et al. 2005 eq. 13-19).
 //
 // Per pixel centre and per fogged light l it writes what the compositor needs to turn
 // Cycles' fog-free light-group pass of l into the fog-aware surface radiance:

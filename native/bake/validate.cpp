@@ -65,7 +65,7 @@ void validate(const SceneDescription& scene, const BakeSettings& settings) {
             "rayleigh_density must be finite and >= 0, got " + std::to_string(medium.rayleigh_550));
     // Gaussian fog (Fogshop): the Fogshop approximation (sun05, sun05_exact: F table or exact
     // F for the background term; biri06, pegoraro10: their model for it, any phase) or its
-    // quadrature reference; point, spot and sun lamps (gaussian_splat.h GaussianSplatLights).
+    // quadrature reference; point, spot and sun lamps (gaussian/splat.h GaussianSplatLights).
     const Gaussians& gauss = scene.gaussians;
     if (!gauss.empty()) {
         const size_t n = gauss.scales.size();

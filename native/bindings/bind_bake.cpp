@@ -393,14 +393,14 @@ rbf_centres (n, 3), rbf_scales (n,) > 0, rbf_amplitudes (n,) >= 0: optional Gaus
   the background). Isotropic phase only; models "sun05" / "sun05_exact" use the Fogshop
   approximation (Zhou et al. 2007), "quadrature" its exact reference. Transmittance is
   exact (culled to 1e-7 per Gaussian). Give all three or none; n = 0 is homogeneous fog.
-  Perspective cameras evaluate it by tiled screen-space splatting in float (rbf_splat.h).
+  Perspective cameras evaluate it by tiled screen-space splatting in float (gaussian/splat.h).
 rbf_albedo (n, 3) >= 0: optional per-Gaussian colour (scattering albedo) used instead of
   `albedo` for that Gaussian's airlight (not with model "quadrature").
 gaussian_resolution: "full" (default), "half" or "quarter": perspective cameras evaluate the
   Gaussians that lie wholly in front of a 16x16 tile's surfaces on a ray lattice every 2 / 4
   pixels and interpolate them bilinearly (they do not depend on the depth there); the
   Gaussians a surface cuts stay exact per pixel (per sub-sample on supersampled depth-edge
-  pixels; rbf_splat.h). "full" is the plain per-pixel splat.
+  pixels; gaussian/splat.h). "full" is the plain per-pixel splat.
 homogeneous_resolution: "full" (default: every pixel exact), "half" or "quarter": model "sun05"
   with a perspective camera and no spots or Gaussians evaluates the homogeneous airlight on a
   lattice every 2 / 4 pixels and interpolates it bilinearly where it is smooth; depth-edge
@@ -431,7 +431,7 @@ spot_positions (S, 3), spot_axes (S, 3) (spot direction, the lamp's -Z; normalis
   model (phase-aware; homogeneous fog only: ValueError with rbf_*). Give all five or none.
 sun_directions (U, 3) (direction of propagation, the lamp's -Z; normalised here),
   sun_irradiances (U, 3) W/m^2 (= colour * strength, Cycles): optional sun lamps, closed
-  form for every model ("quadrature": its quadrature), any phase (sun_layer.h).
+  form for every model ("quadrature": its quadrature), any phase (homogeneous/sunlight_layer.h).
   fog_top: world Z of the fog layer's top for the suns' light: the sun reaches a point at
   height z through (fog_top - z) / cos of fog; +inf (default): Hoffman & Preetham's
   unattenuated sun. Point/spot lights and the transmittance ignore fog_top.
@@ -440,18 +440,19 @@ table_size: samples per axis of the model's 2D table (sun05's F table, biri06's 
   table), in [8, 4096], default 256. table_interpolation: "bilinear" (default) or "nearest"
   lookup of sun05's F table (nearest: one load per lookup, ~20x the error; special_f.cpp
   lists both measured errors per size).
-surface: also bake surface shading through the fog (Sun 2005 eq. 13-19, bake_surface.h):
+surface: also bake surface shading through the fog (Sun 2005 eq. 13-19, bake/surface_pass.h):
   adds surface_attenuation=(L, H, W, 3) float32, e^{-T(light, first hit)} per light (the
   point lights, then the spot lights, in argument order; 1 where no hit), and
   surface_glow=(H, W, 3) float32, the point and spot lights' scattered light on a Lambert
   surface per unit diffuse colour (multiply by Cycles' DiffCol pass; G by phase and model as
-  bake_surface.h: Sun's G0 for the isotropic phase, the phase-aware G_p otherwise, Biri's
+  bake/surface_pass.h: Sun's G0 for the isotropic phase, the phase-aware G_p otherwise, Biri's
   eq. 10 for model biri06 with an anisotropic phase), surface_normals=(H, W, 3)
   float32, the first hit's geometric normal facing the camera (0 where no hit), and stats
   seconds_surface.
 rayleigh_density: Rayleigh scattering coefficient at 550 nm in 1/m for model "hoffman02"
   (Hoffman & Preetham 2002: beta_R ~ 1/lambda^4 per channel, sigma_t is the Mie part with the
-  HG g; sun lamps only, per-channel transmittance; bake_hoffman02.h). Ignored by other models.
+  HG g; sun lamps only, per-channel transmittance; models/hoffman02_model.cpp). Ignored by
+  other models.
 surface_phong_exponent: with surface, n in [1, 10000] also adds surface_gloss_glow=(H, W, 3):
   the point and spot lights' scattered light on a normalised Phong lobe (n + 2)/(2 pi) cos^n about the
   mirrored view direction (Sun 2005 eq. 18, Gn), per unit glossy colour. 0: off.

@@ -201,7 +201,7 @@ Returns dict(F_ex=(..., 3), L_in=(..., 3)); composite L = L0 * F_ex + L_in.)doc"
 shared instance): dict(data=(nl, nT) float32 array of Q(s, w), nl, nT, K, k, phase, g).
 Rows i over s = sqrt(lambda / (lambda + k)), columns j over w = tau / (1 + tau),
 tau = T (K + lambda); G(lambda, T) = Q w / (K + lambda) by bilinear interpolation
-(native/kernels/biri06.cpp). ValueError on an unknown phase, |g| >= 1 or bad sizes.)doc");
+(native/homogeneous/biri06.cpp). ValueError on an unknown phase, |g| >= 1 or bad sizes.)doc");
 }
 
 }  // namespace airlight::bindings

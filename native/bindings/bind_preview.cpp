@@ -1,6 +1,6 @@
 // bind_preview.cpp: for the viewport preview (addon/airlight/preview_gaussians.py):
-// - gradient_noise3: native/kernels/noise.h, for the GPU agreement test that holds
-//   shaders/gaussian_noise.glsl to it (tests/gpu/test_12_preview_noise.py);
+// - gradient_noise3: native/core/noise.h, for the GPU agreement test that holds
+//   shaders/rbf_noise.glsl to it (tests/gpu/test_preview_noise.py);
 // - rbf_tile_lists: the per-tile Gaussian lists of the preview's tile pass
 //   (preview_tiles.h; the same lists as preview_gaussians.tile_lists builds with numpy,
 //   the reference, ~70x faster at full resolution).
@@ -80,7 +80,7 @@ preview_gaussians.tile_lists (numpy). The GIL is released during the work.)doc")
             return to_numpy(std::move(out), {n, 3});
         },
         "points"_a,
-        R"doc(The vector gradient noise of native/kernels/noise.h (Fogshop section 5.5, the bake's
+        R"doc(The vector gradient noise of native/core/noise.h (Fogshop section 5.5, the bake's
 noise perturbation) at float32 points (n, 3): float32 (n, 3), one gradient_noise3 per row.
 For tests of its GLSL twin shaders/rbf_noise.glsl.)doc");
 }

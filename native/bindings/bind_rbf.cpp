@@ -237,7 +237,7 @@ Builds the medium (cull hierarchy) and returns a dict of float64 arrays:
   D_sv (m,):        |s_l - v|;
   cull_radius (n,): R_i, beyond which Gaussian i integrates to < cull_eps on any segment.
 Paper eq. 13: f1 = exp(-T_sb - T_vb). The bake uses exp(-(T_sb - own_sb) - (T_vb - own_vb))
-and attenuates Gaussian i by itself along light -> b_i^r -> eye (rbf_airlight.h).
+and attenuates Gaussian i by itself along light -> b_i^r -> eye (gaussian/airlight.h).
 Culled optical depths (each skipped Gaussian < cull_eps), the other Gaussians summed in
 float (fast_erf.h: ~1e-5 relative), the own halves exactly.
 Incremental use after a brush stroke appended Gaussians: previous = the dict of an earlier

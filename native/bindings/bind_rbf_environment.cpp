@@ -1,4 +1,4 @@
-// bind_rbf_environment.cpp: environment lighting in Gaussian fog (gaussian_environment.h):
+// bind_rbf_environment.cpp: environment lighting in Gaussian fog (gaussian/environment.h):
 // Fogshop's average optical depth and the per-pixel environment irradiance.
 #include <cmath>
 #include <limits>
@@ -101,7 +101,7 @@ void bind_rbf_environment(py::module_& m) {
         "tolerance"_a = 1e-3, "exact"_a = false, "threads"_a = 0,
         "Fogshop eq. 26: the average optical depth Tbar(p) = beta0 distance + sum_i c_i T(a_i |p - b_i|) / a_i "
         "at points (N, 3). The far field uses a Barnes-Hut expansion whose error is at most tolerance x Tbar(p) "
-        "(rbf_environment.h); exact=True sums every Gaussian through Dawson's function. Returns dict("
+        "(gaussian/environment.h); exact=True sums every Gaussian through Dawson's function. Returns dict("
         "average_depth=(N,), stats=dict(points, near_terms, far_terms, linear_terms, far_linear_terms)).");
     m.def(
         "psf_band_eigenvalues",

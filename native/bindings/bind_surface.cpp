@@ -56,7 +56,7 @@ py::array_t<double> surface_G_py(const py::object& T, const py::object& theta_s,
     py::gil_scoped_release release;
     if (exact) {
         for (py::ssize_t i = 0; i < n; ++i) po[i] = biri06_surface_G_exact(p, pT[i], pth[i], m);
-    } else if (phase_is_isotropic(p)) {  // the bake's table for this phase (bake_surface.h)
+    } else if (phase_is_isotropic(p)) {  // the bake's table for this phase (bake/surface_pass.h)
         auto table = shared_surface_G_table(nT, ntheta, m);
         for (py::ssize_t i = 0; i < n; ++i) po[i] = table->eval(pT[i], pth[i]);
     } else {

@@ -1,9 +1,9 @@
 // preview_tiles.h: the per-tile Gaussian lists of the viewport preview's tile pass
-// (shaders/gaussian_tiles_frag.glsl). Plain C++17 + GLM, header-only, so that the binding
+// (shaders/rbf_tiles_frag.glsl). Plain C++17 + GLM, header-only, so that the binding
 // (bind_preview.cpp: _native.rbf_tile_lists) and the standalone GPU harness
 // (benchmarks/gpu_preview/) build the very same lists. The reference is the add-on's numpy
-// version, addon/airlight/preview_gaussians.tile_lists (same steps; test_09 compares them
-// list for list). Not a kernel: only the GPU preview uses it (the bake bins in
+// version, addon/airlight/preview_gaussians.tile_lists (same steps;
+// tests/gpu/test_preview_gaussians.py compares them list for list). Not a kernel: only the GPU preview uses it (the bake bins in
 // GaussianSplat::bin with its own camera conventions).
 #pragma once
 

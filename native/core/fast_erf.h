@@ -20,15 +20,15 @@
 //   where erfc ~ 4e-37; above ~9.3 the result is 0. x = +inf gives 0.
 // - fast_erfcx_pos: the scaled erfcx(x) = exp(x^2) erfc(x) for x >= 0 as t Q(t), t = 1 / (1 +
 //   x/2), Q of degree 8 fitted for relative error (a Lawson-weighted least-squares fit in
-//   double: 4.3e-7; in float, <= 6.6e-7 up to x = 1e6, tested in gaussian_splat_test.cpp). No exp:
+//   double: 4.3e-7; in float, <= 6.6e-7 up to x = 1e6, tested in gaussian/splat_test.cpp). No exp:
 //   the kernels fold exp(-x^2) into the exponent of the Gaussian factor that multiplies it,
 //   k0 e^{-a^2 h^2} erfc(x) = k0 e^{-(a^2 h^2 + x^2)} erfcx(x), and where a^2 h^2 + x^2 is
 //   a constant of the Gaussian and the ray's origin (a^2 |b - o|^2, |d| = 1) the exp goes
 //   altogether. x = +inf gives 0.
 // - fast_erf_diff(x1, x2) = erf(x2) - erf(x1) for x1 <= x2, from erfc of |x| only, so the
-//   tails keep their relative accuracy (as erf_diff in gaussian_medium.cpp does in double):
+//   tails keep their relative accuracy (as erf_diff in gaussian/medium.cpp does in double):
 //     x1 >= 0: erfc(x1) - erfc(x2);  x2 <= 0: erfc(-x2) - erfc(-x1);  else 2 - erfc(-x1) - erfc(x2).
-//   Error bound (asserted in gaussian_splat_test.cpp against the double erf_diff):
+//   Error bound (asserted in gaussian/splat_test.cpp against the double erf_diff):
 //     |fast - exact| <= 1e-5 exact + (4e-6 + 2.4e-7 m^2) max(erfc(|x1|), erfc(|x2|)) + 1e-37,
 //   m = the larger finite one of |x1|, |x2| (both terms' errors): relative 1e-5 except where the difference itself cancels (a
 //   short interval in one tail), where the error stays that fraction of the larger erfc

@@ -1,5 +1,5 @@
 // noise.h: deterministic 3D gradient noise for the Fogshop noise perturbation
-// (Zhou et al. 2007, section 5.5; gaussian_splat.h says how the bake uses it).
+// (Zhou et al. 2007, section 5.5; gaussian/splat.h says how the bake uses it).
 //
 // Perlin-style gradient noise on the integer lattice, quintic fade, with the gradient of
 // each lattice point taken from an integer hash of its coordinates (no permutation
@@ -44,7 +44,7 @@ namespace airlight {
 [[gnu::always_inline]] inline float noise_fade(float f) { return f * f * f * (f * (f * 6.0f - 15.0f) + 10.0f); }
 
 // gradient_noise_inlined / gradient_noise3_inlined: the same, always inlined, so that a
-// loop calling them can vectorise (gaussian_splat.cpp's reduced-resolution path); the plain
+// loop calling them can vectorise (gaussian/splat_reduced.cpp's path); the plain
 // functions are the out-of-line form the full-resolution splat calls.
 [[gnu::always_inline]] inline float gradient_noise_inlined(float px, float py, float pz) {
     const float flx = noise_floor(px), fly = noise_floor(py), flz = noise_floor(pz);

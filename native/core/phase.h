@@ -15,12 +15,12 @@
 // right: 2 pi int_{-1}^{1} p dmu = 1 exactly for all four (phase_test.cpp checks it).
 #pragma once
 
+#include "core/constants.h"
+
 #include <cmath>
 #include <string>
 
 namespace airlight {
-
-inline constexpr double kInv4Pi = 0.0795774715459476678844;  // 1 / (4 pi)
 
 enum class PhaseKind { Isotropic, HenyeyGreenstein, Rayleigh, HazyMie, MurkyMie };
 

@@ -27,7 +27,7 @@ using RGB = glm::dvec3;
 struct HomogeneousMedium {
     double sigma_t = 0.0;
     // Rayleigh scattering coefficient at 550 nm in 1/m, used by ModelId::Hoffman02 only
-    // (bake_hoffman02.h: beta_R ~ 1/lambda^4 per channel on top of sigma_t as Mie).
+    // (models/hoffman02_model.cpp: beta_R ~ 1/lambda^4 per channel on top of sigma_t as Mie).
     double rayleigh_550 = 0.0;
     RGB albedo{1.0, 1.0, 1.0};
     PhaseFunction phase;
@@ -92,13 +92,13 @@ struct TriangleMesh {
 };
 
 // Optional inhomogeneous part of the medium, a sum of Gaussians (Fogshop, Zhou et al.
-// 2007; gaussian_medium.h): beta(x) = medium.sigma_t + sum_i c_i exp(-a_i^2 |x - b_i|^2), i.e.
+// 2007; gaussian/medium.h): beta(x) = medium.sigma_t + sum_i c_i exp(-a_i^2 |x - b_i|^2), i.e.
 // the homogeneous sigma_t acts as the background beta0. Centres _b_ in m (3 doubles per
 // Gaussian), scales _a_ in 1/m (> 0), amplitudes _c_ in 1/m (>= 0). The Gaussians
 // scatter with the medium's (isotropic) phase and with their own _albedo_ (3 per Gaussian,
 // RGB in [0, inf), e.g. the fog object's `airlight_color`) or, if that is empty, the
 // medium's albedo; the background beta0 always uses the medium's. Empty: homogeneous fog.
-// Noise (Fogshop section 5.5, gaussian_splat.h): perturbs each Gaussian's optical depth along
+// Noise (Fogshop section 5.5, gaussian/splat.h): perturbs each Gaussian's optical depth along
 // the view rays with world-space gradient noise of cell size _noise_scale_ (m, > 0) and
 // strength _noise_amplitude_ (>= 0; 0 = off), looked up at point / scale + _noise_offset_.
 struct Gaussians {

@@ -1,4 +1,4 @@
-// gaussian_airlight.cpp: Fogshop airlight (eq. 8-17) and its quadrature reference.
+// airlight.cpp: Fogshop airlight (eq. 8-17) and its quadrature reference.
 //
 // Per view ray the Gaussians come from the medium's cull hierarchy (those whose line
 // integral on the view segment can exceed the medium's cull_eps); a skipped Gaussian
@@ -7,7 +7,7 @@
 // (sharing t* and h), and T_i(s, b_i^r) per light. f1 and C_sv are per (light, Gaussian)
 // and per light, computed once in the constructor with culled optical depths.
 //
-// Where the approximation fails (measured in gaussian_airlight_test.cpp, not hidden):
+// Where the approximation fails (measured in airlight_test.cpp, not hidden):
 // - a light close to a Gaussian: 1/d^2 varies fast across the Gaussian, so sampling it at
 //   b_i^r alone misses the halo's shape;
 // - light shafts through holes: L_0 attenuates the whole ray by the single factor C_sv of
@@ -22,6 +22,7 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "core/constants.h"
 #include "core/phase.h"
 #include "core/quadrature.h"
 #include "homogeneous/sun05.h"
@@ -30,8 +31,6 @@ namespace airlight {
 
 namespace {
 
-// kInv4Pi (1 / (4 pi)) comes from phase.h, which scene.h includes.
-constexpr double kSqrtPi = 1.77245385090551602729;
 constexpr double kInf = std::numeric_limits<double>::infinity();
 constexpr double kMinD2 = 1e-12;
 

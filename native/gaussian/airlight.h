@@ -1,11 +1,11 @@
-// gaussian_airlight.h: airlight of point lights in a Gaussian (RBF) medium
+// airlight.h: airlight of point lights in a Gaussian (RBF) medium
 // (Fogshop, Zhou et al. 2007, section 3), per unit I0 and albedo like sun05.h, plus
 // its exact reference by quadrature.
 //
 // View ray x(t) = v + t r, t in [0, Dvp] (Dvp may be inf), light at s, isotropic phase:
 //   La = int_0^Dvp beta(x) / (4 pi) / d(x)^2 exp(-T(s, x) - T(v, x)) dt      (eq. 2, 5)
 //      = sum_i L_i + L_0                                                       (eq. 8)
-// Fogshop approximation (gaussian_airlight.cpp):
+// Fogshop approximation (airlight.cpp):
 //   L_i ~ f0(b_i^r) f1(b_i) T_i(v, p)                                          (eq. 11)
 //   b_i^r = projection of b_i on the view ray, clamped to [v, p]               (eq. 10)
 //   f0 = 1/(4 pi) / |b_i^r - s|^2 exp(-T_i(s, b_i^r) - T_i(v, b_i^r) + T_i(s, b_i) + T_i(v, b_i))

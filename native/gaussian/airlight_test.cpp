@@ -1,4 +1,4 @@
-// gaussian_airlight_test.cpp: Fogshop airlight against the quadrature reference and analytic
+// airlight_test.cpp: Fogshop airlight against the quadrature reference and analytic
 // limits, and the measured error of the approximation on smooth fog and on the paper's
 // failure cases (a light next to a Gaussian, a light shaft through a hole).
 #include "core/constants.h"

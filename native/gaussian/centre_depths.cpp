@@ -39,14 +39,13 @@
 #include <immintrin.h>
 #endif
 
+#include "core/constants.h"
 #include "core/fast_erf.h"
-#include "gaussian/simd_clones.h"
+#include "core/target_clones.h"
 
 namespace airlight {
 
 namespace {
-
-constexpr double kSqrtPi = 1.77245385090551602729;
 
 // Line integrals of the gathered Gaussians (rel = b - from) on from + t d, t in [0, D].
 AIRLIGHT_SIMD_CLONES void segment_integrals(int n, const float* __restrict rx, const float* __restrict ry,
@@ -303,8 +302,6 @@ double star_sum(const StarCands& c, std::size_t n, std::uint32_t skip, float dx,
                          w.out.data());
     return T + sum_double(w.out.data(), w16);
 }
-
-constexpr double kQuarterPi = 0.78539816339744830962;
 
 // Face-coordinate range [lo, hi] (clamped to [-1, 1]) of the rays from the origin through
 // the sphere of radius R around a centre whose components along the face axis and along
@@ -879,7 +876,7 @@ std::vector<double> sun_depths(const GaussianMedium& m, const Vec3& u, int threa
 std::vector<double> gaussian_depths_to_centres(const GaussianMedium& medium, const std::vector<Vec3>& sources,
                                                std::size_t first, std::size_t last, std::size_t cand_first,
                                                std::size_t cand_last, int threads, int method) {
-    if (method < 0 || method > 3) throw std::invalid_argument("rbf_depths_to_centres: method must be 0..3");
+    if (method < 0 || method > 3) throw std::invalid_argument("gaussian_depths_to_centres: method must be 0..3");
     return star_depths(medium, sources, first, last, cand_first, cand_last, threads, method);
 }
 

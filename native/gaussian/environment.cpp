@@ -1,6 +1,7 @@
-// gaussian_environment.cpp: Fogshop's average optical depth (section 4.2) and the per-point
-// environment irradiance; the derivations are in gaussian_environment.h.
+// environment.cpp: Fogshop's average optical depth (section 4.2) and the per-point
+// environment irradiance; the derivations are in environment.h.
 #include "gaussian/environment.h"
+#include "core/constants.h"
 
 #include <algorithm>
 #include <array>
@@ -14,13 +15,11 @@ namespace airlight {
 
 namespace {
 
-constexpr double kSqrtPi = 1.7724538509055160273;
-
 inline void require(bool ok, const char* msg) {  // (no std::string unless it throws: hot loops call it)
     if (!ok) throw std::invalid_argument(msg);
 }
 
-// Far-field constants (gaussian_environment.h): the expansion is used only where every u_i >= kUFar,
+// Far-field constants (environment.h): the expansion is used only where every u_i >= kUFar,
 // where |rho(u)| <= kRhoBound / u^4.
 constexpr double kUFar = 3.0;
 constexpr double kRhoBound = 1.2;
@@ -472,7 +471,7 @@ void GaussianAverageDepth::evaluate_block(const Vec3* p, const std::uint32_t* id
     // Linear models. Terms go into a linear model V + G . (p - C) over a sphere (C, rho) (value
     // and gradient at C), smaller linearisation errors first, while the errors fit _left_:
     //  - an accepted node's expansion E: |E(p) - E(C) - grad E(C) . (p - C)| <= H rho^2 / 2 with
-    //    H >= the norm of E's Hessian on the ball |p - C| <= rho (gaussian_environment.h);
+    //    H >= the norm of E's Hessian on the ball |p - C| <= rho (environment.h);
     //  - a near Gaussian: |Tbar_i(p) - Tbar_i(C) - grad . (p - C)| <= c a K(u_min) rho^2 / 2.
     // Taken entries of _fl_ / _nl_ are removed; returns the errors spent.
     const bool linearise = tol > 0.0 && LB > 0.0 && !nodes_.empty();

@@ -1,4 +1,4 @@
-// gaussian_environment.h: environment lighting in inhomogeneous (Gaussian) fog, Fogshop (Zhou et
+// environment.h: environment lighting in inhomogeneous (Gaussian) fog, Fogshop (Zhou et
 // al. 2007) section 4.2. The World's light reaching a point p is attenuated and scattered as
 // in homogeneous fog (Sun 2005 eq. 26-27, sun05_psf.h) with the optical depth replaced by the
 // average optical depth around p (Fogshop eq. 26):
@@ -14,7 +14,7 @@
 //   T(u) = (sqrt(pi) / 2) F(u) / u,   T(0) = sqrt(pi) / 2,
 //   T(u) = sqrt(pi) / (4 u^2) (1 + 1/(2u^2) + 3/(4u^4) + 15/(8u^6) + ...)   (u -> inf).
 // Checked against scipy.special.dawsn and a 2D quadrature of the definition in
-// tests/native/test_rbf_environment.py and gaussian_environment_test.cpp.
+// tests/native/test_rbf_environment.py and environment_test.cpp.
 //
 // Far field (Barnes-Hut). Write w_i = c_i sqrt(pi) / (4 a_i^3), r_i = |p - b_i|, u_i = a_i r_i
 // and g(u) = 2 u F(u); then Tbar_i = w_i g(u_i) / r_i^2 with g(u) = 1 + 1/(2u^2) + rho(u),
@@ -62,7 +62,7 @@
 // smaller remainders first (in rounds: every term <= what is left / terms left). The others
 // are summed exactly (near Gaussians) or through E (nodes) at every point. So
 //   |Tbar_approx(p) - Tbar(p)| <= S + (block's, part's and group's remainders) <= tol LB <= tol Tbar(p)
-// (plus the T(u) table's 1e-10 relative), which gaussian_environment_test.cpp checks against the
+// (plus the T(u) table's 1e-10 relative), which environment_test.cpp checks against the
 // brute-force sum on random clouds, on dense surfaces and on patches whose blocks would break
 // it if E's remainder were dropped; the measured errors are 5-10x below the bound
 // (bench_rbf_environment.py).
@@ -92,7 +92,7 @@ double dawson(double x);
 // T(u) of the header comment, u >= 0 (u = |u|): exact through dawson() ...
 double average_depth_unit(double u);
 // ... and fast: cubic Hermite table of F(u)/u on [0, 32] (step 1/128, derivatives exact),
-// five terms of the asymptotic series beyond. Relative error < 1e-10 (gaussian_environment_test.cpp).
+// five terms of the asymptotic series beyond. Relative error < 1e-10 (environment_test.cpp).
 double average_depth_unit_fast(double u);
 
 struct AverageDepthStats {

@@ -1,4 +1,4 @@
-// gaussian_environment_test.cpp: Fogshop's average optical depth (section 4.2) against quadrature
+// environment_test.cpp: Fogshop's average optical depth (section 4.2) against quadrature
 // of its definition, the Barnes-Hut far field against the brute-force sum and its stated
 // bound, and the per-point environment irradiance against the homogeneous one.
 #include "core/constants.h"
@@ -14,8 +14,6 @@
 
 namespace airlight {
 namespace {
-
-constexpr double kSqrtPi = 1.77245385090551602729;
 
 TEST(GaussianEnvironment, DawsonAgainstMpmath) {
     // sqrt(pi)/2 e^{-x^2} erfi(x) with mpmath at 30 digits.

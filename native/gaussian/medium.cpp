@@ -1,7 +1,7 @@
-// gaussian_medium.cpp: the Gaussian store, its cull-sphere hierarchy and exact optical depth.
+// medium.cpp: the Gaussian store, its cull-sphere hierarchy and exact optical depth.
 //
-// Numerics of eq. 31 (tested against mpmath in tests/native/test08_rbf.py and against
-// quadrature of the density in gaussian_medium_test.cpp):
+// Numerics of eq. 31 (tested against mpmath in tests/native/test_rbf_medium.py and against
+// quadrature of the density in medium_test.cpp):
 // - erf(x2) - erf(x1) loses every digit once both arguments are beyond ~6 with one sign
 //   (erf rounds to +-1); there it is erfc(x1) - erfc(x2) (or the mirror for negatives),
 //   which keeps full relative accuracy down to the underflow of erfc (~1e-308 at x ~ 26.5).
@@ -11,6 +11,7 @@
 // - h^2 comes from the cross product, not |b - o|^2 - t*^2, so Gaussians far along the
 //   line keep their distance digits.
 #include "gaussian/medium.h"
+#include "core/constants.h"
 #include "core/parallel.h"
 
 #include <algorithm>
@@ -23,8 +24,6 @@ namespace airlight {
 
 namespace {
 
-constexpr double kSqrtPi = 1.77245385090551602729;
-constexpr double kTwoOverSqrtPi = 1.12837916709551257390;
 
 // 4-point Gauss-Legendre on [0, 1].
 constexpr double kGL4x[4] = {0.06943184420297371, 0.33000947820757187, 0.6699905217924281,

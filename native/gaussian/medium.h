@@ -1,11 +1,11 @@
-// gaussian_medium.h: inhomogeneous medium as a sum of Gaussians (Fogshop, Zhou et al. 2007):
+// medium.h: inhomogeneous medium as a sum of Gaussians (Fogshop, Zhou et al. 2007):
 //   beta(x) = beta0 + sum_i c_i exp(-a_i^2 |x - b_i|^2)          (eq. 6, 7)
 // with centre _b_ (m), scale _a_ (1/m), amplitude _c_ (1/m) and a constant background
 // _beta0_ (1/m). Stored as a struct of arrays (up to ~1e5 Gaussians) with a bounding
 // volume hierarchy over per-Gaussian cull spheres, so that a segment's optical depth
 // costs O(log n + Gaussians near the segment), not O(n).
 //
-// Optical depth of a segment (eq. 31, done in gaussian_medium.cpp without cancellation):
+// Optical depth of a segment (eq. 31, done in medium.cpp without cancellation):
 //   T_i(p, q) = c_i sqrt(pi) / (2 a_i) exp(-a_i^2 h^2) [erf(a_i (L - t*)) - erf(-a_i t*)],
 //   t* = (b_i - p) . r,  h = |(b_i - p) x r|,  L = |q - p|,  r = (q - p) / L,
 //   T(p, q) = beta0 L + sum_i T_i(p, q).
@@ -17,7 +17,7 @@
 // around b_i. Then every skipped T_i is below _eps_ (a segment whose line passes inside
 // the sphere but whose ends stay outside it integrates at most eps / 2), so the culled
 // optical depth differs from the full sum by at most eps times the number of Gaussians
-// skipped (tested in gaussian_medium_test.cpp). The paper's eq. 30 bounds the density at the
+// skipped (tested in medium_test.cpp). The paper's eq. 30 bounds the density at the
 // closest point instead (c_i e^{-a_i^2 h^2} <= e^-9); that bounds no line integral, since a
 // broad faint Gaussian can still integrate to a lot.
 #pragma once
@@ -73,10 +73,10 @@ class GaussianMedium {
     // Radius of Gaussian i's cull sphere (R_i above).
     double cull_radius(std::size_t i) const { return radius_[i]; }
     // R for amplitude c, scale a and tolerance eps (the formula above; 0 where c sqrt(pi) /
-    // a <= eps): the medium's own spheres use eps = cull_eps(), gaussian_splat.cpp larger ones.
+    // a <= eps): the medium's own spheres use eps = cull_eps(), splat_bin.cpp larger ones.
     static double cull_radius_for(double c, double a, double eps);
     // The Gaussians with a cull sphere (R_i > 0) in the hierarchy's leaf order: runs of it
-    // are spatially compact (gaussian_splat.cpp blocks them for its cull tests).
+    // are spatially compact (gaussian/splat_bin.cpp blocks them for its cull tests).
     const std::vector<std::uint32_t>& leaf_order() const { return order_; }
 
     // Density beta(x) (no culling).

@@ -1,4 +1,4 @@
-// gaussian_medium_test.cpp: the Gaussian store's optical depth against quadrature of the
+// medium_test.cpp: the Gaussian store's optical depth against quadrature of the
 // density, the erf-difference numerics against analytic limits, culling against the
 // brute-force sum, and input validation.
 #include "gaussian/medium.h"
@@ -9,12 +9,11 @@
 #include <random>
 #include <stdexcept>
 
+#include "core/constants.h"
 #include "core/quadrature.h"
 
 namespace airlight {
 namespace {
-
-constexpr double kSqrtPi = 1.77245385090551602729;
 
 GaussianMedium single(const Vec3& b, double a, double c, double beta0 = 0.0) {
     return GaussianMedium({b.x, b.y, b.z}, {a}, {c}, beta0);

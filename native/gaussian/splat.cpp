@@ -12,6 +12,7 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "core/constants.h"
 #include "gaussian/centre_depths.h"
 #include "gaussian/splat_kernels.h"
 #include "homogeneous/sun05.h"
@@ -22,8 +23,6 @@ namespace airlight {
 using namespace splat;
 
 namespace {
-
-constexpr double kSqrtPi = 1.77245385090551602729;
 
 // T(from_row, b_i) without Gaussian i (beta0 included) for row 0 = the eye and rows 1..L
 // = the lights, all Gaussians: out[row n + i].
@@ -44,17 +43,17 @@ void check_extra(const GaussianSplatLights& extra, std::size_t L) {
     const std::size_t S = extra.sun_w.size();
     if ((!extra.spot.empty() && (extra.spot.size() != L || extra.cone.size() != L)) ||
         (!extra.custom_background.empty() && extra.custom_background.size() != L) || extra.sun_E.size() != S)
-        throw std::invalid_argument("RbfSplat: spot, cone and custom_background need one entry per point light, "
+        throw std::invalid_argument("GaussianSplat: spot, cone and custom_background need one entry per point light, "
                                     "sun_E one per sun");
     for (const Vec3& w : extra.sun_w)
         if (!std::isfinite(w.x) || !std::isfinite(w.y) || !std::isfinite(w.z) || std::abs(glm::length(w) - 1.0) > 1e-6)
-            throw std::invalid_argument("RbfSplat: sun directions must be finite unit vectors");
+            throw std::invalid_argument("GaussianSplat: sun directions must be finite unit vectors");
     const bool any_custom = std::find(extra.custom_background.begin(), extra.custom_background.end(), 1) !=
                             extra.custom_background.end();
     if ((S > 0 || any_custom) && !extra.background)
-        throw std::invalid_argument("RbfSplat: suns and custom backgrounds need a background function");
+        throw std::invalid_argument("GaussianSplat: suns and custom backgrounds need a background function");
     if (!phase_is_isotropic(extra.phase) && !any_custom && L > 0)
-        throw std::invalid_argument("RbfSplat: a non-isotropic phase needs a custom background for every light");
+        throw std::invalid_argument("GaussianSplat: a non-isotropic phase needs a custom background for every light");
 }
 
 }  // namespace
@@ -88,7 +87,7 @@ GaussianSplat::GaussianSplat(const GaussianMedium& medium, const Vec3& eye, cons
       threads_(threads) {
     validate_noise(noise);
     const std::size_t n = medium.size(), L = lights.size();
-    if (I0.size() != L) throw std::invalid_argument("RbfSplat: one I0 per light expected");
+    if (I0.size() != L) throw std::invalid_argument("GaussianSplat: one I0 per light expected");
     if (!albedo.empty() && albedo.size() != 3 * n) {
         std::ostringstream os;
         os << "gaussians: albedo has " << albedo.size() << " values, expected 3 per Gaussian (" << 3 * n << ")";

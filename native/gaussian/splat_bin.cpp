@@ -17,7 +17,7 @@
 #include <vector>
 
 #include "core/constants.h"
-#include "gaussian/simd_clones.h"
+#include "core/target_clones.h"
 
 namespace airlight {
 

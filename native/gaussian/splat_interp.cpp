@@ -3,7 +3,7 @@
 
 #include <cstddef>
 
-#include "gaussian/simd_clones.h"
+#include "core/target_clones.h"
 
 namespace airlight {
 namespace splat {

@@ -11,7 +11,7 @@
 
 #include "core/fast_erf.h"
 #include "core/noise.h"
-#include "gaussian/simd_clones.h"
+#include "core/target_clones.h"
 
 namespace airlight {
 namespace splat {
@@ -115,7 +115,7 @@ inline float phase4pi_f(float mu, float g1, float g2, float g3) {
 // light_terms_phase for the phase kind K and, if kSpot, the spot profile of light lf.
 // Its first lines repeat light_terms' on purpose: factoring them into an inline helper
 // returning a struct (or calling fast_erf_diff) stopped GCC vectorising both loops - measured
-// 9x the CPU time of the whole bake on tests/native/test16_rbf_resolution.py's scene.
+// 9x the CPU time of the whole bake on tests/native/test_bake_gaussians_resolution.py's scene.
 template <int K, bool kSpot>
 AIRLIGHT_SIMD_CLONES void light_terms_ext(const GaussF g, const GaussLightF gl, const LightF lf, float g1, float g2,
                                           float g3, int n, const float* __restrict dx, const float* __restrict dy,

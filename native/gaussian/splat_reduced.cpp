@@ -33,7 +33,7 @@
 #include <vector>
 
 #include "core/fast_erf.h"
-#include "gaussian/simd_clones.h"
+#include "core/target_clones.h"
 #include "gaussian/splat_interp.h"
 #include "gaussian/splat_kernels.h"
 

@@ -12,8 +12,8 @@
 #include <vector>
 
 #include "core/fast_erf.h"
+#include "core/target_clones.h"
 #include "gaussian/centre_depths.h"
-#include "gaussian/simd_clones.h"
 
 namespace airlight {
 

@@ -30,7 +30,7 @@ class RayCaster {
     // First hits of _n_ rays with their own origins inside [t_near[k], t_far[k]] (units
     // of the unit directions), with the unit geometric normal (Embree's Ng, the triangle's
     // winding normal, not interpolated) of each hit in _ng_[3 k .. 3 k + 2] (0 where none).
-    // Packets of 16. Thread safe. Used by the surface-shading pass (bake_surface.cpp).
+    // Packets of 16. Thread safe. Used by the surface-shading pass (bake/surface_pass.cpp).
     void first_hits_normals(const Ray* rays, const float* t_near, const float* t_far, int n, float* t,
                             float* ng) const;
 

@@ -1,3 +1,4 @@
+// hoffman02_model.cpp: ModelId::Hoffman02, Hoffman & Preetham 2002's daylight aerial perspective
 // as a bake model: a Rayleigh + Mie medium with wavelength-dependent extinction lit by sun
 // lamps.
 //
@@ -16,7 +17,6 @@
 // Sun lamps only: point and spot lights are refused by validate() (the paper models
 // daylight), as are fog objects. Pixels are evaluated at their centres (no edge
 // supersampling; documented).
-#pragma once
 
 #include "bake/bake.h"
 #include "core/parallel.h"

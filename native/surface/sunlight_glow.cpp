@@ -315,9 +315,9 @@ double sunlight_glow_reference(const PhaseFunction& phase, const glm::dvec3& to_
 SunlightGlowTable::SunlightGlowTable(const PhaseFunction& phase, const glm::dvec3& to_sun, bool has_top, double m,
                                      int n_tau, int n_theta, int n_phi, int threads)
     : phase_(phase), m_(m), has_top_(has_top), n_tau_(has_top ? n_tau : 1), n_theta_(n_theta), n_phi_(n_phi) {
-    if (!(m >= 1.0 && m <= 10000.0)) throw std::invalid_argument("SunLayerGlowTable: the exponent m must be in [1, 10000]");
+    if (!(m >= 1.0 && m <= 10000.0)) throw std::invalid_argument("SunlightGlowTable: the exponent m must be in [1, 10000]");
     if ((has_top && n_tau < 2) || n_theta < 2 || n_phi < 2)
-        throw std::invalid_argument("SunLayerGlowTable: need at least 2 nodes per axis");
+        throw std::invalid_argument("SunlightGlowTable: need at least 2 nodes per axis");
     const SunFrame f = sun_frame(to_sun);
     to_sun_ = f.l;
     lit_ = !has_top || f.mu_s > 0.0;

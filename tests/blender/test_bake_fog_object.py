@@ -223,3 +223,32 @@ def test07_fog_object_with_sun_spot_and_anisotropic_phase(tmp_path):
     description = scene_export.export_scene(scene, bpy.context.evaluated_depsgraph_get())
     assert len(description["spot_positions"]) == 1 and description["phase"] == "hg"
     bake_pair("sun_spot_hg")
+
+
+def test08_airlight_color_attribute_colours_the_bake(tmp_path):
+    """A fog object's "airlight_color" point attribute reaches the bake: exported as
+    rbf_albedo, it makes the Airlight pass red (R well above B) under a white light, where
+    the same fog object without the attribute bakes grey. Automatic model (QUADRATURE
+    refuses per-Gaussian colours); the fog is thin outside the Gaussians, so they dominate."""
+    scene = build_plane_scene(tmp_path, size=(W, H))
+    scene.objects["Lamp"].data.color = (1.0, 1.0, 1.0)
+    scene.airlight.density = 0.01
+    assert scene.airlight.model == 'AUTO' and tuple(scene.airlight.color) == (1.0, 1.0, 1.0)
+    obj = fog_object.new_fog_object("Fog", scene.collection, CENTRES, SCALES, AMPLITUDES)
+    assert "rbf_albedo" not in scene_export.export_scene(scene, bpy.context.evaluated_depsgraph_get())
+    grey = exr_pass(_bake(tmp_path / "grey.exr"), "Airlight")
+
+    red = np.tile(np.float32([[1.0, 0.1, 0.1]]), (len(CENTRES), 1))
+    fog_object.write(obj, CENTRES, SCALES, AMPLITUDES, colors=red)
+    description = scene_export.export_scene(scene, bpy.context.evaluated_depsgraph_get())
+    np.testing.assert_array_equal(description["rbf_albedo"], red)
+    reddish = exr_pass(_bake(tmp_path / "red.exr"), "Airlight")
+
+    def channel_means(image):
+        return [float(image[..., c].mean()) for c in range(3)]
+    r, g, b = channel_means(grey)
+    assert r > 0.0 and abs(r - b) <= 1e-3 * r and abs(r - g) <= 1e-3 * r
+    r, g, b = channel_means(reddish)
+    assert r > 3.0 * b and abs(g - b) <= 1e-3 * b
+    # Red scatters what grey did: the colour changes the chroma, not the red channel.
+    np.testing.assert_allclose(reddish[..., 0], grey[..., 0], rtol=1e-5, atol=1e-7)

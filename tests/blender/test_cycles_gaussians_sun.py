@@ -10,7 +10,7 @@ Gaussians. Measured (2 x 128 spp): exact bake vs Cycles flux bias sun -0.12 %, s
     tools/blender.sh -b --python tests/blender/run_tests.py -- tests/blender/test_cycles_gaussians_sun.py -s
 
 The bake's 'quadrature' model (eq. 2 with exact Gaussian optical depths, the sun's half-line
-through the Gaussians, the HG phase: rbf_airlight.h RbfRefLight) must equal Cycles to Monte
+through the Gaussians, the HG phase: airlight.h GaussianRefLight) must equal Cycles to Monte
 Carlo noise (the spot's p99 is held loosely: its cone-edge pixels); the Fogshop path ('biri06' model: f0 = E p(cos theta) at b_i^r, the Gaussian's
 own light-side depth by the erfc half-line) is measured against both and reported (these
 Gaussians are optically thick, c sqrt(pi) / a up to 0.5; at a tenth of the density, the

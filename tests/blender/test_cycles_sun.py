@@ -17,7 +17,7 @@ phase (forward lobe).
 
 test01 checks the harness without native code: Cycles against a numpy midpoint quadrature
 of sigma E p int e^{-sigma (t - t_in)} e^{-sigma (top - z) / mu_s} over the part of the ray
-inside the layer (sun_layer.h's integral written out here) - it is what tells that a sun's
+inside the layer (sunlight_layer.h's integral written out here) - it is what tells that a sun's
 strength is the irradiance E in W/m^2 and that its light is attenuated through the top.
 test02 bakes through scene_export (direction = the lamp's -Z, E = colour * strength,
 fog_top) and _native.bake. The box's own faces are dropped from the exported geometry:

@@ -7,7 +7,7 @@ albedo 1, isotropic) whose top is at FOG_TOP = 4 m (sides and bottom 1000 m away
 test_cycles_sun.py), a grey Lambert floor (0.8) at z = 0 inside it, a sun of angle 0
 shining down at 37 deg from the vertical, black world, diffuse_bounces = 1,
 volume_bounces = 0: the floor receives the sun through the layer (e^{-sigma top / mu_s})
-plus the sunlight the fog scattered once towards it (the glow, sun_layer_glow.h), and the
+plus the sunlight the fog scattered once towards it (the glow, sunlight_glow.h), and the
 camera, inside the layer, sees the floor through the fog plus the airlight. 64x48, 1024
 samples, two seeds (their difference is the Monte Carlo noise).
 

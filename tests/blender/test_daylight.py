@@ -1,5 +1,5 @@
 """Model HOFFMAN02 from the add-on: sun lamps in Rayleigh + Mie daylight haze (native
-bake_hoffman02.h; its physics is held to scipy in tests/native/test15_bake_hoffman02.py).
+hoffman02_model.cpp; its physics is held to scipy in tests/native/test_bake_hoffman02.py).
 Here: the operator bakes it with the scene's Rayleigh Density, point lights are left out
 (and the panel says so), the blue channel is extinguished most, and a non-HG phase gets a
 clear message."""

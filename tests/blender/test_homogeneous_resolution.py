@@ -1,6 +1,6 @@
 """scene.airlight.homogeneous_resolution: stored (default Full), passed to `_native.bake`, and
 the operator's bake at Quarter equals the native bake at Quarter and stays within the lattice's
-measured error of Full (tests/native/test18_bake_homogeneous_lattice.py tests the lattice itself)."""
+measured error of Full (tests/native/test_bake_homogeneous_lattice.py tests the lattice itself)."""
 import bpy
 import numpy as np
 

@@ -123,7 +123,7 @@ def test04_bake_without_surface_writes_no_surface_passes(tmp_path):
 
 def test05_gloss_exponent_adds_the_glossy_glow(tmp_path):
     """Gloss Exponent > 0: the bake writes SurfaceGloss (Sun 2005 eq. 18 glossy glow, the
-    kernel is held to scipy in tests/native/test13_bake_surface.py), equal to the native
+    kernel is held to scipy in tests/native/test_bake_surface.py), equal to the native
     bake with that exponent; Glossy Color is enabled and the chain adds GlossCol x it."""
     from airlight import bake
     scene = build_plane_scene(tmp_path)
@@ -184,7 +184,7 @@ def test06_skipped_lights_keep_groups_aligned(tmp_path):
 
 def test07_sun_light_on_surfaces_is_dimmed_by_the_fog_layer(tmp_path):
     """A sun lamp's light on a surface inside the fog layer crosses (top - z) / mu_s of fog:
-    its group's pass is e^(-sigma (top - z) / mu_s) - 1 (sun_layer.h), computed here from the
+    its group's pass is e^(-sigma (top - z) / mu_s) - 1 (sunlight_layer.h), computed here from the
     hit points; without a fog top the sun is unattenuated (pass 0)."""
     from airlight import bake
     scene = build_plane_scene(tmp_path, light=False)

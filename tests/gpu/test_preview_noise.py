@@ -1,6 +1,6 @@
 """Fog-object noise (Fogshop section 5.5) and per-Gaussian colours in the viewport preview.
 
-- test01: shaders/rbf_noise.glsl vs native/kernels/noise.h (`_native.gradient_noise3`) on
+- test01: shaders/rbf_noise.glsl vs native/core/noise.h (`_native.gradient_noise3`) on
   the same float32 points (negative, large, on and next to lattice points): the noise
   function itself, value by value.
 - test02: the preview (`preview.draw_fog` with noise on) vs `_native.bake` with the same

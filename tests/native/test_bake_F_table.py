@@ -6,7 +6,7 @@ import pytest
 import scene_floor as scene  # test_bake_passes.py's tiny floor scene
 
 # Worst per-ray airlight error against the exact-F path, measured over random rays in
-# native/kernels/sun05_nearest_test.cpp (AirlightErrorAgainstExactF), + 20 %.
+# native/homogeneous/sun05_nearest_test.cpp (AirlightErrorAgainstExactF), + 20 %.
 MAX_ERROR = {
     (64, "nearest"): 9.26e-2, (128, "nearest"): 4.31e-2, (256, "nearest"): 2.22e-2,
     (512, "nearest"): 1.16e-2, (64, "bilinear"): 8.36e-3, (256, "bilinear"): 1.30e-3,

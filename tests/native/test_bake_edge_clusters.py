@@ -173,7 +173,7 @@ def test04_reference_semantics_and_bad_values():
 
 def test05_gaussians_at_reduced_resolution():
     """At gaussian_resolution "quarter" the Gaussians in front of all the rays of one
-    evaluation chunk (rbf_splat.h eval_rays: 64 rays, 4 edge pixels' samples, or ~25 edge
+    evaluation chunk (splat.h eval_rays: 64 rays, 4 edge pixels' samples, or ~25 edge
     pixels' clusters) come from the lattice, the others are exact: which, depends on the
     chunk, so the two paths differ by the lattice's own error (here up to ~3e-3 of the
     airlight). Against the full-resolution per-sample bake the clustered path errs no more
@@ -192,7 +192,7 @@ def test05_gaussians_at_reduced_resolution():
     for key in ("airlight", "transmittance"):
         e_got, e_ref = err(got, key), err(ref, key)
         # (+ the clusters' own error, <= 1e-3 as in the other tests: near the lights the
-        # per-sample path is now nearly exact, rbf_splat.h's light criterion keeping the
+        # per-sample path is now nearly exact, splat.h's light criterion keeping the
         # Gaussians there off the lattice, so the slack must hold it)
         assert e_got.max() <= 1.1 * e_ref.max() + 1e-3, (key, e_got.max(), e_ref.max())
         assert e_got.mean() <= 1.1 * e_ref.mean() + 1e-4, (key, e_got.mean(), e_ref.mean())

@@ -1,7 +1,7 @@
 """Bakes with Gaussian fog (Fogshop) through the binding: the Transmittance pass against
 exp(-optical depth) summed here in numpy/scipy from eq. 31 (erf, independent of the C++),
 the Airlight pass against `RbfMedium.airlight(model="quadrature")` from the near point
-(the Fogshop approximation's thin-fog bound: mean 1 %, p99 3 %, rbf_airlight_test.cpp),
+(the Fogshop approximation's thin-fog bound: mean 1 %, p99 3 %, airlight_test.cpp),
 the "quadrature" model to 1e-6, no-Gaussians bit-identical, and bad rbf_* input."""
 import math
 

@@ -1,11 +1,11 @@
-"""Gaussian fog (Fogshop, rbf_splat.h RbfSplatLights) lit by sun lamps and spot lights and
+"""Gaussian fog (Fogshop, splat.h GaussianSplatLights) lit by sun lamps and spot lights and
 with any phase function:
 
-- the "quadrature" model with Gaussians (rbf_airlight_quadrature with RbfRefLight: exact
+- the "quadrature" model with Gaussians (rbf_airlight_quadrature with GaussianRefLight: exact
   optical depths, phase, spot profile, sun half-lines and the fog top) against an
   independent scipy integral of eq. 2 written out here (erf optical depths per Gaussian);
 - the Fogshop models (sun05, biri06, pegoraro10) against that quadrature model on thin
-  smooth Gaussians: the approximation's own error (thin-fog bound of rbf_airlight_test.cpp
+  smooth Gaussians: the approximation's own error (thin-fog bound of airlight_test.cpp
   and test_bake_gaussians.py: mean 1 %, p99 3 %), and on thick fog / hard spot cones
   reported with loose bounds (the approximation samples the phase, the spot profile and the
   light-side attenuation at b_i^r);
@@ -192,7 +192,7 @@ def test04_zero_power_sun_and_spot_keep_the_plain_path():
 
 
 def test05_sun_without_sunlight_in_the_layer():
-    """A sun shining upwards with a fog top: no sunlight reaches the layer (sun_layer.h);
+    """A sun shining upwards with a fog top: no sunlight reaches the layer (sunlight_layer.h);
     the Gaussians (below the top here) get none either: no airlight at all."""
     gauss = few_gaussians()
     out = bake(gauss, sun_directions=-SUN_W[None, :], sun_irradiances=np.ones((1, 3)), fog_top=5.0, **NO_POINTS)

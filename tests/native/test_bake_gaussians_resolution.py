@@ -1,5 +1,5 @@
 """Gaussian fog at reduced resolution (`gaussian_resolution="half"` / `"quarter"`,
-rbf_splat.h): on a scene whose depth edges cut through the fog (two walls standing
+splat.h): on a scene whose depth edges cut through the fog (two walls standing
 inside the cloud, a ground plane, the sky), the passes against the full-resolution bake
 and against the exact double per-ray path (`RbfMedium.airlight` + `optical_depth_ray`,
 Fogshop in double, independent of the splat); pixels on a depth edge equal the full
@@ -70,7 +70,7 @@ def test01_full_is_the_default_bit_for_bit(full):
         assert np.array_equal(plain[key], full[key])
 
 
-# Near the lights the lattice's own light-factor criterion decides (rbf_splat.h: a
+# Near the lights the lattice's own light-factor criterion decides (splat.h: a
 # Gaussian whose b^r stays 27 s pixels' angle x d from every light, per-Gaussian error
 # tau = 2.5e-4 / 1e-3) instead of a 64-pixel exact margin, which at 320 x 180 covered
 # much of the view: airlight mean 6.1e-5 / 2.1e-4 (was 2.9e-5 / 8.9e-5), max 8.9e-4 / 3.4e-3.
@@ -117,7 +117,7 @@ def wall_silhouettes(depth):
 def test03_depth_edge_pixels_against_full_resolution(full, res, tol):
     """Pixels straddling a wall's silhouette are supersampled at every resolution: per
     sub-sample, the Gaussians a sub-sample's segment cuts exactly, those wholly in front
-    of every sub-sample of a chunk from the lattice as for the centre samples (rbf_splat.h).
+    of every sub-sample of a chunk from the lattice as for the centre samples (splat.h).
     Their error against the full bake stays within the interpolation's elsewhere (test02's
     p99 bound): no depth-edge artefact (without supersampling, aa = 1, these pixels err by
     tens of percent: checked below so that the test can tell)."""
@@ -208,7 +208,7 @@ def test08_broad_gaussians_cut_by_the_surface():
     the walls cut: at reduced resolution their light side is interpolated where it does not
     depend on the depth (from the lattice where b^r lies before the surface, from a 4x4
     block's corner pixels where the surface lies before b^r and the block's surface is a
-    smooth patch, RbfSplat::cut_light_factor); against the full-resolution bake."""
+    smooth patch, GaussianSplat::cut_light_factor); against the full-resolution bake."""
     rng = np.random.default_rng(5)
     n = 20
     gauss = (np.column_stack([rng.uniform(-18, 18, n), rng.uniform(-2, 5, n), rng.uniform(-45, -8, n)]),

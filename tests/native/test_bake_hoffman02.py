@@ -1,4 +1,4 @@
-"""Model 'hoffman02' (Hoffman & Preetham 2002, bake_hoffman02.h): sun lamps in a Rayleigh +
+"""Model 'hoffman02' (Hoffman & Preetham 2002, hoffman02_model.cpp): sun lamps in a Rayleigh +
 Mie medium with per-channel extinction, per pixel against an independent scipy quadrature
 written out here (Rayleigh beta ~ (550 / lambda)^4 with lambda = 650 / 570 / 475 nm, HG Mie,
 fog below a layer top or HP's unattenuated sun), its per-channel transmittance, the limit

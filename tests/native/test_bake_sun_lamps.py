@@ -1,4 +1,4 @@
-"""Bakes with sun lamps (sun_layer.h) per pixel against an independent scipy quadrature of
+"""Bakes with sun lamps (sunlight_layer.h) per pixel against an independent scipy quadrature of
 the single-scattering integral written out here (fog below a layer top, or Hoffman &
 Preetham's unattenuated sun without one: reference_util.sun_layer_paths), any phase, the near plane, camera above the
 layer; the 'baseline' model against its definition; the argument checks."""

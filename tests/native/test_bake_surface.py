@@ -1,4 +1,4 @@
-"""Surface shading in the bake (Sun 2005 eq. 13-19; native/kernels/bake_surface.h): per-light
+"""Surface shading in the bake (Sun 2005 eq. 13-19; native/bake/surface_pass.h): per-light
 attenuation e^{-sigma_t |s - p|} and the Lambert glow albedo I0 sigma_t G(T, theta_s) /
 (2 pi^2 D) at the first hit, checked per pixel against values computed here from the depth
 pass and the scene (p, the floor normal, D, theta_s), with G by an independent scipy
@@ -166,7 +166,7 @@ def test09_sun_glow_in_a_layer_against_scipy():
     """A sun in a fog layer below fog_top, Henyey-Greenstein g = 0.5, the floor (normal +z) at
     optical depth tau = sigma (top - 0): Q = (1/pi) int_{w.z > 0} p(l.w) sigma G(w) w.z dw, with
     sigma G the path integral int_0^{tau/mu} e^{-t} e^{-(tau - mu t)/mu_s} dt done by scipy
-    here (sigma = 1 units). Table error <= 1e-2 of the glow (sun_layer_glow.cpp)."""
+    here (sigma = 1 units). Table error <= 1e-2 of the glow (sunlight_glow.cpp)."""
     top, g = 2.5, 0.5
     kw, R = _sun_scene(top, "hg", g)
     result = _native.bake(**kw)
@@ -198,7 +198,7 @@ def test10_sun_gloss_glow_against_scipy():
     """surface_phong_exponent = n with a sun in the layer: the glossy glow per unit glossy colour
     (n + 2)/(2 pi) int L_in(w) max(0, r.w)^n dw, r the view direction mirrored about the floor
     normal, L_in = albedo E p(l.w) sigma G(w) with sigma G the path integral done by scipy
-    (sigma = 1 units), in coordinates about r. Table error <= 2e-2 (sun_layer_glow.cpp)."""
+    (sigma = 1 units), in coordinates about r. Table error <= 2e-2 (sunlight_glow.cpp)."""
     top, g, n = 2.5, 0.5, 20.0
     kw, R = _sun_scene(top, "hg", g)
     result = _native.bake(**kw, surface_phong_exponent=n)

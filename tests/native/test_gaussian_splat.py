@@ -1,4 +1,4 @@
-"""Gaussian fog through the splat path of the bake (rbf_splat.h), via the binding:
+"""Gaussian fog through the splat path of the bake (splat.h), via the binding:
 `rbf_preview_factors` against optical depths summed here in numpy/scipy (eq. 31, no
 culling), per-Gaussian colour (`rbf_albedo`) and Fogshop noise (`noise_*`): off is
 bit-identical, on changes the image deterministically and within the line-integral bound;
@@ -206,7 +206,7 @@ def test08_incremental_stroke_in_a_spread_cloud():
 def test09_preview_factors_many_gaussians_lights_inside():
     """6000 small Gaussians with the lights and the eye inside the cloud: enough of both
     targets and candidates that rbf_preview_factors bins the Gaussians by direction around
-    each source (rbf_splat.h, rbf_depths_to_centres); a stroke of 300 more updates the old
+    each source (centre_depths.h, gaussian_depths_to_centres); a stroke of 300 more updates the old
     Gaussians per new candidate. Against numpy's unculled sums (eq. 31 with scipy's erf) on
     a sample of centres, within float rounding and the culling bound; incremental equals
     the call from scratch."""

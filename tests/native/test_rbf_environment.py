@@ -1,4 +1,4 @@
-"""Environment lighting in Gaussian fog (Fogshop section 4.2, rbf_environment.h): T(u) against
+"""Environment lighting in Gaussian fog (Fogshop section 4.2, environment.h): T(u) against
 scipy's Dawson function and a 2D quadrature of its definition, the average optical depth of a
 few Gaussians against a direct quadrature over directions and distances, the far field
 against brute force and its bound, and the per-pixel irradiance against the homogeneous one."""

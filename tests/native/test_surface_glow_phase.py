@@ -1,4 +1,4 @@
-"""Surface glow for any phase function (native/kernels/biri06_surface.h, bake_surface.h): the
+"""Surface glow for any phase function (native/surface/biri06_surface.h, surface_pass.h): the
 kernels against an independent scipy quadrature of Biri 2006's form (the in-scattered radiance
 along each incident ray in Biri's angle alpha, the azimuth integral of the clamped cosine done
 numerically), Biri's eq. 11 (exponent corrected) by scipy dblquad, and the bake per pixel for an

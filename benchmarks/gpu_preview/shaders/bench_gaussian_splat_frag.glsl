@@ -1,6 +1,6 @@
 // bench_gaussian_splat_frag.glsl (harness-local stand-in, see ../README.md): airlight
 // and optical depth of one Gaussian on one pixel's view ray (Fogshop eq. 10-13, 31; the
-// approximation of native/kernels/rbf_airlight.h), accumulated with additive blending:
+// approximation of native/gaussian/airlight.h), accumulated with additive blending:
 //   rgb += sum_l albedo I0_l f0(b_i^r) f1(l, i) T_i(v, p),   a += T_i(v, p)
 // T_i(p, q) = c_i sqrt(pi) / (2 a_i) exp(-a_i^2 h^2) [erf(a_i (L - t*)) - erf(-a_i t*)].
 // f1 (the attenuation by everything else along s -> b_i -> v) comes per (light,

@@ -1,6 +1,6 @@
 // bench_gaussian_splat_vert.glsl (harness-local stand-in, see ../README.md): one
 // instanced quad per Gaussian (gl_InstanceID), covering the screen bounds of its cull
-// sphere (centre b_i, radius R_i = sqrt(ln(c_i sqrt(pi) / (a_i eps))) / a_i, rbf_medium.h);
+// sphere (centre b_i, radius R_i = sqrt(ln(c_i sqrt(pi) / (a_i eps))) / a_i, medium.h);
 // the whole screen when the sphere holds the eye or reaches the near plane.
 //   in:  vec2 pos (quad corner, 0..1)
 //   out: flat int gid (the Gaussian)
