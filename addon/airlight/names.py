@@ -29,6 +29,15 @@ SUPPORTED_LIGHT_TYPES = {'POINT', 'SPOT', 'SUN', 'AREA'}
 # Cycles' area light: a one-sided Lambert emitter whose radiant intensity is C P / 4 cos(theta)
 # about its -Z (kernel/light/area.h: radiance P / (4 A)).
 AREA_INTENSITY = 0.25
+# An area light bakes as spot samples on a grid of cells of about AREA_CELL m, 1 to
+# AREA_MAX_PER_AXIS per side (scene_export.area_samples).
+AREA_CELL = 0.5
+AREA_MAX_PER_AXIS = 4
+
+
+def area_grid(size_x, size_y):
+    """(kx, ky): an area light's samples per side for its sizes along X and Y (m)."""
+    return tuple(int(min(AREA_MAX_PER_AXIS, max(1, round(abs(float(s)) / AREA_CELL)))) for s in (size_x, size_y))
 
 
 def is_isotropic(settings):

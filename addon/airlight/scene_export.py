@@ -16,7 +16,7 @@ import math
 import numpy as np
 
 from . import model_choice, scene_description
-from .names import AREA_INTENSITY, SUPPORTED_LIGHT_TYPES
+from .names import AREA_INTENSITY, SUPPORTED_LIGHT_TYPES, area_grid
 from .scene_description import ExportError
 
 
@@ -29,9 +29,8 @@ def _baked(light, plan):
 
 
 # An area light (names.AREA_INTENSITY) bakes as spots of 180 degrees without blend (profile
-# cos(theta), spot_light.h) spread over its surface, each carrying 1 / n of the intensity.
-AREA_CELL = 0.5   # m: the samples' spacing along each side, 1 to AREA_MAX_PER_AXIS per side
-AREA_MAX_PER_AXIS = 4
+# cos(theta), spot_light.h) spread over its surface (names.area_grid), each carrying 1 / n of
+# the intensity.
 
 
 def area_supported(light):
@@ -44,8 +43,7 @@ def area_samples(light):
     centres of kx x ky equal cells over the rectangle, or those cells mapped to the ellipse
     by the concentric map (Shirley-Chiu, equal areas) for disks and ellipses."""
     sx, sy = (abs(float(s)) for s in light.area_size)
-    kx = int(min(AREA_MAX_PER_AXIS, max(1, round(sx / AREA_CELL))))
-    ky = int(min(AREA_MAX_PER_AXIS, max(1, round(sy / AREA_CELL))))
+    kx, ky = area_grid(sx, sy)
     u = (np.arange(kx) + 0.5) / kx * 2.0 - 1.0
     v = (np.arange(ky) + 0.5) / ky * 2.0 - 1.0
     U, V = (a.ravel() for a in np.meshgrid(u, v))

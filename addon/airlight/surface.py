@@ -35,7 +35,7 @@ import numpy as np
 
 from . import visibility
 # PASS_GLOSS: glossy glow per unit Glossy Color (scene.airlight.surface_gloss > 0).
-from .names import GROUP_PREFIX, PASS_GLOSS, PASS_GLOW, PASS_PREFIX, WORLD_GROUP, is_isotropic
+from .names import GROUP_PREFIX, PASS_GLOSS, PASS_GLOW, PASS_PREFIX, WORLD_GROUP, area_grid, is_isotropic
 
 SURFACE_LIGHT_TYPES = ('POINT', 'SPOT', 'SUN', 'AREA')  # lights the bake's surface pass attenuates
 
@@ -200,10 +200,9 @@ def ensure_passes(scene, depsgraph):
 
 def area_sample_count(light):
     """The number of spots an area light bakes as (scene_export.area_samples)."""
-    from .scene_export import AREA_CELL, AREA_MAX_PER_AXIS
     square = light.shape in ('SQUARE', 'DISK')
-    sizes = (light.size, light.size if square else light.size_y)
-    return int(np.prod([min(AREA_MAX_PER_AXIS, max(1, round(abs(s) / AREA_CELL))) for s in sizes]))
+    kx, ky = area_grid(light.size, light.size if square else light.size_y)
+    return kx * ky
 
 
 def pass_arrays(result, groups):
