@@ -316,12 +316,15 @@ py::dict bake_py(int width, int height, const py::object& cam_to_world, const py
 
 void write_exr_py(const std::string& path, const py::dict& passes, const std::string& layer_prefix, bool half) {
     // Convert every pass to contiguous float32 (H, W, 3), all of one size.
+    require_no_nul(path, "write_exr: path");
+    require_no_nul(layer_prefix, "write_exr: layer_prefix");
     if (passes.size() == 0) throw py::value_error("write_exr: passes is empty");
     std::vector<std::string> names;
     std::vector<CArray<float>> arrays;
     py::ssize_t H = -1, W = -1;
     for (const auto& item : passes) {
         std::string name = py::str(item.first);
+        require_no_nul(name, "write_exr: pass name");
         auto a = as_array<float>(item.second, ("pass '" + name + "'").c_str());
         if (a.ndim() != 3 || a.shape(2) != 3)
             throw py::value_error("write_exr: pass '" + name + "' must have shape (H, W, 3), got " + shape_str(a));
@@ -470,7 +473,8 @@ ValueError on invalid input. The GIL is released while baking.)doc");
 to nearest, relative error <= 2^-11 from 6.1e-5 up, a quarter to a third of the file).
 
 passes: dict name -> (H, W, 3) float32 array (top row first); channels are named
-"<layer_prefix><name>.R/G/B" in dict order. Raises RuntimeError on I/O failure.)doc");
+"<layer_prefix><name>.R/G/B" in dict order. Raises RuntimeError on I/O failure, ValueError
+on a path, prefix or pass name with a NUL byte in it (it would be cut there).)doc");
 }
 
 }  // namespace airlight::bindings
