@@ -7,6 +7,7 @@
 #include <string>
 
 #include "core/constants.h"
+#include "core/parallel.h"
 #include "gaussian/splat.h"
 #include "models/registry.h"
 
@@ -115,7 +116,7 @@ void validate(const SceneDescription& scene, const BakeSettings& settings) {
     for (uint32_t index : mesh.triangles)
         require(index < n_vertices, "triangle index " + std::to_string(index) +
                                         " out of range (vertex count " + std::to_string(n_vertices) + ")");
-    require(settings.threads >= 0, "threads must be >= 0 (0: all hardware threads)");
+    require(settings.threads >= 0 && settings.threads <= kMaxThreads, thread_count_error(settings.threads));
     require(settings.aa_samples >= 1 && settings.aa_samples <= 64, "aa_samples must be in [1, 64]");
     require(std::isfinite(settings.filter_width) && settings.filter_width >= 0.0,
             "filter_width must be finite and >= 0");

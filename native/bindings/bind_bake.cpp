@@ -382,7 +382,8 @@ model: "sun05", "sun05_exact", "quadrature", "biri06" or "baseline" (see models(
   "quadrature" (phase-aware reference) take any phase. "baseline": constant-colour fog
   C (1 - transmittance), C per channel least-squares fitted to the sun05 (biri06 for an
   anisotropic phase) airlight of the same view: the bar every model must beat.
-threads: worker threads (0: all). aa_samples: per-axis samples on edge pixels;
+threads: worker threads in [0, 1024] (0: all hardware threads; ValueError outside).
+aa_samples: per-axis samples on edge pixels;
 filter_width: Blackman-Harris film filter width in pixels (Cycles' default 1.5).
 clip_start, clip_end: the camera's clip range (view-axis depths, camera.data.clip_start
   / clip_end) as Cycles applies it: fog from the near plane on, surfaces beyond

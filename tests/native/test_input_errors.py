@@ -100,3 +100,16 @@ def test06_complex_e1_refuses_what_is_not_a_number():
         with pytest.raises(TypeError, match="z: expected real or complex numbers"):
             _native.complex_e1(z)
     assert _native.complex_e1(1.0) == pytest.approx(0.21938393439552027)  # real input still fine
+
+
+@pytest.mark.parametrize("threads", [-1, 1025, 100000])
+def test07_thread_counts_outside_0_to_1024_are_refused(threads):
+    with pytest.raises(ValueError, match=r"threads must be in \[0, 1024\]"):
+        _native.bake(**args(threads=threads))
+    medium = _native.RbfMedium([[0.0, 0.0, 0.0]], [1.0], [1.0])
+    with pytest.raises(ValueError, match=r"threads must be in \[0, 1024\]"):
+        medium.optical_depth([[0.0, 0.0, -1.0]], [[0.0, 0.0, 1.0]], threads=threads)
+
+
+def test08_threads_at_the_limit_bake():
+    _native.bake(**args(threads=1024))
