@@ -7,6 +7,7 @@
 #include <string>
 
 #include "core/constants.h"
+#include "core/memory.h"
 #include "core/parallel.h"
 #include "gaussian/splat.h"
 #include "models/registry.h"
@@ -127,6 +128,21 @@ void validate(const SceneDescription& scene, const BakeSettings& settings) {
                 settings.table_nT <= 16384,
             "table size must be in [2, 16384] per axis");
     // The camera matrices are checked by CameraRays (finite, invertible).
+    const std::string size = std::to_string(cam.width) + " x " + std::to_string(cam.height);
+    const std::string shortfall = memory_shortfall(
+        bake_image_bytes(scene, settings), "the bake of " + size + " pixels",
+        settings.surface ? "lower the resolution or bake a render region, or turn surface shading off"
+                         : "lower the resolution or bake a render region");
+    require(shortfall.empty(), shortfall);
+}
+
+double bake_image_bytes(const SceneDescription& scene, const BakeSettings& settings) {
+    double floats = 9.0;
+    if (settings.surface) {
+        const size_t lights = scene.point_lights.size() + scene.spot_lights.size() + scene.sun_lights.size();
+        floats += 3.0 * double(lights) + 6.0 + (settings.surface_phong_exponent > 0.0 ? 3.0 : 0.0);
+    }
+    return floats * sizeof(float) * double(scene.camera.width) * double(scene.camera.height);
 }
 
 }  // namespace airlight

@@ -4,6 +4,7 @@
 #include <string>
 
 #include "bake/bake.h"
+#include "core/memory.h"
 #include "image/exr_io.h"
 #include "models/registry.h"
 #include "core/phase.h"
@@ -468,6 +469,16 @@ supersampling's time summed over the worker threads, seconds_bin: fog objects' b
 tiles and far-field grids, seconds_fog_setup: building the fog model between the raycast
 and the airlight pass)); rows top first. Raises
 ValueError on invalid input. The GIL is released while baking.)doc");
+
+    m.def(
+        "available_memory",
+        [] {
+            const size_t bytes = available_memory_bytes();
+            return bytes == SIZE_MAX ? std::numeric_limits<double>::infinity() : double(bytes);
+        },
+        R"doc(Bytes of memory this process can still take (MemAvailable, or less where a cgroup
+caps it; inf when unknown): what bake() and write_exr() check their images against before
+allocating them (ValueError / RuntimeError naming both sizes when they would not fit).)doc");
 
     m.def("write_exr", &write_exr_py, "path"_a, "passes"_a, "layer_prefix"_a = "", "half"_a = false,
           R"doc(Write one multilayer EXR (32-bit float; half=True: 16-bit half floats, rounded

@@ -113,3 +113,14 @@ def test07_thread_counts_outside_0_to_1024_are_refused(threads):
 
 def test08_threads_at_the_limit_bake():
     _native.bake(**args(threads=1024))
+
+
+def test09_bake_larger_than_memory_is_refused_before_allocating():
+    """32768 x 32768 with surface shading for 64 lights would take ~890 GB of images: refused
+    with the estimate and the memory available, before any allocation (it used to run until
+    the machine swapped or the process was killed)."""
+    lights = dict(light_positions=[[0.0, 1.0, -1.0]] * 64, light_intensities=[[1.0, 1.0, 1.0]] * 64)
+    assert 0.0 < _native.available_memory() < 890e9
+    with pytest.raises(ValueError, match=r"the bake of 32768 x 32768 pixels needs about 889\.\d GB but only "
+                                         r"[\d.]+ [GM]B of memory is available"):
+        _native.bake(**args(width=32768, height=32768, surface=True, **lights))
