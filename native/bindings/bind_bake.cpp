@@ -380,7 +380,8 @@ phase: the medium's phase function, "isotropic" (default), "hg" (Henyey-Greenste
 model: "sun05", "sun05_exact", "quadrature", "biri06" or "baseline" (see models()). The Sun 2005
   models are isotropic only: with an anisotropic phase (anything but "isotropic" or "hg"
   with g = 0) they raise ValueError; "biri06" (Gamma table of the phase) and
-  "quadrature" (phase-aware reference) take any phase. "baseline": constant-colour fog
+  "quadrature" (phase-aware reference) take any phase (biri06: HG g >= -0.99, a sharper
+  backward lobe is refused; forward lobes up to g < 1). "baseline": constant-colour fog
   C (1 - transmittance), C per channel least-squares fitted to the sun05 (biri06 for an
   anisotropic phase) airlight of the same view: the bar every model must beat.
 threads: worker threads in [0, 1024] (0: all hardware threads; ValueError outside).

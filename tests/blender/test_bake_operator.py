@@ -162,3 +162,19 @@ def test11_bake_larger_than_memory_is_refused_before_allocating(tmp_path):
                                            r"is available; lower the resolution"):
         bpy.ops.airlight.bake(filepath=str(path))
     assert not os.path.exists(path)
+
+
+def test12_anisotropy_past_its_range_through_the_raw_property_is_refused(tmp_path):
+    """scene.airlight["anisotropy"] (the raw ID property) skips the property's [-0.99, 0.99]:
+    the bake refuses such a g with the range (it went on to the models: the Biri 2006 table
+    build for |g| >= 0.998 never finished), and the range's ends still bake."""
+    scene = build_plane_scene(tmp_path, size=(32, 24))
+    scene.airlight.phase = 'HENYEY_GREENSTEIN'
+    scene.airlight["anisotropy"] = 0.999
+    assert scene.airlight.anisotropy == pytest.approx(0.999)
+    with pytest.raises(RuntimeError, match=r"anisotropy must be a finite number in \[-0\.99, 0\.99\] \(got 0\.999\)"):
+        bpy.ops.airlight.bake(filepath=str(tmp_path / "x.exr"))
+    assert not os.path.exists(tmp_path / "x.exr")
+    for g in (-0.99, 0.99):
+        scene.airlight.anisotropy = g
+        assert exr_pass(_bake(tmp_path / f"g{g}.exr"), "Airlight").max() > 0.0
