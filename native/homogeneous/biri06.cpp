@@ -51,6 +51,7 @@
 #include <stdexcept>
 #include <tuple>
 
+#include "core/build_progress.h"
 #include "core/quadrature.h"
 #include "homogeneous/sun05.h"
 
@@ -234,6 +235,7 @@ Biri06Table::Biri06Table(const PhaseFunction& phase, int nl, int nT)
             theta_prev = theta;
             row[j] = static_cast<float>(G * (K_ + lambda) / w);
         }
+        build_progress_check();  // progress and cancel of the bake building it
     }
 }
 

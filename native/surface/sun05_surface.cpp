@@ -32,6 +32,7 @@
 // The exact evaluator agrees with the brute-force single-scattering integral
 // (sun05_surface_glow_reference) to ~1e-11.
 #include "surface/sun05_surface.h"
+#include "core/build_progress.h"
 #include "core/parallel.h"
 #include "core/constants.h"
 
@@ -139,8 +140,10 @@ SurfaceGGrid::SurfaceGGrid(int nT, int ntheta, double m, int threads,
       H_scaled_(H_scaled) {
     if (nT < 2 || ntheta < 2) throw std::invalid_argument("surface G table: need at least 2 x 2 samples");
     data_.assign(size_t(nT) * size_t(ntheta), 0.0);
-    parallel_for(nT, resolve_threads(threads),
-                 [&](int i) { integrate_row(row_T(i, nT), &data_[size_t(i) * ntheta]); });
+    parallel_for(nT, resolve_threads(threads), [&](int i) {
+        integrate_row(row_T(i, nT), &data_[size_t(i) * ntheta]);
+        build_progress_check();  // progress and cancel of the bake building it
+    });
 }
 
 void SurfaceGGrid::integrate_row(double T, double* out) const {
