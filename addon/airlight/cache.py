@@ -67,6 +67,14 @@ def neutral_path(scene, width, height, extra_names=()):
     suffix = f"_{zlib.crc32(chr(0).join(extra_names).encode()):08x}" if extra_names else ""
     filepath = os.path.join(cache_dir(scene), f"fog_neutral_{width}x{height}{suffix}.exr")
     if not os.path.exists(filepath):
+        # The ones and the writer's interleaved copy of every pass take memory (the zeros stay
+        # unmapped pages): refuse before allocating what the machine does not have.
+        needed = 4.0 * 3 * width * height * (1 + 2 + len(extra_names))
+        available = native.get().available_memory()
+        if needed > available:
+            raise CacheError(f"The neutral fog passes for {width} x {height} pixels need about "
+                             f"{needed / 1e9:.1f} GB but only {available / 1e9:.1f} GB of memory is "
+                             "available; lower the resolution")
         zeros = np.zeros((height, width, 3), np.float32)
         write_passes(filepath, zeros, np.ones((height, width, 3), np.float32),
                      {name: zeros for name in extra_names})

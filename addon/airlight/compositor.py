@@ -465,11 +465,57 @@ def neutral_passes(scene, depsgraph=None):
         return None
 
 
-def _mute(scene, tree):
-    muted = not scene.airlight.enabled
+def _mute(scene, tree, muted=None):
+    """Mutes the fog nodes (the image then passes through them unchanged) when the fog is
+    off, or as _muted_ says."""
+    muted = not scene.airlight.enabled if muted is None else muted
     for node in _fog_nodes(tree)[1:] + _surface_nodes(tree) + _alpha_nodes(tree):
         if node is not None and node.mute != muted:
             node.mute = muted
+
+
+# Saved files hold the fog nodes muted, and the frame says why: a machine without the add-on
+# (a render farm worker it was not installed on) has no cache file for the Image node, whose
+# missing image composited as magenta over every frame while Blender exited 0. There the
+# render now passes through the muted nodes unfogged. With the add-on, load_post (render.py)
+# and save_post un-mute them again, before any render starts: a render composites with the
+# node tree as it was before its render_pre handler (checked in Blender 3.4), so un-muting
+# there would come too late.
+SAVED_LABEL = FRAME + " (muted in the file: the add-on enables it)"  # (labels: 63 characters)
+_muted_for_save = []
+
+
+@persistent
+def on_save_pre(*_):
+    _muted_for_save.clear()
+    for scene in bpy.data.scenes:
+        if getattr(scene, "airlight", None) is None or not is_set_up(scene):
+            continue
+        tree = scene.node_tree
+        _mute(scene, tree, muted=True)
+        frame = tree.nodes.get(FRAME)
+        if frame is not None:
+            frame.label = SAVED_LABEL
+        _muted_for_save.append(scene.name)
+
+
+@persistent
+def on_save_post(*_):
+    for name in _muted_for_save:
+        scene = bpy.data.scenes.get(name)
+        if scene is not None and is_set_up(scene):
+            unmute_loaded(scene)
+    _muted_for_save.clear()
+
+
+def unmute_loaded(scene):
+    """Gives a scene's fog nodes, muted as saved (on_save_pre), their state in this session:
+    on when the fog is, and the frame its label."""
+    tree = scene.node_tree
+    frame = tree.nodes.get(FRAME)
+    if frame is not None and frame.label != FRAME:
+        frame.label = FRAME
+    _mute(scene, tree)
 
 
 def sync(scene, filepath=None):
@@ -532,11 +578,20 @@ def on_depsgraph_update_post(scene, depsgraph):
         print(f"Airlight: cannot update the compositor's fog nodes: {ex}", flush=True)
 
 
+_HANDLERS = (
+    (bpy.app.handlers.depsgraph_update_post, on_depsgraph_update_post),
+    (bpy.app.handlers.save_pre, on_save_pre),
+    (bpy.app.handlers.save_post, on_save_post),
+)
+
+
 def register():
-    if on_depsgraph_update_post not in bpy.app.handlers.depsgraph_update_post:
-        bpy.app.handlers.depsgraph_update_post.append(on_depsgraph_update_post)
+    for handlers, function in _HANDLERS:
+        if function not in handlers:
+            handlers.append(function)
 
 
 def unregister():
-    while on_depsgraph_update_post in bpy.app.handlers.depsgraph_update_post:
-        bpy.app.handlers.depsgraph_update_post.remove(on_depsgraph_update_post)
+    for handlers, function in _HANDLERS:
+        while function in handlers:
+            handlers.remove(function)

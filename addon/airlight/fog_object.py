@@ -47,8 +47,13 @@ class AirlightFogObjectSettings(bpy.types.PropertyGroup):
 
 
 def is_fog_object(obj):
-    return (obj is not None and obj.type == 'MESH'
-            and getattr(getattr(obj, "airlight_fog", None), "is_fog", False))
+    """Whether _obj_ (original or evaluated) is marked as a fog object. The mark is read
+    from the original: add-on properties do not tag the depsgraph, so an evaluated copy
+    keeps the value it had when it was last evaluated (a script that sets is_fog after the
+    depsgraph evaluated the mesh would bake without it)."""
+    if obj is None or obj.type != 'MESH':
+        return False
+    return bool(getattr(getattr(obj.original, "airlight_fog", None), "is_fog", False))
 
 
 def edit_problem(obj):

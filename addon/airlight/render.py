@@ -158,15 +158,18 @@ def _bake_for_render(scene, get_depsgraph, get_mesh_overrides=lambda: None, eval
 
 @persistent
 def on_load_post(*_):
-    """Completes the fog nodes of loaded scenes before anything renders, and for the
-    window's scene the surface shading's light groups (a file saved before a light was
-    added, or without the add-on).
+    """Un-mutes the fog nodes of loaded scenes whose fog is on (files hold them muted, so
+    that a machine without the add-on renders them unfogged: compositor.on_save_pre), and
+    completes them before anything renders, and for the window's scene the surface
+    shading's light groups (a file saved before a light was added, or without the add-on).
 
     A render composites with the node links as they were when it started (before
     render_pre), so the pass links must already exist then (checked in Blender 3.4).
     """
     for scene in bpy.data.scenes:
         settings = getattr(scene, "airlight", None)
+        if settings is not None and compositor.is_set_up(scene):
+            compositor.unmute_loaded(scene)  # saved muted (compositor.on_save_pre)
         if settings is None or not (settings.enabled and settings.auto_composite):
             continue
         try:

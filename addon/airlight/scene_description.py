@@ -457,8 +457,12 @@ def export_phase(scene):
     with Anisotropy 0, else the phase name and HG's g (Blender's sign, > 0 forward)."""
     settings = scene.airlight
     g = float(settings.anisotropy)
-    if not (math.isfinite(g) and abs(g) < 1.0):
-        raise ExportError(f"Fog anisotropy must be a finite number in (-1, 1) (got {g}).")
+    # The Anisotropy property's own range (a script can go past it through the raw ID
+    # property, scene.airlight["anisotropy"]): the range the models are measured over.
+    rna = settings.bl_rna.properties["anisotropy"]
+    if not (math.isfinite(g) and rna.hard_min <= g <= rna.hard_max):
+        raise ExportError(f"Fog anisotropy must be a finite number in [{rna.hard_min:g}, {rna.hard_max:g}] "
+                          f"(got {g:g}).")
     return native_phase(settings)
 
 

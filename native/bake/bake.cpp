@@ -11,12 +11,27 @@
 #include "bake/glow_shadow.h"
 #include "bake/surface_pass.h"
 #include "bake/validate.h"
+#include "core/build_progress.h"
 #include "models/registry.h"
 
 namespace airlight {
 
-BakeResult bake(const SceneDescription& scene, const BakeSettings& settings, const ProgressFn& progress) {
+BakeResult bake(const SceneDescription& scene, const BakeSettings& settings, const ProgressFn& user_progress) {
     validate(scene, settings);
+    // The fraction last reported; the tables built inside the bake (the model's at the end
+    // of the raycast, the surface pass's) report it again while they build (a 4096^2 table
+    // takes seconds), so the bar stays alive and a cancel stops the build
+    // (core/build_progress.h).
+    double reported = 0.0;
+    ProgressFn progress;
+    if (user_progress)
+        progress = [&user_progress, &reported](double fraction) {
+            reported = fraction;
+            return user_progress(fraction);
+        };
+    const BuildProgressScope table_builds([&] {
+        if (progress && !progress(reported)) throw Cancelled();
+    });
     const ModelEntry& model_entry_ = model_entry(settings.model);
     if (model_entry_.bake) return model_entry_.bake(scene, settings, progress);  // whole-image models
 

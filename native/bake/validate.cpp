@@ -2,12 +2,16 @@
 #include "bake/validate.h"
 
 #include <cmath>
+#include <cstdio>
 #include <limits>
 #include <stdexcept>
 #include <string>
 
 #include "core/constants.h"
+#include "core/memory.h"
+#include "core/parallel.h"
 #include "gaussian/splat.h"
+#include "image/camera.h"
 #include "models/registry.h"
 
 namespace airlight {
@@ -37,6 +41,35 @@ void validate_suns(const SceneDescription& scene) {
     }
     require(!std::isnan(scene.fog_top) && scene.fog_top != -std::numeric_limits<double>::infinity(),
             "fog_top must be a finite height or +inf (no top), got " + std::to_string(scene.fog_top));
+}
+
+// How close to the eye a light counts as at it: the models regularise the light's distance
+// below this (sun05, biri06: D_sv >= 1e-6) and disagree there.
+constexpr double kAtEyeDistance = 1e-6;
+
+// A point or spot light at the eye of a perspective camera whose fog starts at the eye
+// (clip_start = 0): along every ray the single scattering sigma_s p I0 e^{-2 sigma_t x} / x^2
+// diverges like 1/x at x = 0, so every pixel's airlight is infinite. Refused, naming the light
+// (Blender's cameras always start the fog at their Clip Start, where it is finite).
+void validate_lights_at_eye(const SceneDescription& scene) {
+    if (!(scene.medium.sigma_t > 0.0) && scene.gaussians.empty()) return;
+    const CameraRays rays(scene.camera);
+    if (rays.orthographic() || rays.clip_start() > 0.0) return;
+    const Vec3 eye = rays.position();
+    auto check = [&](const Vec3& position, const RGB& I0, const std::string& name) {
+        const double d = glm::length(position - eye);
+        if (d >= kAtEyeDistance || (I0.x == 0.0 && I0.y == 0.0 && I0.z == 0.0)) return;
+        char distance[32];
+        std::snprintf(distance, sizeof distance, "%.3g", d);
+        throw std::invalid_argument(
+            name + " is at the camera (" + distance + " m from the eye) and the fog starts at the eye "
+            "(clip_start = 0): the light it scatters back diverges (the integral of 1/x^2 from the eye) on every "
+            "pixel; move the light off the camera, or set clip_start > 0 (the fog then starts there, as in Cycles)");
+    };
+    for (size_t i = 0; i < scene.point_lights.size(); ++i)
+        check(scene.point_lights[i].position, scene.point_lights[i].I0, "light " + std::to_string(i));
+    for (size_t i = 0; i < scene.spot_lights.size(); ++i)
+        check(scene.spot_lights[i].position, scene.spot_lights[i].I0, "spot light " + std::to_string(i));
 }
 
 }  // namespace
@@ -115,7 +148,7 @@ void validate(const SceneDescription& scene, const BakeSettings& settings) {
     for (uint32_t index : mesh.triangles)
         require(index < n_vertices, "triangle index " + std::to_string(index) +
                                         " out of range (vertex count " + std::to_string(n_vertices) + ")");
-    require(settings.threads >= 0, "threads must be >= 0 (0: all hardware threads)");
+    require(settings.threads >= 0 && settings.threads <= kMaxThreads, thread_count_error(settings.threads));
     require(settings.aa_samples >= 1 && settings.aa_samples <= 64, "aa_samples must be in [1, 64]");
     require(std::isfinite(settings.filter_width) && settings.filter_width >= 0.0,
             "filter_width must be finite and >= 0");
@@ -125,7 +158,24 @@ void validate(const SceneDescription& scene, const BakeSettings& settings) {
     require(settings.table_nu >= 2 && settings.table_nT >= 2 && settings.table_nu <= 16384 &&
                 settings.table_nT <= 16384,
             "table size must be in [2, 16384] per axis");
-    // The camera matrices are checked by CameraRays (finite, invertible).
+    // The camera matrices are checked by CameraRays (finite, invertible), here for the
+    // lights at the eye.
+    validate_lights_at_eye(scene);
+    const std::string size = std::to_string(cam.width) + " x " + std::to_string(cam.height);
+    const std::string shortfall = memory_shortfall(
+        bake_image_bytes(scene, settings), "the bake of " + size + " pixels",
+        settings.surface ? "lower the resolution or bake a render region, or turn surface shading off"
+                         : "lower the resolution or bake a render region");
+    require(shortfall.empty(), shortfall);
+}
+
+double bake_image_bytes(const SceneDescription& scene, const BakeSettings& settings) {
+    double floats = 9.0;
+    if (settings.surface) {
+        const size_t lights = scene.point_lights.size() + scene.spot_lights.size() + scene.sun_lights.size();
+        floats += 3.0 * double(lights) + 6.0 + (settings.surface_phong_exponent > 0.0 ? 3.0 : 0.0);
+    }
+    return floats * sizeof(float) * double(scene.camera.width) * double(scene.camera.height);
 }
 
 }  // namespace airlight

@@ -4,6 +4,7 @@
 #include <string>
 
 #include "bake/bake.h"
+#include "core/memory.h"
 #include "image/exr_io.h"
 #include "models/registry.h"
 #include "core/phase.h"
@@ -317,12 +318,15 @@ py::dict bake_py(int width, int height, const py::object& cam_to_world, const py
 void write_exr_py(const std::string& path, const py::dict& passes, const std::string& layer_prefix, bool half,
                   const std::string& compression) {
     // Convert every pass to contiguous float32 (H, W, 3), all of one size.
+    require_no_nul(path, "write_exr: path");
+    require_no_nul(layer_prefix, "write_exr: layer_prefix");
     if (passes.size() == 0) throw py::value_error("write_exr: passes is empty");
     std::vector<std::string> names;
     std::vector<CArray<float>> arrays;
     py::ssize_t H = -1, W = -1;
     for (const auto& item : passes) {
         std::string name = py::str(item.first);
+        require_no_nul(name, "write_exr: pass name");
         auto a = as_array<float>(item.second, ("pass '" + name + "'").c_str());
         if (a.ndim() != 3 || a.shape(2) != 3)
             throw py::value_error("write_exr: pass '" + name + "' must have shape (H, W, 3), got " + shape_str(a));
@@ -377,10 +381,12 @@ phase: the medium's phase function, "isotropic" (default), "hg" (Henyey-Greenste
 model: "sun05", "sun05_exact", "quadrature", "biri06" or "baseline" (see models()). The Sun 2005
   models are isotropic only: with an anisotropic phase (anything but "isotropic" or "hg"
   with g = 0) they raise ValueError; "biri06" (Gamma table of the phase) and
-  "quadrature" (phase-aware reference) take any phase. "baseline": constant-colour fog
+  "quadrature" (phase-aware reference) take any phase (biri06: HG g >= -0.99, a sharper
+  backward lobe is refused; forward lobes up to g < 1). "baseline": constant-colour fog
   C (1 - transmittance), C per channel least-squares fitted to the sun05 (biri06 for an
   anisotropic phase) airlight of the same view: the bar every model must beat.
-threads: worker threads (0: all). aa_samples: per-axis samples on edge pixels;
+threads: worker threads in [0, 1024] (0: all hardware threads; ValueError outside).
+aa_samples: per-axis samples on edge pixels;
 filter_width: Blackman-Harris film filter width in pixels (Cycles' default 1.5).
 clip_start, clip_end: the camera's clip range (view-axis depths, camera.data.clip_start
   / clip_end) as Cycles applies it: fog from the near plane on, surfaces beyond
@@ -469,6 +475,16 @@ tiles and far-field grids, seconds_fog_setup: building the fog model between the
 and the airlight pass)); rows top first. Raises
 ValueError on invalid input. The GIL is released while baking.)doc");
 
+    m.def(
+        "available_memory",
+        [] {
+            const size_t bytes = available_memory_bytes();
+            return bytes == SIZE_MAX ? std::numeric_limits<double>::infinity() : double(bytes);
+        },
+        R"doc(Bytes of memory this process can still take (MemAvailable, or less where a cgroup
+caps it; inf when unknown): what bake() and write_exr() check their images against before
+allocating them (ValueError / RuntimeError naming both sizes when they would not fit).)doc");
+
     m.def("write_exr", &write_exr_py, "path"_a, "passes"_a, "layer_prefix"_a = "", "half"_a = false,
           "compression"_a = "auto",
           R"doc(Write one multilayer EXR (32-bit float; half=True: 16-bit half floats, rounded
@@ -478,7 +494,8 @@ compression: "auto" (PIZ for floats, ZIP for halves: benchmarks/bench_exr.py), o
 lossy for floats); OpenEXR compresses on every hardware thread.
 
 passes: dict name -> (H, W, 3) float32 array (top row first); channels are named
-"<layer_prefix><name>.R/G/B" in dict order. Raises RuntimeError on I/O failure.)doc");
+"<layer_prefix><name>.R/G/B" in dict order. Raises RuntimeError on I/O failure, ValueError
+on a path, prefix or pass name with a NUL byte in it (it would be cut there).)doc");
 }
 
 }  // namespace airlight::bindings

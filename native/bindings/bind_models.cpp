@@ -148,7 +148,8 @@ per unit I0 and albedo (same arguments as sun05_airlight; broadcast arrays; Dvp 
 
 exact=False: the 256 x 256 Gamma table of that phase (per g for HG, built on first use,
 ~40 ms, cached), falling back to the exact difference where the lookup would cancel;
-exact=True: the exact Gamma difference by adaptive quadrature. Multiply by albedo * I0.)doc");
+exact=True: the exact Gamma difference by adaptive quadrature. Multiply by albedo * I0.
+The table path refuses HG g < -0.99 (ValueError; the "quadrature" model takes it).)doc");
 
     m.def(
         "airlight_quadrature",
@@ -201,7 +202,8 @@ Returns dict(F_ex=(..., 3), L_in=(..., 3)); composite L = L0 * F_ex + L_in.)doc"
 shared instance): dict(data=(nl, nT) float32 array of Q(s, w), nl, nT, K, k, phase, g).
 Rows i over s = sqrt(lambda / (lambda + k)), columns j over w = tau / (1 + tau),
 tau = T (K + lambda); G(lambda, T) = Q w / (K + lambda) by bilinear interpolation
-(native/homogeneous/biri06.cpp). ValueError on an unknown phase, |g| >= 1 or bad sizes.)doc");
+(native/homogeneous/biri06.cpp). ValueError on an unknown phase, |g| >= 1, HG g < -0.99 (a
+backward lobe sharper than the table resolves) or bad sizes.)doc");
 }
 
 }  // namespace airlight::bindings

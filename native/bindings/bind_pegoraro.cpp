@@ -98,7 +98,15 @@ void bind_pegoraro(py::module_& m) {
     m.def(
         "complex_e1",
         [](const py::object& z) {
-            auto a = py::array_t<std::complex<double>, py::array::c_style | py::array::forcecast>::ensure(z);
+            // Numbers only: numpy casts None (and other objects) to NaN without a word.
+            py::array raw = py::array::ensure(z);
+            if (!raw) throw py::value_error("z: cannot convert to a complex array");
+            const char kind = raw.dtype().kind();
+            if (!(kind == 'b' || kind == 'i' || kind == 'u' || kind == 'f' || kind == 'c'))
+                throw py::type_error("z: expected real or complex numbers, got " +
+                                     (z.is_none() ? std::string("None")
+                                                  : "dtype " + std::string(py::str(raw.dtype()))));
+            auto a = py::array_t<std::complex<double>, py::array::c_style | py::array::forcecast>::ensure(raw);
             if (!a) throw py::value_error("z: cannot convert to a complex array");
             py::array_t<std::complex<double>> out(std::vector<py::ssize_t>(a.shape(), a.shape() + a.ndim()));
             const std::complex<double>* pz = a.data();

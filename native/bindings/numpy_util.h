@@ -16,12 +16,37 @@ namespace py = pybind11;
 template <typename T>
 using CArray = py::array_t<T, py::array::c_style | py::array::forcecast>;
 
-// Converts _obj_ to a C-contiguous array of T; ValueError naming _name_ on failure.
+// TypeError naming _name_ unless _a_ holds real numbers (bool, integer or floating dtype):
+// numpy would cast complex values to their real part (dropping the imaginary one) and None,
+// strings or objects to NaN or garbage.
+inline void require_real_dtype(const py::array& a, const py::handle& obj, const char* name) {
+    const char kind = a.dtype().kind();
+    if (kind == 'b' || kind == 'i' || kind == 'u' || kind == 'f') return;
+    const std::string what = obj.is_none() ? std::string("None")
+                             : kind == 'c'   ? "a complex array (dtype " + std::string(py::str(a.dtype())) +
+                                                 "), whose imaginary part would be dropped"
+                                             : "dtype " + std::string(py::str(a.dtype()));
+    throw py::type_error(std::string(name) + ": expected real numbers, got " + what);
+}
+
+// Converts _obj_ to a C-contiguous array of T; TypeError naming _name_ when _obj_ does not
+// hold real numbers (require_real_dtype), ValueError when it cannot be converted at all.
 template <typename T>
 CArray<T> as_array(const py::handle& obj, const char* name) {
-    auto a = CArray<T>::ensure(obj);
+    py::array raw = py::array::ensure(obj);
+    if (raw) require_real_dtype(raw, obj, name);
+    auto a = raw ? CArray<T>::ensure(raw) : CArray<T>::ensure(obj);
     if (!a) throw py::value_error(std::string(name) + ": cannot convert to a numeric array");
     return a;
+}
+
+// Refuses a string the C++ side would pass on as a C string (a file path, an EXR channel
+// name): a NUL byte inside it would silently cut it there (a different, truncated file name).
+inline void require_no_nul(const std::string& s, const char* name) {
+    const size_t at = s.find('\0');
+    if (at != std::string::npos)
+        throw py::value_error(std::string(name) + ": contains a NUL byte (at index " + std::to_string(at) +
+                              "), which would truncate it; refused");
 }
 
 // "(3, 4)" for error messages.

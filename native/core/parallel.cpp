@@ -5,6 +5,7 @@
 #include <atomic>
 #include <exception>
 #include <mutex>
+#include <stdexcept>
 #include <thread>
 
 #include <oneapi/tbb/task_arena.h>
@@ -69,7 +70,13 @@ void parallel_for(int n, int n_threads, const std::function<void(int)>& work) {
     run_parallel(n, n_threads, work, [](int) {});
 }
 
+std::string thread_count_error(int threads) {
+    return "threads must be in [0, " + std::to_string(kMaxThreads) + "] (0: every hardware thread), got " +
+           std::to_string(threads);
+}
+
 int resolve_threads(int threads) {
+    if (threads < 0 || threads > kMaxThreads) throw std::invalid_argument(thread_count_error(threads));
     const int n = threads > 0 ? threads : int(std::thread::hardware_concurrency());
     return std::max(1, n);
 }

@@ -2,6 +2,7 @@
 #pragma once
 
 #include <functional>
+#include <string>
 
 namespace airlight {
 
@@ -18,7 +19,14 @@ void run_parallel(int n, int n_threads, const std::function<void(int)>& work,
 // run_parallel without progress.
 void parallel_for(int n, int n_threads, const std::function<void(int)>& work);
 
-// _threads_ as the bake's settings give it (0: every hardware thread), at least 1.
+// The most worker threads a caller may ask for: far above any machine this runs on, low
+// enough that a typo (threads=100000) is refused instead of creating a huge task arena.
+inline constexpr int kMaxThreads = 1024;
+
+// _threads_ as the bake's settings give it (0: every hardware thread), at least 1. Throws
+// std::invalid_argument for threads < 0 or > kMaxThreads (thread_count_error's message).
 int resolve_threads(int threads);
+// The message for a thread count outside [0, kMaxThreads].
+std::string thread_count_error(int threads);
 
 }  // namespace airlight

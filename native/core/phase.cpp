@@ -27,6 +27,12 @@ double PhaseFunction::eval(double mu) const {
     return 0.0;
 }
 
+double PhaseFunction::eval_half_angle(double s2, double c2) const {
+    if (kind != PhaseKind::HenyeyGreenstein) return eval(c2 - s2);
+    const double denom = g >= 0.0 ? (1.0 - g) * (1.0 - g) + 4.0 * g * s2 : (1.0 + g) * (1.0 + g) - 4.0 * g * c2;
+    return kInv4Pi * (1.0 - g * g) / (denom * std::sqrt(denom));
+}
+
 double PhaseFunction::lobe_width() const {
     if (kind == PhaseKind::HenyeyGreenstein) return std::max(1.0 - std::abs(g), 1e-3);
     if (kind == PhaseKind::MurkyMie) return 0.25;  // cos^64(theta/2): width ~ 1/4 rad

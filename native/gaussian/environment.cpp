@@ -67,7 +67,7 @@ const PhiTable& phi_table() {
     return table;
 }
 
-#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__)
+#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__) && !defined(AIRLIGHT_NO_CLONES)
 #define AIRLIGHT_AVG_CLONES __attribute__((target_clones("arch=x86-64-v4", "arch=x86-64-v3", "default")))
 #else
 #define AIRLIGHT_AVG_CLONES

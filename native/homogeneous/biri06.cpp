@@ -27,6 +27,11 @@
 //     hg g = 0.9       2.3e-5    1.6e-4    1.6e-4
 //     hg g = 0.99      1.4e-5    1.6e-4    1.8e-4
 //     hg g = -0.99     2.2e-4    4.2e-3    6.1e-3   (backward lobe squeezed into 1 - w ~ 1e-2)
+//     hg g = 0.999     3.6e-6    2.4e-5    5.0e-5   (1000 points; Biri06.SharpLobeTables...)
+//     hg g = 0.9999    2.6e-6    1.1e-5    1.2e-5
+//     hg g = -0.999    3.0e-3    8.8e-2    1.5e-1   (refused: g < kBiri06MinG = -0.99)
+// The build evaluates the phase from the half angle (phase.h eval_half_angle): from cos theta
+// a lobe with |g| >= 0.998 was too noisy for its 1e-12 quadrature, which then never finished.
 // Airlight table path vs the quadrature reference (400 rays, Tsv in [1e-3, 3], all gamma,
 // 10 % Dvp = inf): max 7.5e-4 (isotropic, rayleigh), <= 4e-4 for the others.
 // COST (2-core dev box): 1.56 us per table-path evaluation on that sweep, because 50 % of its
@@ -47,6 +52,7 @@
 #include <stdexcept>
 #include <tuple>
 
+#include "core/build_progress.h"
 #include "core/quadrature.h"
 #include "homogeneous/sun05.h"
 
@@ -71,13 +77,16 @@ double column_stretch(const PhaseFunction& phase) {
 // Integrand of G without the scale: p(cos theta) exp(-lambda [tan(theta/2) - tan(theta0/2)]),
 // the bracket as sin((theta - theta0)/2) / (cos(theta/2) cos(theta0/2)) (no cancellation).
 // _c0_ = cos(theta0/2).
+// The phase is evaluated from the half angle (PhaseFunction::eval_half_angle): from
+// cos theta, a sharp HG lobe is noisy to ~1e-16 / (1 - |g|)^2 and the adaptive rule never met
+// its tolerance (|g| = 0.999: every cell hit the panel limit, the table build did not finish in 60 s).
 struct GIntegrand {
     const PhaseFunction& phase;
     double lambda, theta0, c0;
     double operator()(double theta) const {
-        const double p = phase.eval(std::cos(theta));
+        const double c = std::cos(0.5 * theta), s = std::sin(0.5 * theta);
+        const double p = phase.eval_half_angle(s * s, c * c);
         if (lambda == 0.0) return p;
-        const double c = std::cos(0.5 * theta);
         if (c <= 0.0) return 0.0;
         return p * std::exp(-lambda * std::sin(0.5 * (theta - theta0)) / (c * c0));
     }
@@ -91,9 +100,9 @@ struct GIntegrandBack {
     const PhaseFunction& phase;
     double lambda, eps0, c0;
     double operator()(double eps) const {
-        const double p = phase.eval(-std::cos(eps));
+        const double c = std::sin(0.5 * eps), s = std::cos(0.5 * eps);  // cos, sin of theta/2
+        const double p = phase.eval_half_angle(s * s, c * c);
         if (lambda == 0.0) return p;
-        const double c = std::sin(0.5 * eps);
         if (c <= 0.0) return 0.0;
         return p * std::exp(-lambda * std::sin(0.5 * (eps0 - eps)) / (c * c0));
     }
@@ -168,8 +177,9 @@ double laguerre_tail(const PhaseFunction& phase, double lambda, double T) {
     double sum = 0.0;
     for (int i = 0; i < kLaguerreNodes; ++i) {
         const double t = T + rule.x[size_t(i)] / lambda, t2 = t * t;
-        const double cos_theta = std::isinf(t2) ? -1.0 : (1.0 - t2) / (1.0 + t2);
-        sum += rule.w[size_t(i)] * 2.0 * phase.eval(cos_theta) / (1.0 + t2);
+        // t = tan(theta/2): sin^2(theta/2) = t^2 / (1 + t^2), cos^2(theta/2) = 1 / (1 + t^2).
+        const double p = std::isinf(t2) ? phase.eval(-1.0) : phase.eval_half_angle(t2 / (1.0 + t2), 1.0 / (1.0 + t2));
+        sum += rule.w[size_t(i)] * 2.0 * p / (1.0 + t2);
     }
     return sum / lambda;
 }
@@ -191,9 +201,18 @@ double biri06_Gamma_paper(const PhaseFunction& phase, double lambda, double g) {
     return integrate_adaptive(f, 0.0, g, 1e-12);
 }
 
+void biri06_check_phase(const PhaseFunction& phase) {
+    // Compared in float: Blender stores -0.99 as the float -0.99000001.
+    if (phase.kind == PhaseKind::HenyeyGreenstein && float(phase.g) < float(kBiri06MinG))
+        throw std::invalid_argument("biri06: Henyey-Greenstein g = " + std::to_string(phase.g) +
+                                    " is a backward lobe sharper than its Gamma table resolves (g >= -0.99); "
+                                    "use model 'quadrature'");
+}
+
 Biri06Table::Biri06Table(const PhaseFunction& phase, int nl, int nT)
     : phase_(phase), nl_(nl), nT_(nT), K_(column_stretch(phase)), k_(std::max(column_stretch(phase), 1.0)) {
     if (nl < 2 || nT < 2) throw std::invalid_argument("Biri06Table: need at least 2 x 2 samples");
+    biri06_check_phase(phase);
     data_.resize(static_cast<size_t>(nl) * nT);
     const std::string key = "biri06_gamma v1 phase=" + std::to_string(int(phase.kind)) + " g=" + key_number(phase.g) +
                             " nl=" + std::to_string(nl) + " nT=" + std::to_string(nT);
@@ -220,6 +239,7 @@ Biri06Table::Biri06Table(const PhaseFunction& phase, int nl, int nT)
                 theta_prev = theta;
                 row[j] = static_cast<float>(G * (K_ + lambda) / w);
             }
+            build_progress_check();  // progress and cancel of the bake building it
         }
     });
 }

@@ -30,7 +30,16 @@
 
 namespace airlight {
 
+// The most backward HG lobe the table resolves: below g = -0.99 the lobe near theta = pi is
+// squeezed into the last columns and the airlight errs by more than 1 % (2 % at g = -0.995,
+// 16 % at -0.999; biri06.cpp). Forward lobes have no such limit (|g| < 1: 1e-5 at 0.9999).
+inline constexpr double kBiri06MinG = -0.99;
+
+// Throws std::invalid_argument for HG g < kBiri06MinG, saying which model takes it.
+void biri06_check_phase(const PhaseFunction& phase);
+
 // G(lambda, T) tabulated for one phase function (layout and measured error in biri06.cpp).
+// Refuses what biri06_check_phase refuses.
 // HG tables are built per g on demand (~20 ms at 256 x 256) and cached: a scene has one g
 // per medium, and a per-g table avoids interpolating a lobe whose shape changes fast in g.
 class Biri06Table {

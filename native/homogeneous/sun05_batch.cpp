@@ -28,7 +28,7 @@ constexpr float kCancelMargin = 1.01f;
 // well-conditioned lanes; beyond e^60 a lane goes to the scalar path (float overflow).
 constexpr float kMaxExponent = 60.0f;
 
-#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__)
+#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__) && !defined(AIRLIGHT_NO_CLONES)
 #define AIRLIGHT_SIMD_CLONES __attribute__((target_clones("arch=x86-64-v4", "arch=x86-64-v3", "default")))
 #else
 #define AIRLIGHT_SIMD_CLONES

@@ -2,6 +2,8 @@
 // OpenImageIO (which converts the float buffer to half on writing).
 #include "image/exr_io.h"
 
+#include "core/memory.h"
+
 #include <OpenImageIO/imageio.h>
 
 #include <algorithm>
@@ -52,6 +54,9 @@ void write_multilayer_exr(const std::string& path, int width, int height,
 
     // Interleave the passes into one buffer, top row first (EXR's order too).
     const size_t npixels = size_t(width) * size_t(height);
+    const std::string shortfall = memory_shortfall(double(npixels) * nchannels * sizeof(float),
+                                                   "writing '" + path + "'", "lower the resolution");
+    if (!shortfall.empty()) throw std::runtime_error(shortfall);
     std::vector<float> buffer(npixels * nchannels);
     for (size_t p = 0; p < passes.size(); ++p)
         for (size_t i = 0; i < npixels; ++i)

@@ -27,6 +27,7 @@ class Biri06 final : public FogModel {
 
 ModelEntry biri06_entry() {
     ModelEntry e{ModelId::Biri06, "biri06", "Biri et al. 2006 airlight with the Gamma table of any phase function"};
+    e.validate = [](const SceneDescription& scene, const BakeSettings&) { biri06_check_phase(scene.medium.phase); };
     e.make = [](const SceneDescription& scene, const BakeSettings& settings) -> std::unique_ptr<FogModel> {
         return std::make_unique<Biri06>(scene, settings);
     };

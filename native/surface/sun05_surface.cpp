@@ -33,6 +33,7 @@
 // (sun05_surface_glow_reference) to ~1e-11.
 #include "surface/sun05_surface.h"
 #include "core/table_cache.h"
+#include "core/build_progress.h"
 #include "core/parallel.h"
 #include "core/constants.h"
 
@@ -142,8 +143,10 @@ SurfaceGGrid::SurfaceGGrid(int nT, int ntheta, double m, int threads,
     if (nT < 2 || ntheta < 2) throw std::invalid_argument("surface G table: need at least 2 x 2 samples");
     data_.assign(size_t(nT) * size_t(ntheta), 0.0);
     auto build = [&] {
-        parallel_for(nT, resolve_threads(threads),
-                     [&](int i) { integrate_row(row_T(i, nT), &data_[size_t(i) * ntheta]); });
+        parallel_for(nT, resolve_threads(threads), [&](int i) {
+            integrate_row(row_T(i, nT), &data_[size_t(i) * ntheta]);
+            build_progress_check();  // progress and cancel of the bake building it
+        });
     };
     if (cache_key_.empty()) build();
     else load_or_build(grid_key("body"), data_, build);

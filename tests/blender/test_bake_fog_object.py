@@ -252,3 +252,49 @@ def test08_airlight_color_attribute_colours_the_bake(tmp_path):
     assert r > 3.0 * b and abs(g - b) <= 1e-3 * b
     # Red scatters what grey did: the colour changes the chroma, not the red channel.
     np.testing.assert_allclose(reddish[..., 0], grey[..., 0], rtol=1e-5, atol=1e-7)
+
+
+def _scripted_fog_mesh(scene, name, attributes=True):
+    """A mesh built by a script as the README describes a fog object (vertices and the two
+    point attributes, not through fog_object), linked to the scene and evaluated by the
+    depsgraph before anything marks it as fog."""
+    mesh = bpy.data.meshes.new(name)
+    mesh.from_pydata([tuple(c) for c in CENTRES], [], [])
+    if attributes:
+        for attr, values in ((fog_object.SCALE_ATTR, SCALES), (fog_object.AMPLITUDE_ATTR, AMPLITUDES)):
+            mesh.attributes.new(attr, 'FLOAT', 'POINT').data.foreach_set("value", values.astype(np.float32))
+    obj = bpy.data.objects.new(name, mesh)
+    scene.collection.objects.link(obj)
+    bpy.context.evaluated_depsgraph_get()
+    return obj
+
+
+def test09_fog_marked_by_a_script_after_evaluation_is_baked(tmp_path):
+    """is_fog set from a script after the depsgraph evaluated the mesh: the bake sees it
+    (add-on properties do not tag the depsgraph, so the evaluated copy held is_fog False and
+    the bake equalled one without the fog object), and equals the same fog made by
+    fog_object.new_fog_object."""
+    scene = build_plane_scene(tmp_path, size=(W, H))
+    without = exr_pass(_bake(tmp_path / "without.exr"), "Transmittance")
+    obj = _scripted_fog_mesh(scene, "Scripted")
+    obj.airlight_fog.is_fog = True
+    scripted = exr_pass(_bake(tmp_path / "scripted.exr"), "Transmittance")
+    assert np.max(without - scripted) > 0.1
+    bpy.data.objects.remove(obj)
+    fog_object.new_fog_object("Fog", scene.collection, CENTRES, SCALES, AMPLITUDES)
+    np.testing.assert_array_equal(scripted, exr_pass(_bake(tmp_path / "reference.exr"), "Transmittance"))
+
+
+def test10_featureless_mesh_marked_by_a_script_is_refused(tmp_path):
+    """A cube (no Gaussian attributes) marked as fog after evaluation: refused, naming the
+    missing attribute, no file written (it used to bake as if it were not marked)."""
+    scene = build_plane_scene(tmp_path, size=(W, H))
+    bpy.ops.mesh.primitive_cube_add(size=0.5, location=(0.0, 0.0, 1.0))
+    cube = bpy.context.active_object
+    bpy.context.evaluated_depsgraph_get()
+    cube.airlight_fog.is_fog = True
+    path = tmp_path / "cube.exr"
+    with pytest.raises(RuntimeError, match="missing the float point attribute 'airlight_scale'") as info:
+        bpy.ops.airlight.bake(filepath=str(path))
+    assert f"'{cube.name}'" in str(info.value)
+    assert not os.path.exists(path)

@@ -143,3 +143,38 @@ def test10_half_precision_passes(tmp_path):
         np.testing.assert_array_equal(exr_pass(half, name), reference[key].astype(np.float16).astype(np.float32))
         np.testing.assert_array_equal(exr_pass(full, name), reference[key])
     assert os.path.getsize(half) < 0.5 * os.path.getsize(full)
+
+
+def test11_bake_larger_than_memory_is_refused_before_allocating(tmp_path):
+    """A bake whose images would not fit in the memory available (here 32768 x 32768 pixels
+    with surface shading for 40 lights, ~590 GB) is refused with the estimate and the memory
+    available, before it allocates anything; no file is written."""
+    scene = build_plane_scene(tmp_path)
+    scene.render.engine = 'CYCLES'
+    scene.airlight.surface_shading = True
+    for k in range(39):
+        lamp = bpy.data.objects.new(f"Lamp{k}", bpy.data.lights.new(f"Lamp{k}", 'POINT'))
+        lamp.location = (0.1 * k, 0.0, 1.0)
+        scene.collection.objects.link(lamp)
+    scene.render.resolution_x = scene.render.resolution_y = 32768
+    path = tmp_path / "huge.exr"
+    with pytest.raises(RuntimeError, match=r"32768 x 32768 pixels needs about \d+\.\d GB but only .* of memory "
+                                           r"is available; lower the resolution"):
+        bpy.ops.airlight.bake(filepath=str(path))
+    assert not os.path.exists(path)
+
+
+def test12_anisotropy_past_its_range_through_the_raw_property_is_refused(tmp_path):
+    """scene.airlight["anisotropy"] (the raw ID property) skips the property's [-0.99, 0.99]:
+    the bake refuses such a g with the range (it went on to the models: the Biri 2006 table
+    build for |g| >= 0.998 never finished), and the range's ends still bake."""
+    scene = build_plane_scene(tmp_path, size=(32, 24))
+    scene.airlight.phase = 'HENYEY_GREENSTEIN'
+    scene.airlight["anisotropy"] = 0.999
+    assert scene.airlight.anisotropy == pytest.approx(0.999)
+    with pytest.raises(RuntimeError, match=r"anisotropy must be a finite number in \[-0\.99, 0\.99\] \(got 0\.999\)"):
+        bpy.ops.airlight.bake(filepath=str(tmp_path / "x.exr"))
+    assert not os.path.exists(tmp_path / "x.exr")
+    for g in (-0.99, 0.99):
+        scene.airlight.anisotropy = g
+        assert exr_pass(_bake(tmp_path / f"g{g}.exr"), "Airlight").max() > 0.0

@@ -151,3 +151,61 @@ def test05_render_region_bakes_the_region_and_composites_in_place(tmp_path):
             outside = np.ones((H, W), bool)
             outside[rows, cols] = False
             assert (A[outside] == 0.0).all() and (T[outside] == 1.0).all()
+
+
+def _run_without_addon(tmp_path, *args):
+    """Plain `blender -b --factory-startup` with empty user folders: a render farm worker the
+    add-on was never installed on."""
+    import os
+    import subprocess
+    user = tmp_path / "worker_user"
+    (user / "scripts").mkdir(parents=True, exist_ok=True)
+    (user / "config").mkdir(exist_ok=True)
+    env = dict(os.environ, BLENDER_USER_SCRIPTS=str(user / "scripts"), BLENDER_USER_CONFIG=str(user / "config"))
+    proc = subprocess.run([os.environ.get("BLENDER", "blender"), "-b", "--factory-startup", *args],
+                          capture_output=True, text=True, timeout=120, env=env)
+    assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-3000:]
+    assert "Airlight: " not in proc.stdout  # the add-on (which prints so) is not there
+    return proc.stdout
+
+
+def test06_fog_blend_renders_unfogged_on_a_machine_without_the_addon(tmp_path):
+    """A fog .blend rendered without the add-on and without its cache folder (a farm worker):
+    the frame equals the plain render (it came out magenta: the compositor's Image node read a
+    missing EXR). The file holds the fog nodes muted, the frame's label says why, and this
+    session keeps them on, unchanged by the save; with the add-on the render is fogged."""
+    import json
+    import shutil
+    scene, _ = _render_scene(tmp_path)
+    assert bpy.ops.airlight.bake(frame=1) == {'FINISHED'}
+    tree = scene.node_tree
+    fog_nodes = [n for n in tree.nodes if n.name.startswith("Airlight") and n.bl_idname != "NodeFrame"
+                 and n.name != "Airlight Passes"]
+    assert fog_nodes and not any(n.mute for n in fog_nodes)
+    blend = str(tmp_path / "farm.blend")
+    bpy.ops.wm.save_as_mainfile(filepath=blend)
+    assert not any(n.mute for n in fog_nodes) and tree.nodes["Airlight Fog"].label == "Airlight Fog"
+    assert not bpy.data.is_dirty
+    shutil.rmtree(tmp_path / "cache")
+    _run_without_addon(tmp_path, blend, "-o", str(tmp_path / "worker_####"), "-f", "1")
+    _run_without_addon(tmp_path, blend, "--python-expr", "import bpy; bpy.context.scene.render.use_compositing = False",
+                       "-o", str(tmp_path / "plain_####"), "-f", "1")
+    worker, _ = read_exr(str(tmp_path / "worker_0001.exr"))
+    plain, _ = read_exr(str(tmp_path / "plain_0001.exr"))
+    np.testing.assert_array_equal(worker, plain)
+    magenta = (worker[..., 0] > 0.5) & (worker[..., 2] > 0.5) & (worker[..., 1] < 0.1 * worker[..., 0])
+    assert not magenta.any()
+    listing = _run_without_addon(tmp_path, blend, "--python-expr", (
+        "import bpy, json\nfor n in bpy.context.scene.node_tree.nodes:\n"
+        "    print('NODE', json.dumps([n.name, n.mute, n.label]))"))
+    saved = {name: (mute, label) for name, mute, label in
+             (json.loads(line[5:]) for line in listing.splitlines() if line.startswith("NODE "))}
+    assert all(saved[n.name][0] for n in fog_nodes), saved
+    assert saved["Airlight Fog"][1] == "Airlight Fog (muted in the file: the add-on enables it)"
+
+    out = _run(blend, "-o", str(tmp_path / "fogged_####"), "-f", "1")
+    assert "Airlight: fog of frame 1 baked" in out
+    fogged, _ = read_exr(str(tmp_path / "fogged_0001.exr"))
+    A = exr_pass(str(tmp_path / "cache" / "fog_0001.exr"), "Airlight")
+    T = exr_pass(str(tmp_path / "cache" / "fog_0001.exr"), "Transmittance")
+    np.testing.assert_allclose(fogged[..., :3], plain[..., :3] * T + A, rtol=1e-4, atol=1e-5)

@@ -56,3 +56,36 @@ def test03_callback_exception_propagates():
 def test04_true_continues():
     out = _native.bake(**args(progress=lambda f: True))
     assert out["airlight"].shape == (80, 64, 3)
+
+
+def _table_bake(g, progress):
+    """A biri06 bake whose 2048^2 Gamma table (a g no other test uses: built here, ~1-2 s)
+    is built after the raycast, at the progress fraction 0.3."""
+    return _native.bake(**args(model="biri06", phase="hg", g=g, table_size=2048, progress=progress))
+
+
+def test05_progress_stays_alive_while_a_table_builds():
+    """The model's table build reports the held fraction again every ~20 ms (it used to report
+    nothing for the whole build: the bar stood at 30 % and Esc went unseen)."""
+    seen = []
+    _table_bake(0.4321, lambda fraction: seen.append(fraction))
+    held = max(f for f in seen if f <= 0.3)
+    assert seen.count(held) >= 5, seen[:20]
+    assert all(b >= a for a, b in zip(seen, seen[1:]))
+
+
+def test06_cancel_during_a_table_build_stops_it():
+    """Returning False while the table builds cancels the bake there (before the airlight
+    pass starts), and the cancelled table is not kept: the next bake builds it again."""
+    calls = []
+
+    def progress(fraction):
+        calls.append(fraction)
+        return not (fraction >= 0.3 and calls.count(fraction) >= 4)  # the raycast's end reports <= 2
+
+    with pytest.raises(_native.BakeCancelled):
+        _table_bake(0.4322, progress)
+    assert max(calls) == calls[-1] and calls.count(calls[-1]) == 4
+    again = []
+    _table_bake(0.4322, lambda fraction: again.append(fraction))
+    assert again.count(max(f for f in again if f <= 0.3)) >= 5
