@@ -1,6 +1,7 @@
 """Where baked fog passes live on disk, and the EXR layout the compositor reads."""
 
 import os
+import threading
 import zlib
 
 import bpy
@@ -45,13 +46,22 @@ def ensure_parent_dir(filepath):
 def write_passes(filepath, airlight, transmittance, extra=None, half=False):
     """Writes the two passes as one multilayer EXR (through `_native.write_exr`), plus the
     passes in `extra` ({name: (H, W, 3) float32}, e.g. surface.py's Surface_<group> and
-    SurfaceGlow: layer "Fog", pass <name>); _half_: 16-bit floats (Pass Precision)."""
+    SurfaceGlow: layer "Fog", pass <name>); _half_: 16-bit floats (Pass Precision).
+    Written to a temporary file beside it and renamed over it (atomic on one file system),
+    so a compositor or another farm task reading the file sees a whole one, never half of
+    it, and two tasks writing one frame each leave a whole file."""
     ensure_parent_dir(filepath)
     passes = {PASS_AIRLIGHT: airlight, PASS_TRANSMITTANCE: transmittance}
     passes.update(extra or {})
+    tmp = f"{filepath}.{os.getpid()}.{threading.get_ident()}.tmp"
     try:
-        native.get().write_exr(filepath, passes, layer_prefix=LAYER_PREFIX, half=half)
-    except RuntimeError as ex:
+        native.get().write_exr(tmp, passes, layer_prefix=LAYER_PREFIX, half=half)
+        os.replace(tmp, filepath)
+    except (RuntimeError, OSError) as ex:
+        try:
+            os.remove(tmp)
+        except OSError:
+            pass
         raise CacheError(f"Cannot write the fog passes to '{filepath}': {ex}") from None
 
 
