@@ -345,7 +345,7 @@ int ShadowVolumes::count_at(int l, const Vec3& world_p) const {
     const Vec3 d = to / len;
     const Vec3 a = glm::normalize(std::abs(d.x) < 0.9 ? glm::cross(d, Vec3(1, 0, 0)) : glm::cross(d, Vec3(0, 1, 0)));
     const Vec3 b = glm::cross(d, a);
-    const double eps = 1e-6 * (glm::length(p) + (light.directional ? 0.0 : len));
+    const double eps = 1e-6 * (glm::length(p) + (light.directional ? impl_->reach[size_t(l)] / 8.0 : len));
     const Vec3 offsets[3] = {a, -0.5 * a + 0.8660254037844386 * b, -0.5 * a - 0.8660254037844386 * b};
     int counts[3];
     for (int k = 0; k < 3; ++k) {
