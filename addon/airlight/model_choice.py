@@ -32,7 +32,8 @@ from collections import namedtuple
 import numpy as np
 
 from . import light_bounds, scene_description
-from .names import AREA_INTENSITY, MODEL_NAMES, SUPPORTED_LIGHT_TYPES, is_isotropic, native_phase
+from .names import (AREA_CELL, AREA_INTENSITY, MODEL_NAMES, SUPPORTED_LIGHT_TYPES, area_cell, is_isotropic,
+                    native_phase)
 
 # native name -> (label, max relative error, relative cost)
 MEASURED = {
@@ -353,7 +354,9 @@ def light_plan(scene, depsgraph=None, view_layer=None):
 # model is the daylight one (sun lamps only).
 # _unshadowed_: the scene's lights left without volumetric shadows (Automatic's clear ones;
 # instanced lights keep their Cast Shadow); _shadows_: Volumetric Shadows on.
-Plan = namedtuple("Plan", "model skipped daylight shadows unshadowed", defaults=(False, frozenset()))
+# _area_cell_: the sample cell of area lights (names.area_cell).
+Plan = namedtuple("Plan", "model skipped daylight shadows unshadowed area_cell",
+                  defaults=(False, frozenset(), AREA_CELL))
 
 
 def plan(settings, survey):
@@ -365,7 +368,7 @@ def plan(settings, survey):
         skipped = frozenset(row.name for row in rows if row.status == 'skipped')
     shadows = shadows_baked(settings, survey)
     unshadowed = frozenset(row.name for row in rows if row.shadow == 'clear')
-    return Plan(name, skipped, name == "hoffman02", shadows, unshadowed)
+    return Plan(name, skipped, name == "hoffman02", shadows, unshadowed, area_cell(settings))
 
 
 def skipped_lights(scene, depsgraph=None):

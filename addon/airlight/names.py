@@ -29,15 +29,28 @@ SUPPORTED_LIGHT_TYPES = {'POINT', 'SPOT', 'SUN', 'AREA'}
 # Cycles' area light: a one-sided Lambert emitter whose radiant intensity is C P / 4 cos(theta)
 # about its -Z (kernel/light/area.h: radiance P / (4 A)).
 AREA_INTENSITY = 0.25
-# An area light bakes as spot samples on a grid of cells of about AREA_CELL m, 1 to
-# AREA_MAX_PER_AXIS per side (scene_export.area_samples).
+# An area light bakes as spot samples on a grid of cells of about area_cell(settings) m, 1 to
+# AREA_MAX_PER_AXIS per side (scene_export.area_samples). AREA_CELL is the cell for the
+# explicit models; Automatic narrows it with the accuracy asked for: the mean error of the
+# fog beyond the light's own image fell as 1 / samples on a 3 x 1 m light 2-10 m from the
+# fog (tests/blender/test_cycles_area.py's scene: 8 samples 1.6 %, 12 1.15 %, 32 0.59 %,
+# 48 0.37 %), so a cell of AREA_CELL sqrt(accuracy / AREA_CELL_ERROR).
 AREA_CELL = 0.5
-AREA_MAX_PER_AXIS = 4
+AREA_CELL_ERROR = 1.6   # %: the mean error measured with AREA_CELL
+AREA_MAX_PER_AXIS = 8
 
 
-def area_grid(size_x, size_y):
+def area_cell(settings):
+    """The sample cell (m) of area lights for these fog settings."""
+    if getattr(settings, "model", 'AUTO') != 'AUTO':
+        return AREA_CELL
+    accuracy = max(float(getattr(settings, "accuracy", 1.0)), 1e-3)
+    return max(0.05, AREA_CELL * min(1.0, (accuracy / AREA_CELL_ERROR) ** 0.5))
+
+
+def area_grid(size_x, size_y, cell=AREA_CELL):
     """(kx, ky): an area light's samples per side for its sizes along X and Y (m)."""
-    return tuple(int(min(AREA_MAX_PER_AXIS, max(1, round(abs(float(s)) / AREA_CELL)))) for s in (size_x, size_y))
+    return tuple(int(min(AREA_MAX_PER_AXIS, max(1, round(abs(float(s)) / cell)))) for s in (size_x, size_y))
 
 
 def is_isotropic(settings):

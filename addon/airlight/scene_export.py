@@ -38,12 +38,13 @@ def area_supported(light):
     return light.type != 'AREA' or light.spread >= math.pi - 1e-3
 
 
-def area_samples(light):
+def area_samples(light, cell):
     """The sample points (n, 3) of an area light (a LightInstance) in world space: the
-    centres of kx x ky equal cells over the rectangle, or those cells mapped to the ellipse
+    centres of kx x ky equal cells of about _cell_ m (names.area_grid) over the rectangle, or
+    those cells mapped to the ellipse
     by the concentric map (Shirley-Chiu, equal areas) for disks and ellipses."""
     sx, sy = (abs(float(s)) for s in light.area_size)
-    kx, ky = area_grid(sx, sy)
+    kx, ky = area_grid(sx, sy, cell)
     u = (np.arange(kx) + 0.5) / kx * 2.0 - 1.0
     v = (np.arange(ky) + 0.5) / ky * 2.0 - 1.0
     U, V = (a.ravel() for a in np.meshgrid(u, v))
@@ -128,7 +129,7 @@ def spot_lights(lights, plan):
         blends.append(light.spot_blend)
     # Area lights after the spots, as their samples (AREA_INTENSITY).
     for light, emission, axis in _directed_lights(lights, 'AREA', plan):
-        samples = area_samples(light)
+        samples = area_samples(light, plan.area_cell)
         for p in samples:
             positions.append(p)
             axes.append(axis)
@@ -206,7 +207,7 @@ def shadow_arguments(description, plan):
         chosen = [l for l in description.lights if l.type == light_type and _baked(l, plan)]
         if light_type == 'SPOT' and not plan.daylight:  # each area light's samples follow the spots
             chosen += [l for l in description.lights if l.type == 'AREA' and _baked(l, plan)
-                       for _ in range(len(area_samples(l)))]
+                       for _ in range(len(area_samples(l, plan.area_cell)))]
         if chosen:
             flags[key] = np.array([_shadowed(l, plan) for l in chosen], dtype=np.float64)
     if not any(np.any(f) for f in flags.values()):

@@ -35,7 +35,7 @@ import numpy as np
 
 from . import visibility
 # PASS_GLOSS: glossy glow per unit Glossy Color (scene.airlight.surface_gloss > 0).
-from .names import GROUP_PREFIX, PASS_GLOSS, PASS_GLOW, PASS_PREFIX, WORLD_GROUP, area_grid, is_isotropic
+from .names import GROUP_PREFIX, PASS_GLOSS, PASS_GLOW, PASS_PREFIX, WORLD_GROUP, area_cell, area_grid, is_isotropic
 
 SURFACE_LIGHT_TYPES = ('POINT', 'SPOT', 'SUN', 'AREA')  # lights the bake's surface pass attenuates
 
@@ -100,7 +100,7 @@ def fogged_lights(depsgraph):
         original = obj.original
         counts[original.name] = counts.get(original.name, 0) + 1
         if light.type == 'AREA':  # one row per sample spot (scene_export.area_samples)
-            areas.extend([original] * area_sample_count(light))
+            areas.extend([original] * area_sample_count(light, area_cell(depsgraph.scene.airlight)))
             continue
         {'SPOT': spots, 'SUN': suns}.get(light.type, points).append(original)
     rows = []
@@ -198,10 +198,11 @@ def ensure_passes(scene, depsgraph):
     return groups
 
 
-def area_sample_count(light):
-    """The number of spots an area light bakes as (scene_export.area_samples)."""
+def area_sample_count(light, cell):
+    """The number of spots an area light bakes as (scene_export.area_samples) for the sample
+    cell _cell_ (names.area_cell)."""
     square = light.shape in ('SQUARE', 'DISK')
-    kx, ky = area_grid(light.size, light.size if square else light.size_y)
+    kx, ky = area_grid(light.size, light.size if square else light.size_y, cell)
     return kx * ky
 
 

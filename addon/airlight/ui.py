@@ -5,6 +5,7 @@ import math
 import bpy
 
 from . import compositor, environment, fog_object, model_choice, native, render, scene_description, surface
+from . import names
 from .names import SUPPORTED_LIGHT_TYPES
 
 
@@ -117,6 +118,12 @@ class AIRLIGHT_PT_scene(bpy.types.Panel):
 _LIGHT_ICONS = {'POINT': 'LIGHT_POINT', 'SPOT': 'LIGHT_SPOT', 'SUN': 'LIGHT_SUN', 'AREA': 'LIGHT_AREA'}
 
 
+def _area_error(settings):
+    """The area lights' expected mean error (a fraction) for the settings' sample cell."""
+    cell = names.area_cell(settings)
+    return names.AREA_CELL_ERROR / 100.0 * (cell / names.AREA_CELL) ** 2
+
+
 def _percent(fraction):
     return f"{100.0 * fraction:.2g} %"
 
@@ -148,9 +155,9 @@ def light_lines(scene, view_layer=None):
             text = f"{row.name}: skipped: below {_percent(row.share)} of the fog"
         elif row.type == 'AREA':
             obj = scene.objects.get(row.name)
-            n = surface.area_sample_count(obj.data) if obj is not None else 0
-            text = (f"{row.name}: area light as {n} spot{'s' if n != 1 else ''} ({row.label}), about 2 % off "
-                    "near the light"
+            n = surface.area_sample_count(obj.data, names.area_cell(scene.airlight)) if obj is not None else 0
+            text = (f"{row.name}: area light as {n} spot{'s' if n != 1 else ''} ({row.label}), sampled for "
+                    f"{_percent(_area_error(scene.airlight))} beyond its image"
                     f"{where}{_SHADOW_TEXT.get(row.shadow, '')}")
         else:
             error = "unbounded" if math.isinf(row.error) else f"\u2264 {_percent(row.error)}"

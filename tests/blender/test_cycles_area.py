@@ -16,12 +16,12 @@ to it (the calibration of AREA_INTENSITY), test02 the bake (the light as scene_e
 spot samples) to Cycles and to it. Pixels: every other one each way (the reference's cost),
 those with signal above 5 % of the p99, away from the floor's silhouette (2 px) and from the
 light's image (10 px).
-Measured here (256 samples; mean / p99 relative differences):
-  rectangle 3 x 1 m (8 samples): Cycles vs quadrature 1.24 % / 6.95 % (noise 1.15 % / 5.9 %),
-    total bias -0.47 %; bake vs quadrature 1.58 % / 23 % (the samples near the light), vs
-    Cycles 2.15 % / 24.7 %;
-  disk 2 m (16 samples): Cycles vs quadrature 1.39 % / 9.0 % (noise 1.34 % / 8.8 %), bias
-    +0.12 %; bake vs quadrature 0.83 % / 5.3 %, vs Cycles 1.55 % / 9.6 %.
+Measured here (256 samples, every other pixel; mean / p99 relative differences; Automatic at 1 %):
+  rectangle 3 x 1 m (24 samples): Cycles vs quadrature 1.31 % / 7.9 % (noise 1.19 % / 6.5 %),
+    total bias -0.004 %; bake vs quadrature 0.69 % / 15 % (near the light's image), vs Cycles
+    1.63 % / 15 %;
+  disk 2 m (25 samples): Cycles vs quadrature 1.41 % / 9.2 % (noise 1.48 % / 10.5 %), bias
+    +0.41 %; bake vs quadrature 0.54 % / 3.5 %, vs Cycles 1.48 % / 9.2 %.
 """
 
 import math
@@ -155,5 +155,8 @@ def test02_area_bake_matches_cycles(refs):
     SUMMARY.report(f"{refs['name']}_bake_vs_cycles", samples=n, mean=mean, p99=p99, noise_mean=nmean, noise_p99=np99,
                    vs_quadrature_mean=qmean, vs_quadrature_p99=qp99,
                    seconds_airlight=float(result["stats"]["seconds_airlight"]))
-    assert qmean < 0.02, qmean
-    assert mean < nmean + 0.015, (mean, nmean)
+    # Automatic at the default 1 %: the sample count (names.area_cell) meets it beyond the
+    # light's image.
+    assert st.model == 'AUTO' and st.accuracy == 1.0
+    assert qmean < 0.01, qmean
+    assert mean < nmean + 0.01, (mean, nmean)
