@@ -168,7 +168,7 @@ def light_lines(scene, view_layer=None):
 
 _SHADOW_TEXT = {'shadowed': ", shadowed", 'clear': ", unshadowed (no caster near enough to matter)",
                 'no shadow': ", unshadowed (Cast Shadow off)",
-                'fog objects': ", unshadowed in fog objects (model Quadrature shadows spots and suns there)"}
+                'fog objects': ", unshadowed in fog objects (model Quadrature shadows suns there)"}
 
 
 def shadow_note(scene):

@@ -246,18 +246,18 @@ void FogEvaluator::set_up_shadows(const SceneDescription& scene, const BakeSetti
     shadows_ = std::make_unique<ShadowVolumes>(casters, lights, origin_);
     if (shared_origin_)
         for (int v = 0; v < shadows_->num_lights(); ++v) origin_count_.push_back(shadows_->count_at(v, origin_));
-    if (gaussian_ && model_.gaussian_method() == GaussianMethod::Fogshop && shared_origin_) {
-        const std::vector<Vec3> points(gaussian_lights_.begin(), gaussian_lights_.begin() + std::ptrdiff_t(n_gaussian_points_));
-        eye_fogshop_ = std::make_unique<FogshopAirlight>(*gaussian_, origin_, points, model_.f_table(),
+    if (gaussian_ && model_.gaussian_method() == GaussianMethod::Fogshop && shared_origin_)
+        eye_fogshop_ = std::make_unique<FogshopAirlight>(*gaussian_, origin_, gaussian_lights_, model_.f_table(),
                                                          std::max(0, settings.threads));
-    }
 }
 
 void FogEvaluator::shadow_gaussians(const Ray* rays, const float* Dvp, const float* t0, int n, RGB* La) const {
     if (!shadows_ || !gaussian_ || model_.gaussian_method() != GaussianMethod::Fogshop) return;
-    const size_t P = n_gaussian_points_;
+    // The point lights, then (perspective: the splat takes spots there only) the spots.
+    const size_t P = eye_fogshop_ ? gaussian_lights_.size() : n_gaussian_points_;
+    auto volume = [&](size_t l) { return l < n_gaussian_points_ ? light_volume_[l] : spot_volume_[l - n_gaussian_points_]; };
     bool any = false;
-    for (size_t l = 0; l < P; ++l) any = any || light_volume_[l] >= 0;
+    for (size_t l = 0; l < P; ++l) any = any || volume(l) >= 0;
     if (!any) return;
     const LitIntervals* lit = lit_intervals(rays, t0, Dvp, n);
     thread_local std::vector<RaySpans> with, whole;
@@ -270,7 +270,7 @@ void FogEvaluator::shadow_gaussians(const Ray* rays, const float* Dvp, const flo
         if (!(end > near)) continue;
         bool partial = false;
         for (size_t l = 0; l < P; ++l) {
-            const int v = light_volume_[l];
+            const int v = volume(l);
             partial = partial || (v >= 0 && !fully_lit(lit[k], v, near, end));
         }
         if (!partial) continue;
@@ -286,7 +286,7 @@ void FogEvaluator::shadow_gaussians(const Ray* rays, const float* Dvp, const flo
         lit_spans.clear(), full_spans.clear();
         lit_spans.reserve(lit[k].spans.size()), full_spans.reserve(P);
         for (size_t l = 0; l < P; ++l) {
-            const int v = light_volume_[l];
+            const int v = volume(l);
             with[l] = whole[l] = RaySpans{};
             if (v < 0 || fully_lit(lit[k], v, near, end)) continue;
             const size_t first = lit_spans.size();
@@ -300,12 +300,18 @@ void FogEvaluator::shadow_gaussians(const Ray* rays, const float* Dvp, const flo
         const FogshopAirlight::SpanBackground background = [&](size_t l, double ta, double tb) {
             return gaussian_background(l, d, ta, tb);
         };
-        const FogshopAirlight::SpanBackground* bg = own && eye_fogshop_ ? &background : nullptr;
+        const bool spots = P > n_gaussian_points_;
+        const FogshopAirlight::SpanBackground* bg = (own || spots) && eye_fogshop_ ? &background : nullptr;
+        const FogshopAirlight::SpanProfile profile = [&](size_t l, const Vec3& u) {
+            if (l < n_gaussian_points_) return 1.0;
+            const SpotCone& cone = gaussian_spots_[l - n_gaussian_points_].cone;
+            return spot_profile(cone, glm::dot(cone.axis, u));
+        };
         const PhaseFunction* phase = isotropic_ ? nullptr : &phase_;
         La[k] += fogshop.eval_rgb_spans(d, t_start, with.data(), gaussian_albedo_.data(), gaussian_I0_.data(),
-                                        medium_albedo_, phase, bg) -
+                                        medium_albedo_, phase, bg, spots ? &profile : nullptr) -
                  fogshop.eval_rgb_spans(d, t_start, whole.data(), gaussian_albedo_.data(), gaussian_I0_.data(),
-                                        medium_albedo_, phase, bg);
+                                        medium_albedo_, phase, bg, spots ? &profile : nullptr);
     }
 }
 

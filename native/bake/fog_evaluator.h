@@ -56,8 +56,8 @@ class FogEvaluator {
     bool has_spots() const { return !spots_.empty(); }
     // Volumetric shadows are on for at least one light (BakeSettings::shadows and casters).
     bool has_shadows() const { return shadows_ != nullptr; }
-    // Volumetric shadows on Gaussian fog with the Fogshop models (point lights; spots and suns
-    // there stay unshadowed): adds to La[k] what the shadows take from ray k, Fogshop over the
+    // Volumetric shadows on Gaussian fog with the Fogshop models (point lights, and spots with a
+    // perspective camera; suns there stay unshadowed): adds to La[k] what the shadows take from ray k, Fogshop over the
     // lit spans (FogshopAirlight::eval_rgb_spans) less Fogshop over the whole segment [t0,
     // Dvp]. The splat's centre samples (gaussian_pass) and eval_gaussians' rays take it.
     void shadow_gaussians(const Ray* rays, const float* Dvp, const float* t0, int n, RGB* La) const;

@@ -419,7 +419,7 @@ shadows (default False): volumetric shadows and light shafts: each light's in-sc
   Cast Shadow; None: all cast); occluder_vertices (N, 3) float32, occluder_triangles (M, 3): the
   casters when they are not the camera's geometry (Blender's Ray Visibility > Shadow).
   Gaussian fog (fog objects): 'quadrature' shadows every light (visibility in its integrand);
-  the Fogshop models restrict each point light's terms to its lit spans, and leave spot and
+  the Fogshop models restrict each point and spot light's terms to its lit spans, and leave
   sun lamps unshadowed in Gaussian fog.
 edge_cluster_tol >= 0 (default 0.1): edge pixels (aa_samples > 1) evaluate the fog once per
   cluster of their sub-samples (all misses; hits within a depth ratio of 1 + edge_cluster_tol),

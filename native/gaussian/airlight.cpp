@@ -121,7 +121,7 @@ void FogshopAirlight::eval_terms(const Vec3& r, double Dvp, H&& homogeneous, G&&
 
 RGB FogshopAirlight::eval_rgb_spans(const Vec3& r, double t_start, const RaySpans* spans, const double* albedo,
                                     const RGB* I0, const RGB& medium_albedo, const PhaseFunction* phase,
-                                    const SpanBackground* background) const {
+                                    const SpanBackground* background, const SpanProfile* profile) const {
     const std::size_t L = lights_.size(), n = medium_.size();
     const double beta0 = medium_.beta0();
     double far = 0.0;  // the farthest lit point of any light: the Gaussians near the ray up to it
@@ -174,7 +174,9 @@ RGB FogshopAirlight::eval_rgb_spans(const Vec3& r, double t_start, const RaySpan
             const double d2 = glm::dot(sx, sx);
             const double Ds = std::sqrt(d2);
             const double Tsr = Ds > 0.0 ? gaussian_line_integral(c, a, b, lights_[l], sx / Ds, 0.0, Ds) : 0.0;
-            const double p = phase && Ds > 0.0 ? phase->eval(-glm::dot(sx, r) / Ds) : kInv4Pi;
+            double p = phase && Ds > 0.0 ? phase->eval(-glm::dot(sx, r) / Ds) : kInv4Pi;
+            if (profile && Ds > 0.0) p *= (*profile)(l, sx / Ds);
+            if (p == 0.0) continue;
             const double v = p / std::max(d2, kMinD2) * std::exp(-Tsr - Tvr) * f1_[l * n + i] * Tlit;
             out += RGB(albedo[3 * i], albedo[3 * i + 1], albedo[3 * i + 2]) * I0[l] * v;
         }

@@ -64,10 +64,13 @@ class FogshopAirlight {
     // plane) for the view-side attenuation. _phase_ (null: isotropic) scales each Gaussian's
     // term at b_i^r, as the splat does; _background_ (null: sun05 as above) gives light l's
     // homogeneous airlight per unit albedo I0 on [ta, tb], attenuated from ta (times C_sv here).
+    // _profile_ (null: 1) scales light l's Gaussian terms by its emission profile towards the
+    // unit direction u from the light to b_i^r (a spot's cone, spot_light.h).
     using SpanBackground = std::function<double(std::size_t l, double ta, double tb)>;
+    using SpanProfile = std::function<double(std::size_t l, const Vec3& u)>;
     RGB eval_rgb_spans(const Vec3& r, double t_start, const RaySpans* spans, const double* albedo, const RGB* I0,
                        const RGB& medium_albedo, const PhaseFunction* phase = nullptr,
-                       const SpanBackground* background = nullptr) const;
+                       const SpanBackground* background = nullptr, const SpanProfile* profile = nullptr) const;
 
     std::size_t num_lights() const { return lights_.size(); }
 
