@@ -36,6 +36,20 @@ constexpr double kMinD2 = 1e-12;
 
 bool finite3(const Vec3& p) { return std::isfinite(p.x) && std::isfinite(p.y) && std::isfinite(p.z); }
 
+// Gaussian i on the view line v + t r: its scale a, amplitude c, the abscissa ts of the
+// closest approach to its centre and k = c sqrt(pi) / (2 a) e^{-a^2 h^2} (its line integral is
+// k times an erf difference; 0: too far from the line to count).
+struct ViewLine {
+    double a, c, ts, k;
+};
+
+ViewLine view_line(const GaussianMedium& medium, std::size_t i, const Vec3& v, const Vec3& r) {
+    const double a = medium.scale(i), c = medium.amplitude(i);
+    const Vec3 rel = medium.centre(i) - v;
+    const Vec3 cr = glm::cross(rel, r);
+    return {a, c, glm::dot(rel, r), c * kSqrtPi / (2.0 * a) * std::exp(-a * a * glm::dot(cr, cr))};
+}
+
 void require_finite(const Vec3& p, const char* what) {
     if (!finite3(p)) {
         std::ostringstream os;
@@ -96,13 +110,10 @@ void FogshopAirlight::eval_terms(const Vec3& r, double Dvp, H&& homogeneous, G&&
     }
     // Gaussian terms L_i (eq. 11-13).
     medium_.for_each_near(v_, r, Dvp, [&](std::size_t i) {
-        const double a = medium_.scale(i), c = medium_.amplitude(i);
+        const ViewLine g = view_line(medium_, i, v_, r);
+        if (g.k == 0.0) return;
+        const double a = g.a, c = g.c, ts = g.ts, k = g.k;
         const Vec3 b = medium_.centre(i);
-        const Vec3 rel = b - v_;
-        const double ts = glm::dot(rel, r);
-        const Vec3 cr = glm::cross(rel, r);
-        const double k = c * kSqrtPi / (2.0 * a) * std::exp(-a * a * glm::dot(cr, cr));
-        if (k == 0.0) return;
         const double x1 = -a * ts;
         const double Tvp = k * erf_diff(x1, std::isinf(Dvp) ? kInf : a * (Dvp - ts));
         if (Tvp == 0.0) return;
@@ -151,13 +162,10 @@ RGB FogshopAirlight::eval_rgb_spans(const Vec3& r, double t_start, const RaySpan
         }
     // Gaussian terms: eq. 11 with T_i over the lit spans.
     medium_.for_each_near(v_, r, far, [&](std::size_t i) {
-        const double a = medium_.scale(i), c = medium_.amplitude(i);
+        const ViewLine g = view_line(medium_, i, v_, r);
+        if (g.k == 0.0) return;
+        const double a = g.a, c = g.c, ts = g.ts, k = g.k;
         const Vec3 b = medium_.centre(i);
-        const Vec3 rel = b - v_;
-        const double ts = glm::dot(rel, r);
-        const Vec3 cr = glm::cross(rel, r);
-        const double k = c * kSqrtPi / (2.0 * a) * std::exp(-a * a * glm::dot(cr, cr));
-        if (k == 0.0) return;
         const double x1 = a * (t_start - ts);
         for (std::size_t l = 0; l < L; ++l) {
             if (spans[l].count == 0) continue;

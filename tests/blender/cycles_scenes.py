@@ -487,6 +487,32 @@ def _quad(name, corners, material):
     return bpy.data.objects.new(name, mesh)
 
 
+def addon_composite(scene, sigma_t, cache_dir, path, samples, seed, **settings):
+    """The add-on as a user runs it on _scene_ (built without fog): scene.airlight on with
+    density _sigma_t_, albedo 1, model SUN05, 2 threads, the cache in _cache_dir_ and the
+    given _settings_ (surface_shading=..., volumetric_shadows=..., ...), bpy.ops.airlight.bake
+    (light groups, passes, the compositor's frame), then a Cycles render at _samples_ with
+    compositing to _path_; returns the (H, W) red channel, and leaves the fog off again."""
+    import bpy
+    st = scene.airlight
+    st.density = sigma_t
+    st.color = (1.0, 1.0, 1.0)
+    st.model = 'SUN05'
+    st.threads = 2
+    st.cache_dir = cache_dir
+    for key, value in settings.items():
+        setattr(st, key, value)
+    st.auto_composite = True
+    st.enabled = True
+    assert bpy.ops.airlight.bake('EXEC_DEFAULT') == {'FINISHED'}
+    scene.render.use_compositing = True
+    scene.cycles.samples = samples
+    render(scene, path, seed=seed)
+    image = read_exr_rgb(path)[..., 0].astype(np.float64)
+    st.enabled = False
+    return image
+
+
 def render(scene, path, seed=None):
     """Renders the Combined pass to a float EXR at _path_; returns seconds taken."""
     import time

@@ -57,24 +57,11 @@ def _composite(surface_shading, name):
     """Render WITHOUT fog, composited by the add-on's nodes; returns (H, W) red channel."""
     import bpy
     scene, desc = _build(fog=False, diffuse_bounces=0)
-    st = scene.airlight
-    st.density = SIGMA_T
-    st.color = (1.0, 1.0, 1.0)
-    st.model = 'SUN05'
-    st.threads = 2
-    st.cache_dir = os.path.join(ARTIFACTS, f"cache_{name}")
-    st.surface_shading = surface_shading
-    st.auto_composite = True
-    st.enabled = True
-    assert bpy.ops.airlight.bake('EXEC_DEFAULT') == {'FINISHED'}
-    scene.render.use_compositing = True
-    scene.cycles.samples = NOFOG_SAMPLES
-    path = os.path.join(ARTIFACTS, f"composite_{name}.exr")
-    cs.render(scene, path, seed=SEEDS[0])
-    image = cs.read_exr_rgb(path)[..., 0].astype(np.float64)
+    image = cs.addon_composite(scene, SIGMA_T, os.path.join(ARTIFACTS, f"cache_{name}"),
+                               os.path.join(ARTIFACTS, f"composite_{name}.exr"), NOFOG_SAMPLES, SEEDS[0],
+                               surface_shading=surface_shading)
     groups = ([lg.name for lg in bpy.context.view_layer.lightgroups], scene.objects["RefLight"].lightgroup,
               bpy.context.view_layer.use_pass_diffuse_color)
-    st.enabled = False
     return image, groups, scene
 
 

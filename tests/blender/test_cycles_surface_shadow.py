@@ -60,25 +60,10 @@ def _build(fog, diffuse_bounces):
 
 
 def _composite(shadows):
-    import bpy
     scene, desc = _build(fog=False, diffuse_bounces=0)
-    st = scene.airlight
-    st.density = SIGMA_T
-    st.color = (1.0, 1.0, 1.0)
-    st.model = 'SUN05'
-    st.threads = 2
-    st.cache_dir = os.path.join(ARTIFACTS, f"cache_{shadows}")
-    st.surface_shading = True
-    st.volumetric_shadows = shadows
-    st.auto_composite = True
-    st.enabled = True
-    assert bpy.ops.airlight.bake('EXEC_DEFAULT') == {'FINISHED'}
-    scene.render.use_compositing = True
-    scene.cycles.samples = NOFOG_SAMPLES
-    path = os.path.join(ARTIFACTS, f"composite_{shadows}.exr")
-    cs.render(scene, path, seed=SEEDS[0])
-    image = cs.read_exr_rgb(path)[..., 0].astype(np.float64)
-    st.enabled = False
+    image = cs.addon_composite(scene, SIGMA_T, os.path.join(ARTIFACTS, f"cache_{shadows}"),
+                               os.path.join(ARTIFACTS, f"composite_{shadows}.exr"), NOFOG_SAMPLES, SEEDS[0],
+                               surface_shading=True, volumetric_shadows=shadows)
     return image, scene
 
 
