@@ -208,38 +208,35 @@ void FogEvaluator::set_up_shadows(const SceneDescription& scene, const BakeSetti
     const TriangleMesh& casters = scene.occluders_from_geometry ? scene.geometry : scene.occluders;
     if (casters.triangles.empty()) return;
     std::vector<ShadowLight> lights;
-    auto add = [&](bool casts, ShadowLight light) {
-        if (!casts) return -1;
-        lights.push_back(light);
-        return int(lights.size()) - 1;
+    // Per light of the scene: -1 in _scene_ (and nothing in _kept_) for a light the fog drops,
+    // else its volume (-1: Cast Shadow off) in both.
+    auto place = [&](std::vector<int>& scene_list, std::vector<int>& kept, bool keeps, bool casts,
+                     const ShadowLight& light) {
+        scene_list.push_back(-1);
+        if (!keeps) return;
+        if (casts) lights.push_back(light);
+        kept.push_back(casts ? int(lights.size()) - 1 : -1);
+        scene_list.back() = kept.back();
     };
+    auto nonzero = [](const RGB& w) { return w.x != 0.0 || w.y != 0.0 || w.z != 0.0; };
     for (const PointLight& light : scene.point_lights) {
-        scene_point_volume_.push_back(-1);
-        if (!keeps_light(scene, light)) continue;
         ShadowLight sl;
         sl.position = light.position;
-        light_volume_.push_back(add(light.casts_shadow, sl));
-        scene_point_volume_.back() = light_volume_.back();
+        place(scene_point_volume_, light_volume_, keeps_light(scene, light), light.casts_shadow, sl);
     }
     // (With Gaussians, spot_volume_ and sun_volume_ follow gaussian_spots_ and gaussian_suns_.)
     for (const SpotLight& spot : scene.spot_lights) {
-        scene_spot_volume_.push_back(-1);
-        const RGB weight = gaussian_ ? spot.I0 : scene.medium.albedo * spot.I0;
-        if (weight.x == 0.0 && weight.y == 0.0 && weight.z == 0.0) continue;
         ShadowLight sl;
         sl.position = spot.position;
-        spot_volume_.push_back(add(spot.casts_shadow, sl));
-        scene_spot_volume_.back() = spot_volume_.back();
+        place(scene_spot_volume_, spot_volume_, nonzero(gaussian_ ? spot.I0 : scene.medium.albedo * spot.I0),
+              spot.casts_shadow, sl);
     }
     for (const SunLight& sun : scene.sun_lights) {
-        scene_sun_volume_.push_back(-1);
-        const RGB weight = gaussian_ ? sun.E : scene.medium.albedo * sun.E * sigma_t_;
-        if (weight.x == 0.0 && weight.y == 0.0 && weight.z == 0.0) continue;
         ShadowLight sl;
         sl.directional = true;
         sl.direction = glm::normalize(sun.direction);
-        sun_volume_.push_back(add(sun.casts_shadow, sl));
-        scene_sun_volume_.back() = sun_volume_.back();
+        place(scene_sun_volume_, sun_volume_, nonzero(gaussian_ ? sun.E : scene.medium.albedo * sun.E * sigma_t_),
+              sun.casts_shadow, sl);
     }
     if (lights.empty()) return;
     for (const LightData& light : lights_) light_peak_.push_back(std::max({light.weight.x, light.weight.y, light.weight.z}));

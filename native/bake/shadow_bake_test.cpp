@@ -15,16 +15,10 @@
 #include "models/registry.h"
 #include "shadow/shadow_volumes.h"
 #include "shadow/shadowed_quadrature.h"
+#include "shadow/test_meshes.h"
 
 namespace airlight {
 namespace {
-
-void add_quad(TriangleMesh& m, const Vec3& a, const Vec3& b, const Vec3& c, const Vec3& d) {
-    const uint32_t base = uint32_t(m.vertices.size() / 3);
-    for (const Vec3& p : {a, b, c, d})
-        for (int k = 0; k < 3; ++k) m.vertices.push_back(float(p[k]));
-    m.triangles.insert(m.triangles.end(), {base, base + 1, base + 2, base, base + 2, base + 3});
-}
 
 // Camera at _eye_ looking along +x (its -Z), 60 degrees wide, W x H.
 Camera camera_along_x(const Vec3& eye, int W, int H) {

@@ -1,5 +1,6 @@
 // shadow_volumes_test.cpp: lit intervals against analytic shadows and brute-force visibility.
 #include "shadow/shadow_volumes.h"
+#include "shadow/test_meshes.h"
 
 #include <gtest/gtest.h>
 
@@ -9,13 +10,6 @@
 
 namespace airlight {
 namespace {
-
-void add_quad(TriangleMesh& m, const Vec3& a, const Vec3& b, const Vec3& c, const Vec3& d) {
-    const uint32_t base = uint32_t(m.vertices.size() / 3);
-    for (const Vec3& p : {a, b, c, d})
-        for (int k = 0; k < 3; ++k) m.vertices.push_back(float(p[k]));
-    m.triangles.insert(m.triangles.end(), {base, base + 1, base + 2, base, base + 2, base + 3});
-}
 
 // An axis-aligned box as 12 triangles (closed, each face wound outward).
 void add_box(TriangleMesh& m, const Vec3& lo, const Vec3& hi) {
