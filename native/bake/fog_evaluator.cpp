@@ -241,8 +241,15 @@ void FogEvaluator::set_up_shadows(const SceneDescription& scene, const BakeSetti
     if (lights.empty()) return;
     for (const LightData& light : lights_) light_peak_.push_back(std::max({light.weight.x, light.weight.y, light.weight.z}));
     shadows_ = std::make_unique<ShadowVolumes>(casters, lights, origin_);
-    if (shared_origin_)
-        for (int v = 0; v < shadows_->num_lights(); ++v) origin_count_.push_back(shadows_->count_at(v, origin_));
+    if (shared_origin_) {
+        // An eye on a frustum boundary (in the plane of a light and a caster's edge) has no
+        // one count for all its rays: each ray then counts at its own start (lit_intervals).
+        for (int v = 0; v < shadows_->num_lights(); ++v) {
+            bool ambiguous = false;
+            origin_count_.push_back(shadows_->count_at(v, origin_, &ambiguous));
+            origin_ambiguous_ = origin_ambiguous_ || ambiguous;
+        }
+    }
     if (gaussian_ && model_.gaussian_method() == GaussianMethod::Fogshop && shared_origin_)
         eye_fogshop_ = std::make_unique<FogshopAirlight>(*gaussian_, origin_, gaussian_lights_, model_.f_table(),
                                                          std::max(0, settings.threads));
@@ -377,7 +384,7 @@ const LitIntervals* FogEvaluator::lit_intervals(const Ray* rays, const float* t0
     }
     const int L = shadows_->num_lights();
     const int* count0 = nullptr;
-    if (shared_origin_) {
+    if (shared_origin_ && !origin_ambiguous_) {
         counts.resize(size_t(n) * L);
         for (int k = 0; k < n; ++k) std::copy(origin_count_.begin(), origin_count_.end(), counts.begin() + size_t(k) * L);
         count0 = counts.data();

@@ -185,6 +185,7 @@ class FogEvaluator {
     std::vector<int> light_volume_, spot_volume_, sun_volume_;
     std::vector<int> scene_point_volume_, scene_spot_volume_, scene_sun_volume_;
     std::vector<int> origin_count_;  // per light of shadows_: its count at origin_
+    bool origin_ambiguous_ = false;  // origin_ on a frustum boundary: rays count at their start
     std::vector<double> light_peak_;  // per point light: its largest channel of albedo x I0
 };
 

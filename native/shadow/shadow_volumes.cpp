@@ -329,7 +329,7 @@ ShadowVolumes::ShadowVolumes(const TriangleMesh& casters, const std::vector<Shad
     impl_->check("building the volumes");
 }
 
-int ShadowVolumes::count_at(int l, const Vec3& world_p) const {
+int ShadowVolumes::count_at(int l, const Vec3& world_p, bool* ambiguous) const {
     // A segment through an edge that two caster triangles share hits both (Embree's watertight
     // test), though the point is inside one frustum only: the count would be off by one for the
     // whole ray (measured: a camera on the plane through the light and a quad's diagonal got
@@ -341,6 +341,7 @@ int ShadowVolumes::count_at(int l, const Vec3& world_p) const {
     const ShadowLight& light = lights_[size_t(l)];
     const Vec3 to = light.directional ? -light.direction : light.position - p;
     const double len = glm::length(to);
+    if (ambiguous) *ambiguous = false;
     if (!(len > 0.0)) return 0;
     const Vec3 d = to / len;
     const Vec3 a = glm::normalize(std::abs(d.x) < 0.9 ? glm::cross(d, Vec3(1, 0, 0)) : glm::cross(d, Vec3(0, 1, 0)));
@@ -363,6 +364,7 @@ int ShadowVolumes::count_at(int l, const Vec3& world_p) const {
         counts[k] = ctx.count;
     }
     std::sort(counts, counts + 3);
+    if (ambiguous) *ambiguous = counts[0] != counts[2];
     return counts[1];
 }
 
@@ -375,12 +377,28 @@ bool ShadowVolumes::lit_at(int l, const Vec3& world_p) const {
     return ray.tfar >= 0.0f;                    // set to -inf on a hit
 }
 
+int ShadowVolumes::origin_count(int l, const Ray& r, double a, double b, double& from) const {
+    // From max(a, 1e-4 of the scene's size) on, 4 times farther while the perturbed segments
+    // of count_at disagree (the point is within their 1e-6 of a frustum boundary: a ray
+    // leaving an eye on a boundary at a small angle), at most to the ray's end.
+    const double scale = glm::length(r.o - impl_->frame) + glm::length(impl_->hi - impl_->lo);
+    from = std::max(a, 1e-4 * scale);
+    for (int k = 0;; ++k) {
+        bool ambiguous = false;
+        const int c = count_at(l, r.o + from * r.d, &ambiguous);
+        if (!ambiguous || k == 12 || !(4.0 * from < b)) return c;
+        from *= 4.0;
+    }
+}
+
 void ShadowVolumes::lit_intervals(const Ray* rays, const float* t0, const float* t1, int n, const int* count0,
                                   LitIntervals* out, const uint32_t* masks) const {
     const int L = num_lights();
     thread_local std::vector<Crossing> lists[16];
     thread_local std::vector<int> count;
+    thread_local std::vector<double> from;
     count.resize(static_cast<size_t>(L));
+    from.resize(static_cast<size_t>(L));
     CrossingContext ctx;
     ctx.lists = lists;
     ctx.weights = &impl_->weights;
@@ -418,8 +436,14 @@ void ShadowVolumes::lit_intervals(const Ray* rays, const float* t0, const float*
             LitIntervals& lit = out[i];
             lit.clear(L);
             const double a = t0[i], b = t1[i];
-            for (int l = 0; l < L; ++l)
-                count[l] = !(mask & light_mask(l)) ? 0 : count0 ? count0[size_t(i) * L + l] : count_at(l, r.o);
+            // Without count0 each light's count is taken a little way along the ray (origin_count),
+            // and the crossings up to there are in it already.
+            for (int l = 0; l < L; ++l) {
+                from[l] = a;
+                if (!(mask & light_mask(l))) count[l] = 0;
+                else if (count0) count[l] = count0[size_t(i) * L + l];
+                else count[l] = origin_count(l, r, a, b, from[l]);
+            }
             // Per light, sweep its crossings: lit where the count is 0 (clamped at 0: a crossing
             // lost to rounding must not leave the rest of the ray dark).
             for (int l = 0; l < L; ++l) {
@@ -434,7 +458,8 @@ void ShadowVolumes::lit_intervals(const Ray* rays, const float* t0, const float*
                 bool open = false;
                 size_t q = 0;
                 for (; q < list.size() && double(list[q].t) <= a; ++q)
-                    if (list[q].light == l) c = std::max(0, c + list[q].dw);
+                    if (list[q].light == l && count0) c = std::max(0, c + list[q].dw);
+                while (q < list.size() && double(list[q].t) <= from[l]) ++q;
                 if (c == 0) open = true;
                 for (; q < list.size() && double(list[q].t) < b; ++q) {
                     if (list[q].light != l) continue;

@@ -64,14 +64,19 @@ class ShadowVolumes {
     ShadowVolumes& operator=(const ShadowVolumes&) = delete;
 
     int num_lights() const { return int(lights_.size()); }
-    // Number of caster triangles between _p_ and light _l_ (0: lit). Thread safe.
-    int count_at(int l, const Vec3& p) const;
+    // Number of caster triangles between _p_ and light _l_ (0: lit). _ambiguous_ (optional):
+    // set when _p_ lies on a frustum boundary (its three perturbed segments disagree), where
+    // rays leaving _p_ in different directions start with different counts. Thread safe.
+    int count_at(int l, const Vec3& p, bool* ambiguous = nullptr) const;
     // Whether _p_ sees light _l_ (count_at == 0, by an occlusion ray: faster). Thread safe.
     bool lit_at(int l, const Vec3& p) const;
     // The lit intervals within [t0[k], t1[k]] (t1 may be inf) of the _n_ rays o[k] + t d[k]
-    // (unit d) for every light, into out[k]; _count0_ (num_lights() per ray, or null: computed
-    // here) holds each light's count at the rays' origins. Rays sharing an origin pass the
-    // counts of count_at once. _masks_ (optional): per ray, the lights asked for (light_mask
+    // (unit d) for every light, into out[k]; _count0_ (num_lights() per ray) holds each
+    // light's count at the rays' origins. Rays sharing an origin pass the counts of count_at
+    // once. With _count0_ null each ray's count is taken at o + s d, s = max(t0, 1e-4 of the
+    // scene's size) or farther until count_at is not _ambiguous_ there, and the crossings
+    // before it are left out: for an origin on a frustum boundary, whose count depends on
+    // the ray's direction. _masks_ (optional): per ray, the lights asked for (light_mask
     // bits); the others come back lit all along, and a ray asking for none is not traced.
     // Thread safe.
     void lit_intervals(const Ray* rays, const float* t0, const float* t1, int n, const int* count0,
@@ -82,6 +87,8 @@ class ShadowVolumes {
     size_t num_faces() const { return n_faces_; }
 
   private:
+    // Light _l_'s count on ray _r_ (t in [a, b]) a little way along it, at t = _from_ (set).
+    int origin_count(int l, const Ray& r, double a, double b, double& from) const;
     struct Impl;
     std::unique_ptr<Impl> impl_;
     std::vector<ShadowLight> lights_;

@@ -123,6 +123,23 @@ def test_camera_inside_a_shadow():
                                                          shadows=False), 99)
 
 
+def test_camera_on_a_shadow_boundary():
+    """The camera and the light in the planes of two faces of a box, the segment between them
+    along its edge: the eye lies on the boundary of the box's shadow, so rays into the shadow
+    and rays beside it start with different counts (a spot between two slats, level with a
+    camera, left the whole sky above the slats dark). The bake agrees with the shadow rays,
+    and the shadow is there."""
+    light = np.array([[0.0, 0.0, -6.0]])
+    lo, hi = np.array([0.0, 0.0, -4.0]), np.array([1.0, 0.6, -3.0])
+    corners = np.array([[(lo, hi)[i & 1][0], (lo, hi)[i >> 1 & 1][1], (lo, hi)[i >> 2 & 1][2]]
+                        for i in range(8)], np.float32)
+    faces = [(0, 2, 3), (0, 3, 1), (4, 5, 7), (4, 7, 6), (0, 1, 5), (0, 5, 4),
+             (2, 6, 7), (2, 7, 3), (0, 4, 6), (0, 6, 2), (1, 3, 7), (1, 7, 5)]
+    got, ref = assert_matches_quadrature((corners, faces), light=light)
+    off = bake((corners, faces), light=light, shadows=False)
+    assert got.sum() < 0.97 * off.sum()
+
+
 def test_a_million_occluder_triangles():
     """10^6 small random triangles around the light: the bake completes with finite passes,
     shadowed at most as bright as unshadowed, and darker (they block light)."""
