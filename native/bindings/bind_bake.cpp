@@ -17,24 +17,6 @@ using namespace pybind11::literals;
 namespace {
 
 // Triangle indices: any integer array of shape (M, 3) with values in [0, 2^32).
-std::vector<uint32_t> to_triangles(const py::object& obj) {
-    py::array raw = py::array::ensure(obj);
-    if (!raw) throw py::value_error("triangles: cannot convert to an array");
-    if (raw.size() > 0 && raw.dtype().kind() != 'i' && raw.dtype().kind() != 'u')
-        throw py::value_error("triangles: expected an integer array, got dtype " +
-                              std::string(py::str(raw.dtype())));
-    auto a = as_array<long long>(raw, "triangles");
-    py::ssize_t m = require_rows_of(a, 3, "triangles");
-    std::vector<uint32_t> out(size_t(3 * m));
-    const long long* p = a.data();
-    for (size_t i = 0; i < out.size(); ++i) {
-        if (p[i] < 0 || p[i] > 0xFFFFFFFFll)
-            throw py::value_error("triangles: index " + std::to_string(p[i]) + " out of range");
-        out[i] = uint32_t(p[i]);
-    }
-    return out;
-}
-
 glm::dvec3 to_rgb(const py::object& obj, const char* name) {
     auto a = as_array<double>(obj, name);
     if (a.size() != 3) throw py::value_error(std::string(name) + ": expected 3 values, got " + shape_str(a));

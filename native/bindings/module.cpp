@@ -34,4 +34,5 @@ PYBIND11_MODULE(_native, m) {
     airlight::bindings::bind_preview(m);
     airlight::bindings::bind_rbf_environment(m);
     airlight::bindings::bind_surface(m);
+    airlight::bindings::bind_shadow(m);
 }

@@ -5,6 +5,7 @@
 #include <pybind11/numpy.h>
 #include <pybind11/pybind11.h>
 
+#include <cstdint>
 #include <string>
 #include <utility>
 #include <vector>
@@ -71,6 +72,25 @@ inline py::ssize_t require_rows_of(const py::array& a, py::ssize_t cols, const c
     return n;
 }
 
+// (M, 3) integer triangle indices as uint32 (ValueError: not integers, negative or too big).
+inline std::vector<uint32_t> to_triangles(const py::object& obj) {
+    py::array raw = py::array::ensure(obj);
+    if (!raw) throw py::value_error("triangles: cannot convert to an array");
+    if (raw.size() > 0 && raw.dtype().kind() != 'i' && raw.dtype().kind() != 'u')
+        throw py::value_error("triangles: expected an integer array, got dtype " +
+                              std::string(py::str(raw.dtype())));
+    auto a = as_array<long long>(raw, "triangles");
+    py::ssize_t m = require_rows_of(a, 3, "triangles");
+    std::vector<uint32_t> out(size_t(3 * m));
+    const long long* p = a.data();
+    for (size_t i = 0; i < out.size(); ++i) {
+        if (p[i] < 0 || p[i] > 0xFFFFFFFFll)
+            throw py::value_error("triangles: index " + std::to_string(p[i]) + " out of range");
+        out[i] = uint32_t(p[i]);
+    }
+    return out;
+}
+
 // A (4, 4) float64 array (numpy row-major) as a glm (column-major) matrix.
 inline glm::dmat4 to_mat4(const py::object& obj, const char* name) {
     auto a = as_array<double>(obj, name);
@@ -115,5 +135,6 @@ void bind_env(py::module_& m);
 void bind_preview(py::module_& m);
 void bind_rbf_environment(py::module_& m);
 void bind_surface(py::module_& m);
+void bind_shadow(py::module_& m);
 
 }  // namespace airlight::bindings
