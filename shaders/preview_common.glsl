@@ -29,6 +29,19 @@
 //   PREVIEW_SUNS   1: sun lamps (sun_airlight.glsl, needs it in front): suns, RGBA32F
 //               sun_count x 2 texels: row 0 = (unit propagation direction w (the lamp's
 //               -Z), fog top height h_top (inf: none)), row 1 = albedo * colour * strength
+//   PREVIEW_SHADOWS  1: volumetric shadows (shadow_maps.glsl, needs it in front): the
+//               shadow-map row of each light (-1: unshadowed) in lights row 2 .a, spots
+//               row 2 .a and suns row 1 .a; a shadowed light's airlight is marched
+//               (preview_point_lit_share, preview_sun_shadowed; spots: the visibility in
+//               spot_airlight's quadrature nodes)
+
+#ifndef PREVIEW_SHADOWS
+#  define PREVIEW_SHADOWS 0
+#endif
+// Steps of the march along a view ray per shadowed point light or sun.
+#ifndef SHADOW_STEPS
+#  define SHADOW_STEPS 32
+#endif
 
 vec3 preview_unproject(vec2 ndc_xy, float ndc_z)
 {
@@ -72,6 +85,77 @@ float preview_near(vec3 dir)
   return (eye.w > 0.5) ? clip.w / max(dot(dir, clip.xyz), 1e-6) : 0.0;
 }
 
+// Airlight of a point light over [0, x] of the view ray from p0 (per unit I0): the
+// model's closed form or table (Sun 2005, or Biri 2006 for PREVIEW_PHASE 1).
+float preview_point_airlight(float Dsv, float cos_gamma, float x)
+{
+#if PREVIEW_PHASE
+  return biri06_airlight(Gtab, pv_phase, pv_sigma_t, Dsv, cos_gamma, x);
+#else
+  return sun05_airlight(Ftab, pv_sigma_t, Dsv, cos_gamma, x);
+#endif
+}
+
+#if PREVIEW_SHADOWS
+// Lit share of a point light's airlight over [0, D] of the ray p0 + x dir (rel = light -
+// p0): the single-scattering integrand sampled at the middles of SHADOW_STEPS steps equal
+// in the angle seen from the light (x = a + h tan(alpha), a, h: the closest approach; there
+// dx / d^2 = dalpha / h takes the 1 / d^2 peak out, and D = inf maps to alpha = pi / 2),
+// each weighted by the light's visibility there, over the same sum unweighted. The caller
+// multiplies it with the closed form (Yusov 2013's loop, with the closed form's own total):
+// fully lit rays get the closed form exactly, fully shadowed ones 0.
+float preview_point_lit_share(int row, vec3 p0, vec3 dir, vec3 rel, float Dsv, float D)
+{
+  float a = dot(rel, dir);
+  float h = max(length(cross(rel, dir)), 1e-6 * max(Dsv, 1e-6));
+  float lo = atan(-a, h);
+  float hi = isinf(D) ? 0.5 * kPi : atan(D - a, h);
+  float step_a = (hi - lo) / float(SHADOW_STEPS);
+  float lit = 0.0, all = 0.0;
+  for (int k = 0; k < SHADOW_STEPS; k++) {
+    float alpha = lo + step_a * (float(k) + 0.5);
+    float x = a + h * tan(alpha);
+    float d = h / cos(alpha);
+#if PREVIEW_PHASE
+    float w = biri06_phase(pv_phase, -dot(x * dir - rel, dir) / d);
+#else
+    float w = 1.0;
+#endif
+    w *= exp(-pv_sigma_t * (x + d));
+    all += w;
+    lit += w * shadow_lit(row, p0 + x * dir);
+  }
+  return all > 0.0 ? lit / all : 1.0;
+}
+
+// Shadowed sun_layer_factor over [0, D]: SHADOW_STEPS steps of equal view-ray
+// transmittance from t_a, where the ray is first in the fog layer (0 without a top), to D
+// (inf maps to Tr = 0), each the closed form over the step times the visibility at its
+// middle. sun_layer_factor(x0, x1) attenuates the view from x0 (the layer's own
+// convention: no extinction above the top), so each step is carried back to t_a by
+// e^{-sigma_t (x0 - t_a)}.
+float preview_sun_shadowed(int row, vec4 s0, vec3 p0, vec3 dir, float D)
+{
+  float h_top = s0.w;
+  float ta = 0.0;
+  if (!(isinf(h_top) || h_top >= kInfinite) && dir.z < 0.0) {
+    ta = max(0.0, (h_top - p0.z) / dir.z);
+  }
+  if (!(D > ta)) return 0.0;
+  float u_end = isinf(D) ? 1.0 : -airlight_expm1(-pv_sigma_t * (D - ta));
+  float du = u_end / float(SHADOW_STEPS);
+  float sum = 0.0, x0 = ta;
+  for (int k = 1; k <= SHADOW_STEPS; k++) {
+    float x1 = (k == SHADOW_STEPS) ? D : min(ta - airlight_log1p(-du * float(k)) / pv_sigma_t, D);
+    float xm = ta - airlight_log1p(-du * (float(k) - 0.5)) / pv_sigma_t;
+    float G = sun_layer_factor(pv_sigma_t, h_top, -s0.z, p0.z, dir.z, x0, x1);
+    sum += G * exp(-pv_sigma_t * (x0 - ta)) * shadow_lit(row, p0 + xm * dir);
+    x0 = x1;
+  }
+  return sum;
+}
+#endif
+
 // Premultiplied fog of one ray from _origin_ to the surface at distance _Dvp_ (inf: no
 // surface), clipped as Cycles renders it: rgb = airlight of all point lights over
 // [t0, Dvp], attenuated from the near-plane point p0 = origin + t0 dir on, a = 1 - Tr with
@@ -96,33 +180,45 @@ vec4 preview_fog(vec3 origin, vec3 dir, float Dvp)
     // exactly through the light (which sun05_airlight regularises to sin(gamma) = 1e-8,
     // 1e4 times brighter than any nearby pixel). 0.99999994 = 1 - 2^-24.
     float cos_gamma = clamp(dot(to_light, dir) / Dsv, -1.0, 0.99999994);
-#if PREVIEW_PHASE
-    La += (I0.rgb * I0.a) * biri06_airlight(Gtab, pv_phase, pv_sigma_t, Dsv, cos_gamma, D);
-#else
-    La += (I0.rgb * I0.a) * sun05_airlight(Ftab, pv_sigma_t, Dsv, cos_gamma, D);
+#if PREVIEW_SHADOWS
+    int row = int(texelFetch(lights, ivec2(i, 2), 0).a);
+    if (row >= 0) {
+      La += (I0.rgb * I0.a) * preview_point_airlight(Dsv, cos_gamma, D)
+            * preview_point_lit_share(row, p0, dir, to_light, Dsv, D);
+      continue;
+    }
 #endif
+    La += (I0.rgb * I0.a) * preview_point_airlight(Dsv, cos_gamma, D);
   }
 #if PREVIEW_SPOTS
   int spot_count = textureSize(spots, 0).x;
   for (int i = 0; i < spot_count; i++) {
     vec4 s0 = texelFetch(spots, ivec2(i, 0), 0);
     vec4 s1 = texelFetch(spots, ivec2(i, 1), 0);
-    vec3 I0 = texelFetch(spots, ivec2(i, 2), 0).rgb;
-    La += I0 * spot_airlight(s0.xyz, s1.xyz, s0.w, s1.w, pv_sigma_t, p0, dir, D, PREVIEW_PHASE != 0, pv_phase);
+    vec4 I0 = texelFetch(spots, ivec2(i, 2), 0);
+    int row = PREVIEW_SHADOWS != 0 ? int(I0.a) : -1;
+    La += I0.rgb * spot_airlight_shadowed(s0.xyz, s1.xyz, s0.w, s1.w, pv_sigma_t, p0, dir, D,
+                                          PREVIEW_PHASE != 0, pv_phase, row);
   }
 #endif
 #if PREVIEW_SUNS
   int sun_count = textureSize(suns, 0).x;
   for (int i = 0; i < sun_count; i++) {
     vec4 s0 = texelFetch(suns, ivec2(i, 0), 0);
-    vec3 E = texelFetch(suns, ivec2(i, 1), 0).rgb;
+    vec4 E = texelFetch(suns, ivec2(i, 1), 0);
     float mu = -dot(s0.xyz, dir);
 #if PREVIEW_PHASE
     float p = biri06_phase(pv_phase, mu);
 #else
     float p = 0.07957747154594767;
 #endif
-    La += (pv_sigma_t * p) * E * sun_layer_factor(pv_sigma_t, s0.w, -s0.z, p0.z, dir.z, 0.0, D);
+#if PREVIEW_SHADOWS
+    if (E.a >= 0.0 && pv_sigma_t > 0.0) {
+      La += (pv_sigma_t * p) * E.rgb * preview_sun_shadowed(int(E.a), s0, p0, dir, D);
+      continue;
+    }
+#endif
+    La += (pv_sigma_t * p) * E.rgb * sun_layer_factor(pv_sigma_t, s0.w, -s0.z, p0.z, dir.z, 0.0, D);
   }
 #endif
   float Tr = exp(-pv_sigma_t * D);

@@ -19,6 +19,14 @@
 #ifndef SPOT_PANELS
 #define SPOT_PANELS 2
 #endif
+// With volumetric shadows (PREVIEW_SHADOWS 1, shadow_maps.glsl in front): panels per
+// piece of a shadowed spot, whose nodes each carry the light's visibility.
+#ifndef SPOT_SHADOW_PANELS
+#define SPOT_SHADOW_PANELS 4
+#endif
+#ifndef PREVIEW_SHADOWS
+#define PREVIEW_SHADOWS 0
+#endif
 
 float spot_profile(float cos_half, float smooth_w, float cos_theta)
 {
@@ -88,8 +96,10 @@ float spot_alpha(float x, float a, float h)
 // Airlight of the spot at _s_ along o + x d, x in [0, Dvp] (Dvp may be inf), attenuation
 // from _o_, per unit I0 and albedo; phase as in biri06_airlight.glsl when use_phase, else
 // isotropic.
-float spot_airlight(vec3 s, vec3 axis, float cos_half, float smooth_w, float sigma_t, vec3 o, vec3 d,
-                    float Dvp, bool use_phase, vec4 phase)
+// _shadow_row_ >= 0 (PREVIEW_SHADOWS 1 only): each node's integrand times the light's
+// visibility from that shadow map (shadow_lit), SPOT_SHADOW_PANELS panels per piece.
+float spot_airlight_shadowed(vec3 s, vec3 axis, float cos_half, float smooth_w, float sigma_t, vec3 o,
+                             vec3 d, float Dvp, bool use_phase, vec4 phase, int shadow_row)
 {
   if (sigma_t == 0.0 || !(Dvp > 0.0)) return 0.0;
   float x0, x1;
@@ -109,8 +119,9 @@ float spot_airlight(vec3 s, vec3 axis, float cos_half, float smooth_w, float sig
   for (int piece = 0; piece < 3; piece++) {
     float lo = spot_alpha(cuts[piece], a, h), hi = spot_alpha(cuts[piece + 1], a, h);
     if (!(hi > lo)) continue;
-    float len = (hi - lo) / float(SPOT_PANELS);
-    for (int panel = 0; panel < SPOT_PANELS; panel++) {
+    int panels = shadow_row >= 0 ? SPOT_SHADOW_PANELS : SPOT_PANELS;
+    float len = (hi - lo) / float(panels);
+    for (int panel = 0; panel < panels; panel++) {
       float part = 0.0;
       for (int k = 0; k < 8; k++) {
         float alpha = lo + len * (float(panel) + kGLx[k]);
@@ -119,10 +130,20 @@ float spot_airlight(vec3 s, vec3 axis, float cos_half, float smooth_w, float sig
         float dist = h / cos(alpha);
         float prof = spot_profile(cos_half, smooth_w, dot(v, axis) / dist);
         float p = use_phase ? biri06_phase(phase, -dot(v, d) / dist) : 0.07957747154594767;
-        part += kGLw[k] * prof * p * exp(-sigma_t * (dist + x));
+        float lit = 1.0;
+#if PREVIEW_SHADOWS
+        if (shadow_row >= 0) lit = shadow_lit(shadow_row, o + x * d);
+#endif
+        part += kGLw[k] * prof * p * exp(-sigma_t * (dist + x)) * lit;
       }
       sum += part * len;
     }
   }
   return sigma_t * sum / h;
+}
+
+float spot_airlight(vec3 s, vec3 axis, float cos_half, float smooth_w, float sigma_t, vec3 o, vec3 d,
+                    float Dvp, bool use_phase, vec4 phase)
+{
+  return spot_airlight_shadowed(s, axis, cos_half, smooth_w, sigma_t, o, d, Dvp, use_phase, phase, -1);
 }

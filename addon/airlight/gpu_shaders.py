@@ -268,8 +268,8 @@ def preview_params_ubo(*, inv_persp, persp, eye, clip, viewport, phase, sigma_t,
     i[52:56] = (int(light_count), int(scale), int(mode), 0)
     return gpu.types.GPUUniformBuf(f.tobytes())
 PREVIEW_FOG_SAMPLERS = ("Ftab", "depth_tex", "lights", "fog_lo", "gauss_acc", "gauss_near", "Gtab",
-                        "spots", "suns", "env_glow")
-PREVIEW_LIBS = ("sun05_airlight.glsl", "biri06_airlight.glsl", "spot_airlight.glsl",
+                        "spots", "suns", "env_glow", "shadow_maps", "shadow_info")
+PREVIEW_LIBS = ("sun05_airlight.glsl", "biri06_airlight.glsl", "shadow_maps.glsl", "spot_airlight.glsl",
                 "sun_airlight.glsl", "preview_common.glsl")
 
 
@@ -285,7 +285,8 @@ def create_preview_shader(name, frag, defines=()):
     constants). Samplers (FLOAT_2D, slots in order): PREVIEW_FOG_SAMPLERS.
     Defines (all must be given): PREVIEW_WINDOW_DEPTH, PREVIEW_PHASE, PREVIEW_SPOTS, PREVIEW_SUNS,
     PREVIEW_GAUSSIANS, PREVIEW_ENV (the World's glow: sampler env_glow, an equirectangular
-    RGBA map with row 0 at the top, and pv_env_T),
+    RGBA map with row 0 at the top, and pv_env_T), PREVIEW_SHADOWS (volumetric shadows:
+    samplers shadow_maps and shadow_info of preview_shadows.py, SHADOW_RES),
     and per file: PREVIEW_LOWRES and PREVIEW_GAUSS_SCALE (fog), PREVIEW_EXACT_PASS and
     PREVIEW_MARK (upsample). Output: 0 VEC4 "frag_color".
     """
@@ -531,3 +532,12 @@ def create_rbf_fast_test_shader():
     fullscreen_vert.glsl + rbf_gaussian.glsl + test_rbf_fast_frag.glsl; sampler 0 "in0"."""
     return create_fullscreen_shader("test_rbf_fast", "test_rbf_fast_frag.glsl",
                                     libs=("rbf_gaussian.glsl",), samplers=("in0",))
+
+
+def create_shadow_test_shader(shadow_res):
+    """GLSL-vs-C++ agreement shader for shadow_maps.glsl (test_preview_shadows.py):
+    fullscreen_vert.glsl + shadow_maps.glsl + test_shadow_frag.glsl, SHADOW_RES _shadow_res_;
+    samplers 0 "in0" (RGBA32F: point, row), 1 "shadow_maps", 2 "shadow_info"."""
+    return create_fullscreen_shader("test_shadow", "test_shadow_frag.glsl", libs=("shadow_maps.glsl",),
+                                    samplers=("in0", "shadow_maps", "shadow_info"),
+                                    defines=(("SHADOW_RES", int(shadow_res)),))

@@ -48,7 +48,8 @@ def build_scene(sigma_t):
     settings.enabled = True
     settings.density = sigma_t
     settings.color = ALBEDO
-    # The preview draws the fog unshadowed (its panel says so): it is held to the unshadowed bake.
+    # These tests hold the unshadowed preview to the unshadowed bake (test_preview_shadows.py
+    # holds the shadows).
     settings.volumetric_shadows = False
     bpy.context.view_layer.update()
     return scene
