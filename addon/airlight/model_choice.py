@@ -230,8 +230,7 @@ SUN_QUADRATURE_MODEL = ("Quadrature (sun)", 1e-8)
 # 'off' (Scatter in Fog off), 'unsupported' (type not in the bake); label/error: the model
 # it gets and its measured max relative error; share: its upper bound over the fog
 # brightness bound (light_bounds.py), the largest over the colour channels.
-# shadow: 'shadowed' (volumetric shadows traced), 'fog objects' (a sun lamp in a scene with fog
-# objects, unshadowed but by model Quadrature), 'clear' (Automatic: no caster near enough
+# shadow: 'shadowed' (volumetric shadows traced), 'clear' (Automatic: no caster near enough
 # to matter), 'no shadow' (the light's Cast Shadow is off), 'off' (Volumetric Shadows off, no
 # caster in the scene), '' for lights not in the fog.
 LightRow = namedtuple("LightRow", "name type status label error share shadow", defaults=("",))
@@ -328,13 +327,9 @@ def shadow_states(settings, survey, kinds, weights, positions, casts, albedo, si
     if not shadows_baked(settings, survey):
         return ['off'] * n
     states = np.where(casts, 'shadowed', 'no shadow').astype(object)
-    if survey.fog_objects:
-        # The Fogshop models shadow point and spot lights (area lights as spots) in Gaussian
-        # fog; Quadrature every light. The brightness bound behind 'clear' is the uniform
-        # fog's: none with fog objects.
-        if settings.model != 'QUADRATURE':
-            states[(kinds == 'SUN') & casts] = 'fog objects'
-    elif settings.model == 'AUTO' and sigma > 0.0:
+    # Every model shadows every light in Gaussian fog too; the brightness bound behind 'clear'
+    # is the uniform fog's: none with fog objects.
+    if not survey.fog_objects and settings.model == 'AUTO' and sigma > 0.0:
         positional = (kinds != 'SUN') & (kinds != 'AREA') & casts
         if np.any(positional):
             uppers = light_bounds.shadow_bounds(positions[positional], weights[positional], sigma, albedo, p_max,

@@ -167,8 +167,7 @@ def light_lines(scene, view_layer=None):
 
 
 _SHADOW_TEXT = {'shadowed': ", shadowed", 'clear': ", unshadowed (no caster near enough to matter)",
-                'no shadow': ", unshadowed (Cast Shadow off)",
-                'fog objects': ", unshadowed in fog objects (model Quadrature shadows suns there)"}
+                'no shadow': ", unshadowed (Cast Shadow off)"}
 
 
 def shadow_note(scene):

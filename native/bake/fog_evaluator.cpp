@@ -250,30 +250,40 @@ void FogEvaluator::set_up_shadows(const SceneDescription& scene, const BakeSetti
             origin_ambiguous_ = origin_ambiguous_ || ambiguous;
         }
     }
-    if (gaussian_ && model_.gaussian_method() == GaussianMethod::Fogshop && shared_origin_)
+    if (gaussian_ && model_.gaussian_method() == GaussianMethod::Fogshop && shared_origin_) {
+        std::vector<Vec3> sun_dirs;
+        for (const GaussianSunData& sun : gaussian_suns_) sun_dirs.push_back(sun.w);
         eye_fogshop_ = std::make_unique<FogshopAirlight>(*gaussian_, origin_, gaussian_lights_, model_.f_table(),
-                                                         std::max(0, settings.threads));
+                                                         std::max(0, settings.threads), sun_dirs, fog_top_);
+    }
 }
 
 void FogEvaluator::shadow_gaussians(const Ray* rays, const float* Dvp, const float* t0, int n, RGB* La) const {
     if (!shadows_ || !gaussian_ || model_.gaussian_method() != GaussianMethod::Fogshop) return;
-    // The point lights, then (perspective: the splat takes spots there only) the spots.
+    // The point lights, then (perspective: the splat takes spots and suns there only) the
+    // spots and the suns.
     const size_t P = eye_fogshop_ ? gaussian_lights_.size() : n_gaussian_points_;
-    auto volume = [&](size_t l) { return l < n_gaussian_points_ ? light_volume_[l] : spot_volume_[l - n_gaussian_points_]; };
+    const size_t S = eye_fogshop_ ? gaussian_suns_.size() : 0, A = P + S;
+    auto volume = [&](size_t l) {
+        return l < n_gaussian_points_ ? light_volume_[l] : l < P ? spot_volume_[l - n_gaussian_points_] : sun_volume_[l - P];
+    };
     bool any = false;
-    for (size_t l = 0; l < P; ++l) any = any || volume(l) >= 0;
+    for (size_t l = 0; l < A; ++l) any = any || volume(l) >= 0;
     if (!any) return;
     const LitIntervals* lit = lit_intervals(rays, t0, Dvp, n);
     thread_local std::vector<RaySpans> with, whole;
     thread_local std::vector<std::pair<double, double>> lit_spans, full_spans;
-    with.resize(P), whole.resize(P);
+    thread_local std::vector<RGB> weights;  // I0 of the positional lights, then the suns' E
+    with.resize(A), whole.resize(A);
+    weights.assign(gaussian_I0_.begin(), gaussian_I0_.begin() + std::ptrdiff_t(P));
+    for (size_t j = 0; j < S; ++j) weights.push_back(gaussian_suns_[j].E);
     // The splat's background term with the bake's model (its own for other phases and models).
     const bool own = !isotropic_ || model_.own_gaussian_background();
     for (int k = 0; k < n; ++k) {
         const double near = t0 ? double(t0[k]) : 0.0, end = double(Dvp[k]);
         if (!(end > near)) continue;
         bool partial = false;
-        for (size_t l = 0; l < P; ++l) {
+        for (size_t l = 0; l < A; ++l) {
             const int v = volume(l);
             partial = partial || (v >= 0 && !fully_lit(lit[k], v, near, end));
         }
@@ -288,8 +298,8 @@ void FogEvaluator::shadow_gaussians(const Ray* rays, const float* Dvp, const flo
         const FogshopAirlight& fogshop = eye_fogshop_ ? *eye_fogshop_ : *local;
         const double shift = eye_fogshop_ ? 0.0 : near, t_start = near - shift;
         lit_spans.clear(), full_spans.clear();
-        lit_spans.reserve(lit[k].spans.size()), full_spans.reserve(P);
-        for (size_t l = 0; l < P; ++l) {
+        lit_spans.reserve(lit[k].spans.size()), full_spans.reserve(A);
+        for (size_t l = 0; l < A; ++l) {
             const int v = volume(l);
             with[l] = whole[l] = RaySpans{};
             if (v < 0 || fully_lit(lit[k], v, near, end)) continue;
@@ -301,20 +311,24 @@ void FogEvaluator::shadow_gaussians(const Ray* rays, const float* Dvp, const flo
             whole[l] = RaySpans{&full_spans.back(), 1};
         }
         const Vec3 d = rays[k].d;
+        // (Suns: sunlight_span's factor, attenuated from the fog's start as eval_rgb_spans asks.)
         const FogshopAirlight::SpanBackground background = [&](size_t l, double ta, double tb) {
-            return gaussian_background(l, d, ta, tb);
+            if (l < P) return gaussian_background(l, d, ta, tb);
+            const GaussianSunData& sun = gaussian_suns_[l - P];
+            return sigma_t_ * phase_.eval(-glm::dot(sun.w, d)) *
+                   sunlight_span(sigma_t_, fog_top_, sun.mu_s, origin_, d, near, ta, tb);
         };
         const bool spots = P > n_gaussian_points_;
-        const FogshopAirlight::SpanBackground* bg = (own || spots) && eye_fogshop_ ? &background : nullptr;
+        const FogshopAirlight::SpanBackground* bg = (own || spots || S > 0) && eye_fogshop_ ? &background : nullptr;
         const FogshopAirlight::SpanProfile profile = [&](size_t l, const Vec3& u) {
             if (l < n_gaussian_points_) return 1.0;
             const SpotCone& cone = gaussian_spots_[l - n_gaussian_points_].cone;
             return spot_profile(cone, glm::dot(cone.axis, u));
         };
         const PhaseFunction* phase = isotropic_ ? nullptr : &phase_;
-        La[k] += fogshop.eval_rgb_spans(d, t_start, with.data(), gaussian_albedo_.data(), gaussian_I0_.data(),
+        La[k] += fogshop.eval_rgb_spans(d, t_start, with.data(), gaussian_albedo_.data(), weights.data(),
                                         medium_albedo_, phase, bg, spots ? &profile : nullptr) -
-                 fogshop.eval_rgb_spans(d, t_start, whole.data(), gaussian_albedo_.data(), gaussian_I0_.data(),
+                 fogshop.eval_rgb_spans(d, t_start, whole.data(), gaussian_albedo_.data(), weights.data(),
                                         medium_albedo_, phase, bg, spots ? &profile : nullptr);
     }
 }

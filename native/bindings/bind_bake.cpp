@@ -401,8 +401,7 @@ shadows (default False): volumetric shadows and light shafts: each light's in-sc
   Cast Shadow; None: all cast); occluder_vertices (N, 3) float32, occluder_triangles (M, 3): the
   casters when they are not the camera's geometry (Blender's Ray Visibility > Shadow).
   Gaussian fog (fog objects): 'quadrature' shadows every light (visibility in its integrand);
-  the Fogshop models restrict each point and spot light's terms to its lit spans, and leave
-  sun lamps unshadowed in Gaussian fog.
+  the Fogshop models restrict each point, spot and sun light's terms to its lit spans.
 edge_cluster_tol >= 0 (default 0.1): edge pixels (aa_samples > 1) evaluate the fog once per
   cluster of their sub-samples (all misses; hits within a depth ratio of 1 + edge_cluster_tol),
   at the cluster's mean ray and depth, and per sample where a cluster's error estimate exceeds

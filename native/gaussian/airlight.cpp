@@ -25,6 +25,8 @@
 #include "core/constants.h"
 #include "core/phase.h"
 #include "core/quadrature.h"
+#include "gaussian/centre_depths.h"
+#include "gaussian/splat.h"
 #include "homogeneous/sun05.h"
 
 namespace airlight {
@@ -61,7 +63,8 @@ void require_finite(const Vec3& p, const char* what) {
 }  // namespace
 
 FogshopAirlight::FogshopAirlight(const GaussianMedium& medium, const Vec3& origin, const std::vector<Vec3>& lights,
-                                       const SpecialFTable* table, int threads)
+                                       const SpecialFTable* table, int threads, const std::vector<Vec3>& sun_dirs,
+                                       double fog_top)
     : medium_(medium), table_(table), v_(origin), lights_(lights) {
     require_finite(origin, "viewpoint");
     for (const Vec3& s : lights_) require_finite(s, "light position");
@@ -89,6 +92,19 @@ FogshopAirlight::FogshopAirlight(const GaussianMedium& medium, const Vec3& origi
         parallel_chunks(n, threads, 64, [&](std::size_t b, std::size_t e) {
             for (std::size_t i = b; i < e; ++i) f1_[l * n + i] = std::exp(-depth_to(lights_[l], i) - Tv[i]);
         });
+    }
+    // Suns: the splat's f1 and C factors (GaussianSplat::sun_weights), in double.
+    f1_sun_.resize(sun_dirs.size() * n);
+    for (std::size_t j = 0; j < sun_dirs.size(); ++j) {
+        require_finite(sun_dirs[j], "sun direction");
+        const Vec3 u = -glm::normalize(sun_dirs[j]);
+        sun_u_.push_back(u);
+        Csun_.push_back(std::exp(-medium.optical_depth_ray(v_, u, kInf, GaussianMedium::npos, false)));
+        const std::vector<double> Tg = gaussian_sun_depths(medium, u, threads);
+        for (std::size_t i = 0; i < n; ++i) {
+            const double Tsun = Tg[i] + sunlight_layer_depth(medium.beta0(), fog_top, u.z, medium.centre(i).z);
+            f1_sun_[j * n + i] = std::isinf(Tsun) ? 0.0 : std::exp(-Tv[i] - Tsun);
+        }
     }
 }
 
@@ -133,10 +149,10 @@ void FogshopAirlight::eval_terms(const Vec3& r, double Dvp, H&& homogeneous, G&&
 RGB FogshopAirlight::eval_rgb_spans(const Vec3& r, double t_start, const RaySpans* spans, const double* albedo,
                                     const RGB* I0, const RGB& medium_albedo, const PhaseFunction* phase,
                                     const SpanBackground* background, const SpanProfile* profile) const {
-    const std::size_t L = lights_.size(), n = medium_.size();
+    const std::size_t L = lights_.size(), n = medium_.size(), S = sun_u_.size();
     const double beta0 = medium_.beta0();
     double far = 0.0;  // the farthest lit point of any light: the Gaussians near the ray up to it
-    for (std::size_t l = 0; l < L; ++l)
+    for (std::size_t l = 0; l < L + S; ++l)
         for (int k = 0; k < spans[l].count; ++k) far = std::max(far, spans[l].spans[k].second);
     RGB out(0.0);
     if (!(far > 0.0)) return out;
@@ -159,6 +175,15 @@ RGB FogshopAirlight::eval_rgb_spans(const Vec3& r, double t_start, const RaySpan
                 sum += std::exp(-beta0 * (ta - t_start)) * span;
             }
             out += medium_albedo * I0[l] * (Csv_[l] * sum);
+        }
+    if (beta0 > 0.0 && background)
+        for (std::size_t j = 0; j < S; ++j) {
+            double sum = 0.0;
+            for (int k = 0; k < spans[L + j].count; ++k) {
+                const double ta = spans[L + j].spans[k].first, tb = spans[L + j].spans[k].second;
+                if (tb > ta) sum += (*background)(L + j, ta, tb);
+            }
+            out += medium_albedo * I0[L + j] * (Csun_[j] * sum);
         }
     // Gaussian terms: eq. 11 with T_i over the lit spans.
     medium_.for_each_near(v_, r, far, [&](std::size_t i) {
@@ -187,6 +212,23 @@ RGB FogshopAirlight::eval_rgb_spans(const Vec3& r, double t_start, const RaySpan
             if (p == 0.0) continue;
             const double v = p / std::max(d2, kMinD2) * std::exp(-Tsr - Tvr) * f1_[l * n + i] * Tlit;
             out += RGB(albedo[3 * i], albedo[3 * i + 1], albedo[3 * i + 2]) * I0[l] * v;
+        }
+        for (std::size_t j = 0; j < S; ++j) {
+            const RaySpans& lit = spans[L + j];
+            double Tlit = 0.0, Dvp = 0.0;
+            for (int q = 0; q < lit.count; ++q) {
+                const double ta = lit.spans[q].first, tb = lit.spans[q].second;
+                Tlit += k * erf_diff(a * (ta - ts), std::isinf(tb) ? kInf : a * (tb - ts));
+                Dvp = std::max(Dvp, tb);
+            }
+            if (!(Tlit > 0.0) || f1_sun_[j * n + i] == 0.0) continue;
+            const double tr = std::clamp(ts, t_start, std::max(t_start, Dvp));
+            const double Tvr = k * erf_diff(x1, a * (tr - ts));
+            const Vec3& u = sun_u_[j];
+            const double Tsr = gaussian_line_integral(c, a, b, v_ + tr * r, u, 0.0, kInf);
+            const double p = phase ? phase->eval(glm::dot(u, r)) : kInv4Pi;
+            const double v = p * std::exp(-Tsr - Tvr) * f1_sun_[j * n + i] * Tlit;
+            out += RGB(albedo[3 * i], albedo[3 * i + 1], albedo[3 * i + 2]) * I0[L + j] * v;
         }
     });
     return out;

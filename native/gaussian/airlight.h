@@ -48,8 +48,12 @@ class FogshopAirlight {
   public:
     // _table_: F table for the homogeneous term (nullptr = exact F). The medium and the
     // table must outlive this object. Throws std::invalid_argument on non-finite points.
+    // _sun_dirs_: sun lamps (unit propagation directions w) after the positional _lights_, for
+    // eval_rgb_spans only (light index lights.size() + j; their I0 is the irradiance E), with
+    // the homogeneous medium's layer top _fog_top_ (sunlight_layer.h; +inf: none).
     FogshopAirlight(const GaussianMedium& medium, const Vec3& origin, const std::vector<Vec3>& lights,
-                       const SpecialFTable* table, int threads = 0);
+                       const SpecialFTable* table, int threads = 0, const std::vector<Vec3>& sun_dirs = {},
+                       double fog_top = std::numeric_limits<double>::infinity());
 
     // Writes the airlight of light l to out[l], per unit I0 and albedo, for the view ray
     // origin + t r, t in [0, Dvp]; r unit, Dvp > 0 (may be inf).
@@ -66,6 +70,12 @@ class FogshopAirlight {
     // homogeneous airlight per unit albedo I0 on [ta, tb], attenuated from ta (times C_sv here).
     // _profile_ (null: 1) scales light l's Gaussian terms by its emission profile towards the
     // unit direction u from the light to b_i^r (a spot's cone, spot_light.h).
+    // Suns (index num_lights() + j in _spans_ and _I0_ = E): Gaussian i's term is
+    // p(u . r) exp(-T_i(b_i^r, towards the sun) - T_i(v, b_i^r)) f1_sun(b_i) T_i(lit spans),
+    // f1_sun = exp(-(T(v, b_i) + the other Gaussians' and the layer's depth from b_i towards the
+    // sun)), as the splat's sun term (splat.h); the homogeneous term is _background_ (required
+    // with suns) of each span, here already attenuated from t_start, times C_sun (the
+    // Gaussians on the half-line from v towards the sun).
     using SpanBackground = std::function<double(std::size_t l, double ta, double tb)>;
     using SpanProfile = std::function<double(std::size_t l, const Vec3& u)>;
     RGB eval_rgb_spans(const Vec3& r, double t_start, const RaySpans* spans, const double* albedo, const RGB* I0,
@@ -73,6 +83,7 @@ class FogshopAirlight {
                        const SpanBackground* background = nullptr, const SpanProfile* profile = nullptr) const;
 
     std::size_t num_lights() const { return lights_.size(); }
+    std::size_t num_suns() const { return sun_u_.size(); }
 
   private:
     // Calls homogeneous(l, L_0) and gaussian(l, i, L_i) for every term of the ray.
@@ -87,6 +98,9 @@ class FogshopAirlight {
     // f1(b_i) exp(T_i(s, b_i) + T_i(v, b_i)) = exp(-(T(s, b_i) + T(v, b_i) without Gaussian i)),
     // light-major [l][i].
     std::vector<double> f1_;
+    std::vector<Vec3> sun_u_;      // per sun: the unit direction towards it (-w)
+    std::vector<double> Csun_;     // per sun: exp(-the Gaussians on v + t u, t >= 0)
+    std::vector<double> f1_sun_;   // sun-major [j][i]: f1_sun(b_i) without Gaussian i
 };
 
 // Reference: adaptive Gauss-Kronrod quadrature of eq. 2 (per unit I0 and albedo) with

@@ -182,3 +182,33 @@ def test_fogshop_spot_lit_spans_against_quadrature_on_thin_gaussians():
                 spot_intensities=np.full((1, 3), I0), spot_size=np.array([math.radians(100.0)]),
                 spot_blend=np.array([0.3]))
     assert_fogshop_shadows_as_quadrature(**spot)
+
+
+def sun_lights(**extra):
+    """A sun from the side (propagating along +x, a little away from the camera) and, casting
+    alone (the camera sees through it), the half-plane z = -5, x <= 0.3: its shadow's edge
+    runs diagonally through the far fog and the far Gaussian."""
+    w = np.array([1.0, 0.2, -0.4])
+    pv, pt = quad([[-60, -60, -5.0], [0.3, -60, -5.0], [0.3, 60, -5.0], [-60, 60, -5.0]])
+    return dict(light_positions=np.zeros((0, 3)), light_intensities=np.zeros((0, 3)),
+                sun_directions=(w / np.linalg.norm(w))[None], sun_irradiances=np.full((1, 3), 3.0),
+                occluder_vertices=pv, occluder_triangles=pt, **extra)
+
+
+@pytest.mark.parametrize("fog_top", [math.inf, 1.0])
+def test_fogshop_sun_lit_spans_against_quadrature_on_thin_gaussians(fog_top):
+    """A sun whose shadow crosses the Gaussians, with and without a fog layer's top
+    (above the camera): the Fogshop models restrict its Gaussian terms and the uniform fog's
+    to its lit spans as a point light's."""
+    assert_fogshop_shadows_as_quadrature(**sun_lights(fog_top=fog_top))
+
+
+def test_fogshop_sun_uniform_fog_lit_spans_exact():
+    """The sun's uniform-fog term over the lit spans equals the quadrature's when the
+    Gaussians are empty."""
+    zero = np.zeros(3)
+    q = bake("quadrature", zero, **sun_lights())["airlight"][..., 0].astype(np.float64)
+    f = bake("sun05", zero, **sun_lights())["airlight"][..., 0].astype(np.float64)
+    off = bake("sun05", zero, shadows=False, **sun_lights())["airlight"][..., 0].astype(np.float64)
+    assert q.sum() < 0.9 * off.sum()
+    assert rel(f, q, 0.05 * np.percentile(q, 99)).max() < 1e-4
