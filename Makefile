@@ -7,7 +7,7 @@ JOBS     ?= 2
 XVFB     := xvfb-run -a -s "-screen 0 1280x1024x24"
 BLENDER  := tools/blender.sh
 
-.PHONY: all deps build package demo test test-native test-python test-blender test-gpu sanitize bench clean
+.PHONY: all deps build package demo test test-native test-python test-blender test-gpu test-farm sanitize bench clean
 
 all: build
 
@@ -31,7 +31,7 @@ demo: build
 	$(BLENDER) -b blend_examples/street.blend --python tools/demo.py -- out
 
 test: build
-	$(MAKE) --no-print-directory test-native test-python test-blender test-gpu
+	$(MAKE) --no-print-directory test-native test-python test-blender test-gpu test-farm
 
 test-native:
 	cd $(BUILD) && ctest --output-on-failure -j$(JOBS)
@@ -44,6 +44,11 @@ test-blender:
 
 test-gpu:
 	$(XVFB) $(BLENDER) --python tests/gpu/run_gpu_tests.py -- -q
+
+# Render farms: a single-node Slurm started by the tests, the Flamenco job type through node,
+# a worker without the compiled module (needs root, slurm-wlm, munge, nodejs: make deps).
+test-farm:
+	$(PYTHON) -m pytest tests/farm -q
 
 # The C++ tests and the native pytest under AddressSanitizer and UndefinedBehaviorSanitizer,
 # from their own build (build-sanitize/, its module there too): any out-of-bounds access,

@@ -11,6 +11,7 @@ PKGS=(
   libgtest-dev googletest
   python3-numpy python3-scipy python3-mpmath python3-pytest python3-matplotlib
   blender xvfb xauth
+  slurm-wlm munge nodejs
 )
 
 missing=()

@@ -467,8 +467,11 @@ def neutral_passes(scene, depsgraph=None):
 
 def _mute(scene, tree, muted=None):
     """Mutes the fog nodes (the image then passes through them unchanged) when the fog is
-    off, or as _muted_ says."""
-    muted = not scene.airlight.enabled if muted is None else muted
+    off or the native module is missing (nothing could bake the passes they read: a worker
+    with the add-on but not its compiled module composited a missing image as magenta), or
+    as _muted_ says."""
+    if muted is None:
+        muted = not scene.airlight.enabled or not native.available()
     for node in _fog_nodes(tree)[1:] + _surface_nodes(tree) + _alpha_nodes(tree):
         if node is not None and node.mute != muted:
             node.mute = muted
