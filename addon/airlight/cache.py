@@ -1,6 +1,7 @@
 """Where baked fog passes live on disk, and the EXR layout the compositor reads."""
 
 import os
+import tempfile
 import threading
 import zlib
 
@@ -75,7 +76,15 @@ def neutral_path(scene, width, height, extra_names=()):
     extra_names = tuple(extra_names)
     # Surface passes (names depend on the lights) are 0: no correction, no glow.
     suffix = f"_{zlib.crc32(chr(0).join(extra_names).encode()):08x}" if extra_names else ""
-    filepath = os.path.join(cache_dir(scene), f"fog_neutral_{width}x{height}{suffix}.exr")
+    name = f"fog_neutral_{width}x{height}{suffix}.exr"
+    filepath = os.path.join(cache_dir(scene), name)
+    try:
+        ensure_parent_dir(filepath)
+    except CacheError:
+        # The passes are constant: where the cache folder cannot be written (the bake that
+        # failed there is why they are needed), the system's temporary folder holds them, so
+        # the compositor never keeps reading an earlier frame's bake.
+        filepath = os.path.join(tempfile.gettempdir(), "airlight_neutral", name)
     if not os.path.exists(filepath):
         # The ones and the writer's interleaved copy of every pass take memory (the zeros stay
         # unmapped pages): refuse before allocating what the machine does not have.

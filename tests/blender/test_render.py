@@ -1,5 +1,7 @@
 """Renders through `blender -b file -f/-a` with the add-on: fog is baked and composited."""
 
+import os
+
 import bpy
 import numpy as np
 import pytest
@@ -209,3 +211,25 @@ def test06_fog_blend_renders_unfogged_on_a_machine_without_the_addon(tmp_path):
     A = exr_pass(str(tmp_path / "cache" / "fog_0001.exr"), "Airlight")
     T = exr_pass(str(tmp_path / "cache" / "fog_0001.exr"), "Transmittance")
     np.testing.assert_allclose(fogged[..., :3], plain[..., :3] * T + A, rtol=1e-4, atol=1e-5)
+
+
+def test07_a_failed_bake_never_composites_an_earlier_frame(tmp_path, capsys):
+    """Frame 1 bakes; then the cache folder cannot be written (a farm's shared storage gone
+    read-only): frame 2 renders without fog, and the compositor reads neutral passes (kept
+    in the system's temporary folder then), not frame 1's fog."""
+    from airlight import compositor
+    scene = build_plane_scene(tmp_path)
+    scene.airlight.cache_dir = str(tmp_path / "cache")
+    bpy.ops.airlight.setup_compositor()
+    scene.frame_set(1)
+    render.on_render_pre(scene)
+    image = bpy.data.images[compositor.IMAGE_NAME]
+    assert bpy.path.abspath(image.filepath) == str(tmp_path / "cache" / "fog_0001.exr")
+    scene.airlight.cache_dir = "/proc/airlight_no_such_folder/"
+    scene.frame_set(2)
+    capsys.readouterr()
+    render.on_render_pre(scene)
+    assert "Airlight: frame 2 rendered without fog" in capsys.readouterr().out
+    path = bpy.path.abspath(bpy.data.images[compositor.IMAGE_NAME].filepath)
+    assert "fog_neutral_" in os.path.basename(path) and os.path.exists(path), path
+    assert exr_pass(path, "Airlight").max() == 0.0 and exr_pass(path, "Transmittance").min() == 1.0
