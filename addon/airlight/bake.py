@@ -15,6 +15,7 @@ import numpy as np
 from bpy.props import IntProperty, StringProperty
 
 from . import cache, compositor, environment, model_choice, native, scene_description, scene_export, surface
+from .names import PASS_AIRLIGHT_WORLD, light_pass
 from .views import bake_window, render_region, render_size, render_views
 
 
@@ -41,6 +42,9 @@ LENS = "lens_samples"
 # And, with motion blur (prepare_views with evaluate_at): the scene descriptions of the
 # shutter samples (each lens sample of each), one bake each, averaged by run().
 SAMPLES = "samples_to_average"
+# Settings key (popped by run) of the per-light passes: scene_export.light_rows' names of
+# the light arrays' rows, or absent when Light Passes is off.
+LIGHT_PASSES = "light_passes"
 
 
 def film_filter_width(scene):
@@ -85,6 +89,8 @@ def prepare(scene, depsgraph, mesh_overrides=None, view=None):
         raise BakeError(str(ex)) from None
     if getattr(scene.airlight, "pass_precision", 'FULL') == 'HALF':
         settings[HALF_PASSES] = True
+    if getattr(scene.airlight, "light_passes", False):
+        settings[LIGHT_PASSES] = scene_export.light_rows(scene, depsgraph)
     lens = scene_description.export_lens(scene, depsgraph, view, description["cam_to_world"],
                                          description["projection"])
     if lens is not None:
@@ -137,6 +143,7 @@ def run(description, settings, filepath, progress=None):
     world = settings.pop("environment", None)
     lens = settings.pop(LENS, None)
     samples = settings.pop(SAMPLES, None) or (_variants(description, {LENS: lens}) if lens else None)
+    rows = settings.pop(LIGHT_PASSES, None)
 
     counts = module.table_cache_counts() if hasattr(module, "table_cache_counts") else None
 
@@ -144,17 +151,25 @@ def run(description, settings, filepath, progress=None):
         """(airlight, transmittance, extra passes or None, depth, stats) of one bake."""
         try:
             t0 = time.perf_counter()
-            result = module.bake(**description, **settings, progress=progress)
+            result = module.bake(**description, **settings, progress=_sub_progress(progress, 0, 1 + bool(rows)))
             stats = dict(result["stats"])
             stats["seconds_native"] = time.perf_counter() - t0
+            unlit = result["airlight"].copy() if rows and world is not None else None
             if world is not None:
                 stats["seconds_environment"] = environment.apply(module, world, description, result)
+            lights, light_seconds = (_light_passes(module, description, settings, rows, _sub_progress(progress, 1, 2))
+                                     if rows else (None, 0.0))
         except ValueError as ex:
             raise BakeError(f"Invalid fog scene: {ex}") from None
         extra = surface.pass_arrays(result, groups) if settings.get("surface") else None
         if extra is not None and "environment_surface" in result:
             name, ratio = result["environment_surface"]
             extra[surface.PASS_PREFIX + name] = ratio
+        if lights is not None:
+            extra = dict(extra or {}, **lights)
+            if unlit is not None:
+                extra[PASS_AIRLIGHT_WORLD] = result["airlight"] - unlit
+            stats["seconds_light_passes"] = light_seconds
         return result["airlight"], result["transmittance"], extra, result["depth"], stats
 
     if samples is None:
@@ -174,6 +189,42 @@ def run(description, settings, filepath, progress=None):
     if counts is not None:
         stats["tables_built"] = module.table_cache_counts()["built"] - counts["built"]
     return stats, time.perf_counter() - start
+
+
+# The light arrays of `_native.bake` per kind of light_rows, and the per-light flags.
+_LIGHT_ARRAYS = {
+    "points": ("light_positions", "light_intensities", "light_shadows"),
+    "spots": ("spot_positions", "spot_axes", "spot_intensities", "spot_size", "spot_blend", "spot_shadows"),
+    "suns": ("sun_directions", "sun_irradiances", "sun_shadows"),
+}
+
+
+def _one_light(description, rows, name):
+    """_description_ with the rows of light _name_ only (every kind; the others' arrays emptied)."""
+    out = dict(description)
+    for kind, keys in _LIGHT_ARRAYS.items():
+        keep = np.array([n == name for n in rows.get(kind, ())], dtype=bool)
+        for key in keys:
+            if key in out:
+                out[key] = np.asarray(out[key])[keep] if len(keep) == len(out[key]) else out[key]
+        if kind != "points" and not keep.any():
+            for key in keys:
+                out.pop(key, None)
+    return out
+
+
+def _light_passes(module, description, settings, rows, progress):
+    """({pass name: airlight (H, W, 3)} of each light alone, seconds): the bake is linear in
+    the lights, so they sum to the total but for float rounding; the same model and settings,
+    without the surface passes."""
+    names = list(dict.fromkeys(n for kind in ("points", "spots", "suns") for n in rows.get(kind, ())))
+    one = dict(settings, surface=False)
+    passes, t0 = {}, time.perf_counter()
+    for k, name in enumerate(names):
+        result = module.bake(**_one_light(description, rows, name), **one, progress=_sub_progress(progress, k, len(names)))
+        key = light_pass(name)
+        passes[key] = passes[key] + result["airlight"] if key in passes else result["airlight"]
+    return passes, time.perf_counter() - t0
 
 
 def _average(bake_once, descriptions, progress):

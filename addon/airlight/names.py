@@ -72,6 +72,16 @@ def native_phase(settings):
 # but in a nameless layer that RNA cannot represent.)
 LAYER_PREFIX = "Fog."
 PASS_AIRLIGHT = "Airlight"
+# Per-light airlight passes (Light Passes): Airlight_<light name>, the name with only
+# [A-Za-z0-9_] as the light groups' (surface.group_name); the World's glow as Airlight_World.
+LIGHT_PASS_PREFIX = PASS_AIRLIGHT + "_"
+PASS_AIRLIGHT_WORLD = LIGHT_PASS_PREFIX + "World"
+
+
+def light_pass(object_name):
+    """The per-light airlight pass of light object _object_name_."""
+    import re
+    return LIGHT_PASS_PREFIX + re.sub(r"[^A-Za-z0-9_]", "_", object_name)
 PASS_TRANSMITTANCE = "Transmittance"
 # Surface shading (surface.py): a Cycles light group fog_<light> per fogged light, whose
 # pass Surface_<group> (attenuation - 1) the bake writes, the Lambert glow per unit DiffCol

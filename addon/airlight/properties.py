@@ -233,6 +233,15 @@ class AirlightSceneSettings(bpy.types.PropertyGroup):
         ),
         default='FULL',
     )
+    light_passes: BoolProperty(
+        name="Light Passes",
+        description="Also write each fogged light's airlight as its own pass, "
+                    "Fog.Airlight_<light name> (and Fog.Airlight_World with Environment Glow), "
+                    "to grade each lamp's glow in the compositor; they sum to Fog.Airlight. Each "
+                    "light is baked once more on its own: the bake takes about (lights + 1) times "
+                    "as long",
+        default=False,
+    )
     lens_samples: IntProperty(
         name="Lens Samples",
         description="With the camera's Depth of Field on, the fog is baked this many times from "

@@ -71,13 +71,16 @@ def _emission(light):
     return emission
 
 
-def point_lights(lights, plan):
+def point_lights(lights, plan, names=None):
     """(light_positions (L, 3), light_intensities (L, 3)) of the point lights the bake takes.
-    Cycles point light: radiant intensity I0 = C * P / (4 pi) W/sr (NOTES.md)."""
+    Cycles point light: radiant intensity I0 = C * P / (4 pi) W/sr (NOTES.md). _names_ (a
+    list): each row's light name is appended (spot_lights and sun_lights alike)."""
     positions, intensities = [], []
     for light in lights:
         if light.type != 'POINT' or not _baked(light, plan):
             continue
+        if names is not None:
+            names.append(light.name)
         if not np.isfinite(light.matrix).all():
             raise ExportError(f"Light '{light.name}' has a NaN or infinite location (a driver or constraint?).")
         positions.append(light.matrix[:3, 3])
@@ -112,7 +115,7 @@ def _check_finite(description):
     return description
 
 
-def spot_lights(lights, plan):
+def spot_lights(lights, plan, names=None):
     """The spot lights the bake takes as `_native.bake`'s spot_* keyword arguments, or {}
     when there are none (then the bake is the point-light one, unchanged).
 
@@ -122,6 +125,8 @@ def spot_lights(lights, plan):
     """
     positions, axes, intensities, sizes, blends = [], [], [], [], []
     for light, emission, axis in _directed_lights(lights, 'SPOT', plan):
+        if names is not None:
+            names.append(light.name)
         positions.append(light.matrix[:3, 3])
         axes.append(axis)
         intensities.append(emission / (4.0 * math.pi))
@@ -131,6 +136,8 @@ def spot_lights(lights, plan):
     for light, emission, axis in _directed_lights(lights, 'AREA', plan):
         samples = area_samples(light, plan.area_cell)
         for p in samples:
+            if names is not None:
+                names.append(light.name)
             positions.append(p)
             axes.append(axis)
             intensities.append(emission * (AREA_INTENSITY / len(samples)))
@@ -145,7 +152,7 @@ def spot_lights(lights, plan):
                               spot_blend=np.array(blends, dtype=np.float64)))
 
 
-def sun_lights(lights, plan, fog_top):
+def sun_lights(lights, plan, fog_top, names=None):
     """The sun lamps the bake takes as `_native.bake`'s sun_directions, sun_irradiances and
     fog_top keyword arguments, or {} when there are none.
 
@@ -155,7 +162,9 @@ def sun_lights(lights, plan, fog_top):
     else +inf (Hoffman-Preetham: unattenuated sunlight), see native/homogeneous/sunlight_layer.h.
     """
     directions, irradiances = [], []
-    for _light, emission, direction in _directed_lights(lights, 'SUN', plan):
+    for light, emission, direction in _directed_lights(lights, 'SUN', plan):
+        if names is not None:
+            names.append(light.name)
         directions.append(direction)
         irradiances.append(emission)
     if not directions:
@@ -168,21 +177,37 @@ def sun_lights(lights, plan, fog_top):
     return description
 
 
-def light_arguments(description, plan):
+def light_arguments(description, plan, names=None):
     """The lights the bake takes (and the preview draws) as `_native.bake` keyword
     arguments: light_positions and light_intensities (no point lights in the daylight
     model), spot_* (none in daylight either) and sun_* as spot_lights and sun_lights give
-    them. Lights named in plan.skipped (Automatic) are left out unless instanced."""
-    positions, intensities = point_lights(description.lights, plan)
+    them. Lights named in plan.skipped (Automatic) are left out unless instanced. _names_
+    (a dict): its "points", "spots" and "suns" get each row's light name (`light_rows`)."""
+    rows = None if names is None else {"points": [], "spots": [], "suns": []}
+    positions, intensities = point_lights(description.lights, plan, None if rows is None else rows["points"])
     if plan.daylight:  # Hoffman-Preetham: sun lamps only
         positions, intensities = np.zeros((0, 3)), np.zeros((0, 3))
+        if rows is not None:
+            rows["points"].clear()
     for name, array in (("light positions", positions), ("light intensities", intensities)):
         if not np.all(np.isfinite(array)):
             raise ExportError(f"The scene's {name} contain NaN or infinite values.")
     # (Fog objects take point, spot and sun lamps and any phase: splat.h GaussianSplatLights.)
-    spots = {} if plan.daylight else spot_lights(description.lights, plan)
-    suns = sun_lights(description.lights, plan, description.fog_top)
+    spots = {} if plan.daylight else spot_lights(description.lights, plan, None if rows is None else rows["spots"])
+    suns = sun_lights(description.lights, plan, description.fog_top, None if rows is None else rows["suns"])
+    if rows is not None:
+        names.update(rows)
     return dict(light_positions=positions, light_intensities=intensities, **spots, **suns)
+
+
+def light_rows(scene, depsgraph):
+    """{"points", "spots", "suns"}: the light name of each row of the bake's light arrays
+    (an area light's samples and a collection's instances share their light's name), for
+    the per-light passes (bake.py)."""
+    description = scene_description.describe(scene, depsgraph, bake=False)
+    names = {}
+    light_arguments(description, model_choice.plan(scene.airlight, description.survey), names)
+    return names
 
 
 def _shadowed(light, plan):

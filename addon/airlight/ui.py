@@ -77,6 +77,7 @@ class AIRLIGHT_PT_scene(bpy.types.Panel):
         col.prop(settings, "threads")
         col.prop(settings, "cache_dir")
         col.prop(settings, "pass_precision")
+        col.prop(settings, "light_passes")
         camera = context.scene.camera
         if camera is not None and camera.type == 'CAMERA' and camera.data.dof.use_dof:
             col.prop(settings, "lens_samples")
