@@ -10,6 +10,7 @@ Nothing is created at import time: callers keep what they build (see preview.py)
 drop it on unregister or file load.
 """
 
+import contextlib
 import os
 
 import gpu
@@ -169,6 +170,42 @@ def distance_params_ubo(eye, axis):
     """GPUUniformBuf of AirlightDistanceParams (bind with shader.uniform_block("dv", ubo))."""
     import numpy as np
     return gpu.types.GPUUniformBuf(np.array([*eye, *axis], np.float32).tobytes())
+
+
+def draw_distances(shader, persp, eye, axis, instances):
+    """Draws [(batch, model matrix)] with the bound distance shader (create_distance_shader)
+    through _persp_, distance measured as _eye_ and _axis_ say (distance_params_ubo)."""
+    shader.uniform_float("persp", persp)
+    ubo = distance_params_ubo(eye, axis)
+    shader.uniform_block("dv", ubo)
+    for batch, model in instances:
+        shader.uniform_float("model", model)
+        batch.draw(shader)
+
+
+def start_distances(fb, shader):
+    """Clears the bound framebuffer _fb_ (an R32F colour and a depth target) to no surface
+    (inf, far depth), sets the nearest-wins depth test without blending, binds _shader_."""
+    import math
+    fb.clear(color=(math.inf, 0.0, 0.0, 0.0), depth=1.0)
+    gpu.state.blend_set('NONE')
+    gpu.state.depth_test_set('LESS_EQUAL')
+    gpu.state.depth_mask_set(True)
+    shader.bind()
+
+
+@contextlib.contextmanager
+def preserved_state():
+    """Restores the viewport, depth test, depth mask and blending on exit."""
+    viewport = gpu.state.viewport_get()
+    test, mask, blend = gpu.state.depth_test_get(), gpu.state.depth_mask_get(), gpu.state.blend_get()
+    try:
+        yield
+    finally:
+        gpu.state.depth_test_set(test)
+        gpu.state.depth_mask_set(mask)
+        gpu.state.blend_set(blend)
+        gpu.state.viewport_set(*viewport)
 
 
 def create_distance_shader():

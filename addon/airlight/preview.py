@@ -330,29 +330,13 @@ def draw_distance(context, *, perspective_matrix, view_origin, is_perspective, s
     instances = _scene_instances(context)
     shader = _distance_shader()
     axis, offset = _view_axis(perspective_matrix)
-    prev_viewport = gpu.state.viewport_get()
-    prev_test, prev_mask = gpu.state.depth_test_get(), gpu.state.depth_mask_get()
-    prev_blend = gpu.state.blend_get()
-    try:
+    with gs.preserved_state():
         fb = _framebuffer(target)
         with fb.bind():
             gpu.state.viewport_set(0, 0, w, h)
-            fb.clear(color=(math.inf, 0.0, 0.0, 0.0), depth=1.0)
-            gpu.state.blend_set('NONE')
-            gpu.state.depth_test_set('LESS_EQUAL')
-            gpu.state.depth_mask_set(True)
-            shader.bind()
-            shader.uniform_float("persp", perspective_matrix)
-            ubo = gs.distance_params_ubo((*view_origin, 1.0 if is_perspective else 0.0), (*axis, offset))
-            shader.uniform_block("dv", ubo)
-            for batch, matrix in instances:
-                shader.uniform_float("model", matrix)
-                batch.draw(shader)
-    finally:
-        gpu.state.depth_test_set(prev_test)
-        gpu.state.depth_mask_set(prev_mask)
-        gpu.state.blend_set(prev_blend)
-        gpu.state.viewport_set(*prev_viewport)
+            gs.start_distances(fb, shader)
+            gs.draw_distances(shader, perspective_matrix, (*view_origin, 1.0 if is_perspective else 0.0),
+                              (*axis, offset), instances)
     return target["colour"]
 
 

@@ -11,12 +11,10 @@ says so). Each gets one row of an R32F atlas holding the distance to the nearest
 - suns: one orthographic map (3 x 2 faces' texels) over the casters' bounding box seen
   along the sun (`sun_matrix`); points outside its footprint are lit.
 The casters are the bake's: render-visible objects whose Ray Visibility > Shadow is on,
-fog objects excepted (`caster_instances`). The atlas is drawn again only when its key
+fog objects excepted (`preview._caster_instances`). The atlas is drawn again only when its key
 changes (a depsgraph update, a frame change, or a light's placement), not when the view
 moves.
 """
-
-import math
 
 import gpu
 import numpy as np
@@ -128,43 +126,22 @@ class ShadowMaps:
         info = np.zeros((4, rows, 4), np.float32)
         R = SHADOW_RES
         fb = gpu.types.GPUFrameBuffer(depth_slot=self.depth, color_slots=(self.maps,))
-        prev_viewport = gpu.state.viewport_get()
-        prev_test, prev_mask = gpu.state.depth_test_get(), gpu.state.depth_mask_get()
-        prev_blend = gpu.state.blend_get()
-        try:
-            with fb.bind():
-                gpu.state.viewport_set(0, 0, 3 * R, 2 * R * rows)
-                fb.clear(color=(math.inf, 0.0, 0.0, 0.0), depth=1.0)
-                gpu.state.blend_set('NONE')
-                gpu.state.depth_test_set('LESS_EQUAL')
-                gpu.state.depth_mask_set(True)
-                shader.bind()
-                for row, (kind, vector) in enumerate(requests):
-                    y0 = 2 * R * row
-                    if kind == 'SUN':
-                        matrix, info[:, row] = sun_frame(vector, box)
-                        faces = [(matrix, (0, y0, 3 * R, 2 * R), (0.0, 0.0, 0.0, 0.0),
-                                  tuple(info[3, row]))]
-                    else:
-                        near, far = cube_range(vector, box)
-                        info[0, row, :3] = vector
-                        eye = (*vector, 1.0)
-                        faces = [(cube_face_matrix(vector, f, near, far),
-                                  ((f % 3) * R, y0 + (f // 3) * R, R, R), eye, (0.0, 0.0, 1.0, 0.0))
-                                 for f in range(6)]
-                    for matrix, viewport, eye, axis in faces:
-                        gpu.state.viewport_set(*viewport)
-                        shader.uniform_float("persp", matrix)
-                        ubo = gs.distance_params_ubo(eye, axis)
-                        shader.uniform_block("dv", ubo)
-                        for batch, model in casters:
-                            shader.uniform_float("model", model)
-                            batch.draw(shader)
-        finally:
-            gpu.state.depth_test_set(prev_test)
-            gpu.state.depth_mask_set(prev_mask)
-            gpu.state.blend_set(prev_blend)
-            gpu.state.viewport_set(*prev_viewport)
+        with gs.preserved_state(), fb.bind():
+            gpu.state.viewport_set(0, 0, 3 * R, 2 * R * rows)
+            gs.start_distances(fb, shader)
+            for row, (kind, vector) in enumerate(requests):
+                y0 = 2 * R * row
+                if kind == 'SUN':
+                    matrix, info[:, row] = sun_frame(vector, box)
+                    faces = [(matrix, (0, y0, 3 * R, 2 * R), (0.0, 0.0, 0.0, 0.0), tuple(info[3, row]))]
+                else:
+                    near, far = cube_range(vector, box)
+                    info[0, row, :3] = vector
+                    faces = [(cube_face_matrix(vector, f, near, far), ((f % 3) * R, y0 + (f // 3) * R, R, R),
+                              (*vector, 1.0), (0.0, 0.0, 1.0, 0.0)) for f in range(6)]
+                for matrix, viewport, eye, axis in faces:
+                    gpu.state.viewport_set(*viewport)
+                    gs.draw_distances(shader, matrix, eye, axis, casters)
         self.info = gs.float_texture(info)
         self.key = key
 

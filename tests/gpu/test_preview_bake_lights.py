@@ -10,7 +10,7 @@ import bpy
 import numpy as np
 import pytest
 
-from preview_scenes import build_scene, redraw, view3d
+from preview_scenes import build_scene, capture_draw
 
 
 def _light(scene, name, kind, location, energy, collection=None):
@@ -52,29 +52,13 @@ def lights_scene(addon, native):
     bpy.data.collections.remove(props)
 
 
-def _capture(addon):
-    """The inputs of one draw of the handler through the scene camera."""
-    addon._state["error"] = None
-    wm = bpy.context.window_manager
-    wm.airlight_preview = True
-    view3d().spaces.active.region_3d.view_perspective = 'CAMERA'
-    addon._state["capture"] = capture = {}
-    try:
-        redraw()
-    finally:
-        addon._state["capture"] = None
-        wm.airlight_preview = False
-    assert addon._state["error"] is None, addon._state["error"]
-    return capture
-
-
 def test01_handler_draws_the_bakes_lights(addon, lights_scene):
     from airlight import bake, model_choice
     scene = lights_scene
     depsgraph = bpy.context.evaluated_depsgraph_get()
     assert model_choice.skipped_lights(scene, depsgraph) == {"Faint"}
     description, _settings = bake.prepare(scene, depsgraph)
-    cap = _capture(addon)
+    cap = capture_draw(addon)
     albedo = np.asarray(scene.airlight.color, dtype=np.float64)
 
     def same(got, expected, scale=1.0):
@@ -104,11 +88,11 @@ def test02_a_scene_the_bake_refuses_draws_no_fog(addon, lights_scene):
         with pytest.raises(bake.BakeError, match="negative power"):
             bake.prepare(scene, bpy.context.evaluated_depsgraph_get())
         n = addon._state["draws"]
-        cap = _capture(addon)
+        cap = capture_draw(addon)
         assert cap == {} and addon._state["draws"] == n
         assert "negative power" in addon._state["problem"]
     finally:
         lamp.energy = 800.0
         scene.airlight.model = 'AUTO'
-    cap = _capture(addon)
+    cap = capture_draw(addon)
     assert addon._state["problem"] is None and len(cap["lights"][0]) == 4

@@ -27,7 +27,7 @@ import pytest
 from gpu_extras.batch import batch_for_shader
 from mathutils import Matrix, Vector
 
-from preview_scenes import W, H, build_scene, compare, render_preview, save_png, view3d, redraw
+from preview_scenes import build_scene, capture_draw, compare, render_preview, save_png
 
 
 def _mesh(scene, name, verts, faces):
@@ -227,20 +227,10 @@ def test05_maps_follow_the_scene(addon, native, gs, artifacts):
 
 def test06_handler_shadows_what_the_bake_shadows(addon, native):
     scene = _panel_scene()
-    wm = bpy.context.window_manager
-    view3d().spaces.active.region_3d.view_perspective = 'CAMERA'
     for on in (True, False):
         scene.airlight.volumetric_shadows = on
         bpy.context.view_layer.update()
-        addon._state["error"] = None
-        wm.airlight_preview = True
-        addon._state["capture"] = {}
-        try:
-            redraw()
-        finally:
-            addon._state["capture"] = None
-            wm.airlight_preview = False
-        assert addon._state["error"] is None, addon._state["error"]
+        capture_draw(addon)
         assert addon._state["shadow_error"] is None
         maps = addon._state["gpu"].get("shadow_maps")
         keys = [k for k in addon._state["gpu"]["shaders"] if k[0] == 'fog']

@@ -136,3 +136,21 @@ def redraw():
     window = bpy.context.window_manager.windows[0]
     with bpy.context.temp_override(window=window, screen=window.screen):
         bpy.ops.wm.redraw_timer(type='DRAW_WIN_SWAP', iterations=1)
+
+
+def capture_draw(addon):
+    """The inputs of one draw of the window viewport's handler through the scene camera
+    (preview._state["capture"]); fails the test if the draw kept an error."""
+    import bpy
+    addon._state["error"] = None
+    wm = bpy.context.window_manager
+    wm.airlight_preview = True
+    view3d().spaces.active.region_3d.view_perspective = 'CAMERA'
+    addon._state["capture"] = capture = {}
+    try:
+        redraw()
+    finally:
+        addon._state["capture"] = None
+        wm.airlight_preview = False
+    assert addon._state["error"] is None, addon._state["error"]
+    return capture
