@@ -127,7 +127,9 @@ float preview_point_lit_share(int row, vec3 p0, vec3 dir, vec3 rel, float Dsv, f
   }
   return all > 0.0 ? lit / all : 1.0;
 }
+#endif
 
+#if PREVIEW_SHADOWS && PREVIEW_SUNS
 // Shadowed sun_layer_factor over [0, D]: SHADOW_STEPS steps of equal view-ray
 // transmittance from t_a, where the ray is first in the fog layer (0 without a top), to D
 // (inf maps to Tr = 0), each the closed form over the step times the visibility at its

@@ -91,6 +91,29 @@ vec3 rbf_light_one(vec3 s, vec3 I0, float f1, vec3 b, float a, float k0, vec3 p,
   return I0 * (f1 * kRbfInv4Pi * exp(-Tsr - Tvr) * Tvp / d2);
 }
 
+#ifndef PREVIEW_SHADOWS
+#  define PREVIEW_SHADOWS 0
+#endif
+// Light l's visibility at p (PREVIEW_SHADOWS 1: its shadow-map row in lights row 2 .a,
+// shadow_maps.glsl; 1 for an unshadowed light): a Gaussian's light terms are taken where
+// they are evaluated (b^r, or the light fit's nodes), so a shadow edge through a Gaussian
+// is blurred over it.
+// A b^r clamped to the ray's surface lies on an occluder, which its own shadow map counts
+// as lit: rbf_splat_pixel sets how far back along the ray (rbf_vis_dir) to look instead
+// (to 98 % of the surface's distance; 0 for the light fit's nodes).
+float rbf_vis_back = 0.0;
+vec3 rbf_vis_dir = vec3(0.0);
+
+float rbf_lit(int l, vec3 p)
+{
+#if PREVIEW_SHADOWS
+  int row = int(texelFetch(lights, ivec2(l, 2), 0).a);
+  return row >= 0 ? shadow_lit(row, p - rbf_vis_back * rbf_vis_dir) : 1.0;
+#else
+  return 1.0;
+#endif
+}
+
 // The first RBF_HOIST lights (position, I0), loaded once per pixel by rbf_load_lights.
 #define RBF_HOIST 4
 vec3 rbf_ls[RBF_HOIST];
@@ -120,7 +143,7 @@ vec3 rbf_light_term(int gi, int l, vec3 b, float a, float k0, vec3 p, float Tvp,
 {
   vec3 s = texelFetch(lights, ivec2(l, 0), 0).xyz;
   vec3 I0 = texelFetch(lights, ivec2(l, 2), 0).rgb;
-  return rbf_light_one(s, I0, rbf_f1(gi, l), b, a, k0, p, Tvp, Tvr);
+  return rbf_light_one(s, I0, rbf_f1(gi, l), b, a, k0, p, Tvp, Tvr) * rbf_lit(l, p);
 }
 
 vec3 rbf_light_terms(int gi, vec3 b, float a, float k0, vec3 p, float Tvp, float Tvr)
@@ -132,7 +155,7 @@ vec3 rbf_light_terms(int gi, vec3 b, float a, float k0, vec3 p, float Tvp, float
   // Constant bound: unrolled, the hoisted lights stay in registers.
   for (int l = 0; l < RBF_HOIST; l++) {
     if (l < light_count) {
-      acc += rbf_light_one(rbf_ls[l], rbf_lI0[l], f1v[l], b, a, k0, p, Tvp, Tvr);
+      acc += rbf_light_one(rbf_ls[l], rbf_lI0[l], f1v[l], b, a, k0, p, Tvp, Tvr) * rbf_lit(l, p);
     }
   }
   for (int l = RBF_HOIST; l < light_count; l++) {
@@ -214,7 +237,10 @@ void rbf_splat_pixel(int gi, vec3 origin, vec3 dir, float t0, float Dvp, inout v
   float nscale = pv_noise_amp * cr.z;
   float Tf, Tvr, tr;
   rbf_view_terms(rel, a, k0, origin, dir, Dvp, nscale, Tf, Tvr, tr);
+  rbf_vis_dir = dir;
+  rbf_vis_back = max(0.0, tr - 0.98 * Dvp);
   vec3 L = rbf_light(gi, b, a, k0, origin + tr * dir, Tf, Tvr);
+  rbf_vis_back = 0.0;
   float Tn = 0.0;
   // The near segment [0, t0] meets the cull sphere only if |b - o| < R + t0.
   if (t0 > 0.0 && dot(rel, rel) < (R + t0) * (R + t0)) {

@@ -346,13 +346,20 @@ RBF_FIT_NEAR = 2.0
 RBF_FIT_MAX_T = 0.1
 
 
-def _rbf_create_info(window_depth, samplers, light_fit=False):
+def _rbf_create_info(window_depth, samplers, light_fit=False, shadows=False):
     """Create-info parts the splat and tile passes share (see create_rbf_splat_shader);
-    _light_fit_ adds the sampler gauss_light after _samplers_ and RBF_LIGHT_FIT 1."""
+    _light_fit_ adds the sampler gauss_light after _samplers_ and RBF_LIGHT_FIT 1; _shadows_
+    the samplers shadow_maps and shadow_info after those, PREVIEW_SHADOWS 1 and SHADOW_RES
+    (each Gaussian's light terms times the light's visibility where they are evaluated)."""
     info = gpu.types.GPUShaderCreateInfo()
     _add_ubo(info, *PREVIEW_UBO)
     if light_fit:
         samplers = tuple(samplers) + ("gauss_light",)
+    if shadows:
+        from . import preview_shadows
+        samplers = tuple(samplers) + ("shadow_maps", "shadow_info")
+        info.define("SHADOW_RES", str(preview_shadows.SHADOW_RES))
+    info.define("PREVIEW_SHADOWS", "1" if shadows else "0")
     for slot, sname in enumerate(samplers):
         info.sampler(slot, 'FLOAT_2D', sname)
     info.define("RBF_TEX_WIDTH", str(RBF_TEX_WIDTH))
@@ -368,7 +375,13 @@ def _rbf_create_info(window_depth, samplers, light_fit=False):
     return info
 
 
-def create_rbf_splat_shader(window_depth=False, light_fit=False):
+def _rbf_sources(shadows, last):
+    """RBF_SPLAT_SOURCES (after shadow_maps.glsl with _shadows_) and then _last_."""
+    return "".join(load_source(name) + "\n" for name in
+                   (("shadow_maps.glsl",) if shadows else ()) + RBF_SPLAT_SOURCES + (last,))
+
+
+def create_rbf_splat_shader(window_depth=False, light_fit=False, shadows=False):
     """The Gaussian splat pass (Fogshop section 5).
 
     Sources: vertex = rbf_splat_vert.glsl; fragment = RBF_SPLAT_SOURCES (sun05_airlight.glsl,
@@ -397,17 +410,16 @@ def create_rbf_splat_shader(window_depth=False, light_fit=False):
     iface = gpu.types.GPUStageInterfaceInfo("airlight_rbf_splat_iface")
     iface.flat('INT', "gi")
     info = _rbf_create_info(window_depth, ("Ftab", "depth_tex", "lights", "gauss", "gauss_f1"),
-                            light_fit)
+                            light_fit, shadows)
     info.vertex_in(0, 'VEC2', "corner")
     info.vertex_in(1, 'FLOAT', "gid")
     info.vertex_out(iface)
     info.vertex_source(load_source("rbf_splat_vert.glsl"))
-    info.fragment_source("".join(load_source(name) + "\n" for name in
-                                 RBF_SPLAT_SOURCES + ("rbf_splat_frag.glsl",)))
+    info.fragment_source(_rbf_sources(shadows, "rbf_splat_frag.glsl"))
     return gpu.shader.create_from_info(info)
 
 
-def create_rbf_tiles_shader(window_depth=False, light_fit=False):
+def create_rbf_tiles_shader(window_depth=False, light_fit=False, shadows=False):
     """The Gaussian tile pass: the splat pass's sums in one full-screen draw per target
     (rbf_tiles_frag.glsl), no blending.
 
@@ -422,18 +434,17 @@ def create_rbf_tiles_shader(window_depth=False, light_fit=False):
     iface = gpu.types.GPUStageInterfaceInfo("airlight_rbf_tiles_iface")
     iface.smooth('VEC2', "uv")
     info = _rbf_create_info(window_depth, ("Ftab", "depth_tex", "lights", "gauss", "gauss_f1",
-                                           "tile_index", "tile_list"), light_fit)
+                                           "tile_index", "tile_list"), light_fit, shadows)
     info.define("RBF_TILE", str(RBF_TILE))
     info.define("RBF_LIST_WIDTH", str(RBF_LIST_WIDTH))
     info.vertex_in(0, 'VEC2', "pos")
     info.vertex_out(iface)
     info.vertex_source(load_source("fullscreen_vert.glsl"))
-    info.fragment_source("".join(load_source(name) + "\n" for name in
-                                 RBF_SPLAT_SOURCES + ("rbf_tiles_frag.glsl",)))
+    info.fragment_source(_rbf_sources(shadows, "rbf_tiles_frag.glsl"))
     return gpu.shader.create_from_info(info)
 
 
-def create_rbf_light_fit_shader():
+def create_rbf_light_fit_shader(shadows=False):
     """The light-fit pass (rbf_light_fit_frag.glsl): one texel of gauss_light per
     (Gaussian, row), drawn as a full-screen quad over an RGBA32F texture of RBF_TEX_WIDTH x
     RBF_FIT_ROWS * blocks texels (`rbf_light_fit_texture`), no blending.
@@ -445,12 +456,11 @@ def create_rbf_light_fit_shader():
     1 "frag_near" (unused: 0)."""
     iface = gpu.types.GPUStageInterfaceInfo("airlight_rbf_light_fit_iface")
     iface.smooth('VEC2', "uv")
-    info = _rbf_create_info(False, ("Ftab", "depth_tex", "lights", "gauss", "gauss_f1"))
+    info = _rbf_create_info(False, ("Ftab", "depth_tex", "lights", "gauss", "gauss_f1"), shadows=shadows)
     info.vertex_in(0, 'VEC2', "pos")
     info.vertex_out(iface)
     info.vertex_source(load_source("fullscreen_vert.glsl"))
-    info.fragment_source("".join(load_source(name) + "\n" for name in
-                                 RBF_SPLAT_SOURCES + ("rbf_light_fit_frag.glsl",)))
+    info.fragment_source(_rbf_sources(shadows, "rbf_light_fit_frag.glsl"))
     return gpu.shader.create_from_info(info)
 
 

@@ -573,17 +573,19 @@ LIGHT_FIT = True
 
 
 def _gaussian_fog(res, *, gaussians, window_depth, sigma_t, view_origin, light_positions,
-                  gauss_pass, light_fit=False, noise=True):
+                  gauss_pass, light_fit=False, noise=True, shadows=False):
     """The splat or tile shader and the current GaussianFog (textures, batch, factors)
     for these inputs (preview_gaussians.py; rebuilt only when one changes; _noise_:
-    whether the draw uses the noise, see GaussianFog.update)."""
-    key = (gauss_pass.lower(), bool(window_depth), bool(light_fit))
+    whether the draw uses the noise, see GaussianFog.update; _shadows_: the variants whose
+    light terms take the lights' visibility from the shadow maps)."""
+    key = (gauss_pass.lower(), bool(window_depth), bool(light_fit)) + (("shadows",) if shadows else ())
     shader = res["shaders"].get(key)
     if shader is None:
         create = gs.create_rbf_tiles_shader if gauss_pass == 'TILES' else gs.create_rbf_splat_shader
-        shader = res["shaders"][key] = create(window_depth, light_fit=bool(light_fit))
-    if light_fit and res["shaders"].get("rbf_light_fit") is None:
-        res["shaders"]["rbf_light_fit"] = gs.create_rbf_light_fit_shader()
+        shader = res["shaders"][key] = create(window_depth, light_fit=bool(light_fit), shadows=bool(shadows))
+    fit_key = "rbf_light_fit_shadows" if shadows else "rbf_light_fit"
+    if light_fit and res["shaders"].get(fit_key) is None:
+        res["shaders"][fit_key] = gs.create_rbf_light_fit_shader(shadows=bool(shadows))
     fog = res.get("gaussian_fog")
     if fog is None:
         fog = res["gaussian_fog"] = pg.GaussianFog()
@@ -591,7 +593,7 @@ def _gaussian_fog(res, *, gaussians, window_depth, sigma_t, view_origin, light_p
                sigma_t, view_origin, light_positions, noise=bool(noise))
     if gauss_pass == 'TILES' and fog.tiles_batch is None:
         fog.tiles_batch = gs.fullscreen_batch(shader)
-    fit = res["shaders"].get("rbf_light_fit") if light_fit else None
+    fit = res["shaders"].get(fit_key) if light_fit else None
     if fit is not None and fog.fit_batch is None:
         fog.fit_batch = gs.fullscreen_batch(fit)
     return shader, fog, gauss_pass, fit
@@ -723,8 +725,8 @@ def draw_fog(*, depth_tex, perspective_matrix, view_origin, is_perspective, view
     spots, suns: the shadow-map row of each point light, spot and sun, -1 for unshadowed
     ones; `scene_shadows` builds it; optional steps: the march's steps per ray, default
     SHADOW_STEPS['MEDIUM']): volumetric shadows, the shadowed lights' airlight
-    marched through their maps (shadow_maps.glsl). The Gaussian fog's own terms stay
-    unshadowed (the bake shadows them).
+    marched through their maps (shadow_maps.glsl); each Gaussian's light terms take the
+    light's visibility where they are evaluated (b^r, or the light fit's nodes).
     Restores every gpu.state it changes.
     """
     res = _gpu_resources()
@@ -765,7 +767,7 @@ def draw_fog(*, depth_tex, perspective_matrix, view_origin, is_perspective, view
         splat = _gaussian_fog(res, gaussians=gaussians, window_depth=window_depth,
                               sigma_t=sigma_t, view_origin=view_origin,
                               light_positions=light_positions, gauss_pass=gauss_pass,
-                              light_fit=light_fit, noise=noise is not None)
+                              light_fit=light_fit, noise=noise is not None, shadows=shadows is not None)
         gauss_scale, scale = int(scale), 1
         if gauss_pass == 'TILES' and not splat[1].update_tiles(
                 _native_for_preview(), perspective_matrix, (w, h), gauss_scale):
@@ -773,7 +775,7 @@ def draw_fog(*, depth_tex, perspective_matrix, view_origin, is_perspective, view
             splat = _gaussian_fog(res, gaussians=gaussians, window_depth=window_depth,
                                   sigma_t=sigma_t, view_origin=view_origin,
                                   light_positions=light_positions, gauss_pass='SPLAT',
-                                  light_fit=light_fit, noise=noise is not None)
+                                  light_fit=light_fit, noise=noise is not None, shadows=shadows is not None)
         Csv = splat[1].Csv
     _state["last_scale"] = scale
     _state["last_gauss_scale"] = gauss_scale if splat is not None else None
@@ -1090,9 +1092,7 @@ class AIRLIGHT_PT_viewport_preview(bpy.types.Panel):
                 col = layout.column()
                 col.label(text="Shadows unavailable here, fog drawn unshadowed:", icon='ERROR')
                 col.label(text=_state["shadow_error"][:120])
-            gaussians = _state["gaussians"]
-            if gaussians is not None and len(gaussians["scales"]):
-                layout.label(text="Fog objects: shadowed in the bake only", icon='INFO')
+
 
 
 def register():

@@ -315,3 +315,43 @@ def test08_shadow_maps_agree_with_shadow_rays(addon, native, gs):
             near = native.shadow_visibility(verts, tris, ring, **({"direction": vector} if kind == 'SUN'
                                                                    else {"position": vector}))
             assert 0 < near.sum() < len(near), (kind, p)
+
+
+def test09_gaussian_fog_takes_the_shadows_too(addon, native, gs, artifacts):
+    """Fog objects behind the panel: each Gaussian's light terms take the light's visibility
+    where the preview evaluates them (b^r, or the light fit's nodes), against the bake's
+    Fogshop lit spans; far closer than the Gaussians drawn unshadowed."""
+    from airlight import scene_export
+    scene = _panel_scene(sigma_t=0.02)
+    bpy.context.view_layer.update()
+    depsgraph = bpy.context.evaluated_depsgraph_get()
+    desc = scene_export.export_scene(scene, depsgraph)
+    rng = np.random.default_rng(11)
+    n = 40
+    centres = np.column_stack([rng.uniform(-4.0, 4.0, n), rng.uniform(-5.0, 1.0, n), rng.uniform(0.3, 3.5, n)])
+    scales, amplitudes = rng.uniform(0.8, 1.6, n), rng.uniform(0.05, 0.25, n)
+    rbf = dict(rbf_centres=centres, rbf_scales=scales, rbf_amplitudes=amplitudes)
+    ref = native.bake(**desc, **rbf, model="sun05", aa_samples=1, threads=0, gaussian_resolution="full")["airlight"]
+    ref = ref.astype(np.float64)
+    off_desc = {k: v for k, v in desc.items() if "shadow" not in k and not k.startswith("occluder")}
+    ref_off = native.bake(**off_desc, **rbf, model="sun05", aa_samples=1, threads=0,
+                          gaussian_resolution="full")["airlight"].astype(np.float64)
+    addon._state["lights"] = None
+    lights = addon.preview_lights(scene, depsgraph)
+    gaussians = dict(centres=centres, scales=scales, amplitudes=amplitudes, key=("test09", n))
+    shadows = _shadows(addon, desc, lights, "gaussians")
+    got, got_T = render_preview(addon, gs, scene, desc, gaussians, shadows=shadows)
+    off, _ = render_preview(addon, gs, scene, desc, gaussians)
+    scale = 1.0 / np.percentile(ref, 99)
+    for tag, img in (("gpu", got), ("bake", ref), ("gpu_unshadowed", off)):
+        save_png(os.path.join(artifacts, f"preview_shadows_gaussians_{tag}.png"), np.clip(img * scale, 0, 1))
+    compare("shadowed preview vs bake, Gaussian fog behind a panel", got, got_T, ref, got_T)
+    l1, l1_off = np.abs(got - ref).sum() / ref.sum(), np.abs(off - ref).sum() / ref.sum()
+    removed = 1.0 - ref.sum() / ref_off.sum()
+    print(f"Gaussian fog: |preview - bake| / bake (L1) {l1:.3g} shadowed, {l1_off:.3g} unshadowed; the shadows "
+          f"remove {removed:.3g} of the bake's airlight; preview total {got.sum() / ref.sum() - 1:.3g}")
+    # Measured: L1 3.1 % (the relative error is large only in dim pixels by the shadow's edge,
+    # where the bake's lit spans and the preview's visibility at b^r differ most), total 0.13 %.
+    assert removed > 0.1
+    assert l1 < 0.1 and l1 < 0.2 * l1_off
+    assert abs(got.sum() / ref.sum() - 1.0) < 0.03
