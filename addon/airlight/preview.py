@@ -290,8 +290,9 @@ def _caster_instances(context):
 
 def scene_shadows(lights, casters, generation):
     """draw_fog's _shadows_ for preview_lights' value _lights_ and the casters' [(batch,
-    model matrix)] (`_caster_instances`; tests pass their own), or None when the bake
-    shadows none of its lights. The maps are drawn again only when _generation_ (any
+    model matrix)] (or a callable returning them, called only when a light is shadowed:
+    `_caster_instances`; tests pass their own), or None when the bake shadows none of its
+    lights. The maps are drawn again only when _generation_ (any
     hashable: the depsgraph generation), the shadowed lights or the casters' box change.
     Shadowed lights past preview_shadows.MAX_SHADOW_MAPS stay unshadowed
     (_state["shadow_dropped"] counts them for the panel)."""
@@ -305,7 +306,8 @@ def scene_shadows(lights, casters, generation):
     if maps is None:
         maps = res["shadow_maps"] = ps.ShadowMaps()
     key = (generation, tuple(requests), tuple(map(tuple, box)))
-    maps.update(key, requests, box, casters, _distance_shader())
+    if key != maps.key:
+        maps.update(key, requests, box, casters() if callable(casters) else casters, _distance_shader())
     return dict(maps=maps.maps, info=maps.info, points=points, spots=spots, suns=suns)
 
 
@@ -960,7 +962,7 @@ def _draw_callback():
         spots, suns = lights["spots"], lights["suns"]
         env = scene_environment(scene)
         try:  # a GPU that cannot hold the maps draws the fog unshadowed and says why
-            shadows = scene_shadows(lights, _caster_instances(context), _state["generation"])
+            shadows = scene_shadows(lights, lambda: _caster_instances(context), _state["generation"])
             if shadows is not None:
                 shadows["steps"] = SHADOW_STEPS.get(getattr(wm, "airlight_preview_shadows", 'MEDIUM'), 32)
             _state["shadow_error"] = None
