@@ -304,6 +304,8 @@ def preview_params_ubo(*, inv_persp, persp, eye, clip, viewport, phase, sigma_t,
     i = f.view(np.int32)
     i[52:56] = (int(light_count), int(scale), int(mode), 0)
     return gpu.types.GPUUniformBuf(f.tobytes())
+# Texels per side of a shadow-map face (shadow_maps.glsl; preview_shadows.py draws them).
+SHADOW_RES = 512
 PREVIEW_FOG_SAMPLERS = ("Ftab", "depth_tex", "lights", "fog_lo", "gauss_acc", "gauss_near", "Gtab",
                         "spots", "suns", "env_glow", "shadow_maps", "shadow_info")
 PREVIEW_LIBS = ("sun05_airlight.glsl", "biri06_airlight.glsl", "shadow_maps.glsl", "spot_airlight.glsl",
@@ -356,9 +358,8 @@ def _rbf_create_info(window_depth, samplers, light_fit=False, shadows=False):
     if light_fit:
         samplers = tuple(samplers) + ("gauss_light",)
     if shadows:
-        from . import preview_shadows
         samplers = tuple(samplers) + ("shadow_maps", "shadow_info")
-        info.define("SHADOW_RES", str(preview_shadows.SHADOW_RES))
+        info.define("SHADOW_RES", str(SHADOW_RES))
     info.define("PREVIEW_SHADOWS", "1" if shadows else "0")
     for slot, sname in enumerate(samplers):
         info.sampler(slot, 'FLOAT_2D', sname)

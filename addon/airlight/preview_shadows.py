@@ -22,7 +22,7 @@ from mathutils import Matrix
 
 from . import gpu_shaders as gs
 
-SHADOW_RES = 512
+SHADOW_RES = gs.SHADOW_RES
 MAX_SHADOW_MAPS = 8
 # (major axis, sign) of the cube faces +X -X +Y -Y +Z -Z (shadow_maps.glsl).
 FACES = ((0, 1.0), (0, -1.0), (1, 1.0), (1, -1.0), (2, 1.0), (2, -1.0))
