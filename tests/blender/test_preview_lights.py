@@ -133,3 +133,20 @@ def test03_daylight_has_sun_lamps_only(tmp_path):
     description = _same_lights(scene)
     assert len(description["light_positions"]) == 0 and "spot_positions" not in description
     assert description["fog_top"] == math.inf
+
+
+def test_panel_says_what_the_preview_shadows(tmp_path):
+    """The preview panel with Volumetric Shadows on: the Shadows setting, and the lines for
+    lights past the shadow maps' limit and for a GPU that could not hold the maps."""
+    from conftest import build_plane_scene, draw_panel
+    scene = build_plane_scene(tmp_path)
+    scene.airlight.volumetric_shadows = True
+    state = preview._state
+    seen = " ".join(map(str, draw_panel("AIRLIGHT_PT_viewport_preview")))
+    assert "airlight_preview_shadows" in seen, seen
+    state["shadow_dropped"], state["shadow_error"] = 3, "RuntimeError: texture too large"
+    try:
+        seen = " ".join(map(str, draw_panel("AIRLIGHT_PT_viewport_preview")))
+    finally:
+        state["shadow_dropped"], state["shadow_error"] = 0, None
+    assert "3 shadowed lights past 8" in seen and "texture too large" in seen, seen
