@@ -49,9 +49,11 @@ class Cluster:
                         f"--log-file={self._path('log', 'munged.log')}",
                         f"--pid-file={self._path('munge', 'munged.pid')}",
                         f"--seed-file={self._path('munge', 'seed')}"], check=True)
-        host = socket.gethostname()
+        # The node by its short host name (what slurmd calls itself), reached at 127.0.0.1 so
+        # that nothing depends on the host name resolving.
+        host = socket.gethostname().split(".")[0]
         conf = f"""ClusterName=airlighttest
-SlurmctldHost={host}
+SlurmctldHost={host}(127.0.0.1)
 AuthType=auth/munge
 AuthInfo=socket={self.socket}
 CredType=cred/munge
@@ -74,13 +76,13 @@ SelectTypeParameters=CR_Core
 MpiDefault=none
 ReturnToService=2
 MinJobAge=600
-NodeName={host} CPUs={os.cpu_count()} State=UNKNOWN
+NodeName={host} NodeAddr=127.0.0.1 CPUs={os.cpu_count()} State=UNKNOWN
 PartitionName=test Nodes=ALL Default=YES MaxTime=INFINITE State=UP
 """
         with open(self.env["SLURM_CONF"], "w") as f:
             f.write(conf)
         subprocess.run(["slurmctld"], env=self.env, check=True)
-        subprocess.run(["slurmd"], env=self.env, check=True)
+        subprocess.run(["slurmd", "-N", host], env=self.env, check=True)
         deadline = time.time() + 60
         while time.time() < deadline:
             out = subprocess.run(["sinfo", "-h", "-o", "%t"], env=self.env, capture_output=True, text=True)
@@ -88,7 +90,14 @@ PartitionName=test Nodes=ALL Default=YES MaxTime=INFINITE State=UP
                 return self
             time.sleep(0.5)
         self.__exit__(None, None, None)
-        raise RuntimeError(f"the test cluster's node did not come up; see {self._path('log')}")
+        logs = []
+        for name in ("slurmctld.log", "slurmd.log"):
+            try:
+                with open(self._path("log", name)) as f:
+                    logs.append(f"--- {name}:\n" + "".join(f.readlines()[-15:]))
+            except OSError:
+                pass
+        raise RuntimeError("the test cluster's node did not come up:\n" + "\n".join(logs))
 
     def wait(self, job, timeout=600):
         """Waits until no task of _job_ is pending or running; returns scontrol's record of
