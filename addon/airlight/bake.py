@@ -42,8 +42,8 @@ LENS = "lens_samples"
 # And, with motion blur (prepare_views with evaluate_at): the scene descriptions of the
 # shutter samples (each lens sample of each), one bake each, averaged by run().
 SAMPLES = "samples_to_average"
-# Settings key (popped by run) of the per-light passes: scene_export.light_rows' names of
-# the light arrays' rows, or absent when Light Passes is off.
+# Settings key (popped by run) of the per-light passes: the light arrays' row names
+# (scene_export.light_arguments), or absent when Light Passes is off.
 LIGHT_PASSES = "light_passes"
 
 
@@ -80,7 +80,8 @@ def prepare(scene, depsgraph, mesh_overrides=None, view=None):
     The World for the environment glow travels in the settings under "environment"
     (environment.prepare(); absent when off), which `run` takes out before the native bake."""
     try:
-        description, plan = scene_export.export(scene, depsgraph, mesh_overrides, view)
+        names = {} if getattr(scene.airlight, "light_passes", False) else None
+        description, plan = scene_export.export(scene, depsgraph, mesh_overrides, view, names)
         settings = bake_settings(scene, description)
         world = environment.prepare(scene)
         if world is not None:
@@ -89,8 +90,8 @@ def prepare(scene, depsgraph, mesh_overrides=None, view=None):
         raise BakeError(str(ex)) from None
     if getattr(scene.airlight, "pass_precision", 'FULL') == 'HALF':
         settings[HALF_PASSES] = True
-    if getattr(scene.airlight, "light_passes", False):
-        settings[LIGHT_PASSES] = scene_export.light_rows(scene, depsgraph)
+    if names is not None:
+        settings[LIGHT_PASSES] = names
     lens = scene_description.export_lens(scene, depsgraph, view, description["cam_to_world"],
                                          description["projection"])
     if lens is not None:
@@ -191,7 +192,7 @@ def run(description, settings, filepath, progress=None):
     return stats, time.perf_counter() - start
 
 
-# The light arrays of `_native.bake` per kind of light_rows, and the per-light flags.
+# The light arrays of `_native.bake` per kind of row names, and the per-light flags.
 _LIGHT_ARRAYS = {
     "points": ("light_positions", "light_intensities", "light_shadows"),
     "spots": ("spot_positions", "spot_axes", "spot_intensities", "spot_size", "spot_blend", "spot_shadows"),

@@ -306,8 +306,7 @@ def scene_shadows(lights, casters, generation):
     if maps is None:
         maps = res["shadow_maps"] = ps.ShadowMaps()
     key = (generation, tuple(requests), tuple(map(tuple, box)))
-    if key != maps.key:
-        maps.update(key, requests, box, casters() if callable(casters) else casters, _distance_shader())
+    maps.update(key, requests, box, casters, _distance_shader())
     return dict(maps=maps.maps, info=maps.info, points=points, spots=spots, suns=suns)
 
 

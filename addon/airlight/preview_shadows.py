@@ -117,10 +117,13 @@ class ShadowMaps:
     def update(self, key, requests, box, casters, shader):
         """Draws the maps of _requests_ ([('CUBE', position) or ('SUN', direction)], one row
         each in order) for the casters' union _box_ ((lo, hi)) and _casters_ ([(batch,
-        model matrix)]) with the distance _shader_ (gpu_shaders.create_distance_shader),
-        unless _key_ is the one they were drawn for. Restores the gpu state it changes."""
+        model matrix)], or a callable returning them, called only when the maps are drawn)
+        with the distance _shader_ (gpu_shaders.create_distance_shader), unless _key_ is
+        the one they were drawn for. Restores the gpu state it changes."""
         if key == self.key and self.maps is not None:
             return
+        if callable(casters):
+            casters = casters()
         rows = max(1, len(requests))
         self._textures(rows)
         info = np.zeros((4, rows, 4), np.float32)

@@ -182,7 +182,8 @@ def light_arguments(description, plan, names=None):
     arguments: light_positions and light_intensities (no point lights in the daylight
     model), spot_* (none in daylight either) and sun_* as spot_lights and sun_lights give
     them. Lights named in plan.skipped (Automatic) are left out unless instanced. _names_
-    (a dict): its "points", "spots" and "suns" get each row's light name (`light_rows`)."""
+    (a dict): its "points", "spots" and "suns" get each row's light name (an area light's
+    samples and a collection's instances share their light's name; the per-light passes)."""
     rows = None if names is None else {"points": [], "spots": [], "suns": []}
     positions, intensities = point_lights(description.lights, plan, None if rows is None else rows["points"])
     if plan.daylight:  # Hoffman-Preetham: sun lamps only
@@ -198,16 +199,6 @@ def light_arguments(description, plan, names=None):
     if rows is not None:
         names.update(rows)
     return dict(light_positions=positions, light_intensities=intensities, **spots, **suns)
-
-
-def light_rows(scene, depsgraph):
-    """{"points", "spots", "suns"}: the light name of each row of the bake's light arrays
-    (an area light's samples and a collection's instances share their light's name), for
-    the per-light passes (bake.py)."""
-    description = scene_description.describe(scene, depsgraph, bake=False)
-    names = {}
-    light_arguments(description, model_choice.plan(scene.airlight, description.survey), names)
-    return names
 
 
 def _shadowed(light, plan):
@@ -243,7 +234,7 @@ def shadow_arguments(description, plan):
     return out
 
 
-def bake_arguments(description, plan):
+def bake_arguments(description, plan, light_names=None):
     """`_native.bake`'s scene keyword arguments (the module docstring) of a SceneDescription
     described for the bake, with the lights its plan takes."""
     width, height, cam_to_world, projection = description.camera
@@ -252,7 +243,7 @@ def bake_arguments(description, plan):
                         ("vertices", description.vertices)):
         if not np.all(np.isfinite(array)):
             raise ExportError(f"The scene's {name} contain NaN or infinite values.")
-    lights = light_arguments(description, plan)
+    lights = light_arguments(description, plan, light_names)
     spots = {k: v for k, v in lights.items() if k.startswith("spot_")}
     suns = {k: v for k, v in lights.items() if k.startswith("sun_") or k == "fog_top"}
     return dict(
@@ -270,13 +261,13 @@ def bake_arguments(description, plan):
     )
 
 
-def export(scene, depsgraph, mesh_overrides=None, view=None):
+def export(scene, depsgraph, mesh_overrides=None, view=None, light_names=None):
     """(bake_arguments, plan) of _scene_ at the depsgraph's frame (_mesh_overrides_: see
     fog_object.gather), seen by _view_'s camera (views.render_views; None: the scene
-    camera)."""
+    camera); _light_names_ (a dict) gets the light arrays' row names (light_arguments)."""
     description = scene_description.describe(scene, depsgraph, mesh_overrides, view)
     plan = model_choice.plan(scene.airlight, description.survey)
-    return bake_arguments(description, plan), plan
+    return bake_arguments(description, plan, light_names), plan
 
 
 def export_scene(scene, depsgraph, mesh_overrides=None, view=None):
