@@ -64,6 +64,11 @@ struct BakeSettings {
     // shadows is integrated over the lit intervals of each view ray only. Off: the passes are
     // those of unshadowed fog, bit for bit.
     bool shadows = false;
+    // Gaussian fog with the Fogshop models (perspective, no noise): > 0 refines every (light,
+    // Gaussian) pair whose bound on Fogshop's relative error exceeds this accuracy by the exact
+    // integral over the Gaussian's support (gaussian/refine.h), each to a tenth of it. 0: Fogshop's
+    // approximation alone, bit for bit.
+    double gaussian_accuracy = 0.0;
 };
 
 struct BakeStats {
@@ -82,6 +87,13 @@ struct BakeStats {
     // fog objects' medium and cull hierarchy, the splat's per-(light, Gaussian) optical
     // depths, the model's tables on first use), outside both.
     double seconds_fog_setup = 0.0;
+    // Gaussian refinement (settings.gaussian_accuracy > 0): the (light, Gaussian) pairs, those
+    // refined, the largest bound on Fogshop's error of a pair left to it, and the refinement's
+    // time inside seconds_airlight (summed over the worker threads).
+    long long gaussian_pairs = 0;
+    long long gaussian_refined_pairs = 0;
+    double gaussian_kept_bound = 0.0;
+    double seconds_refine = 0.0;
 };
 
 // Output images are row-major, top row first, 3 floats (RGB) per pixel.

@@ -202,6 +202,87 @@ FogEvaluator::FogEvaluator(const SceneDescription& scene, const BakeSettings& se
         }
     }
     if (settings.shadows) set_up_shadows(scene, settings);
+    if (settings.gaussian_accuracy > 0.0 && splat_ && !(scene.gaussians.noise_amplitude > 0.0))
+        set_up_refinement(settings);
+}
+
+void FogEvaluator::set_up_refinement(const BakeSettings& settings) {
+    std::vector<RefineLight> lights;
+    for (size_t l = 0; l < gaussian_lights_.size(); ++l) {
+        RefineLight light;
+        light.s = gaussian_lights_[l];
+        if (l >= n_gaussian_points_) {
+            light.kind = RefineLight::Kind::Spot;
+            light.cone = gaussian_spots_[l - n_gaussian_points_].cone;
+        }
+        lights.push_back(light);
+    }
+    for (const GaussianSunData& sun : gaussian_suns_) {
+        RefineLight light;
+        light.kind = RefineLight::Kind::Sun;
+        light.w = sun.w;
+        lights.push_back(light);
+    }
+    const int threads = std::max(0, settings.threads);
+    GaussianRefinePlan plan =
+        plan_gaussian_refinement(*gaussian_, origin_, lights, phase_, settings.gaussian_accuracy, threads);
+    refine_pairs_ = plan.pairs;
+    refine_kept_bound_ = plan.kept_bound;
+    if (plan.refined.empty()) return;
+    if (!eye_fogshop_) {
+        std::vector<Vec3> sun_dirs;
+        for (const GaussianSunData& sun : gaussian_suns_) sun_dirs.push_back(sun.w);
+        eye_fogshop_ = std::make_unique<FogshopAirlight>(*gaussian_, origin_, gaussian_lights_, model_.f_table(),
+                                                         threads, sun_dirs, fog_top_);
+    }
+    // Each term to a tenth of the accuracy: the quadrature's share of the error stays small.
+    refiner_ = std::make_unique<GaussianRefiner>(*gaussian_, origin_, std::move(lights), phase_, fog_top_,
+                                                 std::move(plan), 0.1 * settings.gaussian_accuracy);
+}
+
+int FogEvaluator::gaussian_volume(size_t l) const {
+    if (!shadows_) return -1;
+    const size_t P = gaussian_lights_.size();
+    if (l < n_gaussian_points_) return light_volume_[l];
+    return l < P ? spot_volume_[l - n_gaussian_points_] : sun_volume_[l - P];
+}
+
+double FogEvaluator::gaussian_profile(size_t l, const Vec3& u) const {
+    if (l < n_gaussian_points_ || l >= gaussian_lights_.size()) return 1.0;
+    const SpotCone& cone = gaussian_spots_[l - n_gaussian_points_].cone;
+    return spot_profile(cone, glm::dot(cone.axis, u));
+}
+
+void FogEvaluator::refine_gaussians(const Ray* rays, const float* Dvp, const float* t0, int n, RGB* La) const {
+    if (!refiner_) return;
+    const size_t P = gaussian_lights_.size();
+    const LitIntervals* lit = nullptr;  // traced for the batch once a ray needs it
+    thread_local std::vector<GaussianRefiner::ViewLine> view;
+    const FogshopAirlight::SpanProfile profile = [this](size_t l, const Vec3& u) { return gaussian_profile(l, u); };
+    const PhaseFunction* phase = isotropic_ ? nullptr : &phase_;
+    const GaussianRefinePlan& plan = refiner_->plan();
+    for (int k = 0; k < n; ++k) {
+        const double near = t0 ? double(t0[k]) : 0.0, end = double(Dvp[k]);
+        if (!(end > near)) continue;
+        const Vec3 d = rays[k].d;
+        const std::pair<double, double> whole(near, end);
+        refiner_->for_each_pair(d, near, end, view, [&](size_t q) {
+            const RefinePair& pair = plan.refined[q];
+            const size_t l = pair.light, i = pair.gaussian;
+            RaySpans spans{&whole, 1};
+            const int v = gaussian_volume(l);
+            if (v >= 0) {
+                if (!lit) lit = lit_intervals(rays, t0, Dvp, n);
+                if (!fully_lit(lit[k], v, near, end))
+                    spans = RaySpans{lit[k].spans.data() + lit[k].begin[v], lit[k].end[v] - lit[k].begin[v]};
+            }
+            const double exact = refiner_->exact_term(q, d, near, spans, view);
+            const double approx = eye_fogshop_->gaussian_term(i, l, d, near, spans, phase, &profile);
+            const RGB I0 = l < P ? gaussian_I0_[l] : gaussian_suns_[l - P].E;
+            const RGB albedo(gaussian_albedo_[3 * i], gaussian_albedo_[3 * i + 1], gaussian_albedo_[3 * i + 2]);
+            La[k] += albedo * I0 * (exact - approx);
+        });
+    }
 }
 
 void FogEvaluator::set_up_shadows(const SceneDescription& scene, const BakeSettings& settings) {
@@ -691,6 +772,7 @@ void FogEvaluator::eval_gaussians(const Ray* rays, const float* Dvp, const float
         for (int k = 0; k < n; ++k) dirs[k] = rays[k].d;
         splat_->eval_rays(dirs.data(), Dvp, t0, n, Tr, La);
         shadow_gaussians(rays, Dvp, t0, n, La);
+        refine_gaussians(rays, Dvp, t0, n, La);
         return;
     }
     const size_t L = lights_.size();

@@ -12,6 +12,7 @@
 #include "core/scene.h"
 #include "gaussian/airlight.h"
 #include "gaussian/medium.h"
+#include "gaussian/refine.h"
 #include "gaussian/splat.h"
 #include "homogeneous/pegoraro10.h"
 #include "homogeneous/spot_light.h"
@@ -61,6 +62,14 @@ class FogEvaluator {
     // lit spans (FogshopAirlight::eval_rgb_spans) less Fogshop over the whole segment [t0,
     // Dvp]. The splat's centre samples (gaussian_pass) and eval_gaussians' rays take it.
     void shadow_gaussians(const Ray* rays, const float* Dvp, const float* t0, int n, RGB* La) const;
+    // Gaussian refinement (BakeSettings::gaussian_accuracy, gaussian/refine.h): adds to La[k] the
+    // refined pairs' exact terms less their Fogshop terms, over the lit spans with shadows.
+    // After shadow_gaussians on the same rays.
+    void refine_gaussians(const Ray* rays, const float* Dvp, const float* t0, int n, RGB* La) const;
+    // The refinement (null when off or when no pair needs it).
+    const GaussianRefiner* refiner() const { return refiner_.get(); }
+    size_t refine_pairs() const { return refine_pairs_; }
+    double refine_kept_bound() const { return refine_kept_bound_; }
     // The shadow volumes (null without shadows), and per light of the scene (its point lights,
     // spots and suns in the description's order) its light in them (-1: unshadowed).
     const ShadowVolumes* shadow_volumes() const { return shadows_.get(); }
@@ -115,6 +124,11 @@ class FogEvaluator {
     // Volumetric shadows: the shadow volumes of the lights that cast shadows, and per point
     // light (lights_' order), spot and sun its light in them (-1: unshadowed).
     void set_up_shadows(const SceneDescription& scene, const BakeSettings& settings);
+    void set_up_refinement(const BakeSettings& settings);
+    // Volume of the Fogshop light l (gaussian_lights_, then the suns) in shadows_; -1: none.
+    int gaussian_volume(size_t l) const;
+    // Light l's emission profile towards u (1 but for spots), for FogshopAirlight's terms.
+    double gaussian_profile(size_t l, const Vec3& u) const;
     // The lit intervals of _n_ rays within [t0, t1] (t0 null: 0), in a buffer of the calling thread.
     const LitIntervals* lit_intervals(const Ray* rays, const float* t0, const float* t1, int n,
                                       const uint32_t* masks = nullptr) const;
@@ -182,6 +196,9 @@ class FogEvaluator {
     std::unique_ptr<ShadowVolumes> shadows_;
     // Gaussian fog with shadows (Fogshop, perspective): Fogshop at the eye for the point lights.
     std::unique_ptr<FogshopAirlight> eye_fogshop_;
+    std::unique_ptr<GaussianRefiner> refiner_;
+    size_t refine_pairs_ = 0;         // the refinement plan's pairs (refiner_ may be null)
+    double refine_kept_bound_ = 0.0;  // and the largest bound it left to Fogshop
     std::vector<int> light_volume_, spot_volume_, sun_volume_;
     std::vector<int> scene_point_volume_, scene_spot_volume_, scene_sun_volume_;
     std::vector<int> origin_count_;  // per light of shadows_: its count at origin_

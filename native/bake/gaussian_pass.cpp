@@ -1,5 +1,6 @@
 // gaussian_pass.cpp: Gaussian fog by the tiled splat (passes.h).
 #include <algorithm>
+#include <atomic>
 #include <numeric>
 #include <vector>
 
@@ -10,11 +11,13 @@ namespace airlight {
 
 namespace {
 
-// Volumetric shadows on the splat's centre samples: each row's rays take what the shadows
-// remove from them (FogEvaluator::shadow_gaussians), band by band.
-void shadow_centres(BakeContext& ctx, const FogEvaluator& fog) {
+// The splat's centre samples corrected, band by band: each row's rays take what volumetric
+// shadows remove from them (FogEvaluator::shadow_gaussians), then the refined pairs' exact
+// terms in place of Fogshop's (FogEvaluator::refine_gaussians).
+void correct_centres(BakeContext& ctx, const FogEvaluator& fog) {
     const int W = ctx.W, H = ctx.H;
     BakeResult& result = ctx.result;
+    std::atomic<long long> refine_ns{0};  // (atomic<double> has no fetch_add in C++17)
     parallel_for(ctx.n_bands, ctx.n_threads, [&](int band) {
         thread_local RowRays rr;
         thread_local std::vector<Ray> rays;
@@ -29,12 +32,17 @@ void shadow_centres(BakeContext& ctx, const FogEvaluator& fog) {
                 rays[i].d = Vec3(rr.dx[i], rr.dy[i], rr.dz[i]);
                 La[i] = RGB(A[3 * i], A[3 * i + 1], A[3 * i + 2]);
             }
-            fog.shadow_gaussians(rays.data(), &result.depth[size_t(j) * W], ctx.near_clip ? rr.t_near.data() : nullptr,
-                                 W, La.data());
+            const float* depth = &result.depth[size_t(j) * W];
+            const float* t_near = ctx.near_clip ? rr.t_near.data() : nullptr;
+            fog.shadow_gaussians(rays.data(), depth, t_near, W, La.data());
+            const auto refine_start = Clock::now();
+            fog.refine_gaussians(rays.data(), depth, t_near, W, La.data());
+            refine_ns.fetch_add(static_cast<long long>(1e9 * seconds_since(refine_start)));
             for (int i = 0; i < W; ++i)
                 for (int c = 0; c < 3; ++c) A[3 * i + c] = float(std::max(0.0, La[i][c]));
         }
     });
+    result.stats.seconds_refine = 1e-9 * double(refine_ns.load());
 }
 
 }  // namespace
@@ -76,7 +84,11 @@ double gaussian_pass(BakeContext& ctx, const FogEvaluator& fog) {
             const double f = kRaycastProgressShare + (end - kRaycastProgressShare) * done / n_tiles;
             if (!progress(f)) throw Cancelled();
         });
-    if (fog.has_shadows()) shadow_centres(ctx, fog);
+    result.stats.gaussian_pairs = static_cast<long long>(fog.refine_pairs());
+    result.stats.gaussian_kept_bound = fog.refine_kept_bound();
+    result.stats.gaussian_refined_pairs =
+        fog.refiner() ? static_cast<long long>(fog.refiner()->plan().refined.size()) : 0;
+    if (fog.has_shadows() || fog.refiner()) correct_centres(ctx, fog);
     return end;
 }
 

@@ -68,7 +68,7 @@ py::dict bake_py(int width, int height, const py::object& cam_to_world, const py
                  const std::string& surface_glow_model, const std::string& homogeneous_resolution,
                  double edge_cluster_tol, bool shadows, const py::object& light_shadows,
                  const py::object& spot_shadows, const py::object& sun_shadows, const py::object& occluder_vertices,
-                 const py::object& occluder_triangles) {
+                 const py::object& occluder_triangles, double gaussian_accuracy) {
     // Gather the scene description from the arrays (shapes checked here, values in bake()).
     SceneDescription scene;
     scene.camera.width = width;
@@ -223,6 +223,9 @@ py::dict bake_py(int width, int height, const py::object& cam_to_world, const py
 
     BakeSettings settings;
     settings.shadows = shadows;
+    if (!(gaussian_accuracy >= 0.0 && gaussian_accuracy < 1.0))
+        throw py::value_error("gaussian_accuracy must be in [0, 1) (a relative error; 0: Fogshop alone)");
+    settings.gaussian_accuracy = gaussian_accuracy;
     settings.model = model_from_name(model);
     settings.threads = threads;
     settings.aa_samples = aa_samples;
@@ -274,7 +277,11 @@ py::dict bake_py(int width, int height, const py::object& cam_to_world, const py
                    "supersampled_pixels"_a = result.stats.supersampled_pixels,
                    "samples"_a = result.stats.samples, "seconds_surface"_a = result.stats.seconds_surface,
                    "seconds_edges"_a = result.stats.seconds_edges, "seconds_bin"_a = result.stats.seconds_bin,
-                   "seconds_fog_setup"_a = result.stats.seconds_fog_setup);
+                   "seconds_fog_setup"_a = result.stats.seconds_fog_setup,
+                   "gaussian_pairs"_a = result.stats.gaussian_pairs,
+                   "gaussian_refined_pairs"_a = result.stats.gaussian_refined_pairs,
+                   "gaussian_kept_bound"_a = result.stats.gaussian_kept_bound,
+                   "seconds_refine"_a = result.stats.seconds_refine);
     // Surface shading: (L, H, W, 3) attenuation per light and (H, W, 3) glow, when asked for.
     py::dict extra;
     // The surface arrays exist only where the bake ran its surface pass (bake() refuses
@@ -348,6 +355,7 @@ void bind_bake(py::module_& m) {
           "edge_cluster_tol"_a = BakeSettings().edge_cluster_tol, "shadows"_a = false,
           "light_shadows"_a = py::none(), "spot_shadows"_a = py::none(), "sun_shadows"_a = py::none(),
           "occluder_vertices"_a = py::none(), "occluder_triangles"_a = py::none(),
+          "gaussian_accuracy"_a = 0.0,
           R"doc(Bake fog passes for one camera view (all arguments keyword-only).
 
 width, height: render resolution in pixels.
@@ -402,6 +410,10 @@ shadows (default False): volumetric shadows and light shafts: each light's in-sc
   casters when they are not the camera's geometry (Blender's Ray Visibility > Shadow).
   Gaussian fog (fog objects): 'quadrature' shadows every light (visibility in its integrand);
   the Fogshop models restrict each point, spot and sun light's terms to its lit spans.
+gaussian_accuracy in [0, 1) (default 0): fog objects with the Fogshop models (perspective, no
+  noise) integrate every (light, Gaussian) pair exactly whose bound on Fogshop's relative error
+  exceeds it (gaussian/refine.h); 0: Fogshop's approximation alone. stats gaussian_pairs,
+  gaussian_refined_pairs, gaussian_kept_bound (the largest bound left to Fogshop), seconds_refine.
 edge_cluster_tol >= 0 (default 0.1): edge pixels (aa_samples > 1) evaluate the fog once per
   cluster of their sub-samples (all misses; hits within a depth ratio of 1 + edge_cluster_tol),
   at the cluster's mean ray and depth, and per sample where a cluster's error estimate exceeds

@@ -187,51 +187,48 @@ RGB FogshopAirlight::eval_rgb_spans(const Vec3& r, double t_start, const RaySpan
         }
     // Gaussian terms: eq. 11 with T_i over the lit spans.
     medium_.for_each_near(v_, r, far, [&](std::size_t i) {
-        const ViewLine g = view_line(medium_, i, v_, r);
-        if (g.k == 0.0) return;
-        const double a = g.a, c = g.c, ts = g.ts, k = g.k;
-        const Vec3 b = medium_.centre(i);
-        const double x1 = a * (t_start - ts);
-        for (std::size_t l = 0; l < L; ++l) {
-            if (spans[l].count == 0) continue;
-            double Tlit = 0.0, Dvp = 0.0;
-            for (int q = 0; q < spans[l].count; ++q) {
-                const double ta = spans[l].spans[q].first, tb = spans[l].spans[q].second;
-                Tlit += k * erf_diff(a * (ta - ts), std::isinf(tb) ? kInf : a * (tb - ts));
-                Dvp = std::max(Dvp, tb);
-            }
-            if (!(Tlit > 0.0)) continue;
-            const double tr = std::clamp(ts, t_start, std::max(t_start, Dvp));
-            const double Tvr = k * erf_diff(x1, a * (tr - ts));
-            const Vec3 sx = v_ + tr * r - lights_[l];
-            const double d2 = glm::dot(sx, sx);
-            const double Ds = std::sqrt(d2);
-            const double Tsr = Ds > 0.0 ? gaussian_line_integral(c, a, b, lights_[l], sx / Ds, 0.0, Ds) : 0.0;
-            double p = phase && Ds > 0.0 ? phase->eval(-glm::dot(sx, r) / Ds) : kInv4Pi;
-            if (profile && Ds > 0.0) p *= (*profile)(l, sx / Ds);
-            if (p == 0.0) continue;
-            const double v = p / std::max(d2, kMinD2) * std::exp(-Tsr - Tvr) * f1_[l * n + i] * Tlit;
-            out += RGB(albedo[3 * i], albedo[3 * i + 1], albedo[3 * i + 2]) * I0[l] * v;
-        }
-        for (std::size_t j = 0; j < S; ++j) {
-            const RaySpans& lit = spans[L + j];
-            double Tlit = 0.0, Dvp = 0.0;
-            for (int q = 0; q < lit.count; ++q) {
-                const double ta = lit.spans[q].first, tb = lit.spans[q].second;
-                Tlit += k * erf_diff(a * (ta - ts), std::isinf(tb) ? kInf : a * (tb - ts));
-                Dvp = std::max(Dvp, tb);
-            }
-            if (!(Tlit > 0.0) || f1_sun_[j * n + i] == 0.0) continue;
-            const double tr = std::clamp(ts, t_start, std::max(t_start, Dvp));
-            const double Tvr = k * erf_diff(x1, a * (tr - ts));
-            const Vec3& u = sun_u_[j];
-            const double Tsr = gaussian_line_integral(c, a, b, v_ + tr * r, u, 0.0, kInf);
-            const double p = phase ? phase->eval(glm::dot(u, r)) : kInv4Pi;
-            const double v = p * std::exp(-Tsr - Tvr) * f1_sun_[j * n + i] * Tlit;
-            out += RGB(albedo[3 * i], albedo[3 * i + 1], albedo[3 * i + 2]) * I0[L + j] * v;
+        for (std::size_t l = 0; l < L + S; ++l) {
+            const double v = gaussian_term(i, l, r, t_start, spans[l], phase, profile);
+            if (v != 0.0) out += RGB(albedo[3 * i], albedo[3 * i + 1], albedo[3 * i + 2]) * I0[l] * v;
         }
     });
     return out;
+}
+
+double FogshopAirlight::gaussian_term(std::size_t i, std::size_t l, const Vec3& r, double t_start,
+                                      const RaySpans& lit, const PhaseFunction* phase,
+                                      const SpanProfile* profile) const {
+    const std::size_t L = lights_.size(), n = medium_.size();
+    if (lit.count == 0) return 0.0;
+    const ViewLine g = view_line(medium_, i, v_, r);
+    if (g.k == 0.0) return 0.0;
+    const double a = g.a, c = g.c, ts = g.ts, k = g.k;
+    const Vec3 b = medium_.centre(i);
+    double Tlit = 0.0, Dvp = 0.0;
+    for (int q = 0; q < lit.count; ++q) {
+        const double ta = lit.spans[q].first, tb = lit.spans[q].second;
+        Tlit += k * erf_diff(a * (ta - ts), std::isinf(tb) ? kInf : a * (tb - ts));
+        Dvp = std::max(Dvp, tb);
+    }
+    if (!(Tlit > 0.0)) return 0.0;
+    const double tr = std::clamp(ts, t_start, std::max(t_start, Dvp));
+    const double Tvr = k * erf_diff(a * (t_start - ts), a * (tr - ts));
+    if (l < L) {
+        const Vec3 sx = v_ + tr * r - lights_[l];
+        const double d2 = glm::dot(sx, sx);
+        const double Ds = std::sqrt(d2);
+        const double Tsr = Ds > 0.0 ? gaussian_line_integral(c, a, b, lights_[l], sx / Ds, 0.0, Ds) : 0.0;
+        double p = phase && Ds > 0.0 ? phase->eval(-glm::dot(sx, r) / Ds) : kInv4Pi;
+        if (profile && Ds > 0.0) p *= (*profile)(l, sx / Ds);
+        if (p == 0.0) return 0.0;
+        return p / std::max(d2, kMinD2) * std::exp(-Tsr - Tvr) * f1_[l * n + i] * Tlit;
+    }
+    const std::size_t j = l - L;
+    if (f1_sun_[j * n + i] == 0.0) return 0.0;
+    const Vec3& u = sun_u_[j];
+    const double Tsr = gaussian_line_integral(c, a, b, v_ + tr * r, u, 0.0, kInf);
+    const double p = phase ? phase->eval(glm::dot(u, r)) : kInv4Pi;
+    return p * std::exp(-Tsr - Tvr) * f1_sun_[j * n + i] * Tlit;
 }
 
 void FogshopAirlight::eval(const Vec3& r, double Dvp, double* out) const {

@@ -82,6 +82,11 @@ class FogshopAirlight {
                        const RGB& medium_albedo, const PhaseFunction* phase = nullptr,
                        const SpanBackground* background = nullptr, const SpanProfile* profile = nullptr) const;
 
+    // Gaussian i's term in eval_rgb_spans for light l (l >= num_lights(): sun l - num_lights())
+    // on its lit spans, per unit albedo and I0 (E): what the sum takes times albedo_i I0_l.
+    double gaussian_term(std::size_t i, std::size_t l, const Vec3& r, double t_start, const RaySpans& lit,
+                         const PhaseFunction* phase = nullptr, const SpanProfile* profile = nullptr) const;
+
     std::size_t num_lights() const { return lights_.size(); }
     std::size_t num_suns() const { return sun_u_.size(); }
 

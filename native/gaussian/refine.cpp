@@ -1,0 +1,269 @@
+// refine.cpp: Fogshop's error bound per (light, Gaussian) pair and the exact terms of the
+// pairs it cannot meet (refine.h).
+#include "gaussian/refine.h"
+
+#include <algorithm>
+#include <cmath>
+#include <mutex>
+
+#include "core/constants.h"
+#include "core/quadrature.h"
+#include "gaussian/splat.h"
+
+namespace airlight {
+
+namespace {
+
+constexpr double kInf = std::numeric_limits<double>::infinity();
+
+// The bound's constants (refine.h), measured by tests/native/test_gaussian_refine.py
+// (test_bound_constants: the largest measured error over the bound's form, then doubled).
+constexpr double kGeo = 3.0;
+constexpr double kPhase = 0.25;
+constexpr double kThick = 0.15;
+constexpr double kShade = 0.5;
+// A light closer to the centre than kNear standard deviations has no bound.
+constexpr double kNear = 3.0;
+// Panels per piece of the exact quadrature (a smooth integrand needs one to four).
+constexpr int kMaxPanels = 400;
+
+double sigma_of(double a) { return 1.0 / (a * std::sqrt(2.0)); }
+
+// sum over the Gaussians j != i near o + t u, t in [0, tmax] of c_j sqrt(2 pi) sigma t_j / tmax
+// (tmax inf: sum c_j sqrt(2 pi) sigma): how much their optical depth changes across
+// Gaussian i (standard deviation sigma) at the end of the path.
+double shade(const GaussianMedium& medium, std::size_t i, const Vec3& o, const Vec3& u, double tmax, double sigma) {
+    double G = 0.0;
+    medium.for_each_near(o, u, tmax, [&](std::size_t j) {
+        if (j == i) return;
+        const double tj = std::clamp(glm::dot(medium.centre(j) - o, u), 0.0, tmax);
+        const double scale = std::isinf(tmax) ? 1.0 : tj / tmax;
+        G += medium.amplitude(j) * std::sqrt(2.0 * kPi) * sigma * scale;
+    });
+    return G;
+}
+
+// Distance from p to the segment a -> b (b may be at infinity along u: then a + t u, t >= 0).
+double segment_distance(const Vec3& p, const Vec3& a, const Vec3& u, double len) {
+    const double t = std::clamp(glm::dot(p - a, u), 0.0, len);
+    return glm::length(p - (a + t * u));
+}
+
+}  // namespace
+
+double phase_curvature(const PhaseFunction& phase) {
+    if (phase.kind == PhaseKind::Isotropic) return 0.0;
+    constexpr int n = 2048;
+    const double h = kPi / n;
+    double worst = 0.0;
+    auto lp = [&](double th) { return std::log(phase.eval(std::cos(th))); };
+    for (int k = 1; k < n; ++k) {
+        const double th = k * h;
+        const double l0 = lp(th - h), l1 = lp(th), l2 = lp(th + h);
+        const double d1 = (l2 - l0) / (2.0 * h), d2 = (l2 - 2.0 * l1 + l0) / (h * h);
+        worst = std::max(worst, std::abs(d2) + d1 * d1);
+    }
+    return worst;
+}
+
+double fogshop_pair_bound(const GaussianMedium& medium, std::size_t i, const RefineLight& light, const Vec3& eye,
+                          double kappa) {
+    const double a = medium.scale(i);
+    const double sigma = sigma_of(a);
+    const Vec3 b = medium.centre(i);
+    const double beta = medium.density(b);
+    double e = kThick * (beta / a) * (beta / a);
+    double G_light = 0.0;
+    if (light.kind == RefineLight::Kind::Sun) {
+        const Vec3 u = -glm::normalize(light.w);
+        G_light = shade(medium, i, b, u, kInf, sigma);
+    } else {
+        const Vec3 sb = b - light.s;
+        const double D = glm::length(sb);
+        if (!(D > kNear * sigma)) return kInf;
+        const Vec3 u = sb / D;
+        if (light.kind == RefineLight::Kind::Spot) {
+            const double alpha = std::acos(std::clamp(glm::dot(light.cone.axis, u), -1.0, 1.0));
+            const double rho = std::asin(std::min(1.0, kNear * sigma / D));
+            const double edge = std::acos(std::clamp(light.cone.cos_half_angle, -1.0, 1.0));
+            const double inner = std::acos(std::clamp(light.cone.cos_half_angle + light.cone.smooth, -1.0, 1.0));
+            if (alpha - rho >= edge) return 0.0;  // outside the cone: no light
+            if (alpha + rho > inner) return kInf;  // the cone's edge or blend across the support
+        }
+        const double g = sigma / (D - 2.0 * sigma);
+        e += kGeo * g * g * (1.0 + kPhase * kappa);
+        G_light = shade(medium, i, light.s, u, D, sigma);
+    }
+    const Vec3 vb = b - eye;
+    const double Dv = glm::length(vb);
+    const double G_view = Dv > 0.0 ? shade(medium, i, eye, vb / Dv, Dv, sigma) : 0.0;
+    return e + kShade * (G_light * G_light + G_view * G_view);
+}
+
+GaussianRefinePlan plan_gaussian_refinement(const GaussianMedium& medium, const Vec3& eye,
+                                            const std::vector<RefineLight>& lights, const PhaseFunction& phase,
+                                            double target, int threads) {
+    const double kappa = phase_curvature(phase);
+    const std::size_t n = medium.size(), L = lights.size();
+    std::vector<double> bound(L * n, 0.0);
+    parallel_chunks(L * n, threads, 64, [&](std::size_t begin, std::size_t end) {
+        for (std::size_t p = begin; p < end; ++p) {
+            const std::size_t l = p / n, i = p % n;
+            bound[p] = medium.cull_radius(i) > 0.0 ? fogshop_pair_bound(medium, i, lights[l], eye, kappa) : -1.0;
+        }
+    });
+    GaussianRefinePlan plan;
+    for (std::size_t p = 0; p < L * n; ++p) {
+        if (bound[p] < 0.0) continue;
+        ++plan.pairs;
+        if (bound[p] > target)
+            plan.refined.push_back({std::uint32_t(p / n), std::uint32_t(p % n), bound[p]});
+        else
+            plan.kept_bound = std::max(plan.kept_bound, bound[p]);
+    }
+    return plan;
+}
+
+GaussianRefiner::GaussianRefiner(const GaussianMedium& medium, const Vec3& eye, std::vector<RefineLight> lights,
+                                 const PhaseFunction& phase, double fog_top, GaussianRefinePlan plan, double rel_tol)
+    : medium_(medium), eye_(eye), lights_(std::move(lights)), phase_(phase), fog_top_(fog_top),
+      plan_(std::move(plan)), rel_tol_(rel_tol) {
+    const std::size_t n = medium_.size();
+    light_list_.resize(plan_.refined.size());
+    parallel_chunks(plan_.refined.size(), 0, 1, [&](std::size_t begin, std::size_t end) {
+        for (std::size_t k = begin; k < end; ++k) {
+            const std::size_t i = plan_.refined[k].gaussian;
+            const RefineLight& light = lights_[plan_.refined[k].light];
+            const Vec3 b = medium_.centre(i);
+            const double Ri = medium_.cull_radius(i);
+            // The capsule around the path from the support to the light holds every such path.
+            Vec3 o = light.s, u;
+            double len;
+            if (light.kind == RefineLight::Kind::Sun) {
+                o = b, u = -glm::normalize(light.w), len = kInf;
+            } else {
+                len = glm::length(b - o);
+                u = len > 0.0 ? (b - o) / len : Vec3(0.0, 0.0, 1.0);
+            }
+            std::vector<std::uint32_t>& list = light_list_[k];
+            for (std::size_t j = 0; j < n; ++j) {
+                const double Rj = medium_.cull_radius(j);
+                if (j == i || (Rj > 0.0 && segment_distance(medium_.centre(j), o, u, len) < Ri + Rj))
+                    list.push_back(std::uint32_t(j));
+            }
+        }
+    });
+}
+
+void GaussianRefiner::gather(const Vec3& r, double t_start, double t_end, std::vector<ViewLine>& view) const {
+    (void)t_start;
+    view.clear();
+    medium_.for_each_near(eye_, r, t_end, [&](std::size_t j) {
+        const double a = medium_.scale(j), c = medium_.amplitude(j);
+        const Vec3 rel = medium_.centre(j) - eye_;
+        const Vec3 cr = glm::cross(rel, r);
+        const double k = c * kSqrtPi / (2.0 * a) * std::exp(-a * a * glm::dot(cr, cr));
+        if (k > 0.0) view.push_back({glm::dot(rel, r), a, k});
+    });
+}
+
+double GaussianRefiner::light_depth(std::size_t k, const Vec3& x) const {
+    const RefineLight& light = lights_[plan_.refined[k].light];
+    const double beta0 = medium_.beta0();
+    double T = 0.0;
+    if (light.kind == RefineLight::Kind::Sun) {
+        const Vec3 u = -glm::normalize(light.w);
+        T = sunlight_layer_depth(beta0, fog_top_, u.z, x.z);
+        if (std::isinf(T)) return T;
+        for (std::uint32_t j : light_list_[k])
+            T += gaussian_line_integral(medium_.amplitude(j), medium_.scale(j), medium_.centre(j), x, u, 0.0, kInf);
+        return T;
+    }
+    const Vec3 sx = x - light.s;
+    const double D = glm::length(sx);
+    if (!(D > 0.0)) return 0.0;
+    const Vec3 u = sx / D;
+    T = beta0 * D;
+    for (std::uint32_t j : light_list_[k])
+        T += gaussian_line_integral(medium_.amplitude(j), medium_.scale(j), medium_.centre(j), light.s, u, 0.0, D);
+    return T;
+}
+
+double GaussianRefiner::exact_term(std::size_t k, const Vec3& r, double t_start, const RaySpans& spans,
+                                   const std::vector<ViewLine>& view) const {
+    const std::size_t i = plan_.refined[k].gaussian;
+    const RefineLight& light = lights_[plan_.refined[k].light];
+    const bool sun = light.kind == RefineLight::Kind::Sun, spot = light.kind == RefineLight::Kind::Spot;
+    const double a = medium_.scale(i), c = medium_.amplitude(i), beta0 = medium_.beta0();
+    const Vec3 b = medium_.centre(i);
+    const Vec3 rel = b - eye_;
+    const double ts = glm::dot(rel, r);
+    const double R = medium_.cull_radius(i);
+    const double half2 = R * R - (glm::dot(rel, rel) - ts * ts);
+    if (!(half2 > 0.0)) return 0.0;
+    const double half = std::sqrt(half2);
+    const Vec3 u_sun = sun ? -glm::normalize(light.w) : Vec3(0.0);
+    const double p_sun = sun ? phase_.eval(glm::dot(u_sun, r)) : 0.0;
+    // Eq. 2's integrand of Gaussian i at t, without the 1 / d^2 of a point or spot light.
+    auto f = [&](double t) {
+        const Vec3 x = eye_ + t * r;
+        const Vec3 xb = x - b;
+        const double beta = c * std::exp(-a * a * glm::dot(xb, xb));
+        if (beta == 0.0) return 0.0;
+        double weight;
+        if (sun) {
+            weight = p_sun;
+        } else {
+            const Vec3 sx = x - light.s;
+            const double D = glm::length(sx);
+            if (!(D > 0.0)) return 0.0;
+            weight = phase_.eval(-glm::dot(sx, r) / D);
+            if (spot) weight *= spot_profile(light.cone, glm::dot(light.cone.axis, sx) / D);
+            if (weight == 0.0) return 0.0;
+        }
+        double T = beta0 * (t - t_start) + light_depth(k, x);
+        if (std::isinf(T)) return 0.0;
+        for (const ViewLine& g : view) T += g.k * erf_diff(g.a * (t_start - g.ts), g.a * (t - g.ts));
+        return beta * weight * std::exp(-T);
+    };
+    // Points and spots: t = t_s + h tan(theta) about the light's closest approach takes the
+    // 1 / d^2 peak into the variable (dt / d^2 = dtheta / h).
+    const Vec3 es = light.s - eye_;
+    const double t_s = glm::dot(es, r);
+    const double h = glm::length(glm::cross(es, r));
+    const bool angular = !sun && h > 1e-9 * std::max(1.0, std::abs(t_s));
+    auto g = [&](double theta) { return f(t_s + h * std::tan(theta)) / h; };
+    auto plain = [&](double t) {
+        if (sun) return f(t);
+        const Vec3 sx = eye_ + t * r - light.s;
+        return f(t) / std::max(glm::dot(sx, sx), 1e-12);
+    };
+    double sum = 0.0;
+    std::vector<double> cuts;
+    for (int q = 0; q < spans.count; ++q) {
+        const double lo = std::max({spans.spans[q].first, t_start, ts - half});
+        const double hi = std::min(spans.spans[q].second, ts + half);
+        if (!(hi > lo)) continue;
+        cuts.assign({lo, hi});
+        if (spot)
+            for (double cos_cut : {light.cone.cos_half_angle, light.cone.cos_half_angle + light.cone.smooth})
+                if (cos_cut < 1.0)
+                    for (double t : ray_cone_crossings(eye_, r, light.s, light.cone.axis, cos_cut, lo, hi))
+                        cuts.push_back(t);
+        if (!sun && t_s > lo && t_s < hi) cuts.push_back(t_s);
+        if (ts > lo && ts < hi) cuts.push_back(ts);
+        std::sort(cuts.begin(), cuts.end());
+        for (std::size_t j = 0; j + 1 < cuts.size(); ++j) {
+            const double ta = cuts[j], tb = cuts[j + 1];
+            if (!(tb > ta)) continue;
+            if (angular)
+                sum += integrate_adaptive(g, std::atan((ta - t_s) / h), std::atan((tb - t_s) / h), rel_tol_, 0.0, 60,
+                                          kMaxPanels);
+            else
+                sum += integrate_adaptive(plain, ta, tb, rel_tol_, 0.0, 60, kMaxPanels);
+        }
+    }
+    return sum;
+}
+
+}  // namespace airlight

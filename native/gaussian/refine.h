@@ -1,0 +1,129 @@
+// refine.h: Gaussian fog to an asked accuracy. Fogshop's approximation (airlight.h, eq. 11)
+// samples everything but the Gaussian's own density at one point b_i^r of the ray; where
+// that point does not stand for the Gaussian's support (a light next to or inside it, a
+// thick Gaussian, the shadow of a dense neighbour across it, a sharp phase lobe or a spot's
+// cone edge) its term is off by up to tens of percent (docs/models.md). This file
+//  - bounds Fogshop's error on each (light, Gaussian) pair, relative to the pair's term, by
+//    the second-order expansion of the integrand about b_i^r (plan_gaussian_refinement);
+//  - integrates the pairs whose bound exceeds the target exactly: adaptive Gauss-Kronrod
+//    over the Gaussian's support on the ray (equiangular about a point or spot light), with
+//    exact erf optical depths towards the eye (the Gaussians near the ray) and the light
+//    (the Gaussians near the cone from the light around the support), over the lit spans
+//    (GaussianRefiner). The bake adds (exact - Fogshop) of each refined pair to the splat.
+//
+// The bound (RefineBound, constants measured by tests/native/test_gaussian_refine.py against
+// the exact term on single pairs over the ranges there, then doubled):
+//   e = kGeo (sigma / (D - 2 sigma))^2 (1 + kPhase kappa_p)          point and spot lights
+//     + kThick (beta(b_i) / a_i)^2                                   thickness at the centre
+//     + kShade (G_light^2 + G_view^2)                                neighbours' shadows
+// sigma = 1 / (a_i sqrt 2) (the Gaussian's standard deviation), D = |b_i - s|, kappa_p the
+// phase's largest |(ln p)''| + (ln p)'^2 in theta, beta(b_i) the medium's density at the
+// centre, G = sum over the other Gaussians j near the path to the light (the eye) of
+// c_j sqrt(pi) sigma D_j / D (how much their optical depth changes across Gaussian i).
+// A light within 3 sigma of b_i, or a spot cone's edge or blend band across the support,
+// has no bound (inf): those pairs are always refined.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <limits>
+#include <vector>
+
+#include "core/phase.h"
+#include "core/scene.h"
+#include "gaussian/airlight.h"
+#include "gaussian/medium.h"
+#include "homogeneous/spot_light.h"
+
+namespace airlight {
+
+// A light of the refinement: point, spot (its cone) or sun (unit propagation direction w).
+struct RefineLight {
+    enum class Kind { Point, Spot, Sun };
+    Kind kind = Kind::Point;
+    Vec3 s{0.0};
+    SpotCone cone;
+    Vec3 w{0.0, 0.0, -1.0};
+};
+
+struct RefinePair {
+    std::uint32_t light = 0, gaussian = 0;
+    double bound = 0.0;  // Fogshop's estimated relative error on this pair's term
+};
+
+struct GaussianRefinePlan {
+    std::vector<RefinePair> refined;  // the pairs whose bound exceeds the target
+    double kept_bound = 0.0;          // the largest bound of a pair left to Fogshop
+    std::size_t pairs = 0;            // (light, Gaussian) pairs that can light the fog
+};
+
+// Fogshop's error bound for Gaussian i lit by _light_ seen from _eye_ (the formula above).
+double fogshop_pair_bound(const GaussianMedium& medium, std::size_t i, const RefineLight& light, const Vec3& eye,
+                          double phase_curvature);
+// kappa_p of the formula: max over theta of |(ln p)''| + (ln p)'^2 (0 for isotropic).
+double phase_curvature(const PhaseFunction& phase);
+
+// The pairs to refine for relative accuracy _target_ (> 0), every light against every
+// Gaussian, on _threads_ threads.
+GaussianRefinePlan plan_gaussian_refinement(const GaussianMedium& medium, const Vec3& eye,
+                                            const std::vector<RefineLight>& lights, const PhaseFunction& phase,
+                                            double target, int threads = 0);
+
+// The exact terms of a plan's pairs on view rays from _eye_.
+class GaussianRefiner {
+  public:
+    // _rel_tol_: the quadrature's tolerance on each term; _fog_top_: the uniform fog's layer
+    // top for suns (sunlight_layer_depth; +inf: none). The medium must outlive this object.
+    GaussianRefiner(const GaussianMedium& medium, const Vec3& eye, std::vector<RefineLight> lights,
+                    const PhaseFunction& phase, double fog_top, GaussianRefinePlan plan, double rel_tol);
+
+    const GaussianRefinePlan& plan() const { return plan_; }
+    bool empty() const { return plan_.refined.empty(); }
+
+    // The Gaussians near one view ray (its view-side optical depths), filled by gather().
+    struct ViewLine {
+        double ts, a, k;  // closest approach, scale, c sqrt(pi) / (2a) e^{-a^2 h^2}
+    };
+    // Gathers the ray eye + t r, t in [t_start, t_end], and calls fn(k) for every refined
+    // pair k whose Gaussian's cull sphere the ray reaches.
+    template <typename Fn>
+    void for_each_pair(const Vec3& r, double t_start, double t_end, std::vector<ViewLine>& view, Fn&& fn) const;
+
+    // The exact term of pair _k_ (per unit albedo and I0 / E) over the lit spans, attenuated
+    // towards the eye from t_start; _view_ from for_each_pair on the same ray.
+    double exact_term(std::size_t k, const Vec3& r, double t_start, const RaySpans& spans,
+                      const std::vector<ViewLine>& view) const;
+
+  private:
+    void gather(const Vec3& r, double t_start, double t_end, std::vector<ViewLine>& view) const;
+    double light_depth(std::size_t k, const Vec3& x) const;
+
+    const GaussianMedium& medium_;
+    Vec3 eye_;
+    std::vector<RefineLight> lights_;
+    PhaseFunction phase_;
+    double fog_top_;
+    GaussianRefinePlan plan_;
+    double rel_tol_;
+    // Per pair: the Gaussians (Gaussian i itself included) whose cull sphere reaches the
+    // region between the light and the support of Gaussian i (light-side optical depth).
+    std::vector<std::vector<std::uint32_t>> light_list_;
+};
+
+template <typename Fn>
+void GaussianRefiner::for_each_pair(const Vec3& r, double t_start, double t_end, std::vector<ViewLine>& view,
+                                    Fn&& fn) const {
+    bool gathered = false;
+    for (std::size_t k = 0; k < plan_.refined.size(); ++k) {
+        const std::size_t i = plan_.refined[k].gaussian;
+        const Vec3 rel = medium_.centre(i) - eye_;
+        const double ts = glm::dot(rel, r);
+        const double R = medium_.cull_radius(i);
+        const Vec3 q = rel - std::clamp(ts, t_start, t_end) * r;
+        if (!(glm::dot(q, q) < R * R)) continue;
+        if (!gathered) gather(r, t_start, t_end, view), gathered = true;
+        fn(k);
+    }
+}
+
+}  // namespace airlight
