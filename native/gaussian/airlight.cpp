@@ -149,7 +149,7 @@ void FogshopAirlight::eval_terms(const Vec3& r, double Dvp, H&& homogeneous, G&&
 RGB FogshopAirlight::eval_rgb_spans(const Vec3& r, double t_start, const RaySpans* spans, const double* albedo,
                                     const RGB* I0, const RGB& medium_albedo, const PhaseFunction* phase,
                                     const SpanBackground* background, const SpanProfile* profile) const {
-    const std::size_t L = lights_.size(), n = medium_.size(), S = sun_u_.size();
+    const std::size_t L = lights_.size(), S = sun_u_.size();
     const double beta0 = medium_.beta0();
     double far = 0.0;  // the farthest lit point of any light: the Gaussians near the ray up to it
     for (std::size_t l = 0; l < L + S; ++l)
