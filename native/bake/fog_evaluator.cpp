@@ -212,14 +212,14 @@ void FogEvaluator::set_up_refinement(const BakeSettings& settings) {
         RefineLight light;
         light.s = gaussian_lights_[l];
         if (l >= n_gaussian_points_) {
-            light.kind = RefineLight::Kind::Spot;
+            light.kind = GaussianRefLight::Kind::Spot;
             light.cone = gaussian_spots_[l - n_gaussian_points_].cone;
         }
         lights.push_back(light);
     }
     for (const GaussianSunData& sun : gaussian_suns_) {
         RefineLight light;
-        light.kind = RefineLight::Kind::Sun;
+        light.kind = GaussianRefLight::Kind::Sun;
         light.w = sun.w;
         lights.push_back(light);
     }

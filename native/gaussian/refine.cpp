@@ -74,7 +74,7 @@ double fogshop_pair_bound(const GaussianMedium& medium, std::size_t i, const Ref
     const double beta = medium.density(b);
     double e = kThick * (beta / a) * (beta / a);
     double G_light = 0.0;
-    if (light.kind == RefineLight::Kind::Sun) {
+    if (light.kind == GaussianRefLight::Kind::Sun) {
         const Vec3 u = -glm::normalize(light.w);
         G_light = shade(medium, i, b, u, kInf, sigma);
     } else {
@@ -82,7 +82,7 @@ double fogshop_pair_bound(const GaussianMedium& medium, std::size_t i, const Ref
         const double D = glm::length(sb);
         if (!(D > kNear * sigma)) return kInf;
         const Vec3 u = sb / D;
-        if (light.kind == RefineLight::Kind::Spot) {
+        if (light.kind == GaussianRefLight::Kind::Spot) {
             const double alpha = std::acos(std::clamp(glm::dot(light.cone.axis, u), -1.0, 1.0));
             const double rho = std::asin(std::min(1.0, kNear * sigma / D));
             const double edge = std::acos(std::clamp(light.cone.cos_half_angle, -1.0, 1.0));
@@ -139,7 +139,7 @@ GaussianRefiner::GaussianRefiner(const GaussianMedium& medium, const Vec3& eye, 
             // The capsule around the path from the support to the light holds every such path.
             Vec3 o = light.s, u;
             double len;
-            if (light.kind == RefineLight::Kind::Sun) {
+            if (light.kind == GaussianRefLight::Kind::Sun) {
                 o = b, u = -glm::normalize(light.w), len = kInf;
             } else {
                 len = glm::length(b - o);
@@ -155,8 +155,7 @@ GaussianRefiner::GaussianRefiner(const GaussianMedium& medium, const Vec3& eye, 
     });
 }
 
-void GaussianRefiner::gather(const Vec3& r, double t_start, double t_end, std::vector<ViewLine>& view) const {
-    (void)t_start;
+void GaussianRefiner::gather(const Vec3& r, double t_end, std::vector<ViewLine>& view) const {
     view.clear();
     medium_.for_each_near(eye_, r, t_end, [&](std::size_t j) {
         const double a = medium_.scale(j), c = medium_.amplitude(j);
@@ -171,7 +170,7 @@ double GaussianRefiner::light_depth(std::size_t k, const Vec3& x) const {
     const RefineLight& light = lights_[plan_.refined[k].light];
     const double beta0 = medium_.beta0();
     double T = 0.0;
-    if (light.kind == RefineLight::Kind::Sun) {
+    if (light.kind == GaussianRefLight::Kind::Sun) {
         const Vec3 u = -glm::normalize(light.w);
         T = sunlight_layer_depth(beta0, fog_top_, u.z, x.z);
         if (std::isinf(T)) return T;
@@ -193,7 +192,7 @@ double GaussianRefiner::exact_term(std::size_t k, const Vec3& r, double t_start,
                                    const std::vector<ViewLine>& view) const {
     const std::size_t i = plan_.refined[k].gaussian;
     const RefineLight& light = lights_[plan_.refined[k].light];
-    const bool sun = light.kind == RefineLight::Kind::Sun, spot = light.kind == RefineLight::Kind::Spot;
+    const bool sun = light.kind == GaussianRefLight::Kind::Sun, spot = light.kind == GaussianRefLight::Kind::Spot;
     const double a = medium_.scale(i), c = medium_.amplitude(i), beta0 = medium_.beta0();
     const Vec3 b = medium_.centre(i);
     const Vec3 rel = b - eye_;

@@ -37,14 +37,9 @@
 
 namespace airlight {
 
-// A light of the refinement: point, spot (its cone) or sun (unit propagation direction w).
-struct RefineLight {
-    enum class Kind { Point, Spot, Sun };
-    Kind kind = Kind::Point;
-    Vec3 s{0.0};
-    SpotCone cone;
-    Vec3 w{0.0, 0.0, -1.0};
-};
+// The refinement's lights are the reference's (GaussianRefLight, airlight.h): point, spot
+// (its cone) or sun (unit propagation direction w); its shadow members are not read here.
+using RefineLight = GaussianRefLight;
 
 struct RefinePair {
     std::uint32_t light = 0, gaussian = 0;
@@ -95,7 +90,7 @@ class GaussianRefiner {
                       const std::vector<ViewLine>& view) const;
 
   private:
-    void gather(const Vec3& r, double t_start, double t_end, std::vector<ViewLine>& view) const;
+    void gather(const Vec3& r, double t_end, std::vector<ViewLine>& view) const;
     double light_depth(std::size_t k, const Vec3& x) const;
 
     const GaussianMedium& medium_;
@@ -121,7 +116,7 @@ void GaussianRefiner::for_each_pair(const Vec3& r, double t_start, double t_end,
         const double R = medium_.cull_radius(i);
         const Vec3 q = rel - std::clamp(ts, t_start, t_end) * r;
         if (!(glm::dot(q, q) < R * R)) continue;
-        if (!gathered) gather(r, t_start, t_end, view), gathered = true;
+        if (!gathered) gather(r, t_end, view), gathered = true;
         fn(k);
     }
 }
