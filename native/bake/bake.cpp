@@ -53,6 +53,7 @@ BakeResult bake(const SceneDescription& scene, const BakeSettings& settings, con
     const EdgePixels edge_pixels = homogeneous_pass(ctx, fog, edges, splatted, centres_begin, edges_begin);
     edge_pass(ctx, fog, edge_pixels, edges_begin);
     result.stats.seconds_airlight = seconds_since(start);
+    result.stats.gaussian_background_rays = fog.background_rays();
 
     if (settings.surface) {
         const auto surface_start = Clock::now();

@@ -94,6 +94,11 @@ struct BakeStats {
     long long gaussian_refined_pairs = 0;
     double gaussian_kept_bound = 0.0;
     double seconds_refine = 0.0;
+    // The uniform fog's term with the Gaussians' exact attenuation (FogEvaluator::
+    // refine_gaussians): the (ray, light) pairs corrected, and the bound on the relative error
+    // the refinement leaves on any ray (pairs' share plus the uniform fog's share).
+    long long gaussian_background_rays = 0;
+    double gaussian_error_bound = 0.0;
 };
 
 // Output images are row-major, top row first, 3 floats (RGB) per pixel.

@@ -224,11 +224,15 @@ void FogEvaluator::set_up_refinement(const BakeSettings& settings) {
         lights.push_back(light);
     }
     const int threads = std::max(0, settings.threads);
-    GaussianRefinePlan plan =
-        plan_gaussian_refinement(*gaussian_, origin_, lights, phase_, settings.gaussian_accuracy, threads);
+    // Half the accuracy to the pairs, half to the uniform fog's term (refine_gaussians).
+    const bool background = gaussian_->beta0() > 0.0;
+    refine_target_ = settings.gaussian_accuracy;
+    const double pair_target = background ? 0.5 * refine_target_ : refine_target_;
+    GaussianRefinePlan plan = plan_gaussian_refinement(*gaussian_, origin_, lights, phase_, pair_target, threads);
     refine_pairs_ = plan.pairs;
     refine_kept_bound_ = plan.kept_bound;
-    if (plan.refined.empty()) return;
+    refine_error_bound_ = plan.kept_bound + (background ? 0.5 * refine_target_ : 0.0);
+    if (plan.refined.empty() && !background) return;
     if (!eye_fogshop_) {
         std::vector<Vec3> sun_dirs;
         for (const GaussianSunData& sun : gaussian_suns_) sun_dirs.push_back(sun.w);
@@ -261,11 +265,14 @@ void FogEvaluator::refine_gaussians(const Ray* rays, const float* Dvp, const flo
     const FogshopAirlight::SpanProfile profile = [this](size_t l, const Vec3& u) { return gaussian_profile(l, u); };
     const PhaseFunction* phase = isotropic_ ? nullptr : &phase_;
     const GaussianRefinePlan& plan = refiner_->plan();
+    const bool background = gaussian_->beta0() > 0.0;
+    if (background && shadows_) lit = lit_intervals(rays, t0, Dvp, n);
     for (int k = 0; k < n; ++k) {
         const double near = t0 ? double(t0[k]) : 0.0, end = double(Dvp[k]);
         if (!(end > near)) continue;
         const Vec3 d = rays[k].d;
         const std::pair<double, double> whole(near, end);
+        const double Tg_near = eye_fogshop_->near_depth(d, near);
         refiner_->for_each_pair(d, near, end, view, [&](size_t q) {
             const RefinePair& pair = plan.refined[q];
             const size_t l = pair.light, i = pair.gaussian;
@@ -277,11 +284,49 @@ void FogEvaluator::refine_gaussians(const Ray* rays, const float* Dvp, const flo
                     spans = RaySpans{lit[k].spans.data() + lit[k].begin[v], lit[k].end[v] - lit[k].begin[v]};
             }
             const double exact = refiner_->exact_term(q, d, near, spans, view);
-            const double approx = eye_fogshop_->gaussian_term(i, l, d, near, spans, phase, &profile);
+            const double approx = eye_fogshop_->gaussian_term(i, l, d, near, spans, phase, &profile, Tg_near);
             const RGB I0 = l < P ? gaussian_I0_[l] : gaussian_suns_[l - P].E;
             const RGB albedo(gaussian_albedo_[3 * i], gaussian_albedo_[3 * i + 1], gaussian_albedo_[3 * i + 2]);
             La[k] += albedo * I0 * (exact - approx);
         });
+        if (background) refine_background(d, near, end, Tg_near, lit ? &lit[k] : nullptr, view, La[k]);
+    }
+}
+
+void FogEvaluator::refine_background(const Vec3& d, double near, double end, double Tg_near, const LitIntervals* lit,
+                                     std::vector<GaussianRefiner::ViewLine>& view, RGB& La) const {
+    // Fogshop's uniform-fog term of light l is C_l times the homogeneous term H_l; the exact one
+    // differs by at most H_l background_bound (refine.h). Rays where that stays under half the
+    // asked accuracy of the ray's airlight keep Fogshop's; the others take the difference.
+    const size_t P = gaussian_lights_.size(), A = P + gaussian_suns_.size();
+    const double budget = 0.5 * refine_target_ * (La.x + La.y + La.z);
+    const std::pair<double, double> whole(near, end);
+    constexpr double kInf = std::numeric_limits<double>::infinity();
+    double T_view = kInf;
+    for (size_t l = 0; l < A; ++l) {
+        RaySpans spans{&whole, 1};
+        const int v = gaussian_volume(l);
+        if (v >= 0 && lit && !fully_lit(*lit, v, near, end))
+            spans = RaySpans{lit->spans.data() + lit->begin[v], lit->end[v] - lit->begin[v]};
+        if (spans.count == 0) continue;
+        const RGB w = medium_albedo_ * (l < P ? gaussian_I0_[l] : gaussian_suns_[l - P].E);
+        const double weight = w.x + w.y + w.z;
+        if (!(weight > 0.0)) continue;
+        // (The splat's factor: C_l, less what it counts before the near plane.)
+        const double C = eye_fogshop_->background_factor(l) * std::exp(Tg_near);
+        const double H = refiner_->plain_background(l, d, near, spans, 0.1);
+        if (!(H > 0.0)) continue;
+        if (H * weight * refiner_->background_bound(T_view, C) <= budget) continue;
+        if (std::isinf(T_view)) {  // the ray's own Gaussians: a tighter bound, and the correction's view side
+            refiner_->gather(d, end, view);
+            T_view = 0.0;
+            for (const GaussianRefiner::ViewLine& g : view)
+                T_view += g.k * erf_diff(g.a * (near - g.ts), std::isinf(end) ? kInf : g.a * (end - g.ts));
+            if (H * weight * refiner_->background_bound(T_view, C) <= budget) continue;
+        }
+        // To a tenth of the uniform fog's share of the accuracy, relative to its term here.
+        La += w * refiner_->background_correction(l, d, near, spans, view, C, 0.05 * refine_target_ * H);
+        background_rays_.fetch_add(1, std::memory_order_relaxed);
     }
 }
 

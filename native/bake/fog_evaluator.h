@@ -4,6 +4,7 @@
 // fog are integrated, the table of the fast row path).
 #pragma once
 
+#include <atomic>
 #include <limits>
 #include <memory>
 #include <vector>
@@ -70,6 +71,10 @@ class FogEvaluator {
     const GaussianRefiner* refiner() const { return refiner_.get(); }
     size_t refine_pairs() const { return refine_pairs_; }
     double refine_kept_bound() const { return refine_kept_bound_; }
+    // The relative error bound the refinement leaves (0 without it), and the (ray, light)
+    // pairs whose uniform-fog term it corrected so far.
+    double refine_error_bound() const { return refine_error_bound_; }
+    long long background_rays() const { return background_rays_.load(); }
     // The shadow volumes (null without shadows), and per light of the scene (its point lights,
     // spots and suns in the description's order) its light in them (-1: unshadowed).
     const ShadowVolumes* shadow_volumes() const { return shadows_.get(); }
@@ -125,6 +130,11 @@ class FogEvaluator {
     // light (lights_' order), spot and sun its light in them (-1: unshadowed).
     void set_up_shadows(const SceneDescription& scene, const BakeSettings& settings);
     void set_up_refinement(const BakeSettings& settings);
+    // refine_gaussians' uniform-fog part for one ray d over [near, end] (Tg_near: the
+    // Gaussians' depth before near; lit: its lit intervals, null when untraced: lit all along),
+    // _view_ gathered on demand.
+    void refine_background(const Vec3& d, double near, double end, double Tg_near, const LitIntervals* lit,
+                           std::vector<GaussianRefiner::ViewLine>& view, RGB& La) const;
     // Volume of the Fogshop light l (gaussian_lights_, then the suns) in shadows_; -1: none.
     int gaussian_volume(size_t l) const;
     // Light l's emission profile towards u (1 but for spots), for FogshopAirlight's terms.
@@ -199,6 +209,9 @@ class FogEvaluator {
     std::unique_ptr<GaussianRefiner> refiner_;
     size_t refine_pairs_ = 0;         // the refinement plan's pairs (refiner_ may be null)
     double refine_kept_bound_ = 0.0;  // and the largest bound it left to Fogshop
+    double refine_target_ = 0.0;       // the asked relative accuracy (gaussian_accuracy)
+    double refine_error_bound_ = 0.0;
+    mutable std::atomic<long long> background_rays_{0};
     std::vector<int> light_volume_, spot_volume_, sun_volume_;
     std::vector<int> scene_point_volume_, scene_spot_volume_, scene_sun_volume_;
     std::vector<int> origin_count_;  // per light of shadows_: its count at origin_

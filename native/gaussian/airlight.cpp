@@ -156,6 +156,9 @@ RGB FogshopAirlight::eval_rgb_spans(const Vec3& r, double t_start, const RaySpan
         for (int k = 0; k < spans[l].count; ++k) far = std::max(far, spans[l].spans[k].second);
     RGB out(0.0);
     if (!(far > 0.0)) return out;
+    // The fog starts at t_start: the terms shed what f1 and C_sv count before it (the splat's
+    // exp(T(v, t0))).
+    const double Tg_near = near_depth(r, t_start), near_gain = std::exp(Tg_near);
     // Homogeneous term: sun05 on each lit span [ta, tb], attenuated by beta0 to ta, times C_sv.
     if (beta0 > 0.0)
         for (std::size_t l = 0; l < L; ++l) {
@@ -174,7 +177,7 @@ RGB FogshopAirlight::eval_rgb_spans(const Vec3& r, double t_start, const RaySpan
                 }
                 sum += std::exp(-beta0 * (ta - t_start)) * span;
             }
-            out += medium_albedo * I0[l] * (Csv_[l] * sum);
+            out += medium_albedo * I0[l] * (near_gain * Csv_[l] * sum);
         }
     if (beta0 > 0.0 && background)
         for (std::size_t j = 0; j < S; ++j) {
@@ -183,21 +186,25 @@ RGB FogshopAirlight::eval_rgb_spans(const Vec3& r, double t_start, const RaySpan
                 const double ta = spans[L + j].spans[k].first, tb = spans[L + j].spans[k].second;
                 if (tb > ta) sum += (*background)(L + j, ta, tb);
             }
-            out += medium_albedo * I0[L + j] * (Csun_[j] * sum);
+            out += medium_albedo * I0[L + j] * (near_gain * Csun_[j] * sum);
         }
     // Gaussian terms: eq. 11 with T_i over the lit spans.
     medium_.for_each_near(v_, r, far, [&](std::size_t i) {
         for (std::size_t l = 0; l < L + S; ++l) {
-            const double v = gaussian_term(i, l, r, t_start, spans[l], phase, profile);
+            const double v = gaussian_term(i, l, r, t_start, spans[l], phase, profile, Tg_near);
             if (v != 0.0) out += RGB(albedo[3 * i], albedo[3 * i + 1], albedo[3 * i + 2]) * I0[l] * v;
         }
     });
     return out;
 }
 
+double FogshopAirlight::near_depth(const Vec3& r, double t_start) const {
+    return t_start > 0.0 ? medium_.optical_depth_ray(v_, r, t_start, GaussianMedium::npos, false) : 0.0;
+}
+
 double FogshopAirlight::gaussian_term(std::size_t i, std::size_t l, const Vec3& r, double t_start,
                                       const RaySpans& lit, const PhaseFunction* phase,
-                                      const SpanProfile* profile) const {
+                                      const SpanProfile* profile, double Tg_near) const {
     const std::size_t L = lights_.size(), n = medium_.size();
     if (lit.count == 0) return 0.0;
     const ViewLine g = view_line(medium_, i, v_, r);
@@ -213,6 +220,8 @@ double FogshopAirlight::gaussian_term(std::size_t i, std::size_t l, const Vec3& 
     if (!(Tlit > 0.0)) return 0.0;
     const double tr = std::clamp(ts, t_start, std::max(t_start, Dvp));
     const double Tvr = k * erf_diff(a * (t_start - ts), a * (tr - ts));
+    // f1 counts the medium from the eye: shed its part before t_start (Gaussian i's own is in Tvr).
+    const double Tnear = t_start > 0.0 ? medium_.beta0() * t_start + Tg_near - k * erf_diff(-a * ts, a * (t_start - ts)) : 0.0;
     if (l < L) {
         const Vec3 sx = v_ + tr * r - lights_[l];
         const double d2 = glm::dot(sx, sx);
@@ -221,14 +230,14 @@ double FogshopAirlight::gaussian_term(std::size_t i, std::size_t l, const Vec3& 
         double p = phase && Ds > 0.0 ? phase->eval(-glm::dot(sx, r) / Ds) : kInv4Pi;
         if (profile && Ds > 0.0) p *= (*profile)(l, sx / Ds);
         if (p == 0.0) return 0.0;
-        return p / std::max(d2, kMinD2) * std::exp(-Tsr - Tvr) * f1_[l * n + i] * Tlit;
+        return p / std::max(d2, kMinD2) * std::exp(Tnear - Tsr - Tvr) * f1_[l * n + i] * Tlit;
     }
     const std::size_t j = l - L;
     if (f1_sun_[j * n + i] == 0.0) return 0.0;
     const Vec3& u = sun_u_[j];
     const double Tsr = gaussian_line_integral(c, a, b, v_ + tr * r, u, 0.0, kInf);
     const double p = phase ? phase->eval(glm::dot(u, r)) : kInv4Pi;
-    return p * std::exp(-Tsr - Tvr) * f1_sun_[j * n + i] * Tlit;
+    return p * std::exp(Tnear - Tsr - Tvr) * f1_sun_[j * n + i] * Tlit;
 }
 
 void FogshopAirlight::eval(const Vec3& r, double Dvp, double* out) const {

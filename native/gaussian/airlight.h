@@ -84,10 +84,18 @@ class FogshopAirlight {
 
     // Gaussian i's term in eval_rgb_spans for light l (l >= num_lights(): sun l - num_lights())
     // on its lit spans, per unit albedo and I0 (E): what the sum takes times albedo_i I0_l.
+    // _Tg_near_: near_depth(r, t_start), which the term's eye side (f1, from the eye) sheds
+    // with beta0 t_start, as the splat's exp(T(v, t0)) does.
     double gaussian_term(std::size_t i, std::size_t l, const Vec3& r, double t_start, const RaySpans& lit,
-                         const PhaseFunction* phase = nullptr, const SpanProfile* profile = nullptr) const;
+                         const PhaseFunction* phase = nullptr, const SpanProfile* profile = nullptr,
+                         double Tg_near = 0.0) const;
+    // The Gaussians' optical depth from the viewpoint to t_start along r (before the near plane).
+    double near_depth(const Vec3& r, double t_start) const;
 
     std::size_t num_lights() const { return lights_.size(); }
+    // The factor by which the Gaussians attenuate light l's homogeneous term (eq. 17): C_sv, or
+    // for sun j = l - num_lights() C_sun.
+    double background_factor(std::size_t l) const { return l < lights_.size() ? Csv_[l] : Csun_[l - lights_.size()]; }
     std::size_t num_suns() const { return sun_u_.size(); }
 
   private:

@@ -6,6 +6,8 @@
 #include <cmath>
 #include <mutex>
 
+#include "homogeneous/spot_light.h"
+
 #include "core/constants.h"
 #include "core/quadrature.h"
 #include "gaussian/splat.h"
@@ -129,6 +131,7 @@ GaussianRefiner::GaussianRefiner(const GaussianMedium& medium, const Vec3& eye, 
     : medium_(medium), eye_(eye), lights_(std::move(lights)), phase_(phase), fog_top_(fog_top),
       plan_(std::move(plan)), rel_tol_(rel_tol) {
     const std::size_t n = medium_.size();
+    for (std::size_t j = 0; j < n; ++j) max_line_depth_ += medium_.amplitude(j) * kSqrtPi / medium_.scale(j);
     light_list_.resize(plan_.refined.size());
     parallel_chunks(plan_.refined.size(), 0, 1, [&](std::size_t begin, std::size_t end) {
         for (std::size_t k = begin; k < end; ++k) {
@@ -225,6 +228,22 @@ double GaussianRefiner::exact_term(std::size_t k, const Vec3& r, double t_start,
         for (const ViewLine& g : view) T += g.k * erf_diff(g.a * (t_start - g.ts), g.a * (t - g.ts));
         return beta * weight * std::exp(-T);
     };
+    double sum = 0.0;
+    std::vector<double> cuts;
+    for (int q = 0; q < spans.count; ++q) {
+        const double lo = std::max({spans.spans[q].first, t_start, ts - half});
+        const double hi = std::min(spans.spans[q].second, ts + half);
+        if (!(hi > lo)) continue;
+        cuts.assign({ts});
+        sum += integrate_light(light, r, lo, hi, cuts, f, rel_tol_, 0.0);
+    }
+    return sum;
+}
+
+double GaussianRefiner::integrate_light(const RefineLight& light, const Vec3& r, double lo, double hi,
+                                        std::vector<double>& cuts, const std::function<double(double)>& f,
+                                        double rel_tol, double abs_tol) const {
+    const bool sun = light.kind == GaussianRefLight::Kind::Sun, spot = light.kind == GaussianRefLight::Kind::Spot;
     // Points and spots: t = t_s + h tan(theta) about the light's closest approach takes the
     // 1 / d^2 peak into the variable (dt / d^2 = dtheta / h).
     const Vec3 es = light.s - eye_;
@@ -237,32 +256,105 @@ double GaussianRefiner::exact_term(std::size_t k, const Vec3& r, double t_start,
         const Vec3 sx = eye_ + t * r - light.s;
         return f(t) / std::max(glm::dot(sx, sx), 1e-12);
     };
+    if (spot)
+        for (double cos_cut : {light.cone.cos_half_angle, light.cone.cos_half_angle + light.cone.smooth})
+            if (cos_cut < 1.0)
+                for (double t : ray_cone_crossings(eye_, r, light.s, light.cone.axis, cos_cut, lo, std::min(hi, 1e300)))
+                    cuts.push_back(t);
+    if (!sun) cuts.push_back(t_s);
+    cuts.erase(std::remove_if(cuts.begin(), cuts.end(), [&](double t) { return !(t > lo && t < hi); }), cuts.end());
+    cuts.push_back(lo), cuts.push_back(hi);
+    std::sort(cuts.begin(), cuts.end());
+    double sum = 0.0;
+    for (std::size_t j = 0; j + 1 < cuts.size(); ++j) {
+        const double ta = cuts[j], tb = cuts[j + 1];
+        if (!(tb > ta)) continue;
+        if (angular)
+            sum += integrate_adaptive(g, std::atan((ta - t_s) / h), std::isinf(tb) ? 0.5 * kPi : std::atan((tb - t_s) / h),
+                                      rel_tol, abs_tol, 60, kMaxPanels);
+        else
+            sum += integrate_adaptive(plain, ta, tb, rel_tol, abs_tol, 60, kMaxPanels);
+    }
+    return sum;
+}
+
+double GaussianRefiner::background_integrand(std::size_t l, const Vec3& r, double t_start, double t, Vec3& u,
+                                             double& D) const {
+    const RefineLight& light = lights_[l];
+    const double beta0 = medium_.beta0();
+    const Vec3 x = eye_ + t * r;
+    if (light.kind == GaussianRefLight::Kind::Sun) {
+        u = -glm::normalize(light.w);
+        D = kInf;
+        if (!std::isinf(fog_top_) && x.z > fog_top_) return 0.0;  // scattering inside the layer only
+        const double T = sunlight_layer_depth(beta0, fog_top_, u.z, x.z);
+        if (std::isinf(T)) return 0.0;
+        return beta0 * phase_.eval(glm::dot(u, r)) * std::exp(-beta0 * (t - t_start) - T);
+    }
+    const Vec3 sx = x - light.s;
+    D = glm::length(sx);
+    if (!(D > 0.0)) return 0.0;
+    u = sx / D;
+    double weight = phase_.eval(-glm::dot(u, r));
+    if (light.kind == GaussianRefLight::Kind::Spot) weight *= spot_profile(light.cone, glm::dot(light.cone.axis, u));
+    if (weight == 0.0) return 0.0;
+    return beta0 * weight * std::exp(-beta0 * (t - t_start + D));
+}
+
+double GaussianRefiner::plain_background(std::size_t l, const Vec3& r, double t_start, const RaySpans& spans,
+                                         double rel_tol) const {
+    if (!(medium_.beta0() > 0.0)) return 0.0;
+    auto f = [&](double t) {
+        Vec3 u;
+        double D;
+        return background_integrand(l, r, t_start, t, u, D);
+    };
     double sum = 0.0;
     std::vector<double> cuts;
     for (int q = 0; q < spans.count; ++q) {
-        const double lo = std::max({spans.spans[q].first, t_start, ts - half});
-        const double hi = std::min(spans.spans[q].second, ts + half);
+        const double lo = std::max(spans.spans[q].first, t_start), hi = spans.spans[q].second;
         if (!(hi > lo)) continue;
-        cuts.assign({lo, hi});
-        if (spot)
-            for (double cos_cut : {light.cone.cos_half_angle, light.cone.cos_half_angle + light.cone.smooth})
-                if (cos_cut < 1.0)
-                    for (double t : ray_cone_crossings(eye_, r, light.s, light.cone.axis, cos_cut, lo, hi))
-                        cuts.push_back(t);
-        if (!sun && t_s > lo && t_s < hi) cuts.push_back(t_s);
-        if (ts > lo && ts < hi) cuts.push_back(ts);
-        std::sort(cuts.begin(), cuts.end());
-        for (std::size_t j = 0; j + 1 < cuts.size(); ++j) {
-            const double ta = cuts[j], tb = cuts[j + 1];
-            if (!(tb > ta)) continue;
-            if (angular)
-                sum += integrate_adaptive(g, std::atan((ta - t_s) / h), std::atan((tb - t_s) / h), rel_tol_, 0.0, 60,
-                                          kMaxPanels);
-            else
-                sum += integrate_adaptive(plain, ta, tb, rel_tol_, 0.0, 60, kMaxPanels);
-        }
+        cuts.clear();
+        if (lights_[l].kind == GaussianRefLight::Kind::Sun && !std::isinf(fog_top_) && r.z != 0.0)
+            cuts.push_back((fog_top_ - eye_.z) / r.z);
+        sum += integrate_light(lights_[l], r, lo, hi, cuts, f, rel_tol, 0.0);
     }
     return sum;
+}
+
+double GaussianRefiner::background_correction(std::size_t l, const Vec3& r, double t_start, const RaySpans& spans,
+                                              const std::vector<ViewLine>& view, double C, double abs_tol) const {
+    if (!(medium_.beta0() > 0.0)) return 0.0;
+    const bool sun = lights_[l].kind == GaussianRefLight::Kind::Sun;
+    const Vec3 s = lights_[l].s;
+    auto f = [&](double t) {
+        Vec3 u;
+        double D;
+        const double hom = background_integrand(l, r, t_start, t, u, D);
+        if (hom == 0.0) return 0.0;
+        double T = sun ? medium_.optical_depth_ray(eye_ + t * r, u, kInf, GaussianMedium::npos, false)
+                       : medium_.optical_depth_ray(s, u, D, GaussianMedium::npos, false);
+        for (const ViewLine& g : view) T += g.k * erf_diff(g.a * (t_start - g.ts), g.a * (t - g.ts));
+        return hom * (std::exp(-T) - C);
+    };
+    double sum = 0.0;
+    std::vector<double> cuts;
+    for (int q = 0; q < spans.count; ++q) {
+        const double lo = std::max(spans.spans[q].first, t_start), hi = spans.spans[q].second;
+        if (!(hi > lo)) continue;
+        cuts.clear();
+        // Where the eye-side depth changes: each near Gaussian's support on the ray.
+        for (const ViewLine& g : view)
+            for (double w : {-2.0, 0.0, 2.0}) cuts.push_back(g.ts + w / g.a);
+        if (sun && !std::isinf(fog_top_) && r.z != 0.0) cuts.push_back((fog_top_ - eye_.z) / r.z);
+        sum += integrate_light(lights_[l], r, lo, hi, cuts, f, 1e-3, abs_tol);
+    }
+    return sum;
+}
+
+double GaussianRefiner::background_bound(double T_view, double C) const {
+    const double T = std::isinf(T_view) ? 2.0 * max_line_depth_ : T_view + max_line_depth_;
+    return std::max(-std::expm1(-T), 1.0 - C);
 }
 
 }  // namespace airlight

@@ -26,6 +26,7 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <functional>
 #include <limits>
 #include <vector>
 
@@ -89,9 +90,38 @@ class GaussianRefiner {
     double exact_term(std::size_t k, const Vec3& r, double t_start, const RaySpans& spans,
                       const std::vector<ViewLine>& view) const;
 
-  private:
+    // The Gaussians near the ray eye + t r, t in [0, t_end] (their view-side optical depths).
     void gather(const Vec3& r, double t_end, std::vector<ViewLine>& view) const;
+
+    // The uniform fog's (beta0) term of light l (the plan's light order) over the lit spans,
+    // attenuated towards the eye from t_start, per unit medium albedo and I0 (E). Fogshop
+    // (eq. 17) attenuates it by the Gaussians as the one factor _C_ (C_sv: the segment from the
+    // light to the eye; suns: C_sun); the exact term takes their optical depths towards the eye
+    // (_view_, from gather on this ray) and towards the light at every point.
+    // plain_background: the term without the Gaussians (to relative _rel_tol_);
+    // background_correction: exact less Fogshop, to _abs_tol_.
+    double plain_background(std::size_t l, const Vec3& r, double t_start, const RaySpans& spans,
+                            double rel_tol) const;
+    double background_correction(std::size_t l, const Vec3& r, double t_start, const RaySpans& spans,
+                                 const std::vector<ViewLine>& view, double C, double abs_tol) const;
+    // The bound |background_correction| <= plain_background * background_bound: the
+    // Gaussians' transmittance along any path lies in [e^{-(T_view + T_line)}, 1] (T_view:
+    // the ray's own Gaussian depth, the sum of _view_; inf: not gathered, bounded by T_line),
+    // and C in (0, 1]; T_line = the sum over the Gaussians of c sqrt(pi) / a, the most any
+    // line can cross.
+    double background_bound(double T_view, double C) const;
+    double max_line_depth() const { return max_line_depth_; }
+
+  private:
     double light_depth(std::size_t k, const Vec3& x) const;
+    // Integrates f(t) over [lo, hi] of the ray for _light_, f / d^2 for a point or spot light
+    // in the equiangular variable about its closest approach, split at _cuts_ (sorted or not),
+    // the spot's cone and blend crossings and the closest approach.
+    double integrate_light(const RefineLight& light, const Vec3& r, double lo, double hi, std::vector<double>& cuts,
+                           const std::function<double(double)>& f, double rel_tol, double abs_tol) const;
+    // The uniform fog's integrand for light l at t (no Gaussians), with the unit direction
+    // from the light's position to x (points, spots) or towards the sun in _u_.
+    double background_integrand(std::size_t l, const Vec3& r, double t_start, double t, Vec3& u, double& D) const;
 
     const GaussianMedium& medium_;
     Vec3 eye_;
@@ -100,6 +130,7 @@ class GaussianRefiner {
     double fog_top_;
     GaussianRefinePlan plan_;
     double rel_tol_;
+    double max_line_depth_ = 0.0;
     // Per pair: the Gaussians (Gaussian i itself included) whose cull sphere reaches the
     // region between the light and the support of Gaussian i (light-side optical depth).
     std::vector<std::vector<std::uint32_t>> light_list_;
