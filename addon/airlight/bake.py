@@ -68,6 +68,7 @@ def bake_settings(scene, description=None):
     return dict(model=model, threads=settings.threads, aa_samples=settings.aa_samples,
                 filter_width=film_filter_width(scene),
                 gaussian_resolution=model_choice.gaussian_resolution(settings, pixel),
+                gaussian_accuracy=model_choice.gaussian_accuracy(settings),
                 homogeneous_resolution=getattr(settings, "homogeneous_resolution", 'FULL').lower(),
                 **model_choice.table_settings(settings), **extra)
 
@@ -386,7 +387,35 @@ def bake_frame(scene, depsgraph, filepath=None, progress=None, mesh_overrides=No
     export_seconds = time.perf_counter() - t0
     stats, seconds = run_views(jobs, progress)
     stats = dict(stats, seconds_export=export_seconds)
+    remember_fog_objects(scene, stats)
     return jobs[0][2], stats, seconds + export_seconds
+
+
+# Per scene name: what the last bake did with the fog objects (the Fog Objects panel shows it).
+LAST_FOG_OBJECTS = {}
+
+
+def remember_fog_objects(scene, stats):
+    """Keeps the refinement's figures of a bake with fog objects for the panel."""
+    if stats.get("gaussian_pairs", 0) > 0:
+        LAST_FOG_OBJECTS[scene.name] = dict(
+            accuracy=model_choice.gaussian_accuracy(scene.airlight),
+            error_bound=float(stats.get("gaussian_error_bound", 0.0)),
+            refined=int(stats.get("gaussian_refined_pairs", 0)), pairs=int(stats["gaussian_pairs"]),
+            background_rays=int(stats.get("gaussian_background_rays", 0)))
+    else:
+        LAST_FOG_OBJECTS.pop(scene.name, None)
+
+
+def fog_objects_line(stats):
+    """The refinement of fog objects in a bake's stats, for the console ('' without it)."""
+    pairs = stats.get("gaussian_pairs", 0)
+    if not pairs:
+        return ""
+    return (f"; fog objects: {stats.get('gaussian_refined_pairs', 0)} of {pairs} (light, fog) pairs exact, "
+            f"{stats.get('gaussian_background_rays', 0)} ray-lights of uniform fog corrected, "
+            f"error bound {100.0 * float(stats.get('gaussian_error_bound', 0.0)):.2g} %, "
+            f"{1000.0 * float(stats.get('seconds_refine', 0.0)):.0f} ms refining")
 
 
 def parts_line(stats):

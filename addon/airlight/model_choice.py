@@ -156,6 +156,20 @@ def gaussian_resolution(settings, pixel_angle=None):
     return choice.lower()
 
 
+# The refinement's largest target (`_native.bake` takes gaussian_accuracy in [0, 1)).
+GAUSSIAN_ACCURACY_MAX = 0.5
+
+
+def gaussian_accuracy(settings):
+    """`_native.bake`'s gaussian_accuracy: with the Automatic model its accuracy target, so that
+    fog objects get Fogshop's approximation where its error bound meets the target and exact
+    terms where it does not (gaussian/refine.h); 0 (Fogshop alone) with an explicit model or
+    with noise (the refinement integrates the smooth Gaussians, not the noise)."""
+    if settings.model != 'AUTO' or getattr(settings, "noise_amplitude", 0.0) > 0.0:
+        return 0.0
+    return min(settings.accuracy / 100.0, GAUSSIAN_ACCURACY_MAX)
+
+
 def phase_problem(settings):
     """A message if the explicitly chosen model cannot take the fog's phase, else None."""
     if settings.model == 'AUTO' or is_isotropic(settings):

@@ -4,7 +4,7 @@ import math
 
 import bpy
 
-from . import compositor, environment, fog_object, model_choice, native, render, scene_description, surface
+from . import bake, compositor, environment, fog_object, model_choice, native, render, scene_description, surface
 from . import names
 from .names import SUPPORTED_LIGHT_TYPES
 
@@ -207,13 +207,23 @@ class AIRLIGHT_PT_light(bpy.types.Panel):
             layout.label(text="Area lights with a Spread below 180 degrees are not yet in fog.", icon='INFO')
 
 
-def fog_object_note(model_name):
+def fog_object_note(model_name, settings=None, last=None):
     """One line saying how the chosen model treats fog objects (Gaussian fog) and its
-    measured error (docs/models.md: airlight_test.cpp, tests/blender/test_cycles_gaussians.py)."""
+    error (docs/models.md: airlight_test.cpp, tests/native/test_gaussian_refine.py). With the
+    Automatic model (_settings_) the bake refines Fogshop to the accuracy target; _last_ (the
+    scene's bake.LAST_FOG_OBJECTS entry) gives the last bake's expected error."""
     if model_name in ("sun05", "sun05_exact", "biri06", "pegoraro10", "baseline"):
+        target = model_choice.gaussian_accuracy(settings) if settings is not None else 0.0
+        if target > 0.0:
+            if last and abs(last["accuracy"] - target) < 1e-12:
+                return (f"Fogshop 2007, refined: last bake {last['refined']} of {last['pairs']} light-fog pairs "
+                        f"exact, expected error <= {100.0 * last['error_bound']:.2g} % "
+                        f"(target {100.0 * target:g} %)")
+            return (f"Fogshop 2007, refined to the {100.0 * target:g} % target: pairs of lights and fog "
+                    "whose error bound exceeds it are integrated exactly (bake to see the mix)")
         return ("Fogshop 2007 approximation (point, spot and sun lamps, any phase): ~1 % on thin fog, "
                 "up to ~15 % at hard spot cone edges, 12-29 % on thick fog near a light; "
-                "Quadrature is exact (slow)")
+                "Automatic refines it to the accuracy, Quadrature is exact (slow)")
     if model_name == "quadrature":
         return "Exact single scattering (quadrature with exact optical depths)"
     return "This model does not take fog objects: the bake refuses them"
@@ -241,7 +251,10 @@ class AIRLIGHT_PT_fog_objects(bpy.types.Panel):
             col.label(text="No fog objects (Add > Airlight Fog Object, or paint one)", icon='INFO')
         else:
             col.label(text=f"{count} fog object{'s' if count != 1 else ''}", icon='OUTLINER_OB_POINTCLOUD')
-            col.label(text=fog_object_note(model_choice.choose(settings)[0]), icon='INFO')
+            last = bake.LAST_FOG_OBJECTS.get(context.scene.name)
+            col.label(text=fog_object_note(model_choice.choose(settings)[0], settings, last), icon='INFO')
+            if model_choice.gaussian_accuracy(settings) > 0.0:
+                col.label(text="Viewport preview: Fogshop's approximation (the render refines it)", icon='INFO')
         col.prop(settings, "gaussian_resolution", text="Resolution")
         chosen = resolution_note(context) if count else None
         if chosen:

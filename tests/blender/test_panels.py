@@ -1,9 +1,10 @@
 """The Scene > Airlight Fog panels draw without errors, show only properties that exist
 and have tooltips, and say what the model does with fog objects."""
+import bpy
 import numpy as np
 import pytest
 
-from airlight import fog_object, ui
+from airlight import fog_object, model_choice, ui
 from conftest import build_plane_scene, draw_panel as _draw
 
 
@@ -44,6 +45,22 @@ def test02_fog_object_note_matches_what_the_bake_does():
     for name in ("biri06", "pegoraro10"):  # any phase, spots and suns too
         assert "sun lamps, any phase" in ui.fog_object_note(name)
     assert "does not take fog objects" in ui.fog_object_note("hoffman02")
+
+
+def test02b_automatic_fog_object_note_shows_the_target_and_the_last_bakes_bound():
+    scene = bpy.context.scene
+    scene.airlight.model = 'AUTO'
+    scene.airlight.accuracy = 1.0
+    assert model_choice.gaussian_accuracy(scene.airlight) == 0.01
+    assert "refined to the 1 % target" in ui.fog_object_note("sun05", scene.airlight)
+    last = dict(accuracy=0.01, error_bound=0.0073, refined=3, pairs=40, background_rays=10)
+    note = ui.fog_object_note("sun05", scene.airlight, last)
+    assert "3 of 40" in note and "0.73 %" in note, note
+    scene.airlight.accuracy = 5.0  # the last bake was for another target: not shown as this one's
+    assert "refined to the 5 % target" in ui.fog_object_note("sun05", scene.airlight, last)
+    scene.airlight.model = 'BIRI06'  # explicit models keep Fogshop alone
+    assert model_choice.gaussian_accuracy(scene.airlight) == 0.0
+    assert "12-29 %" in ui.fog_object_note("biri06", scene.airlight, last)
 
 
 def test03_what_the_fog_composite_cannot_do_is_said_in_the_panel_and_the_console(tmp_path, capsys):
