@@ -54,6 +54,7 @@ BakeResult bake(const SceneDescription& scene, const BakeSettings& settings, con
     edge_pass(ctx, fog, edge_pixels, edges_begin);
     result.stats.seconds_airlight = seconds_since(start);
     result.stats.gaussian_background_rays = fog.background_rays();
+    result.stats.gaussian_exact_terms = fog.pair_terms();
 
     if (settings.surface) {
         const auto surface_start = Clock::now();

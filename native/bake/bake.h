@@ -88,8 +88,8 @@ struct BakeStats {
     // depths, the model's tables on first use), outside both.
     double seconds_fog_setup = 0.0;
     // Gaussian refinement (settings.gaussian_accuracy > 0): the (light, Gaussian) pairs, those
-    // refined, the largest bound on Fogshop's error of a pair left to it, and the refinement's
-    // time inside seconds_airlight (summed over the worker threads).
+    // refined, the largest bound on Fogshop's error of a pair left to it, and the wall time of
+    // the centre samples' refinement inside seconds_airlight (edge samples not counted).
     long long gaussian_pairs = 0;
     long long gaussian_refined_pairs = 0;
     double gaussian_kept_bound = 0.0;
@@ -98,6 +98,7 @@ struct BakeStats {
     // refine_gaussians): the (ray, light) pairs corrected, and the bound on the relative error
     // the refinement leaves on any ray (pairs' share plus the uniform fog's share).
     long long gaussian_background_rays = 0;
+    long long gaussian_exact_terms = 0;  // (ray, pair) terms integrated exactly
     double gaussian_error_bound = 0.0;
 };
 

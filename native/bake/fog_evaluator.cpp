@@ -203,10 +203,14 @@ FogEvaluator::FogEvaluator(const SceneDescription& scene, const BakeSettings& se
     }
     if (settings.shadows) set_up_shadows(scene, settings);
     if (settings.gaussian_accuracy > 0.0 && splat_ && !(scene.gaussians.noise_amplitude > 0.0))
-        set_up_refinement(settings);
+        set_up_refinement(settings, scene.camera);
 }
 
-void FogEvaluator::set_up_refinement(const BakeSettings& settings) {
+void FogEvaluator::set_up_refinement(const BakeSettings& settings, const Camera& camera) {
+    // (projection[0][0] = the focal length over half the image width: model_choice.pixel_angle)
+    pixel_angle_ = camera.width > 0 && camera.projection[0][0] != 0.0
+                       ? 2.0 / (std::abs(camera.projection[0][0]) * camera.width)
+                       : 0.0;
     std::vector<RefineLight> lights;
     for (size_t l = 0; l < gaussian_lights_.size(); ++l) {
         RefineLight light;
@@ -224,14 +228,15 @@ void FogEvaluator::set_up_refinement(const BakeSettings& settings) {
         lights.push_back(light);
     }
     const int threads = std::max(0, settings.threads);
-    // Half the accuracy to the pairs, half to the uniform fog's term (refine_gaussians).
+    // The accuracy's shares: the plan's pairs left to Fogshop, the pairs each ray leaves to it,
+    // and the uniform fog's term (refine_gaussians).
     const bool background = gaussian_->beta0() > 0.0;
     refine_target_ = settings.gaussian_accuracy;
-    const double pair_target = background ? 0.5 * refine_target_ : refine_target_;
+    const double pair_target = (background ? kPlanShare : kPlanShare + kBackgroundShare) * refine_target_;
     GaussianRefinePlan plan = plan_gaussian_refinement(*gaussian_, origin_, lights, phase_, pair_target, threads);
     refine_pairs_ = plan.pairs;
     refine_kept_bound_ = plan.kept_bound;
-    refine_error_bound_ = plan.kept_bound + (background ? 0.5 * refine_target_ : 0.0);
+    refine_error_bound_ = plan.kept_bound + (kPairShare + (background ? kBackgroundShare : 0.0)) * refine_target_;
     if (plan.refined.empty() && !background) return;
     if (!eye_fogshop_) {
         std::vector<Vec3> sun_dirs;
@@ -257,15 +262,26 @@ double FogEvaluator::gaussian_profile(size_t l, const Vec3& u) const {
     return spot_profile(cone, glm::dot(cone.axis, u));
 }
 
+RGB FogEvaluator::gaussian_weight(size_t l, size_t i) const {
+    const size_t P = gaussian_lights_.size();
+    const RGB I0 = l < P ? gaussian_I0_[l] : gaussian_suns_[l - P].E;
+    return RGB(gaussian_albedo_[3 * i], gaussian_albedo_[3 * i + 1], gaussian_albedo_[3 * i + 2]) * I0;
+}
+
 void FogEvaluator::refine_gaussians(const Ray* rays, const float* Dvp, const float* t0, int n, RGB* La) const {
     if (!refiner_) return;
-    const size_t P = gaussian_lights_.size();
     const LitIntervals* lit = nullptr;  // traced for the batch once a ray needs it
     thread_local std::vector<GaussianRefiner::ViewLine> view;
     const FogshopAirlight::SpanProfile profile = [this](size_t l, const Vec3& u) { return gaussian_profile(l, u); };
     const PhaseFunction* phase = isotropic_ ? nullptr : &phase_;
     const GaussianRefinePlan& plan = refiner_->plan();
     const bool background = gaussian_->beta0() > 0.0;
+    struct Candidate {
+        size_t pair;
+        RaySpans spans;
+        double approx, error;
+    };
+    thread_local std::vector<Candidate> candidates;
     if (background && shadows_) lit = lit_intervals(rays, t0, Dvp, n);
     for (int k = 0; k < n; ++k) {
         const double near = t0 ? double(t0[k]) : 0.0, end = double(Dvp[k]);
@@ -273,23 +289,85 @@ void FogEvaluator::refine_gaussians(const Ray* rays, const float* Dvp, const flo
         const Vec3 d = rays[k].d;
         const std::pair<double, double> whole(near, end);
         const double Tg_near = eye_fogshop_->near_depth(d, near);
+        // Each candidate pair's Fogshop term and a bound on its error there: bound / (1 - bound)
+        // of the term where the plan's bound is below 1, else the larger of the term and an upper
+        // bound of the exact one (both are >= 0). The largest are integrated until what is left
+        // is within the pairs' share of the ray's accuracy.
+        candidates.clear();
+        double left = 0.0;
         refiner_->for_each_pair(d, near, end, view, [&](size_t q) {
             const RefinePair& pair = plan.refined[q];
             const size_t l = pair.light, i = pair.gaussian;
-            RaySpans spans{&whole, 1};
+            Candidate cand{q, RaySpans{&whole, 1}, 0.0, 0.0};
             const int v = gaussian_volume(l);
             if (v >= 0) {
                 if (!lit) lit = lit_intervals(rays, t0, Dvp, n);
                 if (!fully_lit(lit[k], v, near, end))
-                    spans = RaySpans{lit[k].spans.data() + lit[k].begin[v], lit[k].end[v] - lit[k].begin[v]};
+                    cand.spans = RaySpans{lit[k].spans.data() + lit[k].begin[v], lit[k].end[v] - lit[k].begin[v]};
             }
-            const double exact = refiner_->exact_term(q, d, near, spans, view);
-            const double approx = eye_fogshop_->gaussian_term(i, l, d, near, spans, phase, &profile, Tg_near);
-            const RGB I0 = l < P ? gaussian_I0_[l] : gaussian_suns_[l - P].E;
-            const RGB albedo(gaussian_albedo_[3 * i], gaussian_albedo_[3 * i + 1], gaussian_albedo_[3 * i + 2]);
-            La[k] += albedo * I0 * (exact - approx);
+            cand.approx = eye_fogshop_->gaussian_term(i, l, d, near, cand.spans, phase, &profile, Tg_near);
+            const double err = pair.bound < 1.0 ? pair.bound / (1.0 - pair.bound) * cand.approx
+                                                : std::max(cand.approx, refiner_->term_upper(q, d, near, end));
+            const RGB w = gaussian_weight(l, i);
+            cand.error = err * (w.x + w.y + w.z);
+            if (!(cand.error > 0.0)) return;
+            left += cand.error;
+            candidates.push_back(cand);
         });
+        const double budget = kPairShare * refine_target_ * (La[k].x + La[k].y + La[k].z);
+        if (left > budget) {
+            std::sort(candidates.begin(), candidates.end(),
+                      [](const Candidate& x, const Candidate& y) { return x.error > y.error; });
+            for (const Candidate& cand : candidates) {
+                if (!(left > budget)) break;
+                const RefinePair& pair = plan.refined[cand.pair];
+                const double exact = refiner_->exact_term(cand.pair, d, near, cand.spans, view);
+                La[k] += gaussian_weight(pair.light, pair.gaussian) * (exact - cand.approx);
+                left -= cand.error;
+                pair_terms_.fetch_add(1, std::memory_order_relaxed);
+            }
+        }
         if (background) refine_background(d, near, end, Tg_near, lit ? &lit[k] : nullptr, view, La[k]);
+    }
+}
+
+void FogEvaluator::refine_samples(const Ray* rays, const float* Dvp, const float* t0, int n, RGB* La) const {
+    if (!refiner_) return;
+    // The refined / Fogshop ratio varies over several pixels (refine_centres interpolates it
+    // over kRefineStride): a ray within kSampleReach pixels of the last refined one, on the
+    // same surface (inverse depths within 1 %, or both the sky), takes that ray's ratio.
+    constexpr double kSampleReach = 2.0;
+    const double cos_reach = std::cos(kSampleReach * pixel_angle_);
+    // The last few refined rays (the samples of an edge pixel alternate between surfaces).
+    constexpr int kReps = 8;
+    struct Rep {
+        int k;
+        RGB ratio, delta;
+    };
+    Rep reps[kReps];
+    int n_reps = 0, next = 0;
+    auto close = [&](int k, int r) {
+        if (glm::dot(rays[k].d, rays[r].d) < cos_reach) return false;
+        if (std::isinf(Dvp[k]) || std::isinf(Dvp[r])) return std::isinf(Dvp[k]) && std::isinf(Dvp[r]);
+        return std::abs(1.0 / Dvp[k] - 1.0 / Dvp[r]) <= 0.01 / Dvp[k];
+    };
+    for (int k = 0; k < n; ++k) {
+        const Rep* match = nullptr;
+        for (int q = 0; q < n_reps && !match; ++q)
+            if (close(k, reps[q].k)) match = &reps[q];
+        if (match) {
+            for (int c = 0; c < 3; ++c) La[k][c] = La[k][c] * match->ratio[c] + match->delta[c];
+            continue;
+        }
+        const RGB fogshop = La[k];
+        refine_gaussians(rays + k, Dvp + k, t0 ? t0 + k : nullptr, 1, La + k);
+        Rep& rep = reps[next];
+        next = (next + 1) % kReps, n_reps = std::min(n_reps + 1, kReps);
+        rep.k = k;
+        for (int c = 0; c < 3; ++c) {
+            rep.ratio[c] = fogshop[c] > 0.0 ? La[k][c] / fogshop[c] : 1.0;
+            rep.delta[c] = fogshop[c] > 0.0 ? 0.0 : La[k][c];
+        }
     }
 }
 
@@ -299,7 +377,7 @@ void FogEvaluator::refine_background(const Vec3& d, double near, double end, dou
     // differs by at most H_l background_bound (refine.h). Rays where that stays under half the
     // asked accuracy of the ray's airlight keep Fogshop's; the others take the difference.
     const size_t P = gaussian_lights_.size(), A = P + gaussian_suns_.size();
-    const double budget = 0.5 * refine_target_ * (La.x + La.y + La.z);
+    const double budget = kBackgroundShare * refine_target_ * (La.x + La.y + La.z);
     const std::pair<double, double> whole(near, end);
     constexpr double kInf = std::numeric_limits<double>::infinity();
     double T_view = kInf;
@@ -817,7 +895,7 @@ void FogEvaluator::eval_gaussians(const Ray* rays, const float* Dvp, const float
         for (int k = 0; k < n; ++k) dirs[k] = rays[k].d;
         splat_->eval_rays(dirs.data(), Dvp, t0, n, Tr, La);
         shadow_gaussians(rays, Dvp, t0, n, La);
-        refine_gaussians(rays, Dvp, t0, n, La);
+        refine_samples(rays, Dvp, t0, n, La);
         return;
     }
     const size_t L = lights_.size();

@@ -67,6 +67,9 @@ class FogEvaluator {
     // refined pairs' exact terms less their Fogshop terms, over the lit spans with shadows.
     // After shadow_gaussians on the same rays.
     void refine_gaussians(const Ray* rays, const float* Dvp, const float* t0, int n, RGB* La) const;
+    // refine_gaussians for the edge pass's sub-samples (neighbours in the image): a sample next
+    // to the last refined one on the same surface takes its refined / Fogshop ratio.
+    void refine_samples(const Ray* rays, const float* Dvp, const float* t0, int n, RGB* La) const;
     // The refinement (null when off or when no pair needs it).
     const GaussianRefiner* refiner() const { return refiner_.get(); }
     size_t refine_pairs() const { return refine_pairs_; }
@@ -74,7 +77,9 @@ class FogEvaluator {
     // The relative error bound the refinement leaves (0 without it), and the (ray, light)
     // pairs whose uniform-fog term it corrected so far.
     double refine_error_bound() const { return refine_error_bound_; }
+    double refine_target() const { return refine_target_; }
     long long background_rays() const { return background_rays_.load(); }
+    long long pair_terms() const { return pair_terms_.load(); }
     // The shadow volumes (null without shadows), and per light of the scene (its point lights,
     // spots and suns in the description's order) its light in them (-1: unshadowed).
     const ShadowVolumes* shadow_volumes() const { return shadows_.get(); }
@@ -129,7 +134,7 @@ class FogEvaluator {
     // Volumetric shadows: the shadow volumes of the lights that cast shadows, and per point
     // light (lights_' order), spot and sun its light in them (-1: unshadowed).
     void set_up_shadows(const SceneDescription& scene, const BakeSettings& settings);
-    void set_up_refinement(const BakeSettings& settings);
+    void set_up_refinement(const BakeSettings& settings, const Camera& camera);
     // refine_gaussians' uniform-fog part for one ray d over [near, end] (Tg_near: the
     // Gaussians' depth before near; lit: its lit intervals, null when untraced: lit all along),
     // _view_ gathered on demand.
@@ -137,6 +142,8 @@ class FogEvaluator {
                            std::vector<GaussianRefiner::ViewLine>& view, RGB& La) const;
     // Volume of the Fogshop light l (gaussian_lights_, then the suns) in shadows_; -1: none.
     int gaussian_volume(size_t l) const;
+    // albedo_i I0_l (E_l for suns) of the pair (light l, Gaussian i).
+    RGB gaussian_weight(size_t l, size_t i) const;
     // Light l's emission profile towards u (1 but for spots), for FogshopAirlight's terms.
     double gaussian_profile(size_t l, const Vec3& u) const;
     // The lit intervals of _n_ rays within [t0, t1] (t0 null: 0), in a buffer of the calling thread.
@@ -210,8 +217,14 @@ class FogEvaluator {
     size_t refine_pairs_ = 0;         // the refinement plan's pairs (refiner_ may be null)
     double refine_kept_bound_ = 0.0;  // and the largest bound it left to Fogshop
     double refine_target_ = 0.0;       // the asked relative accuracy (gaussian_accuracy)
+    double pixel_angle_ = 0.0;         // a pixel's angle at the image centre (radians)
     double refine_error_bound_ = 0.0;
     mutable std::atomic<long long> background_rays_{0};
+    mutable std::atomic<long long> pair_terms_{0};  // (ray, pair) terms integrated exactly
+    // The accuracy's shares (set_up_refinement): the plan keeps the pairs whose bound is below
+    // kPlanShare of it (with beta0 = 0 also the uniform fog's share); each ray integrates its
+    // remaining pairs until their bounds sum below kPairShare; the uniform fog's term takes the rest.
+    static constexpr double kPlanShare = 0.25, kPairShare = 0.25, kBackgroundShare = 0.5;
     std::vector<int> light_volume_, spot_volume_, sun_volume_;
     std::vector<int> scene_point_volume_, scene_spot_volume_, scene_sun_volume_;
     std::vector<int> origin_count_;  // per light of shadows_: its count at origin_

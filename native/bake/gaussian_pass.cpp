@@ -1,6 +1,7 @@
 // gaussian_pass.cpp: Gaussian fog by the tiled splat (passes.h).
 #include <algorithm>
-#include <atomic>
+#include <cmath>
+#include <limits>
 #include <numeric>
 #include <vector>
 
@@ -12,12 +13,10 @@ namespace airlight {
 namespace {
 
 // The splat's centre samples corrected, band by band: each row's rays take what volumetric
-// shadows remove from them (FogEvaluator::shadow_gaussians), then the refined pairs' exact
-// terms in place of Fogshop's (FogEvaluator::refine_gaussians).
-void correct_centres(BakeContext& ctx, const FogEvaluator& fog) {
+// shadows remove from them (FogEvaluator::shadow_gaussians).
+void shadow_centres(BakeContext& ctx, const FogEvaluator& fog) {
     const int W = ctx.W, H = ctx.H;
     BakeResult& result = ctx.result;
-    std::atomic<long long> refine_ns{0};  // (atomic<double> has no fetch_add in C++17)
     parallel_for(ctx.n_bands, ctx.n_threads, [&](int band) {
         thread_local RowRays rr;
         thread_local std::vector<Ray> rays;
@@ -35,14 +34,140 @@ void correct_centres(BakeContext& ctx, const FogEvaluator& fog) {
             const float* depth = &result.depth[size_t(j) * W];
             const float* t_near = ctx.near_clip ? rr.t_near.data() : nullptr;
             fog.shadow_gaussians(rays.data(), depth, t_near, W, La.data());
-            const auto refine_start = Clock::now();
-            fog.refine_gaussians(rays.data(), depth, t_near, W, La.data());
-            refine_ns.fetch_add(static_cast<long long>(1e9 * seconds_since(refine_start)));
             for (int i = 0; i < W; ++i)
                 for (int c = 0; c < 3; ++c) A[3 * i + c] = float(std::max(0.0, La[i][c]));
         }
     });
-    result.stats.seconds_refine = 1e-9 * double(refine_ns.load());
+}
+
+// The refinement (FogEvaluator::refine_gaussians) of the centre samples: its ratio
+// (refined / Fogshop, per channel) on a grid of every kRefineStride-th pixel (and the last row
+// and column), interpolated bilinearly to the pixels between grid points that see the same
+// surface as the cell's corners (inverse depth, linear in the image for a plane, within
+// kRefineDepthTol of the corners' bilinear value; or all the sky); the other pixels (depth
+// edges) are refined alone, and so are those where the ratio varies across the cell by more
+// than kRefineRatioTol of the accuracy or Fogshop's own value leaves the corners' bilinear
+// surface by more than that (a light's image, a spot's cone edge).
+constexpr int kRefineStride = 4;
+constexpr double kRefineDepthTol = 0.01;
+constexpr double kRefineRatioTol = 0.25;
+constexpr double kInf = std::numeric_limits<double>::infinity();
+
+void refine_centres(BakeContext& ctx, const FogEvaluator& fog) {
+    const int W = ctx.W, H = ctx.H, s = kRefineStride;
+    BakeResult& result = ctx.result;
+    const int Wc = (W - 1 + s - 1) / s + 1, Hc = (H - 1 + s - 1) / s + 1;
+    const double ratio_tol = kRefineRatioTol * fog.refine_target();
+    auto grid_x = [&](int I) { return std::min(I * s, W - 1); };
+    auto grid_y = [&](int J) { return std::min(J * s, H - 1); };
+    std::vector<RGB> ratio(size_t(Wc) * Hc, RGB(1.0));
+    std::vector<RGB> delta(size_t(Wc) * Hc, RGB(0.0));  // (where a channel's Fogshop value is 0)
+    std::vector<RGB> base(size_t(Wc) * Hc, RGB(0.0));   // Fogshop's values
+    // Refines _n_ pixels (x, y) of row y's rays in place.
+    auto refine_row = [&](int y, const std::vector<int>& xs, RowRays& rr, std::vector<Ray>& rays,
+                          std::vector<RGB>& La, std::vector<float>& depth, std::vector<float>& near) {
+        ctx.row_rays(y, rr, false);
+        const int n = int(xs.size());
+        rays.resize(size_t(n)), La.resize(size_t(n)), depth.resize(size_t(n)), near.resize(size_t(n));
+        const float* A = &result.airlight[3 * size_t(y) * W];
+        for (int k = 0; k < n; ++k) {
+            const int x = xs[k];
+            rays[k].o = ctx.eye;
+            rays[k].d = Vec3(rr.dx[x], rr.dy[x], rr.dz[x]);
+            La[k] = RGB(A[3 * x], A[3 * x + 1], A[3 * x + 2]);
+            depth[k] = result.depth[size_t(y) * W + x];
+            near[k] = ctx.near_clip ? rr.t_near[x] : 0.0f;
+        }
+        fog.refine_gaussians(rays.data(), depth.data(), ctx.near_clip ? near.data() : nullptr, n, La.data());
+    };
+    // The grid.
+    parallel_for(Hc, ctx.n_threads, [&](int J) {
+        thread_local RowRays rr;
+        thread_local std::vector<Ray> rays;
+        thread_local std::vector<RGB> La;
+        thread_local std::vector<float> depth, near;
+        thread_local std::vector<int> xs;
+        if (rr.dx.size() != size_t(W)) rr.resize(size_t(W));
+        xs.clear();
+        for (int I = 0; I < Wc; ++I) xs.push_back(grid_x(I));
+        const int y = grid_y(J);
+        refine_row(y, xs, rr, rays, La, depth, near);
+        const float* A = &result.airlight[3 * size_t(y) * W];
+        for (int I = 0; I < Wc; ++I)
+            for (int c = 0; c < 3; ++c) {
+                const double f = A[3 * xs[I] + c];
+                base[size_t(J) * Wc + I][c] = f;
+                if (f > 0.0) ratio[size_t(J) * Wc + I][c] = La[I][c] / f;
+                else delta[size_t(J) * Wc + I][c] = La[I][c];
+            }
+    });
+    // Every pixel: interpolated where its cell's corners see the same surface, else its own.
+    parallel_for(ctx.n_bands, ctx.n_threads, [&](int band) {
+        thread_local RowRays rr;
+        thread_local std::vector<Ray> rays;
+        thread_local std::vector<RGB> La;
+        thread_local std::vector<float> depth, near;
+        thread_local std::vector<int> own;
+        if (rr.dx.size() != size_t(W)) rr.resize(size_t(W));
+        for (int y = band * kBandRows; y < std::min(H, (band + 1) * kBandRows); ++y) {
+            const int J0 = std::min(y / s, Hc - 1), J1 = std::min(J0 + 1, Hc - 1);
+            const int y0 = grid_y(J0), y1 = grid_y(J1);
+            const double fy = y1 > y0 ? double(y - y0) / (y1 - y0) : 0.0;
+            float* A = &result.airlight[3 * size_t(y) * W];
+            const float* D = &result.depth[size_t(y) * W];
+            own.clear();
+            for (int x = 0; x < W; ++x) {
+                const int I0 = std::min(x / s, Wc - 1), I1 = std::min(I0 + 1, Wc - 1);
+                const int x0 = grid_x(I0), x1 = grid_x(I1);
+                const double fx = x1 > x0 ? double(x - x0) / (x1 - x0) : 0.0;
+                const int corner_x[4] = {x0, x1, x0, x1}, corner_y[4] = {y0, y0, y1, y1};
+                const size_t cell[4] = {size_t(J0) * Wc + I0, size_t(J0) * Wc + I1, size_t(J1) * Wc + I0,
+                                        size_t(J1) * Wc + I1};
+                const double w[4] = {(1 - fx) * (1 - fy), fx * (1 - fy), (1 - fx) * fy, fx * fy};
+                // The same surface: inverse depths (0 for the sky) on the corners' bilinear plane.
+                double inv = 0.0;
+                const bool sky = std::isinf(D[x]);
+                bool mixed = false;
+                for (int q = 0; q < 4; ++q) {
+                    const float dq = result.depth[size_t(corner_y[q]) * W + corner_x[q]];
+                    if (w[q] == 0.0) continue;
+                    mixed = mixed || std::isinf(dq) != sky;
+                    if (!std::isinf(dq)) inv += w[q] / dq;
+                }
+                bool smooth = !mixed && (sky || std::abs(inv - 1.0 / D[x]) <= kRefineDepthTol / D[x]);
+                // And a ratio that varies across the cell by less than kRefineRatioTol of the
+                // accuracy (where it varies more, as near a light's image, the pixel is its own).
+                for (int c = 0; c < 3 && smooth; ++c) {
+                    double lo = kInf, hi = -kInf;
+                    for (int q = 0; q < 4; ++q) {
+                        if (w[q] == 0.0) continue;
+                        lo = std::min(lo, ratio[cell[q]][c]), hi = std::max(hi, ratio[cell[q]][c]);
+                        smooth = smooth && delta[cell[q]][c] == 0.0;
+                    }
+                    // Fogshop's own value on the corners' bilinear surface (not across a spot's
+                    // cone edge or a light's image; a pixel it leaves dark has no ratio).
+                    double lin = 0.0;
+                    for (int q = 0; q < 4; ++q) lin += w[q] * base[cell[q]][c];
+                    const double own_value = A[3 * x + c];
+                    smooth = smooth && hi - lo <= ratio_tol && own_value > 0.0 &&
+                             std::abs(lin - own_value) <= ratio_tol * own_value;
+                }
+                if (!smooth) {
+                    own.push_back(x);
+                    continue;
+                }
+                for (int c = 0; c < 3; ++c) {
+                    double r = 0.0, add = 0.0;
+                    for (int q = 0; q < 4; ++q) r += w[q] * ratio[cell[q]][c], add += w[q] * delta[cell[q]][c];
+                    A[3 * x + c] = float(std::max(0.0, A[3 * x + c] * r + add));
+                }
+            }
+            if (own.empty()) continue;
+            refine_row(y, own, rr, rays, La, depth, near);
+            for (size_t k = 0; k < own.size(); ++k)
+                for (int c = 0; c < 3; ++c) A[3 * own[k] + c] = float(std::max(0.0, La[k][c]));
+        }
+    });
 }
 
 }  // namespace
@@ -89,7 +214,12 @@ double gaussian_pass(BakeContext& ctx, const FogEvaluator& fog) {
     result.stats.gaussian_refined_pairs =
         fog.refiner() ? static_cast<long long>(fog.refiner()->plan().refined.size()) : 0;
     result.stats.gaussian_error_bound = fog.refine_error_bound();
-    if (fog.has_shadows() || fog.refiner()) correct_centres(ctx, fog);
+    if (fog.has_shadows()) shadow_centres(ctx, fog);
+    if (fog.refiner()) {
+        const auto refine_start = Clock::now();
+        refine_centres(ctx, fog);
+        result.stats.seconds_refine = seconds_since(refine_start);
+    }
     return end;
 }
 

@@ -283,6 +283,7 @@ py::dict bake_py(int width, int height, const py::object& cam_to_world, const py
                    "gaussian_kept_bound"_a = result.stats.gaussian_kept_bound,
                    "seconds_refine"_a = result.stats.seconds_refine,
                    "gaussian_background_rays"_a = result.stats.gaussian_background_rays,
+                   "gaussian_exact_terms"_a = result.stats.gaussian_exact_terms,
                    "gaussian_error_bound"_a = result.stats.gaussian_error_bound);
     // Surface shading: (L, H, W, 3) attenuation per light and (H, W, 3) glow, when asked for.
     py::dict extra;
@@ -413,12 +414,14 @@ shadows (default False): volumetric shadows and light shafts: each light's in-sc
   Gaussian fog (fog objects): 'quadrature' shadows every light (visibility in its integrand);
   the Fogshop models restrict each point, spot and sun light's terms to its lit spans.
 gaussian_accuracy in [0, 1) (default 0): fog objects with the Fogshop models (perspective, no
-  noise) integrate every (light, Gaussian) pair exactly whose bound on Fogshop's relative error
-  exceeds half of it, and the uniform fog's term with the Gaussians' exact attenuation on every
-  ray where its bound exceeds the other half (gaussian/refine.h); 0: Fogshop's approximation
-  alone. stats gaussian_pairs, gaussian_refined_pairs, gaussian_kept_bound (the largest bound
-  left to Fogshop), gaussian_background_rays (rays x lights corrected), gaussian_error_bound
-  (the relative error bound of the mix), seconds_refine.
+  noise) take each ray's (light, Gaussian) terms exactly where the bounds on Fogshop's error
+  (per pair, then per ray) exceed a quarter of it each, and the uniform fog's term with the
+  Gaussians' exact attenuation on every ray where its bound exceeds the other half
+  (gaussian/refine.h); 0: Fogshop's approximation alone. stats gaussian_pairs,
+  gaussian_refined_pairs (pairs the plan hands to the rays), gaussian_kept_bound (the largest
+  bound the plan leaves to Fogshop), gaussian_exact_terms (ray x pair terms integrated),
+  gaussian_background_rays (ray x light uniform-fog terms corrected), gaussian_error_bound (the
+  relative error bound of the mix), seconds_refine.
 edge_cluster_tol >= 0 (default 0.1): edge pixels (aa_samples > 1) evaluate the fog once per
   cluster of their sub-samples (all misses; hits within a depth ratio of 1 + edge_cluster_tol),
   at the cluster's mean ray and depth, and per sample where a cluster's error estimate exceeds

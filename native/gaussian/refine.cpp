@@ -132,6 +132,8 @@ GaussianRefiner::GaussianRefiner(const GaussianMedium& medium, const Vec3& eye, 
       plan_(std::move(plan)), rel_tol_(rel_tol) {
     const std::size_t n = medium_.size();
     for (std::size_t j = 0; j < n; ++j) max_line_depth_ += medium_.amplitude(j) * kSqrtPi / medium_.scale(j);
+    for (int q = 0; q <= 4096; ++q) phase_max_ = std::max(phase_max_, phase_.eval(-1.0 + q / 2048.0));
+    phase_max_ *= 1.01;  // (between the samples)
     light_list_.resize(plan_.refined.size());
     parallel_chunks(plan_.refined.size(), 0, 1, [&](std::size_t begin, std::size_t end) {
         for (std::size_t k = begin; k < end; ++k) {
@@ -156,6 +158,28 @@ GaussianRefiner::GaussianRefiner(const GaussianMedium& medium, const Vec3& eye, 
             }
         }
     });
+}
+
+double GaussianRefiner::term_upper(std::size_t k, const Vec3& r, double t_start, double t_end) const {
+    const std::size_t i = plan_.refined[k].gaussian;
+    const RefineLight& light = lights_[plan_.refined[k].light];
+    const double a = medium_.scale(i), c = medium_.amplitude(i);
+    const Vec3 rel = medium_.centre(i) - eye_;
+    const double ts = glm::dot(rel, r);
+    const double h2 = std::max(0.0, glm::dot(rel, rel) - ts * ts);
+    const double R = medium_.cull_radius(i);
+    if (!(R * R > h2)) return 0.0;
+    const double half = std::sqrt(R * R - h2);
+    const double lo = std::max(t_start, ts - half), hi = std::min(t_end, ts + half);
+    if (!(hi > lo)) return 0.0;
+    const double peak = c * std::exp(-a * a * h2);
+    if (light.kind == GaussianRefLight::Kind::Sun)
+        return peak * phase_.eval(glm::dot(-glm::normalize(light.w), r)) * std::min(hi - lo, kSqrtPi / a);
+    const Vec3 es = light.s - eye_;
+    const double t_s = glm::dot(es, r);
+    const double h = glm::length(glm::cross(es, r));
+    if (!(h > 1e-9 * std::max(1.0, std::abs(t_s)))) return kInf;
+    return phase_max_ * peak * (std::atan((hi - t_s) / h) - std::atan((lo - t_s) / h)) / h;
 }
 
 void GaussianRefiner::gather(const Vec3& r, double t_end, std::vector<ViewLine>& view) const {

@@ -90,6 +90,12 @@ class GaussianRefiner {
     double exact_term(std::size_t k, const Vec3& r, double t_start, const RaySpans& spans,
                       const std::vector<ViewLine>& view) const;
 
+    // An upper bound of exact_term(k) on the segment [t_start, t_end] (no attenuation, the
+    // phase's largest value, the Gaussian's peak on the ray times the angle the segment subtends
+    // at the light over its distance to the ray; inf for a light on the ray): cheap, for the
+    // per-ray choice of the pairs worth integrating.
+    double term_upper(std::size_t k, const Vec3& r, double t_start, double t_end) const;
+
     // The Gaussians near the ray eye + t r, t in [0, t_end] (their view-side optical depths).
     void gather(const Vec3& r, double t_end, std::vector<ViewLine>& view) const;
 
@@ -131,6 +137,7 @@ class GaussianRefiner {
     GaussianRefinePlan plan_;
     double rel_tol_;
     double max_line_depth_ = 0.0;
+    double phase_max_ = 0.0;  // the phase function's largest value
     // Per pair: the Gaussians (Gaussian i itself included) whose cull sphere reaches the
     // region between the light and the support of Gaussian i (light-side optical depth).
     std::vector<std::vector<std::uint32_t>> light_list_;
