@@ -402,7 +402,8 @@ def remember_fog_objects(scene, stats):
             accuracy=model_choice.gaussian_accuracy(scene.airlight),
             error_bound=float(stats.get("gaussian_error_bound", 0.0)),
             refined=int(stats.get("gaussian_refined_pairs", 0)), pairs=int(stats["gaussian_pairs"]),
-            background_rays=int(stats.get("gaussian_background_rays", 0)))
+            background_rays=int(stats.get("gaussian_background_rays", 0)),
+            abandoned=bool(stats.get("gaussian_refine_abandoned", False)))
     else:
         LAST_FOG_OBJECTS.pop(scene.name, None)
 
@@ -412,6 +413,11 @@ def fog_objects_line(stats):
     pairs = stats.get("gaussian_pairs", 0)
     if not pairs:
         return ""
+    if stats.get("gaussian_refine_abandoned"):
+        return (f"; fog objects: WARNING the refinement to the accuracy target would take more than its budget "
+                f"(~{stats.get('gaussian_refine_work', 0.0):.0f} s of CPU counted before it stopped): this frame has "
+                f"Fogshop's approximation alone (up to ~29 % off on thick fog near a light); raise the Accuracy "
+                f"percentage or choose Quadrature")
     return (f"; fog objects: {stats.get('gaussian_refined_pairs', 0)} of {pairs} (light, fog) pairs exact, "
             f"{stats.get('gaussian_background_rays', 0)} ray-lights of uniform fog corrected, "
             f"error bound {100.0 * float(stats.get('gaussian_error_bound', 0.0)):.2g} %, "

@@ -215,6 +215,9 @@ def fog_object_note(model_name, settings=None, last=None):
     if model_name in ("sun05", "sun05_exact", "biri06", "pegoraro10", "baseline"):
         target = model_choice.gaussian_accuracy(settings) if settings is not None else 0.0
         if target > 0.0:
+            if last and abs(last["accuracy"] - target) < 1e-12 and last.get("abandoned"):
+                return (f"Fogshop 2007 alone: refining to {100.0 * target:g} % was over its budget in the last "
+                        "bake (up to ~29 % off near lights); raise the Accuracy or choose Quadrature")
             if last and abs(last["accuracy"] - target) < 1e-12:
                 return (f"Fogshop 2007, refined: last bake {last['refined']} of {last['pairs']} light-fog pairs "
                         f"exact, expected error <= {100.0 * last['error_bound']:.2g} % "

@@ -69,6 +69,11 @@ struct BakeSettings {
     // integral over the Gaussian's support (gaussian/refine.h), each to a tenth of it. 0: Fogshop's
     // approximation alone, bit for bit.
     double gaussian_accuracy = 0.0;
+    // The refinement's budget in nominal CPU seconds (its work counted per Gaussian term of an
+    // integrand evaluation, FogEvaluator::kRefineSecondsPerWork each): a frame whose centre
+    // samples would need more (foreseen from the refinement's grid, or counted) keeps Fogshop's
+    // approximation alone and says so (stats gaussian_refine_abandoned).
+    double gaussian_refine_budget = 60.0;
 };
 
 struct BakeStats {
@@ -99,6 +104,8 @@ struct BakeStats {
     // the refinement leaves on any ray (pairs' share plus the uniform fog's share).
     long long gaussian_background_rays = 0;
     long long gaussian_exact_terms = 0;  // (ray, pair) terms integrated exactly
+    bool gaussian_refine_abandoned = false;  // over its budget: Fogshop alone (bound inf)
+    double gaussian_refine_work = 0.0;       // the refinement's work, in nominal CPU seconds
     double gaussian_error_bound = 0.0;
 };
 

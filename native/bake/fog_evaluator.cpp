@@ -232,6 +232,7 @@ void FogEvaluator::set_up_refinement(const BakeSettings& settings, const Camera&
     // and the uniform fog's term (refine_gaussians).
     const bool background = gaussian_->beta0() > 0.0;
     refine_target_ = settings.gaussian_accuracy;
+    refine_budget_ = std::uint64_t(std::max(0.0, settings.gaussian_refine_budget) / kRefineSecondsPerWork);
     const double pair_target = (background ? kPlanShare : kPlanShare + kBackgroundShare) * refine_target_;
     GaussianRefinePlan plan = plan_gaussian_refinement(*gaussian_, origin_, lights, phase_, pair_target, threads);
     refine_pairs_ = plan.pairs;
@@ -269,9 +270,10 @@ RGB FogEvaluator::gaussian_weight(size_t l, size_t i) const {
 }
 
 void FogEvaluator::refine_gaussians(const Ray* rays, const float* Dvp, const float* t0, int n, RGB* La) const {
-    if (!refiner_) return;
+    if (!refiner_ || refine_abandoned_.load(std::memory_order_relaxed)) return;
+    const std::uint64_t work_start = refine_work();
     const LitIntervals* lit = nullptr;  // traced for the batch once a ray needs it
-    thread_local std::vector<GaussianRefiner::ViewLine> view;
+    thread_local GaussianRefiner::ViewDepth view;
     const FogshopAirlight::SpanProfile profile = [this](size_t l, const Vec3& u) { return gaussian_profile(l, u); };
     const PhaseFunction* phase = isotropic_ ? nullptr : &phase_;
     const GaussianRefinePlan& plan = refiner_->plan();
@@ -329,6 +331,10 @@ void FogEvaluator::refine_gaussians(const Ray* rays, const float* Dvp, const flo
         }
         if (background) refine_background(d, near, end, Tg_near, lit ? &lit[k] : nullptr, view, La[k]);
     }
+    if (refine_counting_.load(std::memory_order_relaxed)) {
+        const std::uint64_t spent = refine_spent_.fetch_add(refine_work() - work_start) + (refine_work() - work_start);
+        if (spent > refine_budget_) refine_abandoned_.store(true);
+    }
 }
 
 void FogEvaluator::refine_samples(const Ray* rays, const float* Dvp, const float* t0, int n, RGB* La) const {
@@ -372,7 +378,7 @@ void FogEvaluator::refine_samples(const Ray* rays, const float* Dvp, const float
 }
 
 void FogEvaluator::refine_background(const Vec3& d, double near, double end, double Tg_near, const LitIntervals* lit,
-                                     std::vector<GaussianRefiner::ViewLine>& view, RGB& La) const {
+                                     GaussianRefiner::ViewDepth& view, RGB& La) const {
     // Fogshop's uniform-fog term of light l is C_l times the homogeneous term H_l; the exact one
     // differs by at most H_l background_bound (refine.h). Rays where that stays under half the
     // asked accuracy of the ray's airlight keep Fogshop's; the others take the difference.
@@ -396,10 +402,8 @@ void FogEvaluator::refine_background(const Vec3& d, double near, double end, dou
         if (!(H > 0.0)) continue;
         if (H * weight * refiner_->background_bound(T_view, C) <= budget) continue;
         if (std::isinf(T_view)) {  // the ray's own Gaussians: a tighter bound, and the correction's view side
-            refiner_->gather(d, end, view);
-            T_view = 0.0;
-            for (const GaussianRefiner::ViewLine& g : view)
-                T_view += g.k * erf_diff(g.a * (near - g.ts), std::isinf(end) ? kInf : g.a * (end - g.ts));
+            refiner_->gather(d, near, end, view);
+            T_view = view.total();
             if (H * weight * refiner_->background_bound(T_view, C) <= budget) continue;
         }
         // To a tenth of the uniform fog's share of the accuracy, relative to its term here.

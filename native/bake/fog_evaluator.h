@@ -5,6 +5,7 @@
 #pragma once
 
 #include <atomic>
+#include <cstdint>
 #include <limits>
 #include <memory>
 #include <vector>
@@ -78,6 +79,15 @@ class FogEvaluator {
     // pairs whose uniform-fog term it corrected so far.
     double refine_error_bound() const { return refine_error_bound_; }
     double refine_target() const { return refine_target_; }
+    // The budget (BakeSettings::gaussian_refine_budget): counted over the centre samples until
+    // close_refine_budget(); once over it every refinement call returns at once.
+    bool refine_abandoned() const { return refine_abandoned_.load(); }
+    void close_refine_budget() const { refine_counting_.store(false); }
+    // Abandons the refinement if the work so far, times _factor_, exceeds the budget.
+    void foresee_refine_work(double factor) const {
+        if (double(refine_spent_.load()) * factor > double(refine_budget_)) refine_abandoned_.store(true);
+    }
+    double refine_work_seconds() const { return kRefineSecondsPerWork * double(refine_spent_.load()); }
     long long background_rays() const { return background_rays_.load(); }
     long long pair_terms() const { return pair_terms_.load(); }
     // The shadow volumes (null without shadows), and per light of the scene (its point lights,
@@ -139,7 +149,7 @@ class FogEvaluator {
     // Gaussians' depth before near; lit: its lit intervals, null when untraced: lit all along),
     // _view_ gathered on demand.
     void refine_background(const Vec3& d, double near, double end, double Tg_near, const LitIntervals* lit,
-                           std::vector<GaussianRefiner::ViewLine>& view, RGB& La) const;
+                           GaussianRefiner::ViewDepth& view, RGB& La) const;
     // Volume of the Fogshop light l (gaussian_lights_, then the suns) in shadows_; -1: none.
     int gaussian_volume(size_t l) const;
     // albedo_i I0_l (E_l for suns) of the pair (light l, Gaussian i).
@@ -225,6 +235,13 @@ class FogEvaluator {
     // kPlanShare of it (with beta0 = 0 also the uniform fog's share); each ray integrates its
     // remaining pairs until their bounds sum below kPairShare; the uniform fog's term takes the rest.
     static constexpr double kPlanShare = 0.25, kPairShare = 0.25, kBackgroundShare = 0.5;
+    // Nominal CPU seconds per unit of refine_work (one Gaussian's term in an integrand, with
+    // its share of the quadrature's overhead): 5.5e-8 s measured on this machine's cores
+    // (benchmarks/bench_gaussian_accuracy.py, 3000 Gaussians).
+    static constexpr double kRefineSecondsPerWork = 5.5e-8;
+    std::uint64_t refine_budget_ = 0;
+    mutable std::atomic<std::uint64_t> refine_spent_{0};
+    mutable std::atomic<bool> refine_abandoned_{false}, refine_counting_{true};
     std::vector<int> light_volume_, spot_volume_, sun_volume_;
     std::vector<int> scene_point_volume_, scene_spot_volume_, scene_sun_volume_;
     std::vector<int> origin_count_;  // per light of shadows_: its count at origin_

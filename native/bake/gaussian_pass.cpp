@@ -80,6 +80,24 @@ void refine_centres(BakeContext& ctx, const FogEvaluator& fog) {
         }
         fog.refine_gaussians(rays.data(), depth.data(), ctx.near_clip ? near.data() : nullptr, n, La.data());
     };
+    // Foresight: an 8 x 5 spread of grid points first (results dropped); its work, scaled to the
+    // grid and as much again for the pixels refined alone, stops a frame that would exceed the
+    // budget before the grid is spent.
+    const int Wf = std::min(Wc, 8), Hf = std::min(Hc, 5);
+    auto spread = [](int k, int n, int m) { return n > 1 ? int(std::lround(double(k) * (m - 1) / (n - 1))) : 0; };
+    parallel_for(Hf, ctx.n_threads, [&](int Jf) {
+        thread_local RowRays rr;
+        thread_local std::vector<Ray> rays;
+        thread_local std::vector<RGB> La;
+        thread_local std::vector<float> depth, near;
+        thread_local std::vector<int> xs;
+        if (rr.dx.size() != size_t(W)) rr.resize(size_t(W));
+        xs.clear();
+        for (int If = 0; If < Wf; ++If) xs.push_back(grid_x(spread(If, Wf, Wc)));
+        refine_row(grid_y(spread(Jf, Hf, Hc)), xs, rr, rays, La, depth, near);
+    });
+    fog.foresee_refine_work(2.0 * double(Wc) * Hc / (double(Wf) * Hf));
+    if (fog.refine_abandoned()) return;
     // The grid.
     parallel_for(Hc, ctx.n_threads, [&](int J) {
         thread_local RowRays rr;
@@ -101,6 +119,7 @@ void refine_centres(BakeContext& ctx, const FogEvaluator& fog) {
                 else delta[size_t(J) * Wc + I][c] = La[I][c];
             }
     });
+    if (fog.refine_abandoned()) return;  // (counted over the budget in the grid)
     // Every pixel: interpolated where its cell's corners see the same surface, else its own.
     parallel_for(ctx.n_bands, ctx.n_threads, [&](int band) {
         thread_local RowRays rr;
@@ -216,9 +235,19 @@ double gaussian_pass(BakeContext& ctx, const FogEvaluator& fog) {
     result.stats.gaussian_error_bound = fog.refine_error_bound();
     if (fog.has_shadows()) shadow_centres(ctx, fog);
     if (fog.refiner()) {
+        // Over its budget the refinement stops and the frame keeps Fogshop's values throughout
+        // (edges too), so that whether a frame is refined depends on its work alone.
+        const std::vector<float> fogshop = result.airlight;
         const auto refine_start = Clock::now();
         refine_centres(ctx, fog);
         result.stats.seconds_refine = seconds_since(refine_start);
+        result.stats.gaussian_refine_work = fog.refine_work_seconds();
+        fog.close_refine_budget();
+        if (fog.refine_abandoned()) {
+            result.airlight = fogshop;
+            result.stats.gaussian_refine_abandoned = true;
+            result.stats.gaussian_error_bound = std::numeric_limits<double>::infinity();
+        }
     }
     return end;
 }

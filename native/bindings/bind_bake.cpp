@@ -68,7 +68,7 @@ py::dict bake_py(int width, int height, const py::object& cam_to_world, const py
                  const std::string& surface_glow_model, const std::string& homogeneous_resolution,
                  double edge_cluster_tol, bool shadows, const py::object& light_shadows,
                  const py::object& spot_shadows, const py::object& sun_shadows, const py::object& occluder_vertices,
-                 const py::object& occluder_triangles, double gaussian_accuracy) {
+                 const py::object& occluder_triangles, double gaussian_accuracy, double gaussian_refine_budget) {
     // Gather the scene description from the arrays (shapes checked here, values in bake()).
     SceneDescription scene;
     scene.camera.width = width;
@@ -226,6 +226,9 @@ py::dict bake_py(int width, int height, const py::object& cam_to_world, const py
     if (!(gaussian_accuracy >= 0.0 && gaussian_accuracy < 1.0))
         throw py::value_error("gaussian_accuracy must be in [0, 1) (a relative error; 0: Fogshop alone)");
     settings.gaussian_accuracy = gaussian_accuracy;
+    if (!(gaussian_refine_budget >= 0.0))
+        throw py::value_error("gaussian_refine_budget must be >= 0 (nominal CPU seconds)");
+    settings.gaussian_refine_budget = gaussian_refine_budget;
     settings.model = model_from_name(model);
     settings.threads = threads;
     settings.aa_samples = aa_samples;
@@ -284,6 +287,8 @@ py::dict bake_py(int width, int height, const py::object& cam_to_world, const py
                    "seconds_refine"_a = result.stats.seconds_refine,
                    "gaussian_background_rays"_a = result.stats.gaussian_background_rays,
                    "gaussian_exact_terms"_a = result.stats.gaussian_exact_terms,
+                   "gaussian_refine_abandoned"_a = result.stats.gaussian_refine_abandoned,
+                   "gaussian_refine_work"_a = result.stats.gaussian_refine_work,
                    "gaussian_error_bound"_a = result.stats.gaussian_error_bound);
     // Surface shading: (L, H, W, 3) attenuation per light and (H, W, 3) glow, when asked for.
     py::dict extra;
@@ -358,7 +363,7 @@ void bind_bake(py::module_& m) {
           "edge_cluster_tol"_a = BakeSettings().edge_cluster_tol, "shadows"_a = false,
           "light_shadows"_a = py::none(), "spot_shadows"_a = py::none(), "sun_shadows"_a = py::none(),
           "occluder_vertices"_a = py::none(), "occluder_triangles"_a = py::none(),
-          "gaussian_accuracy"_a = 0.0,
+          "gaussian_accuracy"_a = 0.0, "gaussian_refine_budget"_a = BakeSettings().gaussian_refine_budget,
           R"doc(Bake fog passes for one camera view (all arguments keyword-only).
 
 width, height: render resolution in pixels.
@@ -421,7 +426,12 @@ gaussian_accuracy in [0, 1) (default 0): fog objects with the Fogshop models (pe
   gaussian_refined_pairs (pairs the plan hands to the rays), gaussian_kept_bound (the largest
   bound the plan leaves to Fogshop), gaussian_exact_terms (ray x pair terms integrated),
   gaussian_background_rays (ray x light uniform-fog terms corrected), gaussian_error_bound (the
-  relative error bound of the mix), seconds_refine.
+  relative error bound of the mix), seconds_refine, gaussian_refine_work (nominal CPU seconds).
+gaussian_refine_budget >= 0 (default 60): the refinement's budget in nominal CPU seconds (work
+  counted per Gaussian term of its integrands, 5.5e-8 s each): a frame whose centre samples
+  need more (foreseen from every 4th pixel's, or counted) keeps Fogshop's approximation alone
+  (stats gaussian_refine_abandoned True, gaussian_error_bound inf); the outcome depends on the
+  frame's work, not on the machine's speed.
 edge_cluster_tol >= 0 (default 0.1): edge pixels (aa_samples > 1) evaluate the fog once per
   cluster of their sub-samples (all misses; hits within a depth ratio of 1 + edge_cluster_tol),
   at the cluster's mean ray and depth, and per sample where a cluster's error estimate exceeds

@@ -28,6 +28,11 @@ constexpr double kShade = 0.5;
 constexpr double kNear = 3.0;
 // Panels per piece of the exact quadrature (a smooth integrand needs one to four).
 constexpr int kMaxPanels = 400;
+// A Gaussian whose optical depth along the view ray exceeds this gets breakpoints in the
+// uniform fog's correction.
+constexpr double kThickOnRay = 0.1;
+
+thread_local std::uint64_t work = 0;
 
 double sigma_of(double a) { return 1.0 / (a * std::sqrt(2.0)); }
 
@@ -45,13 +50,9 @@ double shade(const GaussianMedium& medium, std::size_t i, const Vec3& o, const V
     return G;
 }
 
-// Distance from p to the segment a -> b (b may be at infinity along u: then a + t u, t >= 0).
-double segment_distance(const Vec3& p, const Vec3& a, const Vec3& u, double len) {
-    const double t = std::clamp(glm::dot(p - a, u), 0.0, len);
-    return glm::length(p - (a + t * u));
-}
-
 }  // namespace
+
+std::uint64_t& refine_work() { return work; }
 
 double phase_curvature(const PhaseFunction& phase) {
     if (phase.kind == PhaseKind::Isotropic) return 0.0;
@@ -134,30 +135,6 @@ GaussianRefiner::GaussianRefiner(const GaussianMedium& medium, const Vec3& eye, 
     for (std::size_t j = 0; j < n; ++j) max_line_depth_ += medium_.amplitude(j) * kSqrtPi / medium_.scale(j);
     for (int q = 0; q <= 4096; ++q) phase_max_ = std::max(phase_max_, phase_.eval(-1.0 + q / 2048.0));
     phase_max_ *= 1.01;  // (between the samples)
-    light_list_.resize(plan_.refined.size());
-    parallel_chunks(plan_.refined.size(), 0, 1, [&](std::size_t begin, std::size_t end) {
-        for (std::size_t k = begin; k < end; ++k) {
-            const std::size_t i = plan_.refined[k].gaussian;
-            const RefineLight& light = lights_[plan_.refined[k].light];
-            const Vec3 b = medium_.centre(i);
-            const double Ri = medium_.cull_radius(i);
-            // The capsule around the path from the support to the light holds every such path.
-            Vec3 o = light.s, u;
-            double len;
-            if (light.kind == GaussianRefLight::Kind::Sun) {
-                o = b, u = -glm::normalize(light.w), len = kInf;
-            } else {
-                len = glm::length(b - o);
-                u = len > 0.0 ? (b - o) / len : Vec3(0.0, 0.0, 1.0);
-            }
-            std::vector<std::uint32_t>& list = light_list_[k];
-            for (std::size_t j = 0; j < n; ++j) {
-                const double Rj = medium_.cull_radius(j);
-                if (j == i || (Rj > 0.0 && segment_distance(medium_.centre(j), o, u, len) < Ri + Rj))
-                    list.push_back(std::uint32_t(j));
-            }
-        }
-    });
 }
 
 double GaussianRefiner::term_upper(std::size_t k, const Vec3& r, double t_start, double t_end) const {
@@ -182,41 +159,76 @@ double GaussianRefiner::term_upper(std::size_t k, const Vec3& r, double t_start,
     return phase_max_ * peak * (std::atan((hi - t_s) / h) - std::atan((lo - t_s) / h)) / h;
 }
 
-void GaussianRefiner::gather(const Vec3& r, double t_end, std::vector<ViewLine>& view) const {
-    view.clear();
+void GaussianRefiner::gather(const Vec3& r, double t_start, double t_end, ViewDepth& view) const {
+    view.lines.clear();
     medium_.for_each_near(eye_, r, t_end, [&](std::size_t j) {
         const double a = medium_.scale(j), c = medium_.amplitude(j);
         const Vec3 rel = medium_.centre(j) - eye_;
         const Vec3 cr = glm::cross(rel, r);
         const double k = c * kSqrtPi / (2.0 * a) * std::exp(-a * a * glm::dot(cr, cr));
-        if (k > 0.0) view.push_back({glm::dot(rel, r), a, k});
+        if (k > 0.0) view.lines.push_back({glm::dot(rel, r), a, k});
     });
+    view.build(t_start);
+}
+
+void GaussianRefiner::ViewDepth::build(double start) {
+    t_start = start;
+    std::sort(lines.begin(), lines.end(), [](const ViewLine& x, const ViewLine& y) { return x.ts < y.ts; });
+    const std::size_t n = lines.size();
+    ts.resize(n);
+    reach = 0.0;
+    std::vector<std::pair<double, double>> by_end(n);  // (end, whole depth from t_start)
+    for (std::size_t j = 0; j < n; ++j) {
+        const ViewLine& g = lines[j];
+        ts[j] = g.ts;
+        reach = std::max(reach, kReach / g.a);
+        by_end[j] = {g.ts + kReach / g.a, g.k * erf_diff(g.a * (t_start - g.ts), kInf)};
+    }
+    std::sort(by_end.begin(), by_end.end());
+    ends.resize(n);
+    passed.assign(n + 1, 0.0);
+    for (std::size_t j = 0; j < n; ++j) ends[j] = by_end[j].first, passed[j + 1] = passed[j] + by_end[j].second;
+}
+
+double GaussianRefiner::ViewDepth::operator()(double t) const {
+    if (lines.empty()) return 0.0;
+    double T = passed[std::size_t(std::upper_bound(ends.begin(), ends.end(), t) - ends.begin())];
+    const std::size_t first = std::size_t(std::lower_bound(ts.begin(), ts.end(), t - reach) - ts.begin());
+    for (std::size_t j = first; j < lines.size() && ts[j] <= t + reach; ++j) {
+        const ViewLine& g = lines[j];
+        const double u = g.a * (t - g.ts);
+        if (u > kReach || u < -kReach) continue;  // passed (in the sums) or ahead
+        T += g.k * erf_diff(g.a * (t_start - g.ts), u);
+        ++work;
+    }
+    return T;
+}
+
+double GaussianRefiner::gaussians_on(const Vec3& o, const Vec3& u, double len) const {
+    double T = 0.0;
+    medium_.for_each_near(o, u, len, [&](std::size_t j) {
+        T += gaussian_line_integral(medium_.amplitude(j), medium_.scale(j), medium_.centre(j), o, u, 0.0, len);
+        ++work;
+    });
+    return T;
 }
 
 double GaussianRefiner::light_depth(std::size_t k, const Vec3& x) const {
     const RefineLight& light = lights_[plan_.refined[k].light];
     const double beta0 = medium_.beta0();
-    double T = 0.0;
     if (light.kind == GaussianRefLight::Kind::Sun) {
         const Vec3 u = -glm::normalize(light.w);
-        T = sunlight_layer_depth(beta0, fog_top_, u.z, x.z);
-        if (std::isinf(T)) return T;
-        for (std::uint32_t j : light_list_[k])
-            T += gaussian_line_integral(medium_.amplitude(j), medium_.scale(j), medium_.centre(j), x, u, 0.0, kInf);
-        return T;
+        const double T = sunlight_layer_depth(beta0, fog_top_, u.z, x.z);
+        return std::isinf(T) ? T : T + gaussians_on(x, u, kInf);
     }
     const Vec3 sx = x - light.s;
     const double D = glm::length(sx);
     if (!(D > 0.0)) return 0.0;
-    const Vec3 u = sx / D;
-    T = beta0 * D;
-    for (std::uint32_t j : light_list_[k])
-        T += gaussian_line_integral(medium_.amplitude(j), medium_.scale(j), medium_.centre(j), light.s, u, 0.0, D);
-    return T;
+    return beta0 * D + gaussians_on(light.s, sx / D, D);
 }
 
 double GaussianRefiner::exact_term(std::size_t k, const Vec3& r, double t_start, const RaySpans& spans,
-                                   const std::vector<ViewLine>& view) const {
+                                   const ViewDepth& view) const {
     const std::size_t i = plan_.refined[k].gaussian;
     const RefineLight& light = lights_[plan_.refined[k].light];
     const bool sun = light.kind == GaussianRefLight::Kind::Sun, spot = light.kind == GaussianRefLight::Kind::Spot;
@@ -249,7 +261,7 @@ double GaussianRefiner::exact_term(std::size_t k, const Vec3& r, double t_start,
         }
         double T = beta0 * (t - t_start) + light_depth(k, x);
         if (std::isinf(T)) return 0.0;
-        for (const ViewLine& g : view) T += g.k * erf_diff(g.a * (t_start - g.ts), g.a * (t - g.ts));
+        T += view(t);
         return beta * weight * std::exp(-T);
     };
     double sum = 0.0;
@@ -347,7 +359,7 @@ double GaussianRefiner::plain_background(std::size_t l, const Vec3& r, double t_
 }
 
 double GaussianRefiner::background_correction(std::size_t l, const Vec3& r, double t_start, const RaySpans& spans,
-                                              const std::vector<ViewLine>& view, double C, double abs_tol) const {
+                                              const ViewDepth& view, double C, double abs_tol) const {
     if (!(medium_.beta0() > 0.0)) return 0.0;
     const bool sun = lights_[l].kind == GaussianRefLight::Kind::Sun;
     const Vec3 s = lights_[l].s;
@@ -356,9 +368,7 @@ double GaussianRefiner::background_correction(std::size_t l, const Vec3& r, doub
         double D;
         const double hom = background_integrand(l, r, t_start, t, u, D);
         if (hom == 0.0) return 0.0;
-        double T = sun ? medium_.optical_depth_ray(eye_ + t * r, u, kInf, GaussianMedium::npos, false)
-                       : medium_.optical_depth_ray(s, u, D, GaussianMedium::npos, false);
-        for (const ViewLine& g : view) T += g.k * erf_diff(g.a * (t_start - g.ts), g.a * (t - g.ts));
+        const double T = (sun ? gaussians_on(eye_ + t * r, u, kInf) : gaussians_on(s, u, D)) + view(t);
         return hom * (std::exp(-T) - C);
     };
     double sum = 0.0;
@@ -367,9 +377,11 @@ double GaussianRefiner::background_correction(std::size_t l, const Vec3& r, doub
         const double lo = std::max(spans.spans[q].first, t_start), hi = spans.spans[q].second;
         if (!(hi > lo)) continue;
         cuts.clear();
-        // Where the eye-side depth changes: each near Gaussian's support on the ray.
-        for (const ViewLine& g : view)
-            for (double w : {-2.0, 0.0, 2.0}) cuts.push_back(g.ts + w / g.a);
+        // Where the eye-side depth changes steeply: the supports of the near Gaussians that are
+        // thick on the ray (the quadrature adapts to the others).
+        for (const ViewLine& g : view.lines)
+            if (2.0 * g.k > kThickOnRay)
+                for (double w : {-2.0, 0.0, 2.0}) cuts.push_back(g.ts + w / g.a);
         if (sun && !std::isinf(fog_top_) && r.z != 0.0) cuts.push_back((fog_top_ - eye_.z) / r.z);
         sum += integrate_light(lights_[l], r, lo, hi, cuts, f, 1e-3, abs_tol);
     }

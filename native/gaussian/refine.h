@@ -8,7 +8,7 @@
 //  - integrates the pairs whose bound exceeds the target exactly: adaptive Gauss-Kronrod
 //    over the Gaussian's support on the ray (equiangular about a point or spot light), with
 //    exact erf optical depths towards the eye (the Gaussians near the ray) and the light
-//    (the Gaussians near the cone from the light around the support), over the lit spans
+//    (the Gaussians near each path to it, by the medium's cull hierarchy), over the lit spans
 //    (GaussianRefiner). The bake adds (exact - Fogshop) of each refined pair to the splat.
 //
 // The bound (RefineBound, constants measured by tests/native/test_gaussian_refine.py against
@@ -37,6 +37,10 @@
 #include "homogeneous/spot_light.h"
 
 namespace airlight {
+
+// The work of this thread's exact integrals so far: per integrand evaluation, the Gaussians
+// whose optical depths it sums (the bake's refinement budget counts it; deterministic).
+std::uint64_t& refine_work();
 
 // The refinement's lights are the reference's (GaussianRefLight, airlight.h): point, spot
 // (its cone) or sun (unit propagation direction w); its shadow members are not read here.
@@ -80,15 +84,31 @@ class GaussianRefiner {
     struct ViewLine {
         double ts, a, k;  // closest approach, scale, c sqrt(pi) / (2a) e^{-a^2 h^2}
     };
+    // The view ray's Gaussian optical depth from t_start to t: the Gaussians within kReach / a
+    // of t by their erf, those passed before it by prefix sums of their whole depth (sorted by
+    // ts + kReach / a), the ones ahead not at all (< 2e-12 of each); per query the work is
+    // the Gaussians whose support holds t, not every Gaussian near the ray.
+    struct ViewDepth {
+        static constexpr double kReach = 5.0;
+        std::vector<ViewLine> lines;  // by ts
+        std::vector<double> ts;       // their ts
+        std::vector<double> ends;     // ts + kReach / a, sorted
+        std::vector<double> passed;   // passed[m]: the whole depths of the first m ends
+        double reach = 0.0;           // the largest kReach / a
+        double t_start = 0.0;
+        void build(double t_start);   // from lines
+        double operator()(double t) const;
+        double total() const { return passed.empty() ? 0.0 : passed.back(); }
+    };
     // Gathers the ray eye + t r, t in [t_start, t_end], and calls fn(k) for every refined
     // pair k whose Gaussian's cull sphere the ray reaches.
     template <typename Fn>
-    void for_each_pair(const Vec3& r, double t_start, double t_end, std::vector<ViewLine>& view, Fn&& fn) const;
+    void for_each_pair(const Vec3& r, double t_start, double t_end, ViewDepth& view, Fn&& fn) const;
 
     // The exact term of pair _k_ (per unit albedo and I0 / E) over the lit spans, attenuated
     // towards the eye from t_start; _view_ from for_each_pair on the same ray.
     double exact_term(std::size_t k, const Vec3& r, double t_start, const RaySpans& spans,
-                      const std::vector<ViewLine>& view) const;
+                      const ViewDepth& view) const;
 
     // An upper bound of exact_term(k) on the segment [t_start, t_end] (no attenuation, the
     // phase's largest value, the Gaussian's peak on the ray times the angle the segment subtends
@@ -96,8 +116,8 @@ class GaussianRefiner {
     // per-ray choice of the pairs worth integrating.
     double term_upper(std::size_t k, const Vec3& r, double t_start, double t_end) const;
 
-    // The Gaussians near the ray eye + t r, t in [0, t_end] (their view-side optical depths).
-    void gather(const Vec3& r, double t_end, std::vector<ViewLine>& view) const;
+    // The Gaussians near the ray eye + t r, t in [0, t_end], for its optical depths from t_start.
+    void gather(const Vec3& r, double t_start, double t_end, ViewDepth& view) const;
 
     // The uniform fog's (beta0) term of light l (the plan's light order) over the lit spans,
     // attenuated towards the eye from t_start, per unit medium albedo and I0 (E). Fogshop
@@ -109,10 +129,10 @@ class GaussianRefiner {
     double plain_background(std::size_t l, const Vec3& r, double t_start, const RaySpans& spans,
                             double rel_tol) const;
     double background_correction(std::size_t l, const Vec3& r, double t_start, const RaySpans& spans,
-                                 const std::vector<ViewLine>& view, double C, double abs_tol) const;
+                                 const ViewDepth& view, double C, double abs_tol) const;
     // The bound |background_correction| <= plain_background * background_bound: the
     // Gaussians' transmittance along any path lies in [e^{-(T_view + T_line)}, 1] (T_view:
-    // the ray's own Gaussian depth, the sum of _view_; inf: not gathered, bounded by T_line),
+    // the ray's own Gaussian depth, view.total(); inf: not gathered, bounded by T_line),
     // and C in (0, 1]; T_line = the sum over the Gaussians of c sqrt(pi) / a, the most any
     // line can cross.
     double background_bound(double T_view, double C) const;
@@ -120,6 +140,8 @@ class GaussianRefiner {
 
   private:
     double light_depth(std::size_t k, const Vec3& x) const;
+    // The Gaussians' optical depth on o + t u, t in [0, len] (len may be inf), by the cull hierarchy.
+    double gaussians_on(const Vec3& o, const Vec3& u, double len) const;
     // Integrates f(t) over [lo, hi] of the ray for _light_, f / d^2 for a point or spot light
     // in the equiangular variable about its closest approach, split at _cuts_ (sorted or not),
     // the spot's cone and blend crossings and the closest approach.
@@ -138,13 +160,10 @@ class GaussianRefiner {
     double rel_tol_;
     double max_line_depth_ = 0.0;
     double phase_max_ = 0.0;  // the phase function's largest value
-    // Per pair: the Gaussians (Gaussian i itself included) whose cull sphere reaches the
-    // region between the light and the support of Gaussian i (light-side optical depth).
-    std::vector<std::vector<std::uint32_t>> light_list_;
 };
 
 template <typename Fn>
-void GaussianRefiner::for_each_pair(const Vec3& r, double t_start, double t_end, std::vector<ViewLine>& view,
+void GaussianRefiner::for_each_pair(const Vec3& r, double t_start, double t_end, ViewDepth& view,
                                     Fn&& fn) const {
     bool gathered = false;
     for (std::size_t k = 0; k < plan_.refined.size(); ++k) {
@@ -154,7 +173,7 @@ void GaussianRefiner::for_each_pair(const Vec3& r, double t_start, double t_end,
         const double R = medium_.cull_radius(i);
         const Vec3 q = rel - std::clamp(ts, t_start, t_end) * r;
         if (!(glm::dot(q, q) < R * R)) continue;
-        if (!gathered) gather(r, t_end, view), gathered = true;
+        if (!gathered) gather(r, t_start, t_end, view), gathered = true;
         fn(k);
     }
 }
