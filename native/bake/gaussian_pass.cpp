@@ -53,6 +53,21 @@ constexpr double kRefineDepthTol = 0.01;
 constexpr double kRefineRatioTol = 0.25;
 constexpr double kInf = std::numeric_limits<double>::infinity();
 
+// A worker thread's rays and values for refine_centres.
+struct RefineScratch {
+    RowRays rr;
+    std::vector<Ray> rays;
+    std::vector<RGB> La;
+    std::vector<float> depth, near;
+    std::vector<int> xs;
+};
+
+RefineScratch& refine_scratch(int W) {
+    thread_local RefineScratch scratch;
+    if (scratch.rr.dx.size() != size_t(W)) scratch.rr.resize(size_t(W));
+    return scratch;
+}
+
 void refine_centres(BakeContext& ctx, const FogEvaluator& fog) {
     const int W = ctx.W, H = ctx.H, s = kRefineStride;
     BakeResult& result = ctx.result;
@@ -63,22 +78,23 @@ void refine_centres(BakeContext& ctx, const FogEvaluator& fog) {
     std::vector<RGB> ratio(size_t(Wc) * Hc, RGB(1.0));
     std::vector<RGB> delta(size_t(Wc) * Hc, RGB(0.0));  // (where a channel's Fogshop value is 0)
     std::vector<RGB> base(size_t(Wc) * Hc, RGB(0.0));   // Fogshop's values
-    // Refines _n_ pixels (x, y) of row y's rays in place.
-    auto refine_row = [&](int y, const std::vector<int>& xs, RowRays& rr, std::vector<Ray>& rays,
-                          std::vector<RGB>& La, std::vector<float>& depth, std::vector<float>& near) {
-        ctx.row_rays(y, rr, false);
-        const int n = int(xs.size());
-        rays.resize(size_t(n)), La.resize(size_t(n)), depth.resize(size_t(n)), near.resize(size_t(n));
+    // Refines the pixels xs of row y in place (scratch.La: their refined values).
+    auto refine_row = [&](int y, RefineScratch& scratch) {
+        ctx.row_rays(y, scratch.rr, false);
+        const int n = int(scratch.xs.size());
+        scratch.rays.resize(size_t(n)), scratch.La.resize(size_t(n));
+        scratch.depth.resize(size_t(n)), scratch.near.resize(size_t(n));
         const float* A = &result.airlight[3 * size_t(y) * W];
         for (int k = 0; k < n; ++k) {
-            const int x = xs[k];
-            rays[k].o = ctx.eye;
-            rays[k].d = Vec3(rr.dx[x], rr.dy[x], rr.dz[x]);
-            La[k] = RGB(A[3 * x], A[3 * x + 1], A[3 * x + 2]);
-            depth[k] = result.depth[size_t(y) * W + x];
-            near[k] = ctx.near_clip ? rr.t_near[x] : 0.0f;
+            const int x = scratch.xs[k];
+            scratch.rays[k].o = ctx.eye;
+            scratch.rays[k].d = Vec3(scratch.rr.dx[x], scratch.rr.dy[x], scratch.rr.dz[x]);
+            scratch.La[k] = RGB(A[3 * x], A[3 * x + 1], A[3 * x + 2]);
+            scratch.depth[k] = result.depth[size_t(y) * W + x];
+            scratch.near[k] = ctx.near_clip ? scratch.rr.t_near[x] : 0.0f;
         }
-        fog.refine_gaussians(rays.data(), depth.data(), ctx.near_clip ? near.data() : nullptr, n, La.data());
+        fog.refine_gaussians(scratch.rays.data(), scratch.depth.data(), ctx.near_clip ? scratch.near.data() : nullptr,
+                             n, scratch.La.data());
     };
     // Foresight: an 8 x 5 spread of grid points first (results dropped); its work, scaled to the
     // grid and as much again for the pixels refined alone, stops a frame that would exceed the
@@ -86,30 +102,22 @@ void refine_centres(BakeContext& ctx, const FogEvaluator& fog) {
     const int Wf = std::min(Wc, 8), Hf = std::min(Hc, 5);
     auto spread = [](int k, int n, int m) { return n > 1 ? int(std::lround(double(k) * (m - 1) / (n - 1))) : 0; };
     parallel_for(Hf, ctx.n_threads, [&](int Jf) {
-        thread_local RowRays rr;
-        thread_local std::vector<Ray> rays;
-        thread_local std::vector<RGB> La;
-        thread_local std::vector<float> depth, near;
-        thread_local std::vector<int> xs;
-        if (rr.dx.size() != size_t(W)) rr.resize(size_t(W));
-        xs.clear();
-        for (int If = 0; If < Wf; ++If) xs.push_back(grid_x(spread(If, Wf, Wc)));
-        refine_row(grid_y(spread(Jf, Hf, Hc)), xs, rr, rays, La, depth, near);
+        RefineScratch& scratch = refine_scratch(W);
+        scratch.xs.clear();
+        for (int If = 0; If < Wf; ++If) scratch.xs.push_back(grid_x(spread(If, Wf, Wc)));
+        refine_row(grid_y(spread(Jf, Hf, Hc)), scratch);
     });
     fog.foresee_refine_work(2.0 * double(Wc) * Hc / (double(Wf) * Hf));
     if (fog.refine_abandoned()) return;
     // The grid.
     parallel_for(Hc, ctx.n_threads, [&](int J) {
-        thread_local RowRays rr;
-        thread_local std::vector<Ray> rays;
-        thread_local std::vector<RGB> La;
-        thread_local std::vector<float> depth, near;
-        thread_local std::vector<int> xs;
-        if (rr.dx.size() != size_t(W)) rr.resize(size_t(W));
-        xs.clear();
-        for (int I = 0; I < Wc; ++I) xs.push_back(grid_x(I));
+        RefineScratch& scratch = refine_scratch(W);
+        scratch.xs.clear();
+        for (int I = 0; I < Wc; ++I) scratch.xs.push_back(grid_x(I));
         const int y = grid_y(J);
-        refine_row(y, xs, rr, rays, La, depth, near);
+        refine_row(y, scratch);
+        const std::vector<RGB>& La = scratch.La;
+        const std::vector<int>& xs = scratch.xs;
         const float* A = &result.airlight[3 * size_t(y) * W];
         for (int I = 0; I < Wc; ++I)
             for (int c = 0; c < 3; ++c) {
@@ -122,12 +130,8 @@ void refine_centres(BakeContext& ctx, const FogEvaluator& fog) {
     if (fog.refine_abandoned()) return;  // (counted over the budget in the grid)
     // Every pixel: interpolated where its cell's corners see the same surface, else its own.
     parallel_for(ctx.n_bands, ctx.n_threads, [&](int band) {
-        thread_local RowRays rr;
-        thread_local std::vector<Ray> rays;
-        thread_local std::vector<RGB> La;
-        thread_local std::vector<float> depth, near;
-        thread_local std::vector<int> own;
-        if (rr.dx.size() != size_t(W)) rr.resize(size_t(W));
+        RefineScratch& scratch = refine_scratch(W);
+        std::vector<int>& own = scratch.xs;
         for (int y = band * kBandRows; y < std::min(H, (band + 1) * kBandRows); ++y) {
             const int J0 = std::min(y / s, Hc - 1), J1 = std::min(J0 + 1, Hc - 1);
             const int y0 = grid_y(J0), y1 = grid_y(J1);
@@ -182,9 +186,9 @@ void refine_centres(BakeContext& ctx, const FogEvaluator& fog) {
                 }
             }
             if (own.empty()) continue;
-            refine_row(y, own, rr, rays, La, depth, near);
+            refine_row(y, scratch);
             for (size_t k = 0; k < own.size(); ++k)
-                for (int c = 0; c < 3; ++c) A[3 * own[k] + c] = float(std::max(0.0, La[k][c]));
+                for (int c = 0; c < 3; ++c) A[3 * own[k] + c] = float(std::max(0.0, scratch.La[k][c]));
         }
     });
 }

@@ -337,6 +337,28 @@ double GaussianRefiner::background_integrand(std::size_t l, const Vec3& r, doubl
     return beta0 * weight * std::exp(-beta0 * (t - t_start + D));
 }
 
+double GaussianRefiner::integrate_background(std::size_t l, const Vec3& r, double t_start, const RaySpans& spans,
+                                              const ViewDepth* view, const std::function<double(double)>& f,
+                                              double rel_tol, double abs_tol) const {
+    double sum = 0.0;
+    std::vector<double> cuts;
+    for (int q = 0; q < spans.count; ++q) {
+        const double lo = std::max(spans.spans[q].first, t_start), hi = spans.spans[q].second;
+        if (!(hi > lo)) continue;
+        cuts.clear();
+        // Where the eye-side depth changes steeply: the supports of the near Gaussians that are
+        // thick on the ray (the quadrature adapts to the others); and a sun's layer top.
+        if (view)
+            for (const ViewLine& g : view->lines)
+                if (2.0 * g.k > kThickOnRay)
+                    for (double w : {-2.0, 0.0, 2.0}) cuts.push_back(g.ts + w / g.a);
+        if (lights_[l].kind == GaussianRefLight::Kind::Sun && !std::isinf(fog_top_) && r.z != 0.0)
+            cuts.push_back((fog_top_ - eye_.z) / r.z);
+        sum += integrate_light(lights_[l], r, lo, hi, cuts, f, rel_tol, abs_tol);
+    }
+    return sum;
+}
+
 double GaussianRefiner::plain_background(std::size_t l, const Vec3& r, double t_start, const RaySpans& spans,
                                          double rel_tol) const {
     if (!(medium_.beta0() > 0.0)) return 0.0;
@@ -345,17 +367,7 @@ double GaussianRefiner::plain_background(std::size_t l, const Vec3& r, double t_
         double D;
         return background_integrand(l, r, t_start, t, u, D);
     };
-    double sum = 0.0;
-    std::vector<double> cuts;
-    for (int q = 0; q < spans.count; ++q) {
-        const double lo = std::max(spans.spans[q].first, t_start), hi = spans.spans[q].second;
-        if (!(hi > lo)) continue;
-        cuts.clear();
-        if (lights_[l].kind == GaussianRefLight::Kind::Sun && !std::isinf(fog_top_) && r.z != 0.0)
-            cuts.push_back((fog_top_ - eye_.z) / r.z);
-        sum += integrate_light(lights_[l], r, lo, hi, cuts, f, rel_tol, 0.0);
-    }
-    return sum;
+    return integrate_background(l, r, t_start, spans, nullptr, f, rel_tol, 0.0);
 }
 
 double GaussianRefiner::background_correction(std::size_t l, const Vec3& r, double t_start, const RaySpans& spans,
@@ -371,21 +383,7 @@ double GaussianRefiner::background_correction(std::size_t l, const Vec3& r, doub
         const double T = (sun ? gaussians_on(eye_ + t * r, u, kInf) : gaussians_on(s, u, D)) + view(t);
         return hom * (std::exp(-T) - C);
     };
-    double sum = 0.0;
-    std::vector<double> cuts;
-    for (int q = 0; q < spans.count; ++q) {
-        const double lo = std::max(spans.spans[q].first, t_start), hi = spans.spans[q].second;
-        if (!(hi > lo)) continue;
-        cuts.clear();
-        // Where the eye-side depth changes steeply: the supports of the near Gaussians that are
-        // thick on the ray (the quadrature adapts to the others).
-        for (const ViewLine& g : view.lines)
-            if (2.0 * g.k > kThickOnRay)
-                for (double w : {-2.0, 0.0, 2.0}) cuts.push_back(g.ts + w / g.a);
-        if (sun && !std::isinf(fog_top_) && r.z != 0.0) cuts.push_back((fog_top_ - eye_.z) / r.z);
-        sum += integrate_light(lights_[l], r, lo, hi, cuts, f, 1e-3, abs_tol);
-    }
-    return sum;
+    return integrate_background(l, r, t_start, spans, &view, f, 1e-3, abs_tol);
 }
 
 double GaussianRefiner::background_bound(double T_view, double C) const {

@@ -147,6 +147,11 @@ class GaussianRefiner {
     // the spot's cone and blend crossings and the closest approach.
     double integrate_light(const RefineLight& light, const Vec3& r, double lo, double hi, std::vector<double>& cuts,
                            const std::function<double(double)>& f, double rel_tol, double abs_tol) const;
+    // Integrates f over the lit spans from t_start for light l (integrate_light), split also
+    // at the thick Gaussians of _view_ (null: none) and a sun's layer top.
+    double integrate_background(std::size_t l, const Vec3& r, double t_start, const RaySpans& spans,
+                                const ViewDepth* view, const std::function<double(double)>& f, double rel_tol,
+                                double abs_tol) const;
     // The uniform fog's integrand for light l at t (no Gaussians), with the unit direction
     // from the light's position to x (points, spots) or towards the sun in _u_.
     double background_integrand(std::size_t l, const Vec3& r, double t_start, double t, Vec3& u, double& D) const;
