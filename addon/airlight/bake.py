@@ -161,6 +161,8 @@ def run(description, settings, filepath, progress=None):
                 stats["seconds_environment"] = environment.apply(module, world, description, result)
             lights, light_seconds = (_light_passes(module, description, settings, rows, _sub_progress(progress, 1, 2))
                                      if rows else (None, 0.0))
+            if lights is not None and settings.get("gaussian_accuracy", 0.0) > 0.0:
+                _split_like(lights, unlit if unlit is not None else result["airlight"])
         except ValueError as ex:
             raise BakeError(f"Invalid fog scene: {ex}") from None
         extra = surface.pass_arrays(result, groups) if settings.get("surface") else None
@@ -227,6 +229,17 @@ def _light_passes(module, description, settings, rows, progress):
         key = light_pass(name)
         passes[key] = passes[key] + result["airlight"] if key in passes else result["airlight"]
     return passes, time.perf_counter() - t0
+
+
+def _split_like(passes, total):
+    """Scales the per-light passes in place so that they sum to _total_ per pixel and channel:
+    the fog objects' refinement (gaussian_accuracy) chooses its exact terms per ray from the
+    whole ray's airlight, so bakes of one light at a time need not add up to the refined
+    total; this keeps the total's accuracy and each light's share of it."""
+    passes_sum = sum(passes.values())
+    scale = np.divide(total, passes_sum, out=np.ones_like(total), where=passes_sum > 0.0)
+    for name in passes:
+        passes[name] = passes[name] * scale
 
 
 def _average(bake_once, descriptions, progress):

@@ -250,8 +250,9 @@ def test08_airlight_color_attribute_colours_the_bake(tmp_path):
     assert r > 0.0 and abs(r - b) <= 1e-3 * r and abs(r - g) <= 1e-3 * r
     r, g, b = channel_means(reddish)
     assert r > 3.0 * b and abs(g - b) <= 1e-3 * b
-    # Red scatters what grey did: the colour changes the chroma, not the red channel.
-    np.testing.assert_allclose(reddish[..., 0], grey[..., 0], rtol=1e-5, atol=1e-7)
+    # Red scatters what grey did: the colour changes the chroma, not the red channel (to the
+    # Automatic 1 %: its refinement picks its exact terms from each ray's whole airlight).
+    np.testing.assert_allclose(reddish[..., 0], grey[..., 0], rtol=0.01, atol=1e-7)
 
 
 def _scripted_fog_mesh(scene, name, attributes=True):
