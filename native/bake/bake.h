@@ -64,6 +64,10 @@ struct BakeSettings {
     // shadows is integrated over the lit intervals of each view ray only. Off: the passes are
     // those of unshadowed fog, bit for bit.
     bool shadows = false;
+    // How the camera's rays find their crossings of the shadow volumes: rasterized on the film
+    // (shadow/screen_crossings.h; perspective cameras, falling back to tracing where it does
+    // not apply) or traced through Embree for every ray (the check of the rasterization).
+    bool shadow_crossings_traced = false;
     // Gaussian fog with the Fogshop models (perspective, no noise): > 0 refines every (light,
     // Gaussian) pair whose bound on Fogshop's relative error exceeds this accuracy by the exact
     // integral over the Gaussian's support (gaussian/refine.h), each to a tenth of it. 0: Fogshop's

@@ -457,6 +457,29 @@ void FogEvaluator::set_up_shadows(const SceneDescription& scene, const BakeSetti
             origin_count_.push_back(shadows_->count_at(v, origin_, &ambiguous));
             origin_ambiguous_ = origin_ambiguous_ || ambiguous;
         }
+        // The camera's own rays (all from origin_) take their crossings from the film.
+        const CameraRays camera(scene.camera);
+        if (!settings.shadow_crossings_traced && !origin_ambiguous_ && camera.affine_perspective() &&
+            camera.position() == origin_) {
+            Vec3 D0, Dx, Dy;
+            camera.affine_direction(D0, Dx, Dy);
+            // Casters that are the camera's geometry end the rays that meet them: their caps
+            // count only within the near clip (from the eye to a ray's start, at most
+            // clip_start over the smallest cosine of a film corner's ray to the view axis) and
+            // past the far clip (a distance >= clip_end, the view-axis depth), where rays pass
+            // surfaces they do not see.
+            double cap_reach = std::numeric_limits<double>::infinity();
+            if (scene.occluders_from_geometry) {
+                double cos_min = 1.0;
+                const int W = scene.camera.width, H = scene.camera.height;
+                for (const glm::dvec2 c : {glm::dvec2(-4, -4), glm::dvec2(W + 4, -4), glm::dvec2(-4, H + 4), glm::dvec2(W + 4, H + 4)})
+                    cos_min = std::min(cos_min, glm::dot(glm::normalize(D0 + c.x * Dx + c.y * Dy), camera.forward()));
+                cap_reach = cos_min > 0.0 ? 2.0 * camera.clip_start() / cos_min : cap_reach;
+            }
+            screen_ = std::make_unique<ScreenCrossings>(*shadows_, D0, Dx, Dy, scene.camera.width, scene.camera.height,
+                                                        cap_reach, camera.clip_end());
+            if (!screen_->ready()) screen_.reset();
+        }
     }
     if (gaussian_ && model_.gaussian_method() == GaussianMethod::Fogshop && shared_origin_) {
         std::vector<Vec3> sun_dirs;
@@ -542,7 +565,8 @@ void FogEvaluator::shadow_gaussians(const Ray* rays, const float* Dvp, const flo
 }
 
 const uint32_t* FogEvaluator::shadow_masks(const float* values, int m) const {
-    thread_local std::vector<uint32_t> masks;
+    thread_local std::vector<uint32_t> masks_tls;
+    std::vector<uint32_t>& masks = masks_tls;  // (one TLS lookup: the dynamic model calls __tls_get_addr per use)
     masks.assign(size_t(m), 0u);
     uint32_t always = 0;  // spots and suns: no unshadowed value to weigh them by
     for (int v : spot_volume_)
@@ -567,9 +591,12 @@ void FogEvaluator::relight_spans(const LightData& light, int v, const double* co
     // The batch's value stands where the ray is lit all along; elsewhere the lit spans [a, b]
     // of every ray go through the same SIMD kernel as segments from the eye (its near
     // distance a, attenuated from there), each times e^{-sigma_t (a - t_start)}.
-    thread_local std::vector<double> span_cos;
-    thread_local std::vector<float> span_a, span_b, span_value;
-    thread_local std::vector<int> span_ray;
+    thread_local std::vector<double> span_cos_tls;
+    thread_local std::vector<float> span_a_tls, span_b_tls, span_value_tls;
+    thread_local std::vector<int> span_ray_tls;
+    std::vector<double>& span_cos = span_cos_tls;  // (one TLS lookup each, as in shadow_masks)
+    std::vector<float>&span_a = span_a_tls, &span_b = span_b_tls, &span_value = span_value_tls;
+    std::vector<int>& span_ray = span_ray_tls;
     span_cos.clear(), span_a.clear(), span_b.clear(), span_ray.clear();
     for (int k = 0; k < m; ++k) {
         const double t_start = near ? double(near[k]) : 0.0;
@@ -595,10 +622,13 @@ void FogEvaluator::relight_spans(const LightData& light, int v, const double* co
 }
 
 const LitIntervals* FogEvaluator::lit_intervals(const Ray* rays, const float* t0, const float* t1, int n,
-                                                const uint32_t* masks) const {
-    thread_local std::vector<LitIntervals> lit;
-    thread_local std::vector<float> zeros;
-    thread_local std::vector<int> counts;
+                                                const uint32_t* masks, const glm::dvec2* film) const {
+    thread_local std::vector<LitIntervals> lit_tls;
+    thread_local std::vector<float> zeros_tls;
+    thread_local std::vector<int> counts_tls;
+    std::vector<LitIntervals>& lit = lit_tls;  // (one TLS lookup each, as in shadow_masks)
+    std::vector<float>& zeros = zeros_tls;
+    std::vector<int>& counts = counts_tls;
     if (lit.size() < size_t(n)) lit.resize(size_t(n));
     if (!t0) {
         zeros.assign(size_t(n), 0.0f);
@@ -610,6 +640,19 @@ const LitIntervals* FogEvaluator::lit_intervals(const Ray* rays, const float* t0
         counts.resize(size_t(n) * L);
         for (int k = 0; k < n; ++k) std::copy(origin_count_.begin(), origin_count_.end(), counts.begin() + size_t(k) * L);
         count0 = counts.data();
+    }
+    if (screen_ && film && count0) {
+        thread_local std::vector<std::vector<Crossing>> lists_tls;
+        std::vector<std::vector<Crossing>>& lists = lists_tls;
+        if (lists.size() < size_t(n)) lists.resize(size_t(n));
+        if (screen_->crossings(film, rays, t1, n, lists.data(), masks)) {
+            for (int k = 0; k < n; ++k) {
+                const uint32_t mask = masks ? masks[k] : 0xFFFFFFFFu;
+                if (!(t1[k] > 0.0f) || mask == 0) lists[k].clear();  // not traced either
+                ShadowVolumes::lit_from_crossings(lists[k], L, t0[k], t1[k], origin_count_.data(), mask, lit[k]);
+            }
+            return lit.data();
+        }
     }
     shadows_->lit_intervals(rays, t0, t1, n, count0, lit.data(), masks);
     return lit.data();
@@ -686,7 +729,7 @@ void FogEvaluator::transmittance_soa(const float* Dvp, const float* t0, int n, f
 }
 
 void FogEvaluator::eval_soa(const double* dx, const double* dy, const double* dz, const float* Dvp, const float* t0, int n,
-              float* Tr, float* rgb) const {
+              float* Tr, float* rgb, const glm::dvec2* film) const {
     constexpr int kChunk = 256;
     double cos_gamma[kChunk];
     float sum_r[kChunk], sum_g[kChunk], sum_b[kChunk], value[kChunk], seg[kChunk];
@@ -719,8 +762,10 @@ void FogEvaluator::eval_soa(const double* dx, const double* dy, const double* dz
             // Volumetric shadows: every light's unshadowed airlight first, then the lit intervals
             // of the lights that matter on each ray (shadow_mask), then the lit spans of the rays
             // a shadow crosses.
-            thread_local std::vector<float> values;
-            thread_local std::vector<double> cosines;
+            thread_local std::vector<float> values_tls;
+            thread_local std::vector<double> cosines_tls;
+            std::vector<float>& values = values_tls;  // (one TLS lookup each, as in shadow_masks)
+            std::vector<double>& cosines = cosines_tls;
             const size_t L = lights_.size();
             values.resize(L * size_t(m));
             cosines.resize(L * size_t(m));
@@ -735,7 +780,7 @@ void FogEvaluator::eval_soa(const double* dx, const double* dy, const double* dz
             }
             Ray rays[kChunk];
             for (int k = 0; k < m; ++k) rays[k] = {origin_, Vec3(dx[k0 + k], dy[k0 + k], dz[k0 + k])};
-            lit = lit_intervals(rays, near, Dvp + k0, m, shadow_masks(values.data(), m));
+            lit = lit_intervals(rays, near, Dvp + k0, m, shadow_masks(values.data(), m), film ? film + k0 : nullptr);
             for (size_t l = 0; l < L; ++l) {
                 const LightData& light = lights_[l];
                 float* v_l = &values[l * size_t(m)];
@@ -770,7 +815,8 @@ void FogEvaluator::eval_soa(const double* dx, const double* dy, const double* dz
     }
 }
 
-void FogEvaluator::eval_many(const Ray* rays, const float* Dvp, const float* t0, int n, double* Tr, RGB* La) const {
+void FogEvaluator::eval_many(const Ray* rays, const float* Dvp, const float* t0, int n, double* Tr, RGB* La,
+                             const glm::dvec2* film) const {
     if (soa()) {
         constexpr int kChunk = 256;
         double dx[kChunk], dy[kChunk], dz[kChunk];
@@ -782,7 +828,7 @@ void FogEvaluator::eval_many(const Ray* rays, const float* Dvp, const float* t0,
                 dy[k] = rays[k0 + k].d.y;
                 dz[k] = rays[k0 + k].d.z;
             }
-            eval_soa(dx, dy, dz, Dvp + k0, t0 ? t0 + k0 : nullptr, m, Tr_f, rgb);
+            eval_soa(dx, dy, dz, Dvp + k0, t0 ? t0 + k0 : nullptr, m, Tr_f, rgb, film ? film + k0 : nullptr);
             for (int k = 0; k < m; ++k) {
                 Tr[k0 + k] = Tr_f[k];
                 La[k0 + k] = RGB(rgb[3 * k], rgb[3 * k + 1], rgb[3 * k + 2]);
@@ -801,7 +847,7 @@ void FogEvaluator::eval_many(const Ray* rays, const float* Dvp, const float* t0,
         Tr[k] = sigma_t_ == 0.0 ? 1.0 : std::isinf(seg) ? 0.0 : std::exp(-sigma_t_ * seg);
     }
     if (sigma_t_ == 0.0) return;
-    const LitIntervals* lit = shadows_ ? lit_intervals(rays, t0, Dvp, n) : nullptr;
+    const LitIntervals* lit = shadows_ ? lit_intervals(rays, t0, Dvp, n, nullptr, film) : nullptr;
     for (size_t l = 0; l < lights_.size(); ++l) {
         const LightData& light = lights_[l];
         const int v = lit ? light_volume_[l] : -1;

@@ -20,6 +20,7 @@
 #include "homogeneous/spot_light.h"
 #include "image/camera.h"
 #include "models/fog_model.h"
+#include "shadow/screen_crossings.h"
 #include "shadow/shadow_volumes.h"
 
 namespace airlight {
@@ -101,8 +102,11 @@ class FogEvaluator {
     // dy, dz)[k] (structure of arrays, so the per-light dot products and accumulations
     // vectorise), segment [t0[k], Dvp[k]] (t0 null: 0). Writes Tr[k] = exp(-sigma_t (Dvp -
     // t0)) and the airlight summed over the lights to rgb[3 k .. 3 k + 2].
+    // _film_ (optional): the rays' film positions (pixels, CameraRays' convention), which let
+    // the volumetric shadows rasterize the volumes' crossings (screen_crossings.h) instead of
+    // tracing them.
     void eval_soa(const double* dx, const double* dy, const double* dz, const float* Dvp, const float* t0, int n,
-                  float* Tr, float* rgb) const;
+                  float* Tr, float* rgb, const glm::dvec2* film = nullptr) const;
 
     // The same for _n_ rays at once, light by light: the iterations of the inner loop
     // are independent, so the CPU overlaps the long dependency chains of the model.
@@ -111,7 +115,9 @@ class FogEvaluator {
     // table evaluation; the other models move the viewer to the near point o + t0 d (same
     // direction, so the same phase angles along the ray; Dsv and gamma from there), one
     // evaluation per ray and light with no difference to cancel.
-    void eval_many(const Ray* rays, const float* Dvp, const float* t0, int n, double* Tr, RGB* La) const;
+    // _film_ as for eval_soa.
+    void eval_many(const Ray* rays, const float* Dvp, const float* t0, int n, double* Tr, RGB* La,
+                   const glm::dvec2* film = nullptr) const;
 
     // Airlight of all sun lamps along o + t d over [t_near, Dvp] (inf: none): sigma_s p E G
     // with the closed form G of sunlight_layer.h (its quadrature for the quadrature model). The
@@ -156,9 +162,11 @@ class FogEvaluator {
     RGB gaussian_weight(size_t l, size_t i) const;
     // Light l's emission profile towards u (1 but for spots), for FogshopAirlight's terms.
     double gaussian_profile(size_t l, const Vec3& u) const;
-    // The lit intervals of _n_ rays within [t0, t1] (t0 null: 0), in a buffer of the calling thread.
+    // The lit intervals of _n_ rays within [t0, t1] (t0 null: 0), in a buffer of the calling
+    // thread: rasterized where the rays' film positions are given and the volumes were binned
+    // (screen_), else traced.
     const LitIntervals* lit_intervals(const Ray* rays, const float* t0, const float* t1, int n,
-                                      const uint32_t* masks = nullptr) const;
+                                      const uint32_t* masks = nullptr, const glm::dvec2* film = nullptr) const;
     // Per ray, the shadowed lights that matter there (light_mask bits): _values_ holds each
     // point light's unshadowed airlight per unit weight, light-major (m per light).
     const uint32_t* shadow_masks(const float* values, int m) const;
@@ -221,6 +229,9 @@ class FogEvaluator {
     std::vector<GaussianSunData> gaussian_suns_;
     std::unique_ptr<GaussianSplat> splat_;
     std::unique_ptr<ShadowVolumes> shadows_;
+    // The volumes' faces binned on the film, for rays from the shared origin whose film
+    // positions are known (null: other cameras, or too many faces).
+    std::unique_ptr<ScreenCrossings> screen_;
     // Gaussian fog with shadows (Fogshop, perspective): Fogshop at the eye for the point lights.
     std::unique_ptr<FogshopAirlight> eye_fogshop_;
     std::unique_ptr<GaussianRefiner> refiner_;

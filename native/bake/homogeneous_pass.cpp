@@ -215,6 +215,7 @@ struct CentreScratch {
     std::vector<RGB> row_La;
     std::vector<unsigned char> kink, edge;
     RowRays r;
+    std::vector<glm::dvec2> film;  // the row's pixel centres (the shadows rasterize there)
 };
 
 }  // namespace
@@ -274,8 +275,10 @@ EdgePixels homogeneous_pass(BakeContext& ctx, const FogEvaluator& fog, const Edg
                     // Already written by the splat or the lattice.
                 } else if (fast) {
                     ctx.row_rays(j, r, false);
+                    bs.film.resize(W);
+                    for (int i = 0; i < W; ++i) bs.film[i] = {i + 0.5, j + 0.5};
                     fog.eval_soa(r.dx.data(), r.dy.data(), r.dz.data(), depth, near_clip ? r.t_near.data() : nullptr,
-                                 W, row_Tr.data(), A);
+                                 W, row_Tr.data(), A, bs.film.data());
                 } else {
                     for (int i = 0; i < W; ++i) {
                         row[i] = rays(i + 0.5, j + 0.5);
@@ -283,7 +286,10 @@ EdgePixels homogeneous_pass(BakeContext& ctx, const FogEvaluator& fog, const Edg
                         if (near_clip) rays.clip_range(row[i], t_near, t_far);
                         t0[i] = float(t_near);
                     }
-                    fog.eval_many(row.data(), depth, near_clip ? t0.data() : nullptr, W, row_Tr_d.data(), row_La.data());
+                    bs.film.resize(W);
+                    for (int i = 0; i < W; ++i) bs.film[i] = {i + 0.5, j + 0.5};
+                    fog.eval_many(row.data(), depth, near_clip ? t0.data() : nullptr, W, row_Tr_d.data(), row_La.data(),
+                                  bs.film.data());
                     for (int i = 0; i < W; ++i) {
                         row_Tr[i] = float(row_Tr_d[i]);
                         for (int c = 0; c < 3; ++c) A[3 * i + c] = float(row_La[i][c]);

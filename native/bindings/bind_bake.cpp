@@ -68,7 +68,8 @@ py::dict bake_py(int width, int height, const py::object& cam_to_world, const py
                  const std::string& surface_glow_model, const std::string& homogeneous_resolution,
                  double edge_cluster_tol, bool shadows, const py::object& light_shadows,
                  const py::object& spot_shadows, const py::object& sun_shadows, const py::object& occluder_vertices,
-                 const py::object& occluder_triangles, double gaussian_accuracy, double gaussian_refine_budget) {
+                 const py::object& occluder_triangles, double gaussian_accuracy, double gaussian_refine_budget,
+                 const std::string& shadow_crossings) {
     // Gather the scene description from the arrays (shapes checked here, values in bake()).
     SceneDescription scene;
     scene.camera.width = width;
@@ -223,6 +224,9 @@ py::dict bake_py(int width, int height, const py::object& cam_to_world, const py
 
     BakeSettings settings;
     settings.shadows = shadows;
+    if (shadow_crossings != "film" && shadow_crossings != "traced")
+        throw py::value_error("shadow_crossings must be 'film' or 'traced', not '" + shadow_crossings + "'");
+    settings.shadow_crossings_traced = shadow_crossings == "traced";
     if (!(gaussian_accuracy >= 0.0 && gaussian_accuracy < 1.0))
         throw py::value_error("gaussian_accuracy must be in [0, 1) (a relative error; 0: Fogshop alone)");
     settings.gaussian_accuracy = gaussian_accuracy;
@@ -364,6 +368,7 @@ void bind_bake(py::module_& m) {
           "light_shadows"_a = py::none(), "spot_shadows"_a = py::none(), "sun_shadows"_a = py::none(),
           "occluder_vertices"_a = py::none(), "occluder_triangles"_a = py::none(),
           "gaussian_accuracy"_a = 0.0, "gaussian_refine_budget"_a = BakeSettings().gaussian_refine_budget,
+          "shadow_crossings"_a = "film",
           R"doc(Bake fog passes for one camera view (all arguments keyword-only).
 
 width, height: render resolution in pixels.
@@ -418,6 +423,10 @@ shadows (default False): volumetric shadows and light shafts: each light's in-sc
   casters when they are not the camera's geometry (Blender's Ray Visibility > Shadow).
   Gaussian fog (fog objects): 'quadrature' shadows every light (visibility in its integrand);
   the Fogshop models restrict each point, spot and sun light's terms to its lit spans.
+shadow_crossings (default 'film'): how the camera's rays find where they cross the shadow
+  volumes: 'film' rasterizes the volumes' faces on the film (perspective cameras; exact to the
+  faces, watertight: shadow/screen_crossings.h), 'traced' traces every ray through Embree (the
+  same lit intervals but where Embree's float traversal loses a crossing; for checks).
 gaussian_accuracy in [0, 1) (default 0): fog objects with the Fogshop models (perspective, no
   noise) take each ray's (light, Gaussian) terms exactly where the bounds on Fogshop's error
   (per pair, then per ray) exceed a quarter of it each, and the uniform fog's term with the

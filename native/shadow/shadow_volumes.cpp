@@ -55,13 +55,6 @@ Welded weld(const TriangleMesh& mesh) {
     return out;
 }
 
-// A crossing of light _light_'s volumes at _t_: the count there changes by _dw_.
-struct Crossing {
-    float t;
-    int16_t light;
-    int16_t dw;
-};
-
 // Embree's context extended with where the filter writes (one list per ray of a packet).
 struct CrossingContext {
     RTCIntersectContext context;
@@ -155,6 +148,7 @@ struct ShadowVolumes::Impl {
     RTCScene casters = nullptr;  // the caster triangles (count_at)
     std::vector<std::vector<int16_t>> weights;  // per light, per primitive
     std::vector<double> reach;                  // per light: the extrusion distance R
+    std::vector<ShadowFaces> faces;             // per light (ShadowVolumes::faces)
     Vec3 lo{0.0}, hi{-1.0};                     // the casters' box, padded (count_at, lit_at)
     // The volumes are built about the viewer (Embree works in floats: a scene 1000 km from the
     // world's origin keeps its shadows to ~1e-7 of their distance from the camera, not to 6 cm).
@@ -196,6 +190,7 @@ ShadowVolumes::ShadowVolumes(const TriangleMesh& casters, const std::vector<Shad
     rtcSetSceneFlags(impl_->casters, RTC_SCENE_FLAG_ROBUST);
     impl_->weights.resize(lights.size());
     impl_->reach.resize(lights.size());
+    impl_->faces.resize(lights.size());
 
     // The scene's extent, for the extrusion distance.
     Vec3 lo(std::numeric_limits<double>::infinity()), hi(-std::numeric_limits<double>::infinity());
@@ -307,6 +302,13 @@ ShadowVolumes::ShadowVolumes(const TriangleMesh& casters, const std::vector<Shad
             }
         }
         n_faces_ += weights.size();
+        ShadowFaces& faces = impl_->faces[l];
+        faces.vertices.resize(vb.size() / 3);
+        for (size_t k = 0; k < faces.vertices.size(); ++k)
+            faces.vertices[k] = Vec3(vb[3 * k], vb[3 * k + 1], vb[3 * k + 2]);  // Embree's floats
+        faces.triangles = ib;
+        faces.weights = weights;
+        faces.n_caps = caps.size() / 3;
         RTCGeometry g = rtcNewGeometry(impl_->device, RTC_GEOMETRY_TYPE_TRIANGLE);
         if (!ib.empty()) {
             auto* gv = static_cast<float*>(rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3,
@@ -433,8 +435,6 @@ void ShadowVolumes::lit_intervals(const Ray* rays, const float* t0, const float*
             std::vector<Crossing>& list = lists[k];
             std::sort(list.begin(), list.end(), [](const Crossing& a, const Crossing& b) { return a.t < b.t; });
             const uint32_t mask = masks ? masks[i] : 0xFFFFFFFFu;
-            LitIntervals& lit = out[i];
-            lit.clear(L);
             const double a = t0[i], b = t1[i];
             // Without count0 each light's count is taken a little way along the ray (origin_count),
             // and the crossings up to there are in it already.
@@ -444,41 +444,61 @@ void ShadowVolumes::lit_intervals(const Ray* rays, const float* t0, const float*
                 else if (count0) count[l] = count0[size_t(i) * L + l];
                 else count[l] = origin_count(l, r, a, b, from[l]);
             }
-            // Per light, sweep its crossings: lit where the count is 0 (clamped at 0: a crossing
-            // lost to rounding must not leave the rest of the ray dark).
-            for (int l = 0; l < L; ++l) {
-                lit.begin[l] = int(lit.spans.size());
-                if (!(mask & light_mask(l))) {  // not asked for: lit all along
-                    if (b > a) lit.spans.emplace_back(a, b);
-                    lit.end[l] = int(lit.spans.size());
-                    continue;
-                }
-                int c = count[l];
-                double start = a;
-                bool open = false;
-                size_t q = 0;
-                for (; q < list.size() && double(list[q].t) <= a; ++q)
-                    if (list[q].light == l && count0) c = std::max(0, c + list[q].dw);
-                while (q < list.size() && double(list[q].t) <= from[l]) ++q;
-                if (c == 0) open = true;
-                for (; q < list.size() && double(list[q].t) < b; ++q) {
-                    if (list[q].light != l) continue;
-                    const int next = std::max(0, c + list[q].dw);
-                    const double t = list[q].t;
-                    if (c == 0 && next > 0 && open) {
-                        if (t > start) lit.spans.emplace_back(start, t);
-                        open = false;
-                    } else if (c > 0 && next == 0) {
-                        start = t;
-                        open = true;
-                    }
-                    c = next;
-                }
-                if (open && b > start) lit.spans.emplace_back(start, b);
-                lit.end[l] = int(lit.spans.size());
-            }
+            sweep(list, L, a, b, count.data(), from.data(), count0 != nullptr, mask, out[i]);
         }
     }
 }
+
+void ShadowVolumes::sweep(const std::vector<Crossing>& list, int L, double a, double b, const int* count,
+                          const double* from, bool counted_at_origin, uint32_t mask, LitIntervals& lit) {
+    lit.clear(L);
+    // Per light, sweep its crossings (sorted by t): lit where the count is 0 (clamped at 0: a
+    // crossing lost to rounding must not leave the rest of the ray dark).
+    uint32_t crossed = 0;  // the lights with a crossing on the ray (bits as light_mask)
+    for (const Crossing& x : list) crossed |= light_mask(x.light);
+    for (int l = 0; l < L; ++l) {
+        lit.begin[l] = int(lit.spans.size());
+        if (!(mask & light_mask(l)) || (!(crossed & light_mask(l)) && count[l] == 0)) {
+            // Not asked for, or no crossing and lit at the start: lit all along.
+            if (b > a) lit.spans.emplace_back(a, b);
+            lit.end[l] = int(lit.spans.size());
+            continue;
+        }
+        int c = count[l];
+        double start = a;
+        bool open = false;
+        size_t q = 0;
+        for (; q < list.size() && double(list[q].t) <= a; ++q)
+            if (list[q].light == l && counted_at_origin) c = std::max(0, c + list[q].dw);
+        while (q < list.size() && double(list[q].t) <= (from ? from[l] : a)) ++q;
+        if (c == 0) open = true;
+        for (; q < list.size() && double(list[q].t) < b; ++q) {
+            if (list[q].light != l) continue;
+            const int next = std::max(0, c + list[q].dw);
+            const double t = list[q].t;
+            if (c == 0 && next > 0 && open) {
+                if (t > start) lit.spans.emplace_back(start, t);
+                open = false;
+            } else if (c > 0 && next == 0) {
+                start = t;
+                open = true;
+            }
+            c = next;
+        }
+        if (open && b > start) lit.spans.emplace_back(start, b);
+        lit.end[l] = int(lit.spans.size());
+    }
+}
+
+void ShadowVolumes::lit_from_crossings(std::vector<Crossing>& list, int L, double t0, double t1, const int* count0,
+                                       uint32_t mask, LitIntervals& out) {
+    if (list.size() > 1)
+        std::sort(list.begin(), list.end(), [](const Crossing& a, const Crossing& b) { return a.t < b.t; });
+    sweep(list, L, t0, t1, count0, nullptr, true, mask, out);
+}
+
+const ShadowFaces& ShadowVolumes::faces(int l) const { return impl_->faces[size_t(l)]; }
+
+Vec3 ShadowVolumes::frame() const { return impl_->frame; }
 
 }  // namespace airlight

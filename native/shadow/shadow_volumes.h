@@ -55,6 +55,23 @@ struct LitIntervals {
     }
 };
 
+// A crossing of light _light_'s volumes at _t_ along a ray: the count there changes by _dw_.
+struct Crossing {
+    float t;
+    int16_t light;
+    int16_t dw;
+};
+
+// One light's volume faces (quads as two triangles, and caps) as built for Embree: vertices in
+// the volumes' frame (the viewer at the origin), 3 indices per triangle, and per triangle the
+// weight a crossing against its Embree normal (v1 - v0) x (v2 - v0) adds to the count.
+struct ShadowFaces {
+    std::vector<Vec3> vertices;
+    std::vector<uint32_t> triangles;
+    std::vector<int16_t> weights;
+    size_t n_caps = 0;  // the first n_caps triangles are the casters' own (the near caps)
+};
+
 class ShadowVolumes {
   public:
     // The volumes of _casters_ for _lights_; _viewer_ is the camera position (it sets R).
@@ -81,12 +98,27 @@ class ShadowVolumes {
     // Thread safe.
     void lit_intervals(const Ray* rays, const float* t0, const float* t1, int n, const int* count0,
                        LitIntervals* out, const uint32_t* masks = nullptr) const;
+    // The lit intervals of one ray from its crossings (any order; sorted here): each light's
+    // count starts at count0[l] at the ray's origin, crossings at t <= t0 update it, and the
+    // ray is lit within [t0, t1] where the count is 0 (clamped at 0). Lights not in _mask_
+    // come back lit all along.
+    static void lit_from_crossings(std::vector<Crossing>& list, int n_lights, double t0, double t1, const int* count0,
+                                   uint32_t mask, LitIntervals& out);
+    // Light _l_'s faces (the same triangles Embree traces, in doubles).
+    const ShadowFaces& faces(int l) const;
+    // The volumes' frame: the viewer's position in the world (faces are relative to it).
+    Vec3 frame() const;
     // The mask bit of light _l_ (lights beyond 32 share bits: asking for one traces both).
     static uint32_t light_mask(int l) { return 1u << (l % 32); }
     // Quads (two triangles each) and caps built, for the figures.
     size_t num_faces() const { return n_faces_; }
 
   private:
+    // The sweep of lit_intervals over one ray's sorted crossings: each light starts at
+    // count[l] and skips the crossings up to from[l] (null: a), or, _counted_at_origin_,
+    // applies those at t <= a.
+    static void sweep(const std::vector<Crossing>& list, int n_lights, double a, double b, const int* count,
+                      const double* from, bool counted_at_origin, uint32_t mask, LitIntervals& out);
     // Light _l_'s count on ray _r_ (t in [a, b]) a little way along it, at t = _from_ (set).
     int origin_count(int l, const Ray& r, double a, double b, double& from) const;
     struct Impl;

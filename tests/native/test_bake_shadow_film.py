@@ -1,0 +1,122 @@
+"""Volumetric shadows with the camera's crossings rasterized on the film
+(shadow/screen_crossings.h, the default) against the same bake with every ray traced through
+Embree (shadow_crossings='traced') and against the `quadrature` model, whose integrand asks a
+shadow ray at each node (visibility found without the shadow volumes).
+
+The scenes put casters where the film path leaves their caps out or must keep them: casters
+that are the camera's geometry (the rays end on them), one cut by the near clip, one past the
+far clip that the rays pass through and whose shadow they cross, casters the camera does not
+see (Ray Visibility > Camera off), and edge pixels supersampled."""
+import math
+
+import numpy as np
+import pytest
+
+import _native
+from scene_util import camera_matrix, merge, perspective, quad
+
+W, H = 48, 32
+FOV = math.radians(70.0)
+SIGMA_T = 0.08
+
+
+def box(lo, hi):
+    """A closed axis-aligned box (12 triangles)."""
+    (x0, y0, z0), (x1, y1, z1) = lo, hi
+    faces = [
+        [[x0, y0, z0], [x0, y1, z0], [x1, y1, z0], [x1, y0, z0]],
+        [[x0, y0, z1], [x1, y0, z1], [x1, y1, z1], [x0, y1, z1]],
+        [[x0, y0, z0], [x1, y0, z0], [x1, y0, z1], [x0, y0, z1]],
+        [[x0, y1, z0], [x0, y1, z1], [x1, y1, z1], [x1, y1, z0]],
+        [[x0, y0, z0], [x0, y0, z1], [x0, y1, z1], [x0, y1, z0]],
+        [[x1, y0, z0], [x1, y1, z0], [x1, y1, z1], [x1, y0, z1]],
+    ]
+    return merge([quad(f) for f in faces])
+
+
+def street(seed=3):
+    rng = np.random.default_rng(seed)
+    parts = [quad([[-60, -60, 0], [60, -60, 0], [60, 60, 0], [-60, 60, 0]])]
+    for _ in range(14):
+        lo = np.array([rng.uniform(-12, 12), rng.uniform(2, 30), 0.0])
+        parts.append(box(lo, lo + [rng.uniform(0.3, 3), rng.uniform(0.3, 3), rng.uniform(0.5, 7)]))
+    parts.append(box([-0.6, 0.2, 1.2], [0.6, 0.45, 2.2]))  # just ahead of the eye: the near clip cuts it
+    return parts
+
+
+def camera():
+    # At (0, 0, 1.6) looking along +y, a little down.
+    a = math.radians(84.0)
+    R = np.array([[1, 0, 0], [0, math.cos(a), -math.sin(a)], [0, math.sin(a), math.cos(a)]])
+    return camera_matrix(R, np.array([0.0, 0.0, 1.6]))
+
+
+LIGHTS = np.array([[2.0, 8.0, 5.0], [-5.0, 18.0, 3.5], [4.0, 26.0, 6.0]])
+INTENSITIES = np.array([[300.0] * 3, [200.0] * 3, [400.0] * 3])
+
+
+def bake(parts, model="sun05", crossings="film", clip=(0.5, 1000.0), occluders=None, **extra):
+    v, t = merge(parts)
+    args = dict(width=W, height=H, cam_to_world=camera(), projection=perspective(FOV, W, H, *clip), vertices=v,
+                triangles=t, light_positions=LIGHTS, light_intensities=INTENSITIES, sigma_t=SIGMA_T, model=model,
+                threads=2, shadows=True, shadow_crossings=crossings, clip_start=clip[0], clip_end=clip[1])
+    if occluders is not None:
+        args.update(occluder_vertices=occluders[0].astype(np.float32), occluder_triangles=occluders[1].astype(np.uint32))
+    args.update(extra)
+    return _native.bake(**args)["airlight"][..., 0].astype(np.float64)
+
+
+def relative(got, ref):
+    scale = np.percentile(ref, 99)
+    assert scale > 0.0
+    return np.abs(got - ref) / np.maximum(ref, 0.05 * scale)
+
+
+def check(parts, **kw):
+    film = bake(parts, **kw)
+    traced = bake(parts, crossings="traced", **kw)
+    unshadowed = bake(parts, **dict(kw, shadows=False))
+    assert np.isfinite(film).all()
+    d = relative(film, traced)
+    assert d.mean() < 1e-5 and np.percentile(d, 99) < 1e-4, (d.mean(), np.percentile(d, 99), d.max())
+    # The shadows are there (the test can tell a lost cap or face).
+    assert relative(unshadowed, traced).mean() > 0.02
+    return film
+
+
+def test_casters_that_the_camera_sees():
+    check(street())
+
+
+def test_supersampled_edges():
+    check(street(), aa_samples=4)
+
+
+def test_caster_past_the_far_clip_still_shadows():
+    # A wall at y = 40 past the far clip (30 m): the rays pass through it, into its shadow.
+    wall = quad([[-30, 40, 0], [30, 40, 0], [30, 40, 12], [-30, 40, 12]])
+    lights = np.array([[0.0, 55.0, 6.0]])
+    kw = dict(clip=(0.5, 30.0), light_positions=lights, light_intensities=np.array([[3000.0] * 3]))
+    parts = [wall, quad([[-60, -60, -0.01], [60, -60, -0.01], [60, 10, -0.01], [-60, 10, -0.01]])]
+    film = check(parts, **kw)
+    # Without the wall the light reaches the rays past it: the wall's shadow is in the film bake.
+    assert film.sum() < 0.9 * bake(parts[1:], **kw).sum()
+
+
+def test_casters_the_camera_does_not_see():
+    parts = street()
+    ov, ot = merge(parts[1:])
+    check(parts[:1], occluders=(ov, ot))
+
+
+def test_film_against_the_shadow_ray_quadrature():
+    parts = street()
+    got = bake(parts)
+    ref = bake(parts, model="quadrature", crossings="traced")
+    d = relative(got, ref)
+    assert d.mean() < 2e-3 and np.percentile(d, 99) < 1e-2, (d.mean(), np.percentile(d, 99))
+
+
+def test_bad_crossings_argument():
+    with pytest.raises(ValueError, match="shadow_crossings"):
+        bake(street()[:1], crossings="rasterized")
