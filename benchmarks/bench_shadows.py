@@ -6,9 +6,11 @@
 
 Scene: bench_sun05.py's street (ground, buildings, lamp posts, 4 street lamps, 492
 triangles), sigma_t = 0.05 /m, model sun05, clip (0.1, 1000). Printed, as medians over --runs
-bakes alternating shadows off / on after one untimed bake of each:
+bakes alternating shadows off / on / on with shadow_crossings='traced' after one untimed bake
+of each:
   - the whole bake's wall time with 1, 2 and 4 lamps, shadows off and on, and the ratio
-    (target: 4 lamps at 1920x1080, shadowed <= 4x unshadowed);
+    (target: 4 lamps at 1920x1080, shadowed <= 4x unshadowed), and the same with every
+    camera ray's crossings traced through Embree instead of rasterized on the film;
   - the cost growth with the number of occluder triangles: the street plus a field of small
     random triangles (10^3 .. 10^6) around the lamps, 4 lamps, at --width/4 x --height/4;
   - the shadows' effect on the image (the airlight removed, relative);
@@ -71,7 +73,8 @@ def main():
         k = dict(kw, light_positions=lights[:n], light_intensities=intens[:n])
         _native.bake(**k)
         _native.bake(**k, shadows=True)
-        off, on = [], []
+        _native.bake(**k, shadows=True, shadow_crossings="traced")
+        off, on, traced = [], [], []
         for _ in range(args.runs):
             t0 = time.perf_counter()
             a = _native.bake(**k)
@@ -79,10 +82,15 @@ def main():
             t0 = time.perf_counter()
             b = _native.bake(**k, shadows=True)
             on.append(time.perf_counter() - t0)
+            t0 = time.perf_counter()
+            _native.bake(**k, shadows=True, shadow_crossings="traced")
+            traced.append(time.perf_counter() - t0)
         t_off, t_on = 1000 * statistics.median(off), 1000 * statistics.median(on)
+        t_traced = 1000 * statistics.median(traced)
         removed = 1.0 - b["airlight"].sum() / a["airlight"].sum()
         print(f"  {n} lamp(s): unshadowed {t_off:7.1f} ms, shadowed {t_on:7.1f} ms, ratio {t_on / t_off:5.2f} "
-              f"(shadows remove {100 * removed:.1f} % of the airlight)")
+              f"(crossings traced by Embree instead: {t_traced:7.1f} ms, {t_traced / t_off:5.2f}; "
+              f"shadows remove {100 * removed:.1f} % of the airlight)")
         if n == 4:
             print(f"  target 4 lamps: shadowed <= 4x unshadowed: {'PASS' if t_on <= 4 * t_off else 'FAIL'}")
     # The surface pass: each lamp's glow times its lit share (glow_shadow.h), 4 lamps.

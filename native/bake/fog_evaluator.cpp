@@ -7,6 +7,7 @@
 #include <stdexcept>
 
 #include "core/constants.h"
+#include "core/parallel.h"
 #include "core/target_clones.h"
 #include "gaussian/airlight.h"
 #include "homogeneous/sun05_batch.h"
@@ -477,7 +478,7 @@ void FogEvaluator::set_up_shadows(const SceneDescription& scene, const BakeSetti
                 cap_reach = cos_min > 0.0 ? 2.0 * camera.clip_start() / cos_min : cap_reach;
             }
             screen_ = std::make_unique<ScreenCrossings>(*shadows_, D0, Dx, Dy, scene.camera.width, scene.camera.height,
-                                                        cap_reach, camera.clip_end());
+                                                        cap_reach, camera.clip_end(), resolve_threads(settings.threads));
             if (!screen_->ready()) screen_.reset();
         }
     }
@@ -591,12 +592,15 @@ void FogEvaluator::relight_spans(const LightData& light, int v, const double* co
     // The batch's value stands where the ray is lit all along; elsewhere the lit spans [a, b]
     // of every ray go through the same SIMD kernel as segments from the eye (its near
     // distance a, attenuated from there), each times e^{-sigma_t (a - t_start)}.
-    thread_local std::vector<double> span_cos_tls;
-    thread_local std::vector<float> span_a_tls, span_b_tls, span_value_tls;
-    thread_local std::vector<int> span_ray_tls;
-    std::vector<double>& span_cos = span_cos_tls;  // (one TLS lookup each, as in shadow_masks)
-    std::vector<float>&span_a = span_a_tls, &span_b = span_b_tls, &span_value = span_value_tls;
-    std::vector<int>& span_ray = span_ray_tls;
+    struct Spans {
+        std::vector<double> cos;
+        std::vector<float> a, b, value;
+        std::vector<int> ray;
+    };
+    thread_local Spans spans;  // one TLS lookup (the dynamic model calls __tls_get_addr per variable)
+    std::vector<double>& span_cos = spans.cos;
+    std::vector<float>&span_a = spans.a, &span_b = spans.b, &span_value = spans.value;
+    std::vector<int>& span_ray = spans.ray;
     span_cos.clear(), span_a.clear(), span_b.clear(), span_ray.clear();
     for (int k = 0; k < m; ++k) {
         const double t_start = near ? double(near[k]) : 0.0;

@@ -3,8 +3,11 @@
 #include "shadow/screen_crossings.h"
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <limits>
+
+#include "core/parallel.h"
 
 namespace airlight {
 
@@ -53,7 +56,7 @@ bool ScreenCrossings::covers(const Face& f, double x, double y) {
 }
 
 ScreenCrossings::ScreenCrossings(const ShadowVolumes& volumes, const Vec3& D0, const Vec3& Dx, const Vec3& Dy, int W,
-                                 int H, double cap_reach, double cap_beyond, size_t max_entries) {
+                                 int H, double cap_reach, double cap_beyond, int threads, size_t max_entries) {
     if (W <= 0 || H <= 0) return;
     const glm::dmat3 M(Dx, Dy, D0);  // columns: q = M^-1 P has q.z > 0 ahead of the viewer
     if (!(std::abs(glm::determinant(M)) > 0.0)) return;
@@ -68,8 +71,11 @@ ScreenCrossings::ScreenCrossings(const ShadowVolumes& volumes, const Vec3& D0, c
         const ShadowFaces& sf = volumes.faces(l);
         q.resize(sf.vertices.size());
         for (size_t k = 0; k < q.size(); ++k) q[k] = Minv * sf.vertices[k];
-        for (size_t t = 0; t < sf.weights.size(); ++t) {
-            const uint32_t i0 = sf.triangles[3 * t], i1 = sf.triangles[3 * t + 1], i2 = sf.triangles[3 * t + 2];
+        // The whole sides (one quad each, not ring by ring): the same tiling of the film, with
+        // a third or less of the faces.
+        for (size_t t = 0; t < sf.whole_weights.size(); ++t) {
+            const uint32_t i0 = sf.whole_triangles[3 * t], i1 = sf.whole_triangles[3 * t + 1],
+                           i2 = sf.whole_triangles[3 * t + 2];
             const Vec3 &q0 = q[i0], &q1 = q[i1], &q2 = q[i2];
             if (!(q0.z > 0.0 || q1.z > 0.0 || q2.z > 0.0)) continue;  // wholly behind the viewer
             const Vec3 c12 = cross(q1, q2), c20 = cross(q2, q0), c01 = cross(q0, q1);
@@ -92,7 +98,7 @@ ScreenCrossings::ScreenCrossings(const ShadowVolumes& volumes, const Vec3& D0, c
                 continue;
             f.near = float(near * (1.0 - 1e-6));
             f.light = int16_t(l);
-            const int w = sf.weights[t];
+            const int w = sf.whole_weights[t];
             f.dw = int16_t(f.NP0 < 0.0 ? w : -w);  // against the normal: entering (record_crossings)
             faces.push_back(f);
             Box b;  // empty (x0 > x1) unless all three vertices lie ahead of the viewer
@@ -104,10 +110,11 @@ ScreenCrossings::ScreenCrossings(const ShadowVolumes& volumes, const Vec3& D0, c
             boxes.push_back(b);
         }
     }
-    bin(faces, boxes, max_entries);
+    bin(faces, boxes, max_entries, std::max(1, threads));
 }
 
-void ScreenCrossings::bin(const std::vector<Face>& faces, const std::vector<Box>& boxes, size_t max_entries) {
+void ScreenCrossings::bin(const std::vector<Face>& faces, const std::vector<Box>& boxes, size_t max_entries,
+                          int threads) {
     // Each face's tiles: those of its film bounding box (the whole film for a face reaching
     // behind the viewer) that no edge function rejects at all four corners (a rectangle
     // grown by 1e-3 px over the rounding of the corners' values).
@@ -151,39 +158,49 @@ void ScreenCrossings::bin(const std::vector<Face>& faces, const std::vector<Box>
                         if (overlaps_block(f, tx, tx, ty, ty)) visit(size_t(ty) * nx_ + tx);
             }
     };
+    // The faces nearest first, in one chunk per thread; each chunk lists its (tile, face)
+    // pairs in that order, and a stable counting sort by tile keeps it: each tile's faces come
+    // out nearest first, so a query stops at the first beyond its rays' ends.
     const size_t n_tiles = size_t(nx_) * size_t(ny_);
-    std::vector<uint32_t> count(n_tiles + 1, 0);
-    size_t total = 0, tested = 0;
-    for (size_t i = 0; i < faces.size(); ++i) {
-        const Face& f = faces[i];
-        int tx0, tx1, ty0, ty1;
-        if (!tiles_of(i, tx0, tx1, ty0, ty1)) continue;
-        tested += size_t(tx1 - tx0 + 1) * size_t(ty1 - ty0 + 1);
-        if (tested > 8 * max_entries) return;  // not ready: Embree traces
-        for_tiles(f, tx0, tx1, ty0, ty1, [&](size_t tile) { ++count[tile], ++total; });
-        if (total > max_entries) return;
-    }
+    std::vector<uint32_t> order(faces.size());
+    for (size_t i = 0; i < order.size(); ++i) order[i] = uint32_t(i);
+    std::sort(order.begin(), order.end(), [&](uint32_t a, uint32_t b) { return faces[a].near < faces[b].near; });
+    const int n_chunks = std::max(1, std::min(threads, int(order.size() / 256) + 1));
+    std::vector<std::vector<std::pair<uint32_t, uint32_t>>> pairs(static_cast<size_t>(n_chunks));  // (tile, face)
+    std::atomic<size_t> total{0}, tested{0};
+    std::atomic<bool> over{false};
+    parallel_for(n_chunks, n_chunks, [&](int c) {
+        const size_t q0 = order.size() * size_t(c) / n_chunks, q1 = order.size() * size_t(c + 1) / n_chunks;
+        for (size_t q = q0; q < q1 && !over.load(std::memory_order_relaxed); ++q) {
+            const uint32_t i = order[q];
+            int tx0, tx1, ty0, ty1;
+            if (!tiles_of(i, tx0, tx1, ty0, ty1)) continue;
+            const size_t before = pairs[c].size();
+            // Too many tiles to test or to hold: not ready (Embree traces).
+            if (tested.fetch_add(size_t(tx1 - tx0 + 1) * size_t(ty1 - ty0 + 1)) > 8 * max_entries) over = true;
+            for_tiles(faces[i], tx0, tx1, ty0, ty1, [&](size_t tile) { pairs[c].emplace_back(uint32_t(tile), i); });
+            if (total.fetch_add(pairs[c].size() - before) > max_entries) over = true;
+        }
+    });
+    if (over) return;
+    std::vector<uint32_t> count(n_tiles, 0);
+    for (const auto& chunk : pairs)
+        for (const auto& [tile, face] : chunk) ++count[tile];
     begin_.assign(n_tiles + 1, 0);
     for (size_t k = 0; k < n_tiles; ++k) begin_[k + 1] = begin_[k] + count[k];
-    entries_.resize(total);
+    entries_.resize(begin_[n_tiles]);
     std::vector<uint32_t> fill(begin_.begin(), begin_.end() - 1);
-    for (size_t i = 0; i < faces.size(); ++i) {
-        const Face& f = faces[i];
-        int tx0, tx1, ty0, ty1;
-        if (!tiles_of(i, tx0, tx1, ty0, ty1)) continue;
-        for_tiles(f, tx0, tx1, ty0, ty1, [&](size_t tile) { entries_[fill[tile]++] = uint32_t(i); });
-    }
-    // Each tile's faces nearest first: a query stops at the first beyond its rays' ends.
-    for (size_t k = 0; k < n_tiles; ++k)
-        std::sort(entries_.begin() + begin_[k], entries_.begin() + begin_[k + 1],
-                  [&](uint32_t a, uint32_t b) { return faces[a].near < faces[b].near; });
+    for (const auto& chunk : pairs)
+        for (const auto& [tile, face] : chunk) entries_[fill[tile]++] = face;
     faces_ = faces;
     ready_ = true;
 }
 
 void ScreenCrossings::push(const Face& f, const Ray& ray, float t1, std::vector<Crossing>& list) const {
-    const double t = f.NP0 / dot(f.N, ray.d);
-    if (t > 0.0 && t < double(t1)) list.push_back({float(t), f.light, f.dw});
+    // t = NP0 / g in (0, t1), without the division for the faces behind the ray's end.
+    const double g = dot(f.N, ray.d), end = double(t1) * g;
+    if (f.NP0 > 0.0 ? (g > 0.0 && f.NP0 < end) : (g < 0.0 && f.NP0 > end))
+        list.push_back({float(f.NP0 / g), f.light, f.dw});
 }
 
 double ScreenCrossings::span_near(const Face& f, double xa, double xb, double y) const {

@@ -41,7 +41,7 @@ class ScreenCrossings {
     // ray and the far clip's depth; the defaults keep them all).
     ScreenCrossings(const ShadowVolumes& volumes, const Vec3& D0, const Vec3& Dx, const Vec3& Dy, int W, int H,
                     double cap_reach = std::numeric_limits<double>::infinity(), double cap_beyond = 0.0,
-                    size_t max_entries = size_t(1) << 26);
+                    int threads = 1, size_t max_entries = size_t(1) << 26);
     bool ready() const { return ready_; }
     // Into lists[k] (cleared first): the crossings with 0 < t < t1[k] of the _n_ rays
     // through film positions film[k], with unit directions rays[k].d (from the viewer). A
@@ -68,7 +68,7 @@ class ScreenCrossings {
     };
     // Whether face _f_ covers film position (x, y) (the one formula every query uses).
     static bool covers(const Face& f, double x, double y);
-    void bin(const std::vector<Face>& faces, const std::vector<Box>& boxes, size_t max_entries);
+    void bin(const std::vector<Face>& faces, const std::vector<Box>& boxes, size_t max_entries, int threads);
     void row_crossings(const glm::dvec2* film, const Ray* rays, const float* t1, int n,
                        std::vector<Crossing>* lists, const uint32_t* masks) const;
     static bool asked(const uint32_t* masks, int k, const Face& f) {

@@ -187,7 +187,7 @@ TEST(ScreenCrossings, OutsideTheFilmIsRefused) {
     std::vector<Crossing> list;
     EXPECT_FALSE(screen.crossings(&far_off, &ray, &t1, 1, &list));
     // Too many entries for the cap: not binned.
-    const ScreenCrossings tiny(volumes, v.D0, v.Dx, v.Dy, v.W, v.H, std::numeric_limits<double>::infinity(), 0.0, 4);
+    const ScreenCrossings tiny(volumes, v.D0, v.Dx, v.Dy, v.W, v.H, std::numeric_limits<double>::infinity(), 0.0, 2, 4);
     EXPECT_FALSE(tiny.ready());
 }
 

@@ -8,6 +8,7 @@
 #include <cmath>
 #include <cstring>
 #include <limits>
+#include <mutex>
 #include <stdexcept>
 #include <string>
 #include <unordered_map>
@@ -149,6 +150,7 @@ struct ShadowVolumes::Impl {
     std::vector<std::vector<int16_t>> weights;  // per light, per primitive
     std::vector<double> reach;                  // per light: the extrusion distance R
     std::vector<ShadowFaces> faces;             // per light (ShadowVolumes::faces)
+    std::once_flag volumes_built;               // volumes: committed on the first traced query
     Vec3 lo{0.0}, hi{-1.0};                     // the casters' box, padded (count_at, lit_at)
     // The volumes are built about the viewer (Embree works in floats: a scene 1000 km from the
     // world's origin keeps its shadows to ~1e-7 of their distance from the camera, not to 6 cm).
@@ -287,6 +289,9 @@ ShadowVolumes::ShadowVolumes(const TriangleMesh& casters, const std::vector<Shad
         std::vector<uint32_t> ib = caps;
         std::vector<int16_t>& weights = impl_->weights[l];
         weights.assign(caps.size() / 3, 1);
+        // The same volume with each side one quad from the casters to R (ShadowFaces::whole).
+        std::vector<uint32_t> whole = caps;
+        std::vector<int16_t> whole_weights(caps.size() / 3, 1);
         for (const auto& [key, weight] : edge_weight) {
             if (weight == 0) continue;
             const int16_t m = int16_t(std::min(std::abs(weight), int(std::numeric_limits<int16_t>::max())));
@@ -300,6 +305,12 @@ ShadowVolumes::ShadowVolumes(const TriangleMesh& casters, const std::vector<Shad
                 weights.push_back(m);
                 weights.push_back(m);
             }
+            const uint32_t u = uint32_t(key >> 32), v = uint32_t(key & 0xffffffffu);
+            const uint32_t uf = u + uint32_t(rings * nv), vf = v + uint32_t(rings * nv);
+            if (weight > 0) whole.insert(whole.end(), {u, vf, v, u, uf, vf});
+            else whole.insert(whole.end(), {u, v, vf, u, vf, uf});
+            whole_weights.push_back(m);
+            whole_weights.push_back(m);
         }
         n_faces_ += weights.size();
         ShadowFaces& faces = impl_->faces[l];
@@ -309,18 +320,24 @@ ShadowVolumes::ShadowVolumes(const TriangleMesh& casters, const std::vector<Shad
         faces.triangles = ib;
         faces.weights = weights;
         faces.n_caps = caps.size() / 3;
+        faces.whole_triangles = std::move(whole);
+        faces.whole_weights = std::move(whole_weights);
+    }
+}
+
+void ShadowVolumes::build_volumes() const {
+    // Embree's scene of the volumes, on the first traced query (the film's rasterized crossings
+    // need none): one geometry per light, masked by its light_mask bit.
+    for (size_t l = 0; l < impl_->faces.size(); ++l) {
+        const ShadowFaces& faces = impl_->faces[l];
         RTCGeometry g = rtcNewGeometry(impl_->device, RTC_GEOMETRY_TYPE_TRIANGLE);
-        if (!ib.empty()) {
-            auto* gv = static_cast<float*>(rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3,
-                                                                   3 * sizeof(float), vb.size() / 3));
-            auto* gi = static_cast<uint32_t*>(rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3,
-                                                                      3 * sizeof(uint32_t), ib.size() / 3));
-            std::copy(vb.begin(), vb.end(), gv);
-            std::copy(ib.begin(), ib.end(), gi);
-        } else {
-            rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, 3 * sizeof(float), 0);
-            rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, 3 * sizeof(uint32_t), 0);
-        }
+        auto* gv = static_cast<float*>(rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3,
+                                                               3 * sizeof(float), faces.vertices.size()));
+        auto* gi = static_cast<uint32_t*>(rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3,
+                                                                  3 * sizeof(uint32_t), faces.triangles.size() / 3));
+        for (size_t k = 0; k < faces.vertices.size(); ++k)
+            for (int c = 0; c < 3; ++c) gv[3 * k + c] = float(faces.vertices[k][c]);  // floats to begin with
+        std::copy(faces.triangles.begin(), faces.triangles.end(), gi);
         rtcSetGeometryIntersectFilterFunction(g, record_crossings);
         rtcSetGeometryMask(g, light_mask(int(l)));
         rtcCommitGeometry(g);
@@ -395,6 +412,7 @@ int ShadowVolumes::origin_count(int l, const Ray& r, double a, double b, double&
 
 void ShadowVolumes::lit_intervals(const Ray* rays, const float* t0, const float* t1, int n, const int* count0,
                                   LitIntervals* out, const uint32_t* masks) const {
+    std::call_once(impl_->volumes_built, [this] { build_volumes(); });
     const int L = num_lights();
     thread_local std::vector<Crossing> lists[16];
     thread_local std::vector<int> count;

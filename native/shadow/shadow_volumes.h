@@ -70,6 +70,11 @@ struct ShadowFaces {
     std::vector<uint32_t> triangles;
     std::vector<int16_t> weights;
     size_t n_caps = 0;  // the first n_caps triangles are the casters' own (the near caps)
+    // The same volume with each side quad whole, from the caster's edge to the last ring
+    // (Embree's float intersection needs the rings; a test in doubles does not): the caps,
+    // then two triangles per side, and their weights.
+    std::vector<uint32_t> whole_triangles;
+    std::vector<int16_t> whole_weights;
 };
 
 class ShadowVolumes {
@@ -119,6 +124,8 @@ class ShadowVolumes {
     // applies those at t <= a.
     static void sweep(const std::vector<Crossing>& list, int n_lights, double a, double b, const int* count,
                       const double* from, bool counted_at_origin, uint32_t mask, LitIntervals& out);
+    // Commits Embree's scene of the volumes (lit_intervals, once).
+    void build_volumes() const;
     // Light _l_'s count on ray _r_ (t in [a, b]) a little way along it, at t = _from_ (set).
     int origin_count(int l, const Ray& r, double a, double b, double& from) const;
     struct Impl;
