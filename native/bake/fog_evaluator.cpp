@@ -9,6 +9,7 @@
 #include "core/constants.h"
 #include "core/parallel.h"
 #include "core/target_clones.h"
+#include "core/thread_scratch.h"
 #include "gaussian/airlight.h"
 #include "homogeneous/sun05_batch.h"
 #include "homogeneous/sunlight_layer.h"
@@ -566,8 +567,10 @@ void FogEvaluator::shadow_gaussians(const Ray* rays, const float* Dvp, const flo
 }
 
 const uint32_t* FogEvaluator::shadow_masks(const float* values, int m) const {
-    thread_local std::vector<uint32_t> masks_tls;
-    std::vector<uint32_t>& masks = masks_tls;  // (one TLS lookup: the dynamic model calls __tls_get_addr per use)
+    struct Masks {
+        std::vector<uint32_t> masks;
+    };
+    std::vector<uint32_t>& masks = thread_scratch<Masks>().masks;
     masks.assign(size_t(m), 0u);
     uint32_t always = 0;  // spots and suns: no unshadowed value to weigh them by
     for (int v : spot_volume_)
@@ -597,14 +600,15 @@ void FogEvaluator::relight_spans(const LightData& light, int v, const double* co
         std::vector<float> a, b, value;
         std::vector<int> ray;
     };
-    thread_local Spans spans;  // one TLS lookup (the dynamic model calls __tls_get_addr per variable)
+    Spans& spans = thread_scratch<Spans>();
     std::vector<double>& span_cos = spans.cos;
     std::vector<float>&span_a = spans.a, &span_b = spans.b, &span_value = spans.value;
     std::vector<int>& span_ray = spans.ray;
     span_cos.clear(), span_a.clear(), span_b.clear(), span_ray.clear();
     for (int k = 0; k < m; ++k) {
         const double t_start = near ? double(near[k]) : 0.0;
-        if (fully_lit(lit[k], v, t_start, double(Dvp[k]))) continue;
+        if (!(lit[k].partial & ShadowVolumes::light_mask(v)) || fully_lit(lit[k], v, t_start, double(Dvp[k])))
+            continue;
         value[k] = 0.0f;
         for (int q = lit[k].begin[v]; q < lit[k].end[v]; ++q) {
             span_cos.push_back(cos_gamma[k]);
@@ -627,12 +631,16 @@ void FogEvaluator::relight_spans(const LightData& light, int v, const double* co
 
 const LitIntervals* FogEvaluator::lit_intervals(const Ray* rays, const float* t0, const float* t1, int n,
                                                 const uint32_t* masks, const glm::dvec2* film) const {
-    thread_local std::vector<LitIntervals> lit_tls;
-    thread_local std::vector<float> zeros_tls;
-    thread_local std::vector<int> counts_tls;
-    std::vector<LitIntervals>& lit = lit_tls;  // (one TLS lookup each, as in shadow_masks)
-    std::vector<float>& zeros = zeros_tls;
-    std::vector<int>& counts = counts_tls;
+    struct Scratch {
+        std::vector<LitIntervals> lit;
+        std::vector<float> zeros;
+        std::vector<int> counts;
+        std::vector<std::vector<Crossing>> lists;
+    };
+    Scratch& scratch = thread_scratch<Scratch>();
+    std::vector<LitIntervals>& lit = scratch.lit;
+    std::vector<float>& zeros = scratch.zeros;
+    std::vector<int>& counts = scratch.counts;
     if (lit.size() < size_t(n)) lit.resize(size_t(n));
     if (!t0) {
         zeros.assign(size_t(n), 0.0f);
@@ -646,8 +654,7 @@ const LitIntervals* FogEvaluator::lit_intervals(const Ray* rays, const float* t0
         count0 = counts.data();
     }
     if (screen_ && film && count0) {
-        thread_local std::vector<std::vector<Crossing>> lists_tls;
-        std::vector<std::vector<Crossing>>& lists = lists_tls;
+        std::vector<std::vector<Crossing>>& lists = scratch.lists;
         if (lists.size() < size_t(n)) lists.resize(size_t(n));
         if (screen_->crossings(film, rays, t1, n, lists.data(), masks)) {
             for (int k = 0; k < n; ++k) {
@@ -766,10 +773,13 @@ void FogEvaluator::eval_soa(const double* dx, const double* dy, const double* dz
             // Volumetric shadows: every light's unshadowed airlight first, then the lit intervals
             // of the lights that matter on each ray (shadow_mask), then the lit spans of the rays
             // a shadow crosses.
-            thread_local std::vector<float> values_tls;
-            thread_local std::vector<double> cosines_tls;
-            std::vector<float>& values = values_tls;  // (one TLS lookup each, as in shadow_masks)
-            std::vector<double>& cosines = cosines_tls;
+            struct Values {
+                std::vector<float> values;
+                std::vector<double> cosines;
+            };
+            Values& scratch = thread_scratch<Values>();
+            std::vector<float>& values = scratch.values;
+            std::vector<double>& cosines = scratch.cosines;
             const size_t L = lights_.size();
             values.resize(L * size_t(m));
             cosines.resize(L * size_t(m));

@@ -479,6 +479,7 @@ void ShadowVolumes::sweep(const std::vector<Crossing>& list, int L, double a, do
         if (!(mask & light_mask(l)) || (!(crossed & light_mask(l)) && count[l] == 0)) {
             // Not asked for, or no crossing and lit at the start: lit all along.
             if (b > a) lit.spans.emplace_back(a, b);
+            else lit.partial |= light_mask(l);  // (no span at all)
             lit.end[l] = int(lit.spans.size());
             continue;
         }
@@ -505,6 +506,9 @@ void ShadowVolumes::sweep(const std::vector<Crossing>& list, int L, double a, do
         }
         if (open && b > start) lit.spans.emplace_back(start, b);
         lit.end[l] = int(lit.spans.size());
+        const bool whole = lit.end[l] - lit.begin[l] == 1 && lit.spans[size_t(lit.begin[l])].first == a &&
+                           lit.spans[size_t(lit.begin[l])].second == b;
+        if (!whole) lit.partial |= light_mask(l);
     }
 }
 

@@ -48,10 +48,15 @@ struct LitIntervals {
     // [t0, t1], fully shadowed ones none.
     std::vector<int> begin, end;
     std::vector<std::pair<double, double>> spans;
+    // The lights (ShadowVolumes::light_mask bits) not lit all along [t0, t1]: a light whose
+    // bit is clear has the one span [t0, t1].
+    uint32_t partial = 0;
+    // Room for _n_lights_ (the sweep writes every light's begin and end).
     void clear(int n_lights) {
-        begin.assign(size_t(n_lights), 0);
-        end.assign(size_t(n_lights), 0);
+        begin.resize(size_t(n_lights));
+        end.resize(size_t(n_lights));
         spans.clear();
+        partial = 0;
     }
 };
 
