@@ -183,6 +183,11 @@ void ScreenCrossings::bin(const std::vector<Face>& faces, const std::vector<Box>
         }
     });
     if (over) return;
+    // Many faces over each tile (a field of small open casters: every triangle's volume a
+    // sliver across the film) cost more per pixel than Embree's traversal: not ready.
+    size_t n_pairs = 0;
+    for (const auto& chunk : pairs) n_pairs += chunk.size();
+    if (n_pairs > kMaxFacesPerTile * n_tiles) return;
     std::vector<uint32_t> count(n_tiles, 0);
     for (const auto& chunk : pairs)
         for (const auto& [tile, face] : chunk) ++count[tile];

@@ -17,8 +17,9 @@
 //
 // Faces are binned into tiles of the film (a margin around the image holds the edge pixels'
 // sub-samples); a query visits its tile's faces, a row of pixel centres the faces' exact
-// spans on the row. A scene whose faces would need more than _max_entries_ tile entries is
-// not binned (ready() false): the caller traces with Embree.
+// spans on the row. A scene whose faces would need more than _max_entries_ tile entries, or
+// more than kMaxFacesPerTile per tile on average, is not binned (ready() false): the caller
+// traces with Embree.
 #pragma once
 
 #include <cstdint>
@@ -81,6 +82,9 @@ class ScreenCrossings {
 
     static constexpr int kTileW = 64, kTileH = 8;
     static constexpr double kMargin = 4.0;  // film margin around the image, pixels
+    // The mean faces per tile above which the film costs more than tracing (bench_shadows.py:
+    // the street ~40, faster on the film; with 10^3 small open casters ~10^3, 80x slower).
+    static constexpr size_t kMaxFacesPerTile = 160;
     Vec3 D0_{0.0}, Dx_{0.0}, Dy_{0.0};  // the camera's affine ray directions
     int nx_ = 0, ny_ = 0;
     bool ready_ = false;
