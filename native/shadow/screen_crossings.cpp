@@ -56,7 +56,8 @@ bool ScreenCrossings::covers(const Face& f, double x, double y) {
 }
 
 ScreenCrossings::ScreenCrossings(const ShadowVolumes& volumes, const Vec3& D0, const Vec3& Dx, const Vec3& Dy, int W,
-                                 int H, double cap_reach, double cap_beyond, int threads, size_t max_entries) {
+                                 int H, double cap_reach, double cap_beyond, int threads, size_t max_entries,
+                                 size_t max_faces_per_tile) {
     if (W <= 0 || H <= 0) return;
     const glm::dmat3 M(Dx, Dy, D0);  // columns: q = M^-1 P has q.z > 0 ahead of the viewer
     if (!(std::abs(glm::determinant(M)) > 0.0)) return;
@@ -110,11 +111,11 @@ ScreenCrossings::ScreenCrossings(const ShadowVolumes& volumes, const Vec3& D0, c
             boxes.push_back(b);
         }
     }
-    bin(faces, boxes, max_entries, std::max(1, threads));
+    bin(faces, boxes, max_entries, max_faces_per_tile, std::max(1, threads));
 }
 
 void ScreenCrossings::bin(const std::vector<Face>& faces, const std::vector<Box>& boxes, size_t max_entries,
-                          int threads) {
+                          size_t max_per_tile, int threads) {
     // Each face's tiles: those of its film bounding box (the whole film for a face reaching
     // behind the viewer) that no edge function rejects at all four corners (a rectangle
     // grown by 1e-3 px over the rounding of the corners' values).
@@ -184,10 +185,11 @@ void ScreenCrossings::bin(const std::vector<Face>& faces, const std::vector<Box>
     });
     if (over) return;
     // Many faces over each tile (a field of small open casters: every triangle's volume a
-    // sliver across the film) cost more per pixel than Embree's traversal: not ready.
+    // sliver across the film) cost more per pixel than Embree's traversal: not ready (on
+    // films of kMinTilesForFallback tiles or more; smaller ones cost little either way).
     size_t n_pairs = 0;
     for (const auto& chunk : pairs) n_pairs += chunk.size();
-    if (n_pairs > kMaxFacesPerTile * n_tiles) return;
+    if (n_tiles >= kMinTilesForFallback && n_pairs > max_per_tile * n_tiles) return;
     std::vector<uint32_t> count(n_tiles, 0);
     for (const auto& chunk : pairs)
         for (const auto& [tile, face] : chunk) ++count[tile];

@@ -42,7 +42,7 @@ class ScreenCrossings {
     // ray and the far clip's depth; the defaults keep them all).
     ScreenCrossings(const ShadowVolumes& volumes, const Vec3& D0, const Vec3& Dx, const Vec3& Dy, int W, int H,
                     double cap_reach = std::numeric_limits<double>::infinity(), double cap_beyond = 0.0,
-                    int threads = 1, size_t max_entries = size_t(1) << 26);
+                    int threads = 1, size_t max_entries = size_t(1) << 26, size_t max_faces_per_tile = kMaxFacesPerTile);
     bool ready() const { return ready_; }
     // Into lists[k] (cleared first): the crossings with 0 < t < t1[k] of the _n_ rays
     // through film positions film[k], with unit directions rays[k].d (from the viewer). A
@@ -69,7 +69,8 @@ class ScreenCrossings {
     };
     // Whether face _f_ covers film position (x, y) (the one formula every query uses).
     static bool covers(const Face& f, double x, double y);
-    void bin(const std::vector<Face>& faces, const std::vector<Box>& boxes, size_t max_entries, int threads);
+    void bin(const std::vector<Face>& faces, const std::vector<Box>& boxes, size_t max_entries, size_t max_per_tile,
+             int threads);
     void row_crossings(const glm::dvec2* film, const Ray* rays, const float* t1, int n,
                        std::vector<Crossing>* lists, const uint32_t* masks) const;
     static bool asked(const uint32_t* masks, int k, const Face& f) {
@@ -82,9 +83,13 @@ class ScreenCrossings {
 
     static constexpr int kTileW = 64, kTileH = 8;
     static constexpr double kMargin = 4.0;  // film margin around the image, pixels
+  public:
     // The mean faces per tile above which the film costs more than tracing (bench_shadows.py:
-    // the street ~40, faster on the film; with 10^3 small open casters ~10^3, 80x slower).
+    // the street ~40, faster on the film; with 10^3 small open casters ~10^3, no faster).
     static constexpr size_t kMaxFacesPerTile = 160;
+    static constexpr size_t kMinTilesForFallback = 1000;
+
+  private:
     Vec3 D0_{0.0}, Dx_{0.0}, Dy_{0.0};  // the camera's affine ray directions
     int nx_ = 0, ny_ = 0;
     bool ready_ = false;

@@ -13,22 +13,6 @@
 namespace airlight {
 namespace {
 
-void add_box(TriangleMesh& m, const Vec3& lo, const Vec3& hi) {
-    auto P = [&](int x, int y, int z) { return Vec3(x ? hi.x : lo.x, y ? hi.y : lo.y, z ? hi.z : lo.z); };
-    add_quad(m, P(0, 0, 0), P(0, 1, 0), P(1, 1, 0), P(1, 0, 0));
-    add_quad(m, P(0, 0, 1), P(1, 0, 1), P(1, 1, 1), P(0, 1, 1));
-    add_quad(m, P(0, 0, 0), P(1, 0, 0), P(1, 0, 1), P(0, 0, 1));
-    add_quad(m, P(0, 1, 0), P(0, 1, 1), P(1, 1, 1), P(1, 1, 0));
-    add_quad(m, P(0, 0, 0), P(0, 0, 1), P(0, 1, 1), P(0, 1, 0));
-    add_quad(m, P(1, 0, 0), P(1, 1, 0), P(1, 1, 1), P(1, 0, 1));
-}
-
-double lit_length(const LitIntervals& lit, int l) {
-    double sum = 0.0;
-    for (int k = lit.begin[l]; k < lit.end[l]; ++k) sum += lit.spans[k].second - lit.spans[k].first;
-    return sum;
-}
-
 struct View {
     Vec3 eye, D0, Dx, Dy;
     int W, H;
@@ -51,7 +35,9 @@ View look_at(const Vec3& eye, const Vec3& target, double fov, int W, int H) {
 void compare(const TriangleMesh& casters, const std::vector<ShadowLight>& lights, const View& v,
              const std::vector<glm::dvec2>& film, double& differ, double& worst, double& lit_share) {
     const ShadowVolumes volumes(casters, lights, v.eye);
-    const ScreenCrossings screen(volumes, v.D0, v.Dx, v.Dy, v.W, v.H);
+    // (Any number of faces per tile: these small films hold few tiles.)
+    const ScreenCrossings screen(volumes, v.D0, v.Dx, v.Dy, v.W, v.H, std::numeric_limits<double>::infinity(), 0.0,
+                                 2, size_t(1) << 26, size_t(1) << 20);
     ASSERT_TRUE(screen.ready());
     const int L = volumes.num_lights(), n = int(film.size());
     std::vector<Ray> rays(film.size());

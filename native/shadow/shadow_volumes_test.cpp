@@ -11,23 +11,6 @@
 namespace airlight {
 namespace {
 
-// An axis-aligned box as 12 triangles (closed, each face wound outward).
-void add_box(TriangleMesh& m, const Vec3& lo, const Vec3& hi) {
-    auto P = [&](int x, int y, int z) { return Vec3(x ? hi.x : lo.x, y ? hi.y : lo.y, z ? hi.z : lo.z); };
-    add_quad(m, P(0, 0, 0), P(0, 1, 0), P(1, 1, 0), P(1, 0, 0));
-    add_quad(m, P(0, 0, 1), P(1, 0, 1), P(1, 1, 1), P(0, 1, 1));
-    add_quad(m, P(0, 0, 0), P(1, 0, 0), P(1, 0, 1), P(0, 0, 1));
-    add_quad(m, P(0, 1, 0), P(0, 1, 1), P(1, 1, 1), P(1, 1, 0));
-    add_quad(m, P(0, 0, 0), P(0, 0, 1), P(0, 1, 1), P(0, 1, 0));
-    add_quad(m, P(1, 0, 0), P(1, 1, 0), P(1, 1, 1), P(1, 0, 1));
-}
-
-double lit_length(const LitIntervals& lit, int l) {
-    double sum = 0.0;
-    for (int k = lit.begin[l]; k < lit.end[l]; ++k) sum += lit.spans[k].second - lit.spans[k].first;
-    return sum;
-}
-
 bool is_lit(const LitIntervals& lit, int l, double t) {
     for (int k = lit.begin[l]; k < lit.end[l]; ++k)
         if (t >= lit.spans[k].first && t <= lit.spans[k].second) return true;
