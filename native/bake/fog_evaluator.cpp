@@ -647,13 +647,7 @@ const LitIntervals* FogEvaluator::lit_intervals(const Ray* rays, const float* t0
         t0 = zeros.data();
     }
     const int L = shadows_->num_lights();
-    const int* count0 = nullptr;
-    if (shared_origin_ && !origin_ambiguous_) {
-        counts.resize(size_t(n) * L);
-        for (int k = 0; k < n; ++k) std::copy(origin_count_.begin(), origin_count_.end(), counts.begin() + size_t(k) * L);
-        count0 = counts.data();
-    }
-    if (screen_ && film && count0) {
+    if (screen_ && film && shared_origin_ && !origin_ambiguous_) {  // (each ray counts from the eye)
         std::vector<std::vector<Crossing>>& lists = scratch.lists;
         if (lists.size() < size_t(n)) lists.resize(size_t(n));
         if (screen_->crossings(film, rays, t1, n, lists.data(), masks)) {
@@ -664,6 +658,12 @@ const LitIntervals* FogEvaluator::lit_intervals(const Ray* rays, const float* t0
             }
             return lit.data();
         }
+    }
+    const int* count0 = nullptr;
+    if (shared_origin_ && !origin_ambiguous_) {
+        counts.resize(size_t(n) * L);
+        for (int k = 0; k < n; ++k) std::copy(origin_count_.begin(), origin_count_.end(), counts.begin() + size_t(k) * L);
+        count0 = counts.data();
     }
     shadows_->lit_intervals(rays, t0, t1, n, count0, lit.data(), masks);
     return lit.data();
