@@ -99,7 +99,7 @@ FogEvaluator::FogEvaluator(const SceneDescription& scene, const BakeSettings& se
     for (const SpotLight& spot : scene.spot_lights) {
         RGB weight = scene.medium.albedo * spot.I0;
         if (weight.x == 0.0 && weight.y == 0.0 && weight.z == 0.0) continue;
-        spots_.push_back({make_spot_cone(spot.axis, spot.spot_size, spot.spot_blend), spot.position, weight});
+        spots_.push_back({make_spot_cone(spot.axis, spot.spot_size, spot.spot_blend, spot.spread), spot.position, weight});
     }
     for (const SunLight& sun : scene.sun_lights) {
         const RGB weight = scene.medium.albedo * sun.E * sigma_t_;  // sigma_s E
@@ -130,7 +130,7 @@ FogEvaluator::FogEvaluator(const SceneDescription& scene, const BakeSettings& se
             if (spot.I0.x == 0.0 && spot.I0.y == 0.0 && spot.I0.z == 0.0) continue;
             gaussian_lights_.push_back(spot.position);
             gaussian_I0_.push_back(spot.I0);
-            gaussian_spots_.push_back({make_spot_cone(spot.axis, spot.spot_size, spot.spot_blend), spot.position,
+            gaussian_spots_.push_back({make_spot_cone(spot.axis, spot.spot_size, spot.spot_blend, spot.spread), spot.position,
                                   spot.I0});
         }
         for (const SunLight& sun : scene.sun_lights) {

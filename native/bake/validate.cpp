@@ -11,6 +11,7 @@
 #include "core/memory.h"
 #include "core/parallel.h"
 #include "gaussian/splat.h"
+#include "homogeneous/spot_light.h"
 #include "image/camera.h"
 #include "models/registry.h"
 
@@ -139,6 +140,10 @@ void validate(const SceneDescription& scene, const BakeSettings& settings) {
                 name + ": spot_size must be in (0, pi] rad, got " + std::to_string(spot.spot_size));
         require(std::isfinite(spot.spot_blend) && spot.spot_blend >= 0.0 && spot.spot_blend <= 1.0,
                 name + ": spot_blend must be in [0, 1], got " + std::to_string(spot.spot_blend));
+        require(std::isfinite(spot.spread) && spot.spread >= kMinSpread && spot.spread <= kPi + 1e-9,
+                name + ": spread must be in [1 deg, pi] rad, got " + std::to_string(spot.spread));
+        require(spot.spread >= kPi - 1e-9 || (spot.spot_size >= kPi - 1e-9 && spot.spot_blend == 0.0),
+                name + ": a spread below pi (an area light's sample) needs spot_size pi and spot_blend 0");
     }
     const TriangleMesh& mesh = scene.geometry;
     require(mesh.vertices.size() % 3 == 0, "vertices must hold 3 floats per vertex");

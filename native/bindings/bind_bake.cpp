@@ -60,7 +60,8 @@ py::dict bake_py(int width, int height, const py::object& cam_to_world, const py
                  double filter_width, double clip_start, double clip_end, const py::object& progress,
                  const py::object& rbf_centres, const py::object& rbf_scales, const py::object& rbf_amplitudes,
                  const py::object& spot_positions, const py::object& spot_axes, const py::object& spot_intensities,
-                 const py::object& spot_size, const py::object& spot_blend, const py::object& sun_directions,
+                 const py::object& spot_size, const py::object& spot_blend, const py::object& spot_spread,
+                 const py::object& sun_directions,
                  const py::object& sun_irradiances, double fog_top, int table_size,
                  const std::string& table_interpolation, const py::object& rbf_albedo,
                  double noise_amplitude, double noise_scale, const py::object& noise_offset, bool surface,
@@ -149,6 +150,8 @@ py::dict bake_py(int width, int height, const py::object& cam_to_world, const py
     if (n_spot_given != 0 && n_spot_given != 5)
         throw py::value_error(
             "spot_positions, spot_axes, spot_intensities, spot_size and spot_blend must be given together (or all None)");
+    if (n_spot_given == 0 && !spot_spread.is_none())
+        throw py::value_error("spot_spread needs the spot lights (spot_positions ...)");
     if (n_spot_given == 5) {
         auto sp = as_array<double>(spot_positions, "spot_positions");
         const py::ssize_t n = require_rows_of(sp, 3, "spot_positions");
@@ -164,8 +167,16 @@ py::dict bake_py(int width, int height, const py::object& cam_to_world, const py
         if (!(sb.ndim() == 1 && sb.shape(0) == n))
             throw py::value_error("spot_blend: expected shape (" + std::to_string(n) +
                                   ",) to match spot_positions, got " + shape_str(sb));
+        py::array_t<double> sd;
+        if (!spot_spread.is_none()) {
+            sd = as_array<double>(spot_spread, "spot_spread");
+            if (!(sd.ndim() == 1 && sd.shape(0) == n))
+                throw py::value_error("spot_spread: expected shape (" + std::to_string(n) +
+                                      ",) to match spot_positions, got " + shape_str(sd));
+        }
         for (py::ssize_t l = 0; l < n; ++l) {
             SpotLight spot;
+            if (!spot_spread.is_none()) spot.spread = sd.data()[l];
             spot.position = {sp.at(l, 0), sp.at(l, 1), sp.at(l, 2)};
             spot.axis = {sa.at(l, 0), sa.at(l, 1), sa.at(l, 2)};
             spot.I0 = {si.at(l, 0), si.at(l, 1), si.at(l, 2)};
@@ -358,7 +369,8 @@ void bind_bake(py::module_& m) {
           "clip_end"_a = std::numeric_limits<double>::infinity(), "progress"_a = py::none(),
           "rbf_centres"_a = py::none(), "rbf_scales"_a = py::none(), "rbf_amplitudes"_a = py::none(),
           "spot_positions"_a = py::none(), "spot_axes"_a = py::none(), "spot_intensities"_a = py::none(),
-          "spot_size"_a = py::none(), "spot_blend"_a = py::none(), "sun_directions"_a = py::none(),
+          "spot_size"_a = py::none(), "spot_blend"_a = py::none(), "spot_spread"_a = py::none(),
+          "sun_directions"_a = py::none(),
           "sun_irradiances"_a = py::none(), "fog_top"_a = std::numeric_limits<double>::infinity(),
           "table_size"_a = 256, "table_interpolation"_a = "bilinear", "rbf_albedo"_a = py::none(),
           "noise_amplitude"_a = 0.0, "noise_scale"_a = 1.0, "noise_offset"_a = py::make_tuple(0.0, 0.0, 0.0),
@@ -455,6 +467,8 @@ spot_positions (S, 3), spot_axes (S, 3) (spot direction, the lamp's -Z; normalis
   full cone angle in rad (0, pi], spot_blend (S,) in [0, 1]: optional Blender spot lights with
   Cycles' profile I0 cos(theta) smoothstep(...), evaluated by adaptive quadrature for every
   model (phase-aware; homogeneous fog only: ValueError with rbf_*). Give all five or none.
+  spot_spread (S,) (optional, rad, [1 deg, pi], default pi): an area light's sample (spot_size
+  pi, blend 0) with Cycles' Spread, profile sin(h - theta) / (sin h - h cos h), h = spread / 2.
 sun_directions (U, 3) (direction of propagation, the lamp's -Z; normalised here),
   sun_irradiances (U, 3) W/m^2 (= colour * strength, Cycles): optional sun lamps, closed
   form for every model ("quadrature": its quadrature), any phase (homogeneous/sunlight_layer.h).

@@ -192,22 +192,42 @@ order < 0), per unit I0 and albedo; arguments as sun05_airlight (broadcast; Dvp 
         "(c = cosine to _axis_), per unit I0 and albedo.");
 
     auto spot_args = [](const py::object& position, const py::object& axis, double spot_size, double spot_blend,
-                        double sigma_t) {
+                        double sigma_t, double spread) {
         if (!(spot_size > 0.0 && spot_size <= 3.14159265358979323846 + 1e-9))
             throw py::value_error("spot_size must be in (0, pi]");
         if (!(spot_blend >= 0.0 && spot_blend <= 1.0)) throw py::value_error("spot_blend must be in [0, 1]");
         if (!(sigma_t >= 0.0) || !std::isfinite(sigma_t)) throw py::value_error("sigma_t must be finite and >= 0");
         const glm::dvec3 A = vec3(axis, "axis");
         if (!(glm::length(A) > 0.0)) throw py::value_error("axis must be nonzero");
-        return std::make_pair(vec3(position, "position"), make_spot_cone(A, spot_size, spot_blend));
+        try {
+            return std::make_pair(vec3(position, "position"), make_spot_cone(A, spot_size, spot_blend, spread));
+        } catch (const std::invalid_argument& e) {
+            throw py::value_error(e.what());
+        }
     };
+
+    m.def(
+        "spot_cone",
+        [](double spot_size, double spot_blend, double spread) {
+            if (!(spot_size > 0.0 && spot_size <= kPi + 1e-9)) throw py::value_error("spot_size must be in (0, pi]");
+            if (!(spot_blend >= 0.0 && spot_blend <= 1.0)) throw py::value_error("spot_blend must be in [0, 1]");
+            try {
+                const SpotCone c = make_spot_cone(glm::dvec3(0.0, 0.0, -1.0), spot_size, spot_blend, spread);
+                return py::make_tuple(c.cos_half_angle, c.smooth, c.spread_a, c.spread_b);
+            } catch (const std::invalid_argument& e) {
+                throw py::value_error(e.what());
+            }
+        },
+        "spot_size"_a, "spot_blend"_a, "spread"_a = kPi,
+        "The profile constants (cos_half, smooth, spread_a, spread_b) of a spot or an area light's sample "
+        "(SpotCone, spot_light.h), as the GPU preview's spot texture takes them.");
 
     m.def(
         "pegoraro10_spot_airlight",
         [spot_args](const py::object& position, const py::object& axis, double spot_size, double spot_blend,
                     double sigma_t, const py::object& origins, const py::object& directions, const py::object& Dvp,
-                    const std::string& phase, double g, int order, double rel_tol) {
-            const auto [s, cone] = spot_args(position, axis, spot_size, spot_blend, sigma_t);
+                    const std::string& phase, double g, int order, double rel_tol, double spread) {
+            const auto [s, cone] = spot_args(position, axis, spot_size, spot_blend, sigma_t, spread);
             const PegoraroPhase p = make_phase(phase, g, order, rel_tol);
             const Rays r = make_rays(origins, directions, Dvp);
             std::vector<double> out(r.d.size());
@@ -219,16 +239,17 @@ order < 0), per unit I0 and albedo; arguments as sun05_airlight (broadcast; Dvp 
             return to_numpy(std::move(out), {py::ssize_t(r.d.size())});
         },
         "position"_a, "axis"_a, "spot_size"_a, "spot_blend"_a, "sigma_t"_a, "origins"_a, "directions"_a, "Dvp"_a,
-        "phase"_a = "isotropic", "g"_a = 0.0, "order"_a = -1, "rel_tol"_a = 1e-6,
+        "phase"_a = "isotropic", "g"_a = 0.0, "order"_a = -1, "rel_tol"_a = 1e-6, "spread"_a = kPi,
         "Closed-form (Pegoraro 2010) airlight of a Blender spot light (Cycles profile, exact piecewise "
-        "polynomial) along each ray, per unit I0 and albedo.");
+        "polynomial) along each ray, per unit I0 and albedo. _spread_ < pi: an area light's sample with "
+        "Cycles' Spread (spot_size pi, blend 0; its pieces by quadrature).");
 
     m.def(
         "spot_airlight_quadrature",
         [spot_args](const py::object& position, const py::object& axis, double spot_size, double spot_blend,
                     double sigma_t, const py::object& origins, const py::object& directions, const py::object& Dvp,
-                    const std::string& phase, double g, double rel_tol) {
-            const auto [s, cone] = spot_args(position, axis, spot_size, spot_blend, sigma_t);
+                    const std::string& phase, double g, double rel_tol, double spread) {
+            const auto [s, cone] = spot_args(position, axis, spot_size, spot_blend, sigma_t, spread);
             PhaseFunction p;
             try {
                 p = phase_from_name(phase, g);
@@ -245,8 +266,9 @@ order < 0), per unit I0 and albedo; arguments as sun05_airlight (broadcast; Dvp 
             return to_numpy(std::move(out), {py::ssize_t(r.d.size())});
         },
         "position"_a, "axis"_a, "spot_size"_a, "spot_blend"_a, "sigma_t"_a, "origins"_a, "directions"_a, "Dvp"_a,
-        "phase"_a = "isotropic", "g"_a = 0.0, "rel_tol"_a = 1e-8,
-        "Reference: adaptive quadrature of the spot-light airlight (spot_light.h), per unit I0 and albedo.");
+        "phase"_a = "isotropic", "g"_a = 0.0, "rel_tol"_a = 1e-8, "spread"_a = kPi,
+        "Reference: adaptive quadrature of the spot-light airlight (spot_light.h), per unit I0 and albedo; "
+        "_spread_ as pegoraro10_spot_airlight.");
 }
 
 }  // namespace airlight::bindings

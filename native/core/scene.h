@@ -56,6 +56,9 @@ struct SpotLight {
     RGB I0{0.0};
     double spot_size = 0.785398163397448;  // Blender's default 45 deg
     double spot_blend = 0.15;
+    // An area light's sample (spot_size pi, blend 0): Cycles' Spread, the full angle in rad,
+    // [1 deg, pi]; pi (Blender's default) is the plain cos(theta) lobe (spot_light.h).
+    double spread = 3.14159265358979323846;
     bool casts_shadow = true;
 };
 

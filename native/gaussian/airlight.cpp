@@ -353,6 +353,7 @@ double gaussian_airlight_quadrature(const GaussianMedium& medium, const Gaussian
         for (double c : {light.cone.cos_half_angle, light.cone.cos_half_angle + light.cone.smooth})
             if (c < 1.0)
                 for (double t : ray_cone_crossings(v, r, s, light.cone.axis, c, 0.0, end)) add(t);
+        if (light.cone.has_spread()) add(ray_axis_approach(v, r, s, light.cone.axis, 0.0, end));  // its kink
     }
     for (double t : light.jumps) add(t);  // where the light's visibility changes
     std::sort(cuts.begin(), cuts.end());

@@ -92,6 +92,7 @@ double fogshop_pair_bound(const GaussianMedium& medium, std::size_t i, const Ref
             const double inner = std::acos(std::clamp(light.cone.cos_half_angle + light.cone.smooth, -1.0, 1.0));
             if (alpha - rho >= edge) return 0.0;  // outside the cone: no light
             if (alpha + rho > inner) return kInf;  // the cone's edge or blend across the support
+            if (light.cone.has_spread()) return kInf;  // sin(h - theta) varies all across the cone
         }
         const double g = sigma / (D - 2.0 * sigma);
         e += kGeo * g * g * (1.0 + kPhase * kappa);
@@ -297,6 +298,8 @@ double GaussianRefiner::integrate_light(const RefineLight& light, const Vec3& r,
             if (cos_cut < 1.0)
                 for (double t : ray_cone_crossings(eye_, r, light.s, light.cone.axis, cos_cut, lo, std::min(hi, 1e300)))
                     cuts.push_back(t);
+    if (spot && light.cone.has_spread())  // a Spread's kink on the axis
+        cuts.push_back(ray_axis_approach(eye_, r, light.s, light.cone.axis, lo, std::min(hi, 1e300)));
     if (!sun) cuts.push_back(t_s);
     cuts.erase(std::remove_if(cuts.begin(), cuts.end(), [&](double t) { return !(t > lo && t < hi); }), cuts.end());
     cuts.push_back(lo), cuts.push_back(hi);

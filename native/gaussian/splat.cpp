@@ -160,6 +160,8 @@ GaussianSplat::GaussianSplat(const GaussianMedium& medium, const Vec3& eye, cons
             lf_[l].az = float(c.axis.z);
             lf_[l].cos_half = float(c.cos_half_angle);
             lf_[l].smooth = float(c.smooth);
+            lf_[l].spread_a = float(c.spread_a);
+            lf_[l].spread_b = float(c.spread_b);
         }
     }
     sun_weights(depth);

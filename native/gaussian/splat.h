@@ -211,8 +211,10 @@ class GaussianSplat {
     };
     struct LightF {
         float vx, vy, vz;  // eye - s
-        // Spots (GaussianSplatLights): unit axis, cos(size / 2) and the smoothstep width.
+        // Spots (GaussianSplatLights): unit axis, cos(size / 2) and the smoothstep width;
+        // an area light's Spread (SpotCone): the profile spread_a c - spread_b sqrt(1 - c^2).
         float ax = 0.0f, ay = 0.0f, az = 0.0f, cos_half = 0.0f, smooth = 0.0f;
+        float spread_a = 1.0f, spread_b = 0.0f;
     };
 
   private:

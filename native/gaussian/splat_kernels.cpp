@@ -145,7 +145,9 @@ AIRLIGHT_SIMD_CLONES void light_terms_ext(const GaussF g, const GaussLightF gl, 
             const float x = c - lf.cos_half;
             float u = lf.smooth > 0.0f ? x / lf.smooth : 1.0f;
             u = u < 0.0f ? 0.0f : (u > 1.0f ? 1.0f : u);
-            f *= x > 0.0f ? c * u * u * (3.0f - 2.0f * u) : 0.0f;
+            const float s2 = 1.0f - c * c;
+            const float spread = lf.spread_a * c - lf.spread_b * std::sqrt(s2 > 0.0f ? s2 : 0.0f);
+            f *= x > 0.0f ? (lf.spread_b > 0.0f ? spread : c * u * u * (3.0f - 2.0f * u)) : 0.0f;
         }
         R[k] += gl.wr * f;
         G[k] += gl.wg * f;

@@ -24,6 +24,8 @@ constexpr double kForwardMaxH = 1.5;
 // quadrature instead (to 1e-7). The moments G_m carry ~1e-12 relative errors, so 1e6 leaves
 // ~1e-6 at worst (typically 1e-9: pegoraro10 tests).
 constexpr double kMaxCancellation = 1e6;
+// Relative tolerance of the pieces integrated by quadrature (thin blend annuli, Spread).
+constexpr double kPieceQuadratureTol = 1e-7;
 
 // v = u + sqrt(1 + u^2) without cancellation for u < 0.
 double v_of_u(double u) {
@@ -315,6 +317,10 @@ double pegoraro10_spot_airlight(const PegoraroPhase& phase, const SpotCone& cone
         const double xp = -glm::dot(o - s, cone.axis) / k_axis;
         if (xp > 0.0 && xp < Dvp) cuts.push_back(xp);
     }
+    if (cone.has_spread()) {  // the Spread profile's kink on the axis
+        const double xa = ray_axis_approach(o, d, s, cone.axis, 0.0, Dvp);
+        if (xa > 0.0) cuts.push_back(xa);
+    }
     std::sort(cuts.begin(), cuts.end());
     cuts.push_back(Dvp);
     const glm::dvec3 w = o - s;
@@ -332,6 +338,26 @@ double pegoraro10_spot_airlight(const PegoraroPhase& phase, const SpotCone& cone
         annulus[3] = 3.0 * al * al - 6.0 * al * al * b0;
         annulus[4] = -2.0 * al * al * al;
     }
+    // A piece by quadrature (the phase polynomial, the exact profile).
+    auto quadrature_piece = [&](double x0, double x1) {
+        auto integrand = [&](double x) {
+            const glm::dvec3 p = w + x * d;
+            const double dist = glm::length(p);
+            if (!(dist > 0.0)) return 0.0;
+            const double prof = spot_profile(cone, glm::dot(p, cone.axis) / dist);
+            return prof * phase.eval(-glm::dot(p, d) / dist) * std::exp(-sigma_t * (dist + x)) / (dist * dist);
+        };
+        if (std::isinf(x1)) {
+            const double L = std::max({x0, glm::length(w), 1e-300});
+            auto g = [&](double t) {
+                const double om = 1.0 - t;
+                const double v = integrand(x0 + L * t / om);
+                return v == 0.0 ? 0.0 : v * L / (om * om);
+            };
+            return sigma_t * integrate_adaptive(g, 0.0, 1.0, kPieceQuadratureTol);
+        }
+        return sigma_t * integrate_adaptive(integrand, x0, x1, kPieceQuadratureTol);
+    };
     const double inner_poly[2] = {0.0, 1.0};
     std::array<cplx, kMaxDegree + 1> coef_inner, coef_annulus;
     int K_inner = -1, K_annulus = -1;
@@ -342,6 +368,10 @@ double pegoraro10_spot_airlight(const PegoraroPhase& phase, const SpotCone& cone
         const double mid = std::isinf(x1) ? x0 + std::max({x0, glm::length(w), 1e-300}) : 0.5 * (x0 + x1);
         const double cm = cos_axis(mid);
         if (!(cm > c0)) continue;
+        if (cone.has_spread()) {  // a Spread's sin(h - theta) is no polynomial in cos(theta)
+            sum += quadrature_piece(x0, x1);
+            continue;
+        }
         if (sm == 0.0 || cm >= c_blend) {
             if (K_inner < 0) K_inner = combined_coefficients(phase, inner_poly, 1, del, dc, coef_inner.data());
             sum += segment_integral(coef_inner.data(), K_inner, sigma_t, f.a, f.h, x0, x1);
@@ -350,29 +380,8 @@ double pegoraro10_spot_airlight(const PegoraroPhase& phase, const SpotCone& cone
         if (K_annulus < 0) K_annulus = combined_coefficients(phase, annulus, 4, del, dc, coef_annulus.data());
         double cancel = 1.0;
         const double value = segment_integral(coef_annulus.data(), K_annulus, sigma_t, f.a, f.h, x0, x1, &cancel);
-        if (cancel <= kMaxCancellation) {
-            sum += value;
-        } else {
-            // Ill-conditioned blend polynomial (very thin annulus): quadrature of this piece.
-            auto integrand = [&](double x) {
-                const glm::dvec3 p = w + x * d;
-                const double dist = glm::length(p);
-                if (!(dist > 0.0)) return 0.0;
-                const double prof = spot_profile(cone, glm::dot(p, cone.axis) / dist);
-                return prof * phase.eval(-glm::dot(p, d) / dist) * std::exp(-sigma_t * (dist + x)) / (dist * dist);
-            };
-            if (std::isinf(x1)) {
-                const double L = std::max({x0, glm::length(w), 1e-300});
-                auto g = [&](double t) {
-                    const double om = 1.0 - t;
-                    const double v = integrand(x0 + L * t / om);
-                    return v == 0.0 ? 0.0 : v * L / (om * om);
-                };
-                sum += sigma_t * integrate_adaptive(g, 0.0, 1.0, 1e-7);
-            } else {
-                sum += sigma_t * integrate_adaptive(integrand, x0, x1, 1e-7);
-            }
-        }
+        // Ill-conditioned blend polynomial (very thin annulus): quadrature of this piece.
+        sum += cancel <= kMaxCancellation ? value : quadrature_piece(x0, x1);
     }
     return sum;
 }

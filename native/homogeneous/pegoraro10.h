@@ -35,6 +35,9 @@
 // degree 1 and 4 on pieces of the ray delimited by analytic cone crossings, so no fitting
 // is needed (fit error 0). An annulus piece whose degree-4 polynomial is ill-conditioned
 // over the whole circle (its Fourier sum cancels by more than 1e6) is integrated by quadrature.
+// So are the lit pieces of an area light's sample with a Spread below 180 deg: its profile
+// sin(h - theta) is no polynomial in cos(theta), and a polynomial fit on [cos h, 1] converges
+// slowly (sqrt(1 - c^2) at c = 1: degree 8 leaves 4 % on the axis) and cancels over the circle.
 #pragma once
 
 #include <complex>

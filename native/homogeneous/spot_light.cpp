@@ -4,15 +4,27 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <stdexcept>
 
 #include "core/quadrature.h"
 
 namespace airlight {
 
-SpotCone make_spot_cone(const glm::dvec3& axis, double spot_size, double spot_blend) {
+SpotCone make_spot_cone(const glm::dvec3& axis, double spot_size, double spot_blend, double spread) {
     SpotCone cone;
     const double len = glm::length(axis);
     cone.axis = len > 0.0 ? axis / len : glm::dvec3(0.0, 0.0, -1.0);
+    if (spread < kPi - 1e-9) {
+        if (!(spread >= kMinSpread) || spot_size < kPi - 1e-9 || spot_blend != 0.0)
+            throw std::invalid_argument("make_spot_cone: a Spread in [1 deg, 180 deg) needs a 180 deg cone without blend");
+        const double h = 0.5 * spread, ch = std::cos(h), sh = std::sin(h);
+        // sin h - h cos h = h^3/3 - h^5/30 + ...: the series below 0.05 (no cancellation).
+        const double norm = h > 0.05 ? sh - h * ch : h * h * h * (1.0 / 3.0 - h * h / 30.0 + h * h * h * h / 840.0);
+        cone.cos_half_angle = ch;
+        cone.spread_a = sh / norm;
+        cone.spread_b = ch / norm;
+        return cone;
+    }
     cone.cos_half_angle = std::cos(0.5 * spot_size);
     cone.smooth = (1.0 - cone.cos_half_angle) * spot_blend;
     return cone;
@@ -20,12 +32,31 @@ SpotCone make_spot_cone(const glm::dvec3& axis, double spot_size, double spot_bl
 
 double spot_profile(const SpotCone& cone, double cos_theta) {
     if (!(cos_theta > cone.cos_half_angle)) return 0.0;
+    if (cone.spread_b > 0.0)
+        return std::max(0.0, cone.spread_a * cos_theta -
+                                 cone.spread_b * std::sqrt(std::max(0.0, (1.0 - cos_theta) * (1.0 + cos_theta))));
     const double t = cos_theta - cone.cos_half_angle;
     if (cone.smooth > 0.0 && t < cone.smooth) {
         const double u = t / cone.smooth;
         return cos_theta * u * u * (3.0 - 2.0 * u);
     }
     return cos_theta;
+}
+
+double ray_axis_approach(const glm::dvec3& o, const glm::dvec3& d, const glm::dvec3& s, const glm::dvec3& axis,
+                         double lo, double hi) {
+    // Around the closest approach to s (abscissa a, distance h, unit normal n), with
+    // u = (x - a) / h: cos(theta) = (n.axis + u d.axis) / sqrt(1 + u^2), largest at
+    // u = d.axis / n.axis where n.axis > 0 (else it only tends to its bound at infinity).
+    const glm::dvec3 w = o - s;
+    const double a = -glm::dot(w, d);
+    const glm::dvec3 q = w + a * d;
+    const double h = glm::length(q);
+    if (!(h > 0.0)) return -1.0;
+    const double dc = glm::dot(q, axis) / h;
+    if (!(dc > 0.0)) return -1.0;
+    const double x = a + h * glm::dot(d, axis) / dc;
+    return std::isfinite(x) && x > lo && x < hi ? x : -1.0;
 }
 
 std::vector<double> ray_cone_crossings(const glm::dvec3& o, const glm::dvec3& d, const glm::dvec3& s,
@@ -82,7 +113,7 @@ double spot_airlight_quadrature(const SpotCone& cone, const glm::dvec3& s, const
         return prof * p * std::exp(-sigma_t * (dist + x)) / d2;
     };
     const double end = Dvp;  // may be inf
-    // Breakpoints: cone and blend-cone crossings (profile kinks / steps) and the peak at
+    // Breakpoints: cone and blend-cone crossings (profile kinks / steps), a Spread's axis, and the peak at
     // the closest approach with a geometric ladder resolving its width h, as sun05.
     std::vector<double> cuts{0.0};
     auto add = [&](const std::vector<double>& xs) { cuts.insert(cuts.end(), xs.begin(), xs.end()); };
@@ -95,6 +126,10 @@ double spot_airlight_quadrature(const SpotCone& cone, const glm::dvec3& s, const
     if (k_axis != 0.0) {
         const double xp = -glm::dot(w, cone.axis) / k_axis;
         if (xp > 0.0 && xp < end) cuts.push_back(xp);
+    }
+    if (cone.has_spread()) {  // the Spread profile's kink on the axis
+        const double xa = ray_axis_approach(o, d, s, cone.axis, 0.0, end);
+        if (xa > 0.0) cuts.push_back(xa);
     }
     if (a > 0.0 && a < end) {
         cuts.push_back(a);

@@ -22,24 +22,46 @@
 
 #include <glm/glm.hpp>
 
+#include "core/constants.h"
 #include "core/phase.h"
 
 namespace airlight {
 
+// Blender's smallest Spread (1 deg, RNA hard minimum).
+constexpr double kMinSpread = kPi / 180.0 * (1.0 - 1e-6);
+
 // Spot profile constants: cos(size / 2) and the smoothstep width (1 - cos(size/2)) * blend.
+//
+// The samples of an area light (one-sided Lambert, profile cos(theta)) are spots of 180 deg
+// without blend. Cycles 3.4's Spread s < 180 deg (kernel/light/area.h, a soft-box grid of
+// slats) multiplies their radiance by max(1 - tan(theta) / tan(h), 0) / (1 - h / tan(h)),
+// h = s / 2, the normalisation keeping the power; times cos(theta) that is
+//   I(theta) = (sin h cos(theta) - cos h sin(theta)) / (sin h - h cos h) = sin(h - theta) / (...)
+// for theta < h (cos_half_angle = cos h, smooth = 0): spread_a cos(theta) - spread_b sin(theta).
 struct SpotCone {
     glm::dvec3 axis{0.0, 0.0, -1.0};  // unit spot direction (the lamp's -Z)
-    double cos_half_angle = 0.0;     // cos(size / 2)
+    double cos_half_angle = 0.0;     // cos(size / 2), or cos(spread / 2)
     double smooth = 0.0;             // (1 - cos_half_angle) * blend
+    double spread_a = 1.0;           // Spread: sin h / (sin h - h cos h)
+    double spread_b = 0.0;           // Spread: cos h / (sin h - h cos h); 0: no Spread
+    bool has_spread() const { return spread_b > 0.0; }
 };
 
 // Builds the cone from Blender's spot_size (full cone angle, rad, in (0, pi]) and
-// spot_blend ([0, 1]); _axis_ need not be normalised.
-SpotCone make_spot_cone(const glm::dvec3& axis, double spot_size, double spot_blend);
+// spot_blend ([0, 1]); _axis_ need not be normalised. An area light's _spread_ (full angle,
+// rad, [1 deg, pi]) below pi needs spot_size pi and blend 0 (std::invalid_argument otherwise).
+SpotCone make_spot_cone(const glm::dvec3& axis, double spot_size, double spot_blend, double spread = kPi);
 
-// The Cycles angular factor cos(theta) * smoothstep(...) (0 outside the cone) for the
-// cosine _cos_theta_ between the spot axis and the direction light -> point.
+// The Cycles angular factor cos(theta) * smoothstep(...) (0 outside the cone; with Spread
+// sin(h - theta) / (sin h - h cos h)) for the cosine _cos_theta_ between the spot axis and the
+// direction light -> point.
 double spot_profile(const SpotCone& cone, double cos_theta);
+
+// The x in (lo, hi) where the line o + x d comes closest in direction to the axis as seen
+// from _s_ (the largest cos(theta)), or -1 where none lies there: a Spread profile's kink
+// (theta = 0) where the ray crosses the axis. Used as a quadrature breakpoint.
+double ray_axis_approach(const glm::dvec3& o, const glm::dvec3& d, const glm::dvec3& s, const glm::dvec3& axis,
+                         double lo, double hi);
 
 // The x in (lo, hi) where the line o + x d crosses the cone of half-angle acos(cos_half)
 // around _axis_ with apex _s_ (both nappes; sorted). Used as quadrature breakpoints.
