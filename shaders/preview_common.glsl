@@ -23,9 +23,10 @@
 //               2006 table (biri06_airlight.glsl, needs it in front; inputs Gtab and
 //               pv_phase = (kind, g, K, k)); 0: Sun 2005 (isotropic)
 //   PREVIEW_SPOTS  1: spot lights (spot_airlight.glsl, needs it in front): spots,
-//               RGBA32F spot_count x 3 texels: row 0 = (position, cos(size / 2)), row 1 =
-//               (unit axis, (1 - cos(size / 2)) blend), row 2 = albedo * I0; with the phase
-//               of PREVIEW_PHASE
+//               RGBA32F spot_count x 4 texels: row 0 = (position, cos(size / 2)), row 1 =
+//               (unit axis, (1 - cos(size / 2)) blend), row 2 = albedo * I0, row 3 =
+//               (spread_a, spread_b, 0, 0) (an area light's Spread; spread_b 0: none); with
+//               the phase of PREVIEW_PHASE
 //   PREVIEW_SUNS   1: sun lamps (sun_airlight.glsl, needs it in front): suns, RGBA32F
 //               sun_count x 2 texels: row 0 = (unit propagation direction w (the lamp's
 //               -Z), fog top height h_top (inf: none)), row 1 = albedo * colour * strength
@@ -198,8 +199,9 @@ vec4 preview_fog(vec3 origin, vec3 dir, float Dvp)
     vec4 s0 = texelFetch(spots, ivec2(i, 0), 0);
     vec4 s1 = texelFetch(spots, ivec2(i, 1), 0);
     vec4 I0 = texelFetch(spots, ivec2(i, 2), 0);
+    vec4 s3 = texelFetch(spots, ivec2(i, 3), 0);
     int row = PREVIEW_SHADOWS != 0 ? int(I0.a) : -1;
-    La += I0.rgb * spot_airlight_shadowed(s0.xyz, s1.xyz, s0.w, s1.w, pv_sigma_t, p0, dir, D,
+    La += I0.rgb * spot_airlight_shadowed(s0.xyz, s1.xyz, s0.w, s1.w, s3.xy, pv_sigma_t, p0, dir, D,
                                           PREVIEW_PHASE != 0, pv_phase, row);
   }
 #endif

@@ -14,7 +14,10 @@
 //
 // Cone (make_spot_cone): axis unit (the lamp's -Z), cos_half = cos(spot_size / 2),
 // smooth = (1 - cos_half) * spot_blend; profile (spot_profile) = cos(theta) *
-// smoothstep(0, smooth, cos(theta) - cos_half) inside the cone, 0 outside.
+// smoothstep(0, smooth, cos(theta) - cos_half) inside the cone, 0 outside. An area light's
+// sample with a Spread (SpotCone: cos_half = cos(spread / 2), smooth 0): spread = (spread_a,
+// spread_b), profile spread_a cos(theta) - spread_b sin(theta), whose kink where the ray
+// crosses the axis splits the piece; spread_b = 0: none.
 
 #ifndef SPOT_PANELS
 #define SPOT_PANELS 2
@@ -28,9 +31,11 @@
 #define PREVIEW_SHADOWS 0
 #endif
 
-float spot_profile(float cos_half, float smooth_w, float cos_theta)
+float spot_profile(float cos_half, float smooth_w, vec2 spread, float cos_theta)
 {
   if (!(cos_theta > cos_half)) return 0.0;
+  if (spread.y > 0.0)
+    return max(0.0, spread.x * cos_theta - spread.y * sqrt(max(0.0, 1.0 - cos_theta * cos_theta)));
   float t = cos_theta - cos_half;
   if (smooth_w > 0.0 && t < smooth_w) {
     float u = t / smooth_w;
@@ -98,8 +103,23 @@ float spot_alpha(float x, float a, float h)
 // isotropic.
 // _shadow_row_ >= 0 (PREVIEW_SHADOWS 1 only): each node's integrand times the light's
 // visibility from that shadow map (shadow_lit), SPOT_SHADOW_PANELS panels per piece.
-float spot_airlight_shadowed(vec3 s, vec3 axis, float cos_half, float smooth_w, float sigma_t, vec3 o,
-                             vec3 d, float Dvp, bool use_phase, vec4 phase, int shadow_row)
+// The x in (lo, hi) where o + x d comes closest in direction to _axis_ seen from _s_
+// (ray_axis_approach in spot_light.cpp), else lo.
+float spot_axis_approach(vec3 o, vec3 d, vec3 s, vec3 axis, float lo, float hi)
+{
+  vec3 w = o - s;
+  float a = -dot(w, d);
+  vec3 q = w + a * d;
+  float h = length(q);
+  if (!(h > 0.0)) return lo;
+  float dc = dot(q, axis) / h;
+  if (!(dc > 0.0)) return lo;
+  float x = a + h * dot(d, axis) / dc;
+  return (x > lo && x < hi) ? x : lo;
+}
+
+float spot_airlight_shadowed(vec3 s, vec3 axis, float cos_half, float smooth_w, vec2 spread, float sigma_t,
+                             vec3 o, vec3 d, float Dvp, bool use_phase, vec4 phase, int shadow_row)
 {
   if (sigma_t == 0.0 || !(Dvp > 0.0)) return 0.0;
   float x0, x1;
@@ -111,6 +131,10 @@ float spot_airlight_shadowed(vec3 s, vec3 axis, float cos_half, float smooth_w, 
   if (smooth_w > 0.0 && cos_blend < 1.0 && spot_cone_interval(o, d, s, axis, cos_blend, x0, x1, b0, b1)) {
     cuts[1] = b0;
     cuts[2] = b1;
+  }
+  if (spread.y > 0.0) {  // the Spread profile's kink on the axis
+    cuts[1] = spot_axis_approach(o, d, s, axis, x0, x1);
+    cuts[2] = cuts[1];
   }
   vec3 rel = s - o;
   float a = dot(rel, d);
@@ -128,7 +152,7 @@ float spot_airlight_shadowed(vec3 s, vec3 axis, float cos_half, float smooth_w, 
         float x = a + h * tan(alpha);
         vec3 v = o + x * d - s;
         float dist = h / cos(alpha);
-        float prof = spot_profile(cos_half, smooth_w, dot(v, axis) / dist);
+        float prof = spot_profile(cos_half, smooth_w, spread, dot(v, axis) / dist);
         float p = use_phase ? biri06_phase(phase, -dot(v, d) / dist) : 0.07957747154594767;
         float lit = 1.0;
 #if PREVIEW_SHADOWS
@@ -142,8 +166,8 @@ float spot_airlight_shadowed(vec3 s, vec3 axis, float cos_half, float smooth_w, 
   return sigma_t * sum / h;
 }
 
-float spot_airlight(vec3 s, vec3 axis, float cos_half, float smooth_w, float sigma_t, vec3 o, vec3 d,
-                    float Dvp, bool use_phase, vec4 phase)
+float spot_airlight(vec3 s, vec3 axis, float cos_half, float smooth_w, vec2 spread, float sigma_t, vec3 o,
+                    vec3 d, float Dvp, bool use_phase, vec4 phase)
 {
-  return spot_airlight_shadowed(s, axis, cos_half, smooth_w, sigma_t, o, d, Dvp, use_phase, phase, -1);
+  return spot_airlight_shadowed(s, axis, cos_half, smooth_w, spread, sigma_t, o, d, Dvp, use_phase, phase, -1);
 }

@@ -198,7 +198,8 @@ def run(description, settings, filepath, progress=None):
 # The light arrays of `_native.bake` per kind of row names, and the per-light flags.
 _LIGHT_ARRAYS = {
     "points": ("light_positions", "light_intensities", "light_shadows"),
-    "spots": ("spot_positions", "spot_axes", "spot_intensities", "spot_size", "spot_blend", "spot_shadows"),
+    "spots": ("spot_positions", "spot_axes", "spot_intensities", "spot_size", "spot_blend", "spot_spread",
+              "spot_shadows"),
     "suns": ("sun_directions", "sun_irradiances", "sun_shadows"),
 }
 

@@ -424,7 +424,8 @@ def preview_lights(scene, depsgraph):
                  spots=dict(positions=rows("spot_positions"), axes=rows("spot_axes"),
                             intensities=rows("spot_intensities", albedo),
                             sizes=[float(v) for v in lights.get("spot_size", ())[:MAX_LIGHTS]],
-                            blends=[float(v) for v in lights.get("spot_blend", ())[:MAX_LIGHTS]]),
+                            blends=[float(v) for v in lights.get("spot_blend", ())[:MAX_LIGHTS]],
+                            spreads=[float(v) for v in lights.get("spot_spread", ())[:MAX_LIGHTS]]),
                  suns=dict(directions=rows("sun_directions"), irradiances=rows("sun_irradiances", albedo),
                            fog_top=description.fog_top),
                  shadows=dict(points=flags("light_shadows"), spots=flags("spot_shadows"),
@@ -481,20 +482,24 @@ def _suns_texture(suns, shadow_rows=None):
 
 
 def _spots_texture(spots, shadow_rows=None):
-    """RGBA32F, spot_count x 3 (spot_airlight.glsl via preview_common.glsl): row 0 =
+    """RGBA32F, spot_count x 4 (spot_airlight.glsl via preview_common.glsl): row 0 =
     (position, cos(size / 2)), row 1 = (axis, (1 - cos(size / 2)) blend), row 2 = (albedo
-    I0, shadow-map row or -1)."""
+    I0, shadow-map row or -1), row 3 = (spread_a, spread_b, 0, 0) of an area light's Spread;
+    the profile constants from `_native.spot_cone`."""
     n = 0 if spots is None else len(spots["positions"])
-    data = np.zeros((3, max(1, n), 4), np.float32)
+    data = np.zeros((4, max(1, n), 4), np.float32)
     data[2, :, 3] = _rows_of(shadow_rows, max(1, n))
+    data[3, :, 0] = 1.0
     if n:
-        cos_half = np.cos(0.5 * np.asarray(spots["sizes"], np.float64))
         data[0, :n, :3] = spots["positions"]
-        data[0, :n, 3] = cos_half
         axes = np.asarray(spots["axes"], np.float64)
         data[1, :n, :3] = axes / np.linalg.norm(axes, axis=1, keepdims=True)
-        data[1, :n, 3] = (1.0 - cos_half) * np.asarray(spots["blends"], np.float64)
         data[2, :n, :3] = spots["intensities"]
+        spreads = list(spots.get("spreads", ())) + [math.pi] * n
+        module = native.get()
+        for i in range(n):
+            cos_half, smooth, a, b = module.spot_cone(spots["sizes"][i], spots["blends"][i], spreads[i])
+            data[0, i, 3], data[1, i, 3], data[3, i, :2] = cos_half, smooth, (a, b)
     return gs.float_texture(data)
 
 

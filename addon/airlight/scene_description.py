@@ -392,8 +392,7 @@ def survey(scene, depsgraph=None, view_layer=None):
         light = obj.data
         participates = bool(light.airlight.participate)
         emission = position = None
-        supported = light.type in SUPPORTED_LIGHT_TYPES and (
-            light.type != 'AREA' or getattr(light, "spread", math.pi) >= math.pi - 1e-3)
+        supported = light.type in SUPPORTED_LIGHT_TYPES
         if supported and participates:
             emission = np.array(light.color, dtype=np.float64) * light.energy
             src = obj.evaluated_get(depsgraph) if depsgraph is not None else obj

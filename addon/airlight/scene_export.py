@@ -21,30 +21,28 @@ from .scene_description import ExportError
 
 
 def _baked(light, plan):
-    """Whether the bake takes _light_ (a LightInstance): a supported type (area lights with
-    the full Spread), Scatter in Fog on, not skipped by Automatic (model_choice.plan;
-    instanced lights never are)."""
-    return (light.type in SUPPORTED_LIGHT_TYPES and light.participates and area_supported(light)
+    """Whether the bake takes _light_ (a LightInstance): a supported type, Scatter in Fog
+    on, not skipped by Automatic (model_choice.plan; instanced lights never are)."""
+    return (light.type in SUPPORTED_LIGHT_TYPES and light.participates
             and (light.instanced or light.name not in plan.skipped))
 
 
 # An area light (names.AREA_INTENSITY) bakes as spots of 180 degrees without blend (profile
 # cos(theta), spot_light.h) spread over its surface (names.area_grid), each carrying 1 / n of
-# the intensity.
-
-
-def area_supported(light):
-    """Area lights bake with Cycles' default Spread (180 degrees) only."""
-    return light.type != 'AREA' or light.spread >= math.pi - 1e-3
+# the intensity; a Spread below 180 degrees gives each sample Cycles' soft-box profile
+# (spot_spread, SpotCone in spot_light.h).
+# Blender's smallest Spread (1 degree, the property's hard minimum).
+AREA_MIN_SPREAD = math.radians(1.0)
 
 
 def area_samples(light, cell):
     """The sample points (n, 3) of an area light (a LightInstance) in world space: the
-    centres of kx x ky equal cells of about _cell_ m (names.area_grid) over the rectangle, or
+    centres of kx x ky equal cells of about _cell_ m (names.area_grid, narrowed by a Spread
+    below 180 degrees) over the rectangle, or
     those cells mapped to the ellipse
     by the concentric map (Shirley-Chiu, equal areas) for disks and ellipses."""
     sx, sy = (abs(float(s)) for s in light.area_size)
-    kx, ky = area_grid(sx, sy, cell)
+    kx, ky = area_grid(sx, sy, cell, light.spread)
     u = (np.arange(kx) + 0.5) / kx * 2.0 - 1.0
     v = (np.arange(ky) + 0.5) / ky * 2.0 - 1.0
     U, V = (a.ravel() for a in np.meshgrid(u, v))
@@ -123,7 +121,7 @@ def spot_lights(lights, plan, names=None):
     from the lamp's -Z; Blender gives a spot's power in W like a point light's, so the
     intensity is the point light's formula and the profile is applied by the bake.
     """
-    positions, axes, intensities, sizes, blends = [], [], [], [], []
+    positions, axes, intensities, sizes, blends, spreads = [], [], [], [], [], []
     for light, emission, axis in _directed_lights(lights, 'SPOT', plan):
         if names is not None:
             names.append(light.name)
@@ -132,6 +130,7 @@ def spot_lights(lights, plan, names=None):
         intensities.append(emission / (4.0 * math.pi))
         sizes.append(light.spot_size)
         blends.append(light.spot_blend)
+        spreads.append(math.pi)
     # Area lights after the spots, as their samples (AREA_INTENSITY).
     for light, emission, axis in _directed_lights(lights, 'AREA', plan):
         samples = area_samples(light, plan.area_cell)
@@ -143,13 +142,15 @@ def spot_lights(lights, plan, names=None):
             intensities.append(emission * (AREA_INTENSITY / len(samples)))
             sizes.append(math.pi)
             blends.append(0.0)
+            spreads.append(min(math.pi, max(AREA_MIN_SPREAD, float(light.spread))))
     if not positions:
         return {}
     return _check_finite(dict(spot_positions=np.array(positions, dtype=np.float64).reshape(-1, 3),
                               spot_axes=np.array(axes, dtype=np.float64).reshape(-1, 3),
                               spot_intensities=np.array(intensities, dtype=np.float64).reshape(-1, 3),
                               spot_size=np.array(sizes, dtype=np.float64),
-                              spot_blend=np.array(blends, dtype=np.float64)))
+                              spot_blend=np.array(blends, dtype=np.float64),
+                              spot_spread=np.array(spreads, dtype=np.float64)))
 
 
 def sun_lights(lights, plan, fog_top, names=None):

@@ -95,8 +95,6 @@ def fogged_lights(depsgraph):
         # Point, spot and sun lights: the bake's surface pass covers no other type.
         if light.type not in SURFACE_LIGHT_TYPES or not light.original.airlight.participate:
             continue
-        if light.type == 'AREA' and getattr(light, "spread", math.pi) < math.pi - 1e-3:
-            continue  # (not in the bake: scene_export.area_supported)
         original = obj.original
         counts[original.name] = counts.get(original.name, 0) + 1
         if light.type == 'AREA':  # one row per sample spot (scene_export.area_samples)
@@ -202,7 +200,7 @@ def area_sample_count(light, cell):
     """The number of spots an area light bakes as (scene_export.area_samples) for the sample
     cell _cell_ (names.area_cell)."""
     square = light.shape in ('SQUARE', 'DISK')
-    kx, ky = area_grid(light.size, light.size if square else light.size_y, cell)
+    kx, ky = area_grid(light.size, light.size if square else light.size_y, cell, getattr(light, "spread", math.pi))
     return kx * ky
 
 

@@ -119,10 +119,11 @@ class AIRLIGHT_PT_scene(bpy.types.Panel):
 _LIGHT_ICONS = {'POINT': 'LIGHT_POINT', 'SPOT': 'LIGHT_SPOT', 'SUN': 'LIGHT_SUN', 'AREA': 'LIGHT_AREA'}
 
 
-def _area_error(settings):
-    """The area lights' expected mean error (a fraction) for the settings' sample cell."""
-    cell = names.area_cell(settings)
-    return names.AREA_CELL_ERROR / 100.0 * (cell / names.AREA_CELL) ** 2
+def _area_error(settings, light):
+    """An area light's expected mean error (a fraction) for its sample grid (names.area_error)."""
+    square = light.shape in ('SQUARE', 'DISK')
+    return names.area_error(light.size, light.size if square else light.size_y, names.area_cell(settings),
+                            getattr(light, "spread", math.pi))
 
 
 def _percent(fraction):
@@ -146,8 +147,6 @@ def light_lines(scene, view_layer=None):
         daylight = scene.airlight.model == 'HOFFMAN02'
         if row.status == 'unsupported' and (row.type in ('POINT', 'SPOT') or (row.type == 'AREA' and daylight)):
             text = f"{row.name}: not in Hoffman-Preetham's daylight fog (sun lamps only)"
-        elif row.status == 'unsupported' and row.type == 'AREA':
-            text = f"{row.name}: area light with a Spread below 180 degrees, not yet in fog"
         elif row.status == 'unsupported':
             text = f"{row.name}: {row.type.lower()} light, not yet in fog"
         elif row.status == 'off':
@@ -158,7 +157,7 @@ def light_lines(scene, view_layer=None):
             obj = scene.objects.get(row.name)
             n = surface.area_sample_count(obj.data, names.area_cell(scene.airlight)) if obj is not None else 0
             text = (f"{row.name}: area light as {n} spot{'s' if n != 1 else ''} ({row.label}), sampled for "
-                    f"{_percent(_area_error(scene.airlight))} beyond its image"
+                    f"{_percent(_area_error(scene.airlight, obj.data)) if obj is not None else '?'} beyond its image"
                     f"{where}{_SHADOW_TEXT.get(row.shadow, '')}")
         else:
             error = "unbounded" if math.isinf(row.error) else f"\u2264 {_percent(row.error)}"
@@ -203,8 +202,6 @@ class AIRLIGHT_PT_light(bpy.types.Panel):
         row.prop(light.airlight, "participate")
         if not supported:
             layout.label(text=f"{light.type.title()} lights are not yet in fog.", icon='INFO')
-        elif light.type == 'AREA' and getattr(light, "spread", math.pi) < math.pi - 1e-3:
-            layout.label(text="Area lights with a Spread below 180 degrees are not yet in fog.", icon='INFO')
 
 
 def fog_object_note(model_name, settings=None, last=None):

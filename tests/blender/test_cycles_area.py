@@ -41,11 +41,13 @@ SEEDS = (1, 2)
 SIGNAL_FLOOR = 0.05
 LIGHT_RADIUS_PX = 10.0
 AXIS = np.array([0.0, -0.5, -1.0]) / np.linalg.norm([0.0, -0.5, -1.0])
-SHAPES = {"rectangle": ('RECTANGLE', 3.0, 1.0), "disk": ('DISK', 2.0, 2.0)}
+# name: (shape, size, size_y, Spread in degrees)
+SHAPES = {"rectangle": ('RECTANGLE', 3.0, 1.0, 180.0), "disk": ('DISK', 2.0, 2.0, 180.0),
+          "disk_spread": ('DISK', 2.0, 2.0, 50.0)}
 SUMMARY = cs.Summary(ARTIFACTS, "[cycles_area]", digits=4)
 
 
-def _make_area(scene, desc, shape, size, size_y):
+def _make_area(scene, desc, shape, size, size_y, spread_deg):
     import bpy
     from mathutils import Vector
     light = bpy.data.objects["RefLight"]
@@ -53,6 +55,7 @@ def _make_area(scene, desc, shape, size, size_y):
     light.data.shape = shape
     light.data.size = size
     light.data.size_y = size_y
+    light.data.spread = math.radians(spread_deg)
     light.data.energy = desc.light_power
     light.rotation_mode = 'QUATERNION'
     light.rotation_quaternion = Vector((0.0, 0.0, -1.0)).rotation_difference(Vector(AXIS.tolist()))
@@ -80,9 +83,12 @@ def _area_points(light, shape, size, size_y):
     return (local @ m.T)[:, :3], w
 
 
-def area_reference(o, d, Dvp, points, weights, axis, power, sigma_t, n=800, t_max=120.0):
-    """sigma/(4 pi) int_0^Dvp sum_k w_k (P/4) cos(theta_k) e^{-sigma (r_k + t)} / r_k^2 dt by the
-    midpoint rule on cells t = end u^2 (end = min(Dvp, t_max): e^{-0.15 * 120} beyond)."""
+def area_reference(o, d, Dvp, points, weights, axis, power, sigma_t, spread=math.pi, n=800, t_max=120.0):
+    """sigma/(4 pi) int_0^Dvp sum_k w_k (P/4) cos(theta_k) S(theta_k) e^{-sigma (r_k + t)} / r_k^2 dt
+    by the midpoint rule on cells t = end u^2 (end = min(Dvp, t_max): e^{-0.15 * 120} beyond).
+    S: Cycles 3.4's Spread (kernel/light/area.h), max(1 - tan(theta) / tan(h), 0) / (1 - h /
+    tan(h)), h = spread / 2; 1 at 180 degrees."""
+    h = 0.5 * spread
     H, W = o.shape[:2]
     out = np.full((H, W), np.nan)   # every other pixel each way (the rest NaN: not compared)
     u = np.arange(n + 1) / n
@@ -95,6 +101,10 @@ def area_reference(o, d, Dvp, points, weights, axis, power, sigma_t, n=800, t_ma
             r2 = np.einsum("tkc,tkc->tk", rel, rel)
             r = np.sqrt(r2)
             cos = np.clip(np.einsum("tkc,c->tk", rel, axis) / r, 0.0, None)
+            if spread < math.pi:
+                with np.errstate(divide="ignore", invalid="ignore"):
+                    tan = np.sqrt(np.maximum(0.0, 1.0 - cos * cos)) / cos
+                cos = np.where(cos > 0.0, cos * np.clip(1.0 - tan / math.tan(h), 0.0, None), 0.0) / (1.0 - h / math.tan(h))
             f = (weights[None, :] * (power / 4.0) * cos * np.exp(-sigma_t * r) / r2).sum(axis=1)
             out[j, i] = sigma_t / (4 * math.pi) * np.sum(f * np.exp(-sigma_t * t) * dt)
     return out
@@ -103,15 +113,16 @@ def area_reference(o, d, Dvp, points, weights, axis, power, sigma_t, n=800, t_ma
 @pytest.fixture(scope="module", params=sorted(SHAPES))
 def refs(request):
     name = request.param
-    shape, size, size_y = SHAPES[name]
-    desc = cs.FogScene(width=96, height=72, samples=256)
+    shape, size, size_y, spread_deg = SHAPES[name]
+    # (a narrow Spread lights few pixels from few directions: Cycles needs more samples there)
+    desc = cs.FogScene(width=96, height=72, samples=256 if spread_deg >= 180.0 else 2048)
     scene = cs.build(desc)
-    light = _make_area(scene, desc, shape, size, size_y)
+    light = _make_area(scene, desc, shape, size, size_y, spread_deg)
     rays = cs.reference_rays(scene, desc, LIGHT_RADIUS_PX)
     o, d, depth, Dvp, near_light = (rays[k] for k in ("o", "d", "depth", "Dvp", "near_light"))
     (c1, c2), seconds = cs.render_seeds(scene, ARTIFACTS, f"cycles_area_{name}", SEEDS)
     points, weights = _area_points(light, shape, size, size_y)
-    La = area_reference(o, d, Dvp, points, weights, AXIS, desc.light_power, desc.sigma_t)
+    La = area_reference(o, d, Dvp, points, weights, AXIS, desc.light_power, desc.sigma_t, math.radians(spread_deg))
     finite = np.isfinite(La)
     mask = finite & (np.where(finite, La, 0.0) > SIGNAL_FLOOR * np.nanpercentile(La, 99))
     mask &= ~cs.silhouette_mask(depth, radius=2) & ~near_light

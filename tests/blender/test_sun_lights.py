@@ -160,6 +160,7 @@ def test05_panel_lines(tmp_path):
     scene.collection.objects.link(area)
     narrow = bpy.data.objects.new("Narrow", bpy.data.lights.new("Narrow", 'AREA'))
     narrow.data.spread = math.radians(90.0)
+    narrow.data.size = 2.0
     scene.collection.objects.link(narrow)
     bpy.context.view_layer.update()
     lines = dict((text.split(":")[0], text) for text, _ in ui.light_lines(scene))
@@ -169,7 +170,9 @@ def test05_panel_lines(tmp_path):
     assert lines["Near"] == f"Near: {label}, error \u2264 {100 * error:.2g} %, shadowed"
     assert lines["Sun"].startswith("Sun: Closed form (sun)")
     assert lines["Panel"].startswith("Panel: area light as 1 spot (")   # 0.25 m: one sample
-    assert "Spread below 180 degrees, not yet in fog" in lines["Narrow"]
+    # Spread 90 degrees halves the cell (names.area_grid): 2 m / (0.395 m / 2) -> 10 x 10
+    assert lines["Narrow"].startswith("Narrow: area light as 100 spots ("), lines["Narrow"]
+    assert "sampled for 1 % beyond its image" in lines["Narrow"], lines["Narrow"]
     scene.airlight.accuracy = 0.01            # the list follows the settings: Far back in
     lines = dict((text.split(":")[0], text) for text, _ in ui.light_lines(scene))
     label = model_choice.choose(scene.airlight)[1]  # the cheapest model meeting 0.01 %
@@ -182,4 +185,4 @@ def test05_panel_lines(tmp_path):
     fog_object.new_fog_object("Fog", scene.collection, centres=[(0.0, 0.0, 1.0)])
     lines = dict((text.split(":")[0], text) for text, _ in ui.light_lines(scene))
     assert lines["Near"].endswith("error unbounded in the uniform fog, shadowed")
-    assert "in the uniform fog" not in lines["Narrow"]
+    assert "in the uniform fog" in lines["Narrow"]   # baked now: its row is the uniform fog's too

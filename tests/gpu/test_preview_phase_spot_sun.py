@@ -159,6 +159,53 @@ def test03_preview_spots_match_bake(addon, native, gs, artifacts, g):
         scene.airlight.anisotropy = 0.0
 
 
+def test03b_preview_area_spread_matches_bake(addon, native, gs, artifacts):
+    """Area lights with a Spread below 180 degrees (a 1 m disk at 40, a 2 x 0.5 m rectangle
+    at 120): their samples' soft-box profile (spot_cone's constants in the spot texture's
+    row 3) in the preview's fixed quadrature vs the bake's adaptive one."""
+    import math
+    from mathutils import Vector
+    from airlight import scene_export
+    scene = build_scene(0.08)
+    lights = []
+    for name, shape, size, size_y, spread, location, target in (
+            ("Softbox", 'DISK', 1.0, 1.0, 40.0, (3.0, -2.0, 5.0), (0.0, 1.0, 0.0)),
+            ("Panel", 'RECTANGLE', 2.0, 0.5, 120.0, (-3.0, 2.0, 4.0), (-1.0, 0.0, 0.0))):
+        data = bpy.data.lights.new(name, 'AREA')
+        data.shape, data.size, data.size_y, data.spread = shape, size, size_y, math.radians(spread)
+        data.energy = 2000.0
+        obj = bpy.data.objects.new(name, data)
+        obj.location = location
+        obj.rotation_euler = (Vector(target) - Vector(location)).to_track_quat('-Z', 'Y').to_euler()
+        scene.collection.objects.link(obj)
+        lights.append(obj)
+    for obj in [o for o in scene.objects if o.type == 'LIGHT' and o.data.type == 'POINT']:
+        bpy.data.objects.remove(obj)  # (build_scene makes them again for the next test)
+    bpy.context.view_layer.update()
+    try:
+        desc = scene_export.export_scene(scene, bpy.context.evaluated_depsgraph_get())
+        assert (desc["spot_spread"] < math.pi).all() and len(desc["spot_spread"]) <= 256   # (MAX_LIGHTS)
+        baked = native.bake(**desc, aa_samples=1, threads=0)
+        ref = baked["airlight"].astype(np.float64)
+        ref_T = baked["transmittance"].astype(np.float64)[..., 0]
+        spot_dict = addon.scene_spots(scene, bpy.context.view_layer)
+        assert len(spot_dict["spreads"]) == len(desc["spot_spread"])
+        got, got_T = render_preview(addon, gs, scene, desc, None, spots=spot_dict)
+        rel, dT = compare("preview vs bake, 2 area lights with a Spread", got, got_T, ref, ref_T)
+        lit = (ref > 1e-3 * ref.max()).mean()
+        print(f"pixels with fog above 1e-3 of the max: {lit:.3g}")
+        scale = 1.0 / np.percentile(ref, 99)
+        save_png(os.path.join(artifacts, "preview_area_spread_gpu.png"), np.clip(got * scale, 0, 1))
+        save_png(os.path.join(artifacts, "preview_area_spread_bake.png"), np.clip(ref * scale, 0, 1))
+        assert lit > 0.1
+        assert rel.mean() <= 2e-3
+        assert np.percentile(rel, 99) <= 1e-2
+        assert dT.mean() <= 1e-4
+    finally:
+        for obj in lights:
+            bpy.data.objects.remove(obj)
+
+
 # ---- sun lamps -----------------------------------------------------------------------------
 
 def _sun_factor_quadrature(sigma, h_top, mu_s, o_z, d_z, t0, t1, n=20000):
