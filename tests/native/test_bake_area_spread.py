@@ -13,20 +13,15 @@ from scipy import integrate, optimize
 
 import _native
 from reference_util import hg
-from scene_util import camera_matrix, perspective, pixel_dirs_camera, plane_z, rotation_x
+from scene_util import pixel_dirs_camera, rotation_x
+# The spot tests' camera, floor and fog (scene() builds the bake's arguments).
+from test_bake_spot_lights import ALBEDO, CAM_POS, FOV, H, PLANE_Z, SIGMA_T, TILT, W, scene
 
-W, H = 24, 16
-FOV = math.radians(60.0)
-SIGMA_T = 0.15
-TILT = math.radians(-10.0)
-CAM_POS = np.array([0.0, 0.5, 1.0])
-PLANE_Z = -9.0
 # Two samples of area lights aimed down into the view, Spread 40 and 100 degrees.
 SPOT_POS = np.array([[0.5, 3.0, -5.0], [-2.0, 2.0, -3.0]])
 SPOT_AXIS = np.array([[0.1, -1.0, -0.2], [0.6, -0.8, -1.0]])
 SPOT_I = np.array([[30.0, 20.0, 10.0], [5.0, 8.0, 12.0]])
 SPREAD = np.array([math.radians(40.0), math.radians(100.0)])
-ALBEDO = (0.9, 0.8, 0.6)
 
 
 def cycles_profile(axis, spread, u):
@@ -77,16 +72,6 @@ def reference(o, d, t0, t1, g=0.0, spreads=SPREAD):
                   for lo, hi in zip(pts, pts[1:]) if hi > lo)
         total += SIGMA_T * np.array(ALBEDO) * I0 * val
     return total
-
-
-def scene(**kw):
-    vertices, triangles = plane_z(PLANE_Z)
-    args = dict(width=W, height=H, cam_to_world=camera_matrix(rotation_x(TILT), CAM_POS),
-                projection=perspective(FOV, W, H), vertices=vertices, triangles=triangles,
-                light_positions=np.zeros((0, 3)), light_intensities=np.zeros((0, 3)), sigma_t=SIGMA_T,
-                albedo=ALBEDO, threads=2, aa_samples=1)
-    args.update(kw)
-    return args
 
 
 def samples(spreads=SPREAD):
