@@ -71,7 +71,7 @@ def main():
         return
     scene = _scene(0, args.size)
     description, settings = bake.prepare(scene, bpy.context.evaluated_depsgraph_get())
-    settings.update(threads=2, aa_samples=1)
+    settings = dict(bake.native_settings(settings), threads=2, aa_samples=1)
     for label, extra in (("no sun", dict(sun_directions=np.zeros((0, 3)), sun_irradiances=np.zeros((0, 3)))),
                          ("1 sun", {})):
         d = dict(description, **extra)

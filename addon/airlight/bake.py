@@ -45,6 +45,9 @@ SAMPLES = "samples_to_average"
 # Settings key (popped by run) of the per-light passes: the light arrays' row names
 # (scene_export.light_arguments), or absent when Light Passes is off.
 LIGHT_PASSES = "light_passes"
+# (fogged lights, Light Pass Limit) when Light Passes is on but the scene has more lights
+# than the limit: no per-light pass is written, and the console line says so.
+LIGHT_PASSES_OVER = "light_passes_over"
 
 
 def film_filter_width(scene):
@@ -83,6 +86,11 @@ def prepare(scene, depsgraph, mesh_overrides=None, view=None):
     try:
         names = {} if getattr(scene.airlight, "light_passes", False) else None
         description, plan = scene_export.export(scene, depsgraph, mesh_overrides, view, names)
+        over = None
+        if names is not None:
+            count, limit = len(light_pass_names(names)), int(getattr(scene.airlight, "light_pass_limit", 8))
+            if count > limit:
+                over, names = (count, limit), None
         settings = bake_settings(scene, description)
         world = environment.prepare(scene)
         if world is not None:
@@ -93,6 +101,8 @@ def prepare(scene, depsgraph, mesh_overrides=None, view=None):
         settings[HALF_PASSES] = True
     if names is not None:
         settings[LIGHT_PASSES] = names
+    if over is not None:
+        settings[LIGHT_PASSES_OVER] = over
     lens = scene_description.export_lens(scene, depsgraph, view, description["cam_to_world"],
                                          description["projection"])
     if lens is not None:
@@ -126,6 +136,16 @@ def prepare(scene, depsgraph, mesh_overrides=None, view=None):
     return description, settings
 
 
+# The keys of prepare()'s settings that run() takes out before the native bake.
+RUN_ONLY = (SURFACE_GROUPS, REGION, HALF_PASSES, "environment", LENS, SAMPLES, LIGHT_PASSES, LIGHT_PASSES_OVER)
+
+
+def native_settings(settings):
+    """prepare()'s _settings_ as `_native.bake` keyword arguments: without run()'s own keys
+    (the surface groups, region, precision, World, lens and shutter samples, light passes)."""
+    return {k: v for k, v in settings.items() if k not in RUN_ONLY}
+
+
 def run(description, settings, filepath, progress=None):
     """Bakes and writes the EXR; safe to call from a worker thread (no bpy access).
 
@@ -146,6 +166,7 @@ def run(description, settings, filepath, progress=None):
     lens = settings.pop(LENS, None)
     samples = settings.pop(SAMPLES, None) or (_variants(description, {LENS: lens}) if lens else None)
     rows = settings.pop(LIGHT_PASSES, None)
+    over = settings.pop(LIGHT_PASSES_OVER, None)
 
     counts = module.table_cache_counts() if hasattr(module, "table_cache_counts") else None
 
@@ -159,10 +180,13 @@ def run(description, settings, filepath, progress=None):
             unlit = result["airlight"].copy() if rows and world is not None else None
             if world is not None:
                 stats["seconds_environment"] = environment.apply(module, world, description, result)
-            lights, light_seconds = (_light_passes(module, description, settings, rows, _sub_progress(progress, 1, 2))
+            refined = settings.get("gaussian_accuracy", 0.0) > 0.0 and len(description.get("rbf_centres", ())) > 0
+            lit = unlit if unlit is not None else result["airlight"]
+            lights, light_seconds = (_light_passes(module, description, settings, rows, _sub_progress(progress, 1, 2),
+                                                   total=None if refined else lit)
                                      if rows else (None, 0.0))
-            if lights is not None and settings.get("gaussian_accuracy", 0.0) > 0.0:
-                _split_like(lights, unlit if unlit is not None else result["airlight"])
+            if lights is not None and refined:
+                _split_like(lights, lit)
         except ValueError as ex:
             raise BakeError(f"Invalid fog scene: {ex}") from None
         extra = surface.pass_arrays(result, groups) if settings.get("surface") else None
@@ -190,6 +214,8 @@ def run(description, settings, filepath, progress=None):
     except cache.CacheError as ex:
         raise BakeError(str(ex)) from None
     stats["seconds_exr"] = time.perf_counter() - t0
+    if over is not None:
+        stats["light_passes_over_limit"] = over
     if counts is not None:
         stats["tables_built"] = module.table_cache_counts()["built"] - counts["built"]
     return stats, time.perf_counter() - start
@@ -218,17 +244,45 @@ def _one_light(description, rows, name):
     return out
 
 
-def _light_passes(module, description, settings, rows, progress):
+def light_pass_names(rows):
+    """The fogged lights of _rows_ (scene_export.light_arguments' names), in their order."""
+    return list(dict.fromkeys(n for kind in ("points", "spots", "suns") for n in rows.get(kind, ())))
+
+
+def _light_cost(description, rows, name):
+    """A light's share of a bake, to choose the one left to the remainder: its rows (an
+    area light's samples), the shadowed ones counted four times (their lit intervals)."""
+    cost = 0
+    for kind, keys in _LIGHT_ARRAYS.items():
+        names = rows.get(kind, ())
+        shadows = description.get(keys[-1])
+        shadows = np.asarray(shadows, dtype=bool) if shadows is not None and len(shadows) == len(names) else None
+        cost += sum((4 if shadows is not None and shadows[k] else 1) for k, n in enumerate(names) if n == name)
+    return cost
+
+
+def _light_passes(module, description, settings, rows, progress, total=None):
     """({pass name: airlight (H, W, 3)} of each light alone, seconds): the bake is linear in
     the lights, so they sum to the total but for float rounding; the same model and settings,
-    without the surface passes."""
-    names = list(dict.fromkeys(n for kind in ("points", "spots", "suns") for n in rows.get(kind, ())))
+    without the surface passes. With _total_ (the whole bake's airlight of the lights, without
+    the World's glow) the costliest light is not baked again: its pass is the total less the
+    others' (clipped at 0 against rounding), so one light costs no bake at all and n lights
+    n - 1. Without it (the fog objects' refinement, which is not linear in the lights) every
+    light is baked."""
+    names = light_pass_names(rows)
+    left = max(names, key=lambda n: _light_cost(description, rows, n)) if total is not None and names else None
     one = dict(settings, surface=False)
     passes, t0 = {}, time.perf_counter()
-    for k, name in enumerate(names):
-        result = module.bake(**_one_light(description, rows, name), **one, progress=_sub_progress(progress, k, len(names)))
+    baked = [n for n in names if n != left]
+    for k, name in enumerate(baked):
+        result = module.bake(**_one_light(description, rows, name), **one, progress=_sub_progress(progress, k, len(baked)))
         key = light_pass(name)
         passes[key] = passes[key] + result["airlight"] if key in passes else result["airlight"]
+    if left is not None:
+        rest = total - sum(passes.values()) if passes else total.copy()
+        key = light_pass(left)
+        rest = np.maximum(rest, 0.0).astype(np.float32)
+        passes[key] = passes[key] + rest if key in passes else rest
     return passes, time.perf_counter() - t0
 
 
@@ -446,6 +500,11 @@ def parts_line(stats):
     parts = [f"export {ms('seconds_export'):.0f} ms", f"native bake {native_ms:.0f} ms (setup and tables "
              f"{ms('seconds_fog_setup'):.0f}, rays {ms('seconds_raycast'):.0f}, fog {ms('seconds_airlight'):.0f}, "
              f"surfaces {ms('seconds_surface'):.0f})", f"EXR {ms('seconds_exr'):.0f} ms"]
+    if "seconds_light_passes" in stats:
+        parts.append(f"light passes {ms('seconds_light_passes'):.0f} ms")
+    if stats.get("light_passes_over_limit"):
+        count, limit = stats["light_passes_over_limit"]
+        parts.append(f"no light passes ({count} fogged lights, over the Light Pass Limit of {limit})")
     if stats.get("tables_built"):
         parts.append(f"{stats['tables_built']} table(s) built")
     return ", ".join(parts)

@@ -237,10 +237,19 @@ class AirlightSceneSettings(bpy.types.PropertyGroup):
         name="Light Passes",
         description="Also write each fogged light's airlight as its own pass, "
                     "Fog.Airlight_<light name> (and Fog.Airlight_World with Environment Glow), "
-                    "to grade each lamp's glow in the compositor; they sum to Fog.Airlight. Each "
-                    "light is baked once more on its own: the bake takes about (lights + 1) times "
-                    "as long",
-        default=False,
+                    "to grade each lamp's glow in the compositor; they sum to Fog.Airlight. "
+                    "Written while the scene has at most Light Pass Limit fogged lights. Every "
+                    "light but the costliest is baked once more on its own (one light: no extra "
+                    "bake; each extra bake costs about its light's share of the frame's fog)",
+        default=True,
+    )
+    light_pass_limit: IntProperty(
+        name="Light Pass Limit",
+        description="Light Passes are written only while the scene has at most this many "
+                    "fogged lights (an area light or a collection's instances of a light count "
+                    "once); above it the frame has the total Fog.Airlight alone and the console "
+                    "says so",
+        default=8, min=1, max=256,
     )
     lens_samples: IntProperty(
         name="Lens Samples",

@@ -78,6 +78,12 @@ class AIRLIGHT_PT_scene(bpy.types.Panel):
         col.prop(settings, "cache_dir")
         col.prop(settings, "pass_precision")
         col.prop(settings, "light_passes")
+        if settings.light_passes:
+            sub = col.row()
+            sub.prop(settings, "light_pass_limit")
+            note = light_pass_note(context.scene)
+            if note:
+                col.label(text=note, icon='INFO')
         camera = context.scene.camera
         if camera is not None and camera.type == 'CAMERA' and camera.data.dof.use_dof:
             col.prop(settings, "lens_samples")
@@ -168,6 +174,17 @@ def light_lines(scene, view_layer=None):
 
 _SHADOW_TEXT = {'shadowed': ", shadowed", 'clear': ", unshadowed (no caster near enough to matter)",
                 'no shadow': ", unshadowed (Cast Shadow off)"}
+
+
+def light_pass_note(scene):
+    """A line for the panel when Light Passes is on but the scene has more fogged lights than
+    its limit (the bake writes none then), or None."""
+    settings = scene.airlight
+    count = sum(1 for _, kind, supported, participates in scene_description.fog_lights(scene)
+                if supported and participates)
+    if settings.light_passes and count > settings.light_pass_limit:
+        return f"{count} fogged lights, over the limit: no light passes"
+    return None
 
 
 def shadow_note(scene):

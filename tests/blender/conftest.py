@@ -141,9 +141,10 @@ def poles_scene(tmp_path, poles, samples):
 def hit_coverage(descriptions, settings):
     """Per pixel, the fraction of the bakes of _descriptions_ (with _settings_) whose centre
     ray hits a surface."""
+    from airlight import bake
     hit = 0.0
     for description in descriptions:
-        result = native.get().bake(**description, **settings)
+        result = native.get().bake(**description, **bake.native_settings(settings))
         hit = hit + np.isfinite(result["depth"]).astype(np.float64)
     return hit / len(descriptions)
 

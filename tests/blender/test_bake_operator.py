@@ -20,10 +20,13 @@ def test01_exr_passes_equal_native_bake_of_exported_scene(tmp_path):
     scene = build_plane_scene(tmp_path)
     path = _bake(tmp_path / "fog.exr")
     _, names = read_exr(path)
-    assert sorted(names) == sorted(f"Fog.{p}.{c}" for p in ("Airlight", "Transmittance") for c in "RGB")
+    # (Light Passes, on by default: the one lamp's pass is the total.)
+    assert sorted(names) == sorted(f"Fog.{p}.{c}" for p in ("Airlight", "Airlight_Lamp", "Transmittance")
+                                   for c in "RGB")
     description = scene_export.export_scene(scene, bpy.context.evaluated_depsgraph_get())
     reference = native.get().bake(**description, **bake.bake_settings(scene))
     np.testing.assert_array_equal(exr_pass(path, "Airlight"), reference["airlight"])
+    np.testing.assert_array_equal(exr_pass(path, "Airlight_Lamp"), reference["airlight"])
     np.testing.assert_array_equal(exr_pass(path, "Transmittance"), reference["transmittance"])
     assert reference["airlight"].max() > 0.0
 

@@ -104,8 +104,8 @@ def test03_bake_averages_the_lens_samples_and_the_panel_no_longer_warns(tmp_path
     stats, _ = bake.run(description, settings, path)
     assert stats["averaged_bakes"] == 4
     # The same as averaging the four bakes by hand.
-    plain = dict(settings)
-    lens = plain.pop(bake.LENS)
+    plain = bake.native_settings(settings)
+    lens = settings[bake.LENS]
     sums, count = 0.0, 0
     for cam_to_world, projection in lens:
         result = native.get().bake(**dict(description, cam_to_world=cam_to_world, projection=projection), **plain)

@@ -163,7 +163,7 @@ def test03_bake_with_glow_matches_exact_psf_reference(tmp_path):
     T = pixels[..., [names.index(f"Fog.Transmittance.{c}") for c in "RGB"]]
     module = native.get()
     off_kw = dict(bake_kw, environment=None)
-    plain = module.bake(**description, **{k: v for k, v in off_kw.items() if k != "environment"})
+    plain = module.bake(**description, **bake.native_settings(off_kw))
     miss = ~np.isfinite(plain["depth"])
     assert 100 < miss.sum() < miss.size - 100  # sky and ground both in frame
     np.testing.assert_allclose(T[miss], math.exp(-0.02 * 60.0), rtol=1e-6)
@@ -227,8 +227,7 @@ def test04_world_light_on_surfaces_through_fog(tmp_path):
     bake.run(description, bake_kw, path)
     pixels, names = read_exr(path)
     ratio = pixels[..., [names.index(f"Fog.Surface_{surface.WORLD_GROUP}.{c}") for c in "RGB"]]
-    depth = native.get().bake(**description, **{k: v for k, v in bake_kw.items()
-                                                if k not in ("environment", "surface_groups")})["depth"]
+    depth = native.get().bake(**description, **bake.native_settings(bake_kw))["depth"]
     floor = np.isfinite(depth)
     assert 100 < floor.sum() < floor.size - 50
     T = 0.05 * 30.0

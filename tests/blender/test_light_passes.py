@@ -3,10 +3,13 @@ beside the total Fog.Airlight (issue: a pass per light).
 
 - test01: two point lights (one named with a dot), a spot and a sun in homogeneous fog with
   volumetric shadows: one pass per light, named as the light groups are, each equal to a bake
-  of that light alone (its Scatter in Fog kept, the others' off), and their sum the total.
+  of that light alone (its Scatter in Fog kept, the others' off; the costliest light's pass
+  is the total less the others'), and their sum the total.
 - test02: an area light (its samples in one pass), Environment Glow (Fog.Airlight_World) and
   fog objects: the passes still sum to the total.
-- test03: off (the default): no per-light pass in the file.
+- test03: on by default, with a limit of 8 fogged lights; test04: over the limit, no
+  per-light pass, and the console line and the panel say so.
+- test05: one light: its pass is the total, with no second bake. test06: off.
 """
 import math
 
@@ -100,7 +103,60 @@ def test02_area_light_world_and_fog_objects_sum_to_the_total(tmp_path):
     assert exr_pass(path, "Airlight_World").max() > 0.0
 
 
-def test03_off_by_default(tmp_path):
+def test03_on_by_default_up_to_the_limit(tmp_path):
     scene = _scene(tmp_path)
     scene.airlight.property_unset("light_passes")
+    scene.airlight.property_unset("light_pass_limit")
+    assert scene.airlight.light_passes and scene.airlight.light_pass_limit == 8
+    assert len(_light_pass_names(_bake(tmp_path, "default"))) == 4
+    from airlight import ui
+    assert ui.light_pass_note(scene) is None
+
+
+def test04_over_the_limit_none_and_says_so(tmp_path):
+    from airlight import bake, ui
+    scene = _scene(tmp_path)
+    scene.airlight.light_pass_limit = 3
+    assert _light_pass_names(_bake(tmp_path, "over")) == []
+    description, settings = bake.prepare(scene, bpy.context.evaluated_depsgraph_get())
+    stats, _ = bake.run(description, settings, str(tmp_path / "over_run.exr"))
+    assert "4 fogged lights, over the Light Pass Limit of 3" in bake.parts_line(stats)
+    assert ui.light_pass_note(scene) == "4 fogged lights, over the limit: no light passes"
+    scene.airlight.light_passes = False
+    assert ui.light_pass_note(scene) is None
+
+
+def test05_one_light_costs_no_extra_bake(tmp_path):
+    from airlight import bake
+    scene = _scene(tmp_path)
+    for obj in scene.objects:
+        if obj.type == 'LIGHT':
+            obj.data.airlight.participate = obj.name == "Street"
+    description, settings = bake.prepare(scene, bpy.context.evaluated_depsgraph_get())
+    calls = []
+    module = bake.native.get()
+
+    class Counting:
+        def __getattr__(self, name):
+            return getattr(module, name)
+
+        def bake(self, **kwargs):
+            calls.append(1)
+            return module.bake(**kwargs)
+
+    original = bake.native.get
+    bake.native.get = lambda: Counting()
+    try:
+        path = str(tmp_path / "one.exr")
+        bake.run(description, settings, path)
+    finally:
+        bake.native.get = original
+    assert len(calls) == 1
+    assert _light_pass_names(path) == ["Airlight_Street"]
+    np.testing.assert_array_equal(exr_pass(path, "Airlight_Street"), exr_pass(path, "Airlight"))
+
+
+def test06_off(tmp_path):
+    scene = _scene(tmp_path)
+    scene.airlight.light_passes = False
     assert _light_pass_names(_bake(tmp_path, "off")) == []

@@ -108,7 +108,7 @@ def _bake(scene, model=None):
         scene.airlight.model = model
     description, settings = bake.prepare(scene, bpy.context.evaluated_depsgraph_get())
     settings["aa_samples"] = 1
-    return native.get().bake(**description, **settings), description
+    return native.get().bake(**description, **bake.native_settings(settings)), description
 
 
 def test03_skipping_changes_the_image_by_less_than_the_target(tmp_path):

@@ -137,7 +137,7 @@ def test05_gloss_exponent_adds_the_glossy_glow(tmp_path):
     description, settings = bake.prepare(scene, bpy.context.evaluated_depsgraph_get())
     assert settings["surface_phong_exponent"] == 20.0
     from airlight import native
-    kw = {k: v for k, v in settings.items() if k not in (bake.SURFACE_GROUPS, "environment")}
+    kw = bake.native_settings(settings)
     ref = native.get().bake(**description, **kw)["surface_gloss_glow"]
     np.testing.assert_allclose(gloss, ref, rtol=1e-5, atol=1e-9)
     tree = scene.node_tree
@@ -177,7 +177,7 @@ def test06_skipped_lights_keep_groups_aligned(tmp_path):
     _, names = read_exr(path)
     assert {n.rsplit(".", 1)[0] for n in names if n.startswith("Fog.Surface_")} == {"Fog.Surface_fog_Key"}
     from airlight import native
-    kw = {k: v for k, v in settings.items() if k not in (bake.SURFACE_GROUPS, "environment")}
+    kw = bake.native_settings(settings)
     ref = native.get().bake(**description, **kw)["surface_attenuation"][0] - 1.0
     np.testing.assert_allclose(exr_pass(path, "Surface_fog_Key"), ref, rtol=1e-5, atol=1e-7)
 
