@@ -26,7 +26,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from . import fog_object, light_bounds, visibility
+from . import fog_object, light_bounds, light_nodes, visibility
 from .names import SUPPORTED_LIGHT_TYPES, native_phase
 from .views import bake_window, region_projection, render_size, view_camera
 
@@ -266,15 +266,22 @@ class LightInstance(NamedTuple):
     spread: float = math.pi    # area lights: Cycles' Spread, rad (pi: the full cosine lobe)
 
 
-def _light_instance(instance, obj):
+def _light_instance(instance, obj, engine):
     light = obj.data
     spot = light.type == 'SPOT'
+    participates = bool(light.original.airlight.participate)
+    try:
+        # Light > Use Nodes (Cycles): the constant factor of its Emission shader (a light kept
+        # out of the fog is not asked).
+        factor = light_nodes.emission_factor(obj.name, light, engine) if participates else np.ones(3)
+    except light_nodes.LightNodeError as ex:
+        raise ExportError(str(ex)) from None
     # Read from the original light: add-on properties do not tag the depsgraph, so the
     # evaluated copy can hold a stale value after the user toggles it.
     return LightInstance(
-        name=obj.name, type=light.type, participates=bool(light.original.airlight.participate),
+        name=obj.name, type=light.type, participates=participates,
         instanced=bool(instance.is_instance), matrix=np.array(instance.matrix_world, dtype=np.float64),
-        color=np.array(light.color, dtype=np.float64), energy=light.energy,
+        color=np.array(light.color, dtype=np.float64) * factor, energy=light.energy,
         spot_size=float(light.spot_size) if spot else 0.0, spot_blend=float(light.spot_blend) if spot else 0.0,
         casts_shadow=bool(getattr(light, "use_shadow", True)), **_area_fields(light))
 
@@ -332,7 +339,7 @@ def export_instances(depsgraph, geometry=True):
         if source is None or not visible(source):
             continue
         if obj.type == 'LIGHT':
-            lights.append(_light_instance(instance, obj))
+            lights.append(_light_instance(instance, obj, depsgraph.scene.render.engine))
             continue
         if obj.type not in GEOMETRY_TYPES:
             continue
@@ -394,7 +401,8 @@ def survey(scene, depsgraph=None, view_layer=None):
         emission = position = None
         supported = light.type in SUPPORTED_LIGHT_TYPES
         if supported and participates:
-            emission = np.array(light.color, dtype=np.float64) * light.energy
+            emission = (np.array(light.color, dtype=np.float64) * light.energy
+                        * light_nodes.safe_emission_factor(obj.name, light, scene.render.engine))
             src = obj.evaluated_get(depsgraph) if depsgraph is not None else obj
             position = tuple(src.matrix_world.translation)
         lights.append(SurveyLight(obj.name, light.type, participates, emission, position,

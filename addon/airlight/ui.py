@@ -5,7 +5,7 @@ import math
 import bpy
 
 from . import bake, compositor, environment, fog_object, model_choice, native, render, scene_description, surface
-from . import names
+from . import light_nodes, names
 from .names import SUPPORTED_LIGHT_TYPES
 
 
@@ -219,6 +219,23 @@ class AIRLIGHT_PT_light(bpy.types.Panel):
         row.prop(light.airlight, "participate")
         if not supported:
             layout.label(text=f"{light.type.title()} lights are not yet in fog.", icon='INFO')
+        problem = light_node_problem(light, context.scene)
+        if problem and light.airlight.participate:
+            box = layout.box()
+            box.alert = True
+            for line in problem:
+                box.label(text=line, icon='ERROR' if line is problem[0] else 'BLANK1')
+
+
+def light_node_problem(light, scene):
+    """The panel's lines when _light_'s node tree is one the fog refuses (light_nodes), or None."""
+    try:
+        light_nodes.emission_factor(light.name, light, scene.render.engine)
+    except light_nodes.LightNodeError as ex:
+        text = str(ex)
+        first, _, rest = text.partition(". ")
+        return [first, rest] if rest else [first]
+    return None
 
 
 def fog_object_note(model_name, settings=None, last=None):

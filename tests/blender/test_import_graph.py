@@ -19,7 +19,7 @@ import airlight
 
 PACKAGE = os.path.dirname(os.path.realpath(airlight.__file__))
 MODULES = sorted(name[:-3] for name in os.listdir(PACKAGE) if name.endswith(".py") and name != "__init__.py")
-LEAVES = ("names", "views")
+LEAVES = ("names", "views", "light_nodes")
 
 
 def _imports(module):
