@@ -94,7 +94,9 @@ BakeContext::BakeContext(const SceneDescription& scene_, const BakeSettings& set
       n_threads(resolve_threads(settings_.threads)),
       n_bands((H + kBandRows - 1) / kBandRows),
       result(allocated(result_, W, H)),
-      caster(scene_.geometry),
+      shared_caster(RayCaster::shared(scene_.geometry)),
+      caster(*shared_caster),
+      invalid_before(caster.invalid_rays()),
       forward(rays.forward()),
       ortho(rays.orthographic()),
       clipped(rays.clipped()),
@@ -161,7 +163,7 @@ void BakeContext::cast(const Ray* r, int n, float* depth, float* t0, CastScratch
 }
 
 void BakeContext::check_traced() const {
-    if (const long n = caster.invalid_rays())
+    if (const long n = caster.invalid_rays() - invalid_before)
         throw std::invalid_argument("the camera cannot be baked: " + std::to_string(n) +
                                     " of its rays are not finite (check the camera's lens, sensor, shift and "
                                     "clip range, and the scene's scale)");

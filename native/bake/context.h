@@ -5,6 +5,7 @@
 #include <chrono>
 #include <functional>
 #include <limits>
+#include <memory>
 #include <vector>
 
 #include "bake/bake.h"
@@ -56,7 +57,11 @@ class BakeContext {
     const size_t n_pixels;
     const int n_threads, n_bands;
     BakeResult& result;
-    const RayCaster caster;
+    // The ray caster over the scene's geometry, shared with earlier bakes of the same mesh
+    // (RayCaster::shared), and its refused rays before this bake.
+    const std::shared_ptr<const RayCaster> shared_caster;
+    const RayCaster& caster;
+    const long invalid_before;
     const Vec3 forward;  // unit view axis
     const bool ortho, clipped;
     const Vec3 eye;      // camera position

@@ -4,6 +4,7 @@
 #include <string>
 
 #include "bake/bake.h"
+#include "image/raycast.h"
 #include "core/memory.h"
 #include "image/exr_io.h"
 #include "models/registry.h"
@@ -519,6 +520,11 @@ ValueError on invalid input. The GIL is released while baking.)doc");
 caps it; inf when unknown): what bake() and write_exr() check their images against before
 allocating them (ValueError / RuntimeError naming both sizes when they would not fit).)doc");
 
+    m.def("raycaster_builds", &RayCaster::shared_builds,
+          "Embree BVHs the bakes of this process built for their geometry: a bake whose vertices "
+          "and triangles equal the previous bake's shares its BVH (image/raycast.h, RayCaster::shared).");
+    m.def("clear_geometry_cache", &RayCaster::clear_shared,
+          "Drops the geometry (and its Embree BVH) kept from the last bake for the next one.");
     m.def("write_exr", &write_exr_py, "path"_a, "passes"_a, "layer_prefix"_a = "", "half"_a = false,
           "compression"_a = "auto",
           R"doc(Write one multilayer EXR (32-bit float; half=True: 16-bit half floats, rounded

@@ -109,6 +109,49 @@ RayCaster::~RayCaster() = default;
 
 long RayCaster::invalid_rays() const { return impl_->invalid.load(); }
 
+namespace {
+
+struct SharedCaster {
+    std::mutex mutex;
+    TriangleMesh mesh;  // the kept caster's mesh (a copy, compared exactly)
+    std::shared_ptr<const RayCaster> caster;
+    long builds = 0;
+};
+
+SharedCaster& shared_caster() {
+    static SharedCaster instance;
+    return instance;
+}
+
+}  // namespace
+
+std::shared_ptr<const RayCaster> RayCaster::shared(const TriangleMesh& mesh) {
+    SharedCaster& kept = shared_caster();
+    std::lock_guard<std::mutex> lock(kept.mutex);
+    if (kept.caster && kept.mesh.vertices == mesh.vertices && kept.mesh.triangles == mesh.triangles)
+        return kept.caster;
+    kept.caster.reset();  // (the old BVH's memory goes before the new one is built)
+    kept.mesh = TriangleMesh{};
+    auto caster = std::make_shared<const RayCaster>(mesh);
+    kept.mesh = mesh;
+    kept.caster = caster;
+    ++kept.builds;
+    return caster;
+}
+
+void RayCaster::clear_shared() {
+    SharedCaster& kept = shared_caster();
+    std::lock_guard<std::mutex> lock(kept.mutex);
+    kept.caster.reset();
+    kept.mesh = TriangleMesh{};
+}
+
+long RayCaster::shared_builds() {
+    SharedCaster& kept = shared_caster();
+    std::lock_guard<std::mutex> lock(kept.mutex);
+    return kept.builds;
+}
+
 double RayCaster::first_hit(const Ray& ray) const {
     if (!impl_->scene) return std::numeric_limits<double>::infinity();
     // Trace one ray with tnear = 0 and an unbounded tfar.
