@@ -158,15 +158,11 @@ def run(description, settings, filepath, progress=None):
     except cache.CacheError as ex:
         raise BakeError(str(ex)) from None
     start = time.perf_counter()
-    settings = dict(settings)
-    groups = settings.pop(SURFACE_GROUPS, None)
-    region = settings.pop(REGION, None)
-    half = settings.pop(HALF_PASSES, False)
-    world = settings.pop("environment", None)
-    lens = settings.pop(LENS, None)
-    samples = settings.pop(SAMPLES, None) or (_variants(description, {LENS: lens}) if lens else None)
-    rows = settings.pop(LIGHT_PASSES, None)
-    over = settings.pop(LIGHT_PASSES_OVER, None)
+    own = {key: settings.get(key) for key in RUN_ONLY}
+    settings = native_settings(settings)
+    groups, region, half, world = own[SURFACE_GROUPS], own[REGION], bool(own[HALF_PASSES]), own["environment"]
+    lens, rows, over = own[LENS], own[LIGHT_PASSES], own[LIGHT_PASSES_OVER]
+    samples = own[SAMPLES] or (_variants(description, {LENS: lens}) if lens else None)
 
     counts = module.table_cache_counts() if hasattr(module, "table_cache_counts") else None
 
@@ -279,9 +275,8 @@ def _light_passes(module, description, settings, rows, progress, total=None):
         key = light_pass(name)
         passes[key] = passes[key] + result["airlight"] if key in passes else result["airlight"]
     if left is not None:
-        rest = total - sum(passes.values()) if passes else total.copy()
+        rest = np.maximum(total - sum(passes.values(), np.zeros_like(total)), 0.0).astype(np.float32)
         key = light_pass(left)
-        rest = np.maximum(rest, 0.0).astype(np.float32)
         passes[key] = passes[key] + rest if key in passes else rest
     return passes, time.perf_counter() - t0
 

@@ -219,8 +219,8 @@ class AIRLIGHT_PT_light(bpy.types.Panel):
         row.prop(light.airlight, "participate")
         if not supported:
             layout.label(text=f"{light.type.title()} lights are not yet in fog.", icon='INFO')
-        problem = light_node_problem(light, context.scene)
-        if problem and light.airlight.participate:
+        problem = light_node_problem(light, context.scene) if light.airlight.participate else None
+        if problem:
             box = layout.box()
             box.alert = True
             for line in problem:
