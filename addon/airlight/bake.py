@@ -219,9 +219,9 @@ def run(description, settings, filepath, progress=None):
 
 # The light arrays of `_native.bake` per kind of row names, and the per-light flags.
 _LIGHT_ARRAYS = {
-    "points": ("light_positions", "light_intensities", "light_shadows"),
+    "points": ("light_positions", "light_intensities", "light_shadows", "light_radii"),
     "spots": ("spot_positions", "spot_axes", "spot_intensities", "spot_size", "spot_blend", "spot_spread",
-              "spot_shadows"),
+              "spot_shadows", "spot_radii"),
     "suns": ("sun_directions", "sun_irradiances", "sun_shadows"),
 }
 

@@ -264,6 +264,7 @@ class LightInstance(NamedTuple):
     area_shape: str = ""       # area lights: 'SQUARE', 'RECTANGLE', 'DISK' or 'ELLIPSE'
     area_size: tuple = (0.0, 0.0)  # area lights: the size along the light's X and Y, m
     spread: float = math.pi    # area lights: Cycles' Spread, rad (pi: the full cosine lobe)
+    radius: float = 0.0        # points and spots: Radius (shadow_soft_size), m
 
 
 def _light_instance(instance, obj, engine):
@@ -283,7 +284,8 @@ def _light_instance(instance, obj, engine):
         instanced=bool(instance.is_instance), matrix=np.array(instance.matrix_world, dtype=np.float64),
         color=np.array(light.color, dtype=np.float64) * factor, energy=light.energy,
         spot_size=float(light.spot_size) if spot else 0.0, spot_blend=float(light.spot_blend) if spot else 0.0,
-        casts_shadow=bool(getattr(light, "use_shadow", True)), **_area_fields(light))
+        casts_shadow=bool(getattr(light, "use_shadow", True)),
+        radius=float(light.shadow_soft_size) if light.type in ('POINT', 'SPOT') else 0.0, **_area_fields(light))
 
 
 def _area_fields(light):

@@ -2,7 +2,8 @@
 
 `export_scene(scene, depsgraph)` returns a dict whose keys are exactly `_native.bake`'s
 scene keyword arguments (width, height, cam_to_world, projection, clip_start, clip_end,
-vertices, triangles, light_positions, light_intensities, sigma_t, albedo, phase, g, and
+vertices, triangles, light_positions, light_intensities (light_radii when a light has a
+Radius), sigma_t, albedo, phase, g, and
 rbf_centres, rbf_scales, rbf_amplitudes when render-visible fog objects hold Gaussians,
 spot_* and sun_* with spot lights and sun lamps), all numpy arrays, numbers or strings, for
 the frame the depsgraph is evaluated at: scene_description.describe() reads the scene,
@@ -69,22 +70,34 @@ def _emission(light):
     return emission
 
 
-def point_lights(lights, plan, names=None):
+def point_lights(lights, plan, names=None, radii=None):
     """(light_positions (L, 3), light_intensities (L, 3)) of the point lights the bake takes.
     Cycles point light: radiant intensity I0 = C * P / (4 pi) W/sr (NOTES.md). _names_ (a
-    list): each row's light name is appended (spot_lights and sun_lights alike)."""
+    list): each row's light name is appended (spot_lights and sun_lights alike); _radii_ (a
+    list): each row's Radius (checked by _radius)."""
     positions, intensities = [], []
     for light in lights:
         if light.type != 'POINT' or not _baked(light, plan):
             continue
         if names is not None:
             names.append(light.name)
+        if radii is not None:
+            radii.append(_radius(light))
         if not np.isfinite(light.matrix).all():
             raise ExportError(f"Light '{light.name}' has a NaN or infinite location (a driver or constraint?).")
         positions.append(light.matrix[:3, 3])
         intensities.append(_emission(light) / (4.0 * math.pi))
     return (np.array(positions, dtype=np.float64).reshape(-1, 3),
             np.array(intensities, dtype=np.float64).reshape(-1, 3))
+
+
+def _radius(light):
+    """A point or spot light's Radius in m: Cycles' disk facing each point, which the bake
+    takes in homogeneous fog (native/homogeneous/sphere_light.h)."""
+    radius = float(light.radius)
+    if not (math.isfinite(radius) and radius >= 0.0):
+        raise ExportError(f"Light '{light.name}' has a NaN, infinite or negative Radius ({radius:g}).")
+    return radius
 
 
 def _directed_lights(lights, light_type, plan):
@@ -121,10 +134,11 @@ def spot_lights(lights, plan, names=None):
     from the lamp's -Z; Blender gives a spot's power in W like a point light's, so the
     intensity is the point light's formula and the profile is applied by the bake.
     """
-    positions, axes, intensities, sizes, blends, spreads = [], [], [], [], [], []
+    positions, axes, intensities, sizes, blends, spreads, radii = [], [], [], [], [], [], []
     for light, emission, axis in _directed_lights(lights, 'SPOT', plan):
         if names is not None:
             names.append(light.name)
+        radii.append(_radius(light))
         positions.append(light.matrix[:3, 3])
         axes.append(axis)
         intensities.append(emission / (4.0 * math.pi))
@@ -143,9 +157,11 @@ def spot_lights(lights, plan, names=None):
             sizes.append(math.pi)
             blends.append(0.0)
             spreads.append(min(math.pi, max(AREA_MIN_SPREAD, float(light.spread))))
+            radii.append(0.0)
     if not positions:
         return {}
-    return _check_finite(dict(spot_positions=np.array(positions, dtype=np.float64).reshape(-1, 3),
+    spots = dict(spot_radii=np.array(radii, dtype=np.float64)) if any(radii) else {}
+    return spots | _check_finite(dict(spot_positions=np.array(positions, dtype=np.float64).reshape(-1, 3),
                               spot_axes=np.array(axes, dtype=np.float64).reshape(-1, 3),
                               spot_intensities=np.array(intensities, dtype=np.float64).reshape(-1, 3),
                               spot_size=np.array(sizes, dtype=np.float64),
@@ -186,9 +202,10 @@ def light_arguments(description, plan, names=None):
     (a dict): its "points", "spots" and "suns" get each row's light name (an area light's
     samples and a collection's instances share their light's name; the per-light passes)."""
     rows = None if names is None else {"points": [], "spots": [], "suns": []}
-    positions, intensities = point_lights(description.lights, plan, None if rows is None else rows["points"])
+    radii = []
+    positions, intensities = point_lights(description.lights, plan, None if rows is None else rows["points"], radii)
     if plan.daylight:  # Hoffman-Preetham: sun lamps only
-        positions, intensities = np.zeros((0, 3)), np.zeros((0, 3))
+        positions, intensities, radii = np.zeros((0, 3)), np.zeros((0, 3)), []
         if rows is not None:
             rows["points"].clear()
     for name, array in (("light positions", positions), ("light intensities", intensities)):
@@ -199,7 +216,9 @@ def light_arguments(description, plan, names=None):
     suns = sun_lights(description.lights, plan, description.fog_top, None if rows is None else rows["suns"])
     if rows is not None:
         names.update(rows)
-    return dict(light_positions=positions, light_intensities=intensities, **spots, **suns)
+    # A light's Radius only where one has it (the arguments stay those of point lights).
+    sized = dict(light_radii=np.array(radii, dtype=np.float64)) if any(radii) else {}
+    return dict(light_positions=positions, light_intensities=intensities, **sized, **spots, **suns)
 
 
 def _shadowed(light, plan):
@@ -253,6 +272,7 @@ def bake_arguments(description, plan, light_names=None):
         clip_start=clip_start, clip_end=clip_end,
         vertices=description.vertices, triangles=description.triangles,
         light_positions=lights["light_positions"], light_intensities=lights["light_intensities"],
+        **({"light_radii": lights["light_radii"]} if "light_radii" in lights else {}),
         sigma_t=description.sigma_t, albedo=description.albedo, phase=description.phase, g=description.g,
         **description.gaussians,
         **(description.noise or {}),

@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <functional>
 #include <sstream>
 #include <stdexcept>
 
@@ -11,6 +12,7 @@
 #include "core/target_clones.h"
 #include "core/thread_scratch.h"
 #include "gaussian/airlight.h"
+#include "homogeneous/sphere_light.h"
 #include "homogeneous/sun05_batch.h"
 #include "homogeneous/sunlight_layer.h"
 #include "shadow/shadowed_quadrature.h"
@@ -94,12 +96,19 @@ FogEvaluator::FogEvaluator(const SceneDescription& scene, const BakeSettings& se
     for (const PointLight& light : scene.point_lights) {
         if (!keeps_light(scene, light)) continue;
         RGB weight = scene.medium.albedo * light.I0;
-        lights_.push_back({light.position, weight, glm::length(light.position - origin)});
+        lights_.push_back({light.position, weight, glm::length(light.position - origin), light.radius, nullptr});
+        if (light.radius > 0.0 && sigma_t_ > 0.0 && scene.gaussians.empty())
+            lights_.back().falloff = std::make_shared<const SphereFalloff>(sigma_t_, light.radius);
+        has_light_size_ = has_light_size_ || light.radius > 0.0;
     }
     for (const SpotLight& spot : scene.spot_lights) {
         RGB weight = scene.medium.albedo * spot.I0;
         if (weight.x == 0.0 && weight.y == 0.0 && weight.z == 0.0) continue;
-        spots_.push_back({make_spot_cone(spot.axis, spot.spot_size, spot.spot_blend, spot.spread), spot.position, weight});
+        spots_.push_back({make_spot_cone(spot.axis, spot.spot_size, spot.spot_blend, spot.spread), spot.position, weight,
+                          spot.radius, nullptr});
+        if (spot.radius > 0.0 && sigma_t_ > 0.0 && scene.gaussians.empty())
+            spots_.back().falloff = std::make_shared<const SphereFalloff>(sigma_t_, spot.radius);
+        has_light_size_ = has_light_size_ || spot.radius > 0.0;
     }
     for (const SunLight& sun : scene.sun_lights) {
         const RGB weight = scene.medium.albedo * sun.E * sigma_t_;  // sigma_s E
@@ -108,6 +117,8 @@ FogEvaluator::FogEvaluator(const SceneDescription& scene, const BakeSettings& se
         suns_.push_back({w, -w.z, weight});
     }
     fog_top_ = scene.fog_top;
+    if (!scene.gaussians.empty()) has_light_size_ = false;  // fog objects take their lights as points
+    if (!(sigma_t_ > 0.0)) has_light_size_ = false;
     if (!scene.gaussians.empty()) {
         const Gaussians& g = scene.gaussians;
         gaussian_ = std::make_unique<GaussianMedium>(g.centres, g.scales, g.amplitudes, sigma_t_);
@@ -826,6 +837,14 @@ void FogEvaluator::eval_soa(const double* dx, const double* dy, const double* dz
                 for (int c = 0; c < 3; ++c) out[3 * k + c] = float(double(out[3 * k + c]) + La[c]);
             }
         }
+        if (has_light_size_) {
+            for (int k = 0; k < m; ++k) {
+                const Vec3 d(dx[k0 + k], dy[k0 + k], dz[k0 + k]);
+                const RGB La = light_size_airlight(origin_, d, near ? double(near[k]) : 0.0, double(Dvp[k0 + k]),
+                                                   lit ? &lit[k] : nullptr);
+                for (int c = 0; c < 3; ++c) out[3 * k + c] = float(std::max(0.0, double(out[3 * k + c]) + La[c]));
+            }
+        }
     }
 }
 
@@ -885,6 +904,90 @@ void FogEvaluator::eval_many(const Ray* rays, const float* Dvp, const float* t0,
     if (!suns_.empty())
         for (int k = 0; k < n; ++k)
             La[k] += sun_airlight(rays[k].o, rays[k].d, t0 ? double(t0[k]) : 0.0, double(Dvp[k]), lit ? &lit[k] : nullptr);
+    if (has_light_size_)
+        for (int k = 0; k < n; ++k)
+            La[k] = glm::max(RGB(0.0), La[k] + light_size_airlight(rays[k].o, rays[k].d, t0 ? double(t0[k]) : 0.0,
+                                                                  double(Dvp[k]), lit ? &lit[k] : nullptr));
+}
+
+RGB FogEvaluator::light_size_airlight(const Vec3& o, const Vec3& d, double t_near, double Dvp,
+                                      const LitIntervals* lit) const {
+    RGB La(0.0);
+    if (!has_light_size_) return La;
+    // The disk's airlight less the point's over [a, b]: from the expansion far from the light,
+    // else the disk's less the point's with the bake's own model (so that it cancels the part
+    // of the whole segment's term it replaces).
+    auto excess = [&](const Vec3& s, double r, const SphereFalloff* falloff, double a, double b,
+                      const std::function<double()>& point, const std::function<double(const Vec3&)>& profile,
+                      const std::vector<double>& cuts) {
+        const Vec3 so = s - o;
+        const double tc = glm::dot(so, d);
+        const double h = std::sqrt(std::max(0.0, glm::dot(so, so) - tc * tc));
+        if (sphere_light_series_applies(sigma_t_, r, h))
+            return sphere_light_excess_series(phase_, sigma_t_, s, r, o, d, a, b, t_near, profile, cuts);
+        return sphere_light_airlight(phase_, sigma_t_, s, r, o, d, a, b, t_near, profile, cuts, falloff) -
+               std::exp(-sigma_t_ * (a - t_near)) * point();
+    };
+    // Rays that pass too far from a light for its radius to matter skip it.
+    auto matters = [&](const Vec3& s, double r) {
+        const Vec3 so = s - o;
+        const double tc = glm::dot(so, d);
+        return sphere_light_matters(sigma_t_, r, std::sqrt(std::max(0.0, glm::dot(so, so) - tc * tc)));
+    };
+    // [a, b] within each lit span of light volume _v_ (-1, or lit all along: [a, b] itself).
+    auto for_spans = [&](int v, double a, double b, auto fn) {
+        if (v < 0 || !lit || fully_lit(*lit, v, a, b)) return fn(a, b);
+        double sum = 0.0;
+        for (int k = lit->begin[v]; k < lit->end[v]; ++k) {
+            const double lo = std::max(a, lit->spans[k].first), hi = std::min(b, lit->spans[k].second);
+            if (hi > lo) sum += fn(lo, hi);
+        }
+        return sum;
+    };
+    for (size_t l = 0; l < lights_.size(); ++l) {
+        const LightData& light = lights_[l];
+        double a = 0.0, b = 0.0;
+        if (!matters(light.s, light.radius) ||
+            !sphere_light_window(sigma_t_, light.s, light.radius, o, d, t_near, Dvp, a, b))
+            continue;
+        const int v = lit ? light_volume_[l] : -1;
+        La += light.weight * for_spans(v, a, b, [&](double lo, double hi) {
+            const Vec3 x = o + lo * d, sx = light.s - x;
+            const double Dsx = glm::length(sx);
+            const double cos_gamma = Dsx > 0.0 ? std::clamp(glm::dot(d, sx) / Dsx, -1.0, 1.0) : 1.0;
+            return excess(light.s, light.radius, light.falloff.get(), lo, hi,
+                          [&] { return airlight(Dsx, cos_gamma, hi - lo); }, nullptr, {});
+        });
+    }
+    for (size_t i = 0; i < spots_.size(); ++i) {
+        const SpotData& spot = spots_[i];
+        double a = 0.0, b = 0.0;
+        if (!matters(spot.s, spot.radius) || !sphere_light_window(sigma_t_, spot.s, spot.radius, o, d, t_near, Dvp, a, b))
+            continue;
+        // The cone's profile towards x from the disk's centre, its edges (and the smoothstep's
+        // inner edge, Spread's kink on the axis) as breakpoints.
+        auto profile = [&](const Vec3& x) {
+            const Vec3 u = x - spot.s;
+            const double len = glm::length(u);
+            return len > 0.0 ? spot_profile(spot.cone, glm::dot(spot.cone.axis, u) / len) : 0.0;
+        };
+        std::vector<double> cuts = ray_cone_crossings(o, d, spot.s, spot.cone.axis, spot.cone.cos_half_angle, a, b);
+        if (spot.cone.smooth > 0.0 && spot.cone.cos_half_angle + spot.cone.smooth < 1.0) {
+            const std::vector<double> inner = ray_cone_crossings(o, d, spot.s, spot.cone.axis,
+                                                                 spot.cone.cos_half_angle + spot.cone.smooth, a, b);
+            cuts.insert(cuts.end(), inner.begin(), inner.end());
+        }
+        if (spot.cone.has_spread()) {
+            const double x = ray_axis_approach(o, d, spot.s, spot.cone.axis, a, b);
+            if (x >= 0.0) cuts.push_back(x);
+        }
+        const int v = lit ? spot_volume_[i] : -1;
+        La += spot.weight * for_spans(v, a, b, [&](double lo, double hi) {
+            return excess(spot.s, spot.radius, spot.falloff.get(), lo, hi,
+                          [&] { return spot_segment(spot, o + lo * d, d, hi - lo); }, profile, cuts);
+        });
+    }
+    return La;
 }
 
 RGB FogEvaluator::sun_airlight(const Vec3& o, const Vec3& d, double t_near, double Dvp, const LitIntervals* lit) const {
@@ -914,18 +1017,18 @@ RGB FogEvaluator::sun_airlight(const Vec3& o, const Vec3& d, double t_near, doub
     return La;
 }
 
+double FogEvaluator::spot_segment(const SpotData& spot, const Vec3& from, const Vec3& d, double len) const {
+    return !spot_closed_form_ ? spot_airlight_quadrature(spot.cone, spot.s, phase_, sigma_t_, from, d, len, kSpotRelTol)
+                              : pegoraro10_spot_airlight(pegoraro_phase_, spot.cone, spot.s, sigma_t_, from, d, len);
+}
+
 RGB FogEvaluator::spot_airlight(const Vec3& o, const Vec3& d, double t_near, double Dvp, const LitIntervals* lit) const {
     RGB La(0.0);
     if (sigma_t_ == 0.0) return La;
     const double seg = std::max(0.0, Dvp - t_near);  // inf stays inf
     if (!(seg > 0.0)) return La;
     const Vec3 start = t_near > 0.0 ? o + t_near * d : o;
-    // One segment [a, a + len] from _from_, attenuated from there.
-    auto segment = [&](const SpotData& spot, const Vec3& from, double len) {
-        return !spot_closed_form_
-                   ? spot_airlight_quadrature(spot.cone, spot.s, phase_, sigma_t_, from, d, len, kSpotRelTol)
-                   : pegoraro10_spot_airlight(pegoraro_phase_, spot.cone, spot.s, sigma_t_, from, d, len);
-    };
+    auto segment = [&](const SpotData& spot, const Vec3& from, double len) { return spot_segment(spot, from, d, len); };
     for (size_t i = 0; i < spots_.size(); ++i) {
         const SpotData& spot = spots_[i];
         const int v = lit ? spot_volume_[i] : -1;

@@ -17,6 +17,7 @@
 #include "gaussian/refine.h"
 #include "gaussian/splat.h"
 #include "homogeneous/pegoraro10.h"
+#include "homogeneous/sphere_light.h"
 #include "homogeneous/spot_light.h"
 #include "image/camera.h"
 #include "models/fog_model.h"
@@ -30,6 +31,8 @@ struct LightData {
     Vec3 s;          // position
     RGB weight;      // albedo * I0
     double Dsv = 0;  // distance to the camera position (perspective rays share the origin)
+    double radius = 0;  // Blender's Radius (homogeneous/sphere_light.h); 0: a point
+    std::shared_ptr<const SphereFalloff> falloff;  // its disk's falloff (radius > 0)
 };
 
 // Evaluates transmittance and airlight of view rays with a fog model.
@@ -130,6 +133,13 @@ class FogEvaluator {
     // quadrature (spot_light.h): model 'quadrature', and phases above order 8 unless 'pegoraro10'.
     RGB spot_airlight(const Vec3& o, const Vec3& d, double t_near, double Dvp, const LitIntervals* lit = nullptr) const;
 
+    // The lights' Radius (homogeneous/sphere_light.h), homogeneous fog: what the point and spot
+    // lights' disks change in their airlight along o + t d over [t_near, Dvp] (inf: none),
+    // attenuated from t_near; within kSphereReach radii of each light, over its lit spans
+    // with shadows. eval_soa and eval_many add it.
+    RGB light_size_airlight(const Vec3& o, const Vec3& d, double t_near, double Dvp, const LitIntervals* lit) const;
+    bool has_light_size() const { return has_light_size_; }
+
   private:
     // A light scatters if albedo * I0 is nonzero, or (Gaussian fog with its own colours) if
     // I0 is: a black background medium can carry coloured fog objects.
@@ -198,7 +208,12 @@ class FogEvaluator {
         SpotCone cone;
         Vec3 s;
         RGB weight;  // albedo * I0
+        double radius = 0.0;
+        std::shared_ptr<const SphereFalloff> falloff;
     };
+    // One spot's airlight along from + t d over [0, len], attenuated from _from_, per unit weight.
+    double spot_segment(const SpotData& spot, const Vec3& from, const Vec3& d, double len) const;
+    bool has_light_size_ = false;  // a point or spot light with a radius, in homogeneous fog
     std::vector<SpotData> spots_;
     struct SunData {
         Vec3 w;       // unit propagation direction

@@ -128,6 +128,8 @@ void validate(const SceneDescription& scene, const BakeSettings& settings) {
         require(finite3(light.position), "light " + std::to_string(i) + ": position must be finite");
         require(finite3(light.I0) && light.I0.x >= 0.0 && light.I0.y >= 0.0 && light.I0.z >= 0.0,
                 "light " + std::to_string(i) + ": intensity must be finite and >= 0");
+        require(std::isfinite(light.radius) && light.radius >= 0.0,
+                "light " + std::to_string(i) + ": radius must be finite and >= 0, got " + std::to_string(light.radius));
     }
     for (size_t i = 0; i < scene.spot_lights.size(); ++i) {
         const SpotLight& spot = scene.spot_lights[i];
@@ -144,6 +146,8 @@ void validate(const SceneDescription& scene, const BakeSettings& settings) {
                 name + ": spread must be in [1 deg, pi] rad, got " + std::to_string(spot.spread));
         require(spot.spread >= kPi - 1e-9 || (spot.spot_size >= kPi - 1e-9 && spot.spot_blend == 0.0),
                 name + ": a spread below pi (an area light's sample) needs spot_size pi and spot_blend 0");
+        require(std::isfinite(spot.radius) && spot.radius >= 0.0,
+                name + ": radius must be finite and >= 0, got " + std::to_string(spot.radius));
     }
     const TriangleMesh& mesh = scene.geometry;
     require(mesh.vertices.size() % 3 == 0, "vertices must hold 3 floats per vertex");

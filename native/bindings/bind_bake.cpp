@@ -71,7 +71,7 @@ py::dict bake_py(int width, int height, const py::object& cam_to_world, const py
                  double edge_cluster_tol, bool shadows, const py::object& light_shadows,
                  const py::object& spot_shadows, const py::object& sun_shadows, const py::object& occluder_vertices,
                  const py::object& occluder_triangles, double gaussian_accuracy, double gaussian_refine_budget,
-                 const std::string& shadow_crossings) {
+                 const std::string& shadow_crossings, const py::object& light_radii, const py::object& spot_radii) {
     // Gather the scene description from the arrays (shapes checked here, values in bake()).
     SceneDescription scene;
     scene.camera.width = width;
@@ -100,6 +100,17 @@ py::dict bake_py(int width, int height, const py::object& cam_to_world, const py
         light.I0 = {li.at(l, 0), li.at(l, 1), li.at(l, 2)};
         scene.point_lights.push_back(light);
     }
+    // Per light its radius (values checked in bake()).
+    auto radii = [](const py::object& values, const char* name, size_t n, auto set) {
+        if (values.is_none()) return;
+        auto r = as_array<double>(values, name);
+        if (!(r.ndim() == 1 && size_t(r.shape(0)) == n))
+            throw py::value_error(std::string(name) + ": expected one radius per light (" + std::to_string(n) +
+                                  "), got shape " + shape_str(r));
+        for (size_t i = 0; i < n; ++i) set(i, r.data()[i]);
+    };
+    radii(light_radii, "light_radii", scene.point_lights.size(),
+          [&](size_t i, double r) { scene.point_lights[i].radius = r; });
 
     // Gaussian fog: all three arrays or none; values checked here so the errors name them.
     const int n_gaussian_given = int(!rbf_centres.is_none()) + int(!rbf_scales.is_none()) + int(!rbf_amplitudes.is_none());
@@ -203,6 +214,10 @@ py::dict bake_py(int width, int height, const py::object& cam_to_world, const py
         }
     }
     scene.fog_top = fog_top;
+    if (!spot_radii.is_none() && scene.spot_lights.empty())
+        throw py::value_error("spot_radii needs the spot lights (spot_positions ...)");
+    radii(spot_radii, "spot_radii", scene.spot_lights.size(),
+          [&](size_t i, double r) { scene.spot_lights[i].radius = r; });
 
     // Volumetric shadows: per light its Cast Shadow (all cast by default), and the casters
     // when they are not the camera's geometry.
@@ -381,7 +396,7 @@ void bind_bake(py::module_& m) {
           "light_shadows"_a = py::none(), "spot_shadows"_a = py::none(), "sun_shadows"_a = py::none(),
           "occluder_vertices"_a = py::none(), "occluder_triangles"_a = py::none(),
           "gaussian_accuracy"_a = 0.0, "gaussian_refine_budget"_a = BakeSettings().gaussian_refine_budget,
-          "shadow_crossings"_a = "film",
+          "shadow_crossings"_a = "film", "light_radii"_a = py::none(), "spot_radii"_a = py::none(),
           R"doc(Bake fog passes for one camera view (all arguments keyword-only).
 
 width, height: render resolution in pixels.
@@ -470,6 +485,10 @@ spot_positions (S, 3), spot_axes (S, 3) (spot direction, the lamp's -Z; normalis
   model (phase-aware; homogeneous fog only: ValueError with rbf_*). Give all five or none.
   spot_spread (S,) (optional, rad, [1 deg, pi], default pi): an area light's sample (spot_size
   pi, blend 0) with Cycles' Spread, profile sin(h - theta) / (sin h - h cos h), h = spread / 2.
+light_radii (L,), spot_radii (S,) (optional, m, >= 0; default 0): each point and spot light's
+  Radius (shadow_soft_size): Cycles' disk of that radius facing each point, which flattens the
+  in-scattering within ~the radius of the light (homogeneous/sphere_light.h; within 1e-3 of
+  the point's beyond 27 radii). Homogeneous fog; fog objects take their lights as points.
 sun_directions (U, 3) (direction of propagation, the lamp's -Z; normalised here),
   sun_irradiances (U, 3) W/m^2 (= colour * strength, Cycles): optional sun lamps, closed
   form for every model ("quadrature": its quadrature), any phase (homogeneous/sunlight_layer.h).

@@ -43,6 +43,9 @@ inline bool phase_is_isotropic(const PhaseFunction& phase) {
 struct PointLight {
     Vec3 position{0.0};
     RGB I0{0.0};
+    // Blender's Radius (shadow_soft_size) in m: Cycles' disk of this radius facing each point
+    // (homogeneous/sphere_light.h); 0: a point.
+    double radius = 0.0;
     bool casts_shadow = true;  // Blender's Cast Shadow (with BakeSettings::shadows)
 };
 
@@ -59,6 +62,7 @@ struct SpotLight {
     // An area light's sample (spot_size pi, blend 0): Cycles' Spread, the full angle in rad,
     // [1 deg, pi]; pi (Blender's default) is the plain cos(theta) lobe (spot_light.h).
     double spread = 3.14159265358979323846;
+    double radius = 0.0;  // Blender's Radius in m, as for a point light
     bool casts_shadow = true;
 };
 
