@@ -48,6 +48,8 @@ LIGHT_PASSES = "light_passes"
 # (fogged lights, Light Pass Limit) when Light Passes is on but the scene has more lights
 # than the limit: no per-light pass is written, and the console line says so.
 LIGHT_PASSES_OVER = "light_passes_over"
+# prepare()'s notes on the lights (scene_export.ies_notes), which run() puts in its stats.
+LIGHT_NOTES = "light_notes"
 
 
 def film_filter_width(scene):
@@ -85,7 +87,8 @@ def prepare(scene, depsgraph, mesh_overrides=None, view=None):
     (environment.prepare(); absent when off), which `run` takes out before the native bake."""
     try:
         names = {} if getattr(scene.airlight, "light_passes", False) else None
-        description, plan = scene_export.export(scene, depsgraph, mesh_overrides, view, names)
+        notes = []
+        description, plan = scene_export.export(scene, depsgraph, mesh_overrides, view, names, notes)
         over = None
         if names is not None:
             count, limit = len(light_pass_names(names)), int(getattr(scene.airlight, "light_pass_limit", 8))
@@ -101,6 +104,8 @@ def prepare(scene, depsgraph, mesh_overrides=None, view=None):
         settings[HALF_PASSES] = True
     if names is not None:
         settings[LIGHT_PASSES] = names
+    if notes:
+        settings[LIGHT_NOTES] = notes
     if over is not None:
         settings[LIGHT_PASSES_OVER] = over
     lens = scene_description.export_lens(scene, depsgraph, view, description["cam_to_world"],
@@ -137,7 +142,8 @@ def prepare(scene, depsgraph, mesh_overrides=None, view=None):
 
 
 # The keys of prepare()'s settings that run() takes out before the native bake.
-RUN_ONLY = (SURFACE_GROUPS, REGION, HALF_PASSES, "environment", LENS, SAMPLES, LIGHT_PASSES, LIGHT_PASSES_OVER)
+RUN_ONLY = (SURFACE_GROUPS, REGION, HALF_PASSES, "environment", LENS, SAMPLES, LIGHT_PASSES, LIGHT_PASSES_OVER,
+            LIGHT_NOTES)
 
 
 def native_settings(settings):
@@ -210,6 +216,8 @@ def run(description, settings, filepath, progress=None):
     except cache.CacheError as ex:
         raise BakeError(str(ex)) from None
     stats["seconds_exr"] = time.perf_counter() - t0
+    if own[LIGHT_NOTES]:
+        stats[LIGHT_NOTES] = list(own[LIGHT_NOTES])
     if over is not None:
         stats["light_passes_over_limit"] = over
     if counts is not None:
@@ -218,10 +226,11 @@ def run(description, settings, filepath, progress=None):
 
 
 # The light arrays of `_native.bake` per kind of row names, and the per-light flags.
+# (The per-light shadow flags last: _light_cost reads them.)
 _LIGHT_ARRAYS = {
-    "points": ("light_positions", "light_intensities", "light_shadows", "light_radii"),
+    "points": ("light_positions", "light_intensities", "light_radii", "light_shadows"),
     "spots": ("spot_positions", "spot_axes", "spot_intensities", "spot_size", "spot_blend", "spot_spread",
-              "spot_shadows", "spot_radii"),
+              "spot_radii", "spot_profiles", "spot_shadows"),
     "suns": ("sun_directions", "sun_irradiances", "sun_shadows"),
 }
 
@@ -575,6 +584,11 @@ class AIRLIGHT_OT_bake(bpy.types.Operator):
             compositor.sync(scene, filepath)
         skipped = sorted(model_choice.skipped_lights(scene))
         note = f"; skipped below the accuracy target: {', '.join(skipped)}" if skipped else ""
+        for line in stats.get(LIGHT_NOTES, ()):
+            print(f"Airlight: {line}", flush=True)
+        warnings = [line for line in stats.get(LIGHT_NOTES, ()) if "WARNING" in line]
+        if warnings:
+            self.report({'WARNING'}, warnings[0])
         self.report({'INFO'}, f"Fog baked in {seconds * 1000.0:.0f} ms ({os.path.basename(filepath)}){note}")
         return {'FINISHED'}
 

@@ -286,7 +286,9 @@ def plan_rows(settings, survey):
             label, error = point_label, point_error
         rows.append(LightRow(light.name, light.type, 'fog', label, error, math.nan))
         fogged.append(len(rows) - 1)
-        kinds.append(light.type)
+        # A point light an IES profile shapes is bounded as an area light is: not as a point (its
+        # profile can exceed its power's share), so it is never skipped nor left unshadowed.
+        kinds.append('AREA' if getattr(light, "profiled", False) else light.type)
         weights.append(light.emission if light.type == 'SUN' else
                        light.emission * AREA_INTENSITY if light.type == 'AREA' else light.emission / (4.0 * math.pi))
         positions.append(light.position)
@@ -364,9 +366,10 @@ def light_plan(scene, depsgraph=None, view_layer=None):
 # model is the daylight one (sun lamps only).
 # _unshadowed_: the scene's lights left without volumetric shadows (Automatic's clear ones;
 # instanced lights keep their Cast Shadow); _shadows_: Volumetric Shadows on.
-# _area_cell_: the sample cell of area lights (names.area_cell).
-Plan = namedtuple("Plan", "model skipped daylight shadows unshadowed area_cell",
-                  defaults=(False, frozenset(), AREA_CELL))
+# _area_cell_: the sample cell of area lights (names.area_cell); _accuracy_: the accuracy target
+# as a fraction (IES profiles are fitted to it).
+Plan = namedtuple("Plan", "model skipped daylight shadows unshadowed area_cell accuracy",
+                  defaults=(False, frozenset(), AREA_CELL, 0.01))
 
 
 def plan(settings, survey):
@@ -378,7 +381,8 @@ def plan(settings, survey):
         skipped = frozenset(row.name for row in rows if row.status == 'skipped')
     shadows = shadows_baked(settings, survey)
     unshadowed = frozenset(row.name for row in rows if row.shadow == 'clear')
-    return Plan(name, skipped, name == "hoffman02", shadows, unshadowed, area_cell(settings))
+    return Plan(name, skipped, name == "hoffman02", shadows, unshadowed, area_cell(settings),
+                settings.accuracy / 100.0)
 
 
 def skipped_lights(scene, depsgraph=None):

@@ -411,11 +411,12 @@ def preview_lights(scene, depsgraph):
     description = scene_description.describe(scene, depsgraph, bake=False)
     plan = model_choice.plan(settings, description.survey)
     lights = scene_export.light_arguments(description, plan)
+    shadowed = scene_export.shadow_arguments(description, plan)
+    _profiles_as_points(lights, shadowed)
     albedo = np.asarray(settings.color, dtype=np.float64)
 
     def rows(name, scale=1.0):
         return [tuple(row) for row in (scale * lights[name][:MAX_LIGHTS]).tolist()] if name in lights else []
-    shadowed = scene_export.shadow_arguments(description, plan)
 
     def flags(name):
         return [bool(v) for v in shadowed.get(name, ())[:MAX_LIGHTS]]
@@ -432,6 +433,30 @@ def preview_lights(scene, depsgraph):
                               suns=flags("sun_shadows"), box=ps.union_box(description.survey.casters)))
     _state["lights"] = (key, value)
     return value
+
+
+def _profiles_as_points(lights, shadowed):
+    """The preview draws a light with an IES profile (a spot row with spot_profiles) as a point
+    light of the profile's mean intensity over the sphere (the panel says so): moves those rows
+    of _lights_ (and their shadow flags in _shadowed_) to the point lights, in place."""
+    profiles = lights.pop("spot_profiles", None)
+    if profiles is None:
+        return
+    profiled = np.any(profiles != 0.0, axis=1)
+    k = np.arange(profiles.shape[1])
+    mean = (profiles * np.where(k % 2 == 0, 1.0 / (k + 1.0), 0.0)).sum(axis=1)  # of sum p_k c^k over [-1, 1]
+    lights["light_positions"] = np.concatenate([lights["light_positions"], lights["spot_positions"][profiled]])
+    lights["light_intensities"] = np.concatenate([lights["light_intensities"],
+                                                  lights["spot_intensities"][profiled] * mean[profiled, None]])
+    if "spot_shadows" in shadowed:
+        points = shadowed.get("light_shadows", np.zeros(len(lights["light_positions"]) - profiled.sum()))
+        shadowed["light_shadows"] = np.concatenate([points, shadowed["spot_shadows"][profiled]])
+        shadowed["spot_shadows"] = shadowed["spot_shadows"][~profiled]
+    for key in [k for k in lights if k.startswith("spot_")]:
+        lights[key] = np.asarray(lights[key])[~profiled]
+    if not len(lights["spot_positions"]):
+        for key in [k for k in lights if k.startswith("spot_")]:
+            del lights[key]
 
 
 def _depsgraph(view_layer):

@@ -153,6 +153,8 @@ def _bake_for_render(scene, get_depsgraph, get_mesh_overrides=lambda: None, eval
         t0 = time.perf_counter()
         compositor.sync(scene, filepath)
         composite = f", compositor {1000.0 * (time.perf_counter() - t0):.0f} ms"
+    for line in stats.get(bake.LIGHT_NOTES, ()):
+        print(f"Airlight: frame {frame}: {line}", flush=True)
     print(f"Airlight: frame {frame}: {bake.parts_line(stats)}{bake.fog_objects_line(stats)}{composite}", flush=True)
 
 

@@ -26,7 +26,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from . import fog_object, light_bounds, light_nodes, visibility
+from . import fog_object, ies, light_bounds, light_nodes, visibility
 from .names import SUPPORTED_LIGHT_TYPES, native_phase
 from .views import bake_window, region_projection, render_size, view_camera
 
@@ -265,6 +265,8 @@ class LightInstance(NamedTuple):
     area_size: tuple = (0.0, 0.0)  # area lights: the size along the light's X and Y, m
     spread: float = math.pi    # area lights: Cycles' Spread, rad (pi: the full cosine lobe)
     radius: float = 0.0        # points and spots: Radius (shadow_soft_size), m
+    ies_text: str = None       # points: the IES profile's text (Cycles, an IES Texture on Strength)
+    ies_problem: str = ""      # why an IES Texture's profile could not be read (baked without it)
 
 
 def _light_instance(instance, obj, engine):
@@ -277,6 +279,7 @@ def _light_instance(instance, obj, engine):
         factor = light_nodes.emission_factor(obj.name, light, engine) if participates else np.ones(3)
     except light_nodes.LightNodeError as ex:
         raise ExportError(str(ex)) from None
+    ies = _ies(obj.name, light, engine) if participates else {}
     # Read from the original light: add-on properties do not tag the depsgraph, so the
     # evaluated copy can hold a stale value after the user toggles it.
     return LightInstance(
@@ -285,7 +288,37 @@ def _light_instance(instance, obj, engine):
         color=np.array(light.color, dtype=np.float64) * factor, energy=light.energy,
         spot_size=float(light.spot_size) if spot else 0.0, spot_blend=float(light.spot_blend) if spot else 0.0,
         casts_shadow=bool(getattr(light, "use_shadow", True)),
-        radius=float(light.shadow_soft_size) if light.type in ('POINT', 'SPOT') else 0.0, **_area_fields(light))
+        radius=float(light.shadow_soft_size) if light.type in ('POINT', 'SPOT') else 0.0, **ies,
+        **_area_fields(light))
+
+
+def _ies(name, light, engine):
+    """LightInstance's ies_* of a light whose Emission Strength is an IES Texture ({} without);
+    ExportError for an IES Texture on a light type the fog takes no profile for."""
+    node = light_nodes.ies_node(light, engine)
+    if node is None:
+        return {}
+    if light.type != 'POINT':
+        raise ExportError(f"Light '{name}': an IES Texture on a {light.type.lower()} light is not in the fog "
+                          "(point lights only): remove it, or untick the light's Scatter in Fog")
+    text, problem = light_nodes.ies_text(node)
+    return dict(ies_text=text, ies_problem=problem or "")
+
+
+def has_profile(light, scene):
+    """Whether the bake takes a point light's IES profile (readable, at the scene's accuracy):
+    the light's row order (surface.fogged_lights) follows scene_export's."""
+    node = light_nodes.ies_node(light, scene.render.engine)
+    if node is None:
+        return False
+    text, _ = light_nodes.ies_text(node)
+    if not text:
+        return False
+    try:
+        ies.fit_text(text, scene.airlight.accuracy / 100.0)
+        return True
+    except ies.IESError:
+        return False
 
 
 def _area_fields(light):
@@ -373,6 +406,7 @@ class SurveyLight(NamedTuple):
     position: tuple         # world location (None unless participating and supported)
     casts_shadow: bool = True
     supported: bool = True  # its type and settings are in the bake (area lights: full Spread)
+    profiled: bool = False  # an IES Texture shapes it (no point light's bound: never skipped)
 
 
 class Survey(NamedTuple):
@@ -407,8 +441,9 @@ def survey(scene, depsgraph=None, view_layer=None):
                         * light_nodes.safe_emission_factor(obj.name, light, scene.render.engine))
             src = obj.evaluated_get(depsgraph) if depsgraph is not None else obj
             position = tuple(src.matrix_world.translation)
+        profiled = light_nodes.ies_node(light, scene.render.engine) is not None
         lights.append(SurveyLight(obj.name, light.type, participates, emission, position,
-                                  bool(getattr(light, "use_shadow", True)), supported))
+                                  bool(getattr(light, "use_shadow", True)), supported, profiled))
     fog_objects = any(getattr(getattr(obj, "airlight_fog", None), "is_fog", False)
                       and visible(obj) for obj in scene.objects)
     return Survey(tuple(lights), frame, fog_objects, caster_boxes(scene, depsgraph, visible))

@@ -16,7 +16,7 @@ import math
 
 import numpy as np
 
-from . import model_choice, scene_description
+from . import ies, model_choice, scene_description
 from .names import AREA_INTENSITY, SUPPORTED_LIGHT_TYPES, area_grid
 from .scene_description import ExportError
 
@@ -70,15 +70,53 @@ def _emission(light):
     return emission
 
 
+def ies_fit(light, plan):
+    """The ies.Fit of a point light's IES profile at the plan's accuracy, or None (no profile,
+    or one that cannot be read: the light then bakes without it; ies_notes says so)."""
+    if light.type != 'POINT' or not light.ies_text:
+        return None
+    try:
+        return ies.fit_text(light.ies_text, plan.accuracy)
+    except ies.IESError:
+        return None
+
+
+def ies_notes(lights, plan):
+    """One line per fogged point light with an IES Texture: its fit, or why it bakes without it."""
+    notes = []
+    for light in lights:
+        if light.type != 'POINT' or not _baked(light, plan) or not (light.ies_text or light.ies_problem):
+            continue
+        problem = light.ies_problem
+        if not problem:
+            try:
+                notes.append(f"Light '{light.name}': " + ies.describe(ies.fit_text(light.ies_text, plan.accuracy)))
+                continue
+            except ies.IESError as ex:
+                problem = f"its IES profile cannot be read: {ex}"
+        notes.append(f"Light '{light.name}': WARNING {problem}: the fog takes it without its profile "
+                     "(an even light of its power)")
+    return notes
+
+
+def _point_rows(lights, plan):
+    """The point lights that bake as points (those with an IES profile bake as spot rows)."""
+    return [l for l in lights if l.type == 'POINT' and _baked(l, plan) and ies_fit(l, plan) is None]
+
+
+def _ies_rows(lights, plan):
+    """(light, fit) of the point lights with an IES profile, after the spots and area samples."""
+    return [(l, f) for l in lights if l.type == 'POINT' and _baked(l, plan) for f in (ies_fit(l, plan),)
+            if f is not None]
+
+
 def point_lights(lights, plan, names=None, radii=None):
     """(light_positions (L, 3), light_intensities (L, 3)) of the point lights the bake takes.
     Cycles point light: radiant intensity I0 = C * P / (4 pi) W/sr (NOTES.md). _names_ (a
     list): each row's light name is appended (spot_lights and sun_lights alike); _radii_ (a
     list): each row's Radius (checked by _radius)."""
     positions, intensities = [], []
-    for light in lights:
-        if light.type != 'POINT' or not _baked(light, plan):
-            continue
+    for light in _point_rows(lights, plan):
         if names is not None:
             names.append(light.name)
         if radii is not None:
@@ -158,9 +196,35 @@ def spot_lights(lights, plan, names=None):
             blends.append(0.0)
             spreads.append(min(math.pi, max(AREA_MIN_SPREAD, float(light.spread))))
             radii.append(0.0)
+    # Point lights with an IES profile last, as spots whose profile replaces the cone.
+    profiles = [None] * len(positions)
+    for light, fit in _ies_rows(lights, plan):
+        if names is not None:
+            names.append(light.name)
+        if not np.isfinite(light.matrix).all():
+            raise ExportError(f"Light '{light.name}' has a NaN or infinite transform (a driver or constraint?).")
+        axis = -light.matrix[:3, 2]
+        norm = float(np.linalg.norm(axis))
+        if not (norm > 0.0 and math.isfinite(norm)):
+            raise ExportError(f"Light '{light.name}' has a degenerate transform (no direction for its IES profile).")
+        positions.append(light.matrix[:3, 3])
+        axes.append(axis / norm)
+        intensities.append(_emission(light) / (4.0 * math.pi))
+        sizes.append(math.pi)
+        blends.append(0.0)
+        spreads.append(math.pi)
+        radii.append(_radius(light))
+        profiles.append(fit.coefficients)
     if not positions:
         return {}
     spots = dict(spot_radii=np.array(radii, dtype=np.float64)) if any(radii) else {}
+    if any(p is not None for p in profiles):
+        width = max(len(p) for p in profiles if p is not None)
+        table = np.zeros((len(profiles), width))
+        for k, p in enumerate(profiles):
+            if p is not None:
+                table[k, :len(p)] = p
+        spots["spot_profiles"] = table
     return spots | _check_finite(dict(spot_positions=np.array(positions, dtype=np.float64).reshape(-1, 3),
                               spot_axes=np.array(axes, dtype=np.float64).reshape(-1, 3),
                               spot_intensities=np.array(intensities, dtype=np.float64).reshape(-1, 3),
@@ -240,10 +304,14 @@ def shadow_arguments(description, plan):
     for light_type, key in kinds:
         if plan.daylight and light_type != 'SUN':
             continue
-        chosen = [l for l in description.lights if l.type == light_type and _baked(l, plan)]
+        if light_type == 'POINT':
+            chosen = _point_rows(description.lights, plan)
+        else:
+            chosen = [l for l in description.lights if l.type == light_type and _baked(l, plan)]
         if light_type == 'SPOT' and not plan.daylight:  # each area light's samples follow the spots
             chosen += [l for l in description.lights if l.type == 'AREA' and _baked(l, plan)
                        for _ in range(len(area_samples(l, plan.area_cell)))]
+            chosen += [l for l, _ in _ies_rows(description.lights, plan)]  # then the IES lights
         if chosen:
             flags[key] = np.array([_shadowed(l, plan) for l in chosen], dtype=np.float64)
     if not any(np.any(f) for f in flags.values()):
@@ -282,12 +350,15 @@ def bake_arguments(description, plan, light_names=None):
     )
 
 
-def export(scene, depsgraph, mesh_overrides=None, view=None, light_names=None):
+def export(scene, depsgraph, mesh_overrides=None, view=None, light_names=None, notes=None):
     """(bake_arguments, plan) of _scene_ at the depsgraph's frame (_mesh_overrides_: see
     fog_object.gather), seen by _view_'s camera (views.render_views; None: the scene
-    camera); _light_names_ (a dict) gets the light arrays' row names (light_arguments)."""
+    camera); _light_names_ (a dict) gets the light arrays' row names (light_arguments);
+    _notes_ (a list) what the user should know about its lights (ies_notes)."""
     description = scene_description.describe(scene, depsgraph, mesh_overrides, view)
     plan = model_choice.plan(scene.airlight, description.survey)
+    if notes is not None:
+        notes.extend(ies_notes(description.lights, plan))
     return bake_arguments(description, plan, light_names), plan
 
 

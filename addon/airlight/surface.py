@@ -33,7 +33,7 @@ import re
 
 import numpy as np
 
-from . import visibility
+from . import scene_description, visibility
 # PASS_GLOSS: glossy glow per unit Glossy Color (scene.airlight.surface_gloss > 0).
 from .names import GROUP_PREFIX, PASS_GLOSS, PASS_GLOW, PASS_PREFIX, WORLD_GROUP, area_cell, area_grid, is_isotropic
 
@@ -80,10 +80,11 @@ def group_name(object_name):
 
 def fogged_lights(depsgraph):
     """[(light object, group name or None)] in the bake's light order: the point lights, the
-    spot lights, then the sun lamps, as scene_export exports them (tests/blender/test_surface.py
+    spot lights, the area lights' samples, the point lights with an IES profile, then the sun
+    lamps, as scene_export exports them (tests/blender/test_surface.py
     holds them to the same order). The group is None where surface shading cannot apply."""
     visible = visibility.RenderVisibility(depsgraph.view_layer)
-    points, spots, areas, suns, counts = [], [], [], [], {}
+    points, spots, areas, profiled, suns, counts = [], [], [], [], [], {}
     for instance in depsgraph.object_instances:
         obj = instance.object
         if obj.type != 'LIGHT':
@@ -100,9 +101,12 @@ def fogged_lights(depsgraph):
         if light.type == 'AREA':  # one row per sample spot (scene_export.area_samples)
             areas.extend([original] * area_sample_count(light, area_cell(depsgraph.scene.airlight)))
             continue
+        if light.type == 'POINT' and scene_description.has_profile(light, depsgraph.scene):
+            profiled.append(original)  # an IES light bakes as a spot row after the area samples
+            continue
         {'SPOT': spots, 'SUN': suns}.get(light.type, points).append(original)
     rows = []
-    for obj in points + spots + areas + suns:
+    for obj in points + spots + areas + profiled + suns:
         group = group_name(obj.name)
         usable = counts[obj.name] == 1 and obj.lightgroup in ("", group)
         rows.append((obj, group if usable else None))

@@ -4,7 +4,8 @@ import math
 
 import bpy
 
-from . import bake, compositor, environment, fog_object, model_choice, native, render, scene_description, surface
+from . import (bake, compositor, environment, fog_object, ies, model_choice, native, render, scene_description,
+               surface)
 from . import light_nodes, names
 from .names import SUPPORTED_LIGHT_TYPES
 
@@ -225,6 +226,33 @@ class AIRLIGHT_PT_light(bpy.types.Panel):
             box.alert = True
             for line in problem:
                 box.label(text=line, icon='ERROR' if line is problem[0] else 'BLANK1')
+        note = light_ies_note(light, context.scene) if light.airlight.participate and not problem else None
+        if note:
+            warn, lines = note
+            box = layout.box()
+            box.alert = warn
+            for line in lines:
+                box.label(text=line, icon=('ERROR' if warn else 'LIGHT') if line is lines[0] else 'BLANK1')
+
+
+def light_ies_note(light, scene):
+    """(warning, lines) on a light's IES Texture as the fog takes it (its fit, or why it bakes
+    without it), or None without one."""
+    node = light_nodes.ies_node(light, scene.render.engine)
+    if node is None:
+        return None
+    if light.type != 'POINT':
+        return True, [f"IES profiles on {light.type.lower()} lights are not in the fog", "(point lights only)"]
+    text, problem = light_nodes.ies_text(node)
+    if text is not None:
+        try:
+            fit = ies.fit_text(text, scene.airlight.accuracy / 100.0)
+            return False, [f"IES profile in the fog: degree {fit.degree} fit",
+                           f"{100.0 * fit.mean_error:.2g} % mean error, {100.0 * fit.max_error:.2g} % of peak at most",
+                           "averaged about the axis; the viewport preview draws it as an even light"]
+        except ies.IESError as ex:
+            problem = f"IES profile unreadable: {ex}"
+    return True, [problem, "The fog takes this light without its profile"]
 
 
 def light_node_problem(light, scene):

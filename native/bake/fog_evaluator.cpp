@@ -104,8 +104,7 @@ FogEvaluator::FogEvaluator(const SceneDescription& scene, const BakeSettings& se
     for (const SpotLight& spot : scene.spot_lights) {
         RGB weight = scene.medium.albedo * spot.I0;
         if (weight.x == 0.0 && weight.y == 0.0 && weight.z == 0.0) continue;
-        spots_.push_back({make_spot_cone(spot.axis, spot.spot_size, spot.spot_blend, spot.spread), spot.position, weight,
-                          spot.radius, nullptr});
+        spots_.push_back({make_light_cone(spot), spot.position, weight, spot.radius, nullptr});
         if (spot.radius > 0.0 && sigma_t_ > 0.0 && scene.gaussians.empty())
             spots_.back().falloff = std::make_shared<const SphereFalloff>(sigma_t_, spot.radius);
         has_light_size_ = has_light_size_ || spot.radius > 0.0;
@@ -139,6 +138,9 @@ FogEvaluator::FogEvaluator(const SceneDescription& scene, const BakeSettings& se
         n_gaussian_points_ = gaussian_lights_.size();
         for (const SpotLight& spot : scene.spot_lights) {
             if (spot.I0.x == 0.0 && spot.I0.y == 0.0 && spot.I0.z == 0.0) continue;
+            if (!spot.profile.empty())
+                throw std::invalid_argument("fog objects: a light with an IES profile (spot_profiles) is not in "
+                                            "Gaussian fog yet; turn its Scatter in Fog off, or remove its IES Texture");
             gaussian_lights_.push_back(spot.position);
             gaussian_I0_.push_back(spot.I0);
             gaussian_spots_.push_back({make_spot_cone(spot.axis, spot.spot_size, spot.spot_blend, spot.spread), spot.position,

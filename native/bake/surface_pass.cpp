@@ -120,12 +120,14 @@ class GlowShadowGrid {
 }  // namespace
 
 std::shared_ptr<const SpotGlowModel> shared_spot_glow_model(const SpotCone& cone, const PhaseFunction& phase) {
-    // The table depends on the cone's angle, blend and Spread and on the phase, not on the axis.
+    // The table depends on the cone's angle, blend, Spread and profile and on the phase, not on the axis.
     static std::mutex mutex;
-    static std::map<std::tuple<double, double, double, int, double>, std::shared_ptr<const SpotGlowModel>> cache;
+    static std::map<std::tuple<double, double, double, int, double, std::vector<double>>,
+                    std::shared_ptr<const SpotGlowModel>>
+        cache;
     std::lock_guard<std::mutex> lock(mutex);
     const double g = phase.kind == PhaseKind::HenyeyGreenstein ? phase.g : 0.0;
-    auto& slot = cache[{cone.cos_half_angle, cone.smooth, cone.spread_b, int(phase.kind), g}];
+    auto& slot = cache[{cone.cos_half_angle, cone.smooth, cone.spread_b, int(phase.kind), g, cone.profile}];
     if (!slot) slot = std::make_shared<const SpotGlowModel>(cone, phase);
     return slot;
 }
@@ -193,7 +195,7 @@ void bake_surface_pass(const SceneDescription& scene, const BakeSettings& settin
     for (const PointLight& l : scene.point_lights) positions.push_back(l.position);
     for (const SpotLight& l : scene.spot_lights) {
         positions.push_back(l.position);
-        cones.push_back(make_spot_cone(l.axis, l.spot_size, l.spot_blend, l.spread));
+        cones.push_back(make_light_cone(l));
     }
     std::unique_ptr<GaussianMedium> gaussians;
     if (!scene.gaussians.empty())

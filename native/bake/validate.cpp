@@ -148,6 +148,9 @@ void validate(const SceneDescription& scene, const BakeSettings& settings) {
                 name + ": a spread below pi (an area light's sample) needs spot_size pi and spot_blend 0");
         require(std::isfinite(spot.radius) && spot.radius >= 0.0,
                 name + ": radius must be finite and >= 0, got " + std::to_string(spot.radius));
+        for (double c : spot.profile) require(std::isfinite(c), name + ": profile coefficients must be finite");
+        require(spot.profile.empty() || (spot.spot_size >= kPi - 1e-9 && spot.spot_blend == 0.0 && spot.spread >= kPi - 1e-9),
+                name + ": a profile (spot_profiles) needs spot_size pi, spot_blend 0 and no spread");
     }
     const TriangleMesh& mesh = scene.geometry;
     require(mesh.vertices.size() % 3 == 0, "vertices must hold 3 floats per vertex");

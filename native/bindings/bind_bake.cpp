@@ -1,4 +1,5 @@
 // bind_bake.cpp: the whole-image bake and the multilayer EXR writer.
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <string>
@@ -71,7 +72,8 @@ py::dict bake_py(int width, int height, const py::object& cam_to_world, const py
                  double edge_cluster_tol, bool shadows, const py::object& light_shadows,
                  const py::object& spot_shadows, const py::object& sun_shadows, const py::object& occluder_vertices,
                  const py::object& occluder_triangles, double gaussian_accuracy, double gaussian_refine_budget,
-                 const std::string& shadow_crossings, const py::object& light_radii, const py::object& spot_radii) {
+                 const std::string& shadow_crossings, const py::object& light_radii, const py::object& spot_radii,
+                 const py::object& spot_profiles) {
     // Gather the scene description from the arrays (shapes checked here, values in bake()).
     SceneDescription scene;
     scene.camera.width = width;
@@ -218,6 +220,18 @@ py::dict bake_py(int width, int height, const py::object& cam_to_world, const py
         throw py::value_error("spot_radii needs the spot lights (spot_positions ...)");
     radii(spot_radii, "spot_radii", scene.spot_lights.size(),
           [&](size_t i, double r) { scene.spot_lights[i].radius = r; });
+    if (!spot_profiles.is_none()) {
+        if (scene.spot_lights.empty()) throw py::value_error("spot_profiles needs the spot lights (spot_positions ...)");
+        auto pr = as_array<double>(spot_profiles, "spot_profiles");
+        if (!(pr.ndim() == 2 && size_t(pr.shape(0)) == scene.spot_lights.size() && pr.shape(1) >= 1))
+            throw py::value_error("spot_profiles: expected shape (" + std::to_string(scene.spot_lights.size()) +
+                                  ", K + 1), one row of coefficients per spot, got " + shape_str(pr));
+        for (size_t i = 0; i < scene.spot_lights.size(); ++i) {
+            std::vector<double> row(pr.data() + i * pr.shape(1), pr.data() + (i + 1) * pr.shape(1));
+            const bool any = std::any_of(row.begin(), row.end(), [](double c) { return c != 0.0; });
+            if (any) scene.spot_lights[i].profile = std::move(row);  // an all-zero row: the spot's cone
+        }
+    }
 
     // Volumetric shadows: per light its Cast Shadow (all cast by default), and the casters
     // when they are not the camera's geometry.
@@ -397,6 +411,7 @@ void bind_bake(py::module_& m) {
           "occluder_vertices"_a = py::none(), "occluder_triangles"_a = py::none(),
           "gaussian_accuracy"_a = 0.0, "gaussian_refine_budget"_a = BakeSettings().gaussian_refine_budget,
           "shadow_crossings"_a = "film", "light_radii"_a = py::none(), "spot_radii"_a = py::none(),
+          "spot_profiles"_a = py::none(),
           R"doc(Bake fog passes for one camera view (all arguments keyword-only).
 
 width, height: render resolution in pixels.
@@ -489,6 +504,11 @@ light_radii (L,), spot_radii (S,) (optional, m, >= 0; default 0): each point and
   Radius (shadow_soft_size): Cycles' disk of that radius facing each point, which flattens the
   in-scattering within ~the radius of the light (homogeneous/sphere_light.h; within 1e-3 of
   the point's beyond 27 radii). Homogeneous fog; fog objects take their lights as points.
+spot_profiles (S, K + 1) (optional): per spot a light distribution over the whole sphere
+  instead of its cone (a point light's IES profile, fitted): I(c) = I0 sum_k row[k] c^k, c the
+  cosine between spot_axes and the direction light -> point, clamped at 0 (the closed form of
+  pegoraro10 integrates the polynomial itself); such a spot needs spot_size pi, spot_blend 0
+  and no spread. An all-zero row keeps the spot's cone. Homogeneous fog only.
 sun_directions (U, 3) (direction of propagation, the lamp's -Z; normalised here),
   sun_irradiances (U, 3) W/m^2 (= colour * strength, Cycles): optional sun lamps, closed
   form for every model ("quadrature": its quadrature), any phase (homogeneous/sunlight_layer.h).

@@ -63,6 +63,10 @@ struct SpotLight {
     // [1 deg, pi]; pi (Blender's default) is the plain cos(theta) lobe (spot_light.h).
     double spread = 3.14159265358979323846;
     double radius = 0.0;  // Blender's Radius in m, as for a point light
+    // A point light's IES profile fitted as I(c) = I0 sum_k profile[k] c^k, c the cosine from
+    // _axis_ over the whole sphere (spot_size pi, blend 0, spread pi; SpotCone::profile).
+    // Empty: the spot's cone.
+    std::vector<double> profile;
     bool casts_shadow = true;
 };
 

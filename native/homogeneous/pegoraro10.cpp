@@ -299,6 +299,7 @@ double pegoraro10_airlight_poly(const PegoraroPhase& phase, const std::vector<do
 double pegoraro10_spot_airlight(const PegoraroPhase& phase, const SpotCone& cone, const glm::dvec3& s,
                                 double sigma_t, const glm::dvec3& o, const glm::dvec3& d, double Dvp) {
     if (sigma_t == 0.0 || !(Dvp > 0.0)) return 0.0;
+    if (cone.has_profile()) return pegoraro10_airlight_poly(phase, cone.profile, cone.axis, sigma_t, s, o, d, 0.0, Dvp);
     const RayFrame f = ray_frame(s, o, d);
     const double del = glm::dot(d, cone.axis), dc = glm::dot(f.n, cone.axis);
     const double c0 = cone.cos_half_angle, sm = cone.smooth, c_blend = c0 + sm;

@@ -107,6 +107,19 @@ struct Rule {
 // four times as wide (one for the isotropic phase's whole ray) (with the remainder, within 2e-4 of the point's airlight: sphere_light_test.cpp).
 constexpr int kSeriesNodes = 8;
 
+// Gauss-Legendre (_rule_) of f(phi) over [phi_a, phi_b] in equal panels at most _width_ wide.
+template <class F>
+double integrate_phi(const Rule& rule, double phi_a, double phi_b, double width, F f) {
+    const int panels = std::max(1, int(std::ceil((phi_b - phi_a) / width)));
+    const double step = (phi_b - phi_a) / panels, half = 0.5 * step;
+    double sum = 0.0;
+    for (int p = 0; p < panels; ++p) {
+        const double mid = phi_a + (p + 0.5) * step;
+        for (size_t k = 0; k < rule.x.size(); ++k) sum += half * rule.w[k] * f(mid + half * rule.x[k]);
+    }
+    return sum;
+}
+
 // One piece [a, b] of sphere_light_airlight (no breakpoint inside).
 double airlight_piece(const PhaseFunction& phase, double sigma_t, const Vec3& s, double r, const Vec3& o,
                       const Vec3& d, double a, double b, double t_start,
@@ -117,23 +130,16 @@ double airlight_piece(const PhaseFunction& phase, double sigma_t, const Vec3& s,
     const double h2 = std::max(0.0, glm::dot(so, so) - tc * tc);
     const double w = std::sqrt(h2 + 0.5 * r * r);
     const double phi_a = std::atan((a - tc) / w), phi_b = std::atan((b - tc) / w);
-    const int panels = std::max(1, int(std::ceil((phi_b - phi_a) / panel_width(phase))));
-    const double step = (phi_b - phi_a) / panels;
-    double sum = 0.0;
-    for (int p = 0; p < panels; ++p) {
-        const double mid = phi_a + (p + 0.5) * step, half = 0.5 * step;
-        for (int k = 0; k < kNodes; ++k) {
-            const double phi = mid + half * rule.x[k];
-            const double tn = std::tan(phi), t = tc + w * tn;
-            const Vec3 x = o + t * d, sx = s - x;
-            const double rho = glm::length(sx);
-            const double cos_theta = rho > 0.0 ? std::clamp(glm::dot(sx, d) / rho, -1.0, 1.0) : 1.0;
-            const double F = falloff ? (*falloff)(rho) : sphere_light_falloff(sigma_t, rho, r);
-            double f = phase.eval(cos_theta) * std::exp(-sigma_t * (t - t_start)) * F;
-            if (profile) f *= profile(x);
-            sum += half * rule.w[k] * f * w * (1.0 + tn * tn);
-        }
-    }
+    const double sum = integrate_phi(rule, phi_a, phi_b, panel_width(phase), [&](double phi) {
+        const double tn = std::tan(phi), t = tc + w * tn;
+        const Vec3 x = o + t * d, sx = s - x;
+        const double rho = glm::length(sx);
+        const double cos_theta = rho > 0.0 ? std::clamp(glm::dot(sx, d) / rho, -1.0, 1.0) : 1.0;
+        const double F = falloff ? (*falloff)(rho) : sphere_light_falloff(sigma_t, rho, r);
+        double f = phase.eval(cos_theta) * std::exp(-sigma_t * (t - t_start)) * F;
+        if (profile) f *= profile(x);
+        return f * w * (1.0 + tn * tn);
+    });
     return sigma_t * sum;
 }
 
@@ -194,27 +200,19 @@ double sphere_light_excess_series(const PhaseFunction& phase, double sigma_t, co
     double sum = 0.0, lo = a;
     auto piece = [&](double p0, double p1) {
         const double phi_a = std::atan((p0 - tc) / h), phi_b = std::atan((p1 - tc) / h);
-        const int panels = std::max(1, int(std::ceil((phi_b - phi_a) / (4.0 * panel_width(phase)))));
-        const double step = (phi_b - phi_a) / panels;
-        double acc = 0.0;
-        for (int p = 0; p < panels; ++p) {
-            const double mid = phi_a + (p + 0.5) * step, half = 0.5 * step;
-            for (int k = 0; k < kSeriesNodes; ++k) {
-                const double phi = mid + half * rule.x[k];
-                const double tn = std::tan(phi), t = tc + h * tn;
-                const Vec3 x = o + t * d, sx = s - x;
-                const double rho2 = h * h * (1.0 + tn * tn), rho = std::sqrt(rho2);
-                const double cos_theta = std::clamp(glm::dot(sx, d) / rho, -1.0, 1.0);
-                const double eps = r2 / rho2, sr = sigma_t * rho;
-                const double series = -0.25 * eps * (3.0 + sr) + eps * eps * (15.0 + 7.0 * sr + sr * sr) / 24.0;
-                // e^{-sigma rho} / rho^2 dt = e^{-sigma rho} dphi / h.
-                double f = (isotropic ? kInv4Pi : phase.eval(cos_theta)) * std::exp(-sigma_t * (t - t_start + rho)) *
-                           series / h;
-                if (profile) f *= profile(x);
-                acc += half * rule.w[k] * f;
-            }
-        }
-        return acc;
+        return integrate_phi(rule, phi_a, phi_b, 4.0 * panel_width(phase), [&](double phi) {
+            const double tn = std::tan(phi), t = tc + h * tn;
+            const Vec3 x = o + t * d, sx = s - x;
+            const double rho2 = h * h * (1.0 + tn * tn), rho = std::sqrt(rho2);
+            const double cos_theta = std::clamp(glm::dot(sx, d) / rho, -1.0, 1.0);
+            const double eps = r2 / rho2, sr = sigma_t * rho;
+            const double series = -0.25 * eps * (3.0 + sr) + eps * eps * (15.0 + 7.0 * sr + sr * sr) / 24.0;
+            // e^{-sigma rho} / rho^2 dt = e^{-sigma rho} dphi / h.
+            double f = (isotropic ? kInv4Pi : phase.eval(cos_theta)) * std::exp(-sigma_t * (t - t_start + rho)) *
+                       series / h;
+            if (profile) f *= profile(x);
+            return f;
+        });
     };
     for (double c : cuts) {
         if (!(c > lo) || !(c < b)) continue;

@@ -30,7 +30,26 @@ SpotCone make_spot_cone(const glm::dvec3& axis, double spot_size, double spot_bl
     return cone;
 }
 
+SpotCone make_profile_cone(const glm::dvec3& axis, const std::vector<double>& profile) {
+    SpotCone cone;
+    const double len = glm::length(axis);
+    cone.axis = len > 0.0 ? axis / len : glm::dvec3(0.0, 0.0, -1.0);
+    cone.cos_half_angle = -1.0;
+    cone.profile = profile;
+    return cone;
+}
+
+SpotCone make_light_cone(const SpotLight& spot) {
+    return spot.profile.empty() ? make_spot_cone(spot.axis, spot.spot_size, spot.spot_blend, spot.spread)
+                                : make_profile_cone(spot.axis, spot.profile);
+}
+
 double spot_profile(const SpotCone& cone, double cos_theta) {
+    if (cone.has_profile()) {
+        double v = 0.0;
+        for (size_t k = cone.profile.size(); k-- > 0;) v = v * cos_theta + cone.profile[k];
+        return std::max(0.0, v);
+    }
     if (!(cos_theta > cone.cos_half_angle)) return 0.0;
     if (cone.spread_b > 0.0)
         return std::max(0.0, cone.spread_a * cos_theta -

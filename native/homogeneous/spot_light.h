@@ -24,6 +24,7 @@
 
 #include "core/constants.h"
 #include "core/phase.h"
+#include "core/scene.h"
 
 namespace airlight {
 
@@ -44,8 +45,17 @@ struct SpotCone {
     double smooth = 0.0;             // (1 - cos_half_angle) * blend
     double spread_a = 1.0;           // Spread: sin h / (sin h - h cos h)
     double spread_b = 0.0;           // Spread: cos h / (sin h - h cos h); 0: no Spread
+    // A light distribution over the whole sphere instead of the cone (an IES profile's fit):
+    // I(c) = sum_k profile[k] c^k, c = cos(theta), clamped at 0 (cos_half_angle -1). Empty: the cone.
+    std::vector<double> profile;
     bool has_spread() const { return spread_b > 0.0; }
+    bool has_profile() const { return !profile.empty(); }
 };
+
+// A point light whose intensity I0 I(c) follows the polynomial _profile_ about _axis_ (SpotCone::profile).
+SpotCone make_profile_cone(const glm::dvec3& axis, const std::vector<double>& profile);
+// The cone (or profile) of a scene's spot light.
+SpotCone make_light_cone(const SpotLight& spot);
 
 // Builds the cone from Blender's spot_size (full cone angle, rad, in (0, pi]) and
 // spot_blend ([0, 1]); _axis_ need not be normalised. An area light's _spread_ (full angle,
@@ -53,8 +63,8 @@ struct SpotCone {
 SpotCone make_spot_cone(const glm::dvec3& axis, double spot_size, double spot_blend, double spread = kPi);
 
 // The Cycles angular factor cos(theta) * smoothstep(...) (0 outside the cone; with Spread
-// sin(h - theta) / (sin h - h cos h)) for the cosine _cos_theta_ between the spot axis and the
-// direction light -> point.
+// sin(h - theta) / (sin h - h cos h); with a profile max(0, I(c))) for the cosine _cos_theta_
+// between the spot axis and the direction light -> point.
 double spot_profile(const SpotCone& cone, double cos_theta);
 
 // The x in (lo, hi) where the line o + x d comes closest in direction to the axis as seen

@@ -6,7 +6,7 @@
   without nodes (cycles_scenes.bake_inputs), and Cycles with the nodes within its noise.
 - test02: Light Falloff's Quadratic output into Strength is the node's Strength; nothing
   into the Light Output's Surface is a black light.
-- test03: an IES Texture into Strength, an image texture on the Color, an Add Shader: the
+- test03: an IES Texture with a linked Strength, an image texture on the Color, an Add Shader: the
   bake refuses the frame with a message naming the light and the node (the panel shows it),
   never bakes the light as if it had no nodes.
 - test04: EEVEE and Workbench ignore light nodes: so does the fog there.
@@ -127,7 +127,10 @@ def test03_setups_the_fog_cannot_take_are_refused(tmp_path):
     tree, emission = _emission(lamp.data)
     ies = tree.nodes.new("ShaderNodeTexIES")
     tree.links.new(ies.outputs["Fac"], emission.inputs["Strength"])
-    _refused(scene, tmp_path, ("Lamp", "IES Texture", "IES profiles are not in the fog yet"))
+    value = tree.nodes.new("ShaderNodeValue")
+    tree.links.new(value.outputs[0], ies.inputs["Strength"])
+    _refused(scene, tmp_path, ("Lamp", "IES Texture", "linked Vector or Strength"))
+    tree.nodes.remove(value)
     tree.nodes.remove(ies)
     image = tree.nodes.new("ShaderNodeTexImage")
     tree.links.new(image.outputs["Color"], emission.inputs["Color"])
