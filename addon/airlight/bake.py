@@ -230,7 +230,8 @@ def run(description, settings, filepath, progress=None):
 _LIGHT_ARRAYS = {
     "points": ("light_positions", "light_intensities", "light_radii", "light_shadows"),
     "spots": ("spot_positions", "spot_axes", "spot_intensities", "spot_size", "spot_blend", "spot_spread",
-              "spot_radii", "spot_profiles", "spot_shadows"),
+              "spot_radii", "spot_profiles", "spot_profile_in_cone",
+              "spot_profile_extent", "spot_shadows"),
     "suns": ("sun_directions", "sun_irradiances", "sun_shadows"),
 }
 

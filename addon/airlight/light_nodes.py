@@ -59,7 +59,7 @@ def _strength(light_name, socket):
         return float(socket.default_value)
     if node.type == 'TEX_IES' and out.name == "Fac":
         # Cycles: Fac = Strength x the profile's value towards the point; the profile comes from
-        # ies_node / ies_text (a point light's, the fog's light distribution).
+        # ies_node / ies_text (a point or spot light's, the fog's light distribution).
         vector, strength = node.inputs["Vector"], node.inputs["Strength"]
         if _source(vector)[0] is None and _source(strength)[0] is None:
             return float(strength.default_value)

@@ -286,7 +286,7 @@ def plan_rows(settings, survey):
             label, error = point_label, point_error
         rows.append(LightRow(light.name, light.type, 'fog', label, error, math.nan))
         fogged.append(len(rows) - 1)
-        # A point light an IES profile shapes is bounded as an area light is: not as a point (its
+        # A point or spot light an IES profile shapes is bounded as an area light is: not as a point (its
         # profile can exceed its power's share), so it is never skipped nor left unshadowed.
         kinds.append('AREA' if getattr(light, "profiled", False) else light.type)
         weights.append(light.emission if light.type == 'SUN' else

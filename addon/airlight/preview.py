@@ -47,7 +47,7 @@ from bpy.props import BoolProperty, EnumProperty
 from gpu_extras.batch import batch_for_shader
 from mathutils import Vector
 
-from . import environment, fog_object, model_choice, native, scene_description, scene_export, visibility
+from . import environment, fog_object, ies, model_choice, native, scene_description, scene_export, visibility
 from . import gpu_shaders as gs
 from . import preview_gaussians as pg
 from . import preview_shadows as ps
@@ -436,15 +436,32 @@ def preview_lights(scene, depsgraph):
 
 
 def _profiles_as_points(lights, shadowed):
-    """The preview draws a light with an IES profile (a spot row with spot_profiles) as a point
-    light of the profile's mean intensity over the sphere (the panel says so): moves those rows
-    of _lights_ (and their shadow flags in _shadowed_) to the point lights, in place."""
+    """The preview draws a point light with an IES profile (a spot row with spot_profiles) as
+    a point light of the profile's mean intensity over the sphere, and a spot light with one
+    (spot_profile_in_cone) as its spot scaled by the profile's mean over the cone, weighted by
+    the cone's factor (the panel says so): moves the point lights' rows of _lights_ (and their
+    shadow flags in _shadowed_) to the point lights, and scales the spots', in place."""
     profiles = lights.pop("spot_profiles", None)
+    in_cone = np.asarray(lights.pop("spot_profile_in_cone", np.zeros(0)), dtype=bool)
+    extent = np.asarray(lights.pop("spot_profile_extent", np.zeros(0)), dtype=np.float64)
     if profiles is None:
         return
-    profiled = np.any(profiles != 0.0, axis=1)
-    k = np.arange(profiles.shape[1])
-    mean = (profiles * np.where(k % 2 == 0, 1.0 / (k + 1.0), 0.0)).sum(axis=1)  # of sum p_k c^k over [-1, 1]
+    if len(in_cone) != len(profiles):
+        in_cone = np.zeros(len(profiles), dtype=bool)
+    if len(extent) != len(profiles):
+        extent = np.full(len(profiles), math.pi)
+    profiled = np.any(profiles != 0.0, axis=1) & ~in_cone
+    mean = np.ones(len(profiles))   # the spots' scale, the points' mean intensity over the sphere
+    for row in np.nonzero(in_cone | profiled)[0]:
+        size = 2.0 * float(extent[row]) if profiled[row] else float(lights["spot_size"][row])
+        c = np.linspace(max(-1.0, math.cos(0.5 * size)), 1.0, 513)
+        lit = np.maximum(np.polynomial.polynomial.polyval(c, profiles[row]), 0.0)
+        if profiled[row]:
+            mean[row] = float(lit.mean() * (1.0 - c[0]) / 2.0)
+        else:
+            w = ies.cone_factor(c, size, float(lights["spot_blend"][row]))
+            mean[row] = float((lit * w).sum() / max(w.sum(), 1e-300))
+    lights["spot_intensities"] = np.asarray(lights["spot_intensities"]) * np.where(in_cone, mean, 1.0)[:, None]
     lights["light_positions"] = np.concatenate([lights["light_positions"], lights["spot_positions"][profiled]])
     lights["light_intensities"] = np.concatenate([lights["light_intensities"],
                                                   lights["spot_intensities"][profiled] * mean[profiled, None]])

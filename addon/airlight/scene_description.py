@@ -265,7 +265,7 @@ class LightInstance(NamedTuple):
     area_size: tuple = (0.0, 0.0)  # area lights: the size along the light's X and Y, m
     spread: float = math.pi    # area lights: Cycles' Spread, rad (pi: the full cosine lobe)
     radius: float = 0.0        # points and spots: Radius (shadow_soft_size), m
-    ies_text: str = None       # points: the IES profile's text (Cycles, an IES Texture on Strength)
+    ies_text: str = None       # points, spots: the IES profile's text (Cycles, an IES Texture on Strength)
     ies_problem: str = ""      # why an IES Texture's profile could not be read (baked without it)
 
 
@@ -298,16 +298,18 @@ def _ies(name, light, engine):
     node = light_nodes.ies_node(light, engine)
     if node is None:
         return {}
-    if light.type != 'POINT':
-        raise ExportError(f"Light '{name}': an IES Texture on a {light.type.lower()} light is not in the fog "
-                          "(point lights only): remove it, or untick the light's Scatter in Fog")
+    if light.type not in ('POINT', 'SPOT'):
+        kind = {'AREA': "an area", 'SUN': "a sun"}.get(light.type, f"a {light.type.lower()}")
+        raise ExportError(f"Light '{name}': an IES Texture on {kind} light is not in the fog "
+                          "(point and spot lights only): remove it, or untick the light's Scatter in Fog")
     text, problem = light_nodes.ies_text(node)
     return dict(ies_text=text, ies_problem=problem or "")
 
 
 def has_profile(light, scene):
     """Whether the bake takes a point light's IES profile (readable, at the scene's accuracy):
-    the light's row order (surface.fogged_lights) follows scene_export's."""
+    such a point light bakes as a spot row, and the light's row order (surface.fogged_lights)
+    follows scene_export's. A spot's IES keeps its spot row."""
     node = light_nodes.ies_node(light, scene.render.engine)
     if node is None:
         return False
@@ -315,7 +317,7 @@ def has_profile(light, scene):
     if not text:
         return False
     try:
-        ies.fit_text(text, scene.airlight.accuracy / 100.0)
+        ies.fit_text(text, scene.airlight.accuracy / 100.0, ies.light_cone(light))
         return True
     except ies.IESError:
         return False

@@ -71,31 +71,34 @@ def _emission(light):
 
 
 def ies_fit(light, plan):
-    """The ies.Fit of a point light's IES profile at the plan's accuracy, or None (no profile,
-    or one that cannot be read: the light then bakes without it; ies_notes says so)."""
-    if light.type != 'POINT' or not light.ies_text:
+    """The ies.Fit of a point or spot light's IES profile at the plan's accuracy (a spot's in
+    its cone), or None (no profile, or one that cannot be read: the light then bakes without
+    it; ies_notes says so)."""
+    if light.type not in ('POINT', 'SPOT') or not light.ies_text:
         return None
     try:
-        return ies.fit_text(light.ies_text, plan.accuracy)
+        return ies.fit_text(light.ies_text, plan.accuracy, ies.light_cone(light))
     except ies.IESError:
         return None
 
 
 def ies_notes(lights, plan):
-    """One line per fogged point light with an IES Texture: its fit, or why it bakes without it."""
+    """One line per fogged point or spot light with an IES Texture: its fit, or why it bakes
+    without it."""
     notes = []
     for light in lights:
-        if light.type != 'POINT' or not _baked(light, plan) or not (light.ies_text or light.ies_problem):
+        if light.type not in ('POINT', 'SPOT') or not _baked(light, plan) or not (light.ies_text or light.ies_problem):
             continue
         problem = light.ies_problem
         if not problem:
             try:
-                notes.append(f"Light '{light.name}': " + ies.describe(ies.fit_text(light.ies_text, plan.accuracy)))
+                fit = ies.fit_text(light.ies_text, plan.accuracy, ies.light_cone(light))
+                notes.append(f"Light '{light.name}': " + ies.describe(fit))
                 continue
             except ies.IESError as ex:
                 problem = f"its IES profile cannot be read: {ex}"
-        notes.append(f"Light '{light.name}': WARNING {problem}: the fog takes it without its profile "
-                     "(an even light of its power)")
+        without = "its spot cone alone" if light.type == 'SPOT' else "an even light of its power"
+        notes.append(f"Light '{light.name}': WARNING {problem}: the fog takes it without its profile ({without})")
     return notes
 
 
@@ -138,11 +141,12 @@ def _radius(light):
     return radius
 
 
-def _directed_lights(lights, light_type, plan):
+def _directed_lights(lights, light_type, plan, keep=None):
     """(light, its emission (_emission), unit -Z direction) of every light of _light_type_
-    ('SPOT', 'SUN') the bake takes. A degenerate transform raises ExportError."""
+    ('SPOT', 'SUN', 'AREA'; 'POINT' for an IES profile's axis) the bake takes, and _keep_
+    (a predicate) keeps. A degenerate transform raises ExportError."""
     for light in lights:
-        if light.type != light_type or not _baked(light, plan):
+        if light.type != light_type or not _baked(light, plan) or (keep is not None and not keep(light)):
             continue
         matrix = light.matrix
         if not np.isfinite(matrix).all():
@@ -173,9 +177,15 @@ def spot_lights(lights, plan, names=None):
     intensity is the point light's formula and the profile is applied by the bake.
     """
     positions, axes, intensities, sizes, blends, spreads, radii = [], [], [], [], [], [], []
+    # Per row its IES fit's coefficients (None: none), whether in a cone, and its extent (points).
+    profiles, in_cone, extents = [], [], []
     for light, emission, axis in _directed_lights(lights, 'SPOT', plan):
         if names is not None:
             names.append(light.name)
+        fit = ies_fit(light, plan)
+        profiles.append(None if fit is None else fit.coefficients)
+        in_cone.append(fit is not None)
+        extents.append(math.pi)
         radii.append(_radius(light))
         positions.append(light.matrix[:3, 3])
         axes.append(axis)
@@ -196,25 +206,26 @@ def spot_lights(lights, plan, names=None):
             blends.append(0.0)
             spreads.append(min(math.pi, max(AREA_MIN_SPREAD, float(light.spread))))
             radii.append(0.0)
-    # Point lights with an IES profile last, as spots whose profile replaces the cone.
-    profiles = [None] * len(positions)
-    for light, fit in _ies_rows(lights, plan):
+            profiles.append(None)
+            in_cone.append(False)
+            extents.append(math.pi)
+    # Point lights with an IES profile last, as spots whose profile replaces the cone (dark
+    # beyond its extent).
+    fits = {id(light): fit for light, fit in _ies_rows(lights, plan)}
+    for light, emission, axis in _directed_lights(lights, 'POINT', plan, keep=lambda l: id(l) in fits):
+        fit = fits[id(light)]
         if names is not None:
             names.append(light.name)
-        if not np.isfinite(light.matrix).all():
-            raise ExportError(f"Light '{light.name}' has a NaN or infinite transform (a driver or constraint?).")
-        axis = -light.matrix[:3, 2]
-        norm = float(np.linalg.norm(axis))
-        if not (norm > 0.0 and math.isfinite(norm)):
-            raise ExportError(f"Light '{light.name}' has a degenerate transform (no direction for its IES profile).")
         positions.append(light.matrix[:3, 3])
-        axes.append(axis / norm)
-        intensities.append(_emission(light) / (4.0 * math.pi))
+        axes.append(axis)
+        intensities.append(emission / (4.0 * math.pi))
         sizes.append(math.pi)
         blends.append(0.0)
         spreads.append(math.pi)
         radii.append(_radius(light))
         profiles.append(fit.coefficients)
+        in_cone.append(False)
+        extents.append(fit.extent)
     if not positions:
         return {}
     spots = dict(spot_radii=np.array(radii, dtype=np.float64)) if any(radii) else {}
@@ -225,6 +236,10 @@ def spot_lights(lights, plan, names=None):
             if p is not None:
                 table[k, :len(p)] = p
         spots["spot_profiles"] = table
+        if any(in_cone):
+            spots["spot_profile_in_cone"] = np.array(in_cone, dtype=np.float64)
+        if any(e < math.pi for e in extents):
+            spots["spot_profile_extent"] = np.array(extents, dtype=np.float64)
     return spots | _check_finite(dict(spot_positions=np.array(positions, dtype=np.float64).reshape(-1, 3),
                               spot_axes=np.array(axes, dtype=np.float64).reshape(-1, 3),
                               spot_intensities=np.array(intensities, dtype=np.float64).reshape(-1, 3),

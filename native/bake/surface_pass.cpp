@@ -122,12 +122,13 @@ class GlowShadowGrid {
 std::shared_ptr<const SpotGlowModel> shared_spot_glow_model(const SpotCone& cone, const PhaseFunction& phase) {
     // The table depends on the cone's angle, blend, Spread and profile and on the phase, not on the axis.
     static std::mutex mutex;
-    static std::map<std::tuple<double, double, double, int, double, std::vector<double>>,
+    static std::map<std::tuple<double, double, double, int, double, std::vector<double>, bool>,
                     std::shared_ptr<const SpotGlowModel>>
         cache;
     std::lock_guard<std::mutex> lock(mutex);
     const double g = phase.kind == PhaseKind::HenyeyGreenstein ? phase.g : 0.0;
-    auto& slot = cache[{cone.cos_half_angle, cone.smooth, cone.spread_b, int(phase.kind), g, cone.profile}];
+    auto& slot =
+        cache[{cone.cos_half_angle, cone.smooth, cone.spread_b, int(phase.kind), g, cone.profile, cone.profile_alone}];
     if (!slot) slot = std::make_shared<const SpotGlowModel>(cone, phase);
     return slot;
 }

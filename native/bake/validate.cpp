@@ -149,8 +149,19 @@ void validate(const SceneDescription& scene, const BakeSettings& settings) {
         require(std::isfinite(spot.radius) && spot.radius >= 0.0,
                 name + ": radius must be finite and >= 0, got " + std::to_string(spot.radius));
         for (double c : spot.profile) require(std::isfinite(c), name + ": profile coefficients must be finite");
-        require(spot.profile.empty() || (spot.spot_size >= kPi - 1e-9 && spot.spot_blend == 0.0 && spot.spread >= kPi - 1e-9),
-                name + ": a profile (spot_profiles) needs spot_size pi, spot_blend 0 and no spread");
+        require(spot.profile.empty() || spot.profile.size() <= 17,
+                name + ": a profile (spot_profiles) has at most 17 coefficients (degree 16)");
+        require(spot.profile.empty() || spot.profile_in_cone ||
+                    (spot.spot_size >= kPi - 1e-9 && spot.spot_blend == 0.0 && spot.spread >= kPi - 1e-9),
+                name + ": a profile (spot_profiles) over the whole sphere needs spot_size pi, spot_blend 0 and no "
+                       "spread (or spot_profile_in_cone)");
+        require(std::isfinite(spot.profile_extent) && spot.profile_extent > 0.0 && spot.profile_extent <= kPi + 1e-9,
+                name + ": profile_extent must be in (0, pi] rad, got " + std::to_string(spot.profile_extent));
+        require(spot.profile_extent >= kPi - 1e-9 || (!spot.profile.empty() && !spot.profile_in_cone),
+                name + ": a profile extent (spot_profile_extent) below pi needs a profile over the sphere "
+                       "(spot_profiles, not in a cone)");
+        require(spot.profile.empty() || spot.spread >= kPi - 1e-9,
+                name + ": a profile (spot_profiles) cannot go with a spread (an area light's sample)");
     }
     const TriangleMesh& mesh = scene.geometry;
     require(mesh.vertices.size() % 3 == 0, "vertices must hold 3 floats per vertex");

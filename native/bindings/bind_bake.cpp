@@ -73,7 +73,8 @@ py::dict bake_py(int width, int height, const py::object& cam_to_world, const py
                  const py::object& spot_shadows, const py::object& sun_shadows, const py::object& occluder_vertices,
                  const py::object& occluder_triangles, double gaussian_accuracy, double gaussian_refine_budget,
                  const std::string& shadow_crossings, const py::object& light_radii, const py::object& spot_radii,
-                 const py::object& spot_profiles) {
+                 const py::object& spot_profiles, const py::object& spot_profile_in_cone,
+                 const py::object& spot_profile_extent) {
     // Gather the scene description from the arrays (shapes checked here, values in bake()).
     SceneDescription scene;
     scene.camera.width = width;
@@ -103,13 +104,17 @@ py::dict bake_py(int width, int height, const py::object& cam_to_world, const py
         scene.point_lights.push_back(light);
     }
     // Per light its radius (values checked in bake()).
-    auto radii = [](const py::object& values, const char* name, size_t n, auto set) {
+    // One value per light (radii, flags), or nothing where _values_ is None.
+    auto per_light = [](const py::object& values, const char* name, const char* what, size_t n, auto set) {
         if (values.is_none()) return;
         auto r = as_array<double>(values, name);
         if (!(r.ndim() == 1 && size_t(r.shape(0)) == n))
-            throw py::value_error(std::string(name) + ": expected one radius per light (" + std::to_string(n) +
+            throw py::value_error(std::string(name) + ": expected one " + what + " per light (" + std::to_string(n) +
                                   "), got shape " + shape_str(r));
         for (size_t i = 0; i < n; ++i) set(i, r.data()[i]);
+    };
+    auto radii = [&](const py::object& values, const char* name, size_t n, auto set) {
+        per_light(values, name, "radius", n, set);
     };
     radii(light_radii, "light_radii", scene.point_lights.size(),
           [&](size_t i, double r) { scene.point_lights[i].radius = r; });
@@ -232,16 +237,19 @@ py::dict bake_py(int width, int height, const py::object& cam_to_world, const py
             if (any) scene.spot_lights[i].profile = std::move(row);  // an all-zero row: the spot's cone
         }
     }
+    if (!spot_profile_in_cone.is_none() && spot_profiles.is_none())
+        throw py::value_error("spot_profile_in_cone needs spot_profiles");
+    per_light(spot_profile_in_cone, "spot_profile_in_cone", "flag", scene.spot_lights.size(),
+              [&](size_t i, double f) { scene.spot_lights[i].profile_in_cone = f != 0.0; });
+    if (!spot_profile_extent.is_none() && spot_profiles.is_none())
+        throw py::value_error("spot_profile_extent needs spot_profiles");
+    per_light(spot_profile_extent, "spot_profile_extent", "angle", scene.spot_lights.size(),
+              [&](size_t i, double a) { scene.spot_lights[i].profile_extent = a; });
 
     // Volumetric shadows: per light its Cast Shadow (all cast by default), and the casters
     // when they are not the camera's geometry.
-    auto cast_flags = [](const py::object& flags, const char* name, size_t n, auto set) {
-        if (flags.is_none()) return;
-        auto f = as_array<double>(flags, name);
-        if (!(f.ndim() == 1 && size_t(f.shape(0)) == n))
-            throw py::value_error(std::string(name) + ": expected one flag per light (" + std::to_string(n) +
-                                  "), got shape " + shape_str(f));
-        for (size_t i = 0; i < n; ++i) set(i, f.data()[i] != 0.0);
+    auto cast_flags = [&](const py::object& flags, const char* name, size_t n, auto set) {
+        per_light(flags, name, "flag", n, [&](size_t i, double f) { set(i, f != 0.0); });
     };
     cast_flags(light_shadows, "light_shadows", scene.point_lights.size(),
                [&](size_t i, bool on) { scene.point_lights[i].casts_shadow = on; });
@@ -411,7 +419,8 @@ void bind_bake(py::module_& m) {
           "occluder_vertices"_a = py::none(), "occluder_triangles"_a = py::none(),
           "gaussian_accuracy"_a = 0.0, "gaussian_refine_budget"_a = BakeSettings().gaussian_refine_budget,
           "shadow_crossings"_a = "film", "light_radii"_a = py::none(), "spot_radii"_a = py::none(),
-          "spot_profiles"_a = py::none(),
+          "spot_profiles"_a = py::none(), "spot_profile_in_cone"_a = py::none(),
+          "spot_profile_extent"_a = py::none(),
           R"doc(Bake fog passes for one camera view (all arguments keyword-only).
 
 width, height: render resolution in pixels.
@@ -509,6 +518,14 @@ spot_profiles (S, K + 1) (optional): per spot a light distribution over the whol
   cosine between spot_axes and the direction light -> point, clamped at 0 (the closed form of
   pegoraro10 integrates the polynomial itself); such a spot needs spot_size pi, spot_blend 0
   and no spread. An all-zero row keeps the spot's cone. Homogeneous fog only.
+spot_profile_in_cone (S,) (optional, with spot_profiles; default False): per spot whether its
+  profile multiplies the spot's own cone (a spot light's IES Texture, as Cycles multiplies it
+  into the spot's emission: I0 cos(theta) smoothstep(...) max(0, I(c)) inside the cone) instead
+  of replacing it (a point light's). The degree is at most 16; no Spread.
+spot_profile_extent (S,) (optional, with spot_profiles; rad, (0, pi], default pi): per spot
+  whose profile replaces its cone, the polar angle from spot_axes beyond which it is dark (an
+  IES file's last lit angle): I0 max(0, I(c)) for c > cos(extent), 0 beyond; pi: the whole
+  sphere. Rows in a cone take pi.
 sun_directions (U, 3) (direction of propagation, the lamp's -Z; normalised here),
   sun_irradiances (U, 3) W/m^2 (= colour * strength, Cycles): optional sun lamps, closed
   form for every model ("quadrature": its quadrature), any phase (homogeneous/sunlight_layer.h).

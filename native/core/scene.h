@@ -63,10 +63,16 @@ struct SpotLight {
     // [1 deg, pi]; pi (Blender's default) is the plain cos(theta) lobe (spot_light.h).
     double spread = 3.14159265358979323846;
     double radius = 0.0;  // Blender's Radius in m, as for a point light
-    // A point light's IES profile fitted as I(c) = I0 sum_k profile[k] c^k, c the cosine from
-    // _axis_ over the whole sphere (spot_size pi, blend 0, spread pi; SpotCone::profile).
-    // Empty: the spot's cone.
+    // An IES profile fitted as I(c) = I0 sum_k profile[k] c^k, c the cosine from _axis_
+    // (SpotCone::profile). A point light's (profile_in_cone false): over the whole sphere in
+    // place of the cone (spot_size pi, blend 0, spread pi). A spot light's (profile_in_cone
+    // true): times the spot's own cos(theta) smoothstep(...) inside its cone, as Cycles
+    // multiplies the IES Texture into a spot's emission. Empty: the spot's cone alone.
     std::vector<double> profile;
+    bool profile_in_cone = false;
+    // A point light's profile lights the directions within profile_extent rad of _axis_ and
+    // none beyond (an IES file dark past its last lit angle); pi: the whole sphere.
+    double profile_extent = 3.14159265358979323846;
     bool casts_shadow = true;
 };
 

@@ -17,6 +17,8 @@ namespace {
 
 // Largest trigonometric degree K handled (phase order + light order).
 constexpr int kMaxDegree = 132;
+// The light distribution's largest order (an IES fit of degree 16 times a spot's blend, degree 4).
+constexpr int kMaxLightOrder = 20;
 // The recurrence runs forward below this H (= sigma_t h); above it, Olver's algorithm.
 constexpr double kForwardMaxH = 1.5;
 // A blend-annulus piece whose Fourier sum cancels more than this (sum |terms| / |sum|; the
@@ -87,10 +89,11 @@ int combined_coefficients(const PegoraroPhase& phase, const double* light, int M
     const int K = N + M;
     if (K > kMaxDegree) throw std::invalid_argument("pegoraro10: phase order + light order exceeds 132");
     // Laurent coefficients of I(c(phi)), index j + M for e^{i j phi}; c = (beta z + conj(beta)/z)/2.
-    std::array<cplx, 2 * 8 + 1> L{};
+    if (M > kMaxLightOrder) throw std::invalid_argument("pegoraro10: light order must be 0..20");
+    std::array<cplx, 2 * kMaxLightOrder + 1> L{};
     const cplx beta(dc, -del);
     // Horner: I = (((l_M) c + l_{M-1}) c + ...) .
-    std::array<cplx, 2 * 8 + 1> T{};
+    std::array<cplx, 2 * kMaxLightOrder + 1> T{};
     L[M] = light[M];
     for (int k = M - 1; k >= 0; --k) {
         T.fill(0.0);
@@ -114,6 +117,15 @@ int combined_coefficients(const PegoraroPhase& phase, const double* light, int M
         out[m] = acc;
     }
     return K;
+}
+
+// The product of the polynomials _a_ and _profile_ (monomial coefficients; an empty profile is 1).
+std::vector<double> times_profile(const std::vector<double>& a, const std::vector<double>& profile) {
+    if (profile.empty()) return a;
+    std::vector<double> out(a.size() + profile.size() - 1, 0.0);
+    for (size_t i = 0; i < a.size(); ++i)
+        for (size_t j = 0; j < profile.size(); ++j) out[i + j] += a[i] * profile[j];
+    return out;
 }
 
 }  // namespace
@@ -287,7 +299,8 @@ double pegoraro10_airlight(const PegoraroPhase& phase, double sigma_t, double Ds
 double pegoraro10_airlight_poly(const PegoraroPhase& phase, const std::vector<double>& light,
                                 const glm::dvec3& axis, double sigma_t, const glm::dvec3& s, const glm::dvec3& o,
                                 const glm::dvec3& d, double x0, double x1) {
-    if (light.empty() || light.size() > 9) throw std::invalid_argument("pegoraro10: light order must be 0..8");
+    if (light.empty() || light.size() > kMaxLightOrder + 1)
+        throw std::invalid_argument("pegoraro10: light order must be 0..20");
     if (sigma_t == 0.0 || !(x1 > x0)) return 0.0;
     const RayFrame f = ray_frame(s, o, d);
     std::array<cplx, kMaxDegree + 1> coef;
@@ -299,7 +312,8 @@ double pegoraro10_airlight_poly(const PegoraroPhase& phase, const std::vector<do
 double pegoraro10_spot_airlight(const PegoraroPhase& phase, const SpotCone& cone, const glm::dvec3& s,
                                 double sigma_t, const glm::dvec3& o, const glm::dvec3& d, double Dvp) {
     if (sigma_t == 0.0 || !(Dvp > 0.0)) return 0.0;
-    if (cone.has_profile()) return pegoraro10_airlight_poly(phase, cone.profile, cone.axis, sigma_t, s, o, d, 0.0, Dvp);
+    if (cone.profile_alone && cone.cos_half_angle <= -1.0)
+        return pegoraro10_airlight_poly(phase, cone.profile, cone.axis, sigma_t, s, o, d, 0.0, Dvp);
     const RayFrame f = ray_frame(s, o, d);
     const double del = glm::dot(d, cone.axis), dc = glm::dot(f.n, cone.axis);
     const double c0 = cone.cos_half_angle, sm = cone.smooth, c_blend = c0 + sm;
@@ -359,7 +373,10 @@ double pegoraro10_spot_airlight(const PegoraroPhase& phase, const SpotCone& cone
         }
         return sigma_t * integrate_adaptive(integrand, x0, x1, kPieceQuadratureTol);
     };
-    const double inner_poly[2] = {0.0, 1.0};
+    // A spot's IES profile multiplies both pieces' polynomials; a point light's within its
+    // extent is the profile alone (no blend).
+    const std::vector<double> inner_poly = cone.profile_alone ? cone.profile : times_profile({0.0, 1.0}, cone.profile);
+    const std::vector<double> annulus_poly = times_profile({annulus, annulus + 5}, cone.profile);
     std::array<cplx, kMaxDegree + 1> coef_inner, coef_annulus;
     int K_inner = -1, K_annulus = -1;
     double sum = 0.0;
@@ -374,11 +391,13 @@ double pegoraro10_spot_airlight(const PegoraroPhase& phase, const SpotCone& cone
             continue;
         }
         if (sm == 0.0 || cm >= c_blend) {
-            if (K_inner < 0) K_inner = combined_coefficients(phase, inner_poly, 1, del, dc, coef_inner.data());
+            if (K_inner < 0) K_inner = combined_coefficients(phase, inner_poly.data(), int(inner_poly.size()) - 1, del, dc,
+                                                        coef_inner.data());
             sum += segment_integral(coef_inner.data(), K_inner, sigma_t, f.a, f.h, x0, x1);
             continue;
         }
-        if (K_annulus < 0) K_annulus = combined_coefficients(phase, annulus, 4, del, dc, coef_annulus.data());
+        if (K_annulus < 0) K_annulus = combined_coefficients(phase, annulus_poly.data(), int(annulus_poly.size()) - 1, del, dc,
+                                                             coef_annulus.data());
         double cancel = 1.0;
         const double value = segment_integral(coef_annulus.data(), K_annulus, sigma_t, f.a, f.h, x0, x1, &cancel);
         // Ill-conditioned blend polynomial (very thin annulus): quadrature of this piece.

@@ -30,26 +30,32 @@ SpotCone make_spot_cone(const glm::dvec3& axis, double spot_size, double spot_bl
     return cone;
 }
 
-SpotCone make_profile_cone(const glm::dvec3& axis, const std::vector<double>& profile) {
+SpotCone make_profile_cone(const glm::dvec3& axis, const std::vector<double>& profile, double extent) {
     SpotCone cone;
     const double len = glm::length(axis);
     cone.axis = len > 0.0 ? axis / len : glm::dvec3(0.0, 0.0, -1.0);
-    cone.cos_half_angle = -1.0;
+    cone.cos_half_angle = extent >= kPi ? -1.0 : std::cos(extent);
     cone.profile = profile;
+    cone.profile_alone = true;
     return cone;
 }
 
 SpotCone make_light_cone(const SpotLight& spot) {
-    return spot.profile.empty() ? make_spot_cone(spot.axis, spot.spot_size, spot.spot_blend, spot.spread)
-                                : make_profile_cone(spot.axis, spot.profile);
+    if (!spot.profile.empty() && !spot.profile_in_cone)
+        return make_profile_cone(spot.axis, spot.profile, spot.profile_extent);
+    SpotCone cone = make_spot_cone(spot.axis, spot.spot_size, spot.spot_blend, spot.spread);
+    cone.profile = spot.profile;
+    return cone;
 }
 
-double spot_profile(const SpotCone& cone, double cos_theta) {
-    if (cone.has_profile()) {
-        double v = 0.0;
-        for (size_t k = cone.profile.size(); k-- > 0;) v = v * cos_theta + cone.profile[k];
-        return std::max(0.0, v);
-    }
+double profile_polynomial(const std::vector<double>& profile, double c) {
+    double v = 0.0;
+    for (size_t k = profile.size(); k-- > 0;) v = v * c + profile[k];
+    return v;
+}
+
+namespace {
+double cone_factor(const SpotCone& cone, double cos_theta) {
     if (!(cos_theta > cone.cos_half_angle)) return 0.0;
     if (cone.spread_b > 0.0)
         return std::max(0.0, cone.spread_a * cos_theta -
@@ -60,6 +66,17 @@ double spot_profile(const SpotCone& cone, double cos_theta) {
         return cos_theta * u * u * (3.0 - 2.0 * u);
     }
     return cos_theta;
+}
+}  // namespace
+
+double spot_profile(const SpotCone& cone, double cos_theta) {
+    if (!cone.has_profile()) return cone_factor(cone, cos_theta);
+    if (cone.profile_alone)
+        return cos_theta > cone.cos_half_angle || cone.cos_half_angle <= -1.0
+                   ? std::max(0.0, profile_polynomial(cone.profile, cos_theta))
+                   : 0.0;
+    const double f = cone_factor(cone, cos_theta);
+    return f == 0.0 ? 0.0 : f * std::max(0.0, profile_polynomial(cone.profile, cos_theta));
 }
 
 double ray_axis_approach(const glm::dvec3& o, const glm::dvec3& d, const glm::dvec3& s, const glm::dvec3& axis,

@@ -45,16 +45,22 @@ struct SpotCone {
     double smooth = 0.0;             // (1 - cos_half_angle) * blend
     double spread_a = 1.0;           // Spread: sin h / (sin h - h cos h)
     double spread_b = 0.0;           // Spread: cos h / (sin h - h cos h); 0: no Spread
-    // A light distribution over the whole sphere instead of the cone (an IES profile's fit):
-    // I(c) = sum_k profile[k] c^k, c = cos(theta), clamped at 0 (cos_half_angle -1). Empty: the cone.
+    // An IES profile's fit, I(c) = sum_k profile[k] c^k, c = cos(theta), clamped at 0. With
+    // profile_alone (make_profile_cone, a point light's) it replaces the cone's factor: I(c)
+    // where c > cos_half_angle (the profile's extent; -1: the whole sphere), 0 beyond; else it
+    // multiplies the cone's factor (a spot light's). Empty: the cone alone.
     std::vector<double> profile;
+    bool profile_alone = false;
     bool has_spread() const { return spread_b > 0.0; }
     bool has_profile() const { return !profile.empty(); }
 };
 
-// A point light whose intensity I0 I(c) follows the polynomial _profile_ about _axis_ (SpotCone::profile).
-SpotCone make_profile_cone(const glm::dvec3& axis, const std::vector<double>& profile);
-// The cone (or profile) of a scene's spot light.
+// A point light whose intensity I0 I(c) follows the polynomial _profile_ about _axis_ within
+// _extent_ rad of it (pi: the whole sphere) and is dark beyond (SpotCone::profile).
+SpotCone make_profile_cone(const glm::dvec3& axis, const std::vector<double>& profile, double extent = kPi);
+// Sum_k profile[k] c^k (Horner), unclamped.
+double profile_polynomial(const std::vector<double>& profile, double c);
+// The cone (or profile, or both: SpotLight::profile_in_cone) of a scene's spot light.
 SpotCone make_light_cone(const SpotLight& spot);
 
 // Builds the cone from Blender's spot_size (full cone angle, rad, in (0, pi]) and
@@ -63,7 +69,8 @@ SpotCone make_light_cone(const SpotLight& spot);
 SpotCone make_spot_cone(const glm::dvec3& axis, double spot_size, double spot_blend, double spread = kPi);
 
 // The Cycles angular factor cos(theta) * smoothstep(...) (0 outside the cone; with Spread
-// sin(h - theta) / (sin h - h cos h); with a profile max(0, I(c))) for the cosine _cos_theta_
+// sin(h - theta) / (sin h - h cos h)), times max(0, I(c)) with a profile (alone: max(0, I(c))),
+// for the cosine _cos_theta_
 // between the spot axis and the direction light -> point.
 double spot_profile(const SpotCone& cone, double cos_theta);
 

@@ -55,6 +55,36 @@ TEST(SpotProfile, MatchesCyclesFormula) {
     EXPECT_EQ(spot_profile(hard, std::cos(0.51)), 0.0);
 }
 
+TEST(SpotProfile, IesProfileInAConeOrAloneWithinItsExtent) {
+    // A spot's IES (SpotLight::profile_in_cone): Cycles' factor times max(0, I(c)).
+    SpotLight spot;
+    spot.spot_size = 1.0;
+    spot.spot_blend = 0.3;
+    spot.profile = {0.5, -1.0, 2.0};
+    spot.profile_in_cone = true;
+    const SpotCone in_cone = make_light_cone(spot);
+    for (double th : {0.0, 0.2, 0.4, 0.45, 0.49, 0.6}) {
+        const double c = std::cos(th);
+        const glm::dvec3 dir(std::sin(th), 0.0, -c);
+        EXPECT_NEAR(spot_profile(in_cone, c), profile_ref({0, 0, -1}, 1.0, 0.3, dir) * std::max(0.0, 0.5 - c + 2 * c * c),
+                    1e-14)
+            << th;
+    }
+    // A point light's (profile alone): the polynomial over the sphere, clamped at 0, or dark
+    // beyond its extent.
+    spot.profile_in_cone = false;
+    spot.spot_size = kPi;
+    spot.spot_blend = 0.0;
+    spot.profile = {0.1, 1.0};
+    const SpotCone whole = make_light_cone(spot);
+    EXPECT_NEAR(spot_profile(whole, -0.05), 0.05, 1e-15);
+    EXPECT_EQ(spot_profile(whole, -0.5), 0.0);
+    spot.profile_extent = 1.0;
+    const SpotCone cut = make_light_cone(spot);
+    EXPECT_NEAR(spot_profile(cut, std::cos(0.99)), 0.1 + std::cos(0.99), 1e-15);
+    EXPECT_EQ(spot_profile(cut, std::cos(1.01)), 0.0);
+}
+
 TEST(SpotCrossings, PointsLieOnTheCone) {
     std::mt19937 rng(3);
     std::uniform_real_distribution<double> U(-1.0, 1.0);

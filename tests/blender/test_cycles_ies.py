@@ -1,4 +1,4 @@
-"""A point light's IES profile in the fog against Cycles (light nodes: an IES Texture's Fac
+"""A point or spot light's IES profile in the fog against Cycles (light nodes: an IES Texture's Fac
 into the Emission Strength), through the add-on's export (ies.py: the profile averaged about
 the lamp's axis, fitted with Legendre polynomials, baked in closed form).
 
@@ -7,7 +7,8 @@ the lamp's axis, fitted with Legendre polynomials, baked in closed form).
 Scene: cycles_scenes' reference (homogeneous fog sigma_t = 0.15 /m, a black floor, one 1000 W
 point light, 96 x 72, volume bounces 0), the lamp pointing down (its -Z) with an IES profile
 written here: a smooth one brighter downwards, and a downlight that is dark above the
-horizontal. Two seeds at 256 samples; the bake is compared with Cycles over the fog pixels.
+horizontal; and a spot light (100 deg, blend 0.3) with a batwing profile, brightest 40 deg off
+its axis, which Cycles multiplies into the spot's cone. Two seeds at 256 samples; the bake is compared with Cycles over the fog pixels.
 Then a missing file and a malformed one: the light bakes without its profile, and says so.
 Figures: out/test_artifacts/cycles_ies/summary.json.
 """
@@ -37,6 +38,8 @@ POLAR = np.arange(0.0, 180.1, 5.0)
 SMOOTH = ies_text(POLAR, 200.0 + 1800.0 * ((1.0 + np.cos(np.radians(POLAR))) / 2.0) ** 3)
 DOWN = np.arange(0.0, 90.1, 2.5)
 DOWNLIGHT = ies_text(DOWN, 1500.0 * np.cos(np.radians(DOWN)) ** 2, multiplier=1.5)
+BATWING = ies_text(POLAR, 300.0 + 1700.0 * np.sin(np.radians(np.minimum(POLAR, 90.0)) * 2.25) ** 2)
+SPOT_CONE = (math.radians(100.0), 0.3)
 
 
 def _lamp_with_ies(scene, text=None, filepath=None):
@@ -77,7 +80,8 @@ def _bake(scene):
     return A, exported
 
 
-def _check(name, text, margin):
+def _check(name, text, margin, cone=None):
+    """_cone_ (spot_size, spot_blend): the lamp is a spot light of that cone."""
     import bpy
     from airlight import ies
     desc = cs.FogScene(width=96, height=72, samples=256)
@@ -85,13 +89,24 @@ def _check(name, text, margin):
     scene.render.engine = 'CYCLES'
     scene.airlight.density = desc.sigma_t
     lamp = _lamp_with_ies(scene, text)
+    if cone is not None:
+        lamp.data.type = 'SPOT'
+        lamp.data.spot_size, lamp.data.spot_blend = cone
+        bpy.context.view_layer.update()
     (c1, c2), _ = cs.render_seeds(scene, ARTIFACTS, name, (1, 2))
     C = 0.5 * (c1 + c2)[..., 0]
     noise = cs.seed_noise(c1, c2)
     A, exported = _bake(scene)
     assert "spot_profiles" in exported and len(exported["light_positions"]) == 0, sorted(exported)
-    fit = ies.fit_text(text, scene.airlight.accuracy / 100.0)
+    fit = ies.fit_text(text, scene.airlight.accuracy / 100.0, ies.light_cone(lamp.data))
+    if cone is not None:
+        assert exported["spot_profile_in_cone"].tolist() == [1.0], exported.get("spot_profile_in_cone")
     mask = _fog_mask(scene, desc, C)
+    if cone is not None:
+        # The cone's edge (2 pixels either side) is the spot's own, without its profile
+        # (test_cycles_spot.py): measured here over the light inside it.
+        edge = cs.silhouette_mask(np.where(C > 0.02 * np.median(C[mask]), 1.0, np.inf), radius=2)
+        mask &= ~edge
     mean, p99 = cs.rel_stats(A, C, mask)
     lit = mask & (C > 0.5 * np.median(C[mask]))   # the fog the lamp lights (a downlight leaves the rest dark)
     lit_mean, lit_p99 = cs.rel_stats(A, C, lit)
@@ -99,12 +114,12 @@ def _check(name, text, margin):
     lamp.data.use_nodes = False  # the same lamp without its profile: what the profile changes
     bpy.context.view_layer.update()
     A0, _ = _bake(scene)
-    plain_mean, _ = cs.rel_stats(A0 * fit.mean / 1.0, C, mask)  # an even lamp of the profile's mean
+    plain_mean, _ = cs.rel_stats(A0 * fit.mean / 1.0, C, mask)  # an even lamp (spot) of the profile's mean
     SUMMARY.report(name, mean=mean, p99=p99, lit_mean=lit_mean, lit_p99=lit_p99, flux=flux, even_lamp=plain_mean,
                    noise=float(noise[mask].mean()), lit_noise=float(noise[lit].mean()), fit_degree=fit.degree,
                    fit_mean_error=fit.mean_error, fit_max_error=fit.max_error, pixels=int(mask.sum()),
                    lit_pixels=int(lit.sum()))
-    assert mask.sum() > 0.5 * mask.size and lit.sum() > 0.2 * mask.sum()
+    assert mask.sum() > (0.05 if cone is not None else 0.5) * mask.size and lit.sum() > 0.2 * mask.sum()
     assert plain_mean > 0.1, plain_mean            # the profile matters here ...
     # ... and the bake has it: over the lit fog within Cycles' noise and the margin, and the
     # image's light (the absolute differences summed over the fog) too.
@@ -118,10 +133,12 @@ def test01_smooth_profile_matches_cycles():
 
 
 def test02_downlight_matches_cycles():
-    # Measured: 5.9 % mean over the fog it lights (p99 67 %, along its horizon, where the
-    # profile falls to 0 at 90 deg and the fit's residual, 0.4 % of the peak, meets Cycles'
-    # black), 2.75 % of the image's light; the profile ignored is off by orders of magnitude.
-    _check("downlight", DOWNLIGHT, 0.07)
+    # The profile is dark past 90 deg: fitted over the lit half only (degree 2) and cut there.
+    # Measured: 2.0 % mean over the fog it lights (p99 47 %, in the band level with the lamp,
+    # where Cycles gives ~8x the file's cos^2 at grazing angles), 2.5 % of the image's light;
+    # the profile ignored is off by orders of magnitude. (Fitted over the whole sphere, degree
+    # 7, its residual glow above the horizon made that 5.9 %, p99 67 %.)
+    _check("downlight", DOWNLIGHT, 0.03)
 
 
 def test03_missing_or_malformed_profile_bakes_without_it_and_says_so(tmp_path):
@@ -144,14 +161,21 @@ def test03_missing_or_malformed_profile_bakes_without_it_and_says_so(tmp_path):
         warn, lines = ui.light_ies_note(light.data, scene)
         assert warn and "without its profile" in lines[-1], (kind, lines)
         SUMMARY.report(kind, note=notes[0])
-    # A profile on a spot light is refused with a message.
+    # A spot without its (unreadable) profile keeps its cone; a profile on an area light is
+    # refused with a message.
     light.data.type = 'SPOT'
+    bpy.context.view_layer.update()
+    exported = scene_export.export_scene(scene, bpy.context.evaluated_depsgraph_get())
+    assert "spot_profiles" not in exported and len(exported["spot_positions"]) == 1
+    description, settings = bake.prepare(scene, bpy.context.evaluated_depsgraph_get())
+    assert "spot cone alone" in settings[bake.LIGHT_NOTES][0], settings[bake.LIGHT_NOTES]
+    light.data.type = 'AREA'
     bpy.context.view_layer.update()
     try:
         scene_export.export_scene(scene, bpy.context.evaluated_depsgraph_get())
         raise AssertionError("exported")
     except scene_export.ExportError as ex:
-        assert "IES Texture on a spot light" in str(ex), str(ex)
+        assert "IES Texture on an area light" in str(ex), str(ex)
 
 
 def test04_an_ies_light_is_a_spot_row_after_the_spots_everywhere(tmp_path):
@@ -184,3 +208,9 @@ def test04_an_ies_light_is_a_spot_row_after_the_spots_everywhere(tmp_path):
     parts = [bake._one_light(description, settings[bake.LIGHT_PASSES], n) for n in ("Other", "Spot", lamp.name)]
     summed = sum(native.get().bake(**p, **bake.native_settings(settings))["airlight"] for p in parts)
     np.testing.assert_allclose(summed, total, rtol=1e-4, atol=1e-7)
+
+
+def test05_spot_with_a_profile_matches_cycles():
+    # Measured inside the cone: 0.49 % mean (noise 0.33 %), p99 2.1 %, fit degree 4; the same spot without
+    # the profile's shape (an even spot of its mean) 17 %.
+    assert _check("spot", BATWING, 0.01, cone=SPOT_CONE) < 0.01
