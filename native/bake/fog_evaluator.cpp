@@ -919,22 +919,21 @@ RGB FogEvaluator::light_size_airlight(const Vec3& o, const Vec3& d, double t_nea
     // The disk's airlight less the point's over [a, b]: from the expansion far from the light,
     // else the disk's less the point's with the bake's own model (so that it cancels the part
     // of the whole segment's term it replaces).
-    auto excess = [&](const Vec3& s, double r, const SphereFalloff* falloff, double a, double b,
+    // _h_: the ray's closest approach to the light (closest below).
+    auto excess = [&](const Vec3& s, double r, double h, const SphereFalloff* falloff, double a, double b,
                       const std::function<double()>& point, const std::function<double(const Vec3&)>& profile,
                       const std::vector<double>& cuts) {
-        const Vec3 so = s - o;
-        const double tc = glm::dot(so, d);
-        const double h = std::sqrt(std::max(0.0, glm::dot(so, so) - tc * tc));
         if (sphere_light_series_applies(sigma_t_, r, h))
             return sphere_light_excess_series(phase_, sigma_t_, s, r, o, d, a, b, t_near, profile, cuts);
         return sphere_light_airlight(phase_, sigma_t_, s, r, o, d, a, b, t_near, profile, cuts, falloff) -
                std::exp(-sigma_t_ * (a - t_near)) * point();
     };
-    // Rays that pass too far from a light for its radius to matter skip it.
-    auto matters = [&](const Vec3& s, double r) {
+    // The ray's closest approach to the light at _s_; rays that pass too far from a light for
+    // its radius to matter skip it (sphere_light_matters).
+    auto closest = [&](const Vec3& s) {
         const Vec3 so = s - o;
         const double tc = glm::dot(so, d);
-        return sphere_light_matters(sigma_t_, r, std::sqrt(std::max(0.0, glm::dot(so, so) - tc * tc)));
+        return std::sqrt(std::max(0.0, glm::dot(so, so) - tc * tc));
     };
     // [a, b] within each lit span of light volume _v_ (-1, or lit all along: [a, b] itself).
     auto for_spans = [&](int v, double a, double b, auto fn) {
@@ -949,7 +948,8 @@ RGB FogEvaluator::light_size_airlight(const Vec3& o, const Vec3& d, double t_nea
     for (size_t l = 0; l < lights_.size(); ++l) {
         const LightData& light = lights_[l];
         double a = 0.0, b = 0.0;
-        if (!matters(light.s, light.radius) ||
+        const double h = closest(light.s);
+        if (!sphere_light_matters(sigma_t_, light.radius, h) ||
             !sphere_light_window(sigma_t_, light.s, light.radius, o, d, t_near, Dvp, a, b))
             continue;
         const int v = lit ? light_volume_[l] : -1;
@@ -957,14 +957,16 @@ RGB FogEvaluator::light_size_airlight(const Vec3& o, const Vec3& d, double t_nea
             const Vec3 x = o + lo * d, sx = light.s - x;
             const double Dsx = glm::length(sx);
             const double cos_gamma = Dsx > 0.0 ? std::clamp(glm::dot(d, sx) / Dsx, -1.0, 1.0) : 1.0;
-            return excess(light.s, light.radius, light.falloff.get(), lo, hi,
+            return excess(light.s, light.radius, h, light.falloff.get(), lo, hi,
                           [&] { return airlight(Dsx, cos_gamma, hi - lo); }, nullptr, {});
         });
     }
     for (size_t i = 0; i < spots_.size(); ++i) {
         const SpotData& spot = spots_[i];
         double a = 0.0, b = 0.0;
-        if (!matters(spot.s, spot.radius) || !sphere_light_window(sigma_t_, spot.s, spot.radius, o, d, t_near, Dvp, a, b))
+        const double h = closest(spot.s);
+        if (!sphere_light_matters(sigma_t_, spot.radius, h) ||
+            !sphere_light_window(sigma_t_, spot.s, spot.radius, o, d, t_near, Dvp, a, b))
             continue;
         // The cone's profile towards x from the disk's centre, its edges (and the smoothstep's
         // inner edge, Spread's kink on the axis) as breakpoints.
@@ -985,7 +987,7 @@ RGB FogEvaluator::light_size_airlight(const Vec3& o, const Vec3& d, double t_nea
         }
         const int v = lit ? spot_volume_[i] : -1;
         La += spot.weight * for_spans(v, a, b, [&](double lo, double hi) {
-            return excess(spot.s, spot.radius, spot.falloff.get(), lo, hi,
+            return excess(spot.s, spot.radius, h, spot.falloff.get(), lo, hi,
                           [&] { return spot_segment(spot, o + lo * d, d, hi - lo); }, profile, cuts);
         });
     }
