@@ -74,6 +74,7 @@ def bake_settings(scene, description=None):
                 filter_width=film_filter_width(scene),
                 gaussian_resolution=model_choice.gaussian_resolution(settings, pixel),
                 gaussian_accuracy=model_choice.gaussian_accuracy(settings),
+                light_size_tolerance=model_choice.light_size_tolerance(settings),
                 homogeneous_resolution=getattr(settings, "homogeneous_resolution", 'FULL').lower(),
                 **model_choice.table_settings(settings), **extra)
 

@@ -78,6 +78,10 @@ struct BakeSettings {
     // samples would need more (foreseen from the refinement's grid, or counted) keeps Fogshop's
     // approximation alone and says so (stats gaussian_refine_abandoned).
     double gaussian_refine_budget = 60.0;
+    // A light's Radius (homogeneous/sphere_light.h) is taken on the rays where it changes that
+    // light's airlight by more than this relative amount, and skipped beyond (its reach grows as
+    // 1 / sqrt of it: 27 radii at the default 1e-3). Automatic passes a quarter of its accuracy.
+    double light_size_tolerance = 1e-3;
 };
 
 struct BakeStats {

@@ -118,6 +118,7 @@ FogEvaluator::FogEvaluator(const SceneDescription& scene, const BakeSettings& se
     fog_top_ = scene.fog_top;
     if (!scene.gaussians.empty()) has_light_size_ = false;  // fog objects take their lights as points
     if (!(sigma_t_ > 0.0)) has_light_size_ = false;
+    light_size_tol_ = settings.light_size_tolerance;
     if (!scene.gaussians.empty()) {
         const Gaussians& g = scene.gaussians;
         gaussian_ = std::make_unique<GaussianMedium>(g.centres, g.scales, g.amplitudes, sigma_t_);
@@ -949,8 +950,8 @@ RGB FogEvaluator::light_size_airlight(const Vec3& o, const Vec3& d, double t_nea
         const LightData& light = lights_[l];
         double a = 0.0, b = 0.0;
         const double h = closest(light.s);
-        if (!sphere_light_matters(sigma_t_, light.radius, h) ||
-            !sphere_light_window(sigma_t_, light.s, light.radius, o, d, t_near, Dvp, a, b))
+        if (!sphere_light_matters(sigma_t_, light.radius, h, light_size_tol_) ||
+            !sphere_light_window(sigma_t_, light.s, light.radius, o, d, t_near, Dvp, a, b, light_size_tol_))
             continue;
         const int v = lit ? light_volume_[l] : -1;
         La += light.weight * for_spans(v, a, b, [&](double lo, double hi) {
@@ -965,8 +966,8 @@ RGB FogEvaluator::light_size_airlight(const Vec3& o, const Vec3& d, double t_nea
         const SpotData& spot = spots_[i];
         double a = 0.0, b = 0.0;
         const double h = closest(spot.s);
-        if (!sphere_light_matters(sigma_t_, spot.radius, h) ||
-            !sphere_light_window(sigma_t_, spot.s, spot.radius, o, d, t_near, Dvp, a, b))
+        if (!sphere_light_matters(sigma_t_, spot.radius, h, light_size_tol_) ||
+            !sphere_light_window(sigma_t_, spot.s, spot.radius, o, d, t_near, Dvp, a, b, light_size_tol_))
             continue;
         // The cone's profile towards x from the disk's centre, its edges (and the smoothstep's
         // inner edge, Spread's kink on the axis) as breakpoints.

@@ -214,6 +214,7 @@ class FogEvaluator {
     // One spot's airlight along from + t d over [0, len], attenuated from _from_, per unit weight.
     double spot_segment(const SpotData& spot, const Vec3& from, const Vec3& d, double len) const;
     bool has_light_size_ = false;  // a point or spot light with a radius, in homogeneous fog
+    double light_size_tol_ = 1e-3;  // BakeSettings::light_size_tolerance
     std::vector<SpotData> spots_;
     struct SunData {
         Vec3 w;       // unit propagation direction

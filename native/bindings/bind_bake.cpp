@@ -74,7 +74,7 @@ py::dict bake_py(int width, int height, const py::object& cam_to_world, const py
                  const py::object& occluder_triangles, double gaussian_accuracy, double gaussian_refine_budget,
                  const std::string& shadow_crossings, const py::object& light_radii, const py::object& spot_radii,
                  const py::object& spot_profiles, const py::object& spot_profile_in_cone,
-                 const py::object& spot_profile_extent) {
+                 const py::object& spot_profile_extent, double light_size_tolerance) {
     // Gather the scene description from the arrays (shapes checked here, values in bake()).
     SceneDescription scene;
     scene.camera.width = width;
@@ -279,6 +279,10 @@ py::dict bake_py(int width, int height, const py::object& cam_to_world, const py
     if (!(gaussian_accuracy >= 0.0 && gaussian_accuracy < 1.0))
         throw py::value_error("gaussian_accuracy must be in [0, 1) (a relative error; 0: Fogshop alone)");
     settings.gaussian_accuracy = gaussian_accuracy;
+    if (!(light_size_tolerance > 0.0 && light_size_tolerance <= 0.005))
+        throw py::value_error("light_size_tolerance must be in (0, 0.005] (a relative change of a light's airlight; "
+                              "the skip test's expansion holds beyond 8.7 radii)");
+    settings.light_size_tolerance = light_size_tolerance;
     if (!(gaussian_refine_budget >= 0.0))
         throw py::value_error("gaussian_refine_budget must be >= 0 (nominal CPU seconds)");
     settings.gaussian_refine_budget = gaussian_refine_budget;
@@ -420,7 +424,7 @@ void bind_bake(py::module_& m) {
           "gaussian_accuracy"_a = 0.0, "gaussian_refine_budget"_a = BakeSettings().gaussian_refine_budget,
           "shadow_crossings"_a = "film", "light_radii"_a = py::none(), "spot_radii"_a = py::none(),
           "spot_profiles"_a = py::none(), "spot_profile_in_cone"_a = py::none(),
-          "spot_profile_extent"_a = py::none(),
+          "spot_profile_extent"_a = py::none(), "light_size_tolerance"_a = BakeSettings().light_size_tolerance,
           R"doc(Bake fog passes for one camera view (all arguments keyword-only).
 
 width, height: render resolution in pixels.
@@ -513,6 +517,10 @@ light_radii (L,), spot_radii (S,) (optional, m, >= 0; default 0): each point and
   Radius (shadow_soft_size): Cycles' disk of that radius facing each point, which flattens the
   in-scattering within ~the radius of the light (homogeneous/sphere_light.h; within 1e-3 of
   the point's beyond 27 radii). Homogeneous fog; fog objects take their lights as points.
+light_size_tolerance (default 1e-3, (0, 5e-3]): the Radius is taken on the rays where it
+  changes that light's airlight by more than this relative amount (within sqrt(0.75 / tol)
+  radii of the light in clear fog) and skipped beyond; the add-on's Automatic passes a quarter
+  of its accuracy target.
 spot_profiles (S, K + 1) (optional): per spot a light distribution over the whole sphere
   instead of its cone (a point light's IES profile, fitted): I(c) = I0 sum_k row[k] c^k, c the
   cosine between spot_axes and the direction light -> point, clamped at 0 (the closed form of

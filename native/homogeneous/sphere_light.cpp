@@ -61,21 +61,21 @@ double SphereFalloff::operator()(double rho) const {
     return (q_[i] + f * (q_[i + 1] - q_[i])) * std::exp(-sigma_t_ * rho) * (2.0 / (r_ * r_));
 }
 
-double sphere_light_reach(double sigma_t, double r) {
+double sphere_light_reach(double sigma_t, double r, double tol) {
     if (!(r > 0.0)) return 0.0;
     // (r^2 / 4)(3 y^2 + sigma y) = tol for y = 1 / rho: the expansion's relative difference.
     const double a = 0.75 * r * r, b = 0.25 * sigma_t * r * r;
-    const double y = (-b + std::sqrt(b * b + 4.0 * a * kSphereTol)) / (2.0 * a);
+    const double y = (-b + std::sqrt(b * b + 4.0 * a * tol)) / (2.0 * a);
     const double reach = 1.0 / y;
     // Beyond 10 optical depths of the light (and at least the clear fog's reach) the in-scattering
     // is e^{-10} of what it is near the light; where sigma r is large it is cut there.
-    return sigma_t > 0.0 ? std::min(reach, std::max(kSphereReach * r, 10.0 / sigma_t)) : reach;
+    return sigma_t > 0.0 ? std::min(reach, std::max(std::sqrt(0.75 / tol) * r, 10.0 / sigma_t)) : reach;
 }
 
 bool sphere_light_window(double sigma_t, const Vec3& s, double r, const Vec3& o, const Vec3& d, double lo, double hi,
-                         double& a, double& b) {
+                         double& a, double& b, double tol) {
     if (!(r > 0.0) || !(hi > lo)) return false;
-    const double reach = sphere_light_reach(sigma_t, r);
+    const double reach = sphere_light_reach(sigma_t, r, tol);
     const Vec3 so = s - o;
     const double tc = glm::dot(so, d);
     const double h2 = std::max(0.0, glm::dot(so, so) - tc * tc);
@@ -178,10 +178,10 @@ bool sphere_light_series_applies(double sigma_t, double r, double h) {
     return h >= kSphereSeriesRadii * r && sigma_t * r * r <= 0.25 * h;
 }
 
-bool sphere_light_matters(double sigma_t, double r, double h) {
+bool sphere_light_matters(double sigma_t, double r, double h, double tol) {
     if (!(r > 0.0)) return false;
     if (!(h > 0.0)) return true;
-    return 0.375 * r * r / (h * h) + sigma_t * r * r / (2.0 * kPi * h) > kSphereTol;
+    return 0.25 * r * r * (3.0 + sigma_t * h) / (h * h) > tol;
 }
 
 double sphere_light_excess_series(const PhaseFunction& phase, double sigma_t, const Vec3& s, double r, const Vec3& o,

@@ -37,18 +37,18 @@ class SphereFalloff {
     std::vector<double> q_;
 };
 
-// How far from the light the radius matters: beyond sphere_light_reach(sigma_t, r) the
-// in-scattering differs from the point's by less than kSphereTol relative (the expansion
-// above; kSphereReach radii in clear fog), cut at 10 optical depths from the light (and at
-// least kSphereReach radii) where sigma r is large.
+// How far from the light the radius matters: beyond sphere_light_reach(sigma_t, r, tol) the
+// in-scattering differs from the point's by less than _tol_ relative (the expansion above;
+// sqrt(0.75 / tol) radii in clear fog, kSphereReach at kSphereTol), cut at 10 optical depths
+// from the light (and at least that many radii) where sigma r is large.
 constexpr double kSphereTol = 1e-3;
 constexpr double kSphereReach = 27.386127875258307;  // sqrt(0.75 / kSphereTol)
-double sphere_light_reach(double sigma_t, double r);
+double sphere_light_reach(double sigma_t, double r, double tol = kSphereTol);
 
 // The part of the ray o + t d (unit d), t in [lo, hi], within sphere_light_reach of the light
 // at _s_: [a, b] with a < b, or false when it does not come that close.
 bool sphere_light_window(double sigma_t, const Vec3& s, double r, const Vec3& o, const Vec3& d, double lo, double hi,
-                         double& a, double& b);
+                         double& a, double& b, double tol = kSphereTol);
 
 // The disk light's airlight per unit albedo x intensity along o + t d over [a, b], attenuated
 // from _t_start_ (e^{-sigma (t - t_start)}):
@@ -77,10 +77,11 @@ double sphere_light_excess_series(const PhaseFunction& phase, double sigma_t, co
                                   const std::function<double(const Vec3&)>& profile = nullptr,
                                   std::vector<double> cuts = {});
 
-// Whether the radius changes the airlight of a ray that passes the light at distance _h_ by
-// more than kSphereTol of the light's: the integrated expansion 3 r^2 / (8 h^2) + sigma r^2 /
-// (2 pi h) exceeds it (rays beyond skip the window).
-bool sphere_light_matters(double sigma_t, double r, double h);
+// Whether the radius can change the airlight of a ray that passes the light at distance _h_
+// by more than _tol_ of the light's: the expansion's relative change r^2 (3 + sigma rho) /
+// (4 rho^2) at the closest approach (its largest on the ray, so a bound on the ray's whole
+// airlight, whatever its ends) exceeds it; rays beyond skip the window (h >= the reach).
+bool sphere_light_matters(double sigma_t, double r, double h, double tol = kSphereTol);
 
 // Its adaptive-quadrature reference (same integral, rel_tol).
 double sphere_light_airlight_quadrature(const PhaseFunction& phase, double sigma_t, const Vec3& s, double r,

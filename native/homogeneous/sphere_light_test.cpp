@@ -134,9 +134,12 @@ TEST(SphereLightSeries, MatchesTheDiskLessThePoint) {
     // Close to the light or in dense fog about a big one, the series is not used.
     EXPECT_FALSE(sphere_light_series_applies(0.1, 1.0, 3.9));
     EXPECT_FALSE(sphere_light_series_applies(10.0, 1.0, 5.0));
-    // Rays beyond ~19.4 radii (clear fog) are left to the point.
-    EXPECT_TRUE(sphere_light_matters(0.0, 1.0, 19.0));
-    EXPECT_FALSE(sphere_light_matters(0.0, 1.0, 19.5));
+    // Rays beyond the reach (27.4 radii in clear fog at kSphereTol) are left to the point: the
+    // bound r^2 (3 + sigma h) / (4 h^2) on the relative change anywhere on the ray.
+    EXPECT_TRUE(sphere_light_matters(0.0, 1.0, 27.3));
+    EXPECT_FALSE(sphere_light_matters(0.0, 1.0, 27.5));
+    EXPECT_TRUE(sphere_light_matters(0.3, 0.4, 5.0, 5e-3));   // 7.2e-3: dense fog raises the bound
+    EXPECT_FALSE(sphere_light_matters(0.3, 0.4, 6.5, 5e-3));  // 4.7e-3
 }
 
 TEST(SphereLightAirlight, TinyRadiusIsThePoint) {

@@ -207,3 +207,18 @@ def test22_fog_objects_panel_says_when_automatic_goes_finer(tmp_path):
     assert note in draw_panel("AIRLIGHT_PT_fog_objects")
     settings.model = 'SUN05'  # an explicit model keeps the setting
     assert ui.resolution_note(bpy.context) is None
+
+
+def test_light_size_tolerance_follows_the_accuracy():
+    """A light's Radius is skipped where it changes that light's airlight by less than a
+    quarter of Automatic's target (at most 5e-3, where the skip's bound holds); explicit
+    models keep the bake's default 1e-3. The bake gets it (bake_settings)."""
+    settings = bpy.context.scene.airlight
+    settings.model = 'AUTO'
+    for accuracy, tol in ((1.0, 0.0025), (0.1, 0.00025), (5.0, 0.005), (20.0, 0.005)):
+        settings.accuracy = accuracy
+        assert model_choice.light_size_tolerance(settings) == pytest.approx(tol)
+        assert bake.bake_settings(bpy.context.scene)["light_size_tolerance"] == pytest.approx(tol)
+    settings.model = 'SUN05'
+    assert model_choice.light_size_tolerance(settings) == 1e-3
+    settings.model, settings.accuracy = 'AUTO', 1.0

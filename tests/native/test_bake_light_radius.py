@@ -143,3 +143,32 @@ def test08_huge_radius_and_dense_fog_stay_finite():
         assert np.all(np.isfinite(got)) and got.min() >= 0.0, (r, sigma)
     # A light far bigger than the scene: the disk's 2 / r^2 bound, far below the point.
     assert bake(light_radii=[50.0]).max() < 0.05 * bake().max()
+
+
+SIDE = np.array([7.0, 0.2, -3.0])   # beside the view: its rays pass it at 5.2-8.8 m (13-22 radii)
+
+
+@pytest.fixture(scope="module")
+def ref_side():
+    return reference(R, s=SIDE), reference(0.0, s=SIDE)
+
+
+@pytest.mark.parametrize("tol", [0.005, 0.004])
+def test09_light_size_tolerance_bounds_the_skipped_radius(tol, ref_side):
+    """Rays where the radius changes the light's airlight by less than light_size_tolerance
+    take the point's: within that of the disk (and the bake's own 1.5e-3), and skipped on some."""
+    disk, point = ref_side
+    got = bake(model="sun05_exact", light_positions=[SIDE], light_radii=[R], light_size_tolerance=tol)
+    assert (np.abs(got - disk) / disk).max() <= tol + 1.5e-3
+    # The rays it skipped take the point's airlight; more of them than at a finer tolerance.
+    as_point = bake(model="sun05_exact", light_positions=[SIDE])
+    assert np.abs(as_point - point).max() <= 1e-6 * point.max()
+    fine = bake(model="sun05_exact", light_positions=[SIDE], light_radii=[R], light_size_tolerance=1e-5)
+    skipped = (got == as_point).sum()
+    assert skipped > (fine == as_point).sum() and 0 < skipped < got.size, (skipped, (fine == as_point).sum())
+
+
+@pytest.mark.parametrize("tol", [0.0, -1e-3, 0.006, float("nan")])
+def test10_bad_light_size_tolerance_is_refused(tol):
+    with pytest.raises(ValueError, match="light_size_tolerance must be in"):
+        bake(light_radii=[R], light_size_tolerance=tol)
