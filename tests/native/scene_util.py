@@ -109,3 +109,29 @@ def gaussian_cloud(n=300, seed=11):
     a = 1.0 / rng.uniform(1.0, 3.0, n)
     c = rng.uniform(0.02, 0.08, n)
     return b, a, c
+
+
+def floor_bake(bake, width, height, fov, floor_z, **kw):
+    """The Airlight pass's first channel (float64, (height, width)) of _bake_ (`_native.bake`)
+    for a pinhole at the origin looking down -z through a fov-wide perspective onto the floor
+    z = _floor_z_ (160 m square), one sample a pixel, 2 threads, no point lights unless given;
+    _kw_ adds to or overrides the arguments."""
+    v, t = plane_z(floor_z, x=(-80.0, 80.0), y=(-80.0, 80.0))
+    args = dict(width=width, height=height, cam_to_world=np.eye(4), projection=perspective(fov, width, height),
+                vertices=v, triangles=t, light_positions=np.zeros((0, 3)), light_intensities=np.zeros((0, 3)),
+                aa_samples=1, threads=2)
+    args.update(kw)
+    return bake(**args)["airlight"][..., 0].astype(np.float64)
+
+
+def per_pixel_to_floor(fov, width, height, floor_z, integral):
+    """(height, width) of _integral_(u, t1) per pixel: u the pixel's unit ray from the origin
+    (pixel_dirs_camera), t1 its distance to the floor z = _floor_z_ (for the references that
+    integrate the fog along each ray with scipy)."""
+    d = pixel_dirs_camera(fov, width, height)
+    out = np.empty((height, width))
+    for j in range(height):
+        for i in range(width):
+            u = d[j, i]
+            out[j, i] = integral(u, floor_z / u[2])
+    return out

@@ -14,7 +14,7 @@ import pytest
 from scipy import integrate
 
 import _native
-from scene_util import perspective, pixel_dirs_camera, plane_z
+from scene_util import floor_bake, per_pixel_to_floor
 
 W, H, FOV, SIGMA, R = 10, 8, 1.1, 0.3, 0.4
 LIGHT = np.array([0.3, 0.2, -3.0])
@@ -22,12 +22,8 @@ PLANE_Z = -6.0
 
 
 def bake(**kw):
-    v, t = plane_z(PLANE_Z, x=(-80.0, 80.0), y=(-80.0, 80.0))
-    a = dict(width=W, height=H, cam_to_world=np.eye(4), projection=perspective(FOV, W, H), vertices=v,
-             triangles=t, light_positions=[LIGHT], light_intensities=[[1.0, 1.0, 1.0]], sigma_t=SIGMA,
-             aa_samples=1, threads=2)
-    a.update(kw)
-    return _native.bake(**a)["airlight"][..., 0].astype(np.float64)
+    return floor_bake(_native.bake, W, H, FOV, PLANE_Z, **(dict(light_positions=[LIGHT],
+                                                               light_intensities=[[1.0, 1.0, 1.0]], sigma_t=SIGMA) | kw))
 
 
 def disk_falloff(rho, r, sigma):
@@ -42,25 +38,21 @@ def hg(mu, g):
 
 
 def reference(r, g=0.0, profile=None, s=LIGHT):
-    d = pixel_dirs_camera(FOV, W, H)
-    out = np.empty((H, W))
-    for j in range(H):
-        for i in range(W):
-            u = d[j, i]
-            t1 = PLANE_Z / u[2]
-            tc = float(np.dot(s, u))
+    def integral(u, t1):
+        tc = float(np.dot(s, u))
 
-            def f(t):
-                x = t * u
-                sx = s - x
-                rho = float(np.linalg.norm(sx))
-                p = hg(float(np.dot(sx, u)) / rho, g)
-                w = 1.0 if profile is None else profile(x)
-                return p * w * math.exp(-SIGMA * t) * disk_falloff(rho, r, SIGMA)
+        def f(t):
+            x = t * u
+            sx = s - x
+            rho = float(np.linalg.norm(sx))
+            p = hg(float(np.dot(sx, u)) / rho, g)
+            w = 1.0 if profile is None else profile(x)
+            return p * w * math.exp(-SIGMA * t) * disk_falloff(rho, r, SIGMA)
 
-            pts = [p for p in (tc - r, tc, tc + r) if 0.0 < p < t1]
-            out[j, i] = SIGMA * integrate.quad(f, 0.0, t1, points=pts, epsabs=0.0, epsrel=1e-9, limit=400)[0]
-    return out
+        pts = [p for p in (tc - r, tc, tc + r) if 0.0 < p < t1]
+        return SIGMA * integrate.quad(f, 0.0, t1, points=pts, epsabs=0.0, epsrel=1e-9, limit=400)[0]
+
+    return per_pixel_to_floor(FOV, W, H, PLANE_Z, integral)
 
 
 @pytest.fixture(scope="module")

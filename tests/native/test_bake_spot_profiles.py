@@ -12,7 +12,7 @@ from scipy import integrate, optimize
 
 import _native
 from reference_util import hg
-from scene_util import perspective, pixel_dirs_camera, plane_z
+from scene_util import floor_bake, per_pixel_to_floor, perspective, plane_z
 
 W, H, FOV, SIGMA = 10, 8, 1.1, 0.2
 LIGHT = np.array([0.4, 0.8, -4.0])
@@ -27,12 +27,7 @@ def spots(profile=PROFILE, size=math.pi, blend=0.0):
 
 
 def bake(**kw):
-    v, t = plane_z(PLANE_Z, x=(-80.0, 80.0), y=(-80.0, 80.0))
-    a = dict(width=W, height=H, cam_to_world=np.eye(4), projection=perspective(FOV, W, H), vertices=v,
-             triangles=t, light_positions=np.zeros((0, 3)), light_intensities=np.zeros((0, 3)), sigma_t=SIGMA,
-             aa_samples=1, threads=2)
-    a.update(kw)
-    return _native.bake(**a)["airlight"][..., 0].astype(np.float64)
+    return floor_bake(_native.bake, W, H, FOV, PLANE_Z, **(dict(sigma_t=SIGMA) | kw))
 
 
 def cone_factor(c, size, blend):
@@ -67,33 +62,28 @@ def edges(u, t1, cone):
 def reference(g=0.0, profile=PROFILE, cone=None, extent=math.pi):
     """The airlight per pixel; _cone_ (size, blend): the profile inside that spot's cone;
     _extent_: the profile alone, dark beyond that polar angle."""
-    d = pixel_dirs_camera(FOV, W, H)
-    out = np.empty((H, W))
-    for j in range(H):
-        for i in range(W):
-            u = d[j, i]
-            t1 = PLANE_Z / u[2]
+    def integral(u, t1):
+        def f(t):
+            w = t * u - LIGHT
+            r = math.sqrt(w @ w)
+            c = float(AXIS @ w) / r
+            I = max(0.0, sum(p * c ** k for k, p in enumerate(profile)))
+            if cone is not None:
+                I *= cone_factor(c, *cone)
+            if c <= math.cos(extent):
+                I = 0.0
+            return I * hg(-(w @ u) / r, g) * math.exp(-SIGMA * (r + t)) / (r * r)
 
-            def f(t):
-                w = t * u - LIGHT
-                r = math.sqrt(w @ w)
-                c = float(AXIS @ w) / r
-                I = max(0.0, sum(p * c ** k for k, p in enumerate(profile)))
-                if cone is not None:
-                    I *= cone_factor(c, *cone)
-                if c <= math.cos(extent):
-                    I = 0.0
-                return I * hg(-(w @ u) / r, g) * math.exp(-SIGMA * (r + t)) / (r * r)
+        tc = float(LIGHT @ u)
+        pts = [tc] if 0.0 < tc < t1 else []
+        if cone is not None:   # the cone's and the blend's edges: kinks of the integrand
+            pts += edges(u, t1, cone)
+        if extent < math.pi:   # the extent's step
+            pts += edges(u, t1, (2.0 * extent, 0.0))
+        pts = sorted(pts) or None
+        return SIGMA * integrate.quad(f, 0.0, t1, points=pts, epsabs=1e-14, epsrel=1e-10, limit=800)[0]
 
-            tc = float(LIGHT @ u)
-            pts = [tc] if 0.0 < tc < t1 else []
-            if cone is not None:   # the cone's and the blend's edges: kinks of the integrand
-                pts += edges(u, t1, cone)
-            if extent < math.pi:   # the extent's step
-                pts += edges(u, t1, (2.0 * extent, 0.0))
-            pts = sorted(pts) or None
-            out[j, i] = SIGMA * integrate.quad(f, 0.0, t1, points=pts, epsabs=1e-14, epsrel=1e-10, limit=800)[0]
-    return out
+    return per_pixel_to_floor(FOV, W, H, PLANE_Z, integral)
 
 
 @pytest.fixture(scope="module")
