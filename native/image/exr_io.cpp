@@ -1,9 +1,11 @@
 // exr_io.cpp: one multilayer float (or half) EXR with an RGB triple per pass, via
-// OpenImageIO (which converts the float buffer to half on writing).
+// OpenImageIO (the passes interleaved, and rounded to half, in parallel here).
 #include "image/exr_io.h"
 
 #include "core/memory.h"
+#include "core/parallel.h"
 
+#include <Imath/half.h>
 #include <OpenImageIO/imageio.h>
 
 #include <algorithm>
@@ -57,17 +59,34 @@ void write_multilayer_exr(const std::string& path, int width, int height,
     const std::string shortfall = memory_shortfall(double(npixels) * nchannels * sizeof(float),
                                                    "writing '" + path + "'", "lower the resolution");
     if (!shortfall.empty()) throw std::runtime_error(shortfall);
-    std::vector<float> buffer(npixels * nchannels);
-    for (size_t p = 0; p < passes.size(); ++p)
-        for (size_t i = 0; i < npixels; ++i)
-            for (int c = 0; c < 3; ++c) buffer[i * nchannels + 3 * p + c] = passes[p].rgb[3 * i + c];
+    // In the file's own type: OIIO's float -> half conversion on writing is single-threaded
+    // (measured: 190 ms of a 1080p frame's 18 channels; here in parallel rows, ~10x less).
+    std::vector<float> buffer(half ? 0 : npixels * nchannels);
+    std::vector<Imath::half> halves(half ? npixels * nchannels : 0);
+    const int rows = height;
+    parallel_for(rows, resolve_threads(0), [&](int y) {
+        const size_t i0 = size_t(y) * size_t(width), i1 = i0 + size_t(width);
+        for (size_t p = 0; p < passes.size(); ++p) {
+            const float* rgb = passes[p].rgb;
+            for (size_t i = i0; i < i1; ++i)
+                for (int c = 0; c < 3; ++c) {
+                    const size_t k = i * nchannels + 3 * p + c;
+                    if (half)
+                        halves[k] = Imath::half(rgb[3 * i + c]);
+                    else
+                        buffer[k] = rgb[3 * i + c];
+                }
+        }
+    });
 
     // Write it, turning OIIO's error state into exceptions.
     auto out = OIIO::ImageOutput::create("openexr");  // EXR whatever the extension
     if (!out) throw std::runtime_error("cannot create EXR writer for '" + path + "': " + OIIO::geterror());
     if (!out->open(path, spec))
         throw std::runtime_error("cannot open '" + path + "' for writing: " + out->geterror());
-    if (!out->write_image(OIIO::TypeDesc::FLOAT, buffer.data())) {
+    const bool written = half ? out->write_image(OIIO::TypeDesc::HALF, halves.data())
+                              : out->write_image(OIIO::TypeDesc::FLOAT, buffer.data());
+    if (!written) {
         std::string err = out->geterror();
         out->close();
         throw std::runtime_error("cannot write '" + path + "': " + err);

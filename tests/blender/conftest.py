@@ -96,6 +96,9 @@ def build_plane_scene(tmp_path, fog=True, light=True, camera=True, size=(64, 48)
     scene.airlight.density = 0.2
     scene.airlight.cache_dir = str(tmp_path / "cache") + os.sep
     scene.airlight.enabled = fog
+    # Full floats whatever the output: the tests compare the cache EXR's passes with the bake
+    # bit for bit (test_bake_operator.py's test10b checks the default, Automatic).
+    scene.airlight.pass_precision = 'FULL'
     return scene
 
 

@@ -137,6 +137,7 @@ def test10_half_precision_passes(tmp_path):
     """Pass Precision Half: the cache file holds the bake's passes rounded to 16-bit floats
     (numpy's float16 rounding of the native bake), in a much smaller file."""
     scene = build_plane_scene(tmp_path, size=(64, 48))
+    scene.airlight.pass_precision = 'FULL'
     full = _bake(tmp_path / "full.exr")
     scene.airlight.pass_precision = 'HALF'
     half = _bake(tmp_path / "half.exr")
@@ -146,6 +147,31 @@ def test10_half_precision_passes(tmp_path):
         np.testing.assert_array_equal(exr_pass(half, name), reference[key].astype(np.float16).astype(np.float32))
         np.testing.assert_array_equal(exr_pass(full, name), reference[key])
     assert os.path.getsize(half) < 0.5 * os.path.getsize(full)
+
+
+def test10b_automatic_precision_follows_the_output(tmp_path):
+    """Pass Precision Automatic (the default): half floats for an 8-bit output, whose step
+    (1/255) the rounding (<= 4.9e-4) stays below; full floats for float and 16-bit outputs."""
+    scene = build_plane_scene(tmp_path, size=(16, 12))
+    settings, image = scene.airlight, scene.render.image_settings
+    assert settings.bl_rna.properties["pass_precision"].default == 'AUTO'
+    settings.pass_precision = 'AUTO'
+    for file_format, depth, half in (('PNG', '8', True), ('JPEG', '8', True), ('PNG', '16', False),
+                                     ('OPEN_EXR', '32', False), ('OPEN_EXR_MULTILAYER', '16', False),
+                                     ('TIFF', '16', False), ('FFMPEG', '8', True)):
+        image.file_format = file_format
+        image.color_depth = depth
+        assert bake.half_passes(scene) is half, (file_format, depth)
+        description, prepared = bake.prepare(scene, bpy.context.evaluated_depsgraph_get())
+        assert bool(prepared.get(bake.HALF_PASSES)) is half, (file_format, depth)
+    settings.pass_precision = 'FULL'
+    image.file_format, image.color_depth = 'PNG', '8'
+    assert not bake.half_passes(scene)
+    settings.pass_precision = 'HALF'
+    image.file_format, image.color_depth = 'OPEN_EXR', '32'
+    assert bake.half_passes(scene)
+    settings.pass_precision = 'AUTO'
+    image.file_format, image.color_depth = 'PNG', '8'
 
 
 def test11_bake_larger_than_memory_is_refused_before_allocating(tmp_path):
