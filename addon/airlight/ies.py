@@ -196,6 +196,15 @@ def fit_text(text, accuracy, cone=None):
     return _CACHE[key]
 
 
+def fit_light(text, accuracy, light):
+    """(Fit, None) of _light_'s profile _text_ (fit_text with the light's light_cone), or
+    (None, why it cannot be read): such a light bakes without its profile."""
+    try:
+        return fit_text(text, accuracy, light_cone(light)), None
+    except IESError as ex:
+        return None, str(ex)
+
+
 def light_cone(light):
     """fit's _cone_ for a Blender light (bpy or scene_description.LightInstance): a spot's
     (spot_size, spot_blend), None for a point light."""

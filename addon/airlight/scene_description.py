@@ -314,13 +314,7 @@ def has_profile(light, scene):
     if node is None:
         return False
     text, _ = light_nodes.ies_text(node)
-    if not text:
-        return False
-    try:
-        ies.fit_text(text, scene.airlight.accuracy / 100.0, ies.light_cone(light))
-        return True
-    except ies.IESError:
-        return False
+    return bool(text) and ies.fit_light(text, scene.airlight.accuracy / 100.0, light)[0] is not None
 
 
 def _area_fields(light):

@@ -76,10 +76,7 @@ def ies_fit(light, plan):
     it; ies_notes says so)."""
     if light.type not in ('POINT', 'SPOT') or not light.ies_text:
         return None
-    try:
-        return ies.fit_text(light.ies_text, plan.accuracy, ies.light_cone(light))
-    except ies.IESError:
-        return None
+    return ies.fit_light(light.ies_text, plan.accuracy, light)[0]
 
 
 def ies_notes(lights, plan):
@@ -91,12 +88,11 @@ def ies_notes(lights, plan):
             continue
         problem = light.ies_problem
         if not problem:
-            try:
-                fit = ies.fit_text(light.ies_text, plan.accuracy, ies.light_cone(light))
+            fit, why = ies.fit_light(light.ies_text, plan.accuracy, light)
+            if fit is not None:
                 notes.append(f"Light '{light.name}': " + ies.describe(fit))
                 continue
-            except ies.IESError as ex:
-                problem = f"its IES profile cannot be read: {ex}"
+            problem = f"its IES profile cannot be read: {why}"
         without = "its spot cone alone" if light.type == 'SPOT' else "an even light of its power"
         notes.append(f"Light '{light.name}': WARNING {problem}: the fog takes it without its profile ({without})")
     return notes

@@ -245,14 +245,13 @@ def light_ies_note(light, scene):
         return True, [f"IES profiles on {light.type.lower()} lights are not in the fog", "(point and spot lights only)"]
     text, problem = light_nodes.ies_text(node)
     if text is not None:
-        try:
-            fit = ies.fit_text(text, scene.airlight.accuracy / 100.0, ies.light_cone(light))
+        fit, why = ies.fit_light(text, scene.airlight.accuracy / 100.0, light)
+        if fit is not None:
             drawn = "a spot of its mean in the cone" if light.type == 'SPOT' else "an even light"
             return False, [f"IES profile in the fog: degree {fit.degree} fit",
                            f"{100.0 * fit.mean_error:.2g} % mean error, {100.0 * fit.max_error:.2g} % of peak at most",
                            f"averaged about the axis; the viewport preview draws it as {drawn}"]
-        except ies.IESError as ex:
-            problem = f"IES profile unreadable: {ex}"
+        problem = f"IES profile unreadable: {why}"
     return True, [problem, "The fog takes this light without its profile"]
 
 

@@ -113,10 +113,7 @@ py::dict bake_py(int width, int height, const py::object& cam_to_world, const py
                                   "), got shape " + shape_str(r));
         for (size_t i = 0; i < n; ++i) set(i, r.data()[i]);
     };
-    auto radii = [&](const py::object& values, const char* name, size_t n, auto set) {
-        per_light(values, name, "radius", n, set);
-    };
-    radii(light_radii, "light_radii", scene.point_lights.size(),
+    per_light(light_radii, "light_radii", "radius", scene.point_lights.size(),
           [&](size_t i, double r) { scene.point_lights[i].radius = r; });
 
     // Gaussian fog: all three arrays or none; values checked here so the errors name them.
@@ -223,7 +220,7 @@ py::dict bake_py(int width, int height, const py::object& cam_to_world, const py
     scene.fog_top = fog_top;
     if (!spot_radii.is_none() && scene.spot_lights.empty())
         throw py::value_error("spot_radii needs the spot lights (spot_positions ...)");
-    radii(spot_radii, "spot_radii", scene.spot_lights.size(),
+    per_light(spot_radii, "spot_radii", "radius", scene.spot_lights.size(),
           [&](size_t i, double r) { scene.spot_lights[i].radius = r; });
     if (!spot_profiles.is_none()) {
         if (scene.spot_lights.empty()) throw py::value_error("spot_profiles needs the spot lights (spot_positions ...)");

@@ -119,13 +119,19 @@ int combined_coefficients(const PegoraroPhase& phase, const double* light, int M
     return K;
 }
 
-// The product of the polynomials _a_ and _profile_ (monomial coefficients; an empty profile is 1).
-std::vector<double> times_profile(const std::vector<double>& a, const std::vector<double>& profile) {
-    if (profile.empty()) return a;
-    std::vector<double> out(a.size() + profile.size() - 1, 0.0);
-    for (size_t i = 0; i < a.size(); ++i)
-        for (size_t j = 0; j < profile.size(); ++j) out[i + j] += a[i] * profile[j];
-    return out;
+// The product of the polynomial a_0 .. a_M and _profile_ (monomials; empty: 1) into _out_
+// (kMaxLightOrder + 1 values); returns its degree. No allocation: it runs per ray and spot.
+int times_profile(const double* a, int M, const std::vector<double>& profile, double* out) {
+    if (profile.empty()) {
+        std::copy(a, a + M + 1, out);
+        return M;
+    }
+    const int degree = M + int(profile.size()) - 1;
+    if (degree > kMaxLightOrder) throw std::invalid_argument("pegoraro10: light order must be 0..20");
+    std::fill(out, out + degree + 1, 0.0);
+    for (int i = 0; i <= M; ++i)
+        for (size_t j = 0; j < profile.size(); ++j) out[size_t(i) + j] += a[i] * profile[j];
+    return degree;
 }
 
 }  // namespace
@@ -375,8 +381,11 @@ double pegoraro10_spot_airlight(const PegoraroPhase& phase, const SpotCone& cone
     };
     // A spot's IES profile multiplies both pieces' polynomials; a point light's within its
     // extent is the profile alone (no blend).
-    const std::vector<double> inner_poly = cone.profile_alone ? cone.profile : times_profile({0.0, 1.0}, cone.profile);
-    const std::vector<double> annulus_poly = times_profile({annulus, annulus + 5}, cone.profile);
+    const double one = 1.0, linear[2] = {0.0, 1.0};
+    std::array<double, kMaxLightOrder + 1> inner_poly, annulus_poly;
+    const int M_inner = cone.profile_alone ? times_profile(&one, 0, cone.profile, inner_poly.data())
+                                           : times_profile(linear, 1, cone.profile, inner_poly.data());
+    const int M_annulus = times_profile(annulus, 4, cone.profile, annulus_poly.data());
     std::array<cplx, kMaxDegree + 1> coef_inner, coef_annulus;
     int K_inner = -1, K_annulus = -1;
     double sum = 0.0;
@@ -391,12 +400,12 @@ double pegoraro10_spot_airlight(const PegoraroPhase& phase, const SpotCone& cone
             continue;
         }
         if (sm == 0.0 || cm >= c_blend) {
-            if (K_inner < 0) K_inner = combined_coefficients(phase, inner_poly.data(), int(inner_poly.size()) - 1, del, dc,
+            if (K_inner < 0) K_inner = combined_coefficients(phase, inner_poly.data(), M_inner, del, dc,
                                                         coef_inner.data());
             sum += segment_integral(coef_inner.data(), K_inner, sigma_t, f.a, f.h, x0, x1);
             continue;
         }
-        if (K_annulus < 0) K_annulus = combined_coefficients(phase, annulus_poly.data(), int(annulus_poly.size()) - 1, del, dc,
+        if (K_annulus < 0) K_annulus = combined_coefficients(phase, annulus_poly.data(), M_annulus, del, dc,
                                                              coef_annulus.data());
         double cancel = 1.0;
         const double value = segment_integral(coef_annulus.data(), K_annulus, sigma_t, f.a, f.h, x0, x1, &cancel);
