@@ -192,7 +192,10 @@ def run(description, settings, filepath, progress=None):
         """(airlight, transmittance, extra passes or None, depth, stats) of one bake."""
         try:
             t0 = time.perf_counter()
-            result = module.bake(**description, **settings, progress=_sub_progress(progress, 0, 1 + bool(rows)))
+            index = _light_pass_index(module, description, settings, rows) if rows else None
+            after = bool(rows) and index is None  # the light passes baked after the total
+            result = module.bake(**description, **settings, **({LIGHT_PASS_INDEX: index[1]} if index else {}),
+                                 progress=_sub_progress(progress, 0, 1 + after))
             stats = dict(result["stats"])
             stats["seconds_native"] = time.perf_counter() - t0
             unlit = result["airlight"].copy() if rows and world is not None else None
@@ -200,9 +203,15 @@ def run(description, settings, filepath, progress=None):
                 stats["seconds_environment"] = environment.apply(module, world, description, result)
             refined = settings.get("gaussian_accuracy", 0.0) > 0.0 and len(description.get("rbf_centres", ())) > 0
             lit = unlit if unlit is not None else result["airlight"]
-            lights, light_seconds = (_light_passes(module, description, settings, rows, _sub_progress(progress, 1, 2),
-                                                   total=None if refined else lit)
-                                     if rows else (None, 0.0))
+            if index is not None:
+                keys = index[0]
+                lights = ({keys[0]: lit} if len(keys) == 1 else
+                          {key: result["light_airlight"][g] for g, key in enumerate(keys)})
+                light_seconds = None
+            else:
+                lights, light_seconds = (_light_passes(module, description, settings, rows,
+                                                       _sub_progress(progress, 1, 2), total=None if refined else lit)
+                                         if rows else (None, 0.0))
             if lights is not None and refined:
                 _split_like(lights, lit)
         except ValueError as ex:
@@ -215,7 +224,8 @@ def run(description, settings, filepath, progress=None):
             extra = dict(extra or {}, **lights)
             if unlit is not None:
                 extra[PASS_AIRLIGHT_WORLD] = result["airlight"] - unlit
-            stats["seconds_light_passes"] = light_seconds
+            if light_seconds is not None:
+                stats["seconds_light_passes"] = light_seconds
         return result["airlight"], result["transmittance"], extra, result["depth"], stats
 
     if samples is None:
@@ -250,6 +260,29 @@ _LIGHT_ARRAYS = {
               "spot_profile_extent", "spot_shadows"),
     "suns": ("sun_directions", "sun_irradiances", "sun_shadows"),
 }
+
+
+# `_native.bake`'s argument of the per-light passes baked with the total.
+LIGHT_PASS_INDEX = "light_pass_index"
+
+
+def _light_pass_index(module, description, settings, rows):
+    """(pass names, per light row its pass) for the light passes in the total's own bake,
+    every light evaluated once (`_native.bake`'s light_pass_index: points, spots, suns); None
+    where that bake cannot split them (fog objects, a whole-image model, the homogeneous
+    lattice) or the rows do not match the light arrays: then _light_passes bakes them apart.
+    One pass needs no index (it is the total)."""
+    if (len(description.get("rbf_centres", ())) > 0 or settings.get("model") in module.whole_image_models()
+            or settings.get("homogeneous_resolution", "full") != "full"):
+        return None
+    keys = list(dict.fromkeys(light_pass(n) for n in light_pass_names(rows)))
+    index = []
+    for kind, array_keys in _LIGHT_ARRAYS.items():
+        names = rows.get(kind, ())
+        if len(names) != len(description.get(array_keys[0], ())):
+            return None
+        index += [keys.index(light_pass(n)) for n in names]
+    return (keys, np.array(index, dtype=np.int32)) if len(keys) > 1 else (keys, None)
 
 
 def _one_light(description, rows, name):

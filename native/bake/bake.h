@@ -143,6 +143,10 @@ struct BakeResult {
     // turned towards the camera (3 floats per pixel, 0 where the ray hits nothing), for
     // image-space shading done after the bake (the environment's irradiance ratio).
     std::vector<float> surface_normals;
+    // scene.light_passes > 0 only: per pass its lights' airlight, image after image (3 *
+    // width * height floats each); the passes of all lights sum to _airlight_ but for float
+    // rounding.
+    std::vector<float> light_airlight;
     BakeStats stats;
 };
 

@@ -70,13 +70,14 @@ std::vector<float>& key_image(size_t n) {
     return key_cache;
 }
 
-BakeResult& allocated(BakeResult& result, int W, int H) {
+BakeResult& allocated(BakeResult& result, int W, int H, int light_passes) {
     const size_t n_pixels = size_t(W) * size_t(H);
     result.width = W;
     result.height = H;
     allocate_image(result.depth, n_pixels);
     allocate_image(result.airlight, 3 * n_pixels);
     allocate_image(result.transmittance, 3 * n_pixels);
+    if (light_passes > 0) allocate_image(result.light_airlight, 3 * n_pixels * size_t(light_passes));
     return result;
 }
 
@@ -93,7 +94,7 @@ BakeContext::BakeContext(const SceneDescription& scene_, const BakeSettings& set
       n_pixels(size_t(W) * size_t(H)),
       n_threads(resolve_threads(settings_.threads)),
       n_bands((H + kBandRows - 1) / kBandRows),
-      result(allocated(result_, W, H)),
+      result(allocated(result_, W, H, scene_.light_passes)),
       shared_caster(RayCaster::shared(scene_.geometry)),
       caster(*shared_caster),
       invalid_before(caster.invalid_rays()),

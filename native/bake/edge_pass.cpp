@@ -15,14 +15,14 @@ namespace airlight {
 
 namespace {
 
-// Rays to evaluate (segments [t0, t]) and their fog.
+// Rays to evaluate (segments [t0, t]) and their fog; _P_ their G per-light passes, ray-major.
 struct RayBatch {
     std::vector<Ray> ray;
     std::vector<float> t, t0;
     std::vector<double> Tr;
-    std::vector<RGB> La;
-    void resize(size_t n) {
-        ray.resize(n), t.resize(n), t0.resize(n), Tr.resize(n), La.resize(n);
+    std::vector<RGB> La, P;
+    void resize(size_t n, int G) {
+        ray.resize(n), t.resize(n), t0.resize(n), Tr.resize(n), La.resize(n), P.resize(n * size_t(G));
     }
 };
 
@@ -34,6 +34,7 @@ struct EdgeScratch {
     std::vector<float> sub_t, sub_t0;
     std::vector<double> sub_Tr;
     std::vector<RGB> sub_La;
+    std::vector<RGB> sub_P, pixel_P;  // the sub-samples' per-light passes (ray-major), a pixel's sums
     std::vector<int> edge_px;
     // Edge clusters (edge_sample_clusters): per row, sample order and cluster ends
     // per pixel, and one representative ray per cluster.
@@ -62,9 +63,11 @@ void edge_pass(BakeContext& ctx, const FogEvaluator& fog, const EdgePixels& foun
     const std::vector<glm::dvec2> pattern = filter_pattern(n_aa, settings.filter_width);
     // Fog of _n_ rays from the near plane (t0, from cast) to _depth_ (from the origin, inf:
     // none), as Cycles integrates it (FogEvaluator::eval_many).
-    auto eval = [&](const Ray* r, const float* depth, const float* t0, int n, double* Tr, RGB* La,
+    // _P_: their per-light passes (G per ray).
+    const int G = fog.light_passes();
+    auto eval = [&](const Ray* r, const float* depth, const float* t0, int n, double* Tr, RGB* La, RGB* P,
                     const glm::dvec2* film = nullptr) {
-        fog.eval_many(r, depth, near_clip ? t0 : nullptr, n, Tr, La, film);
+        fog.eval_many(r, depth, near_clip ? t0 : nullptr, n, Tr, La, film, G ? P : nullptr);
     };
     std::atomic<long long> supersampled{0}, samples{0}, edge_ns{0};
     // Edge pixels: one fog evaluation per cluster of sub-samples (edge_sample_clusters), or
@@ -98,7 +101,9 @@ void edge_pass(BakeContext& ctx, const FogEvaluator& fog, const EdgePixels& foun
             edge_i.push_back(list[k].second);
             ++edge_runs.back().count;
         }
-    std::vector<float> edge_out(4 * edge_i.size());
+    // Per edge pixel: airlight, transmittance, then its G passes (3 each).
+    const size_t stride = 4 + 3 * size_t(G);
+    std::vector<float> edge_out(stride * edge_i.size());
     run_parallel(
         int(edge_runs.size()), n_threads,
         [&](int run) {
@@ -119,7 +124,7 @@ void edge_pass(BakeContext& ctx, const FogEvaluator& fog, const EdgePixels& foun
             // Results go to edge_out (4 floats per edge pixel: airlight, transmittance) and
             // into the images after the pass: the images keep the centre samples meanwhile,
             // which the hits == 0 fallback below reads.
-            float* out = &edge_out[4 * size_t(er.first)];
+            float* out = &edge_out[stride * size_t(er.first)];
             // The sub-pixel rays of all the run's pixels at once: cast as packets and
             // evaluated in full SIMD chunks, then averaged per pixel.
             const auto edge_start = Clock::now();
@@ -129,6 +134,8 @@ void edge_pass(BakeContext& ctx, const FogEvaluator& fog, const EdgePixels& foun
             sub_t0.resize(m);
             sub_Tr.resize(m);
             sub_La.resize(m);
+            bs.sub_P.resize(m * size_t(G));
+            bs.pixel_P.resize(size_t(G));
             bs.sub_film.resize(m);
             for (size_t e = 0; e < edge_px.size(); ++e)
                 for (size_t k = 0; k < n_sub; ++k) {
@@ -152,7 +159,7 @@ void edge_pass(BakeContext& ctx, const FogEvaluator& fog, const EdgePixels& foun
                 }
                 bs.cl_first[edge_px.size()] = int(bs.cl_ends.size());
                 const size_t n_cl = bs.cl_ends.size();
-                bs.cl.resize(n_cl);
+                bs.cl.resize(n_cl, G);
                 bs.cl_refined.assign(n_cl, 0);
                 for (size_t e = 0; e < edge_px.size(); ++e) {
                     const int* order = &bs.cl_order[e * n_sub];
@@ -181,7 +188,7 @@ void edge_pass(BakeContext& ctx, const FogEvaluator& fog, const EdgePixels& foun
                     }
                 }
                 eval(bs.cl.ray.data(), bs.cl.t.data(), bs.cl.t0.data(), int(n_cl), bs.cl.Tr.data(),
-                         bs.cl.La.data());
+                         bs.cl.La.data(), bs.cl.P.data());
                 // Clusters whose error estimate (EdgeClusterBounds) exceeds the tolerance:
                 // every sample evaluated instead, into sub_Tr, sub_La.
                 bs.ref_k.clear();
@@ -201,23 +208,26 @@ void edge_pass(BakeContext& ctx, const FogEvaluator& fog, const EdgePixels& foun
                 }
                 if (!bs.ref_k.empty()) {
                     const size_t n_ref = bs.ref_k.size();
-                    bs.ref.resize(n_ref);
+                    bs.ref.resize(n_ref, G);
                     for (size_t q = 0; q < n_ref; ++q) {
                         bs.ref.ray[q] = sub[bs.ref_k[q]];
                         bs.ref.t[q] = sub_t[bs.ref_k[q]];
                         bs.ref.t0[q] = sub_t0[bs.ref_k[q]];
                     }
                     eval(bs.ref.ray.data(), bs.ref.t.data(), bs.ref.t0.data(), int(n_ref), bs.ref.Tr.data(),
-                             bs.ref.La.data());
+                             bs.ref.La.data(), bs.ref.P.data());
                     for (size_t q = 0; q < n_ref; ++q) {
                         sub_Tr[bs.ref_k[q]] = bs.ref.Tr[q];
                         sub_La[bs.ref_k[q]] = bs.ref.La[q];
+                        for (int g = 0; g < G; ++g)
+                            bs.sub_P[size_t(bs.ref_k[q]) * G + g] = bs.ref.P[q * G + g];
                     }
                 }
                 band_samples += (long long)(n_cl + bs.ref_k.size()) - (long long)edge_px.size();
             } else {
                 // (with shadows: their crossings rasterized at the sub-samples' film positions)
-                eval(sub.data(), sub_t.data(), sub_t0.data(), int(m), sub_Tr.data(), sub_La.data(), bs.sub_film.data());
+                eval(sub.data(), sub_t.data(), sub_t0.data(), int(m), sub_Tr.data(), sub_La.data(), bs.sub_P.data(),
+                     bs.sub_film.data());
             }
             for (size_t e = 0; e < edge_px.size(); ++e) {
                 const int i = edge_px[e];
@@ -240,10 +250,17 @@ void edge_pass(BakeContext& ctx, const FogEvaluator& fog, const EdgePixels& foun
                 double Tr_hits = 0.0, Tr_all = 0.0;
                 int hits = 0;
                 RGB La(0.0);
+                std::vector<RGB>& P = bs.pixel_P;
+                std::fill(P.begin(), P.end(), RGB(0.0));
+                // Adds _count_ times the passes at _from_ to the pixel's.
+                auto add_passes = [&](const RGB* from, double count) {
+                    for (int g = 0; g < G; ++g) P[size_t(g)] += count * from[g];
+                };
                 if (!clustered) {
                     for (size_t k = s0; k < s0 + n_sub; ++k) {
                         Tr_all += sub_Tr[k];
                         La += sub_La[k];
+                        add_passes(bs.sub_P.data() + k * G, 1.0);
                         if (!std::isinf(sub_t[k])) Tr_hits += sub_Tr[k], ++hits;
                     }
                 } else {
@@ -258,11 +275,13 @@ void edge_pass(BakeContext& ctx, const FogEvaluator& fog, const EdgePixels& foun
                                 const size_t k = s0 + size_t(order[q]);
                                 Tr_all += sub_Tr[k];
                                 La += sub_La[k];
+                                add_passes(bs.sub_P.data() + k * G, 1.0);
                                 if (!std::isinf(sub_t[k])) Tr_hits += sub_Tr[k], ++hits;
                             }
                             continue;
                         }
                         La += double(end - b) * bs.cl.La[c];
+                        add_passes(bs.cl.P.data() + size_t(c) * G, double(end - b));
                         if (std::isinf(bs.cl.t[c])) {
                             Tr_all += double(end - b) * bs.cl.Tr[c];
                             continue;
@@ -302,8 +321,11 @@ void edge_pass(BakeContext& ctx, const FogEvaluator& fog, const EdgePixels& foun
                 }
                 const double Tr = hits > 0 ? Tr_hits / hits : Tr_all / double(n_sub);
                 La /= double(n_sub);
-                for (int c = 0; c < 3; ++c) out[4 * e + c] = float(La[c]);
-                out[4 * e + 3] = float(Tr);
+                float* o = out + stride * e;
+                for (int c = 0; c < 3; ++c) o[c] = float(La[c]);
+                o[3] = float(Tr);
+                for (int g = 0; g < G; ++g)
+                    for (int c = 0; c < 3; ++c) o[4 + 3 * g + c] = float(P[size_t(g)][c] / double(n_sub));
                 ++band_supersampled;
                 if (!clustered) band_samples += (long long)n_sub - 1;
             }
@@ -319,11 +341,13 @@ void edge_pass(BakeContext& ctx, const FogEvaluator& fog, const EdgePixels& foun
     for (const EdgeRun& er : edge_runs)
         for (int e = 0; e < er.count; ++e) {
             const size_t p = size_t(er.j) * W + size_t(edge_i[size_t(er.first + e)]);
-            const float* v = &edge_out[4 * size_t(er.first + e)];
+            const float* v = &edge_out[stride * size_t(er.first + e)];
             for (int c = 0; c < 3; ++c) {
                 result.airlight[3 * p + c] = v[c];
                 result.transmittance[3 * p + c] = v[3];
             }
+            for (int g = 0; g < G; ++g)
+                for (int c = 0; c < 3; ++c) result.light_airlight[3 * (size_t(g) * ctx.n_pixels + p) + c] = v[4 + 3 * g + c];
         }
     result.stats.supersampled_pixels = supersampled;
     result.stats.seconds_edges = 1e-9 * double(edge_ns);

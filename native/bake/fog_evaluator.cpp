@@ -63,6 +63,17 @@ void cos_to_light(const double* __restrict dx, const double* __restrict dy, cons
     for (int k = 0; k < n; ++k) cos_gamma[k] = dx[k] * sv.x + dy[k] * sv.y + dz[k] * sv.z;
 }
 
+// The passes' part of accumulate_rgb: pass g of ray k, passes[3 (k G + g) + c] += w_c value[k].
+void accumulate_pass(const float* value, const RGB& w, int n, int G, int g, float* passes) {
+    const float wr = float(w.x), wg = float(w.y), wb = float(w.z);
+    for (int k = 0; k < n; ++k) {
+        float* p = passes + 3 * (size_t(k) * G + g);
+        p[0] += wr * value[k];
+        p[1] += wg * value[k];
+        p[2] += wb * value[k];
+    }
+}
+
 // sum_c[k] += w_c value[k] for the three colour channels.
 AIRLIGHT_ROW_CLONES
 void accumulate_rgb(const float* __restrict value, float wr, float wg, float wb, int n, float* __restrict r,
@@ -96,7 +107,8 @@ FogEvaluator::FogEvaluator(const SceneDescription& scene, const BakeSettings& se
     for (const PointLight& light : scene.point_lights) {
         if (!keeps_light(scene, light)) continue;
         RGB weight = scene.medium.albedo * light.I0;
-        lights_.push_back({light.position, weight, glm::length(light.position - origin), light.radius, nullptr});
+        lights_.push_back(
+            {light.position, weight, glm::length(light.position - origin), light.radius, nullptr, light.light_pass});
         if (light.radius > 0.0 && sigma_t_ > 0.0 && scene.gaussians.empty())
             lights_.back().falloff = std::make_shared<const SphereFalloff>(sigma_t_, light.radius);
         has_light_size_ = has_light_size_ || light.radius > 0.0;
@@ -104,7 +116,7 @@ FogEvaluator::FogEvaluator(const SceneDescription& scene, const BakeSettings& se
     for (const SpotLight& spot : scene.spot_lights) {
         RGB weight = scene.medium.albedo * spot.I0;
         if (weight.x == 0.0 && weight.y == 0.0 && weight.z == 0.0) continue;
-        spots_.push_back({make_light_cone(spot), spot.position, weight, spot.radius, nullptr});
+        spots_.push_back({make_light_cone(spot), spot.position, weight, spot.radius, nullptr, spot.light_pass});
         if (spot.radius > 0.0 && sigma_t_ > 0.0 && scene.gaussians.empty())
             spots_.back().falloff = std::make_shared<const SphereFalloff>(sigma_t_, spot.radius);
         has_light_size_ = has_light_size_ || spot.radius > 0.0;
@@ -113,9 +125,10 @@ FogEvaluator::FogEvaluator(const SceneDescription& scene, const BakeSettings& se
         const RGB weight = scene.medium.albedo * sun.E * sigma_t_;  // sigma_s E
         if (weight.x == 0.0 && weight.y == 0.0 && weight.z == 0.0) continue;
         const Vec3 w = glm::normalize(sun.direction);
-        suns_.push_back({w, -w.z, weight});
+        suns_.push_back({w, -w.z, weight, sun.light_pass});
     }
     fog_top_ = scene.fog_top;
+    n_passes_ = scene.light_passes;
     if (!scene.gaussians.empty()) has_light_size_ = false;  // fog objects take their lights as points
     if (!(sigma_t_ > 0.0)) has_light_size_ = false;
     light_size_tol_ = settings.light_size_tolerance;
@@ -754,8 +767,23 @@ void FogEvaluator::transmittance_soa(const float* Dvp, const float* t0, int n, f
 }
 
 void FogEvaluator::eval_soa(const double* dx, const double* dy, const double* dz, const float* Dvp, const float* t0, int n,
-              float* Tr, float* rgb, const glm::dvec2* film) const {
+              float* Tr, float* rgb, const glm::dvec2* film, float* passes) const {
     constexpr int kChunk = 256;
+    const int G = passes ? n_passes_ : 0;
+    // One ray's passes in double, for the per-ray terms (spots, suns, the lights' Radius).
+    struct RayPasses {
+        std::vector<RGB> passes;
+    };
+    std::vector<RGB>& ray_passes = thread_scratch<RayPasses>().passes;
+    ray_passes.resize(size_t(G));
+    // Adds _term_ (the per-ray function, given the ray's passes) to ray k's total and passes.
+    auto add_ray_term = [&](float* out, float* grp, auto term) {
+        std::fill(ray_passes.begin(), ray_passes.end(), RGB(0.0));
+        const RGB La = term(G ? ray_passes.data() : nullptr);
+        for (int c = 0; c < 3; ++c) out[c] = float(double(out[c]) + La[c]);
+        for (int g = 0; g < G; ++g)
+            for (int c = 0; c < 3; ++c) grp[3 * g + c] = float(double(grp[3 * g + c]) + ray_passes[size_t(g)][c]);
+    };
     double cos_gamma[kChunk];
     float sum_r[kChunk], sum_g[kChunk], sum_b[kChunk], value[kChunk], seg[kChunk];
     const SpecialFTable& table = *model_.f_table();
@@ -771,6 +799,8 @@ void FogEvaluator::eval_soa(const double* dx, const double* dy, const double* dz
             transmittance_batch(float(sigma_t_), Dvp + k0, m, Tr + k0);
         }
         for (int k = 0; k < m; ++k) sum_r[k] = sum_g[k] = sum_b[k] = 0.0f;
+        float* grp = G ? passes + 3 * size_t(G) * size_t(k0) : nullptr;  // the chunk's passes
+        if (grp) std::fill(grp, grp + 3 * size_t(G) * size_t(m), 0.0f);
         const LitIntervals* lit = nullptr;
         if (!shadows_) {
             for (const LightData& light : lights_) {
@@ -782,6 +812,7 @@ void FogEvaluator::eval_soa(const double* dx, const double* dy, const double* dz
                                            table.interp());
                 accumulate_rgb(value, float(light.weight.x), float(light.weight.y), float(light.weight.z), m, sum_r,
                                sum_g, sum_b);
+                if (grp && light.pass >= 0) accumulate_pass(value, light.weight, m, G, light.pass, grp);
             }
         } else {
             // Volumetric shadows: every light's unshadowed airlight first, then the lit intervals
@@ -816,6 +847,7 @@ void FogEvaluator::eval_soa(const double* dx, const double* dy, const double* dz
                     relight_spans(light, light_volume_[l], &cosines[l * size_t(m)], near, Dvp + k0, m, lit, v_l);
                 accumulate_rgb(v_l, float(light.weight.x), float(light.weight.y), float(light.weight.z), m, sum_r,
                                sum_g, sum_b);
+                if (grp && light.pass >= 0) accumulate_pass(v_l, light.weight, m, G, light.pass, grp);
             }
         }
         float* out = rgb + 3 * size_t(k0);
@@ -828,35 +860,62 @@ void FogEvaluator::eval_soa(const double* dx, const double* dy, const double* dz
             for (int k = 0; k < m; ++k) {
                 const Vec3 d(dx[k0 + k], dy[k0 + k], dz[k0 + k]);
                 const double t_near = near ? double(near[k]) : 0.0;
-                const RGB La = spot_airlight(origin_, d, t_near, double(Dvp[k0 + k]), lit ? &lit[k] : nullptr);
-                for (int c = 0; c < 3; ++c) out[3 * k + c] = float(double(out[3 * k + c]) + La[c]);
+                add_ray_term(out + 3 * k, grp ? grp + 3 * size_t(G) * k : nullptr, [&](RGB* p) {
+                    return spot_airlight(origin_, d, t_near, double(Dvp[k0 + k]), lit ? &lit[k] : nullptr, p);
+                });
             }
         }
         if (!suns_.empty()) {
             for (int k = 0; k < m; ++k) {
                 const Vec3 d(dx[k0 + k], dy[k0 + k], dz[k0 + k]);
-                const RGB La = sun_airlight(origin_, d, near ? double(near[k]) : 0.0, double(Dvp[k0 + k]),
-                                            lit ? &lit[k] : nullptr);
-                for (int c = 0; c < 3; ++c) out[3 * k + c] = float(double(out[3 * k + c]) + La[c]);
+                add_ray_term(out + 3 * k, grp ? grp + 3 * size_t(G) * k : nullptr, [&](RGB* p) {
+                    return sun_airlight(origin_, d, near ? double(near[k]) : 0.0, double(Dvp[k0 + k]),
+                                        lit ? &lit[k] : nullptr, p);
+                });
             }
         }
         if (has_light_size_) {
             for (int k = 0; k < m; ++k) {
                 const Vec3 d(dx[k0 + k], dy[k0 + k], dz[k0 + k]);
-                const RGB La = light_size_airlight(origin_, d, near ? double(near[k]) : 0.0, double(Dvp[k0 + k]),
-                                                   lit ? &lit[k] : nullptr);
-                for (int c = 0; c < 3; ++c) out[3 * k + c] = float(std::max(0.0, double(out[3 * k + c]) + La[c]));
+                float* o = out + 3 * k;
+                float* gk = grp ? grp + 3 * size_t(G) * k : nullptr;
+                RGB La(o[0], o[1], o[2]);
+                for (int g = 0; g < G; ++g) ray_passes[size_t(g)] = RGB(gk[3 * g], gk[3 * g + 1], gk[3 * g + 2]);
+                add_light_size(origin_, d, near ? double(near[k]) : 0.0, double(Dvp[k0 + k]), lit ? &lit[k] : nullptr,
+                               La, G ? ray_passes.data() : nullptr);
+                for (int c = 0; c < 3; ++c) o[c] = float(La[c]);
+                for (int g = 0; g < G; ++g)
+                    for (int c = 0; c < 3; ++c) gk[3 * g + c] = float(ray_passes[size_t(g)][c]);
             }
         }
     }
 }
 
+void FogEvaluator::add_light_size(const Vec3& o, const Vec3& d, double t_near, double Dvp, const LitIntervals* lit,
+                                  RGB& La, RGB* passes) const {
+    // The passes' excess apart, then each sum clipped.
+    struct Excess {
+        std::vector<RGB> passes;
+    };
+    std::vector<RGB>& excess = thread_scratch<Excess>().passes;
+    excess.assign(passes ? size_t(n_passes_) : 0, RGB(0.0));
+    La = glm::max(RGB(0.0), La + light_size_airlight(o, d, t_near, Dvp, lit, passes ? excess.data() : nullptr));
+    for (size_t g = 0; g < excess.size(); ++g) passes[g] = glm::max(RGB(0.0), passes[g] + excess[g]);
+}
+
 void FogEvaluator::eval_many(const Ray* rays, const float* Dvp, const float* t0, int n, double* Tr, RGB* La,
-                             const glm::dvec2* film) const {
+                             const glm::dvec2* film, RGB* passes) const {
+    const int G = passes ? n_passes_ : 0;
+    if (G) std::fill(passes, passes + size_t(G) * size_t(n), RGB(0.0));
     if (soa()) {
         constexpr int kChunk = 256;
         double dx[kChunk], dy[kChunk], dz[kChunk];
         float Tr_f[kChunk], rgb[3 * kChunk];
+        struct Passes {
+            std::vector<float> passes;
+        };
+        std::vector<float>& chunk_passes = thread_scratch<Passes>().passes;
+        chunk_passes.resize(3 * size_t(G) * kChunk);
         for (int k0 = 0; k0 < n; k0 += kChunk) {
             const int m = std::min(kChunk, n - k0);
             for (int k = 0; k < m; ++k) {
@@ -864,11 +923,15 @@ void FogEvaluator::eval_many(const Ray* rays, const float* Dvp, const float* t0,
                 dy[k] = rays[k0 + k].d.y;
                 dz[k] = rays[k0 + k].d.z;
             }
-            eval_soa(dx, dy, dz, Dvp + k0, t0 ? t0 + k0 : nullptr, m, Tr_f, rgb, film ? film + k0 : nullptr);
+            eval_soa(dx, dy, dz, Dvp + k0, t0 ? t0 + k0 : nullptr, m, Tr_f, rgb, film ? film + k0 : nullptr,
+                     G ? chunk_passes.data() : nullptr);
             for (int k = 0; k < m; ++k) {
                 Tr[k0 + k] = Tr_f[k];
                 La[k0 + k] = RGB(rgb[3 * k], rgb[3 * k + 1], rgb[3 * k + 2]);
             }
+            for (size_t q = 0; q < size_t(G) * size_t(m); ++q)
+                passes[size_t(G) * size_t(k0) + q] =
+                    RGB(chunk_passes[3 * q], chunk_passes[3 * q + 1], chunk_passes[3 * q + 2]);
         }
         return;
     }
@@ -889,32 +952,39 @@ void FogEvaluator::eval_many(const Ray* rays, const float* Dvp, const float* t0,
         const int v = lit ? light_volume_[l] : -1;
         for (int k = 0; k < n; ++k) {
             const double near = t0 ? double(t0[k]) : 0.0;
+            RGB term;
             if (v >= 0 && (model_.visibility_in_integrand() || !fully_lit(lit[k], v, near, double(Dvp[k])))) {
-                La[k] += light.weight * point_airlight_lit(light, v, rays[k].o, rays[k].d, near, Dvp[k], lit[k]);
-                continue;
+                term = light.weight * point_airlight_lit(light, v, rays[k].o, rays[k].d, near, Dvp[k], lit[k]);
+            } else {
+                const Vec3 o = near > 0.0 ? rays[k].o + near * rays[k].d : rays[k].o;
+                const Vec3 sv = light.s - o;
+                const double Dsv = shared_origin_ && !(near > 0.0) ? light.Dsv : glm::length(sv);
+                const double cos_gamma = Dsv > 0.0 ? std::clamp(glm::dot(rays[k].d, sv) / Dsv, -1.0, 1.0) : 1.0;
+                const double seg = std::max(0.0, double(Dvp[k]) - near);
+                term = light.weight * airlight(Dsv, cos_gamma, seg);
             }
-            const Vec3 o = near > 0.0 ? rays[k].o + near * rays[k].d : rays[k].o;
-            const Vec3 sv = light.s - o;
-            const double Dsv = shared_origin_ && !(near > 0.0) ? light.Dsv : glm::length(sv);
-            const double cos_gamma = Dsv > 0.0 ? std::clamp(glm::dot(rays[k].d, sv) / Dsv, -1.0, 1.0) : 1.0;
-            const double seg = std::max(0.0, double(Dvp[k]) - near);
-            La[k] += light.weight * airlight(Dsv, cos_gamma, seg);
+            La[k] += term;
+            if (G && light.pass >= 0) passes[size_t(k) * G + size_t(light.pass)] += term;
         }
     }
+    // Ray k's passes (null without).
+    auto ray_passes = [&](int k) { return G ? passes + size_t(k) * G : nullptr; };
     if (!spots_.empty())
         for (int k = 0; k < n; ++k)
-            La[k] += spot_airlight(rays[k].o, rays[k].d, t0 ? double(t0[k]) : 0.0, double(Dvp[k]), lit ? &lit[k] : nullptr);
+            La[k] += spot_airlight(rays[k].o, rays[k].d, t0 ? double(t0[k]) : 0.0, double(Dvp[k]), lit ? &lit[k] : nullptr,
+                                   ray_passes(k));
     if (!suns_.empty())
         for (int k = 0; k < n; ++k)
-            La[k] += sun_airlight(rays[k].o, rays[k].d, t0 ? double(t0[k]) : 0.0, double(Dvp[k]), lit ? &lit[k] : nullptr);
+            La[k] += sun_airlight(rays[k].o, rays[k].d, t0 ? double(t0[k]) : 0.0, double(Dvp[k]), lit ? &lit[k] : nullptr,
+                                  ray_passes(k));
     if (has_light_size_)
         for (int k = 0; k < n; ++k)
-            La[k] = glm::max(RGB(0.0), La[k] + light_size_airlight(rays[k].o, rays[k].d, t0 ? double(t0[k]) : 0.0,
-                                                                  double(Dvp[k]), lit ? &lit[k] : nullptr));
+            add_light_size(rays[k].o, rays[k].d, t0 ? double(t0[k]) : 0.0, double(Dvp[k]), lit ? &lit[k] : nullptr, La[k],
+                           ray_passes(k));
 }
 
 RGB FogEvaluator::light_size_airlight(const Vec3& o, const Vec3& d, double t_near, double Dvp,
-                                      const LitIntervals* lit) const {
+                                      const LitIntervals* lit, RGB* passes) const {
     RGB La(0.0);
     if (!has_light_size_) return La;
     // The disk's airlight less the point's over [a, b]: from the expansion far from the light,
@@ -954,13 +1024,15 @@ RGB FogEvaluator::light_size_airlight(const Vec3& o, const Vec3& d, double t_nea
             !sphere_light_window(sigma_t_, light.s, light.radius, o, d, t_near, Dvp, a, b, light_size_tol_))
             continue;
         const int v = lit ? light_volume_[l] : -1;
-        La += light.weight * for_spans(v, a, b, [&](double lo, double hi) {
+        const RGB term = light.weight * for_spans(v, a, b, [&](double lo, double hi) {
             const Vec3 x = o + lo * d, sx = light.s - x;
             const double Dsx = glm::length(sx);
             const double cos_gamma = Dsx > 0.0 ? std::clamp(glm::dot(d, sx) / Dsx, -1.0, 1.0) : 1.0;
             return excess(light.s, light.radius, h, light.falloff.get(), lo, hi,
                           [&] { return airlight(Dsx, cos_gamma, hi - lo); }, nullptr, {});
         });
+        La += term;
+        if (passes && light.pass >= 0) passes[light.pass] += term;
     }
     for (size_t i = 0; i < spots_.size(); ++i) {
         const SpotData& spot = spots_[i];
@@ -987,15 +1059,18 @@ RGB FogEvaluator::light_size_airlight(const Vec3& o, const Vec3& d, double t_nea
             if (x >= 0.0) cuts.push_back(x);
         }
         const int v = lit ? spot_volume_[i] : -1;
-        La += spot.weight * for_spans(v, a, b, [&](double lo, double hi) {
+        const RGB term = spot.weight * for_spans(v, a, b, [&](double lo, double hi) {
             return excess(spot.s, spot.radius, h, spot.falloff.get(), lo, hi,
                           [&] { return spot_segment(spot, o + lo * d, d, hi - lo); }, profile, cuts);
         });
+        La += term;
+        if (passes && spot.pass >= 0) passes[spot.pass] += term;
     }
     return La;
 }
 
-RGB FogEvaluator::sun_airlight(const Vec3& o, const Vec3& d, double t_near, double Dvp, const LitIntervals* lit) const {
+RGB FogEvaluator::sun_airlight(const Vec3& o, const Vec3& d, double t_near, double Dvp, const LitIntervals* lit,
+                               RGB* passes) const {
     RGB La(0.0);
     if (sigma_t_ == 0.0 || !(Dvp > t_near)) return La;
     for (size_t i = 0; i < suns_.size(); ++i) {
@@ -1017,7 +1092,9 @@ RGB FogEvaluator::sun_airlight(const Vec3& o, const Vec3& d, double t_near, doub
                                                        kQuadratureRelTol)
                     : sunlight_layer_factor(sigma_t_, fog_top_, sun.mu_s, o.z, d.z, t_near, Dvp);
         }
-        La += sun.weight * (p * G);
+        const RGB term = sun.weight * (p * G);
+        La += term;
+        if (passes && sun.pass >= 0) passes[sun.pass] += term;
     }
     return La;
 }
@@ -1027,7 +1104,8 @@ double FogEvaluator::spot_segment(const SpotData& spot, const Vec3& from, const 
                               : pegoraro10_spot_airlight(pegoraro_phase_, spot.cone, spot.s, sigma_t_, from, d, len);
 }
 
-RGB FogEvaluator::spot_airlight(const Vec3& o, const Vec3& d, double t_near, double Dvp, const LitIntervals* lit) const {
+RGB FogEvaluator::spot_airlight(const Vec3& o, const Vec3& d, double t_near, double Dvp, const LitIntervals* lit,
+                                RGB* passes) const {
     RGB La(0.0);
     if (sigma_t_ == 0.0) return La;
     const double seg = std::max(0.0, Dvp - t_near);  // inf stays inf
@@ -1037,19 +1115,22 @@ RGB FogEvaluator::spot_airlight(const Vec3& o, const Vec3& d, double t_near, dou
     for (size_t i = 0; i < spots_.size(); ++i) {
         const SpotData& spot = spots_[i];
         const int v = lit ? spot_volume_[i] : -1;
+        double value = 0.0;  // per unit weight
         if (v >= 0 && model_.visibility_in_integrand()) {
             const std::vector<double> jumps = span_ends(*lit, v, t_near);
-            La += spot.weight * spot_airlight_visible(spot.cone, phase_, sigma_t_, spot.s, start, d, seg,
-                                                      [&](const Vec3& x) { return visible(v, x); }, kShadowRelTol,
-                                                      &jumps);
+            value = spot_airlight_visible(spot.cone, phase_, sigma_t_, spot.s, start, d, seg,
+                                          [&](const Vec3& x) { return visible(v, x); }, kShadowRelTol, &jumps);
         } else if (v < 0 || fully_lit(*lit, v, t_near, Dvp)) {
-            La += spot.weight * segment(spot, start, seg);
+            value = segment(spot, start, seg);
         } else {
             for (int k = lit->begin[v]; k < lit->end[v]; ++k) {
                 const double a = lit->spans[k].first, b = lit->spans[k].second;
-                La += spot.weight * (std::exp(-sigma_t_ * (a - t_near)) * segment(spot, o + a * d, b - a));
+                value += std::exp(-sigma_t_ * (a - t_near)) * segment(spot, o + a * d, b - a);
             }
         }
+        const RGB term = spot.weight * value;
+        La += term;
+        if (passes && spot.pass >= 0) passes[spot.pass] += term;
     }
     return La;
 }

@@ -33,6 +33,7 @@ struct LightData {
     double Dsv = 0;  // distance to the camera position (perspective rays share the origin)
     double radius = 0;  // Blender's Radius (homogeneous/sphere_light.h); 0: a point
     std::shared_ptr<const SphereFalloff> falloff;  // its disk's falloff (radius > 0)
+    int pass = -1;   // its per-light pass (SceneDescription::light_passes); -1: none
 };
 
 // Evaluates transmittance and airlight of view rays with a fog model.
@@ -101,6 +102,9 @@ class FogEvaluator {
     const std::vector<int>& scene_spot_volumes() const { return scene_spot_volume_; }
     const std::vector<int>& scene_sun_volumes() const { return scene_sun_volume_; }
 
+    // The per-light passes of the scene (SceneDescription::light_passes; 0: none).
+    int light_passes() const { return n_passes_; }
+
     // Hot path (soa() only): _n_ rays from the shared origin with unit directions (dx,
     // dy, dz)[k] (structure of arrays, so the per-light dot products and accumulations
     // vectorise), segment [t0[k], Dvp[k]] (t0 null: 0). Writes Tr[k] = exp(-sigma_t (Dvp -
@@ -108,8 +112,10 @@ class FogEvaluator {
     // _film_ (optional): the rays' film positions (pixels, CameraRays' convention), which let
     // the volumetric shadows rasterize the volumes' crossings (screen_crossings.h) instead of
     // tracing them.
+    // _passes_ (optional, light_passes() > 0): each pass's airlight, ray-major: pass g of ray k
+    // at passes[3 (k G + g) .. + 2] for G passes; the lights' own terms of the same evaluation.
     void eval_soa(const double* dx, const double* dy, const double* dz, const float* Dvp, const float* t0, int n,
-                  float* Tr, float* rgb, const glm::dvec2* film = nullptr) const;
+                  float* Tr, float* rgb, const glm::dvec2* film = nullptr, float* passes = nullptr) const;
 
     // The same for _n_ rays at once, light by light: the iterations of the inner loop
     // are independent, so the CPU overlaps the long dependency chains of the model.
@@ -118,26 +124,32 @@ class FogEvaluator {
     // table evaluation; the other models move the viewer to the near point o + t0 d (same
     // direction, so the same phase angles along the ray; Dsv and gamma from there), one
     // evaluation per ray and light with no difference to cancel.
-    // _film_ as for eval_soa.
+    // _film_ as for eval_soa; _passes_ (optional) the per-light passes, ray-major (pass g of
+    // ray k at passes[k G + g]).
     void eval_many(const Ray* rays, const float* Dvp, const float* t0, int n, double* Tr, RGB* La,
-                   const glm::dvec2* film = nullptr) const;
+                   const glm::dvec2* film = nullptr, RGB* passes = nullptr) const;
 
     // Airlight of all sun lamps along o + t d over [t_near, Dvp] (inf: none): sigma_s p E G
     // with the closed form G of sunlight_layer.h (its quadrature for the quadrature model). The
     // phase angle is the same all along the ray.
-    RGB sun_airlight(const Vec3& o, const Vec3& d, double t_near, double Dvp, const LitIntervals* lit = nullptr) const;
+    // _passes_ (optional): each sun's term is added to its pass there too (spot_airlight and
+    // light_size_airlight the same).
+    RGB sun_airlight(const Vec3& o, const Vec3& d, double t_near, double Dvp, const LitIntervals* lit = nullptr,
+                     RGB* passes = nullptr) const;
 
     // Airlight of all spot lights along the ray o + t d over [t_near, Dvp] (Dvp from o; inf:
     // none), attenuated from the near point (the viewer moved there, as eval_many does for
     // the other models). Pegoraro 2010 closed form with the medium's phase (pegoraro10.h), or
     // quadrature (spot_light.h): model 'quadrature', and phases above order 8 unless 'pegoraro10'.
-    RGB spot_airlight(const Vec3& o, const Vec3& d, double t_near, double Dvp, const LitIntervals* lit = nullptr) const;
+    RGB spot_airlight(const Vec3& o, const Vec3& d, double t_near, double Dvp, const LitIntervals* lit = nullptr,
+                      RGB* passes = nullptr) const;
 
     // The lights' Radius (homogeneous/sphere_light.h), homogeneous fog: what the point and spot
     // lights' disks change in their airlight along o + t d over [t_near, Dvp] (inf: none),
     // attenuated from t_near; within kSphereReach radii of each light, over its lit spans
-    // with shadows. eval_soa and eval_many add it.
-    RGB light_size_airlight(const Vec3& o, const Vec3& d, double t_near, double Dvp, const LitIntervals* lit) const;
+    // with shadows. eval_soa and eval_many add it (and clip the sum at 0, pass by pass).
+    RGB light_size_airlight(const Vec3& o, const Vec3& d, double t_near, double Dvp, const LitIntervals* lit,
+                            RGB* passes = nullptr) const;
     bool has_light_size() const { return has_light_size_; }
 
   private:
@@ -210,9 +222,15 @@ class FogEvaluator {
         RGB weight;  // albedo * I0
         double radius = 0.0;
         std::shared_ptr<const SphereFalloff> falloff;
+        int pass = -1;
     };
     // One spot's airlight along from + t d over [0, len], attenuated from _from_, per unit weight.
     double spot_segment(const SpotData& spot, const Vec3& from, const Vec3& d, double len) const;
+    int n_passes_ = 0;  // SceneDescription::light_passes
+    // eval_soa's and eval_many's: adds the light-size terms (light_size_airlight) of the ray
+    // o + t d to _La_ and to the ray's passes (null: none), each clipped at 0.
+    void add_light_size(const Vec3& o, const Vec3& d, double t_near, double Dvp, const LitIntervals* lit, RGB& La,
+                        RGB* passes) const;
     bool has_light_size_ = false;  // a point or spot light with a radius, in homogeneous fog
     double light_size_tol_ = 1e-3;  // BakeSettings::light_size_tolerance
     std::vector<SpotData> spots_;
@@ -220,6 +238,7 @@ class FogEvaluator {
         Vec3 w;       // unit propagation direction
         double mu_s;  // -w.z: the cosine of the sun's path through the layer to the vertical
         RGB weight;   // albedo * sigma_t * E
+        int pass = -1;
     };
     std::vector<SunData> suns_;
     double fog_top_ = std::numeric_limits<double>::infinity();

@@ -46,7 +46,8 @@ Lattice plan_lattice(const BakeContext& ctx, const FogEvaluator& fog) {
     Lattice out;
     const int lattice = ctx.settings.homogeneous_resolution;
     // (Not with volumetric shadows: a shaft's edge crosses cells that pass the smoothness tests.)
-    const bool use_lattice = lattice > 1 && ctx.affine && fog.soa() && !fog.has_spots() && !fog.has_shadows();
+    const bool use_lattice = lattice > 1 && ctx.affine && fog.soa() && !fog.has_spots() && !fog.has_shadows() &&
+                             fog.light_passes() == 0;
     std::vector<Vec3>& light_dirs = out.light_dirs;
     double& cos_ex = out.cos_ex;
     if (use_lattice) {
@@ -213,6 +214,8 @@ struct CentreScratch {
     std::vector<float> t0, row_Tr;
     std::vector<double> row_Tr_d;
     std::vector<RGB> row_La;
+    std::vector<float> row_passes;   // the per-light passes of a row, ray-major (eval_soa)
+    std::vector<RGB> row_passes_d;   // (eval_many)
     std::vector<unsigned char> kink, edge;
     RowRays r;
     std::vector<glm::dvec2> film;  // the row's pixel centres (the shadows rasterize there)
@@ -258,13 +261,24 @@ EdgePixels homogeneous_pass(BakeContext& ctx, const FogEvaluator& fog, const Edg
             std::vector<RGB>& row_La = bs.row_La;
             std::vector<float>& row_Tr = bs.row_Tr;
             row_Tr.resize(W);
+            const int G = fog.light_passes();
             if (fast) {
                 r.resize(W);
+                bs.row_passes.resize(3 * size_t(G) * W);
             } else {
                 row.resize(W);
                 row_Tr_d.resize(W);
                 row_La.resize(W);
+                bs.row_passes_d.resize(size_t(G) * W);
             }
+            // Row j's passes into the pass images (from ray-major pass g of pixel i at [i G + g]).
+            auto put_passes = [&](size_t p0, auto value) {
+                for (int g = 0; g < G; ++g) {
+                    float* P = &result.light_airlight[3 * (size_t(g) * ctx.n_pixels + p0)];
+                    for (int i = 0; i < W; ++i)
+                        for (int c = 0; c < 3; ++c) P[3 * i + c] = value(size_t(i) * G + g, c);
+                }
+            };
             for (int j = j0; j < j1; ++j) {
                 // Centre samples of the whole row (edge pixels are overwritten below).
                 const size_t p0 = size_t(j) * W;
@@ -278,7 +292,8 @@ EdgePixels homogeneous_pass(BakeContext& ctx, const FogEvaluator& fog, const Edg
                     bs.film.resize(W);
                     for (int i = 0; i < W; ++i) bs.film[i] = {i + 0.5, j + 0.5};
                     fog.eval_soa(r.dx.data(), r.dy.data(), r.dz.data(), depth, near_clip ? r.t_near.data() : nullptr,
-                                 W, row_Tr.data(), A, bs.film.data());
+                                 W, row_Tr.data(), A, bs.film.data(), G ? bs.row_passes.data() : nullptr);
+                    put_passes(p0, [&](size_t q, int c) { return bs.row_passes[3 * q + c]; });
                 } else {
                     for (int i = 0; i < W; ++i) {
                         row[i] = rays(i + 0.5, j + 0.5);
@@ -289,11 +304,12 @@ EdgePixels homogeneous_pass(BakeContext& ctx, const FogEvaluator& fog, const Edg
                     bs.film.resize(W);
                     for (int i = 0; i < W; ++i) bs.film[i] = {i + 0.5, j + 0.5};
                     fog.eval_many(row.data(), depth, near_clip ? t0.data() : nullptr, W, row_Tr_d.data(), row_La.data(),
-                                  bs.film.data());
+                                  bs.film.data(), G ? bs.row_passes_d.data() : nullptr);
                     for (int i = 0; i < W; ++i) {
                         row_Tr[i] = float(row_Tr_d[i]);
                         for (int c = 0; c < 3; ++c) A[3 * i + c] = float(row_La[i][c]);
                     }
+                    put_passes(p0, [&](size_t q, int c) { return float(bs.row_passes_d[q][c]); });
                 }
                 if (!splatted && !use_lattice)
                     for (int i = 0; i < W; ++i) T[3 * i] = T[3 * i + 1] = T[3 * i + 2] = row_Tr[i];

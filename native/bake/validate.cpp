@@ -44,6 +44,31 @@ void validate_suns(const SceneDescription& scene) {
             "fog_top must be a finite height or +inf (no top), got " + std::to_string(scene.fog_top));
 }
 
+// Per-light passes (SceneDescription::light_passes): each light's index in range, and a bake
+// that evaluates every pixel's lights one by one (the whole-image models, the Gaussian splat
+// and the homogeneous lattice sum them or interpolate their sum).
+void validate_light_passes(const SceneDescription& scene, const BakeSettings& settings) {
+    const int n = scene.light_passes;
+    require(n >= 0, "light_passes must be >= 0");
+    auto check = [&](int pass, const std::string& name) {
+        require(pass >= -1 && pass < n, name + ": light pass " + std::to_string(pass) + " out of range (" +
+                                            std::to_string(n) + " passes; -1: none)");
+    };
+    for (size_t i = 0; i < scene.point_lights.size(); ++i)
+        check(scene.point_lights[i].light_pass, "light " + std::to_string(i));
+    for (size_t i = 0; i < scene.spot_lights.size(); ++i)
+        check(scene.spot_lights[i].light_pass, "spot light " + std::to_string(i));
+    for (size_t i = 0; i < scene.sun_lights.size(); ++i)
+        check(scene.sun_lights[i].light_pass, "sun light " + std::to_string(i));
+    if (n == 0) return;
+    require(scene.gaussians.empty(), "light passes in one bake: not with fog objects (bake each light alone)");
+    require(model_entry(settings.model).bake == nullptr,
+            "light passes in one bake: not with model '" + model_entry(settings.model).name +
+                "', which bakes the whole image (bake each light alone)");
+    require(settings.homogeneous_resolution == 1,
+            "light passes in one bake: not with a homogeneous resolution below full (bake each light alone)");
+}
+
 // How close to the eye a light counts as at it: the models regularise the light's distance
 // below this (sun05, biri06: D_sv >= 1e-6) and disagree there.
 constexpr double kAtEyeDistance = 1e-6;
@@ -163,6 +188,7 @@ void validate(const SceneDescription& scene, const BakeSettings& settings) {
         require(spot.profile.empty() || spot.spread >= kPi - 1e-9,
                 name + ": a profile (spot_profiles) cannot go with a spread (an area light's sample)");
     }
+    validate_light_passes(scene, settings);
     const TriangleMesh& mesh = scene.geometry;
     require(mesh.vertices.size() % 3 == 0, "vertices must hold 3 floats per vertex");
     require(mesh.triangles.size() % 3 == 0, "triangles must hold 3 indices per triangle");
@@ -193,7 +219,7 @@ void validate(const SceneDescription& scene, const BakeSettings& settings) {
 }
 
 double bake_image_bytes(const SceneDescription& scene, const BakeSettings& settings) {
-    double floats = 9.0;
+    double floats = 9.0 + 3.0 * double(scene.light_passes);
     if (settings.surface) {
         const size_t lights = scene.point_lights.size() + scene.spot_lights.size() + scene.sun_lights.size();
         floats += 3.0 * double(lights) + 6.0 + (settings.surface_phong_exponent > 0.0 ? 3.0 : 0.0);

@@ -74,7 +74,8 @@ py::dict bake_py(int width, int height, const py::object& cam_to_world, const py
                  const py::object& occluder_triangles, double gaussian_accuracy, double gaussian_refine_budget,
                  const std::string& shadow_crossings, const py::object& light_radii, const py::object& spot_radii,
                  const py::object& spot_profiles, const py::object& spot_profile_in_cone,
-                 const py::object& spot_profile_extent, double light_size_tolerance) {
+                 const py::object& spot_profile_extent, double light_size_tolerance,
+                 const py::object& light_pass_index) {
     // Gather the scene description from the arrays (shapes checked here, values in bake()).
     SceneDescription scene;
     scene.camera.width = width;
@@ -268,6 +269,27 @@ py::dict bake_py(int width, int height, const py::object& cam_to_world, const py
         scene.occluders_from_geometry = false;
     }
 
+    // Per-light passes: per light (points, spots, suns in order) its pass, -1 none.
+    if (!light_pass_index.is_none()) {
+        auto a = as_array<double>(light_pass_index, "light_pass_index");
+        const size_t n_points = scene.point_lights.size(), n_spots = scene.spot_lights.size();
+        const size_t n = n_points + n_spots + scene.sun_lights.size();
+        if (a.ndim() != 1 || size_t(a.shape(0)) != n)
+            throw py::value_error("light_pass_index: expected one value per light (" + std::to_string(n) +
+                                  ": points, spots, suns), got shape " + shape_str(a));
+        for (size_t i = 0; i < n; ++i) {
+            const double v = a.data()[i];
+            if (!(v == std::floor(v) && v >= -1.0 && v < 1e6))
+                throw py::value_error("light_pass_index: " + std::to_string(v) +
+                                      " is not a pass index (an integer >= 0, or -1: none)");
+            const int pass = int(v);
+            scene.light_passes = std::max(scene.light_passes, pass + 1);
+            if (i < n_points) scene.point_lights[i].light_pass = pass;
+            else if (i < n_points + n_spots) scene.spot_lights[i - n_points].light_pass = pass;
+            else scene.sun_lights[i - n_points - n_spots].light_pass = pass;
+        }
+    }
+
     BakeSettings settings;
     settings.shadows = shadows;
     if (shadow_crossings != "film" && shadow_crossings != "traced")
@@ -363,6 +385,8 @@ py::dict bake_py(int width, int height, const py::object& cam_to_world, const py
                     "transmittance"_a = image_to_numpy(std::move(result.transmittance), {H, W, 3}),
                     "depth"_a = image_to_numpy(std::move(result.depth), {H, W}), "stats"_a = stats);
     for (const auto& item : extra) out[item.first] = item.second;
+    if (scene.light_passes > 0)
+        out["light_airlight"] = image_to_numpy(std::move(result.light_airlight), {scene.light_passes, H, W, 3});
     return out;
 }
 
@@ -422,6 +446,7 @@ void bind_bake(py::module_& m) {
           "shadow_crossings"_a = "film", "light_radii"_a = py::none(), "spot_radii"_a = py::none(),
           "spot_profiles"_a = py::none(), "spot_profile_in_cone"_a = py::none(),
           "spot_profile_extent"_a = py::none(), "light_size_tolerance"_a = BakeSettings().light_size_tolerance,
+          "light_pass_index"_a = py::none(),
           R"doc(Bake fog passes for one camera view (all arguments keyword-only).
 
 width, height: render resolution in pixels.
@@ -518,6 +543,11 @@ light_size_tolerance (default 1e-3, (0, 5e-3]): the Radius is taken on the rays 
   changes that light's airlight by more than this relative amount (within sqrt(0.75 / tol)
   radii of the light in clear fog) and skipped beyond; the add-on's Automatic passes a quarter
   of its accuracy target.
+light_pass_index (optional; one integer per light, the point lights, then the spots, then the
+  suns): the per-light airlight pass each light adds to (-1: none); adds light_airlight=(G, H,
+  W, 3) float32, G = the largest index + 1, each pass its lights' airlight from the same
+  evaluation as the total (they sum to airlight but for float rounding). Homogeneous fog,
+  models that evaluate per ray, homogeneous_resolution "full" (ValueError otherwise).
 spot_profiles (S, K + 1) (optional): per spot a light distribution over the whole sphere
   instead of its cone (a point light's IES profile, fitted): I(c) = I0 sum_k row[k] c^k, c the
   cosine between spot_axes and the direction light -> point, clamped at 0 (the closed form of

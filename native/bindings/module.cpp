@@ -24,6 +24,16 @@ PYBIND11_MODULE(_native, m) {
             return out;
         },
         "The registered fog models as a list of (name, description); the first is the default.");
+    m.def(
+        "whole_image_models",
+        []() {
+            py::list out;
+            for (const airlight::ModelInfo& info : airlight::model_registry())
+                if (info.bake) out.append(info.name);
+            return out;
+        },
+        "The models that bake the whole image themselves rather than per ray: bake() cannot split "
+        "their airlight into per-light passes (light_pass_index).");
 
     airlight::bindings::bind_physics(m);
     airlight::bindings::bind_bake(m);

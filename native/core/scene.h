@@ -47,6 +47,7 @@ struct PointLight {
     // (homogeneous/sphere_light.h); 0: a point.
     double radius = 0.0;
     bool casts_shadow = true;  // Blender's Cast Shadow (with BakeSettings::shadows)
+    int light_pass = -1;  // its per-light airlight pass (SceneDescription::light_passes); -1: none
 };
 
 // Blender spot light (Cycles' profile, spot_light.h): _I0_ = C * P / (4 pi) in W/sr as for
@@ -74,6 +75,7 @@ struct SpotLight {
     // none beyond (an IES file dark past its last lit angle); pi: the whole sphere.
     double profile_extent = 3.14159265358979323846;
     bool casts_shadow = true;
+    int light_pass = -1;  // as for a point light
 };
 
 // Blender sun lamp (sunlight_layer.h): _direction_ of propagation (the lamp's -Z, normalised by
@@ -83,6 +85,7 @@ struct SunLight {
     Vec3 direction{0.0, 0.0, -1.0};
     RGB E{0.0};
     bool casts_shadow = true;
+    int light_pass = -1;  // as for a point light
 };
 
 // Pinhole or orthographic camera, given the way Blender gives it:
@@ -144,6 +147,10 @@ struct SceneDescription {
     // light: +inf is Hoffman & Preetham's unattenuated sun (sunlight_layer.h).
     std::vector<SunLight> sun_lights;
     double fog_top = std::numeric_limits<double>::infinity();
+    // Per-light airlight passes (BakeResult::light_airlight): each light adds its airlight to
+    // pass light_pass as well as to the total, in the same evaluation (homogeneous fog, models
+    // that bake per ray, every pixel exact: validate.cpp refuses the rest). 0: none.
+    int light_passes = 0;
 };
 
 }  // namespace airlight
