@@ -68,6 +68,11 @@ struct BakeSettings {
     // (shadow/screen_crossings.h; perspective cameras, falling back to tracing where it does
     // not apply) or traced through Embree for every ray (the check of the rasterization).
     bool shadow_crossings_traced = false;
+    // Soft shadows (penumbrae): a point or spot light with a Radius casts its shadows from this
+    // many points of its sphere (homogeneous/sphere_light.h sphere_light_shadow_samples), each
+    // a shadow volume, and the fog is lit by their mean; 1: from its centre (hard shadows).
+    // Homogeneous fog (fog objects take their lights as points).
+    int shadow_samples = 1;
     // Gaussian fog with the Fogshop models (perspective, no noise): > 0 refines every (light,
     // Gaussian) pair whose bound on Fogshop's relative error exceeds this accuracy by the exact
     // integral over the Gaussian's support (gaussian/refine.h), each to a tenth of it. 0: Fogshop's

@@ -446,34 +446,41 @@ void FogEvaluator::set_up_shadows(const SceneDescription& scene, const BakeSetti
     if (casters.triangles.empty()) return;
     std::vector<ShadowLight> lights;
     // Per light of the scene: -1 in _scene_ (and nothing in _kept_) for a light the fog drops,
-    // else its volume (-1: Cast Shadow off) in both.
-    auto place = [&](std::vector<int>& scene_list, std::vector<int>& kept, bool keeps, bool casts,
-                     const ShadowLight& light) {
+    // else its (first) volume (-1: Cast Shadow off) in both; _samples_ its volumes' count.
+    auto place = [&](std::vector<int>& scene_list, std::vector<int>& kept, std::vector<int>* samples, bool keeps,
+                     bool casts, const std::vector<ShadowLight>& light) {
         scene_list.push_back(-1);
         if (!keeps) return;
-        if (casts) lights.push_back(light);
-        kept.push_back(casts ? int(lights.size()) - 1 : -1);
+        kept.push_back(casts ? int(lights.size()) : -1);
+        if (casts) lights.insert(lights.end(), light.begin(), light.end());
+        if (samples) samples->push_back(casts ? int(light.size()) : 1);
         scene_list.back() = kept.back();
     };
+    // A point or spot light's shadow samples: its centre, or points of its sphere.
+    const std::vector<Vec3> offsets = sphere_light_shadow_samples(gaussian_ ? 1 : settings.shadow_samples);
+    auto positional = [&](const Vec3& s, double radius) {
+        std::vector<ShadowLight> out;
+        for (const Vec3& q : radius > 0.0 ? offsets : std::vector<Vec3>{Vec3(0.0)}) {
+            out.emplace_back();
+            out.back().position = s + radius * q;
+        }
+        return out;
+    };
     auto nonzero = [](const RGB& w) { return w.x != 0.0 || w.y != 0.0 || w.z != 0.0; };
-    for (const PointLight& light : scene.point_lights) {
-        ShadowLight sl;
-        sl.position = light.position;
-        place(scene_point_volume_, light_volume_, keeps_light(scene, light), light.casts_shadow, sl);
-    }
+    for (const PointLight& light : scene.point_lights)
+        place(scene_point_volume_, light_volume_, &light_samples_, keeps_light(scene, light), light.casts_shadow,
+              positional(light.position, light.radius));
     // (With Gaussians, spot_volume_ and sun_volume_ follow gaussian_spots_ and gaussian_suns_.)
-    for (const SpotLight& spot : scene.spot_lights) {
-        ShadowLight sl;
-        sl.position = spot.position;
-        place(scene_spot_volume_, spot_volume_, nonzero(gaussian_ ? spot.I0 : scene.medium.albedo * spot.I0),
-              spot.casts_shadow, sl);
-    }
+    for (const SpotLight& spot : scene.spot_lights)
+        place(scene_spot_volume_, spot_volume_, &spot_samples_,
+              nonzero(gaussian_ ? spot.I0 : scene.medium.albedo * spot.I0), spot.casts_shadow,
+              positional(spot.position, spot.radius));
     for (const SunLight& sun : scene.sun_lights) {
         ShadowLight sl;
         sl.directional = true;
         sl.direction = glm::normalize(sun.direction);
-        place(scene_sun_volume_, sun_volume_, nonzero(gaussian_ ? sun.E : scene.medium.albedo * sun.E * sigma_t_),
-              sun.casts_shadow, sl);
+        place(scene_sun_volume_, sun_volume_, nullptr,
+              nonzero(gaussian_ ? sun.E : scene.medium.albedo * sun.E * sigma_t_), sun.casts_shadow, {sl});
     }
     if (lights.empty()) return;
     for (const LightData& light : lights_) light_peak_.push_back(std::max({light.weight.x, light.weight.y, light.weight.z}));
@@ -600,8 +607,8 @@ const uint32_t* FogEvaluator::shadow_masks(const float* values, int m) const {
     std::vector<uint32_t>& masks = thread_scratch<Masks>().masks;
     masks.assign(size_t(m), 0u);
     uint32_t always = 0;  // spots and suns: no unshadowed value to weigh them by
-    for (int v : spot_volume_)
-        if (v >= 0) always |= ShadowVolumes::light_mask(v);
+    for (size_t i = 0; i < spot_volume_.size(); ++i)
+        if (spot_volume_[i] >= 0) always |= sample_mask(spot_volume_[i], spot_samples_[i]);
     for (int v : sun_volume_)
         if (v >= 0) always |= ShadowVolumes::light_mask(v);
     const size_t L = lights_.size();
@@ -611,7 +618,7 @@ const uint32_t* FogEvaluator::shadow_masks(const float* values, int m) const {
         uint32_t mask = always;
         for (size_t l = 0; l < L; ++l)
             if (light_volume_[l] >= 0 && light_peak_[l] * double(values[l * size_t(m) + k]) > kShadowCull * total)
-                mask |= ShadowVolumes::light_mask(light_volume_[l]);
+                mask |= sample_mask(light_volume_[l], light_samples_[l]);
         masks[size_t(k)] = mask;
     }
     return masks.data();
@@ -654,6 +661,24 @@ void FogEvaluator::relight_spans(const LightData& light, int v, const double* co
         const double t_start = near ? double(near[k]) : 0.0;
         value[k] += float(std::exp(-sigma_t_ * (double(span_a[q]) - t_start)) * double(span_value[q]));
     }
+}
+
+void FogEvaluator::relight_samples(const LightData& light, int v, int n, const double* cos_gamma, const float* near,
+                                   const float* Dvp, int m, const LitIntervals* lit, float* value) const {
+    if (n <= 1) return relight_spans(light, v, cos_gamma, near, Dvp, m, lit, value);
+    struct Samples {
+        std::vector<float> unshadowed, one;
+        std::vector<double> sum;
+    };
+    Samples& s = thread_scratch<Samples>();
+    s.unshadowed.assign(value, value + m);
+    s.sum.assign(size_t(m), 0.0);
+    for (int j = 0; j < n; ++j) {
+        s.one = s.unshadowed;
+        relight_spans(light, v + j, cos_gamma, near, Dvp, m, lit, s.one.data());
+        for (int k = 0; k < m; ++k) s.sum[size_t(k)] += double(s.one[size_t(k)]);
+    }
+    for (int k = 0; k < m; ++k) value[k] = float(s.sum[size_t(k)] / n);
 }
 
 const LitIntervals* FogEvaluator::lit_intervals(const Ray* rays, const float* t0, const float* t1, int n,
@@ -844,7 +869,8 @@ void FogEvaluator::eval_soa(const double* dx, const double* dy, const double* dz
                 const LightData& light = lights_[l];
                 float* v_l = &values[l * size_t(m)];
                 if (light_volume_[l] >= 0)
-                    relight_spans(light, light_volume_[l], &cosines[l * size_t(m)], near, Dvp + k0, m, lit, v_l);
+                    relight_samples(light, light_volume_[l], light_samples_[l], &cosines[l * size_t(m)], near,
+                                    Dvp + k0, m, lit, v_l);
                 accumulate_rgb(v_l, float(light.weight.x), float(light.weight.y), float(light.weight.z), m, sum_r,
                                sum_g, sum_b);
                 if (grp && light.pass >= 0) accumulate_pass(v_l, light.weight, m, G, light.pass, grp);
@@ -949,12 +975,17 @@ void FogEvaluator::eval_many(const Ray* rays, const float* Dvp, const float* t0,
     const LitIntervals* lit = shadows_ ? lit_intervals(rays, t0, Dvp, n, nullptr, film) : nullptr;
     for (size_t l = 0; l < lights_.size(); ++l) {
         const LightData& light = lights_[l];
-        const int v = lit ? light_volume_[l] : -1;
+        const int v = lit ? light_volume_[l] : -1, n_samples = lit ? light_samples_[l] : 1;
         for (int k = 0; k < n; ++k) {
             const double near = t0 ? double(t0[k]) : 0.0;
             RGB term;
-            if (v >= 0 && (model_.visibility_in_integrand() || !fully_lit(lit[k], v, near, double(Dvp[k])))) {
-                term = light.weight * point_airlight_lit(light, v, rays[k].o, rays[k].d, near, Dvp[k], lit[k]);
+            bool all_lit = true;
+            for (int j = 0; j < n_samples && all_lit && v >= 0; ++j)
+                all_lit = fully_lit(lit[k], v + j, near, double(Dvp[k]));
+            if (v >= 0 && (model_.visibility_in_integrand() || !all_lit)) {
+                term = light.weight * sample_mean(v, n_samples, [&](int u) {
+                    return point_airlight_lit(light, u, rays[k].o, rays[k].d, near, Dvp[k], lit[k]);
+                });
             } else {
                 const Vec3 o = near > 0.0 ? rays[k].o + near * rays[k].d : rays[k].o;
                 const Vec3 sv = light.s - o;
@@ -1024,12 +1055,14 @@ RGB FogEvaluator::light_size_airlight(const Vec3& o, const Vec3& d, double t_nea
             !sphere_light_window(sigma_t_, light.s, light.radius, o, d, t_near, Dvp, a, b, light_size_tol_))
             continue;
         const int v = lit ? light_volume_[l] : -1;
-        const RGB term = light.weight * for_spans(v, a, b, [&](double lo, double hi) {
-            const Vec3 x = o + lo * d, sx = light.s - x;
-            const double Dsx = glm::length(sx);
-            const double cos_gamma = Dsx > 0.0 ? std::clamp(glm::dot(d, sx) / Dsx, -1.0, 1.0) : 1.0;
-            return excess(light.s, light.radius, h, light.falloff.get(), lo, hi,
-                          [&] { return airlight(Dsx, cos_gamma, hi - lo); }, nullptr, {});
+        const RGB term = light.weight * sample_mean(v, v >= 0 ? light_samples_[l] : 1, [&](int u) {
+            return for_spans(u, a, b, [&](double lo, double hi) {
+                const Vec3 x = o + lo * d, sx = light.s - x;
+                const double Dsx = glm::length(sx);
+                const double cos_gamma = Dsx > 0.0 ? std::clamp(glm::dot(d, sx) / Dsx, -1.0, 1.0) : 1.0;
+                return excess(light.s, light.radius, h, light.falloff.get(), lo, hi,
+                              [&] { return airlight(Dsx, cos_gamma, hi - lo); }, nullptr, {});
+            });
         });
         La += term;
         if (passes && light.pass >= 0) passes[light.pass] += term;
@@ -1059,9 +1092,11 @@ RGB FogEvaluator::light_size_airlight(const Vec3& o, const Vec3& d, double t_nea
             if (x >= 0.0) cuts.push_back(x);
         }
         const int v = lit ? spot_volume_[i] : -1;
-        const RGB term = spot.weight * for_spans(v, a, b, [&](double lo, double hi) {
-            return excess(spot.s, spot.radius, h, spot.falloff.get(), lo, hi,
-                          [&] { return spot_segment(spot, o + lo * d, d, hi - lo); }, profile, cuts);
+        const RGB term = spot.weight * sample_mean(v, v >= 0 ? spot_samples_[i] : 1, [&](int u) {
+            return for_spans(u, a, b, [&](double lo, double hi) {
+                return excess(spot.s, spot.radius, h, spot.falloff.get(), lo, hi,
+                              [&] { return spot_segment(spot, o + lo * d, d, hi - lo); }, profile, cuts);
+            });
         });
         La += term;
         if (passes && spot.pass >= 0) passes[spot.pass] += term;
@@ -1114,21 +1149,23 @@ RGB FogEvaluator::spot_airlight(const Vec3& o, const Vec3& d, double t_near, dou
     auto segment = [&](const SpotData& spot, const Vec3& from, double len) { return spot_segment(spot, from, d, len); };
     for (size_t i = 0; i < spots_.size(); ++i) {
         const SpotData& spot = spots_[i];
-        const int v = lit ? spot_volume_[i] : -1;
-        double value = 0.0;  // per unit weight
-        if (v >= 0 && model_.visibility_in_integrand()) {
-            const std::vector<double> jumps = span_ends(*lit, v, t_near);
-            value = spot_airlight_visible(spot.cone, phase_, sigma_t_, spot.s, start, d, seg,
-                                          [&](const Vec3& x) { return visible(v, x); }, kShadowRelTol, &jumps);
-        } else if (v < 0 || fully_lit(*lit, v, t_near, Dvp)) {
-            value = segment(spot, start, seg);
-        } else {
+        const int v0 = lit ? spot_volume_[i] : -1;
+        // Per unit weight, with the lit spans of volume _v_.
+        auto value = [&](int v) {
+            if (v >= 0 && model_.visibility_in_integrand()) {
+                const std::vector<double> jumps = span_ends(*lit, v, t_near);
+                return spot_airlight_visible(spot.cone, phase_, sigma_t_, spot.s, start, d, seg,
+                                             [&](const Vec3& x) { return visible(v, x); }, kShadowRelTol, &jumps);
+            }
+            if (v < 0 || fully_lit(*lit, v, t_near, Dvp)) return segment(spot, start, seg);
+            double sum = 0.0;
             for (int k = lit->begin[v]; k < lit->end[v]; ++k) {
                 const double a = lit->spans[k].first, b = lit->spans[k].second;
-                value += std::exp(-sigma_t_ * (a - t_near)) * segment(spot, o + a * d, b - a);
+                sum += std::exp(-sigma_t_ * (a - t_near)) * segment(spot, o + a * d, b - a);
             }
-        }
-        const RGB term = spot.weight * value;
+            return sum;
+        };
+        const RGB term = spot.weight * sample_mean(v0, v0 >= 0 ? spot_samples_[i] : 1, value);
         La += term;
         if (passes && spot.pass >= 0) passes[spot.pass] += term;
     }

@@ -96,7 +96,9 @@ class FogEvaluator {
     long long background_rays() const { return background_rays_.load(); }
     long long pair_terms() const { return pair_terms_.load(); }
     // The shadow volumes (null without shadows), and per light of the scene (its point lights,
-    // spots and suns in the description's order) its light in them (-1: unshadowed).
+    // spots and suns in the description's order) its light in them (-1: unshadowed); with
+    // soft-shadow samples, the first sample's volume (the surfaces' glow takes its shadow from
+    // that point of the sphere, within the Radius of the centre).
     const ShadowVolumes* shadow_volumes() const { return shadows_.get(); }
     const std::vector<int>& scene_point_volumes() const { return scene_point_volume_; }
     const std::vector<int>& scene_spot_volumes() const { return scene_spot_volume_; }
@@ -201,6 +203,9 @@ class FogEvaluator {
     // recomputed over the lit spans of light _v_ where a ray is not lit all along.
     void relight_spans(const LightData& light, int v, const double* cos_gamma, const float* near, const float* Dvp,
                        int m, const LitIntervals* lit, float* value) const;
+    // relight_spans averaged over the light's _n_ shadow samples, volumes v .. v + n - 1.
+    void relight_samples(const LightData& light, int v, int n, const double* cos_gamma, const float* near,
+                         const float* Dvp, int m, const LitIntervals* lit, float* value) const;
 
     // The visibility of light _v_ (for the reference model).
     bool visible(int v, const Vec3& p) const { return shadows_->lit_at(v, p); }
@@ -289,6 +294,23 @@ class FogEvaluator {
     mutable std::atomic<std::uint64_t> refine_spent_{0};
     mutable std::atomic<bool> refine_abandoned_{false}, refine_counting_{true};
     std::vector<int> light_volume_, spot_volume_, sun_volume_;
+    // Per point light and spot its shadow samples (BakeSettings::shadow_samples): volumes
+    // light_volume_[l] .. + light_samples_[l] - 1 (1: its centre's alone).
+    std::vector<int> light_samples_, spot_samples_;
+    // The mean of f(volume) over the _n_ shadow samples of a light from volume _v_ (f(v) for one).
+    template <class F>
+    static double sample_mean(int v, int n, F f) {
+        if (n <= 1) return f(v);
+        double sum = 0.0;
+        for (int j = 0; j < n; ++j) sum += f(v + j);
+        return sum / n;
+    }
+    // The mask bits of those volumes.
+    static uint32_t sample_mask(int v, int n) {
+        uint32_t mask = 0;
+        for (int j = 0; j < n; ++j) mask |= ShadowVolumes::light_mask(v + j);
+        return mask;
+    }
     std::vector<int> scene_point_volume_, scene_spot_volume_, scene_sun_volume_;
     std::vector<int> origin_count_;  // per light of shadows_: its count at origin_
     bool origin_ambiguous_ = false;  // origin_ on a frustum boundary: rays count at their start

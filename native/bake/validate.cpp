@@ -199,6 +199,8 @@ void validate(const SceneDescription& scene, const BakeSettings& settings) {
                                         " out of range (vertex count " + std::to_string(n_vertices) + ")");
     require(settings.threads >= 0 && settings.threads <= kMaxThreads, thread_count_error(settings.threads));
     require(settings.aa_samples >= 1 && settings.aa_samples <= 64, "aa_samples must be in [1, 64]");
+    require(settings.shadow_samples >= 1 && settings.shadow_samples <= 64,
+            "shadow_samples must be in [1, 64] (1: hard shadows), got " + std::to_string(settings.shadow_samples));
     require(std::isfinite(settings.filter_width) && settings.filter_width >= 0.0,
             "filter_width must be finite and >= 0");
     require(settings.edge_cluster_tol >= 0.0 && !std::isnan(settings.edge_cluster_tol),

@@ -75,7 +75,7 @@ py::dict bake_py(int width, int height, const py::object& cam_to_world, const py
                  const std::string& shadow_crossings, const py::object& light_radii, const py::object& spot_radii,
                  const py::object& spot_profiles, const py::object& spot_profile_in_cone,
                  const py::object& spot_profile_extent, double light_size_tolerance,
-                 const py::object& light_pass_index) {
+                 const py::object& light_pass_index, int shadow_samples) {
     // Gather the scene description from the arrays (shapes checked here, values in bake()).
     SceneDescription scene;
     scene.camera.width = width;
@@ -295,6 +295,7 @@ py::dict bake_py(int width, int height, const py::object& cam_to_world, const py
     if (shadow_crossings != "film" && shadow_crossings != "traced")
         throw py::value_error("shadow_crossings must be 'film' or 'traced', not '" + shadow_crossings + "'");
     settings.shadow_crossings_traced = shadow_crossings == "traced";
+    settings.shadow_samples = shadow_samples;
     if (!(gaussian_accuracy >= 0.0 && gaussian_accuracy < 1.0))
         throw py::value_error("gaussian_accuracy must be in [0, 1) (a relative error; 0: Fogshop alone)");
     settings.gaussian_accuracy = gaussian_accuracy;
@@ -446,7 +447,7 @@ void bind_bake(py::module_& m) {
           "shadow_crossings"_a = "film", "light_radii"_a = py::none(), "spot_radii"_a = py::none(),
           "spot_profiles"_a = py::none(), "spot_profile_in_cone"_a = py::none(),
           "spot_profile_extent"_a = py::none(), "light_size_tolerance"_a = BakeSettings().light_size_tolerance,
-          "light_pass_index"_a = py::none(),
+          "light_pass_index"_a = py::none(), "shadow_samples"_a = BakeSettings().shadow_samples,
           R"doc(Bake fog passes for one camera view (all arguments keyword-only).
 
 width, height: render resolution in pixels.
@@ -543,6 +544,11 @@ light_size_tolerance (default 1e-3, (0, 5e-3]): the Radius is taken on the rays 
   changes that light's airlight by more than this relative amount (within sqrt(0.75 / tol)
   radii of the light in clear fog) and skipped beyond; the add-on's Automatic passes a quarter
   of its accuracy target.
+shadow_samples (default 1, [1, 64]): with shadows, a point or spot light with a Radius casts
+  them from this many points of its sphere, which give the fog the penumbrae of Cycles' sphere
+  light (sphere_light_shadow_samples: their projection covers the disk facing any point
+  uniformly); each is a shadow volume of its own (the shadows' cost times about this). 1: from
+  the centre (hard shadows). Homogeneous fog.
 light_pass_index (optional; one integer per light, the point lights, then the spots, then the
   suns): the per-light airlight pass each light adds to (-1: none); adds light_airlight=(G, H,
   W, 3) float32, G = the largest index + 1, each pass its lights' airlight from the same

@@ -240,4 +240,37 @@ double sphere_light_airlight_quadrature(const PhaseFunction& phase, double sigma
     return sigma_t * integrate_cut(f, a, b, cuts, rel_tol);
 }
 
+std::vector<Vec3> sphere_light_shadow_samples(int n) {
+    if (n <= 1) return {Vec3(0.0)};
+    // m points and their mirror images (so that the samples' mean is the centre: no shifted
+    // light), and the centre for odd n.
+    const int m = n / 2;
+    const double golden = 0.5 * (std::sqrt(5.0) - 1.0), shuffle = std::sqrt(2.0) - 1.0;
+    // The radii's order: k ranked by frac(k (sqrt 2 - 1)), unrelated to the directions' z (linear
+    // in k) and azimuth (frac(k golden)).
+    std::vector<int> order(static_cast<size_t>(m)), rank(static_cast<size_t>(m));
+    for (int k = 0; k < m; ++k) order[size_t(k)] = k;
+    std::sort(order.begin(), order.end(),
+              [&](int a, int b) { return std::fmod(a * shuffle, 1.0) < std::fmod(b * shuffle, 1.0); });
+    for (int q = 0; q < m; ++q) rank[size_t(order[size_t(q)])] = q;
+    std::vector<Vec3> out;
+    for (int k = 0; k < m; ++k) {
+        // Radius: F^{-1}((rank + 0.5) / m) by bisection over theta = asin rho.
+        const double u = (rank[size_t(k)] + 0.5) / m;
+        double lo = 0.0, hi = 0.5 * kPi;
+        for (int it = 0; it < 60; ++it) {
+            const double mid = 0.5 * (lo + hi);
+            ((2.0 * mid - std::sin(2.0 * mid)) / kPi < u ? lo : hi) = mid;
+        }
+        const double rho = std::sin(0.5 * (lo + hi));
+        // Direction: the Fibonacci sphere's k-th point (of m).
+        const double z = 1.0 - (2.0 * k + 1.0) / m, ring = std::sqrt(std::max(0.0, 1.0 - z * z));
+        const double phi = 2.0 * kPi * std::fmod(k * golden, 1.0);
+        out.push_back(rho * Vec3(ring * std::cos(phi), ring * std::sin(phi), z));
+    }
+    for (int k = 0; k < m; ++k) out.push_back(-out[size_t(k)]);
+    if (n % 2) out.push_back(Vec3(0.0));
+    return out;
+}
+
 }  // namespace airlight

@@ -89,4 +89,13 @@ double sphere_light_airlight_quadrature(const PhaseFunction& phase, double sigma
                                         double rel_tol, const std::function<double(const Vec3&)>& profile = nullptr,
                                         std::vector<double> cuts = {});
 
+// Soft shadows: _n_ points in the unit ball whose projection along any direction covers the
+// unit disk uniformly, so that the shadows cast from a light's centre + r times them average to
+// those of the disk facing each point of the fog (Cycles' sphere light), whatever the point.
+// Their density in the ball is 1 / (pi^2 sqrt(1 - rho^2)) (its X-ray transform is constant on
+// the disk): radii at stratified quantiles of F(rho) = (2 asin rho - sin(2 asin rho)) / pi,
+// directions on a Fibonacci sphere, the radii shuffled against them, in mirrored pairs (their
+// mean is the centre; odd n adds the centre). n = 1: the centre (hard shadows).
+std::vector<Vec3> sphere_light_shadow_samples(int n);
+
 }  // namespace airlight

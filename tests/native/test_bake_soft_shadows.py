@@ -1,0 +1,185 @@
+"""Soft shadows (shadow_samples): a light of Radius 1 m behind a wall with a slit, its shaft
+seen across. The bake against an independent reference that integrates, along each ray, the
+disk light's in-scattering times the visible share of the disk facing each point (a polar grid
+on the disk, each point's segment tested against the wall): 16 and 32 samples within 0.5 %
+mean, where the hard shadows (1 sample, the centre) are several times further off; one sample
+is the plain bake bit for bit, a light without Radius ignores the samples, and the per-light
+passes take them."""
+import math
+
+import numpy as np
+import pytest
+from scipy import special
+
+import _native
+from scene_util import camera_matrix, merge, perspective, pixel_dirs_camera, quad
+
+W, H = 40, 30
+SIGMA, I0, R = 0.1, 400.0, 1.0
+LIGHT = np.array([0.0, 9.0, 1.0])
+WALL_Y, SLIT = 6.0, (-0.6, 0.6, -4.0, 6.0)  # x0 x1 z0 z1 of the hole
+BIG = 30.0
+
+def wall():
+    """The wall y = WALL_Y with the hole SLIT, as four rectangles."""
+    x0, x1, z0, z1 = SLIT
+    y = WALL_Y
+    parts = [quad([[-BIG, y, -BIG], [x0, y, -BIG], [x0, y, BIG], [-BIG, y, BIG]]),
+             quad([[x1, y, -BIG], [BIG, y, -BIG], [BIG, y, BIG], [x1, y, BIG]]),
+             quad([[x0, y, -BIG], [x1, y, -BIG], [x1, y, z0], [x0, y, z0]]),
+             quad([[x0, y, z1], [x1, y, z1], [x1, y, BIG], [x0, y, BIG]])]
+    return merge(parts)
+
+
+def camera():
+    """At (-6, 1, 1), looking 35 deg from +x towards +y: across the shaft the slit lets through."""
+    f = np.array([math.cos(math.radians(35)), math.sin(math.radians(35)), 0.0])
+    up = np.array([0, 0, 1.0]); right = np.cross(f, up); right /= np.linalg.norm(right); up = np.cross(right, f)
+    Rm = np.stack([right, up, -f], axis=1)
+    return camera_matrix(Rm, np.array([-6.0, 1.0, 1.0]))
+
+
+def bake(k, **extra):
+    """The bake with _k_ shadow samples (model sun05_exact, no edge supersampling)."""
+    v, t = wall()
+    args = dict(width=W, height=H, cam_to_world=camera(), projection=perspective(math.radians(60), W, H, 0.1, 100),
+                vertices=v, triangles=t, light_positions=LIGHT[None], light_intensities=np.array([[I0] * 3]),
+                sigma_t=SIGMA, threads=2, clip_start=0.1, clip_end=100.0, shadows=True, light_radii=np.array([R]),
+                aa_samples=1, model="sun05_exact")
+    args.update(extra)
+    return _native.bake(**args, **({} if k is None else {"shadow_samples": k}))
+
+
+def falloff(d):
+    """Cycles' disk of radius R facing the point, per unit intensity (sphere_light.h's F_r)."""
+    D = np.sqrt(d*d + R*R)
+    return (2/R**2)*(np.exp(-SIGMA*d) - d/D*np.exp(-SIGMA*D) - SIGMA*d*(special.exp1(SIGMA*d) - special.exp1(SIGMA*D)))
+
+# The disk's equal-area polar grid (unit radius).
+NR, NA = 24, 48
+rr = np.sqrt((np.arange(NR)+0.5)/NR); aa = 2*np.pi*(np.arange(NA)+0.5)/NA
+DISK = np.stack([np.repeat(rr, NA)*np.cos(np.tile(aa, NR)), np.repeat(rr, NA)*np.sin(np.tile(aa, NR))], 1)
+
+def visible_fraction(x):
+    """x: (N,3) points; fraction of the disk facing each visible through the slit."""
+    n = LIGHT - x; dist = np.linalg.norm(n, axis=1); n /= dist[:, None]
+    a = np.cross(n, [0, 0, 1.0]); a /= np.linalg.norm(a, axis=1)[:, None]; b = np.cross(n, a)
+    p = LIGHT + R*(DISK[None, :, 0, None]*a[:, None] + DISK[None, :, 1, None]*b[:, None])  # (N, M, 3)
+    s = (WALL_Y - x[:, None, 1]) / (p[..., 1] - x[:, None, 1])
+    q = x[:, None] + s[..., None]*(p - x[:, None])
+    cross = (s > 0) & (s < 1)
+    inside = (q[..., 0] > SLIT[0]) & (q[..., 0] < SLIT[1]) & (q[..., 2] > SLIT[2]) & (q[..., 2] < SLIT[3])
+    return np.mean(~cross | inside, axis=1)
+
+def reference(depth, dirs, eye, t0):
+    """Each ray's airlight: the disk's in-scattering (isotropic) times the share of the disk facing
+    each point that it sees through the slit, by the trapezoid rule over 1500 points."""
+    out = np.zeros(len(dirs))
+    for i, (d, D) in enumerate(zip(dirs, depth)):
+        end = min(D, 60.0)
+        t = np.linspace(t0[i], end, 1500); x = eye + t[:, None]*d
+        dist = np.linalg.norm(LIGHT - x, axis=1)
+        f = SIGMA/(4*np.pi)*np.exp(-SIGMA*(t - t0[i]))*I0*falloff(dist)*visible_fraction(x)
+        out[i] = np.trapz(f, t)
+    return out
+
+
+
+@pytest.fixture(scope="module")
+def shaft():
+    """(bakes by sample count, the sampled pixels, their reference)."""
+    bakes = {k: bake(k) for k in (1, 8, 16, 32)}
+    cam = camera()
+    local = pixel_dirs_camera(math.radians(60), W, H)
+    dirs, t0 = local @ cam[:3, :3].T, 0.1 / -local[..., 2]
+    A = bakes[32]["airlight"][..., 0]
+    idx = np.argwhere(A > 0.05 * np.percentile(A, 99))
+    idx = idx[np.random.default_rng(0).choice(len(idx), size=min(60, len(idx)), replace=False)]
+    j, i = idx[:, 0], idx[:, 1]
+    return bakes, (j, i), reference(bakes[1]["depth"][j, i], dirs[j, i], cam[:3, 3], t0[j, i])
+
+
+def errors(result, pixels, ref):
+    a = result["airlight"][..., 0][pixels].astype(np.float64)
+    return np.abs(a - ref) / np.maximum(ref, 0.05 * np.percentile(ref, 99))
+
+
+def test_samples_match_the_disk_light_shadow(shaft):
+    bakes, pixels, ref = shaft
+    hard = errors(bakes[1], pixels, ref)
+    for k in (16, 32):
+        e = errors(bakes[k], pixels, ref)
+        assert e.mean() < 5e-3 and np.percentile(e, 99) < 1e-2, (k, e.mean(), np.percentile(e, 99))
+        assert hard.mean() > 3.0 * e.mean(), (hard.mean(), e.mean())
+    assert errors(bakes[8], pixels, ref).mean() < hard.mean()
+
+
+def test_one_sample_is_the_plain_bake_and_no_radius_ignores_them():
+    assert np.array_equal(bake(1)["airlight"], bake(None)["airlight"])
+    point = dict(light_radii=None)
+    assert np.array_equal(bake(1, **point)["airlight"], bake(16, **point)["airlight"])
+
+
+def test_light_passes_take_the_samples():
+    r = bake(16, light_pass_index=np.array([0]))
+    np.testing.assert_allclose(r["light_airlight"][0], r["airlight"], rtol=1e-6, atol=1e-9)
+
+
+@pytest.mark.parametrize("k", [0, -1, 65])
+def test_bad_sample_counts(k):
+    with pytest.raises(ValueError, match="shadow_samples"):
+        bake(k)
+
+
+def _penumbra():
+    """addon/airlight/penumbra.py, loaded from its file (it needs numpy alone, not bpy)."""
+    import importlib.util
+    import os
+    path = os.path.join(os.path.dirname(__file__), "..", "..", "addon", "airlight", "penumbra.py")
+    spec = importlib.util.spec_from_file_location("airlight_penumbra", path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def scene_arguments():
+    """The slit scene as (scene arguments, other settings) for penumbra.choose."""
+    v, t = wall()
+    scene = dict(width=W, height=H, cam_to_world=camera(), projection=perspective(math.radians(60), W, H, 0.1, 100),
+                 vertices=v, triangles=t, light_positions=LIGHT[None], light_intensities=np.array([[I0] * 3]),
+                 sigma_t=SIGMA, clip_start=0.1, clip_end=100.0, shadows=True, light_radii=np.array([R]))
+    return scene, dict(threads=2, aa_samples=1, model="sun05_exact")
+
+
+@pytest.mark.parametrize("target", [0.05, 0.01, 0.003])
+def test_automatic_count_meets_the_target(shaft, target):
+    """Soft Shadow Samples Automatic: the count the probe picks for an accuracy target errs by
+    at most that target against the independent disk-light reference (plus the reference's
+    own ~0.1 %), and it is the fewest that do among the candidates."""
+    penumbra = _penumbra()
+    _, pixels, ref = shaft
+    scene, settings = scene_arguments()
+    assert penumbra.needed(scene)
+    count, measured, seconds = penumbra.choose(_native, scene, settings, target)
+    assert count in penumbra.CANDIDATES + (penumbra.REFERENCE,) and measured <= penumbra.MARGIN * target
+    assert seconds > 0.0
+    e = errors(_native.bake(**scene, **settings, shadow_samples=count), pixels, ref)
+    assert e.mean() <= target + 1.5e-3, (target, count, e.mean())
+    cheaper = [k for k in penumbra.CANDIDATES if k < count]
+    for k in cheaper:  # a cheaper count would have missed the target (as the probe measured it)
+        reference = _native.bake(**scene, **settings, shadow_samples=penumbra.REFERENCE)["airlight"]
+        measured = penumbra.mean_error(_native.bake(**scene, **settings, shadow_samples=k)["airlight"], reference)
+        assert measured > penumbra.MARGIN * target
+
+
+def test_automatic_needs_a_radius_and_shadows():
+    penumbra = _penumbra()
+    scene, _ = scene_arguments()
+    assert not penumbra.needed(dict(scene, light_radii=np.array([0.0])))
+    assert not penumbra.needed(dict(scene, shadows=False))
+    assert not penumbra.needed(dict(scene, light_shadows=np.array([0.0])))
+    assert not penumbra.needed({k: v for k, v in scene.items() if k != "light_radii"})
+    assert penumbra.needed(dict(scene, light_radii=np.array([0.0]), spot_radii=np.array([0.3])))
+    probe = penumbra.probe_description(dict(scene, width=1920, height=1080))
+    assert abs(probe["width"] * probe["height"] - penumbra.PROBE_PIXELS) < 0.05 * penumbra.PROBE_PIXELS
+    assert abs(probe["width"] / probe["height"] - 1920 / 1080) < 0.02
