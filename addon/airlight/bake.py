@@ -14,7 +14,7 @@ import bpy
 import numpy as np
 from bpy.props import IntProperty, StringProperty
 
-from . import cache, compositor, environment, model_choice, native, scene_description, scene_export, surface
+from . import cache, compositor, environment, model_choice, native, penumbra, scene_description, scene_export, surface
 from .names import PASS_AIRLIGHT_WORLD, light_pass
 from .views import bake_window, render_region, render_size, render_views
 
@@ -50,6 +50,9 @@ LIGHT_PASSES = "light_passes"
 LIGHT_PASSES_OVER = "light_passes_over"
 # prepare()'s notes on the lights (scene_export.ies_notes), which run() puts in its stats.
 LIGHT_NOTES = "light_notes"
+# Soft Shadow Samples Automatic: the accuracy target its probe meets (penumbra.choose), run()
+# sets shadow_samples from it.
+SOFT_SHADOW_TARGET = "soft_shadow_target"
 
 
 # Outputs that keep more than 8 bits per channel (the passes' half-float rounding would show).
@@ -90,6 +93,7 @@ def bake_settings(scene, description=None):
                 gaussian_resolution=model_choice.gaussian_resolution(settings, pixel),
                 gaussian_accuracy=model_choice.gaussian_accuracy(settings),
                 light_size_tolerance=model_choice.light_size_tolerance(settings),
+                shadow_samples=max(1, int(getattr(settings, "shadow_samples", 1))),
                 homogeneous_resolution=getattr(settings, "homogeneous_resolution", 'FULL').lower(),
                 **model_choice.table_settings(settings), **extra)
 
@@ -122,6 +126,9 @@ def prepare(scene, depsgraph, mesh_overrides=None, view=None):
         settings[LIGHT_PASSES] = names
     if notes:
         settings[LIGHT_NOTES] = notes
+    target = model_choice.soft_shadow_target(scene.airlight)
+    if target is not None and penumbra.needed(description):
+        settings[SOFT_SHADOW_TARGET] = target
     if over is not None:
         settings[LIGHT_PASSES_OVER] = over
     lens = scene_description.export_lens(scene, depsgraph, view, description["cam_to_world"],
@@ -159,7 +166,7 @@ def prepare(scene, depsgraph, mesh_overrides=None, view=None):
 
 # The keys of prepare()'s settings that run() takes out before the native bake.
 RUN_ONLY = (SURFACE_GROUPS, REGION, HALF_PASSES, "environment", LENS, SAMPLES, LIGHT_PASSES, LIGHT_PASSES_OVER,
-            LIGHT_NOTES)
+            LIGHT_NOTES, SOFT_SHADOW_TARGET)
 
 
 def native_settings(settings):
@@ -187,6 +194,13 @@ def run(description, settings, filepath, progress=None):
     samples = own[SAMPLES] or (_variants(description, {LENS: lens}) if lens else None)
 
     counts = module.table_cache_counts() if hasattr(module, "table_cache_counts") else None
+    soft = None
+    if own[SOFT_SHADOW_TARGET] is not None:
+        try:
+            soft = penumbra.choose(module, description, settings, own[SOFT_SHADOW_TARGET])
+        except ValueError as ex:
+            raise BakeError(f"Invalid fog scene: {ex}") from None
+        settings["shadow_samples"] = soft[0]
 
     def bake_once(description, progress):
         """(airlight, transmittance, extra passes or None, depth, stats) of one bake."""
@@ -244,6 +258,8 @@ def run(description, settings, filepath, progress=None):
     stats["seconds_exr"] = time.perf_counter() - t0
     if own[LIGHT_NOTES]:
         stats[LIGHT_NOTES] = list(own[LIGHT_NOTES])
+    if soft is not None:
+        stats["soft_shadows"] = soft
     if over is not None:
         stats["light_passes_over_limit"] = over
     if counts is not None:
@@ -559,6 +575,10 @@ def parts_line(stats):
     if stats.get("light_passes_over_limit"):
         count, limit = stats["light_passes_over_limit"]
         parts.append(f"no light passes ({count} fogged lights, over the Light Pass Limit of {limit})")
+    if stats.get("soft_shadows"):
+        samples, error, seconds = stats["soft_shadows"]
+        parts.append(f"soft shadows {samples} sample(s) (probe {1000.0 * seconds:.0f} ms, "
+                     f"{100.0 * error:.2f} % from {penumbra.REFERENCE})")
     if stats.get("tables_built"):
         parts.append(f"{stats['tables_built']} table(s) built")
     return ", ".join(parts)

@@ -189,6 +189,20 @@ def light_size_tolerance(settings):
     return min(LIGHT_SIZE_TOLERANCE_MAX, max(1e-5, LIGHT_SIZE_SHARE * settings.accuracy / 100.0))
 
 
+# Soft Shadow Samples Automatic with an explicit model (whose Accuracy is not shown): the
+# penumbrae are measured against this target.
+SOFT_SHADOW_TARGET = 0.01
+
+
+def soft_shadow_target(settings):
+    """The relative error Soft Shadow Samples Automatic (0) measures its count against
+    (penumbra.choose): the Accuracy target with the Automatic model, else SOFT_SHADOW_TARGET;
+    None for an explicit count or without volumetric shadows."""
+    if not getattr(settings, "volumetric_shadows", False) or getattr(settings, "shadow_samples", 1) != 0:
+        return None
+    return settings.accuracy / 100.0 if settings.model == 'AUTO' else SOFT_SHADOW_TARGET
+
+
 def phase_problem(settings):
     """A message if the explicitly chosen model cannot take the fog's phase, else None."""
     if settings.model == 'AUTO' or is_isotropic(settings):

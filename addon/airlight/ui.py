@@ -92,6 +92,8 @@ class AIRLIGHT_PT_scene(bpy.types.Panel):
             col.prop(settings, "motion_samples")
         col.prop(settings, "auto_composite")
         col.prop(settings, "volumetric_shadows")
+        if settings.volumetric_shadows:
+            col.prop(settings, "shadow_samples")
         note = shadow_note(context.scene)
         if note:
             col.label(text=note, icon='INFO')

@@ -134,3 +134,34 @@ def test06_bake_operator_lamp_in_a_closed_box(tmp_path):
     assert lit_on < 1e-5 * lit_off, (lit_on, lit_off)
     # (the same to rounding: with shadows the edge samples take the per-ray path, not the lattice)
     np.testing.assert_allclose(passes[True][1], passes[False][1], rtol=1e-6, atol=1e-9)
+
+
+def test07_soft_shadow_samples_automatic(tmp_path):
+    """Soft Shadow Samples: Automatic (the default) probes a lamp with a Radius behind a caster
+    and reports the count it took (console line and stats); a lamp without Radius, an explicit
+    count or shadows off take no probe; the explicit count reaches the bake."""
+    from airlight import bake
+    scene = build_plane_scene(tmp_path)
+    assert scene.airlight.shadow_samples == 0  # Automatic
+    _cube("Caster", (0.5, 0.3, 0.6), 0.3, scene)
+    lamp = bpy.data.lights["Lamp"]
+    lamp.shadow_soft_size = 0.5
+    bpy.context.view_layer.update()
+    depsgraph = bpy.context.evaluated_depsgraph_get()
+    description, settings = bake.prepare(scene, depsgraph)
+    assert settings[bake.SOFT_SHADOW_TARGET] == pytest.approx(0.01) and settings["shadow_samples"] == 1
+    stats, _ = bake.run(description, settings, str(tmp_path / "auto.exr"))
+    samples, error, seconds = stats["soft_shadows"]
+    assert samples in (1, 8, 16) and error <= 0.005 and seconds > 0.0
+    assert f"soft shadows {samples} sample(s)" in bake.parts_line(stats)
+    scene.airlight.accuracy = 0.01  # below what any candidate measures: the reference count
+    description, settings = bake.prepare(scene, depsgraph)
+    assert bake.run(description, settings, str(tmp_path / "fine.exr"))[0]["soft_shadows"][0] == 16
+    scene.airlight.shadow_samples = 4
+    description, settings = bake.prepare(scene, depsgraph)
+    assert bake.SOFT_SHADOW_TARGET not in settings and settings["shadow_samples"] == 4
+    assert "soft_shadows" not in bake.run(description, settings, str(tmp_path / "four.exr"))[0]
+    scene.airlight.shadow_samples = 0
+    lamp.shadow_soft_size = 0.0
+    bpy.context.view_layer.update()
+    assert bake.SOFT_SHADOW_TARGET not in bake.prepare(scene, bpy.context.evaluated_depsgraph_get())[1]

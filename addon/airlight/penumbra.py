@@ -1,0 +1,91 @@
+"""Soft shadows: how many points of a lamp's sphere cast its volumetric shadows.
+
+A point or spot light with a Radius casts soft shadows in Cycles. The bake casts them from
+`shadow_samples` points of the light's sphere (native sphere_light_shadow_samples), one
+shadow volume each, and lights the fog by their mean: each sample costs about one more
+shadowed bake. Soft Shadow Samples *Automatic* (0) measures, per frame, what the samples
+change: a probe bake of the frame at about PROBE_PIXELS pixels (the same view, no edge
+sub-samples) with REFERENCE samples, against which the candidates are baked at the same
+resolution, and the fewest whose mean relative error over the lit fog is within MARGIN of
+the target wins (the REFERENCE itself where none is). Lights with no Radius, no shadows, or fog objects (whose
+lights are points) need no probe: one sample, the light's centre.
+
+The measured error is the samples' difference from REFERENCE, which is itself ~0.1 % from the
+sphere light's exact shadow on test_bake_soft_shadows.py's slit, within Cycles' noise on
+benchmarks/penumbra_gap.py's scenes at a 1 m Radius (docs/models.md); MARGIN leaves the other
+half of the target to it. Street at 1080p, 0.25 m lamps: the probe adds ~0.07 s to a 0.64 s bake.
+"""
+
+import time
+
+import numpy as np
+
+# Candidate counts, cheapest first (2 and 4 samples band the penumbra more than the hard
+# shadow errs: measured worse than 1 in test_bake_soft_shadows.py's slit).
+CANDIDATES = (1, 8)
+REFERENCE = 16
+# The probe's size: ~1/14 of a 1080p frame's width and height.
+PROBE_PIXELS = 10000
+# The share of the target the candidates' measured difference may take.
+MARGIN = 0.5
+# Pixels whose reference airlight is below this share of its 99th percentile are not
+# weighed (no fog to speak of), and relative errors are taken against at least it.
+FLOOR = 0.01
+
+
+def needed(description):
+    """Whether any baked light of _description_ (`_native.bake`'s scene arguments) casts soft
+    shadows: shadows on, a point light or spot with a Radius and its shadow flag, and no fog
+    objects."""
+    if not description.get("shadows") or len(description.get("rbf_centres", ())) > 0:
+        return False
+    for radii, flags in (("light_radii", "light_shadows"), ("spot_radii", "spot_shadows")):
+        r = np.asarray(description.get(radii, ()), dtype=np.float64).ravel()
+        if r.size == 0:
+            continue
+        f = description.get(flags)
+        f = np.ones_like(r) if f is None else np.asarray(f, dtype=np.float64).ravel()
+        if np.any((r > 0.0) & (f != 0.0)):
+            return True
+    return False
+
+
+def probe_description(description):
+    """_description_ at about PROBE_PIXELS pixels (no more than it has; at least 16 on a
+    side): the same camera and projection, so the same view on fewer pixels."""
+    width, height = int(description["width"]), int(description["height"])
+    scale = max(1.0, (width * height / PROBE_PIXELS) ** 0.5)
+    out = dict(description)
+    out["width"], out["height"] = max(16, round(width / scale)), max(16, round(height / scale))
+    return out
+
+
+def mean_error(airlight, reference):
+    """Mean relative difference of _airlight_ from _reference_ (H x W x 3) over the lit fog:
+    the pixels whose reference sum is above FLOOR of its 99th percentile."""
+    a, ref = np.sum(airlight, axis=-1, dtype=np.float64), np.sum(reference, axis=-1, dtype=np.float64)
+    floor = FLOOR * float(np.percentile(ref, 99)) if ref.size else 0.0
+    lit = ref > floor
+    if floor <= 0.0 or not lit.any():
+        return 0.0
+    return float(np.mean(np.abs(a[lit] - ref[lit]) / ref[lit]))
+
+
+def choose(module, description, settings, target):
+    """(samples, measured mean error of them, probe seconds): the fewest shadow samples of
+    CANDIDATES whose probe differs from REFERENCE's by at most MARGIN _target_ (relative), else
+    REFERENCE. _settings_: `_native.bake`'s other keyword arguments."""
+    start = time.perf_counter()
+    probe = probe_description(description)
+    args = {k: v for k, v in settings.items() if k not in ("shadow_samples", "light_pass_index")}
+    args["aa_samples"] = 1
+
+    def bake(samples):
+        return module.bake(**probe, **args, shadow_samples=samples)["airlight"]
+
+    reference = bake(REFERENCE)
+    for samples in CANDIDATES:
+        error = mean_error(bake(samples), reference)
+        if error <= MARGIN * target:
+            return samples, error, time.perf_counter() - start
+    return REFERENCE, 0.0, time.perf_counter() - start
