@@ -274,7 +274,7 @@ _LIGHT_ARRAYS = {
     "spots": ("spot_positions", "spot_axes", "spot_intensities", "spot_size", "spot_blend", "spot_spread",
               "spot_radii", "spot_profiles", "spot_profile_in_cone",
               "spot_profile_extent", "spot_shadows"),
-    "suns": ("sun_directions", "sun_irradiances", "sun_shadows"),
+    "suns": ("sun_directions", "sun_irradiances", "sun_angles", "sun_shadows"),
 }
 
 
@@ -578,7 +578,7 @@ def parts_line(stats):
     if stats.get("soft_shadows"):
         samples, error, seconds = stats["soft_shadows"]
         parts.append(f"soft shadows {samples} sample(s) (probe {1000.0 * seconds:.0f} ms, "
-                     f"{100.0 * error:.2f} % from {penumbra.REFERENCE})")
+                     f"measured {100.0 * error:.2f} % from a finer count)")
     if stats.get("tables_built"):
         parts.append(f"{stats['tables_built']} table(s) built")
     return ", ".join(parts)

@@ -1,32 +1,34 @@
 """Soft shadows: how many points of a lamp's sphere cast its volumetric shadows.
 
-A point or spot light with a Radius casts soft shadows in Cycles. The bake casts them from
-`shadow_samples` points of the light's sphere (native sphere_light_shadow_samples), one
+A point or spot light with a Radius, and a sun with an Angle, cast soft shadows in Cycles.
+The bake casts them from `shadow_samples` points of the light's sphere (native
+sphere_light_shadow_samples) or directions over the sun's disk (sun_shadow_directions), one
 shadow volume each, and lights the fog by their mean: each sample costs about one more
 shadowed bake. Soft Shadow Samples *Automatic* (0) measures, per frame, what the samples
-change: a probe bake of the frame at about PROBE_PIXELS pixels (the same view, no edge
-sub-samples) with REFERENCE samples, against which the candidates are baked at the same
-resolution, and the fewest whose mean relative error over the lit fog is within MARGIN of
-the target wins (the REFERENCE itself where none is). Lights with no Radius, no shadows, or fog objects (whose
-lights are points) need no probe: one sample, the light's centre.
-
-The measured error is the samples' difference from REFERENCE, which is itself ~0.1 % from the
-sphere light's exact shadow on test_bake_soft_shadows.py's slit, within Cycles' noise on
-benchmarks/penumbra_gap.py's scenes at a 1 m Radius (docs/models.md); MARGIN leaves the other
-half of the target to it. Street at 1080p, 0.25 m lamps: the probe adds ~0.07 s to a 0.64 s bake.
+change, on probe bakes of the frame at about PROBE_PIXELS pixels (the same view, no edge
+sub-samples):
+- hard shadows (1 sample) when they differ from FIRST_CHECK samples' by at most MARGIN of the
+  target (mean relative difference over the lit fog): the common case, a small Radius, costs
+  the probe's 1 + FIRST_CHECK samples;
+- else the first count n of LADDER whose bake differs from 2n's by at most MARGIN of the
+  target, else the last. The samples converge about as 1/n (docs/models.md), so n's error is
+  about twice its difference from 2n's: MARGIN = 1/2 puts it at the target.
+Lights with no Radius or Angle, no shadows, or fog objects (whose lights are points) need no
+probe: one sample, the centre. Street at 1080p, 0.25 m lamps: the probe adds ~0.08 s to a
+0.64 s bake.
 """
 
 import time
 
 import numpy as np
 
-# Candidate counts, cheapest first (2 and 4 samples band the penumbra more than the hard
-# shadow errs: measured worse than 1 in test_bake_soft_shadows.py's slit).
-CANDIDATES = (1, 8)
-REFERENCE = 16
+# The counts Automatic takes. 2 and 4 samples band the penumbra more than the hard shadow
+# errs (measured worse than 1 on test_bake_soft_shadows.py's slit), so the ladder starts at 8.
+FIRST_CHECK = 16
+LADDER = (8, 16, 32, 64)
 # The probe's size: ~1/14 of a 1080p frame's width and height.
 PROBE_PIXELS = 10000
-# The share of the target the candidates' measured difference may take.
+# The share of the target a count's measured difference may take.
 MARGIN = 0.5
 # Pixels whose reference airlight is below this share of its 99th percentile are not
 # weighed (no fog to speak of), and relative errors are taken against at least it.
@@ -35,11 +37,12 @@ FLOOR = 0.01
 
 def needed(description):
     """Whether any baked light of _description_ (`_native.bake`'s scene arguments) casts soft
-    shadows: shadows on, a point light or spot with a Radius and its shadow flag, and no fog
-    objects."""
+    shadows: shadows on, a point light or spot with a Radius or a sun with an Angle, with its
+    shadow flag, and no fog objects."""
     if not description.get("shadows") or len(description.get("rbf_centres", ())) > 0:
         return False
-    for radii, flags in (("light_radii", "light_shadows"), ("spot_radii", "spot_shadows")):
+    for radii, flags in (("light_radii", "light_shadows"), ("spot_radii", "spot_shadows"),
+                         ("sun_angles", "sun_shadows")):
         r = np.asarray(description.get(radii, ()), dtype=np.float64).ravel()
         if r.size == 0:
             continue
@@ -72,20 +75,25 @@ def mean_error(airlight, reference):
 
 
 def choose(module, description, settings, target):
-    """(samples, measured mean error of them, probe seconds): the fewest shadow samples of
-    CANDIDATES whose probe differs from REFERENCE's by at most MARGIN _target_ (relative), else
-    REFERENCE. _settings_: `_native.bake`'s other keyword arguments."""
+    """(samples, measured mean difference from the finer count it was checked against, probe
+    seconds) for _target_ (relative): see the module's docstring. _settings_: `_native.bake`'s
+    other keyword arguments."""
     start = time.perf_counter()
     probe = probe_description(description)
     args = {k: v for k, v in settings.items() if k not in ("shadow_samples", "light_pass_index")}
     args["aa_samples"] = 1
+    bakes = {}
 
-    def bake(samples):
-        return module.bake(**probe, **args, shadow_samples=samples)["airlight"]
+    def airlight(samples):
+        if samples not in bakes:
+            bakes[samples] = module.bake(**probe, **args, shadow_samples=samples)["airlight"]
+        return bakes[samples]
 
-    reference = bake(REFERENCE)
-    for samples in CANDIDATES:
-        error = mean_error(bake(samples), reference)
+    error = mean_error(airlight(1), airlight(FIRST_CHECK))
+    if error <= MARGIN * target:
+        return 1, error, time.perf_counter() - start
+    for coarse, fine in zip(LADDER, LADDER[1:]):
+        error = mean_error(airlight(coarse), airlight(fine))
         if error <= MARGIN * target:
-            return samples, error, time.perf_counter() - start
-    return REFERENCE, 0.0, time.perf_counter() - start
+            return coarse, error, time.perf_counter() - start
+    return LADDER[-1], error, time.perf_counter() - start

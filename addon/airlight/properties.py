@@ -296,12 +296,12 @@ class AirlightSceneSettings(bpy.types.PropertyGroup):
     )
     shadow_samples: IntProperty(
         name="Soft Shadow Samples",
-        description="Volumetric shadows of point and spot lights with a Radius are cast from this "
-                    "many points of the light's sphere, which soften the shafts' edges as Cycles' "
-                    "sphere lights do (1: from the light's centre, hard edges). Each costs about one "
-                    "more shadowed bake. 0: Automatic, the fewest (1, 8 or 16) whose effect, measured "
-                    "on a small probe bake of each frame, is within the Accuracy target (1 % with an "
-                    "explicit model)",
+        description="Volumetric shadows of point and spot lights with a Radius, and of suns with an "
+                    "Angle, are cast from this many points of the light's sphere (directions over the "
+                    "sun's disk), which soften the shafts' edges as Cycles does (1: from the light's "
+                    "centre, hard edges). Each costs about one more shadowed bake. 0: Automatic, the "
+                    "fewest (1, 8, 16, 32 or 64) whose effect, measured on small probe bakes of each "
+                    "frame, is within the Accuracy target (1 % with an explicit model)",
         default=0, min=0, max=64, soft_max=32,
     )
     surface_shading: BoolProperty(

@@ -265,6 +265,7 @@ class LightInstance(NamedTuple):
     area_size: tuple = (0.0, 0.0)  # area lights: the size along the light's X and Y, m
     spread: float = math.pi    # area lights: Cycles' Spread, rad (pi: the full cosine lobe)
     radius: float = 0.0        # points and spots: Radius (shadow_soft_size), m
+    angle: float = 0.0         # suns: Angle, the disk's angular diameter (soft shadows), rad
     ies_text: str = None       # points, spots: the IES profile's text (Cycles, an IES Texture on Strength)
     ies_problem: str = ""      # why an IES Texture's profile could not be read (baked without it)
 
@@ -288,7 +289,8 @@ def _light_instance(instance, obj, engine):
         color=np.array(light.color, dtype=np.float64) * factor, energy=light.energy,
         spot_size=float(light.spot_size) if spot else 0.0, spot_blend=float(light.spot_blend) if spot else 0.0,
         casts_shadow=bool(getattr(light, "use_shadow", True)),
-        radius=float(light.shadow_soft_size) if light.type in ('POINT', 'SPOT') else 0.0, **ies,
+        radius=float(light.shadow_soft_size) if light.type in ('POINT', 'SPOT') else 0.0,
+        angle=float(light.angle) if light.type == 'SUN' else 0.0, **ies,
         **_area_fields(light))
 
 

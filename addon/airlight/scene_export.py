@@ -249,16 +249,17 @@ def sun_lights(lights, plan, fog_top, names=None):
     fog_top keyword arguments, or {} when there are none.
 
     Cycles' sun: irradiance E = colour * strength in W/m^2 arriving along the lamp's -Z; its
-    angle (soft shadows) is ignored. fog_top: the world Z of the fog layer's top when
+    Angle (sun_angles, when a sun has one) softens its volumetric shadows. fog_top: the world Z of the fog layer's top when
     `scene.airlight.use_fog_top` is on (sunlight fades through the fog above each point),
     else +inf (Hoffman-Preetham: unattenuated sunlight), see native/homogeneous/sunlight_layer.h.
     """
-    directions, irradiances = [], []
+    directions, irradiances, angles = [], [], []
     for light, emission, direction in _directed_lights(lights, 'SUN', plan):
         if names is not None:
             names.append(light.name)
         directions.append(direction)
         irradiances.append(emission)
+        angles.append(light.angle)
     if not directions:
         return {}
     if math.isnan(fog_top):
@@ -266,6 +267,8 @@ def sun_lights(lights, plan, fog_top, names=None):
     description = _check_finite(dict(sun_directions=np.array(directions, dtype=np.float64).reshape(-1, 3),
                                       sun_irradiances=np.array(irradiances, dtype=np.float64).reshape(-1, 3)))
     description["fog_top"] = fog_top
+    if any(angles):
+        description["sun_angles"] = np.array(angles, dtype=np.float64)
     return description
 
 

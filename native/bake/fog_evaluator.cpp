@@ -44,6 +44,15 @@ bool fully_lit(const LitIntervals& lit, int v, double t0, double t1) {
     return lit.end[v] - lit.begin[v] == 1 && lit.spans[lit.begin[v]].first == t0 && lit.spans[lit.begin[v]].second == t1;
 }
 
+// How many of a light's _n_ shadow samples (volumes v ..) a ray [t0, t1] needs: 1 where every
+// one lights it all along (they agree there), else _n_.
+int samples_needed(const LitIntervals* lit, int v, int n, double t0, double t1) {
+    if (v < 0 || !lit || n <= 1) return 1;
+    for (int j = 0; j < n; ++j)
+        if (!fully_lit(*lit, v + j, t0, t1)) return n;
+    return 1;
+}
+
 // The sun's factor over the lit span [a, b] of a ray from o, attenuated from the fog's start
 // t_start (sunlight_layer_factor attenuates from the start of its own segment inside the layer).
 double sunlight_span(double sigma, double h_top, double mu_s, const Vec3& o, const Vec3& d, double t_start, double a,
@@ -476,11 +485,16 @@ void FogEvaluator::set_up_shadows(const SceneDescription& scene, const BakeSetti
               nonzero(gaussian_ ? spot.I0 : scene.medium.albedo * spot.I0), spot.casts_shadow,
               positional(spot.position, spot.radius));
     for (const SunLight& sun : scene.sun_lights) {
-        ShadowLight sl;
-        sl.directional = true;
-        sl.direction = glm::normalize(sun.direction);
-        place(scene_sun_volume_, sun_volume_, nullptr,
-              nonzero(gaussian_ ? sun.E : scene.medium.albedo * sun.E * sigma_t_), sun.casts_shadow, {sl});
+        // A sun's: its direction, or directions over its disk (Angle).
+        std::vector<ShadowLight> samples;
+        for (const Vec3& w : sun_shadow_directions(glm::normalize(sun.direction), sun.angle,
+                                                   gaussian_ ? 1 : settings.shadow_samples)) {
+            samples.emplace_back();
+            samples.back().directional = true;
+            samples.back().direction = w;
+        }
+        place(scene_sun_volume_, sun_volume_, &sun_samples_,
+              nonzero(gaussian_ ? sun.E : scene.medium.albedo * sun.E * sigma_t_), sun.casts_shadow, samples);
     }
     if (lights.empty()) return;
     for (const LightData& light : lights_) light_peak_.push_back(std::max({light.weight.x, light.weight.y, light.weight.z}));
@@ -609,8 +623,8 @@ const uint32_t* FogEvaluator::shadow_masks(const float* values, int m) const {
     uint32_t always = 0;  // spots and suns: no unshadowed value to weigh them by
     for (size_t i = 0; i < spot_volume_.size(); ++i)
         if (spot_volume_[i] >= 0) always |= sample_mask(spot_volume_[i], spot_samples_[i]);
-    for (int v : sun_volume_)
-        if (v >= 0) always |= ShadowVolumes::light_mask(v);
+    for (size_t i = 0; i < sun_volume_.size(); ++i)
+        if (sun_volume_[i] >= 0) always |= sample_mask(sun_volume_[i], sun_samples_[i]);
     const size_t L = lights_.size();
     for (int k = 0; k < m; ++k) {
         double total = 0.0;
@@ -1055,7 +1069,7 @@ RGB FogEvaluator::light_size_airlight(const Vec3& o, const Vec3& d, double t_nea
             !sphere_light_window(sigma_t_, light.s, light.radius, o, d, t_near, Dvp, a, b, light_size_tol_))
             continue;
         const int v = lit ? light_volume_[l] : -1;
-        const RGB term = light.weight * sample_mean(v, v >= 0 ? light_samples_[l] : 1, [&](int u) {
+        const RGB term = light.weight * sample_mean(v, samples_needed(lit, v, v >= 0 ? light_samples_[l] : 1, t_near, Dvp), [&](int u) {
             return for_spans(u, a, b, [&](double lo, double hi) {
                 const Vec3 x = o + lo * d, sx = light.s - x;
                 const double Dsx = glm::length(sx);
@@ -1092,7 +1106,7 @@ RGB FogEvaluator::light_size_airlight(const Vec3& o, const Vec3& d, double t_nea
             if (x >= 0.0) cuts.push_back(x);
         }
         const int v = lit ? spot_volume_[i] : -1;
-        const RGB term = spot.weight * sample_mean(v, v >= 0 ? spot_samples_[i] : 1, [&](int u) {
+        const RGB term = spot.weight * sample_mean(v, samples_needed(lit, v, v >= 0 ? spot_samples_[i] : 1, t_near, Dvp), [&](int u) {
             return for_spans(u, a, b, [&](double lo, double hi) {
                 return excess(spot.s, spot.radius, h, spot.falloff.get(), lo, hi,
                               [&] { return spot_segment(spot, o + lo * d, d, hi - lo); }, profile, cuts);
@@ -1111,22 +1125,28 @@ RGB FogEvaluator::sun_airlight(const Vec3& o, const Vec3& d, double t_near, doub
     for (size_t i = 0; i < suns_.size(); ++i) {
         const SunData& sun = suns_[i];
         const double p = phase_.eval(-glm::dot(sun.w, d));
-        const int v = lit ? sun_volume_[i] : -1;
-        double G;
-        if (v >= 0 && model_.visibility_in_integrand()) {
-            const std::vector<double> jumps = span_ends(*lit, v, t_near);
-            G = sunlight_factor_visible(sigma_t_, fog_top_, sun.mu_s, o + t_near * d, d, Dvp - t_near,
-                                        [&](const Vec3& x) { return visible(v, x); }, kShadowRelTol, &jumps);
-        } else if (v >= 0 && !fully_lit(*lit, v, t_near, Dvp)) {
-            G = 0.0;
-            for (int k = lit->begin[v]; k < lit->end[v]; ++k)
-                G += sunlight_span(sigma_t_, fog_top_, sun.mu_s, o, d, t_near, lit->spans[k].first, lit->spans[k].second);
-        } else {
-            G = model_.sun_quadrature()
-                    ? sunlight_layer_factor_quadrature(sigma_t_, fog_top_, sun.mu_s, o.z, d.z, t_near, Dvp,
-                                                       kQuadratureRelTol)
-                    : sunlight_layer_factor(sigma_t_, fog_top_, sun.mu_s, o.z, d.z, t_near, Dvp);
-        }
+        const int v0 = lit ? sun_volume_[i] : -1;
+        // The geometric factor with the lit spans of volume _v_ (the airlight takes the sun's
+        // centre; a soft shadow's samples differ in their spans alone).
+        auto factor = [&](int v) {
+            if (v >= 0 && model_.visibility_in_integrand()) {
+                const std::vector<double> jumps = span_ends(*lit, v, t_near);
+                return sunlight_factor_visible(sigma_t_, fog_top_, sun.mu_s, o + t_near * d, d, Dvp - t_near,
+                                               [&](const Vec3& x) { return visible(v, x); }, kShadowRelTol, &jumps);
+            }
+            if (v >= 0 && !fully_lit(*lit, v, t_near, Dvp)) {
+                double sum = 0.0;
+                for (int k = lit->begin[v]; k < lit->end[v]; ++k)
+                    sum += sunlight_span(sigma_t_, fog_top_, sun.mu_s, o, d, t_near, lit->spans[k].first,
+                                         lit->spans[k].second);
+                return sum;
+            }
+            return model_.sun_quadrature()
+                       ? sunlight_layer_factor_quadrature(sigma_t_, fog_top_, sun.mu_s, o.z, d.z, t_near, Dvp,
+                                                          kQuadratureRelTol)
+                       : sunlight_layer_factor(sigma_t_, fog_top_, sun.mu_s, o.z, d.z, t_near, Dvp);
+        };
+        const double G = sample_mean(v0, samples_needed(lit, v0, v0 >= 0 ? sun_samples_[i] : 1, t_near, Dvp), factor);
         const RGB term = sun.weight * (p * G);
         La += term;
         if (passes && sun.pass >= 0) passes[sun.pass] += term;
@@ -1165,7 +1185,7 @@ RGB FogEvaluator::spot_airlight(const Vec3& o, const Vec3& d, double t_near, dou
             }
             return sum;
         };
-        const RGB term = spot.weight * sample_mean(v0, v0 >= 0 ? spot_samples_[i] : 1, value);
+        const RGB term = spot.weight * sample_mean(v0, samples_needed(lit, v0, v0 >= 0 ? spot_samples_[i] : 1, t_near, Dvp), value);
         La += term;
         if (passes && spot.pass >= 0) passes[spot.pass] += term;
     }

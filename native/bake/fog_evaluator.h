@@ -294,9 +294,9 @@ class FogEvaluator {
     mutable std::atomic<std::uint64_t> refine_spent_{0};
     mutable std::atomic<bool> refine_abandoned_{false}, refine_counting_{true};
     std::vector<int> light_volume_, spot_volume_, sun_volume_;
-    // Per point light and spot its shadow samples (BakeSettings::shadow_samples): volumes
+    // Per point light, spot and sun its shadow samples (BakeSettings::shadow_samples): volumes
     // light_volume_[l] .. + light_samples_[l] - 1 (1: its centre's alone).
-    std::vector<int> light_samples_, spot_samples_;
+    std::vector<int> light_samples_, spot_samples_, sun_samples_;
     // The mean of f(volume) over the _n_ shadow samples of a light from volume _v_ (f(v) for one).
     template <class F>
     static double sample_mean(int v, int n, F f) {

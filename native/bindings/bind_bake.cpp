@@ -75,7 +75,7 @@ py::dict bake_py(int width, int height, const py::object& cam_to_world, const py
                  const std::string& shadow_crossings, const py::object& light_radii, const py::object& spot_radii,
                  const py::object& spot_profiles, const py::object& spot_profile_in_cone,
                  const py::object& spot_profile_extent, double light_size_tolerance,
-                 const py::object& light_pass_index, int shadow_samples) {
+                 const py::object& light_pass_index, int shadow_samples, const py::object& sun_angles) {
     // Gather the scene description from the arrays (shapes checked here, values in bake()).
     SceneDescription scene;
     scene.camera.width = width;
@@ -219,6 +219,10 @@ py::dict bake_py(int width, int height, const py::object& cam_to_world, const py
         }
     }
     scene.fog_top = fog_top;
+    if (!sun_angles.is_none() && scene.sun_lights.empty())
+        throw py::value_error("sun_angles needs the sun lights (sun_directions ...)");
+    per_light(sun_angles, "sun_angles", "angle", scene.sun_lights.size(),
+              [&](size_t i, double a) { scene.sun_lights[i].angle = a; });
     if (!spot_radii.is_none() && scene.spot_lights.empty())
         throw py::value_error("spot_radii needs the spot lights (spot_positions ...)");
     per_light(spot_radii, "spot_radii", "radius", scene.spot_lights.size(),
@@ -447,7 +451,7 @@ void bind_bake(py::module_& m) {
           "shadow_crossings"_a = "film", "light_radii"_a = py::none(), "spot_radii"_a = py::none(),
           "spot_profiles"_a = py::none(), "spot_profile_in_cone"_a = py::none(),
           "spot_profile_extent"_a = py::none(), "light_size_tolerance"_a = BakeSettings().light_size_tolerance,
-          "light_pass_index"_a = py::none(), "shadow_samples"_a = BakeSettings().shadow_samples,
+          "light_pass_index"_a = py::none(), "shadow_samples"_a = BakeSettings().shadow_samples, "sun_angles"_a = py::none(),
           R"doc(Bake fog passes for one camera view (all arguments keyword-only).
 
 width, height: render resolution in pixels.
@@ -548,7 +552,10 @@ shadow_samples (default 1, [1, 64]): with shadows, a point or spot light with a 
   them from this many points of its sphere, which give the fog the penumbrae of Cycles' sphere
   light (sphere_light_shadow_samples: their projection covers the disk facing any point
   uniformly); each is a shadow volume of its own (the shadows' cost times about this). 1: from
-  the centre (hard shadows). Homogeneous fog.
+  the centre (hard shadows); a sun with an Angle from this many directions over its disk.
+  Homogeneous fog.
+sun_angles (U,) (optional, radians, [0, pi); default 0): each sun's angular diameter (Blender's
+  Angle), whose disk softens its shadows (shadow_samples); its airlight takes the centre.
 light_pass_index (optional; one integer per light, the point lights, then the spots, then the
   suns): the per-light airlight pass each light adds to (-1: none); adds light_airlight=(G, H,
   W, 3) float32, G = the largest index + 1, each pass its lights' airlight from the same

@@ -204,5 +204,29 @@ TEST(SphereLightShadowSamples, ProjectUniformlyOntoTheFacingDisk) {
     }
 }
 
+// A sun's shadow directions lie within its disk, spread over it: their tangent-plane points'
+// mean is near the centre and their mean squared radius the disk's 1/2.
+TEST(SunShadowDirections, CoverTheDisk) {
+    const Vec3 w = glm::normalize(Vec3(0.3, -0.2, -1.0));
+    EXPECT_EQ(sun_shadow_directions(w, 0.1, 1)[0], w);
+    EXPECT_EQ(sun_shadow_directions(w, 0.0, 16).size(), 1u);
+    for (int n : {8, 16, 32}) {
+        const double angle = 0.2, t = std::tan(0.5 * angle);
+        const std::vector<Vec3> d = sun_shadow_directions(w, angle, n);
+        ASSERT_EQ(d.size(), size_t(n));
+        Vec3 mean(0.0);
+        double r2 = 0.0;
+        for (const Vec3& v : d) {
+            EXPECT_NEAR(glm::length(v), 1.0, 1e-12);
+            EXPECT_LE(std::acos(std::min(1.0, glm::dot(v, w))), 0.5 * angle + 1e-12);
+            const Vec3 q = v / glm::dot(v, w) - w;  // the point in the tangent plane
+            mean += q / (t * n);
+            r2 += glm::dot(q, q) / (t * t * n);
+        }
+        EXPECT_LT(glm::length(mean), 0.15) << n;
+        EXPECT_NEAR(r2, 0.5, 0.5 / n) << n;
+    }
+}
+
 }  // namespace
 }  // namespace airlight

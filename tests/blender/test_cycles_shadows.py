@@ -28,7 +28,11 @@ Pixels: those whose reference is above 5 % of its p99, away (2 px) from silhouet
 the light's image (4 px) and from the image's shadow edges (neighbours more than 15 % apart
 in the reference), where the film filter blurs a fast change the pixel-centre bake does not.
 Bounds: mean (p99) relative difference below the reference's noise (mean, p99) plus 0.2 %
-(0.5 %), as test_cycles_spot.py. Figures: out/test_artifacts/cycles_shadows/summary.json.
+(0.5 %), as test_cycles_spot.py. test03: soft shadows, the panel's lamp with a 1 m Radius and
+the roof's sun with a 5 deg Angle (1024 samples, the shadows' edges kept), baked with the
+count Soft Shadow Samples Automatic takes at 1 %: mean within the noise plus 0.5 % (panel 16
+samples 1.28 %, noise 1.06 %; roof 32 samples 2.20 %, noise 1.98 %), where one sample is
+5.1 % and 6.0 % off. Figures: out/test_artifacts/cycles_shadows/summary.json.
 Measured here (2 seeds; mean / p99 relative differences; noise the same statistics):
   panel (5306 px, all of them partly shadowed, the camera inside the shadow cone): Cycles vs
     quadrature 0.28 % / 0.94 % (noise 0.24 % / 0.81 %; unshadowed 36 %); bake vs Cycles
@@ -413,3 +417,54 @@ def test02_shadowed_bake_matches_cycles(refs):
     assert mean < nmean + 0.002, (mean, nmean)
     assert p99 < np99 + 0.005, (p99, np99)
     assert off_mean > 5.0 * (nmean + 0.002), off_mean
+
+
+# Soft shadows: the panel's lamp with a 1 m Radius, the roof's sun with a 5 deg Angle, at 1024
+# samples; the bake with the count Soft Shadow Samples Automatic takes at 1 % (penumbra.py).
+SOFT = {"panel": 1.0, "roof": math.radians(5.0)}
+SOFT_MARGIN = 0.005  # Automatic at 1 % spends half of it on the samples
+
+
+@pytest.fixture(scope="module", params=sorted(SOFT))
+def soft(request):
+    name = request.param
+    desc, scene = {"panel": _build_panel, "roof": _build_roof}[name]()
+    import bpy
+    lamp = next(o for o in scene.objects if o.type == 'LIGHT')
+    if lamp.data.type == 'SUN':
+        lamp.data.angle = SOFT[name]
+    else:
+        lamp.data.shadow_soft_size = SOFT[name]
+    scene.cycles.samples = 1024
+    bpy.context.view_layer.update()
+    inputs = cs.bake_inputs(scene)
+    eye, d = cs.camera_rays(inputs["cam_to_world"], inputs["projection"], desc.width, desc.height, from_eye=True)
+    depth = panel_depth(eye, d) if name == "panel" else roof_depth(eye, d)
+    (c1, c2), _ = cs.render_seeds(scene, ARTIFACTS, f"cycles_soft_shadows_{name}", SEEDS)
+    C = 0.5 * (c1 + c2)[..., 0]
+    # Pixels as test02's but the shadows' edges kept: the penumbrae are what is tested.
+    mask = (C > SIGNAL_FLOOR * np.percentile(C, 99)) & ~cs.silhouette_mask(depth, radius=2)
+    if name == "panel":
+        mask &= ~cs.near_light(inputs, desc.width, desc.height, desc.light_location, LIGHT_RADIUS_PX)
+    return dict(name=name, scene=scene, cycles=C, noise=cs.seed_noise(c1, c2), mask=mask)
+
+
+def test03_soft_shadows_match_cycles(soft):
+    """A lamp's Radius and a sun's Angle soften the shafts' edges: the bake with Automatic's
+    count of shadow samples is within Cycles' noise plus SOFT_MARGIN in mean, where the hard
+    shadows (one sample) are well outside it."""
+    from airlight import native, penumbra
+    description = _bake_description(soft)
+    assert penumbra.needed(description)
+    samples, _, _ = penumbra.choose(native.get(), description, dict(threads=2), 0.01)
+    C, mask = soft["cycles"], soft["mask"]
+    nmean, np99 = cs.noise_stats(soft["noise"], mask)
+    mean, p99 = cs.rel_stats(native.get().bake(**description, threads=2, shadow_samples=samples)["airlight"]
+                             .astype(np.float64)[..., 0], C, mask)
+    hard, _ = cs.rel_stats(native.get().bake(**description, threads=2)["airlight"].astype(np.float64)[..., 0],
+                           C, mask)
+    SUMMARY.report(f"{soft['name']}_soft_shadows", samples=samples, mean=mean, p99=p99, noise_mean=nmean,
+                   noise_p99=np99, hard_mean=hard, pixels=int(mask.sum()))
+    assert samples > 1
+    assert mean < nmean + SOFT_MARGIN, (samples, mean, nmean)
+    assert hard > 2.0 * (nmean + SOFT_MARGIN), (hard, nmean)

@@ -46,6 +46,7 @@ def _scene(tmp_path):
     st = scene.airlight
     st.density = 0.08
     st.volumetric_shadows = True
+    st.shadow_samples = 1  # hard shadows: no probe bakes (soft ones: test_volumetric_shadows.py)
     st.light_passes = True
     st.model = 'SUN05'
     bpy.context.view_layer.update()

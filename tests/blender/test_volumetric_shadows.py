@@ -143,20 +143,20 @@ def test07_soft_shadow_samples_automatic(tmp_path):
     from airlight import bake
     scene = build_plane_scene(tmp_path)
     assert scene.airlight.shadow_samples == 0  # Automatic
-    _cube("Caster", (0.5, 0.3, 0.6), 0.3, scene)
+    _cube("Caster", (0.5, 0.3, 0.3), 0.2, scene)
     lamp = bpy.data.lights["Lamp"]
-    lamp.shadow_soft_size = 0.5
+    lamp.shadow_soft_size = 0.3
     bpy.context.view_layer.update()
     depsgraph = bpy.context.evaluated_depsgraph_get()
     description, settings = bake.prepare(scene, depsgraph)
     assert settings[bake.SOFT_SHADOW_TARGET] == pytest.approx(0.01) and settings["shadow_samples"] == 1
     stats, _ = bake.run(description, settings, str(tmp_path / "auto.exr"))
     samples, error, seconds = stats["soft_shadows"]
-    assert samples in (1, 8, 16) and error <= 0.005 and seconds > 0.0
+    assert samples in (1, 8, 16, 32, 64) and error <= 0.005 and seconds > 0.0
     assert f"soft shadows {samples} sample(s)" in bake.parts_line(stats)
-    scene.airlight.accuracy = 0.01  # below what any candidate measures: the reference count
+    scene.airlight.accuracy = 0.01  # below what the samples can show: the most
     description, settings = bake.prepare(scene, depsgraph)
-    assert bake.run(description, settings, str(tmp_path / "fine.exr"))[0]["soft_shadows"][0] == 16
+    assert bake.run(description, settings, str(tmp_path / "fine.exr"))[0]["soft_shadows"][0] == 64
     scene.airlight.shadow_samples = 4
     description, settings = bake.prepare(scene, depsgraph)
     assert bake.SOFT_SHADOW_TARGET not in settings and settings["shadow_samples"] == 4

@@ -155,21 +155,20 @@ def scene_arguments():
 def test_automatic_count_meets_the_target(shaft, target):
     """Soft Shadow Samples Automatic: the count the probe picks for an accuracy target errs by
     at most that target against the independent disk-light reference (plus the reference's
-    own ~0.1 %), and it is the fewest that do among the candidates."""
+    own ~0.1 %); hard shadows only where the probe measured them within it."""
     penumbra = _penumbra()
     _, pixels, ref = shaft
     scene, settings = scene_arguments()
     assert penumbra.needed(scene)
     count, measured, seconds = penumbra.choose(_native, scene, settings, target)
-    assert count in penumbra.CANDIDATES + (penumbra.REFERENCE,) and measured <= penumbra.MARGIN * target
-    assert seconds > 0.0
+    assert count in (1,) + penumbra.LADDER and seconds > 0.0
+    assert measured <= penumbra.MARGIN * target or count == penumbra.LADDER[-1]
     e = errors(_native.bake(**scene, **settings, shadow_samples=count), pixels, ref)
     assert e.mean() <= target + 1.5e-3, (target, count, e.mean())
-    cheaper = [k for k in penumbra.CANDIDATES if k < count]
-    for k in cheaper:  # a cheaper count would have missed the target (as the probe measured it)
-        reference = _native.bake(**scene, **settings, shadow_samples=penumbra.REFERENCE)["airlight"]
-        measured = penumbra.mean_error(_native.bake(**scene, **settings, shadow_samples=k)["airlight"], reference)
-        assert measured > penumbra.MARGIN * target
+    if count > 1:  # the hard shadows missed the target, as the probe measured them
+        hard = _native.bake(**scene, **settings, shadow_samples=1)["airlight"]
+        first = _native.bake(**scene, **settings, shadow_samples=penumbra.FIRST_CHECK)["airlight"]
+        assert penumbra.mean_error(hard, first) > penumbra.MARGIN * target
 
 
 def test_automatic_needs_a_radius_and_shadows():
@@ -183,3 +182,108 @@ def test_automatic_needs_a_radius_and_shadows():
     probe = penumbra.probe_description(dict(scene, width=1920, height=1080))
     assert abs(probe["width"] * probe["height"] - penumbra.PROBE_PIXELS) < 0.05 * penumbra.PROBE_PIXELS
     assert abs(probe["width"] / probe["height"] - 1920 / 1080) < 0.02
+
+
+# A sun's Angle: sunlight through a slit in a roof z = ROOF_Z, the shaft seen from the side.
+SUN_E, SUN_ANGLE, ROOF_Z = 3.0, math.radians(8.0), 6.0
+SUN_W = np.array([0.25, 0.1, -1.0]) / np.linalg.norm([0.25, 0.1, -1.0])  # propagation
+ROOF_SLIT = (-0.7, 0.7, -6.0, 6.0)  # x0 x1 y0 y1 of the hole
+
+
+def roof():
+    x0, x1, y0, y1 = ROOF_SLIT
+    z = ROOF_Z
+    return merge([quad([[-BIG, -BIG, z], [x0, -BIG, z], [x0, BIG, z], [-BIG, BIG, z]]),
+                  quad([[x1, -BIG, z], [BIG, -BIG, z], [BIG, BIG, z], [x1, BIG, z]]),
+                  quad([[x0, -BIG, z], [x1, -BIG, z], [x1, y0, z], [x0, y0, z]]),
+                  quad([[x0, y1, z], [x1, y1, z], [x1, BIG, z], [x0, BIG, z]])])
+
+
+def sun_camera():
+    """At (0, -9, 2), looking along +y and a little up: across the shaft under the slit."""
+    f = np.array([0.0, math.cos(math.radians(10)), math.sin(math.radians(10))])
+    right = np.cross(f, [0, 0, 1.0]); right /= np.linalg.norm(right); up = np.cross(right, f)
+    return camera_matrix(np.stack([right, up, -f], axis=1), np.array([0.0, -9.0, 2.0]))
+
+
+def sun_bake(k, angle=SUN_ANGLE):
+    v, t = roof()
+    return _native.bake(width=W, height=H, cam_to_world=sun_camera(),
+                        projection=perspective(math.radians(60), W, H, 0.1, 100), vertices=v, triangles=t,
+                        light_positions=np.zeros((0, 3)), light_intensities=np.zeros((0, 3)),
+                        sun_directions=SUN_W[None], sun_irradiances=np.array([[SUN_E] * 3]),
+                        sun_angles=np.array([angle]), sigma_t=SIGMA, threads=2, clip_start=0.1, clip_end=100.0,
+                        shadows=True, aa_samples=1, model="sun05_exact", shadow_samples=k)
+
+
+def sun_visible_fraction(x):
+    """Share of the sun's disk (uniform in its tangent plane, as Cycles samples it) seen from
+    the points _x_ (N, 3) through the slit or past the roof's edge (points above the roof see
+    all of it)."""
+    a = np.cross(SUN_W, [0, 0, 1.0]); a /= np.linalg.norm(a); b = np.cross(SUN_W, a)
+    w = SUN_W + math.tan(SUN_ANGLE / 2) * (DISK[:, 0, None] * a + DISK[:, 1, None] * b)
+    w /= np.linalg.norm(w, axis=1)[:, None]  # (M, 3) propagation directions
+    s = (x[:, None, 2] - ROOF_Z) / w[None, :, 2]  # distance back towards the sun to the roof
+    q = x[:, None, :] - s[..., None] * w[None]
+    inside = (q[..., 0] > ROOF_SLIT[0]) & (q[..., 0] < ROOF_SLIT[1]) & (q[..., 1] > ROOF_SLIT[2]) & \
+        (q[..., 1] < ROOF_SLIT[3])
+    beyond = (np.abs(q[..., 0]) > BIG) | (np.abs(q[..., 1]) > BIG)  # past the roof's edge
+    return np.mean((x[:, None, 2] >= ROOF_Z) | inside | beyond, axis=1)
+
+
+def sun_reference(depth, dirs, eye, t0):
+    """Each ray's airlight: sigma p E e^{-sigma t} (fog without a top: unattenuated sunlight)
+    times the visible share of the disk, by the trapezoid rule over 3000 points."""
+    out = np.zeros(len(dirs))
+    for i, (d, D) in enumerate(zip(dirs, depth)):
+        t = np.linspace(t0[i], min(D, 80.0), 3000); x = eye + t[:, None] * d
+        f = SIGMA / (4 * np.pi) * SUN_E * np.exp(-SIGMA * (t - t0[i])) * sun_visible_fraction(x)
+        out[i] = np.trapz(f, t)
+    return out
+
+
+@pytest.fixture(scope="module")
+def sun_shaft():
+    """(bakes by sample count, the sampled pixels, their reference) of the sun's slit."""
+    bakes = {k: sun_bake(k) for k in (1, 16, 64)}
+    cam = sun_camera()
+    local = pixel_dirs_camera(math.radians(60), W, H)
+    dirs, t0 = local @ cam[:3, :3].T, 0.1 / -local[..., 2]
+    A = bakes[16]["airlight"][..., 0]
+    idx = np.argwhere(A > 0.05 * np.percentile(A, 99))
+    idx = idx[np.random.default_rng(1).choice(len(idx), size=min(60, len(idx)), replace=False)]
+    j, i = idx[:, 0], idx[:, 1]
+    return bakes, (j, i), sun_reference(bakes[1]["depth"][j, i], dirs[j, i], cam[:3, 3], t0[j, i])
+
+
+def test_sun_angle_softens_its_shadow(sun_shaft):
+    """A sun of Angle 8 deg through a slit: the samples over its disk converge to the reference
+    (about as 1/n: 16 within 1.5 %, 64 within 0.4 % mean), where the hard shadow errs by 3.3 %;
+    Angle 0 ignores the samples."""
+    bakes, pixels, ref = sun_shaft
+    hard, e16, e64 = (errors(bakes[k], pixels, ref).mean() for k in (1, 16, 64))
+    assert e64 < 4e-3 and e16 < 1.5e-2 and hard > 2.5 * e16 and hard > 8.0 * e64, (hard, e16, e64)
+    assert np.array_equal(sun_bake(1, angle=0.0)["airlight"], sun_bake(16, angle=0.0)["airlight"])
+
+
+@pytest.mark.parametrize("target", [0.05, 0.01, 0.003])
+def test_automatic_count_meets_the_target_for_a_sun(sun_shaft, target):
+    penumbra = _penumbra()
+    _, pixels, ref = sun_shaft
+    v, t = roof()
+    scene = dict(width=W, height=H, cam_to_world=sun_camera(),
+                 projection=perspective(math.radians(60), W, H, 0.1, 100), vertices=v, triangles=t,
+                 light_positions=np.zeros((0, 3)), light_intensities=np.zeros((0, 3)),
+                 sun_directions=SUN_W[None], sun_irradiances=np.array([[SUN_E] * 3]),
+                 sun_angles=np.array([SUN_ANGLE]), sigma_t=SIGMA, clip_start=0.1, clip_end=100.0, shadows=True)
+    settings = dict(threads=2, model="sun05_exact")
+    assert penumbra.needed(scene) and not penumbra.needed(dict(scene, sun_angles=np.array([0.0])))
+    count, _, _ = penumbra.choose(_native, scene, settings, target)
+    e = errors(_native.bake(**scene, **settings, aa_samples=1, shadow_samples=count), pixels, ref)
+    assert e.mean() <= target, (target, count, e.mean())
+
+
+@pytest.mark.parametrize("angle", [-0.1, math.pi, float("nan")])
+def test_bad_sun_angles(angle):
+    with pytest.raises(ValueError, match="angle"):
+        sun_bake(4, angle=angle)
