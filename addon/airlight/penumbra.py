@@ -80,7 +80,9 @@ def choose(module, description, settings, target):
     other keyword arguments."""
     start = time.perf_counter()
     probe = probe_description(description)
-    args = {k: v for k, v in settings.items() if k not in ("shadow_samples", "light_pass_index")}
+    # The airlight alone: no surface passes, per-light passes or edge sub-samples.
+    args = {k: v for k, v in settings.items()
+            if k not in ("shadow_samples", "light_pass_index") and not k.startswith("surface")}
     args["aa_samples"] = 1
     bakes = {}
 
