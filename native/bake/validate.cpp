@@ -37,8 +37,8 @@ void validate_suns(const SceneDescription& scene) {
         const std::string name = "sun light " + std::to_string(i);
         require(finite3(sun.direction) && glm::length(sun.direction) > 0.0,
                 name + ": direction must be finite and nonzero");
-        require(std::isfinite(sun.angle) && sun.angle >= 0.0 && sun.angle < kPi,
-                name + ": angle must be in [0, pi) radians, got " + std::to_string(sun.angle));
+        require(std::isfinite(sun.angle) && sun.angle >= 0.0 && sun.angle <= kPi,
+                name + ": angle must be in [0, pi] radians, got " + std::to_string(sun.angle));
         require(finite3(sun.E) && sun.E.x >= 0.0 && sun.E.y >= 0.0 && sun.E.z >= 0.0,
                 name + ": irradiance must be finite and >= 0");
     }

@@ -554,7 +554,7 @@ shadow_samples (default 1, [1, 64]): with shadows, a point or spot light with a 
   uniformly); each is a shadow volume of its own (the shadows' cost times about this). 1: from
   the centre (hard shadows); a sun with an Angle from this many directions over its disk.
   Homogeneous fog.
-sun_angles (U,) (optional, radians, [0, pi); default 0): each sun's angular diameter (Blender's
+sun_angles (U,) (optional, radians, [0, pi]; default 0): each sun's angular diameter (Blender's
   Angle), whose disk softens its shadows (shadow_samples); its airlight takes the centre.
 light_pass_index (optional; one integer per light, the point lights, then the spots, then the
   suns): the per-light airlight pass each light adds to (-1: none); adds light_airlight=(G, H,

@@ -84,7 +84,7 @@ struct SpotLight {
 struct SunLight {
     Vec3 direction{0.0, 0.0, -1.0};
     RGB E{0.0};
-    // Angular diameter (radians, [0, pi)) of the sun's disk, Blender's Angle: its volumetric
+    // Angular diameter (radians, [0, pi]) of the sun's disk, Blender's Angle: its volumetric
     // shadows' penumbrae (shadow_samples directions over the disk); the airlight takes the
     // disk's centre.
     double angle = 0.0;

@@ -277,7 +277,9 @@ std::vector<Vec3> sun_shadow_directions(const Vec3& w, double angle, int n) {
     if (n <= 1 || !(angle > 0.0)) return {w};
     const Vec3 a = glm::normalize(glm::cross(w, std::abs(w.z) < 0.9 ? Vec3(0.0, 0.0, 1.0) : Vec3(1.0, 0.0, 0.0)));
     const Vec3 b = glm::cross(w, a);
-    const double radius = std::tan(0.5 * angle), golden = 0.5 * (std::sqrt(5.0) - 1.0);
+    // (Blender's largest Angle, 180 deg, is the half-space: tan(90 deg) held finite, as Cycles'
+    // float tan is.)
+    const double radius = std::tan(0.5 * std::min(angle, kPi - 1e-6)), golden = 0.5 * (std::sqrt(5.0) - 1.0);
     std::vector<Vec3> out;
     for (int k = 0; k < n; ++k) {
         const double rho = std::sqrt((k + 0.5) / n), phi = 2.0 * kPi * std::fmod(k * golden, 1.0);

@@ -101,7 +101,7 @@ std::vector<Vec3> sphere_light_shadow_samples(int n);
 // A sun's soft shadows: _n_ unit directions of propagation over the disk of angular diameter
 // _angle_ about _w_ (unit), as Cycles samples a distant light: w + tan(angle / 2) times points
 // of the unit disk in its tangent plane, normalised; the points on a Fibonacci spiral (radii
-// sqrt((k + 1/2) / n), equal area). n = 1 or angle 0: _w_ (hard shadows).
+// sqrt((k + 1/2) / n), equal area). n = 1 or angle 0: _w_ (hard shadows). angle <= pi.
 std::vector<Vec3> sun_shadow_directions(const Vec3& w, double angle, int n);
 
 }  // namespace airlight
