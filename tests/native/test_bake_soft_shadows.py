@@ -85,18 +85,22 @@ def reference(depth, dirs, eye, t0):
 
 
 
+def sampled_reference(bakes, cam, by, reference_fn, seed):
+    """(bakes, the sampled pixels, their reference): 60 pixels of the lit fog (above 5 % of the
+    p99 of bakes[by]) drawn with _seed_, and reference_fn(depth, dirs, eye, t0) there."""
+    local = pixel_dirs_camera(math.radians(60), W, H)
+    dirs, t0 = local @ cam[:3, :3].T, 0.1 / -local[..., 2]
+    A = bakes[by]["airlight"][..., 0]
+    idx = np.argwhere(A > 0.05 * np.percentile(A, 99))
+    idx = idx[np.random.default_rng(seed).choice(len(idx), size=min(60, len(idx)), replace=False)]
+    j, i = idx[:, 0], idx[:, 1]
+    return bakes, (j, i), reference_fn(bakes[1]["depth"][j, i], dirs[j, i], cam[:3, 3], t0[j, i])
+
+
 @pytest.fixture(scope="module")
 def shaft():
     """(bakes by sample count, the sampled pixels, their reference)."""
-    bakes = {k: bake(k) for k in (1, 8, 16, 32)}
-    cam = camera()
-    local = pixel_dirs_camera(math.radians(60), W, H)
-    dirs, t0 = local @ cam[:3, :3].T, 0.1 / -local[..., 2]
-    A = bakes[32]["airlight"][..., 0]
-    idx = np.argwhere(A > 0.05 * np.percentile(A, 99))
-    idx = idx[np.random.default_rng(0).choice(len(idx), size=min(60, len(idx)), replace=False)]
-    j, i = idx[:, 0], idx[:, 1]
-    return bakes, (j, i), reference(bakes[1]["depth"][j, i], dirs[j, i], cam[:3, 3], t0[j, i])
+    return sampled_reference({k: bake(k) for k in (1, 8, 16, 32)}, camera(), 32, reference, 0)
 
 
 def errors(result, pixels, ref):
@@ -245,15 +249,7 @@ def sun_reference(depth, dirs, eye, t0):
 @pytest.fixture(scope="module")
 def sun_shaft():
     """(bakes by sample count, the sampled pixels, their reference) of the sun's slit."""
-    bakes = {k: sun_bake(k) for k in (1, 16, 64)}
-    cam = sun_camera()
-    local = pixel_dirs_camera(math.radians(60), W, H)
-    dirs, t0 = local @ cam[:3, :3].T, 0.1 / -local[..., 2]
-    A = bakes[16]["airlight"][..., 0]
-    idx = np.argwhere(A > 0.05 * np.percentile(A, 99))
-    idx = idx[np.random.default_rng(1).choice(len(idx), size=min(60, len(idx)), replace=False)]
-    j, i = idx[:, 0], idx[:, 1]
-    return bakes, (j, i), sun_reference(bakes[1]["depth"][j, i], dirs[j, i], cam[:3, 3], t0[j, i])
+    return sampled_reference({k: sun_bake(k) for k in (1, 16, 64)}, sun_camera(), 16, sun_reference, 1)
 
 
 def test_sun_angle_softens_its_shadow(sun_shaft):
