@@ -97,6 +97,66 @@ float preview_point_airlight(float Dsv, float cos_gamma, float x)
 #endif
 }
 
+// A point light's Radius (Blender's shadow_soft_size; native homogeneous/sphere_light.h):
+// Cycles 3.4 takes it as the disk facing each point, whose falloff per unit intensity is
+//   F_r(d) = (2 d / r^2) int_{1/D}^{1/d} e^{-sigma_t / u} du,  D = sqrt(d^2 + r^2)
+// (u = 1 / rho, over which the integrand is smooth: 4-point Gauss-Legendre; 2 / r^2 at the
+// light, the point's e^{-sigma_t d} / d^2 far from it).
+float preview_disk_falloff(float d, float r)
+{
+  float lo = inversesqrt(d * d + r * r), hi = 1.0 / max(d, 1e-6 * r);
+  float sum = 0.0;
+  for (int k = 0; k < 4; k++) {
+    sum += kGL4w[k] * exp(-pv_sigma_t / mix(lo, hi, kGL4x[k]));
+  }
+  return 2.0 * d / (r * r) * (hi - lo) * sum;
+}
+
+// The disk light's airlight less the point's over [0, D] of the ray p0 + x dir (rel = light
+// - p0), per unit albedo I0, as the bake adds it (light_size_airlight): on the part of the
+// ray within the light's reach (where the disk differs from the point by more than 1e-3:
+// sqrt(0.75e3) radii, cut at 10 optical depths where sigma_t r is large), the disk by
+// Gauss-Legendre in the angle about the closest approach a (x = a + w tan(phi), w^2 = h^2 +
+// r^2 / 2, which flattens F_r's peak; 8 nodes on each side of a), less the point's own closed
+// form over the same segment (so that the two cancel far from the light).
+float preview_light_size_excess(vec3 rel, vec3 dir, float D, float r)
+{
+  float a = dot(rel, dir);
+  float h2 = max(dot(rel, rel) - a * a, 0.0);
+  float reach = min(27.386128 * r, max(10.0 / max(pv_sigma_t, 1e-30), 10.0 * r));
+  if (h2 >= reach * reach) return 0.0;
+  float chord = sqrt(reach * reach - h2);
+  float ta = max(0.0, a - chord), tb = min(D, a + chord);
+  if (!(tb > ta)) return 0.0;
+  float w = sqrt(h2 + 0.5 * r * r);
+  float phi_a = atan((ta - a) / w), phi_b = atan((tb - a) / w), phi_m = clamp(0.0, phi_a, phi_b);
+  float disk = 0.0;
+  for (int side = 0; side < 2; side++) {
+    float lo = (side == 0) ? phi_a : phi_m, hi = (side == 0) ? phi_m : phi_b;
+    for (int k = 0; k < 8; k++) {
+      float phi = mix(lo, hi, kGLx[k]);
+      float c = cos(phi);
+      float x = a + w * tan(phi);
+      vec3 sx = rel - x * dir;
+      float d = length(sx);
+#if PREVIEW_PHASE
+      float p = biri06_phase(pv_phase, dot(sx, dir) / max(d, 1e-30));
+#else
+      float p = 0.25 / kPi;
+#endif
+      disk += (hi - lo) * kGLw[k] * w / (c * c) * p * exp(-pv_sigma_t * x) * preview_disk_falloff(d, r);
+    }
+  }
+  vec3 rel_a = rel - ta * dir;
+  float Dsv_a = length(rel_a);
+  float point = 0.0;
+  if (Dsv_a > 0.0) {
+    point = exp(-pv_sigma_t * ta) *
+            preview_point_airlight(Dsv_a, clamp(dot(rel_a, dir) / Dsv_a, -1.0, 0.99999994), tb - ta);
+  }
+  return pv_sigma_t * disk - point;
+}
+
 #if PREVIEW_SHADOWS
 // Lit share of a point light's airlight over [0, D] of the ray p0 + x dir (rel = light -
 // p0): the single-scattering integrand sampled at the middles of SHADOW_STEPS steps equal
@@ -183,15 +243,18 @@ vec4 preview_fog(vec3 origin, vec3 dir, float Dvp)
     // exactly through the light (which sun05_airlight regularises to sin(gamma) = 1e-8,
     // 1e4 times brighter than any nearby pixel). 0.99999994 = 1 - 2^-24.
     float cos_gamma = clamp(dot(to_light, dir) / Dsv, -1.0, 0.99999994);
+    float radius = texelFetch(lights, ivec2(i, 0), 0).w;  // the light's Radius (0: a point)
+    float value = preview_point_airlight(Dsv, cos_gamma, D);
+    if (radius > 0.0) {
+      value += preview_light_size_excess(to_light, dir, D, radius);
+    }
 #if PREVIEW_SHADOWS
     int row = int(texelFetch(lights, ivec2(i, 2), 0).a);
     if (row >= 0) {
-      La += (I0.rgb * I0.a) * preview_point_airlight(Dsv, cos_gamma, D)
-            * preview_point_lit_share(row, p0, dir, to_light, Dsv, D);
-      continue;
+      value *= preview_point_lit_share(row, p0, dir, to_light, Dsv, D);
     }
 #endif
-    La += (I0.rgb * I0.a) * preview_point_airlight(Dsv, cos_gamma, D);
+    La += (I0.rgb * I0.a) * value;
   }
 #if PREVIEW_SPOTS
   int spot_count = textureSize(spots, 0).x;

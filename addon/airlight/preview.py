@@ -392,7 +392,7 @@ def preview_lights(scene, depsgraph):
     for the scene's scene_description and model_choice plan (lights inside collection
     instances included, Automatic's skipped lights left out, no points or spots in the
     daylight model), MAX_LIGHTS of each kind at most. dict: positions and intensities
-    (albedo * I0) of the point lights and their bare I0 (lists of 3-tuples); spots
+    (albedo * I0) of the point lights and their bare I0 (lists of 3-tuples), their radii; spots
     (positions, axes, intensities = albedo * I0, sizes, blends); suns (directions,
     irradiances = albedo * E, fog_top: inf without Fog Top); shadows (points, spots, suns:
     whether the bake shadows each, scene_export.shadow_arguments; box: the shadow casters'
@@ -420,8 +420,10 @@ def preview_lights(scene, depsgraph):
 
     def flags(name):
         return [bool(v) for v in shadowed.get(name, ())[:MAX_LIGHTS]]
+    n_points = len(lights["light_positions"])
     value = dict(positions=rows("light_positions"), intensities=rows("light_intensities", albedo),
                  I0=rows("light_intensities"),
+                 radii=[float(r) for r in lights.get("light_radii", np.zeros(n_points))[:MAX_LIGHTS]],
                  spots=dict(positions=rows("spot_positions"), axes=rows("spot_axes"),
                             intensities=rows("spot_intensities", albedo),
                             sizes=[float(v) for v in lights.get("spot_size", ())[:MAX_LIGHTS]],
@@ -462,6 +464,10 @@ def _profiles_as_points(lights, shadowed):
             w = ies.cone_factor(c, size, float(lights["spot_blend"][row]))
             mean[row] = float((lit * w).sum() / max(w.sum(), 1e-300))
     lights["spot_intensities"] = np.asarray(lights["spot_intensities"]) * np.where(in_cone, mean, 1.0)[:, None]
+    if "light_radii" in lights or "spot_radii" in lights:
+        points = np.asarray(lights.get("light_radii", np.zeros(len(lights["light_positions"]))))
+        spots = np.asarray(lights.get("spot_radii", np.zeros(len(profiles))))
+        lights["light_radii"] = np.concatenate([points, spots[profiled]])
     lights["light_positions"] = np.concatenate([lights["light_positions"], lights["spot_positions"][profiled]])
     lights["light_intensities"] = np.concatenate([lights["light_intensities"],
                                                   lights["spot_intensities"][profiled] * mean[profiled, None]])
@@ -589,8 +595,8 @@ def scene_environment(scene):
     return value
 
 
-def _lights_texture(positions, intensities, Csv=None, splat_I0=None, shadow_rows=None):
-    """Row 0: positions; row 1: rgb = albedo I0, a = C_sv (Gaussian fog transmittance
+def _lights_texture(positions, intensities, Csv=None, splat_I0=None, shadow_rows=None, radii=None):
+    """Row 0: xyz = positions, w = the lights' Radius (_radii_; None: 0); row 1: rgb = albedo I0, a = C_sv (Gaussian fog transmittance
     light -> eye, 1 without fog objects); row 2: rgb = the I0 the Gaussian fog's splat
     multiplies by each Gaussian's albedo texel (rbf_splat_pixel.glsl): _splat_I0_ (the
     bare I0 when the Gaussians have their own colours), else albedo I0 again; a = the
@@ -601,6 +607,8 @@ def _lights_texture(positions, intensities, Csv=None, splat_I0=None, shadow_rows
     data[2, :, 3] = _rows_of(shadow_rows, n)
     if positions:
         data[0, :len(positions), :3] = positions
+        if radii is not None:
+            data[0, :len(positions), 3] = radii
         data[1, :len(positions), :3] = intensities
         data[2, :len(positions), :3] = intensities if splat_I0 is None else splat_I0
         if Csv is not None:
@@ -730,7 +738,7 @@ def draw_fog(*, depth_tex, perspective_matrix, view_origin, is_perspective, view
              sigma_t, light_positions, light_intensities, clip_start=0.0, window_depth=True,
              scale=1, mode=UPSAMPLE_BILATERAL_EXACT, gaussians=None, phase=("isotropic", 0.0),
              spots=None, suns=None, environment=None, light_I0=None, noise=None, gauss_pass=None,
-             light_fit=None, shadows=None):
+             light_fit=None, shadows=None, light_radii=None):
     """Draws the fog over the bound framebuffer with premultiplied blending.
 
     depth_tex: full-resolution R32F texture of the region (viewport[2] x viewport[3]):
@@ -751,6 +759,9 @@ def draw_fog(*, depth_tex, perspective_matrix, view_origin, is_perspective, view
     (scale 1, 2, 4 or 8), and the fog pass runs
     at full resolution, upsampling the Gaussian sums depth-aware (fog_preview_frag.glsl
     preview_gauss_fetch).
+    light_radii: None, or each point light's Radius (m, `preview_lights`' radii): the glow of
+    Cycles' disk light near it, as the bake takes it (preview_common.glsl
+    preview_light_size_excess); ignored with fog objects, whose bake takes lights as points.
     light_I0: the point lights' I0 without the fog's albedo (`scene_lights(...,
     with_albedo=False)`), required when the Gaussians have colours (their own albedo
     replaces the fog's, as in the bake).
@@ -827,7 +838,12 @@ def draw_fog(*, depth_tex, perspective_matrix, view_origin, is_perspective, view
         Csv = splat[1].Csv
     _state["last_scale"] = scale
     _state["last_gauss_scale"] = gauss_scale if splat is not None else None
-    lights = _lights_texture(light_positions, light_intensities, Csv, splat_I0, shadow.get("points"))
+    if light_radii is not None:
+        light_radii = [float(r) for r in light_radii]
+        if len(light_radii) != len(light_positions) or not all(math.isfinite(r) and r >= 0.0 for r in light_radii):
+            raise ValueError(f"light_radii: one finite radius >= 0 per light (got {light_radii!r})")
+    lights = _lights_texture(light_positions, light_intensities, Csv, splat_I0, shadow.get("points"),
+                             None if splat is not None else light_radii)
     fog = _shader('fog', window_depth, ('gauss', gauss_scale) if splat is not None else False,
                   **flags)
     clip = (*view_axis(perspective_matrix), float(clip_start) if is_perspective else 0.0)
@@ -1021,7 +1037,7 @@ def _draw_callback():
                  light_intensities=intensities, clip_start=clip_start,
                  window_depth=readback, scale=scale, gaussians=gaussians, phase=phase,
                  spots=spots, suns=suns, environment=env, light_I0=light_I0, noise=noise,
-                 shadows=shadows)
+                 shadows=shadows, light_radii=lights["radii"])
         _state["last_ms"] = (time.perf_counter() - t0) * 1e3
         if _state["capture"] is not None:
             if readback:
