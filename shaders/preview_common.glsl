@@ -112,27 +112,41 @@ float preview_disk_falloff(float d, float r)
   return 2.0 * d / (r * r) * (hi - lo) * sum;
 }
 
-// The disk light's airlight less the point's over [0, D] of the ray p0 + x dir (rel = light
-// - p0), per unit albedo I0, as the bake adds it (light_size_airlight): on the part of the
-// ray within the light's reach (where the disk differs from the point by more than 1e-3:
-// sqrt(0.75e3) radii, cut at 10 optical depths where sigma_t r is large), the disk by
-// Gauss-Legendre in the angle about the closest approach a (x = a + w tan(phi), w^2 = h^2 +
-// r^2 / 2, which flattens F_r's peak; 8 nodes on each side of a), less the point's own closed
-// form over the same segment (so that the two cancel far from the light).
-float preview_light_size_excess(vec3 rel, vec3 dir, float D, float r)
+#ifndef PREVIEW_SPOT_SIZE_PANELS
+#define PREVIEW_SPOT_SIZE_PANELS 4
+#endif
+// The disk light's in-scattering over the part [ta, tb] of [0, D] of the ray p0 + x dir
+// within the reach of the light at _s_ (where the disk differs from the point by more
+// than 1e-3: sqrt(0.75e3) radii, cut at 10 optical depths where sigma_t r is large), per unit
+// albedo I0, attenuated from p0: Gauss-Legendre in the angle about the closest approach a
+// (x = a + w tan(phi), w^2 = h^2 + r^2 / 2, which flattens F_r's peak), 8 nodes on each side of
+// a (a spot: PREVIEW_SPOT_SIZE_PANELS x 8). A spot (spot >= 0: its row of the spots texture) weighs each node by its cone's profile,
+// and a shadowed one (row >= 0) by its visibility there. tb <= ta: the ray stays out of reach.
+float preview_disk_light(vec3 s, vec3 p0, vec3 dir, float D, float r, int spot, int row, out float ta,
+                         out float tb)
 {
+  vec3 rel = s - p0;
   float a = dot(rel, dir);
   float h2 = max(dot(rel, rel) - a * a, 0.0);
   float reach = min(27.386128 * r, max(10.0 / max(pv_sigma_t, 1e-30), 10.0 * r));
+  ta = 0.0;
+  tb = 0.0;
   if (h2 >= reach * reach) return 0.0;
   float chord = sqrt(reach * reach - h2);
-  float ta = max(0.0, a - chord), tb = min(D, a + chord);
+  ta = max(0.0, a - chord);
+  tb = min(D, a + chord);
   if (!(tb > ta)) return 0.0;
   float w = sqrt(h2 + 0.5 * r * r);
   float phi_a = atan((ta - a) / w), phi_b = atan((tb - a) / w), phi_m = clamp(0.0, phi_a, phi_b);
   float disk = 0.0;
-  for (int side = 0; side < 2; side++) {
-    float lo = (side == 0) ? phi_a : phi_m, hi = (side == 0) ? phi_m : phi_b;
+  // (A spot's cone edge crosses the window: PREVIEW_SPOT_SIZE_PANELS panels a side.)
+  int panels = spot >= 0 ? PREVIEW_SPOT_SIZE_PANELS : 1;
+  for (int side = 0; side < 2 * panels; side++) {
+    float lo = mix(phi_a, phi_m, float(side) / float(panels)), hi = mix(phi_a, phi_m, float(side + 1) / float(panels));
+    if (side >= panels) {
+      lo = mix(phi_m, phi_b, float(side - panels) / float(panels));
+      hi = mix(phi_m, phi_b, float(side - panels + 1) / float(panels));
+    }
     for (int k = 0; k < 8; k++) {
       float phi = mix(lo, hi, kGLx[k]);
       float c = cos(phi);
@@ -140,21 +154,39 @@ float preview_light_size_excess(vec3 rel, vec3 dir, float D, float r)
       vec3 sx = rel - x * dir;
       float d = length(sx);
 #if PREVIEW_PHASE
-      float p = biri06_phase(pv_phase, dot(sx, dir) / max(d, 1e-30));
+      float value = biri06_phase(pv_phase, dot(sx, dir) / max(d, 1e-30));
 #else
-      float p = 0.25 / kPi;
+      float value = 0.25 / kPi;
 #endif
-      disk += (hi - lo) * kGLw[k] * w / (c * c) * p * exp(-pv_sigma_t * x) * preview_disk_falloff(d, r);
+#if PREVIEW_SPOTS
+      if (spot >= 0) {
+        vec4 s0 = texelFetch(spots, ivec2(spot, 0), 0), s1 = texelFetch(spots, ivec2(spot, 1), 0);
+        value *= spot_profile(s0.w, s1.w, texelFetch(spots, ivec2(spot, 3), 0).xy, -dot(sx, s1.xyz) / max(d, 1e-30));
+      }
+#endif
+#if PREVIEW_SHADOWS
+      if (row >= 0) value *= shadow_lit(row, p0 + x * dir);
+#endif
+      disk += (hi - lo) * kGLw[k] * w / (c * c) * value * exp(-pv_sigma_t * x) * preview_disk_falloff(d, r);
     }
   }
+  return pv_sigma_t * disk;
+}
+
+// A point light's disk less its point over the ray (preview_disk_light's window), per unit
+// albedo I0, as the bake adds it (light_size_airlight): the point by the preview's own closed
+// form over the same segment, so that the two cancel far from the light.
+float preview_light_size_excess(vec3 s, vec3 p0, vec3 dir, float D, float r)
+{
+  float ta, tb;
+  float disk = preview_disk_light(s, p0, dir, D, r, -1, -1, ta, tb);
+  if (!(tb > ta)) return 0.0;
+  vec3 rel = s - p0;
   vec3 rel_a = rel - ta * dir;
   float Dsv_a = length(rel_a);
-  float point = 0.0;
-  if (Dsv_a > 0.0) {
-    point = exp(-pv_sigma_t * ta) *
-            preview_point_airlight(Dsv_a, clamp(dot(rel_a, dir) / Dsv_a, -1.0, 0.99999994), tb - ta);
-  }
-  return pv_sigma_t * disk - point;
+  if (!(Dsv_a > 0.0)) return disk;
+  return disk - exp(-pv_sigma_t * ta) *
+                    preview_point_airlight(Dsv_a, clamp(dot(rel_a, dir) / Dsv_a, -1.0, 0.99999994), tb - ta);
 }
 
 #if PREVIEW_SHADOWS
@@ -246,7 +278,7 @@ vec4 preview_fog(vec3 origin, vec3 dir, float Dvp)
     float radius = texelFetch(lights, ivec2(i, 0), 0).w;  // the light's Radius (0: a point)
     float value = preview_point_airlight(Dsv, cos_gamma, D);
     if (radius > 0.0) {
-      value += preview_light_size_excess(to_light, dir, D, radius);
+      value += preview_light_size_excess(to_light + p0, p0, dir, D, radius);
     }
 #if PREVIEW_SHADOWS
     int row = int(texelFetch(lights, ivec2(i, 2), 0).a);
@@ -264,8 +296,18 @@ vec4 preview_fog(vec3 origin, vec3 dir, float Dvp)
     vec4 I0 = texelFetch(spots, ivec2(i, 2), 0);
     vec4 s3 = texelFetch(spots, ivec2(i, 3), 0);
     int row = PREVIEW_SHADOWS != 0 ? int(I0.a) : -1;
-    La += I0.rgb * spot_airlight_shadowed(s0.xyz, s1.xyz, s0.w, s1.w, s3.xy, pv_sigma_t, p0, dir, D,
-                                          PREVIEW_PHASE != 0, pv_phase, row);
+    float value = spot_airlight_shadowed(s0.xyz, s1.xyz, s0.w, s1.w, s3.xy, pv_sigma_t, p0, dir, D,
+                                         PREVIEW_PHASE != 0, pv_phase, row);
+    if (s3.z > 0.0) {  // the spot's Radius: its disk less its point over the disk's window
+      float ta, tb;
+      value += preview_disk_light(s0.xyz, p0, dir, D, s3.z, i, row, ta, tb);
+      if (tb > ta) {
+        value -= exp(-pv_sigma_t * ta) * spot_airlight_shadowed(s0.xyz, s1.xyz, s0.w, s1.w, s3.xy, pv_sigma_t,
+                                                                p0 + ta * dir, dir, tb - ta, PREVIEW_PHASE != 0,
+                                                                pv_phase, row);
+      }
+    }
+    La += I0.rgb * value;
   }
 #endif
 #if PREVIEW_SUNS

@@ -428,7 +428,8 @@ def preview_lights(scene, depsgraph):
                             intensities=rows("spot_intensities", albedo),
                             sizes=[float(v) for v in lights.get("spot_size", ())[:MAX_LIGHTS]],
                             blends=[float(v) for v in lights.get("spot_blend", ())[:MAX_LIGHTS]],
-                            spreads=[float(v) for v in lights.get("spot_spread", ())[:MAX_LIGHTS]]),
+                            spreads=[float(v) for v in lights.get("spot_spread", ())[:MAX_LIGHTS]],
+                            radii=[float(v) for v in lights.get("spot_radii", ())[:MAX_LIGHTS]]),
                  suns=dict(directions=rows("sun_directions"), irradiances=rows("sun_irradiances", albedo),
                            fog_top=description.fog_top),
                  shadows=dict(points=flags("light_shadows"), spots=flags("spot_shadows"),
@@ -532,8 +533,9 @@ def _suns_texture(suns, shadow_rows=None):
 def _spots_texture(spots, shadow_rows=None):
     """RGBA32F, spot_count x 4 (spot_airlight.glsl via preview_common.glsl): row 0 =
     (position, cos(size / 2)), row 1 = (axis, (1 - cos(size / 2)) blend), row 2 = (albedo
-    I0, shadow-map row or -1), row 3 = (spread_a, spread_b, 0, 0) of an area light's Spread;
-    the profile constants from `_native.spot_cone`."""
+    I0, shadow-map row or -1), row 3 = (spread_a, spread_b, Radius, 0): an area light's Spread
+    (the profile constants from `_native.spot_cone`) and the spot's Radius (_spots_' optional
+    radii; 0: a point)."""
     n = 0 if spots is None else len(spots["positions"])
     data = np.zeros((4, max(1, n), 4), np.float32)
     data[2, :, 3] = _rows_of(shadow_rows, max(1, n))
@@ -544,6 +546,8 @@ def _spots_texture(spots, shadow_rows=None):
         data[1, :n, :3] = axes / np.linalg.norm(axes, axis=1, keepdims=True)
         data[2, :n, :3] = spots["intensities"]
         spreads = list(spots.get("spreads", ())) + [math.pi] * n
+        radii = list(spots.get("radii", ())) + [0.0] * n
+        data[3, :n, 2] = radii[:n]
         module = native.get()
         for i in range(n):
             cos_half, smooth, a, b = module.spot_cone(spots["sizes"][i], spots["blends"][i], spreads[i])
@@ -772,8 +776,8 @@ def draw_fog(*, depth_tex, perspective_matrix, view_origin, is_perspective, view
     of that phase (the bake's "biri06" model). The Gaussian terms stay isotropic (the
     bake refuses anisotropic Gaussian fog).
     spots: None or `scene_spots`' dict (positions, axes, intensities = albedo I0, sizes,
-    blends): spot lights by a fixed quadrature over the ray's part inside each cone
-    (spot_airlight.glsl).
+    blends, optional spreads and radii): spot lights by a fixed quadrature over the ray's part
+    inside each cone (spot_airlight.glsl), a Radius as light_radii's.
     suns: None or `scene_suns`' dict (directions, irradiances = albedo E, fog_top): sun
     lamps by the closed form of the bake's sunlight_layer.h (sun_airlight.glsl).
     environment: None or `scene_environment`'s dict (glow = the World's airlight as an
@@ -794,6 +798,8 @@ def draw_fog(*, depth_tex, perspective_matrix, view_origin, is_perspective, view
                  shadows=0 if shadows is None else int(shadows.get("steps", SHADOW_STEPS['MEDIUM'])))
     env_tex, env_T = _environment_texture(res, environment)
     shadow = shadows or {}
+    if spots is not None and gaussians is not None and len(gaussians["scales"]) > 0:
+        spots = dict(spots, radii=())  # (fog objects: the bake takes lights as points)
     spots_tex = _spots_texture(spots, shadow.get("spots"))
     suns_tex = _suns_texture(suns, shadow.get("suns"))
     if shadows is None:
