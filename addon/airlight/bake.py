@@ -526,7 +526,22 @@ def bake_frame(scene, depsgraph, filepath=None, progress=None, mesh_overrides=No
     stats, seconds = run_views(jobs, progress)
     stats = dict(stats, seconds_export=export_seconds)
     remember_fog_objects(scene, stats)
+    remember_soft_shadows(scene, stats)
     return jobs[0][2], stats, seconds + export_seconds
+
+
+# Per scene name: (samples, measured error) of Soft Shadow Samples Automatic's last choice
+# (the scene panel shows it).
+LAST_SOFT_SHADOWS = {}
+
+
+def remember_soft_shadows(scene, stats):
+    """Keeps the count Soft Shadow Samples Automatic took in a bake for the panel."""
+    if stats.get("soft_shadows"):
+        samples, error, _ = stats["soft_shadows"]
+        LAST_SOFT_SHADOWS[scene.name] = (int(samples), float(error))
+    else:
+        LAST_SOFT_SHADOWS.pop(scene.name, None)
 
 
 # Per scene name: what the last bake did with the fog objects (the Fog Objects panel shows it).
@@ -659,6 +674,9 @@ class AIRLIGHT_OT_bake(bpy.types.Operator):
         warnings = [line for line in stats.get(LIGHT_NOTES, ()) if "WARNING" in line]
         if warnings:
             self.report({'WARNING'}, warnings[0])
+        remember_soft_shadows(scene, stats)
+        if stats.get("soft_shadows"):
+            note += f"; soft shadows from {stats['soft_shadows'][0]} sample(s) per light"
         self.report({'INFO'}, f"Fog baked in {seconds * 1000.0:.0f} ms ({os.path.basename(filepath)}){note}")
         return {'FINISHED'}
 

@@ -94,6 +94,8 @@ class AIRLIGHT_PT_scene(bpy.types.Panel):
         col.prop(settings, "volumetric_shadows")
         if settings.volumetric_shadows:
             col.prop(settings, "shadow_samples")
+            if settings.shadow_samples == 0:
+                col.label(text=soft_shadow_note(context.scene), icon='INFO')
         note = shadow_note(context.scene)
         if note:
             col.label(text=note, icon='INFO')
@@ -188,6 +190,15 @@ def light_pass_note(scene):
     if settings.light_passes and count > settings.light_pass_limit:
         return f"{count} fogged lights, over the limit: no light passes"
     return None
+
+
+def soft_shadow_note(scene):
+    """What Soft Shadow Samples Automatic (0) does, and what it took in the last bake."""
+    last = bake.LAST_SOFT_SHADOWS.get(scene.name)
+    if last is None:
+        return "Automatic: measured per frame for lamps with a Radius and suns with an Angle"
+    samples, error = last
+    return f"Automatic: {samples} sample(s) in the last bake ({100.0 * error:.2g} % from a finer count)"
 
 
 def shadow_note(scene):
