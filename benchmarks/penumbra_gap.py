@@ -75,7 +75,7 @@ def main():
             renders[on] += ({k: native.get().bake(**description, threads=2, shadow_samples=k)["airlight"][..., 0]
                              .astype(np.float64) for k in SAMPLES},)
         auto = penumbra.choose(native.get(), description, dict(threads=2, model="sun05"), 0.01)
-        print(f"{name} {size}: Automatic at 1 % takes {auto[0]} sample(s) (probe {1000 * auto[2]:.0f} ms)")
+        print(f"{name} {size}: Automatic at 1 % takes {auto.samples} sample(s) (probe {1000 * auto.seconds:.0f} ms)")
         inputs = cs.bake_inputs(scene)
         eye, d = cs.camera_rays(inputs["cam_to_world"], inputs["projection"], desc.width, desc.height, from_eye=True)
         depth = depth_fn(eye, d)

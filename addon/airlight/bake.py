@@ -200,7 +200,7 @@ def run(description, settings, filepath, progress=None):
             soft = penumbra.choose(module, description, settings, own[SOFT_SHADOW_TARGET])
         except ValueError as ex:
             raise BakeError(f"Invalid fog scene: {ex}") from None
-        settings["shadow_samples"] = soft[0]
+        settings["shadow_samples"] = soft.samples
 
     def bake_once(description, progress):
         """(airlight, transmittance, extra passes or None, depth, stats) of one bake."""
@@ -530,16 +530,24 @@ def bake_frame(scene, depsgraph, filepath=None, progress=None, mesh_overrides=No
     return jobs[0][2], stats, seconds + export_seconds
 
 
-# Per scene name: (samples, measured error) of Soft Shadow Samples Automatic's last choice
-# (the scene panel shows it).
+# Per scene name: Soft Shadow Samples Automatic's last penumbra.Choice (the scene panel shows it).
 LAST_SOFT_SHADOWS = {}
+
+
+def soft_shadows_text(soft):
+    """A penumbra.Choice for the console, the report and the panel."""
+    what = f"{soft.samples} sample(s) (probe {1000.0 * soft.seconds:.0f} ms"
+    if soft.limited:
+        return (f"{what}, stopped at its {penumbra.PROBE_BUDGET:g} s budget: the casters make each sample dear; "
+                f"set Soft Shadow Samples to choose)")
+    return f"{what}, measured {100.0 * soft.error:.2g} % from a finer count)"
 
 
 def remember_soft_shadows(scene, stats):
     """Keeps the count Soft Shadow Samples Automatic took in a bake for the panel."""
     if stats.get("soft_shadows"):
-        samples, error, _ = stats["soft_shadows"]
-        LAST_SOFT_SHADOWS[scene.name] = (int(samples), float(error))
+        soft = stats["soft_shadows"]
+        LAST_SOFT_SHADOWS[scene.name] = soft
     else:
         LAST_SOFT_SHADOWS.pop(scene.name, None)
 
@@ -591,9 +599,7 @@ def parts_line(stats):
         count, limit = stats["light_passes_over_limit"]
         parts.append(f"no light passes ({count} fogged lights, over the Light Pass Limit of {limit})")
     if stats.get("soft_shadows"):
-        samples, error, seconds = stats["soft_shadows"]
-        parts.append(f"soft shadows {samples} sample(s) (probe {1000.0 * seconds:.0f} ms, "
-                     f"measured {100.0 * error:.2f} % from a finer count)")
+        parts.append(f"soft shadows {soft_shadows_text(stats['soft_shadows'])}")
     if stats.get("tables_built"):
         parts.append(f"{stats['tables_built']} table(s) built")
     return ", ".join(parts)
@@ -676,7 +682,7 @@ class AIRLIGHT_OT_bake(bpy.types.Operator):
             self.report({'WARNING'}, warnings[0])
         remember_soft_shadows(scene, stats)
         if stats.get("soft_shadows"):
-            note += f"; soft shadows from {stats['soft_shadows'][0]} sample(s) per light"
+            note += f"; soft shadows {soft_shadows_text(stats['soft_shadows'])}"
         self.report({'INFO'}, f"Fog baked in {seconds * 1000.0:.0f} ms ({os.path.basename(filepath)}){note}")
         return {'FINISHED'}
 

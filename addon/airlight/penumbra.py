@@ -14,11 +14,14 @@ sub-samples):
   target, else the last. The samples converge about as 1/n (docs/models.md), so n's error is
   about twice its difference from 2n's: MARGIN = 1/2 puts it at the target.
 Lights with no Radius or Angle, no shadows, or fog objects (whose lights are points) need no
-probe: one sample, the centre. Street at 1080p, 0.25 m lamps: the probe adds ~0.08 s to a
+probe: one sample, the centre. Where the casters make shadow samples dear, the probe stops at
+PROBE_BUDGET and says so (Choice.limited): hard shadows, or the finest count it measured. Street at 1080p, 0.25 m lamps: the probe adds ~0.08 s to a
 0.64 s bake.
 """
 
+import math
 import time
+from collections import namedtuple
 
 import numpy as np
 
@@ -30,6 +33,14 @@ LADDER = (8, 16, 32, 64)
 PROBE_PIXELS = 10000
 # The share of the target a count's measured difference may take.
 MARGIN = 0.5
+# The most the probe may take, in seconds (foreseen from its first bake): a 2-million-triangle
+# caster made a shadow sample cost ~2 s at the probe's size, so that measuring 16 would have
+# taken 34 s for a 3 s bake.
+PROBE_BUDGET = 3.0
+# A shadow sample's cost per caster triangle (its volume's silhouettes and faces), measured
+# on that plane: 2e6 triangles, ~2 s a sample. Casters so many that the probe's first two
+# bakes would pass the budget are not probed at all.
+SAMPLE_SECONDS_PER_TRIANGLE = 1e-6
 # Pixels whose reference airlight is below this share of its 99th percentile are not
 # weighed (no fog to speak of), and relative errors are taken against at least it.
 FLOOR = 0.01
@@ -74,11 +85,23 @@ def mean_error(airlight, reference):
     return float(np.mean(np.abs(a[lit] - ref[lit]) / ref[lit]))
 
 
+Choice = namedtuple("Choice", "samples error seconds limited")
+Choice.__doc__ = """Soft Shadow Samples Automatic's count (penumbra.choose): _samples_; _error_ the
+mean relative difference measured between it and the finer count it was checked against
+(nan where none was); _seconds_ the probe's; _limited_ True where PROBE_BUDGET cut the
+measuring short (the finest count measured, or hard shadows, is taken)."""
+
+
 def choose(module, description, settings, target):
-    """(samples, measured mean difference from the finer count it was checked against, probe
-    seconds) for _target_ (relative): see the module's docstring. _settings_: `_native.bake`'s
-    other keyword arguments."""
+    """The Choice for _target_ (relative): see the module's docstring. _settings_:
+    `_native.bake`'s other keyword arguments. Each probe bake of n samples is foreseen to cost
+    n times the first's (one shadow volume each: heavy casters make them dear); one that would
+    take the probe past PROBE_BUDGET seconds is not baked, nor any where the casters' triangle
+    count foretells it (SAMPLE_SECONDS_PER_TRIANGLE)."""
     start = time.perf_counter()
+    casters = len(description.get("occluder_triangles", description.get("triangles", ())))
+    if (1 + FIRST_CHECK) * casters * SAMPLE_SECONDS_PER_TRIANGLE > PROBE_BUDGET:
+        return Choice(1, math.nan, time.perf_counter() - start, True)
     probe = probe_description(description)
     # The airlight alone: no surface passes, per-light passes or edge sub-samples.
     args = {k: v for k, v in settings.items()
@@ -91,11 +114,24 @@ def choose(module, description, settings, target):
             bakes[samples] = module.bake(**probe, **args, shadow_samples=samples)["airlight"]
         return bakes[samples]
 
+    def affordable(samples):
+        return samples in bakes or (time.perf_counter() - start) + samples * per_sample <= PROBE_BUDGET
+
+    airlight(1)
+    per_sample = time.perf_counter() - start
+
+    def done(samples, error, limited=False):
+        return Choice(samples, error, time.perf_counter() - start, limited)
+    if not affordable(FIRST_CHECK):
+        return done(1, math.nan, True)
     error = mean_error(airlight(1), airlight(FIRST_CHECK))
     if error <= MARGIN * target:
-        return 1, error, time.perf_counter() - start
+        return done(1, error)
     for coarse, fine in zip(LADDER, LADDER[1:]):
+        if not (affordable(coarse) and affordable(fine)):
+            finest = max(bakes)
+            return done(finest, error, True)
         error = mean_error(airlight(coarse), airlight(fine))
         if error <= MARGIN * target:
-            return coarse, error, time.perf_counter() - start
-    return LADDER[-1], error, time.perf_counter() - start
+            return done(coarse, error)
+    return done(LADDER[-1], error)

@@ -197,8 +197,7 @@ def soft_shadow_note(scene):
     last = bake.LAST_SOFT_SHADOWS.get(scene.name)
     if last is None:
         return "Automatic: measured per frame for lamps with a Radius and suns with an Angle"
-    samples, error = last
-    return f"Automatic: {samples} sample(s) in the last bake ({100.0 * error:.2g} % from a finer count)"
+    return f"Automatic, last bake: {bake.soft_shadows_text(last)}"
 
 
 def shadow_note(scene):

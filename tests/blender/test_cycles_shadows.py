@@ -456,7 +456,7 @@ def test03_soft_shadows_match_cycles(soft):
     from airlight import native, penumbra
     description = _bake_description(soft)
     assert penumbra.needed(description)
-    samples, _, _ = penumbra.choose(native.get(), description, dict(threads=2), 0.01)
+    samples = penumbra.choose(native.get(), description, dict(threads=2), 0.01).samples
     C, mask = soft["cycles"], soft["mask"]
     nmean, np99 = cs.noise_stats(soft["noise"], mask)
     mean, p99 = cs.rel_stats(native.get().bake(**description, threads=2, shadow_samples=samples)["airlight"]

@@ -164,8 +164,8 @@ def test_automatic_count_meets_the_target(shaft, target):
     _, pixels, ref = shaft
     scene, settings = scene_arguments()
     assert penumbra.needed(scene)
-    count, measured, seconds = penumbra.choose(_native, scene, settings, target)
-    assert count in (1,) + penumbra.LADDER and seconds > 0.0
+    count, measured, seconds, limited = penumbra.choose(_native, scene, settings, target)
+    assert count in (1,) + penumbra.LADDER and seconds > 0.0 and not limited
     assert measured <= penumbra.MARGIN * target or count == penumbra.LADDER[-1]
     e = errors(_native.bake(**scene, **settings, shadow_samples=count), pixels, ref)
     assert e.mean() <= target + 1.5e-3, (target, count, e.mean())
@@ -173,6 +173,26 @@ def test_automatic_count_meets_the_target(shaft, target):
         hard = _native.bake(**scene, **settings, shadow_samples=1)["airlight"]
         first = _native.bake(**scene, **settings, shadow_samples=penumbra.FIRST_CHECK)["airlight"]
         assert penumbra.mean_error(hard, first) > penumbra.MARGIN * target
+
+
+def test_automatic_probe_stops_at_its_budget():
+    """Where a shadow sample costs more than the probe's budget allows (heavy casters), the
+    probe takes hard shadows and says it was cut short, without baking where the casters'
+    count foretells it, after its first bake where that measures it; no error is claimed."""
+    penumbra = _penumbra()
+    scene, settings = scene_arguments()
+    calls = []
+
+    class Counting:
+        def bake(self, **kwargs):
+            calls.append(kwargs["shadow_samples"])
+            return _native.bake(**kwargs)
+    penumbra.PROBE_BUDGET = 1e-6
+    choice = penumbra.choose(Counting(), scene, settings, 0.01)
+    assert choice.samples == 1 and choice.limited and math.isnan(choice.error) and calls == []
+    penumbra.PROBE_BUDGET, penumbra.SAMPLE_SECONDS_PER_TRIANGLE = 1e-6, 0.0  # measured, not foretold
+    choice = penumbra.choose(Counting(), scene, settings, 0.01)
+    assert choice.samples == 1 and choice.limited and math.isnan(choice.error) and calls == [1]
 
 
 def test_automatic_needs_a_radius_and_shadows():
@@ -274,7 +294,7 @@ def test_automatic_count_meets_the_target_for_a_sun(sun_shaft, target):
                  sun_angles=np.array([SUN_ANGLE]), sigma_t=SIGMA, clip_start=0.1, clip_end=100.0, shadows=True)
     settings = dict(threads=2, model="sun05_exact")
     assert penumbra.needed(scene) and not penumbra.needed(dict(scene, sun_angles=np.array([0.0])))
-    count, _, _ = penumbra.choose(_native, scene, settings, target)
+    count = penumbra.choose(_native, scene, settings, target).samples
     e = errors(_native.bake(**scene, **settings, aa_samples=1, shadow_samples=count), pixels, ref)
     assert e.mean() <= target, (target, count, e.mean())
 
