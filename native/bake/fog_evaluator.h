@@ -98,7 +98,7 @@ class FogEvaluator {
     // The shadow volumes (null without shadows), and per light of the scene (its point lights,
     // spots and suns in the description's order) its light in them (-1: unshadowed); with
     // soft-shadow samples, the first sample's volume (the surfaces' glow takes its shadow from
-    // that point of the sphere, within the Radius of the centre).
+    // that point of the sphere or the sun's disk: the one nearest its centre).
     const ShadowVolumes* shadow_volumes() const { return shadows_.get(); }
     const std::vector<int>& scene_point_volumes() const { return scene_point_volume_; }
     const std::vector<int>& scene_spot_volumes() const { return scene_spot_volume_; }

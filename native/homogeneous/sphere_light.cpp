@@ -270,6 +270,10 @@ std::vector<Vec3> sphere_light_shadow_samples(int n) {
     }
     for (int k = 0; k < m; ++k) out.push_back(-out[size_t(k)]);
     if (n % 2) out.push_back(Vec3(0.0));
+    // The one nearest the centre first (the surfaces' glow takes its shadow from it).
+    std::iter_swap(out.begin(), std::min_element(out.begin(), out.end(), [](const Vec3& a, const Vec3& b) {
+                       return glm::dot(a, a) < glm::dot(b, b);
+                   }));
     return out;
 }
 

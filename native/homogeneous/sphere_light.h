@@ -95,7 +95,8 @@ double sphere_light_airlight_quadrature(const PhaseFunction& phase, double sigma
 // Their density in the ball is 1 / (pi^2 sqrt(1 - rho^2)) (its X-ray transform is constant on
 // the disk): radii at stratified quantiles of F(rho) = (2 asin rho - sin(2 asin rho)) / pi,
 // directions on a Fibonacci sphere, the radii shuffled against them, in mirrored pairs (their
-// mean is the centre; odd n adds the centre). n = 1: the centre (hard shadows).
+// mean is the centre; odd n adds the centre), the one nearest the centre first. n = 1: the
+// centre (hard shadows).
 std::vector<Vec3> sphere_light_shadow_samples(int n);
 
 // A sun's soft shadows: _n_ unit directions of propagation over the disk of angular diameter

@@ -185,6 +185,7 @@ TEST(SphereLightShadowSamples, ProjectUniformlyOntoTheFacingDisk) {
         }
         EXPECT_NEAR(r2, 0.75, 0.6 / n) << n;
         EXPECT_LT(glm::length(mean), 1e-12) << n;  // mirrored pairs
+        for (const Vec3& p : q) EXPECT_LE(glm::length(q[0]), glm::length(p)) << n;  // nearest the centre first
         double sq = 0.0;
         int trials = 0;
         for (int i = 0; i < 40; ++i) {
