@@ -78,7 +78,7 @@ def main():
         for target in (0.05, 0.01, 0.001):
             choice = penumbra.choose(_native, scene, settings, target)
             print(f"  Automatic at {100 * target:g} %: {choice.samples} sample(s), probe {choice.seconds:.3f} s"
-                  f"{' (stopped at its budget)' if choice.limited else ''}")
+                  f"{f' (target not met: {choice.limited})' if choice.limited else ''}")
 
 
 if __name__ == "__main__":

@@ -537,9 +537,12 @@ LAST_SOFT_SHADOWS = {}
 def soft_shadows_text(soft):
     """A penumbra.Choice for the console, the report and the panel."""
     what = f"{soft.samples} sample(s) (probe {1000.0 * soft.seconds:.0f} ms"
-    if soft.limited:
+    if soft.limited == "budget":
         return (f"{what}, stopped at its {penumbra.PROBE_BUDGET:g} s budget: the casters make each sample dear; "
                 f"set Soft Shadow Samples to choose)")
+    if soft.limited == "ladder":
+        return (f"{what}, the most it takes: {soft.samples // 2} still differed from it by {100.0 * soft.error:.2g} %, "
+                f"more than half the target)")
     return f"{what}, measured {100.0 * soft.error:.2g} % from a finer count)"
 
 

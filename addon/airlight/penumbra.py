@@ -88,8 +88,10 @@ def mean_error(airlight, reference):
 Choice = namedtuple("Choice", "samples error seconds limited")
 Choice.__doc__ = """Soft Shadow Samples Automatic's count (penumbra.choose): _samples_; _error_ the
 mean relative difference measured between it and the finer count it was checked against
-(nan where none was); _seconds_ the probe's; _limited_ True where PROBE_BUDGET cut the
-measuring short (the finest count measured, or hard shadows, is taken)."""
+(nan where none was); _seconds_ the probe's; _limited_ why the target was not met: '' (it
+was), 'budget' (PROBE_BUDGET cut the measuring short: the finest count measured, or hard
+shadows) or 'ladder' (the last count, whose coarser neighbour still differed from it by
+_error_)."""
 
 
 def choose(module, description, settings, target):
@@ -101,7 +103,7 @@ def choose(module, description, settings, target):
     start = time.perf_counter()
     casters = len(description.get("occluder_triangles", description.get("triangles", ())))
     if (1 + FIRST_CHECK) * casters * SAMPLE_SECONDS_PER_TRIANGLE > PROBE_BUDGET:
-        return Choice(1, math.nan, time.perf_counter() - start, True)
+        return Choice(1, math.nan, time.perf_counter() - start, "budget")
     probe = probe_description(description)
     # The airlight alone: no surface passes, per-light passes or edge sub-samples.
     args = {k: v for k, v in settings.items()
@@ -120,18 +122,17 @@ def choose(module, description, settings, target):
     airlight(1)
     per_sample = time.perf_counter() - start
 
-    def done(samples, error, limited=False):
+    def done(samples, error, limited=""):
         return Choice(samples, error, time.perf_counter() - start, limited)
     if not affordable(FIRST_CHECK):
-        return done(1, math.nan, True)
+        return done(1, math.nan, "budget")
     error = mean_error(airlight(1), airlight(FIRST_CHECK))
     if error <= MARGIN * target:
         return done(1, error)
     for coarse, fine in zip(LADDER, LADDER[1:]):
         if not (affordable(coarse) and affordable(fine)):
-            finest = max(bakes)
-            return done(finest, error, True)
+            return done(max(bakes), error, "budget")
         error = mean_error(airlight(coarse), airlight(fine))
         if error <= MARGIN * target:
             return done(coarse, error)
-    return done(LADDER[-1], error)
+    return done(LADDER[-1], error, "ladder")
