@@ -120,8 +120,8 @@ float preview_disk_falloff(float d, float r)
 // than 1e-3: sqrt(0.75e3) radii, cut at 10 optical depths where sigma_t r is large), per unit
 // albedo I0, attenuated from p0: Gauss-Legendre in the angle about the closest approach a
 // (x = a + w tan(phi), w^2 = h^2 + r^2 / 2, which flattens F_r's peak), 8 nodes on each side of
-// a (a spot: PREVIEW_SPOT_SIZE_PANELS x 8). A spot (spot >= 0: its row of the spots texture) weighs each node by its cone's profile,
-// and a shadowed one (row >= 0) by its visibility there. tb <= ta: the ray stays out of reach.
+// a (a spot: PREVIEW_SPOT_SIZE_PANELS x 8). A spot (spot >= 0: its row of the spots texture)
+// weighs each node by its cone's profile, and a shadowed one (row >= 0) by its visibility there. tb <= ta: the ray stays out of reach.
 float preview_disk_light(vec3 s, vec3 p0, vec3 dir, float D, float r, int spot, int row, out float ta,
                          out float tb)
 {
@@ -139,35 +139,40 @@ float preview_disk_light(vec3 s, vec3 p0, vec3 dir, float D, float r, int spot, 
   float w = sqrt(h2 + 0.5 * r * r);
   float phi_a = atan((ta - a) / w), phi_b = atan((tb - a) / w), phi_m = clamp(0.0, phi_a, phi_b);
   float disk = 0.0;
+#if PREVIEW_SPOTS
+  // The spot's cone (its rows of the spots texture, once).
+  vec4 cone0 = vec4(0.0), cone1 = vec4(0.0), cone3 = vec4(0.0);
+  if (spot >= 0) {
+    cone0 = texelFetch(spots, ivec2(spot, 0), 0);
+    cone1 = texelFetch(spots, ivec2(spot, 1), 0);
+    cone3 = texelFetch(spots, ivec2(spot, 3), 0);
+  }
+#endif
   // (A spot's cone edge crosses the window: PREVIEW_SPOT_SIZE_PANELS panels a side.)
   int panels = spot >= 0 ? PREVIEW_SPOT_SIZE_PANELS : 1;
-  for (int side = 0; side < 2 * panels; side++) {
-    float lo = mix(phi_a, phi_m, float(side) / float(panels)), hi = mix(phi_a, phi_m, float(side + 1) / float(panels));
-    if (side >= panels) {
-      lo = mix(phi_m, phi_b, float(side - panels) / float(panels));
-      hi = mix(phi_m, phi_b, float(side - panels + 1) / float(panels));
-    }
-    for (int k = 0; k < 8; k++) {
-      float phi = mix(lo, hi, kGLx[k]);
-      float c = cos(phi);
-      float x = a + w * tan(phi);
-      vec3 sx = rel - x * dir;
-      float d = length(sx);
+  for (int side = 0; side < 2; side++) {
+    float from = (side == 0) ? phi_a : phi_m, to = (side == 0) ? phi_m : phi_b;
+    for (int panel = 0; panel < panels; panel++) {
+      float lo = mix(from, to, float(panel) / float(panels)), hi = mix(from, to, float(panel + 1) / float(panels));
+      for (int k = 0; k < 8; k++) {
+        float phi = mix(lo, hi, kGLx[k]);
+        float c = cos(phi);
+        float x = a + w * tan(phi);
+        vec3 sx = rel - x * dir;
+        float d = length(sx);
 #if PREVIEW_PHASE
-      float value = biri06_phase(pv_phase, dot(sx, dir) / max(d, 1e-30));
+        float value = biri06_phase(pv_phase, dot(sx, dir) / max(d, 1e-30));
 #else
-      float value = 0.25 / kPi;
+        float value = 0.25 / kPi;
 #endif
 #if PREVIEW_SPOTS
-      if (spot >= 0) {
-        vec4 s0 = texelFetch(spots, ivec2(spot, 0), 0), s1 = texelFetch(spots, ivec2(spot, 1), 0);
-        value *= spot_profile(s0.w, s1.w, texelFetch(spots, ivec2(spot, 3), 0).xy, -dot(sx, s1.xyz) / max(d, 1e-30));
-      }
+        if (spot >= 0) value *= spot_profile(cone0.w, cone1.w, cone3.xy, -dot(sx, cone1.xyz) / max(d, 1e-30));
 #endif
 #if PREVIEW_SHADOWS
-      if (row >= 0) value *= shadow_lit(row, p0 + x * dir);
+        if (row >= 0) value *= shadow_lit(row, p0 + x * dir);
 #endif
-      disk += (hi - lo) * kGLw[k] * w / (c * c) * value * exp(-pv_sigma_t * x) * preview_disk_falloff(d, r);
+        disk += (hi - lo) * kGLw[k] * w / (c * c) * value * exp(-pv_sigma_t * x) * preview_disk_falloff(d, r);
+      }
     }
   }
   return pv_sigma_t * disk;

@@ -44,13 +44,18 @@ bool fully_lit(const LitIntervals& lit, int v, double t0, double t1) {
     return lit.end[v] - lit.begin[v] == 1 && lit.spans[lit.begin[v]].first == t0 && lit.spans[lit.begin[v]].second == t1;
 }
 
-// How many of a light's _n_ shadow samples (volumes v ..) a ray [t0, t1] needs: 1 where every
-// one lights it all along (they agree there), else _n_.
-int samples_needed(const LitIntervals* lit, int v, int n, double t0, double t1) {
-    if (v < 0 || !lit || n <= 1) return 1;
+// Whether each of a light's _n_ shadow samples (volumes v .. v + n - 1) lights [t0, t1] all along.
+bool samples_lit(const LitIntervals& lit, int v, int n, double t0, double t1) {
     for (int j = 0; j < n; ++j)
-        if (!fully_lit(*lit, v + j, t0, t1)) return n;
-    return 1;
+        if (!fully_lit(lit, v + j, t0, t1)) return false;
+    return true;
+}
+
+// How many shadow samples of light _i_ (_counts_: per light its count, its volumes from _v_) the
+// ray [t0, t1] needs: 1 without shadows or where every one lights it all along (they agree
+// there), else them all.
+int samples_needed(const LitIntervals* lit, int v, const std::vector<int>& counts, size_t i, double t0, double t1) {
+    return v < 0 || !lit || samples_lit(*lit, v, counts[i], t0, t1) ? 1 : counts[i];
 }
 
 // The sun's factor over the lit span [a, b] of a ray from o, attenuated from the fog's start
@@ -993,10 +998,8 @@ void FogEvaluator::eval_many(const Ray* rays, const float* Dvp, const float* t0,
         for (int k = 0; k < n; ++k) {
             const double near = t0 ? double(t0[k]) : 0.0;
             RGB term;
-            bool all_lit = true;
-            for (int j = 0; j < n_samples && all_lit && v >= 0; ++j)
-                all_lit = fully_lit(lit[k], v + j, near, double(Dvp[k]));
-            if (v >= 0 && (model_.visibility_in_integrand() || !all_lit)) {
+            if (v >= 0 &&
+                (model_.visibility_in_integrand() || !samples_lit(lit[k], v, n_samples, near, double(Dvp[k])))) {
                 term = light.weight * sample_mean(v, n_samples, [&](int u) {
                     return point_airlight_lit(light, u, rays[k].o, rays[k].d, near, Dvp[k], lit[k]);
                 });
@@ -1069,7 +1072,8 @@ RGB FogEvaluator::light_size_airlight(const Vec3& o, const Vec3& d, double t_nea
             !sphere_light_window(sigma_t_, light.s, light.radius, o, d, t_near, Dvp, a, b, light_size_tol_))
             continue;
         const int v = lit ? light_volume_[l] : -1;
-        const RGB term = light.weight * sample_mean(v, samples_needed(lit, v, v >= 0 ? light_samples_[l] : 1, t_near, Dvp), [&](int u) {
+        const int n = samples_needed(lit, v, light_samples_, l, t_near, Dvp);
+        const RGB term = light.weight * sample_mean(v, n, [&](int u) {
             return for_spans(u, a, b, [&](double lo, double hi) {
                 const Vec3 x = o + lo * d, sx = light.s - x;
                 const double Dsx = glm::length(sx);
@@ -1106,7 +1110,8 @@ RGB FogEvaluator::light_size_airlight(const Vec3& o, const Vec3& d, double t_nea
             if (x >= 0.0) cuts.push_back(x);
         }
         const int v = lit ? spot_volume_[i] : -1;
-        const RGB term = spot.weight * sample_mean(v, samples_needed(lit, v, v >= 0 ? spot_samples_[i] : 1, t_near, Dvp), [&](int u) {
+        const int n = samples_needed(lit, v, spot_samples_, i, t_near, Dvp);
+        const RGB term = spot.weight * sample_mean(v, n, [&](int u) {
             return for_spans(u, a, b, [&](double lo, double hi) {
                 return excess(spot.s, spot.radius, h, spot.falloff.get(), lo, hi,
                               [&] { return spot_segment(spot, o + lo * d, d, hi - lo); }, profile, cuts);
@@ -1146,7 +1151,7 @@ RGB FogEvaluator::sun_airlight(const Vec3& o, const Vec3& d, double t_near, doub
                                                           kQuadratureRelTol)
                        : sunlight_layer_factor(sigma_t_, fog_top_, sun.mu_s, o.z, d.z, t_near, Dvp);
         };
-        const double G = sample_mean(v0, samples_needed(lit, v0, v0 >= 0 ? sun_samples_[i] : 1, t_near, Dvp), factor);
+        const double G = sample_mean(v0, samples_needed(lit, v0, sun_samples_, i, t_near, Dvp), factor);
         const RGB term = sun.weight * (p * G);
         La += term;
         if (passes && sun.pass >= 0) passes[sun.pass] += term;
@@ -1185,7 +1190,7 @@ RGB FogEvaluator::spot_airlight(const Vec3& o, const Vec3& d, double t_near, dou
             }
             return sum;
         };
-        const RGB term = spot.weight * sample_mean(v0, samples_needed(lit, v0, v0 >= 0 ? spot_samples_[i] : 1, t_near, Dvp), value);
+        const RGB term = spot.weight * sample_mean(v0, samples_needed(lit, v0, spot_samples_, i, t_near, Dvp), value);
         La += term;
         if (passes && spot.pass >= 0) passes[spot.pass] += term;
     }

@@ -451,7 +451,8 @@ void bind_bake(py::module_& m) {
           "shadow_crossings"_a = "film", "light_radii"_a = py::none(), "spot_radii"_a = py::none(),
           "spot_profiles"_a = py::none(), "spot_profile_in_cone"_a = py::none(),
           "spot_profile_extent"_a = py::none(), "light_size_tolerance"_a = BakeSettings().light_size_tolerance,
-          "light_pass_index"_a = py::none(), "shadow_samples"_a = BakeSettings().shadow_samples, "sun_angles"_a = py::none(),
+          "light_pass_index"_a = py::none(), "shadow_samples"_a = BakeSettings().shadow_samples,
+          "sun_angles"_a = py::none(),
           R"doc(Bake fog passes for one camera view (all arguments keyword-only).
 
 width, height: render resolution in pixels.
