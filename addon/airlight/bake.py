@@ -175,11 +175,13 @@ def native_settings(settings):
     return {k: v for k, v in settings.items() if k not in RUN_ONLY}
 
 
-def run(description, settings, filepath, progress=None):
+def run(description, settings, filepath, progress=None, deferred=None):
     """Bakes and writes the EXR; safe to call from a worker thread (no bpy access).
 
     Returns (stats dict, seconds). Raises `_native.BakeCancelled` when `progress`
-    returns False, BakeError for invalid input or I/O failure.
+    returns False, BakeError for invalid input or I/O failure. With _deferred_ (a list) the
+    EXR is not written: a cache.PassFile is appended to it instead (the compositor takes its
+    passes from memory and cache.write_later writes the file beside the render).
     """
     module = native.get()
     try:
@@ -250,12 +252,16 @@ def run(description, settings, filepath, progress=None):
         airlight = _fit_region(airlight, region, 0.0)
         transmittance = _fit_region(transmittance, region, 1.0)
         extra = {name: _fit_region(p, region, 0.0) for name, p in (extra or {}).items()} or None
-    t0 = time.perf_counter()
-    try:
-        cache.write_passes(filepath, airlight, transmittance, extra, half=half)
-    except cache.CacheError as ex:
-        raise BakeError(str(ex)) from None
-    stats["seconds_exr"] = time.perf_counter() - t0
+    if deferred is not None:
+        deferred.append(cache.PassFile(filepath, cache.pass_dict(airlight, transmittance, extra), half))
+        stats["exr_deferred"] = True
+    else:
+        t0 = time.perf_counter()
+        try:
+            cache.write_passes(filepath, airlight, transmittance, extra, half=half)
+        except cache.CacheError as ex:
+            raise BakeError(str(ex)) from None
+        stats["seconds_exr"] = time.perf_counter() - t0
     if own[LIGHT_NOTES]:
         stats[LIGHT_NOTES] = list(own[LIGHT_NOTES])
     if soft is not None:
@@ -503,27 +509,28 @@ def _sub_progress(progress, k, n):
     return lambda fraction: progress((k + fraction) / n)
 
 
-def run_views(jobs, progress=None):
+def run_views(jobs, progress=None, deferred=None):
     """run() for each of prepare_views' jobs, _progress_ spread over them; returns (the
-    first view's stats, seconds for all)."""
+    first view's stats, seconds for all). _deferred_: as run's."""
     first, total = None, 0.0
     for k, (description, settings, path) in enumerate(jobs):
-        stats, seconds = run(description, settings, path, _sub_progress(progress, k, len(jobs)))
+        stats, seconds = run(description, settings, path, _sub_progress(progress, k, len(jobs)), deferred)
         first = stats if first is None else first
         total += seconds
     return first, total
 
 
-def bake_frame(scene, depsgraph, filepath=None, progress=None, mesh_overrides=None, evaluate_at=None):
+def bake_frame(scene, depsgraph, filepath=None, progress=None, mesh_overrides=None, evaluate_at=None,
+               deferred=None):
     """Synchronous bake of the depsgraph's current frame (every view of a stereo render,
     view_paths; the shutter's instants with _evaluate_at_, prepare_views); returns
-    (filepath, stats, seconds), filepath the first view's."""
+    (filepath, stats, seconds), filepath the first view's. _deferred_: as run's."""
     if filepath is None:
         filepath = cache_path(scene, scene.frame_current)
     t0 = time.perf_counter()
     jobs = prepare_views(scene, depsgraph, filepath, mesh_overrides, evaluate_at)
     export_seconds = time.perf_counter() - t0
-    stats, seconds = run_views(jobs, progress)
+    stats, seconds = run_views(jobs, progress, deferred)
     stats = dict(stats, seconds_export=export_seconds)
     remember_fog_objects(scene, stats)
     remember_soft_shadows(scene, stats)
@@ -595,7 +602,8 @@ def parts_line(stats):
     native_ms = ms("seconds_native")
     parts = [f"export {ms('seconds_export'):.0f} ms", f"native bake {native_ms:.0f} ms (setup and tables "
              f"{ms('seconds_fog_setup'):.0f}, rays {ms('seconds_raycast'):.0f}, fog {ms('seconds_airlight'):.0f}, "
-             f"surfaces {ms('seconds_surface'):.0f})", f"EXR {ms('seconds_exr'):.0f} ms"]
+             f"surfaces {ms('seconds_surface'):.0f})",
+             "EXR written beside the render" if stats.get("exr_deferred") else f"EXR {ms('seconds_exr'):.0f} ms"]
     if "seconds_light_passes" in stats:
         parts.append(f"light passes {ms('seconds_light_passes'):.0f} ms")
     if stats.get("light_passes_over_limit"):

@@ -3,7 +3,9 @@
 import os
 import tempfile
 import threading
+import time
 import zlib
+from typing import NamedTuple
 
 import bpy
 import numpy as np
@@ -44,6 +46,13 @@ def ensure_parent_dir(filepath):
                          "Choose another Cache Folder in the Airlight Fog panel.")
 
 
+def pass_dict(airlight, transmittance, extra=None):
+    """{pass name: (H, W, 3) float32} as the EXR's layer "Fog" holds them."""
+    passes = {PASS_AIRLIGHT: airlight, PASS_TRANSMITTANCE: transmittance}
+    passes.update(extra or {})
+    return passes
+
+
 def write_passes(filepath, airlight, transmittance, extra=None, half=False):
     """Writes the two passes as one multilayer EXR (through `_native.write_exr`), plus the
     passes in `extra` ({name: (H, W, 3) float32}, e.g. surface.py's Surface_<group> and
@@ -52,8 +61,7 @@ def write_passes(filepath, airlight, transmittance, extra=None, half=False):
     so a compositor or another farm task reading the file sees a whole one, never half of
     it, and two tasks writing one frame each leave a whole file."""
     ensure_parent_dir(filepath)
-    passes = {PASS_AIRLIGHT: airlight, PASS_TRANSMITTANCE: transmittance}
-    passes.update(extra or {})
+    passes = pass_dict(airlight, transmittance, extra)
     tmp = f"{filepath}.{os.getpid()}.{threading.get_ident()}.tmp"
     try:
         native.get().write_exr(tmp, passes, layer_prefix=LAYER_PREFIX, half=half)
@@ -64,6 +72,51 @@ def write_passes(filepath, airlight, transmittance, extra=None, half=False):
         except OSError:
             pass
         raise CacheError(f"Cannot write the fog passes to '{filepath}': {ex}") from None
+
+
+class PassFile(NamedTuple):
+    """A frame's passes still to be written: where, {name: (H, W, 3) float32}, 16-bit."""
+    filepath: str
+    passes: dict
+    half: bool
+
+
+# The writes under way (write_later): [(thread, files, outcome dict)].
+_writes = []
+
+
+def write_later(files):
+    """Writes the PassFiles _files_ in a thread, beside the render (the native writer
+    releases the GIL), once any earlier write has finished; returns finish_writes() of those
+    earlier ones, and a later finish_writes() says how this one went."""
+    earlier = finish_writes()
+    outcome = {}
+
+    def work():
+        t0 = time.perf_counter()
+        try:
+            for file in files:
+                passes = dict(file.passes)
+                write_passes(file.filepath, passes.pop(PASS_AIRLIGHT), passes.pop(PASS_TRANSMITTANCE), passes,
+                             half=file.half)
+        except CacheError as ex:
+            outcome["error"] = str(ex)
+        outcome["seconds"] = time.perf_counter() - t0
+
+    thread = threading.Thread(target=work, name="Airlight pass files")
+    thread.start()
+    _writes.append((thread, [file.filepath for file in files], outcome))
+    return earlier
+
+
+def finish_writes():
+    """Waits for the writes write_later started; returns [(paths, seconds, error or None)]."""
+    done = []
+    while _writes:
+        thread, paths, outcome = _writes.pop(0)
+        thread.join()
+        done.append((paths, outcome.get("seconds", 0.0), outcome.get("error")))
+    return done
 
 
 def neutral_path(scene, width, height, extra_names=()):

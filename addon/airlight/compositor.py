@@ -14,12 +14,24 @@ through.
 With surface shading (surface.py; Cycles only) a chain in the same frame first corrects the
 render's surfaces for the fog: Image + sum_g Combined_<g> x Surface_<g> + DiffCol x
 SurfaceGlow, and that feeds the x Transmittance node.
+
+The passes reach the fog nodes through a node group ("Airlight Fog Passes", the node named
+"Airlight Passes"), one output per pass. Inside it each output is fed either by the
+multilayer EXR's Image node (a bake's file: Bake Fog, F12) or by an Image node per pass on
+an in-memory float image (background renders, -f/-a: choose_source). In memory the
+render_pre handler hands the frame's passes over with fill(), about 15 ms a 1080p pass (70
+ms the first time in a process, while Blender makes the image), where reloading the EXR
+took 0.3-0.8 s; the EXR is still written, beside the render (cache.write_later). Only the
+outputs something is linked to are filled.
 """
 
 import os
 import threading
+import time
+import zlib
 
 import bpy
+import numpy as np
 from bpy.app.handlers import persistent
 
 from . import cache, native, surface
@@ -34,6 +46,11 @@ NODE_ADD = "Airlight Add"
 NODE_ALPHA = "Airlight Alpha"
 ALPHA_NODE_PREFIX = "Airlight Alpha "
 IMAGE_NAME = "Airlight Passes"
+# The passes' node group (module docstring): the file's Image node in it, and per pass an
+# Image node on an in-memory image.
+GROUP_NAME = "Airlight Fog Passes"
+NODE_FILE = "Airlight Passes File"
+MEMORY_PREFIX = "Airlight Pass "  # the in-memory Image nodes and their images
 # Stereoscopy (_setup_views): an Image node per view after the first, a Switch View node per pass.
 VIEW_IMAGE_PREFIX = "Airlight View Image "
 VIEW_SWITCH_PREFIX = "Airlight View Switch "
@@ -129,12 +146,13 @@ def is_set_up(scene):
 
 
 def is_complete(scene):
-    """Set up, with the alpha node (a tree from an earlier version may lack it), and the
-    Image node's pass outputs linked into the fog nodes."""
+    """Set up, with the alpha node and the passes' group (a tree from an earlier version
+    may lack them), and the group's pass outputs linked into the fog nodes."""
     if not is_set_up(scene) or scene.node_tree.nodes.get(NODE_ALPHA) is None:
         return False
     image_node, multiply, add = _fog_nodes(scene.node_tree)
-    return multiply.inputs[2].is_linked and add.inputs[2].is_linked
+    return (image_node.bl_idname == "CompositorNodeGroup" and multiply.inputs[2].is_linked
+            and add.inputs[2].is_linked)
 
 
 def _node(tree, name, bl_idname, label, location, parent=None):
@@ -154,6 +172,176 @@ def _first_of_type(tree, node_type):
         if node.type == node_type:
             return node
     return None
+
+
+def _neutral_value(name):
+    """A pass's value that leaves the image as it is: Transmittance 1, the others 0."""
+    return 1.0 if name == PASS_TRANSMITTANCE else 0.0
+
+
+def _group():
+    """The passes' node group (module docstring), created on first use."""
+    group = bpy.data.node_groups.get(GROUP_NAME)
+    if group is None or group.bl_idname != "CompositorNodeTree":
+        group = bpy.data.node_groups.new(GROUP_NAME, "CompositorNodeTree")
+    if _group_output(group) is None:
+        group.nodes.new("NodeGroupOutput").location = (300, 0)
+    _node(group, NODE_FILE, "CompositorNodeImage", "Baked passes (EXR file)", (-300, 0))
+    return group
+
+
+def _group_output(group):
+    return next((node for node in group.nodes if node.type == 'GROUP_OUTPUT'), None)
+
+
+def _pass_sockets(group):
+    """The group's output node's inputs, one per pass (not the empty one that adds outputs)."""
+    return [socket for socket in _group_output(group).inputs if socket.bl_idname != "NodeSocketVirtual"]
+
+
+def _expose(group, names):
+    """Gives the group an output per pass in _names_ it lacks (outputs are kept once made:
+    a user's link to a light's pass survives a bake without that light, reading 0)."""
+    for name in names:
+        if group.outputs.get(name) is None:
+            socket = group.outputs.new("NodeSocketColor", name)
+            value = _neutral_value(name)
+            socket.default_value = (value, value, value, 1.0)
+
+
+def _memory_name(name):
+    """The name of a pass's in-memory Image node and image (Blender's names hold 63 bytes)."""
+    full = MEMORY_PREFIX + name
+    return full if len(full.encode()) <= 63 else f"{MEMORY_PREFIX}{zlib.crc32(name.encode()):08x}"
+
+
+def _memory_image(name, size=(4, 4)):
+    """The in-memory float image of pass _name_, regenerating to its neutral value (what a
+    reopened file shows: its pixels are not saved)."""
+    image_name = _memory_name(name)
+    image = bpy.data.images.get(image_name)
+    if image is None or image.source != 'GENERATED' or not image.is_float:
+        image = bpy.data.images.new(image_name, size[0], size[1], alpha=True, float_buffer=True)
+        value = _neutral_value(name)
+        image.generated_color = (value, value, value, 1.0)
+    return image
+
+
+def _memory_node(group, name):
+    node = _node(group, _memory_name(name), "CompositorNodeImage", f"{name} (in memory)",
+                 (0, -200 - 160 * len(group.nodes)))
+    if node.image is None or node.image.name != _memory_name(name):
+        node.image = _memory_image(name)
+    return node
+
+
+def _route(group, memory):
+    """Feeds each of the group's outputs from the in-memory images (_memory_) or from the
+    file's Image node; an output the file lacks is left unlinked (its neutral default)."""
+    file_node = group.nodes[NODE_FILE]
+    for socket in _pass_sockets(group):
+        if memory:
+            source = _memory_node(group, socket.name).outputs["Image"]
+        else:
+            source = file_node.outputs.get(socket.name)
+            source = source if source is not None and source.enabled else None
+        if source is None:
+            for link in list(socket.links):
+                group.links.remove(link)
+        else:
+            _link(group, source, socket)
+
+
+def _passes_node(tree, frame, location):
+    """The group node that hands the fog nodes the passes. A tree from an earlier version
+    has a multilayer Image node there: its image and its outputs' links move to the group."""
+    node = tree.nodes.get(NODE_IMAGE)
+    group = _group()
+    if node is not None and node.bl_idname != "CompositorNodeGroup":
+        image = getattr(node, "image", None)
+        moved = [(socket.name, link.to_socket) for socket in node.outputs for link in socket.links]
+        location = node.location.copy()
+        tree.nodes.remove(node)
+        node = None
+        if image is not None:
+            group.nodes[NODE_FILE].image = image
+        _expose(group, [name for name, _ in moved])
+    else:
+        moved = []
+    node = _node(tree, NODE_IMAGE, "CompositorNodeGroup", "Airlight Passes", location, frame)
+    if node.node_tree != group:
+        node.node_tree = group
+    for name, target in moved:
+        tree.links.new(node.outputs[name], target)
+    return node
+
+
+def file_image(tree):
+    """The baked file's image the passes node reads, or None."""
+    node = tree.nodes.get(NODE_IMAGE)
+    if node is None or node.bl_idname != "CompositorNodeGroup" or node.node_tree is None:
+        return getattr(node, "image", None)
+    file_node = node.node_tree.nodes.get(NODE_FILE)
+    return file_node.image if file_node is not None else None
+
+
+def in_memory(scene):
+    """The fog nodes take their passes from memory (fill), not from a file."""
+    tree = scene.node_tree if scene.use_nodes else None
+    node = tree.nodes.get(NODE_IMAGE) if tree is not None else None
+    if node is None or node.bl_idname != "CompositorNodeGroup" or node.node_tree is None:
+        return False
+    socket = _group_output(node.node_tree).inputs.get(PASS_TRANSMITTANCE)
+    return (socket is not None and socket.is_linked
+            and socket.links[0].from_node.name.startswith(MEMORY_PREFIX))
+
+
+def choose_source(scene):
+    """Main thread, before a render starts (render.on_render_init) and on loading a file:
+    routes the passes from memory for a background render of one view, where nothing shows
+    the images and no dialog offers to save them, else from the files (Stereoscopy:
+    _setup_views; a file saved after a background render, opened in the UI)."""
+    if not is_complete(scene):
+        return
+    tree = scene.node_tree
+    memory = bpy.app.background and len(render_views(scene)) < 2
+    if memory:
+        # The surface-shading chain as the render's engine needs it (gone without Cycles):
+        # every pass it reads is filled per frame.
+        image_node, multiply, _ = _fog_nodes(tree)
+        _setup_surface(scene, tree, tree.nodes.get(FRAME), image_node, multiply)
+    if in_memory(scene) != memory:
+        _route(tree.nodes[NODE_IMAGE].node_tree, memory)
+
+
+def fill(scene, passes):
+    """Copies a bake's passes ({name: (H, W, 3) float32}, rows from the top) into the
+    in-memory images of the group's outputs that something is linked to; one such output the
+    bake lacks (a light gone since) gets its neutral value. Returns the seconds it took."""
+    t0 = time.perf_counter()
+    node = scene.node_tree.nodes[NODE_IMAGE]
+    group = node.node_tree
+    _expose(group, passes)
+    height, width = passes[PASS_TRANSMITTANCE].shape[:2]
+    for socket in node.outputs:
+        if not socket.is_linked:
+            continue
+        image = _memory_node(group, socket.name).image
+        if tuple(image.size) != (width, height):
+            image.generated_width, image.generated_height = width, height
+        rgba = np.empty((height, width, 4), np.float32)
+        data = passes.get(socket.name)
+        rgba[..., :3] = data[::-1] if data is not None else _neutral_value(socket.name)
+        rgba[..., 3] = 1.0
+        image.pixels.foreach_set(rgba.ravel())
+    return time.perf_counter() - t0
+
+
+def fill_neutral(scene):
+    """fill() with passes that leave the image as it is."""
+    width, height = render_size(scene)
+    ones = np.ones((max(height, 1), max(width, 1), 3), np.float32)
+    return fill(scene, {PASS_TRANSMITTANCE: ones})
 
 
 def _image(filepath, name=IMAGE_NAME):
@@ -205,8 +393,7 @@ def setup(scene, filepath=None):
     x, y = composite.location.x, composite.location.y
 
     frame = _node(tree, FRAME, "NodeFrame", FRAME, (x - 500, y + 100))
-    image_node = _node(tree, NODE_IMAGE, "CompositorNodeImage", "Airlight Passes",
-                       (x - 480, y - 200), frame)
+    image_node = _passes_node(tree, frame, (x - 480, y - 200))
     multiply = _node(tree, NODE_MULTIPLY, "CompositorNodeMixRGB", "Fog: x Transmittance",
                      (x - 260, y), frame)
     add = _node(tree, NODE_ADD, "CompositorNodeMixRGB", "Fog: + Airlight",
@@ -222,9 +409,14 @@ def setup(scene, filepath=None):
 
     if filepath is None and not image_node.outputs.get(PASS_AIRLIGHT):
         filepath = neutral_passes(scene)
-    image = _image(filepath)
+    group = image_node.node_tree
+    file_node = group.nodes[NODE_FILE]
+    image = _image(filepath) if filepath is not None or file_node.image is None else file_node.image
     if image is not None:
-        image_node.image = image
+        file_node.image = image
+        _expose(group, [socket.name for socket in file_node.outputs if socket.enabled])
+    if filepath is not None or not in_memory(scene) or len(render_views(scene)) > 1:
+        _route(group, memory=False)  # a file given is what the composite shows
 
     alpha = _setup_alpha(tree, frame, image_node, add)
     # A tree set up before the alpha nodes existed: what the Add node fed (the Composite,
@@ -303,7 +495,7 @@ def _setup_views(scene, tree, frame, image_node, filepath):
         if per_view:
             node.image = _image(root + suffix + ext, name)
         elif filepath is not None or node.image is None:
-            main = image_node.image
+            main = file_image(tree)
             node.image = _image(bpy.path.abspath(main.filepath), name) if main is not None else None
         images[view] = node
     for node in _view_nodes(tree):

@@ -26,7 +26,7 @@ import time
 import bpy
 from bpy.app.handlers import persistent
 
-from . import bake, compositor, emitter, native, surface
+from . import bake, cache, compositor, emitter, native, surface
 
 
 def _in_main_thread():
@@ -123,22 +123,51 @@ def on_render_frame_evaluated(scene, depsgraph=None):
 @persistent
 def on_render_end(*_):
     _pending["scene"] = None
+    _report_writes(cache.finish_writes())
+
+
+# Frames whose pass files are being written beside the render (cache.write_later), oldest first.
+_writing = []
+
+
+def _report_writes(done):
+    """Prints how the pass files written beside the render went (cache.finish_writes)."""
+    for paths, seconds, error in done:
+        frame = _writing.pop(0) if _writing else "?"
+        if error is not None:
+            print(f"Airlight: frame {frame}: the fog passes were composited but not saved: {error}", flush=True)
+        else:
+            print(f"Airlight: frame {frame}: EXR {1000.0 * seconds:.0f} ms beside the render -> {paths[0]}",
+                  flush=True)
+
+
+@persistent
+def on_render_post(*_):
+    """The frame's pass files are whole before the next frame, or the process's end."""
+    _report_writes(cache.finish_writes())
 
 
 def _bake_for_render(scene, get_depsgraph, get_mesh_overrides=lambda: None, evaluate_at=None):
     """Bakes the frame about to render with the depsgraph get_depsgraph() returns (and the
-    fog objects' data get_mesh_overrides() returns, fog_object.gather) and points the
-    compositor at it; on failure prints why and composites neutral passes."""
+    fog objects' data get_mesh_overrides() returns, fog_object.gather) and hands it to the
+    compositor: its passes copied into memory where the fog nodes read them from there
+    (compositor.use_memory; the EXR then written beside the render), else the EXR the Image
+    node is pointed at. On failure prints why and composites neutral passes."""
     settings = scene.airlight
     frame = scene.frame_current
+    memory = settings.auto_composite and _in_main_thread() and compositor.in_memory(scene)
+    deferred = [] if memory else None
     try:
         filepath, stats, seconds = bake.bake_frame(scene, get_depsgraph(), bake.cache_path(scene, frame),
-                                                   mesh_overrides=get_mesh_overrides(), evaluate_at=evaluate_at)
+                                                   mesh_overrides=get_mesh_overrides(), evaluate_at=evaluate_at,
+                                                   deferred=deferred)
     except Exception as ex:  # a handler must never take the render down
         reason = str(ex) if isinstance(ex, bake.BakeError) else f"{type(ex).__name__}: {ex}"
         print(f"Airlight: frame {frame} rendered without fog: {reason}", flush=True)
         _failed[scene.name] = (frame, reason)
-        if settings.auto_composite and compositor.is_set_up(scene):
+        if memory:
+            compositor.fill_neutral(scene)
+        elif settings.auto_composite and compositor.is_set_up(scene):
             # Don't composite a stale bake of another frame.
             compositor.sync(scene, compositor.neutral_passes(scene))
         return
@@ -149,7 +178,12 @@ def _bake_for_render(scene, get_depsgraph, get_mesh_overrides=lambda: None, eval
             continue  # (this bake sampled the shutter)
         print(f"Airlight: frame {frame}: {note}", flush=True)
     composite = ""
-    if settings.auto_composite:
+    if memory:
+        seconds = compositor.fill(scene, deferred[0].passes)
+        _report_writes(cache.write_later(deferred))
+        _writing.append(frame)
+        composite = f", compositor {1000.0 * seconds:.0f} ms (passes in memory)"
+    elif settings.auto_composite:
         t0 = time.perf_counter()
         compositor.sync(scene, filepath)
         composite = f", compositor {1000.0 * (time.perf_counter() - t0):.0f} ms"
@@ -177,6 +211,7 @@ def on_load_post(*_):
         try:
             if not compositor.is_complete(scene) or not compositor.views_ready(scene):
                 compositor.setup(scene)
+            compositor.choose_source(scene)
             if surface.active(scene) and scene == bpy.context.scene:
                 compositor.complete_surface(scene, bpy.context.evaluated_depsgraph_get())
         except Exception as ex:
@@ -186,20 +221,23 @@ def on_load_post(*_):
 @persistent
 def on_render_init(scene, *_):
     """Before a render builds what it composites with: the fog nodes for its views
-    (Stereoscopy switched on by a script after the file was loaded)."""
+    (Stereoscopy switched on by a script after the file was loaded), and where they take
+    the passes from (compositor.choose_source)."""
     settings = getattr(scene, "airlight", None)
     if settings is None or not (settings.enabled and settings.auto_composite) or not _in_main_thread():
         return
     try:
         compositor.ensure_views(scene)
+        compositor.choose_source(scene)
     except Exception as ex:  # a handler must never take the render down
-        print(f"Airlight: cannot set up the compositor's views: {ex}", flush=True)
+        print(f"Airlight: cannot set up the compositor's fog nodes: {ex}", flush=True)
 
 
 _HANDLERS = (
     (bpy.app.handlers.render_init, on_render_init),
     (bpy.app.handlers.render_pre, on_render_pre),
     (bpy.app.handlers.frame_change_post, on_render_frame_evaluated),
+    (bpy.app.handlers.render_post, on_render_post),
     (bpy.app.handlers.render_cancel, on_render_end),
     (bpy.app.handlers.render_complete, on_render_end),
     (bpy.app.handlers.load_post, on_load_post),

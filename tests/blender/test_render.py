@@ -44,6 +44,9 @@ def test01_render_is_plain_render_times_T_plus_A_and_animated_frames_differ(tmp_
     off_script.write_text("import bpy\nbpy.context.scene.airlight.enabled = False\n")
     out_on = _run(blend, "-o", str(tmp_path / "on_####"), "-a")
     assert "Airlight: fog of frame 1 baked" in out_on and "Airlight: fog of frame 2 baked" in out_on
+    # A background render composites from memory and writes each frame's EXR beside it.
+    assert out_on.count("(passes in memory)") == 2, out_on[-3000:]
+    assert "Airlight: frame 2: EXR" in out_on and "beside the render" in out_on, out_on[-3000:]
     _run(blend, "--python", str(off_script), "-o", str(tmp_path / "off_####"), "-f", "1")
 
     fog1 = tmp_path / "cache" / "fog_0001.exr"

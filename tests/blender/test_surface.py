@@ -282,10 +282,10 @@ def test09_lights_added_later_get_their_groups_before_a_render(tmp_path):
     assert tree.nodes[compositor.NODE_IMAGE].outputs.get("Surface_fog_Key") is not None
     assert len(_surface_nodes(tree)) == 6
     # Moving a light (no new group needed) changes nothing.
-    before = (len(tree.nodes), len(tree.links), tree.nodes[compositor.NODE_IMAGE].image.filepath)
+    before = (len(tree.nodes), len(tree.links), compositor.file_image(tree).filepath)
     key.location.x += 1.0
     view_layer.update()
-    assert (len(tree.nodes), len(tree.links), tree.nodes[compositor.NODE_IMAGE].image.filepath) == before
+    assert (len(tree.nodes), len(tree.links), compositor.file_image(tree).filepath) == before
 
     bpy.app.handlers.depsgraph_update_post.remove(compositor.on_depsgraph_update_post)
     try:

@@ -1,0 +1,126 @@
+"""The passes' node group: the multilayer file or in-memory images feed the fog nodes.
+
+A background render (these tests run in one) composites from memory (compositor.fill); the
+renders' own comparison with the baked EXR is test_render.py's test01.
+"""
+import bpy
+import numpy as np
+
+from airlight import cache, compositor
+from conftest import build_plane_scene
+
+
+def _old_tree(scene, tmp_path, extra_pass):
+    """A tree as an earlier version set it up: a multilayer Image node named "Airlight
+    Passes" on a baked file, and a user's Mix node reading its pass _extra_pass_."""
+    compositor.setup(scene)
+    tree = scene.node_tree
+    group_node = tree.nodes[compositor.NODE_IMAGE]
+    targets = {s.name: [l.to_socket for l in s.links] for s in group_node.outputs}
+    tree.nodes.remove(group_node)
+    path = str(tmp_path / "old.exr")
+    h, w = 12, 16
+    cache.write_passes(path, np.zeros((h, w, 3), np.float32), np.ones((h, w, 3), np.float32),
+                       {extra_pass: np.full((h, w, 3), 0.5, np.float32)})
+    old = tree.nodes.new("CompositorNodeImage")
+    old.name = compositor.NODE_IMAGE
+    old.image = bpy.data.images.load(path)
+    for name, sockets in targets.items():
+        for socket in sockets:
+            tree.links.new(old.outputs[name], socket)
+    user = tree.nodes.new("CompositorNodeMixRGB")
+    user.name = "User Mix"
+    tree.links.new(old.outputs[extra_pass], user.inputs[1])
+    return tree, user
+
+
+def test01_a_tree_from_an_earlier_version_moves_to_the_group_with_the_users_links(tmp_path):
+    scene = build_plane_scene(tmp_path)
+    tree, user = _old_tree(scene, tmp_path, "Airlight_Key")
+    assert not compositor.is_complete(scene)
+    compositor.setup(scene)
+    node = tree.nodes[compositor.NODE_IMAGE]
+    assert node.bl_idname == "CompositorNodeGroup" and node.node_tree.name == compositor.GROUP_NAME
+    assert compositor.is_complete(scene)
+    assert user.inputs[1].links[0].from_socket == node.outputs["Airlight_Key"]
+    assert tree.nodes["Airlight Multiply"].inputs[2].links[0].from_socket == node.outputs["Transmittance"]
+    assert compositor.file_image(tree).filepath.endswith("old.exr")
+    assert len([n for n in tree.nodes if n.name.startswith(compositor.NODE_IMAGE)]) == 1
+    compositor.setup(scene)
+    assert len([n for n in tree.nodes if n.name.startswith(compositor.NODE_IMAGE)]) == 1
+
+
+def test02_a_background_render_reads_memory_and_a_baked_file_moves_it_back(tmp_path):
+    scene = build_plane_scene(tmp_path)
+    compositor.setup(scene)
+    assert not compositor.in_memory(scene)  # set up on neutral passes from a file
+    compositor.choose_source(scene)  # (what render_init does; these tests run in the background)
+    assert compositor.in_memory(scene)
+    path = str(tmp_path / "baked.exr")
+    cache.write_passes(path, np.zeros((4, 4, 3), np.float32), np.ones((4, 4, 3), np.float32))
+    compositor.sync(scene, path)  # Bake Fog: the file is what the composite shows
+    assert not compositor.in_memory(scene)
+    group = scene.node_tree.nodes[compositor.NODE_IMAGE].node_tree
+    socket = next(s for s in group.nodes if s.type == 'GROUP_OUTPUT').inputs["Transmittance"]
+    assert socket.links[0].from_node.name == compositor.NODE_FILE
+
+
+def _pixels(name):
+    image = bpy.data.images[compositor._memory_name(name)]
+    w, h = image.size
+    out = np.empty(w * h * 4, np.float32)
+    image.pixels.foreach_get(out)
+    return out.reshape(h, w, 4)
+
+
+def test03_fill_copies_the_linked_passes_top_row_first_and_a_missing_one_is_neutral(tmp_path):
+    scene = build_plane_scene(tmp_path, size=(32, 24))
+    tree, user = _old_tree(scene, tmp_path, "Airlight_Key")
+    compositor.setup(scene)
+    compositor.choose_source(scene)
+    h, w = 24, 32
+    rows = np.linspace(0.0, 1.0, h, dtype=np.float32)[:, None, None]
+    airlight = np.broadcast_to(rows * np.array([1.0, 2.0, 3.0], np.float32), (h, w, 3)).copy()
+    transmittance = np.full((h, w, 3), 0.25, np.float32)
+    compositor.fill(scene, {"Airlight": airlight, "Transmittance": transmittance, "Unlinked": airlight})
+    got = _pixels("Airlight")
+    np.testing.assert_array_equal(got[::-1, :, :3], airlight)  # Blender's rows start at the bottom
+    assert (got[..., 3] == 1.0).all()
+    np.testing.assert_array_equal(_pixels("Transmittance")[..., :3], 0.25)
+    # The user's light pass is not in this bake (the light is gone): 0, not the last frame's.
+    np.testing.assert_array_equal(_pixels("Airlight_Key")[..., :3], 0.0)
+    # An output nothing reads is not copied.
+    assert bpy.data.images.get(compositor._memory_name("Unlinked")) is None or \
+        tuple(bpy.data.images[compositor._memory_name("Unlinked")].size) != (w, h)
+    # A new render size: the images follow.
+    small = {"Airlight": airlight[:12, :16].copy(), "Transmittance": transmittance[:12, :16].copy()}
+    compositor.fill(scene, small)
+    assert tuple(bpy.data.images[compositor._memory_name("Airlight")].size) == (16, 12)
+    np.testing.assert_array_equal(_pixels("Airlight")[::-1, :, :3], small["Airlight"])
+
+
+def test04_reopened_in_memory_images_are_neutral(tmp_path):
+    """A file saved after a background render keeps no pixels of the in-memory images: they
+    regenerate as passes that leave the image unchanged."""
+    scene = build_plane_scene(tmp_path)
+    compositor.setup(scene)
+    compositor.choose_source(scene)
+    h, w = 8, 8
+    compositor.fill(scene, {"Airlight": np.full((h, w, 3), 0.3, np.float32),
+                            "Transmittance": np.full((h, w, 3), 0.2, np.float32)})
+    path = str(tmp_path / "saved.blend")
+    bpy.ops.wm.save_as_mainfile(filepath=path)
+    bpy.ops.wm.open_mainfile(filepath=path)
+    np.testing.assert_array_equal(_pixels("Airlight")[..., :3], 0.0)
+    np.testing.assert_array_equal(_pixels("Transmittance")[..., :3], 1.0)
+
+
+def test05_fill_neutral_leaves_the_image_unchanged(tmp_path):
+    scene = build_plane_scene(tmp_path, size=(20, 10))
+    compositor.setup(scene)
+    compositor.choose_source(scene)
+    compositor.fill(scene, {"Airlight": np.full((10, 20, 3), 0.3, np.float32),
+                            "Transmittance": np.full((10, 20, 3), 0.2, np.float32)})
+    compositor.fill_neutral(scene)
+    np.testing.assert_array_equal(_pixels("Airlight")[..., :3], 0.0)
+    np.testing.assert_array_equal(_pixels("Transmittance")[..., :3], 1.0)
