@@ -314,25 +314,32 @@ def choose_source(scene):
         _route(tree.nodes[NODE_IMAGE].node_tree, memory)
 
 
+def _linked_images(scene, width, height):
+    """The in-memory images of the passes node's outputs something reads, sized _width_ x
+    _height_ (a new size makes Blender regenerate the image on its next use)."""
+    node = scene.node_tree.nodes[NODE_IMAGE]
+    images = {}
+    for socket in node.outputs:
+        if socket.is_linked:
+            image = _memory_node(node.node_tree, socket.name).image
+            if tuple(image.size) != (width, height):
+                image.generated_width, image.generated_height = width, height
+            images[socket.name] = image
+    return images
+
+
 def fill(scene, passes):
     """Copies a bake's passes ({name: (H, W, 3) float32}, rows from the top) into the
     in-memory images of the group's outputs that something is linked to; one such output the
     bake lacks (a light gone since) gets its neutral value. Returns the seconds it took."""
     t0 = time.perf_counter()
-    node = scene.node_tree.nodes[NODE_IMAGE]
-    group = node.node_tree
-    _expose(group, passes)
+    _expose(scene.node_tree.nodes[NODE_IMAGE].node_tree, passes)
     height, width = passes[PASS_TRANSMITTANCE].shape[:2]
-    for socket in node.outputs:
-        if not socket.is_linked:
-            continue
-        image = _memory_node(group, socket.name).image
-        if tuple(image.size) != (width, height):
-            image.generated_width, image.generated_height = width, height
-        rgba = np.empty((height, width, 4), np.float32)
-        data = passes.get(socket.name)
-        rgba[..., :3] = data[::-1] if data is not None else _neutral_value(socket.name)
-        rgba[..., 3] = 1.0
+    rgba = np.empty((height, width, 4), np.float32)
+    rgba[..., 3] = 1.0
+    for name, image in _linked_images(scene, width, height).items():
+        data = passes.get(name)
+        rgba[..., :3] = data[::-1] if data is not None else _neutral_value(name)
         image.pixels.foreach_set(rgba.ravel())
     return time.perf_counter() - t0
 
