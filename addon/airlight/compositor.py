@@ -215,23 +215,23 @@ def _memory_name(name):
     return full if len(full.encode()) <= 63 else f"{MEMORY_PREFIX}{zlib.crc32(name.encode()):08x}"
 
 
-def _memory_image(name, size=(4, 4)):
-    """The in-memory float image of pass _name_, regenerating to its neutral value (what a
-    reopened file shows: its pixels are not saved)."""
-    image_name = _memory_name(name)
-    image = bpy.data.images.get(image_name)
-    if image is None or image.source != 'GENERATED' or not image.is_float:
-        image = bpy.data.images.new(image_name, size[0], size[1], alpha=True, float_buffer=True)
-        value = _neutral_value(name)
-        image.generated_color = (value, value, value, 1.0)
+def _new_memory_image(name):
+    """A new in-memory float image for pass _name_ that regenerates to the pass's neutral
+    value (what a reopened file shows: its pixels are not saved)."""
+    image = bpy.data.images.new(_memory_name(name), 4, 4, alpha=True, float_buffer=True)
+    value = _neutral_value(name)
+    image.generated_color = (value, value, value, 1.0)
     return image
 
 
 def _memory_node(group, name):
+    """The group's Image node of pass _name_ in memory, with its own generated float image
+    (a new one if a user gave it another)."""
     node = _node(group, _memory_name(name), "CompositorNodeImage", f"{name} (in memory)",
                  (0, -200 - 160 * len(group.nodes)))
-    if node.image is None or node.image.name != _memory_name(name):
-        node.image = _memory_image(name)
+    image = node.image
+    if image is None or image.source != 'GENERATED' or not image.is_float:
+        node.image = _new_memory_image(name)
     return node
 
 
@@ -746,6 +746,12 @@ def complete_surface(scene, depsgraph):
     next bake) where the scene as _depsgraph_ has it needs more; main thread only."""
     if not surface_ready(scene, depsgraph):
         setup(scene, neutral_passes(scene, depsgraph))
+    elif is_complete(scene):
+        # The chain itself (a background render with another engine left the file without it:
+        # choose_source).
+        tree = scene.node_tree
+        image_node, multiply, _ = _fog_nodes(tree)
+        _setup_surface(scene, tree, tree.nodes.get(FRAME), image_node, multiply)
 
 
 def _touches_lights(depsgraph):

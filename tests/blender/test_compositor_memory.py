@@ -65,8 +65,13 @@ def test02_a_background_render_reads_memory_and_a_baked_file_moves_it_back(tmp_p
     assert socket.links[0].from_node.name == compositor.NODE_FILE
 
 
+def _image(name):
+    group = bpy.data.node_groups[compositor.GROUP_NAME]
+    return group.nodes[compositor._memory_name(name)].image
+
+
 def _pixels(name):
-    image = bpy.data.images[compositor._memory_name(name)]
+    image = _image(name)
     w, h = image.size
     out = np.empty(w * h * 4, np.float32)
     image.pixels.foreach_get(out)
@@ -90,12 +95,12 @@ def test03_fill_copies_the_linked_passes_top_row_first_and_a_missing_one_is_neut
     # The user's light pass is not in this bake (the light is gone): 0, not the last frame's.
     np.testing.assert_array_equal(_pixels("Airlight_Key")[..., :3], 0.0)
     # An output nothing reads is not copied.
-    assert bpy.data.images.get(compositor._memory_name("Unlinked")) is None or \
-        tuple(bpy.data.images[compositor._memory_name("Unlinked")].size) != (w, h)
+    unlinked = bpy.data.node_groups[compositor.GROUP_NAME].nodes.get(compositor._memory_name("Unlinked"))
+    assert unlinked is None or tuple(unlinked.image.size) != (w, h)
     # A new render size: the images follow.
     small = {"Airlight": airlight[:12, :16].copy(), "Transmittance": transmittance[:12, :16].copy()}
     compositor.fill(scene, small)
-    assert tuple(bpy.data.images[compositor._memory_name("Airlight")].size) == (16, 12)
+    assert tuple(_image("Airlight").size) == (16, 12)
     np.testing.assert_array_equal(_pixels("Airlight")[::-1, :, :3], small["Airlight"])
 
 
@@ -124,3 +129,26 @@ def test05_fill_neutral_leaves_the_image_unchanged(tmp_path):
     compositor.fill_neutral(scene)
     np.testing.assert_array_equal(_pixels("Airlight")[..., :3], 0.0)
     np.testing.assert_array_equal(_pixels("Transmittance")[..., :3], 1.0)
+
+
+def test06_a_render_without_cycles_drops_the_surface_chain_and_loading_brings_it_back(tmp_path):
+    """The surface-shading chain reads passes only Cycles makes: a background render with
+    another engine composites without it (nothing to fill), and the file, saved then,
+    gets it back when it opens for Cycles."""
+    scene = build_plane_scene(tmp_path)
+    scene.render.engine = 'CYCLES'
+    bpy.ops.airlight.setup_compositor()
+    surface_nodes = lambda: [n for n in scene.node_tree.nodes  # noqa: E731
+                             if n.name.startswith(compositor.SURFACE_NODE_PREFIX)]
+    assert surface_nodes()
+    scene.render.engine = 'BLENDER_WORKBENCH'
+    compositor.choose_source(scene)
+    assert compositor.in_memory(scene) and not surface_nodes()
+    outputs = [s.name for s in scene.node_tree.nodes[compositor.NODE_IMAGE].outputs if s.is_linked]
+    assert sorted(outputs) == ["Airlight", "Transmittance"]
+    scene.render.engine = 'CYCLES'
+    path = str(tmp_path / "after_workbench.blend")
+    bpy.ops.wm.save_as_mainfile(filepath=path)
+    bpy.ops.wm.open_mainfile(filepath=path)
+    scene = bpy.context.scene
+    assert surface_nodes()
