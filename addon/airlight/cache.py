@@ -101,6 +101,8 @@ def write_later(files):
                              half=file.half)
         except CacheError as ex:
             outcome["error"] = str(ex)
+        except Exception as ex:  # reported by finish_writes, never lost with the thread
+            outcome["error"] = f"{type(ex).__name__}: {ex}"
         outcome["seconds"] = time.perf_counter() - t0
 
     thread = threading.Thread(target=work, name="Airlight pass files")

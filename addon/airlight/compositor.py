@@ -345,10 +345,12 @@ def fill(scene, passes):
 
 
 def fill_neutral(scene):
-    """fill() with passes that leave the image as it is."""
+    """Gives the in-memory images something reads their neutral value at the render's size:
+    Blender regenerates them from their generated colour (nothing to copy or allocate here,
+    so this holds where fill() failed for want of memory)."""
     width, height = render_size(scene)
-    ones = np.ones((max(height, 1), max(width, 1), 3), np.float32)
-    return fill(scene, {PASS_TRANSMITTANCE: ones})
+    for image in _linked_images(scene, max(width, 1), max(height, 1)).values():
+        image.reload()
 
 
 def _image(filepath, name=IMAGE_NAME):

@@ -151,8 +151,8 @@ def _bake_for_render(scene, get_depsgraph, get_mesh_overrides=lambda: None, eval
     """Bakes the frame about to render with the depsgraph get_depsgraph() returns (and the
     fog objects' data get_mesh_overrides() returns, fog_object.gather) and hands it to the
     compositor: its passes copied into memory where the fog nodes read them from there
-    (compositor.use_memory; the EXR then written beside the render), else the EXR the Image
-    node is pointed at. On failure prints why and composites neutral passes."""
+    (compositor.choose_source; the EXR then written beside the render), else the EXR the
+    Image node is pointed at. On failure prints why and composites neutral passes."""
     settings = scene.airlight
     frame = scene.frame_current
     memory = settings.auto_composite and _in_main_thread() and compositor.in_memory(scene)
@@ -179,10 +179,16 @@ def _bake_for_render(scene, get_depsgraph, get_mesh_overrides=lambda: None, eval
         print(f"Airlight: frame {frame}: {note}", flush=True)
     composite = ""
     if memory:
-        seconds = compositor.fill(scene, deferred[0].passes)
+        try:
+            seconds = compositor.fill(scene, deferred[0].passes)
+            composite = f", compositor {1000.0 * seconds:.0f} ms (passes in memory)"
+        except Exception as ex:  # e.g. no memory for the images: say so, never a stale frame's fog
+            reason = f"cannot hand the passes to the compositor: {type(ex).__name__}: {ex}"
+            print(f"Airlight: frame {frame} rendered without fog: {reason}", flush=True)
+            _failed[scene.name] = (frame, reason)
+            compositor.fill_neutral(scene)
         _report_writes(cache.write_later(deferred))
         _writing.append(frame)
-        composite = f", compositor {1000.0 * seconds:.0f} ms (passes in memory)"
     elif settings.auto_composite:
         t0 = time.perf_counter()
         compositor.sync(scene, filepath)

@@ -3,10 +3,12 @@
 A background render (these tests run in one) composites from memory (compositor.fill); the
 renders' own comparison with the baked EXR is test_render.py's test01.
 """
+import os
+
 import bpy
 import numpy as np
 
-from airlight import cache, compositor
+from airlight import cache, compositor, render
 from conftest import build_plane_scene
 
 
@@ -152,3 +154,38 @@ def test06_a_render_without_cycles_drops_the_surface_chain_and_loading_brings_it
     bpy.ops.wm.open_mainfile(filepath=path)
     scene = bpy.context.scene
     assert surface_nodes()
+
+
+def test07_pass_files_written_beside_the_render_say_how_it_went(tmp_path):
+    zeros = np.zeros((4, 4, 3), np.float32)
+    passes = {"Airlight": zeros, "Transmittance": zeros + 1.0}
+    good = cache.PassFile(str(tmp_path / "good.exr"), passes, True)
+    bad = cache.PassFile("/proc/airlight_no_such_folder/bad.exr", passes, True)
+    assert cache.write_later([good]) == []
+    earlier = cache.write_later([bad])  # waits for the first
+    assert earlier[0][0] == [good.filepath] and earlier[0][2] is None and os.path.exists(good.filepath)
+    (paths, _, error), = cache.finish_writes()
+    assert paths == [bad.filepath] and "Cannot create the fog cache folder" in error
+    assert cache.finish_writes() == []
+
+
+def test08_a_frame_whose_passes_cannot_reach_the_compositor_says_so_and_composites_none(
+        tmp_path, monkeypatch, capsys):
+    scene = build_plane_scene(tmp_path, size=(16, 12))
+    scene.airlight.cache_dir = str(tmp_path / "cache")
+    compositor.setup(scene)
+    compositor.choose_source(scene)
+    compositor.fill(scene, {"Airlight": np.full((12, 16, 3), 0.3, np.float32),
+                            "Transmittance": np.full((12, 16, 3), 0.2, np.float32)})
+
+    def no_memory(*_):
+        raise MemoryError("no room for the images")
+    monkeypatch.setattr(compositor, "fill", no_memory)
+    capsys.readouterr()
+    render.on_render_pre(scene)
+    render.on_render_post(scene)
+    out = capsys.readouterr().out
+    assert "rendered without fog: cannot hand the passes to the compositor: MemoryError" in out, out
+    np.testing.assert_array_equal(_pixels("Airlight")[..., :3], 0.0)  # not the last frame's fog
+    np.testing.assert_array_equal(_pixels("Transmittance")[..., :3], 1.0)
+    assert "EXR" in out and os.path.exists(tmp_path / "cache" / "fog_0001.exr")  # still saved
