@@ -54,14 +54,18 @@ def pass_dict(airlight, transmittance, extra=None):
 
 
 def write_passes(filepath, airlight, transmittance, extra=None, half=False):
-    """Writes the two passes as one multilayer EXR (through `_native.write_exr`), plus the
-    passes in `extra` ({name: (H, W, 3) float32}, e.g. surface.py's Surface_<group> and
-    SurfaceGlow: layer "Fog", pass <name>); _half_: 16-bit floats (Pass Precision).
+    """write_pass_dict of the two passes and those in _extra_."""
+    write_pass_dict(filepath, pass_dict(airlight, transmittance, extra), half)
+
+
+def write_pass_dict(filepath, passes, half=False):
+    """Writes _passes_ (pass_dict: Airlight, Transmittance and e.g. surface.py's
+    Surface_<group> and SurfaceGlow) as one multilayer EXR (through `_native.write_exr`:
+    layer "Fog", pass <name>); _half_: 16-bit floats (Pass Precision).
     Written to a temporary file beside it and renamed over it (atomic on one file system),
     so a compositor or another farm task reading the file sees a whole one, never half of
     it, and two tasks writing one frame each leave a whole file."""
     ensure_parent_dir(filepath)
-    passes = pass_dict(airlight, transmittance, extra)
     tmp = f"{filepath}.{os.getpid()}.{threading.get_ident()}.tmp"
     try:
         native.get().write_exr(tmp, passes, layer_prefix=LAYER_PREFIX, half=half)
@@ -81,14 +85,14 @@ class PassFile(NamedTuple):
     half: bool
 
 
-# The writes under way (write_later): [(thread, files, outcome dict)].
+# The writes under way (write_later): [(thread, label, paths, outcome dict)].
 _writes = []
 
 
-def write_later(files):
+def write_later(files, label=None):
     """Writes the PassFiles _files_ in a thread, beside the render (the native writer
     releases the GIL), once any earlier write has finished; returns finish_writes() of those
-    earlier ones, and a later finish_writes() says how this one went."""
+    earlier ones, and a later finish_writes() says how this one went, under _label_."""
     earlier = finish_writes()
     outcome = {}
 
@@ -96,9 +100,7 @@ def write_later(files):
         t0 = time.perf_counter()
         try:
             for file in files:
-                passes = dict(file.passes)
-                write_passes(file.filepath, passes.pop(PASS_AIRLIGHT), passes.pop(PASS_TRANSMITTANCE), passes,
-                             half=file.half)
+                write_pass_dict(file.filepath, file.passes, file.half)
         except CacheError as ex:
             outcome["error"] = str(ex)
         except Exception as ex:  # reported by finish_writes, never lost with the thread
@@ -107,17 +109,18 @@ def write_later(files):
 
     thread = threading.Thread(target=work, name="Airlight pass files")
     thread.start()
-    _writes.append((thread, [file.filepath for file in files], outcome))
+    _writes.append((thread, label, [file.filepath for file in files], outcome))
     return earlier
 
 
 def finish_writes():
-    """Waits for the writes write_later started; returns [(paths, seconds, error or None)]."""
+    """Waits for the writes write_later started; returns [(label, paths, seconds, error or
+    None)], oldest first."""
     done = []
     while _writes:
-        thread, paths, outcome = _writes.pop(0)
+        thread, label, paths, outcome = _writes.pop(0)
         thread.join()
-        done.append((paths, outcome.get("seconds", 0.0), outcome.get("error")))
+        done.append((label, paths, outcome.get("seconds", 0.0), outcome.get("error")))
     return done
 
 

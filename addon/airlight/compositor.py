@@ -227,8 +227,10 @@ def _new_memory_image(name):
 def _memory_node(group, name):
     """The group's Image node of pass _name_ in memory, with its own generated float image
     (a new one if a user gave it another)."""
-    node = _node(group, _memory_name(name), "CompositorNodeImage", f"{name} (in memory)",
-                 (0, -200 - 160 * len(group.nodes)))
+    node = group.nodes.get(_memory_name(name))
+    if node is None or node.bl_idname != "CompositorNodeImage":  # (fill's per-frame path writes nothing else)
+        node = _node(group, _memory_name(name), "CompositorNodeImage", f"{name} (in memory)",
+                     (0, -200 - 160 * len(group.nodes)))
     image = node.image
     if image is None or image.source != 'GENERATED' or not image.is_float:
         node.image = _new_memory_image(name)

@@ -126,14 +126,10 @@ def on_render_end(*_):
     _report_writes(cache.finish_writes())
 
 
-# Frames whose pass files are being written beside the render (cache.write_later), oldest first.
-_writing = []
-
-
 def _report_writes(done):
-    """Prints how the pass files written beside the render went (cache.finish_writes)."""
-    for paths, seconds, error in done:
-        frame = _writing.pop(0) if _writing else "?"
+    """Prints how the pass files written beside the render went (cache.finish_writes, each
+    labelled with its frame)."""
+    for frame, paths, seconds, error in done:
         if error is not None:
             print(f"Airlight: frame {frame}: the fog passes were composited but not saved: {error}", flush=True)
         else:
@@ -187,8 +183,7 @@ def _bake_for_render(scene, get_depsgraph, get_mesh_overrides=lambda: None, eval
             print(f"Airlight: frame {frame} rendered without fog: {reason}", flush=True)
             _failed[scene.name] = (frame, reason)
             compositor.fill_neutral(scene)
-        _report_writes(cache.write_later(deferred))
-        _writing.append(frame)
+        _report_writes(cache.write_later(deferred, frame))
     elif settings.auto_composite:
         t0 = time.perf_counter()
         compositor.sync(scene, filepath)

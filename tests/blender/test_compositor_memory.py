@@ -161,11 +161,11 @@ def test07_pass_files_written_beside_the_render_say_how_it_went(tmp_path):
     passes = {"Airlight": zeros, "Transmittance": zeros + 1.0}
     good = cache.PassFile(str(tmp_path / "good.exr"), passes, True)
     bad = cache.PassFile("/proc/airlight_no_such_folder/bad.exr", passes, True)
-    assert cache.write_later([good]) == []
-    earlier = cache.write_later([bad])  # waits for the first
-    assert earlier[0][0] == [good.filepath] and earlier[0][2] is None and os.path.exists(good.filepath)
-    (paths, _, error), = cache.finish_writes()
-    assert paths == [bad.filepath] and "Cannot create the fog cache folder" in error
+    assert cache.write_later([good], 1) == []
+    earlier = cache.write_later([bad], 2)  # waits for the first
+    assert earlier[0][:2] == (1, [good.filepath]) and earlier[0][3] is None and os.path.exists(good.filepath)
+    (label, paths, _, error), = cache.finish_writes()
+    assert label == 2 and paths == [bad.filepath] and "Cannot create the fog cache folder" in error
     assert cache.finish_writes() == []
 
 
