@@ -315,6 +315,34 @@ RGB FogEvaluator::gaussian_weight(size_t l, size_t i) const {
 void FogEvaluator::refine_gaussians(const Ray* rays, const float* Dvp, const float* t0, int n, RGB* La) const {
     if (!refiner_ || refine_abandoned_.load(std::memory_order_relaxed)) return;
     const std::uint64_t work_start = refine_work();
+    // While the budget is counted, this call may do what is left of it (scaled by the
+    // foresight's factor while that runs): past that the frame is over it whatever the other
+    // threads do, and the refinement stops within one integrand evaluation.
+    struct Limit {
+        ~Limit() { refine_work_limit() = std::numeric_limits<std::uint64_t>::max(); }
+    } reset_limit;
+    if (refine_counting_.load(std::memory_order_relaxed)) {
+        const double left = double(refine_budget_) / refine_scale_.load() - double(refine_spent_.load());
+        if (!(left > 0.0)) {
+            refine_abandoned_.store(true);
+            return;
+        }
+        refine_work_limit() = work_start + std::uint64_t(std::min(left, 1e18));
+    }
+    try {
+        refine_rays(rays, Dvp, t0, n, La);
+    } catch (const RefineWorkExceeded&) {
+        refine_spent_.fetch_add(refine_work() - work_start);
+        refine_abandoned_.store(true);
+        return;
+    }
+    if (refine_counting_.load(std::memory_order_relaxed)) {
+        const std::uint64_t spent = refine_spent_.fetch_add(refine_work() - work_start) + (refine_work() - work_start);
+        if (spent > refine_budget_) refine_abandoned_.store(true);
+    }
+}
+
+void FogEvaluator::refine_rays(const Ray* rays, const float* Dvp, const float* t0, int n, RGB* La) const {
     const LitIntervals* lit = nullptr;  // traced for the batch once a ray needs it
     thread_local GaussianRefiner::ViewDepth view;
     const FogshopAirlight::SpanProfile profile = [this](size_t l, const Vec3& u) { return gaussian_profile(l, u); };
@@ -373,10 +401,6 @@ void FogEvaluator::refine_gaussians(const Ray* rays, const float* Dvp, const flo
             }
         }
         if (background) refine_background(d, near, end, Tg_near, lit ? &lit[k] : nullptr, view, La[k]);
-    }
-    if (refine_counting_.load(std::memory_order_relaxed)) {
-        const std::uint64_t spent = refine_spent_.fetch_add(refine_work() - work_start) + (refine_work() - work_start);
-        if (spent > refine_budget_) refine_abandoned_.store(true);
     }
 }
 

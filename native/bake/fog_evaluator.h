@@ -92,6 +92,10 @@ class FogEvaluator {
     void foresee_refine_work(double factor) const {
         if (double(refine_spent_.load()) * factor > double(refine_budget_)) refine_abandoned_.store(true);
     }
+    // The factor by which refine_gaussians scales the work it may still do within the budget
+    // (the foresight's scale while it runs; 1 after): a frame over the budget stops within one
+    // integrand evaluation of knowing it, not one batch of rays.
+    void set_refine_scale(double factor) const { refine_scale_.store(factor); }
     double refine_work_seconds() const { return kRefineSecondsPerWork * double(refine_spent_.load()); }
     long long background_rays() const { return background_rays_.load(); }
     long long pair_terms() const { return pair_terms_.load(); }
@@ -180,6 +184,8 @@ class FogEvaluator {
     // _view_ gathered on demand.
     void refine_background(const Vec3& d, double near, double end, double Tg_near, const LitIntervals* lit,
                            GaussianRefiner::ViewDepth& view, RGB& La) const;
+    // refine_gaussians' rays (FogEvaluator::refine_gaussians keeps the budget around it).
+    void refine_rays(const Ray* rays, const float* Dvp, const float* t0, int n, RGB* La) const;
     // Volume of the Fogshop light l (gaussian_lights_, then the suns) in shadows_; -1: none.
     int gaussian_volume(size_t l) const;
     // albedo_i I0_l (E_l for suns) of the pair (light l, Gaussian i).
@@ -293,6 +299,7 @@ class FogEvaluator {
     std::uint64_t refine_budget_ = 0;
     mutable std::atomic<std::uint64_t> refine_spent_{0};
     mutable std::atomic<bool> refine_abandoned_{false}, refine_counting_{true};
+    mutable std::atomic<double> refine_scale_{1.0};
     std::vector<int> light_volume_, spot_volume_, sun_volume_;
     // Per point light, spot and sun its shadow samples (BakeSettings::shadow_samples): volumes
     // light_volume_[l] .. + light_samples_[l] - 1 (1: its centre's alone).

@@ -98,16 +98,27 @@ void refine_centres(BakeContext& ctx, const FogEvaluator& fog) {
     };
     // Foresight: an 8 x 5 spread of grid points first (results dropped); its work, scaled to the
     // grid and as much again for the pixels refined alone, stops a frame that would exceed the
-    // budget before the grid is spent.
-    const int Wf = std::min(Wc, 8), Hf = std::min(Hc, 5);
+    // budget before the grid is spent. The points go one at a time, in an order spread over the
+    // image, and the frame stops as soon as the work so far, so scaled, exceeds the budget (checked
+    // between a ray's exact terms too): the whole spread's could only be larger (a dense cloud's
+    // first ray can decide it).
+    const int Wf = std::min(Wc, 8), Hf = std::min(Hc, 5), Nf = Wf * Hf;
+    const double foresight_scale = 2.0 * double(Wc) * Hc / double(Nf);
     auto spread = [](int k, int n, int m) { return n > 1 ? int(std::lround(double(k) * (m - 1) / (n - 1))) : 0; };
-    parallel_for(Hf, ctx.n_threads, [&](int Jf) {
+    int step = 17;  // coprime with Nf: k -> k step mod Nf visits every point, far apart in turn
+    while (std::gcd(step, Nf) != 1) ++step;
+    fog.set_refine_scale(foresight_scale);
+    parallel_for(Nf, ctx.n_threads, [&](int k) {
+        if (fog.refine_abandoned()) return;
+        const int q = int((long long)(k) * step % Nf);
         RefineScratch& scratch = refine_scratch(W);
-        scratch.xs.clear();
-        for (int If = 0; If < Wf; ++If) scratch.xs.push_back(grid_x(spread(If, Wf, Wc)));
-        refine_row(grid_y(spread(Jf, Hf, Hc)), scratch);
+        scratch.xs.assign(1, grid_x(spread(q % Wf, Wf, Wc)));
+        refine_row(grid_y(spread(q / Wf, Hf, Hc)), scratch);
+        fog.set_refine_scale(1.0);
+    fog.foresee_refine_work(foresight_scale);
     });
-    fog.foresee_refine_work(2.0 * double(Wc) * Hc / (double(Wf) * Hf));
+    fog.set_refine_scale(1.0);
+    fog.foresee_refine_work(foresight_scale);
     if (fog.refine_abandoned()) return;
     // The grid.
     parallel_for(Hc, ctx.n_threads, [&](int J) {

@@ -33,6 +33,12 @@ constexpr int kMaxPanels = 400;
 constexpr double kThickOnRay = 0.1;
 
 thread_local std::uint64_t work = 0;
+thread_local std::uint64_t work_limit = std::numeric_limits<std::uint64_t>::max();
+
+// Counts one Gaussian term of an integrand; past the thread's limit the refinement stops.
+inline void count_work() {
+    if (++work > work_limit) throw RefineWorkExceeded{};
+}
 
 double sigma_of(double a) { return 1.0 / (a * std::sqrt(2.0)); }
 
@@ -53,6 +59,7 @@ double shade(const GaussianMedium& medium, std::size_t i, const Vec3& o, const V
 }  // namespace
 
 std::uint64_t& refine_work() { return work; }
+std::uint64_t& refine_work_limit() { return work_limit; }
 
 double phase_curvature(const PhaseFunction& phase) {
     if (phase.kind == PhaseKind::Isotropic) return 0.0;
@@ -200,7 +207,7 @@ double GaussianRefiner::ViewDepth::operator()(double t) const {
         const double u = g.a * (t - g.ts);
         if (u > kReach || u < -kReach) continue;  // passed (in the sums) or ahead
         T += g.k * erf_diff(g.a * (t_start - g.ts), u);
-        ++work;
+        count_work();
     }
     return T;
 }
@@ -209,7 +216,7 @@ double GaussianRefiner::gaussians_on(const Vec3& o, const Vec3& u, double len) c
     double T = 0.0;
     medium_.for_each_near(o, u, len, [&](std::size_t j) {
         T += gaussian_line_integral(medium_.amplitude(j), medium_.scale(j), medium_.centre(j), o, u, 0.0, len);
-        ++work;
+        count_work();
     });
     return T;
 }

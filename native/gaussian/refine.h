@@ -41,6 +41,10 @@ namespace airlight {
 // The work of this thread's exact integrals so far: per integrand evaluation, the Gaussians
 // whose optical depths it sums (the bake's refinement budget counts it; deterministic).
 std::uint64_t& refine_work();
+// This thread's limit on refine_work(): an integrand that would count past it throws
+// RefineWorkExceeded (the bake's budget is spent; its caller drops the refinement).
+std::uint64_t& refine_work_limit();
+struct RefineWorkExceeded {};
 
 // The refinement's lights are the reference's (GaussianRefLight, airlight.h): point, spot
 // (its cone) or sun (unit propagation direction w); its shadow members are not read here.

@@ -136,3 +136,26 @@ def test_interpolated_refinement_meets_the_accuracy_at_a_finer_resolution():
         e = rel_errors(bake("thick around a light", gaussian_accuracy=accuracy, **size)["airlight"], ref)
         print(f"160 x 120 at {accuracy:g}: mean {e.mean():.2e} p99 {np.percentile(e, 99):.2e}")
         assert e.mean() <= accuracy and np.percentile(e, 99) <= 3 * accuracy
+
+
+def test_a_frame_over_its_budget_keeps_fogshop_and_stops_at_once():
+    """gaussian_refine_budget: a frame whose refinement would exceed it keeps Fogshop's values
+    (bit for bit) and says so; it stops as soon as the work counted, scaled to the frame, is over
+    the budget (within an integrand evaluation), not after its foresight's 40 rays: the work it
+    reports stays below the budget itself. Each foresight ray here costs more than the budget's
+    share of the frame."""
+    size = dict(width=160, height=120, projection=perspective(math.radians(60), 160, 120))
+    scene = "many random Gaussians"
+    fogshop = bake(scene, **size)
+    budget = 1e-4  # nominal CPU seconds
+    for threads in (1, 2):
+        r = bake(scene, gaussian_accuracy=0.01, gaussian_refine_budget=budget, threads=threads, **size)
+        s = r["stats"]
+        assert s["gaussian_refine_abandoned"] and math.isinf(s["gaussian_error_bound"])
+        assert np.array_equal(r["airlight"], fogshop["airlight"])
+        assert 0.0 < s["gaussian_refine_work"] <= budget, s["gaussian_refine_work"]
+    # Within the budget nothing changes: the same refined frame as with no budget to speak of.
+    a = bake("thick around a light", gaussian_accuracy=0.01)
+    b = bake("thick around a light", gaussian_accuracy=0.01, gaussian_refine_budget=1e9)
+    assert not a["stats"]["gaussian_refine_abandoned"]
+    assert np.array_equal(a["airlight"], b["airlight"])
