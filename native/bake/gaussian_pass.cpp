@@ -114,8 +114,7 @@ void refine_centres(BakeContext& ctx, const FogEvaluator& fog) {
         RefineScratch& scratch = refine_scratch(W);
         scratch.xs.assign(1, grid_x(spread(q % Wf, Wf, Wc)));
         refine_row(grid_y(spread(q / Wf, Hf, Hc)), scratch);
-        fog.set_refine_scale(1.0);
-    fog.foresee_refine_work(foresight_scale);
+        fog.foresee_refine_work(foresight_scale);
     });
     fog.set_refine_scale(1.0);
     fog.foresee_refine_work(foresight_scale);
