@@ -161,8 +161,11 @@ def _node(tree, name, bl_idname, label, location, parent=None):
         node = tree.nodes.new(bl_idname)
         node.name = name
         node.location = location
-    node.label = label
-    if parent is not None:
+    # Written only where they differ: the per-frame paths (fill) look nodes up through here,
+    # and setting a property to its own value still counts as an edit of the tree.
+    if node.label != label:
+        node.label = label
+    if parent is not None and node.parent != parent:
         node.parent = parent
     return node
 
@@ -227,10 +230,8 @@ def _new_memory_image(name):
 def _memory_node(group, name):
     """The group's Image node of pass _name_ in memory, with its own generated float image
     (a new one if a user gave it another)."""
-    node = group.nodes.get(_memory_name(name))
-    if node is None or node.bl_idname != "CompositorNodeImage":  # (fill's per-frame path writes nothing else)
-        node = _node(group, _memory_name(name), "CompositorNodeImage", f"{name} (in memory)",
-                     (0, -200 - 160 * len(group.nodes)))
+    node = _node(group, _memory_name(name), "CompositorNodeImage", f"{name} (in memory)",
+                 (0, -200 - 160 * len(group.nodes)))
     image = node.image
     if image is None or image.source != 'GENERATED' or not image.is_float:
         node.image = _new_memory_image(name)

@@ -99,9 +99,9 @@ void refine_centres(BakeContext& ctx, const FogEvaluator& fog) {
     // Foresight: an 8 x 5 spread of grid points first (results dropped); its work, scaled to the
     // grid and as much again for the pixels refined alone, stops a frame that would exceed the
     // budget before the grid is spent. The points go one at a time, in an order spread over the
-    // image, and the frame stops as soon as the work so far, so scaled, exceeds the budget (checked
-    // between a ray's exact terms too): the whole spread's could only be larger (a dense cloud's
-    // first ray can decide it).
+    // image, and each call may do only what is left of the budget at that scale
+    // (FogEvaluator::set_refine_scale), so the frame stops as soon as the work so far exceeds it:
+    // the whole spread's could only be larger (a dense cloud's first ray can decide it).
     const int Wf = std::min(Wc, 8), Hf = std::min(Hc, 5), Nf = Wf * Hf;
     const double foresight_scale = 2.0 * double(Wc) * Hc / double(Nf);
     auto spread = [](int k, int n, int m) { return n > 1 ? int(std::lround(double(k) * (m - 1) / (n - 1))) : 0; };
@@ -114,7 +114,6 @@ void refine_centres(BakeContext& ctx, const FogEvaluator& fog) {
         RefineScratch& scratch = refine_scratch(W);
         scratch.xs.assign(1, grid_x(spread(q % Wf, Wf, Wc)));
         refine_row(grid_y(spread(q / Wf, Hf, Hc)), scratch);
-        fog.foresee_refine_work(foresight_scale);
     });
     fog.set_refine_scale(1.0);
     fog.foresee_refine_work(foresight_scale);
