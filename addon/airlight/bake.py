@@ -181,7 +181,7 @@ def run(description, settings, filepath, progress=None, deferred=None):
     Returns (stats dict, seconds). Raises `_native.BakeCancelled` when `progress`
     returns False, BakeError for invalid input or I/O failure. With _deferred_ (a list) the
     EXR is not written: a cache.PassFile is appended to it instead (the compositor takes its
-    passes from memory and cache.write_later writes the file beside the render).
+    passes from memory and render._BakeBeside writes the file after the bake, beside the render).
     """
     module = native.get()
     try:
@@ -525,12 +525,23 @@ def bake_frame(scene, depsgraph, filepath=None, progress=None, mesh_overrides=No
     """Synchronous bake of the depsgraph's current frame (every view of a stereo render,
     view_paths; the shutter's instants with _evaluate_at_, prepare_views); returns
     (filepath, stats, seconds), filepath the first view's. _deferred_: as run's."""
+    jobs, export_seconds = frame_jobs(scene, depsgraph, filepath, mesh_overrides, evaluate_at)
+    return frame_baked(scene, jobs, export_seconds, *run_views(jobs, progress, deferred))
+
+
+def frame_jobs(scene, depsgraph, filepath=None, mesh_overrides=None, evaluate_at=None):
+    """bake_frame's first half, in the main thread: (prepare_views' jobs, the seconds their
+    export took). run_views bakes them, in any thread."""
     if filepath is None:
         filepath = cache_path(scene, scene.frame_current)
     t0 = time.perf_counter()
     jobs = prepare_views(scene, depsgraph, filepath, mesh_overrides, evaluate_at)
-    export_seconds = time.perf_counter() - t0
-    stats, seconds = run_views(jobs, progress, deferred)
+    return jobs, time.perf_counter() - t0
+
+
+def frame_baked(scene, jobs, export_seconds, stats, seconds):
+    """bake_frame's last half, in the main thread, once run_views(jobs) returned (_stats_,
+    _seconds_): what the panel remembers of the bake; returns bake_frame's result."""
     stats = dict(stats, seconds_export=export_seconds)
     remember_fog_objects(scene, stats)
     remember_soft_shadows(scene, stats)

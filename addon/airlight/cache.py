@@ -85,43 +85,18 @@ class PassFile(NamedTuple):
     half: bool
 
 
-# The writes under way (write_later): [(thread, label, paths, outcome dict)].
-_writes = []
-
-
-def write_later(files, label=None):
-    """Writes the PassFiles _files_ in a thread, beside the render (the native writer
-    releases the GIL), once any earlier write has finished; returns finish_writes() of those
-    earlier ones, and a later finish_writes() says how this one went, under _label_."""
-    earlier = finish_writes()
-    outcome = {}
-
-    def work():
-        t0 = time.perf_counter()
-        try:
-            for file in files:
-                write_pass_dict(file.filepath, file.passes, file.half)
-        except CacheError as ex:
-            outcome["error"] = str(ex)
-        except Exception as ex:  # reported by finish_writes, never lost with the thread
-            outcome["error"] = f"{type(ex).__name__}: {ex}"
-        outcome["seconds"] = time.perf_counter() - t0
-
-    thread = threading.Thread(target=work, name="Airlight pass files")
-    thread.start()
-    _writes.append((thread, label, [file.filepath for file in files], outcome))
-    return earlier
-
-
-def finish_writes():
-    """Waits for the writes write_later started; returns [(label, paths, seconds, error or
-    None)], oldest first."""
-    done = []
-    while _writes:
-        thread, label, paths, outcome = _writes.pop(0)
-        thread.join()
-        done.append((label, paths, outcome.get("seconds", 0.0), outcome.get("error")))
-    return done
+def write_files(files):
+    """Writes the PassFiles _files_ (write_pass_dict; any thread: the native writer releases
+    the GIL); returns (seconds, None) or (seconds, why one could not be written)."""
+    t0 = time.perf_counter()
+    try:
+        for file in files:
+            write_pass_dict(file.filepath, file.passes, file.half)
+    except CacheError as ex:
+        return time.perf_counter() - t0, str(ex)
+    except Exception as ex:  # reported by the caller, never lost with a thread
+        return time.perf_counter() - t0, f"{type(ex).__name__}: {ex}"
+    return time.perf_counter() - t0, None
 
 
 def neutral_path(scene, width, height, extra_names=()):

@@ -95,6 +95,7 @@ def render_problem(scene):
 
 @persistent
 def on_render_pre(scene, *_):
+    _end_beside()  # (a render that ended without render_post)
     settings = getattr(scene, "airlight", None)
     if settings is None:
         return
@@ -123,74 +124,173 @@ def on_render_frame_evaluated(scene, depsgraph=None):
 @persistent
 def on_render_end(*_):
     _pending["scene"] = None
-    _report_writes(cache.finish_writes())
-
-
-def _report_writes(done):
-    """Prints how the pass files written beside the render went (cache.finish_writes, each
-    labelled with its frame)."""
-    for frame, paths, seconds, error in done:
-        if error is not None:
-            print(f"Airlight: frame {frame}: the fog passes were composited but not saved: {error}", flush=True)
-        else:
-            print(f"Airlight: frame {frame}: EXR {1000.0 * seconds:.0f} ms beside the render -> {paths[0]}",
-                  flush=True)
+    _end_beside()
 
 
 @persistent
 def on_render_post(*_):
     """The frame's pass files are whole before the next frame, or the process's end."""
-    _report_writes(cache.finish_writes())
+    _end_beside()
 
 
 def _bake_for_render(scene, get_depsgraph, get_mesh_overrides=lambda: None, evaluate_at=None):
     """Bakes the frame about to render with the depsgraph get_depsgraph() returns (and the
     fog objects' data get_mesh_overrides() returns, fog_object.gather) and hands it to the
     compositor: its passes copied into memory where the fog nodes read them from there
-    (compositor.choose_source; the EXR then written beside the render), else the EXR the
-    Image node is pointed at. On failure prints why and composites neutral passes."""
-    settings = scene.airlight
+    (compositor.choose_source: baked beside the render, _BakeBeside, the EXR written after),
+    else the EXR the Image node is pointed at. On failure prints why and composites neutral
+    passes."""
     frame = scene.frame_current
-    memory = settings.auto_composite and _in_main_thread() and compositor.in_memory(scene)
-    deferred = [] if memory else None
+    memory = scene.airlight.auto_composite and _in_main_thread() and compositor.in_memory(scene)
     try:
-        filepath, stats, seconds = bake.bake_frame(scene, get_depsgraph(), bake.cache_path(scene, frame),
-                                                   mesh_overrides=get_mesh_overrides(), evaluate_at=evaluate_at,
-                                                   deferred=deferred)
-    except Exception as ex:  # a handler must never take the render down
-        reason = str(ex) if isinstance(ex, bake.BakeError) else f"{type(ex).__name__}: {ex}"
-        print(f"Airlight: frame {frame} rendered without fog: {reason}", flush=True)
-        _failed[scene.name] = (frame, reason)
+        jobs, export_seconds = bake.frame_jobs(scene, get_depsgraph(), bake.cache_path(scene, frame),
+                                               mesh_overrides=get_mesh_overrides(), evaluate_at=evaluate_at)
         if memory:
-            compositor.fill_neutral(scene)
-        elif settings.auto_composite and compositor.is_set_up(scene):
-            # Don't composite a stale bake of another frame.
-            compositor.sync(scene, compositor.neutral_passes(scene))
+            job = _beside["job"] = _BakeBeside(scene, frame, jobs, export_seconds, evaluate_at is not None)
+            if scene.render.engine not in IDLE_START_ENGINES:
+                job.composite()  # now: the render would only share the cores with it
+            return
+        baked = bake.frame_baked(scene, jobs, export_seconds, *bake.run_views(jobs))
+    except Exception as ex:  # a handler must never take the render down
+        _render_without_fog(scene, frame, ex, memory)
         return
+    _composite(scene, frame, baked, evaluate_at is not None)
+
+
+def _render_without_fog(scene, frame, ex, memory):
+    """Says why frame _frame_ renders without fog, in the console and the panel, and gives
+    the compositor neutral passes (never a stale bake of another frame)."""
+    reason = str(ex) if isinstance(ex, bake.BakeError) else f"{type(ex).__name__}: {ex}"
+    print(f"Airlight: frame {frame} rendered without fog: {reason}", flush=True)
+    _failed[scene.name] = (frame, reason)
+    if memory:
+        compositor.fill_neutral(scene)
+    elif scene.airlight.auto_composite and compositor.is_set_up(scene):
+        compositor.sync(scene, compositor.neutral_passes(scene))
+
+
+def _composite(scene, frame, baked, sampled, deferred=None, prepared_seconds=0.0):
+    """Hands a successful bake (bake_frame's (filepath, stats, seconds)) to the compositor:
+    _deferred_'s passes (cache.PassFile, their file written by _BakeBeside) copied into its
+    in-memory images, or the EXR reloaded; prints the frame's lines. _sampled_: the bake
+    sampled the shutter. _prepared_seconds_: making the images (compositor.make_images)."""
+    filepath, stats, seconds = baked
     _failed.pop(scene.name, None)
     print(f"Airlight: fog of frame {frame} baked in {seconds * 1000.0:.0f} ms -> {filepath}", flush=True)
     for note in render_notes(scene):
-        if note == MOTION_BLUR_INTERACTIVE and evaluate_at is not None:
+        if note == MOTION_BLUR_INTERACTIVE and sampled:
             continue  # (this bake sampled the shutter)
         print(f"Airlight: frame {frame}: {note}", flush=True)
     composite = ""
-    if memory:
+    if deferred is not None:
         try:
-            seconds = compositor.fill(scene, deferred[0].passes)
+            seconds = prepared_seconds + compositor.fill(scene, deferred[0].passes)
             composite = f", compositor {1000.0 * seconds:.0f} ms (passes in memory)"
         except Exception as ex:  # e.g. no memory for the images: say so, never a stale frame's fog
             reason = f"cannot hand the passes to the compositor: {type(ex).__name__}: {ex}"
             print(f"Airlight: frame {frame} rendered without fog: {reason}", flush=True)
             _failed[scene.name] = (frame, reason)
             compositor.fill_neutral(scene)
-        _report_writes(cache.write_later(deferred, frame))
-    elif settings.auto_composite:
+    elif scene.airlight.auto_composite:
         t0 = time.perf_counter()
         compositor.sync(scene, filepath)
         composite = f", compositor {1000.0 * (time.perf_counter() - t0):.0f} ms"
     for line in stats.get(bake.LIGHT_NOTES, ()):
         print(f"Airlight: frame {frame}: {line}", flush=True)
     print(f"Airlight: frame {frame}: {bake.parts_line(stats)}{bake.fog_objects_line(stats)}{composite}", flush=True)
+
+
+# Render engines whose start leaves a core idle for a while (each process compiles the
+# shaders on one core, ~1 s with Mesa's llvmpipe), where a background render's bake runs
+# beside them until the compositor needs it (_BakeBeside). Measured on 2 cores: a 1080p
+# Workbench frame of the street 1.30x the fog-off time when baked first, 1.16x beside; Cycles
+# keeps both cores busy from its start, and was 0.7 s slower with the bake beside it.
+IDLE_START_ENGINES = ("BLENDER_WORKBENCH", "BLENDER_EEVEE")
+
+
+class _BakeBeside:
+    """A background render's bake (its passes composited from memory) in a thread beside the
+    render engine, whose start leaves a core idle (Workbench and EEVEE compile their shaders
+    on one), and the frame's EXR written in that thread after it. The compositor announces
+    itself in the main thread before it reads an image (render_stats): composite() waits
+    there for the bake and fills the images (made meanwhile), or at render_post and
+    render_cancel where nothing composites; end() waits for the EXR and says how it went."""
+
+    def __init__(self, scene, frame, jobs, export_seconds, sampled):
+        self.scene_name, self.frame, self.sampled = scene.name, frame, sampled
+        self.jobs, self.export_seconds = jobs, export_seconds
+        self.deferred, self.result, self.error, self.written = [], None, None, None
+        self.baked = threading.Event()
+        self.composited = False
+        self.thread = threading.Thread(target=self._run, name="Airlight bake")
+        self.thread.start()
+        t0 = time.perf_counter()
+        try:
+            compositor.make_images(scene)
+        except Exception:  # (e.g. no memory: fill says so once the bake is done)
+            pass
+        self.prepared_seconds = time.perf_counter() - t0
+
+    def _run(self):
+        try:
+            self.result = bake.run_views(self.jobs, None, self.deferred)
+        except Exception as ex:  # reported by composite(), in the main thread
+            self.error = ex
+        finally:
+            self.baked.set()
+        if self.error is None:
+            self.written = cache.write_files(self.deferred)
+
+    def composite(self):
+        """Main thread: waits for the bake and hands it to the compositor (once)."""
+        if self.composited:
+            return
+        self.composited = True
+        self.baked.wait()
+        scene = bpy.data.scenes.get(self.scene_name)
+        if scene is None:
+            return
+        try:
+            if self.error is not None:
+                raise self.error
+            baked = bake.frame_baked(scene, self.jobs, self.export_seconds, *self.result)
+        except Exception as ex:  # a handler must never take the render down
+            _render_without_fog(scene, self.frame, ex, True)
+            return
+        _composite(scene, self.frame, baked, self.sampled, self.deferred, self.prepared_seconds)
+
+    def end(self):
+        """Main thread: the frame's pass files are whole; prints how their writing went."""
+        self.composite()
+        self.thread.join()
+        if self.written is None:
+            return
+        seconds, error = self.written
+        if error is not None:
+            print(f"Airlight: frame {self.frame}: the fog passes were composited but not saved: {error}",
+                  flush=True)
+        else:
+            print(f"Airlight: frame {self.frame}: EXR {1000.0 * seconds:.0f} ms beside the render -> "
+                  f"{self.deferred[0].filepath}", flush=True)
+
+
+# The bake running beside the render (_BakeBeside), until the frame's render ends.
+_beside = {"job": None}
+
+
+def _end_beside():
+    job, _beside["job"] = _beside["job"], None
+    if job is not None:
+        job.end()
+
+
+@persistent
+def on_render_stats(*_):
+    """Render statistics, printed in the background; in the main thread the first are the
+    compositor's, before it reads the passes' images (checked in Blender 3.4)."""
+    job = _beside["job"]
+    if job is not None and _in_main_thread():
+        job.composite()
 
 
 @persistent
@@ -238,6 +338,7 @@ _HANDLERS = (
     (bpy.app.handlers.render_init, on_render_init),
     (bpy.app.handlers.render_pre, on_render_pre),
     (bpy.app.handlers.frame_change_post, on_render_frame_evaluated),
+    (bpy.app.handlers.render_stats, on_render_stats),
     (bpy.app.handlers.render_post, on_render_post),
     (bpy.app.handlers.render_cancel, on_render_end),
     (bpy.app.handlers.render_complete, on_render_end),

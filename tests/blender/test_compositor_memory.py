@@ -10,6 +10,7 @@ import numpy as np
 
 from airlight import cache, compositor, render
 from conftest import build_plane_scene
+from support.exr_files import exr_pass
 
 
 def _old_tree(scene, tmp_path, extra_pass):
@@ -161,12 +162,10 @@ def test07_pass_files_written_beside_the_render_say_how_it_went(tmp_path):
     passes = {"Airlight": zeros, "Transmittance": zeros + 1.0}
     good = cache.PassFile(str(tmp_path / "good.exr"), passes, True)
     bad = cache.PassFile("/proc/airlight_no_such_folder/bad.exr", passes, True)
-    assert cache.write_later([good], 1) == []
-    earlier = cache.write_later([bad], 2)  # waits for the first
-    assert earlier[0][:2] == (1, [good.filepath]) and earlier[0][3] is None and os.path.exists(good.filepath)
-    (label, paths, _, error), = cache.finish_writes()
-    assert label == 2 and paths == [bad.filepath] and "Cannot create the fog cache folder" in error
-    assert cache.finish_writes() == []
+    seconds, error = cache.write_files([good])
+    assert error is None and seconds >= 0.0 and os.path.exists(good.filepath)
+    _, error = cache.write_files([bad])
+    assert "Cannot create the fog cache folder" in error
 
 
 def test08_a_frame_whose_passes_cannot_reach_the_compositor_says_so_and_composites_none(
@@ -189,3 +188,38 @@ def test08_a_frame_whose_passes_cannot_reach_the_compositor_says_so_and_composit
     np.testing.assert_array_equal(_pixels("Airlight")[..., :3], 0.0)  # not the last frame's fog
     np.testing.assert_array_equal(_pixels("Transmittance")[..., :3], 1.0)
     assert "EXR" in out and os.path.exists(tmp_path / "cache" / "fog_0001.exr")  # still saved
+
+
+def test09_the_bake_beside_the_render_reaches_the_compositor_when_it_announces_itself(tmp_path, capsys):
+    """A Workbench render's bake runs in a thread beside the render (render._BakeBeside):
+    render_pre only starts it, the compositor's first statistics line hands its passes to the
+    images, and a bake that fails in the thread (the cache folder gone) says so there and
+    leaves neutral passes, not the frame before's fog."""
+    scene = build_plane_scene(tmp_path, size=(16, 12))
+    scene.render.engine = 'BLENDER_WORKBENCH'
+    scene.airlight.cache_dir = str(tmp_path / "cache")
+    compositor.setup(scene)
+    compositor.choose_source(scene)
+    compositor.fill_neutral(scene)
+    scene.frame_set(1)
+    render.on_render_pre(scene)
+    job = render._beside["job"]
+    assert job is not None and not job.composited  # baking beside the render
+    render.on_render_stats(None)
+    assert job.composited
+    fog1 = str(tmp_path / "cache" / "fog_0001.exr")
+    render.on_render_post(scene)  # the EXR is whole
+    assert render._beside["job"] is None
+    np.testing.assert_allclose(_pixels("Airlight")[::-1, :, :3], exr_pass(fog1, "Airlight"), rtol=1e-3, atol=1e-6)
+    assert _pixels("Airlight")[..., :3].max() > 0.01
+
+    scene.airlight.cache_dir = "/proc/airlight_no_such_folder/"
+    scene.frame_set(2)
+    capsys.readouterr()
+    render.on_render_pre(scene)
+    render.on_render_stats(None)
+    out = capsys.readouterr().out
+    assert "Airlight: frame 2 rendered without fog" in out and "fog cache folder" in out, out
+    render.on_render_post(scene)
+    np.testing.assert_array_equal(_pixels("Airlight")[..., :3], 0.0)
+    np.testing.assert_array_equal(_pixels("Transmittance")[..., :3], 1.0)
