@@ -16,11 +16,12 @@ struct ExrPass {
 // floats, or with _half_ as 16-bit ones (OpenEXR's half: rounding to nearest, relative
 // error <= 2^-11 for |x| >= 6.1e-5, absolute 3e-8 below; a quarter to a third of the
 // file). _compression_: an OpenEXR compression OIIO knows ("none", "zip", "zips", "piz",
-// "rle", "dwaa", "b44", ...) or "auto": PIZ for floats, ZIP for halves, chosen by
-// benchmarks/bench_exr.py (float passes hold noise in their low bits: PIZ writes them ~1.8x
-// faster than ZIP at the same size; halves ZIP to a third of PIZ's size for ~20 % more time).
-// OpenEXR compresses on every hardware thread. Throws std::runtime_error with OIIO's message
-// on failure, std::invalid_argument on an unknown compression.
+// "rle", "dwaa", "b44", ...) or "auto": PIZ for floats, ZIP at zlib's level 1 for halves,
+// chosen by benchmarks/bench_exr.py (float passes hold noise in their low bits: PIZ writes
+// them ~1.6x faster than ZIP at about the same size; halves ZIP at level 1 to half of PIZ's
+// size in less time). The rows are interleaved and written in strips, OpenEXR compressing
+// on every hardware thread. Throws std::runtime_error with OIIO's message on failure,
+// std::invalid_argument on an unknown compression.
 void write_multilayer_exr(const std::string& path, int width, int height,
                           const std::vector<ExrPass>& passes,
                           const std::string& layer_prefix = "", bool half = false,

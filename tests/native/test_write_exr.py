@@ -96,3 +96,26 @@ def test05_half_auto_is_zip_and_unknown_compression_refused(tmp_path):
     assert spec.getattribute("compression") == "zip" and spec.format == oiio.HALF
     with pytest.raises(ValueError, match="unknown compression 'lzma'"):
         _native.write_exr(str(tmp_path / "bad.exr"), passes, compression="lzma")
+
+
+@pytest.mark.parametrize("half,compression", [(False, "none"), (False, "piz"), (True, "auto"), (True, "piz")])
+def test06_images_taller_than_a_strip_keep_every_row_in_place(tmp_path, half, compression):
+    """write_exr interleaves and writes the rows in strips (256 rows): every row of an image
+    of several strips and a partial last one lands where it belongs, in float exactly and in
+    half to its rounding."""
+    rng = np.random.default_rng(11)
+    H, W = 600, 9
+    rows = np.arange(H, dtype=np.float32)[:, None, None]
+    passes = {"Airlight": rows + rng.random((H, W, 3), dtype=np.float32),
+              "Transmittance": rng.random((H, W, 3), dtype=np.float32)}
+    path = str(tmp_path / "tall.exr")
+    _native.write_exr(path, passes, half=half, compression=compression)
+    spec, pixels = read(path)
+    names = list(spec.channelnames)
+    for p, data in passes.items():
+        for k, c in enumerate("RGB"):
+            got = pixels[:, :, names.index(f"{p}.{c}")]
+            if half:
+                np.testing.assert_allclose(got, data[:, :, k], rtol=2.0 ** -11, atol=3e-8)
+            else:
+                np.testing.assert_array_equal(got, data[:, :, k])
