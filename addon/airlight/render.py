@@ -1,14 +1,17 @@
 """Render handlers: bake each frame's fog just before it renders.
 
 With `scene.airlight.enabled`, `blender -b file.blend -f N`, `-a`, F12 and Ctrl+F12 render
-foggy: each frame is baked into <cache_dir>/fog_####.exr and the compositor's Image node
-pointed at it, before the render engine starts on the frame. Errors are printed (and shown
-in the Airlight Fog panel, render_problem) and the frame renders without new fog passes;
-they never abort the render.
+foggy: each frame is baked into <cache_dir>/fog_####.exr, and the compositor gets its
+passes before it runs. Errors are printed (and shown in the Airlight Fog panel,
+render_problem) and the frame renders without new fog passes; they never abort the render.
 
 Where the bake happens (checked in Blender 3.4):
-  - Background renders (-f, -a) call `render_pre` in the main thread: the bake runs
-    there, after frame_set evaluates the scene at the frame.
+  - Background renders (-f, -a) call `render_pre` in the main thread: the frame is
+    exported there, after frame_set evaluates the scene at the frame. One view's is baked
+    in a thread (_BakeBeside), for the compositor to read from in-memory images: with
+    Workbench and EEVEE beside the render engine until the compositor starts
+    (render_stats), with other engines before the engine starts. Stereo renders bake
+    there, before the engine, and the compositor reads the views' files.
   - Interactive renders (F12, Ctrl+F12) run in the render job's thread, where frame_set
     is unsafe and the UI's depsgraph stays at the frame shown in the UI. There
     `render_pre` only marks the frame; the render pipeline then evaluates its own
@@ -203,8 +206,9 @@ def _composite(scene, frame, baked, sampled, deferred=None, prepared_seconds=0.0
 # Render engines whose start leaves a core idle for a while (each process compiles the
 # shaders on one core, ~1 s with Mesa's llvmpipe), where a background render's bake runs
 # beside them until the compositor needs it (_BakeBeside). Measured on 2 cores: a 1080p
-# Workbench frame of the street 1.30x the fog-off time when baked first, 1.16x beside; Cycles
-# keeps both cores busy from its start, and was 0.7 s slower with the bake beside it.
+# Workbench frame of the street 1.26x the fog-off time when baked first, 1.17x beside (10
+# alternating runs); Cycles keeps both cores busy from its start, and was 0.7 s slower with
+# the bake beside it (docs/performance.md).
 IDLE_START_ENGINES = ("BLENDER_WORKBENCH", "BLENDER_EEVEE")
 
 
