@@ -22,8 +22,8 @@ Where the bake happens (checked in Blender 3.4):
     (emitter.targets_at_frame) instead of being written into their fog objects.
 """
 
+import os
 import threading
-
 import time
 
 import bpy
@@ -236,6 +236,7 @@ class _BakeBeside:
         self.prepared_seconds = time.perf_counter() - t0
 
     def _run(self):
+        _yield_to_the_engine()
         try:
             self.result = bake.run_views(self.jobs, None, self.deferred)
         except Exception as ex:  # reported by composite(), in the main thread
@@ -276,6 +277,16 @@ class _BakeBeside:
         else:
             print(f"Airlight: frame {self.frame}: EXR {1000.0 * seconds:.0f} ms beside the render -> "
                   f"{self.deferred[0].filepath}", flush=True)
+
+
+def _yield_to_the_engine():
+    """Lowers the calling thread's priority (Linux: per thread; it ends with the thread): the
+    bake's own thread then gives way to the render engine's main thread where they contend
+    for a core, and runs at full speed where they do not (the main thread waiting for it)."""
+    try:
+        os.setpriority(os.PRIO_PROCESS, threading.get_native_id(), 19)
+    except (AttributeError, OSError):
+        pass
 
 
 # The bake running beside the render (_BakeBeside), until the frame's render ends.
