@@ -62,7 +62,7 @@ FLOAT_OUTPUTS = ('OPEN_EXR', 'OPEN_EXR_MULTILAYER', 'HDR')
 def half_passes(scene):
     """Whether the cache EXR holds 16-bit floats: Pass Precision Half, or Automatic with an
     8-bit output (Output > Format), where half's rounding (<= 4.9e-4 relative) is below the
-    output's step (1/255) and the EXR writes ~2.7x faster (docs/performance.md)."""
+    output's step (1/255) and the EXR writes ~4x faster (docs/performance.md)."""
     precision = getattr(scene.airlight, "pass_precision", 'AUTO')
     if precision != 'AUTO':
         return precision == 'HALF'

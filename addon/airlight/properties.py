@@ -229,10 +229,10 @@ class AirlightSceneSettings(bpy.types.PropertyGroup):
                                   "JPEG, TIFF 8, movies), whose step its rounding stays below; Full Float "
                                   "for float (EXR, HDR) and 16-bit outputs"),
             ('FULL', "Full Float", "32-bit floats: the bake's values exactly (the street example "
-                                   "at 960x540 with surface shading: 19.7 MB per frame)"),
+                                   "at 960x540 with surface shading and light passes: 17.2 MB per frame)"),
             ('HALF', "Half Float", "16-bit floats, as Blender's own EXR output defaults to: relative "
-                                   "rounding <= 0.05 % (absolute 3e-8 below 6e-5), files ~10x smaller "
-                                   "(the street example: 1.7 MB per frame), written ~2.7x faster"),
+                                   "rounding <= 0.05 % (absolute 3e-8 below 6e-5), files 4-13x smaller "
+                                   "(the street example: 4.6 MB per frame), written ~4x faster"),
         ),
         default='AUTO',
     )
