@@ -9,8 +9,7 @@ import bpy
 import numpy as np
 
 from airlight import cache, compositor, render
-from conftest import build_plane_scene
-from support.exr_files import exr_pass
+from conftest import build_plane_scene, exr_pass
 
 
 def _old_tree(scene, tmp_path, extra_pass):
