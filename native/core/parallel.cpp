@@ -6,12 +6,38 @@
 #include <exception>
 #include <mutex>
 #include <stdexcept>
+#include <system_error>
 #include <thread>
+#include <vector>
+
+#if defined(__linux__)
+#include <sys/resource.h>
+#include <sys/syscall.h>
+#include <unistd.h>
+
+#include <cerrno>
+#endif
 
 #include <oneapi/tbb/task_arena.h>
 #include <oneapi/tbb/task_group.h>
 
 namespace airlight {
+
+namespace {
+
+// Whether the calling thread runs at a lowered priority (a nice value above 0: Linux keeps
+// one per thread), as Airlight's bake beside a render engine does (render.py).
+bool caller_yields() {
+#if defined(__linux__)
+    errno = 0;
+    const int nice = getpriority(PRIO_PROCESS, static_cast<id_t>(syscall(SYS_gettid)));
+    return errno == 0 && nice > 0;
+#else
+    return false;
+#endif
+}
+
+}  // namespace
 
 void run_parallel(int n, int n_threads, const std::function<void(int)>& work,
                   const std::function<void(int)>& on_progress) {
@@ -48,10 +74,7 @@ void run_parallel(int n, int n_threads, const std::function<void(int)>& work,
     n_threads = std::max(1, std::min(n_threads, n));
     const int report_every = std::max(1, n / 128);
     int reported = 0;
-    oneapi::tbb::task_arena arena(n_threads);
-    arena.execute([&] {
-        oneapi::tbb::task_group group;
-        for (int t = 1; t < n_threads; ++t) group.run(worker);
+    auto take_and_report = [&] {
         try {
             take([&] {
                 const int d = done.load(std::memory_order_relaxed);
@@ -60,8 +83,27 @@ void run_parallel(int n, int n_threads, const std::function<void(int)>& work,
         } catch (...) {
             fail(std::current_exception());
         }
-        group.wait();
-    });
+    };
+    if (n_threads > 1 && caller_yields()) {
+        // A caller at a lowered priority keeps its work there: threads of its own, which
+        // inherit its priority, instead of the pool's, which would compete at the normal
+        // one with the threads it gives way to (a render engine's).
+        std::vector<std::thread> threads;
+        try {
+            for (int t = 1; t < n_threads; ++t) threads.emplace_back(worker);
+        } catch (const std::system_error&) {  // no thread to be had: fewer take the items
+        }
+        take_and_report();
+        for (auto& thread : threads) thread.join();
+    } else {
+        oneapi::tbb::task_arena arena(n_threads);
+        arena.execute([&] {
+            oneapi::tbb::task_group group;
+            for (int t = 1; t < n_threads; ++t) group.run(worker);
+            take_and_report();
+            group.wait();
+        });
+    }
     if (error) std::rethrow_exception(error);
     on_progress(n);
 }

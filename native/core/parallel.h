@@ -10,6 +10,10 @@ namespace airlight {
 // from an atomic counter, in index order (callers sort costly items first). The calling
 // thread is one of them rather than a waiter: on 2 cores a third thread waking every
 // n / 128 items preempted a worker each time (~3 % of a Gaussian bake in reschedules).
+// A caller at a lowered priority (Linux: a nice value above 0, per thread) gets threads of
+// its own instead of the pool's, which inherit its priority: its work then gives way to the
+// threads it gives way to (the add-on's bake beside a render engine, render.py), where the
+// pool's would compete with them at the normal one.
 // Between its own items it calls _on_progress(done)_ once every n / 128 completions and at
 // the end; if that throws (cancel) or any item throws, the others stop taking items and
 // the exception propagates once they have finished.
