@@ -215,16 +215,18 @@ IDLE_START_ENGINES = ("BLENDER_WORKBENCH", "BLENDER_EEVEE")
 class _BakeBeside:
     """A background render's bake (its passes composited from memory) in a thread beside the
     render engine, whose start leaves a core idle (Workbench and EEVEE compile their shaders
-    on one), and the frame's EXR written in that thread after it. The compositor announces
-    itself in the main thread before it reads an image (render_stats): composite() waits
-    there for the bake and fills the images (made meanwhile), or at render_post and
-    render_cancel where nothing composites; end() waits for the EXR and says how it went."""
+    on one), and the frame's EXR written in that thread once the compositor has the passes
+    (the render's own work comes first: the EXR fills the cores left while Blender saves the
+    frame). The compositor announces itself in the main thread before it reads an image
+    (render_stats): composite() waits there for the bake and fills the images (made
+    meanwhile), or at render_post and render_cancel where nothing composites; end() waits
+    for the EXR and says how it went."""
 
     def __init__(self, scene, frame, jobs, export_seconds, sampled):
         self.scene_name, self.frame, self.sampled = scene.name, frame, sampled
         self.jobs, self.export_seconds = jobs, export_seconds
         self.deferred, self.result, self.error, self.written = [], None, None, None
-        self.baked = threading.Event()
+        self.baked, self.handed = threading.Event(), threading.Event()
         self.composited = False
         self.thread = threading.Thread(target=self._run, name="Airlight bake")
         self.thread.start()
@@ -244,6 +246,7 @@ class _BakeBeside:
         finally:
             self.baked.set()
         if self.error is None:
+            self.handed.wait()  # the render's own work first: the EXR fills the cores it leaves
             self.written = cache.write_files(self.deferred)
 
     def composite(self):
@@ -252,6 +255,12 @@ class _BakeBeside:
             return
         self.composited = True
         self.baked.wait()
+        try:
+            self._hand_over()
+        finally:
+            self.handed.set()
+
+    def _hand_over(self):
         scene = bpy.data.scenes.get(self.scene_name)
         if scene is None:
             return
