@@ -149,8 +149,9 @@ def _bake_for_render(scene, get_depsgraph, get_mesh_overrides=lambda: None, eval
         jobs, export_seconds = bake.frame_jobs(scene, get_depsgraph(), bake.cache_path(scene, frame),
                                                mesh_overrides=get_mesh_overrides(), evaluate_at=evaluate_at)
         if memory:
-            job = _beside["job"] = _BakeBeside(scene, frame, jobs, export_seconds, evaluate_at is not None)
-            if scene.render.engine not in IDLE_START_ENGINES:
+            beside = scene.render.engine in IDLE_START_ENGINES
+            job = _beside["job"] = _BakeBeside(scene, frame, jobs, export_seconds, evaluate_at is not None, beside)
+            if not beside:
                 job.composite()  # now: the render would only share the cores with it
             return
         baked = bake.frame_baked(scene, jobs, export_seconds, *bake.run_views(jobs))
@@ -220,10 +221,12 @@ class _BakeBeside:
     frame). The compositor announces itself in the main thread before it reads an image
     (render_stats): composite() waits there for the bake and fills the images (made
     meanwhile), or at render_post and render_cancel where nothing composites; end() waits
-    for the EXR and says how it went."""
+    for the EXR and says how it went. _yields_: the engine is one of IDLE_START_ENGINES, and
+    the thread runs at the lowest priority (_yield_to_the_engine); beside Cycles, which keeps
+    both cores busy, an EXR written at that priority waited for the render's end."""
 
-    def __init__(self, scene, frame, jobs, export_seconds, sampled):
-        self.scene_name, self.frame, self.sampled = scene.name, frame, sampled
+    def __init__(self, scene, frame, jobs, export_seconds, sampled, yields):
+        self.scene_name, self.frame, self.sampled, self.yields = scene.name, frame, sampled, yields
         self.jobs, self.export_seconds = jobs, export_seconds
         self.deferred, self.result, self.error, self.written = [], None, None, None
         self.baked, self.handed = threading.Event(), threading.Event()
@@ -238,7 +241,8 @@ class _BakeBeside:
         self.prepared_seconds = time.perf_counter() - t0
 
     def _run(self):
-        _yield_to_the_engine()
+        if self.yields:
+            _yield_to_the_engine()
         try:
             self.result = bake.run_views(self.jobs, None, self.deferred)
         except Exception as ex:  # reported by composite(), in the main thread
