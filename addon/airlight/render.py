@@ -216,20 +216,20 @@ IDLE_START_ENGINES = ("BLENDER_WORKBENCH", "BLENDER_EEVEE")
 class _BakeBeside:
     """A background render's bake (its passes composited from memory) in a thread beside the
     render engine, whose start leaves a core idle (Workbench and EEVEE compile their shaders
-    on one), and the frame's EXR written in that thread once the compositor has the passes
-    (the render's own work comes first: the EXR fills the cores left while Blender saves the
-    frame). The compositor announces itself in the main thread before it reads an image
-    (render_stats): composite() waits there for the bake and fills the images (made
-    meanwhile), or at render_post and render_cancel where nothing composites; end() waits
-    for the EXR and says how it went. _yields_: the engine is one of IDLE_START_ENGINES, and
-    the thread runs at the lowest priority (_yield_to_the_engine); beside Cycles, which keeps
-    both cores busy, an EXR written at that priority waited for the render's end."""
+    on one), and the frame's EXR written in that thread after it. The compositor announces
+    itself in the main thread before it reads an image (render_stats): composite() waits
+    there for the bake and fills the images (made meanwhile), or at render_post and
+    render_cancel where nothing composites; end() waits for the EXR and says how it went.
+    _yields_: the engine is one of IDLE_START_ENGINES, and the thread (and the bake's threads,
+    core/parallel.h) runs at the lowest priority (_yield_to_the_engine). Beside Cycles, which
+    keeps both cores busy from its start, an EXR written at that priority waited for the
+    render's end."""
 
     def __init__(self, scene, frame, jobs, export_seconds, sampled, yields):
         self.scene_name, self.frame, self.sampled, self.yields = scene.name, frame, sampled, yields
         self.jobs, self.export_seconds = jobs, export_seconds
         self.deferred, self.result, self.error, self.written = [], None, None, None
-        self.baked, self.handed = threading.Event(), threading.Event()
+        self.baked = threading.Event()
         self.composited = False
         self.thread = threading.Thread(target=self._run, name="Airlight bake")
         self.thread.start()
@@ -250,7 +250,6 @@ class _BakeBeside:
         finally:
             self.baked.set()
         if self.error is None:
-            self.handed.wait()  # the render's own work first: the EXR fills the cores it leaves
             self.written = cache.write_files(self.deferred)
 
     def composite(self):
@@ -259,12 +258,6 @@ class _BakeBeside:
             return
         self.composited = True
         self.baked.wait()
-        try:
-            self._hand_over()
-        finally:
-            self.handed.set()
-
-    def _hand_over(self):
         scene = bpy.data.scenes.get(self.scene_name)
         if scene is None:
             return
