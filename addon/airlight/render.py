@@ -287,8 +287,9 @@ class _BakeBeside:
 
 def _yield_to_the_engine():
     """Lowers the calling thread's priority (Linux: per thread; it ends with the thread): the
-    bake's own thread then gives way to the render engine's main thread where they contend
-    for a core, and runs at full speed where they do not (the main thread waiting for it)."""
+    bake's own thread, and the threads the native bake starts from it (they inherit it:
+    core/parallel.h), then give way to the render engine's threads where they contend for a
+    core, and run at full speed where they do not (the main thread waiting for them)."""
     try:
         os.setpriority(os.PRIO_PROCESS, threading.get_native_id(), 19)
     except (AttributeError, OSError):
