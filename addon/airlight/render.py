@@ -218,7 +218,7 @@ class _BakeBeside:
     render engine, whose start leaves a core idle (Workbench and EEVEE compile their shaders
     on one), and the frame's EXR written in that thread after it. The compositor announces
     itself in the main thread before it reads an image (render_stats): composite() waits
-    there for the bake and fills the images (made meanwhile), or at render_post and
+    there for the bake, making the images meanwhile, and fills them, or at render_post and
     render_cancel where nothing composites; end() waits for the EXR and says how it went.
     _yields_: the engine is one of IDLE_START_ENGINES, and the thread (and the bake's threads,
     core/parallel.h) runs at the lowest priority (_yield_to_the_engine). Beside Cycles, which
@@ -233,12 +233,6 @@ class _BakeBeside:
         self.composited = False
         self.thread = threading.Thread(target=self._run, name="Airlight bake")
         self.thread.start()
-        t0 = time.perf_counter()
-        try:
-            compositor.make_images(scene)
-        except Exception:  # (e.g. no memory: fill says so once the bake is done)
-            pass
-        self.prepared_seconds = time.perf_counter() - t0
 
     def _run(self):
         if self.yields:
@@ -257,8 +251,16 @@ class _BakeBeside:
         if self.composited:
             return
         self.composited = True
-        self.baked.wait()
         scene = bpy.data.scenes.get(self.scene_name)
+        t0 = time.perf_counter()
+        try:
+            # Here, not in render_pre: the engine starts sooner, and the bake often still runs.
+            if scene is not None:
+                compositor.make_images(scene)
+        except Exception:  # (e.g. no memory: fill says so)
+            pass
+        prepared_seconds = time.perf_counter() - t0
+        self.baked.wait()
         if scene is None:
             return
         try:
@@ -268,7 +270,7 @@ class _BakeBeside:
         except Exception as ex:  # a handler must never take the render down
             _render_without_fog(scene, self.frame, ex, True)
             return
-        _composite(scene, self.frame, baked, self.sampled, self.deferred, self.prepared_seconds)
+        _composite(scene, self.frame, baked, self.sampled, self.deferred, prepared_seconds)
 
     def end(self):
         """Main thread: the frame's pass files are whole; prints how their writing went."""
