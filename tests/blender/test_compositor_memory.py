@@ -222,3 +222,28 @@ def test09_the_bake_beside_the_render_reaches_the_compositor_when_it_announces_i
     render.on_render_post(scene)
     np.testing.assert_array_equal(_pixels("Airlight")[..., :3], 0.0)
     np.testing.assert_array_equal(_pixels("Transmittance")[..., :3], 1.0)
+
+
+def test10_the_bake_gives_way_only_to_an_engine_that_leaves_a_core_idle(tmp_path, monkeypatch):
+    """Beside Workbench the bake's thread lowers its priority (and the native bake's threads
+    inherit it: native/core/parallel_test.cpp); with Cycles render_pre waits for the bake
+    itself, at the normal priority (an EXR written at the lowest one beside Cycles waited
+    for the render's end)."""
+    scene = build_plane_scene(tmp_path, size=(16, 12))
+    scene.airlight.cache_dir = str(tmp_path / "cache")
+    compositor.setup(scene)
+    compositor.choose_source(scene)
+    lowered = []
+    real = render._yield_to_the_engine
+    monkeypatch.setattr(render, "_yield_to_the_engine", lambda: (lowered.append(True), real()))
+    for frame, engine in ((1, 'BLENDER_WORKBENCH'), (2, 'CYCLES')):
+        scene.render.engine = engine
+        scene.frame_set(frame)
+        render.on_render_pre(scene)
+        job = render._beside["job"]
+        assert job.yields == (engine == 'BLENDER_WORKBENCH')
+        assert job.composited == (engine == 'CYCLES'), engine  # Cycles: baked before the engine starts
+        render.on_render_stats(None)
+        render.on_render_post(scene)
+        assert os.path.exists(tmp_path / "cache" / f"fog_{frame:04d}.exr")
+    assert lowered == [True]
