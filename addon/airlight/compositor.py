@@ -21,7 +21,7 @@ multilayer EXR's Image node (a bake's file: Bake Fog, F12) or by an Image node p
 an in-memory float image (background renders, -f/-a: choose_source). In memory the fog
 is baked beside the render engine (render._BakeBeside) and handed over with fill() just
 before the compositor runs, about 2 ms a 1080p pass once make_images() has made the images
-(50 ms each, the first time in a process, while the bake runs), where reloading the EXR
+(50 ms each, the first time in a process, while the bake finishes), where reloading the EXR
 took 0.3-0.8 s; the EXR is still written, after the bake. Only the outputs something is
 linked to are filled.
 """
