@@ -15,7 +15,10 @@ sub-samples):
   about twice its difference from 2n's: MARGIN = 1/2 puts it at the target.
 Lights with no Radius or Angle, no shadows, or fog objects (whose lights are points) need no
 probe: one sample, the centre. Where the casters make shadow samples dear, the probe stops at
-PROBE_BUDGET and says so (Choice.limited): hard shadows, or the finest count it measured.
+PROBE_BUDGET and says so (Choice.limited): hard shadows, or the finest count it measured. The
+budget counts the probe's own work (the calling thread's CPU time, its share of the bake's
+threads), not the wall clock: beside a render engine, at the lowest priority, the probe's
+bakes wait for the engine, and the count must not depend on how long they waited.
 Street at 1080p, 0.25 m lamps: the probe adds ~0.08 s to a 0.64 s bake.
 """
 
@@ -33,7 +36,7 @@ LADDER = (8, 16, 32, 64)
 PROBE_PIXELS = 10000
 # The share of the target a count's measured difference may take.
 MARGIN = 0.5
-# The most the probe may take, in seconds (foreseen from its first bake): a 2-million-triangle
+# The most the probe may take, in seconds of its own work (foreseen from its first bake): a 2-million-triangle
 # caster made a shadow sample cost ~2 s at the probe's size, so that measuring 16 would have
 # taken 34 s for a 3 s bake.
 PROBE_BUDGET = 3.0
@@ -100,7 +103,7 @@ def choose(module, description, settings, target):
     n times the first's (one shadow volume each: heavy casters make them dear); one that would
     take the probe past PROBE_BUDGET seconds is not baked, nor any where the casters' triangle
     count foretells it (SAMPLE_SECONDS_PER_TRIANGLE)."""
-    start = time.perf_counter()
+    start, work_start = time.perf_counter(), time.thread_time()
     casters = len(description.get("occluder_triangles", description.get("triangles", ())))
     if (1 + FIRST_CHECK) * casters * SAMPLE_SECONDS_PER_TRIANGLE > PROBE_BUDGET:
         return Choice(1, math.nan, time.perf_counter() - start, "budget")
@@ -116,11 +119,17 @@ def choose(module, description, settings, target):
             bakes[samples] = module.bake(**probe, **args, shadow_samples=samples)["airlight"]
         return bakes[samples]
 
+    def work():
+        # Seconds of the probe's work at full speed: the calling thread takes its share of
+        # every bake's items (core/parallel.h), so its CPU time is about the bakes' wall time
+        # on an idle machine, and does not grow while they wait for other threads.
+        return time.thread_time() - work_start
+
     def affordable(samples):
-        return samples in bakes or (time.perf_counter() - start) + samples * per_sample <= PROBE_BUDGET
+        return samples in bakes or work() + samples * per_sample <= PROBE_BUDGET
 
     airlight(1)
-    per_sample = time.perf_counter() - start
+    per_sample = work()
 
     def done(samples, error, limited=""):
         return Choice(samples, error, time.perf_counter() - start, limited)
