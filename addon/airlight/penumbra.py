@@ -36,9 +36,9 @@ LADDER = (8, 16, 32, 64)
 PROBE_PIXELS = 10000
 # The share of the target a count's measured difference may take.
 MARGIN = 0.5
-# The most the probe may take, in seconds of its own work (foreseen from its first bake): a 2-million-triangle
-# caster made a shadow sample cost ~2 s at the probe's size, so that measuring 16 would have
-# taken 34 s for a 3 s bake.
+# The most the probe may take, in seconds of its own work (foreseen from its first bake): a
+# 2-million-triangle caster made a shadow sample cost ~2 s at the probe's size, so that
+# measuring 16 would have taken 34 s for a 3 s bake.
 PROBE_BUDGET = 3.0
 # A shadow sample's cost per caster triangle (its volume's silhouettes and faces), measured
 # on that plane: 2e6 triangles, ~2 s a sample. Casters so many that the probe's first two
