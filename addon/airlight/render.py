@@ -149,9 +149,8 @@ def _bake_for_render(scene, get_depsgraph, get_mesh_overrides=lambda: None, eval
         jobs, export_seconds = bake.frame_jobs(scene, get_depsgraph(), bake.cache_path(scene, frame),
                                                mesh_overrides=get_mesh_overrides(), evaluate_at=evaluate_at)
         if memory:
-            beside = scene.render.engine in IDLE_START_ENGINES
-            job = _beside["job"] = _BakeBeside(scene, frame, jobs, export_seconds, evaluate_at is not None, beside)
-            if not beside:
+            job = _beside["job"] = _BakeBeside(scene, frame, jobs, export_seconds, evaluate_at is not None)
+            if not job.yields:
                 job.composite()  # now: the render would only share the cores with it
             return
         baked = bake.frame_baked(scene, jobs, export_seconds, *bake.run_views(jobs))
@@ -220,13 +219,14 @@ class _BakeBeside:
     itself in the main thread before it reads an image (render_stats): composite() waits
     there for the bake, making the images meanwhile, and fills them, or at render_post and
     render_cancel where nothing composites; end() waits for the EXR and says how it went.
-    _yields_: the engine is one of IDLE_START_ENGINES, and the thread (and the bake's threads,
-    core/parallel.h) runs at the lowest priority (_yield_to_the_engine). Beside Cycles, which
-    keeps both cores busy from its start, an EXR written at that priority waited for the
-    render's end."""
+    _yields_: the scene's engine is one of IDLE_START_ENGINES, and the thread (and the bake's
+    threads, core/parallel.h) runs at the lowest priority (_yield_to_the_engine). Beside
+    Cycles, which keeps both cores busy from its start, an EXR written at that priority waited
+    for the render's end."""
 
-    def __init__(self, scene, frame, jobs, export_seconds, sampled, yields):
-        self.scene_name, self.frame, self.sampled, self.yields = scene.name, frame, sampled, yields
+    def __init__(self, scene, frame, jobs, export_seconds, sampled):
+        self.scene_name, self.frame, self.sampled = scene.name, frame, sampled
+        self.yields = scene.render.engine in IDLE_START_ENGINES
         self.jobs, self.export_seconds = jobs, export_seconds
         self.deferred, self.result, self.error, self.written = [], None, None, None
         self.baked = threading.Event()

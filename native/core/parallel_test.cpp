@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <atomic>
 #include <chrono>
+#include <functional>
 #include <mutex>
 #include <stdexcept>
 #include <thread>
@@ -21,10 +22,14 @@
 namespace airlight {
 namespace {
 
-// Each item's count of visits after run_parallel on _threads_ threads.
-std::vector<int> visits(int n, int threads) {
+// Each item's count of visits after run_parallel on _threads_ threads; _also(i)_ runs on
+// each visit.
+std::vector<int> visits(int n, int threads, const std::function<void(int)>& also = [](int) {}) {
     std::vector<std::atomic<int>> count(static_cast<size_t>(n));
-    parallel_for(n, threads, [&](int i) { count[static_cast<size_t>(i)].fetch_add(1); });
+    parallel_for(n, threads, [&](int i) {
+        count[static_cast<size_t>(i)].fetch_add(1);
+        also(i);
+    });
     std::vector<int> out;
     for (auto& c : count) out.push_back(c.load());
     return out;
@@ -40,6 +45,9 @@ TEST(Parallel, AFailureStopsTheLoopAndPropagates) {
     EXPECT_THROW(parallel_for(10000, 2,
                               [&](int i) {
                                   if (i == 10) throw std::runtime_error("item 10");
+                                  // Items of some length: a process's first throw takes
+                                  // ~1 ms, in which empty items would all have run.
+                                  std::this_thread::sleep_for(std::chrono::microseconds(20));
                                   if (i > 5000) after.fetch_add(1);
                               }),
                  std::runtime_error);
@@ -60,15 +68,12 @@ TEST(Parallel, AYieldingCallersWorkKeepsItsPriority) {
     std::vector<int> counts;
     std::thread caller([&] {
         ASSERT_EQ(setpriority(PRIO_PROCESS, static_cast<id_t>(syscall(SYS_gettid)), 19), 0);
-        std::vector<std::atomic<int>> count(2000);
-        parallel_for(2000, 2, [&](int i) {
-            count[static_cast<size_t>(i)].fetch_add(1);
+        counts = visits(2000, 2, [&](int) {
             std::this_thread::sleep_for(std::chrono::microseconds(20));
             std::lock_guard<std::mutex> lock(mutex);
             nices.push_back(own_nice());
             ids.push_back(std::this_thread::get_id());
         });
-        for (auto& c : count) counts.push_back(c.load());
     });
     caller.join();
     EXPECT_EQ(counts, std::vector<int>(2000, 1));

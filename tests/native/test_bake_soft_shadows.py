@@ -6,6 +6,7 @@ mean, where the hard shadows (1 sample, the centre) are several times further of
 is the plain bake bit for bit, a light without Radius ignores the samples, and the per-light
 passes take them."""
 import math
+import time
 
 import numpy as np
 import pytest
@@ -200,7 +201,6 @@ def test_automatic_probe_budget_counts_its_work_not_its_waiting():
     engine: its budget counts the probe's own work (CPU time), so the count it takes does not
     depend on how long they waited. Here the budget is twice the probe's measured work (this
     machine's speed, a sanitizer build's included) and each bake waits as long as that."""
-    import time
     penumbra = _penumbra()
     scene, settings = scene_arguments()
     work = time.thread_time()
