@@ -554,7 +554,8 @@ LAST_SOFT_SHADOWS = {}
 
 def soft_shadows_text(soft):
     """A penumbra.Choice for the console, the report and the panel."""
-    what = f"{soft.samples} sample(s) (probe {1000.0 * soft.seconds:.0f} ms"
+    what = (f"{soft.samples} sample(s) (probe {1000.0 * soft.seconds:.0f} ms"
+            + (", remembered from an earlier bake of this frame" if soft.remembered else ""))
     if soft.limited == "budget":
         return (f"{what}, stopped at its {penumbra.PROBE_BUDGET:g} s budget: the casters make each sample dear; "
                 f"set Soft Shadow Samples to choose)")

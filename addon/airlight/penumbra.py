@@ -20,8 +20,15 @@ budget counts the probe's own work (the calling thread's CPU time, its share of 
 threads), not the wall clock: beside a render engine, at the lowest priority, the probe's
 bakes wait for the engine, and the count must not depend on how long they waited.
 Street at 1080p, 0.25 m lamps: the probe adds ~0.08 s to a 0.64 s bake.
+
+A count measured to its end (not cut short by the budget, which depends on the machine's
+speed) is kept in the table cache's folder (native.table_cache_dir) under a digest of
+everything the probe bakes from (the view, lights, casters, settings and target) and this
+module's rules, and taken from there for the same frame (Choice.remembered): a still rendered
+again, or a locked-off shot's frames on a farm, do not measure it again.
 """
 
+import hashlib
 import math
 import time
 from collections import namedtuple
@@ -88,13 +95,17 @@ def mean_error(airlight, reference):
     return float(np.mean(np.abs(a[lit] - ref[lit]) / ref[lit]))
 
 
-Choice = namedtuple("Choice", "samples error seconds limited")
+Choice = namedtuple("Choice", "samples error seconds limited remembered", defaults=(False,))
 Choice.__doc__ = """Soft Shadow Samples Automatic's count (penumbra.choose): _samples_; _error_ the
 mean relative difference measured between it and the finer count it was checked against
 (nan where none was); _seconds_ the probe's; _limited_ why the target was not met: '' (it
 was), 'budget' (PROBE_BUDGET cut the measuring short: the finest count measured, or hard
 shadows) or 'ladder' (the last count, whose coarser neighbour still differed from it by
-_error_)."""
+_error_); _remembered_: taken from an earlier measure of the same frame (the module's
+docstring), _error_ as measured then."""
+
+# How a kept record spells Choice.limited (a 'budget' choice is not kept).
+_LIMITS = ("", "ladder")
 
 
 def choose(module, description, settings, target):
@@ -112,6 +123,18 @@ def choose(module, description, settings, target):
     args = {k: v for k, v in settings.items()
             if k not in ("shadow_samples", "light_pass_index") and not k.startswith("surface")}
     args["aa_samples"] = 1
+    key = _record_key(probe, args, target)
+    kept = _kept(module, key)
+    if kept is not None:
+        return kept._replace(seconds=time.perf_counter() - start)
+    choice = _measure(module, probe, args, target, start, work_start)
+    _keep(module, key, choice)
+    return choice
+
+
+def _measure(module, probe, args, target, start, work_start):
+    """choose()'s measuring: the probe bakes of _probe_ with _args_ (started at _start_,
+    perf_counter, and _work_start_, thread_time)."""
     bakes = {}
 
     def airlight(samples):
@@ -145,3 +168,40 @@ def choose(module, description, settings, target):
         if error <= MARGIN * target:
             return done(coarse, error)
     return done(LADDER[-1], error, "ladder")
+
+
+def _record_key(probe, args, target):
+    """The key a Choice for the probe bakes of _probe_ with _args_ and _target_ is kept under:
+    this module's rules and a digest of every argument (arrays by type, shape and bytes)."""
+    digest = hashlib.blake2b(digest_size=20)
+    for kind, values in (("scene", probe), ("settings", args)):
+        for name in sorted(values):
+            value = values[name]
+            if isinstance(value, (np.ndarray, list, tuple)):
+                array = np.ascontiguousarray(value)
+                digest.update(f"{kind}.{name}:{array.dtype.str}{array.shape}:".encode())
+                digest.update(array.tobytes())
+            else:
+                digest.update(f"{kind}.{name}={value!r};".encode())
+    return (f"penumbra.choose 1: first check {FIRST_CHECK}, ladder {LADDER}, margin {MARGIN!r}, "
+            f"floor {FLOOR!r}, target {float(target)!r}, arguments {digest.hexdigest()}")
+
+
+def _kept(module, key):
+    """The Choice kept under _key_ (remembered), or None."""
+    record = getattr(module, "table_cache_record", None)
+    values = record(key, 3) if record is not None else None
+    if values is None:
+        return None
+    samples, error, limited = int(values[0]), float(values[1]), int(values[2])
+    if samples not in (1,) + LADDER or not 0 <= limited < len(_LIMITS):
+        return None
+    return Choice(samples, error, 0.0, _LIMITS[limited], True)
+
+
+def _keep(module, key, choice):
+    """Keeps _choice_ under _key_ unless the budget cut it short (that depends on the
+    machine's speed, not on the frame)."""
+    store = getattr(module, "table_cache_store_record", None)
+    if store is not None and choice.limited in _LIMITS:
+        store(key, np.array([choice.samples, choice.error, _LIMITS.index(choice.limited)], np.float64))

@@ -120,6 +120,31 @@ void bind_models(py::module_& m) {
         },
         "This process's tables: built (cache missed or off), loaded from the cache, and cache files "
         "refused (corrupt, truncated or from another build; rebuilt with a note on stderr).");
+    m.def(
+        "table_cache_record",
+        [](const std::string& key, size_t count) -> py::object {
+            std::vector<double> data(count);
+            bool found;
+            {
+                py::gil_scoped_release release;
+                found = read_record(key, data);
+            }
+            if (!found) return py::none();
+            return py::array_t<double>(py::ssize_t(count), data.data());
+        },
+        "key"_a, "count"_a,
+        "The _count_ values kept under _key_ in the table cache's folder (table_cache_store_record), "
+        "or None: none kept, the cache off, or a file refused (corrupt, another build's; a note on stderr).");
+    m.def(
+        "table_cache_store_record",
+        [](const std::string& key, py::array_t<double, py::array::c_style | py::array::forcecast> values) {
+            const std::vector<double> data(values.data(), values.data() + values.size());
+            py::gil_scoped_release release;
+            write_record(key, data);
+        },
+        "key"_a, "values"_a,
+        "Keeps _values_ under _key_ in the table cache's folder (written whole, atomically; nothing "
+        "where the cache is off or the folder cannot be written). Not counted in table_cache_counts.");
     m.def("phase", &phase_py, "name"_a, "mu"_a, "g"_a = 0.0,
           R"doc(Phase function p(mu) in 1/sr, normalised to 1 over the sphere.
 

@@ -52,10 +52,10 @@ uint64_t build_id() {
     return id;
 }
 
-std::string entry_path(const std::string& dir, const std::string& key) {
+std::string entry_path(const std::string& dir, const std::string& key, const char* suffix = "table") {
     const uint64_t h = fnv1a(key.data(), key.size(), build_id());
-    char name[32];
-    std::snprintf(name, sizeof name, "%016llx.table", static_cast<unsigned long long>(h));
+    char name[40];
+    std::snprintf(name, sizeof name, "%016llx.%s", static_cast<unsigned long long>(h), suffix);
     return (std::filesystem::path(dir) / name).string();
 }
 
@@ -165,6 +165,21 @@ bool load_or_build(const std::string& key, std::vector<float>& data, const std::
 
 bool load_or_build(const std::string& key, std::vector<double>& data, const std::function<void()>& build) {
     return load_or_build_impl(key, data, build);
+}
+
+bool read_record(const std::string& key, std::vector<double>& data) {
+    const std::string dir = table_cache_dir();
+    if (dir.empty()) return false;
+    const std::string path = entry_path(dir, key, "record");
+    std::string why;
+    if (read_entry(path, key, data, why)) return true;
+    if (!why.empty()) std::cerr << "Airlight: cache file " << path << " not used (" << why << "); measuring again\n";
+    return false;
+}
+
+void write_record(const std::string& key, const std::vector<double>& data) {
+    const std::string dir = table_cache_dir();
+    if (!dir.empty()) write_entry(dir, entry_path(dir, key, "record"), key, data);
 }
 
 TableCacheCounts table_cache_counts() { return {n_built.load(), n_loaded.load(), n_refused.load()}; }

@@ -30,6 +30,13 @@ std::string table_cache_dir();
 bool load_or_build(const std::string& key, std::vector<float>& data, const std::function<void()>& build);
 bool load_or_build(const std::string& key, std::vector<double>& data, const std::function<void()>& build);
 
+// A measured record under _key_ (a choice that took bakes to make, kept so that the same
+// scene is not measured again: the add-on's soft-shadow probe), in <dir>/<hash>.record with
+// the same checks, and not counted as a table. read_record fills _data_ (sized by the caller)
+// and returns true from a valid entry; a refused file gets the note on stderr.
+bool read_record(const std::string& key, std::vector<double>& data);
+void write_record(const std::string& key, const std::vector<double>& data);
+
 // Per process: tables built (the cache missed or is off), read from the cache, and cache
 // files refused (corrupt, truncated or foreign).
 struct TableCacheCounts {

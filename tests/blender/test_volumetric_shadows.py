@@ -151,12 +151,14 @@ def test07_soft_shadow_samples_automatic(tmp_path):
     description, settings = bake.prepare(scene, depsgraph)
     assert settings[bake.SOFT_SHADOW_TARGET] == pytest.approx(0.01) and settings["shadow_samples"] == 1
     stats, _ = bake.run(description, settings, str(tmp_path / "auto.exr"))
-    samples, error, seconds, limited = stats["soft_shadows"]
+    samples, error, seconds, limited, _ = stats["soft_shadows"]
     assert samples in (1, 8, 16, 32, 64) and error <= 0.005 and seconds > 0.0 and limited == ""
     assert f"soft shadows {samples} sample(s)" in bake.parts_line(stats)
     bake.LAST_SOFT_SHADOWS.pop(scene.name, None)
     assert "measured per frame" in ui.soft_shadow_note(scene)
     assert bpy.ops.airlight.bake(filepath=str(tmp_path / "op.exr")) == {'FINISHED'}  # (the panel's line)
+    assert bake.LAST_SOFT_SHADOWS[scene.name].remembered  # the same frame: not measured again
+    assert "remembered from an earlier bake of this frame" in ui.soft_shadow_note(scene)
     assert ui.soft_shadow_note(scene).startswith(f"Automatic, last bake: {bake.LAST_SOFT_SHADOWS[scene.name].samples} "
                                                  "sample(s)")
     scene.airlight.accuracy = 0.01  # below what the samples can show: the most

@@ -165,7 +165,7 @@ def test_automatic_count_meets_the_target(shaft, target):
     _, pixels, ref = shaft
     scene, settings = scene_arguments()
     assert penumbra.needed(scene)
-    count, measured, seconds, limited = penumbra.choose(_native, scene, settings, target)
+    count, measured, seconds, limited, _ = penumbra.choose(_native, scene, settings, target)
     assert count in (1,) + penumbra.LADDER and seconds > 0.0 and limited in ("", "ladder")
     assert (measured <= penumbra.MARGIN * target) == (limited == "")
     e = errors(_native.bake(**scene, **settings, shadow_samples=count), pixels, ref)
@@ -203,8 +203,10 @@ def test_automatic_probe_budget_counts_its_work_not_its_waiting():
     machine's speed, a sanitizer build's included) and each bake waits as long as that."""
     penumbra = _penumbra()
     scene, settings = scene_arguments()
+    class Measuring:  # _native without its kept records: every choice is measured
+        bake = staticmethod(_native.bake)
     work = time.thread_time()
-    unhurried = penumbra.choose(_native, scene, settings, 0.01)
+    unhurried = penumbra.choose(Measuring(), scene, settings, 0.01)
     work = time.thread_time() - work
     penumbra.PROBE_BUDGET = wait = 2.0 * work + 0.01
 
@@ -215,6 +217,58 @@ def test_automatic_probe_budget_counts_its_work_not_its_waiting():
     waited = penumbra.choose(Waiting(), scene, settings, 0.01)
     assert waited.limited == "" and waited.samples == unhurried.samples > 1, (waited, unhurried, work)
     assert waited.seconds > 3 * wait  # (the wall time it reports includes the waits)
+
+
+def test_automatic_count_is_remembered_for_the_same_frame(tmp_path, capfd):
+    """A count measured to its end is kept in the table cache's folder and taken from there for
+    the same frame, with no probe bake and the error measured then; a moved light or another
+    target is measured again; a corrupt record is refused with a note, measured again and
+    rewritten; a count cut short by the budget is not kept; the records are not tables."""
+    penumbra = _penumbra()
+    scene, settings = scene_arguments()
+    calls = []
+
+    class Counting:
+        table_cache_record = staticmethod(_native.table_cache_record)
+        table_cache_store_record = staticmethod(_native.table_cache_store_record)
+
+        def bake(self, **kwargs):
+            calls.append(kwargs["shadow_samples"])
+            return _native.bake(**kwargs)
+
+    def choose(scene, target=0.01):
+        calls.clear()
+        return penumbra.choose(Counting(), scene, settings, target)
+    before, counts = _native.table_cache_dir(), _native.table_cache_counts()
+    _native.set_table_cache_dir(str(tmp_path))
+    try:
+        first = choose(scene)
+        assert calls and not first.remembered and first.samples > 1 and first.limited == ""
+        again = choose(scene)
+        assert calls == [] and again.remembered, again
+        assert (again.samples, again.error, again.limited) == (first.samples, first.error, first.limited)
+        assert _native.table_cache_counts() == counts
+        assert not choose(dict(scene, light_positions=LIGHT[None] + [0.0, 0.0, 0.5])).remembered and calls
+        assert not choose(scene, 0.05).remembered and calls
+        records = sorted(tmp_path.glob("*.record"))
+        assert len(records) == 3
+        for path in records:
+            data = bytearray(path.read_bytes())
+            data[-12] ^= 0xFF  # a value's byte
+            path.write_bytes(bytes(data))
+        capfd.readouterr()
+        remeasured = choose(scene)
+        assert calls and not remeasured.remembered and remeasured.samples == first.samples
+        assert "not used (checksum mismatch (corrupt))" in capfd.readouterr().err
+        assert choose(scene).remembered and calls == []
+        budget = penumbra.PROBE_BUDGET
+        penumbra.PROBE_BUDGET, penumbra.SAMPLE_SECONDS_PER_TRIANGLE = 1e-6, 0.0
+        thicker = dict(scene, sigma_t=1.5 * SIGMA)
+        assert choose(thicker).limited == "budget"
+        penumbra.PROBE_BUDGET = budget
+        assert not choose(thicker).remembered and calls
+    finally:
+        _native.set_table_cache_dir(before)
 
 
 def test_automatic_needs_a_radius_and_shadows():
