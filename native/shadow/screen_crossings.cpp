@@ -227,16 +227,19 @@ bool ScreenCrossings::crossings(const glm::dvec2* film, const Ray* rays, const f
                                 std::vector<Crossing>* lists, const uint32_t* masks) const {
     if (!ready_) return false;
     const double x_lo = -kMargin, y_lo = -kMargin;
-    for (int k = 0; k < n; ++k) {
+    auto binned = [&](int k) {
         const double tx = std::floor((film[k].x - x_lo) / kTileW), ty = std::floor((film[k].y - y_lo) / kTileH);
-        if (!(tx >= 0.0 && tx < nx_ && ty >= 0.0 && ty < ny_)) return false;
-    }
+        return tx >= 0.0 && tx < nx_ && ty >= 0.0 && ty < ny_;
+    };
     bool row = n > 1;
     for (int k = 1; k < n && row; ++k) row = film[k].y == film[0].y && film[k].x == film[0].x + k;
-    if (row) {
+    if (row) {  // (its ends bound it)
+        if (!binned(0) || !binned(n - 1)) return false;
         row_crossings(film, rays, t1, n, lists, masks);
         return true;
     }
+    for (int k = 0; k < n; ++k)
+        if (!binned(k)) return false;
     // Scattered samples (an edge pixel's sub-samples) in groups of up to kGroup in one tile:
     // a face that misses the group's bounding box is passed over once for all of them.
     constexpr int kGroup = 16;
@@ -296,19 +299,37 @@ void ScreenCrossings::row_crossings(const glm::dvec2* film, const Ray* rays, con
             const Face& f = faces_[entries_[q]];
             if (!(f.near < t_max)) break;
             // The face's span on the row: each edge function is A x + C there; its root,
-            // widened by a sample each side, bounds the samples covers() then decides.
-            double lo = k, hi = k_end - 1;
+            // widened by a sample each side, bounds the samples covers() then decides. Samples
+            // a whole sample inside every root ([in_lo, in_hi]) are covered whatever the
+            // rounding, where the edge's value there, about A, dwarfs its evaluation's error
+            // (a few ulps of |A x| + |B y| + |D|): covers() decides the rest.
+            double lo = k, hi = k_end - 1, in_lo = lo, in_hi = hi;
             for (int e = 0; e < 3 && lo <= hi; ++e) {
-                const double A = f.e[e][0], C = f.e[e][1] * y + f.e[e][2];
-                if (A > 0.0) lo = std::max(lo, std::floor(-C / A - x0) - 1.0);
-                else if (A < 0.0) hi = std::min(hi, std::ceil(-C / A - x0) + 1.0);
-                else if (C < 0.0) hi = lo - 1.0;
+                const double A = f.e[e][0], B = f.e[e][1] * y, C = B + f.e[e][2];
+                const bool sure = std::abs(A) > 1e-9 * (std::abs(A) * (std::abs(x0) + n) + std::abs(B) +
+                                                         std::abs(f.e[e][2]));
+                if (A > 0.0) {
+                    const double root = std::floor(-C / A - x0);
+                    lo = std::max(lo, root - 1.0);
+                    in_lo = sure ? std::max(in_lo, root + 2.0) : hi + 1.0;
+                } else if (A < 0.0) {
+                    const double root = std::ceil(-C / A - x0);
+                    hi = std::min(hi, root + 1.0);
+                    in_hi = sure ? std::min(in_hi, root - 2.0) : lo - 1.0;
+                } else if (C < 0.0) {
+                    hi = lo - 1.0;
+                } else if (!(C > 0.0)) {
+                    in_hi = lo - 1.0;  // (on the edge: its tie decides)
+                }
             }
             lo = std::max(lo, double(k)), hi = std::min(hi, double(k_end - 1));
             if (!(lo <= hi)) continue;
             const double near = span_near(f, x0 + lo, x0 + hi, y);
-            for (int i = int(lo); i <= int(hi); ++i)
-                if (near < t1[i] && asked(masks, i, f) && covers(f, film[i].x, y)) push(f, rays[i], t1[i], lists[i]);
+            const int i_lo = int(lo), i_hi = int(hi);
+            const int sure_lo = int(std::clamp(in_lo, lo, hi + 1.0)), sure_hi = int(std::clamp(in_hi, lo - 1.0, hi));
+            for (int i = i_lo; i <= i_hi; ++i)
+                if (near < t1[i] && asked(masks, i, f) && ((i >= sure_lo && i <= sure_hi) || covers(f, film[i].x, y)))
+                    push(f, rays[i], t1[i], lists[i]);
         }
         k = k_end;
     }

@@ -5,9 +5,11 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <random>
+#include <tuple>
 #include <vector>
 
 namespace airlight {
@@ -157,6 +159,58 @@ TEST(ScreenCrossings, SlatsAndACameraInShadowMatchEmbree) {
         EXPECT_LT(worst, 0.02) << "rows " << rows;
         EXPECT_GT(lit, 0.05);
     }
+}
+
+// A row of pixel centres takes each face's span at once, and skips the per-pixel test well
+// inside it: every pixel must get exactly the crossings its own test gives (one position a
+// call), faces seen nearly edge-on (the slats) and reaching behind the viewer included.
+TEST(ScreenCrossings, RowsGiveEachPixelItsOwnCrossings) {
+    TriangleMesh m;
+    for (int k = 0; k < 40; ++k) {
+        const double y = -10.0 + 0.5 * k;
+        add_quad(m, Vec3(-10, y, 4), Vec3(-10, y + 0.02, 4), Vec3(10, y + 0.02, 4), Vec3(10, y, 4));
+    }
+    add_box(m, Vec3(-1, -1, 6), Vec3(1, 1, 6.5));
+    add_quad(m, Vec3(-40, -40, 0), Vec3(40, -40, 0), Vec3(40, 40, 0), Vec3(-40, 40, 0));
+    std::vector<ShadowLight> lights(2);
+    lights[0].position = Vec3(0.5, 0.3, 9);
+    lights[1].directional = true;
+    lights[1].direction = glm::normalize(Vec3(0.3, 0.5, -1.0));
+    const View views[] = {look_at(Vec3(0.2, 0.1, 5.5), Vec3(3, 2, 0), 1.4, 200, 120),
+                          look_at(Vec3(-30, -28, 9), Vec3(0, 0, 1), 1.0, 160, 90),
+                          look_at(Vec3(-12, 0.01, 4.0), Vec3(12, 0.0, 4.0), 1.2, 160, 90)};  // along the slats
+    auto key = [](const Crossing& c) { return std::make_tuple(c.t, c.light, c.dw); };
+    long n_crossings = 0;
+    for (const View& v : views) {
+        const ShadowVolumes volumes(m, lights, v.eye);
+        const ScreenCrossings screen(volumes, v.D0, v.Dx, v.Dy, v.W, v.H, std::numeric_limits<double>::infinity(), 0.0,
+                                     2, size_t(1) << 26, size_t(1) << 20);
+        ASSERT_TRUE(screen.ready());
+        std::vector<glm::dvec2> film(size_t(v.W));
+        std::vector<Ray> rays(size_t(v.W));
+        std::vector<float> t1(size_t(v.W), 500.0f);
+        std::vector<std::vector<Crossing>> lists(size_t(v.W));
+        std::vector<Crossing> own;
+        for (int j = 0; j < v.H; ++j) {
+            for (int i = 0; i < v.W; ++i) {
+                film[i] = {i + 0.5, j + 0.5};
+                rays[i] = {v.eye, glm::normalize(v.D0 + film[i].x * v.Dx + film[i].y * v.Dy)};
+            }
+            ASSERT_TRUE(screen.crossings(film.data(), rays.data(), t1.data(), v.W, lists.data()));
+            for (int i = 0; i < v.W; ++i) {
+                ASSERT_TRUE(screen.crossings(&film[i], &rays[i], &t1[i], 1, &own));
+                auto sorted = [&](std::vector<Crossing> l) {
+                    std::sort(l.begin(), l.end(), [&](const Crossing& a, const Crossing& b) { return key(a) < key(b); });
+                    return l;
+                };
+                const std::vector<Crossing> a = sorted(lists[i]), b = sorted(own);
+                ASSERT_EQ(a.size(), b.size()) << "pixel " << i << ", " << j;
+                for (size_t q = 0; q < a.size(); ++q) ASSERT_TRUE(key(a[q]) == key(b[q])) << "pixel " << i << ", " << j;
+                n_crossings += long(a.size());
+            }
+        }
+    }
+    EXPECT_GT(n_crossings, 10000);
 }
 
 TEST(ScreenCrossings, OutsideTheFilmIsRefused) {
