@@ -527,7 +527,7 @@ void FogEvaluator::set_up_shadows(const SceneDescription& scene, const BakeSetti
     }
     if (lights.empty()) return;
     for (const LightData& light : lights_) light_peak_.push_back(std::max({light.weight.x, light.weight.y, light.weight.z}));
-    shadows_ = std::make_unique<ShadowVolumes>(casters, lights, origin_);
+    shadows_ = ShadowVolumes::shared(casters, lights, origin_);
     if (shared_origin_) {
         // An eye on a frustum boundary (in the plane of a light and a caster's edge) has no
         // one count for all its rays: each ray then counts at its own start (lit_intervals).

@@ -274,7 +274,7 @@ class FogEvaluator {
     std::vector<GaussianSpotData> gaussian_spots_;
     std::vector<GaussianSunData> gaussian_suns_;
     std::unique_ptr<GaussianSplat> splat_;
-    std::unique_ptr<ShadowVolumes> shadows_;
+    std::shared_ptr<const ShadowVolumes> shadows_;  // (ShadowVolumes::shared)
     // The volumes' faces binned on the film, for rays from the shared origin whose film
     // positions are known (null: other cameras, or too many faces).
     std::unique_ptr<ScreenCrossings> screen_;

@@ -6,6 +6,7 @@
 
 #include "bake/bake.h"
 #include "image/raycast.h"
+#include "shadow/shadow_volumes.h"
 #include "core/memory.h"
 #include "image/exr_io.h"
 #include "models/registry.h"
@@ -628,8 +629,17 @@ allocating them (ValueError / RuntimeError naming both sizes when they would not
     m.def("raycaster_builds", &RayCaster::shared_builds,
           "Embree BVHs the bakes of this process built for their geometry: a bake whose vertices "
           "and triangles equal the previous bake's shares its BVH (image/raycast.h, RayCaster::shared).");
-    m.def("clear_geometry_cache", &RayCaster::clear_shared,
-          "Drops the geometry (and its Embree BVH) kept from the last bake for the next one.");
+    m.def("shadow_volume_builds", &ShadowVolumes::shared_builds,
+          "Sets of shadow volumes the bakes of this process built: a bake whose casters, shadowed lights "
+          "(or light samples) and camera position equal one of the last two bakes' shares its volumes "
+          "(shadow/shadow_volumes.h, ShadowVolumes::shared).");
+    m.def(
+        "clear_geometry_cache",
+        [] {
+            RayCaster::clear_shared();
+            ShadowVolumes::clear_shared();
+        },
+        "Drops the geometry (and its Embree BVH) and the shadow volumes kept from the last bakes for the next ones.");
     m.def("write_exr", &write_exr_py, "path"_a, "passes"_a, "layer_prefix"_a = "", "half"_a = false,
           "compression"_a = "auto",
           R"doc(Write one multilayer EXR (32-bit float; half=True: 16-bit half floats, rounded

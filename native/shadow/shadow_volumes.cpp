@@ -519,6 +519,70 @@ void ShadowVolumes::lit_from_crossings(std::vector<Crossing>& list, int L, doubl
     sweep(list, L, t0, t1, count0, nullptr, true, mask, out);
 }
 
+namespace {
+
+bool same_lights(const std::vector<ShadowLight>& a, const std::vector<ShadowLight>& b) {
+    if (a.size() != b.size()) return false;
+    for (size_t k = 0; k < a.size(); ++k)
+        if (a[k].directional != b[k].directional || a[k].position != b[k].position || a[k].direction != b[k].direction)
+            return false;
+    return true;
+}
+
+struct KeptVolumes {
+    TriangleMesh casters;  // copies, compared exactly
+    std::vector<ShadowLight> lights;
+    Vec3 viewer{0.0};
+    std::shared_ptr<const ShadowVolumes> volumes;
+    long last_use = 0;
+};
+
+struct SharedVolumes {
+    std::mutex mutex;
+    std::vector<KeptVolumes> kept;
+    long uses = 0, builds = 0;
+};
+
+SharedVolumes& shared_volumes() {
+    static SharedVolumes instance;
+    return instance;
+}
+
+}  // namespace
+
+std::shared_ptr<const ShadowVolumes> ShadowVolumes::shared(const TriangleMesh& casters,
+                                                           const std::vector<ShadowLight>& lights, const Vec3& viewer) {
+    SharedVolumes& s = shared_volumes();
+    std::lock_guard<std::mutex> lock(s.mutex);
+    for (KeptVolumes& k : s.kept)
+        if (k.viewer == viewer && same_lights(k.lights, lights) && k.casters.vertices == casters.vertices &&
+            k.casters.triangles == casters.triangles) {
+            k.last_use = ++s.uses;
+            return k.volumes;
+        }
+    if (s.kept.size() >= kKeptVolumes) {  // the least recently used goes before the new one is built
+        auto oldest = std::min_element(s.kept.begin(), s.kept.end(),
+                                       [](const KeptVolumes& a, const KeptVolumes& b) { return a.last_use < b.last_use; });
+        s.kept.erase(oldest);
+    }
+    auto volumes = std::make_shared<const ShadowVolumes>(casters, lights, viewer);
+    ++s.builds;
+    s.kept.push_back({casters, lights, viewer, volumes, ++s.uses});
+    return volumes;
+}
+
+void ShadowVolumes::clear_shared() {
+    SharedVolumes& s = shared_volumes();
+    std::lock_guard<std::mutex> lock(s.mutex);
+    s.kept.clear();
+}
+
+long ShadowVolumes::shared_builds() {
+    SharedVolumes& s = shared_volumes();
+    std::lock_guard<std::mutex> lock(s.mutex);
+    return s.builds;
+}
+
 const ShadowFaces& ShadowVolumes::faces(int l) const { return impl_->faces[size_t(l)]; }
 
 Vec3 ShadowVolumes::frame() const { return impl_->frame; }

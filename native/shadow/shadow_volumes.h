@@ -89,6 +89,17 @@ class ShadowVolumes {
     ~ShadowVolumes();
     ShadowVolumes(const ShadowVolumes&) = delete;
     ShadowVolumes& operator=(const ShadowVolumes&) = delete;
+    // The volumes of the same arguments, shared with an earlier call's when that call's
+    // casters, lights and viewer were the same (compared exactly): the last kKeptVolumes
+    // sets are kept, so that a frame's soft-shadow probe and its bake, its per-light passes
+    // and an animation's frames over static casters and lights build them once. The least
+    // recently used set is dropped before another is built, or by clear_shared(). Thread safe.
+    static std::shared_ptr<const ShadowVolumes> shared(const TriangleMesh& casters,
+                                                       const std::vector<ShadowLight>& lights, const Vec3& viewer);
+    static void clear_shared();
+    // Builds of shared() so far (those it did not share), for tests and the stats.
+    static long shared_builds();
+    static constexpr size_t kKeptVolumes = 2;
 
     int num_lights() const { return int(lights_.size()); }
     // Number of caster triangles between _p_ and light _l_ (0: lit). _ambiguous_ (optional):

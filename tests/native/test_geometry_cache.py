@@ -4,6 +4,11 @@ frames of an animation build it once. Tests: a bake of the same vertices and tri
 none; one moved vertex, or other triangles, builds again and sees the new surface (depth
 against the plane's distance); a bake refused for its camera leaves the next bake of the
 same geometry as it was; clear_geometry_cache drops the kept mesh.
+
+The shadow volumes are shared the same way (ShadowVolumes::shared, the last two sets): a
+frame's soft-shadow probe and its bake, and the frames of a static shot, build them once. A
+shared set bakes bit for bit what a new one does; a moved light, caster or camera builds
+again.
 """
 import math
 
@@ -68,3 +73,52 @@ def test03_clear_drops_the_kept_geometry():
     _native.clear_geometry_cache()
     bake(v, t)
     assert _native.raycaster_builds() == before + 1
+
+
+def shadowed(vertices, triangles, **kw):
+    """bake() with a box casting shadows from the light into the fog."""
+    box_v = np.array([[x, y, z] for x in (-0.3, 0.3) for y in (1.2, 1.8) for z in (-0.2, 0.4)], np.float32)
+    box_t = np.array([[0, 1, 3], [0, 3, 2], [4, 6, 7], [4, 7, 5], [0, 4, 5], [0, 5, 1],
+                      [2, 3, 7], [2, 7, 6], [0, 2, 6], [0, 6, 4], [1, 5, 7], [1, 7, 3]], np.uint32)
+    args = dict(occluder_vertices=box_v, occluder_triangles=box_t, shadows=True)
+    args.update(kw)
+    return bake(vertices, triangles, **args)
+
+
+def test04_same_casters_lights_and_camera_share_the_shadow_volumes():
+    v, t = plane_z(-1.0)
+    _native.clear_geometry_cache()
+    before = _native.shadow_volume_builds()
+    first = shadowed(v, t)
+    assert _native.shadow_volume_builds() == before + 1
+    again = shadowed(v.copy(), t.copy(), sigma_t=0.2)  # other fog, the same volumes
+    assert _native.shadow_volume_builds() == before + 1
+    _native.clear_geometry_cache()
+    fresh = shadowed(v, t)
+    assert _native.shadow_volume_builds() == before + 2
+    np.testing.assert_array_equal(shadowed(v, t)["airlight"], fresh["airlight"])  # shared: bit for bit
+    assert _native.shadow_volume_builds() == before + 2
+    lit = bake(v, t)["airlight"]
+    assert np.sum(lit) > 1.05 * np.sum(first["airlight"])  # (the box does shadow the fog)
+    assert not np.array_equal(again["airlight"], first["airlight"])
+
+
+def test05_a_moved_light_caster_or_camera_builds_the_volumes_again():
+    v, t = plane_z(-1.0)
+    shadowed(v, t)
+    before = _native.shadow_volume_builds()
+    moved_light = shadowed(v, t, light_positions=np.array([[0.2, 3.0, 1.0]]))
+    assert _native.shadow_volume_builds() == before + 1
+    # The last two sets are kept: the probe's samples between a frame's two bakes of its centre.
+    soft = shadowed(v, t, light_radii=np.array([0.3]), shadow_samples=8)
+    assert _native.shadow_volume_builds() == before + 2
+    shadowed(v, t, light_positions=np.array([[0.2, 3.0, 1.0]]))
+    assert _native.shadow_volume_builds() == before + 2
+    camera = camera_matrix(rotation_x(math.radians(-30.0)), [0.0, 0.01, EYE_Z])
+    shadowed(v, t, cam_to_world=camera)
+    assert _native.shadow_volume_builds() == before + 3
+    box = np.array([[x, y, z] for x in (-0.3, 0.3) for y in (1.2, 1.8) for z in (-0.2, 0.41)], np.float32)
+    raised = shadowed(v, t, occluder_vertices=box)
+    assert _native.shadow_volume_builds() == before + 4
+    assert not np.array_equal(raised["airlight"], shadowed(v, t)["airlight"])
+    assert not np.array_equal(soft["airlight"], moved_light["airlight"])
