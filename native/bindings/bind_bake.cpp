@@ -510,8 +510,9 @@ shadows (default False): volumetric shadows and light shafts: each light's in-sc
   the Fogshop models restrict each point, spot and sun light's terms to its lit spans.
 shadow_crossings (default 'film'): how the camera's rays find where they cross the shadow
   volumes: 'film' rasterizes the volumes' faces on the film (perspective cameras; exact to the
-  faces, watertight: shadow/screen_crossings.h), 'traced' traces every ray through Embree (the
-  same lit intervals but where Embree's float traversal loses a crossing; for checks).
+  faces, watertight: shadow/screen_crossings.h) where the faces are few enough for the film's
+  pixels to pay for it, else traces them; 'traced' traces every ray through Embree (the same lit
+  intervals but where Embree's float traversal loses a crossing; for checks).
 gaussian_accuracy in [0, 1) (default 0): fog objects with the Fogshop models (perspective, no
   noise) take each ray's (light, Gaussian) terms exactly where the bounds on Fogshop's error
   (per pair, then per ray) exceed a quarter of it each, and the uniform fog's term with the

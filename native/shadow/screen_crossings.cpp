@@ -57,8 +57,16 @@ bool ScreenCrossings::covers(const Face& f, double x, double y) {
 
 ScreenCrossings::ScreenCrossings(const ShadowVolumes& volumes, const Vec3& D0, const Vec3& Dx, const Vec3& Dy, int W,
                                  int H, double cap_reach, double cap_beyond, int threads, size_t max_entries,
-                                 size_t max_faces_per_tile) {
+                                 size_t max_faces_per_tile, double max_faces_per_pixel) {
     if (W <= 0 || H <= 0) return;
+    // Too many faces for the film's pixels: not ready (Embree traces). The caps the test below
+    // may leave out (a finite _cap_reach_: casters the rays end on) are not counted.
+    size_t n_faces = 0;
+    for (int l = 0; l < volumes.num_lights(); ++l) {
+        const ShadowFaces& sf = volumes.faces(l);
+        n_faces += sf.whole_weights.size() - (std::isfinite(cap_reach) ? std::min(sf.n_caps, sf.whole_weights.size()) : 0);
+    }
+    if (double(n_faces) > std::max(double(kMinFacesForFallback), max_faces_per_pixel * double(W) * double(H))) return;
     const glm::dmat3 M(Dx, Dy, D0);  // columns: q = M^-1 P has q.z > 0 ahead of the viewer
     if (!(std::abs(glm::determinant(M)) > 0.0)) return;
     const glm::dmat3 Minv = glm::inverse(M);

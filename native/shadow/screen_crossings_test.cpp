@@ -231,5 +231,29 @@ TEST(ScreenCrossings, OutsideTheFilmIsRefused) {
     EXPECT_FALSE(tiny.ready());
 }
 
+// Heavy casters (more faces than kMaxFacesPerPixel per pixel): left to Embree before any face
+// is built; asked to, the film bins them.
+TEST(ScreenCrossings, HeavyCastersAreLeftToEmbree) {
+    TriangleMesh m;
+    const int n = 40;  // a grid of 2 n^2 = 3200 triangles, its caps and boundary: > 4096 faces
+    for (int i = 0; i < n; ++i)
+        for (int j = 0; j < n; ++j) {
+            const double x = -4.0 + 0.2 * i, y = -4.0 + 0.2 * j;
+            add_quad(m, Vec3(x, y, 3), Vec3(x + 0.2, y, 3), Vec3(x + 0.2, y + 0.2, 3), Vec3(x, y + 0.2, 3));
+        }
+    std::vector<ShadowLight> lights(2);
+    lights[0].position = Vec3(0.5, 0.3, 9);
+    lights[1].position = Vec3(-0.5, 0.3, 8);
+    const View v = look_at(Vec3(-10, -10, 5), Vec3(0, 0, 0), 1.0, 64, 48);
+    const ShadowVolumes volumes(m, lights, v.eye);
+    const ScreenCrossings heavy(volumes, v.D0, v.Dx, v.Dy, v.W, v.H);
+    EXPECT_FALSE(heavy.ready());
+    EXPECT_EQ(heavy.num_faces(), 0u);  // (decided before building them)
+    const ScreenCrossings asked(volumes, v.D0, v.Dx, v.Dy, v.W, v.H, std::numeric_limits<double>::infinity(), 0.0, 2,
+                                size_t(1) << 26, size_t(1) << 20, 1e9);
+    EXPECT_TRUE(asked.ready());
+    EXPECT_GT(asked.num_faces(), ScreenCrossings::kMinFacesForFallback);
+}
+
 }  // namespace
 }  // namespace airlight

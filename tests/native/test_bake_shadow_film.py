@@ -6,7 +6,8 @@ shadow ray at each node (visibility found without the shadow volumes).
 The scenes put casters where the film path leaves their caps out or must keep them: casters
 that are the camera's geometry (the rays end on them), one cut by the near clip, one past the
 far clip that the rays pass through and whose shadow they cross, casters the camera does not
-see (Ray Visibility > Camera off), and edge pixels supersampled."""
+see (Ray Visibility > Camera off), and edge pixels supersampled. Heavy casters (more faces
+than the film's pixels pay for) are traced: the bake is the traced one bit for bit."""
 import math
 
 import numpy as np
@@ -120,3 +121,20 @@ def test_film_against_the_shadow_ray_quadrature():
 def test_bad_crossings_argument():
     with pytest.raises(ValueError, match="shadow_crossings"):
         bake(street()[:1], crossings="rasterized")
+
+
+def test_heavy_casters_are_traced():
+    """A shadow-only caster (Ray Visibility > Camera off: the rays pass it, so its caps count)
+    of thousands of small triangles at 48 x 32 pixels: far more faces than
+    ScreenCrossings::kMaxFacesPerPixel allows, so the default bake traces them, bit for bit the
+    traced bake, and still shadows the fog. The same caster seen by the camera (its caps left
+    out) keeps the film."""
+    n = 60  # 7200 triangles over the first light
+    cells = [quad([[x, y, 4.0], [x + 0.1, y, 4.0], [x + 0.1, y + 0.1, 4.0], [x, y + 0.1, 4.0]])
+             for x in np.arange(n) * 0.1 - 1.0 for y in np.arange(n) * 0.1 + 5.0]
+    occluders = merge(street() + cells)
+    film, traced = bake(street(), occluders=occluders), bake(street(), occluders=occluders, crossings="traced")
+    np.testing.assert_array_equal(film, traced)
+    assert np.sum(film) < 0.98 * np.sum(bake(street()))
+    seen = bake(street() + cells)
+    assert not np.array_equal(seen, bake(street() + cells, crossings="traced"))  # (the film's own rounding)
