@@ -226,6 +226,23 @@ ShadowVolumes::ShadowVolumes(const TriangleMesh& casters, const std::vector<Shad
     rtcCommitScene(impl_->casters);
     impl_->check("building the casters");
 
+    // Every triangle's directed edges (p -> q, as wound), sorted by undirected edge (u < v):
+    // each light sums its sides' orientations edge by edge from them, without a hash map.
+    struct EdgeUse {
+        uint64_t key;      // (min(p, q) << 32) | max(p, q)
+        uint32_t triangle;
+        int32_t sign;      // +1 for p < q
+        bool operator<(const EdgeUse& o) const { return key < o.key; }
+    };
+    std::vector<EdgeUse> edge_uses(3 * nt);
+    for (size_t k = 0; k < nt; ++k)
+        for (int e = 0; e < 3; ++e) {
+            const uint32_t p = mesh.triangles[3 * k + e], q = mesh.triangles[3 * k + (e + 1) % 3];
+            edge_uses[3 * k + e] = {(uint64_t(std::min(p, q)) << 32) | std::max(p, q), uint32_t(k), p < q ? 1 : -1};
+        }
+    std::sort(edge_uses.begin(), edge_uses.end());
+    std::vector<int8_t> orient(nt);         // per light, per triangle: +1 as wound, -1 reversed, 0 none
+    std::vector<uint32_t> ring_slot(nv);    // per light: a silhouette vertex's place in each ring
     for (size_t l = 0; l < lights.size(); ++l) {
         const ShadowLight& light = lights[l];
         const Vec3 s = light.position, w = glm::normalize(light.direction);
@@ -237,11 +254,10 @@ ShadowVolumes::ShadowVolumes(const TriangleMesh& casters, const std::vector<Shad
         // Outward normal of the side through edge p -> q of a triangle wound counter-clockwise
         // as the light sees it: (q - p) x (s - p), or (q - p) x (-w) for a sun.
         auto toward_light = [&](const Vec3& p) { return light.directional ? -w : s - p; };
-        // Per undirected edge (u < v): the summed orientation of its sides (+1 for u -> v).
-        std::unordered_map<uint64_t, int> edge_weight;
         std::vector<uint32_t> caps;
-        edge_weight.reserve(3 * nt);
+        caps.reserve(3 * nt);
         for (size_t k = 0; k < nt; ++k) {
+            orient[k] = 0;
             uint32_t a = mesh.triangles[3 * k], b = mesh.triangles[3 * k + 1], c = mesh.triangles[3 * k + 2];
             const Vec3 pa = mesh.position[a], pb = mesh.position[b], pc = mesh.position[c];
             const Vec3 n = glm::cross(pb - pa, pc - pa);
@@ -253,15 +269,30 @@ ShadowVolumes::ShadowVolumes(const TriangleMesh& casters, const std::vector<Shad
             // shadow it drops is a wedge kEdgeOn wide seen from the light.
             if (!(std::abs(facing) > kEdgeOn * glm::length(n) * glm::length(toward_light(pa))) || glm::length(n) == 0.0)
                 continue;
-            if (facing < 0.0) std::swap(b, c);  // counter-clockwise seen from the light
+            if (facing < 0.0) std::swap(b, c);  // counter-clockwise seen from the light (its edges reversed)
+            orient[k] = facing < 0.0 ? -1 : 1;
             caps.insert(caps.end(), {a, b, c});
-            const uint32_t vi[3] = {a, b, c};
-            for (int e = 0; e < 3; ++e) {
-                const uint32_t p = vi[e], q = vi[(e + 1) % 3];
-                const uint64_t key = (uint64_t(std::min(p, q)) << 32) | std::max(p, q);
-                edge_weight[key] += p < q ? 1 : -1;
-            }
         }
+        // Per undirected edge (u < v): the summed orientation of its sides (+1 for u -> v);
+        // the silhouette is where it is not 0.
+        std::vector<std::pair<uint64_t, int>> silhouette;
+        for (size_t q = 0; q < edge_uses.size();) {
+            const uint64_t key = edge_uses[q].key;
+            int weight = 0;
+            for (; q < edge_uses.size() && edge_uses[q].key == key; ++q)
+                weight += orient[edge_uses[q].triangle] * edge_uses[q].sign;
+            if (weight != 0) silhouette.emplace_back(key, weight);
+        }
+        // Only the silhouette's vertices get rings (ring r of vertex k: ring_vertex(r, k)).
+        std::fill(ring_slot.begin(), ring_slot.end(), UINT32_MAX);
+        std::vector<uint32_t> ringed;  // the silhouette's vertices, in order
+        for (const auto& [key, weight] : silhouette)
+            for (const uint32_t k : {uint32_t(key >> 32), uint32_t(key & 0xffffffffu)})
+                if (ring_slot[k] == UINT32_MAX) ring_slot[k] = uint32_t(ringed.size()), ringed.push_back(k);
+        const size_t n_ringed = ringed.size();
+        auto ring_vertex = [&](int r, uint32_t k) {
+            return r == 0 ? k : uint32_t(nv + size_t(r - 1) * n_ringed + ring_slot[k]);
+        };
         // Vertices: the welded ones, then rings of copies pushed away from the light (each
         // welded vertex has its own, so neighbouring quads meet exactly). A quad runs from one
         // ring to the next, each ring kRingGrowth times as far from the light as the one before,
@@ -274,30 +305,39 @@ ShadowVolumes::ShadowVolumes(const TriangleMesh& casters, const std::vector<Shad
             d_min = std::min(d_min, light.directional ? extent : std::max(glm::length(mesh.position[k] - s), 1e-30));
         int rings = 1;
         while (rings < kMaxRings && d_min * std::pow(kRingGrowth, rings) < R) ++rings;
-        std::vector<float> vb(3 * nv * size_t(rings + 1));
-        for (size_t k = 0; k < nv; ++k) {
+        std::vector<float> vb(3 * (nv + size_t(rings) * n_ringed));
+        for (size_t k = 0; k < nv; ++k)
+            for (int c = 0; c < 3; ++c) vb[3 * k + c] = float(mesh.position[k][c]);
+        for (const uint32_t k : ringed) {
             const Vec3 p = mesh.position[k];
             const double dp = light.directional ? extent : std::max(glm::length(p - s), 1e-300);
-            for (int r = 0; r <= rings; ++r) {
-                const double scale = r == 0 ? 1.0 : std::pow(kRingGrowth, r);
-                const Vec3 f = r == 0 ? p
-                               : light.directional ? p + (dp * (scale - 1.0)) * w
-                                                   : s + (p - s) * (r == rings ? std::max(scale, R / dp) : scale);
-                for (int c = 0; c < 3; ++c) vb[3 * (size_t(r) * nv + k) + c] = float(f[c]);
+            for (int r = 1; r <= rings; ++r) {
+                const double scale = std::pow(kRingGrowth, r);
+                const Vec3 f = light.directional ? p + (dp * (scale - 1.0)) * w
+                                                 : s + (p - s) * (r == rings ? std::max(scale, R / dp) : scale);
+                for (int c = 0; c < 3; ++c) vb[3 * size_t(ring_vertex(r, k)) + c] = float(f[c]);
             }
         }
-        std::vector<uint32_t> ib = caps;
+        const size_t n_sides = 2 * silhouette.size();  // triangles: two a quad
+        std::vector<uint32_t> ib;
+        ib.reserve(caps.size() + 3 * n_sides * size_t(rings));
+        ib = caps;
         std::vector<int16_t>& weights = impl_->weights[l];
+        weights.reserve(caps.size() / 3 + n_sides * size_t(rings));
         weights.assign(caps.size() / 3, 1);
         // The same volume with each side one quad from the casters to R (ShadowFaces::whole).
-        std::vector<uint32_t> whole = caps;
-        std::vector<int16_t> whole_weights(caps.size() / 3, 1);
-        for (const auto& [key, weight] : edge_weight) {
-            if (weight == 0) continue;
+        std::vector<uint32_t> whole;
+        whole.reserve(caps.size() + 3 * n_sides);
+        whole = caps;
+        std::vector<int16_t> whole_weights;
+        whole_weights.reserve(caps.size() / 3 + n_sides);
+        whole_weights.assign(caps.size() / 3, 1);
+        for (const auto& [key, weight] : silhouette) {
             const int16_t m = int16_t(std::min(std::abs(weight), int(std::numeric_limits<int16_t>::max())));
+            const uint32_t k_u = uint32_t(key >> 32), k_v = uint32_t(key & 0xffffffffu);
             for (int r = 0; r < rings; ++r) {
-                const uint32_t u = uint32_t(r * nv + (key >> 32)), v = uint32_t(r * nv + (key & 0xffffffffu));
-                const uint32_t uf = u + uint32_t(nv), vf = v + uint32_t(nv);
+                const uint32_t u = ring_vertex(r, k_u), v = ring_vertex(r, k_v);
+                const uint32_t uf = ring_vertex(r + 1, k_u), vf = ring_vertex(r + 1, k_v);
                 // (u, vf, v) and (u, uf, vf) have the outward normal (v - u) x (s - u): the far
                 // points lie away from the light.
                 if (weight > 0) ib.insert(ib.end(), {u, vf, v, u, uf, vf});
@@ -305,8 +345,7 @@ ShadowVolumes::ShadowVolumes(const TriangleMesh& casters, const std::vector<Shad
                 weights.push_back(m);
                 weights.push_back(m);
             }
-            const uint32_t u = uint32_t(key >> 32), v = uint32_t(key & 0xffffffffu);
-            const uint32_t uf = u + uint32_t(rings * nv), vf = v + uint32_t(rings * nv);
+            const uint32_t u = k_u, v = k_v, uf = ring_vertex(rings, k_u), vf = ring_vertex(rings, k_v);
             if (weight > 0) whole.insert(whole.end(), {u, vf, v, u, uf, vf});
             else whole.insert(whole.end(), {u, v, vf, u, vf, uf});
             whole_weights.push_back(m);
@@ -317,7 +356,7 @@ ShadowVolumes::ShadowVolumes(const TriangleMesh& casters, const std::vector<Shad
         faces.vertices.resize(vb.size() / 3);
         for (size_t k = 0; k < faces.vertices.size(); ++k)
             faces.vertices[k] = Vec3(vb[3 * k], vb[3 * k + 1], vb[3 * k + 2]);  // Embree's floats
-        faces.triangles = ib;
+        faces.triangles = std::move(ib);
         faces.weights = weights;
         faces.n_caps = caps.size() / 3;
         faces.whole_triangles = std::move(whole);
