@@ -47,9 +47,11 @@ MARGIN = 0.5
 # 2-million-triangle caster made a shadow sample cost ~2 s at the probe's size, so that
 # measuring 16 would have taken 34 s for a 3 s bake.
 PROBE_BUDGET = 3.0
-# A shadow sample's cost per caster triangle (its volume's silhouettes and faces), measured
-# on that plane: 2e6 triangles, ~2 s a sample. Casters so many that the probe's first two
-# bakes would pass the budget are not probed at all.
+# A shadow sample's cost per caster triangle and soft-shadowed light (its volume's
+# silhouettes and faces), measured on that plane: 2e6 triangles, one light, ~2 s a sample; a
+# 1e5-triangle grid over the street's 4 lamps, 5.4 s for 16 samples at the probe's size. Casters
+# so many that the probe's first two bakes would pass the budget are not probed at all (the
+# first bake's own time cannot tell: it shares the frame's volumes once they are built).
 SAMPLE_SECONDS_PER_TRIANGLE = 1e-6
 # Pixels whose reference airlight is below this share of its 99th percentile are not
 # weighed (no fog to speak of), and relative errors are taken against at least it.
@@ -60,8 +62,14 @@ def needed(description):
     """Whether any baked light of _description_ (`_native.bake`'s scene arguments) casts soft
     shadows: shadows on, a point light or spot with a Radius or a sun with an Angle, with its
     shadow flag, and no fog objects."""
+    return soft_lights(description) > 0
+
+
+def soft_lights(description):
+    """How many baked lights of _description_ cast soft shadows (needed())."""
     if not description.get("shadows") or len(description.get("rbf_centres", ())) > 0:
-        return False
+        return 0
+    count = 0
     for radii, flags in (("light_radii", "light_shadows"), ("spot_radii", "spot_shadows"),
                          ("sun_angles", "sun_shadows")):
         r = np.asarray(description.get(radii, ()), dtype=np.float64).ravel()
@@ -69,9 +77,8 @@ def needed(description):
             continue
         f = description.get(flags)
         f = np.ones_like(r) if f is None else np.asarray(f, dtype=np.float64).ravel()
-        if np.any((r > 0.0) & (f != 0.0)):
-            return True
-    return False
+        count += int(np.count_nonzero((r > 0.0) & (f != 0.0)))
+    return count
 
 
 def probe_description(description):
@@ -113,10 +120,11 @@ def choose(module, description, settings, target):
     `_native.bake`'s other keyword arguments. Each probe bake of n samples is foreseen to cost
     n times the first's (one shadow volume each: heavy casters make them dear); one that would
     take the probe past PROBE_BUDGET seconds is not baked, nor any where the casters' triangle
-    count foretells it (SAMPLE_SECONDS_PER_TRIANGLE)."""
+    count times the soft-shadowed lights' foretells it (SAMPLE_SECONDS_PER_TRIANGLE)."""
     start, work_start = time.perf_counter(), time.thread_time()
     casters = len(description.get("occluder_triangles", description.get("triangles", ())))
-    if (1 + FIRST_CHECK) * casters * SAMPLE_SECONDS_PER_TRIANGLE > PROBE_BUDGET:
+    foretold = casters * max(1, soft_lights(description)) * SAMPLE_SECONDS_PER_TRIANGLE
+    if (1 + FIRST_CHECK) * foretold > PROBE_BUDGET:
         return Choice(1, math.nan, time.perf_counter() - start, "budget")
     probe = probe_description(description)
     # The airlight alone: no surface passes, per-light passes or edge sub-samples.

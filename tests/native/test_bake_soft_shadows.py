@@ -196,6 +196,31 @@ def test_automatic_probe_stops_at_its_budget():
     assert choice.samples == 1 and choice.limited == "budget" and math.isnan(choice.error) and calls == [1]
 
 
+def test_automatic_probe_foretells_its_cost_per_soft_light():
+    """The casters' cost is foretold per soft-shadowed light (each has a volume per sample):
+    a cost the budget holds for one such light is twice it for two, and those are not probed;
+    a light without Radius adds none."""
+    penumbra = _penumbra()
+    scene, settings = scene_arguments()
+    two = dict(scene, light_positions=np.array([LIGHT, LIGHT + [1.0, 0.0, 0.0]]),
+               light_intensities=np.array([[I0] * 3] * 2), light_radii=np.array([R, R]))
+    assert penumbra.soft_lights(scene) == 1 and penumbra.soft_lights(two) == 2
+    assert penumbra.soft_lights(dict(two, light_radii=np.array([R, 0.0]))) == 1
+    assert penumbra.soft_lights(dict(two, shadows=False)) == 0
+    casters = len(scene["triangles"])
+    penumbra.SAMPLE_SECONDS_PER_TRIANGLE = 0.75 * penumbra.PROBE_BUDGET / ((1 + penumbra.FIRST_CHECK) * casters)
+    calls = []
+
+    class Counting:
+        def bake(self, **kwargs):
+            calls.append(kwargs["shadow_samples"])
+            return _native.bake(**kwargs)
+    assert penumbra.choose(Counting(), scene, settings, 0.01).limited == "" and calls
+    calls.clear()
+    choice = penumbra.choose(Counting(), two, settings, 0.01)
+    assert choice.limited == "budget" and choice.samples == 1 and calls == []
+
+
 def test_automatic_probe_budget_counts_its_work_not_its_waiting():
     """Beside a render engine the probe's bakes run at the lowest priority and wait for the
     engine: its budget counts the probe's own work (CPU time), so the count it takes does not
