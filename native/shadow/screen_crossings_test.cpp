@@ -141,14 +141,20 @@ TEST(ScreenCrossings, StreetOfBoxesMatchesEmbree) {
         }
 }
 
-// Slats thinner than a pixel's footprint, and a camera inside a shadow.
-TEST(ScreenCrossings, SlatsAndACameraInShadowMatchEmbree) {
+// 40 slats 2 cm wide at z = 4 (thinner than a pixel's footprint) and a box above them.
+TriangleMesh slats_and_box() {
     TriangleMesh m;
     for (int k = 0; k < 40; ++k) {
         const double y = -10.0 + 0.5 * k;
         add_quad(m, Vec3(-10, y, 4), Vec3(-10, y + 0.02, 4), Vec3(10, y + 0.02, 4), Vec3(10, y, 4));
     }
     add_box(m, Vec3(-1, -1, 6), Vec3(1, 1, 6.5));
+    return m;
+}
+
+// Slats, and a camera inside a shadow.
+TEST(ScreenCrossings, SlatsAndACameraInShadowMatchEmbree) {
+    const TriangleMesh m = slats_and_box();
     std::vector<ShadowLight> lights(1);
     lights[0].position = Vec3(0.5, 0.3, 9);
     const View v = look_at(Vec3(0.2, 0.1, 5.5), Vec3(3, 2, 0), 1.4, 200, 120);  // under the box
@@ -165,12 +171,7 @@ TEST(ScreenCrossings, SlatsAndACameraInShadowMatchEmbree) {
 // inside it: every pixel must get exactly the crossings its own test gives (one position a
 // call), faces seen nearly edge-on (the slats) and reaching behind the viewer included.
 TEST(ScreenCrossings, RowsGiveEachPixelItsOwnCrossings) {
-    TriangleMesh m;
-    for (int k = 0; k < 40; ++k) {
-        const double y = -10.0 + 0.5 * k;
-        add_quad(m, Vec3(-10, y, 4), Vec3(-10, y + 0.02, 4), Vec3(10, y + 0.02, 4), Vec3(10, y, 4));
-    }
-    add_box(m, Vec3(-1, -1, 6), Vec3(1, 1, 6.5));
+    TriangleMesh m = slats_and_box();
     add_quad(m, Vec3(-40, -40, 0), Vec3(40, -40, 0), Vec3(40, 40, 0), Vec3(-40, 40, 0));
     std::vector<ShadowLight> lights(2);
     lights[0].position = Vec3(0.5, 0.3, 9);
