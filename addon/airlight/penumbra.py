@@ -185,11 +185,11 @@ def _record_key(probe, args, target):
     for kind, values in (("scene", probe), ("settings", args)):
         for name in sorted(values):
             value = values[name]
-            if isinstance(value, (np.ndarray, list, tuple)):
-                array = np.ascontiguousarray(value)
+            array = np.ascontiguousarray(value) if isinstance(value, (np.ndarray, list, tuple)) else None
+            if array is not None and array.dtype != object:
                 digest.update(f"{kind}.{name}:{array.dtype.str}{array.shape}:".encode())
                 digest.update(array.tobytes())
-            else:
+            else:  # (a scalar, a string; objects by their repr, never their addresses)
                 digest.update(f"{kind}.{name}={value!r};".encode())
     return (f"penumbra.choose 1: first check {FIRST_CHECK}, ladder {LADDER}, margin {MARGIN!r}, "
             f"floor {FLOOR!r}, target {float(target)!r}, arguments {digest.hexdigest()}")
