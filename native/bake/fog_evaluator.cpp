@@ -536,28 +536,29 @@ void FogEvaluator::set_up_shadows(const SceneDescription& scene, const BakeSetti
             origin_count_.push_back(shadows_->count_at(v, origin_, &ambiguous));
             origin_ambiguous_ = origin_ambiguous_ || ambiguous;
         }
-        // The camera's own rays (all from origin_) take their crossings from the film.
         const CameraRays camera(scene.camera);
-        if (!settings.shadow_crossings_traced && !origin_ambiguous_ && camera.affine_perspective() &&
-            camera.position() == origin_) {
+        if (!origin_ambiguous_ && camera.affine_perspective() && camera.position() == origin_) {
             Vec3 D0, Dx, Dy;
             camera.affine_direction(D0, Dx, Dy);
             // Casters that are the camera's geometry end the rays that meet them: their caps
             // count only within the near clip (from the eye to a ray's start, at most
             // clip_start over the smallest cosine of a film corner's ray to the view axis) and
             // past the far clip (a distance >= clip_end, the view-axis depth), where rays pass
-            // surfaces they do not see.
-            double cap_reach = std::numeric_limits<double>::infinity();
+            // surfaces they do not see. The film and the traced rays both leave the others out.
             if (scene.occluders_from_geometry) {
                 double cos_min = 1.0;
                 const int W = scene.camera.width, H = scene.camera.height;
                 for (const glm::dvec2 c : {glm::dvec2(-4, -4), glm::dvec2(W + 4, -4), glm::dvec2(-4, H + 4), glm::dvec2(W + 4, H + 4)})
                     cos_min = std::min(cos_min, glm::dot(glm::normalize(D0 + c.x * Dx + c.y * Dy), camera.forward()));
-                cap_reach = cos_min > 0.0 ? 2.0 * camera.clip_start() / cos_min : cap_reach;
+                if (cos_min > 0.0) cap_reach_ = 2.0 * camera.clip_start() / cos_min, cap_beyond_ = camera.clip_end();
             }
-            screen_ = std::make_unique<ScreenCrossings>(*shadows_, D0, Dx, Dy, scene.camera.width, scene.camera.height,
-                                                        cap_reach, camera.clip_end(), resolve_threads(settings.threads));
-            if (!screen_->ready()) screen_.reset();
+            // The camera's own rays (all from origin_) take their crossings from the film.
+            if (!settings.shadow_crossings_traced) {
+                screen_ = std::make_unique<ScreenCrossings>(*shadows_, D0, Dx, Dy, scene.camera.width,
+                                                            scene.camera.height, cap_reach_, camera.clip_end(),
+                                                            resolve_threads(settings.threads));
+                if (!screen_->ready()) screen_.reset();
+            }
         }
     }
     if (gaussian_ && model_.gaussian_method() == GaussianMethod::Fogshop && shared_origin_) {
@@ -760,7 +761,7 @@ const LitIntervals* FogEvaluator::lit_intervals(const Ray* rays, const float* t0
         for (int k = 0; k < n; ++k) std::copy(origin_count_.begin(), origin_count_.end(), counts.begin() + size_t(k) * L);
         count0 = counts.data();
     }
-    shadows_->lit_intervals(rays, t0, t1, n, count0, lit.data(), masks);
+    shadows_->lit_intervals(rays, t0, t1, n, count0, lit.data(), masks, count0 ? cap_reach_ : kNoCut, cap_beyond_);
     return lit.data();
 }
 

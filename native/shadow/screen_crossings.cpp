@@ -19,28 +19,6 @@ Vec3 cross(const Vec3& a, const Vec3& b) {
 
 double dot(const Vec3& a, const Vec3& b) { return a.x * b.x + a.y * b.y + a.z * b.z; }
 
-// The distance from the origin to triangle a b c (Ericson, Real-Time Collision Detection 5.1.5).
-double origin_distance(const Vec3& a, const Vec3& b, const Vec3& c) {
-    const Vec3 p(0.0), ab = b - a, ac = c - a, ap = p - a;
-    const double d1 = dot(ab, ap), d2 = dot(ac, ap);
-    if (d1 <= 0.0 && d2 <= 0.0) return glm::length(a);
-    const Vec3 bp = p - b;
-    const double d3 = dot(ab, bp), d4 = dot(ac, bp);
-    if (d3 >= 0.0 && d4 <= d3) return glm::length(b);
-    const double vc = d1 * d4 - d3 * d2;
-    if (vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0) return glm::length(a + (d1 / (d1 - d3)) * ab);
-    const Vec3 cp = p - c;
-    const double d5 = dot(ab, cp), d6 = dot(ac, cp);
-    if (d6 >= 0.0 && d5 <= d6) return glm::length(c);
-    const double vb = d5 * d2 - d1 * d6;
-    if (vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0) return glm::length(a + (d2 / (d2 - d6)) * ac);
-    const double va = d3 * d6 - d5 * d4;
-    if (va <= 0.0 && (d4 - d3) >= 0.0 && (d5 - d6) >= 0.0)
-        return glm::length(b + ((d4 - d3) / ((d4 - d3) + (d5 - d6))) * (c - b));
-    const double denom = 1.0 / (va + vb + vc);
-    return glm::length(a + ab * (vb * denom) + ac * (vc * denom));
-}
-
 // The half-open rule for positions exactly on an edge: the face whose edge normal points in
 // +x, or along the edge in +y, takes them (its neighbour's normal is the exact negation).
 bool tie_inside(const Vec3& e) { return e.x > 0.0 || (e.x == 0.0 && e.y > 0.0); }

@@ -8,6 +8,7 @@
 #include <cmath>
 #include <cstring>
 #include <limits>
+#include <list>
 #include <mutex>
 #include <stdexcept>
 #include <string>
@@ -143,14 +144,25 @@ bool light_ray(const ShadowLight& light, double reach, const Vec3& p, const Vec3
 
 }  // namespace
 
+struct ShadowVolumes::Traversal {
+    double cap_reach, cap_beyond;
+    RTCScene scene = nullptr;  // one geometry per light: its quads and the caps kept
+    std::vector<std::vector<int16_t>> weights;  // per light, per primitive
+    ~Traversal() {
+        if (scene) rtcReleaseScene(scene);
+    }
+};
+
 struct ShadowVolumes::Impl {
     RTCDevice device = nullptr;
-    RTCScene volumes = nullptr;  // one geometry per light: its quads and caps
     RTCScene casters = nullptr;  // the caster triangles (count_at)
     std::vector<std::vector<int16_t>> weights;  // per light, per primitive
     std::vector<double> reach;                  // per light: the extrusion distance R
     std::vector<ShadowFaces> faces;             // per light (ShadowVolumes::faces)
-    std::once_flag volumes_built;               // volumes: committed on the first traced query
+    // Embree's scenes of the volumes, built on the first traced query of their caps' cut (the
+    // film's rasterized crossings need none), kept while the volumes live (a query may hold one).
+    std::mutex traversals_mutex;
+    std::list<Traversal> traversals;
     Vec3 lo{0.0}, hi{-1.0};                     // the casters' box, padded (count_at, lit_at)
     // The volumes are built about the viewer (Embree works in floats: a scene 1000 km from the
     // world's origin keeps its shadows to ~1e-7 of their distance from the camera, not to 6 cm).
@@ -158,7 +170,7 @@ struct ShadowVolumes::Impl {
     std::string error;
 
     ~Impl() {
-        if (volumes) rtcReleaseScene(volumes);
+        traversals.clear();
         if (casters) rtcReleaseScene(casters);
         if (device) rtcReleaseDevice(device);
     }
@@ -186,8 +198,6 @@ ShadowVolumes::ShadowVolumes(const TriangleMesh& casters, const std::vector<Shad
     impl_->device = rtcNewDevice(nullptr);
     if (!impl_->device) throw std::runtime_error("Embree: rtcNewDevice failed (shadow volumes)");
     rtcSetDeviceErrorFunction(impl_->device, embree_error, &impl_->error);
-    impl_->volumes = rtcNewScene(impl_->device);
-    rtcSetSceneFlags(impl_->volumes, RTC_SCENE_FLAG_ROBUST);  // watertight: no crossing lost on a shared edge
     impl_->casters = rtcNewScene(impl_->device);
     rtcSetSceneFlags(impl_->casters, RTC_SCENE_FLAG_ROBUST);
     impl_->weights.resize(lights.size());
@@ -364,27 +374,76 @@ ShadowVolumes::ShadowVolumes(const TriangleMesh& casters, const std::vector<Shad
     }
 }
 
-void ShadowVolumes::build_volumes() const {
-    // Embree's scene of the volumes, on the first traced query (the film's rasterized crossings
-    // need none): one geometry per light, masked by its light_mask bit.
+double origin_distance(const Vec3& a, const Vec3& b, const Vec3& c) {
+    using glm::dot;
+    const Vec3 p(0.0), ab = b - a, ac = c - a, ap = p - a;
+    const double d1 = dot(ab, ap), d2 = dot(ac, ap);
+    if (d1 <= 0.0 && d2 <= 0.0) return glm::length(a);
+    const Vec3 bp = p - b;
+    const double d3 = dot(ab, bp), d4 = dot(ac, bp);
+    if (d3 >= 0.0 && d4 <= d3) return glm::length(b);
+    const double vc = d1 * d4 - d3 * d2;
+    if (vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0) return glm::length(a + (d1 / (d1 - d3)) * ab);
+    const Vec3 cp = p - c;
+    const double d5 = dot(ab, cp), d6 = dot(ac, cp);
+    if (d6 >= 0.0 && d5 <= d6) return glm::length(c);
+    const double vb = d5 * d2 - d1 * d6;
+    if (vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0) return glm::length(a + (d2 / (d2 - d6)) * ac);
+    const double va = d3 * d6 - d5 * d4;
+    if (va <= 0.0 && (d4 - d3) >= 0.0 && (d5 - d6) >= 0.0)
+        return glm::length(b + ((d4 - d3) / ((d4 - d3) + (d5 - d6))) * (c - b));
+    const double denom = 1.0 / (va + vb + vc);
+    return glm::length(a + ab * (vb * denom) + ac * (vc * denom));
+}
+
+bool ShadowVolumes::cap_left_out(const Vec3& a, const Vec3& b, const Vec3& c, double cap_reach, double cap_beyond) {
+    return std::max({glm::length(a), glm::length(b), glm::length(c)}) < cap_beyond &&
+           origin_distance(a, b, c) > cap_reach;
+}
+
+const ShadowVolumes::Traversal& ShadowVolumes::traversal(double cap_reach, double cap_beyond) const {
+    std::lock_guard<std::mutex> lock(impl_->traversals_mutex);
+    for (const Traversal& t : impl_->traversals)
+        if (t.cap_reach == cap_reach && t.cap_beyond == cap_beyond) return t;
+    Traversal& t = impl_->traversals.emplace_back();
+    t.cap_reach = cap_reach, t.cap_beyond = cap_beyond;
+    t.scene = rtcNewScene(impl_->device);
+    rtcSetSceneFlags(t.scene, RTC_SCENE_FLAG_ROBUST);  // watertight: no crossing lost on a shared edge
+    t.weights.resize(impl_->faces.size());
+    // One geometry per light, masked by its light_mask bit: its quads, and its caps but those
+    // the cut leaves out.
+    std::vector<uint32_t> triangles;
     for (size_t l = 0; l < impl_->faces.size(); ++l) {
         const ShadowFaces& faces = impl_->faces[l];
+        const std::vector<int16_t>& weights = impl_->weights[l];
+        triangles.clear();
+        triangles.reserve(faces.triangles.size());
+        t.weights[l].reserve(weights.size());
+        for (size_t k = 0; k < weights.size(); ++k) {
+            const uint32_t* v = &faces.triangles[3 * k];
+            if (k < faces.n_caps && std::isfinite(cap_reach) &&
+                cap_left_out(faces.vertices[v[0]], faces.vertices[v[1]], faces.vertices[v[2]], cap_reach, cap_beyond))
+                continue;
+            triangles.insert(triangles.end(), v, v + 3);
+            t.weights[l].push_back(weights[k]);
+        }
         RTCGeometry g = rtcNewGeometry(impl_->device, RTC_GEOMETRY_TYPE_TRIANGLE);
         auto* gv = static_cast<float*>(rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3,
                                                                3 * sizeof(float), faces.vertices.size()));
         auto* gi = static_cast<uint32_t*>(rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3,
-                                                                  3 * sizeof(uint32_t), faces.triangles.size() / 3));
+                                                                  3 * sizeof(uint32_t), triangles.size() / 3));
         for (size_t k = 0; k < faces.vertices.size(); ++k)
             for (int c = 0; c < 3; ++c) gv[3 * k + c] = float(faces.vertices[k][c]);  // floats to begin with
-        std::copy(faces.triangles.begin(), faces.triangles.end(), gi);
+        std::copy(triangles.begin(), triangles.end(), gi);
         rtcSetGeometryIntersectFilterFunction(g, record_crossings);
         rtcSetGeometryMask(g, light_mask(int(l)));
         rtcCommitGeometry(g);
-        rtcAttachGeometryByID(impl_->volumes, g, unsigned(l));
+        rtcAttachGeometryByID(t.scene, g, unsigned(l));
         rtcReleaseGeometry(g);
     }
-    rtcCommitScene(impl_->volumes);
+    rtcCommitScene(t.scene);
     impl_->check("building the volumes");
+    return t;
 }
 
 int ShadowVolumes::count_at(int l, const Vec3& world_p, bool* ambiguous) const {
@@ -450,8 +509,14 @@ int ShadowVolumes::origin_count(int l, const Ray& r, double a, double b, double&
 }
 
 void ShadowVolumes::lit_intervals(const Ray* rays, const float* t0, const float* t1, int n, const int* count0,
-                                  LitIntervals* out, const uint32_t* masks) const {
-    std::call_once(impl_->volumes_built, [this] { build_volumes(); });
+                                  LitIntervals* out, const uint32_t* masks, double cap_reach,
+                                  double cap_beyond) const {
+    // The cut holds for rays counted from the viewer that start within cap_reach (crossings
+    // before a ray's start update its count); any other call traverses every cap.
+    bool cut = count0 != nullptr && std::isfinite(cap_reach);
+    for (int k = 0; k < n && cut; ++k) cut = double(t0[k]) <= cap_reach;
+    const Traversal& volumes = cut ? traversal(cap_reach, cap_beyond)
+                                   : traversal(std::numeric_limits<double>::infinity(), 0.0);
     const int L = num_lights();
     thread_local std::vector<Crossing> lists[16];
     thread_local std::vector<int> count;
@@ -460,7 +525,7 @@ void ShadowVolumes::lit_intervals(const Ray* rays, const float* t0, const float*
     from.resize(static_cast<size_t>(L));
     CrossingContext ctx;
     ctx.lists = lists;
-    ctx.weights = &impl_->weights;
+    ctx.weights = &volumes.weights;
     for (int base = 0; base < n; base += 16) {
         const int m = std::min(16, n - base);
         alignas(64) RTCRayHit16 rh;
@@ -485,7 +550,7 @@ void ShadowVolumes::lit_intervals(const Ray* rays, const float* t0, const float*
         }
         rtcInitIntersectContext(&ctx.context);
         ctx.context.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
-        rtcIntersect16(valid, impl_->volumes, &ctx.context, &rh);
+        rtcIntersect16(valid, volumes.scene, &ctx.context, &rh);
         for (int k = 0; k < m; ++k) {
             const int i = base + k;
             const Ray& r = rays[i];

@@ -27,6 +27,7 @@
 #pragma once
 
 #include <cstdint>
+#include <limits>
 #include <memory>
 #include <vector>
 
@@ -82,6 +83,9 @@ struct ShadowFaces {
     std::vector<int16_t> whole_weights;
 };
 
+// The distance from the origin to triangle a b c (Ericson, Real-Time Collision Detection 5.1.5).
+double origin_distance(const Vec3& a, const Vec3& b, const Vec3& c);
+
 class ShadowVolumes {
   public:
     // The volumes of _casters_ for _lights_; _viewer_ is the camera position (it sets R).
@@ -117,8 +121,14 @@ class ShadowVolumes {
     // the ray's direction. _masks_ (optional): per ray, the lights asked for (light_mask
     // bits); the others come back lit all along, and a ray asking for none is not traced.
     // Thread safe.
+    // _cap_reach_, _cap_beyond_ (rays from the viewer, with _count0_, that end where they meet
+    // a caster: the casters are the camera's geometry): the casters' own triangles wholly
+    // farther than cap_reach and nearer than cap_beyond are left out of the traversal, as
+    // ScreenCrossings leaves them out (no such ray crosses them before its end), in a scene
+    // of the volumes built once per pair; the defaults keep them all.
     void lit_intervals(const Ray* rays, const float* t0, const float* t1, int n, const int* count0,
-                       LitIntervals* out, const uint32_t* masks = nullptr) const;
+                       LitIntervals* out, const uint32_t* masks = nullptr,
+                       double cap_reach = std::numeric_limits<double>::infinity(), double cap_beyond = 0.0) const;
     // The lit intervals of one ray from its crossings (any order; sorted here): each light's
     // count starts at count0[l] at the ray's origin, crossings at t <= t0 update it, and the
     // ray is lit within [t0, t1] where the count is 0 (clamped at 0). Lights not in _mask_
@@ -129,6 +139,9 @@ class ShadowVolumes {
     const ShadowFaces& faces(int l) const;
     // The volumes' frame: the viewer's position in the world (faces are relative to it).
     Vec3 frame() const;
+    // Whether cap triangle a b c (relative to the viewer) is left out for (cap_reach,
+    // cap_beyond): wholly farther than cap_reach and nearer than cap_beyond.
+    static bool cap_left_out(const Vec3& a, const Vec3& b, const Vec3& c, double cap_reach, double cap_beyond);
     // The mask bit of light _l_ (lights beyond 32 share bits: asking for one traces both).
     static uint32_t light_mask(int l) { return 1u << (l % 32); }
     // Quads (two triangles each) and caps built, for the figures.
@@ -140,8 +153,10 @@ class ShadowVolumes {
     // applies those at t <= a.
     static void sweep(const std::vector<Crossing>& list, int n_lights, double a, double b, const int* count,
                       const double* from, bool counted_at_origin, uint32_t mask, LitIntervals& out);
-    // Commits Embree's scene of the volumes (lit_intervals, once).
-    void build_volumes() const;
+    // Embree's scene of the volumes with the caps that (cap_reach, cap_beyond) leave out left
+    // out, and its weights per light and primitive (all caps: the defaults); built once each.
+    struct Traversal;
+    const Traversal& traversal(double cap_reach, double cap_beyond) const;
     // Light _l_'s count on ray _r_ (t in [a, b]) a little way along it, at t = _from_ (set).
     int origin_count(int l, const Ray& r, double a, double b, double& from) const;
     struct Impl;
