@@ -358,11 +358,13 @@ def export_instances(depsgraph, geometry=True):
     """(lights, vertices, triangles, occluders) of every render-visible object instance: the
     lights as LightInstances in the depsgraph's order, and with _geometry_ the world-space
     triangle soup the camera sees (vertices (N, 3) float32, triangles (M, 3) uint32) and the
-    one that casts shadows (Ray Visibility > Shadow), as (vertices, triangles) or None when it
-    is the same soup (else all three None). An instance is visible when whatever instances it
-    renders (the instanced object itself is often hidden, e.g. in a particle collection)."""
+    one that casts shadows (Ray Visibility > Shadow), as (vertices, triangles, seen): the
+    casters the camera sees first, _seen_ triangles of them, then the shadow-only ones; None
+    when it is the same soup (else all three None). An instance is visible when whatever
+    instances it renders (the instanced object itself is often hidden, e.g. in a particle
+    collection)."""
     visible = visibility.RenderVisibility(depsgraph.view_layer)
-    lights, seen, casting = [], [], []
+    lights, seen, casting, casting_only = [], [], [], []
     differ = False
     for instance in depsgraph.object_instances:
         obj = instance.object
@@ -387,12 +389,15 @@ def export_instances(depsgraph, geometry=True):
         if camera:
             seen.append(block)
         if shadow:
-            casting.append(block)
+            (casting if camera else casting_only).append(block)
         differ |= camera != shadow
     if not geometry:
         return tuple(lights), None, None, None
     vertices, triangles = _soup(seen)
-    return tuple(lights), vertices, triangles, (_soup(casting) if differ else None)
+    occluders = None
+    if differ:
+        occluders = _soup(casting + casting_only) + (sum(len(t) for _, t in casting),)
+    return tuple(lights), vertices, triangles, occluders
 
 
 class SurveyLight(NamedTuple):
@@ -583,7 +588,7 @@ class SceneDescription(NamedTuple):
     clip: tuple             # export_clip_range: (clip_start, clip_end), or None
     vertices: np.ndarray    # (N, 3) float32 world-space, or None
     triangles: np.ndarray   # (M, 3) uint32, or None
-    occluders: tuple = None  # (vertices, triangles) of the shadow casters when not the above
+    occluders: tuple = None  # (vertices, triangles, seen) of the shadow casters when not the above: the first seen triangles are the camera's too
 
 
 def describe(scene, depsgraph, mesh_overrides=None, view=None, bake=True):

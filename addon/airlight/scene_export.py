@@ -310,7 +310,8 @@ def shadow_arguments(description, plan):
     """The volumetric-shadow keyword arguments of `_native.bake` ({} when no baked light is
     shadowed): shadows=True, one flag per baked point light, spot and sun in the order
     point_lights, spot_lights and sun_lights give them, and the shadow casters when they are
-    not the camera's geometry (occluder_vertices, occluder_triangles)."""
+    not the camera's geometry (occluder_vertices, occluder_triangles, and how many of them lead
+    that the camera sees too: occluder_seen_triangles)."""
     if not plan.shadows:
         return {}
     flags = {}
@@ -332,7 +333,8 @@ def shadow_arguments(description, plan):
         return {}
     out = dict(shadows=True, **flags)
     if description.occluders is not None:
-        out["occluder_vertices"], out["occluder_triangles"] = description.occluders
+        (out["occluder_vertices"], out["occluder_triangles"],
+         out["occluder_seen_triangles"]) = description.occluders
     return out
 
 

@@ -527,7 +527,9 @@ void FogEvaluator::set_up_shadows(const SceneDescription& scene, const BakeSetti
     }
     if (lights.empty()) return;
     for (const LightData& light : lights_) light_peak_.push_back(std::max({light.weight.x, light.weight.y, light.weight.z}));
-    shadows_ = ShadowVolumes::shared(casters, lights, origin_);
+    // The casters the camera's rays end on: all of them, or the occluders' leading ones.
+    const size_t seen = scene.occluders_from_geometry ? casters.triangles.size() / 3 : scene.occluders_seen_triangles;
+    shadows_ = ShadowVolumes::shared(casters, lights, origin_, seen);
     if (shared_origin_) {
         // An eye on a frustum boundary (in the plane of a light and a caster's edge) has no
         // one count for all its rays: each ray then counts at its own start (lit_intervals).
@@ -545,7 +547,7 @@ void FogEvaluator::set_up_shadows(const SceneDescription& scene, const BakeSetti
             // clip_start over the smallest cosine of a film corner's ray to the view axis) and
             // past the far clip (a distance >= clip_end, the view-axis depth), where rays pass
             // surfaces they do not see. The film and the traced rays both leave the others out.
-            if (scene.occluders_from_geometry) {
+            if (seen > 0) {
                 double cos_min = 1.0;
                 const int W = scene.camera.width, H = scene.camera.height;
                 for (const glm::dvec2 c : {glm::dvec2(-4, -4), glm::dvec2(W + 4, -4), glm::dvec2(-4, H + 4), glm::dvec2(W + 4, H + 4)})

@@ -76,7 +76,8 @@ py::dict bake_py(int width, int height, const py::object& cam_to_world, const py
                  const std::string& shadow_crossings, const py::object& light_radii, const py::object& spot_radii,
                  const py::object& spot_profiles, const py::object& spot_profile_in_cone,
                  const py::object& spot_profile_extent, double light_size_tolerance,
-                 const py::object& light_pass_index, int shadow_samples, const py::object& sun_angles) {
+                 const py::object& light_pass_index, int shadow_samples, const py::object& sun_angles,
+                 long long occluder_seen_triangles) {
     // Gather the scene description from the arrays (shapes checked here, values in bake()).
     SceneDescription scene;
     scene.camera.width = width;
@@ -273,6 +274,10 @@ py::dict bake_py(int width, int height, const py::object& cam_to_world, const py
             if (i >= uint32_t(n)) throw py::value_error("occluder_triangles: index " + std::to_string(i) + " out of range");
         scene.occluders_from_geometry = false;
     }
+    if (occluder_seen_triangles < 0 || size_t(occluder_seen_triangles) > scene.occluders.triangles.size() / 3)
+        throw py::value_error("occluder_seen_triangles: " + std::to_string(occluder_seen_triangles) +
+                              " is not between 0 and the occluder triangles' count");
+    scene.occluders_seen_triangles = size_t(occluder_seen_triangles);
 
     // Per-light passes: per light (points, spots, suns in order) its pass, -1 none.
     if (!light_pass_index.is_none()) {
@@ -453,7 +458,7 @@ void bind_bake(py::module_& m) {
           "spot_profiles"_a = py::none(), "spot_profile_in_cone"_a = py::none(),
           "spot_profile_extent"_a = py::none(), "light_size_tolerance"_a = BakeSettings().light_size_tolerance,
           "light_pass_index"_a = py::none(), "shadow_samples"_a = BakeSettings().shadow_samples,
-          "sun_angles"_a = py::none(),
+          "sun_angles"_a = py::none(), "occluder_seen_triangles"_a = 0,
           R"doc(Bake fog passes for one camera view (all arguments keyword-only).
 
 width, height: render resolution in pixels.
@@ -505,7 +510,10 @@ shadows (default False): volumetric shadows and light shafts: each light's in-sc
   only where the light is not blocked by the shadow casters (shadow/shadow_volumes.h: exact to
   the triangles); light_shadows, spot_shadows, sun_shadows: one flag per light of each kind (its
   Cast Shadow; None: all cast); occluder_vertices (N, 3) float32, occluder_triangles (M, 3): the
-  casters when they are not the camera's geometry (Blender's Ray Visibility > Shadow).
+  casters when they are not the camera's geometry (Blender's Ray Visibility > Shadow);
+  occluder_seen_triangles (default 0): how many of the first occluder triangles are the camera's
+  geometry too (the camera's rays end on them, so their own triangles cut no ray but within the
+  near clip or past the far clip).
   Gaussian fog (fog objects): 'quadrature' shadows every light (visibility in its integrand);
   the Fogshop models restrict each point, spot and sun light's terms to its lit spans.
 shadow_crossings (default 'film'): how the camera's rays find where they cross the shadow

@@ -146,6 +146,9 @@ struct SceneDescription {
     // with Ray Visibility > Shadow on. _occluders_from_geometry_: the same as _geometry_.
     TriangleMesh occluders;
     bool occluders_from_geometry = true;
+    // The leading triangles of _occluders_ that are the camera's geometry too (the camera's
+    // rays end where they meet them); the rest cast shadows only.
+    size_t occluders_seen_triangles = 0;
     std::vector<SpotLight> spot_lights;  // airlight by quadrature (spot_light.h)
     // Sun lamps and the world height (Z) of the fog layer's top that bounds the fog they
     // light: +inf is Hoffman & Preetham's unattenuated sun (sunlight_layer.h).

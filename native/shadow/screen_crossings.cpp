@@ -42,7 +42,7 @@ ScreenCrossings::ScreenCrossings(const ShadowVolumes& volumes, const Vec3& D0, c
     size_t n_faces = 0;
     for (int l = 0; l < volumes.num_lights(); ++l) {
         const ShadowFaces& sf = volumes.faces(l);
-        n_faces += sf.whole_weights.size() - (std::isfinite(cap_reach) ? std::min(sf.n_caps, sf.whole_weights.size()) : 0);
+        n_faces += sf.whole_weights.size() - (std::isfinite(cap_reach) ? std::min(sf.n_seen_caps, sf.whole_weights.size()) : 0);
     }
     if (double(n_faces) > std::max(double(kMinFacesForFallback), max_faces_per_pixel * double(W) * double(H))) return;
     const glm::dmat3 M(Dx, Dy, D0);  // columns: q = M^-1 P has q.z > 0 ahead of the viewer
@@ -80,7 +80,7 @@ ScreenCrossings::ScreenCrossings(const ShadowVolumes& volumes, const Vec3& D0, c
             }
             // Nearer than any crossing (a little under: the distance's own rounding).
             const double near = origin_distance(P0, P1, P2);
-            if (t < sf.n_caps && near > cap_reach &&
+            if (t < sf.n_seen_caps && near > cap_reach &&
                 std::max({glm::length(P0), glm::length(P1), glm::length(P2)}) < cap_beyond)
                 continue;
             f.near = float(near * (1.0 - 1e-6));

@@ -182,7 +182,7 @@ struct ShadowVolumes::Impl {
 ShadowVolumes::~ShadowVolumes() = default;
 
 ShadowVolumes::ShadowVolumes(const TriangleMesh& casters, const std::vector<ShadowLight>& world_lights,
-                             const Vec3& world_viewer)
+                             const Vec3& world_viewer, size_t seen_triangles)
     : impl_(new Impl), lights_(world_lights) {
     if (lights_.size() > size_t(std::numeric_limits<int16_t>::max()))
         throw std::invalid_argument("shadow volumes: too many lights");
@@ -266,6 +266,7 @@ ShadowVolumes::ShadowVolumes(const TriangleMesh& casters, const std::vector<Shad
         auto toward_light = [&](const Vec3& p) { return light.directional ? -w : s - p; };
         std::vector<uint32_t> caps;
         caps.reserve(3 * nt);
+        size_t n_seen_caps = 0;  // (the caps come in the casters' order)
         for (size_t k = 0; k < nt; ++k) {
             orient[k] = 0;
             uint32_t a = mesh.triangles[3 * k], b = mesh.triangles[3 * k + 1], c = mesh.triangles[3 * k + 2];
@@ -282,6 +283,7 @@ ShadowVolumes::ShadowVolumes(const TriangleMesh& casters, const std::vector<Shad
             if (facing < 0.0) std::swap(b, c);  // counter-clockwise seen from the light (its edges reversed)
             orient[k] = facing < 0.0 ? -1 : 1;
             caps.insert(caps.end(), {a, b, c});
+            if (k < seen_triangles) ++n_seen_caps;
         }
         // Per undirected edge (u < v): the summed orientation of its sides (+1 for u -> v);
         // the silhouette is where it is not 0.
@@ -369,6 +371,7 @@ ShadowVolumes::ShadowVolumes(const TriangleMesh& casters, const std::vector<Shad
         faces.triangles = std::move(ib);
         faces.weights = weights;
         faces.n_caps = caps.size() / 3;
+        faces.n_seen_caps = n_seen_caps;
         faces.whole_triangles = std::move(whole);
         faces.whole_weights = std::move(whole_weights);
     }
@@ -421,7 +424,7 @@ const ShadowVolumes::Traversal& ShadowVolumes::traversal(double cap_reach, doubl
         t.weights[l].reserve(weights.size());
         for (size_t k = 0; k < weights.size(); ++k) {
             const uint32_t* v = &faces.triangles[3 * k];
-            if (k < faces.n_caps && std::isfinite(cap_reach) &&
+            if (k < faces.n_seen_caps && std::isfinite(cap_reach) &&
                 cap_left_out(faces.vertices[v[0]], faces.vertices[v[1]], faces.vertices[v[2]], cap_reach, cap_beyond))
                 continue;
             triangles.insert(triangles.end(), v, v + 3);
@@ -637,6 +640,7 @@ struct KeptVolumes {
     TriangleMesh casters;  // copies, compared exactly
     std::vector<ShadowLight> lights;
     Vec3 viewer{0.0};
+    size_t seen_triangles = 0;
     std::shared_ptr<const ShadowVolumes> volumes;
     long last_use = 0;
 };
@@ -655,11 +659,13 @@ SharedVolumes& shared_volumes() {
 }  // namespace
 
 std::shared_ptr<const ShadowVolumes> ShadowVolumes::shared(const TriangleMesh& casters,
-                                                           const std::vector<ShadowLight>& lights, const Vec3& viewer) {
+                                                           const std::vector<ShadowLight>& lights, const Vec3& viewer,
+                                                           size_t seen_triangles) {
     SharedVolumes& s = shared_volumes();
     std::lock_guard<std::mutex> lock(s.mutex);
     for (KeptVolumes& k : s.kept)
-        if (k.viewer == viewer && same_lights(k.lights, lights) && k.casters.vertices == casters.vertices &&
+        if (k.viewer == viewer && k.seen_triangles == seen_triangles && same_lights(k.lights, lights) &&
+            k.casters.vertices == casters.vertices &&
             k.casters.triangles == casters.triangles) {
             k.last_use = ++s.uses;
             return k.volumes;
@@ -669,9 +675,9 @@ std::shared_ptr<const ShadowVolumes> ShadowVolumes::shared(const TriangleMesh& c
                                        [](const KeptVolumes& a, const KeptVolumes& b) { return a.last_use < b.last_use; });
         s.kept.erase(oldest);
     }
-    auto volumes = std::make_shared<const ShadowVolumes>(casters, lights, viewer);
+    auto volumes = std::make_shared<const ShadowVolumes>(casters, lights, viewer, seen_triangles);
     ++s.builds;
-    s.kept.push_back({casters, lights, viewer, volumes, ++s.uses});
+    s.kept.push_back({casters, lights, viewer, seen_triangles, volumes, ++s.uses});
     return volumes;
 }
 

@@ -76,6 +76,9 @@ struct ShadowFaces {
     std::vector<uint32_t> triangles;
     std::vector<int16_t> weights;
     size_t n_caps = 0;  // the first n_caps triangles are the casters' own (the near caps)
+    // The first n_seen_caps caps are those of the casters the camera's rays end on
+    // (ShadowVolumes' _seen_triangles_): the only caps a cut may leave out.
+    size_t n_seen_caps = 0;
     // The same volume with each side quad whole, from the caster's edge to the last ring
     // (Embree's float intersection needs the rings; a test in doubles does not): the caps,
     // then two triangles per side, and their weights.
@@ -88,8 +91,10 @@ double origin_distance(const Vec3& a, const Vec3& b, const Vec3& c);
 
 class ShadowVolumes {
   public:
-    // The volumes of _casters_ for _lights_; _viewer_ is the camera position (it sets R).
-    ShadowVolumes(const TriangleMesh& casters, const std::vector<ShadowLight>& lights, const Vec3& viewer);
+    // The volumes of _casters_ for _lights_; _viewer_ is the camera position (it sets R). The
+    // first _seen_triangles_ casters are the camera's geometry too (all by default).
+    ShadowVolumes(const TriangleMesh& casters, const std::vector<ShadowLight>& lights, const Vec3& viewer,
+                  size_t seen_triangles = std::numeric_limits<size_t>::max());
     ~ShadowVolumes();
     ShadowVolumes(const ShadowVolumes&) = delete;
     ShadowVolumes& operator=(const ShadowVolumes&) = delete;
@@ -99,7 +104,8 @@ class ShadowVolumes {
     // and an animation's frames over static casters and lights build them once. The least
     // recently used set is dropped before another is built, or by clear_shared(). Thread safe.
     static std::shared_ptr<const ShadowVolumes> shared(const TriangleMesh& casters,
-                                                       const std::vector<ShadowLight>& lights, const Vec3& viewer);
+                                                       const std::vector<ShadowLight>& lights, const Vec3& viewer,
+                                                       size_t seen_triangles);
     static void clear_shared();
     // Builds of shared() so far (those it did not share), for tests and the stats.
     static long shared_builds();
@@ -122,7 +128,7 @@ class ShadowVolumes {
     // bits); the others come back lit all along, and a ray asking for none is not traced.
     // Thread safe.
     // _cap_reach_, _cap_beyond_ (rays from the viewer, with _count0_, that end where they meet
-    // a caster: the casters are the camera's geometry): the casters' own triangles wholly
+    // the casters the camera sees): those casters' own triangles (ShadowFaces::n_seen_caps) wholly
     // farther than cap_reach and nearer than cap_beyond are left out of the traversal, as
     // ScreenCrossings leaves them out (no such ray crosses them before its end), in a scene
     // of the volumes built once per pair; the defaults keep them all.

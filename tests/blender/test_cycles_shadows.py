@@ -389,6 +389,7 @@ def _bake_description(refs):
         description["vertices"], description["triangles"] = v, t
         description.pop("occluder_vertices", None)
         description.pop("occluder_triangles", None)
+        description.pop("occluder_seen_triangles", None)
     return description
 
 

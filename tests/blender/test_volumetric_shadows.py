@@ -68,8 +68,11 @@ def test03_ray_visibility_picks_the_casters(tmp_path):
     casters_x = description["occluder_vertices"][:, 0]
     assert np.any(np.isclose(camera_x, 2.25)) and not np.any(np.isclose(camera_x, -2.25))
     assert np.any(np.isclose(casters_x, -2.25)) and not np.any(np.isclose(casters_x, 2.25))
-    # Both ground and caster-only cube in the casters: 2 + 12 triangles.
-    assert len(description["occluder_triangles"]) == 14
+    # Both ground and caster-only cube in the casters: 2 + 12 triangles, the ground's (seen by
+    # the camera too: its caps cut no camera ray) first.
+    assert len(description["occluder_triangles"]) == 14 and description["occluder_seen_triangles"] == 2
+    assert np.all(np.isclose(description["occluder_vertices"][description["occluder_triangles"][2:].ravel(), 0],
+                             -2.0, atol=0.26))
     seen_only.visible_shadow = True
     caster_only.visible_camera = True
     bpy.context.view_layer.update()

@@ -110,6 +110,25 @@ def test_casters_the_camera_does_not_see():
     check(parts[:1], occluders=(ov, ot))
 
 
+def test_casters_some_of_which_the_camera_sees():
+    """The casters the camera sees lead the occluders (occluder_seen_triangles: their caps cut
+    no ray but within the near clip), shadow-only ones follow (theirs count everywhere): film
+    and traced agree, and the bake is the one that keeps every cap."""
+    parts = street()
+    hidden = box([-3.0, 6.0, 0.0], [-1.0, 7.0, 3.0])  # casts shadows only
+    ov, ot = merge(parts + [hidden])
+    seen = len(merge(parts)[1])
+    kept = check(parts, occluders=(ov, ot))
+    cut = check(parts, occluders=(ov, ot), occluder_seen_triangles=seen)
+    d = relative(cut, kept)
+    assert d.mean() < 1e-5 and np.percentile(d, 99) < 1e-4, (d.mean(), np.percentile(d, 99))
+    # Counting the shadow-only box among the seen ones loses its caps: its shadow goes wrong.
+    wrong = bake(parts, occluders=(ov, ot), occluder_seen_triangles=len(ot), crossings="traced")
+    assert relative(wrong, kept).max() > 0.05
+    with pytest.raises(ValueError, match="occluder_seen_triangles"):
+        bake(parts, occluders=(ov, ot), occluder_seen_triangles=len(ot) + 1)
+
+
 def test_film_against_the_shadow_ray_quadrature():
     parts = street()
     got = bake(parts)
