@@ -36,9 +36,10 @@ class ScreenCrossings {
   public:
     // The faces of _volumes_ seen by a perspective camera at the volumes' frame origin whose
     // unnormalised ray direction through film position (x, y) is D0 + x Dx + y Dy
-    // (CameraRays::affine_direction), for a W x H image. Caps (the casters' own triangles)
-    // wholly farther than _cap_reach_ from the viewer and nearer than _cap_beyond_ are left
-    // out: where the casters are the geometry the rays end on, a ray meets no caster before
+    // (CameraRays::affine_direction), for a W x H image. The caps (the casters' own
+    // triangles) of the casters the camera sees (ShadowFaces::n_seen_caps) wholly farther
+    // than _cap_reach_ from the viewer and nearer than _cap_beyond_ are left out
+    // (ShadowVolumes::cap_left_out): the rays end on those casters, so a ray meets none before
     // its end but within the near clip or past the far clip (pass the farthest start of a
     // ray and the far clip's depth; the defaults keep them all).
     // Volumes of more faces than _max_faces_per_pixel_ per pixel (and kMinFacesForFallback)

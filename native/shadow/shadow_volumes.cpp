@@ -414,7 +414,14 @@ const ShadowVolumes::Traversal& ShadowVolumes::traversal(double cap_reach, doubl
     rtcSetSceneFlags(t.scene, RTC_SCENE_FLAG_ROBUST);  // watertight: no crossing lost on a shared edge
     t.weights.resize(impl_->faces.size());
     // One geometry per light, masked by its light_mask bit: its quads, and its caps but those
-    // the cut leaves out.
+    // the cut leaves out. (A build Embree fails is not kept.)
+    struct Unkept {
+        std::list<Traversal>& list;
+        bool armed = true;
+        ~Unkept() {
+            if (armed) list.pop_back();
+        }
+    } unkept{impl_->traversals};
     std::vector<uint32_t> triangles;
     for (size_t l = 0; l < impl_->faces.size(); ++l) {
         const ShadowFaces& faces = impl_->faces[l];
@@ -446,6 +453,7 @@ const ShadowVolumes::Traversal& ShadowVolumes::traversal(double cap_reach, doubl
     }
     rtcCommitScene(t.scene);
     impl_->check("building the volumes");
+    unkept.armed = false;
     return t;
 }
 
