@@ -321,9 +321,9 @@ class FogEvaluator {
     std::vector<int> scene_point_volume_, scene_spot_volume_, scene_sun_volume_;
     std::vector<int> origin_count_;  // per light of shadows_: its count at origin_
     bool origin_ambiguous_ = false;  // origin_ on a frustum boundary: rays count at their start
-    // The casters' caps the camera's rays can cross (ShadowVolumes::lit_intervals): those within
-    // cap_reach_ of the eye or reaching past cap_beyond_; all where the casters are not the
-    // camera's geometry.
+    // The casters' caps the camera's rays can cross (ShadowVolumes::lit_intervals): of the
+    // casters the camera sees, those within cap_reach_ of the eye or reaching past cap_beyond_;
+    // of the others, all (kNoCut: no caster is seen).
     static constexpr double kNoCut = std::numeric_limits<double>::infinity();
     double cap_reach_ = kNoCut, cap_beyond_ = 0.0;
     std::vector<double> light_peak_;  // per point light: its largest channel of albedo x I0
