@@ -588,7 +588,9 @@ class SceneDescription(NamedTuple):
     clip: tuple             # export_clip_range: (clip_start, clip_end), or None
     vertices: np.ndarray    # (N, 3) float32 world-space, or None
     triangles: np.ndarray   # (M, 3) uint32, or None
-    occluders: tuple = None  # (vertices, triangles, seen) of the shadow casters when not the above: the first seen triangles are the camera's too
+    # (vertices, triangles, seen) of the shadow casters when not the above: the first _seen_
+    # triangles are the camera's too
+    occluders: tuple = None
 
 
 def describe(scene, depsgraph, mesh_overrides=None, view=None, bake=True):

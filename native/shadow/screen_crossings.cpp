@@ -42,7 +42,8 @@ ScreenCrossings::ScreenCrossings(const ShadowVolumes& volumes, const Vec3& D0, c
     size_t n_faces = 0;
     for (int l = 0; l < volumes.num_lights(); ++l) {
         const ShadowFaces& sf = volumes.faces(l);
-        n_faces += sf.whole_weights.size() - (std::isfinite(cap_reach) ? std::min(sf.n_seen_caps, sf.whole_weights.size()) : 0);
+        const size_t left_out = std::isfinite(cap_reach) ? std::min(sf.n_seen_caps, sf.whole_weights.size()) : 0;
+        n_faces += sf.whole_weights.size() - left_out;
     }
     if (double(n_faces) > std::max(double(kMinFacesForFallback), max_faces_per_pixel * double(W) * double(H))) return;
     const glm::dmat3 M(Dx, Dy, D0);  // columns: q = M^-1 P has q.z > 0 ahead of the viewer

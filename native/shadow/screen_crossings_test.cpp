@@ -201,7 +201,8 @@ TEST(ScreenCrossings, RowsGiveEachPixelItsOwnCrossings) {
             for (int i = 0; i < v.W; ++i) {
                 ASSERT_TRUE(screen.crossings(&film[i], &rays[i], &t1[i], 1, &own));
                 auto sorted = [&](std::vector<Crossing> l) {
-                    std::sort(l.begin(), l.end(), [&](const Crossing& a, const Crossing& b) { return key(a) < key(b); });
+                    std::sort(l.begin(), l.end(),
+                              [&](const Crossing& a, const Crossing& b) { return key(a) < key(b); });
                     return l;
                 };
                 const std::vector<Crossing> a = sorted(lists[i]), b = sorted(own);

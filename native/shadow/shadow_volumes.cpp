@@ -679,8 +679,9 @@ std::shared_ptr<const ShadowVolumes> ShadowVolumes::shared(const TriangleMesh& c
             return k.volumes;
         }
     if (s.kept.size() >= kKeptVolumes) {  // the least recently used goes before the new one is built
-        auto oldest = std::min_element(s.kept.begin(), s.kept.end(),
-                                       [](const KeptVolumes& a, const KeptVolumes& b) { return a.last_use < b.last_use; });
+        auto oldest = std::min_element(s.kept.begin(), s.kept.end(), [](const KeptVolumes& a, const KeptVolumes& b) {
+            return a.last_use < b.last_use;
+        });
         s.kept.erase(oldest);
     }
     auto volumes = std::make_shared<const ShadowVolumes>(casters, lights, viewer, seen_triangles);
