@@ -763,7 +763,7 @@ const LitIntervals* FogEvaluator::lit_intervals(const Ray* rays, const float* t0
         for (int k = 0; k < n; ++k) std::copy(origin_count_.begin(), origin_count_.end(), counts.begin() + size_t(k) * L);
         count0 = counts.data();
     }
-    shadows_->lit_intervals(rays, t0, t1, n, count0, lit.data(), masks, count0 ? cap_reach_ : kNoCut, cap_beyond_);
+    shadows_->lit_intervals(rays, t0, t1, n, count0, lit.data(), masks, cap_reach_, cap_beyond_);
     return lit.data();
 }
 

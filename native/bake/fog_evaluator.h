@@ -323,9 +323,8 @@ class FogEvaluator {
     bool origin_ambiguous_ = false;  // origin_ on a frustum boundary: rays count at their start
     // The casters' caps the camera's rays can cross (ShadowVolumes::lit_intervals): of the
     // casters the camera sees, those within cap_reach_ of the eye or reaching past cap_beyond_;
-    // of the others, all (kNoCut: no caster is seen).
-    static constexpr double kNoCut = std::numeric_limits<double>::infinity();
-    double cap_reach_ = kNoCut, cap_beyond_ = 0.0;
+    // of the others, all (an infinite reach: no caster is seen).
+    double cap_reach_ = std::numeric_limits<double>::infinity(), cap_beyond_ = 0.0;
     std::vector<double> light_peak_;  // per point light: its largest channel of albedo x I0
 };
 

@@ -66,9 +66,10 @@ ScreenCrossings::ScreenCrossings(const ShadowVolumes& volumes, const Vec3& D0, c
                            i2 = sf.whole_triangles[3 * t + 2];
             const Vec3 &q0 = q[i0], &q1 = q[i1], &q2 = q[i2];
             if (!(q0.z > 0.0 || q1.z > 0.0 || q2.z > 0.0)) continue;  // wholly behind the viewer
+            const Vec3 &P0 = sf.vertices[i0], &P1 = sf.vertices[i1], &P2 = sf.vertices[i2];
+            if (t < sf.n_seen_caps && ShadowVolumes::cap_left_out(P0, P1, P2, cap_reach, cap_beyond)) continue;
             const Vec3 c12 = cross(q1, q2), c20 = cross(q2, q0), c01 = cross(q0, q1);
             const double det = dot(q0, c12);
-            const Vec3 &P0 = sf.vertices[i0], &P1 = sf.vertices[i1], &P2 = sf.vertices[i2];
             Face f;
             f.N = cross(P1 - P0, P2 - P0);
             f.NP0 = dot(f.N, P0);
@@ -81,9 +82,6 @@ ScreenCrossings::ScreenCrossings(const ShadowVolumes& volumes, const Vec3& D0, c
             }
             // Nearer than any crossing (a little under: the distance's own rounding).
             const double near = origin_distance(P0, P1, P2);
-            if (t < sf.n_seen_caps && near > cap_reach &&
-                std::max({glm::length(P0), glm::length(P1), glm::length(P2)}) < cap_beyond)
-                continue;
             f.near = float(near * (1.0 - 1e-6));
             f.light = int16_t(l);
             const int w = sf.whole_weights[t];

@@ -431,7 +431,7 @@ const ShadowVolumes::Traversal& ShadowVolumes::traversal(double cap_reach, doubl
         t.weights[l].reserve(weights.size());
         for (size_t k = 0; k < weights.size(); ++k) {
             const uint32_t* v = &faces.triangles[3 * k];
-            if (k < faces.n_seen_caps && std::isfinite(cap_reach) &&
+            if (k < faces.n_seen_caps &&
                 cap_left_out(faces.vertices[v[0]], faces.vertices[v[1]], faces.vertices[v[2]], cap_reach, cap_beyond))
                 continue;
             triangles.insert(triangles.end(), v, v + 3);
