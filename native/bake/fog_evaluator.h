@@ -107,6 +107,11 @@ class FogEvaluator {
     const std::vector<int>& scene_point_volumes() const { return scene_point_volume_; }
     const std::vector<int>& scene_spot_volumes() const { return scene_spot_volume_; }
     const std::vector<int>& scene_sun_volumes() const { return scene_sun_volume_; }
+    // The cut of the seen casters' caps the camera's rays leave out (ShadowVolumes::lit_intervals'
+    // cap_reach, cap_beyond; the defaults where there is none): any ray that ends at its first
+    // hit with the camera's geometry may leave them out too.
+    double cap_reach() const { return cap_reach_; }
+    double cap_beyond() const { return cap_beyond_; }
 
     // The per-light passes of the scene (SceneDescription::light_passes; 0: none).
     int light_passes() const { return n_passes_; }

@@ -15,6 +15,7 @@
 // interpolates it where the grid's nodes lie on the same surface.
 #pragma once
 
+#include <limits>
 #include <vector>
 
 #include "core/scene.h"
@@ -29,15 +30,21 @@ class GlowShadow {
 
     // _positional_volume_ / _sun_volume_: per point-then-spot light and per sun (the scene's
     // order) its light in _volumes_ (-1: unshadowed); sigma: the fog's extinction for A.
+    // _cap_reach_, _cap_beyond_: a cut of the caps of the casters the camera sees
+    // (ShadowVolumes::lit_intervals), the one the camera's rays take: the half-lines end at
+    // their first hit with the camera's geometry, which holds those casters, so they cross
+    // none of their caps before their end and the cut leaves out nothing they cross (and
+    // shares the camera rays' traversal instead of building one of every cap).
     GlowShadow(const ShadowVolumes& volumes, std::vector<int> positional_volume, std::vector<Vec3> positions,
-               std::vector<int> sun_volume, std::vector<Vec3> sun_directions, double sigma);
+               std::vector<int> sun_volume, std::vector<Vec3> sun_directions, double sigma,
+               double cap_reach = std::numeric_limits<double>::infinity(), double cap_beyond = 0.0);
 
     // Lights: the positional ones, then the suns.
     size_t num_lights() const { return positional_volume_.size() + sun_volume_.size(); }
     // Whether any light is shadowed (else every R is 1).
     bool any() const { return any_; }
     // R of every light at _p_ with unit normal _n_ into out[0 .. num_lights()), the half-lines
-    // stopped by _caster_'s geometry. Thread safe.
+    // stopped by _caster_'s geometry (the camera's, with a cut). Thread safe.
     void ratios(const Vec3& p, const Vec3& n, const RayCaster& caster, double* out) const;
 
   private:
@@ -47,6 +54,7 @@ class GlowShadow {
     std::vector<int> sun_volume_;
     std::vector<Vec3> sun_directions_;
     double sigma_;
+    double cap_reach_, cap_beyond_;
     bool any_ = false;
 };
 

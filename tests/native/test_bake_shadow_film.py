@@ -129,6 +129,33 @@ def test_casters_some_of_which_the_camera_sees():
         bake(parts, occluders=(ov, ot), occluder_seen_triangles=len(ot) + 1)
 
 
+def test_surface_glow_takes_the_camera_rays_cut():
+    """The glow's half-lines end at their first hit with the camera's geometry, so they cross
+    none of the seen casters' caps and take the camera rays' cut (glow_shadow.h): the glow is
+    the one that keeps every cap. The shadow-only box's caps count for them too: counting it
+    among the seen ones changes the glow its shadow falls in."""
+    parts = street()
+    hidden = box([-3.0, 6.0, 0.0], [-1.0, 7.0, 3.0])
+    ov, ot = merge(parts + [hidden])
+    seen = len(merge(parts)[1])
+
+    def glow(**kw):
+        v, t = merge(parts)
+        out = _native.bake(width=W, height=H, cam_to_world=camera(), projection=perspective(FOV, W, H, 0.5, 1000.0),
+                           vertices=v, triangles=t, light_positions=LIGHTS, light_intensities=INTENSITIES,
+                           sigma_t=SIGMA_T, model="sun05", threads=2, clip_start=0.5, clip_end=1000.0, surface=True,
+                           occluder_vertices=ov.astype(np.float32), occluder_triangles=ot.astype(np.uint32), **kw)
+        return out["surface_glow"][..., 0].astype(np.float64)
+
+    kept = glow(shadows=True)
+    cut = glow(shadows=True, occluder_seen_triangles=seen)
+    d = relative(cut, kept)
+    assert d.mean() < 1e-6 and d.max() < 1e-4, (d.mean(), d.max())
+    assert relative(glow(shadows=False), kept).mean() > 0.02  # (the glow is shadowed)
+    wrong = glow(shadows=True, occluder_seen_triangles=len(ot))
+    assert relative(wrong, kept).max() > 0.005
+
+
 def test_film_against_the_shadow_ray_quadrature():
     parts = street()
     got = bake(parts)
