@@ -138,6 +138,51 @@ TEST(ShadowVolumes, MatchesBruteForceVisibility) {
     }
 }
 
+// A strip from 5 cm to 50 m from the light, in 40 pieces: its vertices' rings reach the
+// extrusion distance R (400 m here) after different numbers of steps (the far ones stop
+// there while the near ones go on). Points of its shadow out to 0.95 R, crossed sideways,
+// agree with brute-force visibility.
+TEST(ShadowVolumes, CasterFromNearTheLightToFarShadowsOutToTheExtrusion) {
+    TriangleMesh strip;
+    const int pieces = 40;
+    for (int k = 0; k < pieces; ++k) {
+        const double x0 = 0.05 * std::pow(1000.0, double(k) / pieces), x1 = 0.05 * std::pow(1000.0, double(k + 1) / pieces);
+        add_quad(strip, Vec3(x0, -0.5, 0.5), Vec3(x1, -0.5, 0.5), Vec3(x1, 0.5, 0.5), Vec3(x0, 0.5, 0.5));
+    }
+    std::vector<Vec3> all;
+    for (uint32_t i : strip.triangles)
+        all.emplace_back(strip.vertices[3 * i], strip.vertices[3 * i + 1], strip.vertices[3 * i + 2]);
+    ShadowLight light;
+    light.position = Vec3(0.0, 0.0, 1.0);
+    const ShadowVolumes volumes(strip, {light}, Vec3(0.0, -45.0, 1.0));  // R = 8 x 50 m
+    std::vector<Ray> rays;
+    for (const double x : {5.0, 20.0, 60.0, 150.0, 300.0})
+        for (const double z : {-20.0, -60.0, -100.0}) rays.push_back({Vec3(x, -150.0, z), Vec3(0.0, 1.0, 0.0)});
+    std::vector<float> t0(rays.size(), 0.0f), t1(rays.size(), 300.0f);
+    std::vector<LitIntervals> lit(rays.size());
+    volumes.lit_intervals(rays.data(), t0.data(), t1.data(), int(rays.size()), nullptr, lit.data());
+    int checked = 0, wrong = 0, shadowed = 0;
+    for (size_t k = 0; k < rays.size(); ++k)
+        for (int q = 0; q < 300; ++q) {
+            const double t = q + 0.5;
+            const Vec3 p = rays[k].o + t * rays[k].d;
+            if (glm::length(p - light.position) > 0.95 * 400.0) continue;
+            bool near_boundary = false;
+            for (int s = lit[k].begin[0]; s < lit[k].end[0]; ++s)
+                near_boundary |= std::abs(t - lit[k].spans[s].first) < 0.1 || std::abs(t - lit[k].spans[s].second) < 0.1;
+            if (near_boundary) continue;
+            bool blocked = false;
+            for (size_t f = 0; f + 2 < all.size() && !blocked; f += 3)
+                blocked = segment_hits(p, light.position, all[f], all[f + 1], all[f + 2]);
+            ++checked;
+            shadowed += blocked;
+            wrong += blocked == is_lit(lit[k], 0, t);
+        }
+    EXPECT_EQ(wrong, 0) << wrong << " of " << checked << " points disagree";
+    EXPECT_GT(shadowed, checked / 4);
+    EXPECT_GT(checked, 2000);
+}
+
 // A light shadowed by nothing: one span over the whole segment; an empty caster mesh too.
 TEST(ShadowVolumes, NoCastersLeavesEverythingLit) {
     ShadowLight light;
