@@ -529,7 +529,7 @@ void FogEvaluator::set_up_shadows(const SceneDescription& scene, const BakeSetti
     for (const LightData& light : lights_) light_peak_.push_back(std::max({light.weight.x, light.weight.y, light.weight.z}));
     // The casters the camera's rays end on: all of them, or the occluders' leading ones.
     const size_t seen = scene.occluders_from_geometry ? casters.triangles.size() / 3 : scene.occluders_seen_triangles;
-    shadows_ = ShadowVolumes::shared(casters, lights, origin_, seen);
+    shadows_ = ShadowVolumes::shared(casters, lights, origin_, seen, resolve_threads(settings.threads));
     if (shared_origin_) {
         // An eye on a frustum boundary (in the plane of a light and a caster's edge) has no
         // one count for all its rays: each ray then counts at its own start (lit_intervals).

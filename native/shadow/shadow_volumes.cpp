@@ -3,6 +3,8 @@
 
 #include <embree3/rtcore.h>
 
+#include "core/parallel.h"
+
 #include <algorithm>
 #include <array>
 #include <cmath>
@@ -182,7 +184,7 @@ struct ShadowVolumes::Impl {
 ShadowVolumes::~ShadowVolumes() = default;
 
 ShadowVolumes::ShadowVolumes(const TriangleMesh& casters, const std::vector<ShadowLight>& world_lights,
-                             const Vec3& world_viewer, size_t seen_triangles)
+                             const Vec3& world_viewer, size_t seen_triangles, int n_threads)
     : impl_(new Impl), lights_(world_lights) {
     if (lights_.size() > size_t(std::numeric_limits<int16_t>::max()))
         throw std::invalid_argument("shadow volumes: too many lights");
@@ -251,9 +253,11 @@ ShadowVolumes::ShadowVolumes(const TriangleMesh& casters, const std::vector<Shad
             edge_uses[3 * k + e] = {(uint64_t(std::min(p, q)) << 32) | std::max(p, q), uint32_t(k), p < q ? 1 : -1};
         }
     std::sort(edge_uses.begin(), edge_uses.end());
-    std::vector<int8_t> orient(nt);         // per light, per triangle: +1 as wound, -1 reversed, 0 none
-    std::vector<uint32_t> ring_slot(nv);    // per light: a silhouette vertex's place in each ring
-    for (size_t l = 0; l < lights.size(); ++l) {
+    // The lights' volumes, one a work item (each writes its own faces, weights and reach).
+    parallel_for(int(lights.size()), n_threads, [&](int light_index) {
+        const size_t l = size_t(light_index);
+        std::vector<int8_t> orient(nt);       // per triangle: +1 as wound, -1 reversed, 0 none
+        std::vector<uint32_t> ring_slot(nv);  // a silhouette vertex's place in each ring
         const ShadowLight& light = lights[l];
         const Vec3 s = light.position, w = glm::normalize(light.direction);
         // The extrusion distance (shadow_volumes.h).
@@ -296,7 +300,7 @@ ShadowVolumes::ShadowVolumes(const TriangleMesh& casters, const std::vector<Shad
             if (weight != 0) silhouette.emplace_back(key, weight);
         }
         // Only the silhouette's vertices get rings (ring r of vertex k: ring_vertex(r, k)).
-        std::fill(ring_slot.begin(), ring_slot.end(), UINT32_MAX);
+        std::fill(ring_slot.begin(), ring_slot.end(), UINT32_MAX);  // (none)
         std::vector<uint32_t> ringed;  // the silhouette's vertices, in order
         for (const auto& [key, weight] : silhouette)
             for (const uint32_t k : {uint32_t(key >> 32), uint32_t(key & 0xffffffffu)})
@@ -384,7 +388,6 @@ ShadowVolumes::ShadowVolumes(const TriangleMesh& casters, const std::vector<Shad
             whole_weights.push_back(m);
             whole_weights.push_back(m);
         }
-        n_faces_ += weights.size();
         ShadowFaces& faces = impl_->faces[l];
         faces.vertices.resize(vb.size() / 3);
         for (size_t k = 0; k < faces.vertices.size(); ++k)
@@ -395,7 +398,8 @@ ShadowVolumes::ShadowVolumes(const TriangleMesh& casters, const std::vector<Shad
         faces.n_seen_caps = n_seen_caps;
         faces.whole_triangles = std::move(whole);
         faces.whole_weights = std::move(whole_weights);
-    }
+    });
+    for (const std::vector<int16_t>& weights : impl_->weights) n_faces_ += weights.size();
 }
 
 double origin_distance(const Vec3& a, const Vec3& b, const Vec3& c) {
@@ -689,7 +693,7 @@ SharedVolumes& shared_volumes() {
 
 std::shared_ptr<const ShadowVolumes> ShadowVolumes::shared(const TriangleMesh& casters,
                                                            const std::vector<ShadowLight>& lights, const Vec3& viewer,
-                                                           size_t seen_triangles) {
+                                                           size_t seen_triangles, int n_threads) {
     SharedVolumes& s = shared_volumes();
     std::lock_guard<std::mutex> lock(s.mutex);
     for (KeptVolumes& k : s.kept)
@@ -705,7 +709,7 @@ std::shared_ptr<const ShadowVolumes> ShadowVolumes::shared(const TriangleMesh& c
         });
         s.kept.erase(oldest);
     }
-    auto volumes = std::make_shared<const ShadowVolumes>(casters, lights, viewer, seen_triangles);
+    auto volumes = std::make_shared<const ShadowVolumes>(casters, lights, viewer, seen_triangles, n_threads);
     ++s.builds;
     s.kept.push_back({casters, lights, viewer, seen_triangles, volumes, ++s.uses});
     return volumes;

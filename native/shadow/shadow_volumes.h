@@ -92,9 +92,10 @@ double origin_distance(const Vec3& a, const Vec3& b, const Vec3& c);
 class ShadowVolumes {
   public:
     // The volumes of _casters_ for _lights_; _viewer_ is the camera position (it sets R). The
-    // first _seen_triangles_ casters are the camera's geometry too (all by default).
+    // first _seen_triangles_ casters are the camera's geometry too (all by default). The
+    // lights' volumes are built on _n_threads_ threads (core/parallel.h), a light each.
     ShadowVolumes(const TriangleMesh& casters, const std::vector<ShadowLight>& lights, const Vec3& viewer,
-                  size_t seen_triangles = std::numeric_limits<size_t>::max());
+                  size_t seen_triangles = std::numeric_limits<size_t>::max(), int n_threads = 1);
     ~ShadowVolumes();
     ShadowVolumes(const ShadowVolumes&) = delete;
     ShadowVolumes& operator=(const ShadowVolumes&) = delete;
@@ -105,7 +106,7 @@ class ShadowVolumes {
     // recently used set is dropped before another is built, or by clear_shared(). Thread safe.
     static std::shared_ptr<const ShadowVolumes> shared(const TriangleMesh& casters,
                                                        const std::vector<ShadowLight>& lights, const Vec3& viewer,
-                                                       size_t seen_triangles);
+                                                       size_t seen_triangles, int n_threads = 1);
     static void clear_shared();
     // Builds of shared() so far (those it did not share), for tests and the stats.
     static long shared_builds();

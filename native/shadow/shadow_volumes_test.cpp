@@ -183,6 +183,31 @@ TEST(ShadowVolumes, CasterFromNearTheLightToFarShadowsOutToTheExtrusion) {
     EXPECT_GT(checked, 2000);
 }
 
+// The lights' volumes are built in parallel, a light a work item: any thread count builds the
+// same faces, weights and counts.
+TEST(ShadowVolumes, AnyThreadCountBuildsTheSameVolumes) {
+    std::mt19937 rng(7);
+    std::uniform_real_distribution<double> U(-1.0, 1.0);
+    TriangleMesh soup;
+    for (int k = 0; k < 30; ++k) add_box(soup, Vec3(4 * U(rng), 4 * U(rng), U(rng)), Vec3(4.5, 4.5, 1.5) + Vec3(4 * U(rng), 4 * U(rng), U(rng)));
+    std::vector<ShadowLight> lights(5);
+    for (size_t l = 0; l < lights.size(); ++l) lights[l].position = Vec3(3 * U(rng), 3 * U(rng), 4.0 + U(rng));
+    lights[2].directional = true;
+    lights[2].direction = glm::normalize(Vec3(0.2, -0.3, -1.0));
+    const Vec3 eye(0.0, -12.0, 2.0);
+    const ShadowVolumes one(soup, lights, eye, soup.triangles.size() / 3, 1), three(soup, lights, eye, soup.triangles.size() / 3, 3);
+    ASSERT_EQ(one.num_faces(), three.num_faces());
+    for (int l = 0; l < one.num_lights(); ++l) {
+        EXPECT_EQ(one.faces(l).vertices, three.faces(l).vertices);
+        EXPECT_EQ(one.faces(l).triangles, three.faces(l).triangles);
+        EXPECT_EQ(one.faces(l).weights, three.faces(l).weights);
+        EXPECT_EQ(one.faces(l).whole_triangles, three.faces(l).whole_triangles);
+        EXPECT_GT(one.faces(l).triangles.size(), one.faces(l).n_caps * 3);
+        for (const Vec3& p : {Vec3(1.0, 1.0, -1.0), Vec3(-2.0, 3.0, 0.2), Vec3(0.5, -0.5, 2.5)})
+            EXPECT_EQ(one.count_at(l, p), three.count_at(l, p));
+    }
+}
+
 // A light shadowed by nothing: one span over the whole segment; an empty caster mesh too.
 TEST(ShadowVolumes, NoCastersLeavesEverythingLit) {
     ShadowLight light;
