@@ -146,7 +146,8 @@ TEST(ShadowVolumes, CasterFromNearTheLightToFarShadowsOutToTheExtrusion) {
     TriangleMesh strip;
     const int pieces = 40;
     for (int k = 0; k < pieces; ++k) {
-        const double x0 = 0.05 * std::pow(1000.0, double(k) / pieces), x1 = 0.05 * std::pow(1000.0, double(k + 1) / pieces);
+        const double x0 = 0.05 * std::pow(1000.0, double(k) / pieces);
+        const double x1 = 0.05 * std::pow(1000.0, double(k + 1) / pieces);
         add_quad(strip, Vec3(x0, -0.5, 0.5), Vec3(x1, -0.5, 0.5), Vec3(x1, 0.5, 0.5), Vec3(x0, 0.5, 0.5));
     }
     std::vector<Vec3> all;
@@ -169,7 +170,8 @@ TEST(ShadowVolumes, CasterFromNearTheLightToFarShadowsOutToTheExtrusion) {
             if (glm::length(p - light.position) > 0.95 * 400.0) continue;
             bool near_boundary = false;
             for (int s = lit[k].begin[0]; s < lit[k].end[0]; ++s)
-                near_boundary |= std::abs(t - lit[k].spans[s].first) < 0.1 || std::abs(t - lit[k].spans[s].second) < 0.1;
+                near_boundary |=
+                    std::abs(t - lit[k].spans[s].first) < 0.1 || std::abs(t - lit[k].spans[s].second) < 0.1;
             if (near_boundary) continue;
             bool blocked = false;
             for (size_t f = 0; f + 2 < all.size() && !blocked; f += 3)
@@ -189,13 +191,17 @@ TEST(ShadowVolumes, AnyThreadCountBuildsTheSameVolumes) {
     std::mt19937 rng(7);
     std::uniform_real_distribution<double> U(-1.0, 1.0);
     TriangleMesh soup;
-    for (int k = 0; k < 30; ++k) add_box(soup, Vec3(4 * U(rng), 4 * U(rng), U(rng)), Vec3(4.5, 4.5, 1.5) + Vec3(4 * U(rng), 4 * U(rng), U(rng)));
+    for (int k = 0; k < 30; ++k) {
+        const Vec3 lo(4 * U(rng), 4 * U(rng), U(rng));
+        add_box(soup, lo, lo + Vec3(0.5 + std::abs(U(rng)), 0.5 + std::abs(U(rng)), 1.0 + std::abs(U(rng))));
+    }
     std::vector<ShadowLight> lights(5);
     for (size_t l = 0; l < lights.size(); ++l) lights[l].position = Vec3(3 * U(rng), 3 * U(rng), 4.0 + U(rng));
     lights[2].directional = true;
     lights[2].direction = glm::normalize(Vec3(0.2, -0.3, -1.0));
     const Vec3 eye(0.0, -12.0, 2.0);
-    const ShadowVolumes one(soup, lights, eye, soup.triangles.size() / 3, 1), three(soup, lights, eye, soup.triangles.size() / 3, 3);
+    const size_t seen = soup.triangles.size() / 3;
+    const ShadowVolumes one(soup, lights, eye, seen, 1), three(soup, lights, eye, seen, 3);
     ASSERT_EQ(one.num_faces(), three.num_faces());
     for (int l = 0; l < one.num_lights(); ++l) {
         EXPECT_EQ(one.faces(l).vertices, three.faces(l).vertices);
