@@ -7,7 +7,8 @@ Per N, in one Blender process: a grid of N triangles over the street (it casts s
 the camera sees it), then bakes of the frame as `-a` makes them (bake.bake_frame, volumetric
 shadows on, the soft-shadow probe remembered after the first): the first (geometry BVH and
 shadow volumes built), the same frame again (both shared: image/raycast.h,
-shadow/shadow_volumes.h), and one after a lamp post moved (both built again). Printed per bake,
+shadow/shadow_volumes.h), one after a lamp post moved (both built again), and, once the
+post is back, one after the camera moved half a metre (both shared). Printed per bake,
 in ms: the Python export (bake.prepare: foreach_get of every mesh, world transform, the
 soup), the native bake, and the whole bake_frame.
 """
@@ -61,6 +62,10 @@ def main():
         post.location.x += 0.01
         _frame(scene, "after an object moved")
         post.location.x -= 0.01
+        _frame(scene, "the same frame again")
+        scene.camera.location.x += 0.5
+        _frame(scene, "after the camera moved")
+        scene.camera.location.x -= 0.5
         bpy.data.objects.remove(grid)
 
 

@@ -69,7 +69,7 @@ BakeResult bake(const SceneDescription& scene, const BakeSettings& settings, con
             for (const SunLight& l : scene.sun_lights) sun_directions.push_back(glm::normalize(l.direction));
             glow_shadow = std::make_unique<GlowShadow>(*volumes, std::move(positional), std::move(positions),
                                                        fog.scene_sun_volumes(), std::move(sun_directions),
-                                                       scene.medium.sigma_t, fog.cap_reach(), fog.cap_beyond());
+                                                       scene.medium.sigma_t, fog.cap_cut());
         }
         bake_surface_pass(scene, settings, ctx.rays, ctx.caster, ctx.n_threads, result, glow_shadow.get());
         result.stats.seconds_surface = seconds_since(surface_start);

@@ -552,12 +552,13 @@ void FogEvaluator::set_up_shadows(const SceneDescription& scene, const BakeSetti
                 const int W = scene.camera.width, H = scene.camera.height;
                 for (const glm::dvec2 c : {glm::dvec2(-4, -4), glm::dvec2(W + 4, -4), glm::dvec2(-4, H + 4), glm::dvec2(W + 4, H + 4)})
                     cos_min = std::min(cos_min, glm::dot(glm::normalize(D0 + c.x * Dx + c.y * Dy), camera.forward()));
-                if (cos_min > 0.0) cap_reach_ = 2.0 * camera.clip_start() / cos_min, cap_beyond_ = camera.clip_end();
+                if (cos_min > 0.0)
+                    cap_cut_ = CapCut{2.0 * camera.clip_start() / cos_min, camera.clip_end(), origin_};
             }
             // The camera's own rays (all from origin_) take their crossings from the film.
             if (!settings.shadow_crossings_traced) {
-                screen_ = std::make_unique<ScreenCrossings>(*shadows_, D0, Dx, Dy, scene.camera.width,
-                                                            scene.camera.height, cap_reach_, camera.clip_end(),
+                screen_ = std::make_unique<ScreenCrossings>(*shadows_, origin_, D0, Dx, Dy, scene.camera.width,
+                                                            scene.camera.height, cap_cut_.reach, camera.clip_end(),
                                                             resolve_threads(settings.threads));
                 if (!screen_->ready()) screen_.reset();
             }
@@ -763,7 +764,7 @@ const LitIntervals* FogEvaluator::lit_intervals(const Ray* rays, const float* t0
         for (int k = 0; k < n; ++k) std::copy(origin_count_.begin(), origin_count_.end(), counts.begin() + size_t(k) * L);
         count0 = counts.data();
     }
-    shadows_->lit_intervals(rays, t0, t1, n, count0, lit.data(), masks, cap_reach_, cap_beyond_);
+    shadows_->lit_intervals(rays, t0, t1, n, count0, lit.data(), masks, cap_cut_);
     return lit.data();
 }
 

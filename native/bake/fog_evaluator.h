@@ -107,11 +107,10 @@ class FogEvaluator {
     const std::vector<int>& scene_point_volumes() const { return scene_point_volume_; }
     const std::vector<int>& scene_spot_volumes() const { return scene_spot_volume_; }
     const std::vector<int>& scene_sun_volumes() const { return scene_sun_volume_; }
-    // The cut of the seen casters' caps the camera's rays leave out (ShadowVolumes::lit_intervals'
-    // cap_reach, cap_beyond; the defaults where there is none): any ray that ends at its first
-    // hit with the camera's geometry may leave them out too.
-    double cap_reach() const { return cap_reach_; }
-    double cap_beyond() const { return cap_beyond_; }
+    // The cut of the seen casters' caps the camera's rays leave out (ShadowVolumes::lit_intervals;
+    // the default where there is none): any ray that ends at its first hit with the camera's
+    // geometry may leave them out too.
+    const CapCut& cap_cut() const { return cap_cut_; }
 
     // The per-light passes of the scene (SceneDescription::light_passes; 0: none).
     int light_passes() const { return n_passes_; }
@@ -327,9 +326,9 @@ class FogEvaluator {
     std::vector<int> origin_count_;  // per light of shadows_: its count at origin_
     bool origin_ambiguous_ = false;  // origin_ on a frustum boundary: rays count at their start
     // The casters' caps the camera's rays can cross (ShadowVolumes::lit_intervals): of the
-    // casters the camera sees, those within cap_reach_ of the eye or reaching past cap_beyond_;
-    // of the others, all (an infinite reach: no caster is seen).
-    double cap_reach_ = std::numeric_limits<double>::infinity(), cap_beyond_ = 0.0;
+    // casters the camera sees, those within the cut's reach of the eye or reaching past its
+    // beyond; of the others, all (the default cut: no caster is seen).
+    CapCut cap_cut_;
     std::vector<double> light_peak_;  // per point light: its largest channel of albedo x I0
 };
 

@@ -39,15 +39,14 @@ const Directions& directions() {
 
 GlowShadow::GlowShadow(const ShadowVolumes& volumes, std::vector<int> positional_volume, std::vector<Vec3> positions,
                        std::vector<int> sun_volume, std::vector<Vec3> sun_directions, double sigma,
-                       double cap_reach, double cap_beyond)
+                       const CapCut& cut)
     : volumes_(volumes),
       positional_volume_(std::move(positional_volume)),
       positions_(std::move(positions)),
       sun_volume_(std::move(sun_volume)),
       sun_directions_(std::move(sun_directions)),
       sigma_(sigma),
-      cap_reach_(cap_reach),
-      cap_beyond_(cap_beyond) {
+      cut_(cut) {
     for (int v : positional_volume_) any_ = any_ || v >= 0;
     for (int v : sun_volume_) any_ = any_ || v >= 0;
 }
@@ -80,7 +79,7 @@ void GlowShadow::ratios(const Vec3& p, const Vec3& n, const RayCaster& caster, d
     }
     thread_local std::vector<LitIntervals> lit(kDirections);
     lit.resize(kDirections);
-    volumes_.lit_intervals(rays, t0, t1, kDirections, count0.data(), lit.data(), nullptr, cap_reach_, cap_beyond_);
+    volumes_.lit_intervals(rays, t0, t1, kDirections, count0.data(), lit.data(), nullptr, cut_);
     const SpecialFTable* table = shared_special_F_table(256, 256).get();
     auto positional = [&](const Vec3& s, const Vec3& from, const Vec3& d, double len) {
         const Vec3 sv = s - from;

@@ -15,7 +15,6 @@
 // interpolates it where the grid's nodes lie on the same surface.
 #pragma once
 
-#include <limits>
 #include <vector>
 
 #include "core/scene.h"
@@ -30,14 +29,14 @@ class GlowShadow {
 
     // _positional_volume_ / _sun_volume_: per point-then-spot light and per sun (the scene's
     // order) its light in _volumes_ (-1: unshadowed); sigma: the fog's extinction for A.
-    // _cap_reach_, _cap_beyond_: a cut of the caps of the casters the camera sees
-    // (ShadowVolumes::lit_intervals), the one the camera's rays take: the half-lines end at
+    // _cut_: a cut of the caps of the casters the camera sees (ShadowVolumes::lit_intervals),
+    // the one the camera's rays take: the half-lines end at
     // their first hit with the camera's geometry, which holds those casters, so they cross
     // none of their caps before their end and the cut leaves out nothing they cross (and
     // shares the camera rays' traversal instead of building one of every cap).
     GlowShadow(const ShadowVolumes& volumes, std::vector<int> positional_volume, std::vector<Vec3> positions,
                std::vector<int> sun_volume, std::vector<Vec3> sun_directions, double sigma,
-               double cap_reach = std::numeric_limits<double>::infinity(), double cap_beyond = 0.0);
+               const CapCut& cut = CapCut());
 
     // Lights: the positional ones, then the suns.
     size_t num_lights() const { return positional_volume_.size() + sun_volume_.size(); }
@@ -54,7 +53,7 @@ class GlowShadow {
     std::vector<int> sun_volume_;
     std::vector<Vec3> sun_directions_;
     double sigma_;
-    double cap_reach_, cap_beyond_;
+    CapCut cut_;
     bool any_ = false;
 };
 

@@ -33,9 +33,9 @@ bool ScreenCrossings::covers(const Face& f, double x, double y) {
     return true;
 }
 
-ScreenCrossings::ScreenCrossings(const ShadowVolumes& volumes, const Vec3& D0, const Vec3& Dx, const Vec3& Dy, int W,
-                                 int H, double cap_reach, double cap_beyond, int threads, size_t max_entries,
-                                 size_t max_faces_per_tile, double max_faces_per_pixel) {
+ScreenCrossings::ScreenCrossings(const ShadowVolumes& volumes, const Vec3& viewer, const Vec3& D0, const Vec3& Dx,
+                                 const Vec3& Dy, int W, int H, double cap_reach, double cap_beyond, int threads,
+                                 size_t max_entries, size_t max_faces_per_tile, double max_faces_per_pixel) {
     if (W <= 0 || H <= 0) return;
     // Too many faces for the film's pixels: not ready (Embree traces). The caps the test below
     // may leave out (a finite _cap_reach_: casters the rays end on) are not counted.
@@ -54,11 +54,13 @@ ScreenCrossings::ScreenCrossings(const ShadowVolumes& volumes, const Vec3& D0, c
     ny_ = int(std::ceil((H + 2.0 * kMargin) / kTileH));
     std::vector<Face> faces;
     std::vector<Box> boxes;
-    std::vector<Vec3> q;
+    std::vector<Vec3> P, q;  // the vertices relative to the viewer, and in the film's frame
+    const Vec3 eye = viewer - volumes.frame();
     for (int l = 0; l < volumes.num_lights(); ++l) {
         const ShadowFaces& sf = volumes.faces(l);
+        P.resize(sf.vertices.size());
         q.resize(sf.vertices.size());
-        for (size_t k = 0; k < q.size(); ++k) q[k] = Minv * sf.vertices[k];
+        for (size_t k = 0; k < q.size(); ++k) P[k] = sf.vertices[k] - eye, q[k] = Minv * P[k];
         // The whole sides (one quad each, not ring by ring): the same tiling of the film, with
         // a third or less of the faces.
         for (size_t t = 0; t < sf.whole_weights.size(); ++t) {
@@ -66,7 +68,7 @@ ScreenCrossings::ScreenCrossings(const ShadowVolumes& volumes, const Vec3& D0, c
                            i2 = sf.whole_triangles[3 * t + 2];
             const Vec3 &q0 = q[i0], &q1 = q[i1], &q2 = q[i2];
             if (!(q0.z > 0.0 || q1.z > 0.0 || q2.z > 0.0)) continue;  // wholly behind the viewer
-            const Vec3 &P0 = sf.vertices[i0], &P1 = sf.vertices[i1], &P2 = sf.vertices[i2];
+            const Vec3 &P0 = P[i0], &P1 = P[i1], &P2 = P[i2];
             if (t < sf.n_seen_caps && ShadowVolumes::cap_left_out(P0, P1, P2, cap_reach, cap_beyond)) continue;
             const Vec3 c12 = cross(q1, q2), c20 = cross(q2, q0), c01 = cross(q0, q1);
             const double det = dot(q0, c12);

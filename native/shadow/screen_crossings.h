@@ -34,7 +34,7 @@ namespace airlight {
 
 class ScreenCrossings {
   public:
-    // The faces of _volumes_ seen by a perspective camera at the volumes' frame origin whose
+    // The faces of _volumes_ seen by a perspective camera at _viewer_ (the world) whose
     // unnormalised ray direction through film position (x, y) is D0 + x Dx + y Dy
     // (CameraRays::affine_direction), for a W x H image. The caps (the casters' own
     // triangles) of the casters the camera sees (ShadowFaces::n_seen_caps) wholly farther
@@ -44,7 +44,8 @@ class ScreenCrossings {
     // ray and the far clip's depth; the defaults keep them all).
     // Volumes of more faces than _max_faces_per_pixel_ per pixel (and kMinFacesForFallback)
     // are not binned at all (ready() false), decided before any face is built.
-    ScreenCrossings(const ShadowVolumes& volumes, const Vec3& D0, const Vec3& Dx, const Vec3& Dy, int W, int H,
+    ScreenCrossings(const ShadowVolumes& volumes, const Vec3& viewer, const Vec3& D0, const Vec3& Dx, const Vec3& Dy,
+                    int W, int H,
                     double cap_reach = std::numeric_limits<double>::infinity(), double cap_beyond = 0.0,
                     int threads = 1, size_t max_entries = size_t(1) << 26, size_t max_faces_per_tile = kMaxFacesPerTile,
                     double max_faces_per_pixel = kMaxFacesPerPixel);

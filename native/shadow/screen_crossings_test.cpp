@@ -15,6 +15,10 @@
 namespace airlight {
 namespace {
 
+// No cut of the caps (ScreenCrossings keeps them all).
+constexpr double kKeepCaps = std::numeric_limits<double>::infinity();
+
+
 struct View {
     Vec3 eye, D0, Dx, Dy;
     int W, H;
@@ -38,7 +42,7 @@ void compare(const TriangleMesh& casters, const std::vector<ShadowLight>& lights
              const std::vector<glm::dvec2>& film, double& differ, double& worst, double& lit_share) {
     const ShadowVolumes volumes(casters, lights, v.eye);
     // (Any number of faces per tile: these small films hold few tiles.)
-    const ScreenCrossings screen(volumes, v.D0, v.Dx, v.Dy, v.W, v.H, std::numeric_limits<double>::infinity(), 0.0,
+    const ScreenCrossings screen(volumes, v.eye, v.D0, v.Dx, v.Dy, v.W, v.H, kKeepCaps, 0.0,
                                  2, size_t(1) << 26, size_t(1) << 20);
     ASSERT_TRUE(screen.ready());
     const int L = volumes.num_lights(), n = int(film.size());
@@ -184,7 +188,7 @@ TEST(ScreenCrossings, RowsGiveEachPixelItsOwnCrossings) {
     long n_crossings = 0;
     for (const View& v : views) {
         const ShadowVolumes volumes(m, lights, v.eye);
-        const ScreenCrossings screen(volumes, v.D0, v.Dx, v.Dy, v.W, v.H, std::numeric_limits<double>::infinity(), 0.0,
+        const ScreenCrossings screen(volumes, v.eye, v.D0, v.Dx, v.Dy, v.W, v.H, kKeepCaps, 0.0,
                                      2, size_t(1) << 26, size_t(1) << 20);
         ASSERT_TRUE(screen.ready());
         std::vector<glm::dvec2> film(size_t(v.W));
@@ -222,14 +226,14 @@ TEST(ScreenCrossings, OutsideTheFilmIsRefused) {
     lights[0].position = Vec3(0, 0, 5);
     const View v = look_at(Vec3(-10, -10, 5), Vec3(0, 0, 0), 1.0, 64, 48);
     const ShadowVolumes volumes(m, lights, v.eye);
-    const ScreenCrossings screen(volumes, v.D0, v.Dx, v.Dy, v.W, v.H);
+    const ScreenCrossings screen(volumes, v.eye, v.D0, v.Dx, v.Dy, v.W, v.H);
     const glm::dvec2 far_off{-20.0, 10.0};
     const Ray ray{v.eye, glm::normalize(v.D0 + far_off.x * v.Dx + far_off.y * v.Dy)};
     const float t1 = 100.0f;
     std::vector<Crossing> list;
     EXPECT_FALSE(screen.crossings(&far_off, &ray, &t1, 1, &list));
     // Too many entries for the cap: not binned.
-    const ScreenCrossings tiny(volumes, v.D0, v.Dx, v.Dy, v.W, v.H, std::numeric_limits<double>::infinity(), 0.0, 2, 4);
+    const ScreenCrossings tiny(volumes, v.eye, v.D0, v.Dx, v.Dy, v.W, v.H, kKeepCaps, 0.0, 2, 4);
     EXPECT_FALSE(tiny.ready());
 }
 
@@ -248,10 +252,10 @@ TEST(ScreenCrossings, HeavyCastersAreLeftToEmbree) {
     lights[1].position = Vec3(-0.5, 0.3, 8);
     const View v = look_at(Vec3(-10, -10, 5), Vec3(0, 0, 0), 1.0, 64, 48);
     const ShadowVolumes volumes(m, lights, v.eye);
-    const ScreenCrossings heavy(volumes, v.D0, v.Dx, v.Dy, v.W, v.H);
+    const ScreenCrossings heavy(volumes, v.eye, v.D0, v.Dx, v.Dy, v.W, v.H);
     EXPECT_FALSE(heavy.ready());
     EXPECT_EQ(heavy.num_faces(), 0u);  // (decided before building them)
-    const ScreenCrossings asked(volumes, v.D0, v.Dx, v.Dy, v.W, v.H, std::numeric_limits<double>::infinity(), 0.0, 2,
+    const ScreenCrossings asked(volumes, v.eye, v.D0, v.Dx, v.Dy, v.W, v.H, kKeepCaps, 0.0, 2,
                                 size_t(1) << 26, size_t(1) << 20, 1e9);
     EXPECT_TRUE(asked.ready());
     EXPECT_GT(asked.num_faces(), ScreenCrossings::kMinFacesForFallback);

@@ -116,7 +116,7 @@ bool light_ray(const ShadowLight& light, double reach, const Vec3& p, const Vec3
     const double dist = light.directional ? reach : glm::length(to);
     if (!(dist > 0.0) || !(hi.x >= lo.x)) return false;
     const Vec3 d = to / glm::length(to);
-    // Off the point by 1e-6 of its distance from the viewer (and from the light): the caster a
+    // Off the point by 1e-6 of its distance from the frame (and from the light): the caster a
     // point lies on (a wall's own face, in floats) does not count as between it and the light.
     // Short of the light by 1e-6 of the way: a triangle through the light (its plane holds it)
     // shadows nothing, as in the volumes, where it has no frustum.
@@ -147,7 +147,7 @@ bool light_ray(const ShadowLight& light, double reach, const Vec3& p, const Vec3
 }  // namespace
 
 struct ShadowVolumes::Traversal {
-    double cap_reach, cap_beyond;
+    CapCut cut;
     RTCScene scene = nullptr;  // one geometry per light: its quads and the caps kept
     std::vector<std::vector<int16_t>> weights;  // per light, per primitive
     ~Traversal() {
@@ -160,15 +160,33 @@ struct ShadowVolumes::Impl {
     RTCScene casters = nullptr;  // the caster triangles (count_at)
     std::vector<std::vector<int16_t>> weights;  // per light, per primitive
     std::vector<double> reach;                  // per light: the extrusion distance R
+    // What R depends on besides the viewer (reach_for): per light the farthest caster vertex
+    // (suns: the extent; 0 without casters), the box of the casters and point lights.
+    std::vector<double> vertex_far;
+    Vec3 mid{0.0};
+    double extent = 1.0;
     std::vector<ShadowFaces> faces;             // per light (ShadowVolumes::faces)
     // Embree's scenes of the volumes, built on the first traced query of their caps' cut (the
-    // film's rasterized crossings need none), kept while the volumes live (a query may hold one).
+    // film's rasterized crossings need none): the last kKeptTraversals cuts (each camera
+    // position has its own; a query holds the one it traverses).
+    static constexpr size_t kKeptTraversals = 3;
     std::mutex traversals_mutex;
-    std::list<Traversal> traversals;
+    std::list<std::shared_ptr<const Traversal>> traversals;  // most recently used first
     Vec3 lo{0.0}, hi{-1.0};                     // the casters' box, padded (count_at, lit_at)
-    // The volumes are built about the viewer (Embree works in floats: a scene 1000 km from the
-    // world's origin keeps its shadows to ~1e-7 of their distance from the camera, not to 6 cm).
+    // The volumes are built about the casters' centre (Embree works in floats: a scene 1000 km
+    // from the world's origin keeps its shadows to ~1e-7 of its size, not to 6 cm), which no
+    // camera moves: the faces are the same for every viewer that gives the same reaches.
     Vec3 frame{0.0};
+
+    // R of light _light_ (index l, the frame's coordinates) for a camera at _viewer_: 8 times
+    // the farthest of the casters and the viewer from the light (a sun: from the box's centre,
+    // or the box's size), rounded up to a power of 2 (a camera moving about a light keeps its
+    // R), at most 1e7 times the box's size (shadow_volumes.h).
+    double reach_for(const ShadowLight& light, size_t l, const Vec3& viewer) const {
+        const Vec3 from = light.directional ? mid : light.position;
+        const double far = std::max(glm::length(viewer - from), vertex_far[l]);
+        return std::min(std::exp2(std::ceil(std::log2(8.0 * std::max(far, extent * 1e-6)))), 1e7 * extent);
+    }
     std::string error;
 
     ~Impl() {
@@ -188,14 +206,31 @@ ShadowVolumes::ShadowVolumes(const TriangleMesh& casters, const std::vector<Shad
     : impl_(new Impl), lights_(world_lights) {
     if (lights_.size() > size_t(std::numeric_limits<int16_t>::max()))
         throw std::invalid_argument("shadow volumes: too many lights");
-    // Everything below in the viewer's frame (Impl::frame).
-    impl_->frame = world_viewer;
-    const Vec3 viewer(0.0);
-    for (ShadowLight& l : lights_)
-        if (!l.directional) l.position -= world_viewer;
-    const std::vector<ShadowLight>& lights = lights_;
+    // Everything below in the casters' frame (Impl::frame).
     Welded mesh = weld(casters);
-    for (Vec3& p : mesh.position) p -= world_viewer;
+    // The vertices of triangles with an area: a degenerate triangle shadows nothing, and moves
+    // neither the frame nor the extrusion distance.
+    std::vector<char> used(mesh.position.size(), 0);
+    for (size_t k = 0; k + 2 < mesh.triangles.size(); k += 3) {
+        const uint32_t* t = &mesh.triangles[k];
+        const Vec3 &a = mesh.position[t[0]], &b = mesh.position[t[1]], &c = mesh.position[t[2]];
+        if (glm::length(glm::cross(b - a, c - a)) > 0.0) used[t[0]] = used[t[1]] = used[t[2]] = 1;
+    }
+    bool any_used = false;
+    {
+        Vec3 wlo(std::numeric_limits<double>::infinity()), whi(-std::numeric_limits<double>::infinity());
+        for (size_t k = 0; k < mesh.position.size(); ++k)
+            if (used[k]) {
+                wlo = glm::min(wlo, mesh.position[k]), whi = glm::max(whi, mesh.position[k]);
+                any_used = true;
+            }
+        impl_->frame = any_used ? 0.5 * (wlo + whi) : world_viewer;
+    }
+    const Vec3 viewer = world_viewer - impl_->frame;
+    for (ShadowLight& l : lights_)
+        if (!l.directional) l.position -= impl_->frame;
+    const std::vector<ShadowLight>& lights = lights_;
+    for (Vec3& p : mesh.position) p -= impl_->frame;
     const size_t nv = mesh.position.size(), nt = mesh.triangles.size() / 3;
     impl_->device = rtcNewDevice(nullptr);
     if (!impl_->device) throw std::runtime_error("Embree: rtcNewDevice failed (shadow volumes)");
@@ -204,22 +239,22 @@ ShadowVolumes::ShadowVolumes(const TriangleMesh& casters, const std::vector<Shad
     rtcSetSceneFlags(impl_->casters, RTC_SCENE_FLAG_ROBUST);
     impl_->weights.resize(lights.size());
     impl_->reach.resize(lights.size());
+    impl_->vertex_far.resize(lights.size());
     impl_->faces.resize(lights.size());
 
-    // The scene's extent, for the extrusion distance.
+    // The scene's extent (the casters and point lights, not the viewer), for the extrusion
+    // distance.
     Vec3 lo(std::numeric_limits<double>::infinity()), hi(-std::numeric_limits<double>::infinity());
-    for (const Vec3& p : mesh.position) lo = glm::min(lo, p), hi = glm::max(hi, p);
+    for (size_t k = 0; k < nv; ++k)
+        if (used[k]) lo = glm::min(lo, mesh.position[k]), hi = glm::max(hi, mesh.position[k]);
+    const Vec3 clo = lo, chi = hi;  // the casters' own box
     for (const ShadowLight& l : lights)
         if (!l.directional) lo = glm::min(lo, l.position), hi = glm::max(hi, l.position);
-    lo = glm::min(lo, viewer);
-    hi = glm::max(hi, viewer);
-    const double extent = nv ? std::max(glm::length(hi - lo), 1e-30) : 1.0;
-    {
-        Vec3 clo(std::numeric_limits<double>::infinity()), chi(-std::numeric_limits<double>::infinity());
-        for (const Vec3& p : mesh.position) clo = glm::min(clo, p), chi = glm::max(chi, p);
-        const Vec3 pad(1e-5 * extent);  // above the floats' rounding of the vertices
-        if (nv) impl_->lo = clo - pad, impl_->hi = chi + pad;
-    }
+    const double extent = any_used ? std::max(glm::length(hi - lo), 1e-30) : 1.0;
+    impl_->extent = extent;
+    impl_->mid = any_used ? 0.5 * (lo + hi) : Vec3(0.0);
+    const Vec3 pad(1e-5 * extent);  // above the floats' rounding of the vertices
+    if (any_used) impl_->lo = clo - pad, impl_->hi = chi + pad;
 
     if (nt > 0) {
         RTCGeometry g = rtcNewGeometry(impl_->device, RTC_GEOMETRY_TYPE_TRIANGLE);
@@ -261,9 +296,12 @@ ShadowVolumes::ShadowVolumes(const TriangleMesh& casters, const std::vector<Shad
         const ShadowLight& light = lights[l];
         const Vec3 s = light.position, w = glm::normalize(light.direction);
         // The extrusion distance (shadow_volumes.h).
-        double far = glm::length(viewer - (light.directional ? 0.5 * (lo + hi) : s));
-        for (const Vec3& p : mesh.position) far = std::max(far, light.directional ? extent : glm::length(p - s));
-        const double R = std::min(8.0 * std::max(far, extent * 1e-6), 1e7 * extent);
+        double vertex_far = 0.0;
+        for (size_t k = 0; k < nv; ++k)
+            if (used[k])
+                vertex_far = std::max(vertex_far, light.directional ? extent : glm::length(mesh.position[k] - s));
+        impl_->vertex_far[l] = vertex_far;
+        const double R = impl_->reach_for(light, l, viewer);
         impl_->reach[l] = R;
         // Outward normal of the side through edge p -> q of a triangle wound counter-clockwise
         // as the light sees it: (q - p) x (s - p), or (q - p) x (-w) for a sun.
@@ -429,24 +467,23 @@ bool ShadowVolumes::cap_left_out(const Vec3& a, const Vec3& b, const Vec3& c, do
            origin_distance(a, b, c) > cap_reach;
 }
 
-const ShadowVolumes::Traversal& ShadowVolumes::traversal(double cap_reach, double cap_beyond) const {
+std::shared_ptr<const ShadowVolumes::Traversal> ShadowVolumes::traversal(const CapCut& cut) const {
     std::lock_guard<std::mutex> lock(impl_->traversals_mutex);
-    for (const Traversal& t : impl_->traversals)
-        if (t.cap_reach == cap_reach && t.cap_beyond == cap_beyond) return t;
-    Traversal& t = impl_->traversals.emplace_back();
-    t.cap_reach = cap_reach, t.cap_beyond = cap_beyond;
+    std::list<std::shared_ptr<const Traversal>>& kept = impl_->traversals;
+    for (auto it = kept.begin(); it != kept.end(); ++it)
+        if ((*it)->cut == cut) {
+            kept.splice(kept.begin(), kept, it);
+            return kept.front();
+        }
+    auto built = std::make_shared<Traversal>();
+    Traversal& t = *built;
+    t.cut = cut;
+    const Vec3 viewer = cut.viewer - impl_->frame;  // (cap_left_out's origin)
     t.scene = rtcNewScene(impl_->device);
     rtcSetSceneFlags(t.scene, RTC_SCENE_FLAG_ROBUST);  // watertight: no crossing lost on a shared edge
     t.weights.resize(impl_->faces.size());
     // One geometry per light, masked by its light_mask bit: its quads, and its caps but those
     // the cut leaves out. (A build Embree fails is not kept.)
-    struct Unkept {
-        std::list<Traversal>& list;
-        bool armed = true;
-        ~Unkept() {
-            if (armed) list.pop_back();
-        }
-    } unkept{impl_->traversals};
     std::vector<uint32_t> triangles;
     for (size_t l = 0; l < impl_->faces.size(); ++l) {
         const ShadowFaces& faces = impl_->faces[l];
@@ -456,8 +493,9 @@ const ShadowVolumes::Traversal& ShadowVolumes::traversal(double cap_reach, doubl
         t.weights[l].reserve(weights.size());
         for (size_t k = 0; k < weights.size(); ++k) {
             const uint32_t* v = &faces.triangles[3 * k];
-            if (k < faces.n_seen_caps &&
-                cap_left_out(faces.vertices[v[0]], faces.vertices[v[1]], faces.vertices[v[2]], cap_reach, cap_beyond))
+            if (k < faces.n_seen_caps && cut.cuts() &&
+                cap_left_out(faces.vertices[v[0]] - viewer, faces.vertices[v[1]] - viewer,
+                             faces.vertices[v[2]] - viewer, cut.reach, cut.beyond))
                 continue;
             triangles.insert(triangles.end(), v, v + 3);
             t.weights[l].push_back(weights[k]);
@@ -478,8 +516,9 @@ const ShadowVolumes::Traversal& ShadowVolumes::traversal(double cap_reach, doubl
     }
     rtcCommitScene(t.scene);
     impl_->check("building the volumes");
-    unkept.armed = false;
-    return t;
+    kept.push_front(std::move(built));
+    if (kept.size() > Impl::kKeptTraversals) kept.pop_back();  // (a query may still hold it)
+    return kept.front();
 }
 
 int ShadowVolumes::count_at(int l, const Vec3& world_p, bool* ambiguous) const {
@@ -545,14 +584,13 @@ int ShadowVolumes::origin_count(int l, const Ray& r, double a, double b, double&
 }
 
 void ShadowVolumes::lit_intervals(const Ray* rays, const float* t0, const float* t1, int n, const int* count0,
-                                  LitIntervals* out, const uint32_t* masks, double cap_reach,
-                                  double cap_beyond) const {
-    // The cut holds for rays counted from the viewer that start within cap_reach (crossings
+                                  LitIntervals* out, const uint32_t* masks, const CapCut& cut) const {
+    // The cut holds for rays counted at their origins that start within its reach (crossings
     // before a ray's start update its count); any other call traverses every cap.
-    bool cut = count0 != nullptr && std::isfinite(cap_reach);
-    for (int k = 0; k < n && cut; ++k) cut = double(t0[k]) <= cap_reach;
-    const Traversal& volumes = cut ? traversal(cap_reach, cap_beyond)
-                                   : traversal(std::numeric_limits<double>::infinity(), 0.0);
+    bool cuts = count0 != nullptr && cut.cuts();
+    for (int k = 0; k < n && cuts; ++k) cuts = double(t0[k]) <= cut.reach;
+    const std::shared_ptr<const Traversal> held = traversal(cuts ? cut : CapCut());
+    const Traversal& volumes = *held;
     const int L = num_lights();
     thread_local std::vector<Crossing> lists[16];
     thread_local std::vector<int> count;
@@ -672,7 +710,6 @@ bool same_lights(const std::vector<ShadowLight>& a, const std::vector<ShadowLigh
 struct KeptVolumes {
     TriangleMesh casters;  // copies, compared exactly
     std::vector<ShadowLight> lights;
-    Vec3 viewer{0.0};
     size_t seen_triangles = 0;
     std::shared_ptr<const ShadowVolumes> volumes;
     long last_use = 0;
@@ -697,9 +734,9 @@ std::shared_ptr<const ShadowVolumes> ShadowVolumes::shared(const TriangleMesh& c
     SharedVolumes& s = shared_volumes();
     std::lock_guard<std::mutex> lock(s.mutex);
     for (KeptVolumes& k : s.kept)
-        if (k.viewer == viewer && k.seen_triangles == seen_triangles && same_lights(k.lights, lights) &&
-            k.casters.vertices == casters.vertices &&
-            k.casters.triangles == casters.triangles) {
+        if (k.seen_triangles == seen_triangles && same_lights(k.lights, lights) &&
+            k.casters.vertices == casters.vertices && k.casters.triangles == casters.triangles &&
+            k.volumes->reaches(viewer) == k.volumes->impl_->reach) {
             k.last_use = ++s.uses;
             return k.volumes;
         }
@@ -711,7 +748,7 @@ std::shared_ptr<const ShadowVolumes> ShadowVolumes::shared(const TriangleMesh& c
     }
     auto volumes = std::make_shared<const ShadowVolumes>(casters, lights, viewer, seen_triangles, n_threads);
     ++s.builds;
-    s.kept.push_back({casters, lights, viewer, seen_triangles, volumes, ++s.uses});
+    s.kept.push_back({casters, lights, seen_triangles, volumes, ++s.uses});
     return volumes;
 }
 
@@ -725,6 +762,12 @@ long ShadowVolumes::shared_builds() {
     SharedVolumes& s = shared_volumes();
     std::lock_guard<std::mutex> lock(s.mutex);
     return s.builds;
+}
+
+std::vector<double> ShadowVolumes::reaches(const Vec3& viewer) const {
+    std::vector<double> out(lights_.size());
+    for (size_t l = 0; l < lights_.size(); ++l) out[l] = impl_->reach_for(lights_[l], l, viewer - impl_->frame);
+    return out;
 }
 
 const ShadowFaces& ShadowVolumes::faces(int l) const { return impl_->faces[size_t(l)]; }

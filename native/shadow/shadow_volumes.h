@@ -19,13 +19,14 @@
 // This is exact for the casters' triangles (no shadow map, no sampling: an occluder of any
 // size is seen), for any triangle soup (open, non-manifold or zero-area triangles included;
 // a triangle whose plane holds the light, to 1e-6 rad, shadows nothing and is left out). It holds to the
-// extrusion distance R (8 times the farthest caster or viewer from the light, clamped to
-// 1e7 times the scene's size): beyond it the count is that at R (a ray that far from the
-// light gets ~1/R of its airlight there).
+// extrusion distance R (8 times the farthest caster or viewer from the light rounded up to a
+// power of 2, clamped to 1e7 times the scene's size): beyond it the count is that at R (a ray
+// that far from the light gets ~1/R of its airlight there).
 // Queries go to Embree 3 in packets of 16 coherent rays with an intersection filter that
 // records every crossing of every light's volumes in one traversal.
 #pragma once
 
+#include <cmath>
 #include <cstdint>
 #include <limits>
 #include <memory>
@@ -69,8 +70,9 @@ struct Crossing {
 };
 
 // One light's volume faces (quads as two triangles, and caps) as built for Embree: vertices in
-// the volumes' frame (the viewer at the origin), 3 indices per triangle, and per triangle the
-// weight a crossing against its Embree normal (v1 - v0) x (v2 - v0) adds to the count.
+// the volumes' frame (the casters' centre at the origin: frame()), 3 indices per triangle, and
+// per triangle the weight a crossing against its Embree normal (v1 - v0) x (v2 - v0) adds to
+// the count.
 struct ShadowFaces {
     std::vector<Vec3> vertices;
     std::vector<uint32_t> triangles;
@@ -89,21 +91,37 @@ struct ShadowFaces {
 // The distance from the origin to triangle a b c (Ericson, Real-Time Collision Detection 5.1.5).
 double origin_distance(const Vec3& a, const Vec3& b, const Vec3& c);
 
+// The caps a camera's rays cannot cross (ShadowVolumes::lit_intervals): rays from _viewer_
+// (the world) that end where they meet the casters the camera sees cross those casters' own
+// triangles only within _reach_ of the viewer or farther than _beyond_. The defaults keep
+// every cap.
+struct CapCut {
+    double reach = std::numeric_limits<double>::infinity();
+    double beyond = 0.0;
+    Vec3 viewer{0.0};
+    bool cuts() const { return std::isfinite(reach); }
+    bool operator==(const CapCut& o) const { return reach == o.reach && beyond == o.beyond && viewer == o.viewer; }
+};
+
 class ShadowVolumes {
   public:
-    // The volumes of _casters_ for _lights_; _viewer_ is the camera position (it sets R). The
-    // first _seen_triangles_ casters are the camera's geometry too (all by default). The
-    // lights' volumes are built on _n_threads_ threads (core/parallel.h), a light each.
+    // The volumes of _casters_ for _lights_; _viewer_ is the camera position (with the casters
+    // it sets R: reaches()). The first _seen_triangles_ casters are the camera's geometry too
+    // (all by default). The lights' volumes are built on _n_threads_ threads
+    // (core/parallel.h), a light each.
     ShadowVolumes(const TriangleMesh& casters, const std::vector<ShadowLight>& lights, const Vec3& viewer,
                   size_t seen_triangles = std::numeric_limits<size_t>::max(), int n_threads = 1);
     ~ShadowVolumes();
     ShadowVolumes(const ShadowVolumes&) = delete;
     ShadowVolumes& operator=(const ShadowVolumes&) = delete;
     // The volumes of the same arguments, shared with an earlier call's when that call's
-    // casters, lights and viewer were the same (compared exactly): the last kKeptVolumes
-    // sets are kept, so that a frame's soft-shadow probe and its bake, its per-light passes
-    // and an animation's frames over static casters and lights build them once. The least
-    // recently used set is dropped before another is built, or by clear_shared(). Thread safe.
+    // casters, lights and seen count were the same (compared exactly) and _viewer_ gives them
+    // the same extrusion distances (reaches(): a camera within the casters' reach of each
+    // light): the faces do not depend on the viewer otherwise (frame()), so they are the ones
+    // a new build would make. The last kKeptVolumes sets are kept, so that a frame's
+    // soft-shadow probe and its bake, its per-light passes and an animation's frames over
+    // static casters and lights (the camera moving or not) build them once. The least recently
+    // used set is dropped before another is built, or by clear_shared(). Thread safe.
     static std::shared_ptr<const ShadowVolumes> shared(const TriangleMesh& casters,
                                                        const std::vector<ShadowLight>& lights, const Vec3& viewer,
                                                        size_t seen_triangles, int n_threads = 1);
@@ -111,6 +129,9 @@ class ShadowVolumes {
     // Builds of shared() so far (those it did not share), for tests and the stats.
     static long shared_builds();
     static constexpr size_t kKeptVolumes = 2;
+    // Per light, the extrusion distance R (shadow_volumes.h) that volumes of these casters and
+    // lights built for a camera at _viewer_ (the world) have.
+    std::vector<double> reaches(const Vec3& viewer) const;
 
     int num_lights() const { return int(lights_.size()); }
     // Number of caster triangles between _p_ and light _l_ (0: lit). _ambiguous_ (optional):
@@ -128,14 +149,13 @@ class ShadowVolumes {
     // the ray's direction. _masks_ (optional): per ray, the lights asked for (light_mask
     // bits); the others come back lit all along, and a ray asking for none is not traced.
     // Thread safe.
-    // _cap_reach_, _cap_beyond_ (rays from the viewer, with _count0_, that end where they meet
-    // the casters the camera sees): those casters' own triangles (ShadowFaces::n_seen_caps) wholly
-    // farther than cap_reach and nearer than cap_beyond are left out of the traversal, as
-    // ScreenCrossings leaves them out (no such ray crosses them before its end), in a scene
-    // of the volumes built once per pair; the defaults keep them all.
+    // _cut_ (rays, with _count0_, that start within cut.reach of cut.viewer and end where they
+    // meet the casters the camera sees): those casters' own triangles
+    // (ShadowFaces::n_seen_caps) that cap_left_out leaves out are left out of the traversal,
+    // as ScreenCrossings leaves them out (no such ray crosses them before its end), in a scene
+    // of the volumes built once per cut; the default keeps them all.
     void lit_intervals(const Ray* rays, const float* t0, const float* t1, int n, const int* count0,
-                       LitIntervals* out, const uint32_t* masks = nullptr,
-                       double cap_reach = std::numeric_limits<double>::infinity(), double cap_beyond = 0.0) const;
+                       LitIntervals* out, const uint32_t* masks = nullptr, const CapCut& cut = CapCut()) const;
     // The lit intervals of one ray from its crossings (any order; sorted here): each light's
     // count starts at count0[l] at the ray's origin, crossings at t <= t0 update it, and the
     // ray is lit within [t0, t1] where the count is 0 (clamped at 0). Lights not in _mask_
@@ -144,7 +164,8 @@ class ShadowVolumes {
                                    uint32_t mask, LitIntervals& out);
     // Light _l_'s faces (the same triangles Embree traces, in doubles).
     const ShadowFaces& faces(int l) const;
-    // The volumes' frame: the viewer's position in the world (faces are relative to it).
+    // The volumes' frame: the centre of the casters' box in the world (faces are relative to
+    // it; without casters the first viewer's position).
     Vec3 frame() const;
     // Whether cap triangle a b c (relative to the viewer) is left out for (cap_reach,
     // cap_beyond): wholly farther than cap_reach and nearer than cap_beyond.
@@ -160,10 +181,11 @@ class ShadowVolumes {
     // applies those at t <= a.
     static void sweep(const std::vector<Crossing>& list, int n_lights, double a, double b, const int* count,
                       const double* from, bool counted_at_origin, uint32_t mask, LitIntervals& out);
-    // Embree's scene of the volumes with the caps that (cap_reach, cap_beyond) leave out left
-    // out, and its weights per light and primitive (all caps: the defaults); built once each.
+    // Embree's scene of the volumes with the caps that _cut_ leaves out left out, and its
+    // weights per light and primitive (all caps: the default); built once each, and kept
+    // for the next queries while few other cuts were asked for since.
     struct Traversal;
-    const Traversal& traversal(double cap_reach, double cap_beyond) const;
+    std::shared_ptr<const Traversal> traversal(const CapCut& cut) const;
     // Light _l_'s count on ray _r_ (t in [a, b]) a little way along it, at t = _from_ (set).
     int origin_count(int l, const Ray& r, double a, double b, double& from) const;
     struct Impl;

@@ -75,14 +75,46 @@ def test03_clear_drops_the_kept_geometry():
     assert _native.raycaster_builds() == before + 1
 
 
+BOX = (np.array([[x, y, z] for x in (-0.3, 0.3) for y in (1.2, 1.8) for z in (-0.2, 0.4)], np.float32),
+       np.array([[0, 1, 3], [0, 3, 2], [4, 6, 7], [4, 7, 5], [0, 4, 5], [0, 5, 1],
+                 [2, 3, 7], [2, 7, 6], [0, 2, 6], [0, 6, 4], [1, 5, 7], [1, 7, 3]], np.uint32))
+
+
 def shadowed(vertices, triangles, **kw):
-    """bake() with a box casting shadows from the light into the fog."""
-    box_v = np.array([[x, y, z] for x in (-0.3, 0.3) for y in (1.2, 1.8) for z in (-0.2, 0.4)], np.float32)
-    box_t = np.array([[0, 1, 3], [0, 3, 2], [4, 6, 7], [4, 7, 5], [0, 4, 5], [0, 5, 1],
-                      [2, 3, 7], [2, 7, 6], [0, 2, 6], [0, 6, 4], [1, 5, 7], [1, 7, 3]], np.uint32)
-    args = dict(occluder_vertices=box_v, occluder_triangles=box_t, shadows=True)
+    """bake() with a box casting shadows from the light into the fog (the camera does not see it)."""
+    args = dict(occluder_vertices=BOX[0], occluder_triangles=BOX[1], shadows=True)
     args.update(kw)
     return bake(vertices, triangles, **args)
+
+
+def test06_a_moving_camera_shares_the_volumes_bit_for_bit():
+    """The volumes are built about the casters and reach as far as the farthest caster or the
+    camera (a power of 2): a camera moving among them shares them, and its bakes are the ones
+    a fresh process makes. The film and the traced crossings take the camera where it is."""
+    v, t = plane_z(-1.0)
+    box_v, box_t = BOX
+    seen = (np.concatenate([v, box_v]), np.concatenate([t, box_t + np.uint32(len(v))]))
+    path = [[0.0, 0.0, EYE_Z], [0.3, 0.2, EYE_Z], [-0.4, 0.5, EYE_Z + 0.3], [0.2, 1.0, EYE_Z - 0.2]]
+    cameras = [camera_matrix(rotation_x(math.radians(-30.0 + 3.0 * k)), p) for k, p in enumerate(path)]
+
+    def frame(camera, crossings, box_seen):
+        kw = dict(cam_to_world=camera, shadow_crossings=crossings, surface=True)
+        return bake(*seen, shadows=True, **kw) if box_seen else shadowed(v, t, **kw)
+
+    for crossings in ("film", "traced"):
+        for box_seen in (False, True):  # (seen: its caps cut for the camera's rays and the glow's)
+            fresh = []
+            for camera in cameras:
+                _native.clear_geometry_cache()
+                fresh.append(frame(camera, crossings, box_seen))
+            _native.clear_geometry_cache()
+            before = _native.shadow_volume_builds()
+            for camera, alone in zip(cameras, fresh):
+                shared = frame(camera, crossings, box_seen)
+                for name in ("airlight", "surface_glow"):
+                    np.testing.assert_array_equal(shared[name], alone[name])
+            assert _native.shadow_volume_builds() == before + 1
+            assert not np.array_equal(fresh[0]["airlight"], fresh[1]["airlight"])
 
 
 def test04_same_casters_lights_and_camera_share_the_shadow_volumes():
@@ -103,7 +135,7 @@ def test04_same_casters_lights_and_camera_share_the_shadow_volumes():
     assert not np.array_equal(again["airlight"], first["airlight"])
 
 
-def test05_a_moved_light_caster_or_camera_builds_the_volumes_again():
+def test05_a_moved_light_caster_or_far_camera_builds_the_volumes_again():
     v, t = plane_z(-1.0)
     shadowed(v, t)
     before = _native.shadow_volume_builds()
@@ -114,7 +146,7 @@ def test05_a_moved_light_caster_or_camera_builds_the_volumes_again():
     assert _native.shadow_volume_builds() == before + 2
     shadowed(v, t, light_positions=np.array([[0.2, 3.0, 1.0]]))
     assert _native.shadow_volume_builds() == before + 2
-    camera = camera_matrix(rotation_x(math.radians(-30.0)), [0.0, 0.01, EYE_Z])
+    camera = camera_matrix(rotation_x(math.radians(-30.0)), [0.0, -60.0, EYE_Z])  # R grows
     shadowed(v, t, cam_to_world=camera)
     assert _native.shadow_volume_builds() == before + 3
     box = np.array([[x, y, z] for x in (-0.3, 0.3) for y in (1.2, 1.8) for z in (-0.2, 0.41)], np.float32)
