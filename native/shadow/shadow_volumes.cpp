@@ -217,15 +217,14 @@ ShadowVolumes::ShadowVolumes(const TriangleMesh& casters, const std::vector<Shad
         if (glm::length(glm::cross(b - a, c - a)) > 0.0) used[t[0]] = used[t[1]] = used[t[2]] = 1;
     }
     bool any_used = false;
-    {
-        Vec3 wlo(std::numeric_limits<double>::infinity()), whi(-std::numeric_limits<double>::infinity());
-        for (size_t k = 0; k < mesh.position.size(); ++k)
-            if (used[k]) {
-                wlo = glm::min(wlo, mesh.position[k]), whi = glm::max(whi, mesh.position[k]);
-                any_used = true;
-            }
-        impl_->frame = any_used ? 0.5 * (wlo + whi) : world_viewer;
-    }
+    Vec3 clo(std::numeric_limits<double>::infinity()), chi(-std::numeric_limits<double>::infinity());  // their box
+    for (size_t k = 0; k < mesh.position.size(); ++k)
+        if (used[k]) {
+            clo = glm::min(clo, mesh.position[k]), chi = glm::max(chi, mesh.position[k]);
+            any_used = true;
+        }
+    impl_->frame = any_used ? 0.5 * (clo + chi) : world_viewer;
+    clo -= impl_->frame, chi -= impl_->frame;
     const Vec3 viewer = world_viewer - impl_->frame;
     for (ShadowLight& l : lights_)
         if (!l.directional) l.position -= impl_->frame;
@@ -244,10 +243,7 @@ ShadowVolumes::ShadowVolumes(const TriangleMesh& casters, const std::vector<Shad
 
     // The scene's extent (the casters and point lights, not the viewer), for the extrusion
     // distance.
-    Vec3 lo(std::numeric_limits<double>::infinity()), hi(-std::numeric_limits<double>::infinity());
-    for (size_t k = 0; k < nv; ++k)
-        if (used[k]) lo = glm::min(lo, mesh.position[k]), hi = glm::max(hi, mesh.position[k]);
-    const Vec3 clo = lo, chi = hi;  // the casters' own box
+    Vec3 lo = clo, hi = chi;
     for (const ShadowLight& l : lights)
         if (!l.directional) lo = glm::min(lo, l.position), hi = glm::max(hi, l.position);
     const double extent = any_used ? std::max(glm::length(hi - lo), 1e-30) : 1.0;
