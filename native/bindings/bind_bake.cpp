@@ -643,6 +643,17 @@ allocating them (ValueError / RuntimeError naming both sizes when they would not
           "(or light samples) and camera position equal one of the last two bakes' shares its volumes "
           "(shadow/shadow_volumes.h, ShadowVolumes::shared).");
     m.def(
+        "geometry_blocks_built",
+        [] {
+            py::dict out;
+            out["camera"] = RayCaster::shared_blocks_built();
+            out["casters"] = ShadowVolumes::caster_blocks_built();
+            return out;
+        },
+        "The Embree BVHs of single objects that the bakes of this process built, for the camera's rays and for "
+        "the shadow casters' counts ({'camera': n, 'casters': n}): a bake shares the BVH of every object (a run of "
+        "the soup that indexes only its own vertices) equal to one of the previous bake's (image/embree_blocks.h).");
+    m.def(
         "clear_geometry_cache",
         [] {
             RayCaster::clear_shared();

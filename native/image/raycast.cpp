@@ -1,11 +1,14 @@
-// raycast.cpp: first-hit distances with Embree 3 (one triangle geometry, robust build).
+// raycast.cpp: first-hit distances with Embree 3 (a robust scene of the mesh's objects: embree_blocks.h).
 #include "image/raycast.h"
+
+#include "image/embree_blocks.h"
 
 #include <embree3/rtcore.h>
 
 #include <algorithm>
 #include <atomic>
 #include <cmath>
+#include <functional>
 #include <limits>
 #include <mutex>
 #include <stdexcept>
@@ -14,20 +17,6 @@
 namespace airlight {
 
 namespace {
-
-// The first error Embree reported through its callback.
-struct EmbreeErrors {
-    std::mutex mutex;
-    std::string message;
-};
-
-void embree_error(void* user, RTCError code, const char* str) {
-    auto* errors = static_cast<EmbreeErrors*>(user);
-    std::lock_guard<std::mutex> lock(errors->mutex);
-    if (errors->message.empty())
-        errors->message = std::string(str ? str : "unknown error") + " (code " +
-                          std::to_string(static_cast<int>(code)) + ")";
-}
 
 constexpr float kInf = std::numeric_limits<float>::infinity();
 constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();
@@ -44,65 +33,43 @@ inline bool valid_ray(const float* org, const float* dir, float tnear, float tfa
 }  // namespace
 
 struct RayCaster::Impl {
-    RTCDevice device = nullptr;
-    RTCScene scene = nullptr;  // null for an empty mesh: every ray misses
-    EmbreeErrors errors;
+    std::shared_ptr<const BlockedScene> blocked;  // (its blocks' BVHs may be other casters' too)
+    RTCScene scene = nullptr;  // blocked's; null for an empty mesh: every ray misses
     mutable std::atomic<long> invalid{0};  // rays refused by valid_ray (never traced)
-
-    ~Impl() {
-        if (scene) rtcReleaseScene(scene);
-        if (device) rtcReleaseDevice(device);
-    }
-
-    // Throw the recorded Embree error, if any, prefixed by _what_.
-    void check(const char* what) {
-        std::lock_guard<std::mutex> lock(errors.mutex);
-        if (!errors.message.empty())
-            throw std::runtime_error(std::string("Embree: ") + what + ": " + errors.message);
-    }
 };
 
-RayCaster::RayCaster(const TriangleMesh& mesh) : impl_(new Impl) {
-    // Check the mesh before handing it to Embree.
+namespace {
+
+void check_mesh(const TriangleMesh& mesh) {
     if (mesh.vertices.size() % 3 != 0 || mesh.triangles.size() % 3 != 0)
         throw std::invalid_argument("mesh arrays must hold 3 values per vertex / triangle");
-    size_t n_vertices = mesh.vertices.size() / 3, n_triangles = mesh.triangles.size() / 3;
+    const size_t n_vertices = mesh.vertices.size() / 3;
     for (uint32_t index : mesh.triangles)
         if (index >= n_vertices)
-            throw std::invalid_argument("triangle index " + std::to_string(index) +
-                                        " out of range (vertex count " +
+            throw std::invalid_argument("triangle index " + std::to_string(index) + " out of range (vertex count " +
                                         std::to_string(n_vertices) + ")");
+}
 
-    // Create the device with an error callback that records the message.
-    impl_->device = rtcNewDevice(nullptr);
-    if (!impl_->device)
-        throw std::runtime_error("Embree: rtcNewDevice failed (error " +
-                                 std::to_string(static_cast<int>(rtcGetDeviceError(nullptr))) + ")");
-    rtcSetDeviceErrorFunction(impl_->device, embree_error, &impl_->errors);
-    if (n_triangles == 0) return;
+// The mesh's scene from _cache_ (an object a block: embree_blocks.h), robust (watertight) and
+// of high quality: camera rays outnumber the triangles.
+std::shared_ptr<const BlockedScene> blocked_scene(const TriangleMesh& mesh, BlockCache& cache,
+                                                  const std::function<void()>& before_build = {}) {
+    check_mesh(mesh);
+    return cache.scene(mesh.vertices.data(), mesh.vertices.size() / 3, mesh.triangles.data(),
+                       mesh.triangles.size() / 3, before_build);
+}
 
-    // Build one triangle geometry with copies of the buffers (Embree pads them).
-    RTCGeometry geom = rtcNewGeometry(impl_->device, RTC_GEOMETRY_TYPE_TRIANGLE);
-    impl_->check("rtcNewGeometry");
-    auto* vb = static_cast<float*>(rtcSetNewGeometryBuffer(
-        geom, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, 3 * sizeof(float), n_vertices));
-    auto* ib = static_cast<uint32_t*>(rtcSetNewGeometryBuffer(
-        geom, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, 3 * sizeof(uint32_t), n_triangles));
-    if (!vb || !ib) {
-        rtcReleaseGeometry(geom);
-        impl_->check("rtcSetNewGeometryBuffer");
-        throw std::runtime_error("Embree: could not allocate geometry buffers");
-    }
-    std::copy(mesh.vertices.begin(), mesh.vertices.end(), vb);
-    std::copy(mesh.triangles.begin(), mesh.triangles.end(), ib);
-    rtcCommitGeometry(geom);
-    impl_->scene = rtcNewScene(impl_->device);
-    rtcSetSceneFlags(impl_->scene, RTC_SCENE_FLAG_ROBUST);
-    rtcSetSceneBuildQuality(impl_->scene, RTC_BUILD_QUALITY_HIGH);
-    rtcAttachGeometry(impl_->scene, geom);
-    rtcReleaseGeometry(geom);
-    rtcCommitScene(impl_->scene);
-    impl_->check("building the scene");
+}  // namespace
+
+RayCaster::RayCaster(const TriangleMesh& mesh) : impl_(new Impl) {
+    BlockCache cache(RTC_BUILD_QUALITY_HIGH);
+    impl_->blocked = blocked_scene(mesh, cache);
+    impl_->scene = impl_->blocked->scene();
+}
+
+RayCaster::RayCaster(std::shared_ptr<const BlockedScene> scene) : impl_(new Impl) {
+    impl_->blocked = std::move(scene);
+    impl_->scene = impl_->blocked->scene();
 }
 
 RayCaster::~RayCaster() = default;
@@ -113,7 +80,7 @@ namespace {
 
 struct SharedCaster {
     std::mutex mutex;
-    TriangleMesh mesh;  // the kept caster's mesh (a copy, compared exactly)
+    BlockCache blocks{RTC_BUILD_QUALITY_HIGH};  // the kept mesh's blocks (compared exactly)
     std::shared_ptr<const RayCaster> caster;
     long builds = 0;
 };
@@ -128,28 +95,29 @@ SharedCaster& shared_caster() {
 std::shared_ptr<const RayCaster> RayCaster::shared(const TriangleMesh& mesh) {
     SharedCaster& kept = shared_caster();
     std::lock_guard<std::mutex> lock(kept.mutex);
-    if (kept.caster && kept.mesh.vertices == mesh.vertices && kept.mesh.triangles == mesh.triangles)
-        return kept.caster;
-    kept.caster.reset();  // (the old BVH's memory goes before the new one is built)
-    kept.mesh = TriangleMesh{};
-    auto caster = std::make_shared<const RayCaster>(mesh);
-    kept.mesh = mesh;
-    kept.caster = caster;
+    // (The kept caster lets go of its blocks before new ones are built: those not shared go.)
+    std::shared_ptr<const BlockedScene> scene = blocked_scene(mesh, kept.blocks, [&] { kept.caster.reset(); });
+    if (kept.caster && kept.caster->impl_->blocked == scene) return kept.caster;
+    kept.caster.reset(new RayCaster(std::move(scene)));
     ++kept.builds;
-    return caster;
+    return kept.caster;
 }
 
 void RayCaster::clear_shared() {
     SharedCaster& kept = shared_caster();
     std::lock_guard<std::mutex> lock(kept.mutex);
     kept.caster.reset();
-    kept.mesh = TriangleMesh{};
+    kept.blocks.clear();
 }
 
 long RayCaster::shared_builds() {
     SharedCaster& kept = shared_caster();
     std::lock_guard<std::mutex> lock(kept.mutex);
     return kept.builds;
+}
+
+long RayCaster::shared_blocks_built() {
+    return shared_caster().blocks.blocks_built();
 }
 
 double RayCaster::first_hit(const Ray& ray) const {

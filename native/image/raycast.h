@@ -7,6 +7,8 @@
 
 namespace airlight {
 
+class BlockedScene;
+
 class RayCaster {
   public:
     explicit RayCaster(const TriangleMesh& mesh);
@@ -15,14 +17,18 @@ class RayCaster {
     // The caster of _mesh_, shared with the previous call when that call's mesh was the same
     // (vertices and triangles compared exactly): Embree's BVH of a static scene is built once
     // for the bakes of one process (per-light passes, lens and shutter samples, an
-    // animation's frames; 2e6 triangles: ~0.6 s a build). One mesh is kept, with its copy, until
-    // another comes or clear_shared(). Thread safe. Rays refused on a shared caster count on
-    // it for all its users: compare invalid_rays() before and after.
+    // animation's frames; 2e6 triangles: ~0.6 s a build). A mesh that differs from the last
+    // one in some of its objects (the soup's blocks: image/embree_blocks.h) builds the BVHs of
+    // those only, and the instances over all of them. One mesh's blocks are kept until another
+    // comes or clear_shared(). Thread safe. Rays refused on a shared caster count on it for all
+    // its users: compare invalid_rays() before and after.
     static std::shared_ptr<const RayCaster> shared(const TriangleMesh& mesh);
     // Drops the kept mesh and its BVH (their memory returns once no bake holds them).
     static void clear_shared();
     // Builds of shared() so far (those it did not share), for tests and the stats.
     static long shared_builds();
+    // The blocks (objects' BVHs) those builds built, the others shared.
+    static long shared_blocks_built();
     RayCaster(const RayCaster&) = delete;
     RayCaster& operator=(const RayCaster&) = delete;
 
@@ -52,6 +58,7 @@ class RayCaster {
     long invalid_rays() const;
 
   private:
+    explicit RayCaster(std::shared_ptr<const BlockedScene> scene);
     struct Impl;
     std::unique_ptr<Impl> impl_;
 };

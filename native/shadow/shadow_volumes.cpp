@@ -4,6 +4,7 @@
 #include <embree3/rtcore.h>
 
 #include "core/parallel.h"
+#include "image/embree_blocks.h"
 
 #include <algorithm>
 #include <array>
@@ -113,6 +114,12 @@ void count_hits(const RTCFilterFunctionNArguments* args) {
     }
 }
 
+// The casters' blocks of the last volumes built (their counting BVHs).
+BlockCache& caster_blocks() {
+    static BlockCache cache(RTC_BUILD_QUALITY_MEDIUM, count_hits);
+    return cache;
+}
+
 void embree_error(void* user, RTCError code, const char* str) {
     auto* message = static_cast<std::string*>(user);
     if (message->empty()) *message = std::string(str ? str : "unknown error") + " (code " + std::to_string(int(code)) + ")";
@@ -169,7 +176,7 @@ struct ShadowVolumes::Traversal {
 
 struct ShadowVolumes::Impl {
     RTCDevice device = nullptr;
-    RTCScene casters = nullptr;  // the caster triangles (count_at)
+    std::shared_ptr<const BlockedScene> casters;  // the caster triangles (count_at, lit_at)
     std::vector<std::vector<int16_t>> weights;  // per light, per primitive
     std::vector<double> reach;                  // per light: the extrusion distance R
     // What R depends on besides the viewer (reach_for): per light the farthest caster vertex
@@ -203,7 +210,6 @@ struct ShadowVolumes::Impl {
 
     ~Impl() {
         traversals.clear();
-        if (casters) rtcReleaseScene(casters);
         if (device) rtcReleaseDevice(device);
     }
     void check(const char* what) const {
@@ -246,8 +252,6 @@ ShadowVolumes::ShadowVolumes(const TriangleMesh& casters, const std::vector<Shad
     impl_->device = rtcNewDevice(nullptr);
     if (!impl_->device) throw std::runtime_error("Embree: rtcNewDevice failed (shadow volumes)");
     rtcSetDeviceErrorFunction(impl_->device, embree_error, &impl_->error);
-    impl_->casters = rtcNewScene(impl_->device);
-    rtcSetSceneFlags(impl_->casters, RTC_SCENE_FLAG_ROBUST);
     impl_->weights.resize(lights.size());
     impl_->reach.resize(lights.size());
     impl_->vertex_far.resize(lights.size());
@@ -264,22 +268,15 @@ ShadowVolumes::ShadowVolumes(const TriangleMesh& casters, const std::vector<Shad
     const Vec3 pad(1e-5 * extent);  // above the floats' rounding of the vertices
     if (any_used) impl_->lo = clo - pad, impl_->hi = chi + pad;
 
-    if (nt > 0) {
-        RTCGeometry g = rtcNewGeometry(impl_->device, RTC_GEOMETRY_TYPE_TRIANGLE);
-        auto* vb = static_cast<float*>(
-            rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, 3 * sizeof(float), nv));
-        auto* ib = static_cast<uint32_t*>(
-            rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, 3 * sizeof(uint32_t), nt));
-        for (size_t k = 0; k < nv; ++k)
-            for (int c = 0; c < 3; ++c) vb[3 * k + c] = float(mesh.position[k][c]);
-        std::copy(mesh.triangles.begin(), mesh.triangles.end(), ib);
-        rtcSetGeometryIntersectFilterFunction(g, count_hits);
-        rtcCommitGeometry(g);
-        rtcAttachGeometry(impl_->casters, g);
-        rtcReleaseGeometry(g);
+    {
+        // The casters' triangles for the counts, in the frame's floats (those of the caps), each
+        // object a block whose BVH later builds share while it and the frame stay
+        // (image/embree_blocks.h): the welded triangles are the same triangles.
+        std::vector<float> shifted(casters.vertices.size());
+        for (size_t k = 0; k < shifted.size(); ++k) shifted[k] = float(double(casters.vertices[k]) - impl_->frame[int(k % 3)]);
+        impl_->casters = caster_blocks().scene(shifted.data(), shifted.size() / 3, casters.triangles.data(),
+                                               casters.triangles.size() / 3);
     }
-    rtcCommitScene(impl_->casters);
-    impl_->check("building the casters");
 
     // Every triangle's directed edges (p -> q, as wound), grouped by undirected edge (u < v) in
     // (u, v) order: each light sums its sides' orientations edge by edge from them, without a
@@ -571,7 +568,7 @@ int ShadowVolumes::count_at(int l, const Vec3& world_p, bool* ambiguous) const {
         ctx.count = 0;
         rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
         rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
-        rtcIntersect1(impl_->casters, &ctx.context, &rh);
+        if (impl_->casters->scene()) rtcIntersect1(impl_->casters->scene(), &ctx.context, &rh);
         counts[k] = ctx.count;
     }
     std::sort(counts, counts + 3);
@@ -584,7 +581,8 @@ bool ShadowVolumes::lit_at(int l, const Vec3& world_p) const {
     if (!light_ray(lights_[size_t(l)], impl_->reach[size_t(l)], world_p - impl_->frame, impl_->lo, impl_->hi, ray)) return true;
     RTCIntersectContext ctx;
     rtcInitIntersectContext(&ctx);
-    rtcOccluded1(impl_->casters, &ctx, &ray);  // the counting filter is an intersect filter only
+    if (!impl_->casters->scene()) return true;
+    rtcOccluded1(impl_->casters->scene(), &ctx, &ray);  // the counting filter is an intersect filter only
     return ray.tfar >= 0.0f;                    // set to -inf on a hit
 }
 
@@ -775,7 +773,10 @@ void ShadowVolumes::clear_shared() {
     SharedVolumes& s = shared_volumes();
     std::lock_guard<std::mutex> lock(s.mutex);
     s.kept.clear();
+    caster_blocks().clear();
 }
+
+long ShadowVolumes::caster_blocks_built() { return caster_blocks().blocks_built(); }
 
 long ShadowVolumes::shared_builds() {
     SharedVolumes& s = shared_volumes();

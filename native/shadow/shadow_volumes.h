@@ -128,6 +128,9 @@ class ShadowVolumes {
     static void clear_shared();
     // Builds of shared() so far (those it did not share), for tests and the stats.
     static long shared_builds();
+    // The BVHs of the casters' objects (image/embree_blocks.h) that builds of volumes built for
+    // their counts, the others shared with the volumes built before them.
+    static long caster_blocks_built();
     static constexpr size_t kKeptVolumes = 2;
     // Per light, the extrusion distance R (shadow_volumes.h) that volumes of these casters and
     // lights built for a camera at _viewer_ (the world) have.

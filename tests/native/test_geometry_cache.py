@@ -154,3 +154,55 @@ def test05_a_moved_light_caster_or_far_camera_builds_the_volumes_again():
     assert _native.shadow_volume_builds() == before + 4
     assert not np.array_equal(raised["airlight"], shadowed(v, t)["airlight"])
     assert not np.array_equal(soft["airlight"], moved_light["airlight"])
+
+
+def grid(n, x, y, z):
+    """A grid of n x n quads (2 n^2 triangles) over [x0, x1] x [y0, y1] at height _z_."""
+    xs, ys = np.meshgrid(np.linspace(*x, n + 1), np.linspace(*y, n + 1))
+    vertices = np.stack([xs.ravel(), ys.ravel(), np.full(xs.size, z)], axis=1).astype(np.float32)
+    a = (np.arange(n)[None, :] + (n + 1) * np.arange(n)[:, None]).ravel()
+    triangles = np.concatenate([np.stack([a, a + 1, a + n + 2], 1), np.stack([a, a + n + 2, a + n + 1], 1)])
+    return vertices, triangles.astype(np.uint32)
+
+
+def soup(parts):
+    """One soup of objects, each indexing its own vertices (as the add-on exports them)."""
+    vertices, triangles, base = [], [], 0
+    for v, t in parts:
+        vertices.append(v)
+        triangles.append(t + np.uint32(base))
+        base += len(v)
+    return np.concatenate(vertices), np.concatenate(triangles)
+
+
+def test07_a_moved_object_rebuilds_its_own_bvhs_only_bit_for_bit():
+    """Each object of the soup (a run that indexes only its own vertices) has its own BVH, for
+    the camera's rays and for the casters' counts (image/embree_blocks.h): an object that moves
+    builds those of its block again, the others are shared, and the bake is a fresh process's."""
+    floor = grid(130, (-4.0, 4.0), (-1.0, 7.0), -1.0)   # 33,800 triangles: a block of its own
+    wall = grid(130, (-4.0, 4.0), (-1.0, 7.0), -1.6)    # another, under the floor (seen through no hole)
+    box_v, box_t = BOX
+
+    def frame(box_shift):
+        # (Moved across, inside the grids' box: the volumes' frame, the casters' centre, stays.)
+        v, t = soup([floor, wall, (box_v + np.array([box_shift, box_shift, 0.0], np.float32), box_t)])
+        return bake(v, t, shadows=True, surface=True)
+
+    _native.clear_geometry_cache()
+    frame(0.0)
+    built = _native.geometry_blocks_built()
+    for shift in (0.1, 0.2):
+        before = _native.raycaster_builds()
+        moved = frame(shift)
+        after = _native.geometry_blocks_built()
+        # The box joins the last grid's block (blocks have at least kMinBlockTriangles).
+        assert after["camera"] == built["camera"] + 1
+        assert after["casters"] == built["casters"] + 1
+        assert _native.raycaster_builds() == before + 1
+        built = after
+        _native.clear_geometry_cache()
+        alone = frame(shift)
+        built = _native.geometry_blocks_built()
+        for name in ("depth", "airlight", "surface_glow"):
+            np.testing.assert_array_equal(moved[name], alone[name])
+    assert not np.array_equal(frame(0.0)["airlight"], alone["airlight"])

@@ -1,0 +1,257 @@
+// embree_blocks.cpp: see embree_blocks.h.
+#include "image/embree_blocks.h"
+
+#include <algorithm>
+#include <cstring>
+#include <limits>
+#include <stdexcept>
+#include <string>
+
+namespace airlight {
+
+namespace {
+
+// The first error Embree reported on the blocks' device since the last take().
+struct DeviceErrors {
+    std::mutex mutex;
+    std::string message;
+    std::string take() {
+        std::lock_guard<std::mutex> lock(mutex);
+        std::string out;
+        out.swap(message);
+        return out;
+    }
+};
+
+DeviceErrors& device_errors() {
+    static DeviceErrors errors;
+    return errors;
+}
+
+void record_error(void*, RTCError code, const char* str) {
+    DeviceErrors& errors = device_errors();
+    std::lock_guard<std::mutex> lock(errors.mutex);
+    if (errors.message.empty())
+        errors.message = std::string(str ? str : "unknown error") + " (code " + std::to_string(int(code)) + ")";
+}
+
+// One device for every block and blocked scene (instances must share their scenes' device).
+// Never released: kept scenes outlive main() in static caches.
+RTCDevice blocks_device() {
+    static RTCDevice device = [] {
+        RTCDevice d = rtcNewDevice(nullptr);
+        if (!d)
+            throw std::runtime_error("Embree: rtcNewDevice failed (error " +
+                                     std::to_string(int(rtcGetDeviceError(nullptr))) + ")");
+        rtcSetDeviceErrorFunction(d, record_error, nullptr);
+        return d;
+    }();
+    return device;
+}
+
+void check(const char* what) {
+    const std::string message = device_errors().take();
+    if (!message.empty()) throw std::runtime_error(std::string("Embree: ") + what + ": " + message);
+}
+
+uint64_t mix(uint64_t h, uint32_t word) {
+    h ^= word;
+    h *= 0x100000001B3ull;  // FNV-1a's prime, on whole words
+    return h;
+}
+
+}  // namespace
+
+// One block: its vertices and triangles (indices into its own vertices) and their BVH.
+struct BlockedScene::Block {
+    std::vector<float> vertices;
+    std::vector<uint32_t> triangles;
+    uint64_t hash = 0;
+    RTCScene scene = nullptr;
+    ~Block() {
+        if (scene) rtcReleaseScene(scene);
+    }
+    // Whether this block holds exactly _b_ of the soup.
+    bool equals(const float* soup_vertices, const uint32_t* soup_triangles, const SoupBlock& b) const {
+        const size_t nv = size_t(b.vertex_end - b.vertex_begin), nt = b.tri_end - b.tri_begin;
+        if (vertices.size() != 3 * nv || triangles.size() != 3 * nt) return false;
+        if (std::memcmp(vertices.data(), soup_vertices + 3 * size_t(b.vertex_begin), 3 * nv * sizeof(float)) != 0)
+            return false;
+        const uint32_t* t = soup_triangles + 3 * b.tri_begin;
+        for (size_t k = 0; k < 3 * nt; ++k)
+            if (triangles[k] != t[k] - b.vertex_begin) return false;
+        return true;
+    }
+};
+
+namespace {
+
+uint64_t block_hash(const float* vertices, const uint32_t* triangles, const SoupBlock& b) {
+    uint64_t h = 0xCBF29CE484222325ull;
+    h = mix(h, b.vertex_end - b.vertex_begin);
+    h = mix(h, uint32_t(b.tri_end - b.tri_begin));
+    const float* v = vertices + 3 * size_t(b.vertex_begin);
+    for (size_t k = 0; k < 3 * size_t(b.vertex_end - b.vertex_begin); ++k) {
+        uint32_t bits;
+        std::memcpy(&bits, v + k, sizeof(bits));
+        h = mix(h, bits);
+    }
+    const uint32_t* t = triangles + 3 * b.tri_begin;
+    for (size_t k = 0; k < 3 * (b.tri_end - b.tri_begin); ++k) h = mix(h, t[k] - b.vertex_begin);
+    return h;
+}
+
+}  // namespace
+
+std::vector<SoupBlock> soup_blocks(const uint32_t* triangles, size_t n_triangles, size_t min_triangles) {
+    std::vector<SoupBlock> out;
+    if (n_triangles == 0) return out;
+    auto tri_min = [&](size_t k) { return std::min({triangles[3 * k], triangles[3 * k + 1], triangles[3 * k + 2]}); };
+    auto tri_max = [&](size_t k) { return std::max({triangles[3 * k], triangles[3 * k + 1], triangles[3 * k + 2]}); };
+    // suffix[k]: the smallest index of triangles k.. (a cut before k needs every earlier index below it).
+    std::vector<uint32_t> suffix(n_triangles);
+    suffix[n_triangles - 1] = tri_min(n_triangles - 1);
+    for (size_t k = n_triangles - 1; k-- > 0;) suffix[k] = std::min(suffix[k + 1], tri_min(k));
+    // The runs between seams.
+    std::vector<SoupBlock> runs;
+    SoupBlock run{0, 0, suffix[0], 0};
+    uint32_t seen_max = 0;  // the largest index of the triangles before k
+    for (size_t k = 0; k < n_triangles; ++k) {
+        if (k > run.tri_begin && seen_max < suffix[k]) {
+            run.tri_end = k;
+            run.vertex_end = seen_max + 1;
+            runs.push_back(run);
+            run = SoupBlock{k, 0, suffix[k], 0};
+        }
+        seen_max = std::max(seen_max, tri_max(k));
+    }
+    run.tri_end = n_triangles;
+    run.vertex_end = seen_max + 1;
+    runs.push_back(run);
+    // A run of min_triangles or more is a block; the runs between such join into blocks of at
+    // least min_triangles (a small object's block is not a large neighbour's).
+    auto size = [](const SoupBlock& r) { return r.tri_end - r.tri_begin; };
+    bool open = false;
+    for (const SoupBlock& r : runs) {
+        if (size(r) >= min_triangles) {
+            out.push_back(r);
+            open = false;
+            continue;
+        }
+        if (open) {
+            out.back().tri_end = r.tri_end;
+            out.back().vertex_end = r.vertex_end;
+        } else {
+            out.push_back(r);
+            open = true;
+        }
+        if (size(out.back()) >= min_triangles) open = false;
+    }
+    return out;
+}
+
+BlockedScene::~BlockedScene() {
+    if (scene_) rtcReleaseScene(scene_);
+}
+
+BlockCache::BlockCache(RTCBuildQuality quality, RTCFilterFunctionN filter) : quality_(quality), filter_(filter) {}
+
+BlockCache::~BlockCache() = default;
+
+void BlockCache::clear() {
+    std::lock_guard<std::mutex> lock(mutex_);
+    last_.reset();
+    kept_.clear();
+}
+
+long BlockCache::blocks_built() const {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return built_;
+}
+
+std::shared_ptr<const BlockedScene> BlockCache::scene(const float* vertices, size_t n_vertices,
+                                                      const uint32_t* triangles, size_t n_triangles,
+                                                      const std::function<void()>& before_build) {
+    if (n_vertices > size_t(std::numeric_limits<uint32_t>::max()))
+        throw std::invalid_argument("Embree blocks: more than 2^32 vertices");
+    const RTCDevice device = blocks_device();
+    const std::vector<SoupBlock> cuts = soup_blocks(triangles, n_triangles, kMinBlockTriangles);
+    for (size_t k = 0; k < 3 * n_triangles; ++k)
+        if (triangles[k] >= n_vertices) throw std::invalid_argument("Embree blocks: a triangle index past the vertices");
+    std::lock_guard<std::mutex> lock(mutex_);
+    // Each block's kept match, if any.
+    std::vector<std::shared_ptr<const BlockedScene::Block>> blocks(cuts.size());
+    std::vector<uint64_t> hashes(cuts.size());
+    std::vector<char> used(kept_.size(), 0);
+    bool all_kept = last_ && cuts.size() == kept_.size();
+    for (size_t b = 0; b < cuts.size(); ++b) {
+        hashes[b] = block_hash(vertices, triangles, cuts[b]);
+        for (size_t k = 0; k < kept_.size(); ++k)
+            if (!used[k] && kept_[k]->hash == hashes[b] && kept_[k]->equals(vertices, triangles, cuts[b])) {
+                blocks[b] = kept_[k];
+                used[k] = 1;
+                break;
+            }
+        all_kept = all_kept && blocks[b] == kept_[b];
+    }
+    if (all_kept) return last_;
+    // (The memory of the blocks not shared goes before the new ones are built.)
+    if (before_build) before_build();
+    last_.reset();
+    kept_.clear();
+    for (size_t b = 0; b < cuts.size(); ++b) {
+        if (blocks[b]) continue;
+        const SoupBlock& c = cuts[b];
+        auto block = std::make_shared<BlockedScene::Block>();
+        const size_t nv = size_t(c.vertex_end - c.vertex_begin), nt = c.tri_end - c.tri_begin;
+        block->vertices.assign(vertices + 3 * size_t(c.vertex_begin), vertices + 3 * (size_t(c.vertex_begin) + nv));
+        block->triangles.resize(3 * nt);
+        for (size_t k = 0; k < 3 * nt; ++k) block->triangles[k] = triangles[3 * c.tri_begin + k] - c.vertex_begin;
+        block->hash = hashes[b];
+        RTCGeometry g = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_TRIANGLE);
+        // (Embree reads the block's own arrays; it pads the vertex buffer's end: one spare.)
+        block->vertices.reserve(block->vertices.size() + 4);
+        rtcSetSharedGeometryBuffer(g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, block->vertices.data(), 0,
+                                   3 * sizeof(float), nv);
+        rtcSetSharedGeometryBuffer(g, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, block->triangles.data(), 0,
+                                   3 * sizeof(uint32_t), nt);
+        if (filter_) rtcSetGeometryIntersectFilterFunction(g, filter_);
+        rtcCommitGeometry(g);
+        block->scene = rtcNewScene(device);
+        rtcSetSceneFlags(block->scene, RTC_SCENE_FLAG_ROBUST);
+        rtcSetSceneBuildQuality(block->scene, quality_);
+        rtcAttachGeometry(block->scene, g);
+        rtcReleaseGeometry(g);
+        rtcCommitScene(block->scene);
+        check("building a block of the scene");
+        blocks[b] = std::move(block);
+        ++built_;
+    }
+    std::shared_ptr<BlockedScene> out(new BlockedScene());
+    out->blocks_ = blocks;
+    if (blocks.size() == 1) {
+        rtcRetainScene(blocks[0]->scene);
+        out->scene_ = blocks[0]->scene;
+    } else if (blocks.size() > 1) {
+        // Identity instances (column-major 3x4): Embree's transform of a ray by them is exact.
+        static const float identity[12] = {1, 0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0};
+        out->scene_ = rtcNewScene(device);
+        rtcSetSceneFlags(out->scene_, RTC_SCENE_FLAG_ROBUST);
+        for (const auto& block : blocks) {
+            RTCGeometry g = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_INSTANCE);
+            rtcSetGeometryInstancedScene(g, block->scene);
+            rtcSetGeometryTimeStepCount(g, 1);
+            rtcSetGeometryTransform(g, 0, RTC_FORMAT_FLOAT3X4_COLUMN_MAJOR, identity);
+            rtcCommitGeometry(g);
+            rtcAttachGeometry(out->scene_, g);
+            rtcReleaseGeometry(g);
+        }
+        rtcCommitScene(out->scene_);
+        check("building the scene's instances");
+    }
+    kept_ = std::move(blocks);
+    last_ = out;
+    return out;
+}
+
+}  // namespace airlight
