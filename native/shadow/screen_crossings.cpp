@@ -42,8 +42,8 @@ ScreenCrossings::ScreenCrossings(const ShadowVolumes& volumes, const Vec3& viewe
     size_t n_faces = 0;
     for (int l = 0; l < volumes.num_lights(); ++l) {
         const ShadowFaces& sf = volumes.faces(l);
-        const size_t left_out = std::isfinite(cap_reach) ? std::min(sf.n_seen_caps, sf.whole_weights.size()) : 0;
-        n_faces += sf.whole_weights.size() - left_out;
+        const size_t left_out = std::isfinite(cap_reach) ? std::min(sf.n_seen_caps, sf.n_whole()) : 0;
+        n_faces += sf.n_whole() - left_out;
     }
     if (double(n_faces) > std::max(double(kMinFacesForFallback), max_faces_per_pixel * double(W) * double(H))) return;
     const glm::dmat3 M(Dx, Dy, D0);  // columns: q = M^-1 P has q.z > 0 ahead of the viewer
@@ -63,9 +63,9 @@ ScreenCrossings::ScreenCrossings(const ShadowVolumes& volumes, const Vec3& viewe
         for (size_t k = 0; k < q.size(); ++k) P[k] = sf.vertices[k] - eye, q[k] = Minv * P[k];
         // The whole sides (one quad each, not ring by ring): the same tiling of the film, with
         // a third or less of the faces.
-        for (size_t t = 0; t < sf.whole_weights.size(); ++t) {
-            const uint32_t i0 = sf.whole_triangles[3 * t], i1 = sf.whole_triangles[3 * t + 1],
-                           i2 = sf.whole_triangles[3 * t + 2];
+        for (size_t t = 0; t < sf.n_whole(); ++t) {
+            const uint32_t* tri = sf.whole_triangle(t);
+            const uint32_t i0 = tri[0], i1 = tri[1], i2 = tri[2];
             const Vec3 &q0 = q[i0], &q1 = q[i1], &q2 = q[i2];
             if (!(q0.z > 0.0 || q1.z > 0.0 || q2.z > 0.0)) continue;  // wholly behind the viewer
             const Vec3 &P0 = P[i0], &P1 = P[i1], &P2 = P[i2];
@@ -86,7 +86,7 @@ ScreenCrossings::ScreenCrossings(const ShadowVolumes& volumes, const Vec3& viewe
             const double near = origin_distance(P0, P1, P2);
             f.near = float(near * (1.0 - 1e-6));
             f.light = int16_t(l);
-            const int w = sf.whole_weights[t];
+            const int w = sf.whole_weight(t);
             f.dw = int16_t(f.NP0 < 0.0 ? w : -w);  // against the normal: entering (record_crossings)
             faces.push_back(f);
             Box b;  // empty (x0 > x1) unless all three vertices lie ahead of the viewer

@@ -177,7 +177,6 @@ struct ShadowVolumes::Traversal {
 struct ShadowVolumes::Impl {
     RTCDevice device = nullptr;
     std::shared_ptr<const BlockedScene> casters;  // the caster triangles (count_at, lit_at)
-    std::vector<std::vector<int16_t>> weights;  // per light, per primitive
     std::vector<double> reach;                  // per light: the extrusion distance R
     // What R depends on besides the viewer (reach_for): per light the farthest caster vertex
     // (suns: the extent; 0 without casters), the box of the casters and point lights.
@@ -252,7 +251,6 @@ ShadowVolumes::ShadowVolumes(const TriangleMesh& casters, const std::vector<Shad
     impl_->device = rtcNewDevice(nullptr);
     if (!impl_->device) throw std::runtime_error("Embree: rtcNewDevice failed (shadow volumes)");
     rtcSetDeviceErrorFunction(impl_->device, embree_error, &impl_->error);
-    impl_->weights.resize(lights.size());
     impl_->reach.resize(lights.size());
     impl_->vertex_far.resize(lights.size());
     impl_->faces.resize(lights.size());
@@ -388,34 +386,39 @@ ShadowVolumes::ShadowVolumes(const TriangleMesh& casters, const std::vector<Shad
             const double limit = reach_scale[ring_slot[k]];
             return r == rings ? limit : std::min(std::pow(kRingGrowth, r), limit);
         };
-        std::vector<float> vb(3 * (nv + size_t(rings) * n_ringed));
-        for (size_t k = 0; k < nv; ++k)
-            for (int c = 0; c < 3; ++c) vb[3 * k + c] = float(mesh.position[k][c]);
+        // (In Embree's floats. Written once each: at 1e7 triangles a light's volume was half
+        // page faults, zeroing and copies of its arrays.)
+        ShadowFaces& faces = impl_->faces[l];
+        std::vector<Vec3>& vertices = faces.vertices;
+        auto as_float = [](const Vec3& p) { return Vec3(float(p.x), float(p.y), float(p.z)); };
+        vertices.reserve(nv + size_t(rings) * n_ringed);
+        for (size_t k = 0; k < nv; ++k) vertices.push_back(as_float(mesh.position[k]));
+        vertices.resize(nv + size_t(rings) * n_ringed);
         for (const uint32_t k : ringed) {
             const Vec3 p = mesh.position[k];
             const double dp = light.directional ? extent : std::max(glm::length(p - s), 1e-300);
             for (int r = 1; r <= rings; ++r) {
                 const double scale = scale_at(r, k);
                 const Vec3 f = light.directional ? p + (dp * (scale - 1.0)) * w : s + (p - s) * scale;
-                for (int c = 0; c < 3; ++c) vb[3 * size_t(ring_vertex(r, k)) + c] = float(f[c]);
+                vertices[ring_vertex(r, k)] = as_float(f);
             }
         }
         // Whether vertex k's ring r + 1 is where its ring r is (both at R).
         auto stays = [&](int r, uint32_t k) { return r >= 1 && scale_at(r + 1, k) == scale_at(r, k); };
         const size_t n_sides = 2 * silhouette.size();  // triangles: two a quad
-        std::vector<uint32_t> ib;
-        ib.reserve(caps.size() + 3 * n_sides * size_t(rings));
-        ib = caps;
-        std::vector<int16_t>& weights = impl_->weights[l];
-        weights.reserve(caps.size() / 3 + n_sides * size_t(rings));
-        weights.assign(caps.size() / 3, 1);
-        // The same volume with each side one quad from the casters to R (ShadowFaces::whole).
-        std::vector<uint32_t> whole;
-        whole.reserve(caps.size() + 3 * n_sides);
-        whole = caps;
-        std::vector<int16_t> whole_weights;
-        whole_weights.reserve(caps.size() / 3 + n_sides);
-        whole_weights.assign(caps.size() / 3, 1);
+        std::vector<uint32_t>& ib = faces.triangles;  // the caps, then the sides ring by ring
+        ib = std::move(caps);
+        ib.reserve(ib.size() + 3 * n_sides * size_t(rings));
+        faces.n_caps = ib.size() / 3;
+        faces.n_seen_caps = n_seen_caps;
+        std::vector<int16_t>& weights = faces.weights;
+        weights.reserve(faces.n_caps + n_sides * size_t(rings));
+        weights.assign(faces.n_caps, 1);
+        // The same sides each one quad from the casters to R (ShadowFaces::whole_sides).
+        std::vector<uint32_t>& whole = faces.whole_sides;
+        whole.reserve(3 * n_sides);
+        std::vector<int16_t>& whole_weights = faces.whole_side_weights;
+        whole_weights.reserve(n_sides);
         for (const auto& [key, weight] : silhouette) {
             const int16_t m = int16_t(std::min(std::abs(weight), int(std::numeric_limits<int16_t>::max())));
             const uint32_t k_u = uint32_t(key >> 32), k_v = uint32_t(key & 0xffffffffu);
@@ -442,18 +445,8 @@ ShadowVolumes::ShadowVolumes(const TriangleMesh& casters, const std::vector<Shad
             whole_weights.push_back(m);
             whole_weights.push_back(m);
         }
-        ShadowFaces& faces = impl_->faces[l];
-        faces.vertices.resize(vb.size() / 3);
-        for (size_t k = 0; k < faces.vertices.size(); ++k)
-            faces.vertices[k] = Vec3(vb[3 * k], vb[3 * k + 1], vb[3 * k + 2]);  // Embree's floats
-        faces.triangles = std::move(ib);
-        faces.weights = weights;
-        faces.n_caps = caps.size() / 3;
-        faces.n_seen_caps = n_seen_caps;
-        faces.whole_triangles = std::move(whole);
-        faces.whole_weights = std::move(whole_weights);
     });
-    for (const std::vector<int16_t>& weights : impl_->weights) n_faces_ += weights.size();
+    for (const ShadowFaces& faces : impl_->faces) n_faces_ += faces.weights.size();
 }
 
 double origin_distance(const Vec3& a, const Vec3& b, const Vec3& c) {
@@ -503,7 +496,7 @@ std::shared_ptr<const ShadowVolumes::Traversal> ShadowVolumes::traversal(const C
     std::vector<uint32_t> triangles;
     for (size_t l = 0; l < impl_->faces.size(); ++l) {
         const ShadowFaces& faces = impl_->faces[l];
-        const std::vector<int16_t>& weights = impl_->weights[l];
+        const std::vector<int16_t>& weights = faces.weights;
         triangles.clear();
         triangles.reserve(faces.triangles.size());
         t.weights[l].reserve(weights.size());

@@ -82,10 +82,16 @@ struct ShadowFaces {
     // (ShadowVolumes' _seen_triangles_): the only caps a cut may leave out.
     size_t n_seen_caps = 0;
     // The same volume with each side quad whole, from the caster's edge to the last ring
-    // (Embree's float intersection needs the rings; a test in doubles does not): the caps,
-    // then two triangles per side, and their weights.
-    std::vector<uint32_t> whole_triangles;
-    std::vector<int16_t> whole_weights;
+    // (Embree's float intersection needs the rings; a test in doubles does not): the caps
+    // (the first n_caps triangles), then two triangles per side, whose indices and weights
+    // are these (whole_triangle, whole_weight).
+    std::vector<uint32_t> whole_sides;
+    std::vector<int16_t> whole_side_weights;
+    size_t n_whole() const { return n_caps + whole_side_weights.size(); }
+    const uint32_t* whole_triangle(size_t t) const {
+        return t < n_caps ? &triangles[3 * t] : &whole_sides[3 * (t - n_caps)];
+    }
+    int whole_weight(size_t t) const { return t < n_caps ? weights[t] : whole_side_weights[t - n_caps]; }
 };
 
 // The distance from the origin to triangle a b c (Ericson, Real-Time Collision Detection 5.1.5).

@@ -207,7 +207,7 @@ TEST(ShadowVolumes, AnyThreadCountBuildsTheSameVolumes) {
         EXPECT_EQ(one.faces(l).vertices, three.faces(l).vertices);
         EXPECT_EQ(one.faces(l).triangles, three.faces(l).triangles);
         EXPECT_EQ(one.faces(l).weights, three.faces(l).weights);
-        EXPECT_EQ(one.faces(l).whole_triangles, three.faces(l).whole_triangles);
+        EXPECT_EQ(one.faces(l).whole_sides, three.faces(l).whole_sides);
         EXPECT_GT(one.faces(l).triangles.size(), one.faces(l).n_caps * 3);
         for (const Vec3& p : {Vec3(1.0, 1.0, -1.0), Vec3(-2.0, 3.0, 0.2), Vec3(0.5, -0.5, 2.5)})
             EXPECT_EQ(one.count_at(l, p), three.count_at(l, p));
