@@ -7,10 +7,12 @@ Per N, in one Blender process: a grid of N triangles over the street (it casts s
 the camera sees it), then bakes of the frame as `-a` makes them (bake.bake_frame, volumetric
 shadows on, the soft-shadow probe remembered after the first): the first (geometry BVH and
 shadow volumes built), the same frame again (both shared: image/raycast.h,
-shadow/shadow_volumes.h), one after a lamp post moved (both built again), and, once the
-post is back, one after the camera moved half a metre (both shared). Printed per bake,
-in ms: the Python export (bake.prepare: foreach_get of every mesh, world transform, the
-soup), the native bake, and the whole bake_frame.
+shadow/shadow_volumes.h), one after a lamp post moved (its object's BVH built again:
+image/embree_blocks.h; the volumes built again), one after it moved back (its BVH built
+again, the volumes of before shared), and one after the camera moved half a metre (both
+shared). Printed per bake, in ms: the Python export (bake.prepare: foreach_get of every
+mesh, world transform, the soup), the native bake with its BVH and shadow volumes
+(stats seconds_geometry, seconds_shadow_volumes), and the whole bake_frame.
 """
 
 import argparse
@@ -40,6 +42,7 @@ def _frame(scene, what):
     _, stats, _ = bake.bake_frame(scene, depsgraph, os.path.join(bpy.app.tempdir, "heavy.exr"))
     total = time.perf_counter() - t0
     print(f"  {what:32s} export {1e3 * stats['seconds_export']:7.0f}  native {1e3 * stats['seconds_native']:7.0f}  "
+          f"(BVH {1e3 * stats['seconds_geometry']:6.0f}  volumes {1e3 * stats['seconds_shadow_volumes']:6.0f})  "
           f"bake_frame {1e3 * total:7.0f}", flush=True)
 
 
@@ -62,7 +65,7 @@ def main():
         post.location.x += 0.01
         _frame(scene, "after an object moved")
         post.location.x -= 0.01
-        _frame(scene, "the same frame again")
+        _frame(scene, "the object moved back")
         scene.camera.location.x += 0.5
         _frame(scene, "after the camera moved")
         scene.camera.location.x -= 0.5

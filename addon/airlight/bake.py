@@ -612,9 +612,10 @@ def parts_line(stats):
     (its tables' first build, ray casting, fog, surfaces) and the EXR."""
     ms = lambda key: 1000.0 * float(stats.get(key, 0.0))  # noqa: E731
     native_ms = ms("seconds_native")
-    parts = [f"export {ms('seconds_export'):.0f} ms", f"native bake {native_ms:.0f} ms (setup and tables "
-             f"{ms('seconds_fog_setup'):.0f}, rays {ms('seconds_raycast'):.0f}, fog {ms('seconds_airlight'):.0f}, "
-             f"surfaces {ms('seconds_surface'):.0f})",
+    volumes = f" of which shadow volumes {ms('seconds_shadow_volumes'):.0f}" if ms("seconds_shadow_volumes") >= 1 else ""
+    parts = [f"export {ms('seconds_export'):.0f} ms", f"native bake {native_ms:.0f} ms (BVH "
+             f"{ms('seconds_geometry'):.0f}, setup and tables {ms('seconds_fog_setup'):.0f}{volumes}, rays "
+             f"{ms('seconds_raycast'):.0f}, fog {ms('seconds_airlight'):.0f}, surfaces {ms('seconds_surface'):.0f})",
              "EXR written beside the render" if stats.get("exr_deferred") else f"EXR {ms('seconds_exr'):.0f} ms"]
     if "seconds_light_passes" in stats:
         parts.append(f"light passes {ms('seconds_light_passes'):.0f} ms")

@@ -36,7 +36,9 @@ BakeResult bake(const SceneDescription& scene, const BakeSettings& settings, con
     if (model_entry_.bake) return model_entry_.bake(scene, settings, progress);  // whole-image models
 
     BakeResult result;
+    const auto geometry_start = Clock::now();
     BakeContext ctx(scene, settings, progress, result);
+    result.stats.seconds_geometry = seconds_since(geometry_start);
     if (progress && !progress(0.0)) throw Cancelled();
     raycast_pass(ctx);
 
@@ -44,6 +46,7 @@ BakeResult bake(const SceneDescription& scene, const BakeSettings& settings, con
     const std::unique_ptr<FogModel> model = model_entry_.make(scene, settings);
     const FogEvaluator fog(scene, settings, *model, !ctx.rays.orthographic(), ctx.rays.position());
     result.stats.seconds_fog_setup = seconds_since(fog_setup_start);
+    result.stats.seconds_shadow_volumes = fog.seconds_shadow_volumes();
 
     const auto start = Clock::now();
     const bool splatted = ctx.affine && fog.splat() != nullptr;

@@ -105,6 +105,11 @@ struct BakeStats {
     // fog objects' medium and cull hierarchy, the splat's per-(light, Gaussian) optical
     // depths, the model's tables on first use), outside both.
     double seconds_fog_setup = 0.0;
+    // The camera's BVH before the raycast (RayCaster::shared: the objects that changed built,
+    // the others shared), and inside seconds_fog_setup the shadow volumes and their casters'
+    // BVH (ShadowVolumes::shared; 0 when shared or without volumetric shadows).
+    double seconds_geometry = 0.0;
+    double seconds_shadow_volumes = 0.0;
     // Gaussian refinement (settings.gaussian_accuracy > 0): the (light, Gaussian) pairs, those
     // refined, the largest bound on Fogshop's error of a pair left to it, and the wall time of
     // the centre samples' refinement inside seconds_airlight (edge samples not counted).

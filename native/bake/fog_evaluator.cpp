@@ -2,6 +2,7 @@
 #include "bake/fog_evaluator.h"
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <functional>
 #include <sstream>
@@ -529,7 +530,9 @@ void FogEvaluator::set_up_shadows(const SceneDescription& scene, const BakeSetti
     for (const LightData& light : lights_) light_peak_.push_back(std::max({light.weight.x, light.weight.y, light.weight.z}));
     // The casters the camera's rays end on: all of them, or the occluders' leading ones.
     const size_t seen = scene.occluders_from_geometry ? casters.triangles.size() / 3 : scene.occluders_seen_triangles;
+    const auto volumes_start = std::chrono::steady_clock::now();
     shadows_ = ShadowVolumes::shared(casters, lights, origin_, seen, resolve_threads(settings.threads));
+    seconds_shadow_volumes_ = std::chrono::duration<double>(std::chrono::steady_clock::now() - volumes_start).count();
     if (shared_origin_) {
         // An eye on a frustum boundary (in the plane of a light and a caster's edge) has no
         // one count for all its rays: each ray then counts at its own start (lit_intervals).

@@ -104,6 +104,8 @@ class FogEvaluator {
     // soft-shadow samples, the first sample's volume (the surfaces' glow takes its shadow from
     // that point of the sphere or the sun's disk: the one nearest its centre).
     const ShadowVolumes* shadow_volumes() const { return shadows_.get(); }
+    // The wall time of getting the shadow volumes (built or shared) in the constructor.
+    double seconds_shadow_volumes() const { return seconds_shadow_volumes_; }
     const std::vector<int>& scene_point_volumes() const { return scene_point_volume_; }
     const std::vector<int>& scene_spot_volumes() const { return scene_spot_volume_; }
     const std::vector<int>& scene_sun_volumes() const { return scene_sun_volume_; }
@@ -279,6 +281,7 @@ class FogEvaluator {
     std::vector<GaussianSunData> gaussian_suns_;
     std::unique_ptr<GaussianSplat> splat_;
     std::shared_ptr<const ShadowVolumes> shadows_;  // (ShadowVolumes::shared)
+    double seconds_shadow_volumes_ = 0.0;
     // The volumes' faces binned on the film, for rays from the shared origin whose film
     // positions are known (null: other cameras, or too many faces).
     std::unique_ptr<ScreenCrossings> screen_;

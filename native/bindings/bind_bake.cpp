@@ -368,6 +368,8 @@ py::dict bake_py(int width, int height, const py::object& cam_to_world, const py
                    "samples"_a = result.stats.samples, "seconds_surface"_a = result.stats.seconds_surface,
                    "seconds_edges"_a = result.stats.seconds_edges, "seconds_bin"_a = result.stats.seconds_bin,
                    "seconds_fog_setup"_a = result.stats.seconds_fog_setup,
+                   "seconds_geometry"_a = result.stats.seconds_geometry,
+                   "seconds_shadow_volumes"_a = result.stats.seconds_shadow_volumes,
                    "gaussian_pairs"_a = result.stats.gaussian_pairs,
                    "gaussian_refined_pairs"_a = result.stats.gaussian_refined_pairs,
                    "gaussian_kept_bound"_a = result.stats.gaussian_kept_bound,
@@ -622,7 +624,9 @@ orthographic cameras, to the first hit inside the clip range; inf where none), s
 seconds_airlight, supersampled_pixels, samples, seconds_surface, seconds_edges: the edge
 supersampling's time summed over the worker threads, seconds_bin: fog objects' binning into
 tiles and far-field grids, seconds_fog_setup: building the fog model between the raycast
-and the airlight pass)); rows top first. Raises
+and the airlight pass, seconds_geometry: the camera's BVH before the raycast (built for the
+objects that changed since the last bake, shared for the others), seconds_shadow_volumes:
+the shadow volumes and their casters' BVH inside seconds_fog_setup)); rows top first. Raises
 ValueError on invalid input. The GIL is released while baking.)doc");
 
     m.def(
