@@ -225,8 +225,28 @@ def bounds_frame(scene, depsgraph=None):
                               float(cam.data.clip_start))
 
 
+def _mesh_arrays(mesh):
+    """Vertices (N,3) float32 and loop triangles (M,3) int32 of _mesh_, or None when empty."""
+    n_verts = len(mesh.vertices)
+    n_tris = len(mesh.loop_triangles)
+    if n_verts == 0 or n_tris == 0:
+        return None
+    verts = np.empty(n_verts * 3, dtype=np.float32)
+    mesh.vertices.foreach_get("co", verts)
+    tris = np.empty(n_tris * 3, dtype=np.int32)
+    mesh.loop_triangles.foreach_get("vertices", tris)
+    return verts.reshape(-1, 3), tris.reshape(-1, 3)
+
+
 def mesh_arrays(obj_eval):
-    """Local-space vertices (N,3) float32 and triangles (M,3) uint32 of an evaluated object."""
+    """Local-space vertices (N,3) float32 and triangles (M,3) int32 of an evaluated object."""
+    if obj_eval.type == 'MESH' and obj_eval.mode == 'OBJECT':
+        # An evaluated mesh object's data is its mesh with the modifiers applied: read in place,
+        # without to_mesh()'s copy (1e7 triangles: 1.2-1.9 s against 3.0-3.4 s). In Edit Mode
+        # it is the edit mesh's wrapper, without vertices: to_mesh() below.
+        arrays = _mesh_arrays(obj_eval.data)
+        if arrays is not None:
+            return arrays
     try:
         mesh = obj_eval.to_mesh()
     except RuntimeError:
@@ -235,15 +255,7 @@ def mesh_arrays(obj_eval):
         return None
     try:
         mesh.calc_loop_triangles()
-        n_verts = len(mesh.vertices)
-        n_tris = len(mesh.loop_triangles)
-        if n_verts == 0 or n_tris == 0:
-            return None
-        verts = np.empty(n_verts * 3, dtype=np.float32)
-        mesh.vertices.foreach_get("co", verts)
-        tris = np.empty(n_tris * 3, dtype=np.int32)
-        mesh.loop_triangles.foreach_get("vertices", tris)
-        return verts.reshape(-1, 3), tris.reshape(-1, 3)
+        return _mesh_arrays(mesh)
     finally:
         obj_eval.to_mesh_clear()
 

@@ -202,3 +202,34 @@ def test06_bad_objects_are_named(tmp_path, label, mutate, message):
     if label == "negative power":
         bpy.data.lights["Lamp"].airlight.participate = False
         scene_export.export_scene(scene, bpy.context.evaluated_depsgraph_get())
+
+
+def test07_meshes_export_their_evaluated_geometry_in_every_mode(tmp_path):
+    """A mesh object's triangles come from its evaluated mesh (modifiers applied) read in place,
+    and in Edit Mode, where that mesh is the edit mesh's wrapper without vertices, from a copy:
+    the edited vertices, never an empty or stale mesh. Checked against the modifier's own
+    counts and the edit's displacement."""
+    scene = build_plane_scene(tmp_path)
+    smooth = _cube("Smooth", (3.0, -5.0, 1.0), scene.collection)
+    smooth.modifiers.new("Subdivision", 'SUBSURF').levels = 2  # 6 quads -> 96 quads: 192 triangles
+    edited = _cube("Edited", (-3.0, -5.0, 1.0), scene.collection)
+    edited.data = edited.data.copy()
+    depsgraph = bpy.context.evaluated_depsgraph_get()
+    arrays = scene_description.mesh_arrays(smooth.evaluated_get(depsgraph))
+    assert arrays is not None and arrays[1].shape == (192, 3) and len(arrays[0]) == 98
+    bpy.context.view_layer.objects.active = edited
+    edited.select_set(True)
+    bpy.ops.object.mode_set(mode='EDIT')
+    try:
+        bpy.ops.mesh.select_all(action='SELECT')
+        bpy.ops.transform.translate(value=(0.0, 0.0, 2.0))
+        depsgraph = bpy.context.evaluated_depsgraph_get()
+        evaluated = edited.evaluated_get(depsgraph)
+        assert evaluated.mode == 'EDIT'
+        vertices, triangles = scene_description.mesh_arrays(evaluated)
+        assert triangles.shape == (12, 3)
+        np.testing.assert_allclose(np.sort(np.unique(vertices[:, 2])), [1.0, 3.0])  # local z moved by 2
+        _, world, _, _ = scene_description.export_instances(depsgraph)
+        assert world[:, 2].max() == pytest.approx(4.0)  # the edited cube's top, in the world
+    finally:
+        bpy.ops.object.mode_set(mode='OBJECT')
