@@ -271,7 +271,10 @@ ShadowVolumes::ShadowVolumes(const TriangleMesh& casters, const std::vector<Shad
         // object a block whose BVH later builds share while it and the frame stay
         // (image/embree_blocks.h): the welded triangles are the same triangles.
         std::vector<float> shifted(casters.vertices.size());
-        for (size_t k = 0; k < shifted.size(); ++k) shifted[k] = float(double(casters.vertices[k]) - impl_->frame[int(k % 3)]);
+        for (size_t k = 0; k < shifted.size(); ++k) {
+            const float x = casters.vertices[k] == 0.0f ? 0.0f : casters.vertices[k];  // (-0 as the weld's +0)
+            shifted[k] = float(double(x) - impl_->frame[int(k % 3)]);
+        }
         impl_->casters = caster_blocks().scene(shifted.data(), shifted.size() / 3, casters.triangles.data(),
                                                casters.triangles.size() / 3);
     }
