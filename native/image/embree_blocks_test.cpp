@@ -26,39 +26,37 @@ void add_grid(TriangleMesh& mesh, int n, float x0, float z) {
         }
 }
 
+void expect_block(const SoupBlock& b, size_t tri_begin, size_t tri_end, uint32_t vertex_begin, uint32_t vertex_end) {
+    EXPECT_EQ(b.tri_begin, tri_begin);
+    EXPECT_EQ(b.tri_end, tri_end);
+    EXPECT_EQ(b.vertex_begin, vertex_begin);
+    EXPECT_EQ(b.vertex_end, vertex_end);
+}
+
 TEST(EmbreeBlocks, CutsAtTheSeamsOnlyAndJoinsSmallRuns) {
     TriangleMesh m;
-    add_grid(m, 2, 0.0f, 0.0f);  // 8 triangles
-    add_grid(m, 1, 1.0f, 0.0f);  // 2
-    add_grid(m, 3, 2.0f, 0.0f);  // 18
+    add_grid(m, 2, 0.0f, 0.0f);  // 8 triangles, 9 vertices
+    add_grid(m, 1, 1.0f, 0.0f);  // 2, 4
+    add_grid(m, 3, 2.0f, 0.0f);  // 18, 16
     const auto runs = soup_blocks(m.triangles.data(), m.triangles.size() / 3, 1);
     ASSERT_EQ(runs.size(), 3u);
-    EXPECT_EQ(runs[0].tri_begin, 0u);
-    EXPECT_EQ(runs[0].tri_end, 8u);
-    EXPECT_EQ(runs[0].vertex_begin, 0u);
-    EXPECT_EQ(runs[0].vertex_end, 9u);
-    EXPECT_EQ(runs[1].tri_begin, 8u);
-    EXPECT_EQ(runs[1].tri_end, 10u);
-    EXPECT_EQ(runs[1].vertex_begin, 9u);
-    EXPECT_EQ(runs[1].vertex_end, 13u);
-    EXPECT_EQ(runs[2].tri_end, 28u);
-    EXPECT_EQ(runs[2].vertex_end, 29u);
+    expect_block(runs[0], 0, 8, 0, 9);
+    expect_block(runs[1], 8, 10, 9, 13);
+    expect_block(runs[2], 10, 28, 13, 29);
     // Runs join up to at least 9 triangles: 8 + 2, then 18.
     const auto joined = soup_blocks(m.triangles.data(), m.triangles.size() / 3, 9);
     ASSERT_EQ(joined.size(), 2u);
-    EXPECT_EQ(joined[0].tri_end, 10u);
-    EXPECT_EQ(joined[0].vertex_end, 13u);
-    EXPECT_EQ(joined[1].tri_begin, 10u);
+    expect_block(joined[0], 0, 10, 0, 13);
+    expect_block(joined[1], 10, 28, 13, 29);
     // A large run stays a block of its own: small runs before it do not join it (2 + 8, 18).
     TriangleMesh small_first;
-    add_grid(small_first, 1, 1.0f, 0.0f);  // 2
-    add_grid(small_first, 2, 0.0f, 0.0f);  // 8
-    add_grid(small_first, 3, 2.0f, 0.0f);  // 18
+    add_grid(small_first, 1, 1.0f, 0.0f);
+    add_grid(small_first, 2, 0.0f, 0.0f);
+    add_grid(small_first, 3, 2.0f, 0.0f);
     const auto kept_apart = soup_blocks(small_first.triangles.data(), small_first.triangles.size() / 3, 12);
     ASSERT_EQ(kept_apart.size(), 2u);
-    EXPECT_EQ(kept_apart[0].tri_end, 10u);
-    EXPECT_EQ(kept_apart[1].tri_begin, 10u);
-    EXPECT_EQ(kept_apart[1].tri_end, 28u);
+    expect_block(kept_apart[0], 0, 10, 0, 13);
+    expect_block(kept_apart[1], 10, 28, 13, 29);
     // A triangle of the last object that uses a vertex of the first one: no seam after the first.
     TriangleMesh shared = m;
     shared.triangles.insert(shared.triangles.end(), {0u, 27u, 28u});

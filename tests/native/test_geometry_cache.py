@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 import _native
-from scene_util import camera_matrix, perspective, plane_z, rotation_x
+from scene_util import camera_matrix, merge, perspective, plane_z, rotation_x
 
 W, H = 48, 32
 EYE_Z = 2.0
@@ -165,16 +165,6 @@ def grid(n, x, y, z):
     return vertices, triangles.astype(np.uint32)
 
 
-def soup(parts):
-    """One soup of objects, each indexing its own vertices (as the add-on exports them)."""
-    vertices, triangles, base = [], [], 0
-    for v, t in parts:
-        vertices.append(v)
-        triangles.append(t + np.uint32(base))
-        base += len(v)
-    return np.concatenate(vertices), np.concatenate(triangles)
-
-
 def test07_a_moved_object_rebuilds_its_own_bvhs_only_bit_for_bit():
     """Each object of the soup (a run that indexes only its own vertices) has its own BVH, for
     the camera's rays and for the casters' counts (image/embree_blocks.h): an object that moves
@@ -185,7 +175,7 @@ def test07_a_moved_object_rebuilds_its_own_bvhs_only_bit_for_bit():
 
     def frame(box_shift):
         # (Moved across, inside the grids' box: the volumes' frame, the casters' centre, stays.)
-        v, t = soup([floor, wall, (box_v + np.array([box_shift, box_shift, 0.0], np.float32), box_t)])
+        v, t = merge([floor, wall, (box_v + np.array([box_shift, box_shift, 0.0], np.float32), box_t)])
         return bake(v, t, shadows=True, surface=True)
 
     _native.clear_geometry_cache()
