@@ -25,6 +25,15 @@ constexpr int kMaxResolution = 32768;
 void require(bool ok, const std::string& msg) {
     if (!ok) throw std::invalid_argument(msg);
 }
+// The same with a literal, or a message made only when it is thrown: the per-element checks
+// of a large mesh would otherwise make a string per element (1e7 triangles: 3e7 of them).
+void require(bool ok, const char* msg) {
+    if (!ok) throw std::invalid_argument(msg);
+}
+template <typename Make>
+void require_that(bool ok, const Make& make_message) {
+    if (!ok) throw std::invalid_argument(make_message());
+}
 
 bool finite3(const glm::dvec3& v) {
     return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z);
@@ -136,12 +145,14 @@ void validate(const SceneDescription& scene, const BakeSettings& settings) {
                     ") must describe the same number of Gaussians (3 centre values each)");
         for (double x : gauss.centres) require(std::isfinite(x), "gaussians: centres must be finite");
         for (size_t i = 0; i < n; ++i) {
-            require(std::isfinite(gauss.scales[i]) && gauss.scales[i] > 0.0,
-                    "gaussians: scale " + std::to_string(i) + " must be finite and > 0, got " +
-                        std::to_string(gauss.scales[i]));
-            require(std::isfinite(gauss.amplitudes[i]) && gauss.amplitudes[i] >= 0.0,
-                    "gaussians: amplitude " + std::to_string(i) + " must be finite and >= 0, got " +
-                        std::to_string(gauss.amplitudes[i]));
+            require_that(std::isfinite(gauss.scales[i]) && gauss.scales[i] > 0.0, [&] {
+                return "gaussians: scale " + std::to_string(i) + " must be finite and > 0, got " +
+                       std::to_string(gauss.scales[i]);
+            });
+            require_that(std::isfinite(gauss.amplitudes[i]) && gauss.amplitudes[i] >= 0.0, [&] {
+                return "gaussians: amplitude " + std::to_string(i) + " must be finite and >= 0, got " +
+                       std::to_string(gauss.amplitudes[i]);
+            });
         }
         require(gauss.albedo.empty() || gauss.albedo.size() == 3 * n,
                 "gaussians: albedo must hold 3 values per Gaussian (" + std::to_string(3 * n) + "), got " +
@@ -175,7 +186,8 @@ void validate(const SceneDescription& scene, const BakeSettings& settings) {
                 name + ": a spread below pi (an area light's sample) needs spot_size pi and spot_blend 0");
         require(std::isfinite(spot.radius) && spot.radius >= 0.0,
                 name + ": radius must be finite and >= 0, got " + std::to_string(spot.radius));
-        for (double c : spot.profile) require(std::isfinite(c), name + ": profile coefficients must be finite");
+        for (double c : spot.profile)
+            require_that(std::isfinite(c), [&] { return name + ": profile coefficients must be finite"; });
         require(spot.profile.empty() || spot.profile.size() <= 17,
                 name + ": a profile (spot_profiles) has at most 17 coefficients (degree 16)");
         require(spot.profile.empty() || spot.profile_in_cone ||
@@ -197,8 +209,10 @@ void validate(const SceneDescription& scene, const BakeSettings& settings) {
     for (float x : mesh.vertices) require(std::isfinite(x), "vertices must be finite (found NaN or inf)");
     const size_t n_vertices = mesh.vertices.size() / 3;
     for (uint32_t index : mesh.triangles)
-        require(index < n_vertices, "triangle index " + std::to_string(index) +
-                                        " out of range (vertex count " + std::to_string(n_vertices) + ")");
+        require_that(index < n_vertices, [&] {
+            return "triangle index " + std::to_string(index) + " out of range (vertex count " +
+                   std::to_string(n_vertices) + ")";
+        });
     require(settings.threads >= 0 && settings.threads <= kMaxThreads, thread_count_error(settings.threads));
     require(settings.aa_samples >= 1 && settings.aa_samples <= 64, "aa_samples must be in [1, 64]");
     require(settings.shadow_samples >= 1 && settings.shadow_samples <= 64,
