@@ -185,6 +185,14 @@ std::shared_ptr<const BlockedScene> BlockCache::scene(const float* vertices, siz
     std::vector<char> used(kept_.size(), 0);
     bool all_kept = last_ && cuts.size() == kept_.size();
     for (size_t b = 0; b < cuts.size(); ++b) {
+        // The kept block in the same place first (an unchanged object: no hash to compute).
+        if (b < kept_.size() && !used[b] && kept_[b]->equals(vertices, triangles, cuts[b])) {
+            blocks[b] = kept_[b];
+            hashes[b] = kept_[b]->hash;
+            used[b] = 1;
+            continue;
+        }
+        all_kept = false;
         hashes[b] = block_hash(vertices, triangles, cuts[b]);
         for (size_t k = 0; k < kept_.size(); ++k)
             if (!used[k] && kept_[k]->hash == hashes[b] && kept_[k]->equals(vertices, triangles, cuts[b])) {
@@ -192,7 +200,6 @@ std::shared_ptr<const BlockedScene> BlockCache::scene(const float* vertices, siz
                 used[k] = 1;
                 break;
             }
-        all_kept = all_kept && blocks[b] == kept_[b];
     }
     if (all_kept) return last_;
     // (The memory of the blocks not shared goes before the new ones are built.)
