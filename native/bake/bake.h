@@ -105,8 +105,9 @@ struct BakeStats {
     // fog objects' medium and cull hierarchy, the splat's per-(light, Gaussian) optical
     // depths, the model's tables on first use), outside both.
     double seconds_fog_setup = 0.0;
-    // The camera's BVH before the raycast (RayCaster::shared: the objects that changed built,
-    // the others shared), and inside seconds_fog_setup the shadow volumes and their casters'
+    // The bake's context before the raycast, nearly all of it the camera's BVH
+    // (RayCaster::shared: the objects that changed built, the others shared), and inside
+    // seconds_fog_setup the shadow volumes and their casters'
     // BVH (ShadowVolumes::shared; 0 when shared or without volumetric shadows).
     double seconds_geometry = 0.0;
     double seconds_shadow_volumes = 0.0;

@@ -216,7 +216,8 @@ std::shared_ptr<const BlockedScene> BlockCache::scene(const float* vertices, siz
         for (size_t k = 0; k < 3 * nt; ++k) block->triangles[k] = triangles[3 * c.tri_begin + k] - c.vertex_begin;
         block->hash = hashes[b];
         RTCGeometry g = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_TRIANGLE);
-        // (Embree reads the block's own arrays; it pads the vertex buffer's end: one spare.)
+        // (Embree reads the block's own arrays, and 16 bytes at the last vertex: the vector's
+        // capacity holds 4 floats more.)
         block->vertices.reserve(block->vertices.size() + 4);
         rtcSetSharedGeometryBuffer(g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, block->vertices.data(), 0,
                                    3 * sizeof(float), nv);
