@@ -177,7 +177,9 @@ std::shared_ptr<const BlockedScene> BlockCache::scene(const float* vertices, siz
     const RTCDevice device = blocks_device();
     const std::vector<SoupBlock> cuts = soup_blocks(triangles, n_triangles, kMinBlockTriangles);
     for (size_t k = 0; k < 3 * n_triangles; ++k)
-        if (triangles[k] >= n_vertices) throw std::invalid_argument("Embree blocks: a triangle index past the vertices");
+        if (triangles[k] >= n_vertices)
+            throw std::invalid_argument("triangle index " + std::to_string(triangles[k]) +
+                                        " out of range (vertex count " + std::to_string(n_vertices) + ")");
     std::lock_guard<std::mutex> lock(mutex_);
     // Each block's kept match, if any.
     std::vector<std::shared_ptr<const BlockedScene::Block>> blocks(cuts.size());

@@ -41,27 +41,25 @@ Welded weld(const TriangleMesh& mesh) {
     size_t capacity = 16;
     while (capacity < 2 * n_vertices) capacity *= 2;
     std::vector<uint32_t> slot(capacity, UINT32_MAX);  // welded index, or none
-    std::vector<std::array<uint32_t, 3>> bits;         // per welded vertex: its key
-    bits.reserve(n_vertices);
     out.position.reserve(n_vertices);
     for (size_t k = 0; k < n_vertices; ++k) {
         std::array<float, 3> p{mesh.vertices[3 * k], mesh.vertices[3 * k + 1], mesh.vertices[3 * k + 2]};
         for (float& c : p)
             if (c == 0.0f) c = 0.0f;  // -0 and +0 weld
-        std::array<uint32_t, 3> key;
+        std::array<uint32_t, 3> key;  // (the hash's; the positions compare as doubles of the floats)
         std::memcpy(key.data(), p.data(), sizeof(key));
+        const Vec3 position(p[0], p[1], p[2]);
         uint64_t h = (uint64_t(key[0]) * 0x9E3779B97F4A7C15ull) ^ (uint64_t(key[1]) * 0xC2B2AE3D27D4EB4Full) ^
                      (uint64_t(key[2]) * 0x165667B19E3779F9ull);
         h ^= h >> 29;
         for (size_t i = size_t(h) & (capacity - 1);; i = (i + 1) & (capacity - 1)) {
             if (slot[i] == UINT32_MAX) {
                 slot[i] = uint32_t(out.position.size());
-                bits.push_back(key);
-                out.position.emplace_back(p[0], p[1], p[2]);
+                out.position.push_back(position);
                 remap[k] = slot[i];
                 break;
             }
-            if (bits[slot[i]] == key) {
+            if (out.position[slot[i]] == position) {
                 remap[k] = slot[i];
                 break;
             }
