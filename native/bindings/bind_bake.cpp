@@ -652,11 +652,14 @@ allocating them (ValueError / RuntimeError naming both sizes when they would not
             py::dict out;
             out["camera"] = RayCaster::shared_blocks_built();
             out["casters"] = ShadowVolumes::caster_blocks_built();
+            out["volume_faces"] = ShadowVolumes::block_faces_built();
             return out;
         },
         "The Embree BVHs of single objects that the bakes of this process built, for the camera's rays and for "
-        "the shadow casters' counts ({'camera': n, 'casters': n}): a bake shares the BVH of every object (a run of "
-        "the soup that indexes only its own vertices) equal to one of the previous bake's (image/embree_blocks.h).");
+        "the shadow casters' counts, and the shadow volumes' faces of single objects for single lights "
+        "({'camera': n, 'casters': n, 'volume_faces': n}): a bake shares the BVH of every object (a run of the "
+        "soup that indexes only its own vertices) equal to one of the previous bake's (image/embree_blocks.h), "
+        "and the faces of every object and light equal to one of the recent bakes' (shadow/block_faces.h).");
     m.def(
         "clear_geometry_cache",
         [] {

@@ -35,8 +35,9 @@ void record_error(void*, RTCError code, const char* str) {
         errors.message = std::string(str ? str : "unknown error") + " (code " + std::to_string(int(code)) + ")";
 }
 
-// One device for every block and blocked scene (instances must share their scenes' device).
-// Never released: kept scenes outlive main() in static caches.
+}  // namespace
+
+// (Never released: kept scenes outlive main() in static caches.)
 RTCDevice blocks_device() {
     static RTCDevice device = [] {
         RTCDevice d = rtcNewDevice(nullptr);
@@ -49,10 +50,12 @@ RTCDevice blocks_device() {
     return device;
 }
 
-void check(const char* what) {
+void check_blocks_device(const char* what) {
     const std::string message = device_errors().take();
     if (!message.empty()) throw std::runtime_error(std::string("Embree: ") + what + ": " + message);
 }
+
+namespace {
 
 uint64_t mix(uint64_t h, uint32_t word) {
     h ^= word;
@@ -64,27 +67,30 @@ uint64_t mix(uint64_t h, uint32_t word) {
 
 // One block: its vertices and triangles (indices into its own vertices) and their BVH.
 struct BlockedScene::Block {
-    std::vector<float> vertices;
-    std::vector<uint32_t> triangles;
-    uint64_t hash = 0;
+    SoupCopy copy;
     RTCScene scene = nullptr;
     ~Block() {
         if (scene) rtcReleaseScene(scene);
     }
-    // Whether this block holds exactly _b_ of the soup.
-    bool equals(const float* soup_vertices, const uint32_t* soup_triangles, const SoupBlock& b) const {
-        const size_t nv = size_t(b.vertex_end - b.vertex_begin), nt = b.tri_end - b.tri_begin;
-        if (vertices.size() != 3 * nv || triangles.size() != 3 * nt) return false;
-        if (std::memcmp(vertices.data(), soup_vertices + 3 * size_t(b.vertex_begin), 3 * nv * sizeof(float)) != 0)
-            return false;
-        const uint32_t* t = soup_triangles + 3 * b.tri_begin;
-        for (size_t k = 0; k < 3 * nt; ++k)
-            if (triangles[k] != t[k] - b.vertex_begin) return false;
-        return true;
-    }
 };
 
-namespace {
+SoupCopy::SoupCopy(const float* soup_vertices, const uint32_t* soup_triangles, const SoupBlock& b, uint64_t h)
+    : vertices(soup_vertices + 3 * size_t(b.vertex_begin), soup_vertices + 3 * size_t(b.vertex_end)),
+      triangles(3 * (b.tri_end - b.tri_begin)), hash(h) {
+    const uint32_t* t = soup_triangles + 3 * b.tri_begin;
+    for (size_t k = 0; k < triangles.size(); ++k) triangles[k] = t[k] - b.vertex_begin;
+}
+
+bool SoupCopy::equals(const float* soup_vertices, const uint32_t* soup_triangles, const SoupBlock& b) const {
+    const size_t nv = size_t(b.vertex_end - b.vertex_begin), nt = b.tri_end - b.tri_begin;
+    if (vertices.size() != 3 * nv || triangles.size() != 3 * nt) return false;
+    if (std::memcmp(vertices.data(), soup_vertices + 3 * size_t(b.vertex_begin), 3 * nv * sizeof(float)) != 0)
+        return false;
+    const uint32_t* t = soup_triangles + 3 * b.tri_begin;
+    for (size_t k = 0; k < 3 * nt; ++k)
+        if (triangles[k] != t[k] - b.vertex_begin) return false;
+    return true;
+}
 
 uint64_t block_hash(const float* vertices, const uint32_t* triangles, const SoupBlock& b) {
     uint64_t h = 0xCBF29CE484222325ull;
@@ -101,7 +107,29 @@ uint64_t block_hash(const float* vertices, const uint32_t* triangles, const Soup
     return h;
 }
 
-}  // namespace
+std::vector<long> match_blocks(const std::vector<const SoupCopy*>& kept, const float* vertices,
+                               const uint32_t* triangles, const std::vector<SoupBlock>& cuts,
+                               std::vector<uint64_t>& hashes) {
+    std::vector<long> match(cuts.size(), -1);
+    hashes.assign(cuts.size(), 0);
+    std::vector<char> used(kept.size(), 0);
+    for (size_t b = 0; b < cuts.size(); ++b) {
+        if (b < kept.size() && kept[b]->equals(vertices, triangles, cuts[b])) {
+            match[b] = long(b);
+            hashes[b] = kept[b]->hash;
+            used[b] = 1;
+            continue;
+        }
+        hashes[b] = block_hash(vertices, triangles, cuts[b]);
+        for (size_t k = 0; k < kept.size(); ++k)
+            if (!used[k] && kept[k]->hash == hashes[b] && kept[k]->equals(vertices, triangles, cuts[b])) {
+                match[b] = long(k);
+                used[k] = 1;
+                break;
+            }
+    }
+    return match;
+}
 
 std::vector<SoupBlock> soup_blocks(const uint32_t* triangles, size_t n_triangles, size_t min_triangles) {
     std::vector<SoupBlock> out;
@@ -182,26 +210,15 @@ std::shared_ptr<const BlockedScene> BlockCache::scene(const float* vertices, siz
                                         " out of range (vertex count " + std::to_string(n_vertices) + ")");
     std::lock_guard<std::mutex> lock(mutex_);
     // Each block's kept match, if any.
+    std::vector<const SoupCopy*> copies;
+    for (const auto& block : kept_) copies.push_back(&block->copy);
+    std::vector<uint64_t> hashes;
+    const std::vector<long> match = match_blocks(copies, vertices, triangles, cuts, hashes);
     std::vector<std::shared_ptr<const BlockedScene::Block>> blocks(cuts.size());
-    std::vector<uint64_t> hashes(cuts.size());
-    std::vector<char> used(kept_.size(), 0);
     bool all_kept = last_ && cuts.size() == kept_.size();
     for (size_t b = 0; b < cuts.size(); ++b) {
-        // The kept block in the same place first (an unchanged object: no hash to compute).
-        if (b < kept_.size() && !used[b] && kept_[b]->equals(vertices, triangles, cuts[b])) {
-            blocks[b] = kept_[b];
-            hashes[b] = kept_[b]->hash;
-            used[b] = 1;
-            continue;
-        }
-        all_kept = false;
-        hashes[b] = block_hash(vertices, triangles, cuts[b]);
-        for (size_t k = 0; k < kept_.size(); ++k)
-            if (!used[k] && kept_[k]->hash == hashes[b] && kept_[k]->equals(vertices, triangles, cuts[b])) {
-                blocks[b] = kept_[k];
-                used[k] = 1;
-                break;
-            }
+        if (match[b] >= 0) blocks[b] = kept_[size_t(match[b])];
+        all_kept = all_kept && match[b] == long(b);
     }
     if (all_kept) return last_;
     // (The memory of the blocks not shared goes before the new ones are built.)
@@ -213,17 +230,14 @@ std::shared_ptr<const BlockedScene> BlockCache::scene(const float* vertices, siz
         const SoupBlock& c = cuts[b];
         auto block = std::make_shared<BlockedScene::Block>();
         const size_t nv = size_t(c.vertex_end - c.vertex_begin), nt = c.tri_end - c.tri_begin;
-        block->vertices.assign(vertices + 3 * size_t(c.vertex_begin), vertices + 3 * (size_t(c.vertex_begin) + nv));
-        block->triangles.resize(3 * nt);
-        for (size_t k = 0; k < 3 * nt; ++k) block->triangles[k] = triangles[3 * c.tri_begin + k] - c.vertex_begin;
-        block->hash = hashes[b];
+        block->copy = SoupCopy(vertices, triangles, c, hashes[b]);
         RTCGeometry g = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_TRIANGLE);
         // (Embree reads the block's own arrays, and 16 bytes at the last vertex: the vector's
         // capacity holds 4 floats more.)
-        block->vertices.reserve(block->vertices.size() + 4);
-        rtcSetSharedGeometryBuffer(g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, block->vertices.data(), 0,
+        block->copy.vertices.reserve(block->copy.vertices.size() + 4);
+        rtcSetSharedGeometryBuffer(g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, block->copy.vertices.data(), 0,
                                    3 * sizeof(float), nv);
-        rtcSetSharedGeometryBuffer(g, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, block->triangles.data(), 0,
+        rtcSetSharedGeometryBuffer(g, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, block->copy.triangles.data(), 0,
                                    3 * sizeof(uint32_t), nt);
         if (filter_) rtcSetGeometryIntersectFilterFunction(g, filter_);
         rtcCommitGeometry(g);
@@ -233,7 +247,7 @@ std::shared_ptr<const BlockedScene> BlockCache::scene(const float* vertices, siz
         rtcAttachGeometry(block->scene, g);
         rtcReleaseGeometry(g);
         rtcCommitScene(block->scene);
-        check("building a block of the scene");
+        check_blocks_device("building a block of the scene");
         blocks[b] = std::move(block);
         ++built_;
     }
@@ -257,7 +271,7 @@ std::shared_ptr<const BlockedScene> BlockCache::scene(const float* vertices, siz
             rtcReleaseGeometry(g);
         }
         rtcCommitScene(out->scene_);
-        check("building the scene's instances");
+        check_blocks_device("building the scene's instances");
     }
     kept_ = std::move(blocks);
     last_ = out;

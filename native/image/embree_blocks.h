@@ -37,6 +37,35 @@ struct SoupBlock {
 // last of them may have fewer). Indices need not be in range.
 std::vector<SoupBlock> soup_blocks(const uint32_t* triangles, size_t n_triangles, size_t min_triangles);
 
+// A copy of one block of a soup, to find it in the next soup: its vertices and its triangles
+// (indices into its own vertices).
+struct SoupCopy {
+    std::vector<float> vertices;
+    std::vector<uint32_t> triangles;
+    uint64_t hash = 0;
+    SoupCopy() = default;
+    SoupCopy(const float* soup_vertices, const uint32_t* soup_triangles, const SoupBlock& b, uint64_t hash);
+    // Whether this is exactly _b_ of the soup.
+    bool equals(const float* soup_vertices, const uint32_t* soup_triangles, const SoupBlock& b) const;
+};
+
+// A hash of block _b_ of the soup (its vertices' bits and its triangles as offsets).
+uint64_t block_hash(const float* vertices, const uint32_t* triangles, const SoupBlock& b);
+
+// For each block _cuts_[b] of the soup, the index of a copy in _kept_ equal to it, or -1 (each
+// copy matches once): the copy in the same place is compared first (an unchanged object:
+// no hash to compute), then those of the same hash. _hashes_ gets each block's hash.
+std::vector<long> match_blocks(const std::vector<const SoupCopy*>& kept, const float* vertices,
+                               const uint32_t* triangles, const std::vector<SoupBlock>& cuts,
+                               std::vector<uint64_t>& hashes);
+
+// The Embree device of every block and of the scenes that instance them (instances must
+// share their scenes' device), made on first use and never released.
+RTCDevice blocks_device();
+// Throws std::runtime_error ("Embree: _what_: ...") when Embree reported an error on
+// blocks_device() since the last call.
+void check_blocks_device(const char* what);
+
 // The scene of one soup: its blocks' scenes, or the instances over them.
 class BlockedScene {
   public:

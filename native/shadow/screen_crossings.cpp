@@ -40,11 +40,12 @@ ScreenCrossings::ScreenCrossings(const ShadowVolumes& volumes, const Vec3& viewe
     // Too many faces for the film's pixels: not ready (Embree traces). The caps the test below
     // may leave out (a finite _cap_reach_: casters the rays end on) are not counted.
     size_t n_faces = 0;
-    for (int l = 0; l < volumes.num_lights(); ++l) {
-        const ShadowFaces& sf = volumes.faces(l);
-        const size_t left_out = std::isfinite(cap_reach) ? std::min(sf.n_seen_caps, sf.n_whole()) : 0;
-        n_faces += sf.n_whole() - left_out;
-    }
+    for (int l = 0; l < volumes.num_lights(); ++l)
+        for (const auto& part : volumes.faces(l)) {
+            const ShadowFaces& sf = *part;
+            const size_t left_out = std::isfinite(cap_reach) ? std::min(sf.n_seen_caps, sf.n_whole()) : 0;
+            n_faces += sf.n_whole() - left_out;
+        }
     if (double(n_faces) > std::max(double(kMinFacesForFallback), max_faces_per_pixel * double(W) * double(H))) return;
     const glm::dmat3 M(Dx, Dy, D0);  // columns: q = M^-1 P has q.z > 0 ahead of the viewer
     if (!(std::abs(glm::determinant(M)) > 0.0)) return;
@@ -56,48 +57,50 @@ ScreenCrossings::ScreenCrossings(const ShadowVolumes& volumes, const Vec3& viewe
     std::vector<Box> boxes;
     std::vector<Vec3> P, q;  // the vertices relative to the viewer, and in the film's frame
     const Vec3 eye = viewer - volumes.frame();
-    for (int l = 0; l < volumes.num_lights(); ++l) {
-        const ShadowFaces& sf = volumes.faces(l);
-        P.resize(sf.vertices.size());
-        q.resize(sf.vertices.size());
-        for (size_t k = 0; k < q.size(); ++k) P[k] = sf.vertices[k] - eye, q[k] = Minv * P[k];
-        // The whole sides (one quad each, not ring by ring): the same tiling of the film, with
-        // a third or less of the faces.
-        for (size_t t = 0; t < sf.n_whole(); ++t) {
-            const uint32_t* tri = sf.whole_triangle(t);
-            const uint32_t i0 = tri[0], i1 = tri[1], i2 = tri[2];
-            const Vec3 &q0 = q[i0], &q1 = q[i1], &q2 = q[i2];
-            if (!(q0.z > 0.0 || q1.z > 0.0 || q2.z > 0.0)) continue;  // wholly behind the viewer
-            const Vec3 &P0 = P[i0], &P1 = P[i1], &P2 = P[i2];
-            if (t < sf.n_seen_caps && ShadowVolumes::cap_left_out(P0, P1, P2, cap_reach, cap_beyond)) continue;
-            const Vec3 c12 = cross(q1, q2), c20 = cross(q2, q0), c01 = cross(q0, q1);
-            const double det = dot(q0, c12);
-            Face f;
-            f.N = cross(P1 - P0, P2 - P0);
-            f.NP0 = dot(f.N, P0);
-            if (!(det != 0.0) || !(f.NP0 != 0.0)) continue;  // seen edge-on: no ray crosses it
-            const double s = det > 0.0 ? 1.0 : -1.0;
-            const Vec3 e[3] = {s * c12, s * c20, s * c01};
-            for (int k = 0; k < 3; ++k) {
-                f.e[k][0] = e[k].x, f.e[k][1] = e[k].y, f.e[k][2] = e[k].z;
-                f.tie[k] = tie_inside(e[k]);
-            }
-            // Nearer than any crossing (a little under: the distance's own rounding).
-            const double near = origin_distance(P0, P1, P2);
-            f.near = float(near * (1.0 - 1e-6));
-            f.light = int16_t(l);
-            const int w = sf.whole_weight(t);
-            f.dw = int16_t(f.NP0 < 0.0 ? w : -w);  // against the normal: entering (record_crossings)
-            faces.push_back(f);
-            Box b;  // empty (x0 > x1) unless all three vertices lie ahead of the viewer
-            if (q0.z > 0.0 && q1.z > 0.0 && q2.z > 0.0)
-                for (const Vec3* v : {&q0, &q1, &q2}) {
-                    const double x = v->x / v->z, y = v->y / v->z;
-                    b.x0 = std::min(b.x0, x), b.x1 = std::max(b.x1, x), b.y0 = std::min(b.y0, y), b.y1 = std::max(b.y1, y);
+    for (int l = 0; l < volumes.num_lights(); ++l)
+        for (const auto& part : volumes.faces(l)) {
+            const ShadowFaces& sf = *part;
+            P.resize(sf.vertices.size());
+            q.resize(sf.vertices.size());
+            for (size_t k = 0; k < q.size(); ++k) P[k] = sf.vertices[k] - eye, q[k] = Minv * P[k];
+            // The whole sides (one quad each, not ring by ring): the same tiling of the film, with
+            // a third or less of the faces.
+            for (size_t t = 0; t < sf.n_whole(); ++t) {
+                const uint32_t* tri = sf.whole_triangle(t);
+                const uint32_t i0 = tri[0], i1 = tri[1], i2 = tri[2];
+                const Vec3 &q0 = q[i0], &q1 = q[i1], &q2 = q[i2];
+                if (!(q0.z > 0.0 || q1.z > 0.0 || q2.z > 0.0)) continue;  // wholly behind the viewer
+                const Vec3 &P0 = P[i0], &P1 = P[i1], &P2 = P[i2];
+                if (t < sf.n_seen_caps && ShadowVolumes::cap_left_out(P0, P1, P2, cap_reach, cap_beyond)) continue;
+                const Vec3 c12 = cross(q1, q2), c20 = cross(q2, q0), c01 = cross(q0, q1);
+                const double det = dot(q0, c12);
+                Face f;
+                f.N = cross(P1 - P0, P2 - P0);
+                f.NP0 = dot(f.N, P0);
+                if (!(det != 0.0) || !(f.NP0 != 0.0)) continue;  // seen edge-on: no ray crosses it
+                const double s = det > 0.0 ? 1.0 : -1.0;
+                const Vec3 e[3] = {s * c12, s * c20, s * c01};
+                for (int k = 0; k < 3; ++k) {
+                    f.e[k][0] = e[k].x, f.e[k][1] = e[k].y, f.e[k][2] = e[k].z;
+                    f.tie[k] = tie_inside(e[k]);
                 }
-            boxes.push_back(b);
+                // Nearer than any crossing (a little under: the distance's own rounding).
+                const double near = origin_distance(P0, P1, P2);
+                f.near = float(near * (1.0 - 1e-6));
+                f.light = int16_t(l);
+                const int w = sf.whole_weight(t);
+                f.dw = int16_t(f.NP0 < 0.0 ? w : -w);  // against the normal: entering (record_crossings)
+                faces.push_back(f);
+                Box b;  // empty (x0 > x1) unless all three vertices lie ahead of the viewer
+                if (q0.z > 0.0 && q1.z > 0.0 && q2.z > 0.0)
+                    for (const Vec3* v : {&q0, &q1, &q2}) {
+                        const double x = v->x / v->z, y = v->y / v->z;
+                        b.x0 = std::min(b.x0, x), b.x1 = std::max(b.x1, x);
+                        b.y0 = std::min(b.y0, y), b.y1 = std::max(b.y1, y);
+                    }
+                boxes.push_back(b);
+            }
         }
-    }
     bin(faces, boxes, max_entries, max_faces_per_tile, std::max(1, threads));
 }
 

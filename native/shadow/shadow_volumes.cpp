@@ -5,6 +5,7 @@
 
 #include "core/parallel.h"
 #include "image/embree_blocks.h"
+#include "shadow/block_faces.h"
 
 #include <algorithm>
 #include <array>
@@ -20,61 +21,22 @@ namespace airlight {
 
 namespace {
 
-// The volumes' quads go from ring to ring, each this much farther from the light (see the
-// constructor), at most this many rings.
-constexpr double kRingGrowth = 2.0;
-constexpr int kMaxRings = 48;
-
-// Vertices welded by exact position (shared edges of triangles that do not share indices).
-struct Welded {
-    std::vector<Vec3> position;
-    std::vector<uint32_t> triangles;  // 3 per triangle, into position
-};
-
-// Welds by exact position in an open-addressing table (a std::unordered_map's node per vertex
-// cost 2.4 s for the 5e6 vertices of 1e7 triangles): the welded vertices keep the order of
-// their first use.
-Welded weld(const TriangleMesh& mesh) {
-    Welded out;
-    const size_t n_vertices = mesh.vertices.size() / 3;
-    std::vector<uint32_t> remap(n_vertices);
-    size_t capacity = 16;
-    while (capacity < 2 * n_vertices) capacity *= 2;
-    std::vector<uint32_t> slot(capacity, UINT32_MAX);  // welded index, or none
-    out.position.reserve(n_vertices);
-    for (size_t k = 0; k < n_vertices; ++k) {
-        std::array<float, 3> p{mesh.vertices[3 * k], mesh.vertices[3 * k + 1], mesh.vertices[3 * k + 2]};
-        for (float& c : p)
-            if (c == 0.0f) c = 0.0f;  // -0 and +0 weld
-        std::array<uint32_t, 3> key;  // (the hash's; the positions compare as doubles of the floats)
-        std::memcpy(key.data(), p.data(), sizeof(key));
-        const Vec3 position(p[0], p[1], p[2]);
-        uint64_t h = (uint64_t(key[0]) * 0x9E3779B97F4A7C15ull) ^ (uint64_t(key[1]) * 0xC2B2AE3D27D4EB4Full) ^
-                     (uint64_t(key[2]) * 0x165667B19E3779F9ull);
-        h ^= h >> 29;
-        for (size_t i = size_t(h) & (capacity - 1);; i = (i + 1) & (capacity - 1)) {
-            if (slot[i] == UINT32_MAX) {
-                slot[i] = uint32_t(out.position.size());
-                out.position.push_back(position);
-                remap[k] = slot[i];
-                break;
-            }
-            if (out.position[slot[i]] == position) {
-                remap[k] = slot[i];
-                break;
-            }
-        }
+// One light's faces of one block of the casters as Embree traces them: its quads and the
+// caps a cut keeps, and their weights (per primitive).
+struct PartScene {
+    RTCScene scene = nullptr;
+    std::vector<int16_t> weights;
+    ~PartScene() {
+        if (scene) rtcReleaseScene(scene);
     }
-    out.triangles.resize(mesh.triangles.size());
-    for (size_t k = 0; k < mesh.triangles.size(); ++k) out.triangles[k] = remap[mesh.triangles[k]];
-    return out;
-}
+};
 
 // Embree's context extended with where the filter writes (one list per ray of a packet).
 struct CrossingContext {
     RTCIntersectContext context;
     std::vector<Crossing>* lists;  // indexed by the ray's id
-    const std::vector<std::vector<int16_t>>* weights;  // per light (geomID), per primitive
+    const int16_t* light;          // per instance (a light's faces of a block): its light
+    const PartScene* const* parts;  // per instance: its weights
 };
 
 void record_crossings(const RTCFilterFunctionNArguments* args) {
@@ -82,20 +44,75 @@ void record_crossings(const RTCFilterFunctionNArguments* args) {
     for (unsigned i = 0; i < args->N; ++i) {
         if (args->valid[i] != -1) continue;
         const unsigned id = RTCRayN_id(args->ray, args->N, i);
-        const unsigned geom = RTCHitN_geomID(args->hit, args->N, i), prim = RTCHitN_primID(args->hit, args->N, i);
+        const unsigned inst = RTCHitN_instID(args->hit, args->N, i, 0), prim = RTCHitN_primID(args->hit, args->N, i);
         const float dn = RTCRayN_dir_x(args->ray, args->N, i) * RTCHitN_Ng_x(args->hit, args->N, i) +
                          RTCRayN_dir_y(args->ray, args->N, i) * RTCHitN_Ng_y(args->hit, args->N, i) +
                          RTCRayN_dir_z(args->ray, args->N, i) * RTCHitN_Ng_z(args->hit, args->N, i);
-        const int w = (*ctx->weights)[geom][prim];
+        const int w = ctx->parts[inst]->weights[prim];
         // Against the outward normal: entering the volume.
-        ctx->lists[id].push_back({RTCRayN_tfar(args->ray, args->N, i), int16_t(geom), int16_t(dn < 0.0f ? w : -w)});
+        ctx->lists[id].push_back({RTCRayN_tfar(args->ray, args->N, i), ctx->light[inst], int16_t(dn < 0.0f ? w : -w)});
         args->valid[i] = 0;  // rejected: the traversal goes on to the next crossing
     }
 }
 
-// The sine of the angle between a caster's plane and the direction to the light below which
-// the caster gets no shadow volume (it is seen edge-on).
-constexpr double kEdgeOn = 1e-6;
+// The part scenes built for the last traversals, kept while their faces are (a block's faces
+// for a light: block_faces.h) and they were used by one of the last kKeptParts traversals: a
+// moved object builds its own again, the other blocks' are instanced as they were.
+struct KeptParts {
+    struct Entry {
+        std::weak_ptr<const ShadowFaces> faces;
+        const ShadowFaces* key;
+        CapCut cut;  // (the default where the faces have no seen caps to leave out)
+        std::shared_ptr<const PartScene> scene;
+        long last_use;
+    };
+    static constexpr long kKeptParts = 8;
+    std::mutex mutex;
+    std::vector<Entry> entries;
+    long use = 0;
+};
+
+KeptParts& kept_parts() {
+    static KeptParts instance;
+    return instance;
+}
+
+// The scene of _faces_ (light _mask_'s) with the caps _cut_ leaves out left out (a viewer in
+// the frame's coordinates, as the faces').
+std::shared_ptr<const PartScene> part_scene(const ShadowFaces& faces, const CapCut& cut, const Vec3& viewer) {
+    auto part = std::make_shared<PartScene>();
+    const std::vector<int16_t>& weights = faces.weights;
+    std::vector<uint32_t> triangles;
+    triangles.reserve(faces.triangles.size());
+    part->weights.reserve(weights.size());
+    for (size_t k = 0; k < weights.size(); ++k) {
+        const uint32_t* v = &faces.triangles[3 * k];
+        if (k < faces.n_seen_caps && cut.cuts() &&
+            ShadowVolumes::cap_left_out(faces.vertices[v[0]] - viewer, faces.vertices[v[1]] - viewer,
+                                        faces.vertices[v[2]] - viewer, cut.reach, cut.beyond))
+            continue;
+        triangles.insert(triangles.end(), v, v + 3);
+        part->weights.push_back(weights[k]);
+    }
+    const RTCDevice device = blocks_device();
+    RTCGeometry g = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_TRIANGLE);
+    auto* gv = static_cast<float*>(rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3,
+                                                           3 * sizeof(float), faces.vertices.size()));
+    auto* gi = static_cast<uint32_t*>(rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3,
+                                                              3 * sizeof(uint32_t), triangles.size() / 3));
+    for (size_t k = 0; k < faces.vertices.size(); ++k)
+        for (int c = 0; c < 3; ++c) gv[3 * k + c] = float(faces.vertices[k][c]);  // floats to begin with
+    std::copy(triangles.begin(), triangles.end(), gi);
+    rtcSetGeometryIntersectFilterFunction(g, record_crossings);
+    rtcCommitGeometry(g);
+    part->scene = rtcNewScene(device);
+    rtcSetSceneFlags(part->scene, RTC_SCENE_FLAG_ROBUST);  // watertight: no crossing lost on a shared edge
+    rtcAttachGeometry(part->scene, g);
+    rtcReleaseGeometry(g);
+    rtcCommitScene(part->scene);
+    check_blocks_device("building the shadow volumes");
+    return part;
+}
 
 // Counts every caster triangle on a segment (count_at).
 struct CountContext {
@@ -116,11 +133,6 @@ void count_hits(const RTCFilterFunctionNArguments* args) {
 BlockCache& caster_blocks() {
     static BlockCache cache(RTC_BUILD_QUALITY_MEDIUM, count_hits);
     return cache;
-}
-
-void embree_error(void* user, RTCError code, const char* str) {
-    auto* message = static_cast<std::string*>(user);
-    if (message->empty()) *message = std::string(str ? str : "unknown error") + " (code " + std::to_string(int(code)) + ")";
 }
 
 // The segment from _p_ (in the volumes' frame) toward _light_ (_reach_: a sun's extrusion
@@ -165,15 +177,16 @@ bool light_ray(const ShadowLight& light, double reach, const Vec3& p, const Vec3
 
 struct ShadowVolumes::Traversal {
     CapCut cut;
-    RTCScene scene = nullptr;  // one geometry per light: its quads and the caps kept
-    std::vector<std::vector<int16_t>> weights;  // per light, per primitive
+    RTCScene scene = nullptr;  // an instance per light and block of the casters (its part)
+    std::vector<std::shared_ptr<const PartScene>> held;  // per instance
+    std::vector<const PartScene*> parts;                 // the same
+    std::vector<int16_t> light;                          // per instance
     ~Traversal() {
         if (scene) rtcReleaseScene(scene);
     }
 };
 
 struct ShadowVolumes::Impl {
-    RTCDevice device = nullptr;
     std::shared_ptr<const BlockedScene> casters;  // the caster triangles (count_at, lit_at)
     std::vector<double> reach;                  // per light: the extrusion distance R
     // What R depends on besides the viewer (reach_for): per light the farthest caster vertex
@@ -181,7 +194,7 @@ struct ShadowVolumes::Impl {
     std::vector<double> vertex_far;
     Vec3 mid{0.0};
     double extent = 1.0;
-    std::vector<ShadowFaces> faces;             // per light (ShadowVolumes::faces)
+    std::vector<FaceParts> faces;  // per light, per block (ShadowVolumes::faces)
     // Embree's scenes of the volumes, built on the first traced query of their caps' cut (the
     // film's rasterized crossings need none): the last kKeptTraversals cuts (each camera
     // position has its own; a query holds the one it traverses).
@@ -203,15 +216,7 @@ struct ShadowVolumes::Impl {
         const double far = std::max(glm::length(viewer - from), vertex_far[l]);
         return std::min(std::exp2(std::ceil(std::log2(8.0 * std::max(far, extent * 1e-6)))), 1e7 * extent);
     }
-    std::string error;
-
-    ~Impl() {
-        traversals.clear();
-        if (device) rtcReleaseDevice(device);
-    }
-    void check(const char* what) const {
-        if (!error.empty()) throw std::runtime_error(std::string("Embree (shadow volumes): ") + what + ": " + error);
-    }
+    ~Impl() { traversals.clear(); }
 };
 
 ShadowVolumes::~ShadowVolumes() = default;
@@ -221,37 +226,37 @@ ShadowVolumes::ShadowVolumes(const TriangleMesh& casters, const std::vector<Shad
     : impl_(new Impl), lights_(world_lights) {
     if (lights_.size() > size_t(std::numeric_limits<int16_t>::max()))
         throw std::invalid_argument("shadow volumes: too many lights");
-    // Everything below in the casters' frame (Impl::frame).
-    Welded mesh = weld(casters);
-    // The vertices of triangles with an area: a degenerate triangle shadows nothing, and moves
-    // neither the frame nor the extrusion distance.
-    std::vector<char> used(mesh.position.size(), 0);
-    for (size_t k = 0; k + 2 < mesh.triangles.size(); k += 3) {
-        const uint32_t* t = &mesh.triangles[k];
-        const Vec3 &a = mesh.position[t[0]], &b = mesh.position[t[1]], &c = mesh.position[t[2]];
-        if (glm::length(glm::cross(b - a, c - a)) > 0.0) used[t[0]] = used[t[1]] = used[t[2]] = 1;
-    }
+    const size_t n_vertices = casters.vertices.size() / 3, nt = casters.triangles.size() / 3;
+    for (size_t k = 0; k < 3 * nt; ++k)
+        if (casters.triangles[k] >= n_vertices)
+            throw std::invalid_argument("triangle index " + std::to_string(casters.triangles[k]) +
+                                        " out of range (vertex count " + std::to_string(n_vertices) + ")");
+    // The casters a block at a time (block_faces.h): the blocks kept from the last builds
+    // where they are the same, each with its box of the vertices of triangles with an area (a
+    // degenerate triangle shadows nothing, and moves neither the frame nor the extrusion
+    // distance).
+    VolumeBlocks& kept = volume_blocks();
+    std::lock_guard<std::mutex> lock(kept.mutex());
+    const std::vector<SoupBlock> cuts = soup_blocks(casters.triangles.data(), nt, BlockCache::kMinBlockTriangles);
+    const std::vector<std::shared_ptr<VolumeBlocks::Block>> blocks =
+        kept.blocks(casters.vertices.data(), casters.triangles.data(), cuts);
     bool any_used = false;
     Vec3 clo(std::numeric_limits<double>::infinity()), chi(-std::numeric_limits<double>::infinity());  // their box
-    for (size_t k = 0; k < mesh.position.size(); ++k)
-        if (used[k]) {
-            clo = glm::min(clo, mesh.position[k]), chi = glm::max(chi, mesh.position[k]);
+    for (const auto& block : blocks)
+        if (block->hi.x >= block->lo.x) {
+            clo = glm::min(clo, block->lo), chi = glm::max(chi, block->hi);
             any_used = true;
         }
+    // Everything below in the casters' frame (Impl::frame).
     impl_->frame = any_used ? 0.5 * (clo + chi) : world_viewer;
-    clo -= impl_->frame, chi -= impl_->frame;
-    const Vec3 viewer = world_viewer - impl_->frame;
+    const Vec3 frame = impl_->frame;
+    clo -= frame, chi -= frame;
+    const Vec3 viewer = world_viewer - frame;
     for (ShadowLight& l : lights_)
-        if (!l.directional) l.position -= impl_->frame;
+        if (!l.directional) l.position -= frame;
     const std::vector<ShadowLight>& lights = lights_;
-    for (Vec3& p : mesh.position) p -= impl_->frame;
-    const size_t nv = mesh.position.size(), nt = mesh.triangles.size() / 3;
-    impl_->device = rtcNewDevice(nullptr);
-    if (!impl_->device) throw std::runtime_error("Embree: rtcNewDevice failed (shadow volumes)");
-    rtcSetDeviceErrorFunction(impl_->device, embree_error, &impl_->error);
     impl_->reach.resize(lights.size());
     impl_->vertex_far.resize(lights.size());
-    impl_->faces.resize(lights.size());
 
     // The scene's extent (the casters and point lights, not the viewer), for the extrusion
     // distance.
@@ -259,6 +264,7 @@ ShadowVolumes::ShadowVolumes(const TriangleMesh& casters, const std::vector<Shad
     for (const ShadowLight& l : lights)
         if (!l.directional) lo = glm::min(lo, l.position), hi = glm::max(hi, l.position);
     const double extent = any_used ? std::max(glm::length(hi - lo), 1e-30) : 1.0;
+    const double caster_size = any_used ? std::max(glm::length(chi - clo), 1e-30) : 1.0;
     impl_->extent = extent;
     impl_->mid = any_used ? 0.5 * (lo + hi) : Vec3(0.0);
     const Vec3 pad(1e-5 * extent);  // above the floats' rounding of the vertices
@@ -271,183 +277,55 @@ ShadowVolumes::ShadowVolumes(const TriangleMesh& casters, const std::vector<Shad
         std::vector<float> shifted(casters.vertices.size());
         for (size_t k = 0; k < shifted.size(); ++k) {
             const float x = casters.vertices[k] == 0.0f ? 0.0f : casters.vertices[k];  // (-0 as the weld's +0)
-            shifted[k] = float(double(x) - impl_->frame[int(k % 3)]);
+            shifted[k] = float(double(x) - frame[int(k % 3)]);
         }
         impl_->casters = caster_blocks().scene(shifted.data(), shifted.size() / 3, casters.triangles.data(),
                                                casters.triangles.size() / 3);
     }
 
-    // Every triangle's directed edges (p -> q, as wound), grouped by undirected edge (u < v) in
-    // (u, v) order: each light sums its sides' orientations edge by edge from them, without a
-    // hash map. A counting sort on u, then each u's few uses sorted by v (a std::sort of the
-    // 3e7 uses of 1e7 triangles took 2 s).
-    if (3 * nt >= size_t(UINT32_MAX)) throw std::invalid_argument("shadow volumes: too many caster triangles");
-    std::vector<uint32_t> use_first(nv + 1, 0);  // per u: where its uses start
-    for (size_t k = 0; k < 3 * nt; ++k) {
-        const uint32_t p = mesh.triangles[k], q = mesh.triangles[k % 3 == 2 ? k - 2 : k + 1];
-        ++use_first[std::min(p, q) + 1];
-    }
-    for (size_t u = 0; u < nv; ++u) use_first[u + 1] += use_first[u];
-    // Per use: (v << 32) | (triangle << 1) | (p < q).
-    std::vector<uint64_t> uses(3 * nt);
-    {
-        std::vector<uint32_t> fill(use_first.begin(), use_first.end() - 1);
-        for (size_t k = 0; k < 3 * nt; ++k) {
-            const uint32_t p = mesh.triangles[k], q = mesh.triangles[k % 3 == 2 ? k - 2 : k + 1];
-            uses[fill[std::min(p, q)]++] = (uint64_t(std::max(p, q)) << 32) | (uint64_t(k / 3) << 1) | (p < q ? 1u : 0u);
-        }
-    }
-    const int parts = std::max(n_threads, 1);
-    parallel_for(parts, parts, [&](int part) {
-        for (size_t u = nv * size_t(part) / size_t(parts), end = nv * size_t(part + 1) / size_t(parts); u < end; ++u)
-            std::sort(uses.begin() + use_first[u], uses.begin() + use_first[u + 1]);
-    });
-    // The lights' volumes, one a work item (each writes its own faces, weights and reach).
-    parallel_for(int(lights.size()), n_threads, [&](int light_index) {
-        const size_t l = size_t(light_index);
-        std::vector<int8_t> orient(nt);       // per triangle: +1 as wound, -1 reversed, 0 none
-        std::vector<uint32_t> ring_slot(nv);  // a silhouette vertex's place in each ring
-        const ShadowLight& light = lights[l];
-        const Vec3 s = light.position, w = glm::normalize(light.direction);
-        // The extrusion distance (shadow_volumes.h).
+    // Per light, the extrusion distance (shadow_volumes.h), from the farthest caster vertex.
+    for (size_t l = 0; l < lights.size(); ++l) {
         double vertex_far = 0.0;
-        for (size_t k = 0; k < nv; ++k)
-            if (used[k])
-                vertex_far = std::max(vertex_far, light.directional ? extent : glm::length(mesh.position[k] - s));
+        for (const auto& block : blocks)
+            if (block->hi.x >= block->lo.x)
+                vertex_far = std::max(vertex_far, lights[l].directional ? extent : block->vertex_far(lights[l], frame));
         impl_->vertex_far[l] = vertex_far;
-        const double R = impl_->reach_for(light, l, viewer);
-        impl_->reach[l] = R;
-        // Outward normal of the side through edge p -> q of a triangle wound counter-clockwise
-        // as the light sees it: (q - p) x (s - p), or (q - p) x (-w) for a sun.
-        auto toward_light = [&](const Vec3& p) { return light.directional ? -w : s - p; };
-        std::vector<uint32_t> caps;
-        caps.reserve(3 * nt);
-        size_t n_seen_caps = 0;  // (the caps come in the casters' order)
-        for (size_t k = 0; k < nt; ++k) {
-            orient[k] = 0;
-            uint32_t a = mesh.triangles[3 * k], b = mesh.triangles[3 * k + 1], c = mesh.triangles[3 * k + 2];
-            const Vec3 pa = mesh.position[a], pb = mesh.position[b], pc = mesh.position[c];
-            const Vec3 n = glm::cross(pb - pa, pc - pa);
-            const double facing = glm::dot(n, toward_light(pa));
-            // Zero area, or the light within kEdgeOn of the triangle's plane: no frustum. A frustum
-            // that thin has side quads closer together than the floats Embree holds them in, so
-            // a ray crossing them could enter and not leave (measured: a fin whose plane held the
-            // light to float32 rounding, 3e-9 rad, shadowed every ray crossing its plane); the
-            // shadow it drops is a wedge kEdgeOn wide seen from the light.
-            if (!(std::abs(facing) > kEdgeOn * glm::length(n) * glm::length(toward_light(pa))) || glm::length(n) == 0.0)
-                continue;
-            if (facing < 0.0) std::swap(b, c);  // counter-clockwise seen from the light (its edges reversed)
-            orient[k] = facing < 0.0 ? -1 : 1;
-            caps.insert(caps.end(), {a, b, c});
-            if (k < seen_triangles) ++n_seen_caps;
+        impl_->reach[l] = impl_->reach_for(lights[l], l, viewer);
+    }
+    // Each block's faces per light: kept, or built (the block welded once, its lights' faces on
+    // _n_threads_ threads, a light each).
+    const long use = kept.use();
+    std::vector<FaceParts> parts(lights.size(), FaceParts(blocks.size()));
+    for (size_t b = 0; b < blocks.size(); ++b) {
+        VolumeBlocks::Block& block = *blocks[b];
+        const size_t seen = seen_triangles > cuts[b].tri_begin
+                                ? std::min(seen_triangles - cuts[b].tri_begin, cuts[b].tri_end - cuts[b].tri_begin)
+                                : 0;
+        // (A sun's rings are spaced by the casters' size, not the point lights': a pass of the
+        // sun alone shares its faces.)
+        auto key_extent = [&](size_t l) { return lights[l].directional ? caster_size : 0.0; };
+        std::vector<size_t> missing;
+        for (size_t l = 0; l < lights.size(); ++l) {
+            parts[l][b] = block.find(lights[l], frame, impl_->reach[l], key_extent(l), seen, use);
+            if (!parts[l][b]) missing.push_back(l);
         }
-        // Per undirected edge (u < v): the summed orientation of its sides (+1 for u -> v);
-        // the silhouette is where it is not 0.
-        std::vector<std::pair<uint64_t, int>> silhouette;
-        for (size_t u = 0; u < nv; ++u)
-            for (size_t q = use_first[u], end = use_first[u + 1]; q < end;) {
-                const uint32_t v = uint32_t(uses[q] >> 32);
-                int weight = 0;
-                for (; q < end && uint32_t(uses[q] >> 32) == v; ++q)
-                    weight += orient[uint32_t(uses[q]) >> 1] * ((uses[q] & 1u) ? 1 : -1);
-                if (weight != 0) silhouette.emplace_back((uint64_t(u) << 32) | v, weight);
-            }
-        // Only the silhouette's vertices get rings (ring r of vertex k: ring_vertex(r, k)).
-        std::fill(ring_slot.begin(), ring_slot.end(), UINT32_MAX);  // (none)
-        std::vector<uint32_t> ringed;  // the silhouette's vertices, in order
-        for (const auto& [key, weight] : silhouette)
-            for (const uint32_t k : {uint32_t(key >> 32), uint32_t(key & 0xffffffffu)})
-                if (ring_slot[k] == UINT32_MAX) ring_slot[k] = uint32_t(ringed.size()), ringed.push_back(k);
-        const size_t n_ringed = ringed.size();
-        auto ring_vertex = [&](int r, uint32_t k) {
-            return r == 0 ? k : uint32_t(nv + size_t(r - 1) * n_ringed + ring_slot[k]);
-        };
-        // Vertices: the welded ones, then rings of copies pushed away from the light (each
-        // welded vertex has its own, so neighbouring quads meet exactly). A quad runs from one
-        // ring to the next, each ring kRingGrowth times as far from the light as the one before,
-        // up to R: Embree's float intersection errs by ~1e-7 of a triangle's size, so a quad
-        // spanning 0..R would place a crossing 3 m from the light ~1e-7 R off (measured: 0.2 %
-        // of the airlight of a wall's shaft with R ~ 9 km); ring by ring it is ~1e-7 of the
-        // crossing's own distance. Short steps also keep the quads' bounding boxes tight: the
-        // sides of a silhouette of many short edges fan out from the light as slivers, and a
-        // ray through the fan visits every box that overlaps it there (measured: a 10^6-
-        // triangle grid's glow rays took 2.5x as long with quads 64 times as long as near).
-        // A vertex's rings stop at R (scale_at), the steps past it are left out.
-        double d_min = std::numeric_limits<double>::infinity();
-        for (const uint32_t k : ringed)
-            d_min = std::min(d_min, light.directional ? extent : std::max(glm::length(mesh.position[k] - s), 1e-30));
-        int rings = 1;
-        while (rings < kMaxRings && d_min * std::pow(kRingGrowth, rings) < R) ++rings;
-        std::vector<double> reach_scale(n_ringed);  // per ringed vertex: the scale that takes it to R
-        for (size_t i = 0; i < n_ringed; ++i) {
-            const double dp = light.directional ? extent : std::max(glm::length(mesh.position[ringed[i]] - s), 1e-300);
-            reach_scale[i] = std::max(R / dp, kRingGrowth);  // (at least one step past the caster)
-        }
-        auto scale_at = [&](int r, uint32_t k) {  // ring r's distance over vertex k's (r >= 1)
-            const double limit = reach_scale[ring_slot[k]];
-            return r == rings ? limit : std::min(std::pow(kRingGrowth, r), limit);
-        };
-        // (In Embree's floats. Written once each: at 1e7 triangles a light's volume was half
-        // page faults, zeroing and copies of its arrays.)
-        ShadowFaces& faces = impl_->faces[l];
-        std::vector<Vec3>& vertices = faces.vertices;
-        auto as_float = [](const Vec3& p) { return Vec3(float(p.x), float(p.y), float(p.z)); };
-        vertices.reserve(nv + size_t(rings) * n_ringed);
-        for (size_t k = 0; k < nv; ++k) vertices.push_back(as_float(mesh.position[k]));
-        vertices.resize(nv + size_t(rings) * n_ringed);
-        for (const uint32_t k : ringed) {
-            const Vec3 p = mesh.position[k];
-            const double dp = light.directional ? extent : std::max(glm::length(p - s), 1e-300);
-            for (int r = 1; r <= rings; ++r) {
-                const double scale = scale_at(r, k);
-                const Vec3 f = light.directional ? p + (dp * (scale - 1.0)) * w : s + (p - s) * scale;
-                vertices[ring_vertex(r, k)] = as_float(f);
-            }
-        }
-        // Whether vertex k's ring r + 1 is where its ring r is (both at R).
-        auto stays = [&](int r, uint32_t k) { return r >= 1 && scale_at(r + 1, k) == scale_at(r, k); };
-        const size_t n_sides = 2 * silhouette.size();  // triangles: two a quad
-        std::vector<uint32_t>& ib = faces.triangles;  // the caps, then the sides ring by ring
-        ib = std::move(caps);
-        ib.reserve(ib.size() + 3 * n_sides * size_t(rings));
-        faces.n_caps = ib.size() / 3;
-        faces.n_seen_caps = n_seen_caps;
-        std::vector<int16_t>& weights = faces.weights;
-        weights.reserve(faces.n_caps + n_sides * size_t(rings));
-        weights.assign(faces.n_caps, 1);
-        // The same sides each one quad from the casters to R (ShadowFaces::whole_sides).
-        std::vector<uint32_t>& whole = faces.whole_sides;
-        whole.reserve(3 * n_sides);
-        std::vector<int16_t>& whole_weights = faces.whole_side_weights;
-        whole_weights.reserve(n_sides);
-        for (const auto& [key, weight] : silhouette) {
-            const int16_t m = int16_t(std::min(std::abs(weight), int(std::numeric_limits<int16_t>::max())));
-            const uint32_t k_u = uint32_t(key >> 32), k_v = uint32_t(key & 0xffffffffu);
-            for (int r = 0; r < rings; ++r) {
-                const uint32_t u = ring_vertex(r, k_u), v = ring_vertex(r, k_v);
-                const uint32_t uf = ring_vertex(r + 1, k_u), vf = ring_vertex(r + 1, k_v);
-                // (u, vf, v) and (u, uf, vf) have the outward normal (v - u) x (s - u): the far
-                // points lie away from the light. Where v stays (v = vf) the first has no
-                // area, where u stays the second.
-                if (!stays(r, k_v)) {
-                    if (weight > 0) ib.insert(ib.end(), {u, vf, v});
-                    else ib.insert(ib.end(), {u, v, vf});
-                    weights.push_back(m);
-                }
-                if (!stays(r, k_u)) {
-                    if (weight > 0) ib.insert(ib.end(), {u, uf, vf});
-                    else ib.insert(ib.end(), {u, vf, uf});
-                    weights.push_back(m);
-                }
-            }
-            const uint32_t u = k_u, v = k_v, uf = ring_vertex(rings, k_u), vf = ring_vertex(rings, k_v);
-            if (weight > 0) whole.insert(whole.end(), {u, vf, v, u, uf, vf});
-            else whole.insert(whole.end(), {u, v, vf, u, vf, uf});
-            whole_weights.push_back(m);
-            whole_weights.push_back(m);
-        }
-    });
-    for (const ShadowFaces& faces : impl_->faces) n_faces_ += faces.weights.size();
+        if (missing.empty()) continue;
+        const BlockGeometry geometry = block_geometry(block.copy.vertices.data(), block.copy.vertices.size() / 3,
+                                                      block.copy.triangles.data(), block.copy.triangles.size() / 3,
+                                                      frame, n_threads);
+        parallel_for(int(missing.size()), n_threads, [&](int i) {
+            const size_t l = missing[size_t(i)];
+            parts[l][b] = std::make_shared<const ShadowFaces>(
+                block_faces(geometry, lights[l], impl_->reach[l], caster_size, seen));
+        });
+        for (const size_t l : missing)
+            block.faces.push_back({lights[l], frame, impl_->reach[l], key_extent(l), seen, parts[l][b], use});
+        kept.count_built(long(missing.size()));
+    }
+    kept.finish_build();
+    impl_->faces = std::move(parts);
+    for (const FaceParts& light_faces : impl_->faces)
+        for (const auto& part : light_faces) n_faces_ += part->weights.size();
 }
 
 double origin_distance(const Vec3& a, const Vec3& b, const Vec3& c) {
@@ -489,43 +367,53 @@ std::shared_ptr<const ShadowVolumes::Traversal> ShadowVolumes::traversal(const C
     Traversal& t = *built;
     t.cut = cut;
     const Vec3 viewer = cut.viewer - impl_->frame;  // (cap_left_out's origin)
-    t.scene = rtcNewScene(impl_->device);
-    rtcSetSceneFlags(t.scene, RTC_SCENE_FLAG_ROBUST);  // watertight: no crossing lost on a shared edge
-    t.weights.resize(impl_->faces.size());
-    // One geometry per light, masked by its light_mask bit: its quads, and its caps but those
-    // the cut leaves out. (A build Embree fails is not kept.)
-    std::vector<uint32_t> triangles;
-    for (size_t l = 0; l < impl_->faces.size(); ++l) {
-        const ShadowFaces& faces = impl_->faces[l];
-        const std::vector<int16_t>& weights = faces.weights;
-        triangles.clear();
-        triangles.reserve(faces.triangles.size());
-        t.weights[l].reserve(weights.size());
-        for (size_t k = 0; k < weights.size(); ++k) {
-            const uint32_t* v = &faces.triangles[3 * k];
-            if (k < faces.n_seen_caps && cut.cuts() &&
-                cap_left_out(faces.vertices[v[0]] - viewer, faces.vertices[v[1]] - viewer,
-                             faces.vertices[v[2]] - viewer, cut.reach, cut.beyond))
-                continue;
-            triangles.insert(triangles.end(), v, v + 3);
-            t.weights[l].push_back(weights[k]);
-        }
-        RTCGeometry g = rtcNewGeometry(impl_->device, RTC_GEOMETRY_TYPE_TRIANGLE);
-        auto* gv = static_cast<float*>(rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3,
-                                                               3 * sizeof(float), faces.vertices.size()));
-        auto* gi = static_cast<uint32_t*>(rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3,
-                                                                  3 * sizeof(uint32_t), triangles.size() / 3));
-        for (size_t k = 0; k < faces.vertices.size(); ++k)
-            for (int c = 0; c < 3; ++c) gv[3 * k + c] = float(faces.vertices[k][c]);  // floats to begin with
-        std::copy(triangles.begin(), triangles.end(), gi);
-        rtcSetGeometryIntersectFilterFunction(g, record_crossings);
-        rtcSetGeometryMask(g, light_mask(int(l)));
+    {
+        // Each light's parts: kept, or built (the caps the cut leaves out left out).
+        KeptParts& kept_scenes = kept_parts();
+        std::lock_guard<std::mutex> parts_lock(kept_scenes.mutex);
+        const long use = ++kept_scenes.use;
+        for (size_t l = 0; l < impl_->faces.size(); ++l)
+            for (const std::shared_ptr<const ShadowFaces>& faces : impl_->faces[l]) {
+                const CapCut key = cut.cuts() && faces->n_seen_caps > 0 ? cut : CapCut();
+                std::shared_ptr<const PartScene> part;
+                for (KeptParts::Entry& e : kept_scenes.entries)
+                    if (e.key == faces.get() && e.cut == key && !e.faces.expired()) {
+                        e.last_use = use;
+                        part = e.scene;
+                        break;
+                    }
+                if (!part) {
+                    part = part_scene(*faces, key, viewer);
+                    kept_scenes.entries.push_back({faces, faces.get(), key, part, use});
+                }
+                t.held.push_back(part);
+                t.parts.push_back(part.get());
+                t.light.push_back(int16_t(l));
+            }
+        auto& entries = kept_scenes.entries;
+        entries.erase(std::remove_if(entries.begin(), entries.end(),
+                                     [&](const KeptParts::Entry& e) {
+                                         return e.faces.expired() || e.last_use <= use - KeptParts::kKeptParts;
+                                     }),
+                      entries.end());
+    }
+    // Identity instances (exact: image/embree_blocks.h), masked by their light's light_mask bit.
+    static const float identity[12] = {1, 0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0};
+    const RTCDevice device = blocks_device();
+    t.scene = rtcNewScene(device);
+    rtcSetSceneFlags(t.scene, RTC_SCENE_FLAG_ROBUST);
+    for (size_t i = 0; i < t.parts.size(); ++i) {
+        RTCGeometry g = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_INSTANCE);
+        rtcSetGeometryInstancedScene(g, t.parts[i]->scene);
+        rtcSetGeometryTimeStepCount(g, 1);
+        rtcSetGeometryTransform(g, 0, RTC_FORMAT_FLOAT3X4_COLUMN_MAJOR, identity);
+        rtcSetGeometryMask(g, light_mask(int(t.light[i])));
         rtcCommitGeometry(g);
-        rtcAttachGeometryByID(t.scene, g, unsigned(l));
+        rtcAttachGeometryByID(t.scene, g, unsigned(i));
         rtcReleaseGeometry(g);
     }
     rtcCommitScene(t.scene);
-    impl_->check("building the volumes");
+    check_blocks_device("building the shadow volumes' instances");
     kept.push_front(std::move(built));
     if (kept.size() > Impl::kKeptTraversals) kept.pop_back();  // (a query may still hold it)
     return kept.front();
@@ -610,7 +498,8 @@ void ShadowVolumes::lit_intervals(const Ray* rays, const float* t0, const float*
     from.resize(static_cast<size_t>(L));
     CrossingContext ctx;
     ctx.lists = lists;
-    ctx.weights = &volumes.weights;
+    ctx.light = volumes.light.data();
+    ctx.parts = volumes.parts.data();
     for (int base = 0; base < n; base += 16) {
         const int m = std::min(16, n - base);
         alignas(64) RTCRayHit16 rh;
@@ -768,9 +657,15 @@ void ShadowVolumes::clear_shared() {
     std::lock_guard<std::mutex> lock(s.mutex);
     s.kept.clear();
     caster_blocks().clear();
+    volume_blocks().clear();
 }
 
 long ShadowVolumes::caster_blocks_built() { return caster_blocks().blocks_built(); }
+
+long ShadowVolumes::block_faces_built() {
+    std::lock_guard<std::mutex> lock(volume_blocks().mutex());
+    return volume_blocks().faces_built();
+}
 
 long ShadowVolumes::shared_builds() {
     SharedVolumes& s = shared_volumes();
@@ -784,7 +679,7 @@ std::vector<double> ShadowVolumes::reaches(const Vec3& viewer) const {
     return out;
 }
 
-const ShadowFaces& ShadowVolumes::faces(int l) const { return impl_->faces[size_t(l)]; }
+const ShadowVolumes::FaceParts& ShadowVolumes::faces(int l) const { return impl_->faces[size_t(l)]; }
 
 Vec3 ShadowVolumes::frame() const { return impl_->frame; }
 

@@ -137,6 +137,9 @@ class ShadowVolumes {
     // The BVHs of the casters' objects (image/embree_blocks.h) that builds of volumes built for
     // their counts, the others shared with the volumes built before them.
     static long caster_blocks_built();
+    // The faces of one block of the casters for one light (shadow/block_faces.h) that builds of
+    // volumes built, the others copied from the volumes built before them.
+    static long block_faces_built();
     static constexpr size_t kKeptVolumes = 2;
     // Per light, the extrusion distance R (shadow_volumes.h) that volumes of these casters and
     // lights built for a camera at _viewer_ (the world) have.
@@ -171,8 +174,10 @@ class ShadowVolumes {
     // come back lit all along.
     static void lit_from_crossings(std::vector<Crossing>& list, int n_lights, double t0, double t1, const int* count0,
                                    uint32_t mask, LitIntervals& out);
-    // Light _l_'s faces (the same triangles Embree traces, in doubles).
-    const ShadowFaces& faces(int l) const;
+    // Light _l_'s faces a block of the casters at a time (shadow/block_faces.h), each with its
+    // own vertices: the same triangles Embree traces, in doubles.
+    using FaceParts = std::vector<std::shared_ptr<const ShadowFaces>>;
+    const FaceParts& faces(int l) const;
     // The volumes' frame: the centre of the casters' box in the world (faces are relative to
     // it; without casters the first viewer's position).
     Vec3 frame() const;

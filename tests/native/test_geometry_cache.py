@@ -165,10 +165,11 @@ def grid(n, x, y, z):
     return vertices, triangles.astype(np.uint32)
 
 
-def test07_a_moved_object_rebuilds_its_own_bvhs_only_bit_for_bit():
+def test07_a_moved_object_rebuilds_its_own_bvhs_and_shadow_faces_only_bit_for_bit():
     """Each object of the soup (a run that indexes only its own vertices) has its own BVH, for
-    the camera's rays and for the casters' counts (image/embree_blocks.h): an object that moves
-    builds those of its block again, the others are shared, and the bake is a fresh process's."""
+    the camera's rays and for the casters' counts (image/embree_blocks.h), and its own faces of
+    each light's shadow volume (shadow/block_faces.h): an object that moves builds those of its
+    block again, the others are shared, and the bake is a fresh process's."""
     floor = grid(130, (-4.0, 4.0), (-1.0, 7.0), -1.0)   # 33,800 triangles: a block of its own
     wall = grid(130, (-4.0, 4.0), (-1.0, 7.0), -1.6)    # another, under the floor (seen through no hole)
     box_v, box_t = BOX
@@ -188,6 +189,7 @@ def test07_a_moved_object_rebuilds_its_own_bvhs_only_bit_for_bit():
         # The box joins the last grid's block (blocks have at least kMinBlockTriangles).
         assert after["camera"] == built["camera"] + 1
         assert after["casters"] == built["casters"] + 1
+        assert after["volume_faces"] == built["volume_faces"] + 1  # (one light)
         assert _native.raycaster_builds() == before + 1
         built = after
         _native.clear_geometry_cache()
