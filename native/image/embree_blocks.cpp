@@ -178,6 +178,58 @@ std::vector<SoupBlock> soup_blocks(const uint32_t* triangles, size_t n_triangles
     return out;
 }
 
+RTCScene new_block_scene(const float* vertices, size_t n_vertices, const uint32_t* triangles, size_t n_triangles,
+                         RTCBuildQuality quality, RTCFilterFunctionN filter) {
+    const RTCDevice device = blocks_device();
+    RTCGeometry g = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_TRIANGLE);
+    rtcSetSharedGeometryBuffer(g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, vertices, 0, 3 * sizeof(float),
+                               n_vertices);
+    rtcSetSharedGeometryBuffer(g, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, triangles, 0, 3 * sizeof(uint32_t),
+                               n_triangles);
+    if (filter) rtcSetGeometryIntersectFilterFunction(g, filter);
+    rtcCommitGeometry(g);
+    RTCScene scene = rtcNewScene(device);
+    rtcSetSceneFlags(scene, RTC_SCENE_FLAG_ROBUST);
+    rtcSetSceneBuildQuality(scene, quality);
+    rtcAttachGeometry(scene, g);
+    rtcReleaseGeometry(g);
+    rtcCommitScene(scene);
+    const std::string message = device_errors().take();
+    if (!message.empty()) {
+        rtcReleaseScene(scene);
+        throw std::runtime_error("Embree: building a block of the scene: " + message);
+    }
+    return scene;
+}
+
+RTCScene new_instance_scene(const std::vector<RTCScene>& scenes) {
+    if (scenes.empty()) return nullptr;
+    if (scenes.size() == 1) {
+        rtcRetainScene(scenes[0]);
+        return scenes[0];
+    }
+    static const float identity[12] = {1, 0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0};  // (column-major 3x4)
+    const RTCDevice device = blocks_device();
+    RTCScene scene = rtcNewScene(device);
+    rtcSetSceneFlags(scene, RTC_SCENE_FLAG_ROBUST);
+    for (size_t k = 0; k < scenes.size(); ++k) {
+        RTCGeometry g = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_INSTANCE);
+        rtcSetGeometryInstancedScene(g, scenes[k]);
+        rtcSetGeometryTimeStepCount(g, 1);
+        rtcSetGeometryTransform(g, 0, RTC_FORMAT_FLOAT3X4_COLUMN_MAJOR, identity);
+        rtcCommitGeometry(g);
+        rtcAttachGeometryByID(scene, g, unsigned(k));
+        rtcReleaseGeometry(g);
+    }
+    rtcCommitScene(scene);
+    const std::string message = device_errors().take();
+    if (!message.empty()) {
+        rtcReleaseScene(scene);
+        throw std::runtime_error("Embree: building the scene's instances: " + message);
+    }
+    return scene;
+}
+
 BlockedScene::~BlockedScene() {
     if (scene_) rtcReleaseScene(scene_);
 }
@@ -202,7 +254,6 @@ std::shared_ptr<const BlockedScene> BlockCache::scene(const float* vertices, siz
                                                       const std::function<void()>& before_build) {
     if (n_vertices > size_t(std::numeric_limits<uint32_t>::max()))
         throw std::invalid_argument("Embree blocks: more than 2^32 vertices");
-    const RTCDevice device = blocks_device();
     const std::vector<SoupBlock> cuts = soup_blocks(triangles, n_triangles, kMinBlockTriangles);
     for (size_t k = 0; k < 3 * n_triangles; ++k)
         if (triangles[k] >= n_vertices)
@@ -231,48 +282,18 @@ std::shared_ptr<const BlockedScene> BlockCache::scene(const float* vertices, siz
         auto block = std::make_shared<BlockedScene::Block>();
         const size_t nv = size_t(c.vertex_end - c.vertex_begin), nt = c.tri_end - c.tri_begin;
         block->copy = SoupCopy(vertices, triangles, c, hashes[b]);
-        RTCGeometry g = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_TRIANGLE);
-        // (Embree reads the block's own arrays, and 16 bytes at the last vertex: the vector's
-        // capacity holds 4 floats more.)
+        // (Embree reads 16 bytes at the last vertex: the vector's capacity holds 4 floats more.)
         block->copy.vertices.reserve(block->copy.vertices.size() + 4);
-        rtcSetSharedGeometryBuffer(g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, block->copy.vertices.data(), 0,
-                                   3 * sizeof(float), nv);
-        rtcSetSharedGeometryBuffer(g, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, block->copy.triangles.data(), 0,
-                                   3 * sizeof(uint32_t), nt);
-        if (filter_) rtcSetGeometryIntersectFilterFunction(g, filter_);
-        rtcCommitGeometry(g);
-        block->scene = rtcNewScene(device);
-        rtcSetSceneFlags(block->scene, RTC_SCENE_FLAG_ROBUST);
-        rtcSetSceneBuildQuality(block->scene, quality_);
-        rtcAttachGeometry(block->scene, g);
-        rtcReleaseGeometry(g);
-        rtcCommitScene(block->scene);
-        check_blocks_device("building a block of the scene");
+        block->scene = new_block_scene(block->copy.vertices.data(), nv, block->copy.triangles.data(), nt, quality_,
+                                       filter_);
         blocks[b] = std::move(block);
         ++built_;
     }
     std::shared_ptr<BlockedScene> out(new BlockedScene());
     out->blocks_ = blocks;
-    if (blocks.size() == 1) {
-        rtcRetainScene(blocks[0]->scene);
-        out->scene_ = blocks[0]->scene;
-    } else if (blocks.size() > 1) {
-        // Identity instances (column-major 3x4): Embree's transform of a ray by them is exact.
-        static const float identity[12] = {1, 0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0};
-        out->scene_ = rtcNewScene(device);
-        rtcSetSceneFlags(out->scene_, RTC_SCENE_FLAG_ROBUST);
-        for (const auto& block : blocks) {
-            RTCGeometry g = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_INSTANCE);
-            rtcSetGeometryInstancedScene(g, block->scene);
-            rtcSetGeometryTimeStepCount(g, 1);
-            rtcSetGeometryTransform(g, 0, RTC_FORMAT_FLOAT3X4_COLUMN_MAJOR, identity);
-            rtcCommitGeometry(g);
-            rtcAttachGeometry(out->scene_, g);
-            rtcReleaseGeometry(g);
-        }
-        rtcCommitScene(out->scene_);
-        check_blocks_device("building the scene's instances");
-    }
+    std::vector<RTCScene> scenes;
+    for (const auto& block : blocks) scenes.push_back(block->scene);
+    out->scene_ = new_instance_scene(scenes);
     kept_ = std::move(blocks);
     last_ = out;
     return out;

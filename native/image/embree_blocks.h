@@ -66,6 +66,18 @@ RTCDevice blocks_device();
 // blocks_device() since the last call.
 void check_blocks_device(const char* what);
 
+// A robust Embree scene on blocks_device() of _n_triangles_ triangles (3 indices each) over
+// _n_vertices_ vertices (3 floats each) that it reads where they are: both arrays must outlive
+// it, and the vertices' have room for a float past the last (Embree reads 16 bytes at the last
+// vertex). _filter_ (optional): the geometry's intersect filter. Throws std::runtime_error
+// when Embree fails.
+RTCScene new_block_scene(const float* vertices, size_t n_vertices, const uint32_t* triangles, size_t n_triangles,
+                         RTCBuildQuality quality, RTCFilterFunctionN filter = nullptr);
+// The scene over _scenes_ (of blocks_device()): null for none, the one scene (retained) for
+// one, else identity instances of them, instance k of scenes[k] (Embree's transform of a ray
+// by them is exact, and costs nothing measurable). Release it with rtcReleaseScene.
+RTCScene new_instance_scene(const std::vector<RTCScene>& scenes);
+
 // The scene of one soup: its blocks' scenes, or the instances over them.
 class BlockedScene {
   public:

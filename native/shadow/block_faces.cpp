@@ -9,6 +9,7 @@
 #include <cstring>
 #include <limits>
 #include <stdexcept>
+#include <string>
 
 namespace airlight {
 
@@ -276,9 +277,21 @@ std::shared_ptr<const ShadowFaces> VolumeBlocks::Block::find(const ShadowLight& 
     return nullptr;
 }
 
-std::vector<std::shared_ptr<VolumeBlocks::Block>> VolumeBlocks::blocks(const float* vertices,
-                                                                       const uint32_t* triangles,
-                                                                       const std::vector<SoupBlock>& cuts) {
+VolumeBlocks::Block::Counting::~Counting() {
+    if (scene) rtcReleaseScene(scene);
+}
+
+CasterBlocks VolumeBlocks::blocks(const TriangleMesh& casters) {
+    const size_t n_vertices = casters.vertices.size() / 3, nt = casters.triangles.size() / 3;
+    for (size_t k = 0; k < 3 * nt; ++k)
+        if (casters.triangles[k] >= n_vertices)
+            throw std::invalid_argument("triangle index " + std::to_string(casters.triangles[k]) +
+                                        " out of range (vertex count " + std::to_string(n_vertices) + ")");
+    CasterBlocks result;
+    result.cuts = soup_blocks(casters.triangles.data(), nt, BlockCache::kMinBlockTriangles);
+    const std::vector<SoupBlock>& cuts = result.cuts;
+    const float* vertices = casters.vertices.data();
+    const uint32_t* triangles = casters.triangles.data();
     std::vector<const SoupCopy*> copies;
     for (const auto& block : kept_) copies.push_back(&block->copy);
     std::vector<uint64_t> hashes;
@@ -314,7 +327,8 @@ std::vector<std::shared_ptr<VolumeBlocks::Block>> VolumeBlocks::blocks(const flo
     for (size_t k = 0; k < kept_.size(); ++k)
         if (std::find(match.begin(), match.end(), long(k)) == match.end()) kept.push_back(kept_[k]);
     kept_ = std::move(kept);
-    return out;
+    result.blocks = std::move(out);
+    return result;
 }
 
 void VolumeBlocks::finish_build() {

@@ -13,6 +13,8 @@
 #include <mutex>
 #include <vector>
 
+#include <embree3/rtcore.h>
+
 #include "core/scene.h"
 #include "image/embree_blocks.h"
 #include "shadow/shadow_volumes.h"
@@ -44,6 +46,9 @@ ShadowFaces block_faces(const BlockGeometry& geometry, const ShadowLight& light,
                         size_t seen);
 
 // The blocks of the last volumes built and their faces per light.
+class VolumeBlocks;
+struct CasterBlocks;
+
 class VolumeBlocks {
   public:
     // One kept block.
@@ -68,6 +73,15 @@ class VolumeBlocks {
             long last_use;
         };
         std::vector<Faces> faces;
+        // The block's triangles in the floats of the volumes' frame (those of the caps), for the
+        // casters' counts (ShadowVolumes::count_at): built for the first volumes of a frame.
+        struct Counting {
+            Vec3 frame;
+            std::vector<float> vertices;
+            RTCScene scene = nullptr;  // over vertices and the copy's triangles
+            ~Counting();
+        };
+        std::shared_ptr<const Counting> counting;
         long last_use = 0;
         // Light _light_'s (the frame's coordinates) farthest used vertex (0: none).
         double vertex_far(const ShadowLight& light, const Vec3& frame);
@@ -76,25 +90,34 @@ class VolumeBlocks {
                                                 double extent, size_t seen, long use);
     };
 
-    // The blocks _cuts_ of the soup: the kept ones that equal them (image/embree_blocks.h:
-    // match_blocks), new ones for the others. Call with mutex() held.
-    std::vector<std::shared_ptr<Block>> blocks(const float* vertices, const uint32_t* triangles,
-                                               const std::vector<SoupBlock>& cuts);
+    // The blocks of _casters_ (soup_blocks): the kept ones that equal them (image/embree_blocks.h:
+    // match_blocks), new ones for the others. Throws std::invalid_argument on a triangle index
+    // out of range. Call with mutex() held.
+    CasterBlocks blocks(const TriangleMesh& casters);
     // Ends a build: the blocks it did not use and that the one before did not either are
     // dropped, and faces unused in the last kKeptBuilds builds. Call with mutex() held.
     void finish_build();
     long use() const { return use_; }
     void clear();
-    // Faces of a block and light built so far.
+    // Faces of a block and light, and counting scenes of a block, built so far.
     long faces_built() const { return faces_built_; }
-    void count_built(long n) { faces_built_ += n; }
+    long counting_built() const { return counting_built_; }
+    void count_faces(long n) { faces_built_ += n; }
+    void count_counting() { ++counting_built_; }
     std::mutex& mutex() { return mutex_; }
     static constexpr long kKeptBuilds = 8;
 
   private:
     std::mutex mutex_;
     std::vector<std::shared_ptr<Block>> kept_;
-    long use_ = 1, faces_built_ = 0;
+    long use_ = 1, faces_built_ = 0, counting_built_ = 0;
+};
+
+// A soup of casters cut into blocks (image/embree_blocks.h: soup_blocks) and each block's kept
+// data.
+struct CasterBlocks {
+    std::vector<SoupBlock> cuts;
+    std::vector<std::shared_ptr<VolumeBlocks::Block>> blocks;
 };
 
 // The process's kept blocks (ShadowVolumes' builds share them).

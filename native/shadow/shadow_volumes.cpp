@@ -129,12 +129,6 @@ void count_hits(const RTCFilterFunctionNArguments* args) {
     }
 }
 
-// The casters' blocks of the last volumes built (their counting BVHs).
-BlockCache& caster_blocks() {
-    static BlockCache cache(RTC_BUILD_QUALITY_MEDIUM, count_hits);
-    return cache;
-}
-
 // The segment from _p_ (in the volumes' frame) toward _light_ (_reach_: a sun's extrusion
 // distance), clipped in double to the casters' box [lo, hi] before it goes to Embree in floats:
 // from a point 1e9 m out the float origin is off by ~60 m, more than a caster's size, while from
@@ -187,7 +181,11 @@ struct ShadowVolumes::Traversal {
 };
 
 struct ShadowVolumes::Impl {
-    std::shared_ptr<const BlockedScene> casters;  // the caster triangles (count_at, lit_at)
+    // The casters' blocks (block_faces.h), their counting scenes in the frame's floats, and the
+    // scene over those (count_at, lit_at; null without casters).
+    std::vector<std::shared_ptr<VolumeBlocks::Block>> blocks;
+    std::vector<std::shared_ptr<const VolumeBlocks::Block::Counting>> counting;
+    RTCScene casters = nullptr;
     std::vector<double> reach;                  // per light: the extrusion distance R
     // What R depends on besides the viewer (reach_for): per light the farthest caster vertex
     // (suns: the extent; 0 without casters), the box of the casters and point lights.
@@ -216,30 +214,38 @@ struct ShadowVolumes::Impl {
         const double far = std::max(glm::length(viewer - from), vertex_far[l]);
         return std::min(std::exp2(std::ceil(std::log2(8.0 * std::max(far, extent * 1e-6)))), 1e7 * extent);
     }
-    ~Impl() { traversals.clear(); }
+    ~Impl() {
+        traversals.clear();
+        if (casters) rtcReleaseScene(casters);
+    }
 };
 
 ShadowVolumes::~ShadowVolumes() = default;
 
 ShadowVolumes::ShadowVolumes(const TriangleMesh& casters, const std::vector<ShadowLight>& world_lights,
                              const Vec3& world_viewer, size_t seen_triangles, int n_threads)
+    : ShadowVolumes(casters, world_lights, world_viewer, seen_triangles, n_threads, nullptr) {}
+
+ShadowVolumes::ShadowVolumes(const TriangleMesh& casters, const std::vector<ShadowLight>& world_lights,
+                             const Vec3& world_viewer, size_t seen_triangles, int n_threads, const CasterBlocks* given)
     : impl_(new Impl), lights_(world_lights) {
     if (lights_.size() > size_t(std::numeric_limits<int16_t>::max()))
         throw std::invalid_argument("shadow volumes: too many lights");
-    const size_t n_vertices = casters.vertices.size() / 3, nt = casters.triangles.size() / 3;
-    for (size_t k = 0; k < 3 * nt; ++k)
-        if (casters.triangles[k] >= n_vertices)
-            throw std::invalid_argument("triangle index " + std::to_string(casters.triangles[k]) +
-                                        " out of range (vertex count " + std::to_string(n_vertices) + ")");
     // The casters a block at a time (block_faces.h): the blocks kept from the last builds
     // where they are the same, each with its box of the vertices of triangles with an area (a
     // degenerate triangle shadows nothing, and moves neither the frame nor the extrusion
-    // distance).
+    // distance). (shared() holds the kept blocks' lock and gives them.)
     VolumeBlocks& kept = volume_blocks();
-    std::lock_guard<std::mutex> lock(kept.mutex());
-    const std::vector<SoupBlock> cuts = soup_blocks(casters.triangles.data(), nt, BlockCache::kMinBlockTriangles);
-    const std::vector<std::shared_ptr<VolumeBlocks::Block>> blocks =
-        kept.blocks(casters.vertices.data(), casters.triangles.data(), cuts);
+    std::unique_lock<std::mutex> lock;
+    CasterBlocks own;
+    if (!given) {
+        lock = std::unique_lock<std::mutex>(kept.mutex());
+        own = kept.blocks(casters);
+        given = &own;
+    }
+    const std::vector<SoupBlock>& cuts = given->cuts;
+    const std::vector<std::shared_ptr<VolumeBlocks::Block>>& blocks = given->blocks;
+    impl_->blocks = blocks;
     bool any_used = false;
     Vec3 clo(std::numeric_limits<double>::infinity()), chi(-std::numeric_limits<double>::infinity());  // their box
     for (const auto& block : blocks)
@@ -270,17 +276,29 @@ ShadowVolumes::ShadowVolumes(const TriangleMesh& casters, const std::vector<Shad
     const Vec3 pad(1e-5 * extent);  // above the floats' rounding of the vertices
     if (any_used) impl_->lo = clo - pad, impl_->hi = chi + pad;
 
+    // The casters' triangles for the counts, in the frame's floats (those of the caps), each
+    // block's kept while it and the frame stay: the welded triangles are the same triangles.
     {
-        // The casters' triangles for the counts, in the frame's floats (those of the caps), each
-        // object a block whose BVH later builds share while it and the frame stay
-        // (image/embree_blocks.h): the welded triangles are the same triangles.
-        std::vector<float> shifted(casters.vertices.size());
-        for (size_t k = 0; k < shifted.size(); ++k) {
-            const float x = casters.vertices[k] == 0.0f ? 0.0f : casters.vertices[k];  // (-0 as the weld's +0)
-            shifted[k] = float(double(x) - frame[int(k % 3)]);
+        std::vector<RTCScene> scenes;
+        for (const auto& block : blocks) {
+            if (!block->counting || block->counting->frame != frame) {
+                auto counting = std::make_shared<VolumeBlocks::Block::Counting>();
+                counting->frame = frame;
+                const std::vector<float>& v = block->copy.vertices;
+                counting->vertices.reserve(v.size() + 4);  // (Embree reads 16 bytes at the last vertex)
+                for (size_t k = 0; k < v.size(); ++k) {
+                    const float x = v[k] == 0.0f ? 0.0f : v[k];  // (-0 as the weld's +0)
+                    counting->vertices.push_back(float(double(x) - frame[int(k % 3)]));
+                }
+                counting->scene = new_block_scene(counting->vertices.data(), v.size() / 3, block->copy.triangles.data(),
+                                                  block->copy.triangles.size() / 3, RTC_BUILD_QUALITY_MEDIUM, count_hits);
+                block->counting = std::move(counting);
+                kept.count_counting();
+            }
+            impl_->counting.push_back(block->counting);
+            scenes.push_back(block->counting->scene);
         }
-        impl_->casters = caster_blocks().scene(shifted.data(), shifted.size() / 3, casters.triangles.data(),
-                                               casters.triangles.size() / 3);
+        impl_->casters = new_instance_scene(scenes);
     }
 
     // Per light, the extrusion distance (shadow_volumes.h), from the farthest caster vertex.
@@ -320,7 +338,7 @@ ShadowVolumes::ShadowVolumes(const TriangleMesh& casters, const std::vector<Shad
         });
         for (const size_t l : missing)
             block.faces.push_back({lights[l], frame, impl_->reach[l], key_extent(l), seen, parts[l][b], use});
-        kept.count_built(long(missing.size()));
+        kept.count_faces(long(missing.size()));
     }
     kept.finish_build();
     impl_->faces = std::move(parts);
@@ -450,7 +468,7 @@ int ShadowVolumes::count_at(int l, const Vec3& world_p, bool* ambiguous) const {
         ctx.count = 0;
         rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
         rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
-        if (impl_->casters->scene()) rtcIntersect1(impl_->casters->scene(), &ctx.context, &rh);
+        if (impl_->casters) rtcIntersect1(impl_->casters, &ctx.context, &rh);
         counts[k] = ctx.count;
     }
     std::sort(counts, counts + 3);
@@ -463,8 +481,8 @@ bool ShadowVolumes::lit_at(int l, const Vec3& world_p) const {
     if (!light_ray(lights_[size_t(l)], impl_->reach[size_t(l)], world_p - impl_->frame, impl_->lo, impl_->hi, ray)) return true;
     RTCIntersectContext ctx;
     rtcInitIntersectContext(&ctx);
-    if (!impl_->casters->scene()) return true;
-    rtcOccluded1(impl_->casters->scene(), &ctx, &ray);  // the counting filter is an intersect filter only
+    if (!impl_->casters) return true;
+    rtcOccluded1(impl_->casters, &ctx, &ray);  // the counting filter is an intersect filter only
     return ray.tfar >= 0.0f;                    // set to -inf on a hit
 }
 
@@ -608,7 +626,7 @@ bool same_lights(const std::vector<ShadowLight>& a, const std::vector<ShadowLigh
 }
 
 struct KeptVolumes {
-    TriangleMesh casters;  // copies, compared exactly
+    CasterBlocks casters;  // (the blocks compared exactly by VolumeBlocks::blocks)
     std::vector<ShadowLight> lights;
     size_t seen_triangles = 0;
     std::shared_ptr<const ShadowVolumes> volumes;
@@ -633,10 +651,12 @@ std::shared_ptr<const ShadowVolumes> ShadowVolumes::shared(const TriangleMesh& c
                                                            size_t seen_triangles, int n_threads) {
     SharedVolumes& s = shared_volumes();
     std::lock_guard<std::mutex> lock(s.mutex);
+    VolumeBlocks& blocks = volume_blocks();
+    std::lock_guard<std::mutex> blocks_lock(blocks.mutex());
+    CasterBlocks given = blocks.blocks(casters);
     for (KeptVolumes& k : s.kept)
-        if (k.seen_triangles == seen_triangles && same_lights(k.lights, lights) &&
-            k.casters.vertices == casters.vertices && k.casters.triangles == casters.triangles &&
-            k.volumes->reaches(viewer) == k.volumes->impl_->reach) {
+        if (k.seen_triangles == seen_triangles && same_lights(k.lights, lights) && k.casters.cuts == given.cuts &&
+            k.casters.blocks == given.blocks && k.volumes->reaches(viewer) == k.volumes->impl_->reach) {
             k.last_use = ++s.uses;
             return k.volumes;
         }
@@ -646,9 +666,10 @@ std::shared_ptr<const ShadowVolumes> ShadowVolumes::shared(const TriangleMesh& c
         });
         s.kept.erase(oldest);
     }
-    auto volumes = std::make_shared<const ShadowVolumes>(casters, lights, viewer, seen_triangles, n_threads);
+    std::shared_ptr<const ShadowVolumes> volumes(
+        new ShadowVolumes(casters, lights, viewer, seen_triangles, n_threads, &given));
     ++s.builds;
-    s.kept.push_back({casters, lights, seen_triangles, volumes, ++s.uses});
+    s.kept.push_back({std::move(given), lights, seen_triangles, volumes, ++s.uses});
     return volumes;
 }
 
@@ -656,11 +677,13 @@ void ShadowVolumes::clear_shared() {
     SharedVolumes& s = shared_volumes();
     std::lock_guard<std::mutex> lock(s.mutex);
     s.kept.clear();
-    caster_blocks().clear();
     volume_blocks().clear();
 }
 
-long ShadowVolumes::caster_blocks_built() { return caster_blocks().blocks_built(); }
+long ShadowVolumes::caster_blocks_built() {
+    std::lock_guard<std::mutex> lock(volume_blocks().mutex());
+    return volume_blocks().counting_built();
+}
 
 long ShadowVolumes::block_faces_built() {
     std::lock_guard<std::mutex> lock(volume_blocks().mutex());

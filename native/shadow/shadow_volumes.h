@@ -37,6 +37,8 @@
 
 namespace airlight {
 
+struct CasterBlocks;  // (shadow/block_faces.h)
+
 // A light for the shadow volumes: a point (point and spot lights) or a direction (suns).
 struct ShadowLight {
     bool directional = false;
@@ -190,6 +192,10 @@ class ShadowVolumes {
     size_t num_faces() const { return n_faces_; }
 
   private:
+    // The constructor's, of the casters' _blocks_ (null: the constructor takes them, with
+    // the kept blocks' lock held while it builds).
+    ShadowVolumes(const TriangleMesh& casters, const std::vector<ShadowLight>& lights, const Vec3& viewer,
+                  size_t seen_triangles, int n_threads, const CasterBlocks* blocks);
     // The sweep of lit_intervals over one ray's sorted crossings: each light starts at
     // count[l] and skips the crossings up to from[l] (null: a), or, _counted_at_origin_,
     // applies those at t <= a.
