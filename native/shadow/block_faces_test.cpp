@@ -27,11 +27,11 @@ void add_grid(TriangleMesh& m, int n, double x0, double x1, double y0, double y1
 
 // Two floor grids of 33,800 triangles each (blocks of their own) meeting along x = 0, their
 // vertices there equal but not shared, and a box above them (a block of its own).
-TriangleMesh floors_and_box(double box_x) {
+TriangleMesh floors_and_box(double box_x, double box_z = 1.0) {
     TriangleMesh soup;
     add_grid(soup, 130, -4.0, 0.0, -4.0, 4.0, 0.0);
     add_grid(soup, 130, 0.0, 4.0, -4.0, 4.0, 0.0);
-    add_box(soup, Vec3(box_x, -0.5, 1.0), Vec3(box_x + 0.6, 0.5, 1.4));
+    add_box(soup, Vec3(box_x, -0.5, box_z), Vec3(box_x + 0.6, 0.5, box_z + 0.4));
     return soup;
 }
 
@@ -88,6 +88,24 @@ TEST(BlockFaces, AMovedObjectBuildsItsOwnFacesAndTheVolumesAreAFreshBuilds) {
             EXPECT_EQ(moved.faces(l)[b]->triangles, fresh.faces(l)[b]->triangles);
             EXPECT_EQ(moved.faces(l)[b]->weights, fresh.faces(l)[b]->weights);
         }
+}
+
+// The box is the top of the casters' box: raising it moves their centre, not the volumes'
+// frame (on a grid of 1/64 of their size), so the floors keep their faces and counting BVHs;
+// raised by more than a cell it moves the frame, and every block is built again.
+TEST(BlockFaces, AnObjectMovingTheCastersBoxByLessThanACellKeepsTheFrame) {
+    const Vec3 eye(-0.2, -6.0, -1.5);
+    ShadowVolumes::clear_shared();
+    const ShadowVolumes before(floors_and_box(-0.3), lights(), eye);
+    const long faces = ShadowVolumes::block_faces_built(), counting = ShadowVolumes::caster_blocks_built();
+    const ShadowVolumes raised(floors_and_box(-0.3, 1.01), lights(), eye);
+    EXPECT_EQ(raised.frame(), before.frame());
+    EXPECT_EQ(ShadowVolumes::block_faces_built(), faces + 2);
+    EXPECT_EQ(ShadowVolumes::caster_blocks_built(), counting + 1);
+    const ShadowVolumes far_up(floors_and_box(-0.3, 2.0), lights(), eye);
+    EXPECT_NE(far_up.frame(), before.frame());
+    EXPECT_EQ(ShadowVolumes::block_faces_built(), faces + 2 + 6);
+    EXPECT_EQ(ShadowVolumes::caster_blocks_built(), counting + 1 + 3);
 }
 
 // The two floors' seam is a silhouette of each block (an open mesh's border), a quad in each

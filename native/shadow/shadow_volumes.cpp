@@ -202,7 +202,8 @@ struct ShadowVolumes::Impl {
     Vec3 lo{0.0}, hi{-1.0};                     // the casters' box, padded (count_at, lit_at)
     // The volumes are built about the casters' centre (Embree works in floats: a scene 1000 km
     // from the world's origin keeps its shadows to ~1e-7 of its size, not to 6 cm), which no
-    // camera moves: the faces are the same for every viewer that gives the same reaches.
+    // camera moves: the faces are the same for every viewer that gives the same reaches. (On
+    // a grid: an object moving the box a little keeps it, ShadowVolumes::frame().)
     Vec3 frame{0.0};
 
     // R of light _light_ (index l, the frame's coordinates) for a camera at _viewer_: 8 times
@@ -254,7 +255,13 @@ ShadowVolumes::ShadowVolumes(const TriangleMesh& casters, const std::vector<Shad
             any_used = true;
         }
     // Everything below in the casters' frame (Impl::frame).
-    impl_->frame = any_used ? 0.5 * (clo + chi) : world_viewer;
+    // (The centre on a grid of 1/64 of the casters' size rounded up to a power of 2: an object
+    // that moves its edge of the box by less than a cell keeps the frame, and so every other
+    // block's faces and counting BVH.)
+    const Vec3 size = chi - clo;
+    const double cell = any_used ? std::exp2(std::ceil(std::log2(std::max({size.x, size.y, size.z}))) - 6.0) : 0.0;
+    const Vec3 centre = 0.5 * (clo + chi);
+    impl_->frame = !any_used ? world_viewer : cell > 0.0 ? glm::round(centre / cell) * cell : centre;
     const Vec3 frame = impl_->frame;
     clo -= frame, chi -= frame;
     const Vec3 viewer = world_viewer - frame;
@@ -270,7 +277,9 @@ ShadowVolumes::ShadowVolumes(const TriangleMesh& casters, const std::vector<Shad
     for (const ShadowLight& l : lights)
         if (!l.directional) lo = glm::min(lo, l.position), hi = glm::max(hi, l.position);
     const double extent = any_used ? std::max(glm::length(hi - lo), 1e-30) : 1.0;
-    const double caster_size = any_used ? std::max(glm::length(chi - clo), 1e-30) : 1.0;
+    // (A sun's rings are spaced by this: the casters' size rounded up to a power of 2.)
+    const double caster_size =
+        any_used ? std::exp2(std::ceil(std::log2(std::max(glm::length(chi - clo), 1e-30)))) : 1.0;
     impl_->extent = extent;
     impl_->mid = any_used ? 0.5 * (lo + hi) : Vec3(0.0);
     const Vec3 pad(1e-5 * extent);  // above the floats' rounding of the vertices

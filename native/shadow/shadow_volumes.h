@@ -180,8 +180,9 @@ class ShadowVolumes {
     // own vertices: the same triangles Embree traces, in doubles.
     using FaceParts = std::vector<std::shared_ptr<const ShadowFaces>>;
     const FaceParts& faces(int l) const;
-    // The volumes' frame: the centre of the casters' box in the world (faces are relative to
-    // it; without casters the first viewer's position).
+    // The volumes' frame: the centre of the casters' box in the world, on a grid of 1/64 of
+    // the box's size rounded up to a power of 2 (faces are relative to it; without casters the
+    // first viewer's position).
     Vec3 frame() const;
     // Whether cap triangle a b c (relative to the viewer) is left out for (cap_reach,
     // cap_beyond): wholly farther than cap_reach and nearer than cap_beyond.
