@@ -79,6 +79,13 @@ inline std::vector<uint32_t> to_triangles(const py::object& obj) {
     if (raw.size() > 0 && raw.dtype().kind() != 'i' && raw.dtype().kind() != 'u')
         throw py::value_error("triangles: expected an integer array, got dtype " +
                               std::string(py::str(raw.dtype())));
+    if (raw.dtype().is(py::dtype::of<uint32_t>())) {
+        // (The add-on's: every value in range, copied without an int64 array and a check each:
+        // 1e7 triangles took 0.2 s that way.)
+        auto a = CArray<uint32_t>::ensure(raw);
+        py::ssize_t m = require_rows_of(a, 3, "triangles");
+        return std::vector<uint32_t>(a.data(), a.data() + 3 * m);
+    }
     auto a = as_array<long long>(raw, "triangles");
     py::ssize_t m = require_rows_of(a, 3, "triangles");
     std::vector<uint32_t> out(size_t(3 * m));
