@@ -226,20 +226,22 @@ def bounds_frame(scene, depsgraph=None):
 
 
 def _mesh_arrays(mesh):
-    """Vertices (N,3) float32 and loop triangles (M,3) int32 of _mesh_, or None when empty."""
+    """Vertices (N,3) float32 and loop triangles (M,3) uint32 of _mesh_, or None when empty."""
     n_verts = len(mesh.vertices)
     n_tris = len(mesh.loop_triangles)
     if n_verts == 0 or n_tris == 0:
         return None
     verts = np.empty(n_verts * 3, dtype=np.float32)
     mesh.vertices.foreach_get("co", verts)
-    tris = np.empty(n_tris * 3, dtype=np.int32)
+    # (uint32: Blender's own type, which foreach_get copies without converting each value; an
+    # int32 buffer took 4x as long, 1.1-1.8 s for 1e7 triangles.)
+    tris = np.empty(n_tris * 3, dtype=np.uint32)
     mesh.loop_triangles.foreach_get("vertices", tris)
     return verts.reshape(-1, 3), tris.reshape(-1, 3)
 
 
 def mesh_arrays(obj_eval):
-    """Local-space vertices (N,3) float32 and triangles (M,3) int32 of an evaluated object."""
+    """Local-space vertices (N,3) float32 and triangles (M,3) uint32 of an evaluated object."""
     if obj_eval.type == 'MESH' and obj_eval.mode == 'OBJECT':
         # An evaluated mesh object's data is its mesh with the modifiers applied: read in place,
         # without to_mesh()'s copy (1e7 triangles: 1.2-1.9 s against 3.0-3.4 s). In Edit Mode
@@ -351,7 +353,7 @@ def _world_triangles(obj, matrix):
     if not np.isfinite(world).all():
         raise ExportError(f"Object '{obj.name}' has NaN or infinite vertices or transform "
                           "(a driver, constraint or modifier?).")
-    return world.astype(np.float32), tris.astype(np.uint32)
+    return world.astype(np.float32), tris
 
 
 def _soup(blocks):
