@@ -77,7 +77,7 @@ KeptParts& kept_parts() {
     return instance;
 }
 
-// The scene of _faces_ (light _mask_'s) with the caps _cut_ leaves out left out (a viewer in
+// The Embree scene of _faces_ with the caps _cut_ leaves out left out (_viewer_ in
 // the frame's coordinates, as the faces').
 std::shared_ptr<const PartScene> part_scene(const ShadowFaces& faces, const CapCut& cut, const Vec3& viewer) {
     auto part = std::make_shared<PartScene>();
@@ -299,8 +299,9 @@ ShadowVolumes::ShadowVolumes(const TriangleMesh& casters, const std::vector<Shad
                     const float x = v[k] == 0.0f ? 0.0f : v[k];  // (-0 as the weld's +0)
                     counting->vertices.push_back(float(double(x) - frame[int(k % 3)]));
                 }
-                counting->scene = new_block_scene(counting->vertices.data(), v.size() / 3, block->copy.triangles.data(),
-                                                  block->copy.triangles.size() / 3, RTC_BUILD_QUALITY_MEDIUM, count_hits);
+                const std::vector<uint32_t>& t = block->copy.triangles;
+                counting->scene = new_block_scene(counting->vertices.data(), v.size() / 3, t.data(), t.size() / 3,
+                                                  RTC_BUILD_QUALITY_MEDIUM, count_hits);
                 block->counting = std::move(counting);
                 kept.count_counting();
             }
