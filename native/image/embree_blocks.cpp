@@ -50,11 +50,6 @@ RTCDevice blocks_device() {
     return device;
 }
 
-void check_blocks_device(const char* what) {
-    const std::string message = device_errors().take();
-    if (!message.empty()) throw std::runtime_error(std::string("Embree: ") + what + ": " + message);
-}
-
 namespace {
 
 uint64_t mix(uint64_t h, uint32_t word) {
@@ -190,6 +185,16 @@ std::vector<SoupBlock> soup_blocks(const uint32_t* triangles, size_t n_triangles
     return out;
 }
 
+RTCScene committed(RTCScene scene, const char* what) {
+    rtcCommitScene(scene);
+    const std::string message = device_errors().take();
+    if (!message.empty()) {
+        rtcReleaseScene(scene);
+        throw std::runtime_error(std::string("Embree: ") + what + ": " + message);
+    }
+    return scene;
+}
+
 RTCScene new_block_scene(const float* vertices, size_t n_vertices, const uint32_t* triangles, size_t n_triangles,
                          RTCBuildQuality quality, RTCFilterFunctionN filter) {
     const RTCDevice device = blocks_device();
@@ -205,18 +210,12 @@ RTCScene new_block_scene(const float* vertices, size_t n_vertices, const uint32_
     rtcSetSceneBuildQuality(scene, quality);
     rtcAttachGeometry(scene, g);
     rtcReleaseGeometry(g);
-    rtcCommitScene(scene);
-    const std::string message = device_errors().take();
-    if (!message.empty()) {
-        rtcReleaseScene(scene);
-        throw std::runtime_error("Embree: building a block of the scene: " + message);
-    }
-    return scene;
+    return committed(scene, "building a block of the scene");
 }
 
-RTCScene new_instance_scene(const std::vector<RTCScene>& scenes) {
+RTCScene new_instance_scene(const std::vector<RTCScene>& scenes, const std::vector<unsigned>& masks) {
     if (scenes.empty()) return nullptr;
-    if (scenes.size() == 1) {
+    if (scenes.size() == 1 && masks.empty()) {
         rtcRetainScene(scenes[0]);
         return scenes[0];
     }
@@ -229,17 +228,12 @@ RTCScene new_instance_scene(const std::vector<RTCScene>& scenes) {
         rtcSetGeometryInstancedScene(g, scenes[k]);
         rtcSetGeometryTimeStepCount(g, 1);
         rtcSetGeometryTransform(g, 0, RTC_FORMAT_FLOAT3X4_COLUMN_MAJOR, identity);
+        if (!masks.empty()) rtcSetGeometryMask(g, masks[k]);
         rtcCommitGeometry(g);
         rtcAttachGeometryByID(scene, g, unsigned(k));
         rtcReleaseGeometry(g);
     }
-    rtcCommitScene(scene);
-    const std::string message = device_errors().take();
-    if (!message.empty()) {
-        rtcReleaseScene(scene);
-        throw std::runtime_error("Embree: building the scene's instances: " + message);
-    }
-    return scene;
+    return committed(scene, "building the scene's instances");
 }
 
 BlockedScene::~BlockedScene() {

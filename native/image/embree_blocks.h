@@ -62,9 +62,6 @@ std::vector<long> match_blocks(const std::vector<const SoupCopy*>& kept, const f
 // The Embree device of every block and of the scenes that instance them (instances must
 // share their scenes' device), made on first use and never released.
 RTCDevice blocks_device();
-// Throws std::runtime_error ("Embree: _what_: ...") when Embree reported an error on
-// blocks_device() since the last call.
-void check_blocks_device(const char* what);
 
 // A robust Embree scene on blocks_device() of _n_triangles_ triangles (3 indices each) over
 // _n_vertices_ vertices (3 floats each) that it reads where they are: both arrays must outlive
@@ -74,9 +71,13 @@ void check_blocks_device(const char* what);
 RTCScene new_block_scene(const float* vertices, size_t n_vertices, const uint32_t* triangles, size_t n_triangles,
                          RTCBuildQuality quality, RTCFilterFunctionN filter = nullptr);
 // The scene over _scenes_ (of blocks_device()): null for none, the one scene (retained) for
-// one, else identity instances of them, instance k of scenes[k] (Embree's transform of a ray
-// by them is exact, and costs nothing measurable). Release it with rtcReleaseScene.
-RTCScene new_instance_scene(const std::vector<RTCScene>& scenes);
+// one, else identity instances of them, instance k of scenes[k] with ray mask masks[k] (if
+// given: then instances of one scene too). Embree's transform of a ray by them is exact, and
+// costs nothing measurable. Release it with rtcReleaseScene.
+RTCScene new_instance_scene(const std::vector<RTCScene>& scenes, const std::vector<unsigned>& masks = {});
+// Commits _scene_ (of blocks_device()) and returns it, or releases it and throws
+// std::runtime_error ("Embree: _what_: ...") when Embree reported an error.
+RTCScene committed(RTCScene scene, const char* what);
 
 // The scene of one soup: its blocks' scenes, or the instances over them.
 class BlockedScene {

@@ -105,12 +105,11 @@ std::shared_ptr<const PartScene> part_scene(const ShadowFaces& faces, const CapC
     std::copy(triangles.begin(), triangles.end(), gi);
     rtcSetGeometryIntersectFilterFunction(g, record_crossings);
     rtcCommitGeometry(g);
-    part->scene = rtcNewScene(device);
-    rtcSetSceneFlags(part->scene, RTC_SCENE_FLAG_ROBUST);  // watertight: no crossing lost on a shared edge
-    rtcAttachGeometry(part->scene, g);
+    RTCScene scene = rtcNewScene(device);
+    rtcSetSceneFlags(scene, RTC_SCENE_FLAG_ROBUST);  // watertight: no crossing lost on a shared edge
+    rtcAttachGeometry(scene, g);
     rtcReleaseGeometry(g);
-    rtcCommitScene(part->scene);
-    check_blocks_device("building the shadow volumes");
+    part->scene = committed(scene, "building the shadow volumes");
     return part;
 }
 
@@ -171,7 +170,7 @@ bool light_ray(const ShadowLight& light, double reach, const Vec3& p, const Vec3
 
 struct ShadowVolumes::Traversal {
     CapCut cut;
-    RTCScene scene = nullptr;  // an instance per light and block of the casters (its part)
+    RTCScene scene = nullptr;  // an instance per light and block of the casters (its part); null: none
     std::vector<std::shared_ptr<const PartScene>> held;  // per instance
     std::vector<const PartScene*> parts;                 // the same
     std::vector<int16_t> light;                          // per instance
@@ -425,23 +424,14 @@ std::shared_ptr<const ShadowVolumes::Traversal> ShadowVolumes::traversal(const C
                                      }),
                       entries.end());
     }
-    // Identity instances (exact: image/embree_blocks.h), masked by their light's light_mask bit.
-    static const float identity[12] = {1, 0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0};
-    const RTCDevice device = blocks_device();
-    t.scene = rtcNewScene(device);
-    rtcSetSceneFlags(t.scene, RTC_SCENE_FLAG_ROBUST);
+    // Identity instances (image/embree_blocks.h), masked by their light's light_mask bit.
+    std::vector<RTCScene> scenes;
+    std::vector<unsigned> masks;
     for (size_t i = 0; i < t.parts.size(); ++i) {
-        RTCGeometry g = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_INSTANCE);
-        rtcSetGeometryInstancedScene(g, t.parts[i]->scene);
-        rtcSetGeometryTimeStepCount(g, 1);
-        rtcSetGeometryTransform(g, 0, RTC_FORMAT_FLOAT3X4_COLUMN_MAJOR, identity);
-        rtcSetGeometryMask(g, light_mask(int(t.light[i])));
-        rtcCommitGeometry(g);
-        rtcAttachGeometryByID(t.scene, g, unsigned(i));
-        rtcReleaseGeometry(g);
+        scenes.push_back(t.parts[i]->scene);
+        masks.push_back(light_mask(int(t.light[i])));
     }
-    rtcCommitScene(t.scene);
-    check_blocks_device("building the shadow volumes' instances");
+    t.scene = new_instance_scene(scenes, masks);
     kept.push_front(std::move(built));
     if (kept.size() > Impl::kKeptTraversals) kept.pop_back();  // (a query may still hold it)
     return kept.front();
@@ -552,7 +542,7 @@ void ShadowVolumes::lit_intervals(const Ray* rays, const float* t0, const float*
         }
         rtcInitIntersectContext(&ctx.context);
         ctx.context.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
-        rtcIntersect16(valid, volumes.scene, &ctx.context, &rh);
+        if (volumes.scene) rtcIntersect16(valid, volumes.scene, &ctx.context, &rh);  // (null: no casters)
         for (int k = 0; k < m; ++k) {
             const int i = base + k;
             const Ray& r = rays[i];
