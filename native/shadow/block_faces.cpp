@@ -73,14 +73,7 @@ BlockGeometry block_geometry(const float* vertices, size_t n_vertices, const uin
     }
     out.triangles.resize(3 * n_triangles);
     for (size_t k = 0; k < 3 * n_triangles; ++k) out.triangles[k] = remap[triangles[k]];
-    // The vertices of triangles with an area: a degenerate triangle shadows nothing.
     const size_t nv = position.size(), nt = n_triangles;
-    out.used.assign(nv, 0);
-    for (size_t k = 0; k < nt; ++k) {
-        const uint32_t* t = &out.triangles[3 * k];
-        const Vec3 &a = position[t[0]], &b = position[t[1]], &c = position[t[2]];
-        if (glm::length(glm::cross(b - a, c - a)) > 0.0) out.used[t[0]] = out.used[t[1]] = out.used[t[2]] = 1;
-    }
     for (Vec3& p : position) p -= frame;
     // Every triangle's directed edges (p -> q, as wound), grouped by undirected edge (u < v) in
     // (u, v) order: each light sums its sides' orientations edge by edge from them, without a

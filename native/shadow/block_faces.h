@@ -3,8 +3,9 @@
 // soup, or small objects joined (image/embree_blocks.h: soup_blocks); its faces for a light
 // depend on its own triangles, the light, the extrusion distance R, the volumes' frame and,
 // for a sun, the casters' size only. So an object that moved rebuilds its own faces, and the
-// volumes of the others are copied, not built again. Edges are welded within a block: an edge
-// that two blocks share keeps a quad in each, whose crossings cancel.
+// other blocks' faces (and their Embree scenes, shadow_volumes.cpp) are shared, not built
+// again. Edges are welded within a block: an edge that two blocks share keeps a quad in each,
+// whose crossings cancel.
 #pragma once
 
 #include <cstddef>
@@ -26,7 +27,6 @@ namespace airlight {
 struct BlockGeometry {
     std::vector<Vec3> position;       // the welded vertices, in the frame
     std::vector<uint32_t> triangles;  // 3 per triangle, into position
-    std::vector<char> used;           // per welded vertex: on a triangle with an area
     // Every triangle's directed edges p -> q grouped by undirected edge (u < v), in (u, v)
     // order: vertex u's are uses[use_first[u] .. use_first[u + 1]), each
     // (v << 32) | (triangle << 1) | (p < q).
@@ -45,10 +45,9 @@ BlockGeometry block_geometry(const float* vertices, size_t n_vertices, const uin
 ShadowFaces block_faces(const BlockGeometry& geometry, const ShadowLight& light, double reach, double extent,
                         size_t seen);
 
-// The blocks of the last volumes built and their faces per light.
-class VolumeBlocks;
 struct CasterBlocks;
 
+// The blocks of the last volumes built and their faces per light.
 class VolumeBlocks {
   public:
     // One kept block.

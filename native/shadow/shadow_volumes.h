@@ -136,11 +136,12 @@ class ShadowVolumes {
     static void clear_shared();
     // Builds of shared() so far (those it did not share), for tests and the stats.
     static long shared_builds();
-    // The BVHs of the casters' objects (image/embree_blocks.h) that builds of volumes built for
-    // their counts, the others shared with the volumes built before them.
+    // The counting BVHs of the casters' blocks (shadow/block_faces.h: an object, or small ones
+    // joined) that builds of volumes built, the others shared with the volumes built before
+    // them while the block and the frame stayed.
     static long caster_blocks_built();
     // The faces of one block of the casters for one light (shadow/block_faces.h) that builds of
-    // volumes built, the others copied from the volumes built before them.
+    // volumes built, the others shared with the volumes built before them.
     static long block_faces_built();
     static constexpr size_t kKeptVolumes = 2;
     // Per light, the extrusion distance R (shadow_volumes.h) that volumes of these casters and
