@@ -240,7 +240,7 @@ BlockedScene::~BlockedScene() {
     if (scene_) rtcReleaseScene(scene_);
 }
 
-BlockCache::BlockCache(RTCBuildQuality quality, RTCFilterFunctionN filter) : quality_(quality), filter_(filter) {}
+BlockCache::BlockCache(RTCBuildQuality quality) : quality_(quality) {}
 
 BlockCache::~BlockCache() = default;
 
@@ -290,8 +290,7 @@ std::shared_ptr<const BlockedScene> BlockCache::scene(const float* vertices, siz
         block->copy = SoupCopy(vertices, triangles, c, hashes[b]);
         // (Embree reads 16 bytes at the last vertex: the vector's capacity holds 4 floats more.)
         block->copy.vertices.reserve(block->copy.vertices.size() + 4);
-        block->scene = new_block_scene(block->copy.vertices.data(), nv, block->copy.triangles.data(), nt, quality_,
-                                       filter_);
+        block->scene = new_block_scene(block->copy.vertices.data(), nv, block->copy.triangles.data(), nt, quality_);
         blocks[b] = std::move(block);
         ++built_;
     }

@@ -103,9 +103,8 @@ class BlockCache {
     // many at least (~10 ms), and a scene of 1e5 small objects has at most n / this instances.
     static constexpr size_t kMinBlockTriangles = size_t(1) << 15;
 
-    // _quality_: the blocks' BVHs'; _filter_ (optional): the intersect filter of every
-    // block's geometry (Embree calls it once per primitive unless the quality is HIGH).
-    explicit BlockCache(RTCBuildQuality quality, RTCFilterFunctionN filter = nullptr);
+    // _quality_: the blocks' BVHs'.
+    explicit BlockCache(RTCBuildQuality quality);
     ~BlockCache();
     BlockCache(const BlockCache&) = delete;
     BlockCache& operator=(const BlockCache&) = delete;
@@ -127,7 +126,6 @@ class BlockCache {
 
   private:
     RTCBuildQuality quality_;
-    RTCFilterFunctionN filter_;
     mutable std::mutex mutex_;
     std::vector<std::shared_ptr<const BlockedScene::Block>> kept_;  // the last soup's blocks
     std::shared_ptr<const BlockedScene> last_;
