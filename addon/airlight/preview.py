@@ -47,7 +47,8 @@ from bpy.props import BoolProperty, EnumProperty
 from gpu_extras.batch import batch_for_shader
 from mathutils import Vector
 
-from . import environment, fog_object, ies, model_choice, native, scene_description, scene_export, visibility
+from . import environment, fog_object, ies, mesh_read, model_choice, native, scene_description
+from . import scene_export, visibility
 from . import gpu_shaders as gs
 from . import preview_gaussians as pg
 from . import preview_shadows as ps
@@ -248,7 +249,7 @@ def _batches(items):
     for key, obj, matrix in items:
         batch = _state["meshes"].get(key)
         if batch is None:
-            arrays = scene_description.mesh_arrays(obj)
+            arrays = mesh_read.mesh_arrays(obj)
             if arrays is None:
                 continue
             verts, tris = arrays

@@ -29,7 +29,7 @@ import time
 import bpy
 from bpy.app.handlers import persistent
 
-from . import bake, cache, compositor, emitter, native, surface
+from . import bake, cache, compositor, emitter, mesh_read, native, surface
 
 
 def _in_main_thread():
@@ -327,6 +327,7 @@ def on_load_post(*_):
     A render composites with the node links as they were when it started (before
     render_pre), so the pass links must already exist then (checked in Blender 3.4).
     """
+    mesh_read.reads.clear()  # the last file's meshes
     for scene in bpy.data.scenes:
         settings = getattr(scene, "airlight", None)
         if settings is not None and compositor.is_set_up(scene):

@@ -26,7 +26,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from . import fog_object, ies, light_bounds, light_nodes, visibility
+from . import fog_object, ies, light_bounds, light_nodes, mesh_read, visibility
 from .names import SUPPORTED_LIGHT_TYPES, native_phase
 from .views import bake_window, region_projection, render_size, view_camera
 
@@ -225,43 +225,6 @@ def bounds_frame(scene, depsgraph=None):
                               float(cam.data.clip_start))
 
 
-def _mesh_arrays(mesh):
-    """Vertices (N,3) float32 and loop triangles (M,3) uint32 of _mesh_, or None when empty."""
-    n_verts = len(mesh.vertices)
-    n_tris = len(mesh.loop_triangles)
-    if n_verts == 0 or n_tris == 0:
-        return None
-    verts = np.empty(n_verts * 3, dtype=np.float32)
-    mesh.vertices.foreach_get("co", verts)
-    # (uint32: Blender's own type, which foreach_get copies without converting each value; an
-    # int32 buffer took 4x as long, 1.1-1.8 s for 1e7 triangles.)
-    tris = np.empty(n_tris * 3, dtype=np.uint32)
-    mesh.loop_triangles.foreach_get("vertices", tris)
-    return verts.reshape(-1, 3), tris.reshape(-1, 3)
-
-
-def mesh_arrays(obj_eval):
-    """Local-space vertices (N,3) float32 and triangles (M,3) uint32 of an evaluated object."""
-    if obj_eval.type == 'MESH' and obj_eval.mode == 'OBJECT':
-        # An evaluated mesh object's data is its mesh with the modifiers applied: read in place,
-        # without to_mesh()'s copy (1e7 triangles: 1.2-1.9 s against 3.0-3.4 s). In Edit Mode
-        # it is the edit mesh's wrapper, without vertices: to_mesh() below.
-        arrays = _mesh_arrays(obj_eval.data)
-        if arrays is not None:
-            return arrays
-    try:
-        mesh = obj_eval.to_mesh()
-    except RuntimeError:
-        return None
-    if mesh is None:
-        return None
-    try:
-        mesh.calc_loop_triangles()
-        return _mesh_arrays(mesh)
-    finally:
-        obj_eval.to_mesh_clear()
-
-
 class LightInstance(NamedTuple):
     """One render-visible light instance of the depsgraph, as Blender has it (unchecked:
     scene_export validates the ones the bake takes)."""
@@ -343,31 +306,6 @@ def _area_fields(light):
                 spread=float(getattr(light, "spread", math.pi)))
 
 
-def _world_triangles(obj, matrix):
-    """World-space (vertices float32, triangles uint32) of an evaluated object, or None."""
-    arrays = mesh_arrays(obj)
-    if arrays is None:
-        return None
-    local, tris = arrays
-    world = local.astype(np.float64) @ matrix[:3, :3].T + matrix[:3, 3]
-    if not np.isfinite(world).all():
-        raise ExportError(f"Object '{obj.name}' has NaN or infinite vertices or transform "
-                          "(a driver, constraint or modifier?).")
-    return world.astype(np.float32), tris
-
-
-def _soup(blocks):
-    """One triangle soup (vertices (N, 3) float32, triangles (M, 3) uint32) of blocks."""
-    if not blocks:
-        return np.zeros((0, 3), np.float32), np.zeros((0, 3), np.uint32)
-    vertices, triangles, base = [], [], 0
-    for v, t in blocks:
-        vertices.append(v)
-        triangles.append(t + np.uint32(base))
-        base += len(v)
-    return np.concatenate(vertices), np.concatenate(triangles)
-
-
 def export_instances(depsgraph, geometry=True):
     """(lights, vertices, triangles, occluders) of every render-visible object instance: the
     lights as LightInstances in the depsgraph's order, and with _geometry_ the world-space
@@ -377,12 +315,26 @@ def export_instances(depsgraph, geometry=True):
     when it is the same soup (else all three None). An instance is visible when whatever
     instances it renders (the instanced object itself is often hidden, e.g. in a particle
     collection)."""
+    if not geometry:
+        return _instances(depsgraph, None)[0], None, None, None
+    with mesh_read.reads.pass_() as reads:
+        lights, seen, casting, casting_only = _instances(depsgraph, reads)
+        vertices, triangles = reads.soup("seen", seen)
+        occluders = None
+        if casting_only or len(casting) != len(seen):  # (casting: the seen blocks that cast)
+            occluders = reads.soup("casters", casting + casting_only) + (sum(len(t) for _, t in casting),)
+    return lights, vertices, triangles, occluders
+
+
+def _instances(depsgraph, reads):
+    """(lights, seen, casting, casting_only) of export_instances: the LightInstances, and with
+    _reads_ (mesh_read.MeshReads in a pass) the world-space blocks the camera sees, those that
+    cast shadows and that it sees, and those that only cast shadows."""
     visible = visibility.RenderVisibility(depsgraph.view_layer)
     lights, seen, casting, casting_only = [], [], [], []
-    differ = False
     for instance in depsgraph.object_instances:
         obj = instance.object
-        if obj.type != 'LIGHT' and not geometry:
+        if obj.type != 'LIGHT' and reads is None:
             continue
         source = instance.parent if instance.is_instance else obj
         if source is None or not visible(source):
@@ -397,21 +349,17 @@ def export_instances(depsgraph, geometry=True):
         camera, shadow = getattr(obj, "visible_camera", True), getattr(obj, "visible_shadow", True)
         if not (camera or shadow):
             continue
-        block = _world_triangles(obj, np.array(instance.matrix_world, dtype=np.float64))
+        try:
+            block = reads.world_triangles(obj, np.array(instance.matrix_world, dtype=np.float64))
+        except mesh_read.NotFinite as ex:
+            raise ExportError(f"{ex} (a driver, constraint or modifier?)") from None
         if block is None:
             continue
         if camera:
             seen.append(block)
         if shadow:
             (casting if camera else casting_only).append(block)
-        differ |= camera != shadow
-    if not geometry:
-        return tuple(lights), None, None, None
-    vertices, triangles = _soup(seen)
-    occluders = None
-    if differ:
-        occluders = _soup(casting + casting_only) + (sum(len(t) for _, t in casting),)
-    return tuple(lights), vertices, triangles, occluders
+    return tuple(lights), seen, casting, casting_only
 
 
 class SurveyLight(NamedTuple):

@@ -5,7 +5,7 @@ import bpy
 import numpy as np
 import pytest
 
-from airlight import model_choice, scene_description, scene_export, visibility
+from airlight import mesh_read, model_choice, scene_description, scene_export, visibility
 from conftest import build_plane_scene
 
 
@@ -215,7 +215,7 @@ def test07_meshes_export_their_evaluated_geometry_in_every_mode(tmp_path):
     edited = _cube("Edited", (-3.0, -5.0, 1.0), scene.collection)
     edited.data = edited.data.copy()
     depsgraph = bpy.context.evaluated_depsgraph_get()
-    arrays = scene_description.mesh_arrays(smooth.evaluated_get(depsgraph))
+    arrays = mesh_read.mesh_arrays(smooth.evaluated_get(depsgraph))
     assert arrays is not None and arrays[1].shape == (192, 3) and len(arrays[0]) == 98
     bpy.context.view_layer.objects.active = edited
     edited.select_set(True)
@@ -226,7 +226,7 @@ def test07_meshes_export_their_evaluated_geometry_in_every_mode(tmp_path):
         depsgraph = bpy.context.evaluated_depsgraph_get()
         evaluated = edited.evaluated_get(depsgraph)
         assert evaluated.mode == 'EDIT'
-        vertices, triangles = scene_description.mesh_arrays(evaluated)
+        vertices, triangles = mesh_read.mesh_arrays(evaluated)
         assert triangles.shape == (12, 3)
         np.testing.assert_allclose(np.sort(np.unique(vertices[:, 2])), [1.0, 3.0])  # local z moved by 2
         _, world, _, _ = scene_description.export_instances(depsgraph)
