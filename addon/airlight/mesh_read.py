@@ -80,13 +80,19 @@ def world_vertices(name, local, matrix):
     return world.astype(np.float32)
 
 
+def _read_only(array):
+    """_array_, which later frames share, made read-only: an edit in place raises."""
+    array.flags.writeable = False
+    return array
+
+
 class _Mesh:
     """What was read of one object's mesh: the three it is compared by, its triangles, and its
     world-space vertices per world matrix (those of the last pass that used it)."""
 
     def __init__(self, key, triangles):
         self.key = key  # (positions, loop vertices, polygon starts, polygon sizes)
-        self.triangles = triangles
+        self.triangles = _read_only(triangles)
         self.world = {}
         self.world_used = {}
 
@@ -160,7 +166,7 @@ class MeshReads:
             world = kept.world.get(at)
             if world is None:
                 world = world_vertices(obj_eval.name, kept.key[0].reshape(-1, 3), matrix)
-            kept.world_used[at] = world
+            kept.world_used[at] = _read_only(world)
         return world, kept.triangles
 
     def soup(self, role, blocks):
@@ -170,7 +176,7 @@ class MeshReads:
         if last is not None and len(last[0]) == len(blocks) and all(
                 a is c and b is d for (a, b), (c, d) in zip(last[0], blocks)):
             return last[1]
-        out = soup(blocks)
+        out = tuple(_read_only(a) for a in soup(blocks))
         self._soups[role] = (list(blocks), out)
         return out
 
