@@ -1263,14 +1263,15 @@ void FogEvaluator::eval_gaussians(const Ray* rays, const float* Dvp, const float
         La[k] = RGB(0.0);
         if (!(seg > 0.0) || (L == 0 && gaussian_spots_.empty() && gaussian_suns_.empty())) continue;
         if (quadrature) {
+            constexpr GaussianSums kSums = GaussianSums::Culled;  // (airlight.h)
             for (size_t l = 0; l < L; ++l) {
                 GaussianRefLight ref;  // a point light
                 ref.s = lights_[l].s;
                 shadowed(ref, lit ? light_volume_[l] : -1, k, near);
                 const bool plain = isotropic_ && !ref.visible;
                 La[k] += lights_[l].weight *
-                         (plain ? gaussian_airlight_quadrature(*gaussian_, lights_[l].s, o, ray.d, seg, kQuadratureRelTol)
-                                : gaussian_airlight_quadrature(*gaussian_, ref, phase_, o, ray.d, seg, kQuadratureRelTol));
+                         (plain ? gaussian_airlight_quadrature(*gaussian_, lights_[l].s, o, ray.d, seg, kQuadratureRelTol, kSums)
+                                : gaussian_airlight_quadrature(*gaussian_, ref, phase_, o, ray.d, seg, kQuadratureRelTol, kSums));
             }
             for (size_t i = 0; i < gaussian_spots_.size(); ++i) {
                 const GaussianSpotData& spot = gaussian_spots_[i];
@@ -1280,7 +1281,7 @@ void FogEvaluator::eval_gaussians(const Ray* rays, const float* Dvp, const float
                 ref.cone = spot.cone;
                 shadowed(ref, lit ? spot_volume_[i] : -1, k, near);
                 La[k] += medium_albedo_ * spot.I0 *
-                         gaussian_airlight_quadrature(*gaussian_, ref, phase_, o, ray.d, seg, kQuadratureRelTol);
+                         gaussian_airlight_quadrature(*gaussian_, ref, phase_, o, ray.d, seg, kQuadratureRelTol, kSums);
             }
             for (size_t i = 0; i < gaussian_suns_.size(); ++i) {
                 const GaussianSunData& sun = gaussian_suns_[i];
@@ -1290,7 +1291,7 @@ void FogEvaluator::eval_gaussians(const Ray* rays, const float* Dvp, const float
                 ref.fog_top = fog_top_;
                 shadowed(ref, lit ? sun_volume_[i] : -1, k, near);
                 La[k] += medium_albedo_ * sun.E *
-                         gaussian_airlight_quadrature(*gaussian_, ref, phase_, o, ray.d, seg, kQuadratureRelTol);
+                         gaussian_airlight_quadrature(*gaussian_, ref, phase_, o, ray.d, seg, kQuadratureRelTol, kSums);
             }
             continue;
         }

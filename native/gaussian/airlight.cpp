@@ -258,14 +258,15 @@ RGB FogshopAirlight::eval_rgb(const Vec3& r, double Dvp, const double* albedo, c
 }
 
 double gaussian_airlight_quadrature(const GaussianMedium& medium, const Vec3& s, const Vec3& v, const Vec3& r, double Dvp,
-                               double rel_tol) {
+                               double rel_tol, GaussianSums sums) {
     GaussianRefLight light;
     light.s = s;
-    return gaussian_airlight_quadrature(medium, light, PhaseFunction{}, v, r, Dvp, rel_tol);
+    return gaussian_airlight_quadrature(medium, light, PhaseFunction{}, v, r, Dvp, rel_tol, sums);
 }
 
 double gaussian_airlight_quadrature(const GaussianMedium& medium, const GaussianRefLight& light, const PhaseFunction& phase,
-                               const Vec3& v, const Vec3& r, double Dvp, double rel_tol) {
+                               const Vec3& v, const Vec3& r, double Dvp, double rel_tol, GaussianSums sums) {
+    const bool culled = sums == GaussianSums::Culled;
     const bool sun = light.kind == GaussianRefLight::Kind::Sun, spot = light.kind == GaussianRefLight::Kind::Spot;
     const bool isotropic = phase.kind == PhaseKind::Isotropic;
     const Vec3 s = sun ? v : light.s;  // (suns: only for the breakpoint layout below)
@@ -279,18 +280,30 @@ double gaussian_airlight_quadrature(const GaussianMedium& medium, const Gaussian
         bool near;  // within 5 widths of the ray: its peak gets breakpoints
     };
     std::vector<Line> line;
-    line.reserve(n);
-    for (std::size_t i = 0; i < n; ++i) {
+    auto add_line = [&](std::size_t i) {
         const double a = medium.scale(i), c = medium.amplitude(i);
         const Vec3 rel = medium.centre(i) - v;
         const Vec3 cr = glm::cross(rel, r);
         const double ah2 = a * a * glm::dot(cr, cr);
         const double eh = std::exp(-ah2);
-        if (c * eh == 0.0) continue;
+        if (c * eh == 0.0) return;
         line.push_back({glm::dot(rel, r), a, c * kSqrtPi / (2.0 * a) * eh, c * eh, ah2 < 25.0});
+    };
+    if (culled) {
+        medium.for_each_near(v, r, std::isinf(Dvp) ? kInf : Dvp, add_line);
+    } else {
+        line.reserve(n);
+        for (std::size_t i = 0; i < n; ++i) add_line(i);
     }
+    // Half-line depth of the Gaussians from x towards the sun.
+    auto sun_depth = [&](const Vec3& x) {
+        if (culled) return medium.optical_depth_ray(x, u_sun, kInf, GaussianMedium::npos, false);
+        double Ts = 0.0;
+        for (std::size_t i = 0; i < n; ++i) Ts += medium.gaussian_optical_depth(i, x, u_sun, 0.0, kInf);
+        return Ts;
+    };
     // Eq. 2 integrand with exact optical depths: T(v, x) from the view-line data, T(s, x)
-    // by brute force over all Gaussians.
+    // over the Gaussians (_sums_).
     auto integrand = [&](double t) {
         const Vec3 x = v + t * r;
         double beta = beta0, Tv = beta0 == 0.0 ? 0.0 : beta0 * t;
@@ -305,9 +318,7 @@ double gaussian_airlight_quadrature(const GaussianMedium& medium, const Gaussian
             if (!in_layer) beta -= beta0;
             if (!(beta > 0.0)) return 0.0;
             if (light.visible && !light.visible(x)) return 0.0;
-            double Ts = 0.0;
-            for (std::size_t i = 0; i < n; ++i)
-                Ts += medium.gaussian_optical_depth(i, x, u_sun, 0.0, std::numeric_limits<double>::infinity());
+            double Ts = sun_depth(x);
             if (beta0 > 0.0 && !std::isinf(top)) {
                 if (mu_s > 0.0) Ts += beta0 * std::max(0.0, top - x.z) / mu_s;
                 else if (!(mu_s == 0.0 && x.z > top)) return 0.0;  // no sunlight
@@ -323,7 +334,7 @@ double gaussian_airlight_quadrature(const GaussianMedium& medium, const Gaussian
             if (f == 0.0) return 0.0;
         }
         if (light.visible && !light.visible(x)) return 0.0;
-        const double Ts = medium.optical_depth_all(s, x);
+        const double Ts = culled ? medium.optical_depth(s, x) : medium.optical_depth_all(s, x);
         return beta * f / d2 * std::exp(-Ts - Tv);
     };
     // Breakpoints: each Gaussian's projection and +-1, 2, 4 widths, and a geometric

@@ -116,11 +116,18 @@ class FogshopAirlight {
     std::vector<double> f1_sun_;   // sun-major [j][i]: f1_sun(b_i) without Gaussian i
 };
 
+// Which Gaussians the quadratures below sum at each point: every one (the reference), or
+// those the medium's hierarchy finds near the ray and the light path, every skipped one
+// adding less than its cull_eps() to an optical depth (medium.h). Culled is what the bake's
+// QUADRATURE model runs: with thousands of Gaussians, most of them far from both paths,
+// it does the same integral tens of times faster (airlight_test.cpp holds the two together).
+enum class GaussianSums { All, Culled };
+
 // Reference: adaptive Gauss-Kronrod quadrature of eq. 2 (per unit I0 and albedo) with
-// exact, unculled optical depths, split at the Gaussians' projections on the ray and
-// around the light's closest approach. ~1e-8 relative.
+// exact optical depths, split at the Gaussians' projections on the ray and around the
+// light's closest approach. ~1e-8 relative.
 double gaussian_airlight_quadrature(const GaussianMedium& medium, const Vec3& light, const Vec3& origin, const Vec3& r,
-                               double Dvp, double rel_tol = 1e-8);
+                               double Dvp, double rel_tol = 1e-8, GaussianSums sums = GaussianSums::All);
 
 // A light of the generalised reference below: point, spot (Cycles profile, spot_light.h,
 // per unit on-axis I0) or sun (per unit irradiance E, propagation direction w; fog_top: the
@@ -140,7 +147,7 @@ struct GaussianRefLight {
 
 // The reference for any light and phase: adaptive quadrature of
 //   La = int_0^Dvp beta_s(x) p(cos theta(x)) F(x) exp(-T_light(x) - T(v, x)) dt
-// with exact, unculled optical depths. Point / spot: F = profile / |x - s|^2 (profile 1 for
+// with exact optical depths (_sums_ above). Point / spot: F = profile / |x - s|^2 (profile 1 for
 // points), T_light = T(s, x), beta_s = beta. Sun: F = 1, T_light = the Gaussians' half-line
 // depth from x towards the sun (to infinity) plus beta0 (fog_top - z) / mu_s below a finite
 // top (0 above it, or without a top: Hoffman-Preetham's unattenuated sun; infinite for mu_s
@@ -149,7 +156,8 @@ struct GaussianRefLight {
 // Gaussian path (camera inside the layer for the two to agree). Isotropic point lights: the
 // same as gaussian_airlight_quadrature above.
 double gaussian_airlight_quadrature(const GaussianMedium& medium, const GaussianRefLight& light, const PhaseFunction& phase,
-                               const Vec3& origin, const Vec3& r, double Dvp, double rel_tol = 1e-8);
+                               const Vec3& origin, const Vec3& r, double Dvp, double rel_tol = 1e-8,
+                               GaussianSums sums = GaussianSums::All);
 
 // Batch over rays: out[j * L + l] for ray j (unit dirs[j], Dvp[j] > 0 or inf) and light l.
 // Validates all inputs first (std::invalid_argument), then runs on _threads_ threads.
