@@ -1,0 +1,112 @@
+// light_depth_map.cpp: building and reading the light-space depth map (light_depth_map.h).
+#include "gaussian/light_depth_map.h"
+
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+
+#include "core/constants.h"
+#include "core/fast_erf.h"
+
+namespace airlight {
+
+namespace {
+
+// Beyond this many widths of its projection a Gaussian's erf step is whole (erf(4.5) =
+// 1 - 2e-10): the distances past it get the whole step, those before it nothing.
+constexpr double kStepReach = 4.5;
+
+// Cube face f: the major axis (f / 2, negative for odd f) and the two axes across it.
+void face_axes(int f, int& axis, double& sign, int& u_axis, int& v_axis) {
+    axis = f / 2;
+    sign = (f % 2) ? -1.0 : 1.0;
+    u_axis = (axis + 1) % 3;
+    v_axis = (axis + 2) % 3;
+}
+
+}  // namespace
+
+LightDepthMap::LightDepthMap(const GaussianMedium& medium, const Vec3& s, int face, int radial, int threads)
+    : s_(s), face_(face), radial_(radial) {
+    if (face < 2 || radial < 2) throw std::invalid_argument("LightDepthMap: face and radial must be >= 2");
+    if (!std::isfinite(s.x) || !std::isfinite(s.y) || !std::isfinite(s.z))
+        throw std::invalid_argument("LightDepthMap: the light's position is not finite");
+    for (std::size_t j = 0; j < medium.size(); ++j)
+        if (medium.cull_radius(j) > 0.0)
+            r_max_ = std::max(r_max_, glm::length(medium.centre(j) - s) + medium.cull_radius(j));
+    dr_ = r_max_ > 0.0 ? r_max_ / (radial - 1) : 1.0;
+    tau_.assign(std::size_t(6) * face * face * radial, 0.0f);
+    if (r_max_ == 0.0) return;
+    const int rows = 6 * face;
+    parallel_chunks(std::size_t(rows), threads, 1, [&](std::size_t begin, std::size_t end) {
+        std::vector<double> acc(radial), beyond(radial + 1);
+        for (std::size_t row = begin; row < end; ++row) {
+            const int f = int(row) / face, j = int(row) % face;
+            for (int i = 0; i < face; ++i)
+                fill(medium, direction(f, i, j), &tau_[((std::size_t(f) * face + j) * face + i) * radial], acc, beyond);
+        }
+    });
+}
+
+Vec3 LightDepthMap::direction(int f, int i, int j) const {
+    int axis, u_axis, v_axis;
+    double sign;
+    face_axes(f, axis, sign, u_axis, v_axis);
+    Vec3 d(0.0);
+    d[axis] = sign;
+    d[u_axis] = -1.0 + 2.0 * i / (face_ - 1);
+    d[v_axis] = -1.0 + 2.0 * j / (face_ - 1);
+    return glm::normalize(d);
+}
+
+void LightDepthMap::fill(const GaussianMedium& medium, const Vec3& w, float* out, std::vector<double>& acc,
+                         std::vector<double>& beyond) const {
+    std::fill(acc.begin(), acc.end(), 0.0);
+    std::fill(beyond.begin(), beyond.end(), 0.0);
+    const int last = radial_ - 1;
+    medium.for_each_near(s_, w, r_max_, [&](std::size_t g) {
+        const double a = medium.scale(g), c = medium.amplitude(g);
+        const Vec3 rel = medium.centre(g) - s_;
+        const double p = glm::dot(rel, w);
+        const double K = c * kSqrtPi / (2.0 * a) * std::exp(-a * a * std::max(0.0, glm::dot(rel, rel) - p * p));
+        if (K == 0.0) return;
+        const double reach = kStepReach / a;
+        const int lo = std::max(0, int(std::ceil((p - reach) / dr_)));
+        const int hi = std::min(last, int(std::floor((p + reach) / dr_)));
+        // T_j(r) = K (erf(a (r - p)) - erf(-a p)): 0 at r = 0, K erfc(-a p) once past the step.
+        const float x1 = float(-a * p);
+        for (int k = lo; k <= hi; ++k) acc[k] += K * fast_erf_diff(x1, float(a * (k * dr_ - p)));
+        if (hi < last) beyond[std::max(hi + 1, lo)] += K * std::erfc(-a * p);  // the whole step
+    });
+    double whole = 0.0;
+    for (int k = 0; k <= last; ++k) {
+        whole += beyond[k];
+        out[k] = float(acc[k] + whole);
+    }
+}
+
+double LightDepthMap::operator()(const Vec3& x) const {
+    if (r_max_ == 0.0) return 0.0;
+    const Vec3 d = x - s_;
+    const Vec3 ad = glm::abs(d);
+    const int axis = ad.x >= ad.y && ad.x >= ad.z ? 0 : (ad.y >= ad.z ? 1 : 2);
+    if (!(ad[axis] > 0.0)) return 0.0;
+    const int f = 2 * axis + (d[axis] < 0.0 ? 1 : 0);
+    const int u_axis = (axis + 1) % 3, v_axis = (axis + 2) % 3;
+    const double scale = 0.5 * (face_ - 1) / ad[axis];
+    const double fu = std::clamp((d[u_axis] + ad[axis]) * scale, 0.0, face_ - 1.0);
+    const double fv = std::clamp((d[v_axis] + ad[axis]) * scale, 0.0, face_ - 1.0);
+    const int i0 = std::min(int(fu), face_ - 2), j0 = std::min(int(fv), face_ - 2);
+    const double wu = fu - i0, wv = fv - j0;
+    const double fr = std::min(glm::length(d) / dr_, radial_ - 1.0);
+    const int k0 = std::min(int(fr), radial_ - 2);
+    const double wr = fr - k0;
+    const float* base = &tau_[((std::size_t(f) * face_ + j0) * face_ + i0) * radial_ + k0];
+    auto at = [&](int di, int dj) {
+        const float* p = base + (std::size_t(dj) * face_ + di) * radial_;
+        return (1.0 - wr) * p[0] + wr * p[1];
+    };
+    return (1.0 - wv) * ((1.0 - wu) * at(0, 0) + wu * at(1, 0)) + wv * ((1.0 - wu) * at(0, 1) + wu * at(1, 1));
+}
+
+}  // namespace airlight

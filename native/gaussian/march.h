@@ -1,0 +1,41 @@
+// march.h: the single-scattering airlight of Gaussian fog along one view ray, marched.
+//
+// Eq. 2 (Fogshop's La, per unit I0 and albedo) for a point light s and any phase,
+//   La = int_0^Dvp beta(x) p(cos theta) / |x - s|^2 exp(-T(s, x) - T(v, x)) dt,
+// by composite Simpson over steps of a fraction of the narrowest Gaussian width on the ray,
+// shortened to a tenth of the distance to the light (its 1 / d^2 peak) times the phase lobe's
+// width, and growing with that distance outside the Gaussians. The density comes from a
+// window of the ray's own Gaussians (those within 4.5 widths of each step), the view depth
+// T(v, x) from the same steps (Simpson, and the quadratic interpolant's integral to each
+// midpoint), the light depth from a LightDepthMap (O(1) a point) or, without one, exactly
+// (the medium's culled erf sums: the reference's cost). The march ends at Dvp, where the view
+// depth passes 700 (what lies beyond reaches the eye attenuated below double's range), or, on
+// an infinite ray past every Gaussian, where the uniform fog's rest falls below tail_tol of
+// the sum. (A step's depth stays below 1/2, so a dense Gaussian's core ends it in ~1400 steps.)
+//
+// Against gaussian_airlight_quadrature (march_test.cpp): exact light depths ~1e-6 relative;
+// with a 64 x 64 x 256 map 0.02-0.2 % on the 3000-Gaussian benchmark cloud, at 0.1-0.6 ms a
+// ray against the quadrature's 0.6-10 s.
+#pragma once
+
+#include "core/phase.h"
+#include "core/scene.h"
+#include "gaussian/light_depth_map.h"
+#include "gaussian/medium.h"
+
+namespace airlight {
+
+struct GaussianMarch {
+    double step_widths = 0.35;  // the step inside Gaussians, in the narrowest one's widths 1/(a sqrt 2)
+    double tail_tol = 1e-7;     // an infinite ray stops where the uniform fog's rest is below this, relative
+    long steps = 0;             // out: the Simpson steps taken
+};
+
+// La of the ray origin + t r, t in [0, Dvp] (r unit; Dvp > 0, may be +inf), lit by a point
+// light at _s_ of unit intensity; the light depth from _map_ (its light must be _s_), or
+// exact when _map_ is null.
+double gaussian_march_airlight(const GaussianMedium& medium, const Vec3& s, const PhaseFunction& phase,
+                               const Vec3& origin, const Vec3& r, double Dvp, const LightDepthMap* map,
+                               GaussianMarch& march);
+
+}  // namespace airlight
