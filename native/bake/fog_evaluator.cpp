@@ -13,6 +13,7 @@
 #include "core/target_clones.h"
 #include "core/thread_scratch.h"
 #include "gaussian/airlight.h"
+#include "gaussian/march.h"
 #include "homogeneous/sphere_light.h"
 #include "homogeneous/sun05_batch.h"
 #include "homogeneous/sunlight_layer.h"
@@ -1268,10 +1269,13 @@ void FogEvaluator::eval_gaussians(const Ray* rays, const float* Dvp, const float
                 GaussianRefLight ref;  // a point light
                 ref.s = lights_[l].s;
                 shadowed(ref, lit ? light_volume_[l] : -1, k, near);
-                const bool plain = isotropic_ && !ref.visible;
+                // Unshadowed: the march with exact light depths (gaussian/march.h: 2e-5 of the
+                // adaptive quadrature in its tests, hundreds of times faster with thousands of
+                // Gaussians); the lit intervals' visibility takes the adaptive quadrature.
+                GaussianMarch march;
                 La[k] += lights_[l].weight *
-                         (plain ? gaussian_airlight_quadrature(*gaussian_, lights_[l].s, o, ray.d, seg, kQuadratureRelTol, kSums)
-                                : gaussian_airlight_quadrature(*gaussian_, ref, phase_, o, ray.d, seg, kQuadratureRelTol, kSums));
+                         (!ref.visible ? gaussian_march_airlight(*gaussian_, lights_[l].s, phase_, o, ray.d, seg, nullptr, march)
+                                       : gaussian_airlight_quadrature(*gaussian_, ref, phase_, o, ray.d, seg, kQuadratureRelTol, kSums));
             }
             for (size_t i = 0; i < gaussian_spots_.size(); ++i) {
                 const GaussianSpotData& spot = gaussian_spots_[i];

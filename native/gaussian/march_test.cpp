@@ -1,0 +1,199 @@
+// march_test.cpp: the light-space depth map against the exact optical depth, and the marched
+// airlight against the adaptive quadrature (gaussian_airlight_quadrature), on random clouds
+// with the light and the camera inside and outside Gaussians.
+#include "gaussian/light_depth_map.h"
+#include "gaussian/march.h"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <random>
+
+#include "gaussian/airlight.h"
+
+namespace airlight {
+namespace {
+
+// _n_ Gaussians uniform in [-w, w] x [-2, 6] x [10, 10 + depth], widths 1/a in [w0, w1],
+// amplitudes in [c0, c1] (the benchmark's cloud: 3000, 30, 70, 1, 3, 0.01, 0.05).
+GaussianMedium cloud(int n, double w, double depth, double w0, double w1, double c0, double c1, double beta0,
+                     unsigned seed) {
+    std::mt19937 rng(seed);
+    std::uniform_real_distribution<double> ux(-w, w), uy(-2.0, 6.0), uz(10.0, 10.0 + depth), uw(w0, w1), uc(c0, c1);
+    std::vector<double> b, a, c;
+    for (int i = 0; i < n; ++i) {
+        b.insert(b.end(), {ux(rng), uy(rng), uz(rng)});
+        a.push_back(1.0 / uw(rng));
+        c.push_back(uc(rng));
+    }
+    return GaussianMedium(b, a, c, beta0);
+}
+
+struct DepthErrors {
+    double mean = 0.0, max = 0.0;
+};
+
+DepthErrors map_errors(const GaussianMedium& m, const LightDepthMap& map, int points, unsigned seed) {
+    std::mt19937 rng(seed);
+    std::uniform_real_distribution<double> ux(-14.0, 14.0), uy(-2.0, 6.0), uz(8.0, 42.0);
+    DepthErrors e;
+    for (int k = 0; k < points; ++k) {
+        const Vec3 x(ux(rng), uy(rng), uz(rng));
+        const double exact = m.optical_depth(map.light(), x) - m.beta0() * glm::length(x - map.light());
+        const double err = std::abs(map(x) - exact);
+        e.mean += err / points;
+        e.max = std::max(e.max, err);
+    }
+    return e;
+}
+
+// Interpolation converges at second order: a finer map errs about a quarter as much, and the
+// 64 x 256 map's depths are within 1 % of a mean depth of ~1 (the cloud's light paths).
+TEST(LightDepthMap, MatchesTheExactDepth) {
+    const GaussianMedium m = cloud(400, 12.0, 30.0, 0.5, 2.0, 0.02, 0.1, 0.002, 11);
+    const Vec3 s(-2.0, 1.5, 22.0);  // inside the cloud
+    const LightDepthMap coarse(m, s, 32, 128, 2), fine(m, s, 64, 256, 2);
+    const DepthErrors ec = map_errors(m, coarse, 3000, 5), ef = map_errors(m, fine, 3000, 5);
+    std::printf("[ depth map ] 32x128: mean %.2e max %.2e; 64x256: mean %.2e max %.2e\n", ec.mean, ec.max, ef.mean,
+                ef.max);
+    EXPECT_LT(ef.mean, 0.4 * ec.mean);
+    EXPECT_LT(ef.mean, 0.01);
+    // The direction of a grid point itself (a corner of the +z face), at one of its
+    // distances, is exact up to float and fast_erf_diff (1e-5).
+    const double r = 30.0 * fine.max_radius() / 255.0;
+    const Vec3 axis = s + r * glm::normalize(Vec3(-1.0, -1.0, 1.0));
+    const double exact = m.optical_depth(s, axis) - m.beta0() * r;
+    EXPECT_NEAR(fine(axis), exact, 2e-5 * exact + 1e-6);
+}
+
+TEST(LightDepthMap, EmptyAndDegenerate) {
+    const GaussianMedium empty({}, {}, {}, 0.01);
+    const LightDepthMap map(empty, Vec3(1.0, 2.0, 3.0), 8, 8, 1);
+    EXPECT_EQ(map(Vec3(4.0, 5.0, 6.0)), 0.0);
+    EXPECT_EQ(map(Vec3(1.0, 2.0, 3.0)), 0.0);  // the light itself
+    EXPECT_THROW(LightDepthMap(empty, Vec3(0.0), 1, 8, 1), std::invalid_argument);
+    EXPECT_THROW(LightDepthMap(empty, Vec3(NAN, 0.0, 0.0), 8, 8, 1), std::invalid_argument);
+    // A light at a Gaussian's centre: every direction starts inside it.
+    const GaussianMedium one({0.0, 0.0, 0.0}, {1.0}, {0.5}, 0.0);
+    const LightDepthMap centred(one, Vec3(0.0), 48, 192, 1);
+    for (const Vec3& x : {Vec3(0.3, 0.1, -0.2), Vec3(-2.0, 1.0, 0.5), Vec3(0.0, 0.0, 9.0)})
+        EXPECT_NEAR(centred(x), one.optical_depth(Vec3(0.0), x), 2e-3 * one.optical_depth(Vec3(0.0), x));
+}
+
+double relative(double x, double ref) { return std::abs(x - ref) / ref; }
+
+// Rays from outside and inside the cloud, to surfaces and to infinity; an HG phase; a light
+// inside the cloud and one at a Gaussian's centre.
+TEST(GaussianMarch, MatchesTheQuadrature) {
+    const GaussianMedium m = cloud(150, 10.0, 25.0, 0.6, 2.0, 0.02, 0.15, 0.002, 3);
+    const PhaseFunction iso{}, hg{PhaseKind::HenyeyGreenstein, 0.5};
+    const Vec3 lights[] = {Vec3(-2.0, 1.5, 20.0), m.centre(17)};
+    const Vec3 eyes[] = {Vec3(0.0, 0.5, 0.0), m.centre(40)};
+    double worst_exact = 0.0, worst_map = 0.0;
+    int rays = 0;
+    for (const Vec3& s : lights) {
+        const LightDepthMap map(m, s, 64, 256, 2);
+        for (const Vec3& v : eyes)
+            for (const Vec3& dir : {Vec3(0.1, 0.05, 1.0), Vec3(-0.25, 0.1, 1.0), Vec3(0.3, -0.1, 1.0), Vec3(0.0, 0.0, -1.0)})
+                for (double Dvp : {12.0, double(INFINITY)})
+                    for (const PhaseFunction* phase : {&iso, &hg}) {
+                        const Vec3 r = glm::normalize(dir);
+                        GaussianRefLight light{GaussianRefLight::Kind::Point, s};
+                        const double ref =
+                            gaussian_airlight_quadrature(m, light, *phase, v, r, Dvp, 1e-9, GaussianSums::Culled);
+                        GaussianMarch march;
+                        const double exact = gaussian_march_airlight(m, s, *phase, v, r, Dvp, nullptr, march);
+                        const double mapped = gaussian_march_airlight(m, s, *phase, v, r, Dvp, &map, march);
+                        ASSERT_GT(ref, 0.0);
+                        EXPECT_LT(relative(exact, ref), 2e-5) << "ray " << rays;
+                        EXPECT_LT(relative(mapped, ref), 5e-3) << "ray " << rays;
+                        worst_exact = std::max(worst_exact, relative(exact, ref));
+                        worst_map = std::max(worst_map, relative(mapped, ref));
+                        ++rays;
+                    }
+    }
+    std::printf("[ march ] %d rays: exact light depth %.2e, 64x256 map %.2e relative at most\n", rays, worst_exact,
+                worst_map);
+}
+
+// Thick Gaussians (optical depths ~20-60 through one): the steps shorten to the extinction and
+// halve at the shadows' and rims' edges; the light beside and inside the thick ones.
+TEST(GaussianMarch, ThickFog) {
+    const GaussianMedium m = cloud(40, 6.0, 15.0, 0.5, 1.5, 10.0, 30.0, 0.01, 9);
+    double worst = 0.0;
+    for (const Vec3& s : {Vec3(0.0, 1.0, 12.0), m.centre(5)})
+        for (const Vec3& dir : {Vec3(0.1, 0.05, 1.0), Vec3(-0.2, 0.1, 1.0), Vec3(0.05, -0.02, 1.0)}) {
+            const Vec3 r = glm::normalize(dir);
+            const double ref = gaussian_airlight_quadrature(m, s, Vec3(0.0), r, 40.0, 1e-9, GaussianSums::Culled);
+            GaussianMarch march;
+            const double got = gaussian_march_airlight(m, s, PhaseFunction{}, Vec3(0.0), r, 40.0, nullptr, march);
+            ASSERT_GT(ref, 0.0);
+            EXPECT_LT(relative(got, ref), 1e-4) << s.x << " " << dir.x;
+            worst = std::max(worst, relative(got, ref));
+        }
+    // One Gaussian of optical depth ~350 through its centre between the light and rays that
+    // pass it at 0.3-2 widths: its shadow's edge crosses each ray within a fraction of a width.
+    const GaussianMedium one({0.0, 0.0, 10.0}, {1.0}, {200.0}, 0.001);
+    for (double offset : {0.4, 0.9, 1.6, 2.8})
+        for (const Vec3& s : {Vec3(0.0, 0.0, 13.0), Vec3(0.3, 0.0, 10.0)}) {
+            const Vec3 r = glm::normalize(Vec3(offset, 0.0, 10.0));
+            const double ref = gaussian_airlight_quadrature(one, s, Vec3(0.0), r, 30.0, 1e-9, GaussianSums::Culled);
+            GaussianMarch march;
+            const double got = gaussian_march_airlight(one, s, PhaseFunction{}, Vec3(0.0), r, 30.0, nullptr, march);
+            ASSERT_GT(ref, 0.0);
+            EXPECT_LT(relative(got, ref), 1e-4) << "offset " << offset << " light x " << s.x;
+            worst = std::max(worst, relative(got, ref));
+        }
+    std::printf("[ march ] thick fog: %.2e relative at most\n", worst);
+}
+
+// Without Gaussians the march is the uniform fog's airlight (Sun 2005's integral).
+TEST(GaussianMarch, UniformFogLimit) {
+    const GaussianMedium m({}, {}, {}, 0.05);
+    const Vec3 s(3.0, 4.0, 2.0), v(0.5, -0.2, 1.0);
+    for (Vec3 r : {Vec3(1, 0, 0), Vec3(3, 4, 0.5), Vec3(0.2, 0.1, -1)}) {
+        r = glm::normalize(r);
+        for (double Dvp : {0.5, 7.0, double(INFINITY)}) {
+            const double ref = gaussian_airlight_quadrature(m, s, v, r, Dvp, 1e-10);
+            GaussianMarch march;
+            EXPECT_NEAR(gaussian_march_airlight(m, s, PhaseFunction{}, v, r, Dvp, nullptr, march) / ref, 1.0, 1e-5);
+        }
+    }
+}
+
+// The benchmark's 3000-Gaussian cloud (bench_gaussian_accuracy.py's "3000 x 1" drawn again
+// here): the map's build, and per ray the quadrature, the exact march and the mapped march.
+// ctest -R GaussianMarch.DISABLED_Profile3000 --gtest_also_run_disabled_tests -V
+TEST(GaussianMarch, DISABLED_Profile3000) {
+    using Clock = std::chrono::steady_clock;
+    auto seconds = [](Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); };
+    const GaussianMedium m = cloud(3000, 30.0, 70.0, 1.0, 3.0, 0.01, 0.05, 0.002, 2);
+    const Vec3 s(-8.0, 4.0, 30.0), v(0.0);
+    for (int face : {64, 128}) {
+        auto t0 = Clock::now();
+        const LightDepthMap map(m, s, face, 256, 2);
+        std::printf("map %dx%dx256: %.2f s on 2 threads, %.0f MB\n", face, face, seconds(t0), map.bytes() * 1e-6);
+        for (Vec3 r : {Vec3(0.1, 0.05, 1), Vec3(-0.25, 0.1, 1), Vec3(0.3, -0.1, 1), Vec3(-0.05, -0.05, 1)}) {
+            r = glm::normalize(r);
+            const double Dvp = r.y < 0.0 ? -2.0 / r.y : INFINITY;
+            t0 = Clock::now();
+            const double ref = gaussian_airlight_quadrature(m, s, v, r, Dvp, 1e-5, GaussianSums::Culled);
+            const double t_ref = seconds(t0);
+            GaussianMarch march;
+            t0 = Clock::now();
+            const double exact = gaussian_march_airlight(m, s, PhaseFunction{}, v, r, Dvp, nullptr, march);
+            const double t_exact = seconds(t0);
+            t0 = Clock::now();
+            const double mapped = gaussian_march_airlight(m, s, PhaseFunction{}, v, r, Dvp, &map, march);
+            const double t_map = seconds(t0);
+            std::printf("  ray: quadrature %.3e in %.2f s; march exact %+.1e in %.3f s; mapped %+.1e in %.2f ms, %ld steps\n",
+                        ref, t_ref, exact / ref - 1.0, t_exact, mapped / ref - 1.0, 1e3 * t_map, march.steps);
+        }
+    }
+}
+
+}  // namespace
+}  // namespace airlight
