@@ -40,6 +40,7 @@
 #endif
 
 #include "core/constants.h"
+#include "core/cube_map.h"
 #include "core/fast_erf.h"
 #include "core/target_clones.h"
 
@@ -329,14 +330,10 @@ bool face_range(double cm, double cp, double R, double& lo, double& hi) {
 // Cube-map cell of a face coordinate (K cells per side).
 inline int face_cell(double t, int K) { return std::min(K - 1, std::max(0, int(std::floor((t + 1.0) * 0.5 * K)))); }
 
-// Cell of the direction u != 0 (finite): face 2 m + (u_m < 0) for the dominant axis m.
+// Cell of the direction u != 0 (finite), on core/cube_map.h's faces.
 inline std::size_t cube_cell(const Vec3& u, int K) {
-    const double ax = std::abs(u.x), ay = std::abs(u.y), az = std::abs(u.z);
-    const int m = ax >= ay && ax >= az ? 0 : (ay >= az ? 1 : 2);
-    const int p = (m + 1) % 3, q = (m + 2) % 3;
-    const double um = std::abs(u[m]);
-    const int face = 2 * m + (u[m] < 0.0 ? 1 : 0);
-    return (std::size_t(face) * K + face_cell(u[q] / um, K)) * K + face_cell(u[p] / um, K);
+    const CubeFacePoint c = cube_face_point(u);
+    return (std::size_t(c.face) * K + face_cell(c.q, K)) * K + face_cell(c.p, K);
 }
 
 // Binning of one source's candidates (see the top of the file). K = 0: no cells, every

@@ -6,6 +6,7 @@
 #include <stdexcept>
 
 #include "core/constants.h"
+#include "core/cube_map.h"
 #include "core/fast_erf.h"
 
 namespace airlight {
@@ -15,14 +16,6 @@ namespace {
 // Beyond this many widths of its projection a Gaussian's erf step is whole (erf(4.5) =
 // 1 - 2e-10): the distances past it get the whole step, those before it nothing.
 constexpr double kStepReach = 4.5;
-
-// Cube face f: the major axis (f / 2, negative for odd f) and the two axes across it.
-void face_axes(int f, int& axis, double& sign, int& u_axis, int& v_axis) {
-    axis = f / 2;
-    sign = (f % 2) ? -1.0 : 1.0;
-    u_axis = (axis + 1) % 3;
-    v_axis = (axis + 2) % 3;
-}
 
 }  // namespace
 
@@ -49,14 +42,7 @@ LightDepthMap::LightDepthMap(const GaussianMedium& medium, const Vec3& s, int fa
 }
 
 Vec3 LightDepthMap::direction(int f, int i, int j) const {
-    int axis, u_axis, v_axis;
-    double sign;
-    face_axes(f, axis, sign, u_axis, v_axis);
-    Vec3 d(0.0);
-    d[axis] = sign;
-    d[u_axis] = -1.0 + 2.0 * i / (face_ - 1);
-    d[v_axis] = -1.0 + 2.0 * j / (face_ - 1);
-    return glm::normalize(d);
+    return cube_direction(f, -1.0 + 2.0 * i / (face_ - 1), -1.0 + 2.0 * j / (face_ - 1));
 }
 
 void LightDepthMap::fill(const GaussianMedium& medium, const Vec3& w, float* out, std::vector<double>& acc,
@@ -88,14 +74,11 @@ void LightDepthMap::fill(const GaussianMedium& medium, const Vec3& w, float* out
 double LightDepthMap::operator()(const Vec3& x) const {
     if (r_max_ == 0.0) return 0.0;
     const Vec3 d = x - s_;
-    const Vec3 ad = glm::abs(d);
-    const int axis = ad.x >= ad.y && ad.x >= ad.z ? 0 : (ad.y >= ad.z ? 1 : 2);
-    if (!(ad[axis] > 0.0)) return 0.0;
-    const int f = 2 * axis + (d[axis] < 0.0 ? 1 : 0);
-    const int u_axis = (axis + 1) % 3, v_axis = (axis + 2) % 3;
-    const double scale = 0.5 * (face_ - 1) / ad[axis];
-    const double fu = std::clamp((d[u_axis] + ad[axis]) * scale, 0.0, face_ - 1.0);
-    const double fv = std::clamp((d[v_axis] + ad[axis]) * scale, 0.0, face_ - 1.0);
+    if (d == Vec3(0.0)) return 0.0;
+    const CubeFacePoint c = cube_face_point(d);
+    const int f = c.face;
+    const double fu = std::clamp((c.p + 1.0) * 0.5 * (face_ - 1), 0.0, face_ - 1.0);
+    const double fv = std::clamp((c.q + 1.0) * 0.5 * (face_ - 1), 0.0, face_ - 1.0);
     const int i0 = std::min(int(fu), face_ - 2), j0 = std::min(int(fv), face_ - 2);
     const double wu = fu - i0, wv = fv - j0;
     const double fr = std::min(glm::length(d) / dr_, radial_ - 1.0);

@@ -9,7 +9,7 @@
 //   tau(w, r) = sum_j c_j sqrt(pi) / (2 a_j) exp(-a_j^2 h_j^2) [erf(a_j (r - p_j)) + erf(a_j p_j)],
 //   p_j = (b_j - s) . w,  h_j^2 = |b_j - s|^2 - p_j^2,
 // smooth in r at the scale of each Gaussian's width and in w at its width over its distance.
-// So it is tabulated on a cube map of directions (face x face grid points per cube face,
+// So it is tabulated on a cube map of directions (core/cube_map.h; face x face grid points a face,
 // edges and corners included, so that bilinear interpolation never leaves a face) times
 // _radial_ distances from 0 to the farthest cull sphere, and read by trilinear interpolation:
 // O(1) a point. The Gaussians only: beta0's depth beta0 |x - s| is exact, the caller's.
