@@ -13,9 +13,10 @@ namespace airlight {
 namespace {
 
 // A Gaussian's density on the ray: c e^{-a^2 h^2} e^{-a^2 (t - ts)^2}, negligible (below e^-20
-// of its peak) outside [lo, hi].
+// of its peak) outside [lo, hi]; its albedo.
 struct RayGaussian {
     double ts, a, peak, lo, hi;
+    RGB albedo;
 };
 
 constexpr double kWindow = 20.0;  // a^2 (h^2 + (t - ts)^2) beyond which a density is left out
@@ -23,12 +24,19 @@ constexpr double kStepTol = 1e-3;  // Simpson against trapezoids within a step (
 constexpr double kMinStep = 1e-9;  // relative to max(1, t): no step is halved below it
 constexpr double kOpaque = 700.0;  // the view depth past which nothing is left (e^-700 ~ 1e-304)
 
+struct Density {
+    double beta;  // extinction
+    RGB sigma_s;  // scattering
+};
+
+double sum(const RGB& x) { return x.x + x.y + x.z; }
+
 }  // namespace
 
-double gaussian_march_airlight(const GaussianMedium& medium, const Vec3& s, const PhaseFunction& phase,
-                               const Vec3& v, const Vec3& r, double Dvp, const LightDepthMap* map,
-                               GaussianMarch& march) {
-    march.steps = 0;
+RGB gaussian_march_airlight_rgb(const GaussianMedium& medium, const Vec3& s, const PhaseFunction& phase,
+                                const Vec3& v, const Vec3& r, double Dvp, const LightDepthMap* map,
+                                GaussianMarch& march) {
+    march.steps = 0, march.terms = 0;
     const bool infinite = std::isinf(Dvp);
     std::vector<RayGaussian> line;
     double narrowest = std::numeric_limits<double>::infinity(), last_end = 0.0;
@@ -40,82 +48,119 @@ double gaussian_march_airlight(const GaussianMedium& medium, const Vec3& s, cons
         if (ah2 >= kWindow) return;
         const double ts = glm::dot(rel, r), reach = std::sqrt(kWindow - ah2) / a;
         if (ts + reach <= 0.0) return;
-        line.push_back({ts, a, c * std::exp(-ah2), ts - reach, ts + reach});
+        const RGB albedo = march.albedo ? RGB(march.albedo[3 * g], march.albedo[3 * g + 1], march.albedo[3 * g + 2])
+                                        : RGB(1.0);
+        line.push_back({ts, a, c * std::exp(-ah2), ts - reach, ts + reach, albedo});
         narrowest = std::min(narrowest, 1.0 / (a * std::sqrt(2.0)));
         last_end = std::max(last_end, ts + reach);
     });
     std::sort(line.begin(), line.end(), [](const RayGaussian& x, const RayGaussian& y) { return x.lo < y.lo; });
     const double beta0 = medium.beta0();
+    const RGB sigma0 = beta0 * march.medium_albedo;
     const bool isotropic = phase.kind == PhaseKind::Isotropic;
     const double lobe = std::min(1.0, phase.lobe_width());
     const double inside_step = march.step_widths * narrowest;
     const Vec3 vs = s - v;
     const double t_s = glm::dot(vs, r);  // the light's closest approach
     const double p_max = isotropic ? kInv4Pi : std::max(phase.eval(1.0), phase.eval(-1.0));
+    // The lit spans: steps end at their ends, and a step is lit where its midpoint is.
+    const RaySpans all{nullptr, 0};
+    const RaySpans& lit = march.lit ? *march.lit : all;
+    int span = 0;  // the first span that does not end before t
+    auto next_end = [&](double t) {
+        while (span < lit.count && lit.spans[span].second <= t) ++span;
+        if (span == lit.count) return std::numeric_limits<double>::infinity();
+        return lit.spans[span].first > t ? lit.spans[span].first : lit.spans[span].second;
+    };
+    auto is_lit = [&](double t) {
+        return !march.lit || (span < lit.count && lit.spans[span].first <= t && t < lit.spans[span].second);
+    };
 
     std::vector<const RayGaussian*> active;
     std::size_t next = 0;
     auto density = [&](double t) {
-        double beta = beta0;
+        Density d{beta0, sigma0};
+        march.terms += long(active.size());
         for (const RayGaussian* g : active) {
             const double u = g->a * (t - g->ts);
-            beta += g->peak * std::exp(-u * u);
+            const double e = g->peak * std::exp(-u * u);
+            d.beta += e;
+            d.sigma_s += e * g->albedo;
         }
-        return beta;
+        return d;
     };
     auto light_depth = [&](const Vec3& x, double d) {
         return map ? beta0 * d + (*map)(x) : medium.optical_depth(s, x);
     };
-    auto in_scattered = [&](double t, double beta, double Tv) {
-        if (beta == 0.0) return 0.0;
+    auto in_scattered = [&](double t, const Density& dens, double Tv) {
+        if (dens.beta == 0.0) return RGB(0.0);
         const Vec3 sx = v + t * r - s;
         const double d2 = glm::dot(sx, sx);
-        if (!(d2 > 0.0)) return 0.0;
+        if (!(d2 > 0.0)) return RGB(0.0);
         const double d = std::sqrt(d2);
         const double p = isotropic ? kInv4Pi : phase.eval(-glm::dot(sx, r) / d);
-        return beta * p / d2 * std::exp(-light_depth(v + t * r, d) - Tv);
+        return dens.sigma_s * (p / d2 * std::exp(-light_depth(v + t * r, d) - Tv));
     };
 
-    double t = 0.0, Tv = 0.0, sum = 0.0;
+    double t = 0.0, Tv = 0.0;
+    RGB total(0.0);
     while (next < line.size() && line[next].lo <= 0.0) active.push_back(&line[next++]);
-    double beta_a = density(0.0), f_a = in_scattered(0.0, beta_a, 0.0);
+    Density dens_a = density(0.0);
+    RGB f_a = in_scattered(0.0, dens_a, 0.0);
     const double end = infinite ? std::numeric_limits<double>::max() : Dvp;
     while (t < end) {
+        const double boundary = next_end(t);
+        if (march.lit && std::isinf(boundary)) break;  // (no lit span left)
         const double d = glm::length(v + t * r - s);
         const bool in_fog = !active.empty() || (next < line.size() && line[next].lo < t + 0.1 * d);
         double h = 0.1 * std::max(d, 1e-9 * std::max(1.0, glm::length(vs))) * lobe;
         if (in_fog) h = std::min(h, inside_step);
         if (next < line.size() && line[next].lo > t) h = std::min(h, std::max(line[next].lo - t, inside_step));
-        h = std::min({h, end - t, 0.5 / beta_a});  // (thick fog: a step's depth stays below 1/2)
-        double beta_m, beta_b, T_b, f_m, f_b, step;
+        h = std::min({h, end - t, 0.5 / dens_a.beta, boundary - t});  // (thick fog: a step's depth stays below 1/2)
+        Density dens_m, dens_b;
+        RGB f_m, f_b, step;
+        double T_b;
+        bool lit_step;
         for (;;) {
             while (next < line.size() && line[next].lo <= t + h) active.push_back(&line[next++]);
-            beta_m = density(t + 0.5 * h), beta_b = density(t + h);
-            const double T_m = Tv + h / 24.0 * (5.0 * beta_a + 8.0 * beta_m - beta_b);
-            T_b = Tv + h / 6.0 * (beta_a + 4.0 * beta_m + beta_b);
-            f_m = in_scattered(t + 0.5 * h, beta_m, T_m), f_b = in_scattered(t + h, beta_b, T_b);
+            dens_m = density(t + 0.5 * h), dens_b = density(t + h);
+            const double T_m = Tv + h / 24.0 * (5.0 * dens_a.beta + 8.0 * dens_m.beta - dens_b.beta);
+            T_b = Tv + h / 6.0 * (dens_a.beta + 4.0 * dens_m.beta + dens_b.beta);
+            lit_step = is_lit(t + 0.5 * h);
+            f_m = in_scattered(t + 0.5 * h, dens_m, T_m), f_b = in_scattered(t + h, dens_b, T_b);
             step = h / 6.0 * (f_a + 4.0 * f_m + f_b);
             // Simpson against the trapezoids of the same points: a step where they part by more
             // than kStepTol (a shadow's edge, a thick Gaussian's rim) is halved.
-            const double trapezoids = h / 4.0 * (f_a + 2.0 * f_m + f_b);
-            const double depth_gap = std::abs(T_b - Tv - h / 4.0 * (beta_a + 2.0 * beta_m + beta_b));
-            if ((std::abs(step - trapezoids) <= kStepTol * std::max(step, march.tail_tol * sum) && depth_gap <= kStepTol) ||
+            const RGB trapezoids = h / 4.0 * (f_a + 2.0 * f_m + f_b);
+            const double depth_gap = std::abs(T_b - Tv - h / 4.0 * (dens_a.beta + 2.0 * dens_m.beta + dens_b.beta));
+            const double gap = lit_step ? sum(glm::abs(step - trapezoids)) : 0.0;
+            if ((gap <= kStepTol * std::max(sum(step), march.tail_tol * sum(total)) && depth_gap <= kStepTol) ||
                 h <= kMinStep * std::max(1.0, t))
                 break;
             h *= 0.5;
         }
-        sum += step;
-        t += h, Tv = T_b, beta_a = beta_b, f_a = f_b;
+        if (lit_step) total += step;
+        t += h, Tv = T_b, dens_a = dens_b, f_a = f_b;
         ++march.steps;
         if (Tv > kOpaque) break;
         active.erase(std::remove_if(active.begin(), active.end(), [&](const RayGaussian* g) { return g->hi < t; }),
                      active.end());
         if (infinite && active.empty() && next == line.size() && t > std::max(t_s, last_end)) {
             // Only the uniform fog is left: its rest is below beta0 p_max e^{-Tv} / (t - t_s).
-            if (beta0 == 0.0 || beta0 * p_max * std::exp(-Tv) / (t - t_s) <= march.tail_tol * sum) break;
+            if (beta0 == 0.0 || beta0 * p_max * std::exp(-Tv) / (t - t_s) <= march.tail_tol * sum(total) / 3.0) break;
         }
     }
-    return sum;
+    return total;
+}
+
+double gaussian_march_airlight(const GaussianMedium& medium, const Vec3& s, const PhaseFunction& phase,
+                               const Vec3& origin, const Vec3& r, double Dvp, const LightDepthMap* map,
+                               GaussianMarch& march) {
+    GaussianMarch unit = march;
+    unit.albedo = nullptr, unit.medium_albedo = RGB(1.0);
+    const double La = gaussian_march_airlight_rgb(medium, s, phase, origin, r, Dvp, map, unit).x;
+    march.steps = unit.steps, march.terms = unit.terms;
+    return La;
 }
 
 }  // namespace airlight

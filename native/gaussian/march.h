@@ -1,10 +1,12 @@
 // march.h: the single-scattering airlight of Gaussian fog along one view ray, marched.
 //
-// Eq. 2 (Fogshop's La, per unit I0 and albedo) for a point light s and any phase,
-//   La = int_0^Dvp beta(x) p(cos theta) / |x - s|^2 exp(-T(s, x) - T(v, x)) dt,
-// by composite Simpson over steps of a fraction of the narrowest Gaussian width on the ray,
-// shortened to a tenth of the distance to the light (its 1 / d^2 peak) times the phase lobe's
-// width, and growing with that distance outside the Gaussians. The density comes from a
+// Eq. 2 (Fogshop's La, per unit I0) for a point light s and any phase,
+//   La = int_0^Dvp sigma_s(x) p(cos theta) / |x - s|^2 exp(-T(s, x) - T(v, x)) V(x) dt,
+// sigma_s = beta0 albedo0 + sum_i albedo_i c_i e^{-a_i^2 |x - b_i|^2} (RGB; unit albedos: beta),
+// V = 1 on the lit spans (volumetric shadows) and 0 between them, by composite Simpson over
+// steps of a fraction of the narrowest Gaussian width on the ray, shortened to a tenth of the
+// distance to the light (its 1 / d^2 peak) times the phase lobe's width, and growing with that
+// distance outside the Gaussians; no step straddles a lit span's end. The density comes from a
 // window of the ray's own Gaussians (those within 4.5 widths of each step), the view depth
 // T(v, x) from the same steps (Simpson, and the quadratic interpolant's integral to each
 // midpoint), the light depth from a LightDepthMap (O(1) a point) or, without one, exactly
@@ -20,6 +22,7 @@
 
 #include "core/phase.h"
 #include "core/scene.h"
+#include "gaussian/airlight.h"
 #include "gaussian/light_depth_map.h"
 #include "gaussian/medium.h"
 
@@ -28,12 +31,22 @@ namespace airlight {
 struct GaussianMarch {
     double step_widths = 0.35;  // the step inside Gaussians, in the narrowest one's widths 1/(a sqrt 2)
     double tail_tol = 1e-7;     // an infinite ray stops where the uniform fog's rest is below this, relative
+    // In: per-Gaussian albedos (3 a Gaussian; null: 1) and the uniform fog's (beta0's) albedo.
+    const double* albedo = nullptr;
+    RGB medium_albedo{1.0, 1.0, 1.0};
+    // In: the lit spans of [0, Dvp] (sorted, disjoint; null: all of it).
+    const RaySpans* lit = nullptr;
     long steps = 0;             // out: the Simpson steps taken
+    long terms = 0;             // out: the Gaussian densities evaluated (the march's work)
 };
 
 // La of the ray origin + t r, t in [0, Dvp] (r unit; Dvp > 0, may be +inf), lit by a point
 // light at _s_ of unit intensity; the light depth from _map_ (its light must be _s_), or
-// exact when _map_ is null.
+// exact when _map_ is null. The RGB form takes the march's albedos; the scalar one is unit
+// albedo throughout.
+RGB gaussian_march_airlight_rgb(const GaussianMedium& medium, const Vec3& s, const PhaseFunction& phase,
+                                const Vec3& origin, const Vec3& r, double Dvp, const LightDepthMap* map,
+                                GaussianMarch& march);
 double gaussian_march_airlight(const GaussianMedium& medium, const Vec3& s, const PhaseFunction& phase,
                                const Vec3& origin, const Vec3& r, double Dvp, const LightDepthMap* map,
                                GaussianMarch& march);

@@ -150,6 +150,45 @@ TEST(GaussianMarch, ThickFog) {
     std::printf("[ march ] thick fog: %.2e relative at most\n", worst);
 }
 
+// Lit spans (volumetric shadows): the march over the spans equals the quadrature with the
+// same visibility; albedos: each Gaussian's scatters in its own colour, the uniform fog in its.
+TEST(GaussianMarch, LitSpansAndAlbedo) {
+    const GaussianMedium m = cloud(60, 6.0, 15.0, 0.6, 1.5, 0.05, 0.4, 0.01, 21);
+    const Vec3 s(0.5, 1.0, 16.0), v(0.0);
+    const std::vector<std::pair<double, double>> spans = {{2.0, 11.5}, {13.0, 14.2}, {17.0, 30.0}};
+    const RaySpans lit{spans.data(), int(spans.size())};
+    for (Vec3 r : {Vec3(0.05, 0.05, 1.0), Vec3(-0.1, 0.1, 1.0)}) {
+        r = glm::normalize(r);
+        GaussianRefLight light{GaussianRefLight::Kind::Point, s};
+        light.visible = [&](const Vec3& x) {
+            const double t = glm::dot(x - v, r);
+            for (const auto& span : spans)
+                if (span.first <= t && t < span.second) return true;
+            return false;
+        };
+        for (const auto& span : spans) light.jumps.insert(light.jumps.end(), {span.first, span.second});
+        const double ref = gaussian_airlight_quadrature(m, light, PhaseFunction{}, v, r, 40.0, 1e-9, GaussianSums::Culled);
+        GaussianMarch march;
+        march.lit = &lit;
+        const double got = gaussian_march_airlight(m, s, PhaseFunction{}, v, r, 40.0, nullptr, march);
+        ASSERT_GT(ref, 0.0);
+        EXPECT_LT(relative(got, ref), 2e-5);
+        // Albedo: red Gaussians in green uniform fog are the sum of two marches, each with one
+        // medium's albedo (linear in sigma_s with the extinction unchanged).
+        std::vector<double> albedo;
+        for (std::size_t i = 0; i < m.size(); ++i) albedo.insert(albedo.end(), {0.8, 0.0, 0.0});
+        GaussianMarch coloured;
+        coloured.albedo = albedo.data(), coloured.medium_albedo = RGB(0.0, 0.5, 0.0);
+        const RGB La = gaussian_march_airlight_rgb(m, s, PhaseFunction{}, v, r, 40.0, nullptr, coloured);
+        GaussianMarch plain;
+        const double all = gaussian_march_airlight(m, s, PhaseFunction{}, v, r, 40.0, nullptr, plain);
+        EXPECT_EQ(La.z, 0.0);
+        EXPECT_NEAR(La.x / 0.8 + La.y / 0.5, all, 2e-5 * all);
+        EXPECT_GT(La.x, 0.0);
+        EXPECT_GT(La.y, 0.0);
+    }
+}
+
 // Without Gaussians the march is the uniform fog's airlight (Sun 2005's integral).
 TEST(GaussianMarch, UniformFogLimit) {
     const GaussianMedium m({}, {}, {}, 0.05);
