@@ -58,6 +58,8 @@ BakeResult bake(const SceneDescription& scene, const BakeSettings& settings, con
     result.stats.seconds_airlight = seconds_since(start);
     result.stats.gaussian_background_rays = fog.background_rays();
     result.stats.gaussian_exact_terms = fog.pair_terms();
+    result.stats.gaussian_marched_lights = static_cast<long long>(fog.marched_lights());
+    result.stats.gaussian_marched_rays = fog.marched_rays();
 
     if (settings.surface) {
         const auto surface_start = Clock::now();

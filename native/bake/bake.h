@@ -123,6 +123,10 @@ struct BakeStats {
     // the refinement leaves on any ray (pairs' share plus the uniform fog's share).
     long long gaussian_background_rays = 0;
     long long gaussian_exact_terms = 0;  // (ray, pair) terms integrated exactly
+    // Point lights whose whole airlight the refinement marched (gaussian/march.h) in place of
+    // their pairs' exact terms, and the (ray, light) marches.
+    long long gaussian_marched_lights = 0;
+    long long gaussian_marched_rays = 0;
     bool gaussian_refine_abandoned = false;  // over its budget: Fogshop alone (bound inf)
     double gaussian_refine_work = 0.0;       // the refinement's work, in nominal CPU seconds
     double gaussian_error_bound = 0.0;

@@ -283,7 +283,8 @@ void FogEvaluator::set_up_refinement(const BakeSettings& settings, const Camera&
     refine_pairs_ = plan.pairs;
     refine_kept_bound_ = plan.kept_bound;
     refine_error_bound_ = plan.kept_bound + (kPairShare + (background ? kBackgroundShare : 0.0)) * refine_target_;
-    if (plan.refined.empty() && !background) return;
+    plan_marches(plan, threads);
+    if (plan.refined.empty() && !background && marched_.empty()) return;
     if (!eye_fogshop_) {
         std::vector<Vec3> sun_dirs;
         for (const GaussianSunData& sun : gaussian_suns_) sun_dirs.push_back(sun.w);
@@ -293,6 +294,29 @@ void FogEvaluator::set_up_refinement(const BakeSettings& settings, const Camera&
     // Each term to a tenth of the accuracy: the quadrature's share of the error stays small.
     refiner_ = std::make_unique<GaussianRefiner>(*gaussian_, origin_, std::move(lights), phase_, fog_top_,
                                                  std::move(plan), 0.1 * settings.gaussian_accuracy);
+}
+
+void FogEvaluator::plan_marches(GaussianRefinePlan& plan, int threads) {
+    // A point light with a pair to refine is marched whole: one march of every Gaussian near
+    // the ray costs what a few exact pair terms do (each sums the Gaussians near the ray and
+    // the light path at every node), and leaves no pair of that light to Fogshop.
+    std::vector<char> march(gaussian_lights_.size(), 0);
+    for (const RefinePair& pair : plan.refined)
+        if (pair.light < n_gaussian_points_) march[pair.light] = 1;
+    plan.refined.erase(std::remove_if(plan.refined.begin(), plan.refined.end(),
+                                      [&](const RefinePair& pair) { return pair.light < march.size() && march[pair.light]; }),
+                       plan.refined.end());
+    // The light depths from a map where it pays and its error fits the rays' share of the
+    // accuracy: kMarchMapError is the 64 x 64 x 256 map's worst measured error on a ray's
+    // airlight (march_test.cpp, 1.1e-3), doubled.
+    const bool mapped = gaussian_->size() >= kMarchMapGaussians && kPairShare * refine_target_ >= kMarchMapError;
+    for (size_t l = 0; l < march.size(); ++l) {
+        if (!march[l]) continue;
+        marched_.push_back(l);
+        march_maps_.push_back(mapped ? std::make_unique<LightDepthMap>(*gaussian_, gaussian_lights_[l], kMarchMapFace,
+                                                                       kMarchMapRadial, threads)
+                                     : nullptr);
+    }
 }
 
 int FogEvaluator::gaussian_volume(size_t l) const {
@@ -357,13 +381,14 @@ void FogEvaluator::refine_rays(const Ray* rays, const float* Dvp, const float* t
         double approx, error;
     };
     thread_local std::vector<Candidate> candidates;
-    if (background && shadows_) lit = lit_intervals(rays, t0, Dvp, n);
+    if ((background || !marched_.empty()) && shadows_) lit = lit_intervals(rays, t0, Dvp, n);
     for (int k = 0; k < n; ++k) {
         const double near = t0 ? double(t0[k]) : 0.0, end = double(Dvp[k]);
         if (!(end > near)) continue;
         const Vec3 d = rays[k].d;
         const std::pair<double, double> whole(near, end);
         const double Tg_near = eye_fogshop_->near_depth(d, near);
+        march_lights(d, near, end, lit ? &lit[k] : nullptr, La[k]);
         // Each candidate pair's Fogshop term and a bound on its error there: bound / (1 - bound)
         // of the term where the plan's bound is below 1, else the larger of the term and an upper
         // bound of the exact one (both are >= 0). The largest are integrated until what is left
@@ -404,6 +429,68 @@ void FogEvaluator::refine_rays(const Ray* rays, const float* Dvp, const float* t
         }
         if (background) refine_background(d, near, end, Tg_near, lit ? &lit[k] : nullptr, view, La[k]);
     }
+}
+
+void FogEvaluator::march_lights(const Vec3& d, double near, double end, const LitIntervals* lit, RGB& La) const {
+    const size_t A = gaussian_lights_.size() + gaussian_suns_.size();
+    thread_local std::vector<RaySpans> spans;
+    thread_local std::vector<std::pair<double, double>> shifted;
+    const std::pair<double, double> whole(near, end);
+    const Vec3 o = origin_ + near * d;
+    for (size_t m = 0; m < marched_.size(); ++m) {
+        const size_t l = marched_[m];
+        RaySpans lit_spans{&whole, 1};
+        const int v = gaussian_volume(l);
+        if (v >= 0 && lit && !fully_lit(*lit, v, near, end))
+            lit_spans = RaySpans{lit->spans.data() + lit->begin[v], lit->end[v] - lit->begin[v]};
+        if (lit_spans.count == 0) continue;  // (in the dark Fogshop's value is 0 too)
+        GaussianMarch march;
+        march.albedo = gaussian_albedo_.data();
+        march.medium_albedo = medium_albedo_;
+        // Its work in refine_work's units (one Gaussian's term of an integrand, kMarchWorkPerUnit
+        // of the march's), stopped at the limit.
+        const std::uint64_t left = refine_work_limit() - std::min(refine_work(), refine_work_limit());
+        march.work_limit = long(std::min<double>(double(left) * kMarchWorkPerUnit, 9e18));
+        RaySpans march_spans;
+        if (lit_spans.spans != &whole) {  // (the march's t starts at the near plane)
+            shifted.clear();
+            for (int q = 0; q < lit_spans.count; ++q)
+                shifted.emplace_back(lit_spans.spans[q].first - near, lit_spans.spans[q].second - near);
+            march_spans = RaySpans{shifted.data(), int(shifted.size())};
+            march.lit = &march_spans;
+        }
+        const RGB marched = gaussian_I0_[l] * gaussian_march_airlight_rgb(*gaussian_, gaussian_lights_[l], phase_, o, d,
+                                                                          end - near, march_maps_[m].get(), march);
+        refine_work() += std::uint64_t(march.work / kMarchWorkPerUnit);
+        if (march.stopped) throw RefineWorkExceeded{};
+        spans.assign(A, RaySpans{});
+        spans[l] = lit_spans;
+        La += marched - fogshop_spans(*eye_fogshop_, true, d, near, spans.data());
+        marched_rays_.fetch_add(1, std::memory_order_relaxed);
+    }
+}
+
+RGB FogEvaluator::fogshop_spans(const FogshopAirlight& fogshop, bool at_eye, const Vec3& d, double near,
+                                const RaySpans* spans) const {
+    const size_t P = gaussian_lights_.size(), S = gaussian_suns_.size();
+    thread_local std::vector<RGB> weights;  // I0 of the positional lights, then the suns' E
+    weights.assign(gaussian_I0_.begin(), gaussian_I0_.begin() + std::ptrdiff_t(P));
+    for (size_t j = 0; j < S; ++j) weights.push_back(gaussian_suns_[j].E);
+    // The splat's background term with the bake's model (its own for other phases and models).
+    const bool own = !isotropic_ || model_.own_gaussian_background();
+    // (Suns: sunlight_span's factor, attenuated from the fog's start as eval_rgb_spans asks.)
+    const FogshopAirlight::SpanBackground background = [&](size_t l, double ta, double tb) {
+        if (l < P) return gaussian_background(l, d, ta, tb);
+        const GaussianSunData& sun = gaussian_suns_[l - P];
+        return sigma_t_ * phase_.eval(-glm::dot(sun.w, d)) *
+               sunlight_span(sigma_t_, fog_top_, sun.mu_s, origin_, d, near, ta, tb);
+    };
+    const bool spots = P > n_gaussian_points_;
+    const FogshopAirlight::SpanBackground* bg = (own || spots || S > 0) && at_eye ? &background : nullptr;
+    const FogshopAirlight::SpanProfile profile = [&](size_t l, const Vec3& u) { return gaussian_profile(l, u); };
+    const PhaseFunction* phase = isotropic_ ? nullptr : &phase_;
+    return fogshop.eval_rgb_spans(d, at_eye ? near : 0.0, spans, gaussian_albedo_.data(), weights.data(),
+                                  medium_albedo_, phase, bg, spots ? &profile : nullptr);
 }
 
 void FogEvaluator::refine_samples(const Ray* rays, const float* Dvp, const float* t0, int n, RGB* La) const {
@@ -457,6 +544,7 @@ void FogEvaluator::refine_background(const Vec3& d, double near, double end, dou
     constexpr double kInf = std::numeric_limits<double>::infinity();
     double T_view = kInf;
     for (size_t l = 0; l < A; ++l) {
+        if (std::find(marched_.begin(), marched_.end(), l) != marched_.end()) continue;  // (march_lights)
         RaySpans spans{&whole, 1};
         const int v = gaussian_volume(l);
         if (v >= 0 && lit && !fully_lit(*lit, v, near, end))
@@ -591,12 +679,7 @@ void FogEvaluator::shadow_gaussians(const Ray* rays, const float* Dvp, const flo
     const LitIntervals* lit = lit_intervals(rays, t0, Dvp, n);
     thread_local std::vector<RaySpans> with, whole;
     thread_local std::vector<std::pair<double, double>> lit_spans, full_spans;
-    thread_local std::vector<RGB> weights;  // I0 of the positional lights, then the suns' E
     with.resize(A), whole.resize(A);
-    weights.assign(gaussian_I0_.begin(), gaussian_I0_.begin() + std::ptrdiff_t(P));
-    for (size_t j = 0; j < S; ++j) weights.push_back(gaussian_suns_[j].E);
-    // The splat's background term with the bake's model (its own for other phases and models).
-    const bool own = !isotropic_ || model_.own_gaussian_background();
     for (int k = 0; k < n; ++k) {
         const double near = t0 ? double(t0[k]) : 0.0, end = double(Dvp[k]);
         if (!(end > near)) continue;
@@ -614,7 +697,7 @@ void FogEvaluator::shadow_gaussians(const Ray* rays, const float* Dvp, const flo
                                                                         gaussian_lights_.begin() + std::ptrdiff_t(P)),
                                                       model_.f_table(), 1);
         const FogshopAirlight& fogshop = eye_fogshop_ ? *eye_fogshop_ : *local;
-        const double shift = eye_fogshop_ ? 0.0 : near, t_start = near - shift;
+        const double shift = eye_fogshop_ ? 0.0 : near;
         lit_spans.clear(), full_spans.clear();
         lit_spans.reserve(lit[k].spans.size()), full_spans.reserve(A);
         for (size_t l = 0; l < A; ++l) {
@@ -629,25 +712,8 @@ void FogEvaluator::shadow_gaussians(const Ray* rays, const float* Dvp, const flo
             whole[l] = RaySpans{&full_spans.back(), 1};
         }
         const Vec3 d = rays[k].d;
-        // (Suns: sunlight_span's factor, attenuated from the fog's start as eval_rgb_spans asks.)
-        const FogshopAirlight::SpanBackground background = [&](size_t l, double ta, double tb) {
-            if (l < P) return gaussian_background(l, d, ta, tb);
-            const GaussianSunData& sun = gaussian_suns_[l - P];
-            return sigma_t_ * phase_.eval(-glm::dot(sun.w, d)) *
-                   sunlight_span(sigma_t_, fog_top_, sun.mu_s, origin_, d, near, ta, tb);
-        };
-        const bool spots = P > n_gaussian_points_;
-        const FogshopAirlight::SpanBackground* bg = (own || spots || S > 0) && eye_fogshop_ ? &background : nullptr;
-        const FogshopAirlight::SpanProfile profile = [&](size_t l, const Vec3& u) {
-            if (l < n_gaussian_points_) return 1.0;
-            const SpotCone& cone = gaussian_spots_[l - n_gaussian_points_].cone;
-            return spot_profile(cone, glm::dot(cone.axis, u));
-        };
-        const PhaseFunction* phase = isotropic_ ? nullptr : &phase_;
-        La[k] += fogshop.eval_rgb_spans(d, t_start, with.data(), gaussian_albedo_.data(), weights.data(),
-                                        medium_albedo_, phase, bg, spots ? &profile : nullptr) -
-                 fogshop.eval_rgb_spans(d, t_start, whole.data(), gaussian_albedo_.data(), weights.data(),
-                                        medium_albedo_, phase, bg, spots ? &profile : nullptr);
+        La[k] += fogshop_spans(fogshop, bool(eye_fogshop_), d, near, with.data()) -
+                 fogshop_spans(fogshop, bool(eye_fogshop_), d, near, whole.data());
     }
 }
 

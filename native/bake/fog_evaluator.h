@@ -13,6 +13,7 @@
 #include "bake/bake.h"
 #include "core/scene.h"
 #include "gaussian/airlight.h"
+#include "gaussian/light_depth_map.h"
 #include "gaussian/medium.h"
 #include "gaussian/refine.h"
 #include "gaussian/splat.h"
@@ -79,6 +80,9 @@ class FogEvaluator {
     // The refinement (null when off or when no pair needs it).
     const GaussianRefiner* refiner() const { return refiner_.get(); }
     size_t refine_pairs() const { return refine_pairs_; }
+    // The refinement's marched lights, and the (ray, light) marches so far.
+    size_t marched_lights() const { return marched_.size(); }
+    long long marched_rays() const { return marched_rays_.load(); }
     double refine_kept_bound() const { return refine_kept_bound_; }
     // The relative error bound the refinement leaves (0 without it), and the (ray, light)
     // pairs whose uniform-fog term it corrected so far.
@@ -185,6 +189,8 @@ class FogEvaluator {
     // light (lights_' order), spot and sun its light in them (-1: unshadowed).
     void set_up_shadows(const SceneDescription& scene, const BakeSettings& settings);
     void set_up_refinement(const BakeSettings& settings, const Camera& camera);
+    // Takes the point lights with pairs to refine out of _plan_ into marched_, with their maps.
+    void plan_marches(GaussianRefinePlan& plan, int threads);
     // refine_gaussians' uniform-fog part for one ray d over [near, end] (Tg_near: the
     // Gaussians' depth before near; lit: its lit intervals, null when untraced: lit all along),
     // _view_ gathered on demand.
@@ -192,6 +198,14 @@ class FogEvaluator {
                            GaussianRefiner::ViewDepth& view, RGB& La) const;
     // refine_gaussians' rays (FogEvaluator::refine_gaussians keeps the budget around it).
     void refine_rays(const Ray* rays, const float* Dvp, const float* t0, int n, RGB* La) const;
+    // The marched lights' share of refine_rays on ray d over [near, end] (lit: its lit
+    // intervals, null when untraced): each one's march less its Fogshop value, added to La.
+    void march_lights(const Vec3& d, double near, double end, const LitIntervals* lit, RGB& La) const;
+    // Fogshop's airlight on ray d from the near plane _near_ (eye_fogshop_, or _local_ set up at
+    // the near point: t_start 0) over spans[l] of every light l (gaussian_lights_, then the
+    // suns; an empty span list leaves a light out), with the splat's background, phase and
+    // spot profiles: the values the splat's pixels hold.
+    RGB fogshop_spans(const FogshopAirlight& fogshop, bool at_eye, const Vec3& d, double near, const RaySpans* spans) const;
     // Volume of the Fogshop light l (gaussian_lights_, then the suns) in shadows_; -1: none.
     int gaussian_volume(size_t l) const;
     // albedo_i I0_l (E_l for suns) of the pair (light l, Gaussian i).
@@ -288,6 +302,13 @@ class FogEvaluator {
     // Gaussian fog with shadows (Fogshop, perspective): Fogshop at the eye for the point lights.
     std::unique_ptr<FogshopAirlight> eye_fogshop_;
     std::unique_ptr<GaussianRefiner> refiner_;
+    // The refinement's marched lights (gaussian/march.h): point lights whose whole airlight
+    // (every Gaussian and the uniform fog) is marched on the refined rays in place of their
+    // pairs' exact terms (their index in gaussian_lights_), each with its light-space depth
+    // map (null: exact light depths; set_up_refinement says when).
+    std::vector<size_t> marched_;
+    std::vector<std::unique_ptr<LightDepthMap>> march_maps_;
+    mutable std::atomic<long long> marched_rays_{0};
     size_t refine_pairs_ = 0;         // the refinement plan's pairs (refiner_ may be null)
     double refine_kept_bound_ = 0.0;  // and the largest bound it left to Fogshop
     double refine_target_ = 0.0;       // the asked relative accuracy (gaussian_accuracy)
@@ -303,6 +324,14 @@ class FogEvaluator {
     // its share of the quadrature's overhead): 5.5e-8 s measured on this machine's cores
     // (benchmarks/bench_gaussian_accuracy.py, 3000 Gaussians).
     static constexpr double kRefineSecondsPerWork = 5.5e-8;
+    // The marched lights' light-depth maps (plan_marches): from this many Gaussians, where the
+    // rays' share of the accuracy is at least kMarchMapError, at kMarchMapFace^2 x 6 directions
+    // times kMarchMapRadial distances. The march's units of work (GaussianMarch::work, ~7 ns)
+    // per refine_work unit (5.5e-8 s).
+    static constexpr size_t kMarchMapGaussians = 200;
+    static constexpr double kMarchMapError = 2.2e-3;
+    static constexpr int kMarchMapFace = 64, kMarchMapRadial = 256;
+    static constexpr long kMarchWorkPerUnit = 7;
     std::uint64_t refine_budget_ = 0;
     mutable std::atomic<std::uint64_t> refine_spent_{0};
     mutable std::atomic<bool> refine_abandoned_{false}, refine_counting_{true};

@@ -1,6 +1,7 @@
 // passes.h: the passes of a bake, in the order bake() runs them (bake.cpp):
 //   1. raycast_pass      camera rays and the depth of the first hit per pixel centre
-//   2. gaussian_pass     Gaussian fog by the tiled splat (perspective camera, Fogshop models)
+//   2. gaussian_pass     Gaussian fog by the tiled splat (perspective camera, Fogshop models),
+//                        refined to the asked accuracy (refine_pass)
 //   3. homogeneous_pass  the fog at every other pixel centre (exact, or on a lattice), and
 //                        the edge pixels (depth discontinuities: EdgeMap)
 //   4. edge_pass         the edge pixels supersampled through the render's pixel filter
@@ -26,6 +27,9 @@ struct EdgePixels {
 void raycast_pass(BakeContext& ctx);
 // Returns where the progress bar stands after it.
 double gaussian_pass(BakeContext& ctx, const FogEvaluator& fog);
+// Inside gaussian_pass: the Gaussian refinement (FogEvaluator::refine_gaussians) of the
+// centre samples, whose Fogshop values (the splat's) are _fogshop_ (refine_pass.cpp).
+void refine_pass(BakeContext& ctx, const FogEvaluator& fog, const std::vector<float>& fogshop);
 // _splatted_: the Gaussian pass wrote the centre samples; only the edge pixels are found.
 EdgePixels homogeneous_pass(BakeContext& ctx, const FogEvaluator& fog, const EdgeMap& edges, bool splatted,
                             double progress_begin, double progress_end);

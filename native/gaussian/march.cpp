@@ -36,7 +36,7 @@ double sum(const RGB& x) { return x.x + x.y + x.z; }
 RGB gaussian_march_airlight_rgb(const GaussianMedium& medium, const Vec3& s, const PhaseFunction& phase,
                                 const Vec3& v, const Vec3& r, double Dvp, const LightDepthMap* map,
                                 GaussianMarch& march) {
-    march.steps = 0, march.terms = 0;
+    march.steps = 0, march.work = 0, march.stopped = false;
     const bool infinite = std::isinf(Dvp);
     std::vector<RayGaussian> line;
     double narrowest = std::numeric_limits<double>::infinity(), last_end = 0.0;
@@ -80,7 +80,7 @@ RGB gaussian_march_airlight_rgb(const GaussianMedium& medium, const Vec3& s, con
     std::size_t next = 0;
     auto density = [&](double t) {
         Density d{beta0, sigma0};
-        march.terms += long(active.size());
+        march.work += long(active.size());
         for (const RayGaussian* g : active) {
             const double u = g->a * (t - g->ts);
             const double e = g->peak * std::exp(-u * u);
@@ -90,7 +90,15 @@ RGB gaussian_march_airlight_rgb(const GaussianMedium& medium, const Vec3& s, con
         return d;
     };
     auto light_depth = [&](const Vec3& x, double d) {
-        return map ? beta0 * d + (*map)(x) : medium.optical_depth(s, x);
+        march.work += GaussianMarch::kPointWork;
+        if (map) return beta0 * d + (*map)(x);
+        const Vec3 u = (x - s) / d;
+        double T = beta0 * d;
+        medium.for_each_near(s, u, d, [&](std::size_t g) {
+            T += medium.gaussian_optical_depth(g, s, u, 0.0, d);
+            march.work += GaussianMarch::kTermWork;
+        });
+        return T;
     };
     auto in_scattered = [&](double t, const Density& dens, double Tv) {
         if (dens.beta == 0.0) return RGB(0.0);
@@ -142,6 +150,10 @@ RGB gaussian_march_airlight_rgb(const GaussianMedium& medium, const Vec3& s, con
         if (lit_step) total += step;
         t += h, Tv = T_b, dens_a = dens_b, f_a = f_b;
         ++march.steps;
+        if (march.work > march.work_limit) {
+            march.stopped = true;
+            break;
+        }
         if (Tv > kOpaque) break;
         active.erase(std::remove_if(active.begin(), active.end(), [&](const RayGaussian* g) { return g->hi < t; }),
                      active.end());
@@ -159,7 +171,7 @@ double gaussian_march_airlight(const GaussianMedium& medium, const Vec3& s, cons
     GaussianMarch unit = march;
     unit.albedo = nullptr, unit.medium_albedo = RGB(1.0);
     const double La = gaussian_march_airlight_rgb(medium, s, phase, origin, r, Dvp, map, unit).x;
-    march.steps = unit.steps, march.terms = unit.terms;
+    march.steps = unit.steps, march.work = unit.work, march.stopped = unit.stopped;
     return La;
 }
 

@@ -228,8 +228,10 @@ TEST(GaussianMarch, DISABLED_Profile3000) {
             t0 = Clock::now();
             const double mapped = gaussian_march_airlight(m, s, PhaseFunction{}, v, r, Dvp, &map, march);
             const double t_map = seconds(t0);
-            std::printf("  ray: quadrature %.3e in %.2f s; march exact %+.1e in %.3f s; mapped %+.1e in %.2f ms, %ld steps\n",
-                        ref, t_ref, exact / ref - 1.0, t_exact, mapped / ref - 1.0, 1e3 * t_map, march.steps);
+            std::printf("  ray: quadrature %.3e in %.2f s; march exact %+.1e in %.3f s; mapped %+.1e in %.2f ms, %ld steps, "
+                        "%.2g s a unit of density work\n",
+                        ref, t_ref, exact / ref - 1.0, t_exact, mapped / ref - 1.0, 1e3 * t_map, march.steps,
+                        t_map / double(march.work));
         }
     }
 }

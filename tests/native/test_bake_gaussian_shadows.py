@@ -212,3 +212,22 @@ def test_fogshop_sun_uniform_fog_lit_spans_exact():
     off = bake("sun05", zero, shadows=False, **sun_lights())["airlight"][..., 0].astype(np.float64)
     assert q.sum() < 0.9 * off.sum()
     assert rel(f, q, 0.05 * np.percentile(q, 99)).max() < 1e-4
+
+
+@pytest.mark.parametrize("accuracy", [0.05, 0.01])
+def test_refined_shadowed_point_light_meets_the_accuracy(accuracy):
+    """Automatic's refinement marches a shadowed point light's whole airlight over its lit spans
+    (gaussian/march.h): on Gaussians thick enough that Fogshop's lit spans err by tens of
+    percent, the refined bake is within the accuracy of `quadrature` (mean, p99 within 3x)."""
+    thick = 12.0 * AMPLITUDES
+    ref = bake("quadrature", thick)["airlight"][..., 0].astype(np.float64)
+    fogshop = bake("sun05", thick)["airlight"][..., 0].astype(np.float64)
+    r = bake("sun05", thick, gaussian_accuracy=accuracy)
+    got = r["airlight"][..., 0].astype(np.float64)
+    m = ref > 1e-6 * ref.max()
+    e, e0 = np.abs(got - ref)[m] / ref[m], np.abs(fogshop - ref)[m] / ref[m]
+    print(f"shadowed, {accuracy:g}: Fogshop mean {e0.mean():.2e}; refined mean {e.mean():.2e} p99 "
+          f"{np.percentile(e, 99):.2e}, {r['stats']['gaussian_marched_rays']} marches")
+    assert e0.mean() > 5 * accuracy  # (the case needs the refinement)
+    assert r["stats"]["gaussian_marched_lights"] == 1
+    assert e.mean() <= accuracy and np.percentile(e, 99) <= 3 * accuracy

@@ -1,0 +1,309 @@
+// refine_pass.cpp: the Gaussian refinement of the splat's centre samples (passes.h).
+//
+// FogEvaluator::refine_gaussians refines a ray: a marched light's whole airlight, the exact
+// terms of spot and sun pairs (gaussian/refine.h). A ray costs 0.1-1 ms with thousands of
+// Gaussians, so the pass refines few of them and carries their ratio (refined / Fogshop, per
+// channel) to the pixels between, where Fogshop's own value keeps the detail (a Gaussian's
+// edge, the ground's slope): the ratio is Fogshop's error, which varies at the scale of the
+// Gaussians and of the light's distance, not of a pixel. Cells of kCellSize pixels with a
+// refined ray at each corner are checked at their centre (the bilinear ratio there against
+// the refined ray) and split in four until they pass or are kMinCell pixels across; a cell's
+// pixels must also see the corners' surface (inverse depth on their bilinear plane, or all
+// the sky), else it splits, and at the smallest size the pixels that do not are refined alone.
+// A frame that would exceed the refinement's budget stops early (foresight, below).
+#include <algorithm>
+#include <cmath>
+#include <numeric>
+#include <vector>
+
+#include "bake/passes.h"
+#include "core/parallel.h"
+
+namespace airlight {
+
+namespace {
+
+// The largest cells: kCellSize pixels, and at most kCellAngle radians across (about 2 degrees:
+// the scale of a brush-sized Gaussian's image tens of metres away, and where the splat's
+// ratio grid may no longer see a Gaussian's edge).
+constexpr int kCellSize = 16;
+constexpr double kCellAngle = 0.035;
+constexpr int kMinCell = 2;
+constexpr double kDepthTol = 0.01;
+// The centre's test, in the asked accuracy: the bilinear ratio there within this of the refined ray.
+constexpr double kRatioTol = 0.25;
+
+// A pixel's Fogshop value (the splat's) and its refined one.
+struct Sample {
+    RGB base{0.0}, refined{0.0};
+};
+
+class CellRefiner {
+  public:
+    CellRefiner(BakeContext& ctx, const FogEvaluator& fog, const std::vector<float>& fogshop, int stride)
+        : ctx_(ctx), fog_(fog), fogshop_(fogshop), tol_(kRatioTol * fog.refine_target()), stride_(stride),
+          Wg_((ctx.W - 1 + stride - 1) / stride + 1), Hg_((ctx.H - 1 + stride - 1) / stride + 1) {}
+
+    // The grid of every stride-th pixel (and the last row and column), refined a row at a time.
+    int grid_width() const { return Wg_; }
+    int grid_height() const { return Hg_; }
+    int grid_x(int I) const { return std::min(I * stride_, ctx_.W - 1); }
+    int grid_y(int J) const { return std::min(J * stride_, ctx_.H - 1); }
+    void refine_grid(int threads) {
+        grid_.resize(size_t(Wg_) * Hg_);
+        parallel_for(Hg_, threads, [&](int J) {
+            thread_local std::vector<int> xs;
+            thread_local std::vector<Sample> out;
+            xs.clear();
+            for (int I = 0; I < Wg_; ++I) xs.push_back(grid_x(I));
+            refine_row(grid_y(J), xs, out);
+            std::copy(out.begin(), out.end(), grid_.begin() + std::ptrdiff_t(size_t(J) * Wg_));
+        });
+    }
+    bool on_grid(int x, int y) const {
+        return !grid_.empty() && (x % stride_ == 0 || x == ctx_.W - 1) && (y % stride_ == 0 || y == ctx_.H - 1);
+    }
+    // A refined pixel: from the grid where it is a grid point, else refined now.
+    Sample at(int x, int y) const {
+        if (!on_grid(x, y)) return sample(x, y);
+        const int I = x == ctx_.W - 1 ? Wg_ - 1 : x / stride_, J = y == ctx_.H - 1 ? Hg_ - 1 : y / stride_;
+        return grid_[size_t(J) * Wg_ + I];
+    }
+
+    // Refines pixels xs of row y (out: their samples).
+    void refine_row(int y, const std::vector<int>& xs, std::vector<Sample>& out) const {
+        thread_local RowRays rr;
+        thread_local std::vector<Ray> rays;
+        thread_local std::vector<RGB> La;
+        thread_local std::vector<float> depth, near;
+        const int W = ctx_.W, n = int(xs.size());
+        if (rr.dx.size() != size_t(W)) rr.resize(size_t(W));
+        ctx_.row_rays(y, rr, false);
+        rays.resize(size_t(n)), La.resize(size_t(n)), depth.resize(size_t(n)), near.resize(size_t(n));
+        out.resize(size_t(n));
+        for (int k = 0; k < n; ++k) {
+            const int x = xs[k];
+            rays[k].o = ctx_.eye;
+            rays[k].d = Vec3(rr.dx[x], rr.dy[x], rr.dz[x]);
+            out[k].base = base(x, y);
+            La[k] = out[k].base;
+            depth[k] = ctx_.result.depth[size_t(y) * W + x];
+            near[k] = ctx_.near_clip ? rr.t_near[x] : 0.0f;
+        }
+        fog_.refine_gaussians(rays.data(), depth.data(), ctx_.near_clip ? near.data() : nullptr, n, La.data());
+        for (int k = 0; k < n; ++k) out[k].refined = La[k];
+    }
+
+    Sample sample(int x, int y) const {
+        thread_local std::vector<int> xs(1);
+        thread_local std::vector<Sample> out;
+        xs.assign(1, x);
+        refine_row(y, xs, out);
+        return out[0];
+    }
+
+    // The cell with corners (x0, y0) .. (x1, y1) and their samples c (00, 10, 01, 11); it owns
+    // columns [x0, x1) and rows [y0, y1), and x1 / y1 too where _last_x_ / _last_y_.
+    void cell(int x0, int y0, int x1, int y1, const Sample c[4], bool last_x, bool last_y) const {
+        if (fog_.refine_abandoned()) return;
+        const int xe = last_x ? x1 : x1 - 1, ye = last_y ? y1 : y1 - 1;
+        const bool smallest = x1 - x0 <= kMinCell && y1 - y0 <= kMinCell;
+        const bool surface = same_surface(x0, y0, x1, y1);
+        const int xm = (x0 + x1) / 2, ym = (y0 + y1) / 2;
+        // The centre and the edges' midpoints (e: top, bottom, left, right) against the corners.
+        Sample m, e[4];
+        if (!smallest) {
+            m = at(xm, ym);
+            const bool fit = surface && fits(x0, y0, x1, y1, c, xm, ym, m);
+            if (x1 - x0 > kMinCell) e[0] = at(xm, y0), e[1] = at(xm, y1);
+            if (y1 - y0 > kMinCell) e[2] = at(x0, ym), e[3] = at(x1, ym);
+            bool edges_fit = fit;
+            if (x1 - x0 > kMinCell)
+                edges_fit = edges_fit && fits(x0, y0, x1, y1, c, xm, y0, e[0]) && fits(x0, y0, x1, y1, c, xm, y1, e[1]);
+            if (y1 - y0 > kMinCell)
+                edges_fit = edges_fit && fits(x0, y0, x1, y1, c, x0, ym, e[2]) && fits(x0, y0, x1, y1, c, x1, ym, e[3]);
+            if (!edges_fit) {
+                split(x0, y0, x1, y1, c, xm, ym, m, e, last_x, last_y);
+                return;
+            }
+        }
+        // At the smallest size a cell whose centre does not fit (a light's image) is refined
+        // whole, as are the pixels off the corners' surface.
+        bool alone = false;
+        if (smallest) {
+            if (x1 - x0 == kMinCell && y1 - y0 == kMinCell) {
+                m = at(xm, ym);
+                alone = !fits(x0, y0, x1, y1, c, xm, ym, m);
+            } else {
+                alone = true;  // (a cell one pixel across, at the image's edge)
+            }
+        }
+        // Interpolated, but the samples' own pixels (and, at the smallest size, the pixels off
+        // the corners' surface, refined alone).
+        float* A = ctx_.result.airlight.data();
+        const int W = ctx_.W;
+        for (int y = y0; y <= ye; ++y)
+            for (int x = x0; x <= xe; ++x) {
+                RGB v;
+                if ((x == x0 || x == x1) && (y == y0 || y == y1))
+                    v = c[(x == x1 ? 1 : 0) + (y == y1 ? 2 : 0)].refined;
+                else if (on_grid(x, y))
+                    v = at(x, y).refined;
+                else if (x == xm && y == ym && (!smallest || (x1 - x0 == kMinCell && y1 - y0 == kMinCell)))
+                    v = m.refined;
+                else if (!smallest && x == xm && (y == y0 || y == y1) && x1 - x0 > kMinCell)
+                    v = e[y == y0 ? 0 : 1].refined;
+                else if (!smallest && y == ym && (x == x0 || x == x1) && y1 - y0 > kMinCell)
+                    v = e[x == x0 ? 2 : 3].refined;
+                else if (alone || (!surface && !pixel_on_surface(x, y, x0, y0, x1, y1)))
+                    v = sample(x, y).refined;
+                else
+                    v = interpolate(x, y, x0, y0, x1, y1, c);
+                for (int ch = 0; ch < 3; ++ch) A[3 * (size_t(y) * W + x) + ch] = float(std::max(0.0, v[ch]));
+            }
+    }
+
+  private:
+    RGB base(int x, int y) const {
+        const float* f = &fogshop_[3 * (size_t(y) * ctx_.W + x)];
+        return RGB(f[0], f[1], f[2]);
+    }
+
+    static void weights(int x, int y, int x0, int y0, int x1, int y1, double w[4]) {
+        const double fx = x1 > x0 ? double(x - x0) / (x1 - x0) : 0.0, fy = y1 > y0 ? double(y - y0) / (y1 - y0) : 0.0;
+        w[0] = (1 - fx) * (1 - fy), w[1] = fx * (1 - fy), w[2] = (1 - fx) * fy, w[3] = fx * fy;
+    }
+
+    // Fogshop's value at (x, y) times the corners' bilinear ratio (per channel; where a
+    // corner's Fogshop value is 0, the refined value's bilinear part is added instead).
+    RGB interpolate(int x, int y, int x0, int y0, int x1, int y1, const Sample c[4]) const {
+        double w[4];
+        weights(x, y, x0, y0, x1, y1, w);
+        const RGB b = base(x, y);
+        RGB v(0.0);
+        for (int ch = 0; ch < 3; ++ch) {
+            double ratio = 0.0, add = 0.0, wr = 0.0;
+            for (int q = 0; q < 4; ++q) {
+                if (c[q].base[ch] > 0.0) ratio += w[q] * c[q].refined[ch] / c[q].base[ch], wr += w[q];
+                else add += w[q] * c[q].refined[ch];
+            }
+            v[ch] = (wr > 0.0 ? b[ch] * ratio : 0.0) + add;
+        }
+        return v;
+    }
+
+    // The refined centre _m_ against the corners' interpolation there.
+    bool fits(int x0, int y0, int x1, int y1, const Sample c[4], int xm, int ym, const Sample& m) const {
+        for (int q = 0; q < 4; ++q)
+            for (int ch = 0; ch < 3; ++ch)
+                if (!(c[q].base[ch] > 0.0) && c[q].refined[ch] > 0.0) return false;  // (no ratio there)
+        const RGB guess = interpolate(xm, ym, x0, y0, x1, y1, c);
+        for (int ch = 0; ch < 3; ++ch)
+            if (!(std::abs(guess[ch] - m.refined[ch]) <= tol_ * m.refined[ch])) return false;
+        return true;
+    }
+
+    // Four cells about the centre m (two where the cell is kMinCell across one way).
+    void split(int x0, int y0, int x1, int y1, const Sample c[4], int xm, int ym, const Sample& m, const Sample e[4],
+               bool last_x, bool last_y) const {
+        const bool split_x = x1 - x0 > kMinCell, split_y = y1 - y0 > kMinCell;
+        const Sample &top = e[0], &bottom = e[1], &left = e[2], &right = e[3];
+        if (split_x && split_y) {
+            const Sample q00[4] = {c[0], top, left, m}, q10[4] = {top, c[1], m, right};
+            const Sample q01[4] = {left, m, c[2], bottom}, q11[4] = {m, right, bottom, c[3]};
+            cell(x0, y0, xm, ym, q00, false, false);
+            cell(xm, y0, x1, ym, q10, last_x, false);
+            cell(x0, ym, xm, y1, q01, false, last_y);
+            cell(xm, ym, x1, y1, q11, last_x, last_y);
+        } else if (split_x) {
+            const Sample l[4] = {c[0], top, c[2], bottom}, r[4] = {top, c[1], bottom, c[3]};
+            cell(x0, y0, xm, y1, l, false, last_y);
+            cell(xm, y0, x1, y1, r, last_x, last_y);
+        } else {
+            const Sample t[4] = {c[0], c[1], left, right}, b[4] = {left, right, c[2], c[3]};
+            cell(x0, y0, x1, ym, t, last_x, false);
+            cell(x0, ym, x1, y1, b, last_x, last_y);
+        }
+    }
+
+    // The pixel sees the corners' surface: inverse depths (0 for the sky) on their bilinear plane.
+    bool pixel_on_surface(int x, int y, int x0, int y0, int x1, int y1) const {
+        const std::vector<float>& D = ctx_.result.depth;
+        const int W = ctx_.W;
+        double w[4];
+        weights(x, y, x0, y0, x1, y1, w);
+        const int cx[4] = {x0, x1, x0, x1}, cy[4] = {y0, y0, y1, y1};
+        const float d = D[size_t(y) * W + x];
+        const bool sky = std::isinf(d);
+        double inv = 0.0;
+        for (int q = 0; q < 4; ++q) {
+            const float dq = D[size_t(cy[q]) * W + cx[q]];
+            if (w[q] == 0.0) continue;
+            if (std::isinf(dq) != sky) return false;
+            if (!sky) inv += w[q] / dq;
+        }
+        return sky || std::abs(inv - 1.0 / d) <= kDepthTol / d;
+    }
+
+    bool same_surface(int x0, int y0, int x1, int y1) const {
+        for (int y = y0; y <= y1; ++y)
+            for (int x = x0; x <= x1; ++x)
+                if (!pixel_on_surface(x, y, x0, y0, x1, y1)) return false;
+        return true;
+    }
+
+    BakeContext& ctx_;
+    const FogEvaluator& fog_;
+    const std::vector<float>& fogshop_;
+    const double tol_;
+    const int stride_, Wg_, Hg_;
+    std::vector<Sample> grid_;
+};
+
+}  // namespace
+
+void refine_pass(BakeContext& ctx, const FogEvaluator& fog, const std::vector<float>& fogshop) {
+    const int W = ctx.W, H = ctx.H;
+    // The cells' size: kCellSize, halved while wider than kCellAngle at the image's centre; the
+    // grid holds their corners, centres and edges' midpoints (every pixel below 2).
+    const Vec3 centre = ctx.D0 + 0.5 * W * ctx.Dx + 0.5 * H * ctx.Dy;
+    const double pixel_angle = glm::length(ctx.Dx) / glm::length(centre);
+    int s = kCellSize;
+    while (s > 1 && s * pixel_angle > kCellAngle) s /= 2;
+    CellRefiner refiner(ctx, fog, fogshop, std::max(1, s / 2));
+    s = std::max(s, 2);
+    const int Wg = refiner.grid_width(), Hg = refiner.grid_height();
+    // Foresight: an 8 x 5 spread of grid points first (results dropped); its work, scaled to
+    // the grid and as much again for the cells' splits, stops a frame that would exceed the
+    // budget before the grid is spent. The points go one at a time, in an order spread over the
+    // image, and each call may do only what is left of the budget at that scale
+    // (FogEvaluator::set_refine_scale), so the frame stops as soon as the work so far exceeds it:
+    // the whole spread's could only be larger (a dense cloud's first ray can decide it).
+    const int Wf = std::min(Wg, 8), Hf = std::min(Hg, 5), Nf = Wf * Hf;
+    const double foresight_scale = 2.0 * double(Wg) * Hg / double(Nf);
+    auto spread = [](int k, int n, int m) { return n > 1 ? int(std::lround(double(k) * (m - 1) / (n - 1))) : 0; };
+    int step = 17;  // coprime with Nf: k -> k step mod Nf visits every point, far apart in turn
+    while (std::gcd(step, Nf) != 1) ++step;
+    fog.set_refine_scale(foresight_scale);
+    parallel_for(Nf, ctx.n_threads, [&](int k) {
+        if (fog.refine_abandoned()) return;
+        const int q = int((long long)(k) * step % Nf);
+        refiner.sample(refiner.grid_x(spread(q % Wf, Wf, Wg)), refiner.grid_y(spread(q / Wf, Hf, Hg)));
+    });
+    fog.set_refine_scale(1.0);
+    fog.foresee_refine_work(foresight_scale);
+    if (fog.refine_abandoned()) return;
+    refiner.refine_grid(ctx.n_threads);
+    if (fog.refine_abandoned()) return;
+    // The cells (the last ones own the image's last column and row).
+    const int cells_x = std::max(1, (W - 1 + s - 1) / s), cells_y = std::max(1, (H - 1 + s - 1) / s);
+    parallel_for(cells_x * cells_y, ctx.n_threads, [&](int k) {
+        const int I = k % cells_x, J = k / cells_x;
+        const int x0 = std::min(I * s, W - 1), x1 = std::min((I + 1) * s, W - 1);
+        const int y0 = std::min(J * s, H - 1), y1 = std::min((J + 1) * s, H - 1);
+        const Sample c[4] = {refiner.at(x0, y0), refiner.at(x1, y0), refiner.at(x0, y1), refiner.at(x1, y1)};
+        refiner.cell(x0, y0, x1, y1, c, I + 1 == cells_x, J + 1 == cells_y);
+    });
+}
+
+}  // namespace airlight
