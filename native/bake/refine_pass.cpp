@@ -26,12 +26,12 @@ namespace {
 // The largest cells: kCellSize pixels, and at most kCellAngle radians across (about 2 degrees:
 // the scale of a brush-sized Gaussian's image tens of metres away, and where the splat's
 // ratio grid may no longer see a Gaussian's edge).
-constexpr int kCellSize = 16;
+constexpr int kCellSize = 32;
 constexpr double kCellAngle = 0.035;
 constexpr int kMinCell = 2;
 constexpr double kDepthTol = 0.01;
 // The centre's test, in the asked accuracy: the bilinear ratio there within this of the refined ray.
-constexpr double kRatioTol = 0.25;
+constexpr double kRatioTol = 0.5;
 
 // A pixel's Fogshop value (the splat's) and its refined one.
 struct Sample {

@@ -8,6 +8,7 @@
 #include "core/constants.h"
 #include "core/cube_map.h"
 #include "core/fast_erf.h"
+#include "core/target_clones.h"
 
 namespace airlight {
 
@@ -16,6 +17,18 @@ namespace {
 // Beyond this many widths of its projection a Gaussian's erf step is whole (erf(4.5) =
 // 1 - 2e-10): the distances past it get the whole step, those before it nothing.
 constexpr double kStepReach = 4.5;
+
+// acc[k] += K (erf(x_k) - erf(x1)), x_k = a (k dr - p), for k in [lo, hi] (float kernel).
+AIRLIGHT_SIMD_CLONES void add_erf_steps(float* acc, int lo, int hi, float K, float x1, float a, float dr, float p) {
+    const float e1 = fast_erfc_pos(x1 < 0.0f ? -x1 : x1);
+    for (int k = lo; k <= hi; ++k) {
+        const float x2 = a * (float(k) * dr - p);
+        const float e2 = fast_erfc_pos(x2 < 0.0f ? -x2 : x2);
+        // (fast_erf_diff with erfc(|x1|) once: each tail keeps its relative accuracy)
+        const float d = x1 >= 0.0f ? e1 - e2 : (x2 <= 0.0f ? e2 - e1 : 2.0f - e1 - e2);
+        acc[k] += K * d;
+    }
+}
 
 }  // namespace
 
@@ -32,7 +45,8 @@ LightDepthMap::LightDepthMap(const GaussianMedium& medium, const Vec3& s, int fa
     if (r_max_ == 0.0) return;
     const int rows = 6 * face;
     parallel_chunks(std::size_t(rows), threads, 1, [&](std::size_t begin, std::size_t end) {
-        std::vector<double> acc(radial), beyond(radial + 1);
+        std::vector<float> acc(radial);
+        std::vector<double> beyond(radial + 1);
         for (std::size_t row = begin; row < end; ++row) {
             const int f = int(row) / face, j = int(row) % face;
             for (int i = 0; i < face; ++i)
@@ -45,7 +59,7 @@ Vec3 LightDepthMap::direction(int f, int i, int j) const {
     return cube_direction(f, -1.0 + 2.0 * i / (face_ - 1), -1.0 + 2.0 * j / (face_ - 1));
 }
 
-void LightDepthMap::fill(const GaussianMedium& medium, const Vec3& w, float* out, std::vector<double>& acc,
+void LightDepthMap::fill(const GaussianMedium& medium, const Vec3& w, float* out, std::vector<float>& acc,
                          std::vector<double>& beyond) const {
     std::fill(acc.begin(), acc.end(), 0.0);
     std::fill(beyond.begin(), beyond.end(), 0.0);
@@ -60,14 +74,13 @@ void LightDepthMap::fill(const GaussianMedium& medium, const Vec3& w, float* out
         const int lo = std::max(0, int(std::ceil((p - reach) / dr_)));
         const int hi = std::min(last, int(std::floor((p + reach) / dr_)));
         // T_j(r) = K (erf(a (r - p)) - erf(-a p)): 0 at r = 0, K erfc(-a p) once past the step.
-        const float x1 = float(-a * p);
-        for (int k = lo; k <= hi; ++k) acc[k] += K * fast_erf_diff(x1, float(a * (k * dr_ - p)));
+        if (lo <= hi) add_erf_steps(acc.data(), lo, hi, float(K), float(-a * p), float(a), float(dr_), float(p));
         if (hi < last) beyond[std::max(hi + 1, lo)] += K * std::erfc(-a * p);  // the whole step
     });
     double whole = 0.0;
     for (int k = 0; k <= last; ++k) {
         whole += beyond[k];
-        out[k] = float(acc[k] + whole);
+        out[k] = float(double(acc[k]) + whole);
     }
 }
 

@@ -45,7 +45,7 @@ class LightDepthMap {
     // The unit direction of grid point (i, j) of cube face f.
     Vec3 direction(int f, int i, int j) const;
     // The depths along direction _w_ at the map's distances, into _out_ (radial_ values).
-    void fill(const GaussianMedium& medium, const Vec3& w, float* out, std::vector<double>& acc,
+    void fill(const GaussianMedium& medium, const Vec3& w, float* out, std::vector<float>& acc,
               std::vector<double>& beyond) const;
 
     Vec3 s_;

@@ -7,6 +7,8 @@
 #include <vector>
 
 #include "core/constants.h"
+#include "core/fast_erf.h"
+#include "core/target_clones.h"
 
 namespace airlight {
 
@@ -28,6 +30,51 @@ struct Density {
     double beta;  // extinction
     RGB sigma_s;  // scattering
 };
+
+// The Gaussians of the window (those whose support holds the step), as arrays for the kernel.
+struct Window {
+    std::vector<double> ts, hi;
+    std::vector<float> a, peak, r, g, b;
+    std::vector<float> e;  // the kernel's densities
+    void push(const RayGaussian& x) {
+        ts.push_back(x.ts), hi.push_back(x.hi);
+        a.push_back(float(x.a)), peak.push_back(float(x.peak));
+        r.push_back(float(x.albedo.x)), g.push_back(float(x.albedo.y)), b.push_back(float(x.albedo.z));
+    }
+    std::size_t size() const { return ts.size(); }
+    bool empty() const { return ts.empty(); }
+    // Drops the Gaussians that end before t.
+    void drop(double t) {
+        std::size_t k = 0;
+        for (std::size_t j = 0; j < ts.size(); ++j) {
+            if (hi[j] < t) continue;
+            ts[k] = ts[j], hi[k] = hi[j], a[k] = a[j], peak[k] = peak[j], r[k] = r[j], g[k] = g[j], b[k] = b[j];
+            ++k;
+        }
+        for (auto* v : {&ts, &hi}) v->resize(k);
+        for (auto* v : {&a, &peak, &r, &g, &b}) v->resize(k);
+    }
+};
+
+// e[j] = peak_j exp(-(a_j (t - ts_j))^2), in float (fast_expf: 3e-7; t - ts in double, so a
+// Gaussian's argument keeps float's precision wherever it lies on the ray), and their sum.
+AIRLIGHT_SIMD_CLONES double window_densities(const double* ts, const float* a, const float* peak, std::size_t n,
+                                             double t, float* e) {
+    float sum = 0.0f;
+    for (std::size_t j = 0; j < n; ++j) {
+        const float u = a[j] * float(t - ts[j]);
+        e[j] = peak[j] * fast_expf_le88(-u * u);
+        sum += e[j];
+    }
+    return double(sum);
+}
+
+// The albedo-weighted sum of the kernel's densities.
+RGB weighted(const Window& w) {
+    RGB out(0.0);
+    for (std::size_t j = 0; j < w.size(); ++j) out += double(w.e[j]) * RGB(w.r[j], w.g[j], w.b[j]);
+    return out;
+}
 
 double sum(const RGB& x) { return x.x + x.y + x.z; }
 
@@ -76,18 +123,18 @@ RGB gaussian_march_airlight_rgb(const GaussianMedium& medium, const Vec3& s, con
         return !march.lit || (span < lit.count && lit.spans[span].first <= t && t < lit.spans[span].second);
     };
 
-    std::vector<const RayGaussian*> active;
+    // One albedo for every Gaussian (or none given): the densities' sum alone.
+    bool one_albedo = true;
+    for (const RayGaussian& g : line) one_albedo = one_albedo && g.albedo == line.front().albedo;
+    const RGB albedo_g = line.empty() ? RGB(1.0) : line.front().albedo;
+    Window active;
     std::size_t next = 0;
     auto density = [&](double t) {
-        Density d{beta0, sigma0};
         march.work += long(active.size());
-        for (const RayGaussian* g : active) {
-            const double u = g->a * (t - g->ts);
-            const double e = g->peak * std::exp(-u * u);
-            d.beta += e;
-            d.sigma_s += e * g->albedo;
-        }
-        return d;
+        active.e.resize(active.size());
+        const double beta_g = window_densities(active.ts.data(), active.a.data(), active.peak.data(), active.size(), t,
+                                               active.e.data());
+        return Density{beta0 + beta_g, sigma0 + (one_albedo ? beta_g * albedo_g : weighted(active))};
     };
     auto light_depth = [&](const Vec3& x, double d) {
         march.work += GaussianMarch::kPointWork;
@@ -112,7 +159,7 @@ RGB gaussian_march_airlight_rgb(const GaussianMedium& medium, const Vec3& s, con
 
     double t = 0.0, Tv = 0.0;
     RGB total(0.0);
-    while (next < line.size() && line[next].lo <= 0.0) active.push_back(&line[next++]);
+    while (next < line.size() && line[next].lo <= 0.0) active.push(line[next++]);
     Density dens_a = density(0.0);
     RGB f_a = in_scattered(0.0, dens_a, 0.0);
     const double end = infinite ? std::numeric_limits<double>::max() : Dvp;
@@ -130,7 +177,7 @@ RGB gaussian_march_airlight_rgb(const GaussianMedium& medium, const Vec3& s, con
         double T_b;
         bool lit_step;
         for (;;) {
-            while (next < line.size() && line[next].lo <= t + h) active.push_back(&line[next++]);
+            while (next < line.size() && line[next].lo <= t + h) active.push(line[next++]);
             dens_m = density(t + 0.5 * h), dens_b = density(t + h);
             const double T_m = Tv + h / 24.0 * (5.0 * dens_a.beta + 8.0 * dens_m.beta - dens_b.beta);
             T_b = Tv + h / 6.0 * (dens_a.beta + 4.0 * dens_m.beta + dens_b.beta);
@@ -155,8 +202,7 @@ RGB gaussian_march_airlight_rgb(const GaussianMedium& medium, const Vec3& s, con
             break;
         }
         if (Tv > kOpaque) break;
-        active.erase(std::remove_if(active.begin(), active.end(), [&](const RayGaussian* g) { return g->hi < t; }),
-                     active.end());
+        active.drop(t);
         if (infinite && active.empty() && next == line.size() && t > std::max(t_s, last_end)) {
             // Only the uniform fog is left: its rest is below beta0 p_max e^{-Tv} / (t - t_s).
             if (beta0 == 0.0 || beta0 * p_max * std::exp(-Tv) / (t - t_s) <= march.tail_tol * sum(total) / 3.0) break;
