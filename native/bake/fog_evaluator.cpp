@@ -306,16 +306,25 @@ void FogEvaluator::plan_marches(GaussianRefinePlan& plan, int threads) {
     plan.refined.erase(std::remove_if(plan.refined.begin(), plan.refined.end(),
                                       [&](const RefinePair& pair) { return pair.light < march.size() && march[pair.light]; }),
                        plan.refined.end());
-    // The light depths from a map where it pays and its error fits the rays' share of the
-    // accuracy: kMarchMapError is the 64 x 64 x 256 map's worst measured error on a ray's
-    // airlight (march_test.cpp, 1.1e-3), doubled.
-    const bool mapped = gaussian_->size() >= kMarchMapGaussians && kPairShare * refine_target_ >= kMarchMapError;
+    // The light depths from a map where it pays (kMarchMapGaussians), with faces fine enough
+    // for the march's share of the accuracy (kMarchShare; the cells' interpolation takes the
+    // rest): the map's error on a ray's airlight falls as the square of its spacing,
+    // kMarchMapError at 64 x 64 a face (march_test.cpp measured 1.1e-3 at 64, 2.9e-4 at 128;
+    // doubled). Finer than kMarchMapMaxFace, or past kMarchMapMaxBytes for all the lights,
+    // the light depths are exact (slow with many Gaussians: the budget decides).
+    const double need = kMarchShare * refine_target_;
+    const int face = need > 0.0 ? int(std::ceil(64.0 * std::sqrt(kMarchMapError / need) / 16.0)) * 16 : 0;
+    const bool mapped = gaussian_->size() >= kMarchMapGaussians && face <= kMarchMapMaxFace;
+    std::size_t bytes = 0;
     for (size_t l = 0; l < march.size(); ++l) {
         if (!march[l]) continue;
         marched_.push_back(l);
-        march_maps_.push_back(mapped ? std::make_unique<LightDepthMap>(*gaussian_, gaussian_lights_[l], kMarchMapFace,
-                                                                       kMarchMapRadial, threads)
-                                     : nullptr);
+        const std::size_t map_bytes = std::size_t(6) * std::max(face, 64) * std::max(face, 64) * kMarchMapRadial * 4;
+        const bool this_map = mapped && bytes + map_bytes <= kMarchMapMaxBytes;
+        if (this_map) bytes += map_bytes;
+        march_maps_.push_back(this_map ? std::make_unique<LightDepthMap>(*gaussian_, gaussian_lights_[l], std::max(face, 64),
+                                                                         kMarchMapRadial, threads)
+                                       : nullptr);
     }
 }
 

@@ -18,6 +18,20 @@ def perspective(fov_x, width, height, near=0.1, far=1000.0):
     ])
 
 
+def crop_projection(projection, width, height, x0, y0, crop_width, crop_height):
+    """The projection of the crop_width x crop_height pixels at (x0, y0) (row 0 at the top,
+    as the bake's images) of a width x height image through _projection_ (perspective): a bake
+    with it has the same pixels' rays as that window of the whole image."""
+    q = np.array(projection, dtype=float)
+    sx, sy = crop_width / width, crop_height / height
+    cx = (x0 + crop_width / 2) / width * 2 - 1
+    cy = (height - y0 - crop_height / 2) / height * 2 - 1  # (NDC y runs up)
+    # x_clip' = (x_clip - cx w_clip) / sx, with w_clip the last row.
+    q[0] = (q[0] - cx * q[3]) / sx
+    q[1] = (q[1] - cy * q[3]) / sy
+    return q
+
+
 def orthographic(scale_x, width, height, near=0.1, far=1000.0):
     """OpenGL orthographic projection with half-widths scale_x/2 and the aspect's height."""
     r = scale_x / 2.0
