@@ -585,6 +585,7 @@ def remember_fog_objects(scene, stats):
             accuracy=model_choice.gaussian_accuracy(scene.airlight),
             error_bound=float(stats.get("gaussian_error_bound", 0.0)),
             refined=int(stats.get("gaussian_refined_pairs", 0)), pairs=int(stats["gaussian_pairs"]),
+            marched=int(stats.get("gaussian_marched_lights", 0)),
             background_rays=int(stats.get("gaussian_background_rays", 0)),
             abandoned=bool(stats.get("gaussian_refine_abandoned", False)))
     else:
@@ -601,7 +602,10 @@ def fog_objects_line(stats):
                 f"(~{stats.get('gaussian_refine_work', 0.0):.0f} s of CPU counted before it stopped): this frame has "
                 f"Fogshop's approximation alone (up to ~29 % off on thick fog near a light); raise the Accuracy "
                 f"percentage or choose Quadrature")
-    return (f"; fog objects: {stats.get('gaussian_refined_pairs', 0)} of {pairs} (light, fog) pairs exact, "
+    marched = stats.get("gaussian_marched_lights", 0)
+    return (f"; fog objects: {marched} point light{'s' if marched != 1 else ''} marched exactly "
+            f"({stats.get('gaussian_marched_rays', 0)} rays), "
+            f"{stats.get('gaussian_refined_pairs', 0)} of {pairs} spot and sun (light, fog) pairs exact, "
             f"{stats.get('gaussian_background_rays', 0)} ray-lights of uniform fog corrected, "
             f"error bound {100.0 * float(stats.get('gaussian_error_bound', 0.0)):.2g} %, "
             f"{1000.0 * float(stats.get('seconds_refine', 0.0)):.0f} ms refining")

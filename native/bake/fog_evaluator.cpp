@@ -306,25 +306,26 @@ void FogEvaluator::plan_marches(GaussianRefinePlan& plan, int threads) {
     plan.refined.erase(std::remove_if(plan.refined.begin(), plan.refined.end(),
                                       [&](const RefinePair& pair) { return pair.light < march.size() && march[pair.light]; }),
                        plan.refined.end());
-    // The light depths from a map where it pays (kMarchMapGaussians), with faces fine enough
-    // for the march's share of the accuracy (kMarchShare; the cells' interpolation takes the
-    // rest): the map's error on a ray's airlight falls as the square of its spacing,
-    // kMarchMapError at 64 x 64 a face (march_test.cpp measured 1.1e-3 at 64, 2.9e-4 at 128;
-    // doubled). Finer than kMarchMapMaxFace, or past kMarchMapMaxBytes for all the lights,
-    // the light depths are exact (slow with many Gaussians: the budget decides).
-    const double need = kMarchShare * refine_target_;
-    const int face = need > 0.0 ? int(std::ceil(64.0 * std::sqrt(kMarchMapError / need) / 16.0)) * 16 : 0;
-    const bool mapped = gaussian_->size() >= kMarchMapGaussians && face <= kMarchMapMaxFace;
+    // The light depths from a map whose measured error fits the march's share of the accuracy
+    // (kMarchShare; the cells' interpolation takes the rest): its mean error in optical depth
+    // about the Gaussians (the relative error of the light's transmittance there) within half
+    // of it. 64 x 64 a face first, 128 if that errs more (the error falls as the square of the
+    // spacing: LightDepthMap.MatchesTheExactDepth); past that, or past kMarchMapMaxBytes for
+    // all the lights, the light depths are exact (slow with many Gaussians: the budget decides).
+    const double need = 0.5 * kMarchShare * refine_target_;
     std::size_t bytes = 0;
     for (size_t l = 0; l < march.size(); ++l) {
         if (!march[l]) continue;
         marched_.push_back(l);
-        const std::size_t map_bytes = std::size_t(6) * std::max(face, 64) * std::max(face, 64) * kMarchMapRadial * 4;
-        const bool this_map = mapped && bytes + map_bytes <= kMarchMapMaxBytes;
-        if (this_map) bytes += map_bytes;
-        march_maps_.push_back(this_map ? std::make_unique<LightDepthMap>(*gaussian_, gaussian_lights_[l], std::max(face, 64),
-                                                                         kMarchMapRadial, threads)
-                                       : nullptr);
+        std::unique_ptr<LightDepthMap> map;
+        for (int face = 64; face <= kMarchMapMaxFace && !map; face *= 2) {
+            const std::size_t map_bytes = std::size_t(6) * face * face * kMarchMapRadial * sizeof(float);
+            if (bytes + map_bytes > kMarchMapMaxBytes) break;
+            map = std::make_unique<LightDepthMap>(*gaussian_, gaussian_lights_[l], face, kMarchMapRadial, threads);
+            if (map->mean_error(*gaussian_) > need) map.reset();
+            else bytes += map_bytes;
+        }
+        march_maps_.push_back(std::move(map));
     }
 }
 

@@ -324,13 +324,12 @@ class FogEvaluator {
     // its share of the quadrature's overhead): 5.5e-8 s measured on this machine's cores
     // (benchmarks/bench_gaussian_accuracy.py, 3000 Gaussians).
     static constexpr double kRefineSecondsPerWork = 5.5e-8;
-    // The marched lights' light-depth maps (plan_marches): from kMarchMapGaussians, with
-    // faces of 64 x 64 or finer for the march's share of the accuracy, at most kMarchMapMaxFace
-    // and kMarchMapMaxBytes for all the lights together; kMarchMapRadial distances. The march's
-    // units of work (GaussianMarch::work, ~4 ns with the float kernels) per refine_work unit (5.5e-8 s).
-    static constexpr size_t kMarchMapGaussians = 200;
-    static constexpr double kMarchShare = 0.5, kMarchMapError = 2.2e-3;
-    static constexpr int kMarchMapRadial = 256, kMarchMapMaxFace = 256;
+    // The marched lights' light-depth maps (plan_marches): 64 or 128 grid points a face's side
+    // (kMarchMapMaxFace), as the measured error asks, kMarchMapRadial distances, at most
+    // kMarchMapMaxBytes for all the lights together. The march's units of work
+    // (GaussianMarch::work, ~4 ns with the float kernels) per refine_work unit (5.5e-8 s).
+    static constexpr double kMarchShare = 0.5;
+    static constexpr int kMarchMapRadial = 256, kMarchMapMaxFace = 128;
     static constexpr std::size_t kMarchMapMaxBytes = std::size_t(1) << 30;
     static constexpr long kMarchWorkPerUnit = 12;
     std::uint64_t refine_budget_ = 0;

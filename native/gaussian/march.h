@@ -40,10 +40,10 @@ struct GaussianMarch {
     const RaySpans* lit = nullptr;
     // The march's work, in densities evaluated (one Gaussian's exp: ~7 ns on this machine's
     // cores): those of the steps, kPointWork for each point's light depth from the map and its
-    // phase, or kTermWork for each Gaussian of an exact light depth (an erf: measured with
-    // GaussianMarch.DISABLED_Profile3000, 6.9-11 ns a unit). In: past work_limit the march
+    // phase, or kTermWork for each Gaussian of an exact light depth (an erf in double; measured
+    // with GaussianMarch.DISABLED_Profile3000 and the 34-Gaussian bench scene). In: past work_limit the march
     // stops (stopped: the result is partial).
-    static constexpr long kPointWork = 4, kTermWork = 7;
+    static constexpr long kPointWork = 4, kTermWork = 12;
     long work_limit = std::numeric_limits<long>::max();
     long steps = 0;   // out: the Simpson steps taken
     long work = 0;    // out
