@@ -307,26 +307,52 @@ void FogEvaluator::plan_marches(GaussianRefinePlan& plan, int threads) {
                                       [&](const RefinePair& pair) { return pair.light < march.size() && march[pair.light]; }),
                        plan.refined.end());
     // The light depths from a map whose measured error fits the march's share of the accuracy
-    // (kMarchShare; the cells' interpolation takes the rest): its mean error in optical depth
-    // about the Gaussians (the relative error of the light's transmittance there) within half
-    // of it. 64 x 64 a face first, 128 if that errs more (the error falls as the square of the
-    // spacing: LightDepthMap.MatchesTheExactDepth); past that, or past kMarchMapMaxBytes for
-    // all the lights, the light depths are exact (slow with many Gaussians: the budget decides).
+    // (kMarchShare; the cells' interpolation takes the rest) with a factor 2 to spare
+    // (march_map_error: the march with the map against exact light depths on rays from the eye
+    // through the Gaussians). 64 x 64 a face first, then 128 and 256 while it errs more (the
+    // error falls as the square of the spacing: LightDepthMap.MatchesTheExactDepth); past that,
+    // or past kMarchMapMaxBytes for all the lights, the light depths are exact (slow with many
+    // Gaussians: the budget decides).
     const double need = 0.5 * kMarchShare * refine_target_;
     std::size_t bytes = 0;
     for (size_t l = 0; l < march.size(); ++l) {
         if (!march[l]) continue;
         marched_.push_back(l);
         std::unique_ptr<LightDepthMap> map;
-        for (int face = 64; face <= kMarchMapMaxFace && !map; face *= 2) {
+        for (int face = 64; face <= kMarchMapMaxFace && !map;) {
             const std::size_t map_bytes = std::size_t(6) * face * face * kMarchMapRadial * sizeof(float);
             if (bytes + map_bytes > kMarchMapMaxBytes) break;
             map = std::make_unique<LightDepthMap>(*gaussian_, gaussian_lights_[l], face, kMarchMapRadial, threads);
-            if (map->mean_error(*gaussian_) > need) map.reset();
-            else bytes += map_bytes;
+            const double error = march_map_error(*map);
+            if (error <= need) {
+                bytes += map_bytes;
+                break;
+            }
+            map.reset();
+            // The next face that the square law expects to fit (no map when none within the limit).
+            const int last = face;
+            while (face <= kMarchMapMaxFace && error * double(last) * last / (double(face) * face) > need) face *= 2;
         }
         march_maps_.push_back(std::move(map));
     }
+}
+
+double FogEvaluator::march_map_error(const LightDepthMap& map) const {
+    // Rays from the eye through kMapCheckRays Gaussians' centres (picked evenly through the
+    // list; to twice the centre's distance), on which the fog is.
+    constexpr int kMapCheckRays = 16;
+    const size_t n = gaussian_->size();
+    double worst = 0.0;
+    for (int k = 0; k < kMapCheckRays && n > 0; ++k) {
+        const Vec3 to = gaussian_->centre(size_t(k) * n / kMapCheckRays) - origin_;
+        const double D = glm::length(to);
+        if (!(D > 0.0)) continue;
+        GaussianMarch with_map, exact;
+        const double mapped = gaussian_march_airlight(*gaussian_, map.light(), phase_, origin_, to / D, 2.0 * D, &map, with_map);
+        const double ref = gaussian_march_airlight(*gaussian_, map.light(), phase_, origin_, to / D, 2.0 * D, nullptr, exact);
+        if (ref > 0.0) worst = std::max(worst, std::abs(mapped - ref) / ref);
+    }
+    return worst;
 }
 
 int FogEvaluator::gaussian_volume(size_t l) const {

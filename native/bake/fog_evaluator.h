@@ -191,6 +191,9 @@ class FogEvaluator {
     void set_up_refinement(const BakeSettings& settings, const Camera& camera);
     // Takes the point lights with pairs to refine out of _plan_ into marched_, with their maps.
     void plan_marches(GaussianRefinePlan& plan, int threads);
+    // The largest relative error of the march's airlight with _map_ against exact light depths
+    // on a few rays from the eye through the Gaussians.
+    double march_map_error(const LightDepthMap& map) const;
     // refine_gaussians' uniform-fog part for one ray d over [near, end] (Tg_near: the
     // Gaussians' depth before near; lit: its lit intervals, null when untraced: lit all along),
     // _view_ gathered on demand.
@@ -324,12 +327,12 @@ class FogEvaluator {
     // its share of the quadrature's overhead): 5.5e-8 s measured on this machine's cores
     // (benchmarks/bench_gaussian_accuracy.py, 3000 Gaussians).
     static constexpr double kRefineSecondsPerWork = 5.5e-8;
-    // The marched lights' light-depth maps (plan_marches): 64 or 128 grid points a face's side
-    // (kMarchMapMaxFace), as the measured error asks, kMarchMapRadial distances, at most
+    // The marched lights' light-depth maps (plan_marches): 64, 128 or 256 grid points a face's
+    // side (kMarchMapMaxFace), as the measured error asks, kMarchMapRadial distances, at most
     // kMarchMapMaxBytes for all the lights together. The march's units of work
     // (GaussianMarch::work, ~4 ns with the float kernels) per refine_work unit (5.5e-8 s).
     static constexpr double kMarchShare = 0.5;
-    static constexpr int kMarchMapRadial = 256, kMarchMapMaxFace = 128;
+    static constexpr int kMarchMapRadial = 256, kMarchMapMaxFace = 256;
     static constexpr std::size_t kMarchMapMaxBytes = std::size_t(1) << 30;
     static constexpr long kMarchWorkPerUnit = 12;
     std::uint64_t refine_budget_ = 0;

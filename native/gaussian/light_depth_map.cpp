@@ -3,7 +3,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <random>
 #include <stdexcept>
 
 #include "core/constants.h"
@@ -83,22 +82,6 @@ void LightDepthMap::fill(const GaussianMedium& medium, const Vec3& w, float* out
         whole += beyond[k];
         out[k] = float(double(acc[k]) + whole);
     }
-}
-
-double LightDepthMap::mean_error(const GaussianMedium& medium, int points) const {
-    if (medium.size() == 0 || points < 1) return 0.0;
-    std::mt19937_64 rng(12345);
-    std::uniform_int_distribution<std::size_t> pick(0, medium.size() - 1);
-    std::uniform_real_distribution<double> offset(-1.5, 1.5);
-    double sum = 0.0;
-    for (int k = 0; k < points; ++k) {
-        const std::size_t g = pick(rng);
-        const double width = 1.0 / (medium.scale(g) * std::sqrt(2.0));
-        const Vec3 x = medium.centre(g) + width * Vec3(offset(rng), offset(rng), offset(rng));
-        const double exact = medium.optical_depth(s_, x) - medium.beta0() * glm::length(x - s_);
-        sum += std::abs((*this)(x) - exact);
-    }
-    return sum / points;
 }
 
 double LightDepthMap::operator()(const Vec3& x) const {

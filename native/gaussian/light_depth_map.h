@@ -37,12 +37,6 @@ class LightDepthMap {
     // The Gaussians' optical depth from the light to _x_ (beta0 left out).
     double operator()(const Vec3& x) const;
 
-    // The mean |map - exact| of the Gaussians' optical depth from the light over _points_
-    // points about the Gaussians (a centre picked uniformly, offset up to 1.5 widths along each
-    // axis; seeded, so the same medium gives the same figure): the map's error where fog
-    // scatters, in optical depth, i.e. relative to the light's transmittance.
-    double mean_error(const GaussianMedium& medium, int points = 1024) const;
-
     const Vec3& light() const { return s_; }
     double max_radius() const { return r_max_; }
     std::size_t bytes() const { return tau_.size() * sizeof(float); }

@@ -127,6 +127,9 @@ RGB gaussian_march_airlight_rgb(const GaussianMedium& medium, const Vec3& s, con
     bool one_albedo = true;
     for (const RayGaussian& g : line) one_albedo = one_albedo && g.albedo == line.front().albedo;
     const RGB albedo_g = line.empty() ? RGB(1.0) : line.front().albedo;
+    RGB albedo_max = march.medium_albedo;
+    for (const RayGaussian& g : line) albedo_max = glm::max(albedo_max, g.albedo);
+    const double albedo_sum = sum(albedo_max);
     Window active;
     std::size_t next = 0;
     auto density = [&](double t) {
@@ -202,6 +205,10 @@ RGB gaussian_march_airlight_rgb(const GaussianMedium& medium, const Vec3& s, con
             break;
         }
         if (Tv > kOpaque) break;
+        // Opaque enough: past t, int beta e^{-(T - Tv)} dt <= 1, so the rest is below
+        // albedo p_max e^{-Tv} / d_min^2 (d_min: the light's least distance to the rest of the ray).
+        const double d_min2 = t >= t_s ? glm::dot(v + t * r - s, v + t * r - s) : glm::dot(vs, vs) - t_s * t_s;
+        if (d_min2 > 0.0 && albedo_sum * p_max * std::exp(-Tv) / d_min2 <= march.tail_tol * sum(total)) break;
         active.drop(t);
         if (infinite && active.empty() && next == line.size() && t > std::max(t_s, last_end)) {
             // Only the uniform fog is left: its rest is below beta0 p_max e^{-Tv} / (t - t_s).
