@@ -64,8 +64,11 @@ double gaussian_pass(BakeContext& ctx, const FogEvaluator& fog) {
     std::iota(order.begin(), order.end(), 0);
     std::stable_sort(order.begin(), order.end(),
                      [&](int a, int b) { return splat.tile_cost(a) > splat.tile_cost(b); });
-    constexpr double kSplatShare = 0.6;  // of the progress bar, after pass 1
+    // Of the progress bar after pass 1: the splat's share, or with the refinement a third of it
+    // (the refinement the rest).
+    constexpr double kSplatShare = 0.6;
     const double end = kRaycastProgressShare + kSplatShare;
+    const double splat_end = fog.refiner() ? kRaycastProgressShare + kSplatShare / 3.0 : end;
     run_parallel(
         n_tiles, n_threads,
         [&](int k) {
@@ -76,7 +79,7 @@ double gaussian_pass(BakeContext& ctx, const FogEvaluator& fog) {
             const int percent = int(100LL * done / n_tiles);
             if (!progress || percent == last) return;
             last = percent;
-            const double f = kRaycastProgressShare + (end - kRaycastProgressShare) * done / n_tiles;
+            const double f = kRaycastProgressShare + (splat_end - kRaycastProgressShare) * done / n_tiles;
             if (!progress(f)) throw Cancelled();
         });
     result.stats.gaussian_pairs = static_cast<long long>(fog.refine_pairs());
@@ -90,7 +93,7 @@ double gaussian_pass(BakeContext& ctx, const FogEvaluator& fog) {
         // (edges too), so that whether a frame is refined depends on its work alone.
         const std::vector<float> fogshop = result.airlight;
         const auto refine_start = Clock::now();
-        refine_pass(ctx, fog, fogshop);
+        refine_pass(ctx, fog, fogshop, splat_end, end);
         result.stats.seconds_refine = seconds_since(refine_start);
         result.stats.gaussian_refine_work = fog.refine_work_seconds();
         fog.close_refine_budget();

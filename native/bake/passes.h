@@ -28,8 +28,10 @@ void raycast_pass(BakeContext& ctx);
 // Returns where the progress bar stands after it.
 double gaussian_pass(BakeContext& ctx, const FogEvaluator& fog);
 // Inside gaussian_pass: the Gaussian refinement (FogEvaluator::refine_gaussians) of the
-// centre samples, whose Fogshop values (the splat's) are _fogshop_ (refine_pass.cpp).
-void refine_pass(BakeContext& ctx, const FogEvaluator& fog, const std::vector<float>& fogshop);
+// centre samples, whose Fogshop values (the splat's) are _fogshop_ (refine_pass.cpp); it
+// reports progress from _progress_begin_ to _progress_end_ and stops on cancel.
+void refine_pass(BakeContext& ctx, const FogEvaluator& fog, const std::vector<float>& fogshop, double progress_begin,
+                 double progress_end);
 // _splatted_: the Gaussian pass wrote the centre samples; only the edge pixels are found.
 EdgePixels homogeneous_pass(BakeContext& ctx, const FogEvaluator& fog, const EdgeMap& edges, bool splatted,
                             double progress_begin, double progress_end);

@@ -6,13 +6,16 @@
 // channel) to the pixels between, where Fogshop's own value keeps the detail (a Gaussian's
 // edge, the ground's slope): the ratio is Fogshop's error, which varies at the scale of the
 // Gaussians and of the light's distance, not of a pixel. Cells of kCellSize pixels with a
-// refined ray at each corner are checked at their centre (the bilinear ratio there against
-// the refined ray) and split in four until they pass or are kMinCell pixels across; a cell's
-// pixels must also see the corners' surface (inverse depth on their bilinear plane, or all
-// the sky), else it splits, and at the smallest size the pixels that do not are refined alone.
-// A frame that would exceed the refinement's budget stops early (foresight, below).
+// refined ray at each corner are checked at their centre and their edges' midpoints (the
+// corners' bilinear ratio there against the refined rays, from a grid of every kCellSize / 2-th
+// pixel at the first level) and split in four until they pass or are kMinCell pixels across,
+// where a cell whose centre does not pass is refined whole; a cell's pixels must also see the
+// corners' surface (inverse depth on their bilinear plane, or all the sky), else it splits, and
+// at the smallest size the pixels that do not are refined alone. A frame that would exceed
+// the refinement's budget stops early (foresight, below).
 #include <algorithm>
 #include <cmath>
+#include <functional>
 #include <numeric>
 #include <vector>
 
@@ -24,8 +27,7 @@ namespace airlight {
 namespace {
 
 // The largest cells: kCellSize pixels, and at most kCellAngle radians across (about 2 degrees:
-// the scale of a brush-sized Gaussian's image tens of metres away, and where the splat's
-// ratio grid may no longer see a Gaussian's edge).
+// a brush-sized Gaussian's image tens of metres away, the scale the ratio varies at).
 constexpr int kCellSize = 32;
 constexpr double kCellAngle = 0.035;
 constexpr int kMinCell = 2;
@@ -49,16 +51,16 @@ class CellRefiner {
     int grid_height() const { return Hg_; }
     int grid_x(int I) const { return std::min(I * stride_, ctx_.W - 1); }
     int grid_y(int J) const { return std::min(J * stride_, ctx_.H - 1); }
-    void refine_grid(int threads) {
+    void refine_grid(int threads, const std::function<void(int)>& progress) {
         grid_.resize(size_t(Wg_) * Hg_);
-        parallel_for(Hg_, threads, [&](int J) {
+        run_parallel(Hg_, threads, [&](int J) {
             thread_local std::vector<int> xs;
             thread_local std::vector<Sample> out;
             xs.clear();
             for (int I = 0; I < Wg_; ++I) xs.push_back(grid_x(I));
             refine_row(grid_y(J), xs, out);
             std::copy(out.begin(), out.end(), grid_.begin() + std::ptrdiff_t(size_t(J) * Wg_));
-        });
+        }, progress);
     }
     bool on_grid(int x, int y) const {
         return !grid_.empty() && (x % stride_ == 0 || x == ctx_.W - 1) && (y % stride_ == 0 || y == ctx_.H - 1);
@@ -262,7 +264,8 @@ class CellRefiner {
 
 }  // namespace
 
-void refine_pass(BakeContext& ctx, const FogEvaluator& fog, const std::vector<float>& fogshop) {
+void refine_pass(BakeContext& ctx, const FogEvaluator& fog, const std::vector<float>& fogshop, double progress_begin,
+                 double progress_end) {
     const int W = ctx.W, H = ctx.H;
     // The cells' size: kCellSize, halved while wider than kCellAngle at the image's centre; the
     // grid holds their corners, centres and edges' midpoints (every pixel below 2).
@@ -293,17 +296,24 @@ void refine_pass(BakeContext& ctx, const FogEvaluator& fog, const std::vector<fl
     fog.set_refine_scale(1.0);
     fog.foresee_refine_work(foresight_scale);
     if (fog.refine_abandoned()) return;
-    refiner.refine_grid(ctx.n_threads);
+    // Progress (and cancel): the grid to a third of the way, the cells the rest.
+    auto reporter = [&](double begin, double end, int n) {
+        return [&, begin, end, n](int done) {
+            if (ctx.progress && !ctx.progress(begin + (end - begin) * done / std::max(1, n))) throw Cancelled();
+        };
+    };
+    const double grid_end = progress_begin + (progress_end - progress_begin) / 3.0;
+    refiner.refine_grid(ctx.n_threads, reporter(progress_begin, grid_end, Hg));
     if (fog.refine_abandoned()) return;
     // The cells (the last ones own the image's last column and row).
     const int cells_x = std::max(1, (W - 1 + s - 1) / s), cells_y = std::max(1, (H - 1 + s - 1) / s);
-    parallel_for(cells_x * cells_y, ctx.n_threads, [&](int k) {
+    run_parallel(cells_x * cells_y, ctx.n_threads, [&](int k) {
         const int I = k % cells_x, J = k / cells_x;
         const int x0 = std::min(I * s, W - 1), x1 = std::min((I + 1) * s, W - 1);
         const int y0 = std::min(J * s, H - 1), y1 = std::min((J + 1) * s, H - 1);
         const Sample c[4] = {refiner.at(x0, y0), refiner.at(x1, y0), refiner.at(x0, y1), refiner.at(x1, y1)};
         refiner.cell(x0, y0, x1, y1, c, I + 1 == cells_x, J + 1 == cells_y);
-    });
+    }, reporter(grid_end, progress_end, cells_x * cells_y));
 }
 
 }  // namespace airlight

@@ -10,6 +10,7 @@ random Gaussians around a light, an emitter's plume rising past a lamp, and spot
 and anisotropic phases. At 5, 1 and 0.1 % the refined bake's mean relative error must be
 within the accuracy and its p99 within 3x. Accuracy 0 is Fogshop bit for bit."""
 import math
+import time
 
 import numpy as np
 import pytest
@@ -199,3 +200,26 @@ def test_refined_at_1280x720_meets_the_accuracy_on_crops(accuracy):
         assert e.mean() <= accuracy and np.percentile(e, 99) <= 3 * accuracy
     finally:
         del SCENES["300 Gaussians at 1280 x 720"]
+
+
+def test_the_refinement_reports_progress_and_can_be_cancelled():
+    """Seconds of marching at a render's size: the progress keeps moving through the refinement
+    (grid, then cells) and a cancel there stops the bake (BakeCancelled), not at its end."""
+    size = dict(width=640, height=360, projection=perspective(math.radians(60), 640, 360))
+    seen, times = [], []
+    t0 = time.perf_counter()
+    r = bake("many random Gaussians", gaussian_accuracy=0.01,
+             progress=lambda f: seen.append(f) or times.append(time.perf_counter()) or True, **size)
+    total = time.perf_counter() - t0
+    assert r["stats"]["seconds_refine"] > 0.5 * total  # (the refinement is most of the bake here)
+    gaps = np.diff([t0] + times)
+    assert gaps.max() < 0.25 * total and all(b >= a for a, b in zip(seen, seen[1:])), (gaps.max(), total)
+    calls = []
+
+    def cancel_in_the_refinement(f):
+        calls.append(f)
+        return not (0.5 < f < 0.9)
+
+    with pytest.raises(_native.BakeCancelled):
+        bake("many random Gaussians", gaussian_accuracy=0.01, progress=cancel_in_the_refinement, **size)
+    assert max(calls) < 0.9
