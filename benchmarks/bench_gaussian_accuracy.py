@@ -7,6 +7,7 @@ pairs integrated, gaussian/refine.h; refine_pass.cpp chooses the rays).
     /usr/bin/python3 benchmarks/bench_gaussian_accuracy.py [--runs 3] [--threads 2]
         [--width 1920 --height 1080] [--crop 32x18] [--skip-1e5] [--plot docs/img/gaussian_trade.png]
         [--budget SECONDS] [--scenes "34 x 3,3000 x 1"] [--accuracies 0,0.05,0.01,0.001]
+        [--resolution full|half|quarter]
 
 Scenes of bench_rbf.py (its camera, ground and seeded clouds, beta0 = 0.002 /m, 500 W lights):
 34 broad Gaussians x 3 lights, 3000 brush-sized Gaussians x 1 light, 1e5 small ones x 1
@@ -108,6 +109,8 @@ def main():
                     help="gaussian_refine_budget (nominal CPU s; default: the bake's)")
     ap.add_argument("--scenes", default=None, help="comma-separated scene names to run (default: all)")
     ap.add_argument("--accuracies", default=",".join(str(a) for a in ACCURACIES))
+    ap.add_argument("--resolution", default="full", choices=("full", "half", "quarter"),
+                    help="the splat's gaussian_resolution (Automatic picks the coarsest whose error fits)")
     args = ap.parse_args()
     cw, ch = (int(s) for s in args.crop.split("x"))
     W, H = args.width, args.height
@@ -117,6 +120,7 @@ def main():
     print(f"{'scene':16s} {'accuracy':>8s} {'ms':>9s} {'refine ms':>9s} {'marched':>15s} {'pairs':>13s} "
           f"{'mean err':>9s} {'p99 err':>9s} {'bound':>8s}")
     budget = {} if args.budget is None else dict(gaussian_refine_budget=args.budget)
+    budget["gaussian_resolution"] = args.resolution
     wanted = None if args.scenes is None else set(args.scenes.split(","))
     _, proj = camera(W, H)
     for name, gaussians, lights in scenes(args.skip_1e5):

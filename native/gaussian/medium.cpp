@@ -117,6 +117,15 @@ double GaussianMedium::density(const Vec3& x) const {
     return beta;
 }
 
+double GaussianMedium::density_near(const Vec3& x) const {
+    double beta = beta0_;
+    for_each_near(x, Vec3(0.0, 0.0, 1.0), 0.0, [&](std::size_t i) {
+        const double dx = x.x - bx_[i], dy = x.y - by_[i], dz = x.z - bz_[i];
+        beta += c_[i] * std::exp(-a_[i] * a_[i] * (dx * dx + dy * dy + dz * dz));
+    });
+    return beta;
+}
+
 double GaussianMedium::gaussian_optical_depth(std::size_t i, const Vec3& o, const Vec3& r, double t0,
                                          double t1) const {
     return gaussian_line_integral(c_[i], a_[i], centre(i), o, r, t0, t1);

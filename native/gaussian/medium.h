@@ -81,6 +81,9 @@ class GaussianMedium {
 
     // Density beta(x) (no culling).
     double density(const Vec3& x) const;
+    // The same from the Gaussians whose cull sphere holds x (the hierarchy: O(log n) with
+    // small Gaussians); each one left out adds below eps a / sqrt(pi) there.
+    double density_near(const Vec3& x) const;
 
     // Optical depth of the segment p -> q with culling (<= eps per skipped Gaussian).
     double optical_depth(const Vec3& p, const Vec3& q) const;

@@ -150,6 +150,28 @@ TEST(GaussianMedium, CullingErrorBound) {
                 worst_abs, worst_ratio);
 }
 
+// The culled density at a point leaves out only Gaussians whose cull sphere misses it, each
+// below eps a / sqrt(pi) there.
+TEST(GaussianMedium, CulledDensity) {
+    std::mt19937_64 rng(5);
+    std::uniform_real_distribution<double> U(0.0, 1.0);
+    std::vector<double> b, a, c;
+    double a_max = 0.0;
+    for (int i = 0; i < 1500; ++i) {
+        for (int k = 0; k < 3; ++k) b.push_back(60.0 * U(rng) - 30.0);
+        a.push_back(std::pow(10.0, -1.0 + 1.5 * U(rng)));
+        a_max = std::max(a_max, a.back());
+        c.push_back(2.0 * U(rng));
+    }
+    const GaussianMedium m(b, a, c, 0.01, 1e-6);
+    for (int k = 0; k < 300; ++k) {
+        const Vec3 x = k % 2 ? m.centre(std::size_t(k)) : Vec3(60 * U(rng) - 30, 60 * U(rng) - 30, 60 * U(rng) - 30);
+        const double all = m.density(x), near = m.density_near(x);
+        EXPECT_GE(all - near, -1e-12 * all);
+        EXPECT_LE(all - near, 1500 * m.cull_eps() * a_max / std::sqrt(kPi) + 1e-12 * all);
+    }
+}
+
 TEST(GaussianMedium, RejectsBadInput) {
     auto msg = [](auto&& make) {
         try {
