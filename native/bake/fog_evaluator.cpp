@@ -473,6 +473,8 @@ void FogEvaluator::march_lights(const Vec3& d, double near, double end, const Li
     thread_local std::vector<std::pair<double, double>> shifted;
     const std::pair<double, double> whole(near, end);
     const Vec3 o = origin_ + near * d;
+    spans.assign(A, RaySpans{});  // the marched lights' spans, for their Fogshop values in one sum
+    bool any = false;
     for (size_t m = 0; m < marched_.size(); ++m) {
         const size_t l = marched_[m];
         RaySpans lit_spans{&whole, 1};
@@ -499,11 +501,12 @@ void FogEvaluator::march_lights(const Vec3& d, double near, double end, const Li
                                                                           end - near, march_maps_[m].get(), march);
         refine_work() += std::uint64_t(march.work / kMarchWorkPerUnit);
         if (march.stopped) throw RefineWorkExceeded{};
-        spans.assign(A, RaySpans{});
         spans[l] = lit_spans;
-        La += marched - fogshop_spans(*eye_fogshop_, true, d, near, spans.data());
+        any = true;
+        La += marched;
         marched_rays_.fetch_add(1, std::memory_order_relaxed);
     }
+    if (any) La -= fogshop_spans(*eye_fogshop_, true, d, near, spans.data());
 }
 
 RGB FogEvaluator::fogshop_spans(const FogshopAirlight& fogshop, bool at_eye, const Vec3& d, double near,
