@@ -348,6 +348,7 @@ double FogEvaluator::march_map_error(const LightDepthMap& map) const {
         const double D = glm::length(to);
         if (!(D > 0.0)) continue;
         GaussianMarch with_map, exact;
+        with_map.set_accuracy(refine_target_), exact.set_accuracy(refine_target_);
         const double mapped = gaussian_march_airlight(*gaussian_, map.light(), phase_, origin_, to / D, 2.0 * D, &map, with_map);
         const double ref = gaussian_march_airlight(*gaussian_, map.light(), phase_, origin_, to / D, 2.0 * D, nullptr, exact);
         if (ref > 0.0) worst = std::max(worst, std::abs(mapped - ref) / ref);
@@ -483,6 +484,7 @@ void FogEvaluator::march_lights(const Vec3& d, double near, double end, const Li
             lit_spans = RaySpans{lit->spans.data() + lit->begin[v], lit->end[v] - lit->begin[v]};
         if (lit_spans.count == 0) continue;  // (in the dark Fogshop's value is 0 too)
         GaussianMarch march;
+        march.set_accuracy(refine_target_);
         march.albedo = gaussian_albedo_.data();
         march.medium_albedo = medium_albedo_;
         // Its work in refine_work's units (one Gaussian's term of an integrand, kMarchWorkPerUnit
