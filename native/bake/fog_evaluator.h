@@ -207,8 +207,9 @@ class FogEvaluator {
     // Fogshop's airlight on ray d from the near plane _near_ (eye_fogshop_, or _local_ set up at
     // the near point: t_start 0) over spans[l] of every light l (gaussian_lights_, then the
     // suns; an empty span list leaves a light out), with the splat's background, phase and
-    // spot profiles: the values the splat's pixels hold.
-    RGB fogshop_spans(const FogshopAirlight& fogshop, bool at_eye, const Vec3& d, double near, const RaySpans* spans) const;
+    // spot profiles: the values the splat's pixels hold (_fast_: in float, as the splat has them).
+    RGB fogshop_spans(const FogshopAirlight& fogshop, bool at_eye, const Vec3& d, double near, const RaySpans* spans,
+                      bool fast = false) const;
     // Volume of the Fogshop light l (gaussian_lights_, then the suns) in shadows_; -1: none.
     int gaussian_volume(size_t l) const;
     // albedo_i I0_l (E_l for suns) of the pair (light l, Gaussian i).

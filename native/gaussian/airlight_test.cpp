@@ -274,6 +274,46 @@ TEST(GaussianAirlight, FailureShaftThroughHole) {
     EXPECT_TRUE(std::isfinite(s.max));
 }
 
+// eval_rgb_spans's fast form (float erf differences and exps, airlight_batch.h) against the
+// double one: a cloud with a light inside a Gaussian and one outside, a sun, a forward phase,
+// several lit spans (one of them infinite) and a near plane inside a Gaussian.
+TEST(GaussianAirlight, FastSpansMatchDouble) {
+    std::mt19937 rng(7);
+    std::uniform_real_distribution<double> U(0.0, 1.0);
+    std::vector<double> b, a, c;
+    for (int i = 0; i < 300; ++i) {
+        b.insert(b.end(), {-6.0 + 12.0 * U(rng), -4.0 + 8.0 * U(rng), 4.0 + 20.0 * U(rng)});
+        a.push_back(0.5 + 1.5 * U(rng));
+        c.push_back(i % 7 == 0 ? 2.0 : 0.02 + 0.1 * U(rng));
+    }
+    b.insert(b.end(), {0.1, 0.0, 0.2}), a.push_back(1.0), c.push_back(0.5);  // (around the near plane)
+    const GaussianMedium m(b, a, c, 0.01);
+    const std::vector<Vec3> lights{Vec3(b[0], b[1], b[2]), Vec3(3.0, 5.0, 12.0)};
+    const FogshopAirlight fog(m, Vec3(0.0), lights, nullptr, 1, {glm::normalize(Vec3(0.3, -1.0, 0.2))});
+    const PhaseFunction hg{PhaseKind::HenyeyGreenstein, 0.6};
+    const FogshopAirlight::SpanBackground background = [](std::size_t, double, double) { return 0.0; };  // (the Gaussian terms alone)
+    const std::vector<double> albedo(3 * 301, 0.8);
+    const std::vector<RGB> I0{RGB(1.0), RGB(2.0, 1.0, 0.5), RGB(0.3)};
+    const std::vector<std::pair<double, double>> lit{{0.3, 7.0}, {9.0, 15.5}, {18.0, INFINITY}};
+    const std::vector<std::pair<double, double>> whole{{0.3, 30.0}};
+    int compared = 0;
+    for (const Vec3& dir : image_rays(12, 8, 0.4)) {
+        for (const auto* spans : {&lit, &whole}) {
+            const RaySpans one{spans->data(), int(spans->size())};
+            const RaySpans each[3] = {one, one, one};
+            for (const PhaseFunction* phase : {static_cast<const PhaseFunction*>(nullptr), &hg}) {
+                const RGB exact = fog.eval_rgb_spans(dir, 0.3, each, albedo.data(), I0.data(), RGB(0.9), phase, &background);
+                const RGB fast = fog.eval_rgb_spans(dir, 0.3, each, albedo.data(), I0.data(), RGB(0.9), phase, &background,
+                                                    nullptr, true);
+                ASSERT_GT(exact.x, 0.0);
+                for (int ch = 0; ch < 3; ++ch) EXPECT_NEAR(fast[ch], exact[ch], 3e-5 * exact[ch]) << "channel " << ch;
+                ++compared;
+            }
+        }
+    }
+    EXPECT_EQ(compared, 12 * 8 * 4);
+}
+
 TEST(GaussianAirlight, RejectsBadInput) {
     const GaussianMedium m({0, 0, 1}, {1.0}, {1.0}, 0.0);
     const Vec3 d(0, 0, 1), bad_d(0, 0, 2);
