@@ -603,9 +603,9 @@ def fog_objects_line(stats):
                 f"Fogshop's approximation alone (up to ~29 % off on thick fog near a light); raise the Accuracy "
                 f"percentage or choose Quadrature")
     marched = stats.get("gaussian_marched_lights", 0)
-    return (f"; fog objects: {marched} point light{'s' if marched != 1 else ''} marched exactly "
+    return (f"; fog objects: {marched} light{'s' if marched != 1 else ''} marched exactly "
             f"({stats.get('gaussian_marched_rays', 0)} rays), "
-            f"{stats.get('gaussian_refined_pairs', 0)} of {pairs} spot and sun (light, fog) pairs exact, "
+            f"{stats.get('gaussian_refined_pairs', 0)} of {pairs} sun (light, fog) pairs exact, "
             f"{stats.get('gaussian_background_rays', 0)} ray-lights of uniform fog corrected, "
             f"error bound {100.0 * float(stats.get('gaussian_error_bound', 0.0)):.2g} %, "
             f"{1000.0 * float(stats.get('seconds_refine', 0.0)):.0f} ms refining")

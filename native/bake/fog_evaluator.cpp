@@ -297,12 +297,12 @@ void FogEvaluator::set_up_refinement(const BakeSettings& settings, const Camera&
 }
 
 void FogEvaluator::plan_marches(GaussianRefinePlan& plan, int threads) {
-    // A point light with a pair to refine is marched whole: one march of every Gaussian near
-    // the ray costs what a few exact pair terms do (each sums the Gaussians near the ray and
-    // the light path at every node), and leaves no pair of that light to Fogshop.
+    // A point or spot light with a pair to refine is marched whole: one march of every Gaussian
+    // near the ray costs what a few exact pair terms do (each sums the Gaussians near the ray
+    // and the light path at every node), and leaves no pair of that light to Fogshop.
     std::vector<char> march(gaussian_lights_.size(), 0);
     for (const RefinePair& pair : plan.refined)
-        if (pair.light < n_gaussian_points_) march[pair.light] = 1;
+        if (pair.light < gaussian_lights_.size()) march[pair.light] = 1;
     plan.refined.erase(std::remove_if(plan.refined.begin(), plan.refined.end(),
                                       [&](const RefinePair& pair) { return pair.light < march.size() && march[pair.light]; }),
                        plan.refined.end());
@@ -487,6 +487,11 @@ void FogEvaluator::march_lights(const Vec3& d, double near, double end, const Li
         march.set_accuracy(refine_target_);
         march.albedo = gaussian_albedo_.data();
         march.medium_albedo = medium_albedo_;
+        if (l >= n_gaussian_points_) {  // a spot (its profile at most 1, or a Spread's peak)
+            const SpotCone& cone = gaussian_spots_[l - n_gaussian_points_].cone;
+            march.cone = &cone;
+            march.emission_max = cone.has_spread() ? std::max(1.0, cone.spread_a) : 1.0;
+        }
         // Its work in refine_work's units (one Gaussian's term of an integrand, kMarchWorkPerUnit
         // of the march's), stopped at the limit.
         const std::uint64_t left = refine_work_limit() - std::min(refine_work(), refine_work_limit());

@@ -189,7 +189,7 @@ class FogEvaluator {
     // light (lights_' order), spot and sun its light in them (-1: unshadowed).
     void set_up_shadows(const SceneDescription& scene, const BakeSettings& settings);
     void set_up_refinement(const BakeSettings& settings, const Camera& camera);
-    // Takes the point lights with pairs to refine out of _plan_ into marched_, with their maps.
+    // Takes the point and spot lights with pairs to refine out of _plan_ into marched_, with their maps.
     void plan_marches(GaussianRefinePlan& plan, int threads);
     // The largest relative error of the march's airlight with _map_ against exact light depths
     // on a few rays from the eye through the Gaussians.
@@ -306,7 +306,7 @@ class FogEvaluator {
     // Gaussian fog with shadows (Fogshop, perspective): Fogshop at the eye for the point lights.
     std::unique_ptr<FogshopAirlight> eye_fogshop_;
     std::unique_ptr<GaussianRefiner> refiner_;
-    // The refinement's marched lights (gaussian/march.h): point lights whose whole airlight
+    // The refinement's marched lights (gaussian/march.h): point and spot lights whose whole airlight
     // (every Gaussian and the uniform fog) is marched on the refined rays in place of their
     // pairs' exact terms (their index in gaussian_lights_), each with its light-space depth
     // map (null: exact light depths; set_up_refinement says when).

@@ -115,11 +115,36 @@ RGB gaussian_march_airlight_rgb(const GaussianMedium& medium, const Vec3& s, con
     const double beta0 = medium.beta0();
     const RGB sigma0 = beta0 * march.medium_albedo;
     const bool isotropic = phase.kind == PhaseKind::Isotropic;
-    const double lobe = std::min(1.0, phase.lobe_width());
+    // The angular scale the steps resolve (a tenth of the light's distance times it): the phase
+    // lobe's, and a spot's blend zone (its hard edges are cuts, below).
+    double lobe = std::min(1.0, phase.lobe_width());
+    if (march.cone && march.cone->smooth > 0.0) {
+        const SpotCone& cone = *march.cone;
+        lobe = std::min(lobe, std::acos(cone.cos_half_angle) - std::acos(std::min(1.0, cone.cos_half_angle + cone.smooth)));
+    }
     const double inside_step = march.step_widths * narrowest;
     const Vec3 vs = s - v;
     const double t_s = glm::dot(vs, r);  // the light's closest approach
-    const double p_max = isotropic ? kInv4Pi : std::max(phase.eval(1.0), phase.eval(-1.0));
+    const double p_max = (isotropic ? kInv4Pi : std::max(phase.eval(1.0), phase.eval(-1.0))) *
+                         (march.cone ? march.emission_max : 1.0);
+    // A spot's profile edges: steps end there.
+    std::vector<double> cuts;
+    if (march.cone) {
+        const SpotCone& cone = *march.cone;
+        for (double c : {cone.cos_half_angle, cone.cos_half_angle + cone.smooth})
+            if (c < 1.0)
+                for (double x : ray_cone_crossings(v, r, s, cone.axis, c, 0.0, Dvp)) cuts.push_back(x);
+        if (cone.has_spread()) {
+            const double x = ray_axis_approach(v, r, s, cone.axis, 0.0, Dvp);
+            if (x > 0.0) cuts.push_back(x);
+        }
+        std::sort(cuts.begin(), cuts.end());
+    }
+    std::size_t cut = 0;
+    auto next_cut = [&](double t) {
+        while (cut < cuts.size() && cuts[cut] <= t) ++cut;
+        return cut < cuts.size() ? cuts[cut] : std::numeric_limits<double>::infinity();
+    };
     // The lit spans: steps end at their ends, and a step is lit where its midpoint is.
     const RaySpans all{nullptr, 0};
     const RaySpans& lit = march.lit ? *march.lit : all;
@@ -166,7 +191,9 @@ RGB gaussian_march_airlight_rgb(const GaussianMedium& medium, const Vec3& s, con
         const double d2 = glm::dot(sx, sx);
         if (!(d2 > 0.0)) return RGB(0.0);
         const double d = std::sqrt(d2);
-        const double p = isotropic ? kInv4Pi : phase.eval(-glm::dot(sx, r) / d);
+        double p = isotropic ? kInv4Pi : phase.eval(-glm::dot(sx, r) / d);
+        if (march.cone) p *= spot_profile(*march.cone, glm::dot(march.cone->axis, sx) / d);
+        if (p == 0.0) return RGB(0.0);
         return dens.sigma_s * (p / d2 * std::exp(-light_depth(v + t * r, d) - Tv));
     };
 
@@ -184,7 +211,7 @@ RGB gaussian_march_airlight_rgb(const GaussianMedium& medium, const Vec3& s, con
         double h = 0.1 * std::max(d, 1e-9 * std::max(1.0, glm::length(vs))) * lobe;
         if (in_fog) h = std::min(h, inside_step);
         if (next < line.size() && line[next].lo > t) h = std::min(h, std::max(line[next].lo - t, inside_step));
-        h = std::min({h, end - t, 0.5 / dens_a.beta, boundary - t});  // (thick fog: a step's depth stays below 1/2)
+        h = std::min({h, end - t, 0.5 / dens_a.beta, boundary - t, next_cut(t) - t});  // (thick fog: a step's depth stays below 1/2)
         Density dens_m, dens_b;
         RGB f_m, f_b, step;
         double T_b;

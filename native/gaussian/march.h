@@ -27,6 +27,7 @@
 #include "gaussian/airlight.h"
 #include "gaussian/light_depth_map.h"
 #include "gaussian/medium.h"
+#include "homogeneous/spot_light.h"
 
 namespace airlight {
 
@@ -42,6 +43,12 @@ struct GaussianMarch {
     RGB medium_albedo{1.0, 1.0, 1.0};
     // In: the lit spans of [0, Dvp] (sorted, disjoint; null: all of it).
     const RaySpans* lit = nullptr;
+    // In: a spot light's cone (homogeneous/spot_light.h; null: a point light). The in-scattering
+    // takes its emission profile, at most emission_max, and no step straddles the ray's
+    // crossings of the cone and of its blend cone (nor, with Spread, its closest approach to
+    // the axis): the profile's edges and kink, as the quadrature's breakpoints.
+    const SpotCone* cone = nullptr;
+    double emission_max = 1.0;
     // The march's work, in densities evaluated (one Gaussian's exp: ~7 ns on this machine's
     // cores): those of the steps, kPointWork for each point's light depth from the map and its
     // phase, or kTermWork for each Gaussian of an exact light depth (an erf in double; measured
@@ -55,7 +62,7 @@ struct GaussianMarch {
 };
 
 // La of the ray origin + t r, t in [0, Dvp] (r unit; Dvp > 0, may be +inf), lit by a point
-// light at _s_ of unit intensity; the light depth from _map_ (its light must be _s_), or
+// light at _s_ of unit intensity (a spot with march.cone); the light depth from _map_ (its light must be _s_), or
 // exact when _map_ is null. The RGB form takes the march's albedos; the scalar one is unit
 // albedo throughout.
 RGB gaussian_march_airlight_rgb(const GaussianMedium& medium, const Vec3& s, const PhaseFunction& phase,
