@@ -7,7 +7,7 @@ pairs integrated, gaussian/refine.h; refine_pass.cpp chooses the rays).
     /usr/bin/python3 benchmarks/bench_gaussian_accuracy.py [--runs 3] [--threads 2]
         [--width 1920 --height 1080] [--crop 32x18] [--skip-1e5] [--plot docs/img/gaussian_trade.png]
         [--budget SECONDS] [--scenes "34 x 3,3000 x 1"] [--accuracies 0,0.05,0.01,0.001]
-        [--resolution full|half|quarter]
+        [--resolution full|half|quarter] [--spots]
 
 Scenes of bench_rbf.py (its camera, ground and seeded clouds, beta0 = 0.002 /m, 500 W lights):
 34 broad Gaussians x 3 lights, 3000 brush-sized Gaussians x 1 light, 1e5 small ones x 1
@@ -21,10 +21,11 @@ the whole frame): around each light's image and at four fixed places (the cloud,
 horizon, the ground). A bake over its budget (gaussian_refine_budget) keeps Fogshop alone and
 is marked ABANDONED (its errors are Fogshop's: what the user gets). Prints PASS/FAIL for
 3000 x 1 at 1 % <= 500 ms with mean <= 1 %. With --plot, writes time against error per scene
-(matplotlib).
+(matplotlib). --spots makes the lights spot lamps (70 degrees, blend 0.3, pointing down).
 """
 
 import argparse
+import math
 import os
 import sys
 
@@ -60,6 +61,16 @@ def bake(width, height, gaussians, lights, threads, **kw):
                 threads=threads, rbf_centres=b, rbf_scales=a, rbf_amplitudes=c)
     args.update(kw)
     return _native.bake(**args)
+
+
+def spot_lights(lights):
+    """The bake's keyword arguments that make the scene's first _lights_ lights spot lamps (--spots):
+    70 degree cones, blend 0.3, pointing down and a little away from the camera, the same I0 on
+    the axis."""
+    return dict(light_positions=np.zeros((0, 3)), light_intensities=np.zeros((0, 3)),
+                spot_positions=LIGHTS[:lights], spot_axes=np.tile([[0.0, -1.0, 0.1]], (lights, 1)),
+                spot_intensities=np.full((lights, 3), I0), spot_size=np.full(lights, math.radians(70.0)),
+                spot_blend=np.full(lights, 0.3))
 
 
 def errors(x, ref):
@@ -109,13 +120,15 @@ def main():
                     help="gaussian_refine_budget (nominal CPU s; default: the bake's)")
     ap.add_argument("--scenes", default=None, help="comma-separated scene names to run (default: all)")
     ap.add_argument("--accuracies", default=",".join(str(a) for a in ACCURACIES))
+    ap.add_argument("--spots", action="store_true", help="the scenes' lights as spot lamps (spot_lights)")
     ap.add_argument("--resolution", default="full", choices=("full", "half", "quarter"),
                     help="the splat's gaussian_resolution (Automatic picks the coarsest whose error fits)")
     args = ap.parse_args()
     cw, ch = (int(s) for s in args.crop.split("x"))
     W, H = args.width, args.height
     rows = []
-    print(f"{W}x{H}, {args.threads} threads, median of {args.runs}; errors of the same bake against QUADRATURE "
+    print(f"{W}x{H}, {'spot lamps, ' if args.spots else ''}{args.threads} threads, median of {args.runs}; "
+          f"errors of the same bake against QUADRATURE "
           f"on {cw}x{ch} crops")
     print(f"{'scene':16s} {'accuracy':>8s} {'ms':>9s} {'refine ms':>9s} {'marched':>15s} {'pairs':>13s} "
           f"{'mean err':>9s} {'p99 err':>9s} {'bound':>8s}")
@@ -127,11 +140,13 @@ def main():
         if wanted is not None and name not in wanted:
             continue
         windows = [] if name.startswith("1e5") else crops(W, H, lights, cw, ch)
+        kind = spot_lights(lights) if args.spots else {}
         refs = [bake(cw, ch, gaussians, lights, args.threads, model="quadrature",
-                     projection=crop_projection(proj, W, H, x0, y0, cw, ch))["airlight"] for x0, y0 in windows]
+                     projection=crop_projection(proj, W, H, x0, y0, cw, ch), **kind)["airlight"]
+                for x0, y0 in windows]
         for acc in (float(a) for a in args.accuracies.split(",")):
-            wall, res = timed(lambda: bake(W, H, gaussians, lights, args.threads, gaussian_accuracy=acc, **budget),
-                              args.runs)
+            wall, res = timed(lambda: bake(W, H, gaussians, lights, args.threads, gaussian_accuracy=acc, **budget,
+                                           **kind), args.runs)
             s = res["stats"]
             mean = p99 = float("nan")
             if refs:

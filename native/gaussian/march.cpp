@@ -116,12 +116,21 @@ RGB gaussian_march_airlight_rgb(const GaussianMedium& medium, const Vec3& s, con
     const RGB sigma0 = beta0 * march.medium_albedo;
     const bool isotropic = phase.kind == PhaseKind::Isotropic;
     // The angular scale the steps resolve (a tenth of the light's distance times it): the phase
-    // lobe's, and a spot's blend zone (its hard edges are cuts, below).
-    double lobe = std::min(1.0, phase.lobe_width());
+    // lobe's, and inside a spot's blend zone that zone's width (its ends are cuts, below, so a
+    // step lies in the zone or out of it; elsewhere the profile varies as cos theta).
+    const double lobe = std::min(1.0, phase.lobe_width());
+    double blend_lobe = lobe;
     if (march.cone && march.cone->smooth > 0.0) {
         const SpotCone& cone = *march.cone;
-        lobe = std::min(lobe, std::acos(cone.cos_half_angle) - std::acos(std::min(1.0, cone.cos_half_angle + cone.smooth)));
+        blend_lobe = std::min(lobe, std::acos(cone.cos_half_angle) -
+                                        std::acos(std::min(1.0, cone.cos_half_angle + cone.smooth)));
     }
+    auto in_blend = [&](double t) {  // (just past t: t may be a cut)
+        if (!(blend_lobe < lobe)) return false;
+        const Vec3 sx = v + (t + 1e-7 * std::max(1.0, t)) * r - s;
+        const double len = glm::length(sx), c = len > 0.0 ? glm::dot(march.cone->axis, sx) / len : 1.0;
+        return c > march.cone->cos_half_angle && c < march.cone->cos_half_angle + march.cone->smooth;
+    };
     const double inside_step = march.step_widths * narrowest;
     const Vec3 vs = s - v;
     const double t_s = glm::dot(vs, r);  // the light's closest approach
@@ -208,7 +217,12 @@ RGB gaussian_march_airlight_rgb(const GaussianMedium& medium, const Vec3& s, con
         if (march.lit && std::isinf(boundary)) break;  // (no lit span left)
         const double d = glm::length(v + t * r - s);
         const bool in_fog = !active.empty() || (next < line.size() && line[next].lo < t + 0.1 * d);
-        double h = 0.1 * std::max(d, 1e-9 * std::max(1.0, glm::length(vs))) * lobe;
+        // In a spot's blend zone the profile falls to 0 as the square of the distance to its
+        // outer end, where Simpson and the trapezoids part by half the step whatever its length:
+        // the steps there are a twentieth of the zone's angle and take no halving test of the
+        // in-scattering (the view depth's still holds).
+        const bool blend = in_blend(t);
+        double h = 0.1 * std::max(d, 1e-9 * std::max(1.0, glm::length(vs))) * (blend ? 0.5 * blend_lobe : lobe);
         if (in_fog) h = std::min(h, inside_step);
         if (next < line.size() && line[next].lo > t) h = std::min(h, std::max(line[next].lo - t, inside_step));
         h = std::min({h, end - t, 0.5 / dens_a.beta, boundary - t, next_cut(t) - t});  // (thick fog: a step's depth stays below 1/2)
@@ -229,7 +243,7 @@ RGB gaussian_march_airlight_rgb(const GaussianMedium& medium, const Vec3& s, con
             // more than kDepthTol, is halved.
             const RGB trapezoids = h / 4.0 * (f_a + 2.0 * f_m + f_b);
             const double depth_gap = std::abs(T_b - Tv - h / 4.0 * (dens_a.beta + 2.0 * dens_m.beta + dens_b.beta));
-            const double gap = lit_step ? sum(glm::abs(step - trapezoids)) : 0.0;
+            const double gap = lit_step && !blend ? sum(glm::abs(step - trapezoids)) : 0.0;
             if ((gap <= march.step_tol * std::max(sum(step), march.tail_tol * sum(total)) && depth_gap <= kDepthTol) ||
                 h <= kMinStep * std::max(1.0, t))
                 break;
@@ -247,6 +261,12 @@ RGB gaussian_march_airlight_rgb(const GaussianMedium& medium, const Vec3& s, con
         // albedo p_max e^{-Tv} / d_min^2 (d_min: the light's least distance to the rest of the ray).
         const double d_min2 = t >= t_s ? glm::dot(v + t * r - s, v + t * r - s) : glm::dot(vs, vs) - t_s * t_s;
         if (d_min2 > 0.0 && albedo_sum * p_max * std::exp(-Tv) / d_min2 <= march.tail_tol * sum(total)) break;
+        // Past a spot's last cone crossing and outside the cone: nothing more is lit.
+        if (march.cone && std::isinf(next_cut(t))) {
+            const Vec3 sx = v + (t + 1e-7 * std::max(1.0, t)) * r - s;
+            const double len = glm::length(sx);
+            if (len > 0.0 && !(spot_profile(*march.cone, glm::dot(march.cone->axis, sx) / len) > 0.0)) break;
+        }
         active.drop(t);
         if (infinite && active.empty() && next == line.size() && t > std::max(t_s, last_end)) {
             // Only the uniform fog is left: its rest is below beta0 p_max e^{-Tv} / (t - t_s).
