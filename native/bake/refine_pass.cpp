@@ -174,8 +174,11 @@ class CellRefiner {
                     v = e[x == x0 ? 2 : 3].refined;
                 else if (alone || (!surface && !pixel_on_surface(x, y, x0, y0, x1, y1)))
                     v = at(x, y).refined;
-                else
-                    v = interpolate(x, y, x0, y0, x1, y1, c);
+                else {
+                    bool unknown = false;
+                    v = interpolate(x, y, x0, y0, x1, y1, c, &unknown);
+                    if (unknown) v = at(x, y).refined;
+                }
                 for (int ch = 0; ch < 3; ++ch) A[3 * (size_t(y) * W + x) + ch] = float(std::max(0.0, v[ch]));
             }
     }
@@ -196,20 +199,27 @@ class CellRefiner {
         w[0] = (1 - fx) * (1 - fy), w[1] = fx * (1 - fy), w[2] = (1 - fx) * fy, w[3] = fx * fy;
     }
 
-    // Fogshop's value at (x, y) times the corners' bilinear ratio (per channel; where a
-    // corner's Fogshop value is 0, the refined value's bilinear part is added instead).
-    RGB interpolate(int x, int y, int x0, int y0, int x1, int y1, const Sample c[4]) const {
+    // Fogshop's value at (x, y) times the corners' bilinear ratio (per channel). A corner where
+    // Fogshop is 0 and the refined value is not adds the refined value's bilinear part instead;
+    // one where both are 0 (outside a spot's cone, in a shadow) tells nothing of the ratio, and
+    // its weight goes to the others' (it was taken as ratio 0, which halved the pixels along a
+    // cone's edge in the image). _unknown_ (optional): set where the pixel has fog of Fogshop's
+    // but no corner gives a ratio or a value (the caller refines it).
+    RGB interpolate(int x, int y, int x0, int y0, int x1, int y1, const Sample c[4], bool* unknown = nullptr) const {
         double w[4];
         weights(x, y, x0, y0, x1, y1, w);
         const RGB b = base(x, y);
         RGB v(0.0);
+        if (unknown) *unknown = false;
         for (int ch = 0; ch < 3; ++ch) {
-            double ratio = 0.0, add = 0.0, wr = 0.0;
+            double ratio = 0.0, add = 0.0, wr = 0.0, w_none = 0.0;
             for (int q = 0; q < 4; ++q) {
                 if (c[q].base[ch] > 0.0) ratio += w[q] * c[q].refined[ch] / c[q].base[ch], wr += w[q];
-                else add += w[q] * c[q].refined[ch];
+                else if (c[q].refined[ch] > 0.0) add += w[q] * c[q].refined[ch];
+                else w_none += w[q];
             }
-            v[ch] = (wr > 0.0 ? b[ch] * ratio : 0.0) + add;
+            v[ch] = (wr > 0.0 ? b[ch] * ratio * (wr + w_none) / wr : 0.0) + add;
+            if (unknown && b[ch] > 0.0 && !(wr > 0.0) && !(add > 0.0)) *unknown = true;
         }
         return v;
     }
