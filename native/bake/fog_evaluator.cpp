@@ -543,28 +543,35 @@ RGB FogEvaluator::fogshop_spans(const FogshopAirlight& fogshop, bool at_eye, con
 
 void FogEvaluator::refine_samples(const Ray* rays, const float* Dvp, const float* t0, int n, RGB* La) const {
     if (!refiner_) return;
-    // The refined / Fogshop ratio varies over several pixels (refine_centres interpolates it
-    // over kRefineStride): a ray within kSampleReach pixels of the last refined one, on the
-    // same surface (inverse depths within 1 %, or both the sky), takes that ray's ratio.
+    // The refined / Fogshop ratio varies over several pixels (refine_pass interpolates it over
+    // cells): a ray within kSampleReach pixels of one of the last refined ones, on the same
+    // surface (inverse depths within 1 %, or both the sky), whose Fogshop value is within the
+    // asked accuracy of that ray's, takes its ratio. (Without the last test a spot's edge, where
+    // Fogshop's value steps as Gaussians' centres cross the cone, carried ratios 2 % off along
+    // the horizon whatever the accuracy.)
     constexpr double kSampleReach = 2.0;
     const double cos_reach = std::cos(kSampleReach * pixel_angle_);
     // The last few refined rays (the samples of an edge pixel alternate between surfaces).
     constexpr int kReps = 8;
     struct Rep {
         int k;
-        RGB ratio, delta;
+        RGB ratio, delta, fogshop;
     };
     Rep reps[kReps];
     int n_reps = 0, next = 0;
-    auto close = [&](int k, int r) {
+    auto close = [&](int k, const Rep& rep) {
+        const int r = rep.k;
         if (glm::dot(rays[k].d, rays[r].d) < cos_reach) return false;
+        for (int c = 0; c < 3; ++c)
+            if (!(std::abs(La[k][c] - rep.fogshop[c]) <= 0.25 * refine_target_ * rep.fogshop[c]) && La[k][c] != rep.fogshop[c])
+                return false;
         if (std::isinf(Dvp[k]) || std::isinf(Dvp[r])) return std::isinf(Dvp[k]) && std::isinf(Dvp[r]);
         return std::abs(1.0 / Dvp[k] - 1.0 / Dvp[r]) <= 0.01 / Dvp[k];
     };
     for (int k = 0; k < n; ++k) {
         const Rep* match = nullptr;
         for (int q = 0; q < n_reps && !match; ++q)
-            if (close(k, reps[q].k)) match = &reps[q];
+            if (close(k, reps[q])) match = &reps[q];
         if (match) {
             for (int c = 0; c < 3; ++c) La[k][c] = La[k][c] * match->ratio[c] + match->delta[c];
             continue;
@@ -573,7 +580,7 @@ void FogEvaluator::refine_samples(const Ray* rays, const float* Dvp, const float
         refine_gaussians(rays + k, Dvp + k, t0 ? t0 + k : nullptr, 1, La + k);
         Rep& rep = reps[next];
         next = (next + 1) % kReps, n_reps = std::min(n_reps + 1, kReps);
-        rep.k = k;
+        rep.k = k, rep.fogshop = fogshop;
         for (int c = 0; c < 3; ++c) {
             rep.ratio[c] = fogshop[c] > 0.0 ? La[k][c] / fogshop[c] : 1.0;
             rep.delta[c] = fogshop[c] > 0.0 ? 0.0 : La[k][c];
