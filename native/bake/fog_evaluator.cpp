@@ -545,10 +545,10 @@ void FogEvaluator::refine_samples(const Ray* rays, const float* Dvp, const float
     if (!refiner_) return;
     // The refined / Fogshop ratio varies over several pixels (refine_pass interpolates it over
     // cells): a ray within kSampleReach pixels of one of the last refined ones, on the same
-    // surface (inverse depths within 1 %, or both the sky), whose Fogshop value is within the
-    // asked accuracy of that ray's, takes its ratio. (Without the last test a spot's edge, where
-    // Fogshop's value steps as Gaussians' centres cross the cone, carried ratios 2 % off along
-    // the horizon whatever the accuracy.)
+    // surface (inverse depths within 1 %, or both the sky), whose Fogshop value is within a
+    // quarter of the asked accuracy of that ray's, takes its ratio. (Without the last test a
+    // spot's edge, where Fogshop's value steps as Gaussians' centres cross the cone, carried
+    // ratios 2 % off along the horizon whatever the accuracy.)
     constexpr double kSampleReach = 2.0;
     const double cos_reach = std::cos(kSampleReach * pixel_angle_);
     // The last few refined rays (the samples of an edge pixel alternate between surfaces).
@@ -562,9 +562,10 @@ void FogEvaluator::refine_samples(const Ray* rays, const float* Dvp, const float
     auto close = [&](int k, const Rep& rep) {
         const int r = rep.k;
         if (glm::dot(rays[k].d, rays[r].d) < cos_reach) return false;
-        for (int c = 0; c < 3; ++c)
-            if (!(std::abs(La[k][c] - rep.fogshop[c]) <= 0.25 * refine_target_ * rep.fogshop[c]) && La[k][c] != rep.fogshop[c])
-                return false;
+        for (int c = 0; c < 3; ++c) {
+            const double fogshop = La[k][c], there = rep.fogshop[c];
+            if (fogshop != there && !(std::abs(fogshop - there) <= 0.25 * refine_target_ * there)) return false;
+        }
         if (std::isinf(Dvp[k]) || std::isinf(Dvp[r])) return std::isinf(Dvp[k]) && std::isinf(Dvp[r]);
         return std::abs(1.0 / Dvp[k] - 1.0 / Dvp[r]) <= 0.01 / Dvp[k];
     };

@@ -27,11 +27,14 @@ AIRLIGHT_SIMD_CLONES void point_terms(const float* k, const float* view0, const 
 }  // namespace
 
 void FogshopTermBatch::resize(std::size_t n) {
-    for (auto* v : {&k, &view0, &view1, &near0, &near1, &kl, &light_h, &light0, &light1, &factor, &Tlit, &x1, &x2, &out})
+    for (auto* v : {&k, &view0, &view1, &near0, &near1, &kl, &light_h, &light0, &light1, &factor, &Tlit, &x1, &x2,
+                    &out})
         v->resize(n);
 }
 
-void add_lit_span(FogshopTermBatch& b, std::size_t n) { erf_span(b.k.data(), b.x1.data(), b.x2.data(), n, b.Tlit.data()); }
+void add_lit_span(FogshopTermBatch& b, std::size_t n) {
+    erf_span(b.k.data(), b.x1.data(), b.x2.data(), n, b.Tlit.data());
+}
 
 void fogshop_point_terms(FogshopTermBatch& b, std::size_t n, float near_depth) {
     point_terms(b.k.data(), b.view0.data(), b.view1.data(), b.near0.data(), b.near1.data(), b.kl.data(),

@@ -291,7 +291,8 @@ TEST(GaussianAirlight, FastSpansMatchDouble) {
     const std::vector<Vec3> lights{Vec3(b[0], b[1], b[2]), Vec3(3.0, 5.0, 12.0)};
     const FogshopAirlight fog(m, Vec3(0.0), lights, nullptr, 1, {glm::normalize(Vec3(0.3, -1.0, 0.2))});
     const PhaseFunction hg{PhaseKind::HenyeyGreenstein, 0.6};
-    const FogshopAirlight::SpanBackground background = [](std::size_t, double, double) { return 0.0; };  // (the Gaussian terms alone)
+    // (No uniform-fog term: the Gaussian terms alone.)
+    const FogshopAirlight::SpanBackground background = [](std::size_t, double, double) { return 0.0; };
     const std::vector<double> albedo(3 * 301, 0.8);
     const std::vector<RGB> I0{RGB(1.0), RGB(2.0, 1.0, 0.5), RGB(0.3)};
     const std::vector<std::pair<double, double>> lit{{0.3, 7.0}, {9.0, 15.5}, {18.0, INFINITY}};
@@ -302,9 +303,10 @@ TEST(GaussianAirlight, FastSpansMatchDouble) {
             const RaySpans one{spans->data(), int(spans->size())};
             const RaySpans each[3] = {one, one, one};
             for (const PhaseFunction* phase : {static_cast<const PhaseFunction*>(nullptr), &hg}) {
-                const RGB exact = fog.eval_rgb_spans(dir, 0.3, each, albedo.data(), I0.data(), RGB(0.9), phase, &background);
-                const RGB fast = fog.eval_rgb_spans(dir, 0.3, each, albedo.data(), I0.data(), RGB(0.9), phase, &background,
-                                                    nullptr, true);
+                const RGB exact =
+                    fog.eval_rgb_spans(dir, 0.3, each, albedo.data(), I0.data(), RGB(0.9), phase, &background);
+                const RGB fast = fog.eval_rgb_spans(dir, 0.3, each, albedo.data(), I0.data(), RGB(0.9), phase,
+                                                    &background, nullptr, true);
                 ASSERT_GT(exact.x, 0.0);
                 for (int ch = 0; ch < 3; ++ch) EXPECT_NEAR(fast[ch], exact[ch], 3e-5 * exact[ch]) << "channel " << ch;
                 ++compared;

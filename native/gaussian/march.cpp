@@ -225,7 +225,8 @@ RGB gaussian_march_airlight_rgb(const GaussianMedium& medium, const Vec3& s, con
         double h = 0.1 * std::max(d, 1e-9 * std::max(1.0, glm::length(vs))) * (blend ? 0.5 * blend_lobe : lobe);
         if (in_fog) h = std::min(h, inside_step);
         if (next < line.size() && line[next].lo > t) h = std::min(h, std::max(line[next].lo - t, inside_step));
-        h = std::min({h, end - t, 0.5 / dens_a.beta, boundary - t, next_cut(t) - t});  // (thick fog: a step's depth stays below 1/2)
+        // (Thick fog: a step's depth stays below 1/2.)
+        h = std::min({h, end - t, 0.5 / dens_a.beta, boundary - t, next_cut(t) - t});
         Density dens_m, dens_b;
         RGB f_m, f_b, step;
         double T_b;
