@@ -8,6 +8,7 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "core/build_progress.h"
 #include "core/constants.h"
 #include "core/parallel.h"
 #include "core/target_clones.h"
@@ -347,6 +348,7 @@ double FogEvaluator::march_map_error(const LightDepthMap& map) const {
         const Vec3 to = gaussian_->centre(size_t(k) * n / kMapCheckRays) - origin_;
         const double D = glm::length(to);
         if (!(D > 0.0)) continue;
+        build_progress_check();  // (the bake's bar and cancel through the check's marches)
         GaussianMarch with_map, exact;
         with_map.set_accuracy(refine_target_), exact.set_accuracy(refine_target_);
         const double mapped = gaussian_march_airlight(*gaussian_, map.light(), phase_, origin_, to / D, 2.0 * D, &map, with_map);

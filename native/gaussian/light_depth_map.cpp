@@ -5,6 +5,7 @@
 #include <cmath>
 #include <stdexcept>
 
+#include "core/build_progress.h"
 #include "core/constants.h"
 #include "core/cube_map.h"
 #include "core/fast_erf.h"
@@ -51,6 +52,7 @@ LightDepthMap::LightDepthMap(const GaussianMedium& medium, const Vec3& s, int fa
             const int f = int(row) / face, j = int(row) % face;
             for (int i = 0; i < face; ++i)
                 fill(medium, direction(f, i, j), &tau_[((std::size_t(f) * face + j) * face + i) * radial], acc, beyond);
+            build_progress_check();  // progress and cancel of the bake building it
         }
     });
 }
