@@ -125,10 +125,15 @@ RGB gaussian_march_airlight_rgb(const GaussianMedium& medium, const Vec3& s, con
         blend_lobe = std::min(lobe, std::acos(cone.cos_half_angle) -
                                         std::acos(std::min(1.0, cone.cos_half_angle + cone.smooth)));
     }
-    auto in_blend = [&](double t) {  // (just past t: t may be a cut)
-        if (!(blend_lobe < lobe)) return false;
+    // The cosine to a spot's axis just past t (t may be a cut), seen from the light.
+    auto cone_cos = [&](double t) {
         const Vec3 sx = v + (t + 1e-7 * std::max(1.0, t)) * r - s;
-        const double len = glm::length(sx), c = len > 0.0 ? glm::dot(march.cone->axis, sx) / len : 1.0;
+        const double len = glm::length(sx);
+        return len > 0.0 ? glm::dot(march.cone->axis, sx) / len : 1.0;
+    };
+    auto in_blend = [&](double t) {
+        if (!(blend_lobe < lobe)) return false;
+        const double c = cone_cos(t);
         return c > march.cone->cos_half_angle && c < march.cone->cos_half_angle + march.cone->smooth;
     };
     const double inside_step = march.step_widths * narrowest;
@@ -263,11 +268,7 @@ RGB gaussian_march_airlight_rgb(const GaussianMedium& medium, const Vec3& s, con
         const double d_min2 = t >= t_s ? glm::dot(v + t * r - s, v + t * r - s) : glm::dot(vs, vs) - t_s * t_s;
         if (d_min2 > 0.0 && albedo_sum * p_max * std::exp(-Tv) / d_min2 <= march.tail_tol * sum(total)) break;
         // Past a spot's last cone crossing and outside the cone: nothing more is lit.
-        if (march.cone && std::isinf(next_cut(t))) {
-            const Vec3 sx = v + (t + 1e-7 * std::max(1.0, t)) * r - s;
-            const double len = glm::length(sx);
-            if (len > 0.0 && !(spot_profile(*march.cone, glm::dot(march.cone->axis, sx) / len) > 0.0)) break;
-        }
+        if (march.cone && std::isinf(next_cut(t)) && !(spot_profile(*march.cone, cone_cos(t)) > 0.0)) break;
         active.drop(t);
         if (infinite && active.empty() && next == line.size() && t > std::max(t_s, last_end)) {
             // Only the uniform fog is left: its rest is below beta0 p_max e^{-Tv} / (t - t_s).
