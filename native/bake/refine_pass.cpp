@@ -219,16 +219,23 @@ class CellRefiner {
                 else w_none += w[q];
             }
             v[ch] = (wr > 0.0 ? b[ch] * ratio * (wr + w_none) / wr : 0.0) + add;
-            if (unknown && b[ch] > 0.0 && !(wr > 0.0) && !(add > 0.0)) *unknown = true;
+            if (unknown && b[ch] > 0.0 && (w_none > 0.0 || !(wr > 0.0 || add > 0.0))) *unknown = true;
         }
         return v;
     }
 
     // The refined centre _m_ against the corners' interpolation there.
     bool fits(int x0, int y0, int x1, int y1, const Sample c[4], int xm, int ym, const Sample& m) const {
-        for (int q = 0; q < 4; ++q)
-            for (int ch = 0; ch < 3; ++ch)
+        for (int ch = 0; ch < 3; ++ch) {
+            bool dark = false, lit = false;
+            for (int q = 0; q < 4; ++q) {
                 if (!(c[q].base[ch] > 0.0) && c[q].refined[ch] > 0.0) return false;  // (no ratio there)
+                (c[q].base[ch] > 0.0 ? lit : dark) = true;
+            }
+            // A dark corner beside a lit one: the edge of a spot's cone (or a shadow) crosses the
+            // cell, where Fogshop's fog and the exact fog end a pixel apart.
+            if (dark && lit) return false;
+        }
         const RGB guess = interpolate(xm, ym, x0, y0, x1, y1, c);
         for (int ch = 0; ch < 3; ++ch)
             if (!(std::abs(guess[ch] - m.refined[ch]) <= tol_ * m.refined[ch])) return false;
