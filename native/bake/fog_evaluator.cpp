@@ -319,14 +319,19 @@ void FogEvaluator::plan_marches(GaussianRefinePlan& plan, int threads) {
     for (size_t l = 0; l < march.size(); ++l) {
         if (!march[l]) continue;
         marched_.push_back(l);
+        // A spot's map holds its cone alone (a sixth of the sphere for a 60 degree one).
+        const SpotCone* cone = l >= n_gaussian_points_ ? &gaussian_spots_[l - n_gaussian_points_].cone : nullptr;
+        const Vec3 axis = cone ? cone->axis : Vec3(0.0, 0.0, -1.0);
+        const double half_angle = cone ? std::acos(std::clamp(cone->cos_half_angle, -1.0, 1.0)) : kPi;
         std::unique_ptr<LightDepthMap> map;
         for (int face = 64; face <= kMarchMapMaxFace && !map;) {
             const std::size_t map_bytes = std::size_t(6) * face * face * kMarchMapRadial * sizeof(float);
             if (bytes + map_bytes > kMarchMapMaxBytes) break;
-            map = std::make_unique<LightDepthMap>(*gaussian_, gaussian_lights_[l], face, kMarchMapRadial, threads);
-            const double error = march_map_error(*map);
+            map = std::make_unique<LightDepthMap>(*gaussian_, gaussian_lights_[l], axis, half_angle, face,
+                                                  kMarchMapRadial, threads);
+            const double error = march_map_error(*map, cone);
             if (error <= need) {
-                bytes += map_bytes;
+                bytes += map->bytes();
                 break;
             }
             map.reset();
@@ -338,19 +343,27 @@ void FogEvaluator::plan_marches(GaussianRefinePlan& plan, int threads) {
     }
 }
 
-double FogEvaluator::march_map_error(const LightDepthMap& map) const {
+double FogEvaluator::march_map_error(const LightDepthMap& map, const SpotCone* cone) const {
     // Rays from the eye through kMapCheckRays Gaussians' centres (picked evenly through the
-    // list; to twice the centre's distance), on which the fog is.
+    // list of those the light reaches: a spot's, in its cone; to twice the centre's distance),
+    // on which the fog is.
     constexpr int kMapCheckRays = 16;
-    const size_t n = gaussian_->size();
+    std::vector<size_t> reached;
+    for (size_t j = 0; j < gaussian_->size(); ++j) {
+        const Vec3 u = gaussian_->centre(j) - map.light();
+        if (!cone || spot_profile(*cone, glm::dot(cone->axis, u) / std::max(glm::length(u), 1e-300)) > 0.0)
+            reached.push_back(j);
+    }
+    const size_t n = reached.size();
     double worst = 0.0;
     for (int k = 0; k < kMapCheckRays && n > 0; ++k) {
-        const Vec3 to = gaussian_->centre(size_t(k) * n / kMapCheckRays) - origin_;
+        const Vec3 to = gaussian_->centre(reached[size_t(k) * n / kMapCheckRays]) - origin_;
         const double D = glm::length(to);
         if (!(D > 0.0)) continue;
         build_progress_check();  // (the bake's bar and cancel through the check's marches)
         GaussianMarch with_map, exact;
         with_map.set_accuracy(refine_target_), exact.set_accuracy(refine_target_);
+        with_map.cone = exact.cone = cone;
         const double mapped = gaussian_march_airlight(*gaussian_, map.light(), phase_, origin_, to / D, 2.0 * D, &map, with_map);
         const double ref = gaussian_march_airlight(*gaussian_, map.light(), phase_, origin_, to / D, 2.0 * D, nullptr, exact);
         if (ref > 0.0) worst = std::max(worst, std::abs(mapped - ref) / ref);

@@ -192,8 +192,8 @@ class FogEvaluator {
     // Takes the point and spot lights with pairs to refine out of _plan_ into marched_, with their maps.
     void plan_marches(GaussianRefinePlan& plan, int threads);
     // The largest relative error of the march's airlight with _map_ against exact light depths
-    // on a few rays from the eye through the Gaussians.
-    double march_map_error(const LightDepthMap& map) const;
+    // on a few rays from the eye through the Gaussians (through those a spot's _cone_ lights).
+    double march_map_error(const LightDepthMap& map, const SpotCone* cone) const;
     // refine_gaussians' uniform-fog part for one ray d over [near, end] (Tg_near: the
     // Gaussians' depth before near; lit: its lit intervals, null when untraced: lit all along),
     // _view_ gathered on demand.

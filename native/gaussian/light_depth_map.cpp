@@ -34,15 +34,37 @@ AIRLIGHT_SIMD_CLONES void add_erf_steps(float* acc, int lo, int hi, float K, flo
 }  // namespace
 
 LightDepthMap::LightDepthMap(const GaussianMedium& medium, const Vec3& s, int face, int radial, int threads)
+    : LightDepthMap(medium, s, Vec3(0.0, 0.0, -1.0), kPi, face, radial, threads) {}
+
+LightDepthMap::LightDepthMap(const GaussianMedium& medium, const Vec3& s, const Vec3& axis, double half_angle, int face,
+                             int radial, int threads)
     : s_(s), face_(face), radial_(radial) {
     if (face < 2 || radial < 2) throw std::invalid_argument("LightDepthMap: face and radial must be >= 2");
     if (!std::isfinite(s.x) || !std::isfinite(s.y) || !std::isfinite(s.z))
         throw std::invalid_argument("LightDepthMap: the light's position is not finite");
+    // A read interpolates the four grid points around its direction, at most a cell's diagonal
+    // away, and a cell spans at most 2 / (face - 1) rad of the sphere (at a face's centre).
+    const double reach = half_angle + 2.0 * 2.0 / (face - 1);
+    if (reach < kPi) {
+        const double len = glm::length(axis);
+        if (!(len > 0.0) || !std::isfinite(len) || !(half_angle >= 0.0))
+            throw std::invalid_argument("LightDepthMap: the cone's axis or angle is not valid");
+        axis_ = axis / len;
+        cos_reach_ = std::cos(reach);
+    }
     for (std::size_t j = 0; j < medium.size(); ++j)
         if (medium.cull_radius(j) > 0.0)
             r_max_ = std::max(r_max_, glm::length(medium.centre(j) - s) + medium.cull_radius(j));
     dr_ = r_max_ > 0.0 ? r_max_ / (radial - 1) : 1.0;
-    tau_.assign(std::size_t(6) * face * face * radial, 0.0f);
+    // The faces with a grid point in reach.
+    int held = 0;
+    for (int f = 0; f < 6; ++f) {
+        bool any = false;
+        for (int j = 0; j < face && !any; ++j)
+            for (int i = 0; i < face && !any; ++i) any = lit(direction(f, i, j));
+        slot_[f] = any ? held++ : -1;
+    }
+    tau_.assign(std::size_t(held) * face * face * radial, 0.0f);
     if (r_max_ == 0.0) return;
     const int rows = 6 * face;
     parallel_chunks(std::size_t(rows), threads, 1, [&](std::size_t begin, std::size_t end) {
@@ -50,8 +72,11 @@ LightDepthMap::LightDepthMap(const GaussianMedium& medium, const Vec3& s, int fa
         std::vector<double> beyond(radial + 1);
         for (std::size_t row = begin; row < end; ++row) {
             const int f = int(row) / face, j = int(row) % face;
-            for (int i = 0; i < face; ++i)
-                fill(medium, direction(f, i, j), &tau_[((std::size_t(f) * face + j) * face + i) * radial], acc, beyond);
+            if (slot_[f] < 0) continue;
+            for (int i = 0; i < face; ++i) {
+                const Vec3 w = direction(f, i, j);
+                if (lit(w)) fill(medium, w, &tau_[((std::size_t(slot_[f]) * face + j) * face + i) * radial], acc, beyond);
+            }
             build_progress_check();  // progress and cancel of the bake building it
         }
     });
@@ -91,7 +116,8 @@ double LightDepthMap::operator()(const Vec3& x) const {
     const Vec3 d = x - s_;
     if (d == Vec3(0.0)) return 0.0;
     const CubeFacePoint c = cube_face_point(d);
-    const int f = c.face;
+    const int f = slot_[c.face];
+    if (f < 0) return 0.0;  // (out of a spot's reach)
     const double fu = std::clamp((c.p + 1.0) * 0.5 * (face_ - 1), 0.0, face_ - 1.0);
     const double fv = std::clamp((c.q + 1.0) * 0.5 * (face_ - 1), 0.0, face_ - 1.0);
     const int i0 = std::min(int(fu), face_ - 2), j0 = std::min(int(fv), face_ - 2);

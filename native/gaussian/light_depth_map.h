@@ -20,6 +20,7 @@
 // tau, 128 x 128 a quarter of it, and a view ray's airlight within 0.2 % (gaussian/march.h).
 #pragma once
 
+#include <algorithm>
 #include <cstddef>
 #include <vector>
 
@@ -33,6 +34,13 @@ class LightDepthMap {
     // The map of _medium_'s Gaussians around point light _s_: _face_ >= 2 grid points along
     // each cube face's side, _radial_ >= 2 distances; built on _threads_ threads (0: all).
     LightDepthMap(const GaussianMedium& medium, const Vec3& s, int face = 64, int radial = 256, int threads = 0);
+    // The map of a spot light, whose light reaches only the directions within _half_angle_
+    // (rad) of _axis_: the directions beyond it by more than two of the grid's largest
+    // spacings are left out (read as 0: a march never asks there, where the light's profile is
+    // 0), and so are the faces that hold none of the others. A 60 degree cone fills about a
+    // sixth of the sphere. _half_angle_ >= pi: the whole sphere.
+    LightDepthMap(const GaussianMedium& medium, const Vec3& s, const Vec3& axis, double half_angle, int face = 64,
+                  int radial = 256, int threads = 0);
 
     // The Gaussians' optical depth from the light to _x_ (beta0 left out).
     double operator()(const Vec3& x) const;
@@ -40,6 +48,8 @@ class LightDepthMap {
     const Vec3& light() const { return s_; }
     double max_radius() const { return r_max_; }
     std::size_t bytes() const { return tau_.size() * sizeof(float); }
+    // The cube faces the map holds (6 but for a spot's).
+    int faces_held() const { return int(std::count_if(slot_, slot_ + 6, [](int k) { return k >= 0; })); }
 
   private:
     // The unit direction of grid point (i, j) of cube face f.
@@ -48,10 +58,14 @@ class LightDepthMap {
     void fill(const GaussianMedium& medium, const Vec3& w, float* out, std::vector<float>& acc,
               std::vector<double>& beyond) const;
 
-    Vec3 s_;
+    // Whether unit direction _w_ is within the cone's reach (always for a point light).
+    bool lit(const Vec3& w) const { return glm::dot(w, axis_) >= cos_reach_; }
+
+    Vec3 s_, axis_{0.0, 0.0, -1.0};
     int face_, radial_;
-    double r_max_ = 0.0, dr_ = 1.0;
-    std::vector<float> tau_;  // [face][j][i][radial]
+    double r_max_ = 0.0, dr_ = 1.0, cos_reach_ = -2.0;
+    int slot_[6] = {0, 1, 2, 3, 4, 5};  // each face's place in tau_, -1 where left out
+    std::vector<float> tau_;            // [slot][j][i][radial]
 };
 
 }  // namespace airlight

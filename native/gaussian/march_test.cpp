@@ -87,6 +87,40 @@ double relative(double x, double ref) { return std::abs(x - ref) / ref; }
 
 // Rays from outside and inside the cloud, to surfaces and to infinity; an HG phase; a light
 // inside the cloud and one at a Gaussian's centre.
+// A spot's map holds its cone and a margin: there it reads what the whole sphere's map does
+// (the same grid points), beyond the margin 0; a 60 degree cone down the -y axis needs the -y
+// face alone (its edge at 30 degrees off the axis, the face's at 35 at least).
+TEST(LightDepthMap, SpotConeOnly) {
+    const GaussianMedium m = cloud(400, 12.0, 30.0, 0.5, 2.0, 0.02, 0.1, 0.0, 11);
+    const Vec3 s(0.0, 8.0, 25.0);
+    const Vec3 axis(0.0, -1.0, 0.0);
+    const double half = 30.0 * kPi / 180.0;
+    const LightDepthMap whole(m, s, 64, 128, 2), spot(m, s, axis, half, 64, 128, 2);
+    EXPECT_EQ(whole.faces_held(), 6);
+    EXPECT_EQ(spot.faces_held(), 1);
+    EXPECT_EQ(spot.bytes() * 6, whole.bytes());
+    std::mt19937 rng(3);
+    std::uniform_real_distribution<double> u(-1.0, 1.0), ur(1.0, 30.0);
+    int inside = 0, outside = 0;
+    for (int k = 0; k < 4000; ++k) {
+        const Vec3 w = glm::normalize(Vec3(u(rng), u(rng), u(rng)));
+        const Vec3 x = s + ur(rng) * w;
+        const double angle = std::acos(std::clamp(glm::dot(w, axis), -1.0, 1.0));
+        if (angle <= half) {
+            ++inside;
+            EXPECT_EQ(spot(x), whole(x)) << angle;
+        } else if (angle > half + 4.0 * 2.0 / 63.0) {
+            ++outside;
+            EXPECT_EQ(spot(x), 0.0);
+        }
+    }
+    EXPECT_GT(inside, 100);
+    EXPECT_GT(outside, 100);
+    // A wide cone (150 degrees) reaches five faces; an axis of zero length is refused.
+    EXPECT_EQ(LightDepthMap(m, s, axis, 75.0 * kPi / 180.0, 16, 16, 1).faces_held(), 5);
+    EXPECT_THROW(LightDepthMap(m, s, Vec3(0.0), half, 16, 16, 1), std::invalid_argument);
+}
+
 TEST(GaussianMarch, MatchesTheQuadrature) {
     const GaussianMedium m = cloud(150, 10.0, 25.0, 0.6, 2.0, 0.02, 0.15, 0.002, 3);
     const PhaseFunction iso{}, hg{PhaseKind::HenyeyGreenstein, 0.5};
@@ -209,11 +243,12 @@ TEST(GaussianMarch, SpotMatchesTheQuadrature) {
     const Vec3 s(-1.0, 6.0, 14.0), v(0.0);
     const Vec3 axis = glm::normalize(Vec3(0.1, -1.0, 0.05));
     const PhaseFunction hg{PhaseKind::HenyeyGreenstein, 0.4};
-    const LightDepthMap map(m, s, 64, 256, 2);
     double worst = 0.0, worst_coarse = 0.0;
     int lit = 0;
     for (const SpotCone& cone : {make_spot_cone(axis, 0.8, 0.0), make_spot_cone(axis, 1.2, 0.4),
-                                 make_spot_cone(axis, kPi, 0.0, 0.6)})
+                                 make_spot_cone(axis, kPi, 0.0, 0.6)}) {
+        // (the map of the cone alone, as the bake builds it)
+        const LightDepthMap map(m, s, cone.axis, std::acos(cone.cos_half_angle), 64, 256, 2);
         for (Vec3 r : {Vec3(0.0, 0.2, 1.0), Vec3(-0.15, 0.25, 1.0), Vec3(0.2, 0.1, 1.0)}) {
             r = glm::normalize(r);
             for (double Dvp : {25.0, double(INFINITY)}) {
@@ -241,6 +276,7 @@ TEST(GaussianMarch, SpotMatchesTheQuadrature) {
                 worst_coarse = std::max(worst_coarse, relative(fast, ref));
             }
         }
+    }
     EXPECT_GE(lit, 8);
     std::printf("[ march ] spots: %d rays, %.2e relative at most (1 %% steps %.2e)\n", lit, worst, worst_coarse);
 }
