@@ -105,22 +105,13 @@ FogshopAirlight::FogshopAirlight(const GaussianMedium& medium, const Vec3& origi
         Csv_.push_back(D > 0.0 ? std::exp(-medium.optical_depth_ray(s, d / D, D, GaussianMedium::npos, false)) : 1.0);
     }
     // f1 with Gaussian i's own terms removed: the medium without i (beta0 included) on
-    // s -> b_i and v -> b_i, summed directly so that no T_i cancels against itself.
-    std::vector<double> Tv(n);
-    auto depth_to = [&](const Vec3& from, std::size_t i) {
-        const Vec3 d = medium.centre(i) - from;
-        const double D = glm::length(d);
-        return D > 0.0 ? medium.optical_depth_ray(from, d / D, D, i, true) : 0.0;
-    };
-    parallel_chunks(n, threads, 64, [&](std::size_t b, std::size_t e) {
-        for (std::size_t i = b; i < e; ++i) Tv[i] = depth_to(v_, i);
-    });
+    // s -> b_i and v -> b_i, summed directly so that no T_i cancels against itself (the
+    // splat's sums, gaussian_centre_depths, in float: the two Fogshop values agree).
+    const std::vector<double> depth = gaussian_centre_depths(medium, v_, lights_, threads);
+    const std::vector<double> Tv(depth.begin(), depth.begin() + std::ptrdiff_t(n));
     f1_.resize(L * n);
-    for (std::size_t l = 0; l < L; ++l) {
-        parallel_chunks(n, threads, 64, [&](std::size_t b, std::size_t e) {
-            for (std::size_t i = b; i < e; ++i) f1_[l * n + i] = std::exp(-depth_to(lights_[l], i) - Tv[i]);
-        });
-    }
+    for (std::size_t l = 0; l < L; ++l)
+        for (std::size_t i = 0; i < n; ++i) f1_[l * n + i] = std::exp(-depth[(l + 1) * n + i] - Tv[i]);
     // Suns: the splat's f1 and C factors (GaussianSplat::sun_weights), in double.
     f1_sun_.resize(sun_dirs.size() * n);
     for (std::size_t j = 0; j < sun_dirs.size(); ++j) {

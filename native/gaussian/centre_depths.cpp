@@ -877,6 +877,18 @@ std::vector<double> gaussian_depths_to_centres(const GaussianMedium& medium, con
     return star_depths(medium, sources, first, last, cand_first, cand_last, threads, method);
 }
 
+std::vector<double> gaussian_centre_depths(const GaussianMedium& medium, const Vec3& eye, const std::vector<Vec3>& lights,
+                                           int threads) {
+    const std::size_t n = medium.size();
+    std::vector<Vec3> src{eye};
+    src.insert(src.end(), lights.begin(), lights.end());
+    std::vector<double> out = gaussian_depths_to_centres(medium, src, 0, n, 0, n, threads);
+    for (std::size_t row = 0; row < src.size(); ++row)
+        for (std::size_t i = 0; i < n; ++i)
+            out[row * n + i] += background_depth(medium.beta0(), glm::length(medium.centre(i) - src[row]));
+    return out;
+}
+
 std::vector<double> gaussian_sun_depths(const GaussianMedium& medium, const Vec3& u, int threads) {
     if (!std::isfinite(u.x) || !std::isfinite(u.y) || !std::isfinite(u.z) || std::abs(glm::length(u) - 1.0) > 1e-6)
         throw std::invalid_argument("rbf_sun_depths: the sun direction must be a finite unit vector");

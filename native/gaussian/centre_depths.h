@@ -26,6 +26,11 @@ std::vector<double> gaussian_depths_to_centres(const GaussianMedium& medium, con
                                                std::size_t first, std::size_t last, std::size_t cand_first,
                                                std::size_t cand_last, int threads = 0, int method = 0);
 
+// T(s_r, b_i) without Gaussian i, beta0 included, for s_0 = _eye_ and s_1..L = _lights_,
+// every Gaussian: out[r n + i] (the factors f1 of the splat and of FogshopAirlight).
+std::vector<double> gaussian_centre_depths(const GaussianMedium& medium, const Vec3& eye, const std::vector<Vec3>& lights,
+                                           int threads = 0);
+
 // The same towards a sun lamp (GaussianSplatLights): out[i] = sum over j != i of T_j on the
 // half-line b_i + t u, t >= 0 (u unit, towards the sun), culled, in float, no beta0 (binned
 // on a grid over the plane normal to u). Throws std::invalid_argument unless u is a finite

@@ -24,20 +24,6 @@ using namespace splat;
 
 namespace {
 
-// T(from_row, b_i) without Gaussian i (beta0 included) for row 0 = the eye and rows 1..L
-// = the lights, all Gaussians: out[row n + i].
-std::vector<double> depths_to_centres(const GaussianMedium& m, const Vec3& eye, const std::vector<Vec3>& lights,
-                                      int threads) {
-    const std::size_t n = m.size();
-    std::vector<Vec3> src{eye};
-    src.insert(src.end(), lights.begin(), lights.end());
-    std::vector<double> out = gaussian_depths_to_centres(m, src, 0, n, 0, n, threads);
-    for (std::size_t row = 0; row < src.size(); ++row)
-        for (std::size_t i = 0; i < n; ++i)
-            out[row * n + i] += background_depth(m.beta0(), glm::length(m.centre(i) - src[row]));
-    return out;
-}
-
 // Throws std::invalid_argument unless the extensions fit the L point lights (GaussianSplatLights).
 void check_extra(const GaussianSplatLights& extra, std::size_t L) {
     const std::size_t S = extra.sun_w.size();
@@ -118,7 +104,7 @@ GaussianSplat::GaussianSplat(const GaussianMedium& medium, const Vec3& eye, cons
                  std::find(extra->spot.begin(), extra->spot.end(), 1) == extra->spot.end();
     }
     const std::vector<double> depth =
-        L + S > 0 ? depths_to_centres(medium, eye, lights, threads) : std::vector<double>();
+        L + S > 0 ? gaussian_centre_depths(medium, eye, lights, threads) : std::vector<double>();
     g_.resize(n);
     gl_.resize(n * L);
     for (std::size_t i = 0; i < n; ++i) {
@@ -169,7 +155,7 @@ GaussianSplat::GaussianSplat(const GaussianMedium& medium, const Vec3& eye, cons
 
 // Suns: f1 = exp(-T_sun(b_i) - T(v, b_i)) without Gaussian i (culled half-line depths in
 // float, gaussian_sun_depths) and C = the Gaussians' transmittance from the eye towards the
-// sun; _depth_: T(v, b_i) without i in its first row (depths_to_centres).
+// sun; _depth_: T(v, b_i) without i in its first row (gaussian_centre_depths).
 void GaussianSplat::sun_weights(const std::vector<double>& depth) {
     const GaussianMedium& medium = medium_;
     const std::size_t n = medium.size(), S = extra_.sun_w.size();
