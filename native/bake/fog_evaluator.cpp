@@ -280,7 +280,11 @@ void FogEvaluator::set_up_refinement(const BakeSettings& settings, const Camera&
     refine_target_ = settings.gaussian_accuracy;
     refine_budget_ = std::uint64_t(std::max(0.0, settings.gaussian_refine_budget) / kRefineSecondsPerWork);
     const double pair_target = (background ? kPlanShare : kPlanShare + kBackgroundShare) * refine_target_;
-    GaussianRefinePlan plan = plan_gaussian_refinement(*gaussian_, origin_, lights, phase_, pair_target, threads);
+    // (point and spot lights are marched whole once a pair of theirs needs it: plan_marches)
+    std::vector<char> whole(lights.size(), 0);
+    std::fill(whole.begin(), whole.begin() + std::ptrdiff_t(gaussian_lights_.size()), 1);
+    GaussianRefinePlan plan =
+        plan_gaussian_refinement(*gaussian_, origin_, lights, phase_, pair_target, threads, whole);
     refine_pairs_ = plan.pairs;
     refine_kept_bound_ = plan.kept_bound;
     refine_error_bound_ = plan.kept_bound + (kPairShare + (background ? kBackgroundShare : 0.0)) * refine_target_;

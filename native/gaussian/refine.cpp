@@ -76,34 +76,55 @@ double phase_curvature(const PhaseFunction& phase) {
     return worst;
 }
 
+namespace {
+
+// The bound's light term, of the geometry alone (no walk of the medium): kGeo's, 0 and _dark_
+// for a Gaussian out of a spot's cone (the whole bound is 0), inf where there is no bound
+// (a light within kNear standard deviations; a cone's edge, blend or Spread across the support).
+struct LightTerm {
+    double e = 0.0;
+    bool dark = false;
+};
+
+LightTerm light_term(const GaussianMedium& medium, std::size_t i, const RefineLight& light, double kappa) {
+    if (light.kind == GaussianRefLight::Kind::Sun) return {};
+    const double sigma = sigma_of(medium.scale(i));
+    const Vec3 sb = medium.centre(i) - light.s;
+    const double D = glm::length(sb);
+    if (!(D > kNear * sigma)) return {kInf, false};
+    if (light.kind == GaussianRefLight::Kind::Spot) {
+        const Vec3 u = sb / D;
+        const double alpha = std::acos(std::clamp(glm::dot(light.cone.axis, u), -1.0, 1.0));
+        const double rho = std::asin(std::min(1.0, kNear * sigma / D));
+        const double edge = std::acos(std::clamp(light.cone.cos_half_angle, -1.0, 1.0));
+        const double inner = std::acos(std::clamp(light.cone.cos_half_angle + light.cone.smooth, -1.0, 1.0));
+        if (alpha - rho >= edge) return {0.0, true};      // outside the cone: no light
+        if (alpha + rho > inner) return {kInf, false};    // the cone's edge or blend across the support
+        if (light.cone.has_spread()) return {kInf, false};  // sin(h - theta) varies all across the cone
+    }
+    const double g = sigma / (D - 2.0 * sigma);
+    return {kGeo * g * g * (1.0 + kPhase * kappa), false};
+}
+
+}  // namespace
+
 double fogshop_pair_bound(const GaussianMedium& medium, std::size_t i, const RefineLight& light, const Vec3& eye,
                           double kappa) {
+    const LightTerm lt = light_term(medium, i, light, kappa);
+    if (lt.dark) return 0.0;
+    if (std::isinf(lt.e)) return kInf;
     const double a = medium.scale(i);
     const double sigma = sigma_of(a);
     const Vec3 b = medium.centre(i);
     const double beta = medium.density_near(b);  // (all of them: n^2 over the plan, minutes at 1e5)
-    double e = kThick * (beta / a) * (beta / a);
+    const double e = kThick * (beta / a) * (beta / a) + lt.e;
     double G_light = 0.0;
     if (light.kind == GaussianRefLight::Kind::Sun) {
-        const Vec3 u = -glm::normalize(light.w);
-        G_light = shade(medium, i, b, u, kInf, sigma);
+        G_light = shade(medium, i, b, -glm::normalize(light.w), kInf, sigma);
     } else {
         const Vec3 sb = b - light.s;
         const double D = glm::length(sb);
-        if (!(D > kNear * sigma)) return kInf;
-        const Vec3 u = sb / D;
-        if (light.kind == GaussianRefLight::Kind::Spot) {
-            const double alpha = std::acos(std::clamp(glm::dot(light.cone.axis, u), -1.0, 1.0));
-            const double rho = std::asin(std::min(1.0, kNear * sigma / D));
-            const double edge = std::acos(std::clamp(light.cone.cos_half_angle, -1.0, 1.0));
-            const double inner = std::acos(std::clamp(light.cone.cos_half_angle + light.cone.smooth, -1.0, 1.0));
-            if (alpha - rho >= edge) return 0.0;  // outside the cone: no light
-            if (alpha + rho > inner) return kInf;  // the cone's edge or blend across the support
-            if (light.cone.has_spread()) return kInf;  // sin(h - theta) varies all across the cone
-        }
-        const double g = sigma / (D - 2.0 * sigma);
-        e += kGeo * g * g * (1.0 + kPhase * kappa);
-        G_light = shade(medium, i, light.s, u, D, sigma);
+        G_light = shade(medium, i, light.s, sb / D, D, sigma);
     }
     const Vec3 vb = b - eye;
     const double Dv = glm::length(vb);
@@ -113,19 +134,37 @@ double fogshop_pair_bound(const GaussianMedium& medium, std::size_t i, const Ref
 
 GaussianRefinePlan plan_gaussian_refinement(const GaussianMedium& medium, const Vec3& eye,
                                             const std::vector<RefineLight>& lights, const PhaseFunction& phase,
-                                            double target, int threads) {
+                                            double target, int threads, const std::vector<char>& whole) {
     const double kappa = phase_curvature(phase);
     const std::size_t n = medium.size(), L = lights.size();
+    GaussianRefinePlan plan;
+    // A light refined whole needs one pair over the target: the light terms alone find one
+    // where the light is near a Gaussian (the bound is at least its light term), and its pairs
+    // need no walk of the medium.
+    std::vector<char> decided(L, 0);
+    for (std::size_t l = 0; l < L; ++l) {
+        if (l >= whole.size() || !whole[l]) continue;
+        std::vector<double> e(n, -1.0);
+        parallel_chunks(n, threads, 1024, [&](std::size_t begin, std::size_t end) {
+            for (std::size_t i = begin; i < end; ++i)
+                if (medium.cull_radius(i) > 0.0) e[i] = light_term(medium, i, lights[l], kappa).e;
+        });
+        const std::size_t worst = std::size_t(std::max_element(e.begin(), e.end()) - e.begin());
+        if (n == 0 || !(e[worst] > target)) continue;
+        decided[l] = 1;
+        plan.pairs += std::size_t(std::count_if(e.begin(), e.end(), [](double x) { return x >= 0.0; }));
+        plan.refined.push_back({std::uint32_t(l), std::uint32_t(worst), e[worst]});
+    }
     std::vector<double> bound(L * n, 0.0);
     parallel_chunks(L * n, threads, 64, [&](std::size_t begin, std::size_t end) {
         for (std::size_t p = begin; p < end; ++p) {
             const std::size_t l = p / n, i = p % n;
+            if (decided[l]) continue;
             bound[p] = medium.cull_radius(i) > 0.0 ? fogshop_pair_bound(medium, i, lights[l], eye, kappa) : -1.0;
         }
     });
-    GaussianRefinePlan plan;
     for (std::size_t p = 0; p < L * n; ++p) {
-        if (bound[p] < 0.0) continue;
+        if (decided[p / n] || bound[p] < 0.0) continue;
         ++plan.pairs;
         if (bound[p] > target)
             plan.refined.push_back({std::uint32_t(p / n), std::uint32_t(p % n), bound[p]});

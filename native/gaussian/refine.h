@@ -68,10 +68,13 @@ double fogshop_pair_bound(const GaussianMedium& medium, std::size_t i, const Ref
 double phase_curvature(const PhaseFunction& phase);
 
 // The pairs to refine for relative accuracy _target_ (> 0), every light against every
-// Gaussian, on _threads_ threads.
+// Gaussian, on _threads_ threads. The lights flagged in _whole_ are refined whole once a pair
+// of theirs is over the target (the bake marches them): for such a light the plan holds one
+// pair over the target (the one with the largest bound's light term, found without the walks
+// of the medium), or else all its pairs' bounds as for any light.
 GaussianRefinePlan plan_gaussian_refinement(const GaussianMedium& medium, const Vec3& eye,
                                             const std::vector<RefineLight>& lights, const PhaseFunction& phase,
-                                            double target, int threads = 0);
+                                            double target, int threads = 0, const std::vector<char>& whole = {});
 
 // The exact terms of a plan's pairs on view rays from _eye_.
 class GaussianRefiner {
