@@ -124,6 +124,11 @@ class CellRefiner {
     void cell(int x0, int y0, int x1, int y1, const Sample c[4], bool last_x, bool last_y) const {
         if (fog_.refine_abandoned()) return;
         const int xe = last_x ? x1 : x1 - 1, ye = last_y ? y1 : y1 - 1;
+        if (dark(x0, y0, x1, y1, c)) {  // (as outside a spot's cone, or the sky beyond the fog)
+            for (int y = y0; y <= ye; ++y)
+                for (int x = x0; x <= xe; ++x) store(x, y, on_grid(x, y) ? at(x, y).refined : RGB(0.0));
+            return;
+        }
         const bool smallest = x1 - x0 <= kMinCell && y1 - y0 <= kMinCell;
         const bool surface = same_surface(x0, y0, x1, y1);
         const int xm = (x0 + x1) / 2, ym = (y0 + y1) / 2;
@@ -157,8 +162,6 @@ class CellRefiner {
         }
         // Interpolated, but the samples' own pixels (and, at the smallest size, the pixels off
         // the corners' surface, refined alone).
-        float* A = ctx_.result.airlight.data();
-        const int W = ctx_.W;
         for (int y = y0; y <= ye; ++y)
             for (int x = x0; x <= xe; ++x) {
                 RGB v;
@@ -179,7 +182,7 @@ class CellRefiner {
                     v = interpolate(x, y, x0, y0, x1, y1, c, &unknown);
                     if (unknown) v = at(x, y).refined;
                 }
-                for (int ch = 0; ch < 3; ++ch) A[3 * (size_t(y) * W + x) + ch] = float(std::max(0.0, v[ch]));
+                store(x, y, v);
             }
     }
 
@@ -187,6 +190,24 @@ class CellRefiner {
     static std::unordered_map<std::uint64_t, Sample>& cell_samples() {
         thread_local std::unordered_map<std::uint64_t, Sample> known;
         return known;
+    }
+
+    void store(int x, int y, const RGB& v) const {
+        float* A = &ctx_.result.airlight[3 * (size_t(y) * ctx_.W + x)];
+        for (int ch = 0; ch < 3; ++ch) A[ch] = float(std::max(0.0, v[ch]));
+    }
+
+    static bool is_zero(const RGB& v) { return v.x == 0.0 && v.y == 0.0 && v.z == 0.0; }
+
+    // No fog in the cell: none at its corners, refined or Fogshop's, nor Fogshop's at its pixels
+    // and those around it (where Fogshop's fog ends, the exact fog may end a pixel away).
+    bool dark(int x0, int y0, int x1, int y1, const Sample c[4]) const {
+        for (int q = 0; q < 4; ++q)
+            if (!is_zero(c[q].base) || !is_zero(c[q].refined)) return false;
+        for (int y = std::max(0, y0 - 1); y <= std::min(ctx_.H - 1, y1 + 1); ++y)
+            for (int x = std::max(0, x0 - 1); x <= std::min(ctx_.W - 1, x1 + 1); ++x)
+                if (!is_zero(base(x, y))) return false;
+        return true;
     }
 
     RGB base(int x, int y) const {
