@@ -314,8 +314,11 @@ void FogEvaluator::plan_marches(GaussianRefinePlan& plan, int threads) {
     // The light depths from a map whose measured error fits the march's share of the accuracy
     // (kMarchShare; the cells' interpolation takes the rest) with a factor 2 to spare
     // (march_map_error: the march with the map against exact light depths on rays from the eye
-    // through the Gaussians). 64 x 64 a face first, then 128 and 256 while it errs more (the
-    // error falls as the square of the spacing: LightDepthMap.MatchesTheExactDepth); past that,
+    // through the Gaussians). 64 x 64 a face first, then 128 and 256 while it errs more. The
+    // error falls at least as the square of the spacing (LightDepthMap.MatchesTheExactDepth),
+    // often faster: on the 1e5-Gaussian benchmark cloud 64 errs 0.014, 128 0.0015 (9.5x less),
+    // so that predicting 128 from 64 by the square law (and building 256, 16x the cost of 64)
+    // wasted two thirds of the frame's set-up; each size is built and measured. Past 256,
     // or past kMarchMapMaxBytes for all the lights, the light depths are exact (slow with many
     // Gaussians: the budget decides).
     const double need = 0.5 * kMarchShare * refine_target_;
@@ -339,9 +342,7 @@ void FogEvaluator::plan_marches(GaussianRefinePlan& plan, int threads) {
                 break;
             }
             map.reset();
-            // The next face that the square law expects to fit (no map when none within the limit).
-            const int last = face;
-            while (face <= kMarchMapMaxFace && error * double(last) * last / (double(face) * face) > need) face *= 2;
+            face *= 2;  // (each size measured: none skipped on the square law's word)
         }
         march_maps_.push_back(std::move(map));
     }
