@@ -334,6 +334,8 @@ class FogEvaluator {
     // (GaussianMarch::work, ~4 ns with the float kernels) per refine_work unit (5.5e-8 s).
     static constexpr double kMarchShare = 0.5;
     static constexpr int kMarchMapRadial = 256, kMarchMapMaxFace = 256;
+    // The largest fall of a map's measured error per doubling of its face (plan_marches).
+    static constexpr double kMapFallBound = 10.0;
     static constexpr std::size_t kMarchMapMaxBytes = std::size_t(1) << 30;
     static constexpr long kMarchWorkPerUnit = 12;
     std::uint64_t refine_budget_ = 0;
