@@ -95,6 +95,28 @@ RGB gaussian_march_airlight_rgb(const GaussianMedium& medium, const Vec3& s, con
                                 GaussianMarch& march) {
     march.steps = 0, march.work = 0, march.stopped = false;
     const bool infinite = std::isinf(Dvp);
+    // A spot's profile edges: steps end there.
+    std::vector<double> cuts;
+    if (march.cone) {
+        const SpotCone& cone = *march.cone;
+        for (double c : {cone.cos_half_angle, cone.cos_half_angle + cone.smooth})
+            if (c < 1.0)
+                for (double x : ray_cone_crossings(v, r, s, cone.axis, c, 0.0, Dvp)) cuts.push_back(x);
+        if (cone.has_spread()) {
+            const double x = ray_axis_approach(v, r, s, cone.axis, 0.0, Dvp);
+            if (x > 0.0) cuts.push_back(x);
+        }
+        std::sort(cuts.begin(), cuts.end());
+    }
+    // A ray that starts outside a spot's cone and never crosses it is dark: no need to gather
+    // its Gaussians (most refined rays of a frame miss most spots). (Not with an IES profile,
+    // which may be 0 between lit directions away from any cut.)
+    const bool cone_bounds_light = march.cone && !march.cone->has_profile();
+    if (cone_bounds_light && cuts.empty()) {
+        const Vec3 sx = v + 1e-7 * r - s;
+        const double len = glm::length(sx);
+        if (len > 0.0 && !(spot_profile(*march.cone, glm::dot(march.cone->axis, sx) / len) > 0.0)) return RGB(0.0);
+    }
     std::vector<RayGaussian> line;
     double narrowest = std::numeric_limits<double>::infinity(), last_end = 0.0;
     medium.for_each_near(v, r, Dvp, [&](std::size_t g) {
@@ -141,19 +163,6 @@ RGB gaussian_march_airlight_rgb(const GaussianMedium& medium, const Vec3& s, con
     const double t_s = glm::dot(vs, r);  // the light's closest approach
     const double p_max = (isotropic ? kInv4Pi : std::max(phase.eval(1.0), phase.eval(-1.0))) *
                          (march.cone ? march.emission_max : 1.0);
-    // A spot's profile edges: steps end there.
-    std::vector<double> cuts;
-    if (march.cone) {
-        const SpotCone& cone = *march.cone;
-        for (double c : {cone.cos_half_angle, cone.cos_half_angle + cone.smooth})
-            if (c < 1.0)
-                for (double x : ray_cone_crossings(v, r, s, cone.axis, c, 0.0, Dvp)) cuts.push_back(x);
-        if (cone.has_spread()) {
-            const double x = ray_axis_approach(v, r, s, cone.axis, 0.0, Dvp);
-            if (x > 0.0) cuts.push_back(x);
-        }
-        std::sort(cuts.begin(), cuts.end());
-    }
     std::size_t cut = 0;
     auto next_cut = [&](double t) {
         while (cut < cuts.size() && cuts[cut] <= t) ++cut;
@@ -268,7 +277,7 @@ RGB gaussian_march_airlight_rgb(const GaussianMedium& medium, const Vec3& s, con
         const double d_min2 = t >= t_s ? glm::dot(v + t * r - s, v + t * r - s) : glm::dot(vs, vs) - t_s * t_s;
         if (d_min2 > 0.0 && albedo_sum * p_max * std::exp(-Tv) / d_min2 <= march.tail_tol * sum(total)) break;
         // Past a spot's last cone crossing and outside the cone: nothing more is lit.
-        if (march.cone && std::isinf(next_cut(t)) && !(spot_profile(*march.cone, cone_cos(t)) > 0.0)) break;
+        if (cone_bounds_light && std::isinf(next_cut(t)) && !(spot_profile(*march.cone, cone_cos(t)) > 0.0)) break;
         active.drop(t);
         if (infinite && active.empty() && next == line.size() && t > std::max(t_s, last_end)) {
             // Only the uniform fog is left: its rest is below beta0 p_max e^{-Tv} / (t - t_s).

@@ -281,6 +281,38 @@ TEST(GaussianMarch, SpotMatchesTheQuadrature) {
     std::printf("[ march ] spots: %d rays, %.2e relative at most (1 %% steps %.2e)\n", lit, worst, worst_coarse);
 }
 
+// An IES-like profile (profile alone, over the whole sphere) dark in a band between two lit
+// lobes, I(c) = 4c^2 - 1 clamped at 0: no cone crossing bounds it, so a ray through the lobe,
+// the band and the other lobe is marched through all three (a march that stopped in the dark
+// band, as past a hard cone's last crossing, lost the second lobe).
+TEST(GaussianMarch, ProfileDarkBandIsCrossed) {
+    const GaussianMedium m = cloud(60, 8.0, 20.0, 0.6, 2.0, 0.03, 0.3, 0.01, 7);
+    const Vec3 s(0.0, 2.0, 18.0), v(-20.0, 3.0, 18.0), r(1.0, 0.0, 0.0);
+    const SpotCone cone = make_profile_cone(Vec3(1.0, 0.0, 0.0), {-1.0, 0.0, 4.0});
+    GaussianRefLight light{GaussianRefLight::Kind::Spot, s};
+    light.cone = cone;
+    const PhaseFunction iso{};
+    const double Dvp = 40.0;
+    const double ref = gaussian_airlight_quadrature(m, light, iso, v, r, Dvp, 1e-9, GaussianSums::Culled);
+    // (the second lobe's share: the same ray from the band on)
+    const double second = gaussian_airlight_quadrature(m, light, iso, v + 21.0 * r, r, Dvp - 21.0, 1e-9,
+                                                       GaussianSums::Culled);
+    ASSERT_GT(second, 0.05 * ref);
+    GaussianMarch march;
+    march.cone = &cone;
+    march.emission_max = 3.0;
+    const double got = gaussian_march_airlight(m, s, iso, v, r, Dvp, nullptr, march);
+    EXPECT_LT(relative(got, ref), 1e-4) << got << " " << ref;
+    // From the band itself (no cone crossing, dark at the start) the ray still reaches the lobe.
+    GaussianMarch from_band;
+    from_band.cone = &cone;
+    from_band.emission_max = 3.0;
+    const double got2 = gaussian_march_airlight(m, s, iso, v + 20.0 * r, r, Dvp - 20.0, nullptr, from_band);
+    const double ref2 = gaussian_airlight_quadrature(m, light, iso, v + 20.0 * r, r, Dvp - 20.0, 1e-9,
+                                                     GaussianSums::Culled);
+    EXPECT_LT(relative(got2, ref2), 1e-4) << got2 << " " << ref2;
+}
+
 // Without Gaussians the march is the uniform fog's airlight (Sun 2005's integral).
 TEST(GaussianMarch, UniformFogLimit) {
     const GaussianMedium m({}, {}, {}, 0.05);
