@@ -111,12 +111,14 @@ RGB gaussian_march_airlight_rgb(const GaussianMedium& medium, const Vec3& s, con
     // A ray that starts outside a spot's cone and never crosses it is dark: no need to gather
     // its Gaussians (most refined rays of a frame miss most spots). (Not with an IES profile,
     // which may be 0 between lit directions away from any cut.)
-    const bool cone_bounds_light = march.cone && !march.cone->has_profile();
-    if (cone_bounds_light && cuts.empty()) {
-        const Vec3 sx = v + 1e-7 * r - s;
+    // The cosine to a spot's axis just past t (t may be a cut), seen from the light.
+    auto cone_cos = [&](double t) {
+        const Vec3 sx = v + (t + 1e-7 * std::max(1.0, t)) * r - s;
         const double len = glm::length(sx);
-        if (len > 0.0 && !(spot_profile(*march.cone, glm::dot(march.cone->axis, sx) / len) > 0.0)) return RGB(0.0);
-    }
+        return len > 0.0 ? glm::dot(march.cone->axis, sx) / len : 1.0;
+    };
+    const bool cone_bounds_light = march.cone && !march.cone->has_profile();
+    if (cone_bounds_light && cuts.empty() && !(spot_profile(*march.cone, cone_cos(0.0)) > 0.0)) return RGB(0.0);
     std::vector<RayGaussian> line;
     double narrowest = std::numeric_limits<double>::infinity(), last_end = 0.0;
     medium.for_each_near(v, r, Dvp, [&](std::size_t g) {
@@ -147,12 +149,6 @@ RGB gaussian_march_airlight_rgb(const GaussianMedium& medium, const Vec3& s, con
         blend_lobe = std::min(lobe, std::acos(cone.cos_half_angle) -
                                         std::acos(std::min(1.0, cone.cos_half_angle + cone.smooth)));
     }
-    // The cosine to a spot's axis just past t (t may be a cut), seen from the light.
-    auto cone_cos = [&](double t) {
-        const Vec3 sx = v + (t + 1e-7 * std::max(1.0, t)) * r - s;
-        const double len = glm::length(sx);
-        return len > 0.0 ? glm::dot(march.cone->axis, sx) / len : 1.0;
-    };
     auto in_blend = [&](double t) {
         if (!(blend_lobe < lobe)) return false;
         const double c = cone_cos(t);

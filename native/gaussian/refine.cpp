@@ -56,28 +56,6 @@ double shade(const GaussianMedium& medium, std::size_t i, const Vec3& o, const V
     return G;
 }
 
-}  // namespace
-
-std::uint64_t& refine_work() { return work; }
-std::uint64_t& refine_work_limit() { return work_limit; }
-
-double phase_curvature(const PhaseFunction& phase) {
-    if (phase.kind == PhaseKind::Isotropic) return 0.0;
-    constexpr int n = 2048;
-    const double h = kPi / n;
-    double worst = 0.0;
-    auto lp = [&](double th) { return std::log(phase.eval(std::cos(th))); };
-    for (int k = 1; k < n; ++k) {
-        const double th = k * h;
-        const double l0 = lp(th - h), l1 = lp(th), l2 = lp(th + h);
-        const double d1 = (l2 - l0) / (2.0 * h), d2 = (l2 - 2.0 * l1 + l0) / (h * h);
-        worst = std::max(worst, std::abs(d2) + d1 * d1);
-    }
-    return worst;
-}
-
-namespace {
-
 // The bound's light term, of the geometry alone (no walk of the medium): kGeo's, 0 and _dark_
 // for a Gaussian out of a spot's cone (the whole bound is 0), inf where there is no bound
 // (a light within kNear standard deviations; a cone's edge, blend or Spread across the support).
@@ -107,6 +85,24 @@ LightTerm light_term(const GaussianMedium& medium, std::size_t i, const RefineLi
 }
 
 }  // namespace
+
+std::uint64_t& refine_work() { return work; }
+std::uint64_t& refine_work_limit() { return work_limit; }
+
+double phase_curvature(const PhaseFunction& phase) {
+    if (phase.kind == PhaseKind::Isotropic) return 0.0;
+    constexpr int n = 2048;
+    const double h = kPi / n;
+    double worst = 0.0;
+    auto lp = [&](double th) { return std::log(phase.eval(std::cos(th))); };
+    for (int k = 1; k < n; ++k) {
+        const double th = k * h;
+        const double l0 = lp(th - h), l1 = lp(th), l2 = lp(th + h);
+        const double d1 = (l2 - l0) / (2.0 * h), d2 = (l2 - 2.0 * l1 + l0) / (h * h);
+        worst = std::max(worst, std::abs(d2) + d1 * d1);
+    }
+    return worst;
+}
 
 double fogshop_pair_bound(const GaussianMedium& medium, std::size_t i, const RefineLight& light, const Vec3& eye,
                           double kappa) {
