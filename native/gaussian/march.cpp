@@ -4,11 +4,13 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <optional>
 #include <vector>
 
 #include "core/constants.h"
 #include "core/fast_erf.h"
 #include "core/target_clones.h"
+#include "gaussian/splat.h"
 
 namespace airlight {
 
@@ -88,15 +90,41 @@ RGB weighted(const Window& w) {
 
 double sum(const RGB& x) { return x.x + x.y + x.z; }
 
-}  // namespace
+// The light of a march: a point light at s (a spot with GaussianMarch::cone) and its map, or a
+// sun lamp (sun non-null: its footprint, towards it along sun->u) with its map and the uniform
+// fog's layer top.
+struct MarchLight {
+    Vec3 s{0.0};
+    const LightDepthMap* map = nullptr;
+    const SunFootprint* sun = nullptr;
+    const SunDepthMap* sun_map = nullptr;
+    double fog_top = std::numeric_limits<double>::infinity();
+};
 
-RGB gaussian_march_airlight_rgb(const GaussianMedium& medium, const Vec3& s, const PhaseFunction& phase,
-                                const Vec3& v, const Vec3& r, double Dvp, const LightDepthMap* map,
-                                GaussianMarch& march) {
+RGB march_rgb(const GaussianMedium& medium, const MarchLight& light, const PhaseFunction& phase, const Vec3& v,
+              const Vec3& r, double Dvp, GaussianMarch& march) {
     march.steps = 0, march.work = 0, march.stopped = false;
     const bool infinite = std::isinf(Dvp);
-    // A spot's profile edges: steps end there.
+    const Vec3& s = light.s;
+    const LightDepthMap* map = light.map;
+    const SunFootprint* sun = light.sun;
+    // A spot's profile edges, a sun's layer top and the ends of the sun's footprint (where the
+    // Gaussians above shade the ray): steps end there.
     std::vector<double> cuts;
+    std::pair<double, double> shaded(1.0, 0.0);  // the ray within the sun's footprint
+    if (sun) {
+        if (!std::isinf(light.fog_top) && r.z != 0.0) cuts.push_back((light.fog_top - v.z) / r.z);
+        shaded = sun->clip(v, r);
+        if (shaded.first <= shaded.second)
+            for (double x : {shaded.first, shaded.second})
+                if (x > 0.0 && x < Dvp) cuts.push_back(x);
+        cuts.erase(std::remove_if(cuts.begin(), cuts.end(), [&](double x) { return !(x > 0.0 && x < Dvp); }), cuts.end());
+        std::sort(cuts.begin(), cuts.end());
+    }
+    // (A sun's steps within its footprint: the shade's scale, the map's cells or the Gaussians' widths.)
+    const double shade_step =
+        !sun ? 0.0 : light.sun_map ? std::max(light.sun_map->cell_step(r), march.step_widths * sun->narrowest)
+                                   : march.step_widths * sun->narrowest;
     if (march.cone) {
         const SpotCone& cone = *march.cone;
         for (double c : {cone.cos_half_angle, cone.cos_half_angle + cone.smooth})
@@ -156,9 +184,12 @@ RGB gaussian_march_airlight_rgb(const GaussianMedium& medium, const Vec3& s, con
     };
     const double inside_step = march.step_widths * narrowest;
     const Vec3 vs = s - v;
-    const double t_s = glm::dot(vs, r);  // the light's closest approach
-    const double p_max = (isotropic ? kInv4Pi : std::max(phase.eval(1.0), phase.eval(-1.0))) *
-                         (march.cone ? march.emission_max : 1.0);
+    const double t_s = sun ? 0.0 : glm::dot(vs, r);  // the light's closest approach
+    // (A sun's phase angle is the same all along the ray.)
+    const double p_sun = sun ? (isotropic ? kInv4Pi : phase.eval(glm::dot(sun->u, r))) : 0.0;
+    const double p_max = sun ? p_sun
+                             : (isotropic ? kInv4Pi : std::max(phase.eval(1.0), phase.eval(-1.0))) *
+                                   (march.cone ? march.emission_max : 1.0);
     std::size_t cut = 0;
     auto next_cut = [&](double t) {
         while (cut < cuts.size() && cuts[cut] <= t) ++cut;
@@ -193,6 +224,19 @@ RGB gaussian_march_airlight_rgb(const GaussianMedium& medium, const Vec3& s, con
                                                active.e.data());
         return Density{beta0 + beta_g, sigma0 + (one_albedo ? beta_g * albedo_g : weighted(active))};
     };
+    // A sun's: the uniform fog's layer depth and the Gaussians' on the half-line towards it.
+    auto sun_depth = [&](const Vec3& x) {
+        march.work += GaussianMarch::kPointWork;
+        const double layer = sunlight_layer_depth(beta0, light.fog_top, sun->u.z, x.z);
+        if (std::isinf(layer)) return layer;
+        if (light.sun_map) return layer + (*light.sun_map)(x);
+        double T = layer;
+        medium.for_each_near(x, sun->u, std::numeric_limits<double>::infinity(), [&](std::size_t g) {
+            T += medium.gaussian_optical_depth(g, x, sun->u, 0.0, std::numeric_limits<double>::infinity());
+            march.work += GaussianMarch::kTermWork;
+        });
+        return T;
+    };
     auto light_depth = [&](const Vec3& x, double d) {
         march.work += GaussianMarch::kPointWork;
         if (map) return beta0 * d + (*map)(x);
@@ -204,8 +248,15 @@ RGB gaussian_march_airlight_rgb(const GaussianMedium& medium, const Vec3& s, con
         });
         return T;
     };
+    const bool layer_top = sun && !std::isinf(light.fog_top);
     auto in_scattered = [&](double t, const Density& dens, double Tv) {
         if (dens.beta == 0.0) return RGB(0.0);
+        if (sun) {  // (the uniform fog scatters sunlight inside its layer only: sunlight_layer.h)
+            const Vec3 x = v + t * r;
+            const RGB sigma_s = layer_top && x.z > light.fog_top ? dens.sigma_s - sigma0 : dens.sigma_s;
+            if (sigma_s == RGB(0.0) || p_sun == 0.0) return RGB(0.0);
+            return sigma_s * (p_sun * std::exp(-sun_depth(x) - Tv));
+        }
         const Vec3 sx = v + t * r - s;
         const double d2 = glm::dot(sx, sx);
         if (!(d2 > 0.0)) return RGB(0.0);
@@ -225,14 +276,17 @@ RGB gaussian_march_airlight_rgb(const GaussianMedium& medium, const Vec3& s, con
     while (t < end) {
         const double boundary = next_end(t);
         if (march.lit && std::isinf(boundary)) break;  // (no lit span left)
-        const double d = glm::length(v + t * r - s);
-        const bool in_fog = !active.empty() || (next < line.size() && line[next].lo < t + 0.1 * d);
+        const double d = sun ? 0.0 : glm::length(v + t * r - s);
+        // (A sun's step outside the Gaussians is free but for the shade of those above.)
+        const bool in_fog = !active.empty() || (!sun && next < line.size() && line[next].lo < t + 0.1 * d);
         // In a spot's blend zone the profile falls to 0 as the square of the distance to its
         // outer end, where Simpson and the trapezoids part by half the step whatever its length:
         // the steps there are a twentieth of the zone's angle and take no halving test of the
         // in-scattering (the view depth's still holds).
         const bool blend = in_blend(t);
-        double h = 0.1 * std::max(d, 1e-9 * std::max(1.0, glm::length(vs))) * (blend ? 0.5 * blend_lobe : lobe);
+        double h = sun ? std::numeric_limits<double>::infinity()
+                       : 0.1 * std::max(d, 1e-9 * std::max(1.0, glm::length(vs))) * (blend ? 0.5 * blend_lobe : lobe);
+        if (sun && t >= shaded.first && t < shaded.second) h = std::min(h, shade_step);
         if (in_fog) h = std::min(h, inside_step);
         if (next < line.size() && line[next].lo > t) h = std::min(h, std::max(line[next].lo - t, inside_step));
         // (Thick fog: a step's depth stays below 1/2.)
@@ -270,17 +324,45 @@ RGB gaussian_march_airlight_rgb(const GaussianMedium& medium, const Vec3& s, con
         if (Tv > kOpaque) break;
         // Opaque enough: past t, int beta e^{-(T - Tv)} dt <= 1, so the rest is below
         // albedo p_max e^{-Tv} / d_min^2 (d_min: the light's least distance to the rest of the ray).
-        const double d_min2 = t >= t_s ? glm::dot(v + t * r - s, v + t * r - s) : glm::dot(vs, vs) - t_s * t_s;
+        const double d_min2 =
+            sun ? 1.0 : t >= t_s ? glm::dot(v + t * r - s, v + t * r - s) : glm::dot(vs, vs) - t_s * t_s;
         if (d_min2 > 0.0 && albedo_sum * p_max * std::exp(-Tv) / d_min2 <= march.tail_tol * sum(total)) break;
         // Past a spot's last cone crossing and outside the cone: nothing more is lit.
         if (cone_bounds_light && std::isinf(next_cut(t)) && !(spot_profile(*march.cone, cone_cos(t)) > 0.0)) break;
         active.drop(t);
-        if (infinite && active.empty() && next == line.size() && t > std::max(t_s, last_end)) {
+        if (sun && active.empty() && next == line.size() && t > last_end) {
+            // Only the uniform fog is left: nothing above the layer going up; on an infinite ray
+            // its rest is below p_sun e^{-Tv} (the integral of beta0 e^{-beta0 t} is 1).
+            if (beta0 == 0.0 || (layer_top && r.z >= 0.0 && v.z + t * r.z >= light.fog_top)) break;
+            if (infinite && p_max * std::exp(-Tv) <= march.tail_tol * sum(total) / 3.0) break;
+        } else if (!sun && infinite && active.empty() && next == line.size() && t > std::max(t_s, last_end)) {
             // Only the uniform fog is left: its rest is below beta0 p_max e^{-Tv} / (t - t_s).
             if (beta0 == 0.0 || beta0 * p_max * std::exp(-Tv) / (t - t_s) <= march.tail_tol * sum(total) / 3.0) break;
         }
     }
     return total;
+}
+
+}  // namespace
+
+RGB gaussian_march_airlight_rgb(const GaussianMedium& medium, const Vec3& s, const PhaseFunction& phase,
+                                const Vec3& origin, const Vec3& r, double Dvp, const LightDepthMap* map,
+                                GaussianMarch& march) {
+    MarchLight light;
+    light.s = s, light.map = map;
+    return march_rgb(medium, light, phase, origin, r, Dvp, march);
+}
+
+RGB gaussian_march_sun_rgb(const GaussianMedium& medium, const Vec3& u, double fog_top, const PhaseFunction& phase,
+                           const Vec3& origin, const Vec3& r, double Dvp, const SunDepthMap* map,
+                           GaussianMarch& march) {
+    std::optional<SunFootprint> own;
+    if (!map) own.emplace(medium, u);
+    MarchLight light;
+    light.sun = map ? &map->footprint() : &*own;
+    light.sun_map = map, light.fog_top = fog_top;
+    march.cone = nullptr;
+    return march_rgb(medium, light, phase, origin, r, Dvp, march);
 }
 
 void GaussianMarch::set_accuracy(double target) {
@@ -298,6 +380,15 @@ double gaussian_march_airlight(const GaussianMedium& medium, const Vec3& s, cons
     GaussianMarch unit = march;
     unit.albedo = nullptr, unit.medium_albedo = RGB(1.0);
     const double La = gaussian_march_airlight_rgb(medium, s, phase, origin, r, Dvp, map, unit).x;
+    march.steps = unit.steps, march.work = unit.work, march.stopped = unit.stopped;
+    return La;
+}
+
+double gaussian_march_sun(const GaussianMedium& medium, const Vec3& u, double fog_top, const PhaseFunction& phase,
+                          const Vec3& origin, const Vec3& r, double Dvp, const SunDepthMap* map, GaussianMarch& march) {
+    GaussianMarch unit = march;
+    unit.albedo = nullptr, unit.medium_albedo = RGB(1.0);
+    const double La = gaussian_march_sun_rgb(medium, u, fog_top, phase, origin, r, Dvp, map, unit).x;
     march.steps = unit.steps, march.work = unit.work, march.stopped = unit.stopped;
     return La;
 }

@@ -27,6 +27,7 @@
 #include "gaussian/airlight.h"
 #include "gaussian/light_depth_map.h"
 #include "gaussian/medium.h"
+#include "gaussian/sun_depth_map.h"
 #include "homogeneous/spot_light.h"
 
 namespace airlight {
@@ -71,5 +72,18 @@ RGB gaussian_march_airlight_rgb(const GaussianMedium& medium, const Vec3& s, con
 double gaussian_march_airlight(const GaussianMedium& medium, const Vec3& s, const PhaseFunction& phase,
                                const Vec3& origin, const Vec3& r, double Dvp, const LightDepthMap* map,
                                GaussianMarch& march);
+
+// The same for a sun lamp of unit irradiance seen towards unit direction _u_ (-w): the
+// in-scattering sigma_s p(u . r) exp(-T_sun(x) - T(v, x)), no 1 / d^2, with T_sun the uniform
+// fog's layer depth below _fog_top_ (sunlight_layer_depth; +inf: none) plus the Gaussians' on
+// the half-line towards the sun (from _map_, or exact when null), and the uniform fog
+// scattering inside its layer only (GaussianRefLight's sun). Inside the footprint of the
+// Gaussians' shade (SunFootprint) the steps stay within the map's cells (or the narrowest
+// width) and end at its sides; march.cone is not read.
+RGB gaussian_march_sun_rgb(const GaussianMedium& medium, const Vec3& u, double fog_top, const PhaseFunction& phase,
+                           const Vec3& origin, const Vec3& r, double Dvp, const SunDepthMap* map,
+                           GaussianMarch& march);
+double gaussian_march_sun(const GaussianMedium& medium, const Vec3& u, double fog_top, const PhaseFunction& phase,
+                          const Vec3& origin, const Vec3& r, double Dvp, const SunDepthMap* map, GaussianMarch& march);
 
 }  // namespace airlight

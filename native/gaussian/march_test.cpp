@@ -3,6 +3,7 @@
 // with the light and the camera inside and outside Gaussians.
 #include "gaussian/light_depth_map.h"
 #include "gaussian/march.h"
+#include "gaussian/sun_depth_map.h"
 
 #include <gtest/gtest.h>
 
@@ -325,6 +326,92 @@ TEST(GaussianMarch, UniformFogLimit) {
             EXPECT_NEAR(gaussian_march_airlight(m, s, PhaseFunction{}, v, r, Dvp, nullptr, march) / ref, 1.0, 1e-5);
         }
     }
+}
+
+// The sun's map: its depth against the exact half-line depth towards the sun, converging at
+// second order; 0 above and beside the cloud, the column's whole depth below it.
+TEST(SunDepthMap, MatchesTheExactDepth) {
+    const GaussianMedium m = cloud(400, 12.0, 30.0, 0.5, 2.0, 0.02, 0.1, 0.002, 11);
+    const Vec3 u = glm::normalize(Vec3(0.3, 0.8, -0.5));  // towards the sun (w = -u)
+    const SunDepthMap coarse(m, u, 64, 256, 2), fine(m, u, 128, 256, 2);
+    auto exact = [&](const Vec3& x) { return m.optical_depth_ray(x, u, INFINITY, GaussianMedium::npos, false); };
+    std::mt19937 rng(5);
+    std::uniform_real_distribution<double> ux(-14.0, 14.0), uy(-6.0, 6.0), uz(8.0, 42.0);
+    double ec = 0.0, ef = 0.0, depth = 0.0;
+    const int points = 3000;
+    for (int k = 0; k < points; ++k) {
+        const Vec3 x(ux(rng), uy(rng), uz(rng));
+        const double T = exact(x);
+        ec += std::abs(coarse(x) - T) / points, ef += std::abs(fine(x) - T) / points, depth += T / points;
+    }
+    std::printf("[ sun depth map ] mean depth %.3f; 64x256: mean error %.2e; 128x256: %.2e\n", depth, ec, ef);
+    EXPECT_GT(depth, 0.1);
+    EXPECT_LT(ef, 0.4 * ec);
+    EXPECT_LT(ef, 0.01 * depth);
+    // Far above the cloud towards the sun, and far beside it: nothing; far below it (against
+    // the light): the whole column.
+    EXPECT_EQ(fine(Vec3(0.0, 2.0, 25.0) + 200.0 * u), 0.0);
+    const Vec3 side = glm::normalize(glm::cross(u, Vec3(0.0, 0.0, 1.0)));
+    EXPECT_EQ(fine(Vec3(0.0, 2.0, 25.0) + 200.0 * side), 0.0);
+    const Vec3 below = Vec3(0.0, 2.0, 25.0) - 200.0 * u;
+    EXPECT_NEAR(fine(below), exact(below), 0.01 * exact(below) + 1e-4);
+    EXPECT_GT(exact(below), 0.1);
+    // The footprint holds every point with depth: its clip of a ray holds the shaded part.
+    const SunFootprint& f = fine.footprint();
+    const Vec3 o(0.0, -20.0, 25.0), r = glm::normalize(Vec3(0.05, 1.0, 0.02));
+    const auto [t0, t1] = f.clip(o, r);
+    for (double t = 0.0; t < 60.0; t += 0.25)
+        if (!(t >= t0 && t <= t1)) EXPECT_LT(exact(o + t * r), 1e-5) << t;
+    EXPECT_LT(t0, t1);
+    const GaussianMedium empty({}, {}, {}, 0.01);
+    EXPECT_EQ(SunDepthMap(empty, u, 8, 8, 1)(Vec3(1.0)), 0.0);
+    EXPECT_THROW(SunDepthMap(m, Vec3(0.0), 8, 8, 1), std::invalid_argument);
+    EXPECT_THROW(SunDepthMap(m, u, 1, 8, 1), std::invalid_argument);
+}
+
+// A sun lamp: rays from outside and inside the cloud, to surfaces and to infinity, isotropic
+// and HG phases, without and with the uniform fog's layer top (through the cloud, the
+// camera inside the layer or above it); the sun oblique and straight overhead. Exact light depths, the
+// map, and the 1 % steps against the quadrature (GaussianRefLight::Kind::Sun).
+TEST(GaussianMarch, SunMatchesTheQuadrature) {
+    const GaussianMedium m = cloud(150, 10.0, 25.0, 0.6, 2.0, 0.02, 0.15, 0.004, 3);
+    const PhaseFunction iso{}, hg{PhaseKind::HenyeyGreenstein, 0.5};
+    const Vec3 eyes[] = {Vec3(0.0, 0.5, 0.0), m.centre(40)};
+    double worst_exact = 0.0, worst_map = 0.0, worst_coarse = 0.0;
+    int rays = 0;
+    for (const Vec3& w : {glm::normalize(Vec3(0.3, -0.8, -0.5)), Vec3(0.0, 0.0, -1.0)})
+        for (double top : {double(INFINITY), 14.0}) {  // (the cloud spans z 10-35: rays cross the top)
+            const Vec3 u = -w;
+            const SunDepthMap map(m, u, 128, 256, 2);
+            for (const Vec3& v : eyes)
+                for (const Vec3& dir :
+                     {Vec3(0.1, 0.05, 1.0), Vec3(-0.25, 0.1, 1.0), Vec3(0.3, -0.1, 1.0), Vec3(0.0, 0.4, 1.0)})
+                    for (double Dvp : {12.0, double(INFINITY)})
+                        for (const PhaseFunction* phase : {&iso, &hg}) {
+                            const Vec3 r = glm::normalize(dir);
+                            GaussianRefLight light;
+                            light.kind = GaussianRefLight::Kind::Sun;
+                            light.w = w, light.fog_top = top;
+                            const double ref =
+                                gaussian_airlight_quadrature(m, light, *phase, v, r, Dvp, 1e-9, GaussianSums::Culled);
+                            GaussianMarch march;
+                            const double exact = gaussian_march_sun(m, u, top, *phase, v, r, Dvp, nullptr, march);
+                            const double mapped = gaussian_march_sun(m, u, top, *phase, v, r, Dvp, &map, march);
+                            GaussianMarch coarse;
+                            coarse.set_accuracy(0.01);
+                            const double fast = gaussian_march_sun(m, u, top, *phase, v, r, Dvp, &map, coarse);
+                            ASSERT_GT(ref, 0.0) << "ray " << rays;
+                            EXPECT_LT(relative(exact, ref), 2e-5) << "ray " << rays;
+                            EXPECT_LT(relative(mapped, ref), 5e-3) << "ray " << rays;
+                            EXPECT_LT(relative(fast, ref), 5e-3) << "ray " << rays;
+                            worst_exact = std::max(worst_exact, relative(exact, ref));
+                            worst_map = std::max(worst_map, relative(mapped, ref));
+                            worst_coarse = std::max(worst_coarse, relative(fast, ref));
+                            ++rays;
+                        }
+        }
+    std::printf("[ sun march ] %d rays: exact light depth %.2e, 128x256 map %.2e, with 1 %% steps %.2e relative at most\n",
+                rays, worst_exact, worst_map, worst_coarse);
 }
 
 // The benchmark's 3000-Gaussian cloud (bench_gaussian_accuracy.py's "3000 x 1" drawn again
