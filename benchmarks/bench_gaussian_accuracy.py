@@ -7,7 +7,7 @@ pairs integrated, gaussian/refine.h; refine_pass.cpp chooses the rays).
     /usr/bin/python3 benchmarks/bench_gaussian_accuracy.py [--runs 3] [--threads 2]
         [--width 1920 --height 1080] [--crop 32x18] [--skip-1e5] [--plot docs/img/gaussian_trade.png]
         [--budget SECONDS] [--scenes "34 x 3,3000 x 1"] [--accuracies 0,0.05,0.01,0.001]
-        [--resolution full|half|quarter] [--spots] [--skip-errors]
+        [--resolution full|half|quarter] [--spots | --suns] [--skip-errors]
 
 Scenes of bench_rbf.py (its camera, ground and seeded clouds, beta0 = 0.002 /m, 500 W lights):
 34 broad Gaussians x 3 lights, 3000 brush-sized Gaussians x 1 light, 1e5 small ones x 1
@@ -21,7 +21,8 @@ the whole frame): around each light's image and at four fixed places (the cloud,
 horizon, the ground). A bake over its budget (gaussian_refine_budget) keeps Fogshop alone and
 is marked ABANDONED (its errors are Fogshop's: what the user gets). Prints PASS/FAIL for
 3000 x 1 at 1 % <= 500 ms with mean <= 1 %. With --plot, writes time against error per scene
-(matplotlib). --spots makes the lights spot lamps (70 degrees, blend 0.3, pointing down).
+(matplotlib). --spots makes the lights spot lamps (70 degrees, blend 0.3, pointing down);
+--suns makes them sun lamps (sun_lights).
 """
 
 import argparse
@@ -73,6 +74,16 @@ def spot_lights(lights):
                 spot_blend=np.full(lights, 0.3))
 
 
+SUN_DIRECTIONS = np.array([[0.3, -0.8, 0.5], [-0.5, -0.6, 0.4], [0.2, -0.9, -0.3]])
+
+
+def sun_lights(lights):
+    """The bake's keyword arguments that make the scene's _lights_ lights sun lamps (--suns): from
+    above, ahead and behind the camera, 3 W/m^2 each (no layer top: the uniform fog everywhere)."""
+    return dict(light_positions=np.zeros((0, 3)), light_intensities=np.zeros((0, 3)),
+                sun_directions=SUN_DIRECTIONS[:lights], sun_irradiances=np.full((lights, 3), 3.0))
+
+
 def errors(x, ref):
     x, ref = np.asarray(x, np.float64)[..., 0], np.asarray(ref, np.float64)[..., 0]
     m = ref > 1e-6 * np.percentile(ref, 99.9)
@@ -121,6 +132,7 @@ def main():
     ap.add_argument("--scenes", default=None, help="comma-separated scene names to run (default: all)")
     ap.add_argument("--accuracies", default=",".join(str(a) for a in ACCURACIES))
     ap.add_argument("--spots", action="store_true", help="the scenes' lights as spot lamps (spot_lights)")
+    ap.add_argument("--suns", action="store_true", help="the scenes' lights as sun lamps (sun_lights)")
     ap.add_argument("--skip-errors", action="store_true",
                     help="times only (the QUADRATURE crops of spots on 3000 Gaussians take ~10 min)")
     ap.add_argument("--resolution", default="full", choices=("full", "half", "quarter"),
@@ -129,7 +141,7 @@ def main():
     cw, ch = (int(s) for s in args.crop.split("x"))
     W, H = args.width, args.height
     rows = []
-    print(f"{W}x{H}, {'spot lamps, ' if args.spots else ''}{args.threads} threads, median of {args.runs}; "
+    print(f"{W}x{H}, {'spot lamps, ' if args.spots else 'sun lamps, ' if args.suns else ''}{args.threads} threads, median of {args.runs}; "
           f"errors of the same bake against QUADRATURE "
           f"on {cw}x{ch} crops")
     print(f"{'scene':16s} {'accuracy':>8s} {'ms':>9s} {'refine ms':>9s} {'marched':>15s} {'pairs':>13s} "
@@ -142,7 +154,7 @@ def main():
         if wanted is not None and name not in wanted:
             continue
         windows = [] if name.startswith("1e5") or args.skip_errors else crops(W, H, lights, cw, ch)
-        kind = spot_lights(lights) if args.spots else {}
+        kind = spot_lights(lights) if args.spots else sun_lights(lights) if args.suns else {}
         refs = [bake(cw, ch, gaussians, lights, args.threads, model="quadrature",
                      projection=crop_projection(proj, W, H, x0, y0, cw, ch), **kind)["airlight"]
                 for x0, y0 in windows]

@@ -302,66 +302,100 @@ void FogEvaluator::set_up_refinement(const BakeSettings& settings, const Camera&
 }
 
 void FogEvaluator::plan_marches(GaussianRefinePlan& plan, int threads) {
-    // A point or spot light with a pair to refine is marched whole: one march of every Gaussian
-    // near the ray costs what a few exact pair terms do (each sums the Gaussians near the ray
-    // and the light path at every node), and leaves no pair of that light to Fogshop.
-    std::vector<char> march(gaussian_lights_.size(), 0);
-    for (const RefinePair& pair : plan.refined)
-        if (pair.light < gaussian_lights_.size()) march[pair.light] = 1;
+    // A light with a pair to refine is marched whole: one march of every Gaussian near the ray
+    // costs what a few exact pair terms do (each sums the Gaussians near the ray and the light
+    // path at every node), and leaves no pair of that light to Fogshop.
+    const size_t P = gaussian_lights_.size();
+    std::vector<char> march(P + gaussian_suns_.size(), 0);
+    for (const RefinePair& pair : plan.refined) march[pair.light] = 1;
     plan.refined.erase(std::remove_if(plan.refined.begin(), plan.refined.end(),
-                                      [&](const RefinePair& pair) { return pair.light < march.size() && march[pair.light]; }),
+                                      [&](const RefinePair& pair) { return march[pair.light] != 0; }),
                        plan.refined.end());
     // The light depths from a map whose measured error fits the march's share of the accuracy
     // (kMarchShare; the cells' interpolation takes the rest) with a factor 2 to spare
     // (march_map_error: the march with the map against exact light depths on rays from the eye
-    // through the Gaussians). 64 x 64 a face first, then 128 and 256 while it errs more and
-    // the error's fall could still reach the need by 256. The error falls as the square of the
-    // spacing or faster: 4x a doubling on the thick benchmark cloud, 9.5x on the 1e5 one (64
-    // errs 0.014, 128 0.0015), where predicting by the square law skipped 128 for 256 (16x the
-    // cost of 64: two thirds of the frame's set-up). Past 256,
-    // or past kMarchMapMaxBytes for all the lights, the light depths are exact (slow with many
-    // Gaussians: the budget decides).
+    // through the Gaussians). 64 grid points a side first, then twice and four times as many
+    // while it errs more and the error's fall could still reach the need by the largest size.
+    // The error falls as the square of the spacing or faster: 4x a doubling on the thick
+    // benchmark cloud, 9.5x on the 1e5 one (64 errs 0.014, 128 0.0015), where predicting by
+    // the square law skipped 128 for 256 (16x the cost of 64: two thirds of the frame's
+    // set-up). Past the largest, or past kMarchMapMaxBytes for all the lights, the light depths
+    // are exact (slow with many Gaussians: the budget decides).
     const double need = 0.5 * kMarchShare * refine_target_;
     std::size_t bytes = 0;
-    for (size_t l = 0; l < march.size(); ++l) {
-        if (!march[l]) continue;
-        marched_.push_back(l);
-        // A spot's map holds its cone alone (a sixth of the sphere for a 60 degree one).
-        const SpotCone* cone = l >= n_gaussian_points_ ? &gaussian_spots_[l - n_gaussian_points_].cone : nullptr;
-        const Vec3 axis = cone ? cone->axis : Vec3(0.0, 0.0, -1.0);
-        const double half_angle = cone ? std::acos(std::clamp(cone->cos_half_angle, -1.0, 1.0)) : kPi;
-        std::unique_ptr<LightDepthMap> map;
+    // Sets _marched_'s map to the first size (build(face) makes it) that fits, if any.
+    auto search = [&](MarchedLight& marched, auto build, std::size_t bytes_per_face2, int max_face) {
         double last_error = 0.0;
-        for (int face = 64; face <= kMarchMapMaxFace && !map;) {
-            const std::size_t map_bytes = std::size_t(6) * face * face * kMarchMapRadial * sizeof(float);
-            if (bytes + map_bytes > kMarchMapMaxBytes) break;
-            map = std::make_unique<LightDepthMap>(*gaussian_, gaussian_lights_[l], axis, half_angle, face,
-                                                  kMarchMapRadial, threads);
-            const double error = march_map_error(*map, cone);
+        for (int face = 64; face <= max_face;) {
+            if (bytes + bytes_per_face2 * face * face > kMarchMapMaxBytes) return;
+            build(face);
+            const double error = march_map_error(marched);
             if (error <= need) {
-                bytes += map->bytes();
-                break;
+                bytes += marched.bytes();
+                return;
             }
-            map.reset();
+            marched.map.reset(), marched.sun_map.reset();
             // The next size, if the error could fall to the need by the largest one: by the
             // fall measured from the last size, or before that by kMapFallBound a doubling.
             const double fall = last_error > 0.0 ? std::max(1.0, last_error / error) : kMapFallBound;
             last_error = error;
-            if (error * std::pow(double(face) / kMarchMapMaxFace, std::log2(fall)) > need) break;
+            if (error * std::pow(double(face) / max_face, std::log2(fall)) > need) return;
             face *= 2;
         }
-        march_maps_.push_back(std::move(map));
+    };
+    for (size_t l = 0; l < march.size(); ++l) {
+        if (!march[l]) continue;
+        MarchedLight marched;
+        marched.light = l;
+        if (l >= P) {  // a sun: columns along it over the cloud's shade (a sixth of a point's bytes a face)
+            const Vec3 u = -gaussian_suns_[l - P].w;
+            search(marched, [&](int face) {
+                       marched.sun_map = std::make_unique<SunDepthMap>(*gaussian_, u, face, kMarchMapRadial, threads);
+                   },
+                   std::size_t(kMarchMapRadial) * sizeof(float), kSunMapMaxFace);
+        } else {
+            // A spot's map holds its cone alone (a sixth of the sphere for a 60 degree one).
+            const SpotCone* cone = l >= n_gaussian_points_ ? &gaussian_spots_[l - n_gaussian_points_].cone : nullptr;
+            const Vec3 axis = cone ? cone->axis : Vec3(0.0, 0.0, -1.0);
+            const double half_angle = cone ? std::acos(std::clamp(cone->cos_half_angle, -1.0, 1.0)) : kPi;
+            search(marched, [&](int face) {
+                       marched.map = std::make_unique<LightDepthMap>(*gaussian_, gaussian_lights_[l], axis, half_angle,
+                                                                     face, kMarchMapRadial, threads);
+                   },
+                   std::size_t(6) * kMarchMapRadial * sizeof(float), kMarchMapMaxFace);
+        }
+        marched_.push_back(std::move(marched));
     }
 }
 
-double FogEvaluator::march_map_error(const LightDepthMap& map, const SpotCone* cone) const {
+RGB FogEvaluator::march_light(const MarchedLight& marched, bool mapped, const Vec3& o, const Vec3& d, double len,
+                              GaussianMarch& march) const {
+    const size_t l = marched.light, P = gaussian_lights_.size();
+    march.set_accuracy(refine_target_);
+    if (l >= P)
+        return gaussian_march_sun_rgb(*gaussian_, -gaussian_suns_[l - P].w, fog_top_, phase_, o, d, len,
+                                      mapped ? marched.sun_map.get() : nullptr, march);
+    if (l >= n_gaussian_points_) {  // a spot (its profile at most 1, or a Spread's peak)
+        const SpotCone& cone = gaussian_spots_[l - n_gaussian_points_].cone;
+        march.cone = &cone;
+        march.emission_max = cone.has_spread() ? std::max(1.0, cone.spread_a) : 1.0;
+    }
+    return gaussian_march_airlight_rgb(*gaussian_, gaussian_lights_[l], phase_, o, d, len,
+                                       mapped ? marched.map.get() : nullptr, march);
+}
+
+double FogEvaluator::march_map_error(const MarchedLight& marched) const {
     // Rays from the eye through kMapCheckRays Gaussians' centres (picked evenly through the
     // list of those the light reaches: a spot's, in its cone; to twice the centre's distance),
     // on which the fog is.
     constexpr int kMapCheckRays = 16;
+    const size_t l = marched.light;
+    const SpotCone* cone = l >= n_gaussian_points_ && l < gaussian_lights_.size()
+                               ? &gaussian_spots_[l - n_gaussian_points_].cone
+                               : nullptr;
     std::vector<size_t> reached;
     for (size_t j = 0; j < gaussian_->size(); ++j) {
-        const Vec3 u = gaussian_->centre(j) - map.light();
+        const Vec3 u = cone ? gaussian_->centre(j) - gaussian_lights_[l] : Vec3(0.0);
         if (!cone || spot_profile(*cone, glm::dot(cone->axis, u) / std::max(glm::length(u), 1e-300)) > 0.0)
             reached.push_back(j);
     }
@@ -372,11 +406,9 @@ double FogEvaluator::march_map_error(const LightDepthMap& map, const SpotCone* c
         const double D = glm::length(to);
         if (!(D > 0.0)) continue;
         build_progress_check();  // (the bake's bar and cancel through the check's marches)
-        GaussianMarch with_map, exact;
-        with_map.set_accuracy(refine_target_), exact.set_accuracy(refine_target_);
-        with_map.cone = exact.cone = cone;
-        const double mapped = gaussian_march_airlight(*gaussian_, map.light(), phase_, origin_, to / D, 2.0 * D, &map, with_map);
-        const double ref = gaussian_march_airlight(*gaussian_, map.light(), phase_, origin_, to / D, 2.0 * D, nullptr, exact);
+        GaussianMarch with_map, exact;  // (unit albedos: the channels agree)
+        const double mapped = march_light(marched, true, origin_, to / D, 2.0 * D, with_map).x;
+        const double ref = march_light(marched, false, origin_, to / D, 2.0 * D, exact).x;
         if (ref > 0.0) worst = std::max(worst, std::abs(mapped - ref) / ref);
     }
     return worst;
@@ -502,22 +534,16 @@ void FogEvaluator::march_lights(const Vec3& d, double near, double end, const Li
     const Vec3 o = origin_ + near * d;
     spans.assign(A, RaySpans{});  // the marched lights' spans, for their Fogshop values in one sum
     bool any = false;
-    for (size_t m = 0; m < marched_.size(); ++m) {
-        const size_t l = marched_[m];
+    for (const MarchedLight& light : marched_) {
+        const size_t l = light.light;
         RaySpans lit_spans{&whole, 1};
         const int v = gaussian_volume(l);
         if (v >= 0 && lit && !fully_lit(*lit, v, near, end))
             lit_spans = RaySpans{lit->spans.data() + lit->begin[v], lit->end[v] - lit->begin[v]};
         if (lit_spans.count == 0) continue;  // (in the dark Fogshop's value is 0 too)
         GaussianMarch march;
-        march.set_accuracy(refine_target_);
         march.albedo = gaussian_albedo_.data();
         march.medium_albedo = medium_albedo_;
-        if (l >= n_gaussian_points_) {  // a spot (its profile at most 1, or a Spread's peak)
-            const SpotCone& cone = gaussian_spots_[l - n_gaussian_points_].cone;
-            march.cone = &cone;
-            march.emission_max = cone.has_spread() ? std::max(1.0, cone.spread_a) : 1.0;
-        }
         // Its work in refine_work's units (one Gaussian's term of an integrand, kMarchWorkPerUnit
         // of the march's), stopped at the limit.
         const std::uint64_t left = refine_work_limit() - std::min(refine_work(), refine_work_limit());
@@ -530,8 +556,8 @@ void FogEvaluator::march_lights(const Vec3& d, double near, double end, const Li
             march_spans = RaySpans{shifted.data(), int(shifted.size())};
             march.lit = &march_spans;
         }
-        const RGB marched = gaussian_I0_[l] * gaussian_march_airlight_rgb(*gaussian_, gaussian_lights_[l], phase_, o, d,
-                                                                          end - near, march_maps_[m].get(), march);
+        const size_t P = gaussian_lights_.size();
+        const RGB marched = (l < P ? gaussian_I0_[l] : gaussian_suns_[l - P].E) * march_light(light, true, o, d, end - near, march);
         refine_work() += std::uint64_t(march.work / kMarchWorkPerUnit);
         if (march.stopped) throw RefineWorkExceeded{};
         spans[l] = lit_spans;
@@ -626,7 +652,8 @@ void FogEvaluator::refine_background(const Vec3& d, double near, double end, dou
     constexpr double kInf = std::numeric_limits<double>::infinity();
     double T_view = kInf;
     for (size_t l = 0; l < A; ++l) {
-        if (std::find(marched_.begin(), marched_.end(), l) != marched_.end()) continue;  // (march_lights)
+        if (std::any_of(marched_.begin(), marched_.end(), [&](const MarchedLight& m) { return m.light == l; }))
+            continue;  // (march_lights)
         RaySpans spans{&whole, 1};
         const int v = gaussian_volume(l);
         if (v >= 0 && lit && !fully_lit(*lit, v, near, end))
@@ -1442,8 +1469,12 @@ void FogEvaluator::eval_gaussians(const Ray* rays, const float* Dvp, const float
                 ref.w = sun.w;
                 ref.fog_top = fog_top_;
                 shadowed(ref, lit ? sun_volume_[i] : -1, k, near);
+                // (Unshadowed: the march with exact light depths, as for point lights: 2e-7 of
+                // the adaptive quadrature in GaussianMarch.SunMatchesTheQuadrature.)
+                GaussianMarch march;
                 La[k] += medium_albedo_ * sun.E *
-                         gaussian_airlight_quadrature(*gaussian_, ref, phase_, o, ray.d, seg, kQuadratureRelTol, kSums);
+                         (!ref.visible ? gaussian_march_sun(*gaussian_, -sun.w, fog_top_, phase_, o, ray.d, seg, nullptr, march)
+                                       : gaussian_airlight_quadrature(*gaussian_, ref, phase_, o, ray.d, seg, kQuadratureRelTol, kSums));
             }
             continue;
         }

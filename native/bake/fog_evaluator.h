@@ -17,6 +17,7 @@
 #include "gaussian/medium.h"
 #include "gaussian/refine.h"
 #include "gaussian/splat.h"
+#include "gaussian/sun_depth_map.h"
 #include "homogeneous/pegoraro10.h"
 #include "homogeneous/sphere_light.h"
 #include "homogeneous/spot_light.h"
@@ -26,6 +27,8 @@
 #include "shadow/shadow_volumes.h"
 
 namespace airlight {
+
+struct GaussianMarch;
 
 // Per-light data, precomputed once per bake.
 struct LightData {
@@ -189,11 +192,25 @@ class FogEvaluator {
     // light (lights_' order), spot and sun its light in them (-1: unshadowed).
     void set_up_shadows(const SceneDescription& scene, const BakeSettings& settings);
     void set_up_refinement(const BakeSettings& settings, const Camera& camera);
-    // Takes the point and spot lights with pairs to refine out of _plan_ into marched_, with their maps.
+    // A marched light (gaussian/march.h): a point, spot or sun light whose whole airlight (every
+    // Gaussian and the uniform fog) is marched on the refined rays in place of its pairs' exact
+    // terms (its index in gaussian_lights_, then the suns), with its light-depth map (null:
+    // exact light depths; plan_marches says when).
+    struct MarchedLight {
+        size_t light = 0;
+        std::unique_ptr<LightDepthMap> map;     // points and spots
+        std::unique_ptr<SunDepthMap> sun_map;   // suns
+        std::size_t bytes() const { return map ? map->bytes() : sun_map ? sun_map->bytes() : 0; }
+    };
+    // Takes the lights with pairs to refine out of _plan_ into marched_, with their maps.
     void plan_marches(GaussianRefinePlan& plan, int threads);
-    // The largest relative error of the march's airlight with _map_ against exact light depths
-    // on a few rays from the eye through the Gaussians (through those a spot's _cone_ lights).
-    double march_map_error(const LightDepthMap& map, const SpotCone* cone) const;
+    // The march of _marched_'s light (per unit I0 or E) along o + t d over [0, len], with its map
+    // (_mapped_) or exact light depths, at the refinement's accuracy; _march_ takes the albedos.
+    RGB march_light(const MarchedLight& marched, bool mapped, const Vec3& o, const Vec3& d, double len,
+                    GaussianMarch& march) const;
+    // The largest relative error of the march's airlight with _marched_'s map against exact
+    // light depths on a few rays from the eye through the Gaussians (those a spot's cone lights).
+    double march_map_error(const MarchedLight& marched) const;
     // refine_gaussians' uniform-fog part for one ray d over [near, end] (Tg_near: the
     // Gaussians' depth before near; lit: its lit intervals, null when untraced: lit all along),
     // _view_ gathered on demand.
@@ -306,12 +323,7 @@ class FogEvaluator {
     // Gaussian fog with shadows (Fogshop, perspective): Fogshop at the eye for the point lights.
     std::unique_ptr<FogshopAirlight> eye_fogshop_;
     std::unique_ptr<GaussianRefiner> refiner_;
-    // The refinement's marched lights (gaussian/march.h): point and spot lights whose whole airlight
-    // (every Gaussian and the uniform fog) is marched on the refined rays in place of their
-    // pairs' exact terms (their index in gaussian_lights_), each with its light-space depth
-    // map (null: exact light depths; set_up_refinement says when).
-    std::vector<size_t> marched_;
-    std::vector<std::unique_ptr<LightDepthMap>> march_maps_;
+    std::vector<MarchedLight> marched_;
     mutable std::atomic<long long> marched_rays_{0};
     size_t refine_pairs_ = 0;         // the refinement plan's pairs (refiner_ may be null)
     double refine_kept_bound_ = 0.0;  // and the largest bound it left to Fogshop
@@ -333,7 +345,8 @@ class FogEvaluator {
     // kMarchMapMaxBytes for all the lights together. The march's units of work
     // (GaussianMarch::work, ~4 ns with the float kernels) per refine_work unit (5.5e-8 s).
     static constexpr double kMarchShare = 0.5;
-    static constexpr int kMarchMapRadial = 256, kMarchMapMaxFace = 256;
+    // (A sun's map is a sixth of a point's a face: its largest is 512 a side, 256 MB.)
+    static constexpr int kMarchMapRadial = 256, kMarchMapMaxFace = 256, kSunMapMaxFace = 512;
     // The largest fall of a map's measured error per doubling of its face (plan_marches).
     static constexpr double kMapFallBound = 10.0;
     static constexpr std::size_t kMarchMapMaxBytes = std::size_t(1) << 30;

@@ -216,14 +216,7 @@ RGB FogshopAirlight::eval_rgb_spans(const Vec3& r, double t_start, const RaySpan
         medium_.for_each_near(v_, r, far, [&](std::size_t i) { near.push_back(i); });
         for (std::size_t l = 0; l < L + S; ++l) {
             if (spans[l].count == 0) continue;
-            if (l < L) {
-                out += point_terms(l, r, t_start, spans[l], phase, profile, near, near_depth, albedo) * I0[l];
-                continue;
-            }
-            for (const std::size_t i : near) {
-                const double v = gaussian_term(i, l, r, t_start, spans[l], phase, profile, Tg_near, true);
-                if (v != 0.0) out += RGB(albedo[3 * i], albedo[3 * i + 1], albedo[3 * i + 2]) * I0[l] * v;
-            }
+            out += light_terms(l, r, t_start, spans[l], phase, profile, near, near_depth, albedo) * I0[l];
         }
         return out;
     }
@@ -236,7 +229,7 @@ RGB FogshopAirlight::eval_rgb_spans(const Vec3& r, double t_start, const RaySpan
     return out;
 }
 
-RGB FogshopAirlight::point_terms(std::size_t l, const Vec3& r, double t_start, const RaySpans& lit,
+RGB FogshopAirlight::light_terms(std::size_t l, const Vec3& r, double t_start, const RaySpans& lit,
                                  const PhaseFunction* phase, const SpanProfile* profile,
                                  const std::vector<std::size_t>& near, double near_depth, const double* albedo) const {
     // term<FastMath>'s geometry in double, its erf differences and exps in the batch's loops.
@@ -246,7 +239,11 @@ RGB FogshopAirlight::point_terms(std::size_t l, const Vec3& r, double t_start, c
     b.resize(n), scale.resize(n), line_ts.resize(n);
     double Dvp = 0.0;
     for (int q = 0; q < lit.count; ++q) Dvp = std::max(Dvp, lit.spans[q].second);
-    const Vec3& s = lights_[l];
+    const std::size_t L = lights_.size();
+    const bool sun = l >= L;
+    const Vec3& s = sun ? v_ : lights_[l];
+    // (A sun's phase angle is the same all along the ray.)
+    const double p_sun = !sun ? 0.0 : phase ? phase->eval(glm::dot(sun_u_[l - L], r)) : kInv4Pi;
     for (std::size_t j = 0; j < n; ++j) {
         const std::size_t i = near[j];
         const ViewLine g = view_line<FastMath>(medium_, i, v_, r);
@@ -261,6 +258,16 @@ RGB FogshopAirlight::point_terms(std::size_t l, const Vec3& r, double t_start, c
         const double d2 = glm::dot(sx, sx), Ds = std::sqrt(d2);
         b.kl[j] = 0.0f, b.light_h[j] = 0.0f, b.light0[j] = 0.0f, b.light1[j] = 0.0f, b.factor[j] = 0.0f;
         if (g.k == 0.0) continue;
+        if (sun) {  // the light path: from the point tr towards the sun, to infinity
+            const Vec3& u = sun_u_[l - L];
+            const Vec3 rel = medium_.centre(i) - (v_ + tr * r);
+            const double tsl = glm::dot(rel, u);
+            const Vec3 cr = glm::cross(rel, u);
+            b.kl[j] = float(g.c * kSqrtPi / (2.0 * a)), b.light_h[j] = float(-a * a * glm::dot(cr, cr));
+            b.light0[j] = float(-a * tsl), b.light1[j] = std::numeric_limits<float>::infinity();
+            b.factor[j] = float(p_sun * f1_sun_[(l - L) * N + i]);
+            continue;
+        }
         double p = kInv4Pi;
         if (Ds > 0.0) {
             const Vec3 u = sx / Ds, rel = medium_.centre(i) - s;

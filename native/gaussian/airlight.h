@@ -103,9 +103,10 @@ class FogshopAirlight {
     std::size_t num_suns() const { return sun_u_.size(); }
 
   private:
-    // eval_rgb_spans's fast form of point light l's Gaussian terms over the Gaussians _near_
-    // the ray (airlight_batch.h), times their albedos (per unit I0).
-    RGB point_terms(std::size_t l, const Vec3& r, double t_start, const RaySpans& lit, const PhaseFunction* phase,
+    // eval_rgb_spans's fast form of light l's Gaussian terms (a point or spot light, or sun l -
+    // num_lights()) over the Gaussians _near_ the ray (airlight_batch.h), times their albedos
+    // (per unit I0 or E).
+    RGB light_terms(std::size_t l, const Vec3& r, double t_start, const RaySpans& lit, const PhaseFunction* phase,
                     const SpanProfile* profile, const std::vector<std::size_t>& near, double near_depth,
                     const double* albedo) const;
     template <typename Math>

@@ -231,3 +231,25 @@ def test_refined_shadowed_point_light_meets_the_accuracy(accuracy):
     assert e0.mean() > 5 * accuracy  # (the case needs the refinement)
     assert r["stats"]["gaussian_marched_lights"] == 1
     assert e.mean() <= accuracy and np.percentile(e, 99) <= 3 * accuracy
+
+
+@pytest.mark.parametrize("fog_top", [math.inf, 1.0])
+@pytest.mark.parametrize("accuracy", [0.05, 0.01])
+def test_refined_shadowed_sun_meets_the_accuracy(accuracy, fog_top):
+    """The same for a sun whose shadow crosses thick Gaussians (its march takes the lit spans
+    and its map the Gaussians' own shade), with and without a fog layer's top; `quadrature`
+    integrates the sun's visibility itself."""
+    thick = 12.0 * AMPLITUDES
+    kw = dict(light_positions=np.zeros((0, 3)), light_intensities=np.zeros((0, 3)))
+    suns = {**sun_lights(fog_top=fog_top), **kw}
+    ref = bake("quadrature", thick, **suns)["airlight"][..., 0].astype(np.float64)
+    fogshop = bake("sun05", thick, **suns)["airlight"][..., 0].astype(np.float64)
+    r = bake("sun05", thick, gaussian_accuracy=accuracy, **suns)
+    got = r["airlight"][..., 0].astype(np.float64)
+    m = ref > 1e-6 * ref.max()
+    e, e0 = np.abs(got - ref)[m] / ref[m], np.abs(fogshop - ref)[m] / ref[m]
+    print(f"shadowed sun, top {fog_top}, {accuracy:g}: Fogshop mean {e0.mean():.2e}; refined mean {e.mean():.2e} "
+          f"p99 {np.percentile(e, 99):.2e}, {r['stats']['gaussian_marched_rays']} marches")
+    assert e0.mean() > 2 * accuracy  # (the case needs the refinement)
+    assert r["stats"]["gaussian_marched_lights"] == 1
+    assert e.mean() <= accuracy and np.percentile(e, 99) <= 3 * accuracy

@@ -50,6 +50,9 @@ def _plume():
 
 THREE = [(0.3, 0.2, -15.0, 0.5, 5.0), (-3.0, 0.5, -17.0, 0.4, 0.2 / (TAU * 0.4)), (3.5, -0.5, -14.0, 0.6, 0.3 / (TAU * 0.6))]
 POINT = dict(light_positions=np.array([[0.0, 0.0, -15.0]]), light_intensities=np.array([[100.0, 80.0, 60.0]]))
+# A sun lamp low behind the camera's right (w: the light's propagation direction).
+SUN = dict(light_positions=np.zeros((0, 3)), light_intensities=np.zeros((0, 3)),
+           sun_directions=np.array([[-0.4, -0.5, -0.75]]), sun_irradiances=np.array([[3.0, 3.0, 3.0]]))
 SCENES = {
     "thick around a light": dict(gaussians=THREE, **POINT),
     "light just outside a dense cloud": dict(gaussians=[(0.0, 0.0, -15.0, 0.5, 8.0), (2.5, 1.0, -16.0, 0.8, 0.5)],
@@ -68,6 +71,12 @@ SCENES = {
                                         light_intensities=np.zeros((0, 3)),
                                         sun_directions=np.array([[0.3, -0.8, -0.5]]),
                                         sun_irradiances=np.array([[3.0, 3.0, 3.0]]), phase="hg", g=0.5),
+    "sun lamp over many random Gaussians": dict(gaussians=_random(200), size=(16, 12), **SUN),
+    "sun lamp in a fog layer, Rayleigh": dict(gaussians=THREE, light_positions=np.zeros((0, 3)),
+                                              light_intensities=np.zeros((0, 3)),
+                                              sun_directions=np.array([[0.3, -0.5, -0.8]]),
+                                              sun_irradiances=np.array([[3.0, 2.0, 1.0]]), fog_top=2.0,
+                                              phase="rayleigh"),
     "point lamp, Henyey-Greenstein 0.7": dict(gaussians=THREE, phase="hg", g=0.7, **POINT),
     "point lamp, Rayleigh": dict(gaussians=THREE, phase="rayleigh", **POINT),
 }
