@@ -172,7 +172,7 @@ def main():
             rows.append((name, acc, 1e3 * wall, mean, p99))
             marched = f"{s['gaussian_marched_lights']} ({s['gaussian_marched_rays']})"
             print(f"{name:16s} {100 * acc:7.2g}% {1e3 * wall:9.0f} {1e3 * s['seconds_refine']:9.0f} {marched:>15s} "
-                  f"{s['gaussian_refined_pairs']:6d}/{s['gaussian_pairs']:<6d} "
+                  f"{s['gaussian_pairs']:13d} "
                   f"{mean:9.2e} {p99:9.2e} {s['gaussian_error_bound']:8.1e}"
                   f"{'  ABANDONED (over budget: Fogshop alone)' if s['gaussian_refine_abandoned'] else ''}", flush=True)
     for name, acc, ms, mean, _ in rows:

@@ -584,7 +584,7 @@ def remember_fog_objects(scene, stats):
         LAST_FOG_OBJECTS[scene.name] = dict(
             accuracy=model_choice.gaussian_accuracy(scene.airlight),
             error_bound=float(stats.get("gaussian_error_bound", 0.0)),
-            refined=int(stats.get("gaussian_refined_pairs", 0)), pairs=int(stats["gaussian_pairs"]),
+            pairs=int(stats["gaussian_pairs"]),
             marched=int(stats.get("gaussian_marched_lights", 0)),
             background_rays=int(stats.get("gaussian_background_rays", 0)),
             abandoned=bool(stats.get("gaussian_refine_abandoned", False)))
@@ -605,7 +605,6 @@ def fog_objects_line(stats):
     marched = stats.get("gaussian_marched_lights", 0)
     return (f"; fog objects: {marched} light{'s' if marched != 1 else ''} marched exactly "
             f"({stats.get('gaussian_marched_rays', 0)} rays), "
-            f"{stats.get('gaussian_refined_pairs', 0)} of {pairs} sun (light, fog) pairs exact, "
             f"{stats.get('gaussian_background_rays', 0)} ray-lights of uniform fog corrected, "
             f"error bound {100.0 * float(stats.get('gaussian_error_bound', 0.0)):.2g} %, "
             f"{1000.0 * float(stats.get('seconds_refine', 0.0)):.0f} ms refining")

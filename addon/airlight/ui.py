@@ -292,11 +292,10 @@ def fog_object_note(model_name, settings=None, last=None):
             if last and abs(last["accuracy"] - target) < 1e-12:
                 marched = last.get("marched", 0)
                 lights = f"{marched} light{'s' if marched != 1 else ''} marched, " if marched else ""
-                return (f"Fogshop 2007, refined: last bake {lights}{last['refined']} of {last['pairs']} light-fog "
-                        f"pairs exact, expected error <= {100.0 * last['error_bound']:.2g} % "
-                        f"(target {100.0 * target:g} %)")
-            return (f"Fogshop 2007, refined to the {100.0 * target:g} % target: point and spot lights whose "
-                    "fog it misses are marched exactly, suns' pairs integrated (bake to see the mix)")
+                return (f"Fogshop 2007, refined: last bake {lights}expected error <= "
+                        f"{100.0 * last['error_bound']:.2g} % (target {100.0 * target:g} %)")
+            return (f"Fogshop 2007, refined to the {100.0 * target:g} % target: lights whose fog it misses "
+                    "are marched exactly (bake to see the mix)")
         return ("Fogshop 2007 approximation (point, spot and sun lamps, any phase): ~1 % on thin fog, "
                 "up to ~15 % at hard spot cone edges, 12-29 % on thick fog near a light; "
                 "Automatic refines it to the accuracy, Quadrature is exact (slow)")

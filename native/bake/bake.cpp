@@ -57,7 +57,6 @@ BakeResult bake(const SceneDescription& scene, const BakeSettings& settings, con
     edge_pass(ctx, fog, edge_pixels, edges_begin);
     result.stats.seconds_airlight = seconds_since(start);
     result.stats.gaussian_background_rays = fog.background_rays();
-    result.stats.gaussian_exact_terms = fog.pair_terms();
     result.stats.gaussian_marched_lights = static_cast<long long>(fog.marched_lights());
     result.stats.gaussian_marched_rays = fog.marched_rays();
 

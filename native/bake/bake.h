@@ -111,18 +111,16 @@ struct BakeStats {
     // BVH (ShadowVolumes::shared; 0 when shared or without volumetric shadows).
     double seconds_geometry = 0.0;
     double seconds_shadow_volumes = 0.0;
-    // Gaussian refinement (settings.gaussian_accuracy > 0): the (light, Gaussian) pairs, those
-    // refined, the largest bound on Fogshop's error of a pair left to it, and the wall time of
-    // the centre samples' refinement inside seconds_airlight (edge samples not counted).
+    // Gaussian refinement (settings.gaussian_accuracy > 0): the (light, Gaussian) pairs, the
+    // largest bound on Fogshop's error of a pair left to it, and the wall time of the centre
+    // samples' refinement inside seconds_airlight (edge samples not counted).
     long long gaussian_pairs = 0;
-    long long gaussian_refined_pairs = 0;
     double gaussian_kept_bound = 0.0;
     double seconds_refine = 0.0;
     // The uniform fog's term with the Gaussians' exact attenuation (FogEvaluator::
     // refine_gaussians): the (ray, light) pairs corrected, and the bound on the relative error
-    // the refinement leaves on any ray (pairs' share plus the uniform fog's share).
+    // the refinement leaves on any ray (the pairs', marched lights' and uniform fog's shares).
     long long gaussian_background_rays = 0;
-    long long gaussian_exact_terms = 0;  // (ray, pair) terms integrated exactly
     // Point lights whose whole airlight the refinement marched (gaussian/march.h) in place of
     // their pairs' exact terms, and the (ray, light) marches.
     long long gaussian_marched_lights = 0;

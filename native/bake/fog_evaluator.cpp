@@ -280,25 +280,24 @@ void FogEvaluator::set_up_refinement(const BakeSettings& settings, const Camera&
     refine_target_ = settings.gaussian_accuracy;
     refine_budget_ = std::uint64_t(std::max(0.0, settings.gaussian_refine_budget) / kRefineSecondsPerWork);
     const double pair_target = (background ? kPlanShare : kPlanShare + kBackgroundShare) * refine_target_;
-    // (point and spot lights are marched whole once a pair of theirs needs it: plan_marches)
+    // (a light with a pair over the target is marched whole: plan_marches; for point and spot
+    // lights the plan finds one by the light terms alone)
     std::vector<char> whole(lights.size(), 0);
     std::fill(whole.begin(), whole.begin() + std::ptrdiff_t(gaussian_lights_.size()), 1);
     GaussianRefinePlan plan =
         plan_gaussian_refinement(*gaussian_, origin_, lights, phase_, pair_target, threads, whole);
     refine_pairs_ = plan.pairs;
     refine_kept_bound_ = plan.kept_bound;
-    refine_error_bound_ = plan.kept_bound + (kPairShare + (background ? kBackgroundShare : 0.0)) * refine_target_;
+    refine_error_bound_ = plan.kept_bound + (kMarchedShare + (background ? kBackgroundShare : 0.0)) * refine_target_;
     plan_marches(plan, threads);
-    if (plan.refined.empty() && !background && marched_.empty()) return;
+    if (!background && marched_.empty()) return;
     if (!eye_fogshop_) {
         std::vector<Vec3> sun_dirs;
         for (const GaussianSunData& sun : gaussian_suns_) sun_dirs.push_back(sun.w);
         eye_fogshop_ = std::make_unique<FogshopAirlight>(*gaussian_, origin_, gaussian_lights_, model_.f_table(),
                                                          threads, sun_dirs, fog_top_);
     }
-    // Each term to a tenth of the accuracy: the quadrature's share of the error stays small.
-    refiner_ = std::make_unique<GaussianRefiner>(*gaussian_, origin_, std::move(lights), phase_, fog_top_,
-                                                 std::move(plan), 0.1 * settings.gaussian_accuracy);
+    refiner_ = std::make_unique<GaussianRefiner>(*gaussian_, origin_, std::move(lights), phase_, fog_top_);
 }
 
 void FogEvaluator::plan_marches(GaussianRefinePlan& plan, int threads) {
@@ -312,7 +311,7 @@ void FogEvaluator::plan_marches(GaussianRefinePlan& plan, int threads) {
                                       [&](const RefinePair& pair) { return march[pair.light] != 0; }),
                        plan.refined.end());
     // The light depths from a map whose measured error fits the march's share of the accuracy
-    // (kMarchShare; the cells' interpolation takes the rest) with a factor 2 to spare
+    // (kMarchedShare; the march's own error is far below it)
     // (march_map_error: the march with the map against exact light depths on rays from the eye
     // through the Gaussians). 64 grid points a side first, then twice and four times as many
     // while it errs more and the error's fall could still reach the need by the largest size.
@@ -321,7 +320,7 @@ void FogEvaluator::plan_marches(GaussianRefinePlan& plan, int threads) {
     // the square law skipped 128 for 256 (16x the cost of 64: two thirds of the frame's
     // set-up). Past the largest, or past kMarchMapMaxBytes for all the lights, the light depths
     // are exact (slow with many Gaussians: the budget decides).
-    const double need = 0.5 * kMarchShare * refine_target_;
+    const double need = kMarchedShare * refine_target_;
     std::size_t bytes = 0;
     // Sets _marched_'s map to the first size (build(face) makes it) that fits, if any.
     auto search = [&](MarchedLight& marched, auto build, std::size_t bytes_per_face2, int max_face) {
@@ -427,11 +426,6 @@ double FogEvaluator::gaussian_profile(size_t l, const Vec3& u) const {
     return spot_profile(cone, glm::dot(cone.axis, u));
 }
 
-RGB FogEvaluator::gaussian_weight(size_t l, size_t i) const {
-    const size_t P = gaussian_lights_.size();
-    const RGB I0 = l < P ? gaussian_I0_[l] : gaussian_suns_[l - P].E;
-    return RGB(gaussian_albedo_[3 * i], gaussian_albedo_[3 * i + 1], gaussian_albedo_[3 * i + 2]) * I0;
-}
 
 void FogEvaluator::refine_gaussians(const Ray* rays, const float* Dvp, const float* t0, int n, RGB* La) const {
     if (!refiner_ || refine_abandoned_.load(std::memory_order_relaxed)) return;
@@ -464,65 +458,17 @@ void FogEvaluator::refine_gaussians(const Ray* rays, const float* Dvp, const flo
 }
 
 void FogEvaluator::refine_rays(const Ray* rays, const float* Dvp, const float* t0, int n, RGB* La) const {
-    const LitIntervals* lit = nullptr;  // traced for the batch once a ray needs it
+    const LitIntervals* lit = nullptr;
     thread_local GaussianRefiner::ViewDepth view;
-    const FogshopAirlight::SpanProfile profile = [this](size_t l, const Vec3& u) { return gaussian_profile(l, u); };
-    const PhaseFunction* phase = isotropic_ ? nullptr : &phase_;
-    const GaussianRefinePlan& plan = refiner_->plan();
     const bool background = gaussian_->beta0() > 0.0;
-    struct Candidate {
-        size_t pair;
-        RaySpans spans;
-        double approx, error;
-    };
-    thread_local std::vector<Candidate> candidates;
-    if ((background || !marched_.empty()) && shadows_) lit = lit_intervals(rays, t0, Dvp, n);
+    if (shadows_) lit = lit_intervals(rays, t0, Dvp, n);
     for (int k = 0; k < n; ++k) {
         const double near = t0 ? double(t0[k]) : 0.0, end = double(Dvp[k]);
         if (!(end > near)) continue;
         const Vec3 d = rays[k].d;
-        const std::pair<double, double> whole(near, end);
-        const double Tg_near = eye_fogshop_->near_depth(d, near);
         march_lights(d, near, end, lit ? &lit[k] : nullptr, La[k]);
-        // Each candidate pair's Fogshop term and a bound on its error there: bound / (1 - bound)
-        // of the term where the plan's bound is below 1, else the larger of the term and an upper
-        // bound of the exact one (both are >= 0). The largest are integrated until what is left
-        // is within the pairs' share of the ray's accuracy.
-        candidates.clear();
-        double left = 0.0;
-        refiner_->for_each_pair(d, near, end, view, [&](size_t q) {
-            const RefinePair& pair = plan.refined[q];
-            const size_t l = pair.light, i = pair.gaussian;
-            Candidate cand{q, RaySpans{&whole, 1}, 0.0, 0.0};
-            const int v = gaussian_volume(l);
-            if (v >= 0) {
-                if (!lit) lit = lit_intervals(rays, t0, Dvp, n);
-                if (!fully_lit(lit[k], v, near, end))
-                    cand.spans = RaySpans{lit[k].spans.data() + lit[k].begin[v], lit[k].end[v] - lit[k].begin[v]};
-            }
-            cand.approx = eye_fogshop_->gaussian_term(i, l, d, near, cand.spans, phase, &profile, Tg_near);
-            const double err = pair.bound < 1.0 ? pair.bound / (1.0 - pair.bound) * cand.approx
-                                                : std::max(cand.approx, refiner_->term_upper(q, d, near, end));
-            const RGB w = gaussian_weight(l, i);
-            cand.error = err * (w.x + w.y + w.z);
-            if (!(cand.error > 0.0)) return;
-            left += cand.error;
-            candidates.push_back(cand);
-        });
-        const double budget = kPairShare * refine_target_ * (La[k].x + La[k].y + La[k].z);
-        if (left > budget) {
-            std::sort(candidates.begin(), candidates.end(),
-                      [](const Candidate& x, const Candidate& y) { return x.error > y.error; });
-            for (const Candidate& cand : candidates) {
-                if (!(left > budget)) break;
-                const RefinePair& pair = plan.refined[cand.pair];
-                const double exact = refiner_->exact_term(cand.pair, d, near, cand.spans, view);
-                La[k] += gaussian_weight(pair.light, pair.gaussian) * (exact - cand.approx);
-                left -= cand.error;
-                pair_terms_.fetch_add(1, std::memory_order_relaxed);
-            }
-        }
-        if (background) refine_background(d, near, end, Tg_near, lit ? &lit[k] : nullptr, view, La[k]);
+        if (background)
+            refine_background(d, near, end, eye_fogshop_->near_depth(d, near), lit ? &lit[k] : nullptr, view, La[k]);
     }
 }
 

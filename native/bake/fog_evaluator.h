@@ -74,13 +74,14 @@ class FogEvaluator {
     // Dvp]. The splat's centre samples (gaussian_pass) and eval_gaussians' rays take it.
     void shadow_gaussians(const Ray* rays, const float* Dvp, const float* t0, int n, RGB* La) const;
     // Gaussian refinement (BakeSettings::gaussian_accuracy, gaussian/refine.h): adds to La[k] the
-    // refined pairs' exact terms less their Fogshop terms, over the lit spans with shadows.
-    // After shadow_gaussians on the same rays.
+    // marched lights' airlight less their Fogshop values, and the exact uniform-fog terms less
+    // Fogshop's where those miss the target, over the lit spans with shadows. After
+    // shadow_gaussians on the same rays.
     void refine_gaussians(const Ray* rays, const float* Dvp, const float* t0, int n, RGB* La) const;
     // refine_gaussians for the edge pass's sub-samples (neighbours in the image): a sample next
     // to the last refined one on the same surface takes its refined / Fogshop ratio.
     void refine_samples(const Ray* rays, const float* Dvp, const float* t0, int n, RGB* La) const;
-    // The refinement (null when off or when no pair needs it).
+    // The refinement (null when off or when nothing needs it).
     const GaussianRefiner* refiner() const { return refiner_.get(); }
     size_t refine_pairs() const { return refine_pairs_; }
     // The refinement's marched lights, and the (ray, light) marches so far.
@@ -105,7 +106,6 @@ class FogEvaluator {
     void set_refine_scale(double factor) const { refine_scale_.store(factor); }
     double refine_work_seconds() const { return kRefineSecondsPerWork * double(refine_spent_.load()); }
     long long background_rays() const { return background_rays_.load(); }
-    long long pair_terms() const { return pair_terms_.load(); }
     // The shadow volumes (null without shadows), and per light of the scene (its point lights,
     // spots and suns in the description's order) its light in them (-1: unshadowed); with
     // soft-shadow samples, the first sample's volume (the surfaces' glow takes its shadow from
@@ -229,8 +229,6 @@ class FogEvaluator {
                       bool fast = false) const;
     // Volume of the Fogshop light l (gaussian_lights_, then the suns) in shadows_; -1: none.
     int gaussian_volume(size_t l) const;
-    // albedo_i I0_l (E_l for suns) of the pair (light l, Gaussian i).
-    RGB gaussian_weight(size_t l, size_t i) const;
     // Light l's emission profile towards u (1 but for spots), for FogshopAirlight's terms.
     double gaussian_profile(size_t l, const Vec3& u) const;
     // The lit intervals of _n_ rays within [t0, t1] (t0 null: 0), in a buffer of the calling
@@ -331,21 +329,20 @@ class FogEvaluator {
     double pixel_angle_ = 0.0;         // a pixel's angle at the image centre (radians)
     double refine_error_bound_ = 0.0;
     mutable std::atomic<long long> background_rays_{0};
-    mutable std::atomic<long long> pair_terms_{0};  // (ray, pair) terms integrated exactly
     // The accuracy's shares (set_up_refinement): the plan keeps the pairs whose bound is below
-    // kPlanShare of it (with beta0 = 0 also the uniform fog's share); each ray integrates its
-    // remaining pairs until their bounds sum below kPairShare; the uniform fog's term takes the rest.
-    static constexpr double kPlanShare = 0.25, kPairShare = 0.25, kBackgroundShare = 0.5;
+    // kPlanShare of it (with beta0 = 0 also the uniform fog's share) and marches the lights of the
+    // others, whose light-depth maps err by at most kMarchedShare (plan_marches); the uniform
+    // fog's term of the lights not marched takes kBackgroundShare (refine_background).
+    static constexpr double kPlanShare = 0.25, kMarchedShare = 0.25, kBackgroundShare = 0.5;
     // Nominal CPU seconds per unit of refine_work (one Gaussian's term in an integrand, with
     // its share of the quadrature's overhead): 5.5e-8 s measured on this machine's cores
     // (benchmarks/bench_gaussian_accuracy.py, 3000 Gaussians).
     static constexpr double kRefineSecondsPerWork = 5.5e-8;
     // The marched lights' light-depth maps (plan_marches): 64, 128 or 256 grid points a face's
     // side (kMarchMapMaxFace), as the measured error asks, kMarchMapRadial distances, at most
-    // kMarchMapMaxBytes for all the lights together. The march's units of work
-    // (GaussianMarch::work, ~4 ns with the float kernels) per refine_work unit (5.5e-8 s).
-    static constexpr double kMarchShare = 0.5;
-    // (A sun's map is a sixth of a point's a face: its largest is 512 a side, 256 MB.)
+    // kMarchMapMaxBytes for all the lights together (a sun's map is a sixth of a point's a
+    // face: its largest, 512 a side, 256 MB). The march's units of work (GaussianMarch::work,
+    // ~4 ns with the float kernels) per refine_work unit (5.5e-8 s).
     static constexpr int kMarchMapRadial = 256, kMarchMapMaxFace = 256, kSunMapMaxFace = 512;
     // The largest fall of a map's measured error per doubling of its face (plan_marches).
     static constexpr double kMapFallBound = 10.0;

@@ -84,8 +84,6 @@ double gaussian_pass(BakeContext& ctx, const FogEvaluator& fog) {
         });
     result.stats.gaussian_pairs = static_cast<long long>(fog.refine_pairs());
     result.stats.gaussian_kept_bound = fog.refine_kept_bound();
-    result.stats.gaussian_refined_pairs =
-        fog.refiner() ? static_cast<long long>(fog.refiner()->plan().refined.size()) : 0;
     result.stats.gaussian_error_bound = fog.refine_error_bound();
     if (fog.has_shadows()) shadow_centres(ctx, fog);
     if (fog.refiner()) {

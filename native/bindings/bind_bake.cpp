@@ -371,11 +371,9 @@ py::dict bake_py(int width, int height, const py::object& cam_to_world, const py
                    "seconds_geometry"_a = result.stats.seconds_geometry,
                    "seconds_shadow_volumes"_a = result.stats.seconds_shadow_volumes,
                    "gaussian_pairs"_a = result.stats.gaussian_pairs,
-                   "gaussian_refined_pairs"_a = result.stats.gaussian_refined_pairs,
                    "gaussian_kept_bound"_a = result.stats.gaussian_kept_bound,
                    "seconds_refine"_a = result.stats.seconds_refine,
                    "gaussian_background_rays"_a = result.stats.gaussian_background_rays,
-                   "gaussian_exact_terms"_a = result.stats.gaussian_exact_terms,
                    "gaussian_marched_lights"_a = result.stats.gaussian_marched_lights,
                    "gaussian_marched_rays"_a = result.stats.gaussian_marched_rays,
                    "gaussian_refine_abandoned"_a = result.stats.gaussian_refine_abandoned,
@@ -526,15 +524,13 @@ shadow_crossings (default 'film'): how the camera's rays find where they cross t
   pixels to pay for it, else traces them; 'traced' traces every ray through Embree (the same lit
   intervals but where Embree's float traversal loses a crossing; for checks).
 gaussian_accuracy in [0, 1) (default 0): fog objects with the Fogshop models (perspective, no
-  noise) take each ray's (light, Gaussian) terms exactly where the bounds on Fogshop's error
-  (per pair, then per ray) exceed a quarter of it each, and the uniform fog's term with the
-  Gaussians' exact attenuation on every ray where its bound exceeds the other half
-  (gaussian/refine.h); a point light with any pair over the bound is marched whole on the
-  refined rays instead (gaussian/march.h, its light depths from a light-space depth map from
-  200 Gaussians at accuracies from 0.9 %); 0: Fogshop's approximation alone. stats gaussian_pairs,
-  gaussian_refined_pairs (spot and sun pairs the plan hands to the rays), gaussian_kept_bound (the largest
-  bound the plan leaves to Fogshop), gaussian_exact_terms (ray x pair terms integrated),
-  gaussian_marched_lights and gaussian_marched_rays (the marched point lights, ray x light marches),
+  noise) to this relative accuracy: a point, spot or sun light with a (light, Gaussian) pair whose
+  bound on Fogshop's error exceeds a quarter of it is marched whole on the refined rays
+  (gaussian/march.h, its light depths from a light-space depth map whose measured error fits),
+  and the uniform fog's term of the other lights takes the Gaussians' exact attenuation on every
+  ray where its bound exceeds half of it (gaussian/refine.h); 0: Fogshop's approximation alone.
+  stats gaussian_pairs, gaussian_kept_bound (the largest bound the plan leaves to Fogshop),
+  gaussian_marched_lights and gaussian_marched_rays (the marched lights, ray x light marches),
   gaussian_background_rays (ray x light uniform-fog terms corrected), gaussian_error_bound (the
   relative error bound of the mix), seconds_refine, gaussian_refine_work (nominal CPU seconds).
 gaussian_refine_budget >= 0 (default 60): the refinement's budget in nominal CPU seconds (work

@@ -1,5 +1,5 @@
-// refine.cpp: Fogshop's error bound per (light, Gaussian) pair and the exact terms of the
-// pairs it cannot meet (refine.h).
+// refine.cpp: Fogshop's error bound per (light, Gaussian) pair and the exact uniform-fog
+// terms (refine.h).
 #include "gaussian/refine.h"
 
 #include <algorithm>
@@ -18,8 +18,8 @@ namespace {
 
 constexpr double kInf = std::numeric_limits<double>::infinity();
 
-// The bound's constants (refine.h), measured by tests/native/test_gaussian_refine.py
-// (test_bound_constants: the largest measured error over the bound's form, then doubled).
+// The bound's constants (refine.h): the largest error measured against the exact term on
+// single pairs over the bound's form, then doubled.
 constexpr double kGeo = 3.0;
 constexpr double kPhase = 0.25;
 constexpr double kThick = 0.15;
@@ -171,35 +171,10 @@ GaussianRefinePlan plan_gaussian_refinement(const GaussianMedium& medium, const 
 }
 
 GaussianRefiner::GaussianRefiner(const GaussianMedium& medium, const Vec3& eye, std::vector<RefineLight> lights,
-                                 const PhaseFunction& phase, double fog_top, GaussianRefinePlan plan, double rel_tol)
-    : medium_(medium), eye_(eye), lights_(std::move(lights)), phase_(phase), fog_top_(fog_top),
-      plan_(std::move(plan)), rel_tol_(rel_tol) {
+                                 const PhaseFunction& phase, double fog_top)
+    : medium_(medium), eye_(eye), lights_(std::move(lights)), phase_(phase), fog_top_(fog_top) {
     const std::size_t n = medium_.size();
     for (std::size_t j = 0; j < n; ++j) max_line_depth_ += medium_.amplitude(j) * kSqrtPi / medium_.scale(j);
-    for (int q = 0; q <= 4096; ++q) phase_max_ = std::max(phase_max_, phase_.eval(-1.0 + q / 2048.0));
-    phase_max_ *= 1.01;  // (between the samples)
-}
-
-double GaussianRefiner::term_upper(std::size_t k, const Vec3& r, double t_start, double t_end) const {
-    const std::size_t i = plan_.refined[k].gaussian;
-    const RefineLight& light = lights_[plan_.refined[k].light];
-    const double a = medium_.scale(i), c = medium_.amplitude(i);
-    const Vec3 rel = medium_.centre(i) - eye_;
-    const double ts = glm::dot(rel, r);
-    const double h2 = std::max(0.0, glm::dot(rel, rel) - ts * ts);
-    const double R = medium_.cull_radius(i);
-    if (!(R * R > h2)) return 0.0;
-    const double half = std::sqrt(R * R - h2);
-    const double lo = std::max(t_start, ts - half), hi = std::min(t_end, ts + half);
-    if (!(hi > lo)) return 0.0;
-    const double peak = c * std::exp(-a * a * h2);
-    if (light.kind == GaussianRefLight::Kind::Sun)
-        return peak * phase_.eval(glm::dot(-glm::normalize(light.w), r)) * std::min(hi - lo, kSqrtPi / a);
-    const Vec3 es = light.s - eye_;
-    const double t_s = glm::dot(es, r);
-    const double h = glm::length(glm::cross(es, r));
-    if (!(h > 1e-9 * std::max(1.0, std::abs(t_s)))) return kInf;
-    return phase_max_ * peak * (std::atan((hi - t_s) / h) - std::atan((lo - t_s) / h)) / h;
 }
 
 void GaussianRefiner::gather(const Vec3& r, double t_start, double t_end, ViewDepth& view) const {
@@ -254,69 +229,6 @@ double GaussianRefiner::gaussians_on(const Vec3& o, const Vec3& u, double len) c
         count_work();
     });
     return T;
-}
-
-double GaussianRefiner::light_depth(std::size_t k, const Vec3& x) const {
-    const RefineLight& light = lights_[plan_.refined[k].light];
-    const double beta0 = medium_.beta0();
-    if (light.kind == GaussianRefLight::Kind::Sun) {
-        const Vec3 u = -glm::normalize(light.w);
-        const double T = sunlight_layer_depth(beta0, fog_top_, u.z, x.z);
-        return std::isinf(T) ? T : T + gaussians_on(x, u, kInf);
-    }
-    const Vec3 sx = x - light.s;
-    const double D = glm::length(sx);
-    if (!(D > 0.0)) return 0.0;
-    return beta0 * D + gaussians_on(light.s, sx / D, D);
-}
-
-double GaussianRefiner::exact_term(std::size_t k, const Vec3& r, double t_start, const RaySpans& spans,
-                                   const ViewDepth& view) const {
-    const std::size_t i = plan_.refined[k].gaussian;
-    const RefineLight& light = lights_[plan_.refined[k].light];
-    const bool sun = light.kind == GaussianRefLight::Kind::Sun, spot = light.kind == GaussianRefLight::Kind::Spot;
-    const double a = medium_.scale(i), c = medium_.amplitude(i), beta0 = medium_.beta0();
-    const Vec3 b = medium_.centre(i);
-    const Vec3 rel = b - eye_;
-    const double ts = glm::dot(rel, r);
-    const double R = medium_.cull_radius(i);
-    const double half2 = R * R - (glm::dot(rel, rel) - ts * ts);
-    if (!(half2 > 0.0)) return 0.0;
-    const double half = std::sqrt(half2);
-    const Vec3 u_sun = sun ? -glm::normalize(light.w) : Vec3(0.0);
-    const double p_sun = sun ? phase_.eval(glm::dot(u_sun, r)) : 0.0;
-    // Eq. 2's integrand of Gaussian i at t, without the 1 / d^2 of a point or spot light.
-    auto f = [&](double t) {
-        const Vec3 x = eye_ + t * r;
-        const Vec3 xb = x - b;
-        const double beta = c * std::exp(-a * a * glm::dot(xb, xb));
-        if (beta == 0.0) return 0.0;
-        double weight;
-        if (sun) {
-            weight = p_sun;
-        } else {
-            const Vec3 sx = x - light.s;
-            const double D = glm::length(sx);
-            if (!(D > 0.0)) return 0.0;
-            weight = phase_.eval(-glm::dot(sx, r) / D);
-            if (spot) weight *= spot_profile(light.cone, glm::dot(light.cone.axis, sx) / D);
-            if (weight == 0.0) return 0.0;
-        }
-        double T = beta0 * (t - t_start) + light_depth(k, x);
-        if (std::isinf(T)) return 0.0;
-        T += view(t);
-        return beta * weight * std::exp(-T);
-    };
-    double sum = 0.0;
-    std::vector<double> cuts;
-    for (int q = 0; q < spans.count; ++q) {
-        const double lo = std::max({spans.spans[q].first, t_start, ts - half});
-        const double hi = std::min(spans.spans[q].second, ts + half);
-        if (!(hi > lo)) continue;
-        cuts.assign({ts});
-        sum += integrate_light(light, r, lo, hi, cuts, f, rel_tol_, 0.0);
-    }
-    return sum;
 }
 
 double GaussianRefiner::integrate_light(const RefineLight& light, const Vec3& r, double lo, double hi,

@@ -5,14 +5,13 @@
 // cone edge) its term is off by up to tens of percent (docs/models.md). This file
 //  - bounds Fogshop's error on each (light, Gaussian) pair, relative to the pair's term, by
 //    the second-order expansion of the integrand about b_i^r (plan_gaussian_refinement);
-//  - integrates the pairs whose bound exceeds the target exactly: adaptive Gauss-Kronrod
-//    over the Gaussian's support on the ray (equiangular about a point or spot light), with
-//    exact erf optical depths towards the eye (the Gaussians near the ray) and the light
-//    (the Gaussians near each path to it, by the medium's cull hierarchy), over the lit spans
-//    (GaussianRefiner). The bake adds (exact - Fogshop) of each refined pair to the splat.
+//    (the bake marches every light with a pair over the target whole: gaussian/march.h);
+//  - integrates the uniform fog's term exactly where Fogshop's one factor of the Gaussians
+//    for it cannot meet the target: adaptive Gauss-Kronrod (equiangular about a point or spot
+//    light) with the Gaussians' erf optical depths towards the eye and the light, over the
+//    lit spans (GaussianRefiner).
 //
-// The bound (RefineBound, constants measured by tests/native/test_gaussian_refine.py against
-// the exact term on single pairs over the ranges there, then doubled):
+// The bound (constants measured against the exact term on single pairs, then doubled):
 //   e = kGeo (sigma / (D - 2 sigma))^2 (1 + kPhase kappa_p)          point and spot lights
 //     + kThick (beta(b_i) / a_i)^2                                   thickness at the centre
 //     + kShade (G_light^2 + G_view^2)                                neighbours' shadows
@@ -76,16 +75,14 @@ GaussianRefinePlan plan_gaussian_refinement(const GaussianMedium& medium, const 
                                             const std::vector<RefineLight>& lights, const PhaseFunction& phase,
                                             double target, int threads = 0, const std::vector<char>& whole = {});
 
-// The exact terms of a plan's pairs on view rays from _eye_.
+// The exact uniform-fog (beta0) terms of view rays from _eye_: Fogshop attenuates them by one
+// factor of the Gaussians (eq. 17), these by the Gaussians' optical depths both ways.
 class GaussianRefiner {
   public:
-    // _rel_tol_: the quadrature's tolerance on each term; _fog_top_: the uniform fog's layer
-    // top for suns (sunlight_layer_depth; +inf: none). The medium must outlive this object.
+    // _fog_top_: the uniform fog's layer top for suns (sunlight_layer_depth; +inf: none). The
+    // medium must outlive this object.
     GaussianRefiner(const GaussianMedium& medium, const Vec3& eye, std::vector<RefineLight> lights,
-                    const PhaseFunction& phase, double fog_top, GaussianRefinePlan plan, double rel_tol);
-
-    const GaussianRefinePlan& plan() const { return plan_; }
-    bool empty() const { return plan_.refined.empty(); }
+                    const PhaseFunction& phase, double fog_top);
 
     // The Gaussians near one view ray (its view-side optical depths), filled by gather().
     struct ViewLine {
@@ -107,22 +104,6 @@ class GaussianRefiner {
         double operator()(double t) const;
         double total() const { return passed.empty() ? 0.0 : passed.back(); }
     };
-    // Gathers the ray eye + t r, t in [t_start, t_end], and calls fn(k) for every refined
-    // pair k whose Gaussian's cull sphere the ray reaches.
-    template <typename Fn>
-    void for_each_pair(const Vec3& r, double t_start, double t_end, ViewDepth& view, Fn&& fn) const;
-
-    // The exact term of pair _k_ (per unit albedo and I0 / E) over the lit spans, attenuated
-    // towards the eye from t_start; _view_ from for_each_pair on the same ray.
-    double exact_term(std::size_t k, const Vec3& r, double t_start, const RaySpans& spans,
-                      const ViewDepth& view) const;
-
-    // An upper bound of exact_term(k) on the segment [t_start, t_end] (no attenuation, the
-    // phase's largest value, the Gaussian's peak on the ray times the angle the segment subtends
-    // at the light over its distance to the ray; inf for a light on the ray): cheap, for the
-    // per-ray choice of the pairs worth integrating.
-    double term_upper(std::size_t k, const Vec3& r, double t_start, double t_end) const;
-
     // The Gaussians near the ray eye + t r, t in [0, t_end], for its optical depths from t_start.
     void gather(const Vec3& r, double t_start, double t_end, ViewDepth& view) const;
 
@@ -146,7 +127,6 @@ class GaussianRefiner {
     double max_line_depth() const { return max_line_depth_; }
 
   private:
-    double light_depth(std::size_t k, const Vec3& x) const;
     // The Gaussians' optical depth on o + t u, t in [0, len] (len may be inf), by the cull hierarchy.
     double gaussians_on(const Vec3& o, const Vec3& u, double len) const;
     // Integrates f(t) over [lo, hi] of the ray for _light_, f / d^2 for a point or spot light
@@ -168,26 +148,7 @@ class GaussianRefiner {
     std::vector<RefineLight> lights_;
     PhaseFunction phase_;
     double fog_top_;
-    GaussianRefinePlan plan_;
-    double rel_tol_;
     double max_line_depth_ = 0.0;
-    double phase_max_ = 0.0;  // the phase function's largest value
 };
-
-template <typename Fn>
-void GaussianRefiner::for_each_pair(const Vec3& r, double t_start, double t_end, ViewDepth& view,
-                                    Fn&& fn) const {
-    bool gathered = false;
-    for (std::size_t k = 0; k < plan_.refined.size(); ++k) {
-        const std::size_t i = plan_.refined[k].gaussian;
-        const Vec3 rel = medium_.centre(i) - eye_;
-        const double ts = glm::dot(rel, r);
-        const double R = medium_.cull_radius(i);
-        const Vec3 q = rel - std::clamp(ts, t_start, t_end) * r;
-        if (!(glm::dot(q, q) < R * R)) continue;
-        if (!gathered) gather(r, t_start, t_end, view), gathered = true;
-        fn(k);
-    }
-}
 
 }  // namespace airlight

@@ -55,8 +55,7 @@ def refs():
     fogshop = module.bake(**common, model="sun05")["airlight"].astype(np.float64)
     refined = module.bake(**common, model="sun05", gaussian_accuracy=0.01)
     SUMMARY.report("refined_stats", **{k: refined["stats"][k] for k in (
-        "gaussian_pairs", "gaussian_refined_pairs", "gaussian_exact_terms", "gaussian_refine_abandoned",
-        "seconds_refine")})
+        "gaussian_pairs", "gaussian_marched_lights", "gaussian_refine_abandoned", "seconds_refine")})
     c1, c2 = renders
     signal = exact[..., 0] > 0.02 * np.percentile(exact[..., 0], 99)
     noise = cs.seed_noise(c1, c2)
