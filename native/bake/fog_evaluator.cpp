@@ -365,6 +365,7 @@ void FogEvaluator::plan_marches(GaussianRefinePlan& plan, int threads) {
         }
         marched_.push_back(std::move(marched));
     }
+    all_marched_ = marched_.size() == march.size();
 }
 
 RGB FogEvaluator::march_light(const MarchedLight& marched, bool mapped, const Vec3& o, const Vec3& d, double len,
@@ -480,6 +481,7 @@ void FogEvaluator::march_lights(const Vec3& d, double near, double end, const Li
     const Vec3 o = origin_ + near * d;
     spans.assign(A, RaySpans{});  // the marched lights' spans, for their Fogshop values in one sum
     bool any = false;
+    RGB sum(0.0);
     for (const MarchedLight& light : marched_) {
         const size_t l = light.light;
         RaySpans lit_spans{&whole, 1};
@@ -508,12 +510,16 @@ void FogEvaluator::march_lights(const Vec3& d, double near, double end, const Li
         if (march.stopped) throw RefineWorkExceeded{};
         spans[l] = lit_spans;
         any = true;
-        La += marched;
+        sum += marched;
         marched_rays_.fetch_add(1, std::memory_order_relaxed);
     }
-    // (The Fogshop value the splat added, in float as the splat's kernels have it: the terms
-    // in double were a third of the refinement's time.)
-    if (any) La -= fogshop_spans(*eye_fogshop_, true, d, near, spans.data(), true);
+    // With every light marched the ray's airlight is theirs alone; else the marched lights'
+    // replace the Fogshop values the splat added (in float as the splat's kernels have them:
+    // the terms in double were a third of the refinement's time).
+    if (all_marched_)
+        La = sum;
+    else if (any)
+        La += sum - fogshop_spans(*eye_fogshop_, true, d, near, spans.data(), true);
 }
 
 RGB FogEvaluator::fogshop_spans(const FogshopAirlight& fogshop, bool at_eye, const Vec3& d, double near,

@@ -322,6 +322,9 @@ class FogEvaluator {
     std::unique_ptr<FogshopAirlight> eye_fogshop_;
     std::unique_ptr<GaussianRefiner> refiner_;
     std::vector<MarchedLight> marched_;
+    // Every light of the Gaussian fog is marched: a refined ray's airlight is the marches' sum
+    // (what the splat put in its pixel is every light's Fogshop value, which they replace).
+    bool all_marched_ = false;
     mutable std::atomic<long long> marched_rays_{0};
     size_t refine_pairs_ = 0;         // the refinement plan's pairs (refiner_ may be null)
     double refine_kept_bound_ = 0.0;  // and the largest bound it left to Fogshop
