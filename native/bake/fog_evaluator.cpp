@@ -325,10 +325,11 @@ void FogEvaluator::plan_marches(GaussianRefinePlan& plan, int threads) {
     // Sets _marched_'s map to the first size (build(face) makes it) that fits, if any.
     auto search = [&](MarchedLight& marched, auto build, std::size_t bytes_per_face2, int max_face) {
         double last_error = 0.0;
+        std::vector<double> exact;  // the check rays' exact marches, shared by the sizes
         for (int face = 64; face <= max_face;) {
             if (bytes + bytes_per_face2 * face * face > kMarchMapMaxBytes) return;
             build(face);
-            const double error = march_map_error(marched);
+            const double error = march_map_error(marched, exact, threads);
             if (error <= need) {
                 bytes += marched.bytes();
                 return;
@@ -384,7 +385,7 @@ RGB FogEvaluator::march_light(const MarchedLight& marched, bool mapped, const Ve
                                        mapped ? marched.map.get() : nullptr, march);
 }
 
-double FogEvaluator::march_map_error(const MarchedLight& marched) const {
+double FogEvaluator::march_map_error(const MarchedLight& marched, std::vector<double>& exact, int threads) const {
     // Rays from the eye through kMapCheckRays Gaussians' centres (picked evenly through the
     // list of those the light reaches: a spot's, in its cone; to twice the centre's distance),
     // on which the fog is.
@@ -399,18 +400,24 @@ double FogEvaluator::march_map_error(const MarchedLight& marched) const {
         if (!cone || spot_profile(*cone, glm::dot(cone->axis, u) / std::max(glm::length(u), 1e-300)) > 0.0)
             reached.push_back(j);
     }
-    const size_t n = reached.size();
+    const size_t n = reached.size(), rays = n > 0 ? kMapCheckRays : 0;
+    const bool first = exact.empty();
+    exact.resize(rays);
+    std::vector<double> mapped(rays, 0.0);
+    parallel_chunks(rays, threads, 1, [&](size_t begin, size_t end) {
+        for (size_t k = begin; k < end; ++k) {
+            const Vec3 to = gaussian_->centre(reached[k * n / kMapCheckRays]) - origin_;
+            const double D = glm::length(to);
+            if (!(D > 0.0)) continue;
+            build_progress_check();  // (the bake's bar and cancel through the check's marches)
+            GaussianMarch with_map, exact_depths;  // (unit albedos: the channels agree)
+            mapped[k] = march_light(marched, true, origin_, to / D, 2.0 * D, with_map).x;
+            if (first) exact[k] = march_light(marched, false, origin_, to / D, 2.0 * D, exact_depths).x;
+        }
+    });
     double worst = 0.0;
-    for (int k = 0; k < kMapCheckRays && n > 0; ++k) {
-        const Vec3 to = gaussian_->centre(reached[size_t(k) * n / kMapCheckRays]) - origin_;
-        const double D = glm::length(to);
-        if (!(D > 0.0)) continue;
-        build_progress_check();  // (the bake's bar and cancel through the check's marches)
-        GaussianMarch with_map, exact;  // (unit albedos: the channels agree)
-        const double mapped = march_light(marched, true, origin_, to / D, 2.0 * D, with_map).x;
-        const double ref = march_light(marched, false, origin_, to / D, 2.0 * D, exact).x;
-        if (ref > 0.0) worst = std::max(worst, std::abs(mapped - ref) / ref);
-    }
+    for (size_t k = 0; k < rays; ++k)
+        if (exact[k] > 0.0) worst = std::max(worst, std::abs(mapped[k] - exact[k]) / exact[k]);
     return worst;
 }
 

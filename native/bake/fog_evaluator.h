@@ -209,8 +209,10 @@ class FogEvaluator {
     RGB march_light(const MarchedLight& marched, bool mapped, const Vec3& o, const Vec3& d, double len,
                     GaussianMarch& march) const;
     // The largest relative error of the march's airlight with _marched_'s map against exact
-    // light depths on a few rays from the eye through the Gaussians (those a spot's cone lights).
-    double march_map_error(const MarchedLight& marched) const;
+    // light depths on a few rays from the eye through the Gaussians (those a spot's cone lights);
+    // _exact_: the exact marches of those rays, computed on the first call (empty) and kept. The
+    // rays on _threads_ threads (0: all).
+    double march_map_error(const MarchedLight& marched, std::vector<double>& exact, int threads) const;
     // refine_gaussians' uniform-fog part for one ray d over [near, end] (Tg_near: the
     // Gaussians' depth before near; lit: its lit intervals, null when untraced: lit all along),
     // _view_ gathered on demand.
