@@ -512,7 +512,8 @@ void FogEvaluator::march_lights(const Vec3& d, double near, double end, const Li
             march.lit = &march_spans;
         }
         const size_t P = gaussian_lights_.size();
-        const RGB marched = (l < P ? gaussian_I0_[l] : gaussian_suns_[l - P].E) * march_light(light, true, o, d, end - near, march);
+        const RGB weight = l < P ? gaussian_I0_[l] : gaussian_suns_[l - P].E;
+        const RGB marched = weight * march_light(light, true, o, d, end - near, march);
         refine_work() += std::uint64_t(march.work / kMarchWorkPerUnit);
         if (march.stopped) throw RefineWorkExceeded{};
         spans[l] = lit_spans;
@@ -1431,9 +1432,11 @@ void FogEvaluator::eval_gaussians(const Ray* rays, const float* Dvp, const float
                 // (Unshadowed: the march with exact light depths, as for point lights: 2e-7 of
                 // the adaptive quadrature in GaussianMarch.SunMatchesTheQuadrature.)
                 GaussianMarch march;
-                La[k] += medium_albedo_ * sun.E *
-                         (!ref.visible ? gaussian_march_sun(*gaussian_, -sun.w, fog_top_, phase_, o, ray.d, seg, nullptr, march)
-                                       : gaussian_airlight_quadrature(*gaussian_, ref, phase_, o, ray.d, seg, kQuadratureRelTol, kSums));
+                const double La_sun =
+                    !ref.visible
+                        ? gaussian_march_sun(*gaussian_, -sun.w, fog_top_, phase_, o, ray.d, seg, nullptr, march)
+                        : gaussian_airlight_quadrature(*gaussian_, ref, phase_, o, ray.d, seg, kQuadratureRelTol, kSums);
+                La[k] += medium_albedo_ * sun.E * La_sun;
             }
             continue;
         }

@@ -118,7 +118,8 @@ RGB march_rgb(const GaussianMedium& medium, const MarchLight& light, const Phase
         if (shaded.first <= shaded.second)
             for (double x : {shaded.first, shaded.second})
                 if (x > 0.0 && x < Dvp) cuts.push_back(x);
-        cuts.erase(std::remove_if(cuts.begin(), cuts.end(), [&](double x) { return !(x > 0.0 && x < Dvp); }), cuts.end());
+        auto outside = [&](double x) { return !(x > 0.0 && x < Dvp); };
+        cuts.erase(std::remove_if(cuts.begin(), cuts.end(), outside), cuts.end());
         std::sort(cuts.begin(), cuts.end());
     }
     // (A sun's steps within its footprint: the shade's scale, the map's cells or the Gaussians' widths.)

@@ -1,6 +1,7 @@
 // march.h: the single-scattering airlight of Gaussian fog along one view ray, marched.
 //
-// Eq. 2 (Fogshop's La, per unit I0) for a point light s and any phase,
+// Eq. 2 (Fogshop's La, per unit I0) for a point light s and any phase (a spot's cone and a sun
+// lamp below: gaussian_march_sun_rgb),
 //   La = int_0^Dvp sigma_s(x) p(cos theta) / |x - s|^2 exp(-T(s, x) - T(v, x)) V(x) dt,
 // sigma_s = beta0 albedo0 + sum_i albedo_i c_i e^{-a_i^2 |x - b_i|^2} (RGB; unit albedos: beta),
 // V = 1 on the lit spans (volumetric shadows) and 0 between them, by composite Simpson over

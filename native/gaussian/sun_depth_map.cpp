@@ -34,7 +34,8 @@ constexpr double kInf = std::numeric_limits<double>::infinity();
 
 SunFootprint::SunFootprint(const GaussianMedium& medium, const Vec3& towards) {
     const double len = glm::length(towards);
-    if (!(len > 0.0) || !std::isfinite(len)) throw std::invalid_argument("SunDepthMap: the sun's direction is not valid");
+    if (!(len > 0.0) || !std::isfinite(len))
+        throw std::invalid_argument("SunDepthMap: the sun's direction is not valid");
     u = towards / len;
     // (Any frame of the plane normal to u: from the axis least aligned with it.)
     const Vec3 helper = std::abs(u.x) < 0.9 ? Vec3(1.0, 0.0, 0.0) : Vec3(0.0, 1.0, 0.0);
@@ -120,7 +121,8 @@ void SunDepthMap::fill(const GaussianMedium& medium, int i, int j, float* out, s
 
 double SunDepthMap::cell_step(const Vec3& r) const {
     const SunFootprint& f = print_;
-    return std::min({dp_ / std::abs(glm::dot(r, f.e1)), dq_ / std::abs(glm::dot(r, f.e2)), ds_ / std::abs(glm::dot(r, f.u))});
+    return std::min({dp_ / std::abs(glm::dot(r, f.e1)), dq_ / std::abs(glm::dot(r, f.e2)),
+                     ds_ / std::abs(glm::dot(r, f.u))});
 }
 
 double SunDepthMap::operator()(const Vec3& x) const {
