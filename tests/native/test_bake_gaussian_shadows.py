@@ -214,22 +214,29 @@ def test_fogshop_sun_uniform_fog_lit_spans_exact():
     assert rel(f, q, 0.05 * np.percentile(q, 99)).max() < 1e-4
 
 
+def refined_errors(accuracy, label, **extra):
+    """Fogshop's and the refined bake's relative errors against `quadrature` on thick Gaussians
+    (12x the panel scene's), and the refined bake's stats."""
+    thick = 12.0 * AMPLITUDES
+    ref = bake("quadrature", thick, **extra)["airlight"][..., 0].astype(np.float64)
+    fogshop = bake("sun05", thick, **extra)["airlight"][..., 0].astype(np.float64)
+    r = bake("sun05", thick, gaussian_accuracy=accuracy, **extra)
+    got = r["airlight"][..., 0].astype(np.float64)
+    m = ref > 1e-6 * ref.max()
+    e, e0 = np.abs(got - ref)[m] / ref[m], np.abs(fogshop - ref)[m] / ref[m]
+    print(f"{label}, {accuracy:g}: Fogshop mean {e0.mean():.2e}; refined mean {e.mean():.2e} p99 "
+          f"{np.percentile(e, 99):.2e}, {r['stats']['gaussian_marched_rays']} marches")
+    return e, e0, r["stats"]
+
+
 @pytest.mark.parametrize("accuracy", [0.05, 0.01])
 def test_refined_shadowed_point_light_meets_the_accuracy(accuracy):
     """Automatic's refinement marches a shadowed point light's whole airlight over its lit spans
     (gaussian/march.h): on Gaussians thick enough that Fogshop's lit spans err by tens of
     percent, the refined bake is within the accuracy of `quadrature` (mean, p99 within 3x)."""
-    thick = 12.0 * AMPLITUDES
-    ref = bake("quadrature", thick)["airlight"][..., 0].astype(np.float64)
-    fogshop = bake("sun05", thick)["airlight"][..., 0].astype(np.float64)
-    r = bake("sun05", thick, gaussian_accuracy=accuracy)
-    got = r["airlight"][..., 0].astype(np.float64)
-    m = ref > 1e-6 * ref.max()
-    e, e0 = np.abs(got - ref)[m] / ref[m], np.abs(fogshop - ref)[m] / ref[m]
-    print(f"shadowed, {accuracy:g}: Fogshop mean {e0.mean():.2e}; refined mean {e.mean():.2e} p99 "
-          f"{np.percentile(e, 99):.2e}, {r['stats']['gaussian_marched_rays']} marches")
+    e, e0, stats = refined_errors(accuracy, "shadowed point light")
     assert e0.mean() > 5 * accuracy  # (the case needs the refinement)
-    assert r["stats"]["gaussian_marched_lights"] == 1
+    assert stats["gaussian_marched_lights"] == 1
     assert e.mean() <= accuracy and np.percentile(e, 99) <= 3 * accuracy
 
 
@@ -239,17 +246,7 @@ def test_refined_shadowed_sun_meets_the_accuracy(accuracy, fog_top):
     """The same for a sun whose shadow crosses thick Gaussians (its march takes the lit spans
     and its map the Gaussians' own shade), with and without a fog layer's top; `quadrature`
     integrates the sun's visibility itself."""
-    thick = 12.0 * AMPLITUDES
-    kw = dict(light_positions=np.zeros((0, 3)), light_intensities=np.zeros((0, 3)))
-    suns = {**sun_lights(fog_top=fog_top), **kw}
-    ref = bake("quadrature", thick, **suns)["airlight"][..., 0].astype(np.float64)
-    fogshop = bake("sun05", thick, **suns)["airlight"][..., 0].astype(np.float64)
-    r = bake("sun05", thick, gaussian_accuracy=accuracy, **suns)
-    got = r["airlight"][..., 0].astype(np.float64)
-    m = ref > 1e-6 * ref.max()
-    e, e0 = np.abs(got - ref)[m] / ref[m], np.abs(fogshop - ref)[m] / ref[m]
-    print(f"shadowed sun, top {fog_top}, {accuracy:g}: Fogshop mean {e0.mean():.2e}; refined mean {e.mean():.2e} "
-          f"p99 {np.percentile(e, 99):.2e}, {r['stats']['gaussian_marched_rays']} marches")
+    e, e0, stats = refined_errors(accuracy, f"shadowed sun, top {fog_top}", **sun_lights(fog_top=fog_top))
     assert e0.mean() > 2 * accuracy  # (the case needs the refinement)
-    assert r["stats"]["gaussian_marched_lights"] == 1
+    assert stats["gaussian_marched_lights"] == 1
     assert e.mean() <= accuracy and np.percentile(e, 99) <= 3 * accuracy
