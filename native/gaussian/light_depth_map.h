@@ -47,6 +47,8 @@ class LightDepthMap {
 
     const Vec3& light() const { return s_; }
     double max_radius() const { return r_max_; }
+    // The spacing of its distances (a read interpolates linearly between two).
+    double radial_step() const { return dr_; }
     std::size_t bytes() const { return tau_.size() * sizeof(float); }
     // The cube faces the map holds (6 but for a spot's).
     int faces_held() const { return int(std::count_if(slot_, slot_ + 6, [](int k) { return k >= 0; })); }

@@ -272,3 +272,46 @@ def test_the_refinement_reports_progress_and_can_be_cancelled():
     with pytest.raises(_native.BakeCancelled):
         bake("many random Gaussians", gaussian_accuracy=0.01, progress=cancel_in_the_refinement, **size)
     assert max(calls) < 0.9
+
+
+# Extremes for every light type: the camera at a Gaussian's centre (0, 0, 0 is the eye), a light
+# at one's centre, a Gaussian far wider and denser than the scene's fog (1 km wide, optical depth
+# ~20 through it), a small one of optical depth 500 in front of the light.
+EXTREME_GAUSSIANS = {
+    "camera at a Gaussian's centre": [(0.0, 0.0, 0.0, 0.6, 1.5), (0.5, 0.3, -15.0, 0.5, 1.0)],
+    "light at a Gaussian's centre": [(0.0, 0.0, -15.0, 0.5, 4.0), (2.0, 1.0, -16.0, 0.6, 0.5)],
+    "a Gaussian wider and denser than the fog": [(0.0, 0.0, -15.0, 0.001, 20.0), (0.5, 0.2, -14.0, 0.7, 2.0)],
+    "a tiny opaque Gaussian before the light": [(0.2, 0.1, -12.0, 4.0, 500.0), (1.0, 0.5, -15.0, 0.6, 1.0)],
+}
+EXTREME_LIGHTS = {
+    "point": POINT,
+    "spot": dict(light_positions=np.zeros((0, 3)), light_intensities=np.zeros((0, 3)),
+                 spot_positions=np.array([[0.0, 0.0, -15.0]]), spot_axes=np.array([[0.0, -1.0, 0.2]]),
+                 spot_intensities=np.array([[200.0, 200.0, 200.0]]), spot_size=np.array([math.radians(90.0)]),
+                 spot_blend=np.array([0.2])),
+    "sun": SUN,
+}
+
+
+@pytest.mark.parametrize("light", list(EXTREME_LIGHTS))
+@pytest.mark.parametrize("case", list(EXTREME_GAUSSIANS))
+def test_refinement_holds_at_the_extremes(case, light):
+    """At 1 % the refined bake is finite and within the accuracy of `quadrature` (mean, p99
+    within 3x) or, past its budget, says so and keeps Fogshop's values."""
+    name = f"extreme: {case}, {light}"
+    SCENES[name] = dict(gaussians=EXTREME_GAUSSIANS[case], size=(16, 12), **EXTREME_LIGHTS[light])
+    try:
+        ref = reference(name)
+        r = bake(name, gaussian_accuracy=0.01)
+        assert np.isfinite(r["airlight"]).all() and np.isfinite(r["transmittance"]).all()
+        assert np.isfinite(ref).all() and ref.max() > 0.0
+        s = r["stats"]
+        if s["gaussian_refine_abandoned"]:
+            assert np.array_equal(r["airlight"], bake(name)["airlight"])
+            return
+        e = rel_errors(r["airlight"], ref)
+        print(f"{name}: mean {e.mean():.2e} p99 {np.percentile(e, 99):.2e}, "
+              f"{s['gaussian_marched_lights']} marched, {s['seconds_refine']:.3f} s")
+        assert e.mean() <= 0.01 and np.percentile(e, 99) <= 0.03
+    finally:
+        SCENES.pop(name)
