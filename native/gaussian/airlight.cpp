@@ -30,6 +30,7 @@
 #include "gaussian/centre_depths.h"
 #include "gaussian/splat.h"
 #include "homogeneous/sun05.h"
+#include "homogeneous/sunlight_layer.h"
 
 namespace airlight {
 

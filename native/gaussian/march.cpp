@@ -10,7 +10,7 @@
 #include "core/constants.h"
 #include "core/fast_erf.h"
 #include "core/target_clones.h"
-#include "gaussian/splat.h"
+#include "homogeneous/sunlight_layer.h"
 
 namespace airlight {
 

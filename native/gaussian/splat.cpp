@@ -16,6 +16,7 @@
 #include "gaussian/centre_depths.h"
 #include "gaussian/splat_kernels.h"
 #include "homogeneous/sun05.h"
+#include "homogeneous/sunlight_layer.h"
 #include "homogeneous/sun05_batch.h"
 
 namespace airlight {
@@ -181,13 +182,6 @@ void GaussianSplat::sun_weights(const std::vector<double>& depth) {
             }
         });
     }
-}
-
-double sunlight_layer_depth(double beta0, double h_top, double mu_s, double z) {
-    if (!(beta0 > 0.0) || std::isinf(h_top)) return 0.0;
-    if (mu_s > 0.0) return beta0 * std::max(0.0, h_top - z) / mu_s;
-    if (mu_s == 0.0 && z > h_top) return 0.0;  // horizontal above the layer
-    return std::numeric_limits<double>::infinity();
 }
 
 void GaussianSplat::splat_gaussian(std::size_t i, int n, const float* dx, const float* dy, const float* dz,

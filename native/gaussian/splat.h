@@ -94,11 +94,6 @@ struct GaussianSplatLights {
     std::function<double(std::size_t l, const Vec3& d, double t0, double Dvp)> background;
 };
 
-// Light-side homogeneous optical depth of a sun lamp at height z (sunlight_layer.h's layer):
-// beta0 (h_top - z) / mu_s below a finite top, 0 above it or without a top; +inf where
-// the path to the sun crosses infinitely much fog (mu_s <= 0 inside the layer, mu_s < 0).
-double sunlight_layer_depth(double beta0, double h_top, double mu_s, double z);
-
 class GaussianSplat {
   public:
     static constexpr int kTile = 16;

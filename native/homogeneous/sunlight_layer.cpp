@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <vector>
 
 #include "core/quadrature.h"
@@ -95,6 +96,13 @@ double sunlight_layer_factor_quadrature(double sigma_t, double h_top, double mu_
     double sum = 0.0;
     for (size_t i = 0; i + 1 < cuts.size(); ++i) sum += integrate_adaptive(f, cuts[i], cuts[i + 1], rel_tol);
     return sum;
+}
+
+double sunlight_layer_depth(double beta0, double h_top, double mu_s, double z) {
+    if (!(beta0 > 0.0) || std::isinf(h_top)) return 0.0;
+    if (mu_s > 0.0) return beta0 * std::max(0.0, h_top - z) / mu_s;
+    if (mu_s == 0.0 && z > h_top) return 0.0;  // horizontal above the layer
+    return std::numeric_limits<double>::infinity();
 }
 
 }  // namespace airlight

@@ -39,6 +39,12 @@ namespace airlight {
 // La = sigma_s * p(cos theta) * E * G.
 double sunlight_layer_factor(double sigma_t, double h_top, double mu_s, double o_z, double d_z, double t0, double t1);
 
+// The sun's optical depth through the layer from height z: beta0 (h_top - z) / mu_s below a
+// finite top, 0 above it or without a top (the HP model); +inf where the path to the sun
+// crosses infinitely much fog (mu_s <= 0 inside the layer, mu_s < 0). Gaussian fog's light
+// paths to a sun add it to the Gaussians' own depth.
+double sunlight_layer_depth(double beta0, double h_top, double mu_s, double z);
+
 // Reference for G by adaptive quadrature of the integrand written out independently
 // (optical depths of the view and sun paths computed from the geometry at every t).
 double sunlight_layer_factor_quadrature(double sigma_t, double h_top, double mu_s, double o_z, double d_z, double t0,
