@@ -23,7 +23,9 @@ struct RayGaussian {
     RGB albedo;
 };
 
-constexpr double kWindow = 20.0;  // a^2 (h^2 + (t - ts)^2) beyond which a density is left out
+// The window (GaussianMarch::window) of a Gaussian whose optical depth through its centre
+// exceeds kWindowDepth e^window: wide enough to leave out at most kWindowDepth of it, up to kMaxWindow.
+constexpr double kWindowDepth = 1e-5, kMaxWindow = 20.0;
 constexpr double kDepthTol = 1e-3;  // Simpson against trapezoids on a step's view depth (absolute)
 constexpr double kMinStep = 1e-9;  // relative to max(1, t): no step is halved below it
 constexpr double kOpaque = 700.0;  // the view depth past which nothing is left (e^-700 ~ 1e-304)
@@ -149,14 +151,19 @@ RGB march_rgb(const GaussianMedium& medium, const MarchLight& light, const Phase
     const bool cone_bounds_light = march.cone && !march.cone->has_profile();
     if (cone_bounds_light && cuts.empty() && !(spot_profile(*march.cone, cone_cos(0.0)) > 0.0)) return RGB(0.0);
     std::vector<RayGaussian> line;
+    const double dense_depth = kWindowDepth * std::exp(march.window);
     double narrowest = std::numeric_limits<double>::infinity(), last_end = 0.0;
     medium.for_each_near(v, r, Dvp, [&](std::size_t g) {
         const double a = medium.scale(g), c = medium.amplitude(g);
         const Vec3 rel = medium.centre(g) - v;
         const Vec3 cr = glm::cross(rel, r);
         const double ah2 = a * a * glm::dot(cr, cr);
-        if (ah2 >= kWindow) return;
-        const double ts = glm::dot(rel, r), reach = std::sqrt(kWindow - ah2) / a;
+        // (A dense Gaussian keeps a wider window: at most kWindowDepth of its optical depth is left out.)
+        const double centre_depth = c * kSqrtPi / a;
+        const double window = centre_depth <= dense_depth ? march.window
+                                  : std::min(kMaxWindow, std::log(centre_depth / kWindowDepth));
+        if (ah2 >= window) return;
+        const double ts = glm::dot(rel, r), reach = std::sqrt(window - ah2) / a;
         if (ts + reach <= 0.0) return;
         const RGB albedo = march.albedo ? RGB(march.albedo[3 * g], march.albedo[3 * g + 1], march.albedo[3 * g + 2])
                                         : RGB(1.0);
@@ -372,7 +379,11 @@ void GaussianMarch::set_accuracy(double target) {
     // marches are far inside the target; the light-depth maps and the interpolation between
     // refined rays take most of it) at 40-60 % of the march's work. Below 0.5 % the finer
     // steps stay: wider ones there were halved so often that they cost more.
-    if (target >= 5e-3) step_widths = 1.0, step_tol = 1e-2;
+    // The window of e^-10 instead of e^-20 (for Gaussians of optical depth up to 0.22 through
+    // the centre; denser ones keep the window that leaves out 1e-5 of it) holds ~half the
+    // Gaussians: 3000 x 1 at 1 %, 1080p, 27.5k -> 15.2k densities a march, 84 -> 66 us (the
+    // bakes' errors as they were to 1e-5).
+    if (target >= 5e-3) step_widths = 1.0, step_tol = 1e-2, window = 10.0;
 }
 
 double gaussian_march_airlight(const GaussianMedium& medium, const Vec3& s, const PhaseFunction& phase,
