@@ -273,6 +273,9 @@ void FogEvaluator::set_up_refinement(const BakeSettings& settings, const Camera&
         light.w = sun.w;
         lights.push_back(light);
     }
+    gaussians_end_ = 0.0;
+    for (size_t j = 0; j < gaussian_->size(); ++j)
+        gaussians_end_ = std::max(gaussians_end_, glm::length(gaussian_->centre(j) - origin_) + gaussian_->cull_radius(j));
     const int threads = std::max(0, settings.threads);
     // The accuracy's shares: the plan's pairs left to Fogshop, the pairs each ray leaves to it,
     // and the uniform fog's term (refine_gaussians).
@@ -440,6 +443,34 @@ double FogEvaluator::march_map_error(const MarchedLight& marched, std::vector<do
     for (size_t k = 0; k < rays; ++k)
         if (exact[k] > 0.0) worst = std::max(worst, std::abs(mapped[k] - exact[k]) / exact[k]);
     return worst;
+}
+
+double FogEvaluator::uniform_fog_bound(const Vec3& d, double D1, double D2) const {
+    const double beta0 = gaussian_->beta0();
+    if (!(beta0 > 0.0) || !(D2 > D1)) return 0.0;
+    const double p_max = std::max(phase_.eval(1.0), phase_.eval(-1.0));
+    const RGB sigma_s = beta0 * medium_albedo_;
+    const double fade = std::exp(-beta0 * D1);  // (the view's transmittance from D1 on is below it)
+    double bound = 0.0;
+    // A point or spot light: sigma_s I p e^{-beta0 D1} times the integral of 1 / |x(t) - s|^2
+    // over [D1, D2], (atan((D2 - t_s) / h) - atan((D1 - t_s) / h)) / h at closest approach h.
+    for (size_t l = 0; l < gaussian_lights_.size(); ++l) {
+        double emission = 1.0;
+        if (l >= n_gaussian_points_) {
+            const SpotCone& cone = gaussian_spots_[l - n_gaussian_points_].cone;
+            emission = cone.has_spread() ? std::max(1.0, cone.spread_a) : 1.0;
+        }
+        const Vec3 rel = gaussian_lights_[l] - origin_;
+        const double t_s = glm::dot(rel, d), h = std::sqrt(std::max(0.0, glm::dot(rel, rel) - t_s * t_s));
+        if (!(h > 0.0)) return std::numeric_limits<double>::infinity();
+        const double a2 = std::isinf(D2) ? 0.5 * kPi : std::atan((D2 - t_s) / h);
+        const double span = (a2 - std::atan((D1 - t_s) / h)) / h;
+        bound += glm::dot(sigma_s, gaussian_I0_[l]) * p_max * emission * fade * span;
+    }
+    // A sun: sigma_s E p times the integral of e^{-beta0 t} over [D1, D2].
+    for (const GaussianSunData& sun : gaussian_suns_)
+        bound += glm::dot(sigma_s, sun.E) * p_max * (fade - (std::isinf(D2) ? 0.0 : std::exp(-beta0 * D2))) / beta0;
+    return bound;
 }
 
 int FogEvaluator::gaussian_volume(size_t l) const {

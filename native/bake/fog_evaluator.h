@@ -92,6 +92,13 @@ class FogEvaluator {
     // pairs whose uniform-fog term it corrected so far.
     double refine_error_bound() const { return refine_error_bound_; }
     double refine_target() const { return refine_target_; }
+    // The distance from the eye past which no Gaussian's cull sphere lies: rays that end
+    // beyond it cross the same Gaussians whatever their depth (refine_pass).
+    double gaussians_end() const { return gaussians_end_; }
+    // An upper bound on the uniform fog's single scattering between D1 and D2 (D1 <= D2, D2
+    // may be inf) on the ray from the eye along unit _d_, summed over the channels: the lights
+    // unshadowed, at their phase function's and spot's peak, the light's depth left out.
+    double uniform_fog_bound(const Vec3& d, double D1, double D2) const;
     // The budget (BakeSettings::gaussian_refine_budget): counted over the centre samples until
     // close_refine_budget(); once over it every refinement call returns at once.
     bool refine_abandoned() const { return refine_abandoned_.load(); }
@@ -332,6 +339,7 @@ class FogEvaluator {
     double refine_kept_bound_ = 0.0;  // and the largest bound it left to Fogshop
     double refine_target_ = 0.0;       // the asked relative accuracy (gaussian_accuracy)
     double pixel_angle_ = 0.0;         // a pixel's angle at the image centre (radians)
+    double gaussians_end_ = std::numeric_limits<double>::infinity();  // gaussians_end()
     double refine_error_bound_ = 0.0;
     mutable std::atomic<long long> background_rays_{0};
     // The accuracy's shares (set_up_refinement): the plan keeps the pairs whose bound is below

@@ -34,8 +34,13 @@ constexpr int kCellSize = 32;
 constexpr double kCellAngle = 0.035;
 constexpr int kMinCell = 2;
 constexpr double kDepthTol = 0.01;
-// The centre's test, in the asked accuracy: the bilinear ratio there within this of the refined ray.
-constexpr double kRatioTol = 0.5;
+// The centre's test, in the asked accuracy: the bilinear ratio there within this of the refined
+// ray (bench_gaussian_accuracy.py, 3000 x 1 at 1 %, 1080p: 0.5 marched 38.5k rays for a mean
+// error of 0.18 %, p99 0.41 %; 1.0 29k rays for 0.23 %, 0.59 %).
+constexpr double kRatioTol = 1.0;
+// Pixels past the Gaussians share a ratio where the uniform fog between their depths is below
+// this of the centre's test's tolerance (far_alike).
+constexpr double kFarTol = 0.5;
 
 // A pixel's Fogshop value (the splat's) and its refined one.
 struct Sample {
@@ -286,7 +291,8 @@ class CellRefiner {
         }
     }
 
-    // The pixel sees the corners' surface: inverse depths (0 for the sky) on their bilinear plane.
+    // The pixel sees the corners' surface: inverse depths (0 for the sky) on their bilinear
+    // plane, or all of them lie past the Gaussians (far_alike).
     bool pixel_on_surface(int x, int y, int x0, int y0, int x1, int y1) const {
         const std::vector<float>& D = ctx_.result.depth;
         const int W = ctx_.W;
@@ -295,14 +301,29 @@ class CellRefiner {
         const int cx[4] = {x0, x1, x0, x1}, cy[4] = {y0, y0, y1, y1};
         const float d = D[size_t(y) * W + x];
         const bool sky = std::isinf(d);
-        double inv = 0.0;
+        double inv = 0.0, near = d, far = d;
+        bool plane = true;
         for (int q = 0; q < 4; ++q) {
             const float dq = D[size_t(cy[q]) * W + cx[q]];
             if (w[q] == 0.0) continue;
-            if (std::isinf(dq) != sky) return false;
+            near = std::min(near, double(dq)), far = std::max(far, double(dq));
+            if (std::isinf(dq) != sky) plane = false;
             if (!sky) inv += w[q] / dq;
         }
-        return sky || std::abs(inv - 1.0 / d) <= kDepthTol / d;
+        if (plane && (sky || std::abs(inv - 1.0 / d) <= kDepthTol / d)) return true;
+        return far_alike(x, y, near, far);
+    }
+
+    // Rays past the Gaussians (a distant ground and the sky at the horizon) differ only by the
+    // uniform fog between their depths U, which moves the refined and the Fogshop values alike:
+    // the ratio moves by at most ~|1 - ratio| U / Fogshop plus their difference on U. Where U's
+    // bound is below kFarTol of the tolerance of the pixel's Fogshop value, the cell needs no
+    // split there (the horizon's splits were 45 % of the refined rays of the 1080p benchmark).
+    bool far_alike(int x, int y, double near, double far) const {
+        if (!(near >= fog_.gaussians_end()) || !ctx_.affine) return false;
+        const double base_sum = base(x, y).x + base(x, y).y + base(x, y).z;
+        const Vec3 d = glm::normalize(ctx_.D0 + (x + 0.5) * ctx_.Dx + (y + 0.5) * ctx_.Dy);
+        return fog_.uniform_fog_bound(d, near, far) <= kFarTol * tol_ * base_sum;
     }
 
     bool same_surface(int x0, int y0, int x1, int y1) const {

@@ -251,6 +251,38 @@ def test_spot_cone_edges_meet_the_accuracy():
         del SCENES["spot edges"]
 
 
+@pytest.mark.parametrize("lights", ["point", "sun"])
+@pytest.mark.parametrize("ground_end", [120.0, 3000.0])
+def test_the_edge_of_a_distant_ground_meets_the_accuracy(ground_end, lights):
+    """Past the Gaussians a distant ground and the sky differ only by the uniform fog between
+    their depths: where it is below the tolerance the cells across the edge take one ratio
+    (refine_pass.cpp far_alike), and where it is not they split as at any depth edge. A ground
+    ending 120 m or 3 km away (the sky's fog beyond it is e^-1.2 or e^-30 of the whole) under
+    150 random Gaussians at 640 x 360, lit by a point light or a sun, against `quadrature` on
+    windows across the ground's far edge, at 1 %."""
+    w, h, cw, ch, accuracy = 640, 360, 32, 12, 0.01
+    proj = perspective(math.radians(60), w, h)
+    v, t = plane_y(-3.0, x=(-3000.0, 3000.0), z=(1.0, -ground_end))
+    SCENES["far ground"] = dict(gaussians=_random(150, seed=5), size=(w, h), vertices=v, triangles=t,
+                                clip_end=1e4, **(POINT if lights == "point" else SUN))
+    try:
+        r = bake("far ground", gaussian_accuracy=accuracy)
+        assert not r["stats"]["gaussian_refine_abandoned"]
+        depth = r["depth"][:, w // 2]
+        edge = int(np.argmax(np.isfinite(depth)))  # (the first row that sees the ground)
+        assert h // 2 <= edge < h // 2 + 30 and depth[edge] > min(0.9 * ground_end, 500.0)
+        crops = [(x0, edge - ch // 2) for x0 in (40, 200, 310, 420, 560)]
+        e = np.concatenate([rel_errors(r["airlight"][y0:y0 + ch, x0:x0 + cw],
+                                       bake("far ground", model="quadrature", width=cw, height=ch,
+                                            projection=crop_projection(proj, w, h, x0, y0, cw, ch))["airlight"])
+                            for x0, y0 in crops])
+        print(f"ground to {ground_end:g} m, {lights}: mean {e.mean():.2e} "
+              f"p99 {np.percentile(e, 99):.2e} max {e.max():.2e}, {r['stats']['gaussian_marched_rays']} marches")
+        assert e.mean() <= accuracy and np.percentile(e, 99) <= 3 * accuracy
+    finally:
+        del SCENES["far ground"]
+
+
 def test_the_refinement_reports_progress_and_can_be_cancelled():
     """Seconds of marching at a render's size: the progress keeps moving through the refinement
     (grid, then cells) and a cancel there stops the bake (BakeCancelled), not at its end."""
