@@ -35,9 +35,9 @@ constexpr double kCellAngle = 0.035;
 constexpr int kMinCell = 2;
 constexpr double kDepthTol = 0.01;
 // The centre's test, in the asked accuracy: the bilinear ratio there within this of the refined
-// ray (bench_gaussian_accuracy.py, 3000 x 1 at 1 %, 1080p: 0.5 marched 38.5k rays for a mean
-// error of 0.18 %, p99 0.41 %; 1.0 29k rays for 0.23 %, 0.59 %).
-constexpr double kRatioTol = 1.0;
+// ray. (1.0 marched 29k rays instead of 38.5k on the 3000-Gaussian benchmark at 1 %, 1080p,
+// but at 5 % its centres passed cells whose other pixels erred up to 3x more: p99 16.5 %.)
+constexpr double kRatioTol = 0.5;
 // Pixels past the Gaussians share a ratio where the uniform fog between their depths is below
 // this of the centre's test's tolerance (far_alike).
 constexpr double kFarTol = 0.5;
