@@ -7,13 +7,15 @@ pairs integrated, gaussian/refine.h; refine_pass.cpp chooses the rays).
     /usr/bin/python3 benchmarks/bench_gaussian_accuracy.py [--runs 3] [--threads 2]
         [--width 1920 --height 1080] [--crop 32x18] [--skip-1e5] [--plot docs/img/gaussian_trade.png]
         [--budget SECONDS] [--scenes "34 x 3,3000 x 1"] [--accuracies 0,0.05,0.01,0.001]
-        [--resolution full|half|quarter] [--spots | --suns] [--skip-errors]
+        [--resolution auto|full|half|quarter] [--spots | --suns] [--skip-errors]
 
 Scenes of bench_rbf.py (its camera, ground and seeded clouds, beta0 = 0.002 /m, 500 W lights):
 34 broad Gaussians x 3 lights, 3000 brush-sized Gaussians x 1 light, 1e5 small ones x 1
 light; and "3000 thick": the same 3000 with every amplitude x 40 (optical depths ~1-10
 through a Gaussian, the light inside the cloud). Per scene and accuracy (0 = Fogshop alone,
-5 %, 1 %, 0.1 %): the median wall time of the --width x --height bake over --runs runs, its
+5 %, 1 %, 0.1 %): the median wall time of the --width x --height bake over --runs runs at the
+splat's resolution Automatic picks for that accuracy (--resolution auto; Fogshop alone at the
+default, quarter), its
 refinement's share (stats seconds_refine), the point lights marched and their marches, and
 the mean / p99 relative error of that bake's Airlight pass against the QUADRATURE model
 (exact optical depths) on --crop windows of the same image (the reference is too slow for
@@ -26,6 +28,7 @@ is marked ABANDONED (its errors are Fogshop's: what the user gets). Prints PASS/
 """
 
 import argparse
+import ast
 import math
 import os
 import sys
@@ -40,6 +43,22 @@ import _native  # noqa: E402
 
 ACCURACIES = (0.0, 0.05, 0.01, 0.001)
 TARGET_3000_MS = 500.0
+
+
+def automatic_resolution(accuracy, width):
+    """The gaussian_resolution Automatic bakes at _accuracy_ (0: Fogshop alone, at the property's
+    default, quarter) for this camera _width_ pixels wide: the coarsest whose tabulated error
+    (the add-on's model_choice.GAUSSIAN_RESOLUTION_ERROR, read from its source: the add-on
+    needs bpy), scaled as the square of the pixel's angle over its 1080p reference, fits."""
+    source = open(os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "addon", "airlight",
+                               "model_choice.py")).read()
+    table = next(ast.literal_eval(node.value) for node in ast.parse(source).body
+                 if isinstance(node, ast.Assign) and getattr(node.targets[0], "id", "") == "GAUSSIAN_RESOLUTION_ERROR")
+    scale = max(1.0, (1920.0 / width) ** 2)  # (the bench's 60-degree lens, as the table's)
+    for name in ("QUARTER", "HALF", "FULL"):
+        if accuracy == 0.0 or table[name] * scale <= accuracy:
+            return name.lower()
+    return "full"
 
 
 def scenes(skip_1e5):
@@ -135,8 +154,9 @@ def main():
     ap.add_argument("--suns", action="store_true", help="the scenes' lights as sun lamps (sun_lights)")
     ap.add_argument("--skip-errors", action="store_true",
                     help="times only (the QUADRATURE crops of spots on 3000 Gaussians take ~10 min)")
-    ap.add_argument("--resolution", default="full", choices=("full", "half", "quarter"),
-                    help="the splat's gaussian_resolution (Automatic picks the coarsest whose error fits)")
+    ap.add_argument("--resolution", default="auto", choices=("auto", "full", "half", "quarter"),
+                    help="the splat's gaussian_resolution; auto (default): Automatic's, the coarsest whose "
+                         "error fits each accuracy (automatic_resolution)")
     args = ap.parse_args()
     cw, ch = (int(s) for s in args.crop.split("x"))
     W, H = args.width, args.height
@@ -144,10 +164,9 @@ def main():
     print(f"{W}x{H}, {'spot lamps, ' if args.spots else 'sun lamps, ' if args.suns else ''}{args.threads} threads, median of {args.runs}; "
           f"errors of the same bake against QUADRATURE "
           f"on {cw}x{ch} crops")
-    print(f"{'scene':16s} {'accuracy':>8s} {'ms':>9s} {'refine ms':>9s} {'marched':>15s} {'pairs':>13s} "
+    print(f"{'scene':16s} {'accuracy':>8s} {'res':>7s} {'ms':>9s} {'refine ms':>9s} {'marched':>15s} {'pairs':>13s} "
           f"{'mean err':>9s} {'p99 err':>9s} {'bound':>8s}")
     budget = {} if args.budget is None else dict(gaussian_refine_budget=args.budget)
-    budget["gaussian_resolution"] = args.resolution
     wanted = None if args.scenes is None else set(args.scenes.split(","))
     _, proj = camera(W, H)
     for name, gaussians, lights in scenes(args.skip_1e5):
@@ -159,6 +178,8 @@ def main():
                      projection=crop_projection(proj, W, H, x0, y0, cw, ch), **kind)["airlight"]
                 for x0, y0 in windows]
         for acc in (float(a) for a in args.accuracies.split(",")):
+            budget["gaussian_resolution"] = (automatic_resolution(acc, W) if args.resolution == "auto"
+                                             else args.resolution)
             wall, res = timed(lambda: bake(W, H, gaussians, lights, args.threads, gaussian_accuracy=acc, **budget,
                                            **kind), args.runs)
             s = res["stats"]
@@ -171,7 +192,7 @@ def main():
             res = None
             rows.append((name, acc, 1e3 * wall, mean, p99))
             marched = f"{s['gaussian_marched_lights']} ({s['gaussian_marched_rays']})"
-            print(f"{name:16s} {100 * acc:7.2g}% {1e3 * wall:9.0f} {1e3 * s['seconds_refine']:9.0f} {marched:>15s} "
+            print(f"{name:16s} {100 * acc:7.2g}% {budget['gaussian_resolution']:>7s} {1e3 * wall:9.0f} {1e3 * s['seconds_refine']:9.0f} {marched:>15s} "
                   f"{s['gaussian_pairs']:13d} "
                   f"{mean:9.2e} {p99:9.2e} {s['gaussian_error_bound']:8.1e}"
                   f"{'  ABANDONED (over budget: Fogshop alone)' if s['gaussian_refine_abandoned'] else ''}", flush=True)
