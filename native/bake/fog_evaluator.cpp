@@ -605,6 +605,52 @@ RGB FogEvaluator::fogshop_spans(const FogshopAirlight& fogshop, bool at_eye, con
                                   medium_albedo_, phase, bg, spots ? &profile : nullptr, fast);
 }
 
+bool FogEvaluator::same_ratio_depths(const Vec3& d, double D1, double D2, double value, double tol) const {
+    if (std::isinf(D1) || std::isinf(D2)) {
+        if (std::isinf(D1) && std::isinf(D2)) return true;
+    } else if (std::abs(1.0 / D1 - 1.0 / D2) <= 0.01 / D1) {
+        return true;
+    }
+    const double near = std::min(D1, D2), far = std::max(D1, D2);
+    return near >= gaussians_end_ && uniform_fog_bound(d, near, far) <= tol * value;
+}
+
+bool FogEvaluator::frame_ratio(const Vec3& d, double Dvp, const RGB& fogshop, RGB& ratio) const {
+    // The four pixel centres around the sample: those on its surface give their ratios, which
+    // must agree within half the asked accuracy (a shadow's or a spot's edge, a Gaussian's
+    // centre crossing a cone, part them), at least two of them; a dark one among lit ones (no
+    // Fogshop fog) is such an edge too. The sample takes their bilinear mean.
+    const RefinedFrame& f = *refined_frame_;
+    const Vec3 q = f.to_film * d;
+    if (!(q.z > 0.0) || fogshop.x <= 0.0 || fogshop.y <= 0.0 || fogshop.z <= 0.0) return false;
+    const double u = q.x / q.z - 0.5, v = q.y / q.z - 0.5;
+    if (!(u >= 0.0 && v >= 0.0 && u < f.W - 1 && v < f.H - 1)) return false;
+    const int i0 = int(u), j0 = int(v);
+    const double fu = u - i0, fv = v - j0;
+    const double tol = 0.5 * refine_target_;
+    const double value = fogshop.x + fogshop.y + fogshop.z;
+    RGB sum(0.0), lo(std::numeric_limits<double>::infinity()), hi(0.0);
+    double weights = 0.0;
+    int found = 0;
+    for (int c = 0; c < 4; ++c) {
+        const int i = i0 + (c & 1), j = j0 + (c >> 1);
+        const size_t p = size_t(j) * f.W + i;
+        const double w = (c & 1 ? fu : 1.0 - fu) * (c >> 1 ? fv : 1.0 - fv);
+        const float* F = &f.fogshop[3 * p];
+        const float* R = &f.refined[3 * p];
+        if (!(F[0] > 0.0f && F[1] > 0.0f && F[2] > 0.0f)) return false;
+        if (!same_ratio_depths(d, Dvp, double((*f.depth)[p]), value, 0.5 * tol)) continue;
+        const RGB r(R[0] / F[0], R[1] / F[1], R[2] / F[2]);
+        lo = glm::min(lo, r), hi = glm::max(hi, r);
+        sum += w * r, weights += w, ++found;
+    }
+    if (found < 2 || !(weights > 0.0)) return false;
+    for (int c = 0; c < 3; ++c)
+        if (!(hi[c] - lo[c] <= tol * lo[c])) return false;
+    ratio = sum / weights;
+    return true;
+}
+
 void FogEvaluator::refine_samples(const Ray* rays, const float* Dvp, const float* t0, int n, RGB* La) const {
     if (!refiner_) return;
     // The refined / Fogshop ratio varies over several pixels (refine_pass interpolates it over
@@ -634,6 +680,11 @@ void FogEvaluator::refine_samples(const Ray* rays, const float* Dvp, const float
         return std::abs(1.0 / Dvp[k] - 1.0 / Dvp[r]) <= 0.01 / Dvp[k];
     };
     for (int k = 0; k < n; ++k) {
+        RGB ratio;
+        if (refined_frame_ && frame_ratio(rays[k].d, Dvp[k], La[k], ratio)) {
+            La[k] *= ratio;
+            continue;
+        }
         const Rep* match = nullptr;
         for (int q = 0; q < n_reps && !match; ++q)
             if (close(k, reps[q])) match = &reps[q];

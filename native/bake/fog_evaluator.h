@@ -78,9 +78,24 @@ class FogEvaluator {
     // Fogshop's where those miss the target, over the lit spans with shadows. After
     // shadow_gaussians on the same rays.
     void refine_gaussians(const Ray* rays, const float* Dvp, const float* t0, int n, RGB* La) const;
-    // refine_gaussians for the edge pass's sub-samples (neighbours in the image): a sample next
-    // to the last refined one on the same surface takes its refined / Fogshop ratio.
+    // refine_gaussians for the edge pass's sub-samples (neighbours in the image): a sample
+    // between refined centres on its surface whose ratios agree takes theirs (frame_ratio), else
+    // one next to the last refined sample on the same surface takes its refined / Fogshop ratio.
     void refine_samples(const Ray* rays, const float* Dvp, const float* t0, int n, RGB* La) const;
+    // The refine pass's frame, kept for the edge pass: per pixel the centre's Fogshop value and
+    // its refined one (W x H x 3), the depths, and the camera's affine rays (pixel (i, j)'s
+    // centre looks along D0 + (i + 1/2) Dx + (j + 1/2) Dy).
+    struct RefinedFrame {
+        int W = 0, H = 0;
+        std::vector<float> fogshop, refined;
+        const std::vector<float>* depth = nullptr;
+        glm::dmat3 to_film{1.0};  // inverse of the columns (Dx, Dy, D0)
+    };
+    void keep_refined_frame(std::unique_ptr<RefinedFrame> frame) const { refined_frame_ = std::move(frame); }
+    // Two depths along unit _d_ see the same surface, for a ratio of refined to Fogshop values:
+    // inverse depths within 1 %, both the sky, or both past the Gaussians with the uniform fog
+    // between them bounded below _tol_ times _value_ (uniform_fog_bound).
+    bool same_ratio_depths(const Vec3& d, double D1, double D2, double value, double tol) const;
     // The refinement (null when off or when nothing needs it).
     const GaussianRefiner* refiner() const { return refiner_.get(); }
     size_t refine_pairs() const { return refine_pairs_; }
@@ -365,6 +380,9 @@ class FogEvaluator {
     mutable std::atomic<std::uint64_t> refine_spent_{0};
     mutable std::atomic<bool> refine_abandoned_{false}, refine_counting_{true};
     mutable std::atomic<double> refine_scale_{1.0};
+    // (Set between the refine pass and the edge pass, read-only after: keep_refined_frame.)
+    mutable std::unique_ptr<const RefinedFrame> refined_frame_;
+    bool frame_ratio(const Vec3& d, double Dvp, const RGB& fogshop, RGB& ratio) const;
     std::vector<int> light_volume_, spot_volume_, sun_volume_;
     // Per point light, spot and sun its shadow samples (BakeSettings::shadow_samples): volumes
     // light_volume_[l] .. + light_samples_[l] - 1 (1: its centre's alone).

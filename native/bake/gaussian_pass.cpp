@@ -2,6 +2,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <memory>
 #include <numeric>
 #include <vector>
 
@@ -89,7 +90,7 @@ double gaussian_pass(BakeContext& ctx, const FogEvaluator& fog) {
     if (fog.refiner()) {
         // Over its budget the refinement stops and the frame keeps Fogshop's values throughout
         // (edges too), so that whether a frame is refined depends on its work alone.
-        const std::vector<float> fogshop = result.airlight;
+        std::vector<float> fogshop = result.airlight;
         const auto refine_start = Clock::now();
         refine_pass(ctx, fog, fogshop, splat_end, end);
         result.stats.seconds_refine = seconds_since(refine_start);
@@ -99,6 +100,13 @@ double gaussian_pass(BakeContext& ctx, const FogEvaluator& fog) {
             result.airlight = fogshop;
             result.stats.gaussian_refine_abandoned = true;
             result.stats.gaussian_error_bound = std::numeric_limits<double>::infinity();
+        } else if (ctx.affine) {  // (the edge pass's samples take its ratios: refine_samples)
+            auto frame = std::make_unique<FogEvaluator::RefinedFrame>();
+            frame->W = ctx.W, frame->H = ctx.H;
+            frame->fogshop = std::move(fogshop), frame->refined = result.airlight;
+            frame->depth = &result.depth;
+            frame->to_film = glm::inverse(glm::dmat3(ctx.Dx, ctx.Dy, ctx.D0));
+            fog.keep_refined_frame(std::move(frame));
         }
     }
     return end;

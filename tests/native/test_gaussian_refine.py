@@ -17,7 +17,7 @@ import pytest
 
 import _native
 from reference_util import rel_errors
-from scene_util import camera_matrix, crop_projection, perspective, plane_y, rotation_x
+from scene_util import camera_matrix, crop_projection, perspective, plane_y, quad, rotation_x
 
 W, H = 32, 24
 TAU = 1.0 / math.sqrt(math.pi)  # amplitude c = TAU * tau * a: optical depth tau through the centre
@@ -281,6 +281,57 @@ def test_the_edge_of_a_distant_ground_meets_the_accuracy(ground_end, lights):
         assert e.mean() <= accuracy and np.percentile(e, 99) <= 3 * accuracy
     finally:
         del SCENES["far ground"]
+
+
+@pytest.mark.parametrize("lights", ["point", "sun"])
+def test_supersampled_edges_meet_the_accuracy(lights):
+    """Edge pixels (aa_samples 4: 16 sub-samples each, one fog evaluation per cluster of them)
+    with the refinement: a sub-sample between refined centres on its surface whose ratios agree
+    takes theirs (FogEvaluator::frame_ratio), the rest are marched. A wall standing in 150 random
+    Gaussians and the ground's far edge at 320 x 240, a point light or a sun, at 5 and 1 %, against `quadrature` (the
+    same sub-samples, each exact) on windows centred on edge pixels (their outer ring left out:
+    a window's own edge pixels need its neighbours)."""
+    w, h, cw, ch = 320, 240, 14, 10
+    proj = perspective(math.radians(60), w, h)
+    gv, gt = plane_y(-3.0, x=(-300.0, 300.0), z=(1.0, -200.0))
+    wv, wt = quad([[-3.0, -3.0, -14.0], [0.3, -3.0, -14.0], [0.3, 0.4, -14.0], [-3.0, 0.4, -14.0]])
+    v = np.concatenate([gv, wv])
+    t = np.concatenate([gt, wt + len(gv)])
+    kind = POINT if lights == "point" else SUN
+    SCENES["edges"] = dict(gaussians=_random(150, seed=5), size=(w, h), vertices=v, triangles=t, aa_samples=4, **kind)
+    try:
+        depth = bake("edges")["depth"]
+        inv = np.where(np.isfinite(depth), 1.0 / depth, 0.0)
+        jump = np.zeros((h, w), bool)
+        jump[:, 1:] |= np.abs(np.diff(inv, axis=1)) > 0.05 * np.maximum(inv[:, 1:], inv[:, :-1])
+        jump[1:, :] |= np.abs(np.diff(inv, axis=0)) > 0.05 * np.maximum(inv[1:, :], inv[:-1, :])
+        jump[:ch, :], jump[-ch:, :], jump[:, :cw], jump[:, -cw:] = False, False, False, False
+        near = jump.copy()
+        near[:, :-1] |= jump[:, 1:]
+        near[:-1, :] |= jump[1:, :]
+        ys, xs = np.nonzero(jump)
+        assert len(ys) > 100, len(ys)  # (the wall's outline and the ground's far edge)
+        # (two windows on the wall's outline nearest the light's image, where the refined /
+        # Fogshop ratios of the wall and of the rays past it differ most, and two anywhere)
+        order = np.argsort(np.hypot(xs - w / 2, ys - h / 2))
+        picks = [order[0], order[len(order) // 20], *np.random.default_rng(3).choice(len(ys), 2, replace=False)]
+        crops = [(xs[k] - cw // 2, ys[k] - ch // 2) for k in picks]
+        refs = [bake("edges", model="quadrature", width=cw, height=ch,
+                     projection=crop_projection(proj, w, h, x0, y0, cw, ch))["airlight"][1:-1, 1:-1]
+                for x0, y0 in crops]
+        for accuracy in (0.05, 0.01):
+            r = bake("edges", gaussian_accuracy=accuracy)
+            assert not r["stats"]["gaussian_refine_abandoned"] and r["stats"]["supersampled_pixels"] > 100
+            # (the pixels beside a depth jump: the edge pixels)
+            e = np.concatenate([rel_errors(r["airlight"][y0 + 1:y0 + ch - 1, x0 + 1:x0 + cw - 1][near[y0 + 1:y0 + ch - 1,
+                                                                                                   x0 + 1:x0 + cw - 1]],
+                                           ref[near[y0 + 1:y0 + ch - 1, x0 + 1:x0 + cw - 1]])
+                                for (x0, y0), ref in zip(crops, refs)])
+            print(f"edges, {lights}, {accuracy:g}: mean {e.mean():.2e} p99 {np.percentile(e, 99):.2e} "
+                  f"max {e.max():.2e}, {r['stats']['gaussian_marched_rays']} marches")
+            assert e.mean() <= accuracy and np.percentile(e, 99) <= 3 * accuracy
+    finally:
+        del SCENES["edges"]
 
 
 def test_the_refinement_reports_progress_and_can_be_cancelled():
