@@ -55,6 +55,7 @@ BakeResult bake(const SceneDescription& scene, const BakeSettings& settings, con
     const EdgeMap edges(ctx);
     const EdgePixels edge_pixels = homogeneous_pass(ctx, fog, edges, splatted, centres_begin, edges_begin);
     edge_pass(ctx, fog, edge_pixels, edges_begin);
+    fog.keep_refined_frame(nullptr);  // (the refine pass's frame, 24 bytes a pixel, has served)
     result.stats.seconds_airlight = seconds_since(start);
     result.stats.gaussian_background_rays = fog.background_rays();
     result.stats.gaussian_marched_lights = static_cast<long long>(fog.marched_lights());
