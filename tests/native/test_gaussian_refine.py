@@ -104,6 +104,18 @@ def reference(scene):
     return _references[scene]
 
 
+def crop_references(scene, w, h, crops, cw, ch):
+    """`quadrature` on the cw x ch windows at _crops_ (x0, y0) of the w x h image of _scene_."""
+    proj = perspective(math.radians(60), w, h)
+    return [bake(scene, model="quadrature", width=cw, height=ch,
+                 projection=crop_projection(proj, w, h, x0, y0, cw, ch))["airlight"] for x0, y0 in crops]
+
+
+def crop_errors(airlight, crops, refs, cw, ch):
+    """The relative errors of the whole image's _airlight_ on those windows."""
+    return np.concatenate([rel_errors(airlight[y0:y0 + ch, x0:x0 + cw], ref) for (x0, y0), ref in zip(crops, refs)])
+
+
 def test_fogshop_alone_fails_on_a_thick_gaussian_around_a_light():
     e = rel_errors(bake("thick around a light")["airlight"], reference("thick around a light"))
     assert e.mean() > 0.1, e.mean()  # the case the refinement exists for
@@ -226,7 +238,6 @@ def test_spot_cone_edges_meet_the_accuracy():
     centred on lit pixels beside an unlit one (refine_pass.cpp: such cells split to the smallest
     size, and the pixels beside a dark corner are refined alone)."""
     w, h, cw, ch = 640, 360, 16, 10
-    proj = perspective(math.radians(60), w, h)
     SCENES["spot edges"] = dict(gaussians=_random(150, seed=5), size=(w, h), **SPOTS)
     try:
         fogshop = bake("spot edges")["airlight"][..., 0]
@@ -237,13 +248,11 @@ def test_spot_cone_edges_meet_the_accuracy():
         assert len(ys) > 200, len(ys)  # (both cones' edges are in the image)
         picks = np.random.default_rng(1).choice(len(ys), 4, replace=False)
         crops = [(xs[k] - cw // 2, ys[k] - ch // 2) for k in picks]
-        refs = [bake("spot edges", model="quadrature", width=cw, height=ch,
-                     projection=crop_projection(proj, w, h, x0, y0, cw, ch))["airlight"] for x0, y0 in crops]
+        refs = crop_references("spot edges", w, h, crops, cw, ch)
         for accuracy in (0.05, 0.01):
             r = bake("spot edges", gaussian_accuracy=accuracy)
             assert r["stats"]["gaussian_marched_lights"] == 2 and not r["stats"]["gaussian_refine_abandoned"]
-            e = np.concatenate([rel_errors(r["airlight"][y0:y0 + ch, x0:x0 + cw], ref)
-                                for (x0, y0), ref in zip(crops, refs)])
+            e = crop_errors(r["airlight"], crops, refs, cw, ch)
             print(f"spot edges at {accuracy:g}: mean {e.mean():.2e} p99 {np.percentile(e, 99):.2e} "
                   f"max {e.max():.2e} over {e.size} pixels")
             assert e.mean() <= accuracy and np.percentile(e, 99) <= 3 * accuracy
@@ -261,7 +270,6 @@ def test_the_edge_of_a_distant_ground_meets_the_accuracy(ground_end, lights):
     150 random Gaussians at 640 x 360, lit by a point light or a sun, against `quadrature` on
     windows across the ground's far edge, at 1 %."""
     w, h, cw, ch, accuracy = 640, 360, 32, 12, 0.01
-    proj = perspective(math.radians(60), w, h)
     v, t = plane_y(-3.0, x=(-3000.0, 3000.0), z=(1.0, -ground_end))
     SCENES["far ground"] = dict(gaussians=_random(150, seed=5), size=(w, h), vertices=v, triangles=t,
                                 clip_end=1e4, **(POINT if lights == "point" else SUN))
@@ -272,10 +280,7 @@ def test_the_edge_of_a_distant_ground_meets_the_accuracy(ground_end, lights):
         edge = int(np.argmax(np.isfinite(depth)))  # (the first row that sees the ground)
         assert h // 2 <= edge < h // 2 + 30 and depth[edge] > min(0.9 * ground_end, 500.0)
         crops = [(x0, edge - ch // 2) for x0 in (40, 200, 310, 420, 560)]
-        e = np.concatenate([rel_errors(r["airlight"][y0:y0 + ch, x0:x0 + cw],
-                                       bake("far ground", model="quadrature", width=cw, height=ch,
-                                            projection=crop_projection(proj, w, h, x0, y0, cw, ch))["airlight"])
-                            for x0, y0 in crops])
+        e = crop_errors(r["airlight"], crops, crop_references("far ground", w, h, crops, cw, ch), cw, ch)
         print(f"ground to {ground_end:g} m, {lights}: mean {e.mean():.2e} "
               f"p99 {np.percentile(e, 99):.2e} max {e.max():.2e}, {r['stats']['gaussian_marched_rays']} marches")
         assert e.mean() <= accuracy and np.percentile(e, 99) <= 3 * accuracy
@@ -288,11 +293,10 @@ def test_supersampled_edges_meet_the_accuracy(lights):
     """Edge pixels (aa_samples 4: 16 sub-samples each, one fog evaluation per cluster of them)
     with the refinement: a sub-sample between refined centres on its surface whose ratios agree
     takes theirs (FogEvaluator::frame_ratio), the rest are marched. A wall standing in 150 random
-    Gaussians and the ground's far edge at 320 x 240, a point light or a sun, at 5 and 1 %, against `quadrature` (the
-    same sub-samples, each exact) on windows centred on edge pixels (their outer ring left out:
-    a window's own edge pixels need its neighbours)."""
+    Gaussians and the ground's far edge at 320 x 240, a point light or a sun, at 5 and 1 %,
+    against `quadrature` (the same sub-samples, each exact) on the edge pixels of windows centred
+    on them (their outer ring left out: a window's own edge pixels need its neighbours)."""
     w, h, cw, ch = 320, 240, 14, 10
-    proj = perspective(math.radians(60), w, h)
     gv, gt = plane_y(-3.0, x=(-300.0, 300.0), z=(1.0, -200.0))
     wv, wt = quad([[-3.0, -3.0, -14.0], [0.3, -3.0, -14.0], [0.3, 0.4, -14.0], [-3.0, 0.4, -14.0]])
     v = np.concatenate([gv, wv])
@@ -316,17 +320,14 @@ def test_supersampled_edges_meet_the_accuracy(lights):
         order = np.argsort(np.hypot(xs - w / 2, ys - h / 2))
         picks = [order[0], order[len(order) // 20], *np.random.default_rng(3).choice(len(ys), 2, replace=False)]
         crops = [(xs[k] - cw // 2, ys[k] - ch // 2) for k in picks]
-        refs = [bake("edges", model="quadrature", width=cw, height=ch,
-                     projection=crop_projection(proj, w, h, x0, y0, cw, ch))["airlight"][1:-1, 1:-1]
-                for x0, y0 in crops]
+        refs = crop_references("edges", w, h, crops, cw, ch)
+        inner = [(slice(y0 + 1, y0 + ch - 1), slice(x0 + 1, x0 + cw - 1)) for x0, y0 in crops]
         for accuracy in (0.05, 0.01):
             r = bake("edges", gaussian_accuracy=accuracy)
             assert not r["stats"]["gaussian_refine_abandoned"] and r["stats"]["supersampled_pixels"] > 100
             # (the pixels beside a depth jump: the edge pixels)
-            e = np.concatenate([rel_errors(r["airlight"][y0 + 1:y0 + ch - 1, x0 + 1:x0 + cw - 1][near[y0 + 1:y0 + ch - 1,
-                                                                                                   x0 + 1:x0 + cw - 1]],
-                                           ref[near[y0 + 1:y0 + ch - 1, x0 + 1:x0 + cw - 1]])
-                                for (x0, y0), ref in zip(crops, refs)])
+            e = np.concatenate([rel_errors(r["airlight"][win][near[win]], ref[1:-1, 1:-1][near[win]])
+                                for win, ref in zip(inner, refs)])
             print(f"edges, {lights}, {accuracy:g}: mean {e.mean():.2e} p99 {np.percentile(e, 99):.2e} "
                   f"max {e.max():.2e}, {r['stats']['gaussian_marched_rays']} marches")
             assert e.mean() <= accuracy and np.percentile(e, 99) <= 3 * accuracy
