@@ -15,8 +15,8 @@ light; and "3000 thick": the same 3000 with every amplitude x 40 (optical depths
 through a Gaussian, the light inside the cloud). Per scene and accuracy (0 = Fogshop alone,
 5 %, 1 %, 0.1 %): the median wall time of the --width x --height bake over --runs runs at the
 splat's resolution Automatic picks for that accuracy (--resolution auto; Fogshop alone at the
-default, quarter), its
-refinement's share (stats seconds_refine), the point lights marched and their marches, and
+default, quarter), its refinement's share (stats seconds_refine), the point lights marched
+and their marches, and
 the mean / p99 relative error of that bake's Airlight pass against the QUADRATURE model
 (exact optical depths) on --crop windows of the same image (the reference is too slow for
 the whole frame): around each light's image and at four fixed places (the cloud, the
@@ -50,8 +50,9 @@ def automatic_resolution(accuracy, width):
     default, quarter) for this camera _width_ pixels wide: the coarsest whose tabulated error
     (the add-on's model_choice.GAUSSIAN_RESOLUTION_ERROR, read from its source: the add-on
     needs bpy), scaled as the square of the pixel's angle over its 1080p reference, fits."""
-    source = open(os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "addon", "airlight",
-                               "model_choice.py")).read()
+    with open(os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "addon", "airlight",
+                           "model_choice.py")) as f:
+        source = f.read()
     table = next(ast.literal_eval(node.value) for node in ast.parse(source).body
                  if isinstance(node, ast.Assign) and getattr(node.targets[0], "id", "") == "GAUSSIAN_RESOLUTION_ERROR")
     scale = max(1.0, (1920.0 / width) ** 2)  # (the bench's 60-degree lens, as the table's)
