@@ -98,6 +98,16 @@ double sunlight_layer_factor_quadrature(double sigma_t, double h_top, double mu_
     return sum;
 }
 
+double sunlight_span(double sigma_t, double h_top, double mu_s, double o_z, double d_z, double t_start, double a,
+                     double b) {
+    const double G = sunlight_layer_factor(sigma_t, h_top, mu_s, o_z, d_z, a, b);
+    if (G == 0.0) return 0.0;
+    // Where the ray enters the layer z <= h_top (-inf: it starts inside or never leaves).
+    double enter = -std::numeric_limits<double>::infinity();
+    if (std::isfinite(h_top) && d_z < 0.0 && o_z > h_top) enter = (h_top - o_z) / d_z;
+    return G * std::exp(-sigma_t * (std::max(a, enter) - std::max(t_start, enter)));
+}
+
 double sunlight_layer_depth(double beta0, double h_top, double mu_s, double z) {
     if (!(beta0 > 0.0) || std::isinf(h_top)) return 0.0;
     if (mu_s > 0.0) return beta0 * std::max(0.0, h_top - z) / mu_s;

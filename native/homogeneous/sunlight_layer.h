@@ -39,6 +39,12 @@ namespace airlight {
 // La = sigma_s * p(cos theta) * E * G.
 double sunlight_layer_factor(double sigma_t, double h_top, double mu_s, double o_z, double d_z, double t0, double t1);
 
+// G over the span [a, b] of the ray o + t d, attenuated from the fog's start t_start <= a instead
+// of from a (sunlight_layer_factor attenuates from the start of its own segment in the layer):
+// a lit span of a shadowed ray.
+double sunlight_span(double sigma_t, double h_top, double mu_s, double o_z, double d_z, double t_start, double a,
+                     double b);
+
 // The sun's optical depth through the layer from height z: beta0 (h_top - z) / mu_s below a
 // finite top, 0 above it or without a top (the HP model); +inf where the path to the sun
 // crosses infinitely much fog (mu_s <= 0 inside the layer, mu_s < 0). Gaussian fog's light

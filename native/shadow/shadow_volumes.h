@@ -55,6 +55,10 @@ struct LitIntervals {
     // The lights (ShadowVolumes::light_mask bits) not lit all along [t0, t1]: a light whose
     // bit is clear has the one span [t0, t1].
     uint32_t partial = 0;
+    // Light _v_ lights [t0, t1] all along: its one span is that segment.
+    bool fully_lit(int v, double t0, double t1) const {
+        return end[v] - begin[v] == 1 && spans[begin[v]].first == t0 && spans[begin[v]].second == t1;
+    }
     // Room for _n_lights_ (the sweep writes every light's begin and end).
     void clear(int n_lights) {
         begin.resize(size_t(n_lights));
