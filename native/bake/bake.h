@@ -125,6 +125,9 @@ struct BakeStats {
     // their pairs' exact terms, and the (ray, light) marches.
     long long gaussian_marched_lights = 0;
     long long gaussian_marched_rays = 0;
+    // The pixels between refined rays whose ratio came from a biquadratic through a cell's nine
+    // (refine_pass.cpp; the rest take the corners' bilinear ratio).
+    long long gaussian_quadratic_pixels = 0;
     bool gaussian_refine_abandoned = false;  // over its budget: Fogshop alone (bound inf)
     double gaussian_refine_work = 0.0;       // the refinement's work, in nominal CPU seconds
     double gaussian_error_bound = 0.0;

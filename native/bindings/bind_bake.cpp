@@ -376,6 +376,7 @@ py::dict bake_py(int width, int height, const py::object& cam_to_world, const py
                    "gaussian_background_rays"_a = result.stats.gaussian_background_rays,
                    "gaussian_marched_lights"_a = result.stats.gaussian_marched_lights,
                    "gaussian_marched_rays"_a = result.stats.gaussian_marched_rays,
+                   "gaussian_quadratic_pixels"_a = result.stats.gaussian_quadratic_pixels,
                    "gaussian_refine_abandoned"_a = result.stats.gaussian_refine_abandoned,
                    "gaussian_refine_work"_a = result.stats.gaussian_refine_work,
                    "gaussian_error_bound"_a = result.stats.gaussian_error_bound);
@@ -531,6 +532,8 @@ gaussian_accuracy in [0, 1) (default 0): fog objects with the Fogshop models (pe
   ray where its bound exceeds half of it (gaussian/refine.h); 0: Fogshop's approximation alone.
   stats gaussian_pairs, gaussian_kept_bound (the largest bound the plan leaves to Fogshop),
   gaussian_marched_lights and gaussian_marched_rays (the marched lights, ray x light marches),
+  gaussian_quadratic_pixels (pixels between refined rays whose refined / Fogshop ratio came
+  from a cell's biquadratic, not its corners' bilinear one),
   gaussian_background_rays (ray x light uniform-fog terms corrected), gaussian_error_bound (the
   relative error bound of the mix), seconds_refine, gaussian_refine_work (nominal CPU seconds).
 gaussian_refine_budget >= 0 (default 60): the refinement's budget in nominal CPU seconds (work
