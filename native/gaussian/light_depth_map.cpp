@@ -15,9 +15,12 @@ namespace airlight {
 
 namespace {
 
-// Beyond this many widths of its projection a Gaussian's erf step is whole (erf(4.5) =
-// 1 - 2e-10): the distances past it get the whole step, those before it nothing.
-constexpr double kStepReach = 4.5;
+// Beyond this many widths of its projection a Gaussian's erf step is whole (erf(3) =
+// 1 - 2.2e-5): the distances past it get the whole step, those before it nothing, each off by
+// at most 1.1e-5 of the Gaussian's depth there (the maps' measured errors, 2.5e-4 of the
+// airlight at 0.1 %, are 20x that). 4.5 took 58 bins a Gaussian on the 3000-Gaussian cloud,
+// 3 takes 42.
+constexpr double kStepReach = 3.0;
 constexpr int kPad = 16;  // the float kernel's widest vector
 
 // acc[k] += K (erf(x_k) - erf(x1)), x_k = a (k dr - p), for k in [lo, hi] (float kernel).

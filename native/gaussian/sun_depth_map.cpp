@@ -15,9 +15,10 @@ namespace airlight {
 
 namespace {
 
-// Beyond this many widths of its projection a Gaussian's erfc step is whole (erfc(-4.5) = 2 -
-// 2e-10) or gone: the heights below it get the whole step, those above it nothing.
-constexpr double kStepReach = 4.5;
+// Beyond this many widths of its projection a Gaussian's erfc step is whole (erfc(-3) = 2 -
+// 2.2e-5) or gone: the heights below it get the whole step, those above it nothing (as the
+// light-depth map's, light_depth_map.cpp).
+constexpr double kStepReach = 3.0;
 
 // acc[k] += K erfc(a (k ds - p)), for k in [lo, hi] (float kernel).
 AIRLIGHT_SIMD_CLONES void add_erfc_steps(float* acc, int lo, int hi, float K, float a, float ds, float p) {
