@@ -366,14 +366,17 @@ class FogEvaluator {
     // its share of the quadrature's overhead): 5.5e-8 s measured on this machine's cores
     // (benchmarks/bench_gaussian_accuracy.py, 3000 Gaussians).
     static constexpr double kRefineSecondsPerWork = 5.5e-8;
-    // The marched lights' light-depth maps (plan_marches): 64, 128 or 256 grid points a face's
+    // The marched lights' light-depth maps (plan_marches): 32 to 256 grid points a face's
     // side (kMarchMapMaxFace), as the measured error asks, kMarchMapRadial distances, at most
     // kMarchMapMaxBytes for all the lights together (a sun's map is a sixth of a point's a
     // face: its largest, 512 a side, 256 MB). The march's units of work (GaussianMarch::work,
     // ~4 ns with the float kernels) per refine_work unit (5.5e-8 s).
     static constexpr int kMarchMapRadial = 256, kMarchMapMaxFace = 256, kSunMapMaxFace = 512;
-    // The largest fall of a map's measured error per doubling of its face (plan_marches).
+    // The largest fall of a map's measured error per doubling of its face (plan_marches), the
+    // first face at 1 % (scaled to the target), the least, and the margin on a predicted one.
     static constexpr double kMapFallBound = 10.0;
+    static constexpr int kMapFace1 = 64, kMapMinFace = 32;
+    static constexpr double kMapFaceMargin = 1.1;
     static constexpr std::size_t kMarchMapMaxBytes = std::size_t(1) << 30;
     static constexpr long kMarchWorkPerUnit = 12;
     std::uint64_t refine_budget_ = 0;

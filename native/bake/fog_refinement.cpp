@@ -80,20 +80,25 @@ void FogEvaluator::plan_marches(GaussianRefinePlan& plan, int threads) {
     // The light depths from a map whose measured error fits the march's share of the accuracy
     // (kMarchedShare; the march's own error is far below it)
     // (march_map_error: the march with the map against exact light depths on rays from the eye
-    // through the Gaussians). 64 grid points a side first, then twice and four times as many
-    // while it errs more and the error's fall could still reach the need by the largest size.
-    // The error falls as the square of the spacing or faster: 4x a doubling on the thick
-    // benchmark cloud, 9.5x on the 1e5 one (64 errs 0.014, 128 0.0015), where predicting by
-    // the square law skipped 128 for 256 (16x the cost of 64: two thirds of the frame's
-    // set-up). Past the largest, or past kMarchMapMaxBytes for all the lights, the light depths
-    // are exact (slow with many Gaussians: the budget decides).
+    // through the Gaussians). The error falls as the square of the grid's spacing or faster:
+    // 4x a doubling on the thick benchmark cloud, 9.5x on the 1e5 one (64 errs 0.014, 128
+    // 0.0015). The first size is 64 a side at 1 %, scaled to the target by the square law (32
+    // at 5 %, 203 at 0.1 %: the 3000-Gaussian cloud's 64 errs 0.0014 against the need of
+    // 0.0025 at 1 %; at 0.1 % it took 64, 128 and 256, 21x the cost of 64, where one map of
+    // 203 fits at 10x). A size that errs more is followed by the one its fall predicts, with a
+    // tenth to spare: by the fall measured between the last two sizes, or after the first by
+    // the cube of the spacing (the 1e5 cloud's 128; the square law asked 168), while the
+    // error could still reach the need by the largest size. Past the largest, or past
+    // kMarchMapMaxBytes for all the lights, the light depths are exact (slow with many
+    // Gaussians: the budget decides).
     const double need = kMarchedShare * refine_target_;
     std::size_t bytes = 0;
+    const int first = int(std::ceil(kMapFace1 * std::sqrt(0.01 / std::max(refine_target_, 1e-9))));
     // Sets _marched_'s map to the first size (build(face) makes it) that fits, if any.
     auto search = [&](MarchedLight& marched, auto build, std::size_t bytes_per_face2, int max_face) {
-        double last_error = 0.0;
+        double last_error = 0.0, last_face = 0.0;
         std::vector<double> exact;  // the check rays' exact marches, shared by the sizes
-        for (int face = 64; face <= max_face;) {
+        for (int face = std::clamp(first, kMapMinFace, max_face);;) {
             if (bytes + bytes_per_face2 * face * face > kMarchMapMaxBytes) return;
             build(face);
             const double error = march_map_error(marched, exact, threads);
@@ -102,12 +107,18 @@ void FogEvaluator::plan_marches(GaussianRefinePlan& plan, int threads) {
                 return;
             }
             marched.map.reset(), marched.sun_map.reset();
-            // The next size, if the error could fall to the need by the largest one: by the
-            // fall measured from the last size, or before that by kMapFallBound a doubling.
-            const double fall = last_error > 0.0 ? std::max(1.0, last_error / error) : kMapFallBound;
-            last_error = error;
-            if (error * std::pow(double(face) / max_face, std::log2(fall)) > need) return;
-            face *= 2;
+            // The error as (spacing)^order: measured, or the cube before a second size; the
+            // largest size must reach the need by kMapFallBound a doubling or the measured order.
+            const double order =
+                last_error > 0.0 ? std::clamp(std::log(last_error / error) / std::log((face - 1.0) / (last_face - 1.0)),
+                                              0.0, std::log2(kMapFallBound))
+                                 : 3.0;
+            const double best = last_error > 0.0 ? order : std::log2(kMapFallBound);
+            if (face >= max_face || error * std::pow((face - 1.0) / (max_face - 1.0), best) > need) return;
+            last_error = error, last_face = face;
+            const double spacing = order > 0.0 ? std::pow(error / need, 1.0 / order) : 2.0;
+            const int next = 8 * int(std::ceil((1.0 + kMapFaceMargin * (face - 1.0) * spacing) / 8.0));
+            face = std::min(max_face, std::max(next, face + 8));
         }
     };
     for (size_t l = 0; l < march.size(); ++l) {
