@@ -291,12 +291,19 @@ class CellRefiner {
     struct Nodes {
         int x[3], y[3];
         Sample s[3][3];
+        RGB ratio[3][3];  // refined / Fogshop (0 where Fogshop's is not > 0)
     };
     static Nodes nodes(int x0, int y0, int x1, int y1, const Sample c[4], const Sample& m, const Sample e[4]) {
-        Nodes q{{x0, (x0 + x1) / 2, x1}, {y0, (y0 + y1) / 2, y1}, {}};
+        Nodes q{{x0, (x0 + x1) / 2, x1}, {y0, (y0 + y1) / 2, y1}, {}, {}};
         q.s[0][0] = c[0], q.s[0][1] = e[0], q.s[0][2] = c[1];
         q.s[1][0] = e[2], q.s[1][1] = m, q.s[1][2] = e[3];
         q.s[2][0] = c[2], q.s[2][1] = e[1], q.s[2][2] = c[3];
+        for (int r = 0; r < 3; ++r)
+            for (int k = 0; k < 3; ++k)
+                for (int ch = 0; ch < 3; ++ch) {
+                    const Sample& n = q.s[r][k];
+                    q.ratio[r][k][ch] = n.base[ch] > 0.0 ? n.refined[ch] / n.base[ch] : 0.0;
+                }
         return q;
     }
     // The quadratic Lagrange weights of nodes t[0..2] at t.
@@ -310,15 +317,10 @@ class CellRefiner {
     RGB quadratic(const Nodes& q, int x, int y) const {
         double wx[3], wy[3];
         lagrange(q.x, x, wx), lagrange(q.y, y, wy);
-        const RGB b = base(x, y);
-        RGB v(0.0);
-        for (int ch = 0; ch < 3; ++ch) {
-            double ratio = 0.0;
-            for (int r = 0; r < 3; ++r)
-                for (int k = 0; k < 3; ++k) ratio += wy[r] * wx[k] * q.s[r][k].refined[ch] / q.s[r][k].base[ch];
-            v[ch] = b[ch] * ratio;
-        }
-        return v;
+        RGB ratio(0.0);
+        for (int r = 0; r < 3; ++r)
+            for (int k = 0; k < 3; ++k) ratio += (wy[r] * wx[k]) * q.ratio[r][k];
+        return base(x, y) * ratio;
     }
     // The 5 x 5 grid of the cell's quarters: the nodes and, between them, the samples a split
     // would take next (its cells' centres and edges' midpoints).
@@ -351,12 +353,14 @@ class CellRefiner {
         int g[5], h[5];
         quarters(q, g, h);
         long long filled = 0;
-        for (int y = q.y[0]; y <= ye; ++y)
+        for (int y = q.y[0]; y <= ye; ++y) {
+            const bool row = std::find(h, h + 5, y) != h + 5;
             for (int x = q.x[0]; x <= xe; ++x) {
-                const bool sampled = on_grid(x, y) || (std::find(g, g + 5, x) != g + 5 && std::find(h, h + 5, y) != h + 5);
+                const bool sampled = on_grid(x, y) || (row && std::find(g, g + 5, x) != g + 5);
                 store(x, y, sampled ? at(x, y).refined : quadratic(q, x, y));
                 filled += sampled ? 0 : 1;
             }
+        }
         quadratic_pixels_.fetch_add(filled, std::memory_order_relaxed);
     }
 
