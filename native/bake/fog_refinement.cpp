@@ -107,6 +107,7 @@ void FogEvaluator::plan_marches(GaussianRefinePlan& plan, int threads) {
                 return;
             }
             marched.map.reset(), marched.sun_map.reset();
+            if (!std::isfinite(error)) return;  // (no fall to predict from)
             // The error as (spacing)^order: measured, or the cube before a second size; the
             // largest size must reach the need by kMapFallBound a doubling or the measured order.
             const double order =
