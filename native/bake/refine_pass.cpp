@@ -281,27 +281,32 @@ class CellRefiner {
             // cell, where Fogshop's fog and the exact fog end a pixel apart.
             if (dark && lit) return false;
         }
-        const RGB guess = interpolate(xm, ym, x0, y0, x1, y1, c);
+        return close(interpolate(xm, ym, x0, y0, x1, y1, c), m.refined);
+    }
+
+    // An interpolated value _guess_ within the tolerance of the _refined_ one, every channel.
+    bool close(const RGB& guess, const RGB& refined) const {
         for (int ch = 0; ch < 3; ++ch)
-            if (!(std::abs(guess[ch] - m.refined[ch]) <= tol_ * m.refined[ch])) return false;
+            if (!(std::abs(guess[ch] - refined[ch]) <= tol_ * refined[ch])) return false;
         return true;
     }
 
-    // A cell's nine samples on its 3 x 3 grid (corners, edges' midpoints, centre), [row][col].
+    // A cell's nine samples on its 3 x 3 grid (corners, edges' midpoints, centre): their
+    // refined / Fogshop ratios, [row][col], and whether every one has Fogshop fog (a node
+    // without it gives no ratio).
     struct Nodes {
         int x[3], y[3];
-        Sample s[3][3];
-        RGB ratio[3][3];  // refined / Fogshop (0 where Fogshop's is not > 0)
+        RGB ratio[3][3];
+        bool lit = true;
     };
     static Nodes nodes(int x0, int y0, int x1, int y1, const Sample c[4], const Sample& m, const Sample e[4]) {
-        Nodes q{{x0, (x0 + x1) / 2, x1}, {y0, (y0 + y1) / 2, y1}, {}, {}};
-        q.s[0][0] = c[0], q.s[0][1] = e[0], q.s[0][2] = c[1];
-        q.s[1][0] = e[2], q.s[1][1] = m, q.s[1][2] = e[3];
-        q.s[2][0] = c[2], q.s[2][1] = e[1], q.s[2][2] = c[3];
+        Nodes q{{x0, (x0 + x1) / 2, x1}, {y0, (y0 + y1) / 2, y1}, {}};
+        const Sample* s[3][3] = {{&c[0], &e[0], &c[1]}, {&e[2], &m, &e[3]}, {&c[2], &e[1], &c[3]}};
         for (int r = 0; r < 3; ++r)
             for (int k = 0; k < 3; ++k)
                 for (int ch = 0; ch < 3; ++ch) {
-                    const Sample& n = q.s[r][k];
+                    const Sample& n = *s[r][k];
+                    q.lit = q.lit && n.base[ch] > 0.0;
                     q.ratio[r][k][ch] = n.base[ch] > 0.0 ? n.refined[ch] / n.base[ch] : 0.0;
                 }
         return q;
@@ -313,7 +318,7 @@ class CellRefiner {
         w[1] = (at - a) * (at - c) / ((b - a) * (b - c));
         w[2] = (at - a) * (at - b) / ((c - a) * (c - b));
     }
-    // Fogshop's value at (x, y) times the nodes' biquadratic ratio (per channel; every node lit).
+    // Fogshop's value at (x, y) times the nodes' biquadratic ratio (per channel).
     RGB quadratic(const Nodes& q, int x, int y) const {
         double wx[3], wy[3];
         lagrange(q.x, x, wx), lagrange(q.y, y, wy);
@@ -329,21 +334,15 @@ class CellRefiner {
         for (int k = 0; k < 2; ++k) g[2 * k + 1] = (q.x[k] + q.x[k + 1]) / 2, h[2 * k + 1] = (q.y[k] + q.y[k + 1]) / 2;
     }
     // The biquadratic against the refined rays at the 16 quarter points between the nodes (a
-    // split's next samples: none is spent if it fails); every node lit (a node without
-    // Fogshop's fog gives no ratio).
+    // split's next samples: none is spent if it fails); every node lit.
     bool quadratic_fits(const Nodes& q) const {
-        for (int r = 0; r < 3; ++r)
-            for (int k = 0; k < 3; ++k)
-                for (int ch = 0; ch < 3; ++ch)
-                    if (!(q.s[r][k].base[ch] > 0.0)) return false;
+        if (!q.lit) return false;
         int g[5], h[5];
         quarters(q, g, h);
         for (int r = 0; r < 5; ++r)
             for (int k = 0; k < 5; ++k) {
                 if (r % 2 == 0 && k % 2 == 0) continue;  // (a node)
-                const RGB guess = quadratic(q, g[k], h[r]), refined = at(g[k], h[r]).refined;
-                for (int ch = 0; ch < 3; ++ch)
-                    if (!(std::abs(guess[ch] - refined[ch]) <= tol_ * refined[ch])) return false;
+                if (!close(quadratic(q, g[k], h[r]), at(g[k], h[r]).refined)) return false;
             }
         return true;
     }
