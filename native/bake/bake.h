@@ -6,7 +6,7 @@
 #include <memory>
 #include <vector>
 
-#include "bake/buffers.h"
+#include "core/buffers.h"
 #include "models/model_id.h"
 #include "core/scene.h"
 #include "core/special_f.h"

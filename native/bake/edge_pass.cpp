@@ -6,7 +6,7 @@
 #include <limits>
 #include <vector>
 
-#include "bake/buffers.h"
+#include "core/buffers.h"
 #include "bake/edge_clusters.h"
 #include "bake/passes.h"
 #include "core/parallel.h"

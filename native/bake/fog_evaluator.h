@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "bake/bake.h"
+#include "core/buffers.h"
 #include "core/scene.h"
 #include "gaussian/airlight.h"
 #include "gaussian/light_depth_map.h"
@@ -87,9 +88,10 @@ class FogEvaluator {
     // centre looks along D0 + (i + 1/2) Dx + (j + 1/2) Dy).
     struct RefinedFrame {
         int W = 0, H = 0;
-        std::vector<float> fogshop, refined;
+        std::vector<float> fogshop, refined;  // (on the pool's memory, handed back at the end)
         const std::vector<float>* depth = nullptr;
         glm::dmat3 to_film{1.0};  // inverse of the columns (Dx, Dy, D0)
+        ~RefinedFrame() { recycle_image_buffer(std::move(fogshop)), recycle_image_buffer(std::move(refined)); }
     };
     void keep_refined_frame(std::unique_ptr<RefinedFrame> frame) const { refined_frame_ = std::move(frame); }
     // Two depths along unit _d_ see the same surface, for a ratio of refined to Fogshop values:

@@ -90,7 +90,8 @@ double gaussian_pass(BakeContext& ctx, const FogEvaluator& fog) {
     if (fog.refiner()) {
         // Over its budget the refinement stops and the frame keeps Fogshop's values throughout
         // (edges too), so that whether a frame is refined depends on its work alone.
-        std::vector<float> fogshop = result.airlight;
+        std::vector<float> fogshop;
+        acquire_image_copy(fogshop, result.airlight);
         const auto refine_start = Clock::now();
         refine_pass(ctx, fog, fogshop, splat_end, end);
         result.stats.seconds_refine = seconds_since(refine_start);
@@ -103,11 +104,13 @@ double gaussian_pass(BakeContext& ctx, const FogEvaluator& fog) {
         } else if (ctx.affine) {  // (the edge pass's samples take its ratios: refine_samples)
             auto frame = std::make_unique<FogEvaluator::RefinedFrame>();
             frame->W = ctx.W, frame->H = ctx.H;
-            frame->fogshop = std::move(fogshop), frame->refined = result.airlight;
+            frame->fogshop = std::move(fogshop);
+            acquire_image_copy(frame->refined, result.airlight);
             frame->depth = &result.depth;
             frame->to_film = glm::inverse(glm::dmat3(ctx.Dx, ctx.Dy, ctx.D0));
             fog.keep_refined_frame(std::move(frame));
         }
+        recycle_image_buffer(std::move(fogshop));  // (where the frame did not take it)
     }
     return end;
 }

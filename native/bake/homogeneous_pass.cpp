@@ -6,7 +6,7 @@
 #include <utility>
 #include <vector>
 
-#include "bake/buffers.h"
+#include "core/buffers.h"
 #include "bake/passes.h"
 #include "core/constants.h"
 #include "core/parallel.h"

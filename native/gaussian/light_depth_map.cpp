@@ -68,7 +68,7 @@ LightDepthMap::LightDepthMap(const GaussianMedium& medium, const Vec3& s, const 
             for (int i = 0; i < face && !any; ++i) any = lit(direction(f, i, j));
         slot_[f] = any ? held++ : -1;
     }
-    tau_.assign(std::size_t(held) * face * face * radial, 0.0f);
+    acquire_image_buffer(tau_, std::size_t(held) * face * face * radial, 0.0f);
     if (r_max_ == 0.0) return;
     const int rows = 6 * face;
     parallel_chunks(std::size_t(rows), threads, 1, [&](std::size_t begin, std::size_t end) {

@@ -22,8 +22,10 @@
 
 #include <algorithm>
 #include <cstddef>
+#include <utility>
 #include <vector>
 
+#include "core/buffers.h"
 #include "core/scene.h"
 #include "gaussian/medium.h"
 
@@ -52,6 +54,11 @@ class LightDepthMap {
     std::size_t bytes() const { return tau_.size() * sizeof(float); }
     // The cube faces the map holds (6 but for a spot's).
     int faces_held() const { return int(std::count_if(slot_, slot_ + 6, [](int k) { return k >= 0; })); }
+
+    // (Its table goes back to the pool of warm memory, core/buffers.h.)
+    ~LightDepthMap() { recycle_image_buffer(std::move(tau_)); }
+    LightDepthMap(const LightDepthMap&) = delete;
+    LightDepthMap& operator=(const LightDepthMap&) = delete;
 
   private:
     // The unit direction of grid point (i, j) of cube face f.

@@ -81,7 +81,7 @@ SunDepthMap::SunDepthMap(const GaussianMedium& medium, const Vec3& u, int face, 
     const double* lo = print_.lo;
     const double* hi = print_.hi;
     dp_ = (hi[0] - lo[0]) / (face - 1), dq_ = (hi[1] - lo[1]) / (face - 1), ds_ = (hi[2] - lo[2]) / (depth - 1);
-    tau_.assign(std::size_t(face) * face * depth, 0.0f);
+    acquire_image_buffer(tau_, std::size_t(face) * face * depth, 0.0f);
     parallel_chunks(std::size_t(face), threads, 1, [&](std::size_t begin, std::size_t end) {
         std::vector<float> acc(depth);
         std::vector<double> below(depth);

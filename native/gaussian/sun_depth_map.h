@@ -20,6 +20,7 @@
 #include <utility>
 #include <vector>
 
+#include "core/buffers.h"
 #include "core/scene.h"
 #include "gaussian/medium.h"
 
@@ -55,6 +56,11 @@ class SunDepthMap {
     // The longest step along unit _r_ that crosses at most one cell along each of the grid's
     // axes: the interpolant's scale (a march's steps within the grid stay below it).
     double cell_step(const Vec3& r) const;
+
+    // (Its table goes back to the pool of warm memory, core/buffers.h.)
+    ~SunDepthMap() { recycle_image_buffer(std::move(tau_)); }
+    SunDepthMap(const SunDepthMap&) = delete;
+    SunDepthMap& operator=(const SunDepthMap&) = delete;
 
   private:
     // The depths of the column at grid point (i, j), from its bottom up, into _out_.

@@ -1,5 +1,5 @@
 // buffers.cpp: the pool of recycled image buffers (buffers.h).
-#include "bake/buffers.h"
+#include "core/buffers.h"
 
 #include <cstdint>
 
@@ -23,7 +23,10 @@ ImagePool& image_pool() {
 }
 }  // namespace
 
-void acquire_image_buffer(std::vector<float>& v, size_t n, float value) {
+namespace {
+// A buffer of capacity >= n: a held one of at most twice that (warm pages), else new memory that
+// no one has touched yet, on transparent huge pages where the kernel allows.
+std::vector<float> take_image_buffer(size_t n) {
     std::vector<float> taken;
     {
         ImagePool& pool = image_pool();
@@ -40,21 +43,28 @@ void acquire_image_buffer(std::vector<float>& v, size_t n, float value) {
             pool.bytes -= taken.capacity() * sizeof(float);
         }
     }
-    if (taken.capacity() >= n) {
-        v = std::move(taken);
-        v.assign(n, value);  // within capacity: no reallocation, the pages are warm
-        return;
-    }
-    v.clear();
-    v.shrink_to_fit();
-    v.reserve(n);  // allocates without touching the pages
+    if (taken.capacity() >= n) return taken;
+    taken.clear();
+    taken.shrink_to_fit();
+    taken.reserve(n);  // allocates without touching the pages
 #ifdef __linux__
     const uintptr_t huge = uintptr_t(2) << 20;
-    const uintptr_t begin = (reinterpret_cast<uintptr_t>(v.data()) + huge - 1) & ~(huge - 1);
-    const uintptr_t end = (reinterpret_cast<uintptr_t>(v.data() + n)) & ~(huge - 1);
+    const uintptr_t begin = (reinterpret_cast<uintptr_t>(taken.data()) + huge - 1) & ~(huge - 1);
+    const uintptr_t end = (reinterpret_cast<uintptr_t>(taken.data() + n)) & ~(huge - 1);
     if (end > begin) madvise(reinterpret_cast<void*>(begin), end - begin, MADV_HUGEPAGE);
 #endif
-    v.resize(n, value);
+    return taken;
+}
+}  // namespace
+
+void acquire_image_buffer(std::vector<float>& v, size_t n, float value) {
+    v = take_image_buffer(n);
+    v.assign(n, value);  // within capacity: no reallocation
+}
+
+void acquire_image_copy(std::vector<float>& v, const std::vector<float>& from) {
+    v = take_image_buffer(from.size());
+    v.assign(from.begin(), from.end());
 }
 
 void recycle_image_buffer(std::vector<float>&& buffer) {

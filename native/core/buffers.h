@@ -8,14 +8,18 @@
 
 namespace airlight {
 
-// Output images on recycled memory. Fresh pages cost ~10-20 us per 4 KiB page fault on
+// Images and tables on recycled memory. Fresh pages cost ~10-20 us per 4 KiB page fault on
 // the development machine (a 1080p bake's 60 MB of passes: ~100-200 ms, more than the bake
 // itself), so the bindings hand an output buffer back with recycle_image_buffer when numpy
-// frees it, and acquire_image_buffer gives the next bake's passes those warm pages (a held
-// buffer of 1 to 2 times the size asked for; else new memory, on transparent huge pages where
-// the kernel allows). At most 256 MB are kept, oldest dropped first. Thread safe.
+// frees it, as the bake's own large temporaries do when they end (a light-depth map, the
+// refinement's copy of the splat's image), and acquire_image_buffer gives the next ones those
+// warm pages (a held buffer of 1 to 2 times the size asked for; else new memory, on
+// transparent huge pages where the kernel allows). At most 256 MB are kept, oldest dropped
+// first. Thread safe.
 // acquire_image_buffer: _v_ = _n_ copies of _value_.
 void acquire_image_buffer(std::vector<float>& v, size_t n, float value);
+// _v_ = a copy of _from_, on recycled memory.
+void acquire_image_copy(std::vector<float>& v, const std::vector<float>& from);
 void recycle_image_buffer(std::vector<float>&& buffer);
 
 // Sizes _v_ to _n_ zeros (acquire_image_buffer).
