@@ -129,7 +129,8 @@ void FogEvaluator::plan_marches(GaussianRefinePlan& plan, int threads) {
         if (l >= P) {  // a sun: columns along it over the cloud's shade (a sixth of a point's bytes a face)
             const Vec3 u = -gaussian_suns_[l - P].w;
             search(marched, [&](int face) {
-                       marched.sun_map = std::make_unique<SunDepthMap>(*gaussian_, u, face, kMarchMapRadial, threads);
+                       marched.sun_map = std::make_unique<SunDepthMap>(*gaussian_, u, face, kMarchMapRadial, threads,
+                                                                       GaussianMarch::kWindowDepth);
                    },
                    std::size_t(kMarchMapRadial) * sizeof(float), kSunMapMaxFace);
         } else {
@@ -139,7 +140,8 @@ void FogEvaluator::plan_marches(GaussianRefinePlan& plan, int threads) {
             const double half_angle = cone ? std::acos(std::clamp(cone->cos_half_angle, -1.0, 1.0)) : kPi;
             search(marched, [&](int face) {
                        marched.map = std::make_unique<LightDepthMap>(*gaussian_, gaussian_lights_[l], axis, half_angle,
-                                                                     face, kMarchMapRadial, threads);
+                                                                     face, kMarchMapRadial, threads,
+                                                                     GaussianMarch::kWindowDepth);
                    },
                    std::size_t(6) * kMarchMapRadial * sizeof(float), kMarchMapMaxFace);
         }

@@ -25,7 +25,7 @@ struct RayGaussian {
 
 // The window (GaussianMarch::window) of a Gaussian whose optical depth through its centre
 // exceeds kWindowDepth e^window: wide enough to leave out at most kWindowDepth of it, up to kMaxWindow.
-constexpr double kWindowDepth = 1e-5, kMaxWindow = 20.0;
+constexpr double kWindowDepth = GaussianMarch::kWindowDepth, kMaxWindow = 20.0;
 constexpr double kDepthTol = 1e-3;  // Simpson against trapezoids on a step's view depth (absolute)
 constexpr double kMinStep = 1e-9;  // relative to max(1, t): no step is halved below it
 constexpr double kOpaque = 700.0;  // the view depth past which nothing is left (e^-700 ~ 1e-304)
@@ -35,14 +35,19 @@ struct Density {
     RGB sigma_s;  // scattering
 };
 
+// A Gaussian's width 1 / (a sqrt 2) (its density's standard deviation).
+double width(double a) { return 0.70710678118654752 / a; }
+
 // The Gaussians of the window (those whose support holds the step), as arrays for the kernel.
 struct Window {
     std::vector<double> ts, hi;
     std::vector<float> a, peak, r, g, b;
     std::vector<float> e;  // the kernel's densities
     double first_end = std::numeric_limits<double>::infinity();  // the least hi
+    double narrowest = std::numeric_limits<double>::infinity();  // the least width 1 / (a sqrt 2)
     void push(const RayGaussian& x) {
         first_end = std::min(first_end, x.hi);
+        narrowest = std::min(narrowest, width(x.a));
         ts.push_back(x.ts), hi.push_back(x.hi);
         a.push_back(float(x.a)), peak.push_back(float(x.peak));
         r.push_back(float(x.albedo.x)), g.push_back(float(x.albedo.y)), b.push_back(float(x.albedo.z));
@@ -58,11 +63,12 @@ struct Window {
         if (!(first_end < t) || ++since < kLazy) return;
         since = 0;
         std::size_t k = 0;
-        first_end = std::numeric_limits<double>::infinity();
+        first_end = narrowest = std::numeric_limits<double>::infinity();
         for (std::size_t j = 0; j < ts.size(); ++j) {
             if (hi[j] < t) continue;
             ts[k] = ts[j], hi[k] = hi[j], a[k] = a[j], peak[k] = peak[j], r[k] = r[j], g[k] = g[j], b[k] = b[j];
             first_end = std::min(first_end, hi[k]);
+            narrowest = std::min(narrowest, width(a[k]));
             ++k;
         }
         for (auto* v : {&ts, &hi}) v->resize(k);
@@ -152,7 +158,7 @@ RGB march_rgb(const GaussianMedium& medium, const MarchLight& light, const Phase
     if (cone_bounds_light && cuts.empty() && !(spot_profile(*march.cone, cone_cos(0.0)) > 0.0)) return RGB(0.0);
     std::vector<RayGaussian> line;
     const double dense_depth = kWindowDepth * std::exp(march.window);
-    double narrowest = std::numeric_limits<double>::infinity(), last_end = 0.0;
+    double last_end = 0.0;
     medium.for_each_near(v, r, Dvp, [&](std::size_t g) {
         const double a = medium.scale(g), c = medium.amplitude(g);
         const Vec3 rel = medium.centre(g) - v;
@@ -168,7 +174,6 @@ RGB march_rgb(const GaussianMedium& medium, const MarchLight& light, const Phase
         const RGB albedo = march.albedo ? RGB(march.albedo[3 * g], march.albedo[3 * g + 1], march.albedo[3 * g + 2])
                                         : RGB(1.0);
         line.push_back({ts, a, c * std::exp(-ah2), ts - reach, ts + reach, albedo});
-        narrowest = std::min(narrowest, 1.0 / (a * std::sqrt(2.0)));
         last_end = std::max(last_end, ts + reach);
     });
     std::sort(line.begin(), line.end(), [](const RayGaussian& x, const RayGaussian& y) { return x.lo < y.lo; });
@@ -190,7 +195,6 @@ RGB march_rgb(const GaussianMedium& medium, const MarchLight& light, const Phase
         const double c = cone_cos(t);
         return c > march.cone->cos_half_angle && c < march.cone->cos_half_angle + march.cone->smooth;
     };
-    const double inside_step = march.step_widths * narrowest;
     const Vec3 vs = s - v;
     const double t_s = sun ? 0.0 : glm::dot(vs, r);  // the light's closest approach
     // (A sun's phase angle is the same all along the ray.)
@@ -225,6 +229,15 @@ RGB march_rgb(const GaussianMedium& medium, const MarchLight& light, const Phase
     const double albedo_sum = sum(albedo_max);
     Window active;
     std::size_t next = 0;
+    // The step inside the Gaussians: step_widths of the narrowest one the step from t holds (those
+    // of the window, and those that start within the step). (The narrowest on the whole ray took
+    // 1.5x the steps where the widths vary 3x.)
+    auto inside_step = [&](double t) {
+        double h = march.step_widths * active.narrowest;
+        for (std::size_t k = next; k < line.size() && line[k].lo <= t + h; ++k)
+            h = std::min(h, march.step_widths * width(line[k].a));
+        return h;
+    };
     auto density = [&](double t) {
         march.work += long(active.size());
         active.e.resize(active.size());
@@ -295,8 +308,9 @@ RGB march_rgb(const GaussianMedium& medium, const MarchLight& light, const Phase
         double h = sun ? std::numeric_limits<double>::infinity()
                        : 0.1 * std::max(d, 1e-9 * std::max(1.0, glm::length(vs))) * (blend ? 0.5 * blend_lobe : lobe);
         if (sun && t >= shaded.first && t < shaded.second) h = std::min(h, shade_step);
-        if (in_fog) h = std::min(h, inside_step);
-        if (next < line.size() && line[next].lo > t) h = std::min(h, std::max(line[next].lo - t, inside_step));
+        const double fog_step = in_fog || next < line.size() ? inside_step(t) : 0.0;
+        if (in_fog) h = std::min(h, fog_step);
+        if (next < line.size() && line[next].lo > t) h = std::min(h, std::max(line[next].lo - t, fog_step));
         // (Thick fog: a step's depth stays below 1/2.)
         h = std::min({h, end - t, 0.5 / dens_a.beta, boundary - t, next_cut(t) - t});
         Density dens_m, dens_b;

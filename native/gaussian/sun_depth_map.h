@@ -44,8 +44,10 @@ class SunDepthMap {
   public:
     // The map of _medium_'s Gaussians towards the sun in unit direction _u_ (the light comes
     // from there: u = -w): _face_ >= 2 columns along each side, _depth_ >= 2 heights a column;
-    // built on _threads_ threads (0: all).
-    SunDepthMap(const GaussianMedium& medium, const Vec3& u, int face = 64, int depth = 256, int threads = 0);
+    // built on _threads_ threads (0: all). A Gaussian whose whole optical depth along a column is
+    // below _left_out_ is left out of it (as LightDepthMap's).
+    SunDepthMap(const GaussianMedium& medium, const Vec3& u, int face = 64, int depth = 256, int threads = 0,
+                double left_out = 0.0);
 
     // The Gaussians' optical depth from _x_ towards the sun (beta0 left out).
     double operator()(const Vec3& x) const;
@@ -70,6 +72,7 @@ class SunDepthMap {
     SunFootprint print_;  // the grid's box (u and an orthonormal frame of the plane normal to it)
     int face_, depth_;
     double dp_ = 1.0, dq_ = 1.0, ds_ = 1.0;  // the grid's spacings
+    double left_out_ = 0.0;
     std::vector<float> tau_;  // [j][i][k]
 };
 
