@@ -92,6 +92,9 @@ void FogEvaluator::plan_marches(GaussianRefinePlan& plan, int threads) {
     // kMarchMapMaxBytes for all the lights, the light depths are exact (slow with many
     // Gaussians: the budget decides).
     const double need = kMarchedShare * refine_target_;
+    GaussianMarch tuned;  // (the maps leave out what its marches do: its window)
+    tuned.set_accuracy(refine_target_);
+    const double window = tuned.window;
     std::size_t bytes = 0;
     const int first = int(std::ceil(kMapFace1 * std::sqrt(0.01 / std::max(refine_target_, 1e-9))));
     // Sets _marched_'s map to the first size (build(face) makes it) that fits, if any.
@@ -129,8 +132,8 @@ void FogEvaluator::plan_marches(GaussianRefinePlan& plan, int threads) {
         if (l >= P) {  // a sun: columns along it over the cloud's shade (a sixth of a point's bytes a face)
             const Vec3 u = -gaussian_suns_[l - P].w;
             search(marched, [&](int face) {
-                       marched.sun_map = std::make_unique<SunDepthMap>(*gaussian_, u, face, kMarchMapRadial, threads,
-                                                                       GaussianMarch::kWindowDepth);
+                       marched.sun_map =
+                           std::make_unique<SunDepthMap>(*gaussian_, u, face, kMarchMapRadial, threads, window);
                    },
                    std::size_t(kMarchMapRadial) * sizeof(float), kSunMapMaxFace);
         } else {
@@ -140,8 +143,7 @@ void FogEvaluator::plan_marches(GaussianRefinePlan& plan, int threads) {
             const double half_angle = cone ? std::acos(std::clamp(cone->cos_half_angle, -1.0, 1.0)) : kPi;
             search(marched, [&](int face) {
                        marched.map = std::make_unique<LightDepthMap>(*gaussian_, gaussian_lights_[l], axis, half_angle,
-                                                                     face, kMarchMapRadial, threads,
-                                                                     GaussianMarch::kWindowDepth);
+                                                                     face, kMarchMapRadial, threads, window);
                    },
                    std::size_t(6) * kMarchMapRadial * sizeof(float), kMarchMapMaxFace);
         }

@@ -22,6 +22,7 @@
 
 #include <algorithm>
 #include <cstddef>
+#include <limits>
 #include <utility>
 #include <vector>
 
@@ -35,17 +36,18 @@ class LightDepthMap {
   public:
     // The map of _medium_'s Gaussians around point light _s_: _face_ >= 2 grid points along
     // each cube face's side, _radial_ >= 2 distances; built on _threads_ threads (0: all). A
-    // Gaussian whose whole optical depth along a grid direction is below _left_out_ is left out
-    // of that direction (a march's tolerance: GaussianMarch::kWindowDepth; 0: none).
+    // grid direction leaves out the Gaussians a march with _window_ would leave out of a ray
+    // along it (medium.h gaussian_window; infinity: none).
     LightDepthMap(const GaussianMedium& medium, const Vec3& s, int face = 64, int radial = 256, int threads = 0,
-                  double left_out = 0.0);
+                  double window = kNoWindow);
     // The map of a spot light, whose light reaches only the directions within _half_angle_
     // (rad) of _axis_: the directions beyond it by more than two of the grid's largest
     // spacings are left out (read as 0: a march never asks there, where the light's profile is
     // 0), and so are the faces that hold none of the others. A 60 degree cone fills about a
     // sixth of the sphere. _half_angle_ >= pi: the whole sphere.
     LightDepthMap(const GaussianMedium& medium, const Vec3& s, const Vec3& axis, double half_angle, int face = 64,
-                  int radial = 256, int threads = 0, double left_out = 0.0);
+                  int radial = 256, int threads = 0, double window = kNoWindow);
+    static constexpr double kNoWindow = std::numeric_limits<double>::infinity();
 
     // The Gaussians' optical depth from the light to _x_ (beta0 left out).
     double operator()(const Vec3& x) const;
@@ -75,7 +77,7 @@ class LightDepthMap {
 
     Vec3 s_, axis_{0.0, 0.0, -1.0};
     int face_, radial_;
-    double r_max_ = 0.0, dr_ = 1.0, cos_reach_ = -2.0, left_out_ = 0.0;
+    double r_max_ = 0.0, dr_ = 1.0, cos_reach_ = -2.0, window_ = kNoWindow;
     int slot_[6] = {0, 1, 2, 3, 4, 5};  // each face's place in tau_, -1 where left out
     std::vector<float> tau_;            // [slot][j][i][radial]
 };

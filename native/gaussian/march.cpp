@@ -25,9 +25,6 @@ struct RayGaussian {
     RGB albedo;
 };
 
-// The window (GaussianMarch::window) of a Gaussian whose optical depth through its centre
-// exceeds kWindowDepth e^window: wide enough to leave out at most kWindowDepth of it, up to kMaxWindow.
-constexpr double kWindowDepth = GaussianMarch::kWindowDepth, kMaxWindow = 20.0;
 constexpr double kDepthTol = 1e-3;  // Simpson against trapezoids on a step's view depth (absolute)
 constexpr double kMinStep = 1e-9;  // relative to max(1, t): no step is halved below it
 constexpr double kOpaque = 700.0;  // the view depth past which nothing is left (e^-700 ~ 1e-304)
@@ -196,17 +193,13 @@ RGB march_rgb(const GaussianMedium& medium, const MarchLight& light, const Phase
     if (cone_bounds_light && cuts.empty() && !(spot_profile(*march.cone, cone_cos(0.0)) > 0.0)) return RGB(0.0);
     thread_local std::vector<RayGaussian> line;  // (kept between marches: its growth took ~1 us of each)
     line.clear();
-    const double dense_depth = kWindowDepth * std::exp(march.window);
     double last_end = 0.0;
     medium.for_each_near(v, r, Dvp, [&](std::size_t g) {
         const double a = medium.scale(g), c = medium.amplitude(g);
         const Vec3 rel = medium.centre(g) - v;
         const Vec3 cr = glm::cross(rel, r);
         const double ah2 = a * a * glm::dot(cr, cr);
-        // (A dense Gaussian keeps a wider window: at most kWindowDepth of its optical depth is left out.)
-        const double centre_depth = c * kSqrtPi / a;
-        const double window = centre_depth <= dense_depth ? march.window
-                                  : std::min(kMaxWindow, std::log(centre_depth / kWindowDepth));
+        const double window = gaussian_window(c * kSqrtPi / a, march.window);
         if (ah2 >= window) return;
         const double ts = glm::dot(rel, r), reach = std::sqrt(window - ah2) / a;
         if (ts + reach <= 0.0) return;

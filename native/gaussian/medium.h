@@ -22,6 +22,7 @@
 // broad faint Gaussian can still integrate to a lot.
 #pragma once
 
+#include <algorithm>
 #include <cmath>
 #include <cstddef>
 #include <cstdint>
@@ -51,6 +52,18 @@ double gaussian_line_integral(double c, double a, const Vec3& b, const Vec3& o, 
 // rethrown in the caller (the first one wins).
 void parallel_chunks(std::size_t n, int threads, std::size_t chunk,
                      const std::function<void(std::size_t, std::size_t)>& fn);
+
+// A march's window for one Gaussian (gaussian/march.h, GaussianMarch::window): its density is
+// left out of a line where a^2 h^2 >= gaussian_window(c sqrt(pi) / a, window) at the line's
+// closest approach h to its centre. _window_ for the Gaussians of optical depth below
+// kWindowDepth e^window through the centre (at most centre_depth e^-window of each is left
+// out); a denser one keeps the window that leaves out kWindowDepth of it, up to kMaxWindow.
+// The light-depth maps leave out what a march would.
+constexpr double kWindowDepth = 1e-5, kMaxWindow = 20.0;
+inline double gaussian_window(double centre_depth, double window) {
+    return centre_depth <= kWindowDepth * std::exp(window) ? window
+                                                          : std::min(kMaxWindow, std::log(centre_depth / kWindowDepth));
+}
 
 class GaussianMedium {
   public:

@@ -75,8 +75,8 @@ std::pair<double, double> SunFootprint::clip(const Vec3& o, const Vec3& r) const
 }
 
 SunDepthMap::SunDepthMap(const GaussianMedium& medium, const Vec3& u, int face, int depth, int threads,
-                         double left_out)
-    : print_(medium, u), face_(face), depth_(depth), left_out_(left_out) {
+                         double window)
+    : print_(medium, u), face_(face), depth_(depth), window_(window) {
     if (face < 2 || depth < 2) throw std::invalid_argument("SunDepthMap: face and depth must be >= 2");
     if (print_.empty) return;  // no Gaussian: 0 everywhere
     const double* lo = print_.lo;
@@ -104,9 +104,10 @@ void SunDepthMap::fill(const GaussianMedium& medium, int i, int j, float* out, s
         const double a = medium.scale(g);
         const Vec3 rel = medium.centre(g) - c;
         const double p = glm::dot(rel, f.u);
-        const double K =
-            medium.amplitude(g) * kSqrtPi / (2.0 * a) * std::exp(-a * a * std::max(0.0, glm::dot(rel, rel) - p * p));
-        if (!(2.0 * K > left_out_)) return;  // (the whole step, 2 K)
+        const double c = medium.amplitude(g), ah2 = a * a * std::max(0.0, glm::dot(rel, rel) - p * p);
+        if (ah2 >= gaussian_window(c * kSqrtPi / a, window_)) return;  // (as a march's window)
+        const double K = c * kSqrtPi / (2.0 * a) * std::exp(-ah2);
+        if (K == 0.0) return;
         const double reach = kStepReach / a;
         const int lo = std::max(0, int(std::ceil((p - reach) / ds_)));
         const int hi = std::min(last, int(std::floor((p + reach) / ds_)));

@@ -17,6 +17,7 @@
 #pragma once
 
 #include <cstddef>
+#include <limits>
 #include <utility>
 #include <vector>
 
@@ -44,10 +45,10 @@ class SunDepthMap {
   public:
     // The map of _medium_'s Gaussians towards the sun in unit direction _u_ (the light comes
     // from there: u = -w): _face_ >= 2 columns along each side, _depth_ >= 2 heights a column;
-    // built on _threads_ threads (0: all). A Gaussian whose whole optical depth along a column is
-    // below _left_out_ is left out of it (as LightDepthMap's).
+    // built on _threads_ threads (0: all). A column leaves out the Gaussians a march with _window_
+    // would leave out of a ray along it (as LightDepthMap's; infinity: none).
     SunDepthMap(const GaussianMedium& medium, const Vec3& u, int face = 64, int depth = 256, int threads = 0,
-                double left_out = 0.0);
+                double window = std::numeric_limits<double>::infinity());
 
     // The Gaussians' optical depth from _x_ towards the sun (beta0 left out).
     double operator()(const Vec3& x) const;
@@ -72,7 +73,7 @@ class SunDepthMap {
     SunFootprint print_;  // the grid's box (u and an orthonormal frame of the plane normal to it)
     int face_, depth_;
     double dp_ = 1.0, dq_ = 1.0, ds_ = 1.0;  // the grid's spacings
-    double left_out_ = 0.0;
+    double window_;
     std::vector<float> tau_;  // [j][i][k]
 };
 
