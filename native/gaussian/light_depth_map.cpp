@@ -103,7 +103,7 @@ void LightDepthMap::fill(const GaussianMedium& medium, const Vec3& w, float* out
         const double ah2 = a * a * std::max(0.0, glm::dot(rel, rel) - p * p);
         // (as a march's window: the pairs it leaves out of the 3000-Gaussian cloud's map at 1 %
         // took ~10 % of its set-up)
-        if (ah2 >= gaussian_window(c * kSqrtPi / a, window_)) return;
+        if (ah2 >= window_(c * kSqrtPi / a)) return;
         const double K = c * kSqrtPi / (2.0 * a) * std::exp(-ah2);
         if (K == 0.0) return;
         const double reach = kStepReach / a;

@@ -37,7 +37,7 @@ class LightDepthMap {
     // The map of _medium_'s Gaussians around point light _s_: _face_ >= 2 grid points along
     // each cube face's side, _radial_ >= 2 distances; built on _threads_ threads (0: all). A
     // grid direction leaves out the Gaussians a march with _window_ would leave out of a ray
-    // along it (medium.h gaussian_window; infinity: none).
+    // along it (medium.h GaussianWindow; infinity: none).
     LightDepthMap(const GaussianMedium& medium, const Vec3& s, int face = 64, int radial = 256, int threads = 0,
                   double window = kNoWindow);
     // The map of a spot light, whose light reaches only the directions within _half_angle_
@@ -77,7 +77,8 @@ class LightDepthMap {
 
     Vec3 s_, axis_{0.0, 0.0, -1.0};
     int face_, radial_;
-    double r_max_ = 0.0, dr_ = 1.0, cos_reach_ = -2.0, window_ = kNoWindow;
+    double r_max_ = 0.0, dr_ = 1.0, cos_reach_ = -2.0;
+    GaussianWindow window_;
     int slot_[6] = {0, 1, 2, 3, 4, 5};  // each face's place in tau_, -1 where left out
     std::vector<float> tau_;            // [slot][j][i][radial]
 };

@@ -194,12 +194,13 @@ RGB march_rgb(const GaussianMedium& medium, const MarchLight& light, const Phase
     thread_local std::vector<RayGaussian> line;  // (kept between marches: its growth took ~1 us of each)
     line.clear();
     double last_end = 0.0;
+    const GaussianWindow window_of(march.window);
     medium.for_each_near(v, r, Dvp, [&](std::size_t g) {
         const double a = medium.scale(g), c = medium.amplitude(g);
         const Vec3 rel = medium.centre(g) - v;
         const Vec3 cr = glm::cross(rel, r);
         const double ah2 = a * a * glm::dot(cr, cr);
-        const double window = gaussian_window(c * kSqrtPi / a, march.window);
+        const double window = window_of(c * kSqrtPi / a);
         if (ah2 >= window) return;
         const double ts = glm::dot(rel, r), reach = std::sqrt(window - ah2) / a;
         if (ts + reach <= 0.0) return;

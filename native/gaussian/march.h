@@ -36,7 +36,7 @@ namespace airlight {
 struct GaussianMarch {
     double step_widths = 0.35;  // the step inside Gaussians, in the widths 1/(a sqrt 2) of the narrowest it holds
     double tail_tol = 1e-7;     // an infinite ray stops where the uniform fog's rest is below this, relative
-    double window = 20.0;       // a Gaussian's density is left out beyond a^2 (h^2 + (t - ts)^2) > window (medium.h gaussian_window)
+    double window = 20.0;       // a Gaussian's density is left out beyond a^2 (h^2 + (t - ts)^2) > window (medium.h GaussianWindow)
     double step_tol = 1e-3;     // a step's Simpson sum against its trapezoids, relative: over it, the step is halved
     // Coarser steps and tolerance for an accuracy target (relative; 0: these defaults, ~1e-6
     // against the quadrature with exact light depths).

@@ -53,17 +53,20 @@ double gaussian_line_integral(double c, double a, const Vec3& b, const Vec3& o, 
 void parallel_chunks(std::size_t n, int threads, std::size_t chunk,
                      const std::function<void(std::size_t, std::size_t)>& fn);
 
-// A march's window for one Gaussian (gaussian/march.h, GaussianMarch::window): its density is
-// left out of a line where a^2 h^2 >= gaussian_window(c sqrt(pi) / a, window) at the line's
-// closest approach h to its centre. _window_ for the Gaussians of optical depth below
+// A march's window for each Gaussian (gaussian/march.h, GaussianMarch::window): a Gaussian's
+// density is left out of a line where a^2 h^2 >= GaussianWindow(window)(c sqrt(pi) / a) at the
+// line's closest approach h to its centre. _window_ for the Gaussians of optical depth below
 // kWindowDepth e^window through the centre (at most centre_depth e^-window of each is left
 // out); a denser one keeps the window that leaves out kWindowDepth of it, up to kMaxWindow.
 // The light-depth maps leave out what a march would.
-constexpr double kWindowDepth = 1e-5, kMaxWindow = 20.0;
-inline double gaussian_window(double centre_depth, double window) {
-    return centre_depth <= kWindowDepth * std::exp(window) ? window
-                                                          : std::min(kMaxWindow, std::log(centre_depth / kWindowDepth));
-}
+struct GaussianWindow {
+    static constexpr double kWindowDepth = 1e-5, kMaxWindow = 20.0;
+    explicit GaussianWindow(double window) : window(window), dense(kWindowDepth * std::exp(window)) {}
+    double operator()(double centre_depth) const {
+        return centre_depth <= dense ? window : std::min(kMaxWindow, std::log(centre_depth / kWindowDepth));
+    }
+    double window, dense;
+};
 
 class GaussianMedium {
   public:

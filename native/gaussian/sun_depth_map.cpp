@@ -105,7 +105,7 @@ void SunDepthMap::fill(const GaussianMedium& medium, int i, int j, float* out, s
         const Vec3 rel = medium.centre(g) - c;
         const double p = glm::dot(rel, f.u);
         const double c = medium.amplitude(g), ah2 = a * a * std::max(0.0, glm::dot(rel, rel) - p * p);
-        if (ah2 >= gaussian_window(c * kSqrtPi / a, window_)) return;  // (as a march's window)
+        if (ah2 >= window_(c * kSqrtPi / a)) return;  // (as a march's window)
         const double K = c * kSqrtPi / (2.0 * a) * std::exp(-ah2);
         if (K == 0.0) return;
         const double reach = kStepReach / a;

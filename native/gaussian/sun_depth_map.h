@@ -73,7 +73,7 @@ class SunDepthMap {
     SunFootprint print_;  // the grid's box (u and an orthonormal frame of the plane normal to it)
     int face_, depth_;
     double dp_ = 1.0, dq_ = 1.0, ds_ = 1.0;  // the grid's spacings
-    double window_;
+    GaussianWindow window_;
     std::vector<float> tau_;  // [j][i][k]
 };
 
