@@ -16,6 +16,14 @@
 
 namespace airlight {
 
+namespace {
+// Two depths along nearby rays on one surface: inverse depths within 1 %, or both the sky.
+bool one_surface(double D1, double D2) {
+    if (std::isinf(D1) || std::isinf(D2)) return std::isinf(D1) && std::isinf(D2);
+    return std::abs(1.0 / D1 - 1.0 / D2) <= 0.01 / D1;
+}
+}  // namespace
+
 void FogEvaluator::set_up_refinement(const BakeSettings& settings, const Camera& camera) {
     // (projection[0][0] = the focal length over half the image width: model_choice.pixel_angle)
     pixel_angle_ = camera.width > 0 && camera.projection[0][0] != 0.0
@@ -386,11 +394,7 @@ RGB FogEvaluator::fogshop_spans(const FogshopAirlight& fogshop, bool at_eye, con
 }
 
 bool FogEvaluator::same_ratio_depths(const Vec3& d, double D1, double D2, double value, double tol) const {
-    if (std::isinf(D1) || std::isinf(D2)) {
-        if (std::isinf(D1) && std::isinf(D2)) return true;
-    } else if (std::abs(1.0 / D1 - 1.0 / D2) <= 0.01 / D1) {
-        return true;
-    }
+    if (one_surface(D1, D2)) return true;
     const double near = std::min(D1, D2), far = std::max(D1, D2);
     return near >= gaussians_end_ && uniform_fog_bound(d, near, far) <= tol * value;
 }
@@ -456,8 +460,7 @@ void FogEvaluator::refine_samples(const Ray* rays, const float* Dvp, const float
             const double fogshop = La[k][c], there = rep.fogshop[c];
             if (fogshop != there && !(std::abs(fogshop - there) <= 0.25 * refine_target_ * there)) return false;
         }
-        if (std::isinf(Dvp[k]) || std::isinf(Dvp[r])) return std::isinf(Dvp[k]) && std::isinf(Dvp[r]);
-        return std::abs(1.0 / Dvp[k] - 1.0 / Dvp[r]) <= 0.01 / Dvp[k];
+        return one_surface(Dvp[k], Dvp[r]);
     };
     for (int k = 0; k < n; ++k) {
         RGB ratio;
