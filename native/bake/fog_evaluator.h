@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "bake/bake.h"
+#include "bake/map_cache.h"
 #include "core/buffers.h"
 #include "core/scene.h"
 #include "gaussian/airlight.h"
@@ -222,9 +223,8 @@ class FogEvaluator {
     // exact light depths; plan_marches says when).
     struct MarchedLight {
         size_t light = 0;
-        std::unique_ptr<LightDepthMap> map;     // points and spots
-        std::unique_ptr<SunDepthMap> sun_map;   // suns
-        std::size_t bytes() const { return map ? map->bytes() : sun_map ? sun_map->bytes() : 0; }
+        CachedMap map;  // its light-depth map (map for points and spots, sun_map for suns), and its key
+        std::size_t bytes() const { return map.bytes(); }
     };
     // Takes the lights with pairs to refine out of _plan_ into marched_, with their maps.
     void plan_marches(GaussianRefinePlan& plan, int threads);

@@ -117,7 +117,7 @@ void FogEvaluator::plan_marches(GaussianRefinePlan& plan, int threads) {
                 bytes += marched.bytes();
                 return;
             }
-            marched.map.reset(), marched.sun_map.reset();
+            marched.map = CachedMap{};
             if (!std::isfinite(error)) return;  // (no fall to predict from)
             // The error as (spacing)^order: measured, or the cube before a second size; the
             // largest size must reach the need by kMapFallBound a doubling or the measured order.
@@ -133,15 +133,29 @@ void FogEvaluator::plan_marches(GaussianRefinePlan& plan, int threads) {
             face = std::min(max_face, std::max(next, face + 8));
         }
     };
+    // (A map the last bake built from the same Gaussians, light, size and window is taken as it
+    // is: map_cache.h.)
+    MapKey key;
+    key.medium = gaussian_->fingerprint(), key.window = window, key.radial = kMarchMapRadial;
+    auto cached = [&](MarchedLight& marched, int face) {
+        key.face = face;
+        marched.map = find_cached_map(key);
+        marched.map.key = key;
+        if (marched.bytes() > 0) return true;
+        count_map_build();
+        return false;
+    };
     for (size_t l = 0; l < march.size(); ++l) {
         if (!march[l]) continue;
         MarchedLight marched;
         marched.light = l;
         if (l >= P) {  // a sun: columns along it over the cloud's shade (a sixth of a point's bytes a face)
             const Vec3 u = -gaussian_suns_[l - P].w;
+            key.sun = true, key.s = key.axis = Vec3(0.0), key.u = u, key.half_angle = 0.0;
             search(marched, [&](int face) {
-                       marched.sun_map =
-                           std::make_unique<SunDepthMap>(*gaussian_, u, face, kMarchMapRadial, threads, window);
+                       if (!cached(marched, face))
+                           marched.map.sun_map =
+                               std::make_shared<const SunDepthMap>(*gaussian_, u, face, kMarchMapRadial, threads, window);
                    },
                    std::size_t(kMarchMapRadial) * sizeof(float), kSunMapMaxFace);
         } else {
@@ -149,15 +163,21 @@ void FogEvaluator::plan_marches(GaussianRefinePlan& plan, int threads) {
             const SpotCone* cone = l >= n_gaussian_points_ ? &gaussian_spots_[l - n_gaussian_points_].cone : nullptr;
             const Vec3 axis = cone ? cone->axis : Vec3(0.0, 0.0, -1.0);
             const double half_angle = cone ? std::acos(std::clamp(cone->cos_half_angle, -1.0, 1.0)) : kPi;
+            key.sun = false, key.s = gaussian_lights_[l], key.axis = axis, key.u = Vec3(0.0), key.half_angle = half_angle;
             search(marched, [&](int face) {
-                       marched.map = std::make_unique<LightDepthMap>(*gaussian_, gaussian_lights_[l], axis, half_angle,
-                                                                     face, kMarchMapRadial, threads, window);
+                       if (!cached(marched, face))
+                           marched.map.map = std::make_shared<const LightDepthMap>(
+                               *gaussian_, gaussian_lights_[l], axis, half_angle, face, kMarchMapRadial, threads, window);
                    },
                    std::size_t(6) * kMarchMapRadial * sizeof(float), kMarchMapMaxFace);
         }
         marched_.push_back(std::move(marched));
     }
     all_marched_ = marched_.size() == march.size();
+    std::vector<CachedMap> kept;
+    for (const MarchedLight& m : marched_)
+        if (m.bytes() > 0) kept.push_back(m.map);
+    keep_maps(std::move(kept));
 }
 
 RGB FogEvaluator::march_light(const MarchedLight& marched, bool mapped, const Vec3& o, const Vec3& d, double len,
@@ -166,14 +186,14 @@ RGB FogEvaluator::march_light(const MarchedLight& marched, bool mapped, const Ve
     march.set_accuracy(refine_target_);
     if (l >= P)
         return gaussian_march_sun_rgb(*gaussian_, -gaussian_suns_[l - P].w, fog_top_, phase_, o, d, len,
-                                      mapped ? marched.sun_map.get() : nullptr, march);
+                                      mapped ? marched.map.sun_map.get() : nullptr, march);
     if (l >= n_gaussian_points_) {  // a spot (its profile at most 1, or a Spread's peak)
         const SpotCone& cone = gaussian_spots_[l - n_gaussian_points_].cone;
         march.cone = &cone;
         march.emission_max = cone.has_spread() ? std::max(1.0, cone.spread_a) : 1.0;
     }
     return gaussian_march_airlight_rgb(*gaussian_, gaussian_lights_[l], phase_, o, d, len,
-                                       mapped ? marched.map.get() : nullptr, march);
+                                       mapped ? marched.map.map.get() : nullptr, march);
 }
 
 double FogEvaluator::march_map_error(const MarchedLight& marched, std::vector<double>& exact, int threads) const {
@@ -205,12 +225,12 @@ double FogEvaluator::march_map_error(const MarchedLight& marched, std::vector<do
     const size_t n = reached.size();
     std::vector<Vec3> targets;
     for (size_t k = 0; n > 0 && k < size_t(kMapCheckRays); ++k) targets.push_back(reached[k * n / kMapCheckRays]);
-    if (marched.map && n > 0) {
+    if (marched.map.map && n > 0) {
         const Vec3& s = gaussian_lights_[l];
         Vec3 across = glm::cross(s - origin_, Vec3(0.0, 0.0, 1.0));
         if (!(glm::length(across) > 1e-9 * glm::length(s - origin_))) across = glm::cross(s - origin_, Vec3(1.0, 0.0, 0.0));
         const Vec3 u = cone ? cone->axis : glm::normalize(across);
-        for (double steps : {0.5, 1.0, 2.0, 4.0}) targets.push_back(s + steps * marched.map->radial_step() * u);
+        for (double steps : {0.5, 1.0, 2.0, 4.0}) targets.push_back(s + steps * marched.map.map->radial_step() * u);
     }
     const size_t rays = targets.size();
     const bool first = exact.empty();

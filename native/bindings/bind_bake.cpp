@@ -5,6 +5,7 @@
 #include <string>
 
 #include "bake/bake.h"
+#include "bake/map_cache.h"
 #include "image/raycast.h"
 #include "shadow/shadow_volumes.h"
 #include "core/memory.h"
@@ -650,6 +651,11 @@ allocating them (ValueError / RuntimeError naming both sizes when they would not
           "Sets of shadow volumes the bakes of this process built: a bake whose casters, shadowed lights "
           "(or light samples) and camera position equal one of the last two bakes' shares its volumes "
           "(shadow/shadow_volumes.h, ShadowVolumes::shared).");
+    m.def("light_depth_map_builds", &map_builds,
+          "Light-depth maps of Gaussian fog the bakes of this process built: a bake whose Gaussians, marched light "
+          "and map size equal the previous bake's takes that bake's map (bake/map_cache.h).");
+    m.def("clear_light_depth_maps", &clear_cached_maps,
+          "Drops the light-depth maps kept from the last bake for the next one (their memory is reused).");
     m.def(
         "geometry_blocks_built",
         [] {

@@ -15,6 +15,7 @@
 #include "core/parallel.h"
 
 #include <algorithm>
+#include <cstring>
 #include <limits>
 #include <mutex>
 #include <sstream>
@@ -194,6 +195,18 @@ void GaussianMedium::optical_depth_ray_batch(const Vec3* o, const Vec3* r, const
         for (std::size_t j = b; j < e; ++j)
             out[j] = culled ? optical_depth_ray(o[j], r[j], tmax[j]) : optical_depth_all_ray(o[j], r[j], tmax[j]);
     });
+}
+
+std::uint64_t GaussianMedium::fingerprint() const {
+    std::uint64_t h = 14695981039346656037ull;
+    auto mix = [&](double x) {
+        std::uint64_t bits;
+        std::memcpy(&bits, &x, sizeof bits);
+        for (int k = 0; k < 8; ++k) h = (h ^ ((bits >> (8 * k)) & 0xFF)) * 1099511628211ull;
+    };
+    mix(double(size())), mix(eps_);
+    for (std::size_t i = 0; i < size(); ++i) mix(bx_[i]), mix(by_[i]), mix(bz_[i]), mix(a_[i]), mix(c_[i]);
+    return h;
 }
 
 double GaussianMedium::cull_radius_for(double c, double a, double eps) {

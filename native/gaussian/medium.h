@@ -83,6 +83,9 @@ class GaussianMedium {
     std::size_t size() const { return a_.size(); }
     double beta0() const { return beta0_; }
     double cull_eps() const { return eps_; }
+    // A 64-bit hash (FNV-1a) of the Gaussians and the cull tolerance: media that agree on it
+    // have the same Gaussians and hierarchy (a table built from one serves the other).
+    std::uint64_t fingerprint() const;
     Vec3 centre(std::size_t i) const { return {bx_[i], by_[i], bz_[i]}; }
     double scale(std::size_t i) const { return a_[i]; }
     double amplitude(std::size_t i) const { return c_[i]; }
