@@ -5,10 +5,10 @@
 //   La = int_0^Dvp sigma_s(x) p(cos theta) / |x - s|^2 exp(-T(s, x) - T(v, x)) V(x) dt,
 // sigma_s = beta0 albedo0 + sum_i albedo_i c_i e^{-a_i^2 |x - b_i|^2} (RGB; unit albedos: beta),
 // V = 1 on the lit spans (volumetric shadows) and 0 between them, by composite Simpson over
-// steps of a fraction of the narrowest Gaussian width on the ray, shortened to a tenth of the
+// steps of a fraction of the narrowest Gaussian width the step holds, shortened to a tenth of the
 // distance to the light (its 1 / d^2 peak) times the phase lobe's width, and growing with that
 // distance outside the Gaussians; no step straddles a lit span's end. The density comes from a
-// window of the ray's own Gaussians (those within 4.5 widths of each step), the view depth
+// window of the ray's own Gaussians (those whose support, GaussianWindow, holds the step), the view depth
 // T(v, x) from the same steps (Simpson, and the quadratic interpolant's integral to each
 // midpoint), the light depth from a LightDepthMap (O(1) a point) or, without one, exactly
 // (the medium's culled erf sums: the reference's cost). The march ends at Dvp, where the view
