@@ -134,10 +134,11 @@ void FogEvaluator::plan_marches(GaussianRefinePlan& plan, int threads) {
         }
     };
     // (A map the last bake built from the same Gaussians, light, size and window is taken as it
-    // is: map_cache.h.)
+    // is: map_cache.h. take_cached: the held map of _face_ into _marched_, or false, and the
+    // build that follows counted.)
     MapKey key;
     key.medium = gaussian_->fingerprint(), key.window = window, key.radial = kMarchMapRadial;
-    auto cached = [&](MarchedLight& marched, int face) {
+    auto take_cached = [&](MarchedLight& marched, int face) {
         key.face = face;
         marched.map = find_cached_map(key);
         marched.map.key = key;
@@ -153,7 +154,7 @@ void FogEvaluator::plan_marches(GaussianRefinePlan& plan, int threads) {
             const Vec3 u = -gaussian_suns_[l - P].w;
             key.sun = true, key.s = key.axis = Vec3(0.0), key.u = u, key.half_angle = 0.0;
             search(marched, [&](int face) {
-                       if (!cached(marched, face))
+                       if (!take_cached(marched, face))
                            marched.map.sun_map =
                                std::make_shared<const SunDepthMap>(*gaussian_, u, face, kMarchMapRadial, threads, window);
                    },
@@ -165,7 +166,7 @@ void FogEvaluator::plan_marches(GaussianRefinePlan& plan, int threads) {
             const double half_angle = cone ? std::acos(std::clamp(cone->cos_half_angle, -1.0, 1.0)) : kPi;
             key.sun = false, key.s = gaussian_lights_[l], key.axis = axis, key.u = Vec3(0.0), key.half_angle = half_angle;
             search(marched, [&](int face) {
-                       if (!cached(marched, face))
+                       if (!take_cached(marched, face))
                            marched.map.map = std::make_shared<const LightDepthMap>(
                                *gaussian_, gaussian_lights_[l], axis, half_angle, face, kMarchMapRadial, threads, window);
                    },
