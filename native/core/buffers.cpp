@@ -21,9 +21,7 @@ ImagePool& image_pool() {
     static ImagePool* pool = new ImagePool;  // never destroyed: numpy may free arrays at exit
     return *pool;
 }
-}  // namespace
 
-namespace {
 // A buffer of capacity >= n: a held one of at most twice that (warm pages), else new memory that
 // no one has touched yet, on transparent huge pages where the kernel allows.
 std::vector<float> take_image_buffer(size_t n) {

@@ -22,7 +22,6 @@
 
 #include <algorithm>
 #include <cstddef>
-#include <limits>
 #include <utility>
 #include <vector>
 
@@ -39,15 +38,14 @@ class LightDepthMap {
     // grid direction leaves out the Gaussians a march with _window_ would leave out of a ray
     // along it (medium.h GaussianWindow; infinity: none).
     LightDepthMap(const GaussianMedium& medium, const Vec3& s, int face = 64, int radial = 256, int threads = 0,
-                  double window = kNoWindow);
+                  double window = GaussianWindow::kNone);
     // The map of a spot light, whose light reaches only the directions within _half_angle_
     // (rad) of _axis_: the directions beyond it by more than two of the grid's largest
     // spacings are left out (read as 0: a march never asks there, where the light's profile is
     // 0), and so are the faces that hold none of the others. A 60 degree cone fills about a
     // sixth of the sphere. _half_angle_ >= pi: the whole sphere.
     LightDepthMap(const GaussianMedium& medium, const Vec3& s, const Vec3& axis, double half_angle, int face = 64,
-                  int radial = 256, int threads = 0, double window = kNoWindow);
-    static constexpr double kNoWindow = std::numeric_limits<double>::infinity();
+                  int radial = 256, int threads = 0, double window = GaussianWindow::kNone);
 
     // The Gaussians' optical depth from the light to _x_ (beta0 left out).
     double operator()(const Vec3& x) const;

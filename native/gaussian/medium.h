@@ -28,6 +28,7 @@
 #include <cstdint>
 #include <atomic>
 #include <functional>
+#include <limits>
 #include <thread>
 #include <utility>
 #include <vector>
@@ -61,6 +62,7 @@ void parallel_chunks(std::size_t n, int threads, std::size_t chunk,
 // The light-depth maps leave out what a march would.
 struct GaussianWindow {
     static constexpr double kWindowDepth = 1e-5, kMaxWindow = 20.0;
+    static constexpr double kNone = std::numeric_limits<double>::infinity();  // (leaves out nothing)
     explicit GaussianWindow(double window) : window(window), dense(kWindowDepth * std::exp(window)) {}
     double operator()(double centre_depth) const {
         return centre_depth <= dense ? window : std::min(kMaxWindow, std::log(centre_depth / kWindowDepth));

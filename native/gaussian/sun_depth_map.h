@@ -17,7 +17,6 @@
 #pragma once
 
 #include <cstddef>
-#include <limits>
 #include <utility>
 #include <vector>
 
@@ -48,7 +47,7 @@ class SunDepthMap {
     // built on _threads_ threads (0: all). A column leaves out the Gaussians a march with _window_
     // would leave out of a ray along it (as LightDepthMap's; infinity: none).
     SunDepthMap(const GaussianMedium& medium, const Vec3& u, int face = 64, int depth = 256, int threads = 0,
-                double window = std::numeric_limits<double>::infinity());
+                double window = GaussianWindow::kNone);
 
     // The Gaussians' optical depth from _x_ towards the sun (beta0 left out).
     double operator()(const Vec3& x) const;
