@@ -8,8 +8,7 @@
 #include "core/build_progress.h"
 #include "core/constants.h"
 #include "core/cube_map.h"
-#include "core/fast_erf.h"
-#include "core/target_clones.h"
+#include "gaussian/erf_steps.h"
 
 namespace airlight {
 
@@ -22,18 +21,6 @@ namespace {
 // 3 takes 42.
 constexpr double kStepReach = 3.0;
 constexpr int kPad = 16;  // the float kernel's widest vector
-
-// acc[k] += K (erf(x_k) - erf(x1)), x_k = a (k dr - p), for k in [lo, hi] (float kernel).
-AIRLIGHT_SIMD_CLONES void add_erf_steps(float* acc, int lo, int hi, float K, float x1, float a, float dr, float p) {
-    const float e1 = fast_erfc_pos(x1 < 0.0f ? -x1 : x1);
-    for (int k = lo; k <= hi; ++k) {
-        const float x2 = a * (float(k) * dr - p);
-        const float e2 = fast_erfc_pos(x2 < 0.0f ? -x2 : x2);
-        // (fast_erf_diff with erfc(|x1|) once: each tail keeps its relative accuracy)
-        const float d = x1 >= 0.0f ? e1 - e2 : (x2 <= 0.0f ? e2 - e1 : 2.0f - e1 - e2);
-        acc[k] += K * d;
-    }
-}
 
 }  // namespace
 
@@ -96,6 +83,8 @@ void LightDepthMap::fill(const GaussianMedium& medium, const Vec3& w, float* out
     std::fill(acc.begin(), acc.end(), 0.0);
     std::fill(beyond.begin(), beyond.end(), 0.0);
     const int last = radial_ - 1;
+    thread_local ErfSteps steps;
+    steps.clear();
     medium.for_each_near(s_, w, r_max_, [&](std::size_t g) {
         const double a = medium.scale(g), c = medium.amplitude(g);
         const Vec3 rel = medium.centre(g) - s_;
@@ -104,8 +93,6 @@ void LightDepthMap::fill(const GaussianMedium& medium, const Vec3& w, float* out
         // (as a march's window: the pairs it leaves out of the 3000-Gaussian cloud's map at 1 %
         // took ~10 % of its set-up)
         if (ah2 >= window_(c * kSqrtPi / a)) return;
-        const double K = c * kSqrtPi / (2.0 * a) * std::exp(-ah2);
-        if (K == 0.0) return;
         const double reach = kStepReach / a;
         int lo = std::max(0, int(std::ceil((p - reach) / dr_)));
         int hi = std::min(last, int(std::floor((p + reach) / dr_)));
@@ -116,10 +103,10 @@ void LightDepthMap::fill(const GaussianMedium& medium, const Vec3& w, float* out
             hi = std::min(last, lo + n - 1);
             lo = std::max(0, hi - n + 1);
         }
-        // T_j(r) = K (erf(a (r - p)) - erf(-a p)): 0 at r = 0, K erfc(-a p) once past the step.
-        if (lo <= hi) add_erf_steps(acc.data(), lo, hi, float(K), float(-a * p), float(a), float(dr_), float(p));
-        if (hi < last) beyond[std::max(hi + 1, lo)] += K * std::erfc(-a * p);  // the whole step
+        // (T_j: 0 at r = 0, the whole step K erfc(-a p) past the bins)
+        steps.push(float(c * kSqrtPi / (2.0 * a)), float(ah2), float(a), float(p), lo, hi);
     });
+    add_erf_steps(steps, float(dr_), last, acc.data(), beyond.data());
     double whole = 0.0;
     for (int k = 0; k <= last; ++k) {
         whole += beyond[k];

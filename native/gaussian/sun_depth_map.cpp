@@ -8,8 +8,7 @@
 
 #include "core/build_progress.h"
 #include "core/constants.h"
-#include "core/fast_erf.h"
-#include "core/target_clones.h"
+#include "gaussian/erf_steps.h"
 
 namespace airlight {
 
@@ -20,14 +19,7 @@ namespace {
 // light-depth map's, light_depth_map.cpp).
 constexpr double kStepReach = 3.0;
 
-// acc[k] += K erfc(a (k ds - p)), for k in [lo, hi] (float kernel).
-AIRLIGHT_SIMD_CLONES void add_erfc_steps(float* acc, int lo, int hi, float K, float a, float ds, float p) {
-    for (int k = lo; k <= hi; ++k) {
-        const float x = a * (float(k) * ds - p);
-        const float e = fast_erfc_pos(x < 0.0f ? -x : x);
-        acc[k] += K * (x >= 0.0f ? e : 2.0f - e);
-    }
-}
+constexpr int kPad = 16;  // the float kernel's widest vector (as the light-depth map's)
 
 constexpr double kInf = std::numeric_limits<double>::infinity();
 
@@ -100,21 +92,28 @@ void SunDepthMap::fill(const GaussianMedium& medium, int i, int j, float* out, s
     const int last = depth_ - 1;
     const SunFootprint& f = print_;
     const Vec3 c = (f.lo[0] + i * dp_) * f.e1 + (f.lo[1] + j * dq_) * f.e2 + f.lo[2] * f.u;  // the column's bottom
+    thread_local ErfSteps steps;
+    steps.clear();
     medium.for_each_near(c, f.u, last * ds_, [&](std::size_t g) {
         const double a = medium.scale(g);
         const Vec3 rel = medium.centre(g) - c;
         const double p = glm::dot(rel, f.u);
         const double c = medium.amplitude(g), ah2 = a * a * std::max(0.0, glm::dot(rel, rel) - p * p);
         if (ah2 >= window_(c * kSqrtPi / a)) return;  // (as a march's window)
-        const double K = c * kSqrtPi / (2.0 * a) * std::exp(-ah2);
-        if (K == 0.0) return;
         const double reach = kStepReach / a;
-        const int lo = std::max(0, int(std::ceil((p - reach) / ds_)));
-        const int hi = std::min(last, int(std::floor((p + reach) / ds_)));
+        int lo = std::max(0, int(std::ceil((p - reach) / ds_)));
+        int hi = std::min(last, int(std::floor((p + reach) / ds_)));
+        // Whole vectors of kPad bins: those added below the reach take the whole step 2 K to
+        // 4e-10 of it, those above it ~0.
+        if (lo <= hi) {
+            const int n = ((hi - lo + kPad) / kPad) * kPad;
+            hi = std::min(last, lo + n - 1);
+            lo = std::max(0, hi - n + 1);
+        }
         // T_g(s) = K erfc(a (s - p)): 2 K below the step, 0 above it.
-        if (lo <= hi) add_erfc_steps(acc.data(), lo, hi, float(K), float(a), float(ds_), float(p));
-        if (lo > 0) below[std::min(lo, last + 1) - 1] += 2.0 * K;
+        steps.push(float(c * kSqrtPi / (2.0 * a)), float(ah2), float(a), float(p), lo, hi);
     });
+    add_erfc_steps(steps, float(ds_), last, acc.data(), below.data());
     double whole = 0.0;
     for (int k = last; k >= 0; --k) {
         whole += below[k];
