@@ -321,6 +321,9 @@ class FogEvaluator {
     // Gaussian fog (null without): the medium (beta0 = sigma_t), the lights' positions in
     // lights_' order, and Fogshop set up at the shared viewpoint.
     std::unique_ptr<GaussianMedium> gaussian_;
+    // The same windowed with the refinement's march window (plan_marches): its marches gather
+    // from it and its depth maps are built over it.
+    std::unique_ptr<GaussianMedium> windowed_;
     std::vector<Vec3> gaussian_lights_;
     std::vector<RGB> gaussian_I0_;         // I0 of the lights in lights_' order
     std::vector<double> gaussian_albedo_;  // 3 per Gaussian (the medium's if none given)

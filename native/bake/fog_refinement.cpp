@@ -103,6 +103,7 @@ void FogEvaluator::plan_marches(GaussianRefinePlan& plan, int threads) {
     GaussianMarch tuned;  // (the maps leave out what its marches do: its window)
     tuned.set_accuracy(refine_target_);
     const double window = tuned.window;
+    windowed_ = std::make_unique<GaussianMedium>(gaussian_->windowed(window));
     std::size_t bytes = 0;
     const int first = int(std::ceil(kMapFace1 * std::sqrt(0.01 / std::max(refine_target_, 1e-9))));
     // Sets _marched_'s map to the first size (build(face) makes it) that fits, if any.
@@ -156,7 +157,7 @@ void FogEvaluator::plan_marches(GaussianRefinePlan& plan, int threads) {
             search(marched, [&](int face) {
                        if (!take_cached(marched, face))
                            marched.map.sun_map =
-                               std::make_shared<const SunDepthMap>(*gaussian_, u, face, kMarchMapRadial, threads, window);
+                               std::make_shared<const SunDepthMap>(*windowed_, u, face, kMarchMapRadial, threads, window);
                    },
                    std::size_t(kMarchMapRadial) * sizeof(float), kSunMapMaxFace);
         } else {
@@ -168,7 +169,7 @@ void FogEvaluator::plan_marches(GaussianRefinePlan& plan, int threads) {
             search(marched, [&](int face) {
                        if (!take_cached(marched, face))
                            marched.map.map = std::make_shared<const LightDepthMap>(
-                               *gaussian_, gaussian_lights_[l], axis, half_angle, face, kMarchMapRadial, threads, window);
+                               *windowed_, gaussian_lights_[l], axis, half_angle, face, kMarchMapRadial, threads, window);
                    },
                    std::size_t(6) * kMarchMapRadial * sizeof(float), kMarchMapMaxFace);
         }
@@ -185,6 +186,7 @@ RGB FogEvaluator::march_light(const MarchedLight& marched, bool mapped, const Ve
                               GaussianMarch& march) const {
     const size_t l = marched.light, P = gaussian_lights_.size();
     march.set_accuracy(refine_target_);
+    march.gather = windowed_.get();
     if (l >= P)
         return gaussian_march_sun_rgb(*gaussian_, -gaussian_suns_[l - P].w, fog_top_, phase_, o, d, len,
                                       mapped ? marched.map.sun_map.get() : nullptr, march);

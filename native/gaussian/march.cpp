@@ -195,7 +195,7 @@ RGB march_rgb(const GaussianMedium& medium, const MarchLight& light, const Phase
     line.clear();
     double last_end = 0.0;
     const GaussianWindow window_of(march.window);
-    medium.for_each_near(v, r, Dvp, [&](std::size_t g) {
+    (march.gather ? *march.gather : medium).for_each_near(v, r, Dvp, [&](std::size_t g) {
         const double a = medium.scale(g), c = medium.amplitude(g);
         const Vec3 rel = medium.centre(g) - v;
         const Vec3 cr = glm::cross(rel, r);

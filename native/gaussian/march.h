@@ -41,6 +41,10 @@ struct GaussianMarch {
     // Coarser steps and tolerance for an accuracy target (relative; 0: these defaults, ~1e-6
     // against the quadrature with exact light depths).
     void set_accuracy(double target);
+    // In: the hierarchy the ray's Gaussians are gathered from: the medium's windowed with this
+    // march's window (GaussianMedium::windowed; its spheres hold only what the window keeps, a
+    // gather ~7 % faster at window 10), or null: the medium's own. Light depths take the medium.
+    const GaussianMedium* gather = nullptr;
     // In: per-Gaussian albedos (3 a Gaussian; null: 1) and the uniform fog's (beta0's) albedo.
     const double* albedo = nullptr;
     RGB medium_albedo{1.0, 1.0, 1.0};

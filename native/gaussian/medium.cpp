@@ -204,7 +204,7 @@ std::uint64_t GaussianMedium::fingerprint() const {
         std::memcpy(&bits, &x, sizeof bits);
         for (int k = 0; k < 8; ++k) h = (h ^ ((bits >> (8 * k)) & 0xFF)) * 1099511628211ull;
     };
-    mix(double(size())), mix(eps_);
+    mix(double(size())), mix(eps_), mix(window_);
     for (std::size_t i = 0; i < size(); ++i) mix(bx_[i]), mix(by_[i]), mix(bz_[i]), mix(a_[i]), mix(c_[i]);
     return h;
 }
@@ -221,10 +221,27 @@ void GaussianMedium::build() {
     radius_.assign(n, 0.0);
     order_.clear();
     nodes_.clear();
-    for (std::size_t i = 0; i < n; ++i) {
-        radius_[i] = cull_radius_for(c_[i], a_[i], eps_);
+    for (std::size_t i = 0; i < n; ++i) radius_[i] = cull_radius_for(c_[i], a_[i], eps_);
+    build_hierarchy();
+}
+
+GaussianMedium GaussianMedium::windowed(double window) const {
+    GaussianMedium out;
+    out.bx_ = bx_, out.by_ = by_, out.bz_ = bz_, out.a_ = a_, out.c_ = c_;
+    out.beta0_ = beta0_, out.eps_ = eps_, out.window_ = window;
+    const GaussianWindow window_of(window);
+    out.radius_.resize(size());
+    for (std::size_t i = 0; i < size(); ++i)
+        out.radius_[i] = std::min(radius_[i], std::sqrt(window_of(c_[i] * kSqrtPi / a_[i])) / a_[i]);
+    out.build_hierarchy();
+    return out;
+}
+
+void GaussianMedium::build_hierarchy() {
+    order_.clear();
+    nodes_.clear();
+    for (std::size_t i = 0; i < size(); ++i)
         if (radius_[i] > 0.0) order_.push_back(static_cast<std::uint32_t>(i));
-    }
     if (order_.empty()) return;
     nodes_.reserve(order_.size() + 1);
     build_node(0, static_cast<std::uint32_t>(order_.size()), 0);

@@ -100,6 +100,13 @@ class GaussianMedium {
     // are spatially compact (gaussian/splat_bin.cpp blocks them for its cull tests).
     const std::vector<std::uint32_t>& leaf_order() const { return order_; }
 
+    // The same Gaussians with each cull sphere cut to the window a march with _window_ keeps of
+    // them (GaussianWindow: the radius sqrt(W) / a, where it is the smaller), and its hierarchy:
+    // for_each_near over it reaches only the Gaussians such a march (or a depth map with that
+    // window) keeps, ~0.7 of the cull spheres' at window 10. Its own optical depths leave out
+    // what the window does; the exact references take the medium itself.
+    GaussianMedium windowed(double window) const;
+
     // Density beta(x) (no culling).
     double density(const Vec3& x) const;
     // The same from the Gaussians whose cull sphere holds x (the hierarchy: O(log n) with
@@ -140,11 +147,13 @@ class GaussianMedium {
         std::uint32_t first_or_right, count;
     };
     void build();
+    void build_hierarchy();  // over the Gaussians with radius_ > 0
     std::uint32_t build_node(std::uint32_t begin, std::uint32_t end, int depth);
 
     std::vector<double> bx_, by_, bz_, a_, c_;
     std::vector<double> radius_;  // R_i
     double beta0_ = 0.0, eps_ = kDefaultCullEps;
+    double window_ = GaussianWindow::kNone;  // (windowed's)
     std::vector<Node> nodes_;
     std::vector<std::uint32_t> order_;  // leaf order -> Gaussian index
 };
