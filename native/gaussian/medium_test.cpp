@@ -5,7 +5,9 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
+#include <limits>
 #include <random>
 #include <stdexcept>
 
@@ -169,6 +171,52 @@ TEST(GaussianMedium, CulledDensity) {
         const double all = m.density(x), near = m.density_near(x);
         EXPECT_GE(all - near, -1e-12 * all);
         EXPECT_LE(all - near, 1500 * m.cull_eps() * a_max / std::sqrt(kPi) + 1e-12 * all);
+    }
+}
+
+// The windowed hierarchy reaches exactly the Gaussians of the medium's whose window the segment
+// enters (a^2 d^2 < W at the segment's closest point d, W = GaussianWindow): none it drops is in
+// the window, none it keeps is outside it or outside the medium's own cull sphere; with no
+// window it is the medium's.
+TEST(GaussianMedium, WindowedReachesTheWindow) {
+    std::mt19937_64 rng(3);
+    std::uniform_real_distribution<double> U(0.0, 1.0);
+    std::vector<double> b, a, c;
+    for (int i = 0; i < 1500; ++i) {
+        for (int k = 0; k < 3; ++k) b.push_back(60.0 * U(rng) - 30.0);
+        a.push_back(std::pow(10.0, -1.0 + 1.5 * U(rng)));
+        c.push_back(std::pow(10.0, -3.0 + 3.5 * U(rng)));  // thin (window 10) to dense (its own)
+    }
+    const GaussianMedium m(b, a, c, 0.01);
+    for (double window : {10.0, 20.0, GaussianWindow::kNone}) {
+        const GaussianMedium w = m.windowed(window);
+        const GaussianWindow window_of(window);
+        EXPECT_EQ(w.size(), m.size());
+        // (no window: the same spheres, the same hierarchy)
+        if (std::isinf(window)) EXPECT_EQ(w.fingerprint(), m.fingerprint());
+        else EXPECT_NE(w.fingerprint(), m.fingerprint());
+        int kept = 0, all = 0;
+        for (int k = 0; k < 200; ++k) {
+            const Vec3 o(60 * U(rng) - 30, 60 * U(rng) - 30, 60 * U(rng) - 30);
+            const Vec3 r = glm::normalize(Vec3(U(rng) - 0.5, U(rng) - 0.5, U(rng) - 0.5));
+            const double tmax = k % 3 ? 40.0 * U(rng) : std::numeric_limits<double>::infinity();
+            std::vector<char> near_m(m.size(), 0), near_w(m.size(), 0);
+            m.for_each_near(o, r, tmax, [&](std::size_t g) { near_m[g] = 1, ++all; });
+            w.for_each_near(o, r, tmax, [&](std::size_t g) { near_w[g] = 1, ++kept; });
+            for (std::size_t g = 0; g < m.size(); ++g) {
+                const Vec3 rel = m.centre(g) - o;
+                const double t = std::clamp(glm::dot(rel, r), 0.0, tmax);
+                const Vec3 d = rel - t * r;
+                const double ad2 = m.scale(g) * m.scale(g) * glm::dot(d, d);
+                const double W = window_of(m.amplitude(g) * kSqrtPi / m.scale(g));
+                if (near_w[g]) EXPECT_TRUE(near_m[g] && ad2 <= W * (1.0 + 1e-12)) << g;
+                else if (near_m[g]) EXPECT_GE(ad2, W * (1.0 - 1e-12)) << g;
+            }
+        }
+        // (window 20: every cull sphere here is within it)
+        if (window > 10.0) EXPECT_EQ(kept, all);
+        else EXPECT_LT(kept, 0.8 * all);
+        std::printf("[ gaussians ] windowed %g: reaches %d of the medium's %d\n", window, kept, all);
     }
 }
 
