@@ -22,6 +22,7 @@
 
 #include <algorithm>
 #include <cstddef>
+#include <cstdint>
 #include <utility>
 #include <vector>
 
@@ -66,9 +67,10 @@ class LightDepthMap {
   private:
     // The unit direction of grid point (i, j) of cube face f.
     Vec3 direction(int f, int i, int j) const;
-    // The depths along direction _w_ at the map's distances, into _out_ (radial_ values).
-    void fill(const GaussianMedium& medium, const Vec3& w, float* out, std::vector<float>& acc,
-              std::vector<double>& beyond) const;
+    // The depths along direction _w_ at the map's distances, into _out_ (radial_ values), from
+    // the Gaussians of _near_ (a superset of those whose cull sphere the direction reaches).
+    void fill(const GaussianMedium& medium, const std::vector<std::uint32_t>& near, const Vec3& w, float* out,
+              std::vector<float>& acc, std::vector<double>& beyond) const;
 
     // Whether unit direction _w_ is within the cone's reach (always for a point light).
     bool lit(const Vec3& w) const { return glm::dot(w, axis_) >= cos_reach_; }

@@ -137,6 +137,22 @@ class GaussianMedium {
     template <typename Fn>
     void for_each_near(const Vec3& o, const Vec3& r, double tmax, Fn&& fn) const;
 
+    // Calls fn(i) for every Gaussian whose cull sphere meets the cone from _o_ around unit _axis_
+    // of half-angle acos(cos_half) (cos_half >= 0), and some more (a node's box is taken by its
+    // bounding sphere): a bundle of rays from _o_ within the cone gathers its Gaussians here once
+    // and each ray keeps those segment_reaches (for_each_near's set, one walk for the bundle).
+    template <typename Fn>
+    void for_each_in_cone(const Vec3& o, const Vec3& axis, double cos_half, Fn&& fn) const;
+    // for_each_near's test of Gaussian i: the segment o + t r, t in [0, tmax], reaches its sphere
+    // (the distance from b_i to the segment below R_i).
+    bool segment_reaches(std::size_t i, const Vec3& o, const Vec3& r, double tmax) const {
+        const double px = bx_[i] - o.x, py = by_[i] - o.y, pz = bz_[i] - o.z;
+        const double ts = px * r.x + py * r.y + pz * r.z;
+        const double tc = ts < 0.0 ? 0.0 : (ts > tmax ? tmax : ts);
+        const double qx = px - tc * r.x, qy = py - tc * r.y, qz = pz - tc * r.z;
+        return qx * qx + qy * qy + qz * qz < radius_[i] * radius_[i];
+    }
+
     static constexpr std::size_t npos = static_cast<std::size_t>(-1);
 
   private:
@@ -188,12 +204,43 @@ void GaussianMedium::for_each_near(const Vec3& o, const Vec3& r, double tmax, Fn
             if (n.count > 0) {
                 for (std::uint32_t k = 0; k < n.count; ++k) {
                     const std::uint32_t i = order_[n.first_or_right + k];
-                    // Distance from b_i to the segment, compared with R_i.
-                    const double px = bx_[i] - o.x, py = by_[i] - o.y, pz = bz_[i] - o.z;
-                    const double ts = px * r.x + py * r.y + pz * r.z;
-                    const double tc = ts < 0.0 ? 0.0 : (ts > tmax ? tmax : ts);
-                    const double qx = px - tc * r.x, qy = py - tc * r.y, qz = pz - tc * r.z;
-                    if (qx * qx + qy * qy + qz * qz < radius_[i] * radius_[i]) fn(static_cast<std::size_t>(i));
+                    if (segment_reaches(i, o, r, tmax)) fn(static_cast<std::size_t>(i));
+                }
+            } else {
+                stack[sp++] = n.first_or_right;
+                ni = ni + 1;
+                continue;
+            }
+        }
+        if (sp == 0) break;
+        ni = stack[--sp];
+    }
+}
+
+template <typename Fn>
+void GaussianMedium::for_each_in_cone(const Vec3& o, const Vec3& axis, double cos_half, Fn&& fn) const {
+    if (nodes_.empty()) return;
+    const double sin_half = std::sqrt(std::max(0.0, 1.0 - cos_half * cos_half));
+    // The sphere (c, rho) meets the cone where the angle from the axis to c - o is at most the
+    // half-angle plus asin(rho / |c - o|) (both at most pi / 2: cos falls monotonically).
+    auto meets = [&](double cx, double cy, double cz, double rho) {
+        const double dx = cx - o.x, dy = cy - o.y, dz = cz - o.z;
+        const double L2 = dx * dx + dy * dy + dz * dz;
+        if (L2 <= rho * rho) return true;
+        const double L = std::sqrt(L2), sa = rho / L, ca = std::sqrt(1.0 - sa * sa);
+        return dx * axis.x + dy * axis.y + dz * axis.z >= L * (cos_half * ca - sin_half * sa);
+    };
+    std::uint32_t stack[64];
+    int sp = 0;
+    std::uint32_t ni = 0;
+    for (;;) {
+        const Node& n = nodes_[ni];
+        const double hx = 0.5 * (n.hi[0] - n.lo[0]), hy = 0.5 * (n.hi[1] - n.lo[1]), hz = 0.5 * (n.hi[2] - n.lo[2]);
+        if (meets(n.lo[0] + hx, n.lo[1] + hy, n.lo[2] + hz, std::sqrt(hx * hx + hy * hy + hz * hz))) {
+            if (n.count > 0) {
+                for (std::uint32_t k = 0; k < n.count; ++k) {
+                    const std::uint32_t i = order_[n.first_or_right + k];
+                    if (meets(bx_[i], by_[i], bz_[i], radius_[i])) fn(static_cast<std::size_t>(i));
                 }
             } else {
                 stack[sp++] = n.first_or_right;

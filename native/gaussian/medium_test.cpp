@@ -220,6 +220,43 @@ TEST(GaussianMedium, WindowedReachesTheWindow) {
     }
 }
 
+// A bundle of rays within a cone: the cone's walk, filtered by segment_reaches, is each ray's
+// own walk, in its order (the light-depth map's tiles gather so).
+TEST(GaussianMedium, ConeWalkHoldsEachRaysWalk) {
+    std::mt19937_64 rng(9);
+    std::uniform_real_distribution<double> U(0.0, 1.0);
+    std::vector<double> b, a, c;
+    for (int i = 0; i < 2000; ++i) {
+        for (int k = 0; k < 3; ++k) b.push_back(60.0 * U(rng) - 30.0);
+        a.push_back(std::pow(10.0, -0.5 + 1.5 * U(rng)));
+        c.push_back(std::pow(10.0, -2.0 + 2.0 * U(rng)));
+    }
+    const GaussianMedium m(b, a, c, 0.0);
+    std::size_t in_cone = 0, reached = 0;
+    for (int k = 0; k < 100; ++k) {
+        const Vec3 o(40 * U(rng) - 20, 40 * U(rng) - 20, 40 * U(rng) - 20);
+        const Vec3 axis = glm::normalize(Vec3(U(rng) - 0.5, U(rng) - 0.5, U(rng) - 0.5));
+        const double half = 0.3 * U(rng);
+        std::vector<std::size_t> cone;
+        m.for_each_in_cone(o, axis, std::cos(half), [&](std::size_t g) { cone.push_back(g); });
+        in_cone += cone.size();
+        const Vec3 e1 = glm::normalize(glm::cross(axis, std::abs(axis.x) < 0.9 ? Vec3(1, 0, 0) : Vec3(0, 1, 0)));
+        const Vec3 e2 = glm::cross(axis, e1);
+        for (int j = 0; j < 16; ++j) {
+            const double th = half * std::sqrt(U(rng)), ph = 2.0 * kPi * U(rng);
+            const Vec3 r = glm::normalize(std::cos(th) * axis + std::sin(th) * (std::cos(ph) * e1 + std::sin(ph) * e2));
+            const double tmax = j % 2 ? 50.0 * U(rng) : 100.0;
+            std::vector<std::size_t> own, kept;
+            m.for_each_near(o, r, tmax, [&](std::size_t g) { own.push_back(g); });
+            for (std::size_t g : cone)
+                if (m.segment_reaches(g, o, r, tmax)) kept.push_back(g);
+            EXPECT_EQ(kept, own);
+            reached += own.size();
+        }
+    }
+    std::printf("[ gaussians ] cone walks: %zu Gaussians a cone, %zu a ray\n", in_cone / 100, reached / 1600);
+}
+
 TEST(GaussianMedium, RejectsBadInput) {
     auto msg = [](auto&& make) {
         try {
