@@ -3,10 +3,47 @@
 
 #include <algorithm>
 
+#include <cmath>
+
+#include "core/constants.h"
 #include "core/fast_erf.h"
 #include "core/target_clones.h"
 
 namespace airlight {
+
+namespace {
+
+// Beyond this many widths of its projection a Gaussian's step is whole (erf(3) = 1 - 2.2e-5):
+// the bins past it get the whole step, those before it nothing, each off by at most 1.1e-5 of
+// the Gaussian's depth there (the maps' measured errors, 2.5e-4 of the airlight at 0.1 %, are
+// 20x that). 4.5 took 58 bins a Gaussian on the 3000-Gaussian cloud, 3 takes 42.
+constexpr double kStepReach = 3.0;
+// The float kernel's widest vector: a Gaussian's bins are whole vectors of it (a short loop's
+// scalar remainder was half its time; the bins added past the reach take the whole step to
+// 2e-10, those before it ~0).
+constexpr int kPad = 16;
+
+}  // namespace
+
+void ErfSteps::add(const GaussianMedium& medium, std::size_t g, const Vec3& o, const Vec3& r,
+                   const GaussianWindow& window, double bin, int last) {
+    const double a = medium.scale(g), c = medium.amplitude(g);
+    const Vec3 rel = medium.centre(g) - o;
+    const double p = glm::dot(rel, r);
+    const double ah2 = a * a * std::max(0.0, glm::dot(rel, rel) - p * p);
+    // (the pairs a march's window leaves out of the 3000-Gaussian cloud's map at 1 % took ~10 %
+    // of its set-up)
+    if (ah2 >= window(c * kSqrtPi / a)) return;
+    const double reach = kStepReach / a;
+    int lo = std::max(0, int(std::ceil((p - reach) / bin)));
+    int hi = std::min(last, int(std::floor((p + reach) / bin)));
+    if (lo <= hi) {
+        const int n = ((hi - lo + kPad) / kPad) * kPad;
+        hi = std::min(last, lo + n - 1);
+        lo = std::max(0, hi - n + 1);
+    }
+    push(float(c * kSqrtPi / (2.0 * a)), float(ah2), float(a), float(p), lo, hi);
+}
 
 void ErfSteps::clear() {
     for (auto* v : {&k, &ah2, &a, &p, &x1}) v->clear();

@@ -11,6 +11,9 @@
 #include <cstddef>
 #include <vector>
 
+#include "core/scene.h"
+#include "gaussian/medium.h"
+
 namespace airlight {
 
 struct ErfSteps {
@@ -20,6 +23,11 @@ struct ErfSteps {
     std::vector<float> K, e1;  // (the kernels' scratch: K_j, erfc(|x1_j|))
 
     void clear();
+    // Gaussian g of _medium_ on the line o + t r (r unit) with bins of _bin_ from t = 0 to
+    // _last_, unless _window_ leaves it out of the line (GaussianWindow: as a march would).
+    // Its bins: those within kStepReach widths of its centre's projection, in whole vectors.
+    void add(const GaussianMedium& medium, std::size_t g, const Vec3& o, const Vec3& r,
+             const GaussianWindow& window, double bin, int last);
     void push(float k_j, float ah2_j, float a_j, float p_j, int lo_j, int hi_j);
     std::size_t size() const { return k.size(); }
 };

@@ -14,13 +14,6 @@ namespace airlight {
 
 namespace {
 
-// Beyond this many widths of its projection a Gaussian's erf step is whole (erf(3) =
-// 1 - 2.2e-5): the distances past it get the whole step, those before it nothing, each off by
-// at most 1.1e-5 of the Gaussian's depth there (the maps' measured errors, 2.5e-4 of the
-// airlight at 0.1 %, are 20x that). 4.5 took 58 bins a Gaussian on the 3000-Gaussian cloud,
-// 3 takes 42.
-constexpr double kStepReach = 3.0;
-constexpr int kPad = 16;  // the float kernel's widest vector
 constexpr int kTile = 8;  // grid directions a side that share a walk of the hierarchy
 
 }  // namespace
@@ -106,28 +99,9 @@ void LightDepthMap::fill(const GaussianMedium& medium, const std::vector<std::ui
     const int last = radial_ - 1;
     thread_local ErfSteps steps;
     steps.clear();
-    for (const std::uint32_t g : near) {
-        if (!medium.segment_reaches(g, s_, w, r_max_)) continue;
-        const double a = medium.scale(g), c = medium.amplitude(g);
-        const Vec3 rel = medium.centre(g) - s_;
-        const double p = glm::dot(rel, w);
-        const double ah2 = a * a * std::max(0.0, glm::dot(rel, rel) - p * p);
-        // (as a march's window: the pairs it leaves out of the 3000-Gaussian cloud's map at 1 %
-        // took ~10 % of its set-up)
-        if (ah2 >= window_(c * kSqrtPi / a)) continue;
-        const double reach = kStepReach / a;
-        int lo = std::max(0, int(std::ceil((p - reach) / dr_)));
-        int hi = std::min(last, int(std::floor((p + reach) / dr_)));
-        // Whole vectors of kPad bins (a short loop's scalar remainder was half its time): the
-        // bins added past the reach take the whole step to 2e-10, those before it ~0.
-        if (lo <= hi) {
-            const int n = ((hi - lo + kPad) / kPad) * kPad;
-            hi = std::min(last, lo + n - 1);
-            lo = std::max(0, hi - n + 1);
-        }
-        // (T_j: 0 at r = 0, the whole step K erfc(-a p) past the bins)
-        steps.push(float(c * kSqrtPi / (2.0 * a)), float(ah2), float(a), float(p), lo, hi);
-    }
+    for (const std::uint32_t g : near)
+        if (medium.segment_reaches(g, s_, w, r_max_)) steps.add(medium, g, s_, w, window_, dr_, last);
+    // (T_j: 0 at r = 0, the whole step K erfc(-a p) past its bins)
     add_erf_steps(steps, float(dr_), last, acc.data(), beyond.data());
     double whole = 0.0;
     for (int k = 0; k <= last; ++k) {

@@ -164,6 +164,9 @@ class GaussianMedium {
     };
     void build();
     void build_hierarchy();  // over the Gaussians with radius_ > 0
+    // Depth-first over the hierarchy: the nodes node_hit(node) takes, leaf(i) for their Gaussians.
+    template <typename NodeHit, typename Leaf>
+    void walk(NodeHit&& node_hit, Leaf&& leaf) const;
     std::uint32_t build_node(std::uint32_t begin, std::uint32_t end, int depth);
 
     std::vector<double> bx_, by_, bz_, a_, c_;
@@ -174,38 +177,17 @@ class GaussianMedium {
     std::vector<std::uint32_t> order_;  // leaf order -> Gaussian index
 };
 
-template <typename Fn>
-void GaussianMedium::for_each_near(const Vec3& o, const Vec3& r, double tmax, Fn&& fn) const {
+template <typename NodeHit, typename Leaf>
+void GaussianMedium::walk(NodeHit&& node_hit, Leaf&& leaf) const {
     if (nodes_.empty()) return;
-    const double inv[3] = {1.0 / r.x, 1.0 / r.y, 1.0 / r.z};
-    const double org[3] = {o.x, o.y, o.z};
     std::uint32_t stack[64];
     int sp = 0;
     std::uint32_t ni = 0;
     for (;;) {
         const Node& n = nodes_[ni];
-        // Slab test of the node's box against t in [0, tmax]. 0 * inf = NaN fails the
-        // comparisons, which is the right outcome only when the origin is outside the
-        // slab; handle r_k = 0 explicitly.
-        double t_near = 0.0, t_far = tmax;
-        bool hit = true;
-        for (int k = 0; k < 3 && hit; ++k) {
-            if (std::isinf(inv[k])) {
-                hit = org[k] >= n.lo[k] && org[k] <= n.hi[k];
-                continue;
-            }
-            double ta = (n.lo[k] - org[k]) * inv[k], tb = (n.hi[k] - org[k]) * inv[k];
-            if (ta > tb) std::swap(ta, tb);
-            t_near = ta > t_near ? ta : t_near;
-            t_far = tb < t_far ? tb : t_far;
-            hit = t_near <= t_far;
-        }
-        if (hit) {
+        if (node_hit(n)) {
             if (n.count > 0) {
-                for (std::uint32_t k = 0; k < n.count; ++k) {
-                    const std::uint32_t i = order_[n.first_or_right + k];
-                    if (segment_reaches(i, o, r, tmax)) fn(static_cast<std::size_t>(i));
-                }
+                for (std::uint32_t k = 0; k < n.count; ++k) leaf(order_[n.first_or_right + k]);
             } else {
                 stack[sp++] = n.first_or_right;
                 ni = ni + 1;
@@ -218,8 +200,34 @@ void GaussianMedium::for_each_near(const Vec3& o, const Vec3& r, double tmax, Fn
 }
 
 template <typename Fn>
+void GaussianMedium::for_each_near(const Vec3& o, const Vec3& r, double tmax, Fn&& fn) const {
+    const double inv[3] = {1.0 / r.x, 1.0 / r.y, 1.0 / r.z};
+    const double org[3] = {o.x, o.y, o.z};
+    // Slab test of a node's box against t in [0, tmax]. 0 * inf = NaN fails the comparisons,
+    // which is the right outcome only when the origin is outside the slab; handle r_k = 0
+    // explicitly.
+    auto hits = [&](const Node& n) {
+        double t_near = 0.0, t_far = tmax;
+        for (int k = 0; k < 3; ++k) {
+            if (std::isinf(inv[k])) {
+                if (!(org[k] >= n.lo[k] && org[k] <= n.hi[k])) return false;
+                continue;
+            }
+            double ta = (n.lo[k] - org[k]) * inv[k], tb = (n.hi[k] - org[k]) * inv[k];
+            if (ta > tb) std::swap(ta, tb);
+            t_near = ta > t_near ? ta : t_near;
+            t_far = tb < t_far ? tb : t_far;
+            if (!(t_near <= t_far)) return false;
+        }
+        return true;
+    };
+    walk(hits, [&](std::uint32_t i) {
+        if (segment_reaches(i, o, r, tmax)) fn(static_cast<std::size_t>(i));
+    });
+}
+
+template <typename Fn>
 void GaussianMedium::for_each_in_cone(const Vec3& o, const Vec3& axis, double cos_half, Fn&& fn) const {
-    if (nodes_.empty()) return;
     const double sin_half = std::sqrt(std::max(0.0, 1.0 - cos_half * cos_half));
     // The sphere (c, rho) meets the cone where the angle from the axis to c - o is at most the
     // half-angle plus asin(rho / |c - o|) (both at most pi / 2: cos falls monotonically).
@@ -230,27 +238,13 @@ void GaussianMedium::for_each_in_cone(const Vec3& o, const Vec3& axis, double co
         const double L = std::sqrt(L2), sa = rho / L, ca = std::sqrt(1.0 - sa * sa);
         return dx * axis.x + dy * axis.y + dz * axis.z >= L * (cos_half * ca - sin_half * sa);
     };
-    std::uint32_t stack[64];
-    int sp = 0;
-    std::uint32_t ni = 0;
-    for (;;) {
-        const Node& n = nodes_[ni];
+    auto hits = [&](const Node& n) {  // (its box's bounding sphere)
         const double hx = 0.5 * (n.hi[0] - n.lo[0]), hy = 0.5 * (n.hi[1] - n.lo[1]), hz = 0.5 * (n.hi[2] - n.lo[2]);
-        if (meets(n.lo[0] + hx, n.lo[1] + hy, n.lo[2] + hz, std::sqrt(hx * hx + hy * hy + hz * hz))) {
-            if (n.count > 0) {
-                for (std::uint32_t k = 0; k < n.count; ++k) {
-                    const std::uint32_t i = order_[n.first_or_right + k];
-                    if (meets(bx_[i], by_[i], bz_[i], radius_[i])) fn(static_cast<std::size_t>(i));
-                }
-            } else {
-                stack[sp++] = n.first_or_right;
-                ni = ni + 1;
-                continue;
-            }
-        }
-        if (sp == 0) break;
-        ni = stack[--sp];
-    }
+        return meets(n.lo[0] + hx, n.lo[1] + hy, n.lo[2] + hz, std::sqrt(hx * hx + hy * hy + hz * hz));
+    };
+    walk(hits, [&](std::uint32_t i) {
+        if (meets(bx_[i], by_[i], bz_[i], radius_[i])) fn(static_cast<std::size_t>(i));
+    });
 }
 
 }  // namespace airlight

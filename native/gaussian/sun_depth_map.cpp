@@ -7,19 +7,11 @@
 #include <stdexcept>
 
 #include "core/build_progress.h"
-#include "core/constants.h"
 #include "gaussian/erf_steps.h"
 
 namespace airlight {
 
 namespace {
-
-// Beyond this many widths of its projection a Gaussian's erfc step is whole (erfc(-3) = 2 -
-// 2.2e-5) or gone: the heights below it get the whole step, those above it nothing (as the
-// light-depth map's, light_depth_map.cpp).
-constexpr double kStepReach = 3.0;
-
-constexpr int kPad = 16;  // the float kernel's widest vector (as the light-depth map's)
 
 constexpr double kInf = std::numeric_limits<double>::infinity();
 
@@ -94,25 +86,8 @@ void SunDepthMap::fill(const GaussianMedium& medium, int i, int j, float* out, s
     const Vec3 c = (f.lo[0] + i * dp_) * f.e1 + (f.lo[1] + j * dq_) * f.e2 + f.lo[2] * f.u;  // the column's bottom
     thread_local ErfSteps steps;
     steps.clear();
-    medium.for_each_near(c, f.u, last * ds_, [&](std::size_t g) {
-        const double a = medium.scale(g);
-        const Vec3 rel = medium.centre(g) - c;
-        const double p = glm::dot(rel, f.u);
-        const double c = medium.amplitude(g), ah2 = a * a * std::max(0.0, glm::dot(rel, rel) - p * p);
-        if (ah2 >= window_(c * kSqrtPi / a)) return;  // (as a march's window)
-        const double reach = kStepReach / a;
-        int lo = std::max(0, int(std::ceil((p - reach) / ds_)));
-        int hi = std::min(last, int(std::floor((p + reach) / ds_)));
-        // Whole vectors of kPad bins: those added below the reach take the whole step 2 K to
-        // 4e-10 of it, those above it ~0.
-        if (lo <= hi) {
-            const int n = ((hi - lo + kPad) / kPad) * kPad;
-            hi = std::min(last, lo + n - 1);
-            lo = std::max(0, hi - n + 1);
-        }
-        // T_g(s) = K erfc(a (s - p)): 2 K below the step, 0 above it.
-        steps.push(float(c * kSqrtPi / (2.0 * a)), float(ah2), float(a), float(p), lo, hi);
-    });
+    medium.for_each_near(c, f.u, last * ds_, [&](std::size_t g) { steps.add(medium, g, c, f.u, window_, ds_, last); });
+    // (T_g(s) = K erfc(a (s - p)): 2 K below its bins, 0 above them)
     add_erfc_steps(steps, float(ds_), last, acc.data(), below.data());
     double whole = 0.0;
     for (int k = last; k >= 0; --k) {
