@@ -2,7 +2,6 @@
 #include "gaussian/erf_steps.h"
 
 #include <algorithm>
-
 #include <cmath>
 
 #include "core/constants.h"
@@ -27,32 +26,29 @@ constexpr int kPad = 16;
 
 void ErfSteps::add(const GaussianMedium& medium, std::size_t g, const Vec3& o, const Vec3& r,
                    const GaussianWindow& window, double bin, int last) {
-    const double a = medium.scale(g), c = medium.amplitude(g);
+    const double a_g = medium.scale(g), c_g = medium.amplitude(g);
     const Vec3 rel = medium.centre(g) - o;
-    const double p = glm::dot(rel, r);
-    const double ah2 = a * a * std::max(0.0, glm::dot(rel, rel) - p * p);
+    const double p_g = glm::dot(rel, r);
+    const double ah2_g = a_g * a_g * std::max(0.0, glm::dot(rel, rel) - p_g * p_g);
     // (the pairs a march's window leaves out of the 3000-Gaussian cloud's map at 1 % took ~10 %
     // of its set-up)
-    if (ah2 >= window(c * kSqrtPi / a)) return;
-    const double reach = kStepReach / a;
-    int lo = std::max(0, int(std::ceil((p - reach) / bin)));
-    int hi = std::min(last, int(std::floor((p + reach) / bin)));
-    if (lo <= hi) {
-        const int n = ((hi - lo + kPad) / kPad) * kPad;
-        hi = std::min(last, lo + n - 1);
-        lo = std::max(0, hi - n + 1);
+    if (ah2_g >= window(c_g * kSqrtPi / a_g)) return;
+    const double reach = kStepReach / a_g;
+    int lo_g = std::max(0, int(std::ceil((p_g - reach) / bin)));
+    int hi_g = std::min(last, int(std::floor((p_g + reach) / bin)));
+    if (lo_g <= hi_g) {
+        const int n = ((hi_g - lo_g + kPad) / kPad) * kPad;
+        hi_g = std::min(last, lo_g + n - 1);
+        lo_g = std::max(0, hi_g - n + 1);
     }
-    push(float(c * kSqrtPi / (2.0 * a)), float(ah2), float(a), float(p), lo, hi);
+    k.push_back(float(c_g * kSqrtPi / (2.0 * a_g))), ah2.push_back(float(ah2_g));
+    a.push_back(float(a_g)), p.push_back(float(p_g)), x1.push_back(-float(a_g) * float(p_g));
+    lo.push_back(lo_g), hi.push_back(hi_g);
 }
 
 void ErfSteps::clear() {
     for (auto* v : {&k, &ah2, &a, &p, &x1}) v->clear();
     lo.clear(), hi.clear();
-}
-
-void ErfSteps::push(float k_j, float ah2_j, float a_j, float p_j, int lo_j, int hi_j) {
-    k.push_back(k_j), ah2.push_back(ah2_j), a.push_back(a_j), p.push_back(p_j), x1.push_back(-a_j * p_j);
-    lo.push_back(lo_j), hi.push_back(hi_j);
 }
 
 namespace {

@@ -28,7 +28,6 @@ struct ErfSteps {
     // Its bins: those within kStepReach widths of its centre's projection, in whole vectors.
     void add(const GaussianMedium& medium, std::size_t g, const Vec3& o, const Vec3& r,
              const GaussianWindow& window, double bin, int last);
-    void push(float k_j, float ah2_j, float a_j, float p_j, int lo_j, int hi_j);
     std::size_t size() const { return k.size(); }
 };
 

@@ -42,8 +42,8 @@ struct GaussianMarch {
     // against the quadrature with exact light depths).
     void set_accuracy(double target);
     // In: the hierarchy the ray's Gaussians are gathered from: the medium's windowed with this
-    // march's window (GaussianMedium::windowed; its spheres hold only what the window keeps, a
-    // gather ~7 % faster at window 10), or null: the medium's own. Light depths take the medium.
+    // march's window (GaussianMedium::windowed; its spheres hold only what the window keeps: a
+    // march ~7 % faster at window 10), or null: the medium's own. Light depths take the medium.
     const GaussianMedium* gather = nullptr;
     // In: per-Gaussian albedos (3 a Gaussian; null: 1) and the uniform fog's (beta0's) albedo.
     const double* albedo = nullptr;

@@ -219,8 +219,6 @@ double GaussianMedium::cull_radius_for(double c, double a, double eps) {
 void GaussianMedium::build() {
     const std::size_t n = size();
     radius_.assign(n, 0.0);
-    order_.clear();
-    nodes_.clear();
     for (std::size_t i = 0; i < n; ++i) radius_[i] = cull_radius_for(c_[i], a_[i], eps_);
     build_hierarchy();
 }
