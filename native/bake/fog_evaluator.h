@@ -237,6 +237,9 @@ class FogEvaluator {
     // _exact_: the exact marches of those rays, computed on the first call (empty) and kept. The
     // rays on _threads_ threads (0: all).
     double march_map_error(const MarchedLight& marched, std::vector<double>& exact, int threads) const;
+    // The distances a marched light's map holds over _extent_ (its farthest from the light, or
+    // a sun's depth across the cloud), given the width _width_ of its narrow Gaussians.
+    int map_radial(double extent, double width) const;
     // refine_gaussians' uniform-fog part for one ray d over [near, end] (Tg_near: the
     // Gaussians' depth before near; lit: its lit intervals, null when untraced: lit all along),
     // _view_ gathered on demand.
@@ -372,11 +375,14 @@ class FogEvaluator {
     // (benchmarks/bench_gaussian_accuracy.py, 3000 Gaussians).
     static constexpr double kRefineSecondsPerWork = 5.5e-8;
     // The marched lights' light-depth maps (plan_marches): 32 to 256 grid points a face's
-    // side (kMarchMapMaxFace), as the measured error asks, kMarchMapRadial distances, at most
-    // kMarchMapMaxBytes for all the lights together (a sun's map is a sixth of a point's a
+    // side (kMarchMapMaxFace), as the measured error asks, 64 to 256 distances (map_radial), at
+    // most kMarchMapMaxBytes for all the lights together (a sun's map is a sixth of a point's a
     // face: its largest, 512 a side, 256 MB). The march's units of work (GaussianMarch::work,
     // ~4 ns with the float kernels) per refine_work unit (5.5e-8 s).
-    static constexpr int kMarchMapRadial = 256, kMarchMapMaxFace = 256, kSunMapMaxFace = 512;
+    static constexpr int kMarchMapMinRadial = 64, kMarchMapMaxRadial = 256, kMarchMapMaxFace = 256, kSunMapMaxFace = 512;
+    // A map's distances at most this many of its narrow Gaussians' widths apart at 1 %
+    // (map_radial; after a map that erred too much, kMarchMapMaxRadial).
+    static constexpr double kMapRadialWidths = 0.35;
     // The largest fall of a map's measured error per doubling of its face (plan_marches), the
     // first face at 1 % (scaled to the target), the least, and the margin on a predicted one.
     static constexpr double kMapFallBound = 10.0;

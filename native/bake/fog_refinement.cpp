@@ -22,7 +22,37 @@ bool one_surface(double D1, double D2) {
     if (std::isinf(D1) || std::isinf(D2)) return std::isinf(D1) && std::isinf(D2);
     return std::abs(1.0 / D1 - 1.0 / D2) <= 0.01 / D1;
 }
+
+// The width 1 / a that 5 % of _medium_'s Gaussians (those with a cull sphere) are narrower
+// than; 0 with none.
+double narrow_width(const GaussianMedium& medium) {
+    std::vector<double> widths;
+    for (std::size_t j = 0; j < medium.size(); ++j)
+        if (medium.cull_radius(j) > 0.0) widths.push_back(1.0 / medium.scale(j));
+    if (widths.empty()) return 0.0;
+    const auto at = widths.begin() + std::ptrdiff_t(widths.size() / 20);
+    std::nth_element(widths.begin(), at, widths.end());
+    return *at;
+}
 }  // namespace
+
+int FogEvaluator::map_radial(double extent, double width) const {
+    // A read interpolates linearly between distances, whose error in an erf step of width w
+    // falls as (spacing / w)^2, and near the light from its own 0. Measured by the map's check
+    // at 1 %, 64 a face (need 0.0025): 3000 Gaussians 1-3 m wide, 0.00127 at 256 distances,
+    // 0.00130 at 192 (0.35 w apart), 0.00135 at 128 (0.41 w); 34 3-10 m wide, alike at 64 and
+    // 256; 150 Gaussians of the refine tests' ground scene, 0.00319 at 64 (0.5 w), 0.00176 at
+    // 96; 1e5 0.3-1 m wide (at 128 a face), 0.00147 at 256 (0.66 w), 0.00237 at 128. So
+    // kMapRadialWidths w apart at 1 %, scaled as the face's spacing is with the accuracy (its
+    // square root, plan_marches) above. Below 1 % every map takes the most (at 0.1 %, 0.16 w
+    // apart erred 0.00068 against the 0.00025 asked on the ground scene: the error near the
+    // light falls slower). Rounded up to 32, within [kMarchMapMinRadial, kMarchMapMaxRadial].
+    if (refine_target_ < 0.01) return kMarchMapMaxRadial;
+    const double spacing = kMapRadialWidths * width * std::sqrt(refine_target_ / 0.01);
+    if (!(spacing > 0.0) || !(extent > 0.0) || !std::isfinite(extent)) return kMarchMapMaxRadial;
+    const double need = std::ceil((extent / spacing + 1.0) / 32.0) * 32.0;
+    return int(std::clamp(need, double(kMarchMapMinRadial), double(kMarchMapMaxRadial)));
+}
 
 void FogEvaluator::set_up_refinement(const BakeSettings& settings, const Camera& camera) {
     // (projection[0][0] = the focal length over half the image width: model_choice.pixel_angle)
@@ -107,11 +137,12 @@ void FogEvaluator::plan_marches(GaussianRefinePlan& plan, int threads) {
     std::size_t bytes = 0;
     const int first = int(std::ceil(kMapFace1 * std::sqrt(0.01 / std::max(refine_target_, 1e-9))));
     // Sets _marched_'s map to the first size (build(face) makes it) that fits, if any.
-    auto search = [&](MarchedLight& marched, auto build, std::size_t bytes_per_face2, int max_face) {
+    // (_radial_: the map's distances, map_radial, the most after a map that erred too much)
+    auto search = [&](MarchedLight& marched, auto build, int& radial, std::size_t bytes_per_radial, int max_face) {
         double last_error = 0.0, last_face = 0.0;
         std::vector<double> exact;  // the check rays' exact marches, shared by the sizes
         for (int face = std::clamp(first, kMapMinFace, max_face);;) {
-            if (bytes + bytes_per_face2 * face * face > kMarchMapMaxBytes) return;
+            if (bytes + bytes_per_radial * radial * face * face > kMarchMapMaxBytes) return;
             build(face);
             const double error = march_map_error(marched, exact, threads);
             if (error <= need) {
@@ -120,6 +151,8 @@ void FogEvaluator::plan_marches(GaussianRefinePlan& plan, int threads) {
             }
             marched.map = CachedMap{};
             if (!std::isfinite(error)) return;  // (no fall to predict from)
+            if (radial != kMarchMapMaxRadial) exact.clear();  // (the checks near the light move with the steps)
+            radial = kMarchMapMaxRadial;
             // The error as (spacing)^order: measured, or the cube before a second size; the
             // largest size must reach the need by kMapFallBound a doubling or the measured order.
             const double order =
@@ -138,7 +171,8 @@ void FogEvaluator::plan_marches(GaussianRefinePlan& plan, int threads) {
     // is: map_cache.h. take_cached: the held map of _face_ into _marched_, or false, and the
     // build that follows counted.)
     MapKey key;
-    key.medium = gaussian_->fingerprint(), key.window = window, key.radial = kMarchMapRadial;
+    key.medium = gaussian_->fingerprint(), key.window = window;
+    const double width = narrow_width(*windowed_);
     auto take_cached = [&](MarchedLight& marched, int face) {
         key.face = face;
         marched.map = find_cached_map(key);
@@ -153,25 +187,34 @@ void FogEvaluator::plan_marches(GaussianRefinePlan& plan, int threads) {
         marched.light = l;
         if (l >= P) {  // a sun: columns along it over the cloud's shade (a sixth of a point's bytes a face)
             const Vec3 u = -gaussian_suns_[l - P].w;
+            const SunFootprint print(*windowed_, u);
+            int radial = map_radial(print.hi[2] - print.lo[2], width);
             key.sun = true, key.s = key.axis = Vec3(0.0), key.u = u, key.half_angle = 0.0;
             search(marched, [&](int face) {
+                       key.radial = radial;
                        if (!take_cached(marched, face))
                            marched.map.sun_map =
-                               std::make_shared<const SunDepthMap>(*windowed_, u, face, kMarchMapRadial, threads, window);
+                               std::make_shared<const SunDepthMap>(*windowed_, u, face, radial, threads, window);
                    },
-                   std::size_t(kMarchMapRadial) * sizeof(float), kSunMapMaxFace);
+                   radial, sizeof(float), kSunMapMaxFace);
         } else {
             // A spot's map holds its cone alone (a sixth of the sphere for a 60 degree one).
             const SpotCone* cone = l >= n_gaussian_points_ ? &gaussian_spots_[l - n_gaussian_points_].cone : nullptr;
             const Vec3 axis = cone ? cone->axis : Vec3(0.0, 0.0, -1.0);
             const double half_angle = cone ? std::acos(std::clamp(cone->cos_half_angle, -1.0, 1.0)) : kPi;
+            double reach = 0.0;  // (the map's farthest distance, LightDepthMap's r_max)
+            for (std::size_t j = 0; j < windowed_->size(); ++j)
+                if (windowed_->cull_radius(j) > 0.0)
+                    reach = std::max(reach, glm::length(windowed_->centre(j) - gaussian_lights_[l]) + windowed_->cull_radius(j));
+            int radial = map_radial(reach, width);
             key.sun = false, key.s = gaussian_lights_[l], key.axis = axis, key.u = Vec3(0.0), key.half_angle = half_angle;
             search(marched, [&](int face) {
+                       key.radial = radial;
                        if (!take_cached(marched, face))
                            marched.map.map = std::make_shared<const LightDepthMap>(
-                               *windowed_, gaussian_lights_[l], axis, half_angle, face, kMarchMapRadial, threads, window);
+                               *windowed_, gaussian_lights_[l], axis, half_angle, face, radial, threads, window);
                    },
-                   std::size_t(6) * kMarchMapRadial * sizeof(float), kMarchMapMaxFace);
+                   radial, std::size_t(6) * sizeof(float), kMarchMapMaxFace);
         }
         marched_.push_back(std::move(marched));
     }
