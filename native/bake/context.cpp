@@ -127,6 +127,13 @@ void BakeContext::row_rays(int j, RowRays& r, bool for_cast) const {
                            r.t_near.data());
 }
 
+void BakeContext::pixel_rays(int j, const int* xs, int n, RowRays& r) const {
+    const Vec3 Dj = D0 + (j + 0.5) * Dy;
+    for (int k = 0; k < n; ++k)
+        row_directions_fog(Dj + double(xs[k]) * Dx, Dx, forward, float(clip_start), 1, &r.dx[k], &r.dy[k], &r.dz[k],
+                           &r.t_near[k]);
+}
+
 void BakeContext::cast(const Ray* r, int n, float* depth, float* t0, CastScratch& scratch) const {
     if (!ortho) {
         RowRays& s = scratch.soa;

@@ -84,6 +84,8 @@ class BakeContext {
     // (row_directions_cast), pass 2 unit directions in double and t_near
     // (row_directions_fog): _for_cast_ selects. Affine cameras only.
     void row_rays(int j, RowRays& r, bool for_cast) const;
+    // Pass 2's rays (row_rays) of the _n_ pixels _xs_ of row _j_ alone, the k-th at index k.
+    void pixel_rays(int j, const int* xs, int n, RowRays& r) const;
     // First hits of _n_ camera rays inside the clip range, as Cycles sees them: nearer
     // surfaces clipped away, surfaces beyond t_far hidden (inf). _depth_ is measured from
     // the ray origin (the eye for perspective rays). Perspective rays share the origin and
