@@ -47,7 +47,6 @@ constexpr double kCellAngle = 0.07;
 constexpr int kMinCell = 2;
 // The smallest cells a biquadratic ratio may fill (its quarter points apart from its nodes).
 constexpr int kQuadraticCell = 4;
-// The longest a cell split one way only may grow against its other side.
 // Cells split one way only (split_ways): where Fogshop's values span at most kOneWaySpread, and
 // at most kMaxAspect times as long as they are wide. Without the spread's test a light's image,
 // which peaks between the samples of a row, erred 7 % at p99 on the 3000-Gaussian benchmark at
@@ -192,8 +191,8 @@ class CellRefiner {
                         return;
                     }
                 }
-                // In two across the one way whose samples missed (split_ways), else in four.
-                // (and the centre on its row and column: a light's image peaks there alone)
+                // In two across the one way whose samples missed, else in four (split_ways); the
+                // centre against its row's and column's ends too (a light's image peaks there).
                 if (x1 - x0 > kMinCell && y1 - y0 > kMinCell) {
                     const Sample row[4] = {e[2], e[3], e[2], e[3]}, column[4] = {e[0], e[0], e[1], e[1]};
                     along_x = along_x && fits(x0, ym, x1, ym, row, xm, ym, m);
