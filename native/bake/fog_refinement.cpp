@@ -202,11 +202,7 @@ void FogEvaluator::plan_marches(GaussianRefinePlan& plan, int threads) {
             const SpotCone* cone = l >= n_gaussian_points_ ? &gaussian_spots_[l - n_gaussian_points_].cone : nullptr;
             const Vec3 axis = cone ? cone->axis : Vec3(0.0, 0.0, -1.0);
             const double half_angle = cone ? std::acos(std::clamp(cone->cos_half_angle, -1.0, 1.0)) : kPi;
-            double reach = 0.0;  // (the map's farthest distance, LightDepthMap's r_max)
-            for (std::size_t j = 0; j < windowed_->size(); ++j)
-                if (windowed_->cull_radius(j) > 0.0)
-                    reach = std::max(reach, glm::length(windowed_->centre(j) - gaussian_lights_[l]) + windowed_->cull_radius(j));
-            int radial = map_radial(reach, width);
+            int radial = map_radial(LightDepthMap::reach(*windowed_, gaussian_lights_[l]), width);
             key.sun = false, key.s = gaussian_lights_[l], key.axis = axis, key.u = Vec3(0.0), key.half_angle = half_angle;
             search(marched, [&](int face) {
                        key.radial = radial;

@@ -38,9 +38,7 @@ LightDepthMap::LightDepthMap(const GaussianMedium& medium, const Vec3& s, const 
         axis_ = axis / len;
         cos_reach_ = std::cos(reach);
     }
-    for (std::size_t j = 0; j < medium.size(); ++j)
-        if (medium.cull_radius(j) > 0.0)
-            r_max_ = std::max(r_max_, glm::length(medium.centre(j) - s) + medium.cull_radius(j));
+    r_max_ = LightDepthMap::reach(medium, s);
     dr_ = r_max_ > 0.0 ? r_max_ / (radial - 1) : 1.0;
     // The faces with a grid point in reach.
     int held = 0;
@@ -86,6 +84,13 @@ LightDepthMap::LightDepthMap(const GaussianMedium& medium, const Vec3& s, const 
             build_progress_check();  // progress and cancel of the bake building it
         }
     });
+}
+
+double LightDepthMap::reach(const GaussianMedium& medium, const Vec3& s) {
+    double r = 0.0;
+    for (std::size_t j = 0; j < medium.size(); ++j)
+        if (medium.cull_radius(j) > 0.0) r = std::max(r, glm::length(medium.centre(j) - s) + medium.cull_radius(j));
+    return r;
 }
 
 Vec3 LightDepthMap::direction(int f, int i, int j) const {

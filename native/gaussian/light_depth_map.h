@@ -53,6 +53,8 @@ class LightDepthMap {
 
     const Vec3& light() const { return s_; }
     double max_radius() const { return r_max_; }
+    // The farthest from _s_ any of _medium_'s cull spheres reaches (a map's max_radius).
+    static double reach(const GaussianMedium& medium, const Vec3& s);
     // The spacing of its distances (a read interpolates linearly between two).
     double radial_step() const { return dr_; }
     std::size_t bytes() const { return tau_.size() * sizeof(float); }
