@@ -7,7 +7,7 @@ pairs integrated, gaussian/refine.h; refine_pass.cpp chooses the rays).
     /usr/bin/python3 benchmarks/bench_gaussian_accuracy.py [--runs 3] [--threads 2]
         [--width 1920 --height 1080] [--crop 32x18] [--skip-1e5] [--plot docs/img/gaussian_trade.png]
         [--budget SECONDS] [--scenes "34 x 3,3000 x 1"] [--accuracies 0,0.05,0.01,0.001]
-        [--resolution auto|full|half|quarter] [--spots | --suns] [--skip-errors]
+        [--resolution auto|full|half|quarter] [--spots | --suns] [--skip-errors] [--grid 16]
 
 Scenes of bench_rbf.py (its camera, ground and seeded clouds, beta0 = 0.002 /m, 500 W lights):
 34 broad Gaussians x 3 lights, 3000 brush-sized Gaussians x 1 light, 1e5 small ones x 1
@@ -23,7 +23,8 @@ their marches, and
 the mean / p99 relative error of that bake's Airlight pass against the QUADRATURE model
 (exact optical depths) on --crop windows of the same image (the reference is too slow for
 the whole frame): around each light's image and at four fixed places (the cloud, the
-horizon, the ground). A bake over its budget (gaussian_refine_budget) keeps Fogshop alone and
+horizon, the ground); with --grid S, also over the whole frame at every S-th pixel (the crops
+miss errors spread over a region: the ground far from the light). A bake over its budget (gaussian_refine_budget) keeps Fogshop alone and
 is marked ABANDONED (its errors are Fogshop's: what the user gets). Prints PASS/FAIL for
 3000 x 1 at 1 % <= 500 ms with mean <= 1 %. With --plot, writes time against error per scene
 (matplotlib). --spots makes the lights spot lamps (70 degrees, blend 0.3, pointing down);
@@ -123,6 +124,20 @@ def crop_projection(projection, width, height, x0, y0, cw, ch):
     return q
 
 
+def grid_projection(projection, width, height, stride):
+    """The projection of a (width // stride) x (height // stride) image whose pixel (i, j) is the
+    centre of pixel (stride i, stride j) of the width x height one (--grid: the whole frame's
+    errors at every stride-th pixel)."""
+    n, m = width // stride, height // stride
+    x0 = y0 = 0.5 - stride / 2.0
+    q = np.array(projection, dtype=float)
+    cx = (x0 + n * stride / 2) / width * 2 - 1
+    cy = (height - y0 - m * stride / 2) / height * 2 - 1
+    q[0] = (q[0] - cx * q[3]) / (n * stride / width)
+    q[1] = (q[1] - cy * q[3]) / (m * stride / height)
+    return q
+
+
 def crops(width, height, lights, cw, ch):
     """Top-left corners of the error windows: each light's image (when in the frame), then the
     cloud (two places), the horizon and the ground."""
@@ -158,6 +173,10 @@ def main():
     ap.add_argument("--suns", action="store_true", help="the scenes' lights as sun lamps (sun_lights)")
     ap.add_argument("--skip-errors", action="store_true",
                     help="times only (the QUADRATURE crops of spots on 3000 Gaussians take ~10 min)")
+    ap.add_argument("--grid", type=int, default=0,
+                    help="also the whole frame's errors at every GRID-th pixel (a QUADRATURE image of "
+                         "(width / GRID) x (height / GRID); 16: ~1 min on 3000 Gaussians): mean, p99, max "
+                         "and the share of pixels over the accuracy")
     ap.add_argument("--resolution", default="auto", choices=("auto", "full", "half", "quarter"),
                     help="the splat's gaussian_resolution; auto (default): Automatic's, the coarsest whose "
                          "error fits each accuracy (automatic_resolution)")
@@ -181,6 +200,10 @@ def main():
         refs = [bake(cw, ch, gaussians, lights, args.threads, model="quadrature",
                      projection=crop_projection(proj, W, H, x0, y0, cw, ch), **kind)["airlight"]
                 for x0, y0 in windows]
+        grid_ref = None
+        if args.grid > 0 and not name.startswith("1e5") and not args.skip_errors:
+            grid_ref = bake(W // args.grid, H // args.grid, gaussians, lights, args.threads, model="quadrature",
+                            projection=grid_projection(proj, W, H, args.grid), **kind)["airlight"]
         for acc in (float(a) for a in args.accuracies.split(",")):
             budget["gaussian_resolution"] = (automatic_resolution(acc, W) if args.resolution == "auto"
                                              else args.resolution)
@@ -200,13 +223,20 @@ def main():
                                     for (x0, y0), ref in zip(windows, refs)])
                 if e.size:  # (a crop the reference leaves black, below float's range, has no relative error)
                     mean, p99 = e.mean(), np.percentile(e, 99)
+            frame_errors = ""
+            if grid_ref is not None:  # (every --grid-th pixel of the frame)
+                S = args.grid
+                e = errors(res["airlight"][::S, ::S][:grid_ref.shape[0], :grid_ref.shape[1]], grid_ref)
+                frame_errors = (f"  frame: mean {e.mean():.2e} p99 {np.percentile(e, 99):.2e} max {e.max():.2e}, "
+                                f"{100 * np.mean(e > acc):.1f} % over" if acc > 0 else
+                                f"  frame: mean {e.mean():.2e} p99 {np.percentile(e, 99):.2e} max {e.max():.2e}")
             res = None
             next_wall, _ = timed(frame, 1)  # (the last run's maps)
             rows.append((name, acc, 1e3 * wall, mean, p99))
             marched = f"{s['gaussian_marched_lights']} ({s['gaussian_marched_rays']})"
             print(f"{name:16s} {100 * acc:7.2g}% {budget['gaussian_resolution']:>7s} {1e3 * wall:9.0f} {1e3 * next_wall:8.0f} {1e3 * s['seconds_refine']:9.0f} {marched:>15s} "
                   f"{s['gaussian_pairs']:13d} "
-                  f"{mean:9.2e} {p99:9.2e} {s['gaussian_error_bound']:8.1e}"
+                  f"{mean:9.2e} {p99:9.2e} {s['gaussian_error_bound']:8.1e}{frame_errors}"
                   f"{'  ABANDONED (over budget: Fogshop alone)' if s['gaussian_refine_abandoned'] else ''}", flush=True)
     for name, acc, ms, mean, _ in rows:
         if name == "3000 x 1" and acc == 0.01:
