@@ -117,6 +117,11 @@ class FogEvaluator {
     // may be inf) on the ray from the eye along unit _d_, summed over the channels: the lights
     // unshadowed, at their phase function's and spot's peak, the light's depth left out.
     double uniform_fog_bound(const Vec3& d, double D1, double D2) const;
+    // Whether the surfaces at depths _D_ along the four unit rays _d_ from the eye (a cell's
+    // corners) lie before a Gaussian's centre on some of them and past it on others: there
+    // Fogshop's term of that Gaussian changes form (the ray's end passes the centre's
+    // projection), and its error a band across the cell narrower than the cell (refine_pass).
+    bool surface_cuts_gaussian(const Vec3 d[4], const double D[4]) const;
     // The budget (BakeSettings::gaussian_refine_budget): counted over the centre samples until
     // close_refine_budget(); once over it every refinement call returns at once.
     bool refine_abandoned() const { return refine_abandoned_.load(); }

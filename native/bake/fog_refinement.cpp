@@ -323,6 +323,28 @@ double FogEvaluator::uniform_fog_bound(const Vec3& d, double D1, double D2) cons
     return bound;
 }
 
+bool FogEvaluator::surface_cuts_gaussian(const Vec3 d[4], const double D[4]) const {
+    const GaussianMedium& medium = windowed_ ? *windowed_ : *gaussian_;
+    Vec3 axis(0.0);
+    for (int k = 0; k < 4; ++k) axis += d[k];
+    if (!(glm::length(axis) > 0.0)) return true;
+    axis = glm::normalize(axis);
+    double cos_half = 1.0;
+    for (int k = 0; k < 4; ++k) cos_half = std::min(cos_half, glm::dot(d[k], axis));
+    bool cut = false;
+    medium.for_each_in_cone(origin_, axis, std::max(0.0, cos_half - 1e-9), [&](std::size_t g) {
+        if (cut) return;
+        bool before = false, past = false, reached = false;
+        for (int k = 0; k < 4; ++k) {
+            const double t = glm::dot(medium.centre(g) - origin_, d[k]);
+            (D[k] < t ? before : past) = true;
+            reached = reached || medium.segment_reaches(g, origin_, d[k], D[k]);
+        }
+        cut = before && past && reached;
+    });
+    return cut;
+}
+
 int FogEvaluator::gaussian_volume(size_t l) const {
     if (!shadows_) return -1;
     const size_t P = gaussian_lights_.size();
