@@ -28,9 +28,10 @@ LightDepthMap::LightDepthMap(const GaussianMedium& medium, const Vec3& s, const 
     if (face < 2 || radial < 2) throw std::invalid_argument("LightDepthMap: face and radial must be >= 2");
     if (!std::isfinite(s.x) || !std::isfinite(s.y) || !std::isfinite(s.z))
         throw std::invalid_argument("LightDepthMap: the light's position is not finite");
-    // A read interpolates the four grid points around its direction, at most a cell's diagonal
-    // away, and a cell spans at most 2 / (face - 1) rad of the sphere (at a face's centre).
-    const double reach = half_angle + 2.0 * 2.0 / (face - 1);
+    // A read interpolates the 4 x 4 grid points around its direction, at most two cells'
+    // diagonal away, and a cell spans at most 2 / (face - 1) rad of the sphere (at a face's
+    // centre).
+    const double reach = half_angle + 3.0 * 2.0 / (face - 1);
     if (reach < kPi) {
         const double len = glm::length(axis);
         if (!(len > 0.0) || !std::isfinite(len) || !(half_angle >= 0.0))
@@ -40,30 +41,32 @@ LightDepthMap::LightDepthMap(const GaussianMedium& medium, const Vec3& s, const 
     }
     r_max_ = LightDepthMap::reach(medium, s);
     dr_ = r_max_ > 0.0 ? r_max_ / (radial - 1) : 1.0;
-    // The faces with a grid point in reach.
+    // The faces with a grid point in reach; each holds its face x face points and a ring of
+    // one more around them (kApron: directions over the face's edge, for the bicubic read).
+    const int side = face + 2 * kApron;
     int held = 0;
     for (int f = 0; f < 6; ++f) {
         bool any = false;
-        for (int j = 0; j < face && !any; ++j)
-            for (int i = 0; i < face && !any; ++i) any = lit(direction(f, i, j));
+        for (int j = -kApron; j < face + kApron && !any; ++j)
+            for (int i = -kApron; i < face + kApron && !any; ++i) any = lit(direction(f, i, j));
         slot_[f] = any ? held++ : -1;
     }
-    acquire_image_buffer(tau_, std::size_t(held) * face * face * radial, 0.0f);
+    acquire_image_buffer(tau_, std::size_t(held) * side * side * radial, 0.0f);
     if (r_max_ == 0.0) return;
     // Tiles of kTile x kTile grid directions gather their Gaussians in one walk of the medium's
     // hierarchy (the cone around them), each direction keeping those its own walk would reach:
     // one walk a direction took most of a 1e5-Gaussian map's build.
-    const int tiles = (face + kTile - 1) / kTile;
+    const int tiles = (side + kTile - 1) / kTile;
     parallel_chunks(std::size_t(6 * tiles * tiles), threads, 1, [&](std::size_t begin, std::size_t end) {
         std::vector<float> acc(radial);
         std::vector<double> beyond(radial + 1);
         std::vector<std::uint32_t> near;
         std::vector<Vec3> ws;
         for (std::size_t tile = begin; tile < end; ++tile) {
-            const int f = int(tile) / (tiles * tiles), i0 = int(tile) % tiles * kTile,
-                      j0 = int(tile) / tiles % tiles * kTile;
+            const int f = int(tile) / (tiles * tiles), i0 = int(tile) % tiles * kTile - kApron,
+                      j0 = int(tile) / tiles % tiles * kTile - kApron;
             if (slot_[f] < 0) continue;
-            const int i1 = std::min(face, i0 + kTile), j1 = std::min(face, j0 + kTile);
+            const int i1 = std::min(face + kApron, i0 + kTile), j1 = std::min(face + kApron, j0 + kTile);
             ws.clear();
             Vec3 axis(0.0);
             for (int j = j0; j < j1; ++j)
@@ -77,9 +80,7 @@ LightDepthMap::LightDepthMap(const GaussianMedium& medium, const Vec3& s, const 
             for (int j = j0; j < j1; ++j)
                 for (int i = i0; i < i1; ++i) {
                     const Vec3& w = ws[std::size_t((j - j0) * (i1 - i0) + (i - i0))];
-                    if (lit(w))
-                        fill(medium, near, w, &tau_[((std::size_t(slot_[f]) * face + j) * face + i) * radial], acc,
-                             beyond);
+                    if (lit(w)) fill(medium, near, w, &tau_[index(slot_[f], i, j)], acc, beyond);
                 }
             build_progress_check();  // progress and cancel of the bake building it
         }
@@ -125,16 +126,31 @@ double LightDepthMap::operator()(const Vec3& x) const {
     const double fu = std::clamp((c.p + 1.0) * 0.5 * (face_ - 1), 0.0, face_ - 1.0);
     const double fv = std::clamp((c.q + 1.0) * 0.5 * (face_ - 1), 0.0, face_ - 1.0);
     const int i0 = std::min(int(fu), face_ - 2), j0 = std::min(int(fv), face_ - 2);
-    const double wu = fu - i0, wv = fv - j0;
     const double fr = std::min(glm::length(d) / dr_, radial_ - 1.0);
     const int k0 = std::min(int(fr), radial_ - 2);
     const double wr = fr - k0;
-    const float* base = &tau_[((std::size_t(f) * face_ + j0) * face_ + i0) * radial_ + k0];
-    auto at = [&](int di, int dj) {
-        const float* p = base + (std::size_t(dj) * face_ + di) * radial_;
-        return (1.0 - wr) * p[0] + wr * p[1];
-    };
-    return (1.0 - wv) * ((1.0 - wu) * at(0, 0) + wu * at(1, 0)) + wv * ((1.0 - wu) * at(0, 1) + wu * at(1, 1));
+    // Catmull-Rom across the directions (points i0 - 1 .. i0 + 2, the apron's at the face's
+    // edges), linear in distance.
+    double wu[4], wv[4];
+    catmull_rom(fu - i0, wu), catmull_rom(fv - j0, wv);
+    const float* base = &tau_[index(f, i0 - 1, j0 - 1) + std::size_t(k0)];
+    const std::size_t row = std::size_t(face_ + 2 * kApron) * radial_;
+    double tau = 0.0;
+    for (int dj = 0; dj < 4; ++dj) {
+        const float* p = base + dj * row;
+        double line = 0.0;
+        for (int di = 0; di < 4; ++di, p += radial_) line += wu[di] * ((1.0 - wr) * p[0] + wr * p[1]);
+        tau += wv[dj] * line;
+    }
+    return std::max(0.0, tau);  // (the cubic may undershoot a step's foot)
+}
+
+void LightDepthMap::catmull_rom(double t, double w[4]) {
+    const double t2 = t * t, t3 = t2 * t;
+    w[0] = 0.5 * (-t3 + 2.0 * t2 - t);
+    w[1] = 0.5 * (3.0 * t3 - 5.0 * t2 + 2.0);
+    w[2] = 0.5 * (-3.0 * t3 + 4.0 * t2 + t);
+    w[3] = 0.5 * (t3 - t2);
 }
 
 }  // namespace airlight

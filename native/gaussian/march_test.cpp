@@ -110,7 +110,7 @@ TEST(LightDepthMap, SpotConeOnly) {
         if (angle <= half) {
             ++inside;
             EXPECT_EQ(spot(x), whole(x)) << angle;
-        } else if (angle > half + 4.0 * 2.0 / 63.0) {
+        } else if (angle > half + 6.0 * 2.0 / 63.0) {  // (the reach, 3 cells, and a read's 4 x 4 points)
             ++outside;
             EXPECT_EQ(spot(x), 0.0);
         }
