@@ -16,6 +16,32 @@
 
 namespace airlight {
 
+namespace {
+// A spread of kViewsX x kViewsY of the frame's pixels, their rays to their surfaces (the
+// light-depth maps' check: FogEvaluator's views); none where the rays do not share the eye.
+std::vector<ViewRay> view_rays(const BakeContext& ctx) {
+    constexpr int kViewsX = 12, kViewsY = 7;
+    std::vector<ViewRay> views;
+    if (!ctx.affine || ctx.W < 1 || ctx.H < 1) return views;
+    std::vector<int> xs;
+    for (int i = 0; i < kViewsX; ++i) xs.push_back(int((i + 0.5) * ctx.W / kViewsX));
+    RowRays rr;
+    rr.resize(xs.size());
+    for (int j = 0; j < kViewsY; ++j) {
+        const int y = int((j + 0.5) * ctx.H / kViewsY);
+        ctx.pixel_rays(y, xs.data(), int(xs.size()), rr);
+        for (size_t k = 0; k < xs.size(); ++k) {
+            ViewRay v;
+            v.d = glm::normalize(Vec3(rr.dx[k], rr.dy[k], rr.dz[k]));
+            v.near = ctx.near_clip ? rr.t_near[k] : 0.0;
+            v.depth = ctx.result.depth[size_t(y) * ctx.W + xs[k]];
+            views.push_back(v);
+        }
+    }
+    return views;
+}
+}  // namespace
+
 BakeResult bake(const SceneDescription& scene, const BakeSettings& settings, const ProgressFn& user_progress) {
     validate(scene, settings);
     // The fraction last reported; the tables built inside the bake (the model's at the end
@@ -44,7 +70,7 @@ BakeResult bake(const SceneDescription& scene, const BakeSettings& settings, con
 
     const auto fog_setup_start = Clock::now();
     const std::unique_ptr<FogModel> model = model_entry_.make(scene, settings);
-    const FogEvaluator fog(scene, settings, *model, !ctx.rays.orthographic(), ctx.rays.position());
+    const FogEvaluator fog(scene, settings, *model, !ctx.rays.orthographic(), ctx.rays.position(), view_rays(ctx));
     result.stats.seconds_fog_setup = seconds_since(fog_setup_start);
     result.stats.seconds_shadow_volumes = fog.seconds_shadow_volumes();
 

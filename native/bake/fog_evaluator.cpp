@@ -87,12 +87,13 @@ void accumulate_rgb(const float* __restrict value, float wr, float wg, float wb,
 }  // namespace
 
 FogEvaluator::FogEvaluator(const SceneDescription& scene, const BakeSettings& settings, const FogModel& model, bool shared_origin,
-         const Vec3& origin)
+                           const Vec3& origin, std::vector<ViewRay> views)
     : model_(model),
       sigma_t_(scene.medium.sigma_t),
       phase_(scene.medium.phase),
       isotropic_(phase_is_isotropic(scene.medium.phase)),
       shared_origin_(shared_origin),
+      views_(std::move(views)),
       origin_(origin) {
     const SpotMethod spot_method = model_.spot_method();
     if (spot_method != SpotMethod::Quadrature && !scene.spot_lights.empty()) {

@@ -42,11 +42,19 @@ struct LightData {
     int pass = -1;   // its per-light pass (SceneDescription::light_passes); -1: none
 };
 
+// A ray of the frame, from the eye along unit _d_ over [near, depth] (depth inf: the sky).
+struct ViewRay {
+    Vec3 d{0.0, 0.0, 1.0};
+    double near = 0.0, depth = 0.0;
+};
+
 // Evaluates transmittance and airlight of view rays with a fog model.
 class FogEvaluator {
   public:
+    // _views_: a spread of the frame's rays, to their surfaces (the raycast's): the light-depth
+    // maps' check marches them too (march_map_error).
     FogEvaluator(const SceneDescription& scene, const BakeSettings& settings, const FogModel& model, bool shared_origin,
-             const Vec3& origin);
+                 const Vec3& origin, std::vector<ViewRay> views = {});
 
     // Background (beta0) term of the splat's light l (GaussianSplatLights::background): point
     // lights n_gaussian_points_ first, then spots, then suns; per unit albedo I0 (suns: albedo E)
@@ -242,9 +250,12 @@ class FogEvaluator {
     // _exact_: the exact marches of those rays, computed on the first call (empty) and kept. The
     // rays on _threads_ threads (0: all).
     double march_map_error(const MarchedLight& marched, std::vector<double>& exact, int threads) const;
+    // The largest relative error of a point or spot light's airlight with its map's light
+    // depths against exact ones on the frame's rays (views_), each summed over the same nodes.
+    double view_map_error(const MarchedLight& marched, int threads) const;
     // The distances a marched light's map holds over _extent_ (its farthest from the light, or
     // a sun's depth across the cloud), given the width _width_ of its narrow Gaussians.
-    int map_radial(double extent, double width) const;
+    int map_radial(double extent, double width, int most) const;
     // refine_gaussians' uniform-fog part for one ray d over [near, end] (Tg_near: the
     // Gaussians' depth before near; lit: its lit intervals, null when untraced: lit all along),
     // _view_ gathered on demand.
@@ -296,6 +307,7 @@ class FogEvaluator {
     PhaseFunction phase_;
     bool isotropic_;
     bool shared_origin_;
+    std::vector<ViewRay> views_;
     Vec3 origin_;
     PegoraroPhase pegoraro_phase_;  // spots (all models but quadrature) and model pegoraro10
     bool spot_closed_form_ = false;  // spots by pegoraro10_spot_airlight (else quadrature)
@@ -380,18 +392,23 @@ class FogEvaluator {
     // (benchmarks/bench_gaussian_accuracy.py, 3000 Gaussians).
     static constexpr double kRefineSecondsPerWork = 5.5e-8;
     // The marched lights' light-depth maps (plan_marches): 32 to 256 grid points a face's
-    // side (kMarchMapMaxFace), as the measured error asks, 64 to 256 distances (map_radial), at
-    // most kMarchMapMaxBytes for all the lights together (a sun's map is a sixth of a point's a
-    // face: its largest, 512 a side, 256 MB). The march's units of work (GaussianMarch::work,
+    // side (kMarchMapMaxFace), as the measured error asks, 64 to 512 distances (map_radial; a
+    // sun's to 256), at most kMarchMapMaxBytes for all the lights together (a sun's map is a
+    // sixth of a point's a face: its largest, 512 a side, 256 MB). Below 1 % a point's or
+    // spot's map takes 512 distances: on the refine tests' ground scene at 0.1 % (need
+    // 0.00025) 256 erred 0.00029-0.00030 on the frame's rays at 152 and at 184 a face (the
+    // distances' linear reads), 512 0.00006. The march's units of work (GaussianMarch::work,
     // ~4 ns with the float kernels) per refine_work unit (5.5e-8 s).
-    static constexpr int kMarchMapMinRadial = 64, kMarchMapMaxRadial = 256, kMarchMapMaxFace = 256, kSunMapMaxFace = 512;
+    static constexpr int kMarchMapMinRadial = 64, kMarchMapMaxRadial = 512, kSunMapMaxRadial = 256;
+    static constexpr int kMarchMapMaxFace = 256, kSunMapMaxFace = 512;
     // A map's distances at most this many of its narrow Gaussians' widths apart at 1 %
-    // (map_radial; after a map that erred too much, kMarchMapMaxRadial).
+    // (map_radial; after a map that erred too much, the most).
     static constexpr double kMapRadialWidths = 0.35;
     // The largest fall of a map's measured error per doubling of its face (plan_marches), the
-    // first face at 1 % (scaled to the target), the least, and the margin on a predicted one.
+    // first face at 1 % (scaled to the target; a sun's, whose reads are bilinear, larger), the
+    // least, and the margin on a predicted one.
     static constexpr double kMapFallBound = 10.0;
-    static constexpr int kMapFace1 = 64, kMapMinFace = 32;
+    static constexpr int kMapFace1 = 48, kSunMapFace1 = 64, kMapMinFace = 32;
     static constexpr double kMapFaceMargin = 1.1;
     static constexpr std::size_t kMarchMapMaxBytes = std::size_t(1) << 30;
     static constexpr long kMarchWorkPerUnit = 12;

@@ -36,7 +36,7 @@ double narrow_width(const GaussianMedium& medium) {
 }
 }  // namespace
 
-int FogEvaluator::map_radial(double extent, double width) const {
+int FogEvaluator::map_radial(double extent, double width, int most) const {
     // A read interpolates linearly between distances, whose error in an erf step of width w
     // falls as (spacing / w)^2, and near the light from its own 0. Measured by the map's check
     // at 1 %, 64 a face (need 0.0025): 3000 Gaussians 1-3 m wide, 0.00127 at 256 distances,
@@ -46,12 +46,12 @@ int FogEvaluator::map_radial(double extent, double width) const {
     // kMapRadialWidths w apart at 1 %, scaled as the face's spacing is with the accuracy (its
     // square root, plan_marches) above. Below 1 % every map takes the most (at 0.1 %, 0.16 w
     // apart erred 0.00068 against the 0.00025 asked on the ground scene: the error near the
-    // light falls slower). Rounded up to 32, within [kMarchMapMinRadial, kMarchMapMaxRadial].
-    if (refine_target_ < 0.01) return kMarchMapMaxRadial;
+    // light falls slower). Rounded up to 32, within [kMarchMapMinRadial, _most_].
+    if (refine_target_ < 0.01) return most;
     const double spacing = kMapRadialWidths * width * std::sqrt(refine_target_ / 0.01);
-    if (!(spacing > 0.0) || !(extent > 0.0) || !std::isfinite(extent)) return kMarchMapMaxRadial;
+    if (!(spacing > 0.0) || !(extent > 0.0) || !std::isfinite(extent)) return most;
     const double need = std::ceil((extent / spacing + 1.0) / 32.0) * 32.0;
-    return int(std::clamp(need, double(kMarchMapMinRadial), double(kMarchMapMaxRadial)));
+    return int(std::clamp(need, double(kMarchMapMinRadial), double(most)));
 }
 
 void FogEvaluator::set_up_refinement(const BakeSettings& settings, const Camera& camera) {
@@ -118,12 +118,15 @@ void FogEvaluator::plan_marches(GaussianRefinePlan& plan, int threads) {
     // The light depths from a map whose measured error fits the march's share of the accuracy
     // (kMarchedShare; the march's own error is far below it)
     // (march_map_error: the march with the map against exact light depths on rays from the eye
-    // through the Gaussians). The error falls as the square of the grid's spacing or faster:
-    // 4x a doubling on the thick benchmark cloud, 9.5x on the 1e5 one (64 errs 0.014, 128
-    // 0.0015). The first size is 64 a side at 1 %, scaled to the target by the square law (32
-    // at 5 %, 203 at 0.1 %: the 3000-Gaussian cloud's 64 errs 0.0014 against the need of
-    // 0.0025 at 1 %; at 0.1 % it took 64, 128 and 256, 21x the cost of 64, where one map of
-    // 203 fits at 10x). A size that errs more is followed by the one its fall predicts, with a
+    // through the Gaussians, and on a spread of the frame's rays to their surfaces). The error
+    // falls as the square of the grid's spacing or faster: with bilinear reads 4x a doubling on
+    // the thick benchmark cloud, 9.5x on the 1e5 one (64 errs 0.014, 128 0.0015). The first
+    // size is kMapFace1 a side at 1 % for a point or spot (bicubic reads: the 3000-Gaussian
+    // cloud's 48 errs 0.00105 on the frame's rays, 0.00027 on those through the Gaussians,
+    // against the need of 0.0025; bilinear, 64 erred 0.011 and 0.0013) and kSunMapFace1 for a
+    // sun, scaled to the target by the square law (a point's 32 at 5 %, 152 at 0.1 %; with
+    // bilinear reads at 0.1 % the cloud took 64, 128 and 256, 21x the cost of 64, where one
+    // map of 203 fitted at 10x). A size that errs more is followed by the one its fall predicts, with a
     // tenth to spare: by the fall measured between the last two sizes, or after the first by
     // the cube of the spacing (the 1e5 cloud's 128; the square law asked 168), while the
     // error could still reach the need by the largest size. Past the largest, or past
@@ -135,12 +138,14 @@ void FogEvaluator::plan_marches(GaussianRefinePlan& plan, int threads) {
     const double window = tuned.window;
     windowed_ = std::make_unique<GaussianMedium>(gaussian_->windowed(window));
     std::size_t bytes = 0;
-    const int first = int(std::ceil(kMapFace1 * std::sqrt(0.01 / std::max(refine_target_, 1e-9))));
-    // Sets _marched_'s map to the first size (build(face) makes it) that fits, if any.
-    // (_radial_: the map's distances, map_radial, the most after a map that erred too much)
-    auto search = [&](MarchedLight& marched, auto build, int& radial, std::size_t bytes_per_radial, int max_face) {
+    // Sets _marched_'s map to the first size (build(face) makes it) that fits, if any, from
+    // _face1_ at 1 % (scaled to the target). (_radial_: the map's distances, map_radial, and
+    // _most_ after a map that erred too much.)
+    auto search = [&](MarchedLight& marched, auto build, int& radial, int most, std::size_t bytes_per_radial,
+                      int face1, int max_face) {
         double last_error = 0.0, last_face = 0.0;
         std::vector<double> exact;  // the check rays' exact marches, shared by the sizes
+        const int first = int(std::ceil(face1 * std::sqrt(0.01 / std::max(refine_target_, 1e-9))));
         for (int face = std::clamp(first, kMapMinFace, max_face);;) {
             if (bytes + bytes_per_radial * radial * face * face > kMarchMapMaxBytes) return;
             build(face);
@@ -151,8 +156,8 @@ void FogEvaluator::plan_marches(GaussianRefinePlan& plan, int threads) {
             }
             marched.map = CachedMap{};
             if (!std::isfinite(error)) return;  // (no fall to predict from)
-            if (radial != kMarchMapMaxRadial) exact.clear();  // (the checks near the light move with the steps)
-            radial = kMarchMapMaxRadial;
+            if (radial != most) exact.clear();  // (the checks near the light move with the steps)
+            radial = most;
             // The error as (spacing)^order: measured, or the cube before a second size; the
             // largest size must reach the need by kMapFallBound a doubling or the measured order.
             const double order =
@@ -188,7 +193,7 @@ void FogEvaluator::plan_marches(GaussianRefinePlan& plan, int threads) {
         if (l >= P) {  // a sun: columns along it over the cloud's shade (a sixth of a point's bytes a face)
             const Vec3 u = -gaussian_suns_[l - P].w;
             const SunFootprint print(*windowed_, u);
-            int radial = map_radial(print.hi[2] - print.lo[2], width);
+            int radial = map_radial(print.hi[2] - print.lo[2], width, kSunMapMaxRadial);
             key.sun = true, key.s = key.axis = Vec3(0.0), key.u = u, key.half_angle = 0.0;
             search(marched, [&](int face) {
                        key.radial = radial;
@@ -196,13 +201,13 @@ void FogEvaluator::plan_marches(GaussianRefinePlan& plan, int threads) {
                            marched.map.sun_map =
                                std::make_shared<const SunDepthMap>(*windowed_, u, face, radial, threads, window);
                    },
-                   radial, sizeof(float), kSunMapMaxFace);
+                   radial, kSunMapMaxRadial, sizeof(float), kSunMapFace1, kSunMapMaxFace);
         } else {
             // A spot's map holds its cone alone (a sixth of the sphere for a 60 degree one).
             const SpotCone* cone = l >= n_gaussian_points_ ? &gaussian_spots_[l - n_gaussian_points_].cone : nullptr;
             const Vec3 axis = cone ? cone->axis : Vec3(0.0, 0.0, -1.0);
             const double half_angle = cone ? std::acos(std::clamp(cone->cos_half_angle, -1.0, 1.0)) : kPi;
-            int radial = map_radial(LightDepthMap::reach(*windowed_, gaussian_lights_[l]), width);
+            int radial = map_radial(LightDepthMap::reach(*windowed_, gaussian_lights_[l]), width, kMarchMapMaxRadial);
             key.sun = false, key.s = gaussian_lights_[l], key.axis = axis, key.u = Vec3(0.0), key.half_angle = half_angle;
             search(marched, [&](int face) {
                        key.radial = radial;
@@ -210,7 +215,7 @@ void FogEvaluator::plan_marches(GaussianRefinePlan& plan, int threads) {
                            marched.map.map = std::make_shared<const LightDepthMap>(
                                *windowed_, gaussian_lights_[l], axis, half_angle, face, radial, threads, window);
                    },
-                   radial, std::size_t(6) * sizeof(float), kMarchMapMaxFace);
+                   radial, kMarchMapMaxRadial, std::size_t(6) * sizeof(float), kMapFace1, kMarchMapMaxFace);
         }
         marched_.push_back(std::move(marched));
     }
@@ -292,7 +297,55 @@ double FogEvaluator::march_map_error(const MarchedLight& marched, std::vector<do
     double worst = 0.0;
     for (size_t k = 0; k < rays; ++k)
         if (exact[k] > 0.0) worst = std::max(worst, std::abs(mapped[k] - exact[k]) / exact[k]);
-    return worst;
+    return std::max(worst, view_map_error(marched, threads));
+}
+
+double FogEvaluator::view_map_error(const MarchedLight& marched, int threads) const {
+    // Each ray's airlight, per unit I0, as a sum over kNodes midpoints to its surface (or to
+    // twice the Gaussians' end): sigma e^{-T_view} profile / d^2 times e^{-T_light}, with the
+    // map's light depth and with the exact depth of the windowed Gaussians the map tabulates;
+    // the relative difference of the two sums is the map's error on that ray, the nodes' own
+    // error cancelling. The rays through the Gaussians above run to twice their distance and
+    // average the map's error over the cloud, where a short ray (the ground near the camera)
+    // sees only points whose light paths cross the cloud far from the light, where a map's
+    // cell is widest: with bilinear reads, +1.2 % at 1 % on the 3000-Gaussian benchmark's
+    // ground, which those rays measured at 0.13 % (these, 1.1 %). 84 rays of 32 nodes: ~20 ms.
+    constexpr int kNodes = 32;
+    const LightDepthMap* map = marched.map.map.get();
+    if (!map || views_.empty()) return 0.0;
+    const size_t l = marched.light;
+    const Vec3& s = gaussian_lights_[l];
+    const double beta0 = gaussian_->beta0();
+    // (the light depths of the windowed Gaussians the map holds: its interpolation's error)
+    const GaussianMedium& light = windowed_ ? *windowed_ : *gaussian_;
+    std::vector<double> error(views_.size(), 0.0);
+    parallel_chunks(views_.size(), threads, 1, [&](size_t begin, size_t end) {
+        for (size_t k = begin; k < end; ++k) {
+            const ViewRay& v = views_[k];
+            const double t1 = std::min(v.depth, 2.0 * gaussians_end_);
+            if (!(t1 > v.near)) continue;
+            build_progress_check();
+            const double dt = (t1 - v.near) / kNodes;
+            double Tv = 0.0, with_map = 0.0, exact = 0.0;
+            for (int n = 0; n < kNodes; ++n) {
+                const Vec3 x = origin_ + (v.near + (n + 0.5) * dt) * v.d;
+                const double sigma = gaussian_->density_near(x);
+                const Vec3 sx = x - s;
+                const double d = glm::length(sx);
+                if (!(d > 0.0)) continue;
+                const Vec3 u = sx / d;
+                const double w = sigma * std::exp(-(Tv + 0.5 * sigma * dt)) * gaussian_profile(l, u) / (d * d);
+                Tv += sigma * dt;
+                if (!(w > 0.0)) continue;
+                double T = beta0 * d;
+                light.for_each_near(s, u, d, [&](std::size_t g) { T += light.gaussian_optical_depth(g, s, u, 0.0, d); });
+                exact += w * std::exp(-T);
+                with_map += w * std::exp(-(beta0 * d + (*map)(x)));
+            }
+            if (exact > 0.0) error[k] = std::abs(with_map - exact) / exact;
+        }
+    });
+    return *std::max_element(error.begin(), error.end());
 }
 
 double FogEvaluator::uniform_fog_bound(const Vec3& d, double D1, double D2) const {
