@@ -392,8 +392,8 @@ class FogEvaluator {
     // (benchmarks/bench_gaussian_accuracy.py, 3000 Gaussians).
     static constexpr double kRefineSecondsPerWork = 5.5e-8;
     // The marched lights' light-depth maps (plan_marches): 32 to 256 grid points a face's
-    // side (kMarchMapMaxFace), as the measured error asks, 64 to 512 distances (map_radial; a
-    // sun's to 256), at most kMarchMapMaxBytes for all the lights together (a sun's map is a
+    // side (kMarchMapMaxFace), as the measured error asks, 64 to 256 distances (map_radial; a
+    // point's or spot's to 512 below 1 %), at most kMarchMapMaxBytes for all the lights together (a sun's map is a
     // sixth of a point's a face: its largest, 512 a side, 256 MB). Below 1 % a point's or
     // spot's map takes 512 distances: on the refine tests' ground scene at 0.1 % (need
     // 0.00025) 256 erred 0.00029-0.00030 on the frame's rays at 152 and at 184 a face (the

@@ -207,7 +207,11 @@ void FogEvaluator::plan_marches(GaussianRefinePlan& plan, int threads) {
             const SpotCone* cone = l >= n_gaussian_points_ ? &gaussian_spots_[l - n_gaussian_points_].cone : nullptr;
             const Vec3 axis = cone ? cone->axis : Vec3(0.0, 0.0, -1.0);
             const double half_angle = cone ? std::acos(std::clamp(cone->cos_half_angle, -1.0, 1.0)) : kPi;
-            int radial = map_radial(LightDepthMap::reach(*windowed_, gaussian_lights_[l]), width, kMarchMapMaxRadial);
+            // (512 distances below 1 %, where the linear reads between them were the error's
+            // floor; 256 above, where the face's is: with 512 the 1e5 cloud's set-up at 1 %
+            // took 4.9 s instead of 4.6)
+            const int most = refine_target_ < 0.01 ? kMarchMapMaxRadial : kMarchMapMaxRadial / 2;
+            int radial = map_radial(LightDepthMap::reach(*windowed_, gaussian_lights_[l]), width, most);
             key.sun = false, key.s = gaussian_lights_[l], key.axis = axis, key.u = Vec3(0.0), key.half_angle = half_angle;
             search(marched, [&](int face) {
                        key.radial = radial;
@@ -215,7 +219,7 @@ void FogEvaluator::plan_marches(GaussianRefinePlan& plan, int threads) {
                            marched.map.map = std::make_shared<const LightDepthMap>(
                                *windowed_, gaussian_lights_[l], axis, half_angle, face, radial, threads, window);
                    },
-                   radial, kMarchMapMaxRadial, std::size_t(6) * sizeof(float), kMapFace1, kMarchMapMaxFace);
+                   radial, most, std::size_t(6) * sizeof(float), kMapFace1, kMarchMapMaxFace);
         }
         marched_.push_back(std::move(marched));
     }
