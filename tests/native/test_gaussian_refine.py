@@ -223,6 +223,23 @@ def test_refined_at_1280x720_meets_the_accuracy_on_crops(accuracy):
         del SCENES["300 Gaussians at 1280 x 720"]
 
 
+def _bench_scene(n, widths, amplitudes, seed, lights):
+    """The bake's arguments but its size and projection for a cloud of benchmarks/bench_rbf.py:
+    _n_ Gaussians of _widths_ (m) and _amplitudes_ (1/m) seeded in 60 x 8 x 70 m, the ground
+    at y = -2, uniform fog 0.002 /m, 500 W lamps at _lights_, the camera at the origin looking
+    along +z."""
+    rng = np.random.default_rng(seed)
+    centres = np.column_stack([rng.uniform(-30, 30, n), rng.uniform(-2, 6, n), rng.uniform(10, 80, n)])
+    scales = 1.0 / rng.uniform(*widths, n)
+    amps = rng.uniform(*amplitudes, n)
+    v, t = plane_y(-2.0, x=(-2000.0, 2000.0), z=(-2000.0, 2000.0))
+    return dict(cam_to_world=np.diag([-1.0, 1.0, -1.0, 1.0]), clip_start=0.1, clip_end=1000.0, vertices=v,
+                triangles=t, light_positions=np.array(lights, float),
+                light_intensities=np.full((len(lights), 3), 500.0 / (4.0 * math.pi)), sigma_t=0.002,
+                albedo=(0.9, 0.9, 0.9), model="sun05", threads=2, rbf_centres=centres, rbf_scales=scales,
+                rbf_amplitudes=amps)
+
+
 def test_a_lamps_image_inside_a_cloud_meets_the_accuracy_at_p99():
     """Around a lamp's image the refined / Fogshop ratio peaks both ways within a few pixels,
     between the samples of a cell's row and column: a cell there must split in four, not in two
@@ -232,16 +249,8 @@ def test_a_lamps_image_inside_a_cloud_meets_the_accuracy_at_p99():
     64 x 36 window on the lamp's image: p99 within the accuracy (11 % when such cells split in
     two; 2.9 % in four)."""
     w, h, cw, ch, x0, y0, accuracy = 1920, 1080, 64, 36, 1368, 298, 0.05
-    rng = np.random.default_rng(2)
-    centres = np.column_stack([rng.uniform(-30, 30, 3000), rng.uniform(-2, 6, 3000), rng.uniform(10, 80, 3000)])
-    scales = 1.0 / rng.uniform(1.0, 3.0, 3000)
-    amplitudes = rng.uniform(0.01, 0.05, 3000)
-    v, t = plane_y(-2.0, x=(-2000.0, 2000.0), z=(-2000.0, 2000.0))
     proj = perspective(math.radians(60), w, h)
-    args = dict(cam_to_world=np.diag([-1.0, 1.0, -1.0, 1.0]), clip_start=0.1, clip_end=1000.0, vertices=v,
-                triangles=t, light_positions=np.array([[-8.0, 4.0, 30.0]]),
-                light_intensities=np.full((1, 3), 500.0 / (4.0 * math.pi)), sigma_t=0.002, albedo=(0.9, 0.9, 0.9),
-                model="sun05", threads=2, rbf_centres=centres, rbf_scales=scales, rbf_amplitudes=amplitudes)
+    args = _bench_scene(3000, (1.0, 3.0), (0.01, 0.05), 2, [[-8.0, 4.0, 30.0]])
     ref = _native.bake(width=cw, height=ch, projection=crop_projection(proj, w, h, x0, y0, cw, ch),
                        **dict(args, model="quadrature"))["airlight"]
     r = _native.bake(width=w, height=h, projection=proj, gaussian_accuracy=accuracy, **args)
@@ -265,16 +274,8 @@ def test_where_the_ground_cuts_a_gaussian_the_band_meets_the_accuracy():
     rows below the band, where the ratio turns within 10 pixels of a cell's edge), against 6.4 %
     without the probes. Asserted: p99 within 1.2x the accuracy, every pixel within 2x."""
     w, h, cw, ch, x0, y0, accuracy = 1920, 1080, 64, 48, 448, 600, 0.01
-    rng = np.random.default_rng(1)
-    centres = np.column_stack([rng.uniform(-30, 30, 34), rng.uniform(-2, 6, 34), rng.uniform(10, 80, 34)])
-    scales = 1.0 / rng.uniform(3.0, 10.0, 34)
-    amplitudes = rng.uniform(0.005, 0.02, 34)
-    v, t = plane_y(-2.0, x=(-2000.0, 2000.0), z=(-2000.0, 2000.0))
     proj = perspective(math.radians(60), w, h)
-    args = dict(cam_to_world=np.diag([-1.0, 1.0, -1.0, 1.0]), clip_start=0.1, clip_end=1000.0, vertices=v,
-                triangles=t, light_positions=np.array([[-8.0, 4.0, 30.0], [6.0, 3.0, 45.0], [0.0, 8.0, 60.0]]),
-                light_intensities=np.full((3, 3), 500.0 / (4.0 * math.pi)), sigma_t=0.002, albedo=(0.9, 0.9, 0.9),
-                model="sun05", threads=2, rbf_centres=centres, rbf_scales=scales, rbf_amplitudes=amplitudes)
+    args = _bench_scene(34, (3.0, 10.0), (0.005, 0.02), 1, [[-8.0, 4.0, 30.0], [6.0, 3.0, 45.0], [0.0, 8.0, 60.0]])
     ref = _native.bake(width=cw, height=ch, projection=crop_projection(proj, w, h, x0, y0, cw, ch),
                        **dict(args, model="quadrature"))["airlight"]
     r = _native.bake(width=w, height=h, projection=proj, gaussian_accuracy=accuracy, **args)
