@@ -246,7 +246,8 @@ class FogEvaluator {
     RGB march_light(const MarchedLight& marched, bool mapped, const Vec3& o, const Vec3& d, double len,
                     GaussianMarch& march) const;
     // The largest relative error of the march's airlight with _marched_'s map against exact
-    // light depths on a few rays from the eye through the Gaussians (those a spot's cone lights);
+    // light depths on a few rays from the eye through the Gaussians (those a spot's cone lights)
+    // and on the frame's rays (view_map_error);
     // _exact_: the exact marches of those rays, computed on the first call (empty) and kept. The
     // rays on _threads_ threads (0: all).
     double march_map_error(const MarchedLight& marched, std::vector<double>& exact, int threads) const;
@@ -392,13 +393,13 @@ class FogEvaluator {
     // (benchmarks/bench_gaussian_accuracy.py, 3000 Gaussians).
     static constexpr double kRefineSecondsPerWork = 5.5e-8;
     // The marched lights' light-depth maps (plan_marches): 32 to 256 grid points a face's
-    // side (kMarchMapMaxFace), as the measured error asks, 64 to 256 distances (map_radial; a
-    // point's or spot's to 512 below 1 %), at most kMarchMapMaxBytes for all the lights together (a sun's map is a
-    // sixth of a point's a face: its largest, 512 a side, 256 MB). Below 1 % a point's or
-    // spot's map takes 512 distances: on the refine tests' ground scene at 0.1 % (need
-    // 0.00025) 256 erred 0.00029-0.00030 on the frame's rays at 152 and at 184 a face (the
-    // distances' linear reads), 512 0.00006. The march's units of work (GaussianMarch::work,
-    // ~4 ns with the float kernels) per refine_work unit (5.5e-8 s).
+    // side (kMarchMapMaxFace), as the measured error asks, 64 to 256 distances (map_radial), at
+    // most kMarchMapMaxBytes for all the lights together (a sun's map is a sixth of a point's a
+    // face: its largest, 512 a side, 256 MB). Below 1 % a point's or spot's map takes 512
+    // distances: on the refine tests' ground scene at 0.1 % (need 0.00025) 256 erred
+    // 0.00029-0.00030 on the frame's rays at 152 and at 184 a face (the distances' linear
+    // reads), 512 0.00006. The march's units of work (GaussianMarch::work, ~4 ns with the float
+    // kernels) per refine_work unit (5.5e-8 s).
     static constexpr int kMarchMapMinRadial = 64, kMarchMapMaxRadial = 512, kSunMapMaxRadial = 256;
     static constexpr int kMarchMapMaxFace = 256, kSunMapMaxFace = 512;
     // A map's distances at most this many of its narrow Gaussians' widths apart at 1 %

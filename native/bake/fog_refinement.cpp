@@ -126,10 +126,10 @@ void FogEvaluator::plan_marches(GaussianRefinePlan& plan, int threads) {
     // against the need of 0.0025; bilinear, 64 erred 0.011 and 0.0013) and kSunMapFace1 for a
     // sun, scaled to the target by the square law (a point's 32 at 5 %, 152 at 0.1 %; with
     // bilinear reads at 0.1 % the cloud took 64, 128 and 256, 21x the cost of 64, where one
-    // map of 203 fitted at 10x). A size that errs more is followed by the one its fall predicts, with a
-    // tenth to spare: by the fall measured between the last two sizes, or after the first by
-    // the cube of the spacing (the 1e5 cloud's 128; the square law asked 168), while the
-    // error could still reach the need by the largest size. Past the largest, or past
+    // map of 203 fitted at 10x). A size that errs more is followed by the one its fall
+    // predicts, with a tenth to spare: by the fall measured between the last two sizes, or
+    // after the first by the cube of the spacing (the 1e5 cloud's 128; the square law asked
+    // 168), while the error could still reach the need by the largest size. Past the largest, or past
     // kMarchMapMaxBytes for all the lights, the light depths are exact (slow with many
     // Gaussians: the budget decides).
     const double need = kMarchedShare * refine_target_;
@@ -342,7 +342,8 @@ double FogEvaluator::view_map_error(const MarchedLight& marched, int threads) co
                 Tv += sigma * dt;
                 if (!(w > 0.0)) continue;
                 double T = beta0 * d;
-                light.for_each_near(s, u, d, [&](std::size_t g) { T += light.gaussian_optical_depth(g, s, u, 0.0, d); });
+                light.for_each_near(s, u, d,
+                                    [&](std::size_t g) { T += light.gaussian_optical_depth(g, s, u, 0.0, d); });
                 exact += w * std::exp(-T);
                 with_map += w * std::exp(-(beta0 * d + (*map)(x)));
             }
