@@ -341,10 +341,8 @@ double FogEvaluator::view_map_error(const MarchedLight& marched, int threads) co
                 const double w = sigma * std::exp(-(Tv + 0.5 * sigma * dt)) * gaussian_profile(l, u) / (d * d);
                 Tv += sigma * dt;
                 if (!(w > 0.0)) continue;
-                double T = beta0 * d;
-                light.for_each_near(s, u, d,
-                                    [&](std::size_t g) { T += light.gaussian_optical_depth(g, s, u, 0.0, d); });
-                exact += w * std::exp(-T);
+                const double T = light.optical_depth_ray(s, u, d, GaussianMedium::npos, false);
+                exact += w * std::exp(-(beta0 * d + T));
                 with_map += w * std::exp(-(beta0 * d + (*map)(x)));
             }
             if (exact > 0.0) error[k] = std::abs(with_map - exact) / exact;
